@@ -1,0 +1,139 @@
+"""Command line: a thin shell over the library (design section 5).
+
+``--json`` prints exactly one JSON object on stdout; errors print one line on stderr
+and exit non-zero (a traceback only with ``--debug``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Sequence
+
+from . import __version__
+from .errors import NsfemError
+
+EXIT_ERROR = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, no usage dump
+        raise NsfemError(f"{self.prog}: {message}")
+
+
+def _scene_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", nargs="?", default=None, help="scene TOML file (default: the shipped scene)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key, e.g. delamination.0.friction=0.3 (repeatable)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+
+def parser() -> argparse.ArgumentParser:
+    top = _Parser(prog="nsfem", description="Non-smooth dynamics of rotating beam stacks with frictional contacts.")
+    top.add_argument("--version", action="version", version=f"nsfem {__version__}")
+    sub = top.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("run", help="transient simulation of a scene")
+    _scene_args(p)
+    p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"))
+    p.add_argument("--out", metavar="DIR")
+
+    p = sub.add_parser("modes", help="natural frequencies of the non-rotating structure")
+    _scene_args(p)
+    p.add_argument("--contact", choices=("open", "closed"), default="open",
+                   help="contact points open (free sub-beams) or closed (gap held at zero, frictionless)")
+    p.add_argument("--count", type=int, default=10, help="number of frequencies (default 10)")
+
+    p = sub.add_parser("campbell", help="frequencies against speed, gravity resonances")
+    _scene_args(p)
+    p.add_argument("--speeds", metavar="START:STOP:N")
+
+    p = sub.add_parser("stationary", help="stationary contact state (LCP 28)")
+    _scene_args(p)
+
+    p = sub.add_parser("sweep", help="one run per parameter value")
+    _scene_args(p)
+    p.add_argument("--workers", type=int)
+    p.add_argument("--scheduler", metavar="ADDRESS")
+
+    p = sub.add_parser("export", help="re-export a saved result")
+    p.add_argument("result")
+    p.add_argument("--vtu", metavar="DIR", required=True)
+    p.add_argument("--debug", action="store_true")
+
+    p = sub.add_parser("render", help="off-screen picture of a saved result")
+    p.add_argument("result")
+    p.add_argument("--time", type=float)
+    p.add_argument("--png", metavar="FILE")
+    p.add_argument("--debug", action="store_true")
+    return top
+
+
+def _emit(args, payload: dict, text: str) -> None:
+    if args.json:
+        json.dump(payload, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print(text)
+
+
+def cmd_modes(args) -> int:
+    from .analysis.modes import natural_frequencies
+    from .fem.assemble import build_model
+    from .scene import load_scene
+
+    if args.count < 1:
+        raise NsfemError(f"--count must be a positive integer, got {args.count}")
+    scene = load_scene(args.scene, args.overrides)
+    t0 = time.perf_counter()
+    model = build_model(scene)
+    modes = natural_frequencies(model, args.contact, args.count)
+    wall = time.perf_counter() - t0
+    method = scene["reduction"]["method"]
+    if method != "none":
+        # model reduction is not part of this version: say so instead of hiding it
+        print(f"nsfem modes: note: reduction.method = {method!r} is not implemented yet; "
+              "frequencies are those of the full finite-element model", file=sys.stderr)
+    payload = {"title": scene["title"], **modes.to_json(), "reduction": "none",
+               "elements": model.mesh.elements, "wall_s": wall}
+    lines = [scene["title"], f"contact {modes.contact}: {modes.ndof} dofs, {model.mesh.elements} elements",
+             "  mode  frequency [Hz]"]
+    lines += [f"  {k + 1:4d}  {f:14.4f}" for k, f in enumerate(modes.frequencies_hz)]
+    _emit(args, payload, "\n".join(lines))
+    return 0
+
+
+def cmd_pending(args) -> int:
+    """Commands of the contract whose analyses this version does not have yet."""
+    if getattr(args, "scene", None) is not None or getattr(args, "overrides", None):
+        from .scene import load_scene
+
+        load_scene(args.scene, args.overrides)  # still validate what the user wrote
+    raise NsfemError(f"nsfem {args.command}: not implemented in nsfem {__version__} "
+                     "(available now: nsfem modes)")
+
+
+COMMANDS = {"modes": cmd_modes}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    try:
+        args = parser().parse_args(argv)
+        return COMMANDS.get(args.command, cmd_pending)(args)
+    except NsfemError as exc:
+        if debug:
+            raise
+        print(f"nsfem: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print("nsfem: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

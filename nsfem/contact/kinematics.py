@@ -1,0 +1,72 @@
+"""Normal contact kinematics: gaps g = J_N^T q_full + j_N (paper eq. 17, 19, 23).
+
+Interface contacts (delaminations): g = W_upper - W_lower at the point (Dirac ansatz,
+paper section 2.2) or averaged with a hat weight Lambda_k of unit integral whose support
+reaches the neighbouring contact points (eq. 19). Obstacles: g = clearance - n.u at the
+centroid of the carrying segment (n one of +-x, +-y, +-z in the rotating frame).
+
+Tangential rows and friction cones are built on the same helpers (later issue).
+
+>>> from nsfem.scene import load_scene
+>>> from nsfem.fem import build_model
+>>> model = build_model(load_scene(None, ["mesh.elements=20"]))
+>>> J, j = normal_jacobian(model)
+>>> J.shape, float(abs(J).sum()), j.tolist()[:2]
+((200, 9), 18.0, [0.0, 0.0])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import LinearForm, asm
+
+from ..fem.assemble import FEModel
+from ..stack import Contact
+
+_AXIS = {"x": "U", "y": "V", "z": "W"}
+
+
+def point_row(model: FEModel, segment: str, fld: str, c: Contact) -> dict[int, float]:
+    """Weights w with sum_i w_i q_i = field value at the contact (Dirac) or its hat average."""
+    space = model.spaces[segment]
+    if c.weighting == "dirac":
+        return {model.dof(segment, fld, c.x): 1.0}
+    a, b = c.extent
+    peak = 2.0 / (b - a)  # unit integral
+
+    @LinearForm
+    def hat(v, w):
+        x = w.x[0]
+        up = peak * (x - a) / (c.x - a)
+        down = peak * (b - x) / (b - c.x)
+        return np.where((x >= a) & (x <= b), np.minimum(up, down), 0.0) * v
+
+    basis = space.axial if fld == "U" else space.bending
+    vec = asm(hat, basis)
+    nz = np.flatnonzero(vec)
+    return {int(space.dofs[fld][i]): float(vec[i]) for i in nz}
+
+
+def contact_row(model: FEModel, c: Contact) -> tuple[dict[int, float], float]:
+    """One column of J_N (as a dict) and the constant j_N of a contact."""
+    if c.kind == "interface":
+        row = point_row(model, c.segments[0], "W", c)
+        for i, v in point_row(model, c.segments[1], "W", c).items():
+            row[i] = row.get(i, 0.0) - v
+        return row, 0.0
+    sign = 1.0 if c.normal[0] == "+" else -1.0
+    row = {i: -sign * v for i, v in point_row(model, c.segments[0], _AXIS[c.normal[1]], c).items()}
+    return row, c.clearance
+
+
+def normal_jacobian(model: FEModel, contacts=None) -> tuple[sp.csr_matrix, np.ndarray]:
+    """J_N (n_full x m) and j_N (m,) of the stack's contacts (or of ``contacts``)."""
+    contacts = model.stack.contacts if contacts is None else contacts
+    J = sp.lil_matrix((model.n_full, len(contacts)))
+    j = np.zeros(len(contacts))
+    for k, c in enumerate(contacts):
+        row, j[k] = contact_row(model, c)
+        for i, v in row.items():
+            J[i, k] = v
+    return J.tocsr(), j

@@ -1,0 +1,190 @@
+"""Finite-element model of a beam stack: dof numbering, mass and stiffness, constraints T.
+
+Each segment carries three fields in its own scikit-fem bases: U (ElementLineP1/P2) and
+V, W (ElementLineHermite: value and slope at every node). The full dof vector stacks,
+segment by segment, [U, V, W]. Supports and junctions are eliminated exactly by the
+sparse transformation q_full = T q (:mod:`nsfem.fem.constraints`).
+
+>>> from nsfem.scene import load_scene
+>>> model = build_model(load_scene(None, ["mesh.elements=20"]))
+>>> model.n_full, model.n                     # 4 segments; 2 junctions and the supports removed
+(306, 281)
+>>> bool(abs(model.K - model.K.T).max() == 0.0)
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import Basis, ElementLineHermite, ElementLineP1, ElementLineP2, MeshLine, asm
+
+from ..errors import SceneError
+from ..mesh import StackMesh, generate, read
+from ..stack import BeamStack
+from . import forms
+from .constraints import constraint_basis, project
+
+AXIAL_ELEMENTS = {"P1": ElementLineP1, "P2": ElementLineP2}
+
+
+@dataclass
+class SegmentSpace:
+    """Bases and global dof indices of one segment's fields."""
+
+    x: np.ndarray
+    axial: Basis
+    bending: Basis
+    dofs: dict[str, np.ndarray]  # "U", "V", "W" -> global indices in basis order
+    unit: dict[str, sp.csr_matrix] = field(default_factory=dict)  # unit-coefficient matrices
+
+    def node(self, x: float) -> int:
+        i = int(np.argmin(np.abs(self.x - x)))
+        if abs(self.x[i] - x) > 1e-9 * max(1.0, abs(x)):
+            raise SceneError("mesh", f"no node at x={x} in a segment spanning [{self.x[0]}, {self.x[-1]}]")
+        return i
+
+
+@dataclass
+class FEModel:
+    """Assembled beam-stack model: full operators, constraint basis T, constrained M and K."""
+
+    stack: BeamStack
+    mesh: StackMesh
+    axial: str
+    spaces: dict[str, SegmentSpace]
+    M_full: sp.csr_matrix
+    K_full: sp.csr_matrix
+    T: sp.csr_matrix
+    M: sp.csr_matrix
+    K: sp.csr_matrix
+
+    @property
+    def n_full(self) -> int:
+        return self.M_full.shape[0]
+
+    @property
+    def n(self) -> int:
+        """Independent dofs after supports and junctions (the model's ``ndof_full``)."""
+        return self.T.shape[1]
+
+    def dof(self, segment: str, name: str, x: float) -> int:
+        """Global index of dof ``name`` (U, V, W, V' or W') at node ``x`` of ``segment``."""
+        sp_ = self.spaces[segment]
+        i = sp_.node(x)
+        fld = name.rstrip("'")
+        if fld == "U":
+            if name != "U":
+                raise SceneError("support.fix", "the axial field U has no slope dof")
+            return int(sp_.dofs["U"][sp_.axial.nodal_dofs[0, i]])
+        slope = 1 if name.endswith("'") else 0
+        return int(sp_.dofs[fld][sp_.bending.nodal_dofs[slope, i]])
+
+    def field_dofs(self, fld: str) -> np.ndarray:
+        """All global dofs of field U, V or W over every segment."""
+        return np.concatenate([s.dofs[fld] for s in self.spaces.values()])
+
+    def constrain(self, C: sp.spmatrix, prefer=None) -> sp.csr_matrix:
+        """T' = T T2 with extra constraint rows C on the full dofs (e.g. closed contacts)."""
+        T2, _ = constraint_basis(sp.csr_matrix(C) @ self.T, self.n, prefer)
+        return (self.T @ T2).tocsr()
+
+
+def segment_spaces(stack: BeamStack, mesh: StackMesh, axial: str) -> dict[str, SegmentSpace]:
+    """Bases, dof numbering and unit matrices for every segment."""
+    spaces, offset = {}, 0
+    for s in stack.segments:
+        x = np.asarray(mesh.nodes[s.name], dtype=float)
+        m = MeshLine(x)
+        ba = Basis(m, AXIAL_ELEMENTS[axial]())
+        bb = Basis(m, ElementLineHermite())
+        dofs = {}
+        for fld, basis in (("U", ba), ("V", bb), ("W", bb)):
+            dofs[fld] = offset + np.arange(basis.N)
+            offset += basis.N
+        unit = {
+            "axial_mass": asm(forms.mass, ba).tocsr(),
+            "axial_stretch": asm(forms.stretch, ba).tocsr(),
+            "bending_mass": asm(forms.mass, bb).tocsr(),
+            "bending_stretch": asm(forms.stretch, bb).tocsr(),
+            "bending_bend": asm(forms.bend, bb).tocsr(),
+        }
+        spaces[s.name] = SegmentSpace(x, ba, bb, dofs, unit)
+    return spaces
+
+
+def mass_stiffness(stack: BeamStack, spaces: dict[str, SegmentSpace]) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """Block-diagonal full mass and stiffness: rhoA, EA, E I_z (V), E I_y (W) per segment."""
+    Ms, Ks = [], []
+    rotary = stack.theory == "rayleigh"
+    for s in stack.segments:
+        u = spaces[s.name].unit
+        rA = s.rho * s.area
+        mV = rA * u["bending_mass"] + (s.rho * s.I_z * u["bending_stretch"] if rotary else 0)
+        mW = rA * u["bending_mass"] + (s.rho * s.I_y * u["bending_stretch"] if rotary else 0)
+        Ms += [rA * u["axial_mass"], mV, mW]
+        Ks += [s.E * s.area * u["axial_stretch"], s.E * s.I_z * u["bending_bend"], s.E * s.I_y * u["bending_bend"]]
+    return sp.block_diag(Ms, format="csr"), sp.block_diag(Ks, format="csr")
+
+
+def support_and_junction_rows(model_like, stack: BeamStack) -> tuple[sp.csr_matrix, list[int]]:
+    """Constraint rows (C q_full = 0) of supports and junctions, with preferred slave dofs."""
+    rows, prefer = [], []
+    dof = model_like.dof
+
+    def add(entries: dict[int, float], slave: int) -> None:
+        rows.append(entries)
+        prefer.append(slave)
+
+    for sup in stack.supports:
+        for name in sup.fix:
+            i = dof(sup.segment, name, sup.x)
+            add({i: 1.0}, i)
+    for j in stack.junctions:
+        m = stack.segment(j.master)
+        for sname in j.slaves:
+            s = stack.segment(sname)
+            for name in ("V", "V'", "W", "W'"):
+                a, b = dof(sname, name, j.x), dof(j.master, name, j.x)
+                add({a: 1.0, b: -1.0}, a)
+            dy, dz = s.offset[0] - m.offset[0], s.offset[1] - m.offset[1]
+            us = dof(sname, "U", j.x)
+            e = {us: 1.0, dof(j.master, "U", j.x): -1.0}
+            for name, c in (("W'", dz), ("V'", dy)):
+                if c != 0.0:
+                    k = dof(j.master, name, j.x)
+                    e[k] = e.get(k, 0.0) + c
+            add(e, us)
+    n = model_like.n_full
+    C = sp.lil_matrix((len(rows), n))
+    for r, entries in enumerate(rows):
+        for c, v in entries.items():
+            C[r, c] += v
+    return C.tocsr(), prefer
+
+
+class _Numbering:
+    """Just enough of FEModel to number dofs before the matrices exist."""
+
+    def __init__(self, spaces, n_full):
+        self.spaces, self.n_full = spaces, n_full
+
+    dof = FEModel.dof
+
+
+def assemble(stack: BeamStack, mesh: StackMesh, axial: str = "P1") -> FEModel:
+    """Assemble M, K of a validated stack on a mesh and eliminate supports and junctions."""
+    spaces = segment_spaces(stack, mesh, axial)
+    M_full, K_full = mass_stiffness(stack, spaces)
+    C, prefer = support_and_junction_rows(_Numbering(spaces, M_full.shape[0]), stack)
+    T, _ = constraint_basis(C, M_full.shape[0], prefer)
+    return FEModel(stack, mesh, axial, spaces, M_full, K_full, T, project(T, M_full), project(T, K_full))
+
+
+def build_model(scene) -> FEModel:
+    """Mesh (generated from ``[mesh] elements`` or read from ``[mesh] file``) and assemble a scene."""
+    stack = scene.stack
+    mesh = read(scene.mesh_file, stack) if scene.mesh_file else generate(stack, scene["mesh"]["elements"])
+    return assemble(stack, mesh, scene["mesh"]["axial"])

@@ -1,0 +1,549 @@
+"""Scene files (TOML): defaults, ``--set`` overrides, validation, translation to a BeamStack.
+
+A scene is read, overridden, checked against :data:`SCHEMA` (unknown keys, types,
+ranges, NaN/inf) and cross-checked (delaminations inside the shaft, contact points
+inside their delamination, ...) before anything is computed. The high-level tables
+(``[shaft]``, ``[[delamination]]``, ``[[obstacle]]``) are translated into the
+low-level :class:`~nsfem.stack.BeamStack`; a scene may also give the low-level
+``[[segment]]``, ``[[junction]]``, ``[[support]]`` and ``[[contact]]`` tables directly.
+
+>>> scene = load_scene(None, ["delamination.0.friction=0.3", "mesh.elements=20"])
+>>> scene["delamination"][0]["friction"], scene["mesh"]["elements"]
+(0.3, 20)
+>>> [s.name for s in scene.stack.segments]
+['intact_0', 'delamination_0_upper', 'delamination_0_lower', 'intact_1']
+>>> len(scene.stack.contacts)
+9
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from .errors import SceneError
+from .stack import NORMALS, SUPPORT_DOFS, THEORIES, WEIGHTINGS, BeamStack, Contact, Junction, Segment, Support
+
+SUPPORTS = ("pinned-pinned", "clamped-free", "clamped-clamped", "clamped-pinned", "free-free")
+#: Dofs fixed at (x = 0, x = L) for each support name. Pinned-pinned fixes U at x = 0 only.
+SUPPORT_DOFS_BY_NAME = {
+    "pinned-pinned": (("U", "V", "W"), ("V", "W")),
+    "clamped-free": (SUPPORT_DOFS, ()),
+    "clamped-clamped": (SUPPORT_DOFS, SUPPORT_DOFS),
+    "clamped-pinned": (SUPPORT_DOFS, ("V", "W")),
+    "free-free": ((), ()),
+}
+REDUCTIONS = ("none", "modal", "craig-bampton")
+METHODS = ("exact", "rk", "penalty", "moreau")
+PLOTS = ("phase", "gap", "psd", "forces", "campbell")
+INITIAL_STATES = ("rest", "stationary")
+AXIAL = ("P1", "P2")
+#: Scene keys that hold file paths (relative to the scene file; ``--set`` ones to the cwd).
+PATH_KEYS = ("mesh.file",)
+
+
+# --------------------------------------------------------------------------- schema
+@dataclass(frozen=True)
+class Key:
+    """One scene key: its kind, default, documentation and an optional value check."""
+
+    kind: str  # float | int | str | bool | floats | strs | points | float?
+    default: Any
+    doc: str
+    choices: tuple = ()
+    check: Callable[[Any], str | None] | None = None
+    length: int | None = None  # for lists of fixed length
+
+
+def _positive(v):
+    return None if v > 0 else f"must be positive, got {v}"
+
+
+def _nonneg(v):
+    return None if v >= 0 else f"must be >= 0, got {v}"
+
+
+def _unit(v):
+    return None if 0.0 <= v <= 1.0 else f"must lie in [0, 1], got {v}"
+
+
+def _even(v):
+    return None if v >= 2 and v % 2 == 0 else f"must be an even integer >= 2, got {v}"
+
+
+def _at_least(n):
+    return lambda v: None if v >= n else f"must be >= {n}, got {v}"
+
+
+def _all_nonneg(v):
+    return None if all(x >= 0 for x in v) else f"entries must be >= 0, got {v}"
+
+
+_SHAFT = {
+    "length": Key("float", 1.0, "shaft length [m]", check=_positive),
+    "width": Key("float", 0.02, "section width b along y [m]", check=_positive),
+    "height": Key("float", 0.02, "section height h along z [m]", check=_positive),
+    "E": Key("float", 2.1e11, "Young's modulus [Pa] (the paper gives none; steel assumed)", check=_positive),
+    "rho": Key("float", 7500.0, "density [kg/m^3]", check=_positive),
+    "supports": Key("str", "pinned-pinned", "end conditions; pinned-pinned fixes U at x = 0 only", SUPPORTS),
+}
+_DELAMINATION = {
+    "start": Key("float", 0.1, "x where the delamination starts [m]"),
+    "end": Key("float", 0.9, "x where it ends [m]"),
+    "upper_height": Key("float", 0.011, "thickness of the sub-beam above the interface [m]"),
+    "contact_points": Key("points", 9, "count evenly spaced strictly inside (start, end), or a list of x [m]"),
+    "weighting": Key("str", "dirac", "contact force ansatz: Dirac points or hat-weighted gaps (eq. 19)", WEIGHTINGS),
+    "friction": Key("float", 0.0, "Coulomb coefficient mu (0 leaves friction out)", check=_nonneg),
+    "friction_directions": Key("int", 4, "generators r of the polygonal friction cone (even, >= 2)", check=_even),
+    "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
+}
+_OBSTACLE = {
+    "x": Key("float?", None, "position of the stop along the shaft [m] (default: the shaft's end)"),
+    "normal": Key("str", "+z", "direction n in the rotating frame; the stop is hit when n.u reaches the clearance",
+                  NORMALS),
+    "clearance": Key("float", 0.0, "initial gap [m]", check=_nonneg),
+    "friction": Key("float", 0.0, "Coulomb coefficient mu", check=_nonneg),
+    "friction_directions": Key("int", 4, "generators of the friction cone (even, >= 2)", check=_even),
+    "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
+}
+_SEGMENT = {
+    "name": Key("str", "", "unique name (default segment_<index>); mesh files name cell sets by it"),
+    "start": Key("float", 0.0, "x of the left end [m]"),
+    "end": Key("float", 1.0, "x of the right end [m]"),
+    "width": Key("float", 0.02, "section width b [m]", check=_positive),
+    "height": Key("float", 0.02, "section height h [m]", check=_positive),
+    "offset": Key("floats", [0.0, 0.0], "centroid offset (y_c, z_c) from the rotation axis [m]", length=2),
+    "E": Key("float", 2.1e11, "Young's modulus [Pa]", check=_positive),
+    "rho": Key("float", 7500.0, "density [kg/m^3]", check=_positive),
+}
+_JUNCTION = {
+    "x": Key("float", 0.0, "position [m]; an end of the master and of every slave"),
+    "master": Key("str", "", "name of the carrying segment"),
+    "slaves": Key("strs", [], "names of the segments whose ends it carries"),
+}
+_SUPPORT = {
+    "segment": Key("str", "", "segment name"),
+    "x": Key("float", 0.0, "an end of that segment [m]"),
+    "fix": Key("strs", ["V", "W"], "dofs held at zero", SUPPORT_DOFS),
+}
+_CONTACT = {
+    "kind": Key("str", "interface", "interface (two faces) or obstacle (rigid stop)", ("interface", "obstacle")),
+    "x": Key("float", 0.0, "position [m]"),
+    "segments": Key("strs", [], "interface: [upper, lower]; obstacle: [segment]"),
+    "weighting": Key("str", "dirac", "dirac | hat", WEIGHTINGS),
+    "extent": Key("floats", [], "hat support [a, b] (only for weighting = hat)"),
+    "normal": Key("str", "+z", "obstacle normal", NORMALS),
+    "clearance": Key("float", 0.0, "obstacle initial gap [m]", check=_nonneg),
+    "friction": Key("float", 0.0, "Coulomb mu", check=_nonneg),
+    "friction_directions": Key("int", 4, "friction cone generators", check=_even),
+    "restitution": Key("float", 0.0, "Newton eps", check=_unit),
+}
+
+#: The scene schema: tables of keys; a one-element list marks an array of tables.
+SCHEMA: dict[str, Any] = {
+    "title": Key("str", "nsfem scene", "free text shown in outputs"),
+    "shaft": _SHAFT,
+    "delamination": [_DELAMINATION],
+    "obstacle": [_OBSTACLE],
+    "beam": {
+        "theory": Key("str", "euler-bernoulli", "euler-bernoulli, or rayleigh (adds rotary inertia)", THEORIES),
+    },
+    "rotation": {
+        "speed_hz": Key("float", 0.0, "rotation speed [Hz] (0 = not rotating)", check=_nonneg),
+        "gravity": Key("float", 9.81, "gravitational acceleration along inertial -Z [m/s^2] (0 = none)",
+                       check=_nonneg),
+        "phase_deg": Key("float", 0.0, "angle of the rotating frame at t = 0 [deg]"),
+    },
+    "damping": {
+        "rayleigh": Key("floats", [0.0, 0.0], "internal Rayleigh damping [alpha 1/s, beta s]", length=2,
+                        check=_all_nonneg),
+        "external": Key("float", 0.0, "external viscous damping per unit length [N s/m^2]", check=_nonneg),
+    },
+    "mesh": {
+        "elements": Key("int", 40, "number of elements over the length (nodes also at segment ends and contacts)",
+                        check=_positive),
+        "file": Key("str", "", "meshio line mesh with one named cell set per segment (relative to the scene)"),
+        "axial": Key("str", "P1", "Lagrange element of the axial field U", AXIAL),
+    },
+    "reduction": {
+        "method": Key("str", "craig-bampton", "none | modal | craig-bampton", REDUCTIONS),
+        "modes": Key("int", 16, "number of (fixed-interface) normal modes kept", check=_positive),
+    },
+    "initial": {
+        "state": Key("str", "rest", "rest | stationary", INITIAL_STATES),
+        "velocity": Key("floats", [0.0, 0.0, 0.0], "uniform initial velocity (u1, u2, u3) [m/s]", length=3),
+    },
+    "simulation": {
+        "method": Key("str", "exact", "exact | rk | penalty | moreau", METHODS),
+        "t_end": Key("float", 1.0, "simulated time [s]", check=_positive),
+        "output_dt": Key("float", 1e-3, "output sampling step [s]", check=_positive),
+    },
+    "output": {
+        "dir": Key("str", "out", "output directory (relative to the working directory)"),
+        "vtu_every": Key("int", 10, "write a VTU every N output steps (0 = none)", check=_nonneg),
+        "plots": Key("strs", ["phase", "gap", "psd", "forces"], "PNG plots to write", PLOTS),
+    },
+    "segment": [_SEGMENT],
+    "junction": [_JUNCTION],
+    "support": [_SUPPORT],
+    "contact": [_CONTACT],
+}
+HIGH_LEVEL = ("shaft", "delamination", "obstacle")
+LOW_LEVEL = ("segment", "junction", "support", "contact")
+
+
+def defaults() -> dict:
+    """The scene with every key at its default (high-level form, no delamination, no obstacle)."""
+    out: dict = {}
+    for name, spec in SCHEMA.items():
+        if isinstance(spec, Key):
+            out[name] = copy.deepcopy(spec.default)
+        elif isinstance(spec, dict):
+            out[name] = {k: copy.deepcopy(v.default) for k, v in spec.items()}
+    return out
+
+
+def _check_value(key: str, spec: Key, value: Any) -> Any:
+    """Type-check one value (with conversion int -> float) and run its range check."""
+
+    def number(v, k):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise SceneError(k, f"must be a number, got {v!r}")
+        if not math.isfinite(v):
+            raise SceneError(k, f"must be finite, got {v}")
+        return float(v)
+
+    kind = spec.kind
+    if kind == "float?" and value is None:
+        return None
+    if kind in ("float", "float?"):
+        value = number(value, key)
+    elif kind == "int":
+        if isinstance(value, float) and not math.isfinite(value):
+            raise SceneError(key, f"must be finite, got {value}")
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise SceneError(key, f"must be an integer, got {value!r}")
+    elif kind == "str":
+        if not isinstance(value, str):
+            raise SceneError(key, f"must be a string, got {value!r}")
+        if spec.choices and value not in spec.choices:
+            raise SceneError(key, f"unknown value {value!r} (use {' | '.join(spec.choices)})")
+    elif kind == "bool":
+        if not isinstance(value, bool):
+            raise SceneError(key, f"must be true or false, got {value!r}")
+    elif kind == "floats":
+        if not isinstance(value, list):
+            raise SceneError(key, f"must be a list of numbers, got {value!r}")
+        value = [number(v, f"{key}.{i}") for i, v in enumerate(value)]
+        if spec.length is not None and len(value) != spec.length:
+            raise SceneError(key, f"must have {spec.length} entries, got {len(value)}")
+    elif kind == "strs":
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise SceneError(key, f"must be a list of strings, got {value!r}")
+        for v in value:
+            if spec.choices and v not in spec.choices:
+                raise SceneError(key, f"unknown entry {v!r} (use {', '.join(spec.choices)})")
+    elif kind == "points":
+        if isinstance(value, int) and not isinstance(value, bool):
+            if value < 1:
+                raise SceneError(key, f"must be >= 1, got {value}")
+        elif isinstance(value, list):
+            value = [number(v, f"{key}.{i}") for i, v in enumerate(value)]
+            if not value:
+                raise SceneError(key, "the list of contact points is empty")
+        else:
+            raise SceneError(key, f"must be a count or a list of x positions, got {value!r}")
+    if spec.check is not None and value is not None:
+        msg = spec.check(value)
+        if msg:
+            raise SceneError(key, msg)
+    return value
+
+
+def _check_table(prefix: str, spec: dict, raw: Any) -> dict:
+    if not isinstance(raw, dict):
+        raise SceneError(prefix, f"must be a table, got {raw!r}")
+    for k in raw:
+        if k not in spec:
+            raise SceneError(f"{prefix}.{k}", f"unknown key (known: {', '.join(spec)})")
+    return {k: _check_value(f"{prefix}.{k}", s, raw[k]) if k in raw else copy.deepcopy(s.default)
+            for k, s in spec.items()}
+
+
+def validate_tree(raw: dict) -> dict:
+    """Check a raw scene tree against :data:`SCHEMA` and fill in defaults (no cross checks)."""
+    if not isinstance(raw, dict):
+        raise SceneError("", "a scene must be a TOML table")
+    for k in raw:
+        if k not in SCHEMA:
+            raise SceneError(k, f"unknown key (known tables: {', '.join(SCHEMA)})")
+    out: dict = {}
+    for name, spec in SCHEMA.items():
+        if isinstance(spec, Key):
+            out[name] = _check_value(name, spec, raw[name]) if name in raw else copy.deepcopy(spec.default)
+        elif isinstance(spec, dict):
+            out[name] = _check_table(name, spec, raw.get(name, {}))
+        else:
+            items = raw.get(name, [])
+            if isinstance(items, dict):
+                items = [items]
+            if not isinstance(items, list):
+                raise SceneError(name, f"must be an array of tables ([[{name}]]), got {items!r}")
+            out[name] = [_check_table(f"{name}.{i}", spec[0], item) for i, item in enumerate(items)]
+    return out
+
+
+# --------------------------------------------------------------------------- overrides
+def parse_value(text: str) -> Any:
+    """A ``--set`` value: a TOML value (number, "string", [list], true), else the bare string.
+
+    >>> parse_value("[0.0, 1e-5]"), parse_value('"stationary"'), parse_value("stationary"), parse_value("18")
+    ([0.0, 1e-05], 'stationary', 'stationary', 18)
+    """
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def apply_override(tree: dict, assignment: str, cwd: Path | None = None) -> None:
+    """Apply one ``KEY=VALUE`` to a raw scene tree in place (dotted keys, list items by index)."""
+    if "=" not in assignment:
+        raise SceneError(assignment, "an override must look like KEY=VALUE")
+    key, text = assignment.split("=", 1)
+    key = key.strip()
+    parts = key.split(".")
+    if not key or any(p == "" for p in parts):
+        raise SceneError(key or assignment, "empty key in override")
+    value = parse_value(text.strip())
+    if key in PATH_KEYS and isinstance(value, str) and value:
+        value = str((cwd or Path.cwd()) / value)
+    node: Any = tree
+    for i, part in enumerate(parts[:-1]):
+        nxt_is_index = parts[i + 1].isdigit()
+        node = _step(node, part, key, create=[] if nxt_is_index else {})
+    last = parts[-1]
+    if isinstance(node, list):
+        idx = _index(node, last, key)
+        if idx == len(node):
+            node.append(value)
+        else:
+            node[idx] = value
+    elif isinstance(node, dict):
+        node[last] = value
+    else:
+        raise SceneError(key, f"{'.'.join(parts[:-1])} is not a table")
+
+
+def _index(node: list, part: str, key: str) -> int:
+    if not part.isdigit():
+        raise SceneError(key, f"{part!r} must be a list index")
+    idx = int(part)
+    if idx > len(node):
+        raise SceneError(key, f"index {idx} is past the end of a list of {len(node)}")
+    return idx
+
+
+def _step(node: Any, part: str, key: str, create: Any) -> Any:
+    if isinstance(node, list):
+        idx = _index(node, part, key)
+        if idx == len(node):
+            node.append({})
+        return node[idx]
+    if isinstance(node, dict):
+        if part.isdigit():
+            raise SceneError(key, f"{part} indexes a table, not a list")
+        if part not in node:
+            # a known array of tables ([[delamination]]) is created as a list
+            node[part] = [] if isinstance(SCHEMA.get(part), list) and node is not None else create
+        return node[part]
+    raise SceneError(key, f"cannot descend into {part!r}")
+
+
+# --------------------------------------------------------------------------- scene
+class Scene(dict):
+    """A validated scene: the full key tree (with defaults) plus its low-level BeamStack.
+
+    ``scene.path`` is the file it came from (None for the shipped default), ``scene.base``
+    the directory relative paths in it refer to.
+    """
+
+    def __init__(self, tree: dict, stack: BeamStack, path: Path | None, base: Path):
+        super().__init__(tree)
+        self.stack = stack
+        self.path = path
+        self.base = base
+
+    @property
+    def mesh_file(self) -> Path | None:
+        f = self["mesh"]["file"]
+        return (self.base / f) if f else None
+
+
+def default_scene_path() -> Path:
+    """Path of the scene shipped with the package (the paper's delaminated shaft)."""
+    return Path(str(resources.files("nsfem.scenes").joinpath("default.toml")))
+
+
+def load_scene(path: str | Path | None = None, overrides: Iterable[str] = (),
+               cwd: Path | None = None) -> Scene:
+    """Read, override and validate a scene; ``path=None`` is the shipped default scene."""
+    p = Path(path) if path is not None else default_scene_path()
+    if not p.is_file():
+        raise SceneError("scene", f"file not found: {p}")
+    try:
+        raw = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError("scene", f"{p.name} is not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise SceneError("scene", f"{p.name} is not a UTF-8 text file") from None
+    return scene_from_tree(raw, overrides, path=p if path is not None else None, base=p.parent, cwd=cwd)
+
+
+def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None = None,
+                    base: Path | None = None, cwd: Path | None = None) -> Scene:
+    """Validate a raw scene tree (e.g. from ``tomllib``) after applying ``overrides``."""
+    raw = copy.deepcopy(raw)
+    for o in overrides:
+        apply_override(raw, o, cwd)
+    tree = validate_tree(raw)
+    if any(t in raw for t in LOW_LEVEL):
+        mixed = [t for t in HIGH_LEVEL if t in raw]
+        if mixed:
+            raise SceneError(mixed[0], "the low-level form ([[segment]] ...) cannot be mixed with "
+                             "[shaft], [[delamination]] or [[obstacle]]")
+        stack = low_level_stack(tree)
+    else:
+        stack = high_level_stack(tree)
+    base = base or Path.cwd()
+    if tree["mesh"]["file"]:
+        f = base / tree["mesh"]["file"]
+        if not f.is_file():
+            raise SceneError("mesh.file", f"file not found: {f}")
+    return Scene(tree, stack.validate(), path, base)
+
+
+# --------------------------------------------------------------------------- translation
+def contact_positions(d: dict) -> list[float]:
+    """x positions of one delamination's contact points."""
+    cp = d["contact_points"]
+    if isinstance(cp, int):
+        a, b = d["start"], d["end"]
+        return [float(f"{a + (b - a) * (k + 1) / (cp + 1):.12g}") for k in range(cp)]
+    return sorted(cp)
+
+
+def high_level_stack(tree: dict) -> BeamStack:
+    """Translate ``[shaft]``, ``[[delamination]]``, ``[[obstacle]]`` into a BeamStack (checked first)."""
+    sh = tree["shaft"]
+    L, b, h = sh["length"], sh["width"], sh["height"]
+    mat = dict(E=sh["E"], rho=sh["rho"])
+    dels = sorted(enumerate(tree["delamination"]), key=lambda it: it[1]["start"])
+    for i, d in dels:
+        key = f"delamination.{i}"
+        if not 0.0 <= d["start"] < d["end"] <= L:
+            if d["start"] >= d["end"]:
+                raise SceneError(f"{key}.end", f"must exceed start ({d['start']}), got {d['end']}")
+            raise SceneError(key, f"[{d['start']}, {d['end']}] lies outside the shaft [0, {L}]")
+        if not 0.0 < d["upper_height"] < h:
+            raise SceneError(f"{key}.upper_height", f"must lie strictly between 0 and height ({h}), "
+                             f"got {d['upper_height']}")
+        xs = contact_positions(d)
+        if isinstance(d["contact_points"], list):
+            for x in xs:
+                if not d["start"] < x < d["end"]:
+                    raise SceneError(f"{key}.contact_points", f"x={x} lies outside the delamination "
+                                     f"({d['start']}, {d['end']})")
+            if len(set(xs)) != len(xs):
+                dup = next(x for x in xs if xs.count(x) > 1)
+                raise SceneError(f"{key}.contact_points", f"duplicate contact point x={dup}")
+    for (i, a), (j, c) in zip(dels, dels[1:]):
+        if c["start"] <= a["end"]:
+            raise SceneError(f"delamination.{j}", f"overlaps or touches delamination {i} "
+                             f"([{c['start']}, {c['end']}] vs [{a['start']}, {a['end']}])")
+
+    segments: list[Segment] = []
+    junctions: list[Junction] = []
+    contacts: list[Contact] = []
+    cursor, last = 0.0, None  # last: the intact segment that ends at cursor
+    layers: dict[int, tuple[Segment, Segment]] = {}
+
+    def intact(a: float, c: float) -> Segment:
+        seg = Segment(f"intact_{sum(s.name.startswith('intact_') for s in segments)}", a, c, b, h,
+                      (0.0, 0.0), **mat)
+        segments.append(seg)
+        return seg
+
+    for n, (i, d) in enumerate(dels):
+        x0, x1 = d["start"], d["end"]
+        if x0 > cursor:
+            last = intact(cursor, x0)
+        hu = d["upper_height"]
+        hl = h - hu
+        zi = (hl - hu) / 2.0  # interface height that keeps the intact centroid on the axis
+        up = Segment(f"delamination_{i}_upper", x0, x1, b, hu, (0.0, zi + hu / 2), **mat)
+        lo = Segment(f"delamination_{i}_lower", x0, x1, b, hl, (0.0, zi - hl / 2), **mat)
+        segments += [up, lo]
+        layers[i] = (up, lo)
+        if last is not None and last.end == x0:
+            junctions.append(Junction(x0, last.name, (up.name, lo.name)))
+        xs = contact_positions(d)
+        knots = [x0, *xs, x1]
+        for k, x in enumerate(xs):
+            contacts.append(Contact(
+                "interface", x, (up.name, lo.name), d["weighting"],
+                (knots[k], knots[k + 2]) if d["weighting"] == "hat" else None,
+                friction=d["friction"], friction_directions=d["friction_directions"],
+                restitution=d["restitution"], label=f"delamination.{i}.{k}"))
+        cursor, last = x1, None
+        if x1 < L:
+            stop = dels[n + 1][1]["start"] if n + 1 < len(dels) else L
+            last = intact(x1, stop)
+            junctions.append(Junction(x1, last.name, (up.name, lo.name)))
+            cursor = stop
+    if cursor < L:
+        intact(cursor, L)
+
+    at0, atL = SUPPORT_DOFS_BY_NAME[sh["supports"]]
+    supports = [Support(s.name, 0.0, at0) for s in segments if s.start == 0.0 and at0]
+    supports += [Support(s.name, L, atL) for s in segments if s.end == L and atL]
+
+    for i, o in enumerate(tree["obstacle"]):
+        key = f"obstacle.{i}"
+        x = L if o["x"] is None else o["x"]
+        if not 0.0 <= x <= L:
+            raise SceneError(f"{key}.x", f"x={x} lies outside the shaft [0, {L}]")
+        whole = [s for s in segments if s.name.startswith("intact_") and s.start <= x <= s.end]
+        if whole:
+            seg = whole[0]
+        else:
+            j, (up, lo) = next((j, ud) for j, ud in layers.items() if ud[0].start <= x <= ud[0].end)
+            if o["normal"] not in ("+z", "-z"):
+                raise SceneError(f"{key}.normal", f"a stop with normal {o['normal']!r} at x={x} in delamination "
+                                 f"{j} would touch both sub-beams; only +z (upper) or -z (lower) stops may act there")
+            seg = up if o["normal"] == "+z" else lo
+        contacts.append(Contact("obstacle", x, (seg.name,), "dirac", None, o["normal"], o["clearance"],
+                                o["friction"], o["friction_directions"], o["restitution"], label=key))
+    return BeamStack(tuple(segments), tuple(junctions), tuple(supports), tuple(contacts), tree["beam"]["theory"])
+
+
+def low_level_stack(tree: dict) -> BeamStack:
+    """Build a BeamStack from ``[[segment]]``, ``[[junction]]``, ``[[support]]``, ``[[contact]]``."""
+    segs = tuple(Segment(s["name"] or f"segment_{i}", s["start"], s["end"], s["width"], s["height"],
+                         tuple(s["offset"]), s["E"], s["rho"]) for i, s in enumerate(tree["segment"]))
+    juns = tuple(Junction(j["x"], j["master"], tuple(j["slaves"])) for j in tree["junction"])
+    sups = tuple(Support(s["segment"], s["x"], tuple(s["fix"])) for s in tree["support"])
+    cons = []
+    for i, c in enumerate(tree["contact"]):
+        ext = c["extent"]
+        if ext and len(ext) != 2:
+            raise SceneError(f"contact.{i}.extent", f"must be [a, b], got {ext}")
+        cons.append(Contact(c["kind"], c["x"], tuple(c["segments"]), c["weighting"], tuple(ext) if ext else None,
+                            c["normal"], c["clearance"], c["friction"], c["friction_directions"],
+                            c["restitution"], label=f"contact.{i}"))
+    return BeamStack(segs, juns, sups, tuple(cons), tree["beam"]["theory"])

@@ -1,0 +1,1 @@
+"""Scenes shipped with nsfem (``default.toml``: the paper's delaminated shaft)."""
