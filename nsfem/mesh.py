@@ -15,6 +15,8 @@ the segment (meshio ``cell_sets``, or Gmsh physical names); points sit at
 
 from __future__ import annotations
 
+import contextlib
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -101,10 +103,16 @@ def read(path: str | Path, stack: BeamStack, key: str = "mesh.file") -> StackMes
     path = Path(path)
     if not path.is_file():
         raise SceneError(key, f"file not found: {path}")
+    fmt = "gmsh" if path.suffix.lower() == ".msh" else None  # meshio would try ansys first
     try:
-        mesh = meshio.read(path)
-    except Exception as exc:  # meshio raises many types for unreadable files
-        raise SceneError(key, f"cannot read {path.name}: {exc}") from None
+        # meshio prints to stdout and calls sys.exit when no reader fits: keep both contained
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            mesh = meshio.read(path, file_format=fmt)
+    except (Exception, SystemExit) as exc:  # meshio raises many types for unreadable files
+        why = str(exc) if str(exc) and not isinstance(exc, SystemExit) else "not a mesh meshio can read"
+        raise SceneError(key, f"cannot read {path.name}: {why}") from None
+    if not any(cb.type == "line" for cb in mesh.cells):
+        raise SceneError(key, f"{path.name} has no line cells")
     sets = _cell_sets(mesh)
     nodes = {}
     for s in stack.segments:

@@ -43,6 +43,8 @@ METHODS = ("exact", "rk", "penalty", "moreau")
 PLOTS = ("phase", "gap", "psd", "forces", "campbell")
 INITIAL_STATES = ("rest", "stationary")
 AXIAL = ("P1", "P2")
+#: Upper bound on contact points per delamination (a guard against typos like 1e9).
+MAX_CONTACT_POINTS = 100_000
 #: Scene keys that hold file paths (relative to the scene file; ``--set`` ones to the cwd).
 PATH_KEYS = ("mesh.file",)
 
@@ -394,8 +396,10 @@ def load_scene(path: str | Path | None = None, overrides: Iterable[str] = (),
                cwd: Path | None = None) -> Scene:
     """Read, override and validate a scene; ``path=None`` is the shipped default scene."""
     p = Path(path) if path is not None else default_scene_path()
-    if not p.is_file():
+    if not p.exists():
         raise SceneError("scene", f"file not found: {p}")
+    if not p.is_file():
+        raise SceneError("scene", f"not a file: {p}")
     try:
         raw = tomllib.loads(p.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
@@ -453,6 +457,13 @@ def high_level_stack(tree: dict) -> BeamStack:
         if not 0.0 < d["upper_height"] < h:
             raise SceneError(f"{key}.upper_height", f"must lie strictly between 0 and height ({h}), "
                              f"got {d['upper_height']}")
+        cp = d["contact_points"]
+        n_cp = cp if isinstance(cp, int) else len(cp)
+        if not tree["mesh"]["file"] and n_cp >= tree["mesh"]["elements"]:
+            raise SceneError("mesh.elements", f"{tree['mesh']['elements']} is fewer than the {n_cp + 1} "
+                             f"intervals that the {n_cp} contact points of {key} need")
+        if n_cp > MAX_CONTACT_POINTS:
+            raise SceneError(f"{key}.contact_points", f"{n_cp} exceeds the limit of {MAX_CONTACT_POINTS}")
         xs = contact_positions(d)
         if isinstance(d["contact_points"], list):
             for x in xs:

@@ -3,7 +3,7 @@
 Open: every contact inactive (delaminated sub-beams free, stops away). Closed: every
 normal gap held at zero (J_N^T q = 0) with frictionless sliding, imposed exactly by a
 second constraint basis. The eigenproblem K phi = omega^2 M phi is solved densely for
-small models and by shift-invert Lanczos above :data:`DENSE_LIMIT` dofs.
+tiny models and by shift-invert Lanczos otherwise (far more accurate for the low modes).
 
 >>> from nsfem import load_scene, build_model
 >>> model = build_model(load_scene(None, ["mesh.elements=20"]))
@@ -25,10 +25,11 @@ import scipy.sparse.linalg as spla
 from ..errors import NsfemError
 from ..fem.assemble import FEModel
 from ..fem.constraints import project
+from ..fem.rigid import admissible, rigid_fields
 
 CONTACT_STATES = ("open", "closed")
-#: Models up to this many dofs are solved with dense LAPACK (robust with rigid-body modes).
-DENSE_LIMIT = 2500
+#: Models up to this many dofs are solved with dense LAPACK (see :func:`eigenpairs`).
+DENSE_LIMIT = 60
 
 
 @dataclass(frozen=True)
@@ -62,38 +63,60 @@ def contact_basis(model: FEModel, contact: str) -> sp.csr_matrix:
     return model.constrain(J.T)
 
 
-def eigenpairs(K: sp.spmatrix, M: sp.spmatrix, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest ``count`` eigenpairs of K x = lam M x (K psd, M pd), mass-normalized."""
+def eigenpairs(K: sp.spmatrix, M: sp.spmatrix, count: int, rigid: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest ``count`` eigenpairs of K x = lam M x (K psd, M pd), mass-normalized.
+
+    ``rigid`` (n x k) spans K's null space, the rigid-body modes known from the kinematics
+    (:mod:`nsfem.fem.rigid`); they are returned first with eigenvalue exactly 0.
+
+    Shift-invert Lanczos about sigma = 0. With rigid-body modes the solve is done on their
+    M-orthogonal complement through the bordered system [K, M R; (M R)^T, 0], so no shift
+    is needed. Dense LAPACK reduces the pencil with a Cholesky factor of M and loses low
+    eigenvalues to round-off of order eps * lam_max, which grows like h^-4 under refinement
+    (measured: pinned-pinned, first bending frequency, 160 elements: dense -2.5e-7 relative
+    error, shift-invert 8e-10), so it only serves tiny models and most-of-the-spectrum requests.
+    """
     n = K.shape[0]
     count = min(count, n)
-    if n <= DENSE_LIMIT or count >= n - 1:
+    R = np.zeros((n, 0)) if rigid is None else np.asarray(rigid)
+    k = R.shape[1]
+    if n <= DENSE_LIMIT or count >= n // 2:
         lam, X = sla.eigh(K.toarray(), M.toarray(), subset_by_index=[0, count - 1])
+        lam[: min(k, count)] = 0.0
         return lam, X
-    # shift below zero so rigid-body modes keep K - sigma M non-singular; scale from the
-    # Rayleigh quotient of a smooth vector keeps sigma near the low end of the spectrum
-    ones = np.ones(n)
-    sigma = -1e-3 * abs(ones @ (K @ ones)) / max(ones @ (M @ ones), 1e-300) - 1.0
-    lam, X = spla.eigsh(K.tocsc(), k=count, M=M.tocsc(), sigma=sigma, which="LM")
-    order = np.argsort(lam)
+    if k == 0:
+        lam, X = spla.eigsh(K.tocsc(), k=count, M=M.tocsc(), sigma=0.0, which="LM")
+    else:
+        # M-orthonormal rigid basis, then elastic modes from the bordered (non-singular) solve
+        R = R @ np.linalg.inv(np.linalg.cholesky(R.T @ (M @ R))).T
+        MR = np.asarray(M @ R)
+        lu = spla.splu(sp.bmat([[K, sp.csr_matrix(MR)], [sp.csr_matrix(MR.T), None]], format="csc"))
+
+        def apply(b):
+            return lu.solve(np.concatenate([np.ravel(b), np.zeros(k)]))[:n]
+
+        op = spla.LinearOperator((n, n), matvec=apply, dtype=float)
+        m_el = min(count - k, n - k - 1)
+        lam, X = (np.zeros(0), np.zeros((n, 0))) if m_el <= 0 else \
+            spla.eigsh(K.tocsc(), k=m_el, M=M.tocsc(), sigma=0.0, which="LM", OPinv=op)
+        lam = np.concatenate([np.zeros(k), lam])[:count]
+        X = np.hstack([R, X])[:, :count]
+    order = np.argsort(lam, kind="stable")
     lam, X = lam[order], X[:, order]
-    X /= np.sqrt(np.einsum("ij,ij->j", X, M @ X))
+    X = X / np.sqrt(np.einsum("ij,ij->j", X, M @ X))
     return lam, X
 
 
 def natural_frequencies(model: FEModel, contact: str = "open", count: int = 10) -> Modes:
     """Lowest ``count`` natural frequencies of the non-rotating structure [Hz].
 
-    Rigid-body modes (free-free) appear as 0 Hz; round-off below zero is clipped.
+    Rigid-body modes admitted by the supports (and closed contacts) appear as 0 Hz.
     """
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise NsfemError(f"count must be a positive integer, got {count!r}")
     T = contact_basis(model, contact)
     K, M = project(T, model.K_full), project(T, model.M_full)
-    lam, X = eigenpairs(K, M, int(count))
-    # rigid-body eigenvalues come out at round-off relative to the largest eigenvalue,
-    # which the largest diagonal ratio K_ii / M_ii bounds from below in order of magnitude
-    d = K.diagonal() / M.diagonal()
-    floor = 1e-10 * max(float(d.max()), 1e-300)
-    lam = np.where(np.abs(lam) < floor, 0.0, lam)
+    lam, X = eigenpairs(K, M, int(count), admissible(T, rigid_fields(model)))
     freqs = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * np.pi)
     return Modes(freqs, np.asarray(T @ X), contact, model.n, model.n)
