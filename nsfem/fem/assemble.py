@@ -88,7 +88,9 @@ class FEModel:
 
     def constrain(self, C: sp.spmatrix, prefer=None) -> sp.csr_matrix:
         """T' = T T2 with extra constraint rows C on the full dofs (e.g. closed contacts)."""
-        T2, _ = constraint_basis(sp.csr_matrix(C) @ self.T, self.n, prefer)
+        C = sp.csr_matrix(C)
+        scale = abs(C).max(axis=1).toarray().ravel() * max(abs(self.T).max(), 1.0)
+        T2, _ = constraint_basis(C @ self.T, self.n, prefer, row_scale=scale)
         return (self.T @ T2).tocsr()
 
 

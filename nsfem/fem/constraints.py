@@ -30,16 +30,21 @@ REDUNDANT = 1e-10
 PREFER = 0.1
 
 
-def constraint_basis(C: sp.spmatrix, n: int, prefer: Sequence[int | None] | None = None
-                     ) -> tuple[sp.csr_matrix, np.ndarray]:
-    """Null-space basis T (n x (n - rank)) of the sparse constraint rows C, and the slave dofs."""
+def constraint_basis(C: sp.spmatrix, n: int, prefer: Sequence[int | None] | None = None,
+                     row_scale: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Null-space basis T (n x (n - rank)) of the sparse constraint rows C, and the slave dofs.
+
+    ``row_scale`` is the size each row is judged against for redundancy (default: its own
+    largest entry). Pass it when C = C0 T0 is a projection: a row that cancels to round-off
+    there (a tie between two dofs T0 already equates) must count as redundant.
+    """
     C = sp.csr_matrix(C, shape=(C.shape[0], n))
     if C.shape[0] == 0 or C.nnz == 0:
         return sp.identity(n, format="csr"), np.zeros(0, dtype=int)
     cols = np.unique(C.indices)
     local = {c: i for i, c in enumerate(cols)}
     R = C[:, cols].toarray()
-    size = np.abs(R).max(axis=1)
+    size = np.abs(R).max(axis=1) if row_scale is None else np.asarray(row_scale, dtype=float)
     pivots: list[tuple[int, int]] = []
     for i in range(R.shape[0]):
         row = R[i]
