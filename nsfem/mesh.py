@@ -48,6 +48,11 @@ def _breakpoints(stack: BeamStack) -> np.ndarray:
     return np.array(sorted(xs))
 
 
+def intervals(stack: BeamStack) -> int:
+    """Smallest element count a generated mesh of ``stack`` can have."""
+    return len(_breakpoints(stack)) - 1
+
+
 def generate(stack: BeamStack, elements: int) -> StackMesh:
     """Distribute ``elements`` over the intervals between required nodes, in proportion to length.
 

@@ -425,11 +425,19 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     else:
         stack = high_level_stack(tree)
     base = base or Path.cwd()
+    stack = stack.validate()
+    if not tree["mesh"]["file"]:
+        from .mesh import intervals
+
+        need = intervals(stack)
+        if need > tree["mesh"]["elements"]:
+            raise SceneError("mesh.elements", f"{tree['mesh']['elements']} is fewer than the {need} intervals "
+                             "between segment ends and contact points; use at least that many")
     if tree["mesh"]["file"]:
         f = base / tree["mesh"]["file"]
         if not f.is_file():
             raise SceneError("mesh.file", f"file not found: {f}")
-    return Scene(tree, stack.validate(), path, base)
+    return Scene(tree, stack, path, base)
 
 
 # --------------------------------------------------------------------------- translation

@@ -7,8 +7,8 @@ sparse transformation q_full = T q (:mod:`nsfem.fem.constraints`).
 
 >>> from nsfem.scene import load_scene
 >>> model = build_model(load_scene(None, ["mesh.elements=20"]))
->>> model.n_full, model.n                     # 4 segments; 2 junctions and the supports removed
-(306, 281)
+>>> model.n_full, model.n      # 4 segments; 2 junctions x 2 slaves x 5 dofs and 5 support dofs removed
+(200, 175)
 >>> bool(abs(model.K - model.K.T).max() == 0.0)
 True
 """

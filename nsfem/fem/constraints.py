@@ -10,10 +10,8 @@ T^T K T stay symmetric; redundant rows (a dof fixed twice) are dropped.
 >>> import numpy as np, scipy.sparse as sp
 >>> C = sp.csr_matrix(np.array([[1.0, -1.0, 0.0]]))    # q0 = q1
 >>> T, slaves = constraint_basis(C, 3, prefer=[0])
->>> T.toarray(), slaves
-(array([[1., 0.],
-       [1., 0.],
-       [0., 1.]]), array([0]))
+>>> T.toarray().tolist(), slaves.tolist()
+([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0]], [0])
 """
 
 from __future__ import annotations

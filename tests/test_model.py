@@ -1,0 +1,138 @@
+"""The assembled model: constraint basis T, rigid-body motions, symmetry, definiteness, meshes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from nsfem import build_model, load_scene, natural_frequencies
+from nsfem.fem.constraints import project
+from nsfem.fem.rigid import admissible, rigid_fields
+from nsfem.mesh import generate, read, write
+
+MESHES = Path(__file__).resolve().parents[1] / "meshes"
+
+
+def model_of(*overrides):
+    return build_model(load_scene(None, list(overrides)))
+
+
+def test_rigid_motions_carry_no_strain_energy_and_are_admitted_free_free():
+    model = model_of('shaft.supports="free-free"', "mesh.elements=20")
+    R = rigid_fields(model)
+    K = model.K_full
+    # strain energy of a unit rigid motion against that of a unit smooth bending field:
+    # zero up to round-off (eps * |K| * |r|^2)
+    energy = np.einsum("ij,ij->j", R, K @ R)
+    assert np.all(np.abs(energy) < 1e-12 * abs(K).max() * (R**2).sum(axis=0))
+    # all five pass through the junctions: they lie in range(T)
+    Q = admissible(model.T, R)
+    assert Q.shape[1] == 5
+    assert np.abs(model.K @ Q).max() < 1e-9 * abs(model.K).max()
+    modes = natural_frequencies(model, "open", 7)
+    assert np.count_nonzero(modes.frequencies_hz == 0) == 5
+    closed = natural_frequencies(model, "closed", 7)
+    assert np.count_nonzero(closed.frequencies_hz == 0) == 5  # closing gaps keeps rigid motions
+
+
+@pytest.mark.parametrize("supports, rigid", [("pinned-pinned", 0), ("clamped-free", 0), ("free-free", 5)])
+def test_supports_admit_the_right_rigid_motions(supports, rigid):
+    model = model_of(f'shaft.supports="{supports}"', "mesh.elements=20")
+    assert admissible(model.T, rigid_fields(model)).shape[1] == rigid
+
+
+def test_constrained_matrices_symmetric_and_definite():
+    model = model_of("mesh.elements=20")
+    for A in (model.M, model.K):
+        assert abs(A - A.T).max() == 0.0  # exactly symmetric (project() symmetrizes)
+    sla.cholesky(model.M.toarray())  # M positive definite
+    sla.cholesky(model.K.toarray())  # pinned-pinned, axial fixed: K positive definite
+    free = model_of('shaft.supports="free-free"', "mesh.elements=20")
+    w = np.linalg.eigvalsh(free.K.toarray())
+    # psd with a five-dimensional null space: the smallest five at round-off of the largest
+    assert np.all(w[:5] < 1e-10 * w[-1]) and w[5] > 1e-8 * w[-1] and w[0] > -1e-10 * w[-1]
+
+
+def test_junction_constraints_hold_exactly():
+    model = model_of("mesh.elements=20")
+    rng = np.random.default_rng(0)
+    q = model.T @ rng.standard_normal(model.n)
+    up, lo, m = "delamination_0_upper", "delamination_0_lower", "intact_0"
+    for s, z in ((up, 0.0045), (lo, -0.0055)):
+        for name in ("V", "V'", "W", "W'"):
+            assert q[model.dof(s, name, 0.1)] == pytest.approx(q[model.dof(m, name, 0.1)], abs=1e-14)
+        # U_s = U_m - z_s W_m' (design section 3)
+        want = q[model.dof(m, "U", 0.1)] - z * q[model.dof(m, "W'", 0.1)]
+        assert q[model.dof(s, "U", 0.1)] == pytest.approx(want, abs=1e-14)
+    assert q[model.dof(m, "U", 0.0)] == 0.0 and q[model.dof(m, "W", 0.0)] == 0.0
+
+
+def test_closed_contact_holds_gaps_at_zero():
+    from nsfem.analysis.modes import contact_basis
+    from nsfem.contact.kinematics import normal_jacobian
+
+    model = model_of("mesh.elements=20")
+    J, j = normal_jacobian(model)
+    T = contact_basis(model, "closed")
+    assert T.shape[1] == model.n - 9
+    assert abs(J.T @ T).max() < 1e-14
+
+
+def test_hat_weighting_averages_the_gap():
+    # a gap field growing linearly in x has, at every interior hat, the value at its peak
+    # (symmetric hats of unit integral integrate linear functions exactly)
+    from nsfem.contact.kinematics import normal_jacobian
+
+    model = model_of("delamination.0.weighting=hat", "mesh.elements=40")
+    q = np.zeros(model.n_full)
+    up = model.spaces["delamination_0_upper"]
+    value = up.bending.nodal_dofs[0]
+    q[up.dofs["W"][value]] = up.x
+    q[up.dofs["W"][up.bending.nodal_dofs[1]]] = 1.0
+    J, _ = normal_jacobian(model)
+    xs = np.array([c.x for c in model.stack.contacts])
+    assert np.allclose(J.T @ q, xs, rtol=1e-12)
+
+
+@pytest.mark.parametrize("elements", [20, 40, 80])
+def test_shipped_mesh_files_give_the_generated_model(elements):
+    scene = load_scene(None, [f"mesh.elements={elements}"])
+    generated = build_model(scene)
+    from_file = build_model(load_scene(None, [f"mesh.file={MESHES / f'paper_stack_{elements}.msh'}"]))
+    assert from_file.n == generated.n
+    for name in ("M", "K", "T"):
+        a, b = getattr(generated, name), getattr(from_file, name)
+        assert abs(a - b).max() <= 1e-12 * abs(a).max()
+
+
+def test_mesh_roundtrip_with_nonuniform_nodes(tmp_path):
+    stack = load_scene(None).stack
+    mesh = generate(stack, 33)  # contact points force uneven spacing
+    path = write(tmp_path / "m.msh", stack, mesh)
+    back = read(path, stack)
+    for name, x in mesh.nodes.items():
+        assert np.array_equal(back.nodes[name], x)
+
+
+def test_mesh_generation_places_required_nodes_and_counts_elements():
+    stack = load_scene(None).stack
+    for n in (12, 37, 200):
+        mesh = generate(stack, n)
+        assert mesh.elements == n
+        for s in stack.segments:
+            for x in stack.required_nodes(s.name):
+                assert x in mesh.nodes[s.name]
+
+
+def test_project_symmetric_and_skew():
+    import scipy.sparse as sp
+
+    rng = np.random.default_rng(1)
+    A = sp.csr_matrix(rng.standard_normal((6, 6)))
+    T = sp.csr_matrix(rng.standard_normal((6, 3)))
+    S = project(T, A + A.T)
+    W = project(T, A - A.T)
+    assert abs(S - S.T).max() == 0 and abs(W + W.T).max() == 0
