@@ -16,6 +16,7 @@ from . import __version__
 from .errors import NsfemError
 
 EXIT_ERROR = 2
+FIELD_NAMES = {"U": "U (axial)", "V": "V (bending x-y)", "W": "W (bending x-z)"}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -100,8 +101,9 @@ def cmd_modes(args) -> int:
     payload = {"title": scene["title"], **modes.to_json(), "reduction": "none",
                "elements": model.mesh.elements, "wall_s": wall}
     lines = [scene["title"], f"contact {modes.contact}: {modes.ndof} dofs, {model.mesh.elements} elements",
-             "  mode  frequency [Hz]"]
-    lines += [f"  {k + 1:4d}  {f:14.4f}" for k, f in enumerate(modes.frequencies_hz)]
+             "  mode  frequency [Hz]  field"]
+    lines += [f"  {k + 1:4d}  {f:14.4f}  {FIELD_NAMES[fld]}"
+              for k, (f, fld) in enumerate(zip(modes.frequencies_hz, modes.fields))]
     _emit(args, payload, "\n".join(lines))
     return 0
 

@@ -1,4 +1,4 @@
-"""Shared helpers: uniform beams, mode classification by field."""
+"""Shared helpers: uniform beams, frequencies sorted by dominant field."""
 
 from __future__ import annotations
 
@@ -25,20 +25,8 @@ def beam_model(*args, **kwargs):
     return build_model(scene_from_tree(beam_tree(*args, **kwargs)))
 
 
-def field_of_modes(model, shapes: np.ndarray) -> list[str]:
-    """Dominant field (U, V or W) of each mass-normalized mode, by kinetic energy share."""
-    out = []
-    for phi in shapes.T:
-        share = {}
-        for f in "UVW":
-            idx = model.field_dofs(f)
-            share[f] = float(phi[idx] @ (model.M_full[idx][:, idx] @ phi[idx]))
-        out.append(max(share, key=share.get))
-    return out
-
-
 def frequencies_by_field(model, modes) -> dict[str, np.ndarray]:
-    fields = field_of_modes(model, modes.shapes)
+    fields = modes.fields
     f = np.asarray(modes.frequencies_hz)
     return {k: f[[i for i, x in enumerate(fields) if x == k]] for k in "UVW"}
 

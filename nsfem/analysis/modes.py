@@ -45,10 +45,19 @@ class Modes:
     contact: str
     ndof_full: int
     ndof: int
+    fields: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
         return {"contact": self.contact, "ndof_full": self.ndof_full, "ndof": self.ndof,
-                "frequencies_hz": [float(f) for f in self.frequencies_hz]}
+                "frequencies_hz": [float(f) for f in self.frequencies_hz], "fields": list(self.fields)}
+
+
+def dominant_fields(model: FEModel, shapes: np.ndarray) -> tuple[str, ...]:
+    """The field (U axial, V bending in x-y, W bending in x-z) carrying most of each mode's
+    kinetic energy phi^T M phi (M is block diagonal in the fields)."""
+    share = np.vstack([np.einsum("ij,ij->j", shapes[idx], model.M_full[idx][:, idx] @ shapes[idx])
+                       for idx in (model.field_dofs(f) for f in "UVW")])
+    return tuple("UVW"[k] for k in np.argmax(share, axis=0))
 
 
 def contact_basis(model: FEModel, contact: str) -> sp.csr_matrix:
@@ -119,4 +128,5 @@ def natural_frequencies(model: FEModel, contact: str = "open", count: int = 10) 
     K, M = project(T, model.K_full), project(T, model.M_full)
     lam, X = eigenpairs(K, M, int(count), admissible(T, rigid_fields(model)))
     freqs = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * np.pi)
-    return Modes(freqs, np.asarray(T @ X), contact, model.n, model.n)
+    shapes = np.asarray(T @ X)
+    return Modes(freqs, shapes, contact, model.n, model.n, dominant_fields(model, shapes))
