@@ -72,10 +72,10 @@ def test_junction_constraints_hold_exactly():
 
 def test_closed_contact_holds_gaps_at_zero():
     from nsfem.analysis.modes import contact_basis
-    from nsfem.contact.kinematics import normal_jacobian
+    from nsfem.contact.kinematics import gap_jacobian
 
     model = model_of("mesh.elements=20")
-    J, j = normal_jacobian(model)
+    J, j = gap_jacobian(model)
     T = contact_basis(model, "closed")
     assert T.shape[1] == model.n - 9
     assert abs(J.T @ T).max() < 1e-14
@@ -84,7 +84,7 @@ def test_closed_contact_holds_gaps_at_zero():
 def test_hat_weighting_averages_the_gap():
     # a gap field growing linearly in x has, at every interior hat, the value at its peak
     # (symmetric hats of unit integral integrate linear functions exactly)
-    from nsfem.contact.kinematics import normal_jacobian
+    from nsfem.contact.kinematics import gap_jacobian
 
     model = model_of("delamination.0.weighting=hat", "mesh.elements=40")
     q = np.zeros(model.n_full)
@@ -92,7 +92,7 @@ def test_hat_weighting_averages_the_gap():
     value = up.bending.nodal_dofs[0]
     q[up.dofs["W"][value]] = up.x
     q[up.dofs["W"][up.bending.nodal_dofs[1]]] = 1.0
-    J, _ = normal_jacobian(model)
+    J, _ = gap_jacobian(model)
     xs = np.array([c.x for c in model.stack.contacts])
     assert np.allclose(J.T @ q, xs, rtol=1e-12)
 

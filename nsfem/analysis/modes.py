@@ -66,9 +66,9 @@ def contact_basis(model: FEModel, contact: str) -> sp.csr_matrix:
         raise NsfemError(f"contact must be open or closed, got {contact!r}")
     if contact == "open" or not model.stack.contacts:
         return model.T
-    from ..contact.kinematics import normal_jacobian
+    from ..contact.kinematics import gap_jacobian
 
-    J, _ = normal_jacobian(model)
+    J, _ = gap_jacobian(model)
     return model.constrain(J.T)
 
 

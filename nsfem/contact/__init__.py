@@ -1,5 +1,5 @@
 """Contact kinematics: gap Jacobians of delamination interfaces and rigid stops."""
 
-from .kinematics import normal_jacobian
+from .kinematics import gap_jacobian
 
-__all__ = ["normal_jacobian"]
+__all__ = ["gap_jacobian"]

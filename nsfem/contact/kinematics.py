@@ -10,7 +10,7 @@ Tangential rows and friction cones are built on the same helpers (later issue).
 >>> from nsfem.scene import load_scene
 >>> from nsfem.fem import build_model
 >>> model = build_model(load_scene(None, ["mesh.elements=20"]))
->>> J, j = normal_jacobian(model)
+>>> J, j = gap_jacobian(model)
 >>> J.shape, float(abs(J).sum()), j.tolist()[:2]
 ((200, 9), 18.0, [0.0, 0.0])
 """
@@ -60,7 +60,7 @@ def contact_row(model: FEModel, c: Contact) -> tuple[dict[int, float], float]:
     return row, c.clearance
 
 
-def normal_jacobian(model: FEModel, contacts=None) -> tuple[sp.csr_matrix, np.ndarray]:
+def gap_jacobian(model: FEModel, contacts=None) -> tuple[sp.csr_matrix, np.ndarray]:
     """J_N (n_full x m) and j_N (m,) of the stack's contacts (or of ``contacts``)."""
     contacts = model.stack.contacts if contacts is None else contacts
     J = sp.lil_matrix((model.n_full, len(contacts)))
