@@ -41,16 +41,12 @@ class StackMesh:
         return sum(spans.values())
 
 
-def _breakpoints(stack: BeamStack) -> np.ndarray:
+def breakpoints(stack: BeamStack) -> np.ndarray:
+    """Sorted x of every node a mesh must have (segment ends, contact points, hat extents)."""
     xs = set()
     for s in stack.segments:
         xs.update(stack.required_nodes(s.name))
     return np.array(sorted(xs))
-
-
-def intervals(stack: BeamStack) -> int:
-    """Smallest element count a generated mesh of ``stack`` can have."""
-    return len(_breakpoints(stack)) - 1
 
 
 def generate(stack: BeamStack, elements: int) -> StackMesh:
@@ -59,7 +55,7 @@ def generate(stack: BeamStack, elements: int) -> StackMesh:
     Each interval gets at least one element (largest-remainder rounding), so the total is
     exactly ``elements`` whenever that is at least the number of intervals.
     """
-    bp = _breakpoints(stack)
+    bp = breakpoints(stack)
     lengths = np.diff(bp)
     if elements < len(lengths):
         raise SceneError("mesh.elements", f"{elements} is fewer than the {len(lengths)} intervals between "

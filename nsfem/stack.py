@@ -170,7 +170,7 @@ class BeamStack:
                 raise SceneError(f"{key}.fix", f"unknown dof {bad[0]!r} (use {', '.join(SUPPORT_DOFS)})")
         seen = set()
         for i, c in enumerate(self.contacts):
-            key = f"contact.{i}"
+            key = c.label or f"contact.{i}"
             self._check_contact(key, c)
             ident = (c.kind, c.segments, c.x, c.normal)
             if ident in seen:
@@ -198,8 +198,15 @@ class BeamStack:
                 raise SceneError(f"{key}.x", f"x={c.x} lies outside segment {n!r} [{s.start}, {s.end}]")
         if c.kind == "interface":
             up, lo = (self.segment(n) for n in c.segments)
+            if up.name == lo.name:
+                raise SceneError(f"{key}.segments", "an interface needs two different segments")
             if (up.start, up.end) != (lo.start, lo.end):
                 raise SceneError(f"{key}.segments", "interface segments must span the same x-range")
+            # [upper, lower]: the gap W_upper - W_lower opens upwards only if upper lies on top
+            bottom, top = up.offset[1] - up.height / 2, lo.offset[1] + lo.height / 2
+            if up.offset[0] != lo.offset[0] or abs(bottom - top) > 1e-9 * max(up.height, lo.height):
+                raise SceneError(f"{key}.segments", f"{up.name!r} must sit on {lo.name!r}: its bottom face "
+                                 f"(z = {bottom:.6g}) must meet the other's top face (z = {top:.6g}) at the same y")
             if not up.start < c.x < up.end:
                 raise SceneError(f"{key}.x", f"x={c.x} must lie strictly inside the interface ({up.start}, {up.end})")
         if c.weighting not in WEIGHTINGS:

@@ -34,8 +34,41 @@ def test_rigid_motions_carry_no_strain_energy_and_are_admitted_free_free():
     assert np.abs(model.K @ Q).max() < 1e-9 * abs(model.K).max()
     modes = natural_frequencies(model, "open", 7)
     assert np.count_nonzero(modes.frequencies_hz == 0) == 5
+    # the shapes reported at 0 Hz really carry no strain energy, the next one does
+    phi = modes.shapes
+    energy = np.einsum("ij,ij->j", phi, K @ phi)  # = omega^2 for mass-normalized shapes
+    assert np.all(np.abs(energy[:5]) < 1e-9 * energy[5])
     closed = natural_frequencies(model, "closed", 7)
     assert np.count_nonzero(closed.frequencies_hz == 0) == 5  # closing gaps keeps rigid motions
+
+
+def test_unconnected_parts_each_have_rigid_motions():
+    # a delamination over the whole free-free shaft leaves two separate beams: 10 rigid motions;
+    # closing the gaps ties their W translation and rotation: 8 remain
+    model = model_of("delamination.0.start=0.0", "delamination.0.end=1.0", 'shaft.supports="free-free"')
+    f = natural_frequencies(model, "open", 12).frequencies_hz
+    assert np.count_nonzero(f == 0) == 10 and f[10] > 10
+    fc = natural_frequencies(model, "closed", 10).frequencies_hz
+    assert np.count_nonzero(fc == 0) == 8 and fc[8] > 10
+    # independent check: dense eigenvalues of the constrained pencil, 10 at round-off
+    w = sla.eigh(model.K.toarray(), model.M.toarray(), eigvals_only=True)
+    assert np.all(np.abs(w[:10]) < 1e-14 * w[-1]) and w[10] > 1e-10 * w[-1]  # measured 1e-17, 1.1e-8
+
+
+def test_frequencies_do_not_depend_on_where_the_shaft_sits():
+    # the same stack shifted 1000 m along x: segments use local coordinates
+    from nsfem.scene import scene_from_tree
+    from conftest import beam_tree
+
+    base = beam_tree("pinned-pinned", elements=40)
+    low = {"segment": [{"name": "s", "start": 1000.0, "end": 1001.0, "width": 0.03, "height": 0.01,
+                        "E": 2.1e11, "rho": 7800.0}],
+           "support": [{"segment": "s", "x": 1000.0, "fix": ["U", "V", "W"]},
+                       {"segment": "s", "x": 1001.0, "fix": ["V", "W"]}],
+           "mesh": {"elements": 40}, "reduction": {"method": "none"}}
+    f0 = natural_frequencies(build_model(scene_from_tree(base)), "open", 4).frequencies_hz
+    f1 = natural_frequencies(build_model(scene_from_tree(low)), "open", 4).frequencies_hz
+    assert np.allclose(f0, f1, rtol=1e-10)
 
 
 @pytest.mark.parametrize("supports, rigid", [("pinned-pinned", 0), ("clamped-free", 0), ("free-free", 5)])
@@ -81,20 +114,21 @@ def test_closed_contact_holds_gaps_at_zero():
     assert abs(J.T @ T).max() < 1e-14
 
 
-def test_hat_weighting_averages_the_gap():
-    # a gap field growing linearly in x has, at every interior hat, the value at its peak
-    # (symmetric hats of unit integral integrate linear functions exactly)
+@pytest.mark.parametrize("points", [9, [0.2, 0.3, 0.7]])
+def test_hat_weighting_averages_the_gap(points):
+    # hats of unit integral on (a, b) peaking at c: a gap growing linearly in x averages to
+    # the hat's centroid (a + b + c) / 3, the peak itself when the hat is symmetric
     from nsfem.contact.kinematics import gap_jacobian
 
-    model = model_of("delamination.0.weighting=hat", "mesh.elements=40")
+    model = model_of("delamination.0.weighting=hat", f"delamination.0.contact_points={points}",
+                     "mesh.elements=40")
     q = np.zeros(model.n_full)
     up = model.spaces["delamination_0_upper"]
-    value = up.bending.nodal_dofs[0]
-    q[up.dofs["W"][value]] = up.x
+    q[up.dofs["W"][up.bending.nodal_dofs[0]]] = up.x
     q[up.dofs["W"][up.bending.nodal_dofs[1]]] = 1.0
     J, _ = gap_jacobian(model)
-    xs = np.array([c.x for c in model.stack.contacts])
-    assert np.allclose(J.T @ q, xs, rtol=1e-12)
+    want = [sum(c.extent) / 3 + c.x / 3 for c in model.stack.contacts]
+    assert np.allclose(J.T @ q, want, rtol=1e-12)
 
 
 @pytest.mark.parametrize("elements", [20, 40, 80])

@@ -146,8 +146,16 @@ CASES = [
     pytest.param(["shaft.width=-0.02"], "shaft.width", "positive", id="width-negative"),
     pytest.param(["shaft.height=0"], "shaft.height", "positive", id="height-zero"),
     pytest.param(["shaft.height=-0.02"], "shaft.height", "positive", id="height-negative"),
-    pytest.param(["mesh.elements=0"], "mesh.elements", "positive", id="elements-zero"),
-    pytest.param(["mesh.elements=-5"], "mesh.elements", "positive", id="elements-negative"),
+    pytest.param(["mesh.elements=0"], "mesh.elements", "must lie in [1,", id="elements-zero"),
+    pytest.param(["mesh.elements=-5"], "mesh.elements", "must lie in [1,", id="elements-negative"),
+    pytest.param(["mesh.elements=100000"], "mesh.elements", "round-off", id="elements-too-many"),
+    pytest.param(["delamination.0.contact_points=[0.5, 0.5001]"], "delamination.0.contact_points", "apart",
+                 id="contact-points-too-close"),
+    pytest.param(["delamination.0.contact_points=[0.1000000001]"], "delamination.0.contact_points", "apart",
+                 id="contact-point-at-delamination-end"),
+    pytest.param(["delamination.0.upper_height=1e-300"], "delamination.0.upper_height", "thinner",
+                 id="upper-height-vanishing"),
+    pytest.param(["delamination.².start=0.2"], "delamination.².start", "index", id="non-ascii-index"),
     # a delamination outside the shaft, or with start >= end
     pytest.param(["delamination.0.end=1.5"], "delamination.0", "outside the shaft", id="delam-end-past-shaft"),
     pytest.param(["delamination.0.start=-0.1"], "delamination.0", "outside the shaft", id="delam-start-negative"),
@@ -575,3 +583,14 @@ def test_cli_rejects_unreadable_mesh_file(name, content, tmp_path, capsys, no_as
     line = check_cli_error(["modes", "--set", f"mesh.file={path}"], capsys, "mesh.file", "cannot read",
                            clean_stdout=False)
     assert name in line
+
+
+@pytest.mark.parametrize("segments, word", [(["upper", "upper"], "two different"),
+                                            (["lower", "upper"], "must sit on")])
+def test_low_level_interface_geometry_is_checked(segments, word):
+    from nsfem.scene import scene_from_tree
+
+    tree = {"segment": [{"name": "upper", "start": 0.0, "end": 1.0, "height": 0.01, "offset": [0.0, 0.005]},
+                        {"name": "lower", "start": 0.0, "end": 1.0, "height": 0.01, "offset": [0.0, -0.005]}],
+            "contact": [{"kind": "interface", "x": 0.5, "segments": segments}]}
+    check_error(expect_scene_error(scene_from_tree, tree), "contact.0.segments", word)

@@ -36,8 +36,9 @@ DENSE_LIMIT = 60
 class Modes:
     """Frequencies [Hz] (ascending) and mass-normalized shapes in full coordinates.
 
-    ``ndof_full`` counts the finite-element model's independent dofs, ``ndof`` the
-    coordinates of the (possibly reduced) model the analysis ran on.
+    ``ndof_full`` counts the finite-element model's independent dofs (after supports and
+    junctions), ``ndof`` the coordinates of the (possibly reduced) model the analysis used;
+    closing contacts removes further coordinates in the eigenproblem but is no reduction.
     """
 
     frequencies_hz: np.ndarray
@@ -86,16 +87,37 @@ def eigenpairs(K: sp.spmatrix, M: sp.spmatrix, count: int, rigid: np.ndarray | N
     (measured: pinned-pinned, first bending frequency, 160 elements: dense -2.5e-7 relative
     error, shift-invert 8e-10), so it only serves tiny models and most-of-the-spectrum requests.
     """
+    try:
+        return _eigenpairs(K, M, count, rigid)
+    except (RuntimeError, np.linalg.LinAlgError, spla.ArpackError) as exc:
+        raise NsfemError(f"the eigenproblem could not be solved ({exc}); the structure may have a mechanism "
+                         "(a part held by neither supports nor junctions) or be too ill-conditioned "
+                         "(extreme sizes, too fine a mesh)") from None
+
+
+def _eigenpairs(K, M, count, rigid):
     n = K.shape[0]
     count = min(count, n)
     R = np.zeros((n, 0)) if rigid is None else np.asarray(rigid)
     k = R.shape[1]
+    scale = float((K.diagonal() / M.diagonal()).max())  # ~ the largest eigenvalue
+    if k:
+        # the kinematics says these carry no strain energy: check before trusting it
+        RMR = R.T @ (M @ R)
+        if np.abs(R.T @ (K @ R)).max() > 1e-8 * scale * np.abs(RMR).max():
+            raise NsfemError("internal error: a rigid-body motion carries strain energy")
     if n <= DENSE_LIMIT or count >= n // 2:
         lam, X = sla.eigh(K.toarray(), M.toarray(), subset_by_index=[0, count - 1])
+        if k and np.abs(lam[: min(k, count)]).max() > 1e-8 * scale:
+            raise NsfemError("internal error: fewer zero eigenvalues than rigid-body motions")
+        if count > k and lam[k] < 1e-10 * scale:
+            raise NsfemError("the structure has a zero-energy motion that is not a rigid-body motion "
+                             "(a mechanism): check supports and junctions")
         lam[: min(k, count)] = 0.0
         return lam, X
+    v0 = np.random.default_rng(0).standard_normal(n)  # reproducible Lanczos start
     if k == 0:
-        lam, X = spla.eigsh(K.tocsc(), k=count, M=M.tocsc(), sigma=0.0, which="LM")
+        lam, X = spla.eigsh(K.tocsc(), k=count, M=M.tocsc(), sigma=0.0, which="LM", v0=v0)
     else:
         # M-orthonormal rigid basis, then elastic modes from the bordered (non-singular) solve
         R = R @ np.linalg.inv(np.linalg.cholesky(R.T @ (M @ R))).T
@@ -108,7 +130,7 @@ def eigenpairs(K: sp.spmatrix, M: sp.spmatrix, count: int, rigid: np.ndarray | N
         op = spla.LinearOperator((n, n), matvec=apply, dtype=float)
         m_el = min(count - k, n - k - 1)
         lam, X = (np.zeros(0), np.zeros((n, 0))) if m_el <= 0 else \
-            spla.eigsh(K.tocsc(), k=m_el, M=M.tocsc(), sigma=0.0, which="LM", OPinv=op)
+            spla.eigsh(K.tocsc(), k=m_el, M=M.tocsc(), sigma=0.0, which="LM", OPinv=op, v0=v0)
         lam = np.concatenate([np.zeros(k), lam])[:count]
         X = np.hstack([R, X])[:, :count]
     order = np.argsort(lam, kind="stable")

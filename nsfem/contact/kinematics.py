@@ -37,7 +37,7 @@ def point_row(model: FEModel, segment: str, fld: str, c: Contact) -> dict[int, f
 
     @LinearForm
     def hat(v, w):
-        x = w.x[0]
+        x = w.x[0] + space.x[0]  # bases use local coordinates
         up = peak * (x - a) / (c.x - a)
         down = peak * (b - x) / (b - c.x)
         return np.where((x >= a) & (x <= b), np.minimum(up, down), 0.0) * v

@@ -34,7 +34,7 @@ AXIAL_ELEMENTS = {"P1": ElementLineP1, "P2": ElementLineP2}
 class SegmentSpace:
     """Bases and global dof indices of one segment's fields."""
 
-    x: np.ndarray
+    x: np.ndarray  # global node coordinates; the bases use x - x[0]
     axial: Basis
     bending: Basis
     dofs: dict[str, np.ndarray]  # "U", "V", "W" -> global indices in basis order
@@ -99,7 +99,9 @@ def segment_spaces(stack: BeamStack, mesh: StackMesh, axial: str) -> dict[str, S
     spaces, offset = {}, 0
     for s in stack.segments:
         x = np.asarray(mesh.nodes[s.name], dtype=float)
-        m = MeshLine(x)
+        # local coordinates: scikit-fem's Hermite element is built in the mesh's x, and a
+        # segment far from the origin would lose digits (measured 1e-4 at x0 = 1000 m)
+        m = MeshLine(x - x[0])
         ba = Basis(m, AXIAL_ELEMENTS[axial]())
         bb = Basis(m, ElementLineHermite())
         dofs = {}

@@ -14,16 +14,46 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 
+def components(stack) -> list[list[str]]:
+    """Segment names grouped into the parts that junctions connect."""
+    parent = {s.name: s.name for s in stack.segments}
+
+    def root(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for j in stack.junctions:
+        for s in j.slaves:
+            parent[root(s)] = root(j.master)
+    groups: dict[str, list[str]] = {}
+    for s in stack.segments:
+        groups.setdefault(root(s.name), []).append(s.name)
+    return list(groups.values())
+
+
 def rigid_fields(model) -> np.ndarray:
-    """The five rigid motions (u0, v0, tv, w0, tw) in full coordinates, n_full x 5."""
+    """Rigid motions (u0, v0, tv, w0, tw) of every connected part, in full coordinates.
+
+    n_full x 5 p for p parts (a full-length delamination leaves two unconnected sub-beams).
+    """
+    parts = components(model.stack)
+    R = np.zeros((model.n_full, 5 * len(parts)))
+    for p, names in enumerate(parts):
+        R[:, 5 * p:5 * p + 5] = _rigid_part(model, names)
+    return R
+
+
+def _rigid_part(model, names) -> np.ndarray:
     R = np.zeros((model.n_full, 5))
-    for s in model.stack.segments:
+    for s in (model.stack.segment(n) for n in names):
         space = model.spaces[s.name]
         ud = space.dofs["U"]
         R[ud, 0] = 1.0
         R[ud, 2] = -s.offset[0]
         R[ud, 4] = -s.offset[1]
-        xb = space.bending.doflocs[0]
+        xb = space.bending.doflocs[0] + space.x[0]
         value = np.zeros(space.bending.N, dtype=bool)
         value[space.bending.nodal_dofs[0]] = True
         for fld, (c_t, c_r) in (("V", (1, 2)), ("W", (3, 4))):
