@@ -110,7 +110,7 @@ def cmd_modes(args) -> int:
 
 def cmd_pending(args) -> int:
     """Commands of the contract whose analyses this version does not have yet."""
-    if getattr(args, "scene", None) is not None or getattr(args, "overrides", None):
+    if args.command != "sweep" and (getattr(args, "scene", None) is not None or getattr(args, "overrides", None)):
         from .scene import load_scene
 
         load_scene(args.scene, args.overrides)  # still validate what the user wrote
