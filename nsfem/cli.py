@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from typing import Sequence
@@ -16,6 +17,7 @@ from . import __version__
 from .errors import NsfemError
 
 EXIT_ERROR = 2
+_RANGE = re.compile(r"^[^=]+=\s*[-+0-9.eE]+:[-+0-9.eE]+:[0-9]+\s*$")
 FIELD_NAMES = {"U": "U (axial)", "V": "V (bending x-y)", "W": "W (bending x-z)"}
 
 
@@ -110,10 +112,11 @@ def cmd_modes(args) -> int:
 
 def cmd_pending(args) -> int:
     """Commands of the contract whose analyses this version does not have yet."""
-    if args.command != "sweep" and (getattr(args, "scene", None) is not None or getattr(args, "overrides", None)):
+    if getattr(args, "scene", None) is not None or getattr(args, "overrides", None):
         from .scene import load_scene
 
-        load_scene(args.scene, args.overrides)  # still validate what the user wrote
+        # still validate what the user wrote (a sweep's START:STOP:N ranges aside)
+        load_scene(args.scene, [o for o in args.overrides if not _RANGE.match(o)])
     raise NsfemError(f"nsfem {args.command}: not implemented in nsfem {__version__} "
                      "(available now: nsfem modes)")
 
