@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import E, L, RHO, beam_model, frequencies_by_field
+from conftest import RHO, E, L, beam_model, frequencies_by_field
 
 from nsfem import natural_frequencies
 

@@ -57,8 +57,9 @@ def test_unconnected_parts_each_have_rigid_motions():
 
 def test_frequencies_do_not_depend_on_where_the_shaft_sits():
     # the same stack shifted 1000 m along x: segments use local coordinates
-    from nsfem.scene import scene_from_tree
     from conftest import beam_tree
+
+    from nsfem.scene import scene_from_tree
 
     base = beam_tree("pinned-pinned", elements=40)
     low = {"segment": [{"name": "s", "start": 1000.0, "end": 1001.0, "width": 0.03, "height": 0.01,

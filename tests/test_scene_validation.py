@@ -17,8 +17,6 @@ from __future__ import annotations
 
 import importlib
 
-import meshio
-import numpy as np
 import pytest
 
 import nsfem
@@ -26,6 +24,7 @@ from nsfem import cli
 from nsfem import mesh as nsmesh
 from nsfem.errors import SceneError
 from nsfem.scene import SCHEMA, Key, load_scene
+from nsfem.stack import BeamStack
 
 ASSEMBLE = importlib.import_module("nsfem.fem.assemble")  # the module, not the function
 
@@ -476,21 +475,9 @@ def meshes(tmp_path_factory):
     m = nsmesh.generate(scene.stack, 20)
     full = nsmesh.write(d / "full.msh", scene.stack, m)
 
-    keep = [s for s in scene.stack.segments if s.name in ("intact_0", "delamination_0_upper")]
-    points, cells, phys, field_data = [], [], [], {}
-    for tag, s in enumerate(keep, start=1):
-        x = m.nodes[s.name]
-        base = len(points)
-        points += [(xi, s.offset[0], s.offset[1]) for xi in x]
-        cells += [(base + k, base + k + 1) for k in range(len(x) - 1)]
-        phys += [tag] * (len(x) - 1)
-        field_data[s.name] = np.array([tag, 1])
-    partial = d / "partial.msh"
-    meshio.write(partial, meshio.Mesh(np.array(points, float), [("line", np.array(cells))],
-                                      cell_data={"gmsh:physical": [np.array(phys)],
-                                                 "gmsh:geometrical": [np.array(phys)]},
-                                      field_data=field_data),
-                 file_format="gmsh22", binary=False)
+    # the same writer, given a stack of only two of the four segments
+    keep = tuple(s for s in scene.stack.segments if s.name in ("intact_0", "delamination_0_upper"))
+    partial = nsmesh.write(d / "partial.msh", BeamStack(keep), m)
     text = partial.read_text()
     assert '"intact_0"' in text and '"delamination_0_upper"' in text and '"intact_1"' not in text
     return {"full": full, "partial": partial, "scene": scene}

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import E, L, RHO, beam_tree, frequencies_by_field
+from conftest import RHO, E, L, beam_tree, frequencies_by_field
 
 from nsfem import build_model, natural_frequencies
 from nsfem.analysis.modes import eigenpairs
