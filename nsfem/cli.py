@@ -52,7 +52,11 @@ def parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("campbell", help="frequencies against speed, gravity resonances")
     _scene_args(p)
-    p.add_argument("--speeds", metavar="START:STOP:N")
+    p.add_argument("--speeds", metavar="START:STOP:N", help="speeds in Hz (default: 0 to 1.2 x the second "
+                   "critical speed, 61 values)")
+    p.add_argument("--count", type=int, default=6, help="frequencies per speed and resonances listed (default 6)")
+    p.add_argument("--png", metavar="FILE", help="write the Campbell diagram here (also written to the output "
+                   "directory when the scene's output.plots lists campbell)")
 
     p = sub.add_parser("stationary", help="stationary contact state (LCP 28)")
     _scene_args(p)
@@ -121,7 +125,42 @@ def cmd_pending(args) -> int:
                      "(available now: nsfem modes)")
 
 
-COMMANDS = {"modes": cmd_modes}
+def cmd_campbell(args) -> int:
+    from pathlib import Path
+
+    from .analysis.campbell import campbell_report, parse_speeds
+    from .fem.assemble import build_model
+    from .plot.campbell import campbell_plot
+    from .scene import load_scene
+
+    if args.count < 1:
+        raise NsfemError(f"--count must be a positive integer, got {args.count}")
+    speeds = parse_speeds(args.speeds) if args.speeds else None
+    scene = load_scene(args.scene, args.overrides)
+    t0 = time.perf_counter()
+    model = build_model(scene)
+    rep = campbell_report(scene, model, speeds, args.count)
+    res, bands = rep.pop("_results"), rep.pop("_bands")
+    targets = [Path(args.png)] if args.png else []
+    if "campbell" in scene["output"]["plots"]:
+        targets.append(Path(scene["output"]["dir"]) / "campbell.png")
+    outputs = [str(campbell_plot(t, res["open"].speeds_hz, res["open"].frequencies_hz,
+                                 res["closed"].frequencies_hz, rep["gravity_resonances_hz"], bands,
+                                 scene["title"])) for t in targets]
+    payload = {"title": scene["title"], **rep, "reduction": "none", "wall_s": time.perf_counter() - t0,
+               "outputs": outputs}
+    fmt = ", ".join
+    lines = [scene["title"], f"{model.n} dofs, speeds {rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz",
+             "gravity resonances [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["open"]),
+             "                       closed: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["closed"]),
+             "divergence speeds [Hz]   open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
+             "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
+    lines += [f"wrote {o}" for o in outputs]
+    _emit(args, payload, "\n".join(lines))
+    return 0
+
+
+COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

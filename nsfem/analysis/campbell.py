@@ -1,0 +1,240 @@
+"""Campbell diagram, gravity resonances and divergence speeds of a rotating beam stack.
+
+Rotating-frame natural frequencies come from the first-order form of eq. (22),
+
+    [I 0; 0 M] z' = [0 I; -Q -C] z,   z = (q, q'),
+
+solved for the eigenvalues nearest zero by shift-invert Arnoldi (sparse, exact model).
+
+Gravity resonances: in the rotating frame gravity is a load at the rotation frequency,
+f_g(t) = Re(F e^{i Omega t}) with F = g e^{i phi} (i Fy - Fz). The undamped response
+X e^{i Omega t} solves [K0 + Omega^2 (Kc1 - M + i G1)] X = F, which is singular where
+
+    K0 x = mu H x,   H = M - Kc1 - i G1   (Hermitian: G1 is real skew),   mu = Omega^2,
+
+a generalized Hermitian eigenproblem solved directly (no scan over speed). A root
+is a resonance only if gravity excites it: x^H F != 0. (An isotropic shaft has roots at
+half its critical speeds that gravity cannot excite.) For a uniform shaft whose two
+bending planes have squared frequencies a and b for one mode shape, the pair decouples
+into q_v'' - 2 Omega q_w' + (a - Omega^2) q_v = f_v, q_w'' + 2 Omega q_v' +
+(b - Omega^2) q_w = f_w; at forcing frequency Omega the determinant is
+(a - 2 Omega^2)(b - 2 Omega^2) - 4 Omega^4 = a b - 2 Omega^2 (a + b), so the gravity
+resonance is Omega^2 = a b / (2 (a + b)), i.e. near half the critical speed.
+
+Divergence (supercritical) speeds: the symmetric part K0 + Omega^2 Kc1 of Q loses
+definiteness where K0 x = Omega^2 (-Kc1) x; the number of its negative eigenvalues is
+the number of such speeds below Omega, and where it is odd the rotor diverges whatever
+its gyroscopic coupling (Kelvin-Tait-Chetaev): the bands between consecutive speeds,
+e.g. between the two critical speeds of a shaft with unequal bending stiffnesses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import NsfemError
+from ..fem.rotating import RotorOperators
+from ..system import LinearSystem, linear_system
+
+#: A resonance counts as excited when |x^H F| exceeds this fraction of |x| |F|.
+EXCITATION = 1e-6
+#: Dense eigen solvers below this many dofs.
+DENSE_LIMIT = 60
+
+
+@dataclass(frozen=True)
+class CampbellResult:
+    """Rotating-frame frequencies [Hz] per speed (rows) and the largest real part [1/s]."""
+
+    speeds_hz: np.ndarray
+    frequencies_hz: np.ndarray  # (speeds, count); nan where fewer modes exist
+    growth_per_s: np.ndarray  # (speeds,): max Re(lambda) over the computed modes
+
+
+def state_eigenvalues(system: LinearSystem, count: int) -> np.ndarray:
+    """The ``2 count`` eigenvalues of the first-order form nearest zero (complex, rad/s)."""
+    n = system.n
+    k = min(2 * count, 2 * n - 2)
+    M, Q = system.M, system.Q
+    C = system.C if system.C is not None else sp.csr_matrix((n, n))
+    if n <= DENSE_LIMIT:
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-Q.toarray(), -C.toarray()]])
+        B = np.block([[np.eye(n), np.zeros((n, n))], [np.zeros((n, n)), M.toarray()]])
+        lam = sla.eig(A, B, right=False)
+        lam = lam[np.isfinite(lam)]
+        return lam[np.argsort(np.abs(lam))][:k]
+    A = sp.bmat([[None, sp.identity(n)], [-Q, -C]], format="csr")
+    B = sp.block_diag([sp.identity(n), M], format="csr")
+    scale = math.sqrt(float((Q.diagonal() / M.diagonal()).max()))
+    for sigma in (0.0, -1e-6 * scale, 1e-5 * scale):
+        # (A - sigma B) x = b:  x2 = b1 + sigma x1,  -(Q + sigma C + sigma^2 M) x1 = b2 + (C + sigma M) b1
+        try:
+            lu = spla.splu(sp.csc_matrix(Q + sigma * C + sigma**2 * M))
+        except RuntimeError:  # exactly singular (rigid axial motion, a divergence boundary)
+            continue
+        CsM = C + sigma * M
+
+        def solve(b, lu=lu, CsM=CsM, sigma=sigma):
+            b1, b2 = b[:n], b[n:]
+            x1 = -lu.solve(b2 + CsM @ b1)
+            return np.concatenate([x1, b1 + sigma * x1])
+
+        op = spla.LinearOperator((2 * n, 2 * n), matvec=solve, dtype=float)
+        v0 = np.random.default_rng(0).standard_normal(2 * n)
+        lam = spla.eigs(A, k=k, M=B, sigma=sigma, OPinv=op, which="LM", v0=v0, return_eigenvectors=False)
+        return lam[np.argsort(np.abs(lam))]
+    raise NsfemError("the rotating-frame eigenproblem is singular at every tried shift")
+
+
+def frequencies_of(lam: np.ndarray, count: int) -> np.ndarray:
+    """Natural frequencies [Hz] from eigenvalues: one per conjugate pair, ascending."""
+    upper = lam[lam.imag >= -1e-9 * max(1.0, np.abs(lam).max(initial=0.0))]
+    f = np.sort(np.abs(upper.imag)) / (2 * math.pi)
+    out = np.full(count, np.nan)
+    out[: min(count, len(f))] = f[:count]
+    return out
+
+
+def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0), external: float = 0.0
+             ) -> CampbellResult:
+    """Rotating-frame natural frequencies at each speed (damping as given, no gravity needed)."""
+    speeds = np.asarray(speeds_hz, dtype=float)
+    F = np.full((len(speeds), count), np.nan)
+    growth = np.zeros(len(speeds))
+    for i, s in enumerate(speeds):
+        lam = state_eigenvalues(linear_system(ops, s, 0.0, 0.0, rayleigh, external), count)
+        F[i] = frequencies_of(lam, count)
+        growth[i] = lam.real.max() if len(lam) else 0.0
+    return CampbellResult(speeds, F, growth)
+
+
+def _dense(A) -> np.ndarray:
+    return A.toarray() if sp.issparse(A) else np.asarray(A)
+
+
+def gravity_resonances(ops: RotorOperators, phase_deg: float = 0.0, max_hz: float | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Speeds [Hz] where the undamped gravity response is unbounded, and their excitation.
+
+    Returns (speeds, excitation) with excitation |x^H F| / (|x| |F|) in (EXCITATION, 1];
+    roots gravity cannot excite are dropped.
+    """
+    K0 = _dense(ops.K0)
+    H = _dense(ops.M) - _dense(ops.Kc1) - 1j * _dense(ops.G1)
+    F = np.exp(1j * math.radians(phase_deg)) * (1j * ops.Fy - ops.Fz)
+    try:
+        nu, X = sla.eigh(H, K0)  # H x = nu K0 x, nu = 1 / Omega^2
+    except np.linalg.LinAlgError:
+        raise NsfemError("gravity resonances need a supported structure (K0 positive definite)") from None
+    keep = nu > 1e-14 * np.abs(nu).max()
+    nu, X = nu[keep], X[:, keep]
+    speeds = 1.0 / np.sqrt(nu) / (2 * math.pi)
+    order = np.argsort(speeds)
+    speeds, X = speeds[order], X[:, order]
+    # group (near-)repeated roots and measure the excitation of their eigenspace
+    out_s, out_e = [], []
+    i = 0
+    while i < len(speeds):
+        j = i + 1
+        while j < len(speeds) and speeds[j] - speeds[i] <= 1e-9 * speeds[i]:
+            j += 1
+        Xg = X[:, i:j]
+        Qx, _ = np.linalg.qr(Xg)
+        e = np.linalg.norm(Qx.conj().T @ F) / max(np.linalg.norm(F), 1e-300)
+        if e > EXCITATION:
+            out_s.append(speeds[i])
+            out_e.append(e)
+        i = j
+    s, e = np.array(out_s), np.array(out_e)
+    if max_hz is not None:
+        s, e = s[s <= max_hz], e[s <= max_hz]
+    return s, e
+
+
+def divergence_speeds(ops: RotorOperators, count: int = 10) -> np.ndarray:
+    """Speeds [Hz] where K0 + Omega^2 Kc1 becomes singular (lowest ``count``), ascending."""
+    K0, Kc1 = _dense(ops.K0), _dense(ops.Kc1)
+    try:
+        nu = sla.eigh(-Kc1, K0, eigvals_only=True)  # -Kc1 x = nu K0 x, nu = 1 / Omega^2
+    except np.linalg.LinAlgError:
+        raise NsfemError("divergence speeds need a supported structure (K0 positive definite)") from None
+    nu = nu[nu > 1e-14 * np.abs(nu).max()]
+    return np.sort(1.0 / np.sqrt(nu) / (2 * math.pi))[:count]
+
+
+def divergence_bands(speeds_hz: np.ndarray) -> list[tuple[float, float]]:
+    """Intervals with an odd number of negative eigenvalues of K0 + Omega^2 Kc1."""
+    s = list(speeds_hz)
+    bands = [(s[k], s[k + 1]) for k in range(0, len(s) - 1, 2)]
+    if len(s) % 2:
+        bands.append((s[-1], math.inf))
+    return bands
+
+
+def default_speeds(ops_open: RotorOperators, scene_speed_hz: float = 0.0, n: int = 61) -> np.ndarray:
+    """0 to 1.2 times the second divergence speed (both first critical speeds), or 2x the scene's."""
+    d = divergence_speeds(ops_open, 2)
+    stop = 1.2 * (d[-1] if len(d) else 0.0)
+    stop = max(stop, 2.0 * scene_speed_hz, 1.0)
+    return np.linspace(0.0, stop, n)
+
+
+def parse_speeds(text: str) -> np.ndarray:
+    """``START:STOP:N`` -> N speeds [Hz]."""
+    try:
+        a, b, n = text.split(":")
+        a, b, n = float(a), float(b), int(n)
+    except ValueError:
+        raise NsfemError(f"--speeds must look like START:STOP:N (e.g. 0:60:61), got {text!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b)) or a < 0 or b < a or n < 1 or n > 100_000:
+        raise NsfemError(f"--speeds {text!r}: need 0 <= START <= STOP and 1 <= N <= 100000")
+    return np.linspace(a, b, n)
+
+
+def campbell_report(scene, model, speeds_hz=None, count: int = 6) -> dict:
+    """Everything ``nsfem campbell`` prints: frequencies open/closed, resonances, divergence."""
+    from .modes import contact_basis
+    from ..fem.rotating import rotor_operators
+
+    rot, damp = scene["rotation"], scene["damping"]
+    ops = {c: rotor_operators(model, contact_basis(model, c)) for c in ("open", "closed")}
+    if not model.stack.contacts:
+        ops["closed"] = ops["open"]
+    speeds = default_speeds(ops["open"], rot["speed_hz"]) if speeds_hz is None else np.asarray(speeds_hz)
+    res = {c: campbell(o, speeds, count, tuple(damp["rayleigh"]), damp["external"]) for c, o in ops.items()}
+    grav = {c: gravity_resonances(o, rot["phase_deg"]) for c, o in ops.items()}
+    div = {c: divergence_speeds(o, count) for c, o in ops.items()}
+
+    def clean(a):
+        return [None if not np.isfinite(x) else float(x) for x in np.ravel(a)]
+
+    return {
+        "speeds_hz": clean(speeds),
+        "frequencies_hz": [clean(row) for row in res["open"].frequencies_hz],
+        "frequencies_closed_hz": [clean(row) for row in res["closed"].frequencies_hz],
+        "growth_rate_per_s": {c: clean(r.growth_per_s) for c, r in res.items()},
+        "gravity_resonances_hz": {c: clean(g[0][:count]) for c, g in grav.items()},
+        "gravity_excitation": {c: clean(g[1][:count]) for c, g in grav.items()},
+        "instability_hz": {c: clean(d) for c, d in div.items()},
+        "instability_bands_hz": {c: [[float(a), float(b) if math.isfinite(b) else None]
+                                     for a, b in divergence_bands(d)] for c, d in div.items()},
+        "ndof_full": model.n, "ndof": ops["open"].n,
+        "_results": res, "_bands": divergence_bands(div["open"]),
+    }
+
+
+def supercritical_warning(speed_hz: float, divergence_hz) -> str | None:
+    """A warning when ``speed_hz`` lies beyond the first divergence speed, else None."""
+    d = np.asarray(divergence_hz, dtype=float)
+    if len(d) == 0 or speed_hz <= d[0]:
+        return None
+    inside = [(a, b) for a, b in divergence_bands(d) if a < speed_hz < b]
+    where = (f"inside the divergence band {inside[0][0]:.3f}-{inside[0][1]:.3f} Hz, where the static response "
+             "diverges" if inside else "past a divergence band: only gyroscopic coupling keeps it stable")
+    return f"rotation.speed_hz = {speed_hz:g} Hz is supercritical (first divergence speed {d[0]:.3f} Hz), {where}"

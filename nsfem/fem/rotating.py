@@ -1,0 +1,116 @@
+"""Speed-independent operators of the rotating frame (design section 3, paper eq. 22, 25).
+
+Assembled once per model and scaled per speed Omega [rad/s]:
+
+- Coriolis        G = Omega G1,   G1 = 2 int rhoA (N_W N_V^T - N_V N_W^T) dx   (skew)
+- centrifugal     Kc = Omega^2 Kc1,  Kc1 = -int rhoA (N_V N_V^T + N_W N_W^T) dx   (nsd, eq. 25)
+- external damping (c_e per unit length, on the inertial lateral velocity):
+  D_e = c_e De1, De1 = int (N_V N_V^T + N_W N_W^T) dx;  circulatory P = Omega c_e P1,
+  P1 = int (N_W N_V^T - N_V N_W^T) dx (skew);  drag load Omega c_e fd1, fd1 = int (z_c N_V - y_c N_W)
+- centrifugal load f_c = Omega^2 fc1,  fc1 = int rhoA (y_c N_V + z_c N_W) dx
+- gravity         f_g(t) = g_y(t) Fy + g_z(t) Fz,  Fy = int rhoA N_V, Fz = int rhoA N_W,
+  g_y = -g sin(Omega t + phi), g_z = -g cos(Omega t + phi)
+
+With u = (U - eta V' - zeta W', V, W) in the rotating frame, Omega x u_dot and
+Omega x (Omega x r) have no axial component, so rotary inertia (Rayleigh theory) adds
+nothing here: these are exact for both beam theories.
+
+>>> import numpy as np
+>>> from nsfem import build_model, load_scene
+>>> ops = rotor_operators(build_model(load_scene(None, ["mesh.elements=20"])))
+>>> bool(abs(ops.G1 + ops.G1.T).max() == 0), bool(abs(ops.P1 + ops.P1.T).max() == 0)
+(True, True)
+>>> bool(np.linalg.eigvalsh(ops.Kc1.toarray()).max() <= 1e-12 * abs(ops.Kc1).max())   # nsd
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import LinearForm, asm
+
+from .assemble import FEModel
+from .constraints import project
+
+
+@LinearForm
+def _unit_load(v, _):
+    return v
+
+
+@dataclass(frozen=True)
+class RotorOperators:
+    """Mass, elastic stiffness and the speed-independent rotating-frame operators.
+
+    ``basis`` is the T with q_full = T q they are expressed in (``None``: full coordinates).
+    """
+
+    M: sp.csr_matrix
+    K0: sp.csr_matrix
+    G1: sp.csr_matrix
+    Kc1: sp.csr_matrix
+    De1: sp.csr_matrix
+    P1: sp.csr_matrix
+    fc1: np.ndarray
+    fd1: np.ndarray
+    Fy: np.ndarray
+    Fz: np.ndarray
+    basis: sp.csr_matrix | None = None
+
+    @property
+    def n(self) -> int:
+        return self.M.shape[0]
+
+    def project(self, T: sp.spmatrix) -> "RotorOperators":
+        """Every operator in the coordinates q of q_full = T q (symmetry and skewness kept)."""
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name == "basis":
+                continue
+            out[f.name] = project(T, v) if sp.issparse(v) else np.asarray(T.T @ v)
+        base = T if self.basis is None else self.basis @ T
+        return replace(self, **out, basis=sp.csr_matrix(base))
+
+
+def rotor_operators(model: FEModel, basis: sp.spmatrix | None = None) -> RotorOperators:
+    """Assemble the operators of ``model`` and express them in ``basis`` (default: model.T)."""
+    n = model.n_full
+    names = ("G1", "Kc1", "De1", "P1")
+    rows, cols, vals = ({k: [] for k in names} for _ in range(3))
+    vec = {k: np.zeros(n) for k in ("fc1", "fd1", "Fy", "Fz")}
+
+    def put(name, r, c, A):
+        A = sp.coo_matrix(A)
+        rows[name].append(r[A.row])
+        cols[name].append(c[A.col])
+        vals[name].append(A.data)
+
+    for s in model.stack.segments:
+        space = model.spaces[s.name]
+        Mb = space.unit["bending_mass"]
+        load = asm(_unit_load, space.bending)
+        V, W = space.dofs["V"], space.dofs["W"]
+        rA = s.rho * s.area
+        yc, zc = s.offset
+        put("G1", W, V, 2 * rA * Mb)
+        put("G1", V, W, -2 * rA * Mb)
+        put("Kc1", V, V, -rA * Mb)
+        put("Kc1", W, W, -rA * Mb)
+        put("De1", V, V, Mb)
+        put("De1", W, W, Mb)
+        put("P1", W, V, Mb)
+        put("P1", V, W, -Mb)
+        vec["fc1"][V] += rA * yc * load
+        vec["fc1"][W] += rA * zc * load
+        vec["fd1"][V] += zc * load
+        vec["fd1"][W] += -yc * load
+        vec["Fy"][V] += rA * load
+        vec["Fz"][W] += rA * load
+    mats = {k: sp.csr_matrix((np.concatenate(vals[k]), (np.concatenate(rows[k]), np.concatenate(cols[k]))),
+                             shape=(n, n)) for k in rows}
+    full = RotorOperators(model.M_full, model.K_full, **mats, **vec)
+    return full.project(model.T if basis is None else basis)

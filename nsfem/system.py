@@ -1,0 +1,102 @@
+"""The linear system of eq. (22) without contact forces, for one rotation speed.
+
+    M q'' + C q' + Q q = f(t),   C = G + D_i + D_e,   Q = K0 + Kc + P,
+    f(t) = f0 + fc cos(Omega t) + fs sin(Omega t)
+
+with G = Omega G1, Kc = Omega^2 Kc1, P = Omega c_e P1, D_i = alpha M + beta K0,
+D_e = c_e De1, f0 = Omega^2 fc1 + Omega c_e fd1 (+ gravity when not rotating) and the
+gravity harmonics at the rotation frequency (design section 3). What a scene does not
+need is left out: no rotation, no G, Kc, P, f_c; no gravity, no harmonic load; no
+damping and no rotation, ``C is None``.
+
+>>> from nsfem import build_model, load_scene
+>>> from nsfem.fem.rotating import rotor_operators
+>>> ops = rotor_operators(build_model(load_scene(None, ["mesh.elements=20"])))
+>>> s = linear_system(ops, speed_hz=21.0, gravity=9.81)
+>>> s.C is not None, s.fc is not None, round(s.omega / (2 * 3.141592653589793), 6)
+(True, True, 21.0)
+>>> linear_system(ops, speed_hz=0.0, gravity=0.0).C is None
+True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .fem.rotating import RotorOperators
+
+
+@dataclass(frozen=True)
+class LinearSystem:
+    """M, C, Q and the load f0 + fc cos(omega t) + fs sin(omega t); absent parts are None."""
+
+    M: sp.csr_matrix
+    C: sp.csr_matrix | None
+    Q: sp.csr_matrix
+    f0: np.ndarray | None
+    fc: np.ndarray | None
+    fs: np.ndarray | None
+    omega: float  # rotation (and gravity forcing) frequency [rad/s]
+
+    @property
+    def n(self) -> int:
+        return self.M.shape[0]
+
+    def load(self, t: float | np.ndarray) -> np.ndarray:
+        """f(t), shape (n,) for a scalar t or (n, len(t))."""
+        t = np.asarray(t, dtype=float)
+        out = np.zeros((self.n,) + t.shape)
+        if self.f0 is not None:
+            out += self.f0.reshape((-1,) + (1,) * t.ndim)
+        for vec, fn in ((self.fc, np.cos), (self.fs, np.sin)):
+            if vec is not None:
+                out += np.multiply.outer(vec, fn(self.omega * t))
+        return out
+
+
+def linear_system(ops: RotorOperators, speed_hz: float = 0.0, gravity: float = 0.0, phase_deg: float = 0.0,
+                  rayleigh: tuple[float, float] = (0.0, 0.0), external: float = 0.0) -> LinearSystem:
+    """Eq. (22) at ``speed_hz`` from operators assembled once (any basis)."""
+    w = 2.0 * math.pi * speed_hz
+    alpha, beta = rayleigh
+    phi = math.radians(phase_deg)
+    C = None
+    parts = []
+    if w:
+        parts.append(w * ops.G1)
+    if alpha:
+        parts.append(alpha * ops.M)
+    if beta:
+        parts.append(beta * ops.K0)
+    if external:
+        parts.append(external * ops.De1)
+    if parts:
+        C = sum(parts[1:], parts[0]).tocsr()
+    Q = ops.K0
+    if w:
+        Q = Q + w**2 * ops.Kc1
+        if external:
+            Q = Q + w * external * ops.P1
+    f0 = fc = fs = None
+    if w:
+        f0 = w**2 * ops.fc1 + (w * external * ops.fd1 if external else 0.0)
+    if gravity:
+        gy, gz = -gravity * math.sin(phi), -gravity * math.cos(phi)
+        if w:
+            # g_y = -g sin(wt + phi) = gy cos(wt) - g cos(phi) sin(wt), g_z likewise
+            fc = gy * ops.Fy + gz * ops.Fz
+            fs = -gravity * math.cos(phi) * ops.Fy + gravity * math.sin(phi) * ops.Fz
+        else:
+            f0 = gy * ops.Fy + gz * ops.Fz
+    return LinearSystem(ops.M, C, sp.csr_matrix(Q), f0, fc, fs, w)
+
+
+def scene_system(scene, ops: RotorOperators, speed_hz: float | None = None) -> LinearSystem:
+    """The system of a scene's ``[rotation]`` and ``[damping]`` (speed overridable)."""
+    rot, damp = scene["rotation"], scene["damping"]
+    return linear_system(ops, rot["speed_hz"] if speed_hz is None else speed_hz, rot["gravity"],
+                         rot["phase_deg"], tuple(damp["rayleigh"]), damp["external"])
