@@ -199,8 +199,8 @@ def parse_speeds(text: str) -> np.ndarray:
 
 def campbell_report(scene, model, speeds_hz=None, count: int = 6) -> dict:
     """Everything ``nsfem campbell`` prints: frequencies open/closed, resonances, divergence."""
-    from .modes import contact_basis
     from ..fem.rotating import rotor_operators
+    from .modes import contact_basis
 
     rot, damp = scene["rotation"], scene["damping"]
     ops = {c: rotor_operators(model, contact_basis(model, c)) for c in ("open", "closed")}

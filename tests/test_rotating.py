@@ -1,0 +1,165 @@
+"""Rotating frame: operator properties, closed-form rotor results, loads, Campbell and CLI."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from conftest import RHO, beam_tree
+
+from nsfem import build_model, cli, load_scene, natural_frequencies
+from nsfem.analysis.campbell import (
+    campbell,
+    divergence_bands,
+    divergence_speeds,
+    gravity_resonances,
+    supercritical_warning,
+)
+from nsfem.analysis.modes import contact_basis
+from nsfem.contact.kinematics import gap_jacobian
+from nsfem.fem.rotating import rotor_operators
+from nsfem.scene import scene_from_tree
+from nsfem.system import linear_system
+
+
+def uniform(width, height, elements=30, supports="pinned-pinned"):
+    model = build_model(scene_from_tree(beam_tree(supports, width, height, elements)))
+    return model, rotor_operators(model)
+
+
+def test_operator_symmetries_survive_the_constraints():
+    model = build_model(load_scene(None, ["mesh.elements=20"]))
+    full = rotor_operators(model, basis=sp.identity(model.n_full, format="csr"))
+    for ops in (full, rotor_operators(model), rotor_operators(model, contact_basis(model, "closed"))):
+        assert abs(ops.G1 + ops.G1.T).max() == 0 and abs(ops.P1 + ops.P1.T).max() == 0  # skew
+        for A in (ops.M, ops.K0, ops.Kc1, ops.De1):
+            assert abs(A - A.T).max() == 0
+        w = np.linalg.eigvalsh(ops.Kc1.toarray())
+        assert w.max() <= 1e-12 * abs(w).max()  # negative semi-definite (eq. 25)
+        assert np.linalg.eigvalsh(ops.De1.toarray()).min() >= -1e-12 * abs(ops.De1).max()
+
+
+def test_isotropic_shaft_frequencies_split_by_the_speed():
+    # Euler-Bernoulli, square section: in the rotating frame the whirl pair sits exactly at
+    # |f0 - Omega| and f0 + Omega (Kc1 = -lateral mass exactly, G couples V and W)
+    model, ops = uniform(0.02, 0.02)
+    f0 = natural_frequencies(model, "open", 2).frequencies_hz[0]
+    speeds = [0.0, 7.0, 0.4 * f0, 1.3 * f0]
+    res = campbell(ops, speeds, 2)
+    for s, f in zip(speeds, res.frequencies_hz):
+        assert np.allclose(np.sort(f), np.sort([abs(f0 - s), f0 + s]), rtol=1e-9, atol=1e-9 * f0)
+    # and gravity, a backward-rotating load in this frame, excites no resonance of it
+    assert len(gravity_resonances(ops)[0]) == 0
+
+
+def test_rectangular_shaft_gravity_resonance_and_divergence_band():
+    model, ops = uniform(0.03, 0.01)
+    modes = natural_frequencies(model, "open", 6)
+    fw = [f for f, k in zip(modes.frequencies_hz, modes.fields) if k == "W"][0]
+    fv = [f for f, k in zip(modes.frequencies_hz, modes.fields) if k == "V"][0]
+    a, b = (2 * math.pi * fw) ** 2, (2 * math.pi * fv) ** 2
+    # Omega^2 = a b / (2 (a + b)) (derived in nsfem.analysis.campbell): the first-mode pair
+    # decouples exactly in the FE model (same shape functions in both planes)
+    expect = math.sqrt(a * b / (2 * (a + b))) / (2 * math.pi)
+    speeds, excitation = gravity_resonances(ops)
+    assert speeds[0] == pytest.approx(expect, rel=1e-9)
+    assert excitation[0] > 0.1
+    d = divergence_speeds(ops, 2)
+    # Q = K0 + Omega^2 Kc1 is singular at the two bending frequencies (lateral mass only)
+    assert d == pytest.approx([fw, fv], rel=1e-9)
+    assert divergence_bands(d) == [(d[0], d[1])]
+    # inside the band the rotor diverges: a real positive eigenvalue
+    inside = campbell(ops, [0.5 * (fw + fv)], 2)
+    outside = campbell(ops, [0.5 * fw], 2)
+    assert inside.growth_per_s[0] > 1.0 and abs(outside.growth_per_s[0]) < 1e-6
+    assert supercritical_warning(0.5 * (fw + fv), d) and supercritical_warning(0.5 * fw, d) is None
+
+
+def test_centrifugal_load_per_segment_and_it_opens_the_delamination():
+    model = build_model(load_scene(None, ["mesh.elements=40"]))
+    full = rotor_operators(model, basis=sp.identity(model.n_full, format="csr"))
+    for s in model.stack.segments:
+        W = model.spaces[s.name].dofs["W"]
+        value = model.spaces[s.name].bending.nodal_dofs[0]
+        ones = np.zeros(model.n_full)
+        ones[W[value]] = 1.0  # the constant field W = 1 (slopes 0): sum of nodal loads
+        assert ones @ full.fc1 == pytest.approx(s.rho * s.area * s.offset[1] * s.length, rel=1e-12, abs=1e-18)
+    # static open response to the centrifugal load alone: the sub-beams move apart
+    ops = rotor_operators(model)
+    w = 2 * math.pi * 21.0
+    q = spla.spsolve((ops.K0 + w**2 * ops.Kc1).tocsc(), w**2 * ops.fc1)
+    J, j = gap_jacobian(model)
+    gaps = J.T @ (model.T @ q) + j
+    assert np.all(gaps > 0) and gaps[4] > gaps[0]  # largest at mid-delamination
+
+
+def test_gravity_load_is_harmonic_in_the_rotating_frame():
+    model, ops = uniform(0.02, 0.02)
+    g, phase = 9.81, 30.0
+    s = linear_system(ops, speed_hz=5.0, gravity=g, phase_deg=phase)
+    w = 2 * math.pi * 5.0
+    for t in (0.0, 0.013, 0.1):
+        th = w * t + math.radians(phase)
+        want = -g * math.sin(th) * ops.Fy - g * math.cos(th) * ops.Fz
+        assert np.allclose(s.load(t), want, atol=1e-12 * np.abs(ops.Fz).max())
+    # not rotating: a constant load; in full coordinates its z-resultant is the weight rho A L g
+    s0 = linear_system(ops, speed_hz=0.0, gravity=g)
+    assert s0.fc is None and s0.fs is None and np.allclose(s0.f0, -g * ops.Fz)
+    full = rotor_operators(model, basis=sp.identity(model.n_full, format="csr"))
+    space = model.spaces["intact_0"]
+    ones = np.zeros(model.n_full)
+    ones[space.dofs["W"][space.bending.nodal_dofs[0]]] = 1.0
+    assert -g * full.Fz @ ones == pytest.approx(-g * RHO * 0.02 * 0.02 * 1.0, rel=1e-12)
+
+
+def test_system_leaves_out_what_the_scene_does_not_need():
+    _, ops = uniform(0.02, 0.02)
+    s = linear_system(ops)
+    assert s.C is None and s.f0 is None and s.fc is None and s.fs is None
+    assert abs(s.Q - ops.K0).max() == 0
+    s = linear_system(ops, speed_hz=3.0)  # rotation without gravity or damping
+    assert s.C is not None and s.fc is None
+    d = linear_system(ops, rayleigh=(2.0, 1e-4))  # damping without rotation
+    assert abs(d.C - (2.0 * ops.M + 1e-4 * ops.K0)).max() == 0
+    e = linear_system(ops, speed_hz=3.0, external=5.0)
+    w = 2 * math.pi * 3.0
+    assert abs(e.Q - (ops.K0 + w**2 * ops.Kc1 + w * 5.0 * ops.P1)).max() < 1e-9 * abs(ops.K0).max()
+
+
+@pytest.mark.parametrize("contact", ["open", "closed"])
+def test_campbell_at_rest_equals_modes(contact):
+    model = build_model(load_scene(None, ["mesh.elements=20"]))
+    ops = rotor_operators(model, contact_basis(model, contact))
+    f = campbell(ops, [0.0], 5).frequencies_hz[0]
+    assert np.allclose(f, natural_frequencies(model, contact, 5).frequencies_hz, rtol=1e-9)
+
+
+def test_gravity_resonance_scales_with_sqrt_E():
+    # all stiffness scales with E: every resonance speed with sqrt(E)
+    r1 = gravity_resonances(rotor_operators(build_model(load_scene(None, ["mesh.elements=20"]))))[0][0]
+    r2 = gravity_resonances(rotor_operators(build_model(load_scene(None, ["mesh.elements=20",
+                                                                          "shaft.E=1.05e11"]))))[0][0]
+    assert r2 == pytest.approx(r1 * math.sqrt(0.5), rel=1e-9)
+
+
+def test_campbell_cli_json_and_png(tmp_path):
+    png = tmp_path / "c.png"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = cli.main(["campbell", "--json", "--speeds", "0:30:7", "--count", "4", "--png", str(png),
+                         "--set", "mesh.elements=20"])
+    assert code == 0
+    d = json.loads(buf.getvalue())
+    for key in ("speeds_hz", "frequencies_hz", "gravity_resonances_hz", "instability_hz", "ndof_full", "ndof"):
+        assert key in d
+    assert len(d["frequencies_hz"]) == 7 and len(d["frequencies_hz"][0]) == 4
+    assert set(d["gravity_resonances_hz"]) == {"open", "closed"}
+    # the shipped scene's first gravity resonance, with E = 210 GPa and pinned supports
+    assert d["gravity_resonances_hz"]["open"][0] == pytest.approx(22.78, abs=0.02)
+    assert png.stat().st_size > 10_000 and d["outputs"] == [str(png)]
