@@ -163,3 +163,25 @@ def test_campbell_cli_json_and_png(tmp_path):
     # the shipped scene's first gravity resonance, with E = 210 GPa and pinned supports
     assert d["gravity_resonances_hz"]["open"][0] == pytest.approx(22.78, abs=0.02)
     assert png.stat().st_size > 10_000 and d["outputs"] == [str(png)]
+
+
+def test_free_free_rotor_has_a_campbell_diagram():
+    # no supports: K0 is singular; resonances and divergence speeds come from the QZ fallback
+    from nsfem.analysis.campbell import campbell_report
+
+    scene = load_scene(None, ['shaft.supports="free-free"', "mesh.elements=20"])
+    rep = campbell_report(scene, build_model(scene), [0.0, 30.0], 8)
+    f30 = np.array(rep["frequencies_hz"][1])
+    # the four lateral rigid motions appear at the rotation frequency in the rotating frame:
+    # translations to 1e-6 relative; tilts within 2e-4, since their inertia also holds the
+    # sub-beams' axial (Steiner) part that the lateral centrifugal term does not see
+    assert np.count_nonzero(np.abs(f30 - 30.0) < 2e-4 * 30.0) == 4
+    assert np.count_nonzero(np.abs(f30 - 30.0) < 1e-6 * 30.0) == 2
+    assert rep["gravity_resonances_hz"]["open"][0] > 0 and rep["instability_hz"]["open"][0] > 30
+
+
+@pytest.mark.parametrize("text", ["0:60", "a:b:c", "10:5:3", "0:60:0", "-1:5:3", "0:inf:3"])
+def test_bad_speed_ranges_are_rejected(text, capsys):
+    assert cli.main(["campbell", "--speeds", text]) == cli.EXIT_ERROR
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--speeds" in err[0]

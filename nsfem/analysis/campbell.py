@@ -128,12 +128,7 @@ def gravity_resonances(ops: RotorOperators, phase_deg: float = 0.0, max_hz: floa
     K0 = _dense(ops.K0)
     H = _dense(ops.M) - _dense(ops.Kc1) - 1j * _dense(ops.G1)
     F = np.exp(1j * math.radians(phase_deg)) * (1j * ops.Fy - ops.Fz)
-    try:
-        nu, X = sla.eigh(H, K0)  # H x = nu K0 x, nu = 1 / Omega^2
-    except np.linalg.LinAlgError:
-        raise NsfemError("gravity resonances need a supported structure (K0 positive definite)") from None
-    keep = nu > 1e-14 * np.abs(nu).max()
-    nu, X = nu[keep], X[:, keep]
+    nu, X = _pencil(H, K0)  # H x = nu K0 x, nu = 1 / Omega^2
     speeds = 1.0 / np.sqrt(nu) / (2 * math.pi)
     order = np.argsort(speeds)
     speeds, X = speeds[order], X[:, order]
@@ -159,13 +154,24 @@ def gravity_resonances(ops: RotorOperators, phase_deg: float = 0.0, max_hz: floa
 
 def divergence_speeds(ops: RotorOperators, count: int = 10) -> np.ndarray:
     """Speeds [Hz] where K0 + Omega^2 Kc1 becomes singular (lowest ``count``), ascending."""
-    K0, Kc1 = _dense(ops.K0), _dense(ops.Kc1)
-    try:
-        nu = sla.eigh(-Kc1, K0, eigvals_only=True)  # -Kc1 x = nu K0 x, nu = 1 / Omega^2
-    except np.linalg.LinAlgError:
-        raise NsfemError("divergence speeds need a supported structure (K0 positive definite)") from None
-    nu = nu[nu > 1e-14 * np.abs(nu).max()]
+    nu, _ = _pencil(-_dense(ops.Kc1), _dense(ops.K0))  # -Kc1 x = nu K0 x, nu = 1 / Omega^2
     return np.sort(1.0 / np.sqrt(nu) / (2 * math.pi))[:count]
+
+
+def _pencil(H: np.ndarray, K0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positive eigenvalues nu of H x = nu K0 x (H Hermitian, K0 psd) and their vectors.
+
+    With K0 positive definite this is a Hermitian-definite problem. A free structure (rigid
+    motions in K0's null space, nu infinite there) goes to the general QZ solver instead.
+    """
+    try:
+        nu, X = sla.eigh(H, K0)
+    except np.linalg.LinAlgError:
+        w, X = sla.eig(H, K0)
+        finite = np.isfinite(w) & (np.abs(w.imag) <= 1e-8 * np.abs(w).max(initial=1.0))
+        nu, X = w[finite].real, X[:, finite]
+    keep = nu > 1e-12 * np.abs(nu).max(initial=0.0)
+    return nu[keep], X[:, keep]
 
 
 def divergence_bands(speeds_hz: np.ndarray) -> list[tuple[float, float]]:
