@@ -28,11 +28,16 @@ def test_modes_json_contract_and_equals_library(tmp_path):
     assert payload["contact"] == "open" and len(payload["frequencies_hz"]) == 6
     f = payload["frequencies_hz"]
     assert f == sorted(f)
-    # the same numbers from Python in two lines
-    model = nsfem.build_model(nsfem.load_scene(None, ["mesh.elements=20"]))
-    lib = nsfem.natural_frequencies(model, "open", 6)
+    # the same numbers from Python in a few lines (the shipped scene reduces by Craig-Bampton)
+    from nsfem.reduce import scene_reduction
+
+    scene = nsfem.load_scene(None, ["mesh.elements=20"])
+    model = nsfem.build_model(scene)
+    red = scene_reduction(scene, model)
+    lib = nsfem.natural_frequencies(model, "open", 6, red)
     assert np.allclose(f, lib.frequencies_hz, rtol=1e-12)
-    assert payload["ndof_full"] == model.n
+    assert payload["ndof_full"] == model.n and payload["ndof"] == red.ndof < model.n
+    assert payload["reduction"]["method"] == "craig-bampton"
 
 
 def test_modes_closed_is_stiffer_and_default_scene_matches_the_paper():
@@ -49,10 +54,10 @@ def test_modes_closed_is_stiffer_and_default_scene_matches_the_paper():
     assert opened[1] == pytest.approx(np.pi / 2 * np.sqrt(2.1e11 * 0.02**2 / 12 / 7500), rel=1e-6)
 
 
-def test_human_output_and_reduction_note():
+def test_human_output_names_the_reduction():
     code, out, err = run("modes", "--count", "2")
-    assert code == 0 and "mode" in out and "frequency [Hz]" in out
-    assert "not implemented yet" in err  # the shipped scene asks for craig-bampton
+    assert code == 0 and "mode" in out and "frequency [Hz]" in out and err == ""
+    assert "craig-bampton" in out and "full model 355" in out
 
 
 def test_scene_file_argument_and_overrides(tmp_path):

@@ -61,16 +61,29 @@ def dominant_fields(model: FEModel, shapes: np.ndarray) -> tuple[str, ...]:
     return tuple("UVW"[k] for k in np.argmax(share, axis=0))
 
 
-def contact_basis(model: FEModel, contact: str) -> sp.csr_matrix:
-    """q_full = T q for the open (supports, junctions) or closed (plus J_N^T q = 0) structure."""
+def contact_basis(model: FEModel, contact: str, reduction=None):
+    """q_full = T q for the open or closed (J_N^T q_full = 0 held) structure.
+
+    ``reduction`` (a :class:`nsfem.reduce.Reduction`) makes q its reduced coordinates; the
+    closure is then imposed on them (exactly representable with Craig-Bampton, an
+    over-constraint of the retained shapes with modal truncation).
+    """
     if contact not in CONTACT_STATES:
         raise NsfemError(f"contact must be open or closed, got {contact!r}")
+    base = model.T if reduction is None else reduction.T
     if contact == "open" or not model.stack.contacts:
-        return model.T
+        return base
     from ..contact.kinematics import gap_jacobian
+    from ..fem.constraints import constraint_basis
 
     J, _ = gap_jacobian(model)
-    return model.constrain(J.T)
+    C = sp.csr_matrix(J.T @ base)
+    scale = abs(J).max(axis=0).toarray().ravel() * max(float(abs(base).max()), 1.0)
+    T2, _ = constraint_basis(C, base.shape[1], row_scale=scale)
+    if T2.shape[1] == 0:
+        raise NsfemError(f"closing all {J.shape[1]} contacts leaves no coordinate of the {base.shape[1]} kept; "
+                         "keep more modes")
+    return base @ T2
 
 
 def eigenpairs(K: sp.spmatrix, M: sp.spmatrix, count: int, rigid: np.ndarray | None = None
@@ -139,16 +152,18 @@ def _eigenpairs(K, M, count, rigid):
     return lam, X
 
 
-def natural_frequencies(model: FEModel, contact: str = "open", count: int = 10) -> Modes:
+def natural_frequencies(model: FEModel, contact: str = "open", count: int = 10, reduction=None) -> Modes:
     """Lowest ``count`` natural frequencies of the non-rotating structure [Hz].
 
     Rigid-body modes admitted by the supports (and closed contacts) appear as 0 Hz.
+    ``reduction`` (:func:`nsfem.reduce.reduce`) solves the reduced model instead of the full one.
     """
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise NsfemError(f"count must be a positive integer, got {count!r}")
-    T = contact_basis(model, contact)
+    T = contact_basis(model, contact, reduction)
     K, M = project(T, model.K_full), project(T, model.M_full)
     lam, X = eigenpairs(K, M, int(count), admissible(T, rigid_fields(model)))
     freqs = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * np.pi)
     shapes = np.asarray(T @ X)
-    return Modes(freqs, shapes, contact, model.n, model.n, dominant_fields(model, shapes))
+    ndof = model.n if reduction is None else reduction.ndof
+    return Modes(freqs, shapes, contact, model.n, ndof, dominant_fields(model, shapes))

@@ -28,10 +28,15 @@ _AXIS = {"x": "U", "y": "V", "z": "W"}
 
 
 def point_row(model: FEModel, segment: str, fld: str, c: Contact) -> dict[int, float]:
-    """Weights w with sum_i w_i q_i = field value at the contact (Dirac) or its hat average."""
+    """Weights w with sum_i w_i q_i = field value at the contact (Dirac) or its hat average.
+
+    ``fld`` is U, V, W, or a slope V', W'.
+    """
     space = model.spaces[segment]
     if c.weighting == "dirac":
         return {model.dof(segment, fld, c.x): 1.0}
+    slope = fld.endswith("'")
+    fld = fld.rstrip("'")
     a, b = c.extent
     peak = 2.0 / (b - a)  # unit integral
 
@@ -40,7 +45,7 @@ def point_row(model: FEModel, segment: str, fld: str, c: Contact) -> dict[int, f
         x = w.x[0] + space.x[0]  # bases use local coordinates
         up = peak * (x - a) / (c.x - a)
         down = peak * (b - x) / (b - c.x)
-        return np.where((x >= a) & (x <= b), np.minimum(up, down), 0.0) * v
+        return np.where((x >= a) & (x <= b), np.minimum(up, down), 0.0) * (v.grad[0] if slope else v)
 
     basis = space.axial if fld == "U" else space.bending
     vec = asm(hat, basis)
@@ -58,6 +63,58 @@ def contact_row(model: FEModel, c: Contact) -> tuple[dict[int, float], float]:
     sign = 1.0 if c.normal[0] == "+" else -1.0
     row = {i: -sign * v for i, v in point_row(model, c.segments[0], _AXIS[c.normal[1]], c).items()}
     return row, c.clearance
+
+
+def _combine(*terms: tuple[float, dict[int, float]]) -> dict[int, float]:
+    out: dict[int, float] = {}
+    for coef, row in terms:
+        for i, v in row.items():
+            out[i] = out.get(i, 0.0) + coef * v
+    return out
+
+
+def slip_rows(model: FEModel, c: Contact) -> list[dict[int, float]]:
+    """Tangential relative displacements of a contact, one row per tangent direction.
+
+    Interface (design section 3): s_x = (U_u + h_u/2 W_u') - (U_l - h_l/2 W_l'),
+    s_y = V_u - V_l. Obstacle: the displacement of the touched surface point
+    (u1 = U - eta V' - zeta W', u2 = V, u3 = W) along the two axes normal to n.
+    """
+    pr = lambda seg, f: point_row(model, seg, f, c)  # noqa: E731
+    if c.kind == "interface":
+        up, lo = c.segments
+        hu, hl = model.stack.segment(up).height, model.stack.segment(lo).height
+        sx = _combine((1.0, pr(up, "U")), (hu / 2, pr(up, "W'")), (-1.0, pr(lo, "U")), (hl / 2, pr(lo, "W'")))
+        return [sx, _combine((1.0, pr(up, "V")), (-1.0, pr(lo, "V")))]
+    seg = model.stack.segment(c.segments[0])
+    sign = 1.0 if c.normal[0] == "+" else -1.0
+    axis = c.normal[1]
+    rows = []
+    for t in "xyz":
+        if t == axis:
+            continue
+        if t == "x" and axis == "z":  # surface at zeta = sign h/2
+            rows.append(_combine((1.0, pr(seg.name, "U")), (-sign * seg.height / 2, pr(seg.name, "W'"))))
+        elif t == "x" and axis == "y":  # surface at eta = sign b/2
+            rows.append(_combine((1.0, pr(seg.name, "U")), (-sign * seg.width / 2, pr(seg.name, "V'"))))
+        else:
+            rows.append(pr(seg.name, _AXIS[t]))
+    return rows
+
+
+def slip_jacobian(model: FEModel, contacts=None) -> sp.csr_matrix:
+    """Tangential slip rows of every contact with friction (mu > 0), as columns (n_full x 2 m_f)."""
+    contacts = [c for c in (model.stack.contacts if contacts is None else contacts) if c.friction > 0]
+    rows = [r for c in contacts for r in slip_rows(model, c)]
+    return _columns(rows, model.n_full)
+
+
+def _columns(rows: list[dict[int, float]], n: int) -> sp.csr_matrix:
+    J = sp.lil_matrix((n, len(rows)))
+    for k, row in enumerate(rows):
+        for i, v in row.items():
+            J[i, k] = v
+    return J.tocsr()
 
 
 def gap_jacobian(model: FEModel, contacts=None) -> tuple[sp.csr_matrix, np.ndarray]:

@@ -79,10 +79,14 @@ def constraint_basis(C: sp.spmatrix, n: int, prefer: Sequence[int | None] | None
     return T, np.sort(slaves)
 
 
-def project(T: sp.spmatrix, A: sp.spmatrix) -> sp.csr_matrix:
-    """T^T A T; exactly symmetric (skew) when A is, removing round-off asymmetry."""
+def project(T, A: sp.spmatrix) -> sp.csr_matrix:
+    """T^T A T; exactly symmetric (skew) when A is, removing round-off asymmetry.
+
+    T may be sparse (constraints) or a dense basis (a reduction); A @ T is formed first,
+    so a dense T never sits inside a sparse product.
+    """
     A = sp.csr_matrix(A)
-    B = (T.T @ A @ T).tocsr()
+    B = sp.csr_matrix(T.T @ (A @ T))
     if A.nnz and abs(A - A.T).max() == 0.0:
         B = ((B + B.T) * 0.5).tocsr()
     elif A.nnz and abs(A + A.T).max() == 0.0:

@@ -58,7 +58,7 @@ class RotorOperators:
     fd1: np.ndarray
     Fy: np.ndarray
     Fz: np.ndarray
-    basis: sp.csr_matrix | None = None
+    basis: sp.csr_matrix | np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -73,7 +73,7 @@ class RotorOperators:
                 continue
             out[f.name] = project(T, v) if sp.issparse(v) else np.asarray(T.T @ v)
         base = T if self.basis is None else self.basis @ T
-        return replace(self, **out, basis=sp.csr_matrix(base))
+        return replace(self, **out, basis=base)
 
 
 def rotor_operators(model: FEModel, basis: sp.spmatrix | None = None) -> RotorOperators:

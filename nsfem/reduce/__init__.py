@@ -1,0 +1,91 @@
+"""Model reduction: q = V eta with a basis V (n x r) in the constrained coordinates q.
+
+One interface, several methods, as scipy's ``solve_ivp(method=...)``: :func:`reduce`
+maps ``[reduction] method`` names to :class:`Reduction` subclasses. A new method
+subclasses :class:`Reduction` and implements :meth:`Reduction.basis`, which must return
+
+- a basis V (dense array or sparse matrix, n x r, full column rank) of the coordinates
+  the reduced model keeps, and
+- its metadata (a dict, reported in outputs).
+
+Everything else is shared: the reduced operators are V^T A V (and V^T f) of the
+operators of :mod:`nsfem.fem.rotating`, computed once per model, so a speed sweep never
+reduces again; contact gaps are V^T T^T J_N, exact linear functions of eta.
+
+>>> from nsfem import build_model, load_scene
+>>> model = build_model(load_scene(None, ["mesh.elements=20"]))
+>>> red = reduce(model, "craig-bampton", modes=8)
+>>> red.ndof, red.info["boundary_dofs"]          # 9 contact points x 2 faces + 8 modes
+(26, 18)
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import NsfemError
+from ..fem.assemble import FEModel
+
+
+@dataclass
+class Reduction:
+    """Base class: a reduction of ``model`` with ``modes`` kept modes (method-specific).
+
+    Subclasses set ``name`` and implement :meth:`basis`. After construction ``V`` is the
+    basis (n x r), ``ndof`` = r, ``info`` the method's metadata plus ``wall_s``.
+    """
+
+    model: FEModel
+    modes: int = 16
+    V: np.ndarray | sp.spmatrix = field(init=False)
+    info: dict = field(init=False, default_factory=dict)
+    name = "base"
+
+    def __post_init__(self) -> None:
+        t0 = time.perf_counter()
+        self.V, info = self.basis()
+        self.info = {"method": self.name, **info, "wall_s": time.perf_counter() - t0}
+
+    def basis(self) -> tuple[np.ndarray | sp.spmatrix, dict]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    @property
+    def ndof(self) -> int:
+        return self.V.shape[1]
+
+    @property
+    def T(self):
+        """q_full = T V eta: the map from reduced to full finite-element coordinates."""
+        V = self.V
+        return (self.model.T @ V).tocsr() if sp.issparse(V) else np.asarray(self.model.T @ V)
+
+
+class NoReduction(Reduction):
+    """The full finite-element model (the reference)."""
+
+    name = "none"
+
+    def basis(self):
+        return sp.identity(self.model.n, format="csr"), {}
+
+
+def reduce(model: FEModel, method: str = "none", modes: int = 16) -> Reduction:
+    """Reduce ``model`` with the named method (``none``, ``modal``, ``craig-bampton``)."""
+    from .craig_bampton import CraigBampton
+    from .modal import ModalTruncation
+
+    methods = {"none": NoReduction, "modal": ModalTruncation, "craig-bampton": CraigBampton}
+    if method not in methods:
+        raise NsfemError(f"unknown reduction method {method!r} (use {' | '.join(methods)})")
+    if isinstance(modes, bool) or not isinstance(modes, (int, np.integer)) or modes < 1:
+        raise NsfemError(f"reduction.modes must be a positive integer, got {modes!r}")
+    return methods[method](model, int(modes))
+
+
+def scene_reduction(scene, model: FEModel) -> Reduction:
+    """The reduction a scene's ``[reduction]`` table asks for."""
+    return reduce(model, scene["reduction"]["method"], scene["reduction"]["modes"])
