@@ -171,3 +171,30 @@ def test_project_symmetric_and_skew():
     S = project(T, A + A.T)
     W = project(T, A - A.T)
     assert abs(S - S.T).max() == 0 and abs(W + W.T).max() == 0
+
+
+def test_slip_rows_vanish_for_rigid_and_bonded_motion_and_measure_sliding():
+    from nsfem.contact.kinematics import slip_jacobian
+
+    model = model_of("delamination.0.friction=0.3", 'shaft.supports="free-free"', "mesh.elements=20")
+    S = slip_jacobian(model)
+    assert S.shape[1] == 18  # 9 contacts x (s_x, s_y)
+    R = rigid_fields(model)
+    assert np.abs(S.T @ R).max() < 1e-14  # rigid motions do not slide the faces
+    # an intact-like bending field (U_s = -z_s W', W = sin) slides nothing either
+    q = np.zeros(model.n_full)
+    for s in model.stack.segments:
+        sp_ = model.spaces[s.name]
+        b = sp_.bending
+        x = b.doflocs[0] + sp_.x[0]
+        val = np.zeros(b.N, dtype=bool)
+        val[b.nodal_dofs[0]] = True
+        q[sp_.dofs["W"][val]] = np.sin(np.pi * x[val])
+        q[sp_.dofs["W"][~val]] = np.pi * np.cos(np.pi * x[~val])
+        q[sp_.dofs["U"]] = -s.offset[1] * np.pi * np.cos(np.pi * (sp_.axial.doflocs[0] + sp_.x[0]))
+    assert np.abs(S.T @ q).max() < 1e-14
+    # moving the upper layer by 1 mm along x slides every face by 1 mm in x, none in y
+    q = np.zeros(model.n_full)
+    q[model.spaces["delamination_0_upper"].dofs["U"]] = 1e-3
+    s = S.T @ q
+    assert np.allclose(s[0::2], 1e-3) and np.allclose(s[1::2], 0.0)

@@ -23,8 +23,8 @@ import scipy.sparse.linalg as spla
 
 from ..analysis.modes import eigenpairs
 from ..contact.kinematics import gap_jacobian, slip_jacobian
-from ..fem.rigid import admissible, rigid_fields
 from ..errors import NsfemError
+from ..fem.rigid import admissible, rigid_fields
 from . import Reduction
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..analysis.modes import eigenpairs
-from ..fem.rigid import admissible, rigid_fields
 from ..errors import NsfemError
+from ..fem.rigid import admissible, rigid_fields
 from . import Reduction
 
 

@@ -1,0 +1,132 @@
+"""Model reduction: Craig-Bampton and modal truncation against the full model."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from nsfem import NsfemError, build_model, load_scene, natural_frequencies
+from nsfem.analysis.campbell import gravity_resonances
+from nsfem.analysis.modes import contact_basis
+from nsfem.contact.kinematics import gap_jacobian
+from nsfem.fem.rotating import rotor_operators
+from nsfem.reduce import reduce
+
+
+@pytest.fixture(scope="module")
+def model():
+    return build_model(load_scene(None))  # the shipped scene, 40 elements, 355 dofs
+
+
+@pytest.fixture(scope="module")
+def full(model):
+    return {c: natural_frequencies(model, c, 6).frequencies_hz for c in ("open", "closed")}
+
+
+def max_error(model, full, red, contact):
+    f = natural_frequencies(model, contact, 6, red).frequencies_hz
+    return float(np.abs(f / full[contact] - 1).max())
+
+
+def test_craig_bampton_reproduces_the_full_model(model, full):
+    # measured on the shipped scene, first six frequencies: N = 16 -> 4.8e-5 open, 2.8e-4
+    # closed; N = 64 -> 7.9e-6 and 1.1e-5 (CB error ~ (f / f_cut)^2 of the interior modes)
+    red = reduce(model, "craig-bampton", 16)
+    assert red.ndof == 34 < model.n
+    assert max_error(model, full, red, "open") < 1e-4
+    assert max_error(model, full, red, "closed") < 5e-4
+    fine = reduce(model, "craig-bampton", 64)
+    assert max_error(model, full, fine, "open") < 2e-5 and max_error(model, full, fine, "closed") < 2e-5
+    # gravity resonances, N = 16: the first within 1e-5 (measured 5e-6), the second within
+    # 3e-4 (measured 2.9e-5 open, the sub-beams' opening mode; 2.0e-4 closed, the 120 Hz one)
+    for c in ("open", "closed"):
+        ref = gravity_resonances(rotor_operators(model, contact_basis(model, c)))[0][:2]
+        got = gravity_resonances(rotor_operators(model, contact_basis(model, c, red)))[0][:2]
+        assert got[0] == pytest.approx(ref[0], rel=1e-5)
+        assert got[1] == pytest.approx(ref[1], rel=3e-4)
+
+
+def test_craig_bampton_error_falls_as_modes_are_added(model, full):
+    errs = [max(max_error(model, full, reduce(model, "craig-bampton", n), c) for c in ("open", "closed"))
+            for n in (4, 16, 64, 128)]
+    assert all(b < a for a, b in zip(errs, errs[1:])), errs
+
+
+def test_modal_truncation_open_is_exact_closed_is_too_stiff(model, full):
+    # the basis holds the open eigenvectors themselves: open frequencies exact to round-off
+    assert max_error(model, full, reduce(model, "modal", 16), "open") < 1e-9
+    # closing 9 Dirac contacts over-constrains the kept shapes ("artificial rigidity"):
+    # the first closed z-bending frequency converges from above as modes are added
+    # (measured 43.7573, 43.6655, 43.6584, 43.6574 Hz for 20-32 modes; full 43.6574)
+    first_w = []
+    for n in (20, 24, 28, 32):
+        m = natural_frequencies(model, "closed", 6, reduce(model, "modal", n))
+        first_w.append(next(f for f, k in zip(m.frequencies_hz, m.fields) if k == "W"))
+    assert all(b < a for a, b in zip(first_w, first_w[1:])), first_w
+    assert all(f > full["closed"][0] for f in first_w)
+    assert first_w[0] / full["closed"][0] - 1 > 1e-3 and first_w[-1] / full["closed"][0] - 1 < 1e-6
+    # with 16 modes (the paper's model) no z-bending shape survives the closure at all
+    m16 = natural_frequencies(model, "closed", 6, reduce(model, "modal", 16))
+    assert "W" not in m16.fields
+
+
+def test_projection_keeps_symmetry_skewness_and_definiteness(model):
+    for method in ("modal", "craig-bampton"):
+        red = reduce(model, method, 16)
+        ops = rotor_operators(model, contact_basis(model, "open", red))
+        assert abs(ops.G1 + ops.G1.T).max() == 0 and abs(ops.P1 + ops.P1.T).max() == 0
+        for A in (ops.M, ops.K0, ops.Kc1):
+            assert abs(A - A.T).max() == 0
+        assert np.linalg.eigvalsh(ops.M.toarray()).min() > 0
+        assert np.linalg.eigvalsh(ops.K0.toarray()).min() > 0
+        w = np.linalg.eigvalsh(ops.Kc1.toarray())
+        assert w.max() <= 1e-12 * abs(w).max()
+
+
+def test_static_contact_load_gives_the_same_gaps(model):
+    # Craig-Bampton's constraint modes make the static response to boundary loads exact
+    J, j = gap_jacobian(model)
+    lam = np.linspace(1.0, 2.0, J.shape[1])  # normal forces at the 9 contact points [N]
+    f = model.T.T @ (J @ lam)
+    q = spla.spsolve(model.K.tocsc(), f)
+    gaps_full = J.T @ (model.T @ q)
+    red = reduce(model, "craig-bampton", 4)
+    V = red.V
+    eta = np.linalg.solve(V.T @ (model.K @ V), V.T @ f)
+    gaps_cb = J.T @ (model.T @ (V @ eta))
+    assert np.allclose(gaps_cb, gaps_full, rtol=1e-9, atol=1e-12 * np.abs(gaps_full).max())
+    # modal truncation with as many modes is far off (no static completeness)
+    Vm = reduce(model, "modal", red.ndof).V
+    eta = np.linalg.solve(Vm.T @ (model.K @ Vm), Vm.T @ f)
+    assert np.abs(J.T @ (model.T @ (Vm @ eta)) / gaps_full - 1).max() > 1e-3
+
+
+def test_free_structure_reduces_too():
+    model = build_model(load_scene(None, ['shaft.supports="free-free"', "mesh.elements=20"]))
+    red = reduce(model, "craig-bampton", 24)
+    assert red.info["boundary_dofs"] > 18  # interior dofs joined to hold the rigid motions
+    ref = natural_frequencies(model, "open", 9).frequencies_hz
+    got = natural_frequencies(model, "open", 9, red).frequencies_hz
+    assert np.count_nonzero(got == 0) == 5
+    assert got[5:] == pytest.approx(ref[5:], rel=2e-4)
+
+
+def test_bad_reduction_requests():
+    model = build_model(load_scene(None, ["mesh.elements=20"]))
+    with pytest.raises(NsfemError, match="exceeds"):
+        reduce(model, "modal", 10_000)
+    with pytest.raises(NsfemError, match="unknown reduction"):
+        reduce(model, "svd", 4)
+
+
+def test_scene_and_set_select_the_reduction(capsys):
+    import json
+
+    from nsfem import cli
+
+    for method, ndof in (("none", 175), ("modal", 12), ("craig-bampton", 30)):
+        assert cli.main(["modes", "--json", "--set", "mesh.elements=20", "--set", f"reduction.method={method}",
+                         "--set", "reduction.modes=12"]) == 0
+        d = json.loads(capsys.readouterr().out)
+        assert d["reduction"]["method"] == method and d["ndof"] == ndof and d["ndof_full"] == 175
