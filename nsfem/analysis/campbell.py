@@ -193,7 +193,12 @@ def _pencil(H: np.ndarray, K0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         w, X = sla.eig(H, K0)
         finite = np.isfinite(w) & (np.abs(w.imag) <= 1e-8 * np.abs(w).max(initial=1.0))
         nu, X = w[finite].real, X[:, finite]
-    keep = nu > 1e-12 * np.abs(nu).max(initial=0.0)
+    # rigid motions give nu = inf, which QZ returns as huge finite numbers: keep roots with
+    # 1/nu above round-off of the largest eigenvalue, estimated by max(K0_ii / |H_ii|)
+    d = np.abs(np.diag(H))
+    lam_max = float(np.max(np.diag(K0).real[d > 0] / d[d > 0], initial=1.0))
+    # and 1/nu below the reach of the model (nu at round-off: H x = 0 directions, infinite speed)
+    keep = (nu > 1e-12 * np.abs(nu).max(initial=0.0)) & (nu < 1e12 / lam_max)
     return nu[keep], X[:, keep]
 
 
