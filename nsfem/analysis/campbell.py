@@ -127,20 +127,22 @@ def gravity_resonances(ops: RotorOperators, phase_deg: float = 0.0, max_hz: floa
     """Speeds [Hz] where the undamped gravity response is unbounded, and their excitation.
 
     Returns (speeds, excitation) with the energy-normalized excitation of :func:`_excitation`
-    in (EXCITATION, 1]; roots gravity cannot excite are dropped.
+    in (EXCITATION, 1]; roots gravity cannot excite are dropped. A free structure (rigid
+    motions) has none: it falls rigidly, undeformed by a uniform gravity field.
     """
     K0 = _dense(ops.K0)
     H = _dense(ops.M) - _dense(ops.Kc1) - 1j * _dense(ops.G1)
     F = np.exp(1j * math.radians(phase_deg)) * (1j * ops.Fy - ops.Fz)
-    nu, X = _pencil(H, K0)  # H x = nu K0 x, nu = 1 / Omega^2
+    nu, X, free = _pencil(H, K0)  # H x = nu K0 x, nu = 1 / Omega^2
+    if free:
+        # a free structure falls rigidly: in the falling frame no load remains, so gravity
+        # deforms it at no speed (and the pencil's roots would be spurious)
+        return np.zeros(0), np.zeros(0)
     speeds = 1.0 / np.sqrt(nu) / (2 * math.pi)
     order = np.argsort(speeds)
     speeds, X = speeds[order], X[:, order]
     # group (near-)repeated roots and measure the excitation of their eigenspace
-    try:
-        L = np.linalg.cholesky(K0)
-    except np.linalg.LinAlgError:
-        L = None
+    L = np.linalg.cholesky(K0)
     out_s, out_e = [], []
     i = 0
     while i < len(speeds):
@@ -158,17 +160,13 @@ def gravity_resonances(ops: RotorOperators, phase_deg: float = 0.0, max_hz: floa
     return s, e
 
 
-def _excitation(X: np.ndarray, F: np.ndarray, L: np.ndarray | None) -> float:
+def _excitation(X: np.ndarray, F: np.ndarray, L: np.ndarray) -> float:
     """Largest |x^H F| / sqrt((x^H K0 x) (F^H K0^-1 F)) over the eigenspace X, in [0, 1].
 
     ``L`` is the Cholesky factor of K0. The energy norms make the measure independent of the
     coordinates (full or reduced model): the work of the load on the mode against the
-    geometric mean of the mode's strain energy and the load's static compliance. With K0
-    singular (a free structure, ``L is None``) Euclidean norms stand in.
+    geometric mean of the mode's strain energy and the load's static compliance.
     """
-    if L is None:
-        Qx, _ = np.linalg.qr(X)
-        return float(np.linalg.norm(Qx.conj().T @ F) / max(np.linalg.norm(F), 1e-300))
     Qy, _ = np.linalg.qr(L.conj().T @ X)  # K0-orthonormal basis of span(X), in L^H coordinates
     Xk = sla.solve_triangular(L.conj().T, Qy, lower=False)
     G = sla.solve_triangular(L, F, lower=True)  # |G| = sqrt(F^H K0^-1 F)
@@ -177,29 +175,34 @@ def _excitation(X: np.ndarray, F: np.ndarray, L: np.ndarray | None) -> float:
 
 def divergence_speeds(ops: RotorOperators, count: int = 10) -> np.ndarray:
     """Speeds [Hz] where K0 + Omega^2 Kc1 becomes singular (lowest ``count``), ascending."""
-    nu, _ = _pencil(-_dense(ops.Kc1), _dense(ops.K0))  # -Kc1 x = nu K0 x, nu = 1 / Omega^2
+    nu, _, _ = _pencil(-_dense(ops.Kc1), _dense(ops.K0))  # -Kc1 x = nu K0 x, nu = 1 / Omega^2
     return np.sort(1.0 / np.sqrt(nu) / (2 * math.pi))[:count]
 
 
-def _pencil(H: np.ndarray, K0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _pencil(H: np.ndarray, K0: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     """Positive eigenvalues nu of H x = nu K0 x (H Hermitian, K0 psd) and their vectors.
 
     With K0 positive definite this is a Hermitian-definite problem. A free structure (rigid
     motions in K0's null space, nu infinite there) goes to the general QZ solver instead.
     """
-    try:
-        nu, X = sla.eigh(H, K0)
-    except np.linalg.LinAlgError:
-        w, X = sla.eig(H, K0)
-        finite = np.isfinite(w) & (np.abs(w.imag) <= 1e-8 * np.abs(w).max(initial=1.0))
-        nu, X = w[finite].real, X[:, finite]
-    # rigid motions give nu = inf, which QZ returns as huge finite numbers: keep roots with
-    # 1/nu above round-off of the largest eigenvalue, estimated by max(K0_ii / |H_ii|)
+    # 1/nu must lie above round-off of the largest eigenvalue, max(K0_ii / |H_ii|) roughly:
+    # rigid motions (nu = inf) otherwise show up as huge finite nu
     d = np.abs(np.diag(H))
     lam_max = float(np.max(np.diag(K0).real[d > 0] / d[d > 0], initial=1.0))
-    # and 1/nu below the reach of the model (nu at round-off: H x = 0 directions, infinite speed)
-    keep = (nu > 1e-12 * np.abs(nu).max(initial=0.0)) & (nu < 1e12 / lam_max)
-    return nu[keep], X[:, keep]
+    big = 1e12 / lam_max
+    try:
+        nu, X = sla.eigh(H, K0)
+        rigid = np.abs(nu).max(initial=0.0) >= big  # Cholesky of a singular K0 can succeed
+    except np.linalg.LinAlgError:
+        rigid = True
+    if rigid:
+        w, X = sla.eig(H, K0)
+        real = np.isfinite(w) & (np.abs(w.imag) <= 1e-8 * np.abs(w[np.isfinite(w)]).max(initial=1e-300))
+        nu, X = w[real].real, X[:, real]
+    nu_max = np.abs(nu[np.abs(nu) < big]).max(initial=0.0)
+    # nu at round-off of the largest finite one: H x = 0 directions (infinite speed)
+    keep = (nu > 1e-12 * nu_max) & (nu < big)
+    return nu[keep], X[:, keep], bool(rigid)
 
 
 def divergence_bands(speeds_hz: np.ndarray) -> list[tuple[float, float]]:
