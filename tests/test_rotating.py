@@ -179,9 +179,10 @@ def test_free_free_rotor_has_a_campbell_diagram():
     assert np.count_nonzero(np.abs(f30 - 30.0) < 1e-6 * 30.0) == 2
     # a free rotor falls rigidly: gravity deforms it at no speed
     assert rep["gravity_resonances_hz"] == {"open": [], "closed": []}
-    # divergence speeds of a free-free Euler-Bernoulli shaft are its natural frequencies
+    # divergence speeds of a free-free shaft are its natural frequencies but for the sub-beams'
+    # axial inertia, which -Kc1 lacks (measured 2.2e-5)
     f0 = natural_frequencies(build_model(scene), "open", 7).frequencies_hz[5]
-    assert rep["instability_hz"]["open"][0] == pytest.approx(f0, rel=1e-3)
+    assert rep["instability_hz"]["open"][0] == pytest.approx(f0, rel=1e-4)
 
 
 @pytest.mark.parametrize("text", ["0:60", "a:b:c", "10:5:3", "0:60:0", "-1:5:3", "0:inf:3"])
