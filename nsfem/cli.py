@@ -141,6 +141,11 @@ def cmd_campbell(args) -> int:
     red = scene_reduction(scene, model)
     rep = campbell_report(scene, model, speeds, args.count, red)
     res, bands = rep.pop("_results"), rep.pop("_bands")
+    from .analysis.campbell import supercritical_warning
+
+    warning = supercritical_warning(scene["rotation"]["speed_hz"], rep["instability_hz"]["open"])
+    if warning:
+        print(f"nsfem campbell: warning: {warning}", file=sys.stderr)
     targets = [Path(args.png)] if args.png else []
     if "campbell" in scene["output"]["plots"]:
         targets.append(Path(scene["output"]["dir"]) / "campbell.png")

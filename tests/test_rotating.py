@@ -129,7 +129,11 @@ def test_system_leaves_out_what_the_scene_does_not_need():
     assert abs(d.C - (2.0 * ops.M + 1e-4 * ops.K0)).max() == 0
     e = linear_system(ops, speed_hz=3.0, external=5.0)
     w = 2 * math.pi * 3.0
-    assert abs(e.Q - (ops.K0 + w**2 * ops.Kc1 + w * 5.0 * ops.P1)).max() < 1e-9 * abs(ops.K0).max()
+    # compare the skew part alone: it is small against K0, so a tolerance on Q would hide it
+    skew = (e.Q - e.Q.T) / 2
+    assert abs(skew - w * 5.0 * ops.P1).max() <= 1e-12 * abs(w * 5.0 * ops.P1).max()
+    assert abs(e.C - (w * ops.G1 + 5.0 * ops.De1)).max() <= 1e-12 * abs(e.C).max()
+    assert np.allclose(e.f0, w**2 * ops.fc1 + w * 5.0 * ops.fd1, rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("contact", ["open", "closed"])
@@ -190,3 +194,94 @@ def test_bad_speed_ranges_are_rejected(text, capsys):
     assert cli.main(["campbell", "--speeds", text]) == cli.EXIT_ERROR
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--speeds" in err[0]
+
+
+def test_external_damping_seen_from_the_rotating_frame():
+    # an isotropic shaft with external (inertial) viscous damping only: the rotating-frame
+    # eigenvalues are the inertial ones shifted by -+ i Omega (checks the signs of G1, P1, De1)
+    _, ops = uniform(0.02, 0.02, elements=20)
+    from nsfem.analysis.campbell import state_eigenvalues
+
+    lam0 = state_eigenvalues(linear_system(ops, 0.0, external=40.0), 2)
+    lam0 = lam0[lam0.imag > 0][:1]  # the first (degenerate) pair
+    w = 2 * math.pi * 9.0
+    lam = state_eigenvalues(linear_system(ops, 9.0, external=40.0), 4)
+    want = np.concatenate([lam0 - 1j * w, lam0 + 1j * w])
+    got = lam[np.argsort(np.abs(lam - lam0[0]))][:4]
+    for x in want:
+        assert np.min(np.abs(got - x)) < 1e-8 * abs(lam0[0]) or np.min(np.abs(got - x.conjugate())) < 1e-8 * abs(
+            lam0[0])
+
+
+def test_drag_load_per_segment():
+    # inertial velocity of an offset centroid is Omega x r = Omega (0, -z_c, y_c): the drag
+    # -c_e of it totals Omega c_e (z_c, -y_c) L on a segment; fd1 holds it per Omega c_e
+    model = build_model(load_scene(None, ["mesh.elements=20"]))
+    full = rotor_operators(model, basis=sp.identity(model.n_full, format="csr"))
+    for s in model.stack.segments:
+        space = model.spaces[s.name]
+        for fld, want in (("V", s.offset[1]), ("W", -s.offset[0])):
+            ones = np.zeros(model.n_full)
+            ones[space.dofs[fld][space.bending.nodal_dofs[0]]] = 1.0
+            assert ones @ full.fd1 == pytest.approx(want * s.length, abs=1e-15)
+
+
+def test_rayleigh_rigid_tilt_whirls_at_the_rotation_frequency():
+    # free-free uniform Rayleigh shaft: with the rotary-inertia centrifugal term the rigid
+    # motions sit at Omega in the rotating frame and nothing grows; without it the tilt grows
+    # (3.8 /s). The rigid eigenvalues +-i Omega are defective (uniform drift), so round-off
+    # splits them by ~sqrt(eps) x scale: 1e-3 relative, growth ~4e-3 /s
+    model = build_model(scene_from_tree(beam_tree("free-free", 0.02, 0.02, 20, theory="rayleigh")))
+    ops = rotor_operators(model)
+    res = campbell(ops, [30.0], 6)
+    assert np.count_nonzero(np.abs(res.frequencies_hz[0] - 30.0) < 1e-3 * 30) == 4
+    assert abs(res.growth_per_s[0]) < 0.05
+    from dataclasses import replace
+
+    S = ops.Kc1 - rotor_operators(build_model(scene_from_tree(beam_tree("free-free", 0.02, 0.02, 20)))).Kc1
+    assert abs(S).max() > 0  # the Rayleigh term is there
+    without = campbell(replace(ops, Kc1=ops.Kc1 - S), [30.0], 6)
+    assert without.growth_per_s[0] > 1.0
+
+
+def test_speed_on_a_divergence_speed_and_heavy_damping_stay_sane():
+    # a grid point exactly on a divergence speed makes Q singular: no spurious growth, and
+    # the sparse solver agrees with the dense one; heavy stiffness-proportional damping makes
+    # overdamped real roots that must not crowd out the oscillating modes
+    from nsfem.analysis.campbell import _dense_state, frequencies_of, state_eigenvalues
+
+    model = build_model(load_scene(None, ["mesh.elements=20"]))  # 175 dofs: dense is affordable
+    ops = rotor_operators(model)
+    d = divergence_speeds(ops, 2)
+    for speed, beta in ((d[1], 0.0), (d[0], 0.0), (20.0, 1e-3)):
+        sys_ = linear_system(ops, speed, rayleigh=(0.0, beta))
+        sparse = frequencies_of(state_eigenvalues(sys_, 4), 4)
+        C = sys_.C if sys_.C is not None else sp.csr_matrix(sys_.M.shape)
+        dense = frequencies_of(_dense_state(sys_.M, C, sys_.Q), 4)
+        # at a divergence speed a double root at 0 splits by ~sqrt(eps) x scale: 1e-4 Hz here
+        assert np.allclose(sparse, dense, rtol=1e-6, atol=1e-3), (speed, sparse, dense)
+        assert np.all(np.isfinite(sparse))
+    growth = campbell(ops, [d[1]], 4).growth_per_s[0]
+    assert abs(growth) < 1e-3
+
+
+def test_reduced_campbell_matches_the_full_one():
+    from nsfem.analysis.campbell import campbell_report
+    from nsfem.reduce import reduce
+
+    scene = load_scene(None)
+    model = build_model(scene)
+    full = campbell_report(scene, model, [0.0, 21.0, 50.0], 4)
+    red = campbell_report(scene, model, [0.0, 21.0, 50.0], 4, reduce(model, "craig-bampton", 64))
+    for c in ("open", "closed"):
+        assert red["instability_hz"][c] == pytest.approx(full["instability_hz"][c], rel=1e-5)
+        assert red["gravity_resonances_hz"][c][:2] == pytest.approx(full["gravity_resonances_hz"][c][:2], rel=1e-5)
+    assert np.allclose(red["frequencies_hz"], full["frequencies_hz"], rtol=1e-4)
+
+
+def test_supercritical_warning_branches():
+    d = [43.4, 48.0, 83.3, 98.9]
+    assert supercritical_warning(40.0, d) is None
+    assert "inside the divergence band" in supercritical_warning(45.0, d)
+    assert "past a divergence band" in supercritical_warning(60.0, d)
+    assert divergence_bands(np.array(d[:3]))[-1] == (83.3, math.inf)

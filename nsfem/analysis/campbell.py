@@ -50,6 +50,11 @@ from ..system import LinearSystem, linear_system
 EXCITATION = 1e-4
 #: Dense eigen solvers below this many dofs.
 DENSE_LIMIT = 60
+#: Dense fallback when Arnoldi fails, up to this many dofs.
+DENSE_FALLBACK = 1500
+#: Eigenvalues computed beyond 2 x count, so real (overdamped, divergent) ones do not crowd
+#: out oscillating modes.
+EXTRA = 12
 
 
 @dataclass(frozen=True)
@@ -62,25 +67,27 @@ class CampbellResult:
 
 
 def state_eigenvalues(system: LinearSystem, count: int) -> np.ndarray:
-    """The ``2 count`` eigenvalues of the first-order form nearest zero (complex, rad/s)."""
+    """Eigenvalues (complex, rad/s) of the first-order form nearest zero, enough for ``count``
+    oscillating modes (real, overdamped or divergent ones come along), sorted by modulus."""
     n = system.n
-    k = min(2 * count, 2 * n - 2)
+    k = min(2 * count + EXTRA, 2 * n - 2)
     M, Q = system.M, system.Q
     C = system.C if system.C is not None else sp.csr_matrix((n, n))
-    if n <= DENSE_LIMIT:
-        A = np.block([[np.zeros((n, n)), np.eye(n)], [-Q.toarray(), -C.toarray()]])
-        B = np.block([[np.eye(n), np.zeros((n, n))], [np.zeros((n, n)), M.toarray()]])
-        lam = sla.eig(A, B, right=False)
-        lam = lam[np.isfinite(lam)]
-        return lam[np.argsort(np.abs(lam))][:k]
+    if n <= DENSE_LIMIT or k >= n:
+        return _dense_state(M, C, Q)
     A = sp.bmat([[None, sp.identity(n)], [-Q, -C]], format="csr")
     B = sp.block_diag([sp.identity(n), M], format="csr")
     scale = math.sqrt(float((Q.diagonal() / M.diagonal()).max()))
-    for sigma in (0.0, -1e-6 * scale, 1e-5 * scale):
+    # a small negative shift keeps A - sigma B regular at divergence boundaries, where Q is
+    # singular; a factor with a pivot at round-off means sigma hit an eigenvalue: next shift
+    for sigma in (-1e-6 * scale, -1.3e-5 * scale, 1.7e-5 * scale):
         # (A - sigma B) x = b:  x2 = b1 + sigma x1,  -(Q + sigma C + sigma^2 M) x1 = b2 + (C + sigma M) b1
         try:
             lu = spla.splu(sp.csc_matrix(Q + sigma * C + sigma**2 * M))
-        except RuntimeError:  # exactly singular (rigid axial motion, a divergence boundary)
+        except RuntimeError:
+            continue
+        piv = np.abs(lu.U.diagonal())
+        if piv.min() <= 1e-13 * piv.max():
             continue
         CsM = C + sigma * M
 
@@ -91,15 +98,43 @@ def state_eigenvalues(system: LinearSystem, count: int) -> np.ndarray:
 
         op = spla.LinearOperator((2 * n, 2 * n), matvec=solve, dtype=float)
         v0 = np.random.default_rng(0).standard_normal(2 * n)
-        lam = spla.eigs(A, k=k, M=B, sigma=sigma, OPinv=op, which="LM", v0=v0, return_eigenvectors=False)
+        try:
+            # heavy damping clusters overdamped roots near -1/beta, which stalls Arnoldi: give
+            # up early and solve densely instead
+            lam = spla.eigs(A, k=k, M=B, sigma=sigma, OPinv=op, which="LM", v0=v0, maxiter=300,
+                            return_eigenvectors=False)
+        except spla.ArpackNoConvergence:
+            break
         return lam[np.argsort(np.abs(lam))]
-    raise NsfemError("the rotating-frame eigenproblem is singular at every tried shift")
+    if n <= DENSE_FALLBACK:
+        return _dense_state(M, C, Q)
+    raise NsfemError(f"the rotating-frame eigenproblem of {n} dofs did not converge; reduce the model "
+                     "([reduction] method = craig-bampton)")
+
+
+def _dense_state(M, C, Q) -> np.ndarray:
+    """All eigenvalues of the first-order form, from the standard form with M^-1 (M is pd)."""
+    n = M.shape[0]
+    cho = sla.cho_factor(M.toarray())
+    A = np.block([[np.zeros((n, n)), np.eye(n)],
+                  [-sla.cho_solve(cho, Q.toarray()), -sla.cho_solve(cho, C.toarray())]])
+    lam = sla.eigvals(A)
+    return lam[np.argsort(np.abs(lam))]
 
 
 def frequencies_of(lam: np.ndarray, count: int) -> np.ndarray:
-    """Natural frequencies [Hz] from eigenvalues: one per conjugate pair, ascending."""
-    upper = lam[lam.imag >= -1e-9 * max(1.0, np.abs(lam).max(initial=0.0))]
-    f = np.sort(np.abs(upper.imag)) / (2 * math.pi)
+    """Natural frequencies [Hz]: one per complex-conjugate pair, ascending by frequency.
+
+    Real eigenvalues (overdamped or divergent motion) have no frequency and are left to the
+    growth rate; so are roots within 1e-5 of the ``count``-th oscillating root's modulus of
+    zero, where a double root at a divergence speed splits at round-off into a real or a
+    complex pair. Missing entries are nan.
+    """
+    osc = lam[lam.imag > 1e-9 * np.maximum(np.abs(lam), 1.0)]
+    if len(osc):
+        ref = np.sort(np.abs(osc))[min(count, len(osc)) - 1]
+        osc = osc[np.abs(osc) > 1e-5 * ref]
+    f = np.sort(osc.imag) / (2 * math.pi)
     out = np.full(count, np.nan)
     out[: min(count, len(f))] = f[:count]
     return out
@@ -173,8 +208,8 @@ def _excitation(X: np.ndarray, F: np.ndarray, L: np.ndarray) -> float:
     return float(np.linalg.norm(Xk.conj().T @ F) / max(np.linalg.norm(G), 1e-300))
 
 
-def divergence_speeds(ops: RotorOperators, count: int = 10) -> np.ndarray:
-    """Speeds [Hz] where K0 + Omega^2 Kc1 becomes singular (lowest ``count``), ascending."""
+def divergence_speeds(ops: RotorOperators, count: int | None = None) -> np.ndarray:
+    """Speeds [Hz] where K0 + Omega^2 Kc1 becomes singular (all, or the lowest ``count``)."""
     nu, _, _ = _pencil(-_dense(ops.Kc1), _dense(ops.K0))  # -Kc1 x = nu K0 x, nu = 1 / Omega^2
     return np.sort(1.0 / np.sqrt(nu) / (2 * math.pi))[:count]
 
@@ -188,7 +223,8 @@ def _pencil(H: np.ndarray, K0: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool
     # 1/nu must lie above round-off of the largest eigenvalue, max(K0_ii / |H_ii|) roughly:
     # rigid motions (nu = inf) otherwise show up as huge finite nu
     d = np.abs(np.diag(H))
-    lam_max = float(np.max(np.diag(K0).real[d > 0] / d[d > 0], initial=1.0))
+    ok = d > 1e-12 * d.max(initial=0.0)  # reduced coordinates can hold round-off-sized entries
+    lam_max = float(np.max(np.diag(K0).real[ok] / d[ok], initial=1.0))
     big = 1e12 / lam_max
     try:
         nu, X = sla.eigh(H, K0)
@@ -215,9 +251,12 @@ def divergence_bands(speeds_hz: np.ndarray) -> list[tuple[float, float]]:
 
 
 def default_speeds(ops_open: RotorOperators, scene_speed_hz: float = 0.0, n: int = 61) -> np.ndarray:
-    """0 to 1.2 times the second divergence speed (both first critical speeds), or 2x the scene's."""
+    """0 to 1.23 times the second divergence speed (both first critical speeds), or 2x the scene's.
+
+    (1.23, not 1.2: with 61 points 1.2 puts a grid point exactly on the divergence speed.)
+    """
     d = divergence_speeds(ops_open, 2)
-    stop = 1.2 * (d[-1] if len(d) else 0.0)
+    stop = 1.23 * (d[-1] if len(d) else 0.0)
     stop = max(stop, 2.0 * scene_speed_hz, 1.0)
     return np.linspace(0.0, stop, n)
 
@@ -250,7 +289,7 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
     speeds = default_speeds(ops["open"], rot["speed_hz"]) if speeds_hz is None else np.asarray(speeds_hz)
     res = {c: campbell(o, speeds, count, tuple(damp["rayleigh"]), damp["external"]) for c, o in ops.items()}
     grav = {c: gravity_resonances(o, rot["phase_deg"]) for c, o in ops.items()}
-    div = {c: divergence_speeds(o, count) for c, o in ops.items()}
+    div = {c: divergence_speeds(o) for c, o in ops.items()}  # all: bands need every root
 
     def clean(a):
         return [None if not np.isfinite(x) else float(x) for x in np.ravel(a)]
@@ -262,9 +301,10 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
         "growth_rate_per_s": {c: clean(r.growth_per_s) for c, r in res.items()},
         "gravity_resonances_hz": {c: clean(g[0][:count]) for c, g in grav.items()},
         "gravity_excitation": {c: clean(g[1][:count]) for c, g in grav.items()},
-        "instability_hz": {c: clean(d) for c, d in div.items()},
+        "instability_hz": {c: clean(d[:count]) for c, d in div.items()},
         "instability_bands_hz": {c: [[float(a), float(b) if math.isfinite(b) else None]
-                                     for a, b in divergence_bands(d)] for c, d in div.items()},
+                                     for a, b in divergence_bands(d) if len(d) and a <= d[:count][-1]]
+                                 for c, d in div.items()},
         "ndof_full": model.n, "ndof": model.n if reduction is None else reduction.ndof,
         "_results": res, "_bands": divergence_bands(div["open"]),
     }
