@@ -130,3 +130,20 @@ def test_scene_and_set_select_the_reduction(capsys):
                          "--set", "reduction.modes=12"]) == 0
         d = json.loads(capsys.readouterr().out)
         assert d["reduction"]["method"] == method and d["ndof"] == ndof and d["ndof_full"] == 175
+
+
+def test_reduced_jacobians_give_the_full_gaps(model):
+    # gaps and slips are exact linear functions of the reduced coordinates: for any eta the
+    # reduced Jacobians give the gaps of the full displacement T V eta
+    from nsfem.contact.kinematics import slip_jacobian
+
+    m = build_model(load_scene(None, ["delamination.0.friction=0.3", "mesh.elements=20"]))
+    red = reduce(m, "craig-bampton", 8)
+    JN, jN, JS = red.jacobians()
+    eta = np.random.default_rng(3).standard_normal(red.ndof)
+    q_full = red.T @ eta
+    J, j = gap_jacobian(m)
+    assert np.allclose(JN.T @ eta + jN, J.T @ q_full + j, rtol=1e-12, atol=1e-15)
+    assert np.allclose(JS.T @ eta, slip_jacobian(m).T @ q_full, rtol=1e-12, atol=1e-15)
+    assert red.info["boundary_dofs"] > 18  # friction adds the slip dofs to the boundary
+    assert red.jacobians()[0] is JN  # projected once

@@ -43,6 +43,7 @@ class Reduction:
     modes: int = 16
     V: np.ndarray | sp.spmatrix = field(init=False)
     info: dict = field(init=False, default_factory=dict)
+    _jacobians: tuple | None = field(init=False, default=None, repr=False)
     name = "base"
 
     def __post_init__(self) -> None:
@@ -62,6 +63,21 @@ class Reduction:
         """q_full = T V eta: the map from reduced to full finite-element coordinates."""
         V = self.V
         return (self.model.T @ V).tocsr() if sp.issparse(V) else np.asarray(self.model.T @ V)
+
+    def jacobians(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Contact Jacobians in reduced coordinates, projected once: (J_N, j_N, J_S).
+
+        Gaps are g = J_N^T eta + j_N (r x m); J_S holds the tangential slip rows of the
+        contacts with friction (r x 2 m_f). Exact linear functions of eta.
+        """
+        if self._jacobians is None:
+            from ..contact.kinematics import gap_jacobian, slip_jacobian
+
+            J, j = gap_jacobian(self.model)
+            T = self.T
+            dense = lambda A: A.toarray() if sp.issparse(A) else np.asarray(A)  # noqa: E731
+            self._jacobians = (dense(T.T @ J), j, dense(T.T @ slip_jacobian(self.model)))
+        return self._jacobians
 
 
 class NoReduction(Reduction):
