@@ -15,8 +15,8 @@ reduces again; contact gaps are V^T T^T J_N, exact linear functions of eta.
 >>> from nsfem import build_model, load_scene
 >>> model = build_model(load_scene(None, ["mesh.elements=20"]))
 >>> red = reduce(model, "craig-bampton", modes=8)
->>> red.ndof, red.info["boundary_dofs"]          # 9 contact points x 2 faces + 8 modes
-(26, 18)
+>>> red.ndof, red.info["boundary_dofs"]          # 9 gaps + 8 fixed-interface modes
+(17, 9)
 """
 
 from __future__ import annotations
