@@ -74,16 +74,13 @@ def contact_basis(model: FEModel, contact: str, reduction=None):
     if contact == "open" or not model.stack.contacts:
         return base
     from ..contact.kinematics import gap_jacobian
-    from ..fem.constraints import constraint_basis
 
     J, _ = gap_jacobian(model)
-    C = sp.csr_matrix(J.T @ base)
-    scale = abs(J).max(axis=0).toarray().ravel() * max(float(abs(base).max()), 1.0)
-    T2, _ = constraint_basis(C, base.shape[1], row_scale=scale)
-    if T2.shape[1] == 0:
+    T = model.constrain(J.T, base=base)
+    if T.shape[1] == 0:
         raise NsfemError(f"closing all {J.shape[1]} contacts leaves no coordinate of the {base.shape[1]} kept; "
                          "keep more modes")
-    return base @ T2
+    return T
 
 
 def eigenpairs(K: sp.spmatrix, M: sp.spmatrix, count: int, rigid: np.ndarray | None = None

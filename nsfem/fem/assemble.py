@@ -86,12 +86,18 @@ class FEModel:
         """All global dofs of field U, V or W over every segment."""
         return np.concatenate([s.dofs[fld] for s in self.spaces.values()])
 
-    def constrain(self, C: sp.spmatrix, prefer=None) -> sp.csr_matrix:
-        """T' = T T2 with extra constraint rows C on the full dofs (e.g. closed contacts)."""
+    def constrain(self, C: sp.spmatrix, prefer=None, base=None):
+        """base T2 with extra constraint rows C on the full dofs (e.g. closed contacts).
+
+        ``base`` maps the coordinates to full ones (default: T; a reduction's T V). Rows are
+        judged for redundancy at their size before projection.
+        """
+        base = self.T if base is None else base
         C = sp.csr_matrix(C)
-        scale = abs(C).max(axis=1).toarray().ravel() * max(abs(self.T).max(), 1.0)
-        T2, _ = constraint_basis(C @ self.T, self.n, prefer, row_scale=scale)
-        return (self.T @ T2).tocsr()
+        scale = abs(C).max(axis=1).toarray().ravel() * max(float(abs(base).max()), 1.0)
+        T2, _ = constraint_basis(sp.csr_matrix(C @ base), base.shape[1], prefer, row_scale=scale)
+        out = base @ T2
+        return out.tocsr() if sp.issparse(out) else out
 
 
 def segment_spaces(stack: BeamStack, mesh: StackMesh, axial: str) -> dict[str, SegmentSpace]:
