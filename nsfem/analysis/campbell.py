@@ -169,8 +169,9 @@ def gravity_resonances(ops: RotorOperators, phase_deg: float = 0.0, max_hz: floa
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Speeds [Hz] where the undamped gravity response is unbounded, and their excitation.
 
-    Returns (speeds, excitation) with the energy-normalized excitation in (EXCITATION, 1]; roots gravity cannot excite are dropped. A free structure (rigid
-    motions) has none: it falls rigidly, undeformed by a uniform gravity field.
+    Returns (speeds, excitation) with the energy-normalized excitation in (EXCITATION, 1];
+    roots gravity cannot excite are dropped. A free structure (rigid motions) has none: it
+    falls rigidly, undeformed by a uniform gravity field.
     """
     K0 = _dense(ops.K0)
     H = _dense(ops.M) - _dense(ops.Kc1) - 1j * _dense(ops.G1)
