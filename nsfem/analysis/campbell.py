@@ -40,6 +40,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import NsfemError
+from ..fem.constraints import dense as _dense
 from ..fem.rotating import RotorOperators
 from ..system import LinearSystem, linear_system
 
@@ -159,10 +160,6 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
         F[i] = frequencies_of(lam, count)
         growth[i] = lam.real.max() if len(lam) else 0.0
     return CampbellResult(speeds, F, growth)
-
-
-def _dense(A) -> np.ndarray:
-    return A.toarray() if sp.issparse(A) else np.asarray(A)
 
 
 def gravity_resonances(ops: RotorOperators, phase_deg: float = 0.0, max_hz: float | None = None

@@ -92,3 +92,8 @@ def project(T, A: sp.spmatrix) -> sp.csr_matrix:
     elif A.nnz and abs(A + A.T).max() == 0.0:
         B = ((B - B.T) * 0.5).tocsr()
     return B
+
+
+def dense(A) -> np.ndarray:
+    """A sparse matrix or array as a dense ndarray."""
+    return A.toarray() if sp.issparse(A) else np.asarray(A)

@@ -83,7 +83,16 @@ class RotorOperators:
 
 
 def rotor_operators(model: FEModel, basis: sp.spmatrix | None = None) -> RotorOperators:
-    """Assemble the operators of ``model`` and express them in ``basis`` (default: model.T)."""
+    """Assemble the operators of ``model`` and express them in ``basis`` (default: model.T).
+
+    To express one assembly in several bases, call :func:`full_operators` once and
+    :meth:`RotorOperators.project` per basis.
+    """
+    return full_operators(model).project(model.T if basis is None else basis)
+
+
+def full_operators(model: FEModel) -> RotorOperators:
+    """The operators in full finite-element coordinates (before supports and junctions)."""
     n = model.n_full
     names = ("G1", "Kc1", "De1", "P1")
     rows, cols, vals = ({k: [] for k in names} for _ in range(3))
@@ -122,5 +131,4 @@ def rotor_operators(model: FEModel, basis: sp.spmatrix | None = None) -> RotorOp
         vec["Fz"][W] += rA * load
     mats = {k: sp.csr_matrix((np.concatenate(vals[k]), (np.concatenate(rows[k]), np.concatenate(cols[k]))),
                              shape=(n, n)) for k in rows}
-    full = RotorOperators(model.M_full, model.K_full, **mats, **vec)
-    return full.project(model.T if basis is None else basis)
+    return RotorOperators(model.M_full, model.K_full, **mats, **vec)

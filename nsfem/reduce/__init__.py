@@ -72,10 +72,10 @@ class Reduction:
         """
         if self._jacobians is None:
             from ..contact.kinematics import gap_jacobian, slip_jacobian
+            from ..fem.constraints import dense
 
             J, j = gap_jacobian(self.model)
             T = self.T
-            dense = lambda A: A.toarray() if sp.issparse(A) else np.asarray(A)  # noqa: E731
             self._jacobians = (dense(T.T @ J), j, dense(T.T @ slip_jacobian(self.model)))
         return self._jacobians
 
