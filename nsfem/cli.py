@@ -120,7 +120,7 @@ def cmd_pending(args) -> int:
         # still validate what the user wrote (a sweep's START:STOP:N ranges aside)
         load_scene(args.scene, [o for o in args.overrides if not _RANGE.match(o)])
     raise NsfemError(f"nsfem {args.command}: not implemented in nsfem {__version__} "
-                     "(available now: nsfem modes)")
+                     "(available now: nsfem modes, nsfem campbell)")
 
 
 def cmd_campbell(args) -> int:
