@@ -120,7 +120,7 @@ def cmd_pending(args) -> int:
         # still validate what the user wrote (a sweep's START:STOP:N ranges aside)
         load_scene(args.scene, [o for o in args.overrides if not _RANGE.match(o)])
     raise NsfemError(f"nsfem {args.command}: not implemented in nsfem {__version__} "
-                     "(available now: nsfem modes, nsfem campbell)")
+                     "(available now: nsfem modes, nsfem campbell, nsfem stationary)")
 
 
 def cmd_campbell(args) -> int:
@@ -166,7 +166,39 @@ def cmd_campbell(args) -> int:
     return 0
 
 
-COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell}
+def cmd_stationary(args) -> int:
+    from .analysis.stationary import scene_stationary
+    from .scene import load_scene
+
+    scene = load_scene(args.scene, args.overrides)
+    st = scene_stationary(scene)
+    info = st.info
+    payload = {"title": scene["title"], **st.to_json(), "speed_hz": info["speed_hz"], "loads": info["loads"],
+               "ndof_full": info["ndof_full"], "ndof": info["ndof"], "reduction": info["reduction"],
+               "wall_s": st.wall_s}
+    if "note" in info:
+        payload["note"] = info["note"]
+    if not st.existence["guaranteed"]:
+        print(f"nsfem stationary: warning: {st.existence['reason']}", file=sys.stderr)
+    loads = " + ".join(info["loads"]) or "none"
+    lines = [scene["title"], f"speed {info['speed_hz']:g} Hz, constant loads: {loads}; {info['ndof']} dofs "
+             f"({info['reduction']['method']}; full model {info['ndof_full']})",
+             f"LCP (28): {st.lcp.x.size} unknowns, {st.lcp.pivots} pivots, residual {st.lcp.residual:.1e}; "
+             f"{st.existence['reason']}"]
+    if "note" in info:
+        lines.append(f"note: {info['note']}")
+    if st.contacts.m:
+        lines.append("  contact              x [m]      gap [m]   normal [N]  tangential [N]  state")
+        for k, (lab, x) in enumerate(zip(st.contacts.labels, st.contacts.x)):
+            lines.append(f"  {lab:18s} {x:7.4f}  {st.gap[k]:11.4e}  {st.normal_force[k]:11.4e}  "
+                         f"{payload['tangential_force_N'][k]:14.4e}  {st.state[k]}")
+    else:
+        lines.append("no contacts: the stationary state is Q^-1 f0")
+    _emit(args, payload, "\n".join(lines))
+    return 0
+
+
+COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -183,6 +215,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("nsfem: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. piped into head: not an error of ours
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,5 +1,6 @@
-"""Contact kinematics: gap Jacobians of delamination interfaces and rigid stops."""
+"""Contact kinematics (gaps, slips) and the contact set of a reduced model."""
 
-from .kinematics import gap_jacobian
+from .kinematics import gap_jacobian, slip_jacobian
+from .set import ContactSet
 
-__all__ = ["gap_jacobian"]
+__all__ = ["ContactSet", "gap_jacobian", "slip_jacobian"]

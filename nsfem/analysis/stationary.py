@@ -1,0 +1,189 @@
+"""Stationary contact states: LCP (28) under the constant loads (paper section 3.1).
+
+In the rotating frame the constant loads are the centrifugal load Omega^2 f_c1 (it
+pushes sub-beams off the axis apart) and the drag of external damping; gravity is
+harmonic there and enters only when the scene does not rotate. The stationary state
+solves Q q = f0 + J_N lam_N + J_T lam_T with Signorini contact and the paper's
+displacement-level friction law (26, 27): tangential displacements start at zero and
+grow monotonically, so friction opposes them.
+
+Existence (paper, after eq. 28): a solution is guaranteed when Q is symmetric positive
+definite, or when there is no friction and Q is positive definite (its symmetric part).
+Otherwise the report says so; Lemke's method then either finds a solution (with its
+certificate) or reports why it could not.
+
+>>> from nsfem import build_model, load_scene
+>>> scene = load_scene(None, ["mesh.elements=20", "reduction.method=none"])
+>>> st = scene_stationary(scene)
+>>> st.state[:3], bool(st.gap.min() > 0), st.existence["guaranteed"]
+(['open', 'open', 'open'], True, True)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..contact.set import ContactSet
+from ..errors import NsfemError
+from ..lcp.builders import stationary_lcp
+from ..lcp.pivoting import LCPError, LCPResult
+from ..linalg import factorize
+
+
+@dataclass
+class Stationary:
+    """A stationary contact state in the coordinates of ``contacts``."""
+
+    q: np.ndarray
+    gap: np.ndarray                       # m
+    normal_force: np.ndarray              # N
+    tangential_force: list[np.ndarray]    # N, components along each contact's tangents
+    slip: list[np.ndarray]                # m, tangential displacement per contact
+    state: list[str]                      # open | stick | slip per contact
+    existence: dict
+    lcp: LCPResult
+    contacts: ContactSet
+    wall_s: float = 0.0
+    info: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        cs = self.contacts
+        return {
+            "contacts": list(cs.labels), "x_m": [None if math.isnan(v) else float(v) for v in cs.x],
+            "gap_m": self.gap.tolist(), "normal_force_N": self.normal_force.tolist(),
+            "tangential_force_N": [float(np.linalg.norm(t)) for t in self.tangential_force],
+            "tangential_force_components_N": [t.tolist() for t in self.tangential_force],
+            "tangent_directions": [list(t) for t in cs.tangents],
+            "slip_m": [s.tolist() for s in self.slip], "state": self.state,
+            "closed": int(sum(s != "open" for s in self.state)),
+            "existence": self.existence,
+            "lcp": {"size": int(self.lcp.x.size), "pivots": self.lcp.pivots, "status": self.lcp.status,
+                    "residual": self.lcp.residual},
+        }
+
+
+def existence(Q, frictionless: bool) -> dict:
+    """The paper's existence statement for LCP (28) applied to Q (dense or sparse)."""
+    Qd = Q
+    scale = float(abs(Q).max()) if (sp.issparse(Q) and Q.nnz) or (not sp.issparse(Q) and Q.size) else 1.0
+    asym = abs(Q - Q.T).max() if sp.issparse(Q) else np.abs(Q - Q.T).max()
+    symmetric = bool(asym <= 1e-12 * max(scale, 1e-300))
+    pd = _positive_definite(0.5 * (Qd + Qd.T))
+    if symmetric and pd:
+        return {"guaranteed": True, "symmetric": True, "positive_definite": True,
+                "reason": "Q is symmetric positive definite: a solution exists (paper, after eq. 28)"}
+    if frictionless and pd:
+        return {"guaranteed": True, "symmetric": symmetric, "positive_definite": True,
+                "reason": "no friction and Q positive definite: a solution exists (paper, after eq. 28)"}
+    why = []
+    if not symmetric:
+        why.append("Q is not symmetric (external damping adds the circulatory P)")
+    if not pd:
+        why.append("Q is not positive definite (the speed lies beyond a divergence speed)")
+    if not frictionless:
+        why.append("contacts have friction")
+    return {"guaranteed": False, "symmetric": symmetric, "positive_definite": pd,
+            "reason": "existence not guaranteed: " + "; ".join(why)}
+
+
+def _positive_definite(H) -> bool:
+    """Whether the symmetric H is positive definite (Cholesky, or sparse LDL^T inertia)."""
+    n = H.shape[0]
+    if n <= 3000 or not sp.issparse(H):
+        try:
+            np.linalg.cholesky(H.toarray() if sp.issparse(H) else np.asarray(H))
+            return True
+        except np.linalg.LinAlgError:
+            return False
+    try:  # symmetric ordering, no pivoting: U's diagonal is D of H = L D L^T (Sylvester)
+        lu = spla.splu(sp.csc_matrix(H), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError:
+        return False
+    return bool(np.all(lu.U.diagonal() > 0))
+
+
+def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, **lemke_options) -> Stationary:
+    """Solve LCP (28) for the stiffness Q, constant load f0 and ``contacts``.
+
+    Raises :class:`~nsfem.lcp.pivoting.LCPError` with Lemke's diagnosis (and the existence
+    caveat) when no solution is found, NsfemError when Q is singular.
+    """
+    t0 = time.perf_counter()
+    cs = contacts
+    ex = existence(Q, frictionless=not np.any(cs.r > 0))
+    Qf = factorize(Q, "the stiffness Q = K0 + Kc + P",
+                   "the structure has rigid-body motion no support restrains, or the speed is a "
+                   "divergence speed; a stationary state needs Q to be invertible")
+    lcp = stationary_lcp(cs, Qf, f0)
+    res = lcp.solve(**lemke_options)
+    if not res.success:
+        extra = "" if ex["guaranteed"] else f" ({ex['reason']})"
+        raise LCPError(f"stationary LCP (28) with {lcp.size} unknowns: {res.message}{extra}")
+    q = lcp.motion(res.x)
+    lamN, _, z = lcp.split(res.x)
+    gap = cs.gaps(q)
+    gap[lamN > 0] = np.where(np.abs(gap[lamN > 0]) < 1e-12 * max(np.abs(lcp.b).max(), 1e-300), 0.0,
+                             gap[lamN > 0])
+    tang = [np.zeros(len(t)) for t in cs.tangents]
+    for k, t in zip(lcp.friction, lcp.tangential(res.x)):
+        tang[int(k)] = t
+    slip = [cs.slip(k, q) for k in range(cs.m)]
+    # a contact is closed when it carries force; friction slides when the cone is saturated (z > 0)
+    fscale = max(float(lamN.max(initial=0.0)), _closing_force(lcp))
+    dscale = max(float(np.abs(lcp.b).max(initial=0.0)), 1e-300)
+    closed = lamN > 1e-9 * fscale
+    zk = dict(zip((int(k) for k in lcp.friction), z))
+    state = ["open" if not closed[k] else ("stick" if cs.r[k] > 0 and zk.get(k, 0.0) <= 1e-9 * dscale
+                                            else "slip") for k in range(cs.m)]
+    return Stationary(q, gap, lamN.copy(), tang, slip, state, ex, res, cs, time.perf_counter() - t0)
+
+
+def _closing_force(lcp) -> float:
+    """A force scale of the problem: what it takes to cancel the largest free gap."""
+    m = lcp.normal.size
+    if m == 0:
+        return 1e-300
+    d = np.diag(lcp.A)[:m]
+    d = np.where(d > 0, d, np.inf)
+    return float(np.max(np.abs(lcp.b[:m]) / d, initial=1e-300))
+
+
+def scene_stationary(scene, model=None, reduction=None) -> Stationary:
+    """The stationary state of a scene at its speed, in the scene's reduced coordinates."""
+    from ..fem.assemble import build_model
+    from ..fem.rotating import rotor_operators
+    from ..reduce import scene_reduction
+    from ..system import scene_system
+
+    t0 = time.perf_counter()
+    model = build_model(scene) if model is None else model
+    red = scene_reduction(scene, model) if reduction is None else reduction
+    ops = rotor_operators(model, red.T)
+    system = scene_system(scene, ops)
+    cs = ContactSet.from_model(model, red)
+    st = stationary(system.Q, system.f0, cs)
+    rot = scene["rotation"]
+    loads = []
+    if rot["speed_hz"]:
+        loads.append("centrifugal")
+        if scene["damping"]["external"]:
+            loads.append("external-damping drag")
+    elif rot["gravity"]:
+        loads.append("gravity")
+    st.wall_s = time.perf_counter() - t0
+    st.info = {"speed_hz": rot["speed_hz"], "loads": loads, "ndof_full": model.n, "ndof": red.ndof,
+               "reduction": red.info}
+    if rot["speed_hz"] and rot["gravity"]:
+        st.info["note"] = ("gravity is harmonic in the rotating frame and is not a stationary load; "
+                           "set rotation.speed_hz = 0 for the state at rest under gravity")
+    return st
+
+
+__all__ = ["Stationary", "existence", "scene_stationary", "stationary", "NsfemError"]

@@ -1,0 +1,175 @@
+"""The contact set of a (reduced) model: everything the LCPs and integrators need.
+
+For m contact points in n generalized coordinates q (paper eq. 17-24):
+
+- normal gaps g = J_N^T q + j_N (``JN`` n x m, ``jN``),
+- tangential relative displacements s_k = S_k^T q of contact k (``JS[k]`` n x d_k,
+  d_k = 2 tangent directions, 1 when one is frozen in the model, 0 when mu_k = 0),
+- the polygonal friction cone of contact k: r_k unit generators e_i in its tangent
+  plane (eq. 20, 21), the columns of B_k; the tangential force is lam_T = B_k beta_k,
+  beta_k >= 0, mu_k lam_N,k - 1^T beta_k >= 0, and J_T = [S_k B_k] (eq. 24),
+- Coulomb mu and Newton restitution eps per contact.
+
+With r_k generators on a two-dimensional tangent plane e_i = (cos, sin)(2 pi i / r_k);
+r_k = 2 there gives friction along the first tangent only (the shaft axis for a
+delamination). Where one tangent direction exists, r_k = 2 (+-t).
+
+>>> import numpy as np
+>>> cs = ContactSet.from_arrays(np.eye(2)[:, :1], [0.0], mu=[0.3], JS=[np.eye(2)[:, 1:]])
+>>> cs.generators(0).tolist(), cs.JT([0]).tolist(), cs.E([0]).tolist()
+([[1.0, -1.0]], [[0.0, 0.0], [1.0, -1.0]], [[1.0], [1.0]])
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import NsfemError
+
+#: names of the tangent directions per contact kind/normal, in the order of slip_rows
+_TANGENTS = {"interface": ("x", "y"), "x": ("y", "z"), "y": ("x", "z"), "z": ("x", "y")}
+
+
+@dataclass(frozen=True)
+class ContactSet:
+    """Contacts in n generalized coordinates (see the module docstring)."""
+
+    JN: np.ndarray
+    jN: np.ndarray
+    mu: np.ndarray
+    eps: np.ndarray
+    JS: tuple[np.ndarray, ...]
+    r: np.ndarray
+    labels: tuple[str, ...]
+    tangents: tuple[tuple[str, ...], ...]
+    x: np.ndarray
+
+    @property
+    def m(self) -> int:
+        return self.jN.size
+
+    @property
+    def n(self) -> int:
+        return self.JN.shape[0]
+
+    @property
+    def frictional(self) -> np.ndarray:
+        """Indices of the contacts with friction rows (mu > 0 and a tangent direction)."""
+        return np.flatnonzero(self.r > 0)
+
+    @classmethod
+    def from_arrays(cls, JN, jN, mu=0.0, eps=0.0, JS=None, r=4, labels=None, x=None) -> ContactSet:
+        """A contact set from plain arrays (validated), e.g. for systems with closed-form answers.
+
+        ``JS`` is a list with one (n x d_k) array (d_k in 0, 1, 2) per contact, or None.
+        ``mu``, ``eps``, ``r`` are scalars or one value per contact.
+        """
+        JN = np.atleast_2d(np.asarray(JN, dtype=float))
+        jN = np.atleast_1d(np.asarray(jN, dtype=float))
+        n, m = JN.shape
+        if jN.shape != (m,):
+            raise NsfemError(f"contact set: j_N needs one entry per column of J_N ({m}), got {jN.size}")
+        per = lambda v, name: np.broadcast_to(np.asarray(v, dtype=float), (m,)).copy()  # noqa: E731
+        mu, eps = per(mu, "mu"), per(eps, "eps")
+        rr = per(r, "r").astype(int)
+        if np.any(mu < 0) or np.any((eps < 0) | (eps > 1)):
+            raise NsfemError("contact set: mu must be >= 0 and eps in [0, 1]")
+        if np.any(rr < 2) or np.any(rr % 2):
+            raise NsfemError("contact set: the number of friction generators r must be even and >= 2")
+        if not (np.all(np.isfinite(JN)) and np.all(np.isfinite(jN))):
+            raise NsfemError("contact set: J_N and j_N must be finite")
+        blocks = []
+        for k in range(m):
+            S = np.zeros((n, 0)) if JS is None or mu[k] == 0 else np.asarray(JS[k], dtype=float).reshape(n, -1)
+            if S.shape[1] > 2:
+                raise NsfemError(f"contact set: contact {k} has {S.shape[1]} tangent directions (at most 2)")
+            blocks.append(S)
+        dims = np.array([b.shape[1] for b in blocks])
+        rr = np.where(dims == 0, 0, np.where(dims == 1, 2, rr))
+        labels = tuple(labels) if labels is not None else tuple(f"contact {k}" for k in range(m))
+        tangents = tuple(("t1", "t2")[: d] for d in dims)
+        xs = np.full(m, np.nan) if x is None else np.asarray(x, dtype=float)
+        return cls(JN, jN, mu, eps, tuple(blocks), rr, labels, tangents, xs)
+
+    @classmethod
+    def from_model(cls, model, reduction=None, frozen_tol: float = 1e-10) -> ContactSet:
+        """The contacts of ``model`` in the coordinates of ``reduction`` (default: no reduction).
+
+        A tangent direction whose slip row vanishes in these coordinates (nothing can slip
+        that way) is dropped; a contact left with one direction gets r = 2.
+        """
+        from ..reduce import NoReduction
+
+        red = NoReduction(model) if reduction is None else reduction
+        JN, jN, JS_all = red.jacobians()
+        contacts = model.stack.contacts
+        blocks, tangents, r = [], [], []
+        col = 0
+        for k, c in enumerate(contacts):
+            names = _TANGENTS["interface" if c.kind == "interface" else c.normal[1]]
+            if c.friction > 0:
+                S = JS_all[:, col:col + 2]
+                col += 2
+                norms = np.linalg.norm(S, axis=0)
+                keep = norms > frozen_tol * max(float(norms.max()), np.linalg.norm(JN[:, k]), 1e-300)
+                S, names = S[:, keep], tuple(nm for nm, kp in zip(names, keep) if kp)
+                rk = 0 if S.shape[1] == 0 else (2 if S.shape[1] == 1 else c.friction_directions)
+            else:
+                S, names, rk = np.zeros((JN.shape[0], 0)), (), 0
+            if rk == 2 and S.shape[1] == 2:
+                S, names = S[:, :1], names[:1]  # r = 2 on a plane: friction along the first tangent
+            blocks.append(S)
+            tangents.append(names)
+            r.append(rk)
+        return cls(np.asarray(JN, dtype=float), np.asarray(jN, dtype=float),
+                   np.array([c.friction for c in contacts]), np.array([c.restitution for c in contacts]),
+                   tuple(blocks), np.array(r, dtype=int), tuple(c.label for c in contacts), tuple(tangents),
+                   np.array([c.x for c in contacts]))
+
+    # --- friction cone -------------------------------------------------------------
+    def generators(self, k: int) -> np.ndarray:
+        """B_k: the r_k unit generators of contact k's cone (d_k x r_k), in pairs e_i = -e_j."""
+        d, r = self.JS[k].shape[1], int(self.r[k])
+        if r == 0:
+            return np.zeros((d, 0))
+        if d == 1 or r == 2:
+            B = np.array([[1.0, -1.0]])
+            return B if d == 1 else np.vstack([B, np.zeros((1, 2))])
+        a = 2.0 * np.pi * np.arange(r) / r
+        B = np.vstack([np.cos(a), np.sin(a)])
+        B[np.abs(B) < 1e-15] = 0.0
+        return B
+
+    def JT(self, contacts) -> np.ndarray:
+        """J_T = [S_k B_k] for the listed contacts (n x sum r_k), eq. (24)."""
+        cols = [self.JS[k] @ self.generators(k) for k in contacts]
+        return np.hstack(cols) if cols else np.zeros((self.n, 0))
+
+    def E(self, contacts) -> np.ndarray:
+        """Block-diagonal E = diag(1_k) (sum r_k x len(contacts)), eq. (24)."""
+        r = [int(self.r[k]) for k in contacts]
+        E = np.zeros((sum(r), len(r)))
+        row = 0
+        for j, rk in enumerate(r):
+            E[row:row + rk, j] = 1.0
+            row += rk
+        return E
+
+    # --- evaluation ----------------------------------------------------------------
+    def gaps(self, q: np.ndarray) -> np.ndarray:
+        """g = J_N^T q + j_N (for q of shape (n,) or (n, t))."""
+        g = self.JN.T @ q
+        return g + (self.jN if g.ndim == 1 else self.jN[:, None])
+
+    def slip(self, k: int, q: np.ndarray) -> np.ndarray:
+        """Tangential relative displacement (or velocity, given q') of contact k (d_k,)."""
+        return self.JS[k].T @ q
+
+    def subset(self, keep) -> ContactSet:
+        """The contacts with indices ``keep``, in that order."""
+        keep = [int(k) for k in keep]
+        return ContactSet(self.JN[:, keep], self.jN[keep], self.mu[keep], self.eps[keep],
+                          tuple(self.JS[k] for k in keep), self.r[keep], tuple(self.labels[k] for k in keep),
+                          tuple(self.tangents[k] for k in keep), self.x[keep])

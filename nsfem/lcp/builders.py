@@ -1,0 +1,169 @@
+"""The contact LCPs (28), (29) and (30-32): one block structure, three right-hand sides.
+
+All three eliminate the coordinates through one operator S = X^-1 (X = Q for the
+stationary problem, X = M for transitions and impacts) and read
+
+    0 <= [ J_N^T S W_N   J_N^T S J_T   0 ] (lam_N)   (b_N)     (lam_N)
+         [ J_T^T S W_N   J_T^T S J_T   E ] (beta ) + (b_T) _|_ (beta ) >= 0
+         [ mu            -E^T          0 ] (z    )   ( 0 )     (z    )
+
+with the friction generators J_T = [S_k B_k] and E of :class:`~nsfem.contact.set.ContactSet`.
+W_N = J_N except for contacts that already slide (transition LCP only), where the normal
+force drags its friction force along: W_N,k = J_N,k + mu_k S_k e_k with e_k the cone
+generator opposing the slip velocity. Only the contacts given as ``normal`` enter (the
+ones that can be active); tangential unknowns exist only for ``friction`` contacts.
+
+=============  ========  =======================================  ==========================
+LCP            X         b_N                                      b_T
+=============  ========  =======================================  ==========================
+stationary 28  Q         j_N + J_N^T Q^-1 f0 (gap under f0)       J_T^T Q^-1 f0 (slip under f0)
+transition 29  M         J_N^T M^-1 f*   (gap acceleration)       J_T^T M^-1 f*
+impact 30-32   M         (1 + eps) J_N^T q'^-                     J_T^T q'^-
+=============  ========  =======================================  ==========================
+
+with f* = f(t) - C q' - Q q. The solution x gives the generalized contact force
+W x (``force``) and its response S W x (``response``): the displacement, acceleration or
+velocity change added to the unconstrained one.
+
+>>> import numpy as np
+>>> from nsfem.contact.set import ContactSet
+>>> from nsfem.linalg import factorize
+>>> cs = ContactSet.from_arrays([[1.0]], [0.0])           # one dof, gap g = q
+>>> lcp = stationary_lcp(cs, factorize(np.array([[2.0]])), np.array([-4.0]))
+>>> x = lcp.solve().x                                      # a spring pushed onto a stop
+>>> x.tolist(), lcp.motion(x).tolist()
+([4.0], [0.0])
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..contact.set import ContactSet
+from ..linalg import Factorization
+from .pivoting import LCPResult, lemke
+
+
+@dataclass(frozen=True)
+class ContactLCP:
+    """LCP(A, b) of a contact problem and the maps back to forces and motion."""
+
+    A: np.ndarray
+    b: np.ndarray
+    normal: np.ndarray          # contact indices of the normal unknowns lam_N
+    friction: np.ndarray        # contact indices with tangential unknowns beta (subset of normal)
+    r: np.ndarray               # generators per friction contact
+    W: np.ndarray               # force columns [W_N, J_T] (n x (m_a + p))
+    Y: np.ndarray               # S W
+    generators: tuple           # B_k per friction contact
+    base: np.ndarray            # the motion without contact forces: Q^-1 f0, M^-1 f* or q'^-
+
+    @property
+    def size(self) -> int:
+        return self.b.size
+
+    def solve(self, **kw) -> LCPResult:
+        """Lemke's method on (A, b); keywords go to :func:`~nsfem.lcp.pivoting.lemke`."""
+        return lemke(self.A, self.b, **kw)
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(lam_N, beta, z) from the LCP unknowns x."""
+        m, p = self.normal.size, int(self.r.sum())
+        return x[:m], x[m:m + p], x[m + p:]
+
+    def force(self, x: np.ndarray) -> np.ndarray:
+        """Generalized contact force W_N lam_N + J_T beta (n,)."""
+        return self.W @ x[: self.W.shape[1]]
+
+    def response(self, x: np.ndarray) -> np.ndarray:
+        """S (W_N lam_N + J_T beta): what the contact forces add to q, q'' or q' (n,)."""
+        return self.Y @ x[: self.Y.shape[1]]
+
+    def motion(self, x: np.ndarray) -> np.ndarray:
+        """q (stationary), q'' (transition) or q'^+ (impact): ``base`` + ``response(x)``."""
+        return self.base + self.response(x)
+
+    def tangential(self, x: np.ndarray) -> list[np.ndarray]:
+        """Tangential force lam_T,k = B_k beta_k of each friction contact (d_k components)."""
+        _, beta, _ = self.split(x)
+        out, row = [], 0
+        for B, rk in zip(self.generators, self.r):
+            out.append(B @ beta[row:row + rk])
+            row += rk
+        return out
+
+
+def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, slide=None,
+                base: np.ndarray | None = None) -> ContactLCP:
+    """Assemble the LCP of the module docstring.
+
+    ``normal``: contact indices with a normal unknown; ``friction``: those of them with
+    tangential unknowns (mu > 0); ``slide``: {contact: unit tangent-plane vector of its
+    friction force} for contacts that slide (their friction is not an unknown).
+    """
+    normal = np.asarray(normal, dtype=int).ravel()
+    friction = np.asarray(friction, dtype=int).ravel()
+    slide = slide or {}
+    WN = cs.JN[:, normal].copy()
+    for j, k in enumerate(normal):
+        if int(k) in slide:
+            WN[:, j] += cs.mu[k] * (cs.JS[k] @ np.asarray(slide[int(k)], dtype=float))
+    JT = cs.JT(friction)
+    E = cs.E(friction)
+    W = np.hstack([WN, JT])
+    Y = solve.solve(W)
+    D = np.hstack([cs.JN[:, normal], JT]).T @ Y
+    m, p, f = normal.size, JT.shape[1], friction.size
+    A = np.zeros((m + p + f, m + p + f))
+    A[: m + p, : m + p] = D
+    A[m: m + p, m + p:] = E
+    pos = {int(k): j for j, k in enumerate(normal)}
+    for i, k in enumerate(friction):
+        A[m + p + i, pos[int(k)]] = cs.mu[k]
+    A[m + p:, m: m + p] = -E.T
+    b = np.concatenate([np.asarray(bN, dtype=float).ravel(), np.asarray(bT, dtype=float).ravel(), np.zeros(f)])
+    return ContactLCP(A, b, normal, friction, cs.r[friction], W, Y,
+                      tuple(cs.generators(int(k)) for k in friction),
+                      np.zeros(cs.n) if base is None else np.asarray(base, dtype=float))
+
+
+def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, normal=None) -> ContactLCP:
+    """LCP (28): the stationary contact state under the constant load f0.
+
+    Friction as in the paper's section 3.1: tangential displacements start at zero and
+    grow monotonically, so the friction force opposes the tangential displacement.
+    The solution is q = Q^-1 f0 + ``response(x)`` = ``motion(x)``.
+    """
+    normal = np.arange(cs.m) if normal is None else np.asarray(normal, dtype=int)
+    q0 = np.zeros(cs.n) if f0 is None else Q.solve(f0)
+    friction = np.array([k for k in normal if cs.r[k] > 0], dtype=int)
+    return contact_lcp(Q, cs, normal, friction, cs.gaps(q0)[normal], cs.JT(friction).T @ q0, base=q0)
+
+
+def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, stick, slide=None
+                   ) -> ContactLCP:
+    """LCP (29): which closed contacts stay closed, which stick and which slip.
+
+    ``fstar`` = f(t) - C q' - Q q; ``closed`` contacts have g = g' = 0; ``stick`` are the
+    closed frictional ones at zero slip velocity; ``slide`` maps the others to the
+    direction of their friction force. Accelerations: q'' = M^-1 f* + ``response(x)``.
+    """
+    closed = np.asarray(closed, dtype=int)
+    stick = np.asarray(stick, dtype=int)
+    a0 = M.solve(fstar)
+    return contact_lcp(M, cs, closed, stick, cs.JN[:, closed].T @ a0, cs.JT(stick).T @ a0, slide, base=a0)
+
+
+def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active) -> ContactLCP:
+    """LCP (30-32): impulses with Newton restitution and frictional impulses.
+
+    ``active`` are the contacts closed or just closing at the impact (g = 0); ``v`` the
+    velocity before it. After the impact q'^+ = q'^- + ``response(x)`` satisfies
+    0 <= g'^+ + eps g'^- _|_ Lambda_N >= 0 and the tangential impact law (33).
+    """
+    active = np.asarray(active, dtype=int)
+    friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
+    gv = cs.JN[:, active].T @ v
+    return contact_lcp(M, cs, active, friction, (1.0 + cs.eps[active]) * gv, cs.JT(friction).T @ v, base=v)

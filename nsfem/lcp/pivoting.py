@@ -1,0 +1,304 @@
+"""Lemke's complementary pivoting algorithm for LCP(A, b) (paper section 3.1).
+
+Find x with
+
+    w = A x + b >= 0,   x >= 0,   x^T w = 0.
+
+Lemke's method augments the problem with an artificial variable z0 and a strictly
+positive covering vector d (w = A x + b + d z0), starts from the almost-complementary
+basis where z0 is just large enough to make w >= 0, and pivots complementary pairs in
+and out until z0 leaves the basis (a solution) or the entering column has no positive
+entry (a secondary ray).
+
+Implementation notes:
+
+- Revised form: the basis inverse B^-1 is kept explicitly (rank-one updates,
+  refactorized every ``refactor`` pivots), so one pivot costs O(n^2).
+- Anti-cycling: the lexicographic ratio test on the rows of [x_B, B^-1] / c_i, which
+  makes every basis visited distinct, so degenerate problems (ties) terminate.
+- Pivot tolerances are relative to the entering column; the problem is first
+  equilibrated (positive row and column scaling leaves complementarity unchanged).
+- The final basis is polished: x_S solves A_SS x_S = -b_S on the set S of basic x,
+  in the original data, which removes the round-off the updates accumulated.
+- Every result carries a certificate of w >= 0, x >= 0, x^T w = 0 computed from the
+  original A and b; ``success`` is never claimed without it.
+
+>>> import numpy as np
+>>> res = lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]))
+>>> res.success, res.x.round(12).tolist(), res.w.round(12).tolist()
+(True, [1.333333333333, 2.333333333333], [0.0, 0.0])
+>>> lemke(np.array([[-1.0]]), np.array([-1.0])).status     # w = -x - 1 >= 0 is infeasible
+'ray'
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import NsfemError
+
+__all__ = ["LCPError", "LCPResult", "lemke", "certificate"]
+
+#: z0 competes for leaving when its ratio is within this relative distance of the minimum
+NEAR_TIE = 1e-6
+#: certificate (relative min-map residual) at which a complementary point is accepted
+ACCEPT = 1e-9
+
+
+class LCPError(NsfemError):
+    """An LCP that could not be solved (the message carries Lemke's diagnosis)."""
+
+
+@dataclass(frozen=True)
+class LCPResult:
+    """The outcome of :func:`lemke`.
+
+    ``status`` is ``solved``, ``ray`` (secondary-ray termination) or ``max_pivots``.
+    ``residual`` is the relative min-map residual max_i |min(x_i / s_x, w_i / s_i)|
+    (0 for an exact solution, see :func:`certificate`).
+    """
+
+    x: np.ndarray
+    w: np.ndarray
+    status: str
+    pivots: int
+    residual: float
+    message: str
+    certificate: dict
+
+    @property
+    def success(self) -> bool:
+        return self.status == "solved"
+
+    def check(self) -> LCPResult:
+        """Return self when solved, else raise :class:`LCPError` with the diagnosis."""
+        if not self.success:
+            raise LCPError(self.message)
+        return self
+
+
+def certificate(A: np.ndarray, b: np.ndarray, x: np.ndarray, scales=None) -> dict:
+    """Residuals of the complementarity conditions of x for LCP(A, b).
+
+    Returns ``x_min`` (most negative x_i, or 0), ``w_min`` (most negative w_i, or 0),
+    ``complementarity`` max_i |x_i w_i| (original units), and ``relative``, the min-map
+    residual max_i |min(x'_i / max|x'|, w'_i / s)| of the equilibrated problem
+    (A' = R A C, b' = R b, x' = C^-1 x, w' = R w; ``scales`` = (R, C) diagonals, computed
+    when not given), with s = max_i (|b'_i| + sum_j |A'_ij x'_j|). Equilibration puts the
+    rows' different units (gaps in m, forces in N) on one scale; ``relative`` is 0 for an
+    exact solution and about the unit round-off for a good numerical one.
+    """
+    x = np.asarray(x, dtype=float)
+    w = A @ x + b
+    if x.size == 0:
+        return {"x_min": 0.0, "w_min": 0.0, "complementarity": 0.0, "relative": 0.0}
+    r, c = _equilibrate(A) if scales is None else scales
+    xs, ws = x / c, r * w
+    sx = max(float(np.max(np.abs(xs))), np.finfo(float).tiny)
+    sw = max(float(np.max(np.abs(r * b) + (np.abs(A) * r[:, None] * c[None, :]) @ np.abs(xs))),
+             np.finfo(float).tiny)
+    rel = np.abs(np.minimum(xs / sx, ws / sw))
+    return {"x_min": float(min(0.0, x.min())), "w_min": float(min(0.0, w.min())),
+            "complementarity": float(np.max(np.abs(x * w))), "relative": float(rel.max())}
+
+
+def _equilibrate(A: np.ndarray, sweeps: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Positive row and column scalings r, c with r_i |A_ij| c_j of order one (Ruiz)."""
+    n = A.shape[0]
+    r, c = np.ones(n), np.ones(n)
+    S = np.abs(A)
+    for _ in range(sweeps):
+        rm = np.max(S, axis=1)
+        cm = np.max(S, axis=0)
+        fr = np.where(rm > 0, 1.0 / np.sqrt(np.where(rm > 0, rm, 1.0)), 1.0)
+        fc = np.where(cm > 0, 1.0 / np.sqrt(np.where(cm > 0, cm, 1.0)), 1.0)
+        r *= fr
+        c *= fc
+        S = fr[:, None] * S * fc[None, :]
+    return r, c
+
+
+def _lexmin(rows: np.ndarray, idx: np.ndarray) -> int:
+    """Index (into idx) of the lexicographically smallest row, columns compared in turn."""
+    cand = np.arange(len(idx))
+    for k in range(rows.shape[1]):
+        col = rows[cand, k]
+        lo = col.min()
+        tol = 1e-10 * max(np.max(np.abs(col)), 1e-300)
+        cand = cand[col <= lo + tol]
+        if len(cand) == 1:
+            break
+    return int(cand[0])
+
+
+def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, refactor: int = 50,
+          pivot_tol: float = 1e-11) -> LCPResult:
+    """Solve LCP(A, b) by Lemke's method with the lexicographic anti-cycling rule.
+
+    ``d`` is the covering vector (strictly positive, default ones in the equilibrated
+    problem); ``max_pivots`` defaults to 50 n + 1000. The result is returned, never
+    raised: check ``result.success`` or call ``result.check()``.
+    """
+    A = np.array(A, dtype=float)
+    b = np.array(b, dtype=float).ravel()
+    n = b.size
+    if A.shape != (n, n):
+        raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(b))):
+        raise NsfemError("lemke: A and b must be finite (found nan or inf)")
+    if d is not None:
+        d = np.array(d, dtype=float).ravel()
+        if d.shape != (n,) or not np.all(d > 0) or not np.all(np.isfinite(d)):
+            raise NsfemError("lemke: the covering vector d must be finite and strictly positive, one entry per row")
+    max_pivots = 50 * n + 1000 if max_pivots is None else int(max_pivots)
+
+    r_s, c_s = _equilibrate(A) if scale else (np.ones(n), np.ones(n))
+
+    def result(x, status, pivots, message):
+        cert = certificate(A, b, x, (r_s, c_s))
+        return LCPResult(x, A @ x + b, status, pivots, cert["relative"], message, cert)
+
+    if n == 0 or np.all(b >= 0):
+        return result(np.zeros(n), "solved", 0, "trivial solution x = 0 (b >= 0)")
+
+    As = r_s[:, None] * A * c_s[None, :]
+    bs = r_s * b
+    dv = np.ones(n) if d is None else r_s * d
+
+    z0 = 2 * n  # variables: w_0..w_{n-1}, x_0..x_{n-1}, z0
+
+    def column(v: int) -> np.ndarray:
+        if v < n:
+            e = np.zeros(n)
+            e[v] = 1.0
+            return e
+        if v < 2 * n:
+            return -As[:, v - n]
+        return -dv
+
+    basis = np.arange(n)
+    Binv = np.eye(n)
+    xB = bs.copy()
+
+    # first pivot: z0 enters where b_i / d_i is lexicographically smallest
+    rows = np.column_stack([xB / dv, Binv / dv[:, None]])
+    r = _lexmin(rows, np.arange(n))
+    entering = z0
+    pivots = 0
+    since_refactor = 0
+    while True:
+        c = Binv @ column(entering) if entering != z0 else -Binv @ dv
+        if pivots > 0:
+            cmax = np.max(np.abs(c))
+            pos = np.flatnonzero(c > pivot_tol * max(cmax, 1e-300))
+            if pos.size == 0:
+                # a secondary ray; its start may still solve the LCP when z0 is ~0 in round-off
+                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, r_s, c_s)
+                if certificate(A, b, x, (r_s, c_s))["relative"] <= ACCEPT:
+                    return result(x, "solved", pivots, f"solved in {pivots} pivots (z0 vanished to round-off)")
+                return result(x, "ray", pivots, _ray_message(pivots, xB[basis == z0], _psd_hint(A)))
+            ratios = xB[pos] / c[pos]
+            theta = ratios.min()
+            ties = pos[ratios <= theta + 1e-10 * max(abs(theta), np.max(np.abs(xB)) * 1e-6, 1e-300)]
+            k0 = np.flatnonzero(basis[pos] == z0)
+            if k0.size and ratios[k0[0]] <= theta * (1.0 + NEAR_TIE):
+                # z0 ties for leaving (possibly only up to round-off in the data): try the
+                # complementary basis it leaves behind, accept it if it solves the LCP
+                trial = basis.copy()
+                trial[pos[k0[0]]] = entering
+                x = _polish(A, b, None, trial, n, r_s, c_s)
+                if x is not None and certificate(A, b, x, (r_s, c_s))["relative"] <= ACCEPT:
+                    return result(x, "solved", pivots + 1, f"solved in {pivots + 1} pivots")
+            if ties.size == 1:
+                r = int(ties[0])
+            else:
+                rows = np.column_stack([xB[ties], Binv[ties]]) / c[ties][:, None]
+                r = int(ties[_lexmin(rows, ties)])
+        # pivot on (r, entering)
+        p = c[r]
+        Binv[r] /= p
+        xB[r] /= p
+        others = np.arange(n) != r
+        Binv[others] -= np.outer(c[others], Binv[r])
+        xB[others] -= c[others] * xB[r]
+        leaving = int(basis[r])
+        basis[r] = entering
+        pivots += 1
+        since_refactor += 1
+        np.maximum(xB, 0.0, out=xB)
+        if leaving == z0:
+            break
+        if pivots >= max_pivots:
+            x = _basic_x(basis, xB, n) * c_s
+            return result(x, "max_pivots", pivots,
+                          f"Lemke stopped after the limit of {max_pivots} pivots without a solution")
+        if since_refactor >= refactor:
+            B = np.column_stack([column(v) for v in basis])
+            try:
+                lu = sla.lu_factor(B, check_finite=False)
+                Binv = sla.lu_solve(lu, np.eye(n), check_finite=False)
+                xB = np.maximum(sla.lu_solve(lu, bs, check_finite=False), 0.0)
+            except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - keep the updated inverse
+                pass
+            since_refactor = 0
+        entering = leaving + n if leaving < n else leaving - n
+
+    x = _basic_x(basis, xB, n) * c_s
+    x = _polish(A, b, x, basis, n, r_s, c_s)
+    res = result(x, "solved", pivots, f"solved in {pivots} pivots")
+    if res.residual > 1e-6:
+        return LCPResult(res.x, res.w, "inaccurate", pivots, res.residual,
+                         f"Lemke reached a complementary basis after {pivots} pivots but the solution is inaccurate "
+                         f"(relative residual {res.residual:.1e}): A is too ill-conditioned for this LCP",
+                         res.certificate)
+    return res
+
+
+def _basic_x(basis: np.ndarray, xB: np.ndarray, n: int) -> np.ndarray:
+    x = np.zeros(n)
+    sel = (basis >= n) & (basis < 2 * n)
+    x[basis[sel] - n] = xB[sel]
+    return x
+
+
+def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: np.ndarray, n: int,
+            r_s: np.ndarray, c_s: np.ndarray) -> np.ndarray:
+    """Re-solve the complementary basis (A_SS x_S = -b_S, equilibrated); keep the better x."""
+    S = np.sort(basis[(basis >= n) & (basis < 2 * n)] - n)
+    if S.size == 0:
+        y = np.zeros(n)
+    else:
+        try:
+            xs = np.linalg.solve(r_s[S, None] * A[np.ix_(S, S)] * c_s[None, S], -r_s[S] * b[S])
+        except np.linalg.LinAlgError:
+            return x
+        y = np.zeros(n)
+        y[S] = c_s[S] * xs
+    if not np.all(np.isfinite(y)):
+        return x
+    y = np.maximum(y, 0.0)
+    sc = (r_s, c_s)
+    if x is None or certificate(A, b, y, sc)["relative"] <= certificate(A, b, x, sc)["relative"]:
+        return y
+    return x
+
+
+def _psd_hint(A: np.ndarray) -> float | None:
+    """Smallest eigenvalue of the symmetric part (relative), or None when too large to check."""
+    if A.shape[0] > 2000:
+        return None
+    H = 0.5 * (A + A.T)
+    scale = max(float(np.max(np.abs(H))), 1e-300)
+    return float(np.linalg.eigvalsh(H / scale)[0])
+
+
+def _ray_message(pivots: int, z0_value, eig: float | None) -> str:
+    z = float(z0_value[0]) if len(z0_value) else 0.0
+    head = f"Lemke ended on a secondary ray after {pivots} pivots (artificial variable z0 = {z:.3g} > 0)"
+    if eig is not None and eig >= -1e-12:
+        return head + ": A is positive semi-definite, so this proves the LCP has no solution"
+    return (head + ": no solution exists if A is copositive-plus; A is not positive semi-definite here, "
+            "so a solution may exist that Lemke's method cannot reach")
