@@ -12,6 +12,7 @@ nsfem.errors.NsfemError: Q is singular (reciprocal condition number 0.0e+00): ..
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,7 +61,9 @@ def factorize(A, name: str = "the operator", hint: str = "") -> Factorization:
     else:
         Ad = A.toarray() if sp.issparse(A) else np.asarray(A, dtype=float)
         norm = np.linalg.norm(Ad, 1)
-        lu, piv = sla.lu_factor(Ad, check_finite=False) if norm > 0 else (Ad, None)
+        with warnings.catch_warnings():  # singularity is judged below, by rcond
+            warnings.simplefilter("ignore", sla.LinAlgWarning)
+            lu, piv = sla.lu_factor(Ad, check_finite=False) if norm > 0 else (Ad, None)
         if norm == 0:
             rcond = 0.0
         else:

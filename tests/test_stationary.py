@@ -1,0 +1,206 @@
+"""Stationary contact states (LCP 28) against closed-form beam solutions and physics.
+
+Euler-Bernoulli beams with Hermite cubic elements and consistent loads are nodally exact
+(the static Green's function is cubic between nodes), so a pinned-pinned beam sagging
+onto stops placed at nodes must reproduce the superposition solution to round-off.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import RHO, E, L, beam_tree
+
+from nsfem import cli
+from nsfem.analysis.stationary import existence, scene_stationary, stationary
+from nsfem.contact.set import ContactSet
+from nsfem.errors import NsfemError
+from nsfem.scene import load_scene, scene_from_tree
+
+B, H, G = 0.03, 0.01, 9.81
+EI = E * B * H**3 / 12
+Q_LOAD = RHO * B * H * G  # N/m
+
+
+def free_sag(a):
+    """Deflection (downward, > 0) of the pinned-pinned beam at x = a under its weight."""
+    return Q_LOAD * a * (L**3 - 2 * L * a**2 + a**3) / (24 * EI)
+
+
+def influence(a, b):
+    """Deflection at a per unit point load at b (same direction), pinned-pinned."""
+    a, b = min(a, b), max(a, b)
+    bb = L - b
+    return bb * a * (L**2 - bb**2 - a**2) / (6 * L * EI)
+
+
+def sag_scene(stops, elements=20, method="none", **extra):
+    tree = beam_tree(width=B, height=H, elements=elements, rotation={"speed_hz": 0.0, "gravity": G},
+                     obstacle=[{"x": x, "normal": "-z", "clearance": c, **extra} for x, c in stops])
+    tree["reduction"] = {"method": method, "modes": 8}
+    return scene_from_tree(tree)
+
+
+@pytest.mark.parametrize("fraction", [0.25, 0.5, 0.9])
+def test_beam_sagging_onto_a_midspan_stop(fraction):
+    d0 = free_sag(0.5)
+    c = fraction * d0
+    st = scene_stationary(sag_scene([(0.5, c)]))
+    P = (d0 - c) / influence(0.5, 0.5)  # closed form: 48 EI (d0 - c) / L^3
+    assert P == pytest.approx(48 * EI * (d0 - c) / L**3, rel=1e-12)
+    assert st.normal_force[0] == pytest.approx(P, rel=1e-9)
+    assert abs(st.gap[0]) <= 1e-12 * c
+    assert st.state == ["slip"]  # frictionless and closed: nothing holds it tangentially
+
+
+def test_a_stop_out_of_reach_carries_nothing_and_shows_the_free_gap():
+    d0 = free_sag(0.5)
+    st = scene_stationary(sag_scene([(0.5, 2.5 * d0)]))
+    assert st.normal_force[0] == 0.0 and st.state == ["open"]
+    assert st.gap[0] == pytest.approx(1.5 * d0, rel=1e-9)
+
+
+def test_two_stops_superposition():
+    """Symmetric stops at L/4 and 3L/4: P (w(a,a) + w(a,L-a)) = free sag - clearance."""
+    a = 0.25
+    c = 0.3 * free_sag(a)
+    st = scene_stationary(sag_scene([(a, c), (L - a, c)]))
+    P = (free_sag(a) - c) / (influence(a, a) + influence(a, L - a))
+    np.testing.assert_allclose(st.normal_force, [P, P], rtol=1e-9)
+    # the midspan deflection is then the free sag minus both stops' relief: check one stop open
+    c_far = 0.3 * free_sag(a)
+    st2 = scene_stationary(sag_scene([(a, c), (0.5, 10 * free_sag(0.5))]))
+    assert st2.state[1] == "open" and st2.normal_force[1] == 0.0
+    P1 = (free_sag(a) - c_far) / influence(a, a)
+    gap_mid = 10 * free_sag(0.5) - (free_sag(0.5) - P1 * influence(0.5, a))
+    assert st2.normal_force[0] == pytest.approx(P1, rel=1e-9)
+    assert st2.gap[1] == pytest.approx(gap_mid, rel=1e-9)
+
+
+def test_craig_bampton_keeps_the_stop_force_close():
+    """CB keeps the gap functional exactly; the distributed weight only through 8 modes."""
+    d0 = free_sag(0.5)
+    full = scene_stationary(sag_scene([(0.5, 0.5 * d0)]))
+    cb = scene_stationary(sag_scene([(0.5, 0.5 * d0)], method="craig-bampton"))
+    assert cb.info["ndof"] < full.info["ndof"]
+    assert cb.normal_force[0] == pytest.approx(full.normal_force[0], rel=1e-3)
+
+
+def _friction_case(mu, x=0.25):
+    d0 = free_sag(x)
+    return scene_stationary(sag_scene([(x, 0.5 * d0)], friction=mu, friction_directions=4))
+
+
+def test_friction_sticks_below_and_slides_above_the_coulomb_limit():
+    """A stop off midspan: the bottom fibre there moves axially (u1 = U + h/2 W') as the beam sags.
+
+    With a large mu the contact sticks: its slip is zero and it needs |lam_T| / lam_N = mu*.
+    Just above mu* it still sticks; just below it slides with |lam_T| = mu lam_N, slip
+    opposing the friction force. (mu* is large, ~230: the friction force acts at the
+    fibre h/2 below the axis, and its moment lifts the beam off the stop.)
+    """
+    stick = _friction_case(1e4)
+    assert stick.state == ["stick"]
+    assert np.abs(stick.slip[0]).max() <= 1e-12 * free_sag(0.25)
+    lamT = np.linalg.norm(stick.tangential_force[0])
+    mu_star = lamT / stick.normal_force[0]
+    assert 1.0 < mu_star < 1e4  # a real tangential load
+    assert _friction_case(0.3).state == ["slip"]
+    above = _friction_case(1.05 * mu_star)
+    assert above.state == ["stick"]
+    assert np.abs(above.slip[0]).max() <= 1e-12 * free_sag(0.25)
+    below = _friction_case(0.95 * mu_star)
+    assert below.state == ["slip"]
+    t = below.tangential_force[0]
+    assert np.linalg.norm(t) == pytest.approx(0.95 * mu_star * below.normal_force[0], rel=1e-9)
+    s = below.slip[0]
+    assert np.linalg.norm(s) > 0 and float(t @ s) < 0  # friction opposes the slip
+    # zero friction: the stop's force is the frictionless one
+    free = _friction_case(0.0)
+    assert free.state == ["slip"] and len(free.tangential_force[0]) == 0
+
+
+def test_delaminated_shaft_at_speed_opens_every_gap():
+    """The centrifugal load pushes the sub-beams apart: no contact force, gaps > 0 and ~ Omega^2."""
+    gaps = {}
+    for speed in (2.0, 4.0, 21.0):
+        st = scene_stationary(load_scene(None, [f"rotation.speed_hz={speed}", "mesh.elements=20"]))
+        assert st.state == ["open"] * 9
+        assert np.all(st.normal_force == 0.0) and np.all(st.gap > 0)
+        np.testing.assert_allclose(st.gap, st.gap[::-1], rtol=1e-6)  # symmetric shaft
+        gaps[speed] = st.gap
+    # K0 + Omega^2 Kc1 softens by (Omega / Omega_div)^2 ~ (4 / 43.4)^2 < 1 %
+    ratio = gaps[4.0] / gaps[2.0]
+    np.testing.assert_allclose(ratio, 4.0, rtol=0.01)
+    assert np.all(ratio > 4.0)  # softening: slightly more than quadratic
+
+
+def test_thin_upper_layer_rests_on_the_lower_at_rest():
+    """At rest under gravity the thinner sub-beam sags more (w ~ 1/h^2): a thin upper layer
+    lies on the lower one (contacts closed); a thin lower layer hangs away from it (open)."""
+    base = ["rotation.speed_hz=0", "mesh.elements=20", "reduction.method=none"]
+    thick_up = scene_stationary(load_scene(None, base))
+    assert thick_up.state == ["open"] * 9 and np.all(thick_up.gap > 0)
+    thin_up = scene_stationary(load_scene(None, base + ["delamination.0.upper_height=0.006"]))
+    closed = [k for k, s in enumerate(thin_up.state) if s != "open"]
+    assert closed and np.all(thin_up.normal_force >= 0)
+    assert np.all(thin_up.gap >= -1e-12 * np.abs(thin_up.gap).max())
+    assert np.all(np.abs(thin_up.gap[closed]) <= 1e-12)
+    # the contact forces carry at most the weight difference the upper layer would add
+    seg = 0.8 * 0.02 * 0.006 * 7500.0 * G
+    assert thin_up.normal_force.sum() < seg
+
+
+def test_existence_statement_follows_the_paper():
+    Q = np.array([[2.0, 0.0], [0.0, 1.0]])
+    assert existence(Q, frictionless=False)["guaranteed"]
+    P = np.array([[0.0, 0.5], [-0.5, 0.0]])  # circulatory, from external damping
+    assert not existence(Q + P, frictionless=False)["guaranteed"]
+    assert existence(Q + P, frictionless=True)["guaranteed"]
+    ind = np.diag([1.0, -1.0])
+    rep = existence(ind, frictionless=True)
+    assert not rep["guaranteed"] and "positive definite" in rep["reason"]
+
+
+def test_singular_stiffness_is_named():
+    cs = ContactSet.from_arrays(np.array([[1.0], [0.0]]), [0.0])
+    with pytest.raises(NsfemError, match="singular"):
+        stationary(np.diag([1.0, 0.0]), np.array([-1.0, 0.0]), cs)
+
+
+def test_infeasible_stationary_problem_reports_lemke_diagnosis():
+    """A negative stiffness whose load pulls the gap shut has no stationary state:
+    w = -lam - 1 >= 0 is infeasible; Lemke must say so, not return a wrong answer."""
+    cs = ContactSet.from_arrays(np.array([[1.0]]), [0.0])
+    with pytest.raises(NsfemError, match="secondary ray.*not guaranteed"):
+        stationary(np.array([[-1.0]]), np.array([1.0]), cs)
+
+
+def test_cli_stationary_json_contract(capsys):
+    assert cli.main(["stationary", "--json", "--set", "mesh.elements=20"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("gap_m", "normal_force_N", "tangential_force_N", "state"):
+        assert len(out[key]) == 9
+    assert out["state"] == ["open"] * 9 and out["existence"]["guaranteed"]
+    assert out["loads"] == ["centrifugal"] and "note" in out
+
+
+def test_cli_stationary_with_stops_and_friction(capsys):
+    d0 = free_sag(0.5)
+    args = ["stationary", "--json", "--set", "delamination=[]", "--set", "rotation.speed_hz=0",
+            "--set", "shaft.width=0.03", "--set", "shaft.height=0.01", "--set", f"shaft.rho={RHO}",
+            "--set", f'obstacle=[{{x=0.5, normal="-z", clearance={0.5 * d0}, friction=0.3}}]',
+            "--set", "reduction.method=none"]
+    assert cli.main(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["contacts"] == ["obstacle.0"] and out["state"] == ["stick"]
+    assert out["normal_force_N"][0] == pytest.approx(48 * EI * 0.5 * d0 / L**3, rel=1e-9)
+    assert out["tangent_directions"] == [["x", "y"]] and out["tangential_force_N"] == [0.0]
+
+
+def test_cli_warns_when_existence_is_not_guaranteed(capsys):
+    assert cli.main(["stationary", "--set", "rotation.speed_hz=45", "--set", "mesh.elements=20"]) in (0, 2)
+    err = capsys.readouterr().err
+    assert "existence not guaranteed" in err and "positive definite" in err
