@@ -63,7 +63,8 @@ class ContactSet:
     def from_arrays(cls, JN, jN, mu=0.0, eps=0.0, JS=None, r=4, labels=None, x=None) -> ContactSet:
         """A contact set from plain arrays (validated), e.g. for systems with closed-form answers.
 
-        ``JS`` is a list with one (n x d_k) array (d_k in 0, 1, 2) per contact, or None.
+        ``JS`` is a list with one (n x d_k) array (d_k in 0, 1, 2) per contact, or None;
+        a contact without tangent directions is frictionless whatever its mu.
         ``mu``, ``eps``, ``r`` are scalars or one value per contact.
         """
         JN = np.atleast_2d(np.asarray(JN, dtype=float))
@@ -71,9 +72,18 @@ class ContactSet:
         n, m = JN.shape
         if jN.shape != (m,):
             raise NsfemError(f"contact set: j_N needs one entry per column of J_N ({m}), got {jN.size}")
-        per = lambda v, name: np.broadcast_to(np.asarray(v, dtype=float), (m,)).copy()  # noqa: E731
+        def per(v, name):
+            v = np.asarray(v, dtype=float)
+            if v.ndim > 1 or (v.ndim == 1 and v.size != m):
+                raise NsfemError(f"contact set: {name} needs one value or one per contact ({m}), got shape {v.shape}")
+            if not np.all(np.isfinite(v)):
+                raise NsfemError(f"contact set: {name} must be finite")
+            return np.broadcast_to(v, (m,)).copy()
+
         mu, eps = per(mu, "mu"), per(eps, "eps")
         rr = per(r, "r").astype(int)
+        if JS is not None and len(JS) != m:
+            raise NsfemError(f"contact set: JS needs one entry per contact ({m}), got {len(JS)}")
         if np.any(mu < 0) or np.any((eps < 0) | (eps > 1)):
             raise NsfemError("contact set: mu must be >= 0 and eps in [0, 1]")
         if np.any(rr < 2) or np.any(rr % 2):
@@ -82,10 +92,16 @@ class ContactSet:
             raise NsfemError("contact set: J_N and j_N must be finite")
         blocks = []
         for k in range(m):
-            S = np.zeros((n, 0)) if JS is None or mu[k] == 0 else np.asarray(JS[k], dtype=float).reshape(n, -1)
+            S = np.zeros((n, 0)) if JS is None or mu[k] == 0 or JS[k] is None else np.asarray(JS[k], dtype=float)
+            if S.ndim == 1:
+                S = S[:, None]
+            if S.ndim != 2 or S.shape[0] != n or not np.all(np.isfinite(S)):
+                raise NsfemError(f"contact set: JS[{k}] must be a finite n x d array (n = {n}), got shape {S.shape}")
             if S.shape[1] > 2:
                 raise NsfemError(f"contact set: contact {k} has {S.shape[1]} tangent directions (at most 2)")
             blocks.append(S)
+        # r = 2 on a plane: friction along the first tangent only (the second is frictionless)
+        blocks = [b[:, :1] if b.shape[1] == 2 and rr[k] == 2 else b for k, b in enumerate(blocks)]
         dims = np.array([b.shape[1] for b in blocks])
         rr = np.where(dims == 0, 0, np.where(dims == 1, 2, rr))
         labels = tuple(labels) if labels is not None else tuple(f"contact {k}" for k in range(m))
@@ -134,9 +150,8 @@ class ContactSet:
         d, r = self.JS[k].shape[1], int(self.r[k])
         if r == 0:
             return np.zeros((d, 0))
-        if d == 1 or r == 2:
-            B = np.array([[1.0, -1.0]])
-            return B if d == 1 else np.vstack([B, np.zeros((1, 2))])
+        if d == 1:
+            return np.array([[1.0, -1.0]])
         a = 2.0 * np.pi * np.arange(r) / r
         B = np.vstack([np.cos(a), np.sin(a)])
         B[np.abs(B) < 1e-15] = 0.0

@@ -18,7 +18,7 @@ LCP            X         b_N                                      b_T
 =============  ========  =======================================  ==========================
 stationary 28  Q         j_N + J_N^T Q^-1 f0 (gap under f0)       J_T^T Q^-1 f0 (slip under f0)
 transition 29  M         J_N^T M^-1 f*   (gap acceleration)       J_T^T M^-1 f*
-impact 30-32   M         (1 + eps) J_N^T q'^-                     J_T^T q'^-
+impact 30-32   M         g'^- + eps min(g'^-, 0), g'^- = J_N^T q'^-   J_T^T q'^-
 =============  ========  =======================================  ==========================
 
 with f* = f(t) - C q' - Q q. The solution x gives the generalized contact force
@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..contact.set import ContactSet
+from ..errors import NsfemError
 from ..linalg import Factorization
 from .pivoting import LCPResult, lemke
 
@@ -151,7 +152,18 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
     direction of their friction force. Accelerations: q'' = M^-1 f* + ``response(x)``.
     """
     closed = np.asarray(closed, dtype=int)
-    stick = np.asarray(stick, dtype=int)
+    stick = np.array([k for k in stick if cs.r[k] > 0], dtype=int)
+    slide = {int(k): np.asarray(d, dtype=float).ravel() for k, d in (slide or {}).items()}
+    where = set(int(k) for k in closed)
+    for k in set(int(k) for k in stick) | set(slide):
+        if k not in where:
+            raise NsfemError(f"transition LCP: contact {k} sticks or slides but is not closed")
+    for k, d in slide.items():
+        if k in set(int(j) for j in stick):
+            raise NsfemError(f"transition LCP: contact {k} cannot both stick and slide")
+        if d.shape != (cs.JS[k].shape[1],) or not abs(np.linalg.norm(d) - 1.0) < 1e-9:
+            raise NsfemError(f"transition LCP: the slide direction of contact {k} must be a unit vector with "
+                             f"{cs.JS[k].shape[1]} components (its tangent directions)")
     a0 = M.solve(fstar)
     return contact_lcp(M, cs, closed, stick, cs.JN[:, closed].T @ a0, cs.JT(stick).T @ a0, slide, base=a0)
 
@@ -166,4 +178,6 @@ def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active) -> Conta
     active = np.asarray(active, dtype=int)
     friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
     gv = cs.JN[:, active].T @ v
-    return contact_lcp(M, cs, active, friction, (1.0 + cs.eps[active]) * gv, cs.JT(friction).T @ v, base=v)
+    # Newton's law acts on approaching contacts; a separating one must merely not approach
+    bN = gv + cs.eps[active] * np.minimum(gv, 0.0)
+    return contact_lcp(M, cs, active, friction, bN, cs.JT(friction).T @ v, base=v)

@@ -1,0 +1,110 @@
+"""The contact system every integrator works on (paper eq. 22-24).
+
+    M q'' + C q' + Q q = f0 + fc cos(omega t) + fs sin(omega t) + J_N lam_N + J_T lam_T
+
+with the unilateral contacts and friction cones of a :class:`~nsfem.contact.set.ContactSet`.
+Built from a scene (:meth:`ContactSystem.from_scene`, in the scene's reduced coordinates) or
+directly from small arrays, so that tests can use systems with closed-form answers.
+
+>>> import numpy as np
+>>> from nsfem.contact.set import ContactSet
+>>> ball = ContactSystem.from_arrays(M=[[1.0]], Q=[[0.0]], f0=[-9.81],
+...                                  contacts=ContactSet.from_arrays([[1.0]], [0.0], eps=0.5))
+>>> ball.n, ball.contacts.m, ball.omega
+(1, 1, 0.0)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..contact.set import ContactSet
+from ..errors import NsfemError
+from ..fem.constraints import dense
+
+
+@dataclass(frozen=True)
+class ContactSystem:
+    """M, C, Q (n x n, dense), load parts (n,) or None, omega [rad/s], contacts."""
+
+    M: np.ndarray
+    C: np.ndarray
+    Q: np.ndarray
+    f0: np.ndarray
+    fc: np.ndarray
+    fs: np.ndarray
+    omega: float
+    contacts: ContactSet
+    info: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def n(self) -> int:
+        return self.M.shape[0]
+
+    @property
+    def harmonic(self) -> bool:
+        return self.omega != 0.0 and (np.any(self.fc) or np.any(self.fs))
+
+    def load(self, t):
+        """f(t) for a scalar t, shape (n,); for an array of times, shape (n, len(t))."""
+        t = np.asarray(t, dtype=float)
+        out = np.multiply.outer(self.f0, np.ones_like(t))
+        if self.harmonic:
+            out = out + np.multiply.outer(self.fc, np.cos(self.omega * t)) + np.multiply.outer(
+                self.fs, np.sin(self.omega * t))
+        return out
+
+    @classmethod
+    def from_arrays(cls, M, Q, C=None, f0=None, fc=None, fs=None, omega: float = 0.0,
+                    contacts: ContactSet | None = None, info=None) -> ContactSystem:
+        """Validate and build; missing parts are zero (C, loads) or no contacts."""
+        M = np.atleast_2d(np.asarray(dense(M), dtype=float))
+        n = M.shape[0]
+
+        def square(A, name):
+            A = np.zeros((n, n)) if A is None else np.atleast_2d(np.asarray(dense(A), dtype=float))
+            if A.shape != (n, n):
+                raise NsfemError(f"contact system: {name} must be {n} x {n}, got {A.shape}")
+            if not np.all(np.isfinite(A)):
+                raise NsfemError(f"contact system: {name} has nan or inf entries")
+            return A
+
+        def vec(v, name):
+            v = np.zeros(n) if v is None else np.asarray(v, dtype=float).ravel()
+            if v.shape != (n,) or not np.all(np.isfinite(v)):
+                raise NsfemError(f"contact system: {name} must be a finite vector of length {n}")
+            return v
+
+        M, Q, C = square(M, "M"), square(Q, "Q"), square(C, "C")
+        if np.abs(M - M.T).max() > 1e-12 * np.abs(M).max():
+            raise NsfemError("contact system: the mass matrix M must be symmetric")
+        try:
+            np.linalg.cholesky(M)
+        except np.linalg.LinAlgError:
+            raise NsfemError("contact system: the mass matrix M must be positive definite") from None
+        if not np.isfinite(omega) or omega < 0:
+            raise NsfemError(f"contact system: omega must be finite and >= 0, got {omega}")
+        cs = ContactSet.from_arrays(np.zeros((n, 0)), np.zeros(0)) if contacts is None else contacts
+        if cs.n != n:
+            raise NsfemError(f"contact system: the contacts live in {cs.n} coordinates, the system in {n}")
+        return cls(M, C, Q, vec(f0, "f0"), vec(fc, "fc"), vec(fs, "fs"), float(omega), cs, dict(info or {}))
+
+    @classmethod
+    def from_scene(cls, scene, model=None, reduction=None, speed_hz: float | None = None) -> ContactSystem:
+        """The scene's system at its speed (or ``speed_hz``) in its reduced coordinates.
+
+        ``info`` keeps the model, the reduction and the map T (q_full = T q) for outputs.
+        """
+        from ..fem.assemble import build_model
+        from ..fem.rotating import rotor_operators
+        from ..reduce import scene_reduction
+        from ..system import scene_system
+
+        model = build_model(scene) if model is None else model
+        red = scene_reduction(scene, model) if reduction is None else reduction
+        lin = scene_system(scene, rotor_operators(model, red.T), speed_hz)
+        return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega,
+                               ContactSet.from_model(model, red),
+                               {"model": model, "reduction": red, "ndof_full": model.n})
