@@ -46,6 +46,9 @@ from ..errors import NsfemError
 from ..linalg import Factorization
 from .pivoting import LCPResult, lemke
 
+#: relative size (to the largest right-hand side entry) below which an entry is round-off
+ROUND_OFF = 1e-13
+
 
 @dataclass(frozen=True)
 class ContactLCP:
@@ -65,8 +68,15 @@ class ContactLCP:
     def size(self) -> int:
         return self.b.size
 
+    @property
+    def groups(self) -> np.ndarray:
+        """Row kinds for the certificate: 0 motion rows (gaps, slips), 1 friction limits."""
+        f = self.friction.size
+        return np.r_[np.zeros(self.size - f, dtype=int), np.ones(f, dtype=int)]
+
     def solve(self, **kw) -> LCPResult:
         """Lemke's method on (A, b); keywords go to :func:`~nsfem.lcp.pivoting.lemke`."""
+        kw.setdefault("groups", self.groups)
         return lemke(self.A, self.b, **kw)
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -125,6 +135,10 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
         A[m + p + i, pos[int(k)]] = cs.mu[k]
     A[m + p:, m: m + p] = -E.T
     b = np.concatenate([np.asarray(bN, dtype=float).ravel(), np.asarray(bT, dtype=float).ravel(), np.zeros(f)])
+    # entries at round-off of the largest (J^T X^-1 f carries cond * eps of it) are zeros: a
+    # symmetric structure's midspan slip, say; left alone they make Lemke chase 1e-18 m
+    big = float(np.abs(b).max(initial=0.0))
+    b[np.abs(b) <= ROUND_OFF * big] = 0.0
     return ContactLCP(A, b, normal, friction, cs.r[friction], W, Y,
                       tuple(cs.generators(int(k)) for k in friction),
                       np.zeros(cs.n) if base is None else np.asarray(base, dtype=float))

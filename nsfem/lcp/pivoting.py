@@ -47,7 +47,12 @@ __all__ = ["LCPError", "LCPResult", "lemke", "certificate"]
 #: z0 competes for leaving when its ratio is within this relative distance of the minimum
 NEAR_TIE = 1e-6
 #: certificate (relative min-map residual) at which a complementary point is accepted
-ACCEPT = 1e-9
+ACCEPT = 1e-8
+#: a regular termination whose certificate exceeds this is reported ``inaccurate`` (the
+#: componentwise residual of a degenerate basis carries round-off of its zero entries)
+INACCURATE = 1e-4
+#: rows whose terms are this small against the largest equilibrated row count as zero rows
+FLOOR = 1e-12
 
 
 class LCPError(NsfemError):
@@ -82,27 +87,39 @@ class LCPResult:
         return self
 
 
-def certificate(A: np.ndarray, b: np.ndarray, x: np.ndarray, scales=None) -> dict:
+def certificate(A: np.ndarray, b: np.ndarray, x: np.ndarray, scales=None, groups=None) -> dict:
     """Residuals of the complementarity conditions of x for LCP(A, b).
 
     Returns ``x_min`` (most negative x_i, or 0), ``w_min`` (most negative w_i, or 0),
     ``complementarity`` max_i |x_i w_i| (original units), and ``relative``, the min-map
-    residual max_i |min(x'_i / max|x'|, w'_i / s)| of the equilibrated problem
-    (A' = R A C, b' = R b, x' = C^-1 x, w' = R w; ``scales`` = (R, C) diagonals, computed
-    when not given), with s = max_i (|b'_i| + sum_j |A'_ij x'_j|). Equilibration puts the
-    rows' different units (gaps in m, forces in N) on one scale; ``relative`` is 0 for an
-    exact solution and about the unit round-off for a good numerical one.
+    residual max_i |min(x'_i / max|x'|, w_i / s_i)|: x' = C^-1 x in the equilibrated
+    columns (``scales`` = (R, C) diagonals, computed when not given) and, row by row,
+    s_i = |b_i| + sum_j |A_ij x_j|, the size of the terms that make w_i. This is a
+    componentwise backward error: ``relative`` <= tol means x solves a problem whose
+    every entry differs by at most about tol from the given one. ``groups`` (one label
+    per row) relaxes it to rows of one physical kind: s_i is then the largest s_j of
+    row i's group (gaps are judged against gaps, not against round-off of a zero slip).
+    Rows whose terms are all below 1e-12 of the largest row (equilibrated) are judged
+    against that floor.
     """
     x = np.asarray(x, dtype=float)
     w = A @ x + b
     if x.size == 0:
         return {"x_min": 0.0, "w_min": 0.0, "complementarity": 0.0, "relative": 0.0}
-    r, c = _equilibrate(A) if scales is None else scales
-    xs, ws = x / c, r * w
+    _, c = _equilibrate(A) if scales is None else scales
+    xs = x / c
     sx = max(float(np.max(np.abs(xs))), np.finfo(float).tiny)
-    sw = max(float(np.max(np.abs(r * b) + (np.abs(A) * r[:, None] * c[None, :]) @ np.abs(xs))),
-             np.finfo(float).tiny)
-    rel = np.abs(np.minimum(xs / sx, ws / sw))
+    r = _equilibrate(A)[0] if scales is None else scales[0]
+    sw = np.abs(b) + np.abs(A) @ np.abs(x)
+    if groups is not None:
+        groups = np.asarray(groups)
+        for g in np.unique(groups):
+            sel = groups == g
+            sw[sel] = sw[sel].max()
+    # a row whose terms are all below 1e-12 of the largest (equilibrated) row is round-off
+    sw = np.maximum(sw, FLOOR * float(np.max(r * sw)) / r)
+    sw = np.where(sw > 0, sw, 1.0)
+    rel = np.abs(np.minimum(xs / sx, w / sw))
     return {"x_min": float(min(0.0, x.min())), "w_min": float(min(0.0, w.min())),
             "complementarity": float(np.max(np.abs(x * w))), "relative": float(rel.max())}
 
@@ -137,12 +154,13 @@ def _lexmin(rows: np.ndarray, idx: np.ndarray) -> int:
 
 
 def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, refactor: int | None = None,
-          pivot_tol: float = 1e-11) -> LCPResult:
+          pivot_tol: float = 1e-11, groups=None) -> LCPResult:
     """Solve LCP(A, b) by Lemke's method with the lexicographic anti-cycling rule.
 
     ``d`` is the covering vector (strictly positive, default ones in the equilibrated
     problem); ``max_pivots`` defaults to 50 n + 1000; the basis inverse is recomputed
-    every ``refactor`` pivots (default max(50, n / 4)). The result is returned, never
+    every ``refactor`` pivots (default max(50, n / 4)). ``groups`` labels rows of one
+    physical kind for the certificate (see :func:`certificate`); default: row by row. The result is returned, never
     raised: check ``result.success`` or call ``result.check()``.
     """
     A = np.array(A, dtype=float)
@@ -159,10 +177,10 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     max_pivots = 50 * n + 1000 if max_pivots is None else int(max_pivots)
     refactor = max(50, n // 4) if refactor is None else int(refactor)
 
-    r_s, c_s = _equilibrate(A) if scale else (np.ones(n), np.ones(n))
+    r_s, c_s = _equilibrate(A) if scale and n else (np.ones(n), np.ones(n))
 
     def result(x, status, pivots, message):
-        cert = certificate(A, b, x, (r_s, c_s))
+        cert = certificate(A, b, x, (r_s, c_s), groups)
         return LCPResult(x, A @ x + b, status, pivots, cert["relative"], message, cert)
 
     if n == 0 or np.all(b >= 0):
@@ -200,8 +218,8 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
             pos = np.flatnonzero(c > pivot_tol * max(cmax, 1e-300))
             if pos.size == 0:
                 # a secondary ray; its start may still solve the LCP when z0 is ~0 in round-off
-                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, r_s, c_s)
-                if certificate(A, b, x, (r_s, c_s))["relative"] <= ACCEPT:
+                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, r_s, c_s, groups)
+                if certificate(A, b, x, (r_s, c_s), groups)["relative"] <= ACCEPT:
                     return result(x, "solved", pivots, f"solved in {pivots} pivots (z0 vanished to round-off)")
                 return result(x, "ray", pivots, _ray_message(pivots, xB[basis == z0], _psd_hint(A)))
             ratios = xB[pos] / c[pos]
@@ -213,8 +231,8 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
                 # complementary basis it leaves behind, accept it if it solves the LCP
                 trial = basis.copy()
                 trial[pos[k0[0]]] = entering
-                x = _polish(A, b, None, trial, n, r_s, c_s)
-                if x is not None and certificate(A, b, x, (r_s, c_s))["relative"] <= ACCEPT:
+                x = _polish(A, b, None, trial, n, r_s, c_s, groups)
+                if x is not None and certificate(A, b, x, (r_s, c_s), groups)["relative"] <= ACCEPT:
                     return result(x, "solved", pivots + 1, f"solved in {pivots + 1} pivots")
             if ties.size == 1:
                 r = int(ties[0])
@@ -252,9 +270,9 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
         entering = leaving + n if leaving < n else leaving - n
 
     x = _basic_x(basis, xB, n) * c_s
-    x = _polish(A, b, x, basis, n, r_s, c_s)
+    x = _polish(A, b, x, basis, n, r_s, c_s, groups)
     res = result(x, "solved", pivots, f"solved in {pivots} pivots")
-    if res.residual > 1e-6:
+    if res.residual > INACCURATE:
         return LCPResult(res.x, res.w, "inaccurate", pivots, res.residual,
                          f"Lemke reached a complementary basis after {pivots} pivots but the solution is inaccurate "
                          f"(relative residual {res.residual:.1e}): A is too ill-conditioned for this LCP",
@@ -270,7 +288,7 @@ def _basic_x(basis: np.ndarray, xB: np.ndarray, n: int) -> np.ndarray:
 
 
 def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: np.ndarray, n: int,
-            r_s: np.ndarray, c_s: np.ndarray) -> np.ndarray:
+            r_s: np.ndarray, c_s: np.ndarray, groups=None) -> np.ndarray:
     """Re-solve the complementary basis (A_SS x_S = -b_S, equilibrated); keep the better x."""
     S = np.sort(basis[(basis >= n) & (basis < 2 * n)] - n)
     if S.size == 0:
@@ -286,7 +304,7 @@ def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: np.ndarra
         return x
     y = np.maximum(y, 0.0)
     sc = (r_s, c_s)
-    if x is None or certificate(A, b, y, sc)["relative"] <= certificate(A, b, x, sc)["relative"]:
+    if x is None or certificate(A, b, y, sc, groups)["relative"] <= certificate(A, b, x, sc, groups)["relative"]:
         return y
     return x
 
