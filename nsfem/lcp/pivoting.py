@@ -44,6 +44,8 @@ from ..errors import NsfemError
 
 __all__ = ["LCPError", "LCPResult", "lemke", "certificate"]
 
+#: ratios within this relative distance of the minimum are ties (lexicographic rule)
+TIE = 1e-15
 #: z0 competes for leaving when its ratio is within this relative distance of the minimum
 NEAR_TIE = 1e-6
 #: certificate (relative min-map residual) at which a complementary point is accepted
@@ -52,7 +54,7 @@ ACCEPT = 1e-8
 #: componentwise residual of a degenerate basis carries round-off of its zero entries)
 INACCURATE = 1e-4
 #: rows whose terms are this small against the largest equilibrated row count as zero rows
-FLOOR = 1e-12
+FLOOR = 1e-10
 
 
 class LCPError(NsfemError):
@@ -99,7 +101,7 @@ def certificate(A: np.ndarray, b: np.ndarray, x: np.ndarray, scales=None, groups
     every entry differs by at most about tol from the given one. ``groups`` (one label
     per row) relaxes it to rows of one physical kind: s_i is then the largest s_j of
     row i's group (gaps are judged against gaps, not against round-off of a zero slip).
-    Rows whose terms are all below 1e-12 of the largest row (equilibrated) are judged
+    Rows whose terms are all below 1e-10 of the largest row (equilibrated) are judged
     against that floor.
     """
     x = np.asarray(x, dtype=float)
@@ -116,7 +118,7 @@ def certificate(A: np.ndarray, b: np.ndarray, x: np.ndarray, scales=None, groups
         for g in np.unique(groups):
             sel = groups == g
             sw[sel] = sw[sel].max()
-    # a row whose terms are all below 1e-12 of the largest (equilibrated) row is round-off
+    # a row whose terms are all below 1e-10 of the largest (equilibrated) row is round-off
     sw = np.maximum(sw, FLOOR * float(np.max(r * sw)) / r)
     sw = np.where(sw > 0, sw, 1.0)
     rel = np.abs(np.minimum(xs / sx, w / sw))
@@ -146,8 +148,7 @@ def _lexmin(rows: np.ndarray, idx: np.ndarray) -> int:
     for k in range(rows.shape[1]):
         col = rows[cand, k]
         lo = col.min()
-        tol = 1e-10 * max(np.max(np.abs(col)), 1e-300)
-        cand = cand[col <= lo + tol]
+        cand = cand[col <= lo + 16 * TIE * np.maximum(np.abs(col), abs(lo))]  # equal up to round-off
         if len(cand) == 1:
             break
     return int(cand[0])
@@ -219,12 +220,14 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
             if pos.size == 0:
                 # a secondary ray; its start may still solve the LCP when z0 is ~0 in round-off
                 x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, r_s, c_s, groups)
-                if certificate(A, b, x, (r_s, c_s), groups)["relative"] <= ACCEPT:
+                rel = certificate(A, b, x, (r_s, c_s), groups)["relative"]
+                z0_gone = float(xB[basis == z0][0]) <= 1e-14 * max(float(np.max(np.abs(bs))), 1e-300)
+                if rel <= ACCEPT or (z0_gone and rel <= INACCURATE):
                     return result(x, "solved", pivots, f"solved in {pivots} pivots (z0 vanished to round-off)")
                 return result(x, "ray", pivots, _ray_message(pivots, xB[basis == z0], _psd_hint(A)))
             ratios = xB[pos] / c[pos]
             theta = ratios.min()
-            ties = pos[ratios <= theta + 1e-10 * max(abs(theta), np.max(np.abs(xB)) * 1e-6, 1e-300)]
+            ties = pos[ratios <= theta + TIE * abs(theta)]  # exact ties (degenerate zeros) and round-off
             k0 = np.flatnonzero(basis[pos] == z0)
             if k0.size and ratios[k0[0]] <= theta * (1.0 + NEAR_TIE):
                 # z0 ties for leaving (possibly only up to round-off in the data): try the
@@ -321,7 +324,7 @@ def _psd_hint(A: np.ndarray) -> float | None:
 def _ray_message(pivots: int, z0_value, eig: float | None) -> str:
     z = float(z0_value[0]) if len(z0_value) else 0.0
     head = f"Lemke ended on a secondary ray after {pivots} pivots (artificial variable z0 = {z:.3g} > 0)"
-    if eig is not None and eig >= -1e-12:
+    if eig is not None and eig >= -1e-14:
         return head + ": A is positive semi-definite, so this proves the LCP has no solution"
     return (head + ": no solution exists if A is copositive-plus; A is not positive semi-definite here, "
             "so a solution may exist that Lemke's method cannot reach")
