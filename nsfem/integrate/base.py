@@ -1,0 +1,99 @@
+"""One interface, several methods (as scipy's ``solve_ivp(method=...)``).
+
+A method subclasses :class:`Integrator` and must
+
+- take the :class:`~nsfem.integrate.problem.ContactSystem` and its own keyword options in
+  ``__init__`` and validate them there (clear NsfemError, before any computation);
+- implement ``run(t_end, output_dt, q0, v0) -> Result`` returning a
+  :class:`~nsfem.result.Result` with outputs at the times 0, output_dt, ..., t_end;
+- stop cleanly on KeyboardInterrupt, returning the result up to the last completed step
+  with ``completed = False``.
+
+:func:`integrate` maps ``[simulation] method`` names to the classes in :data:`METHODS`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+
+from ..errors import NsfemError
+from ..result import Result
+from .problem import ContactSystem
+
+
+class Integrator:
+    """Base class (see the module docstring for the contract)."""
+
+    name = "base"
+
+    def __init__(self, system: ContactSystem, **options):
+        self.system = system
+        self.options = options
+
+    def run(self, t_end: float, output_dt: float, q0=None, v0=None) -> Result:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+def output_times(t_end: float, output_dt: float) -> np.ndarray:
+    if not (math.isfinite(t_end) and t_end > 0):
+        raise NsfemError(f"simulation.t_end must be a positive number, got {t_end}")
+    if not (math.isfinite(output_dt) and 0 < output_dt <= t_end):
+        raise NsfemError(f"simulation.output_dt must lie in (0, t_end = {t_end}], got {output_dt}")
+    n = int(math.floor(t_end / output_dt + 1e-9))
+    if n > 10_000_000:
+        raise NsfemError(f"t_end / output_dt = {n} output steps exceeds the limit of 1e7")
+    t = np.arange(n + 1) * output_dt
+    if t_end - t[-1] > 1e-9 * output_dt:
+        t = np.append(t, t_end)
+    return t
+
+
+class Progress:
+    """A one-line progress bar on stderr, shown after ``delay`` s, only on a terminal."""
+
+    def __init__(self, t_end: float, enabled: bool | None = None, delay: float = 2.0, stream=None):
+        self.stream = stream or sys.stderr
+        self.enabled = self.stream.isatty() if enabled is None else enabled
+        self.t_end, self.delay = t_end, delay
+        self.t0 = time.perf_counter()
+        self.last = 0.0
+        self.shown = False
+
+    def __call__(self, t: float, events: int) -> None:
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if now - self.t0 < self.delay or now - self.last < 0.2:
+            return
+        self.last = now
+        frac = min(1.0, t / self.t_end)
+        bar = "#" * int(30 * frac)
+        self.stream.write(f"\r  [{bar:<30s}] {100 * frac:5.1f} %  t = {t:.4g} s  events {events}  "
+                          f"{now - self.t0:.1f} s")
+        self.stream.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        if self.shown:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def integrate(system: ContactSystem, t_end: float, method: str = "exact", output_dt: float | None = None,
+              q0=None, v0=None, **options) -> Result:
+    """Integrate ``system`` from (q0, v0) (default rest) to t_end with the named method."""
+    from .event_driven import Exact, RungeKutta
+
+    methods = {"exact": Exact, "rk": RungeKutta, **EXTRA_METHODS}
+    if method not in methods:
+        raise NsfemError(f"unknown integration method {method!r} (available: {', '.join(methods)})")
+    dt = t_end / 1000 if output_dt is None else output_dt
+    return methods[method](system, **options).run(t_end, dt, q0, v0)
+
+
+#: methods registered by other modules (penalty, moreau) as name -> class
+EXTRA_METHODS: dict = {}

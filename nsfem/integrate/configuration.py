@@ -1,0 +1,305 @@
+"""Contact configurations: linear time-invariant motion between events, in closed form.
+
+A configuration (:class:`Mode`) says which contacts are closed (g = 0 held), which of
+them stick (tangential slip held) and which slide with their friction force along a fixed
+cone generator e_i. Closed and sticking contacts are linear constraints G^T q + g0 = 0; they
+are eliminated with an orthonormal null-space basis N (G^T N = 0), q = q_p + N y, so they
+hold to round-off without drift. The contact forces W lam (W = G except for sliding
+contacts, whose normal column carries mu e_i) are eliminated by projecting the equations
+on L, a basis of null(W^T) (L = N without sliding friction):
+
+    L^T M N y'' + L^T C N y' + L^T Q N y = L^T (f(t) - Q q_p).
+
+With x = (y, y') this is x' = A x + B (f(t) - Q q_p), f(t) = f0 + fc cos(w t) + fs sin(w t).
+:class:`Phase` propagates it exactly from (t0, q0, v0): by the eigen-decomposition of A and
+particular solutions for the constant and harmonic parts when these are well conditioned,
+otherwise by the matrix exponential of the augmented matrix
+
+    xi = (x, cos w t, sin w t, 1),   xi' = A_aug xi,
+
+which is exact also for rigid-body modes (singular Q) and resonant forcing. Every output
+(q, v, constraint forces lam, event functions) is a linear map of xi.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import NsfemError
+from .problem import ContactSystem
+
+#: relative singular value below which a constraint direction is redundant
+RANK_TOL = 1e-10
+#: the eigen-decomposition path is used when cond(V) and the particular solves stay below
+COND_MAX = 1e8
+
+
+@dataclass(frozen=True)
+class Mode:
+    """Closed contacts; of them, sticking ones and sliding ones ((contact, generator) pairs)."""
+
+    closed: tuple[int, ...] = ()
+    stick: tuple[int, ...] = ()
+    slide: tuple[tuple[int, int], ...] = ()
+
+    def state(self, k: int) -> str:
+        if k not in self.closed:
+            return "open"
+        return "stick" if k in self.stick else "slip"
+
+    def describe(self) -> dict:
+        return {"closed": list(self.closed), "stick": list(self.stick), "slide": [list(p) for p in self.slide]}
+
+
+def _null(A: np.ndarray, n: int) -> tuple[np.ndarray, int]:
+    """Orthonormal basis of null(A^T) for A (n x c), and the rank of A."""
+    if A.shape[1] == 0:
+        return np.eye(n), 0
+    U, s, _ = np.linalg.svd(A, full_matrices=True)
+    rank = int(np.sum(s > RANK_TOL * s[0])) if s.size and s[0] > 0 else 0
+    return U[:, rank:], rank
+
+
+class Configuration:
+    """The constrained LTI system of one :class:`Mode` (cached by the integrator)."""
+
+    def __init__(self, system: ContactSystem, mode: Mode):
+        cs, n = system.contacts, system.n
+        self.system, self.mode = system, mode
+        slide = dict(mode.slide)
+        Gc, Wc, self.rows = [], [], []  # rows: (kind, contact, component)
+        for k in mode.closed:
+            Gc.append(cs.JN[:, k])
+            w = cs.JN[:, k].copy()
+            if k in slide:
+                w += cs.mu[k] * (cs.JS[k] @ cs.generators(k)[:, slide[k]])
+            Wc.append(w)
+            self.rows.append(("normal", k, 0))
+        for k in mode.stick:
+            for j in range(cs.JS[k].shape[1]):
+                Gc.append(cs.JS[k][:, j])
+                Wc.append(cs.JS[k][:, j])
+                self.rows.append(("tangent", k, j))
+        self.G = np.column_stack(Gc) if Gc else np.zeros((n, 0))
+        self.W = np.column_stack(Wc) if Wc else np.zeros((n, 0))
+        self.N, rank = _null(self.G, n)
+        self.redundant = self.G.shape[1] - rank
+        if slide:
+            L, rank_w = _null(self.W, n)
+            self.L = L if rank_w == rank else self.N
+        else:
+            self.L = self.N
+        r = self.N.shape[1]
+        self.r = r
+        M, C, Q = system.M, system.C, system.Q
+        Mr = self.L.T @ M @ self.N
+        if r and np.linalg.cond(Mr) > 1e12:
+            raise NsfemError(f"configuration {mode.describe()}: no consistent acceleration (the sliding friction "
+                             "couples the normal constraint into a singular inertia: a Painleve case)")
+        Mi = np.linalg.inv(Mr) if r else np.zeros((0, 0))
+        self.Mi_L = Mi @ self.L.T                           # r x n
+        Kr, Cr = self.L.T @ Q @ self.N, self.L.T @ C @ self.N
+        self.A = np.block([[np.zeros((r, r)), np.eye(r)], [-Mi @ Kr, -Mi @ Cr]]) if r else np.zeros((0, 0))
+        self.B = np.vstack([np.zeros((r, n)), self.Mi_L])   # x' = A x + B phi
+        self.Gpinv = np.linalg.pinv(self.G.T) if self.G.shape[1] else np.zeros((n, 0))  # q_p = -Gpinv g0
+        # constraint forces: W lam = R_x x + R_phi phi
+        self.Wpinv = np.linalg.pinv(self.W) if self.W.shape[1] else np.zeros((0, n))
+        MN = M @ self.N
+        self.Rx = np.hstack([MN @ (-Mi @ Kr) + Q @ self.N, MN @ (-Mi @ Cr) + C @ self.N]) if r else np.zeros((n, 0))
+        self.Rphi = MN @ self.Mi_L - np.eye(n)
+        self.eig = None
+        if r:
+            lam, V = np.linalg.eig(self.A)
+            cond = np.linalg.cond(V)
+            self.eigenvalues = lam
+            if np.isfinite(cond) and cond < COND_MAX:
+                self.eig = (lam, V, np.linalg.inv(V))
+        else:
+            self.eigenvalues = np.zeros(0)
+
+    # ------------------------------------------------------------------------------
+    def particular(self, g0: np.ndarray) -> np.ndarray:
+        """q_p with G^T q_p + g0 = 0 (least norm)."""
+        return -self.Gpinv @ g0 if g0.size else np.zeros(self.system.n)
+
+    def fastest_rate(self) -> float:
+        """max |eigenvalue| of A [1/s] (0 without coordinates)."""
+        return float(np.max(np.abs(self.eigenvalues), initial=0.0))
+
+
+class Phase:
+    """Exact motion of one configuration from (t0, q0, v0); all outputs are maps of xi(t)."""
+
+    def __init__(self, config: Configuration, t0: float, q0: np.ndarray, v0: np.ndarray, g0: np.ndarray):
+        sysm = config.system
+        self.config, self.t0 = config, float(t0)
+        self.g0 = np.asarray(g0, dtype=float)
+        self.qp = config.particular(self.g0)
+        N, r = config.N, config.r
+        self.w = sysm.omega if sysm.harmonic else 0.0
+        # forcing phi(t) = (f0 - Q q_p) + fc cos + fs sin as extra state components
+        f0 = sysm.f0 - sysm.Q @ self.qp
+        self.forcing = [f0] + ([sysm.fc, sysm.fs] if self.w else [])
+        nf = len(self.forcing)
+        self.dim = 2 * r + nf
+        y0, yd0 = N.T @ (q0 - self.qp), N.T @ v0
+        self.x0 = np.concatenate([y0, yd0])
+        # augmented matrix (order: x, 1, cos, sin)
+        A_aug = np.zeros((self.dim, self.dim))
+        A_aug[: 2 * r, : 2 * r] = config.A
+        for j, f in enumerate(self.forcing):
+            A_aug[: 2 * r, 2 * r + j] = config.B @ f
+        if self.w:
+            A_aug[2 * r + 1, 2 * r + 2] = -self.w   # d/dt cos = -w sin
+            A_aug[2 * r + 2, 2 * r + 1] = self.w    # d/dt sin = w cos
+        self.A_aug = A_aug
+        self._modal = None
+        if config.eig is not None and r:
+            self._modal = self._particular_solutions()
+        if self._modal is None:
+            self._xi0 = np.concatenate([self.x0, self._harmonics(self.t0)])
+
+    # -- propagation -----------------------------------------------------------------
+    def _harmonics(self, t):
+        t = np.asarray(t, dtype=float)
+        parts = [np.ones_like(t)]
+        if self.w:
+            parts += [np.cos(self.w * t), np.sin(self.w * t)]
+        return np.array(parts)
+
+    def _particular_solutions(self):
+        cfg, r = self.config, self.config.r
+        A = cfg.A
+        def solve(Z, rhs):
+            """Z^-1 rhs, or None when Z is (nearly) singular: judged by the residual."""
+            with np.errstate(all="ignore"):
+                try:
+                    x = np.linalg.solve(Z, rhs)
+                except np.linalg.LinAlgError:
+                    return None
+            if not np.all(np.isfinite(x)):
+                return None
+            res = np.abs(Z @ x - rhs).max(initial=0.0)
+            size = (np.abs(Z) @ np.abs(x) + np.abs(rhs)).max(initial=0.0)
+            # a near-singular Z returns a huge x with a small residual: bound the growth too
+            if res > 1e-12 * size or np.abs(x).max(initial=0.0) * np.abs(Z).max() > COND_MAX * (
+                    np.abs(rhs).max(initial=0.0) + 1e-300) * 1e4:
+                return None
+            return x
+
+        xc = solve(A, -(cfg.B @ self.forcing[0]))
+        if xc is None:
+            return None
+        Xh = None
+        if self.w:
+            Xh = solve(1j * self.w * np.eye(2 * r) - A, cfg.B @ (self.forcing[1] - 1j * self.forcing[2]))
+            if Xh is None:
+                return None
+        lam, V, Vi = cfg.eig
+        xp0 = xc + (np.real(Xh * np.exp(1j * self.w * self.t0)) if Xh is not None else 0.0)
+        c = Vi @ (self.x0 - xp0)
+        return lam, V, c, xc, Xh
+
+    def xi(self, t) -> np.ndarray:
+        """The augmented state at times t (scalar -> (dim,), array -> (dim, len(t)))."""
+        t = np.asarray(t, dtype=float)
+        scalar = t.ndim == 0
+        tt = np.atleast_1d(t)
+        r2 = 2 * self.config.r
+        out = np.empty((self.dim, tt.size))
+        out[r2:] = self._harmonics(tt)
+        if r2:
+            if self._modal is not None:
+                lam, V, c, xc, Xh = self._modal
+                E = np.exp(np.outer(lam, tt - self.t0)) * c[:, None]
+                x = np.real(V @ E) + xc[:, None]
+                if Xh is not None:
+                    x += np.real(np.outer(Xh, np.exp(1j * self.w * tt)))
+                out[:r2] = x
+            else:
+                out[:r2] = self._expm_states(tt)[:r2]
+        return out[:, 0] if scalar else out
+
+    def _expm_states(self, tt: np.ndarray) -> np.ndarray:
+        """xi at times tt by the matrix exponential, stepping through the sorted times and
+        reusing exp(A_aug dt) for repeated steps dt (uniform grids, quadrature patterns)."""
+        order = np.argsort(tt)
+        out = np.empty((self.dim, tt.size))
+        cache = self.__dict__.setdefault("_expm_cache", {})
+        t_prev, xi = self.t0, self._xi0
+        for j in order:
+            dt = float(tt[j] - t_prev)
+            if dt != 0.0:
+                key = float(f"{dt:.13e}")
+                E = cache.get(key)
+                if E is None:
+                    E = sla.expm(self.A_aug * dt)
+                    if len(cache) < 64:
+                        cache[key] = E
+                xi = E @ xi
+                t_prev = tt[j]
+            out[:, j] = xi
+        return out
+
+    def derivative_bound(self, H: np.ndarray, order: int, horizon: float) -> np.ndarray:
+        """Per row of H, a bound of the order-th time derivative of H xi over [t0, t0 + horizon]."""
+        r2 = 2 * self.config.r
+        if self._modal is not None:
+            lam, V, c, xc, Xh = self._modal
+            grow = np.exp(np.maximum(lam.real, 0.0) * horizon)
+            b = np.abs(H[:, :r2] @ V) @ (np.abs(c) * np.abs(lam) ** order * grow)
+            if Xh is not None:
+                b = b + np.abs(H[:, :r2] @ Xh) * self.w ** order
+                b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * self.w ** order
+            return b
+        # crude: |H A_aug^order xi| <= |H| ||A_aug||^order max|xi| (with growth)
+        nA = np.linalg.norm(self.A_aug, 2)
+        xi_max = np.linalg.norm(self._xi0) * np.exp(min(nA * horizon, 700.0))
+        return np.linalg.norm(H, axis=1) * nA ** order * xi_max
+
+    def xi_dot(self, xi: np.ndarray) -> np.ndarray:
+        return self.A_aug @ xi
+
+    # -- maps ----------------------------------------------------------------------
+    def q_map(self) -> np.ndarray:
+        """q = Pq xi."""
+        cfg, r = self.config, self.config.r
+        P = np.zeros((self.system_n, self.dim))
+        P[:, :r] = cfg.N
+        P[:, 2 * r] = self.qp   # the constant component is 1
+        return P
+
+    @property
+    def system_n(self) -> int:
+        return self.config.system.n
+
+    def v_map(self) -> np.ndarray:
+        cfg, r = self.config, self.config.r
+        P = np.zeros((self.system_n, self.dim))
+        P[:, r: 2 * r] = cfg.N
+        return P
+
+    def force_map(self) -> np.ndarray:
+        """lam (constraint forces, one per row of the configuration) = P xi."""
+        cfg, r = self.config, self.config.r
+        P = np.zeros((cfg.W.shape[1], self.dim))
+        if not cfg.W.shape[1]:
+            return P
+        P[:, : 2 * r] = cfg.Wpinv @ cfg.Rx
+        for j, f in enumerate(self.forcing):
+            P[:, 2 * r + j] = cfg.Wpinv @ (cfg.Rphi @ f)
+        return P
+
+    def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        xi = self.xi(t)
+        return self.q_map() @ xi, self.v_map() @ xi
+
+    def max_step(self, horizon: float) -> float:
+        """Sampling step for event search: 1/8 of the fastest period (or time constant)."""
+        rate = max(self.config.fastest_rate(), self.w)
+        h = math.pi / (4.0 * rate) if rate > 0 else math.inf
+        return min(h, horizon / 8.0) if horizon > 0 else h

@@ -1,0 +1,251 @@
+"""Event functions of a configuration and their roots (paper section 4).
+
+Every event function is a linear map of the phase's augmented state, h(t) = H xi(t), valid
+while h >= 0:
+
+- ``close``: the gap g of an open contact,
+- ``release``: the normal force lam_N of a closed contact,
+- ``slip``: the stick limit of a sticking contact, one row per facet of its friction
+  polygon, mu lam_N cos(pi / r) - n_f . lam_T (r = 2: mu lam_N -+ lam_T),
+- ``turn``: for a contact sliding with its friction force along generator e_i, the slip
+  velocity v_T must keep e_i the most opposing generator: (e_j - e_i) . v_T >= 0 for its
+  neighbours j (r = 2: -e_i . v_T >= 0, i.e. the slip stops or reverses).
+
+Roots are found without missing any: h and h' = H A_aug xi are sampled at a step of at most
+1/8 of the configuration's fastest period (:meth:`Phase.max_step`); a sign change of h is a
+crossing, and a sign change of h' from - to + with h >= 0 at both samples is a dip whose
+minimum (root of h') is checked; roots are refined with Brent's method to round-off. A dip
+that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
+transition LCP, not an impact, decides what happens.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from .configuration import Mode, Phase
+
+#: relative size (to the terms that make h) below which an event function counts as zero
+ZERO = 1e-11
+#: samples evaluated at once
+CHUNK = 256
+
+
+@dataclass
+class Rows:
+    """Event rows H (k x dim) of a phase, with their kind and contact."""
+
+    H: np.ndarray
+    kinds: list
+    contacts: list
+
+    @property
+    def size(self) -> int:
+        return len(self.kinds)
+
+
+def event_rows(phase: Phase, mode: Mode) -> Rows:
+    cfg = phase.config
+    cs = cfg.system.contacts
+    Pq, Pv, Pf = phase.q_map(), phase.v_map(), phase.force_map()
+    const = 2 * cfg.r  # index of the constant component of xi
+    H, kinds, contacts = [], [], []
+    closed = set(mode.closed)
+    for k in range(cs.m):
+        if k not in closed:
+            row = cs.JN[:, k] @ Pq
+            row[const] += cs.jN[k]
+            H.append(row)
+            kinds.append("close")
+            contacts.append(k)
+    index = {(kind, k, j): i for i, (kind, k, j) in enumerate(cfg.rows)}
+    for k in mode.closed:
+        H.append(Pf[index[("normal", k, 0)]])
+        kinds.append("release")
+        contacts.append(k)
+    for k in mode.stick:
+        lamN = Pf[index[("normal", k, 0)]]
+        d, r = cs.JS[k].shape[1], int(cs.r[k])
+        lamT = np.array([Pf[index[("tangent", k, j)]] for j in range(d)])
+        if d == 1:
+            facets, bound = np.array([[1.0], [-1.0]]), 1.0
+        else:
+            a = (2 * np.arange(r) + 1) * math.pi / r
+            facets, bound = np.column_stack([np.cos(a), np.sin(a)]), math.cos(math.pi / r)
+        for nf in facets:
+            H.append(cs.mu[k] * bound * lamN - nf @ lamT)
+            kinds.append("slip")
+            contacts.append(k)
+    for k, i in mode.slide:
+        B = cs.generators(k)
+        vT = cs.JS[k].T @ Pv
+        r = B.shape[1]
+        neigh = {(i + 1) % r, (i - 1) % r} if B.shape[0] == 2 else {(i + r // 2) % r}
+        for j in sorted(neigh):
+            H.append((B[:, j] - B[:, i]) @ vT)
+            kinds.append("turn")
+            contacts.append(k)
+    return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts)
+
+
+@dataclass
+class Event:
+    t: float
+    rows: list          # indices of the rows with a root at t
+    graze: list         # per row: True for a tangential touch (no crossing)
+    tol: np.ndarray | None = None   # per row: the size below which it counts as zero
+
+
+def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Event | None:
+    """The earliest root of any row in (t_start, t_stop], or None."""
+    if rows.size == 0:
+        return None
+    H = rows.H
+    Hd = H @ phase.A_aug
+    h_step = phase.max_step(t_stop - t_start)
+    if phase.config.fastest_rate() == 0.0 and phase.w == 0.0:
+        return _polynomial_event(phase, rows, t_start, t_stop)
+    scale = None
+    armed = None
+    thr = None
+    t_a = t_start
+    prev = None
+    while t_a < t_stop:
+        n = max(1, min(CHUNK, math.ceil((t_stop - t_a) / h_step)))
+        ts = np.linspace(t_a, min(t_stop, t_a + n * h_step), n + 1)
+        xi = phase.xi(ts)
+        h, hd = H @ xi, Hd @ xi
+        if scale is None:
+            scale = np.max(np.abs(H) @ np.abs(xi), axis=1) + 1e-300
+            # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
+            bound4 = phase.derivative_bound(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
+            tol = ZERO * scale
+            # a row that starts inside its zero band is armed once it has left it upwards
+            armed = h[:, 0] > tol
+            thr = np.where(armed, 0.0, -tol)
+        found = []
+        for i in range(rows.size):
+            hi, hdi = h[i], hd[i]
+            if not armed[i]:
+                up = np.flatnonzero(hi > tol[i])
+                lim = up[0] if up.size else hi.size
+                res = _scan(phase, H[i], Hd[i], ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], tol[i],
+                            bound4[i])
+                if res is None and up.size:
+                    armed[i], thr[i] = True, 0.0
+                    res = _scan(phase, H[i], Hd[i], ts[lim:], hi[lim:], hdi[lim:], 0.0, tol[i], bound4[i])
+            else:
+                res = _scan(phase, H[i], Hd[i], ts, hi, hdi, thr[i], tol[i], bound4[i])
+            if res is not None:
+                found.append((res[0], i, res[1]))
+        if found:
+            t_e = min(f[0] for f in found)
+            close = [f for f in found if f[0] <= t_e + 1e-12 * max(1.0, abs(t_e))]
+            return Event(t_e, [f[1] for f in close], [f[2] for f in close], tol)
+        t_a = ts[-1]
+        prev = (h[:, -1], hd[:, -1])
+    del prev
+    return None
+
+
+def _hermite_min(f0, f1, d0, d1, dt):
+    """Minimum over each interval of the cubic with end values f0, f1 and slopes d0, d1."""
+    s = np.linspace(0.0, 1.0, 17)[:, None]
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+    return np.min(h00 * f0 + h10 * dt * d0 + h01 * f1 + h11 * dt * d1, axis=0)
+
+
+def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf):
+    """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
+
+    A dip (h' from - to + with h above at both samples) is refined only when the Hermite
+    cubic through the samples comes within its interpolation error bound of zero."""
+    if ts.size < 2:
+        return None
+    f = h - thr
+    above = f >= 0
+    cross = np.flatnonzero(above[:-1] & ~above[1:])
+    dip = np.flatnonzero(above[:-1] & above[1:] & (hd[:-1] < 0) & (hd[1:] > 0))
+    if dip.size:
+        lo = _hermite_min(f[dip], f[dip + 1], hd[dip], hd[dip + 1], ts[dip + 1] - ts[dip])
+        dip = dip[lo - bound4 <= tol]
+    k_c = cross[0] if cross.size else None
+    dips = dip if k_c is None else dip[dip < k_c]
+    if k_c is None and not dips.size:
+        return None
+
+    def fun(t):
+        return float(Hi @ phase.xi(t)) - thr
+
+    def dfun(t):
+        return float(Hdi @ phase.xi(t))
+
+    for k in list(dips) + ([k_c] if k_c is not None else []):
+        a, b = ts[k], ts[k + 1]
+        if k == k_c:
+            fa = fun(a)
+            if fa < 0:  # round-off at the left sample: the root is at a
+                return a, False
+            return brentq(fun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200), False
+        # dip: minimum inside (a, b)
+        tm = brentq(dfun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200)
+        fm = fun(tm)
+        if fm < -tol:
+            return brentq(fun, a, tm, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200), False
+        if fm <= tol and thr == 0.0:
+            return tm, True
+    return None
+
+
+def _polynomial_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Event | None:
+    """Rigid-body phases (A nilpotent, constant load): every row is a polynomial in
+    tau = t - t_start with coefficients H A_aug^k xi0 / k!; its real roots are the events."""
+    xi0 = phase.xi(t_start)
+    coef, term, k = [], xi0.copy(), 0
+    while np.any(term) and k <= phase.dim + 1:
+        coef.append(rows.H @ term / math.factorial(k))
+        term = phase.A_aug @ term
+        k += 1
+    C = np.array(coef).T  # rows x degree+1, increasing powers
+    T = t_stop - t_start
+    # the size of the terms over the horizon (each power at its largest)
+    tol = ZERO * (np.abs(C) @ (max(T, 1.0) ** np.arange(C.shape[1])) + 1e-300)
+    best = None
+    for i in range(rows.size):
+        c = C[i].copy()
+        start_in_band = abs(c[0]) <= tol[i]
+        c0 = c.copy()
+        if start_in_band:
+            c0[0] = 0.0
+        nz = np.flatnonzero(np.abs(c0) > 0)
+        if nz.size == 0 or nz[-1] == 0:
+            continue
+        roots = np.roots(c0[: nz[-1] + 1][::-1])
+        real = np.sort(roots[(np.abs(roots.imag) <= 1e-9 * np.abs(roots)) & (roots.real > 0)].real)
+        val = lambda tau: np.polynomial.polynomial.polyval(tau, c0)  # noqa: E731
+        for tau in real:
+            if tau > T * (1 + 1e-15):
+                break
+            if start_in_band and tau <= 1e-12 * T:
+                continue
+            d = 1e-7 * max(tau, T * 1e-9)
+            after, before_ = val(tau + d), val(max(tau - d, 0.0))
+            if after < 0:
+                hit = (t_start + tau, False)
+            elif before_ >= 0 and after >= 0:
+                hit = (t_start + tau, True)   # touches zero without crossing: a graze
+            else:
+                continue
+            if best is None or hit[0] < best[0][0] - 1e-12 * max(1.0, abs(hit[0])):
+                best = ([hit[0], hit[1]], [i])
+            elif abs(hit[0] - best[0][0]) <= 1e-12 * max(1.0, abs(hit[0])):
+                best[1].append(i)
+            break
+    if best is None:
+        return None
+    (t_e, graze), idx = best
+    return Event(float(t_e), idx, [graze] * len(idx), tol)

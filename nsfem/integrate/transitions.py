@@ -1,0 +1,135 @@
+"""What happens at an event: impacts (LCP 30-32), then the transition LCP (29).
+
+:func:`resolve` takes the state (q, q'^-) at an event time and returns the configuration
+that follows and the velocity after any impact:
+
+1. Contacts touching (g <= its round-off tolerance) are candidates. If one of them
+   approaches (g' < 0 beyond round-off), the impact LCP (30-32) over the candidates that
+   do not separate gives the impulses and q'^+ (Newton restitution eps, frictional impulses).
+   A grazing contact (g = 0, g' = 0) never triggers an impact.
+2. Candidates with g' = 0 after that are closed candidates; of those with friction, the
+   ones at zero slip velocity may stick, the others slide with the friction force along
+   the generator most opposing their slip velocity.
+3. The transition LCP (29) on the closed candidates decides: lam_N > 0 stays closed
+   (else it opens), z = 0 sticks, z > 0 slides along the generator that carries the force.
+
+Impact accumulation (Zeno; eps < 1): an impact whose approach speed is below
+``zeno`` times the largest approach speed of that contact's earlier impacts is treated as
+plastic (eps = 0 for it), so the sequence ends in persistent contact when the transition
+LCP allows it. With eps = 0.5 and zeno = 1e-8 this truncates the sequence after 27
+impacts, changing the accumulation time by 1e-8 of the first flight time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import NsfemError
+from ..lcp.builders import impact_lcp, transition_lcp
+from ..linalg import Factorization
+from .configuration import Mode
+from .problem import ContactSystem
+
+#: relative size (to the terms that make it) below which a gap, gap rate or slip rate is zero
+ZERO = 1e-10
+
+
+@dataclass
+class Memory:
+    """What transitions remember between events (per contact)."""
+
+    max_approach: np.ndarray
+    impacts: np.ndarray
+    zeno: float = 1e-8
+    log: list = field(default_factory=list)
+
+
+def _tol(J: np.ndarray, x: np.ndarray, const=None) -> np.ndarray:
+    """Per column: ZERO times the size of the terms of J^T x (+ const), with a floor."""
+    terms = np.abs(J).T @ np.abs(x) + (0.0 if const is None else np.abs(const))
+    return ZERO * terms + 1e-3 * ZERO * float(terms.max(initial=0.0)) + 1e-300
+
+
+def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray, before: Mode,
+            memory: Memory, touching=(), gap_tol=None) -> tuple[Mode, np.ndarray, dict | None]:
+    """The configuration after an event at t, the velocity after it, and the impact record.
+
+    ``touching`` are contacts whose gap root was just located (candidates by definition);
+    ``gap_tol`` per contact the size below which a gap counts as zero (from the phase's
+    scale: a gap computed near zero carries the round-off of the motion that led there).
+    """
+    cs = system.contacts
+    if cs.m == 0:
+        return Mode(), v, None
+    v_in = v
+    g, gv = cs.gaps(q), cs.JN.T @ v
+    tg = _tol(cs.JN, q, cs.jN) if gap_tol is None else np.maximum(gap_tol, _tol(cs.JN, q, cs.jN))
+    tv = _tol(cs.JN, v)
+    cand = [k for k in range(cs.m) if g[k] <= tg[k] or k in before.closed or k in touching]
+    approaching = [k for k in cand if gv[k] < -tv[k]]
+    impact = None
+    if approaching:
+        active = [k for k in cand if gv[k] <= tv[k]]
+        eps = cs.eps.copy()
+        plastic = []
+        for k in approaching:
+            speed = -gv[k]
+            if memory.impacts[k] and speed < memory.zeno * memory.max_approach[k]:
+                eps[k] = 0.0
+                plastic.append(k)
+            memory.max_approach[k] = max(memory.max_approach[k], speed)
+            memory.impacts[k] += 1
+        lcp = impact_lcp(replace(cs, eps=eps), Mf, v, active)
+        res = lcp.solve()
+        if not res.success:
+            raise NsfemError(f"impact LCP (30-32) at t = {t:.9g} s: {res.message}")
+        v_new = lcp.motion(res.x)
+        lamN = lcp.split(res.x)[0]
+        ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
+        impact = {"t": t, "contacts": [int(k) for k in active], "impulse_Ns": lamN.tolist(),
+                  "approach_m_s": [float(-gv[k]) for k in active], "plastic": plastic,
+                  "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
+        v = v_new
+        gv = cs.JN.T @ v
+        tv = np.maximum(tv, _tol(cs.JN, v))  # what cancelled in the impact sets the round-off
+    closed = [k for k in cand if abs(gv[k]) <= tv[k]]
+    if not closed:
+        return Mode(), v, impact
+    stick, slide = [], {}
+    for k in closed:
+        if cs.r[k] == 0:
+            continue
+        vT = cs.JS[k].T @ v
+        if np.all(np.abs(vT) <= np.maximum(_tol(cs.JS[k], v), _tol(cs.JS[k], v_in))):
+            stick.append(k)
+        else:
+            B = cs.generators(k)
+            slide[k] = int(np.argmin(B.T @ vT))
+    fstar = system.load(t) - system.C @ v - system.Q @ q
+    lcp = transition_lcp(cs, Mf, fstar, closed, stick, {k: cs.generators(k)[:, i] for k, i in slide.items()})
+    res = lcp.solve()
+    if not res.success:
+        raise NsfemError(f"transition LCP (29) at t = {t:.9g} s: {res.message}")
+    lamN, beta, z = lcp.split(res.x)
+    fscale = max(float(lamN.max(initial=0.0)), 1e-300)
+    keep = [k for j, k in enumerate(closed) if lamN[j] > 1e-12 * fscale]
+    new_stick, new_slide = [], []
+    row = 0
+    zk = dict(zip((int(k) for k in lcp.friction), z))
+    betas = {}
+    for k, rk in zip(lcp.friction, lcp.r):
+        betas[int(k)] = beta[row:row + rk]
+        row += rk
+    bscale = max(float(np.abs(lcp.b).max(initial=0.0)), 1e-300)
+    for k in keep:
+        if k in slide:
+            new_slide.append((k, slide[k]))
+        elif k in zk:
+            if zk[k] <= 1e-10 * bscale:
+                new_stick.append(k)
+            else:
+                new_slide.append((k, int(np.argmax(betas[k]))))
+    mode = Mode(tuple(sorted(keep)), tuple(sorted(new_stick)), tuple(sorted(new_slide)))
+    return mode, v, impact

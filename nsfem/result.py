@@ -1,0 +1,113 @@
+"""The result of a transient run, the same for every integrator, and its results file.
+
+The file is a NumPy ``.npz`` archive readable with numpy alone::
+
+    import json, numpy as np
+    r = np.load("out/result.npz")
+    r["t"], r["gap"], r["normal_force"]        # (K,), (m, K), (m, K)
+    q_full = r["basis"] @ r["q"]                # finite-element dofs (n_full, K)
+    meta = json.loads(str(r["meta"]))           # method, scene text, events, impacts, energy
+
+Arrays: ``t`` output times; ``q``, ``v`` reduced coordinates and velocities (n, K);
+``gap`` (m, K); ``normal_force`` (m, K); ``tangential_force`` (m, 2, K) in each contact's
+tangent directions; ``state`` (m, K) 0 open, 1 stick, 2 slip; ``basis`` (n_full, n) with
+q_full = basis q; ``contact_x`` (m,). ``meta`` is a JSON string. Written atomically
+(temporary file, then rename), so an interrupted run never leaves a broken file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+STATES = ("open", "stick", "slip")
+
+
+@dataclass
+class Result:
+    method: str
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    gap: np.ndarray
+    normal_force: np.ndarray
+    tangential_force: np.ndarray
+    state: np.ndarray
+    events: list = field(default_factory=list)
+    impacts: list = field(default_factory=list)
+    energy: dict = field(default_factory=dict)
+    wall_s: float = 0.0
+    t_end: float = 0.0
+    completed: bool = True
+    info: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        """The ``nsfem run`` JSON keys (design section 5)."""
+        m = self.gap.shape[0]
+        closed_any = (self.state != 0).any(axis=0) if m else np.zeros(self.t.size, bool)
+        return {
+            "method": self.method, "t_end": self.t_end, "completed": self.completed, "wall_s": self.wall_s,
+            "ndof_full": self.info.get("ndof_full"), "ndof": int(self.q.shape[0]),
+            "events": len(self.events), "impacts": len(self.impacts),
+            "min_gap_m": float(self.gap.min()) if m and self.t.size else None,
+            "max_gap_m": float(self.gap.max()) if m and self.t.size else None,
+            "closed_fraction": float(closed_any.mean()) if self.t.size else 0.0,
+            "max_normal_force_N": float(self.normal_force.max(initial=0.0)) if m else 0.0,
+            "energy": self.energy.get("relative_residual"),
+        }
+
+    def save(self, path, scene_text: str = "", basis: np.ndarray | None = None, contact_x=None) -> Path:
+        """Write the results file atomically; returns its path."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        meta = {"method": self.method, "t_end": self.t_end, "completed": self.completed, "wall_s": self.wall_s,
+                "events": self.events, "impacts": self.impacts, "energy": self.energy, "scene": scene_text,
+                "states": list(STATES), "summary": self.summary(),
+                "info": {k: v for k, v in self.info.items() if _jsonable(v)}}
+        arrays = dict(t=self.t, q=self.q, v=self.v, gap=self.gap, normal_force=self.normal_force,
+                      tangential_force=self.tangential_force, state=self.state,
+                      basis=np.zeros((0, self.q.shape[0])) if basis is None else np.asarray(basis),
+                      contact_x=np.zeros(self.gap.shape[0]) if contact_x is None else np.asarray(contact_x),
+                      meta=np.array(json.dumps(meta, default=_default)))
+        fd, tmp = tempfile.mkstemp(prefix=".result-", suffix=".npz", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez_compressed(fh, **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path) -> tuple[Result, dict, dict]:
+        """(Result, meta, extra arrays basis/contact_x) from a results file."""
+        with np.load(path, allow_pickle=False) as r:
+            meta = json.loads(str(r["meta"]))
+            res = cls(meta["method"], r["t"], r["q"], r["v"], r["gap"], r["normal_force"], r["tangential_force"],
+                      r["state"], meta["events"], meta["impacts"], meta["energy"], meta["wall_s"], meta["t_end"],
+                      meta["completed"], meta.get("info", {}))
+            extra = {"basis": r["basis"], "contact_x": r["contact_x"]}
+        return res, meta, extra
+
+
+def _jsonable(v) -> bool:
+    try:
+        json.dumps(v, default=_default)
+        return True
+    except TypeError:
+        return False
+
+
+def _default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o))
