@@ -120,7 +120,7 @@ def cmd_pending(args) -> int:
         # still validate what the user wrote (a sweep's START:STOP:N ranges aside)
         load_scene(args.scene, [o for o in args.overrides if not _RANGE.match(o)])
     raise NsfemError(f"nsfem {args.command}: not implemented in nsfem {__version__} "
-                     "(available now: nsfem modes, nsfem campbell, nsfem stationary)")
+                     "(available now: nsfem run, modes, campbell, stationary)")
 
 
 def cmd_campbell(args) -> int:
@@ -198,7 +198,53 @@ def cmd_stationary(args) -> int:
     return 0
 
 
-COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary}
+def cmd_run(args) -> int:
+    from pathlib import Path
+
+    from .analysis.campbell import supercritical_warning
+    from .fem.constraints import dense
+    from .scene import default_scene_path, load_scene
+    from .simulate import run_scene
+
+    scene = load_scene(args.scene, args.overrides)
+    method = args.method or scene["simulation"]["method"]
+    out_dir = Path(args.out or scene["output"]["dir"])
+    t0 = time.perf_counter()
+    result, system = run_scene(scene, method, progress=None)
+    red = system.info["reduction"]
+    top = red.info.get("max_frequency_hz")
+    if scene["rotation"]["speed_hz"] and top:
+        from .analysis.campbell import divergence_speeds
+        from .fem.rotating import rotor_operators
+
+        div = divergence_speeds(rotor_operators(system.info["model"], red.T))
+        warning = supercritical_warning(scene["rotation"]["speed_hz"], div[div <= 0.5 * top])
+        if warning:
+            print(f"nsfem run: warning: {warning}", file=sys.stderr)
+    text_path = Path(scene.path) if scene.path else default_scene_path()
+    scene_text = text_path.read_text() if text_path.exists() else ""
+    if args.overrides:
+        scene_text += "\n# overrides: " + " ".join(args.overrides) + "\n"
+    path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, dict(scene))
+    summary = result.summary()
+    payload = {"title": scene["title"], **summary, "wall_s": time.perf_counter() - t0,
+               "integration_wall_s": result.wall_s, "outputs": [str(path)],
+               "energy_terms": result.energy, "speed_hz": scene["rotation"]["speed_hz"]}
+    lines = [scene["title"], f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
+             f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
+             f"{summary['impacts']} impacts",
+             f"gap {summary['min_gap_m']:.4e} .. {summary['max_gap_m']:.4e} m, closed "
+             f"{100 * summary['closed_fraction']:.2f} % of the time, max normal force "
+             f"{summary['max_normal_force_N']:.4g} N, energy residual "
+             f"{summary['energy']:.1e}" if summary["min_gap_m"] is not None else "no contacts",
+             f"wrote {path}"]
+    if not result.completed:
+        lines.append(f"interrupted at t = {result.t_end:g} s: the results file holds the run up to there")
+    _emit(args, payload, "\n".join(lines))
+    return 0 if result.completed else 130
+
+
+COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

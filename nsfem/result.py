@@ -61,12 +61,18 @@ class Result:
             "energy": self.energy.get("relative_residual"),
         }
 
-    def save(self, path, scene_text: str = "", basis: np.ndarray | None = None, contact_x=None) -> Path:
-        """Write the results file atomically; returns its path."""
+    def save(self, path, scene_text: str = "", basis: np.ndarray | None = None, contact_x=None,
+             scene_tree: dict | None = None) -> Path:
+        """Write the results file atomically; returns its path.
+
+        ``scene_text`` is the scene file as written (plus overrides), ``scene_tree`` the
+        validated scene with every default filled in.
+        """
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         meta = {"method": self.method, "t_end": self.t_end, "completed": self.completed, "wall_s": self.wall_s,
                 "events": self.events, "impacts": self.impacts, "energy": self.energy, "scene": scene_text,
+                "scene_tree": scene_tree or {},
                 "states": list(STATES), "summary": self.summary(),
                 "info": {k: v for k, v in self.info.items() if _jsonable(v)}}
         arrays = dict(t=self.t, q=self.q, v=self.v, gap=self.gap, normal_force=self.normal_force,
@@ -78,6 +84,9 @@ class Result:
         try:
             with os.fdopen(fd, "wb") as fh:
                 np.savez_compressed(fh, **arrays)
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; give it the usual mode
             os.replace(tmp, path)
         except BaseException:
             if os.path.exists(tmp):

@@ -42,6 +42,7 @@ SUPPORT_DOFS_BY_NAME = {
 }
 REDUCTIONS = ("none", "modal", "craig-bampton")
 METHODS = ("exact", "rk", "penalty", "moreau")
+RK_SOLVERS = ("DOP853", "RK45")
 PLOTS = ("phase", "gap", "psd", "forces", "campbell")
 INITIAL_STATES = ("rest", "stationary")
 AXIAL = ("P1", "P2")
@@ -83,6 +84,10 @@ def _nonneg(v):
 
 def _unit(v):
     return None if 0.0 <= v <= 1.0 else f"must lie in [0, 1], got {v}"
+
+
+def _tolerance(v):
+    return None if 0.0 < v < 1.0 else f"must lie in (0, 1), got {v}"
 
 
 def _even(v):
@@ -195,7 +200,11 @@ SCHEMA: dict[str, Any] = {
     "simulation": {
         "method": Key("str", "exact", "exact | rk | penalty | moreau", METHODS),
         "t_end": Key("float", 1.0, "simulated time [s]", check=_positive),
-        "output_dt": Key("float", 1e-3, "output sampling step [s]", check=_positive),
+        "output_dt": Key("float", 1e-3, "output sampling step [s] (at most t_end)", check=_positive),
+        "rk_solver": Key("str", "DOP853", "solve_ivp method of rk between events: DOP853 | RK45", RK_SOLVERS),
+        "rtol": Key("float", 1e-8, "relative tolerance of rk", check=_tolerance),
+        "atol": Key("float", 1e-12, "absolute tolerance of rk (reduced coordinates, about m and m/s)",
+                    check=_positive),
     },
     "output": {
         "dir": Key("str", "out", "output directory (relative to the working directory)"),
@@ -432,6 +441,12 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     for o in overrides:
         apply_override(raw, o, cwd)
     tree = validate_tree(raw)
+    sim = tree["simulation"]
+    if sim["output_dt"] > sim["t_end"]:
+        raise SceneError("simulation.output_dt", f"{sim['output_dt']} s exceeds t_end = {sim['t_end']} s")
+    if sim["t_end"] / sim["output_dt"] > 1e7:
+        raise SceneError("simulation.output_dt", f"t_end / output_dt = {sim['t_end'] / sim['output_dt']:.3g} "
+                         "output steps exceeds the limit of 1e7")
     if any(t in raw for t in LOW_LEVEL):
         mixed = [t for t in HIGH_LEVEL if t in raw]
         if mixed:

@@ -71,7 +71,7 @@ def test_scene_file_argument_and_overrides(tmp_path):
     assert f == pytest.approx(exact, rel=1e-6)
 
 
-@pytest.mark.parametrize("command", ["run", "sweep"])
+@pytest.mark.parametrize("command", ["sweep"])
 def test_commands_of_later_versions_fail_clearly(command, capsys):
     assert cli.main([command]) == cli.EXIT_ERROR
     err = capsys.readouterr().err.strip().splitlines()

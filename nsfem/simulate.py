@@ -1,0 +1,80 @@
+"""A scene's transient run: system, initial state, integrator, results file (``nsfem run``).
+
+>>> from nsfem import load_scene
+>>> scene = load_scene(None, ["mesh.elements=20", "simulation.t_end=0.01"])
+>>> result, system = run_scene(scene)
+>>> result.summary()["method"], float(result.t[-1]), result.gap.shape
+('exact', 0.01, (9, 11))
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import NsfemError
+from .integrate import ContactSystem, integrate
+from .integrate.base import output_times
+from .result import Result
+
+
+def uniform_velocity(model, reduction, system: ContactSystem, velocity) -> np.ndarray:
+    """Reduced velocities closest (in the kinetic-energy norm) to a uniform translation.
+
+    The translation (u1, u2, u3) sets U = u1, V = u2, W = u3 and slopes 0 at every node;
+    where supports forbid it, the admissible motion nearest to it is taken.
+    """
+    velocity = np.asarray(velocity, dtype=float)
+    if not np.any(velocity):
+        return np.zeros(system.n)
+    vf = np.zeros(model.n_full)
+    for space in model.spaces.values():
+        vf[space.dofs["U"]] = velocity[0]
+        for fld, val in (("V", velocity[1]), ("W", velocity[2])):
+            vf[space.dofs[fld][space.bending.nodal_dofs[0]]] = val
+    T = reduction.T
+    rhs = T.T @ (model.M_full @ vf)
+    return np.linalg.solve(system.M, np.asarray(rhs).ravel())
+
+
+def initial_state(scene, model, reduction, system: ContactSystem) -> tuple[np.ndarray, np.ndarray]:
+    """(q0, v0) of ``[initial]``: rest (undeformed) or the stationary state (LCP 28)."""
+    ini = scene["initial"]
+    q0 = np.zeros(system.n)
+    if ini["state"] == "stationary":
+        from .analysis.stationary import scene_stationary
+
+        q0 = scene_stationary(scene, model, reduction).q
+    return q0, uniform_velocity(model, reduction, system, ini["velocity"])
+
+
+def integrator_options(scene, method: str) -> dict:
+    sim = scene["simulation"]
+    if method == "rk":
+        return {"solver": sim["rk_solver"], "rtol": sim["rtol"], "atol": sim["atol"]}
+    return {}
+
+
+def run_scene(scene, method: str | None = None, progress: bool | None = False, model=None, reduction=None
+              ) -> tuple[Result, ContactSystem]:
+    """Integrate a scene with its (or the given) method; returns the Result and the system."""
+    from .fem.assemble import build_model
+    from .reduce import scene_reduction
+
+    sim = scene["simulation"]
+    method = method or sim["method"]
+    from .integrate.base import EXTRA_METHODS
+
+    known = ("exact", "rk", *EXTRA_METHODS)
+    if method not in known:
+        raise NsfemError(f"simulation.method {method!r} is not available in this version (available: "
+                         f"{', '.join(known)})")
+    output_times(sim["t_end"], sim["output_dt"])  # validate before building anything
+    model = build_model(scene) if model is None else model
+    red = scene_reduction(scene, model) if reduction is None else reduction
+    system = ContactSystem.from_scene(scene, model, red)
+    q0, v0 = initial_state(scene, model, red, system)
+    result = integrate(system, sim["t_end"], method, sim["output_dt"], q0, v0, progress=progress,
+                       **integrator_options(scene, method))
+    result.info.update({"ndof_full": model.n, "reduction": red.info, "title": scene["title"],
+                        "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.contacts.labels)})
+    return result, system
