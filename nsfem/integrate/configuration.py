@@ -245,6 +245,50 @@ class Phase:
             out[:, j] = xi
         return out
 
+    def exponential_terms(self):
+        """xi(t) = Re sum_j U[:, j] exp(mu_j (t - t0)) (modal path), or None.
+
+        Terms: the configuration's modes (conjugate pairs), the constant particular
+        solution with the constant component, and the harmonic particular solution with the
+        cos/sin components split into exp(+-i w t).
+        """
+        if self._modal is None:
+            return None
+        lam, V, c, xc, Xh = self._modal
+        r2 = 2 * self.config.r
+        cols, mus = [], []
+        modes = np.zeros((self.dim, lam.size), dtype=complex)
+        modes[:r2] = V * c[None, :]
+        cols.append(modes)
+        mus.append(lam)
+        const = np.zeros((self.dim, 1), dtype=complex)
+        const[:r2, 0] = xc
+        const[r2, 0] = 1.0
+        cols.append(const)
+        mus.append(np.zeros(1))
+        if self.w:
+            up = np.zeros((self.dim, 1), dtype=complex)
+            ph = np.exp(1j * self.w * self.t0)
+            up[:r2, 0] = 0.5 * Xh * ph
+            up[r2 + 1, 0] = 0.5 * ph          # cos = (e^{iwt} + e^{-iwt}) / 2
+            up[r2 + 2, 0] = -0.5j * ph        # sin = (e^{iwt} - e^{-iwt}) / (2 i)
+            cols += [up, np.conj(up)]
+            mus += [np.array([1j * self.w]), np.array([-1j * self.w])]
+        return np.hstack(cols), np.concatenate(mus)
+
+    def quadratic_integrals(self, forms: list, t1: float) -> list | None:
+        """int_{t0}^{t1} xi^T S xi dt for each S in ``forms``, in closed form (modal path)."""
+        terms = self.exponential_terms()
+        if terms is None:
+            return None
+        U, mu = terms
+        T = t1 - self.t0
+        z = (mu[:, None] + mu[None, :]) * T
+        small = np.abs(z) < 1e-8
+        zs = np.where(small, 1.0, z)
+        phi = np.where(small, T * (1.0 + z / 2.0 + z * z / 6.0), T * (np.exp(zs) - 1.0) / zs)
+        return [float(np.real(np.sum((U.T @ S @ U) * phi))) for S in forms]
+
     def derivative_bound(self, H: np.ndarray, order: int, horizon: float) -> np.ndarray:
         """Per row of H, a bound of the order-th time derivative of H xi over [t0, t0 + horizon]."""
         r2 = 2 * self.config.r
