@@ -302,8 +302,9 @@ class Phase:
             return b
         # crude: |H A_aug^order xi| <= |H| ||A_aug||^order max|xi| (with growth)
         nA = np.linalg.norm(self.A_aug, 2)
-        xi_max = np.linalg.norm(self._xi0) * np.exp(min(nA * horizon, 700.0))
-        return np.linalg.norm(H, axis=1) * nA ** order * xi_max
+        with np.errstate(over="ignore"):
+            xi_max = np.linalg.norm(self._xi0) * np.exp(min(nA * horizon, 700.0))
+            return np.minimum(np.linalg.norm(H, axis=1) * nA ** order * xi_max, np.inf)
 
     def xi_dot(self, xi: np.ndarray) -> np.ndarray:
         return self.A_aug @ xi

@@ -112,7 +112,9 @@ class EventDriven(Integrator):
                 sel = np.flatnonzero((t_out >= t) & ((t_out < t_next) | (last & (t_out <= t_end))))
                 sel = sel[sel >= filled]
                 if sel.size:
-                    self._outputs(phase, mode, xi_fun(t_out[sel]), sel, out)
+                    xi_out = xi_fun(t_out[sel])
+                    self._outputs(phase, mode, xi_out, sel, out)
+                    memory.observe(cs, phase.q_map() @ xi_out, phase.v_map() @ xi_out)
                     filled = int(sel[-1]) + 1
                 e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy))
                 q, v = phase.q_map() @ xi_fun(t_next), phase.v_map() @ xi_fun(t_next)
@@ -132,7 +134,11 @@ class EventDriven(Integrator):
                     for i, (kind, k) in enumerate(zip(rows.kinds, rows.contacts)):
                         if kind == "close":
                             gap_tol[k] = ev.tol[i]
-                mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol)
+                slipping = {}
+                for i in ev.rows:
+                    if rows.kinds[i] == "slip":
+                        slipping[rows.contacts[i]] = rows.generator[i]
+                mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping)
                 if imp:
                     impacts.append(imp)
                     energy["lost_in_impacts_J"] += imp["kinetic_before_J"] - imp["kinetic_after_J"]

@@ -37,11 +37,13 @@ CHUNK = 256
 
 @dataclass
 class Rows:
-    """Event rows H (k x dim) of a phase, with their kind and contact."""
+    """Event rows H (k x dim) of a phase, with their kind and contact (and, for ``slip``
+    rows, the cone generator nearest to the facet the friction force reaches)."""
 
     H: np.ndarray
     kinds: list
     contacts: list
+    generator: list = None
 
     @property
     def size(self) -> int:
@@ -53,7 +55,7 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
     cs = cfg.system.contacts
     Pq, Pv, Pf = phase.q_map(), phase.v_map(), phase.force_map()
     const = 2 * cfg.r  # index of the constant component of xi
-    H, kinds, contacts = [], [], []
+    H, kinds, contacts, gens = [], [], [], []
     closed = set(mode.closed)
     for k in range(cs.m):
         if k not in closed:
@@ -62,24 +64,29 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
             H.append(row)
             kinds.append("close")
             contacts.append(k)
+            gens.append(-1)
     index = {(kind, k, j): i for i, (kind, k, j) in enumerate(cfg.rows)}
     for k in mode.closed:
         H.append(Pf[index[("normal", k, 0)]])
         kinds.append("release")
         contacts.append(k)
+        gens.append(-1)
     for k in mode.stick:
         lamN = Pf[index[("normal", k, 0)]]
         d, r = cs.JS[k].shape[1], int(cs.r[k])
         lamT = np.array([Pf[index[("tangent", k, j)]] for j in range(d)])
         if d == 1:
             facets, bound = np.array([[1.0], [-1.0]]), 1.0
+            ends = [0, 1]  # B = [[1, -1]]: facet +1 is generator 0, facet -1 generator 1
         else:
             a = (2 * np.arange(r) + 1) * math.pi / r
             facets, bound = np.column_stack([np.cos(a), np.sin(a)]), math.cos(math.pi / r)
-        for nf in facets:
+            ends = list(range(r))  # facet f lies between generators f and f + 1
+        for nf, e in zip(facets, ends):
             H.append(cs.mu[k] * bound * lamN - nf @ lamT)
             kinds.append("slip")
             contacts.append(k)
+            gens.append(e)
     for k, i in mode.slide:
         B = cs.generators(k)
         vT = cs.JS[k].T @ Pv
@@ -89,7 +96,8 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
             H.append((B[:, j] - B[:, i]) @ vT)
             kinds.append("turn")
             contacts.append(k)
-    return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts)
+            gens.append(-1)
+    return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts, gens)
 
 
 @dataclass
@@ -159,17 +167,33 @@ def _hermite_min(f0, f1, d0, d1, dt):
     return np.min(h00 * f0 + h10 * dt * d0 + h01 * f1 + h11 * dt * d1, axis=0)
 
 
+def _root(fun, a, b):
+    """Brent's method to round-off; None when the scalar re-evaluation shows no sign change
+    (the samples came from a matrix product whose round-off differs in the last bits)."""
+    fa, fb = fun(a), fun(b)
+    if fa == 0.0:
+        return a
+    if fb == 0.0:
+        return b
+    if (fa > 0) == (fb > 0):
+        return None
+    return brentq(fun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200)
+
+
 def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
 
-    A dip (h' from - to + with h above at both samples) is refined only when the Hermite
-    cubic through the samples comes within its interpolation error bound of zero."""
+    A crossing must reach below -tol at a sample (a sample at a touching point may be a
+    round-off below zero: that is a dip, not a crossing). A dip (h' from - to + with h
+    above -tol at both samples) is refined only when the Hermite cubic through the samples
+    comes within its interpolation error bound of zero."""
     if ts.size < 2:
         return None
     f = h - thr
-    above = f >= 0
+    above = f >= -tol
     cross = np.flatnonzero(above[:-1] & ~above[1:])
-    dip = np.flatnonzero(above[:-1] & above[1:] & (hd[:-1] < 0) & (hd[1:] > 0))
+    # h' sign change from - to + (or a sample at the minimum itself)
+    dip = np.flatnonzero(above[:-1] & above[1:] & (hd[:-1] < 0) & (hd[1:] >= 0))
     if dip.size:
         lo = _hermite_min(f[dip], f[dip + 1], hd[dip], hd[dip + 1], ts[dip + 1] - ts[dip])
         dip = dip[lo - bound4 <= tol]
@@ -187,15 +211,18 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf):
     for k in list(dips) + ([k_c] if k_c is not None else []):
         a, b = ts[k], ts[k + 1]
         if k == k_c:
-            fa = fun(a)
-            if fa < 0:  # round-off at the left sample: the root is at a
+            if fun(a) < 0:  # the sample before is itself (round-off) below: the root is there
                 return a, False
-            return brentq(fun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200), False
-        # dip: minimum inside (a, b)
-        tm = brentq(dfun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200)
+            t_r = _root(fun, a, b)
+            return (b if t_r is None else t_r), False
+        # dip: minimum inside [a, b]
+        tm = _root(dfun, a, b)
+        if tm is None:  # h' is round-off at an end: take the lower end sample
+            tm = a if f[k] <= f[k + 1] else b
         fm = fun(tm)
         if fm < -tol:
-            return brentq(fun, a, tm, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200), False
+            t_r = _root(fun, a, tm)
+            return (tm if t_r is None else t_r), False
         if fm <= tol and thr == 0.0:
             return tm, True
     return None

@@ -38,12 +38,33 @@ ZERO = 1e-10
 
 @dataclass
 class Memory:
-    """What transitions remember between events (per contact)."""
+    """What transitions remember between events (per contact).
+
+    ``gap_scale``, ``rate_scale``, ``slip_scale``: the largest size so far of the terms that
+    make each contact's gap, gap rate and slip rate (|J|^T |q| + |j|, |J|^T |q'|, |S|^T |q'|).
+    A value counts as zero below ZERO times these: a quantity that has just cancelled (a
+    velocity after a plastic impact, a slip rate at its reversal) carries the round-off of
+    the motion that led there, not of its own tiny size.
+    """
 
     max_approach: np.ndarray
     impacts: np.ndarray
     zeno: float = 1e-8
     log: list = field(default_factory=list)
+    gap_scale: np.ndarray | None = None
+    rate_scale: np.ndarray | None = None
+    slip_scale: np.ndarray | None = None
+
+    def observe(self, cs, q: np.ndarray, v: np.ndarray) -> None:
+        """Update the scales with a state (q, q') of the run (or several, as columns)."""
+        q2, v2 = np.atleast_2d(q.T).T, np.atleast_2d(v.T).T
+        g = np.max(np.abs(cs.JN).T @ np.abs(q2), axis=1) + np.abs(cs.jN)
+        gv = np.max(np.abs(cs.JN).T @ np.abs(v2), axis=1)
+        sv = np.array([float(np.max(np.abs(S).T @ np.abs(v2), initial=0.0)) if S.shape[1] else 0.0
+                       for S in cs.JS])
+        self.gap_scale = g if self.gap_scale is None else np.maximum(self.gap_scale, g)
+        self.rate_scale = gv if self.rate_scale is None else np.maximum(self.rate_scale, gv)
+        self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
 
 
 def _tol(J: np.ndarray, x: np.ndarray, const=None) -> np.ndarray:
@@ -53,20 +74,25 @@ def _tol(J: np.ndarray, x: np.ndarray, const=None) -> np.ndarray:
 
 
 def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray, before: Mode,
-            memory: Memory, touching=(), gap_tol=None) -> tuple[Mode, np.ndarray, dict | None]:
+            memory: Memory, touching=(), gap_tol=None, slipping=None) -> tuple[Mode, np.ndarray, dict | None]:
     """The configuration after an event at t, the velocity after it, and the impact record.
 
     ``touching`` are contacts whose gap root was just located (candidates by definition);
     ``gap_tol`` per contact the size below which a gap counts as zero (from the phase's
-    scale: a gap computed near zero carries the round-off of the motion that led there).
+    scale). ``slipping`` maps contacts whose stick limit was just reached to the generator
+    their friction force reached: at that instant sticking on the cone's boundary also
+    solves LCP (29), but the stick force is leaving the cone, so they slide.
     """
     cs = system.contacts
     if cs.m == 0:
         return Mode(), v, None
-    v_in = v
+    slipping = dict(slipping or {})
+    memory.observe(cs, q, v)
     g, gv = cs.gaps(q), cs.JN.T @ v
-    tg = _tol(cs.JN, q, cs.jN) if gap_tol is None else np.maximum(gap_tol, _tol(cs.JN, q, cs.jN))
-    tv = _tol(cs.JN, v)
+    tg = np.maximum(ZERO * memory.gap_scale, _tol(cs.JN, q, cs.jN))
+    if gap_tol is not None:
+        tg = np.maximum(tg, gap_tol)
+    tv = np.maximum(ZERO * memory.rate_scale, _tol(cs.JN, v))
     cand = [k for k in range(cs.m) if g[k] <= tg[k] or k in before.closed or k in touching]
     approaching = [k for k in cand if gv[k] < -tv[k]]
     impact = None
@@ -102,7 +128,9 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         if cs.r[k] == 0:
             continue
         vT = cs.JS[k].T @ v
-        if np.all(np.abs(vT) <= np.maximum(_tol(cs.JS[k], v), _tol(cs.JS[k], v_in))):
+        if k in slipping:
+            slide[k] = slipping[k]
+        elif np.all(np.abs(vT) <= max(ZERO * memory.slip_scale[k], float(_tol(cs.JS[k], v).max()))):
             stick.append(k)
         else:
             B = cs.generators(k)
