@@ -94,6 +94,7 @@ class EventDriven(Integrator):
         completed = True
         t = 0.0
         stuck = 0
+        phase = None
         try:
             mode, v, imp = resolve(sysm, Mf, 0.0, q, v, Mode(), memory)
             if imp:
@@ -149,6 +150,16 @@ class EventDriven(Integrator):
                 t = t_next
         except KeyboardInterrupt:
             completed = False
+            # the part of the current phase already searched has no event: keep its outputs
+            until = getattr(phase, "searched_until", None)
+            if phase is not None and until is not None and until > phase.t0:
+                sel = np.flatnonzero((t_out >= phase.t0) & (t_out <= until))
+                sel = sel[sel >= filled]
+                if sel.size:
+                    xi_out = phase.xi(t_out[sel])
+                    self._outputs(phase, mode, xi_out, sel, out)
+                    filled = int(sel[-1]) + 1
+                    q, v = phase.q_map() @ xi_out[:, -1], phase.v_map() @ xi_out[:, -1]
         finally:
             progress.close()
         e_final = 0.5 * float(v @ sysm.M @ v + q @ K @ q)

@@ -121,7 +121,6 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
     armed = None
     thr = None
     t_a = t_start
-    prev = None
     while t_a < t_stop:
         n = max(1, min(CHUNK, math.ceil((t_stop - t_a) / h_step)))
         ts = np.linspace(t_a, min(t_stop, t_a + n * h_step), n + 1)
@@ -155,8 +154,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
             close = [f for f in found if f[0] <= t_e + 1e-12 * max(1.0, abs(t_e))]
             return Event(t_e, [f[1] for f in close], [f[2] for f in close], tol)
         t_a = ts[-1]
-        prev = (h[:, -1], hd[:, -1])
-    del prev
+        phase.searched_until = t_a  # no event before this time (an interrupted run keeps it)
     return None
 
 
