@@ -136,9 +136,16 @@ class EventDriven(Integrator):
                         if kind == "close":
                             gap_tol[k] = ev.tol[i]
                 slipping = {}
-                for i in ev.rows:
-                    if rows.kinds[i] == "slip":
-                        slipping[rows.contacts[i]] = rows.generator[i]
+                slip_rows = [i for i in ev.rows if rows.kinds[i] == "slip"]
+                if slip_rows:
+                    lam = phase.force_map() @ xi_fun(t_next)
+                    idx = {key: j for j, key in enumerate(phase.config.rows)}
+                    for i in slip_rows:
+                        k = rows.contacts[i]
+                        lamT = np.array([lam[idx[("tangent", k, j)]] for j in range(cs.JS[k].shape[1])])
+                        # the friction force leaves the cone here: slide along the generator
+                        # nearest to its direction
+                        slipping[k] = int(np.argmax(cs.generators(k).T @ lamT))
                 mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping)
                 if imp:
                     impacts.append(imp)

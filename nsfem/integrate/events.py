@@ -37,13 +37,11 @@ CHUNK = 256
 
 @dataclass
 class Rows:
-    """Event rows H (k x dim) of a phase, with their kind and contact (and, for ``slip``
-    rows, the cone generator nearest to the facet the friction force reaches)."""
+    """Event rows H (k x dim) of a phase, with their kind and contact."""
 
     H: np.ndarray
     kinds: list
     contacts: list
-    generator: list = None
 
     @property
     def size(self) -> int:
@@ -55,7 +53,7 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
     cs = cfg.system.contacts
     Pq, Pv, Pf = phase.q_map(), phase.v_map(), phase.force_map()
     const = 2 * cfg.r  # index of the constant component of xi
-    H, kinds, contacts, gens = [], [], [], []
+    H, kinds, contacts = [], [], []
     closed = set(mode.closed)
     for k in range(cs.m):
         if k not in closed:
@@ -64,29 +62,24 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
             H.append(row)
             kinds.append("close")
             contacts.append(k)
-            gens.append(-1)
     index = {(kind, k, j): i for i, (kind, k, j) in enumerate(cfg.rows)}
     for k in mode.closed:
         H.append(Pf[index[("normal", k, 0)]])
         kinds.append("release")
         contacts.append(k)
-        gens.append(-1)
     for k in mode.stick:
         lamN = Pf[index[("normal", k, 0)]]
         d, r = cs.JS[k].shape[1], int(cs.r[k])
         lamT = np.array([Pf[index[("tangent", k, j)]] for j in range(d)])
         if d == 1:
             facets, bound = np.array([[1.0], [-1.0]]), 1.0
-            ends = [0, 1]  # B = [[1, -1]]: facet +1 is generator 0, facet -1 generator 1
         else:
             a = (2 * np.arange(r) + 1) * math.pi / r
             facets, bound = np.column_stack([np.cos(a), np.sin(a)]), math.cos(math.pi / r)
-            ends = list(range(r))  # facet f lies between generators f and f + 1
-        for nf, e in zip(facets, ends):
+        for nf in facets:
             H.append(cs.mu[k] * bound * lamN - nf @ lamT)
             kinds.append("slip")
             contacts.append(k)
-            gens.append(e)
     for k, i in mode.slide:
         B = cs.generators(k)
         vT = cs.JS[k].T @ Pv
@@ -96,8 +89,7 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
             H.append((B[:, j] - B[:, i]) @ vT)
             kinds.append("turn")
             contacts.append(k)
-            gens.append(-1)
-    return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts, gens)
+    return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts)
 
 
 @dataclass
