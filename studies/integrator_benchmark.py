@@ -16,14 +16,12 @@ Writes integrator_benchmark.json/.csv into studies/out/integrator_benchmark.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
-import os
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
+from study_io import machine, write_outputs
 
 from nsfem import load_scene
 from nsfem.integrate import ContactSystem, integrate
@@ -90,16 +88,10 @@ def main(argv=None) -> dict:
         "rk": rk,
         "speedup_vs_rk_at_equal_error": wall_needed / wall_exact,
         "rk_never_reached_exact_error": flag,
-        "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(),
-                    "openblas_threads": os.environ.get("OPENBLAS_NUM_THREADS")},
+        "machine": machine(),
     }
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "integrator_benchmark.json").write_text(json.dumps(payload, indent=1))
-    with open(out / "integrator_benchmark.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_outputs(out, "integrator_benchmark", rows, payload)
     if args.json:
         print(json.dumps(payload))
     else:

@@ -18,14 +18,12 @@ studies/out/lcp_benchmark) and, with ``--json``, prints the JSON object.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
-import os
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
+from study_io import machine, write_outputs
 
 from nsfem.lcp import lemke
 from nsfem.scene import load_scene
@@ -85,19 +83,12 @@ def main(argv=None) -> dict:
                          "pivots": res.pivots, "status": res.status, "residual": res.residual, "wall_s": wall,
                          "ms_per_pivot": 1e3 * wall / max(res.pivots, 1), "closed": int(np.sum(lamN > 0))})
 
-    payload = {"machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(),
-                           "numpy": np.__version__, "processor": platform.processor() or platform.machine(),
-                           "openblas_threads": os.environ.get("OPENBLAS_NUM_THREADS")},
-               "cases": rows}
+    payload = {"machine": machine(), "cases": rows}
     d = [r for r in rows if r["family"] == "delassus" and r["pivots"] > 0]
     if len(d) >= 3:
         x, y = np.log([r["unknowns"] for r in d]), np.log([r["wall_s"] for r in d])
         payload["delassus_time_exponent"] = float(np.polyfit(x[-3:], y[-3:], 1)[0])
-    (out / "lcp_benchmark.json").write_text(json.dumps(payload, indent=1))
-    with open(out / "lcp_benchmark.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=sorted({k for r in rows for k in r}))
-        w.writeheader()
-        w.writerows(rows)
+    write_outputs(out, "lcp_benchmark", rows, payload)
     if args.json:
         print(json.dumps(payload))
     else:
