@@ -431,15 +431,13 @@ def test_bar_hits_wall_contact_duration(n):
     E0 = 0.5 * RHO_BAR * AREA * L_BAR * v0**2
     assert res.impacts[0]["t"] == pytest.approx(t_imp, rel=1e-12)
     assert res.impacts[0]["approach_m_s"][0] == pytest.approx(v0, rel=1e-12)
-    # a plastic impact stops the first mass; any further 'impacts' while the end re-closes are
-    # round-off (the acceleration-level transition LCP opens the contact at the instant of impact,
-    # since the springs are still unstressed; it closes again within ~1e-8 s)
+    # a plastic impact stops the first mass. At that instant the springs are unstressed, so lam_N = 0
+    # and the gap acceleration is 0 (degenerate LCP 29); the gap's third derivative -k v0 / m < 0
+    # keeps the end closed (transitions.hold_degenerate): one impact, no re-closure
+    assert len(res.impacts) == 1
     lost = sum(i["kinetic_before_J"] - i["kinetic_after_J"] for i in res.impacts)
     assert lost == pytest.approx(0.5 * m_i * v0**2, rel=1e-9)
     assert res.energy["final_J"] == pytest.approx(E0 * (1 - 1 / n), rel=1e-9)
-    # measured: the re-closure comes 8e-9 s (4e-5 L/c) after the impact at 2.2e-6 m/s (n = 50)
-    assert all(i["t"] - t_imp < 1e-3 * L_BAR / C_BAR for i in res.impacts)
-    assert all(i["approach_m_s"][0] < 1e-4 * v0 for i in res.impacts[1:])
     release = [e["t"] for e in res.events if "release" in e["kinds"] and not e["after"]["closed"]]
     assert release
     duration = release[0] - t_imp

@@ -34,7 +34,7 @@ from ..result import Result
 from .base import Integrator, Progress, output_times
 from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event
-from .transitions import Memory, resolve
+from .transitions import Memory, hold_degenerate, resolve
 
 #: Gauss-Legendre nodes and weights on [0, 1]
 _GX, _GW = np.polynomial.legendre.leggauss(4)
@@ -60,6 +60,13 @@ class EventDriven(Integrator):
         if mode not in self._cache:
             self._cache[mode] = Configuration(self.system, mode)
         return self._cache[mode]
+
+    def _phase(self, mode: Mode, t: float, q: np.ndarray, v: np.ndarray) -> Phase:
+        """The phase of configuration ``mode`` from (t, q, v); sticking slips held at their value."""
+        cs = self.system.contacts
+        g0 = np.concatenate([cs.jN[list(mode.closed)]] + [-(cs.JS[k].T @ q) for k in mode.stick]) \
+            if (mode.closed or mode.stick) else np.zeros(0)
+        return Phase(self.configuration(mode), t, q, v, g0)
 
     def _advance(self, phase: Phase, rows: Rows, t0: float, t1: float):  # pragma: no cover - abstract
         """(Event or None, xi(t) callable valid on [t0, t_event or t1])."""
@@ -101,10 +108,7 @@ class EventDriven(Integrator):
                 impacts.append(imp)
                 energy["lost_in_impacts_J"] += imp["kinetic_before_J"] - imp["kinetic_after_J"]
             while True:
-                cfg = self.configuration(mode)
-                g0 = np.concatenate([cs.jN[list(mode.closed)]] + [-(cs.JS[k].T @ q) for k in mode.stick]) \
-                    if (mode.closed or mode.stick) else np.zeros(0)
-                phase = Phase(cfg, t, q, v, g0)
+                phase = self._phase(mode, t, q, v)
                 rows = event_rows(phase, mode)
                 ev, xi_fun = self._advance(phase, rows, t, t_end)
                 t_next = t_end if ev is None else ev.t
@@ -147,6 +151,8 @@ class EventDriven(Integrator):
                         # nearest to its direction
                         slipping[k] = int(np.argmax(cs.generators(k).T @ lamT))
                 mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping)
+                mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
+                                       memory, cs, v)
                 if imp:
                     impacts.append(imp)
                     energy["lost_in_impacts_J"] += imp["kinetic_before_J"] - imp["kinetic_after_J"]

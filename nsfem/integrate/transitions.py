@@ -12,6 +12,10 @@ that follows and the velocity after any impact:
    the generator most opposing their slip velocity.
 3. The transition LCP (29) on the closed candidates decides: lam_N > 0 stays closed
    (else it opens), z = 0 sticks, z > 0 slides along the generator that carries the force.
+4. A contact it opens with lam_N = 0 and zero gap acceleration (degenerate: the end of a bar
+   just stopped by a plastic impact, whose springs are not yet stressed) is decided by the
+   first non-zero higher derivative of its gap in the new configuration: if negative, the
+   contact would penetrate at once, so it stays closed (:func:`hold_degenerate`).
 
 Impact accumulation (Zeno; eps < 1): an impact whose approach speed is below
 ``zeno`` times the largest approach speed of that contact's earlier impacts is treated as
@@ -54,6 +58,7 @@ class Memory:
     gap_scale: np.ndarray | None = None
     rate_scale: np.ndarray | None = None
     slip_scale: np.ndarray | None = None
+    degenerate: list = field(default_factory=list)   # set by resolve: opened with lam_N = g'' = 0
 
     def observe(self, cs, q: np.ndarray, v: np.ndarray) -> None:
         """Update the scales with a state (q, q') of the run (or several, as columns)."""
@@ -121,6 +126,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v))  # what cancelled in the impact sets the round-off
     closed = [k for k in cand if abs(gv[k]) <= tv[k]]
+    memory.degenerate = []
     if not closed:
         return Mode(), v, impact
     stick, slide = [], {}
@@ -143,6 +149,14 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     lamN, beta, z = lcp.split(res.x)
     fscale = max(float(lamN.max(initial=0.0)), 1e-300)
     keep = [k for j, k in enumerate(closed) if lamN[j] > 1e-12 * fscale]
+    # opened with zero force and zero gap acceleration: decided by higher derivatives later
+    mc = len(closed)
+    # the size of the terms of f* (f - C q' - Q q cancels to round-off when the springs are unstressed)
+    fterms = np.abs(system.load(t)) + np.abs(system.C) @ np.abs(v) + np.abs(system.Q) @ np.abs(q)
+    bsize = np.abs(cs.JN[:, closed]).T @ np.abs(Mf.solve(fterms))
+    wsize = bsize + np.abs(lcp.b[:mc]) + np.abs(lcp.A[:mc]) @ np.abs(res.x)
+    wtol = ZERO * (wsize + 1e-3 * float(wsize.max(initial=0.0))) + 1e-300
+    memory.degenerate = [k for j, k in enumerate(closed) if k not in keep and abs(res.w[j]) <= wtol[j]]
     new_stick, new_slide = [], []
     row = 0
     zk = dict(zip((int(k) for k in lcp.friction), z))
@@ -161,3 +175,43 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
                 new_slide.append((k, int(np.argmax(betas[k]))))
     mode = Mode(tuple(sorted(keep)), tuple(sorted(new_stick)), tuple(sorted(new_slide)))
     return mode, v, impact
+
+
+def hold_degenerate(mode: Mode, phase_of, memory: Memory, cs, v: np.ndarray) -> Mode:
+    """Close the degenerate contacts whose gap would go negative at once (step 4 above).
+
+    ``phase_of(mode)`` builds the phase of a configuration at the event; the gap's
+    derivatives there are H A_aug^j xi for j = 1..4, judged against the size of their terms.
+    """
+    deg = [k for k in memory.degenerate if k not in mode.closed]
+    if not deg:
+        return mode
+    phase = phase_of(mode)
+    xi = phase.xi(phase.t0)
+    Pq = phase.q_map()
+    const = 2 * phase.config.r
+    hold = []
+    for k in deg:
+        row = cs.JN[:, k] @ Pq
+        row[const] += cs.jN[k]
+        d, size, a_row, a_abs = 0.0, 0.0, row.copy(), np.abs(row)
+        for _ in range(4):
+            a_row, a_abs = a_row @ phase.A_aug, a_abs @ np.abs(phase.A_aug)
+            d, size = float(a_row @ xi), float(a_abs @ np.abs(xi))
+            if abs(d) > 1e-9 * size:
+                break
+        if d < -1e-9 * size:
+            hold.append(k)
+    if not hold:
+        return mode
+    stick = list(mode.stick)
+    slide = list(mode.slide)
+    for k in hold:
+        if cs.r[k] == 0:
+            continue
+        vT = cs.JS[k].T @ v
+        if np.all(np.abs(vT) <= ZERO * max(memory.slip_scale[k], 1e-300)):
+            stick.append(k)
+        else:
+            slide.append((k, int(np.argmin(cs.generators(k).T @ vT))))
+    return Mode(tuple(sorted(set(mode.closed) | set(hold))), tuple(sorted(stick)), tuple(sorted(slide)))
