@@ -194,9 +194,13 @@ def hold_degenerate(mode: Mode, phase_of, memory: Memory, cs, v: np.ndarray) -> 
     for k in deg:
         row = cs.JN[:, k] @ Pq
         row[const] += cs.jN[k]
-        d, size, a_row, a_abs = 0.0, 0.0, row.copy(), np.abs(row)
-        for _ in range(4):
-            a_row, a_abs = a_row @ phase.A_aug, a_abs @ np.abs(phase.A_aug)
+        # g, g' (candidate test) and g'' (the LCP) vanish here: judge the 3rd and 4th derivatives,
+        # never the sign of round-off in g' or g''
+        A, Aa = phase.A_aug, np.abs(phase.A_aug)
+        a_row, a_abs = row @ A @ A, np.abs(row) @ Aa @ Aa
+        d, size = 0.0, 0.0
+        for _ in range(2):
+            a_row, a_abs = a_row @ A, a_abs @ Aa
             d, size = float(a_row @ xi), float(a_abs @ np.abs(xi))
             if abs(d) > 1e-9 * size:
                 break
