@@ -46,10 +46,6 @@ class Mode:
     stick: tuple[int, ...] = ()
     slide: tuple[tuple[int, int], ...] = ()
 
-    def state(self, k: int) -> str:
-        if k not in self.closed:
-            return "open"
-        return "stick" if k in self.stick else "slip"
 
     def describe(self) -> dict:
         return {"closed": list(self.closed), "stick": list(self.stick), "slide": [list(p) for p in self.slide]}
@@ -306,8 +302,6 @@ class Phase:
             xi_max = np.linalg.norm(self._xi0) * np.exp(min(nA * horizon, 700.0))
             return np.minimum(np.linalg.norm(H, axis=1) * nA ** order * xi_max, np.inf)
 
-    def xi_dot(self, xi: np.ndarray) -> np.ndarray:
-        return self.A_aug @ xi
 
     # -- maps ----------------------------------------------------------------------
     def q_map(self) -> np.ndarray:
@@ -339,9 +333,6 @@ class Phase:
             P[:, 2 * r + j] = cfg.Wpinv @ (cfg.Rphi @ f)
         return P
 
-    def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        xi = self.xi(t)
-        return self.q_map() @ xi, self.v_map() @ xi
 
     def max_step(self, horizon: float) -> float:
         """Sampling step for event search: 1/8 of the fastest period (or time constant)."""

@@ -122,7 +122,8 @@ class EventDriven(Integrator):
                     memory.observe(cs, phase.q_map() @ xi_out, phase.v_map() @ xi_out)
                     filled = int(sel[-1]) + 1
                 e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy))
-                q, v = phase.q_map() @ xi_fun(t_next), phase.v_map() @ xi_fun(t_next)
+                xi_end = xi_fun(t_next)
+                q, v = phase.q_map() @ xi_end, phase.v_map() @ xi_end
                 progress(t_next, len(events))
                 if ev is None:
                     break

@@ -54,7 +54,6 @@ class Memory:
     max_approach: np.ndarray
     impacts: np.ndarray
     zeno: float = 1e-8
-    log: list = field(default_factory=list)
     gap_scale: np.ndarray | None = None
     rate_scale: np.ndarray | None = None
     slip_scale: np.ndarray | None = None
