@@ -151,7 +151,12 @@ class EventDriven(Integrator):
                         # the friction force leaves the cone here: slide along the generator
                         # nearest to its direction
                         slipping[k] = int(np.argmax(cs.generators(k).T @ lamT))
-                mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping)
+                # a gap that re-closes without having risen above its zero band: the rebound is
+                # below resolution, the impact sequence has accumulated (plastic impact)
+                settled = {rows.contacts[i] for j, i in enumerate(ev.rows)
+                           if rows.kinds[i] == "close" and ev.in_band is not None and ev.in_band[j]}
+                mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping,
+                                       settled)
                 mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
                                        memory, cs, v)
                 if imp:

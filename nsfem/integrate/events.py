@@ -17,6 +17,13 @@ crossing, and a sign change of h' from - to + with h >= 0 at both samples is a d
 minimum (root of h') is checked; roots are refined with Brent's method to round-off. A dip
 that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
 transition LCP, not an impact, decides what happens.
+
+A row that starts inside its zero band (a gap just after an impact, a force just after a
+closure) is armed at 0 once it leaves the band upwards, at a sample or at a maximum between
+samples (a rebound can be much shorter than the sampling step). If it leaves the band
+downwards without ever rising above it, the root is placed at -tol and flagged ``in_band``:
+for a gap this is a rebound below the gap's resolution, and the impact that follows is
+plastic (the impact sequence has accumulated).
 """
 
 from __future__ import annotations
@@ -98,6 +105,9 @@ class Event:
     rows: list          # indices of the rows with a root at t
     graze: list         # per row: True for a tangential touch (no crossing)
     tol: np.ndarray | None = None   # per row: the size below which it counts as zero
+    #: per row: True when it fired without having left its zero band since the phase began
+    #: (a gap that re-closes after a rebound too small to resolve: the impacts have accumulated)
+    in_band: list | None = None
 
 
 def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Event | None:
@@ -129,22 +139,34 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
         found = []
         for i in range(rows.size):
             hi, hdi = h[i], hd[i]
+            res = None
             if not armed[i]:
-                up = np.flatnonzero(hi > tol[i])
-                lim = up[0] if up.size else hi.size
+                # the row starts in its zero band: it fires from there only by leaving it downwards
+                # (root at -tol, flagged: it never rose above the band); once it has left the band
+                # upwards (a sample or a maximum between samples above tol) it is armed at 0
+                arm = _arm(phase, H[i], Hd[i], ts, hi, hdi, tol[i], bound4[i])
+                lim = hi.size - 1 if arm is None else arm[1] + 1
                 res = _scan(phase, H[i], Hd[i], ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], tol[i],
                             bound4[i])
-                if res is None and up.size:
+                if res is not None and (arm is None or res[0] <= arm[0]):
+                    res = (res[0], res[1], True)
+                elif arm is not None:
+                    res = None
                     armed[i], thr[i] = True, 0.0
-                    res = _scan(phase, H[i], Hd[i], ts[lim:], hi[lim:], hdi[lim:], 0.0, tol[i], bound4[i])
+                    t_arm, k = arm
+                    x_arm = phase.xi(t_arm)
+                    ts2 = np.concatenate([[t_arm], ts[k + 1:]])
+                    h2 = np.concatenate([[H[i] @ x_arm], hi[k + 1:]])
+                    hd2 = np.concatenate([[Hd[i] @ x_arm], hdi[k + 1:]])
+                    res = _scan(phase, H[i], Hd[i], ts2, h2, hd2, 0.0, tol[i], bound4[i])
             else:
                 res = _scan(phase, H[i], Hd[i], ts, hi, hdi, thr[i], tol[i], bound4[i])
             if res is not None:
-                found.append((res[0], i, res[1]))
+                found.append((res[0], i, res[1], len(res) > 2))
         if found:
             t_e = min(f[0] for f in found)
             close = [f for f in found if f[0] <= t_e + 1e-12 * max(1.0, abs(t_e))]
-            return Event(t_e, [f[1] for f in close], [f[2] for f in close], tol)
+            return Event(t_e, [f[1] for f in close], [f[2] for f in close], tol, [f[3] for f in close])
         t_a = ts[-1]
         phase.searched_until = t_a  # no event before this time (an interrupted run keeps it)
     return None
@@ -155,6 +177,36 @@ def _hermite_min(f0, f1, d0, d1, dt):
     s = np.linspace(0.0, 1.0, 17)[:, None]
     h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
     return np.min(h00 * f0 + h10 * dt * d0 + h01 * f1 + h11 * dt * d1, axis=0)
+
+
+def _arm(phase, Hi, Hdi, ts, h, hd, tol, bound4):
+    """(t, k): the first time a row that starts in its zero band is above it (at a sample or
+    at a maximum between samples ts[k], ts[k + 1]), or None.
+
+    Between samples the Hermite cubic's maximum plus its error bound screens the intervals;
+    a candidate's maximum is refined (root of h', or a fine grid when h' does not change sign).
+    """
+    if ts.size < 2:
+        return None
+    dt = np.diff(ts)
+    hmax = -_hermite_min(-h[:-1], -h[1:], -hd[:-1], -hd[1:], dt)
+    cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
+    for k in cand[:64]:
+        a, b = ts[k], ts[k + 1]
+        if hd[k] > 0 >= hd[k + 1]:
+            tm = _root(lambda t: float(Hdi @ phase.xi(t)), a, b)
+            tm = (a if h[k] >= h[k + 1] else b) if tm is None else tm
+            hm = float(Hi @ phase.xi(tm))
+        else:
+            grid = np.linspace(a, b, 33)
+            vals = Hi @ phase.xi(grid)
+            j = int(np.argmax(vals))
+            tm, hm = float(grid[j]), float(vals[j])
+        if hm > tol:
+            return tm, int(k)
+        if h[k + 1] > tol:
+            return float(b), int(k)
+    return None
 
 
 def _root(fun, a, b):
