@@ -380,6 +380,112 @@ def test_coulomb_stick_to_slip_onset_under_harmonic_force():
 
 
 # --------------------------------------------------------------------------------------------
+# 3b. the polygonal cone (r = 4): sliding on a facet (review D3)
+# --------------------------------------------------------------------------------------------
+
+def _block_on_plane(F, k=0.0, m=2.0, g=9.81, mu=0.4):
+    """A mass on a rough plane z = 0 (r = 4: generators +-x, +-y), pulled by F in the plane."""
+    cs = ContactSet.from_arrays([[0.0], [0.0], [1.0]], [0.0], mu=mu, JS=[np.eye(3)[:, :2]], r=4)
+    return ContactSystem.from_arrays(M=m * np.eye(3), Q=np.diag([k, k, 0.0]), f0=[F[0], F[1], -m * g], contacts=cs)
+
+
+@pytest.mark.parametrize("angle", [45.0, 30.0])
+def test_polygon_cone_slides_on_a_facet(angle):
+    """Pulled at angle a <= 45 deg with |F| = 12 N > mu m g cos(pi/4): the stick force leaves
+    through the facet between +x and +y (normal at 45 deg). Sliding on that facet: the slip is
+    along its normal, the friction mu lam_N cos(pi/4) opposes it, and the reaction along the
+    facet, s = |F| sin(45 deg - a), stays within mu lam_N sin(pi/4) (5.55 N) for a = 30 deg
+    (3.11 N): the block slides along the diagonal even though pulled at 30 deg, with
+    a = (|F| cos(45 deg - a) - mu m g cos(pi/4)) / m. (Before: the force alternated between
+    the generators +x and +y every 1e-11 s.)"""
+    m, g, mu, F = 2.0, 9.81, 0.4, 12.0
+    a_rad = math.radians(angle)
+    s = _block_on_plane(F * np.array([math.cos(a_rad), math.sin(a_rad)]))
+    res = integrate(s, 1.0, "exact", 0.01)
+    c = math.cos(math.pi / 4)
+    acc = (F * math.cos(math.pi / 4 - a_rad) - mu * m * g * c) / m
+    x_ref = 0.5 * acc * res.t ** 2 * c
+    np.testing.assert_allclose(res.q[0], x_ref, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(res.q[1], x_ref, rtol=1e-12, atol=1e-15)
+    lamT = res.tangential_force[0, :, -1]
+    n_f, t_f = np.array([c, c]), np.array([-c, c])
+    assert lamT @ n_f == pytest.approx(-mu * m * g * c, rel=1e-12)   # opposes the slip
+    assert lamT @ t_f == pytest.approx(F * math.sin(math.pi / 4 - a_rad), abs=1e-12 * F)   # holds it on the facet
+    assert res.state[0, -1] == 2 and res.energy["relative_residual"] < 1e-12
+
+
+def test_polygon_cone_slides_on_a_generator_beyond_the_facet():
+    """Pulled at 10 deg: the facet reaction would be 12 sin 35 deg = 6.88 N > 5.55 N, so the
+    force sits on the vertex -x: a = ((F cos 10 - mu m g), F sin 10) / m, a direction (27.7
+    deg) for which -x stays the most opposing generator."""
+    m, g, mu, F = 2.0, 9.81, 0.4, 12.0
+    a_rad = math.radians(10.0)
+    res = integrate(_block_on_plane(F * np.array([math.cos(a_rad), math.sin(a_rad)])), 1.0, "exact", 0.01)
+    acc = np.array([F * math.cos(a_rad) - mu * m * g, F * math.sin(a_rad)]) / m
+    np.testing.assert_allclose(res.q[:2], 0.5 * np.outer(acc, res.t ** 2), rtol=1e-12, atol=1e-15)
+    assert res.events == [] and res.tangential_force[0, 1, -1] == 0.0
+
+
+@pytest.mark.parametrize("k", [0.0, 3.0])
+def test_polygon_cone_diagonal_slip_stops_and_sticks(k):
+    """Launched along the diagonal at |v0| = sqrt(2): without a spring it slides on the facet
+    at deceleration mu g cos(pi/4) and stops at t = |v0| / (mu g cos(pi/4)) (0.5097 s), after
+    |v0|^2 / (2 mu g cos(pi/4)); then it sticks (one event). With springs k it stops earlier
+    and sticks while k |x| stays inside the cone."""
+    m, g, mu = 2.0, 9.81, 0.4
+    res = integrate(_block_on_plane([0.0, 0.0], k=k), 1.0, "exact", 0.01, v0=[1.0, 1.0, 0.0])
+    assert [e["kinds"] for e in res.events] == [["turn"]]
+    # the facet between -x and -y, normal at 225 deg
+    assert res.events[0]["after"]["stick"] == [0] and res.events[0]["before"]["edge"] == [[0, 2]]
+    c = math.cos(math.pi / 4)
+    if k == 0.0:
+        assert res.events[0]["t"] == pytest.approx(math.sqrt(2) / (mu * g * c), rel=1e-13)
+        assert res.q[0, -1] == pytest.approx(1.0 / (mu * g * c) / math.sqrt(2), rel=1e-13)
+    else:  # per axis x'' + w^2 x = -b (b = mu g cos(pi/4)^2), x'(0) = 1: stops at w t = atan(w / b)
+        w, b = math.sqrt(k / m), mu * g * c * c
+        t_stop = math.atan(w * 1.0 / b) / w
+        assert res.events[0]["t"] == pytest.approx(t_stop, rel=1e-12)
+        assert np.abs(res.tangential_force[0, :, -1]).max() < mu * m * g * c
+    assert np.all(res.v[:, -1] == 0.0) and res.q[0, -1] == pytest.approx(res.q[1, -1], rel=1e-14)
+
+
+@pytest.mark.parametrize("method", ["exact", "rk"])
+def test_polygon_cone_turn_onto_a_facet(method):
+    """A rigid block (polynomial phases) launched along +x at 1 m/s and pushed along +y by
+    F = 3 N < mu m g: friction on generator -x until the velocity reaches 45 deg at
+    t1 = 1 / (mu g + F / m) (turn), then on the facet between -x and -y (review D4: the tie
+    kept -x and friction then accelerated the block), decelerating at (mu g - F / m) cos(pi/4)
+    until it stops at t1 + sqrt(2) v_x(t1) / that, and sticks. Friction only dissipates."""
+    m, g, mu, F = 2.0, 9.81, 0.4, 3.0
+    cs = ContactSet.from_arrays([[0.0], [0.0], [1.0]], [0.0], mu=mu, JS=[np.eye(3)[:, :2]], r=4)
+    s = ContactSystem.from_arrays(M=m * np.eye(3), Q=np.zeros((3, 3)), f0=[0.0, F, -m * g], contacts=cs)
+    res = integrate(s, 1.0, method, 0.01, v0=[1.0, 0.0, 0.0])
+    t1 = 1.0 / (mu * g + F / m)
+    t2 = t1 + math.sqrt(2) * (1.0 - mu * g * t1) / ((mu * g - F / m) * math.cos(math.pi / 4))
+    assert [e["kinds"] for e in res.events] == [["turn"], ["turn"]]
+    assert res.events[0]["after"]["edge"] == [[0, 2]] and res.events[1]["after"]["stick"] == [0]
+    assert res.events[0]["t"] == pytest.approx(t1, rel=1e-12) and res.events[1]["t"] == pytest.approx(t2, rel=1e-12)
+    e = res.energy
+    assert e["dissipated_friction_J"] > 0 and e["final_J"] == 0.0 and e["relative_residual"] < 1e-12
+    assert e["work_external_J"] == pytest.approx(F * res.q[1, -1], rel=1e-12)
+
+
+def test_polygon_cone_stick_slip_exact_and_rk_agree():
+    """A block on springs (kx = 3, ky = 1) under a harmonic 2-D load, r = 8: 19 events
+    (stick, slide on generators and on facets, vertex and turn transitions); the closed form
+    and DOP853 at rtol 1e-12 take the same event sequence and agree to 1e-10 m."""
+    cs = ContactSet.from_arrays([[0.0], [0.0], [1.0]], [0.0], mu=0.4, JS=[np.eye(3)[:, :2]], r=8)
+    s = ContactSystem.from_arrays(M=2 * np.eye(3), Q=np.diag([3.0, 1.0, 0.0]), f0=[5.0, 2.0, -2 * 9.81],
+                                  fc=[4.0, 9.0, 0.0], omega=2.0, contacts=cs)
+    a = integrate(s, 10.0, "exact", 0.01, v0=[0.3, -1.0, 0.0])
+    b = integrate(s, 10.0, "rk", 0.01, v0=[0.3, -1.0, 0.0], rtol=1e-12, atol=1e-15)
+    assert [e["after"] for e in a.events] == [e["after"] for e in b.events]
+    assert len(a.events) >= 15 and any(e["after"]["edge"] for e in a.events)
+    assert np.abs(a.q - b.q).max() <= 1e-10
+    assert a.energy["relative_residual"] < 1e-12 and b.energy["relative_residual"] < 1e-9
+
+
+# --------------------------------------------------------------------------------------------
 # 4. a free elastic bar (lumped chain) hitting a rigid wall, eps = 0
 # --------------------------------------------------------------------------------------------
 

@@ -157,6 +157,17 @@ class ContactSet:
         B[np.abs(B) < 1e-15] = 0.0
         return B
 
+    def facet(self, k: int, i: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """Facet i of contact k's friction polygon (d_k = 2), between generators i and i + 1:
+        its outward unit normal n_f, unit tangent t_f (from e_i to e_i+1), cos(pi/r), sin(pi/r).
+        A force on it is mu lam_N (cos(pi/r) n_f + s t_f) with |s| <= sin(pi/r)."""
+        r = int(self.r[k])
+        if self.JS[k].shape[1] != 2 or r < 3:
+            raise NsfemError(f"contact {k} has no polygon facets (needs 2 tangent directions and r >= 3)")
+        a = (2 * (i % r) + 1) * np.pi / r
+        n_f = np.array([np.cos(a), np.sin(a)])
+        return n_f, np.array([-n_f[1], n_f[0]]), float(np.cos(np.pi / r)), float(np.sin(np.pi / r))
+
     def JT(self, contacts) -> np.ndarray:
         """J_T = [S_k B_k] for the listed contacts (n x sum r_k), eq. (24)."""
         cols = [self.JS[k] @ self.generators(k) for k in contacts]

@@ -40,15 +40,20 @@ COND_MAX = 1e8
 
 @dataclass(frozen=True)
 class Mode:
-    """Closed contacts; of them, sticking ones and sliding ones ((contact, generator) pairs)."""
+    """Closed contacts; of them, sticking ones, sliding ones with the friction force on a
+    cone generator ((contact, generator) pairs) and sliding ones with the force on a polygon
+    facet ((contact, facet) pairs, ``edge``: facet i lies between generators i and i + 1; the
+    slip velocity is along -n_f, the force's position on the facet is a reaction holding it
+    there)."""
 
     closed: tuple[int, ...] = ()
     stick: tuple[int, ...] = ()
     slide: tuple[tuple[int, int], ...] = ()
-
+    edge: tuple[tuple[int, int], ...] = ()
 
     def describe(self) -> dict:
-        return {"closed": list(self.closed), "stick": list(self.stick), "slide": [list(p) for p in self.slide]}
+        return {"closed": list(self.closed), "stick": list(self.stick), "slide": [list(p) for p in self.slide],
+                "edge": [list(p) for p in self.edge]}
 
 
 def _null(A: np.ndarray, n: int) -> tuple[np.ndarray, int]:
@@ -66,13 +71,16 @@ class Configuration:
     def __init__(self, system: ContactSystem, mode: Mode):
         cs, n = system.contacts, system.n
         self.system, self.mode = system, mode
-        slide = dict(mode.slide)
+        slide, edge = dict(mode.slide), dict(mode.edge)
         Gc, Wc, self.rows = [], [], []  # rows: (kind, contact, component)
         for k in mode.closed:
             Gc.append(cs.JN[:, k])
             w = cs.JN[:, k].copy()
             if k in slide:
                 w += cs.mu[k] * (cs.JS[k] @ cs.generators(k)[:, slide[k]])
+            elif k in edge:
+                n_f, _, c, _ = cs.facet(k, edge[k])
+                w += cs.mu[k] * c * (cs.JS[k] @ n_f)
             Wc.append(w)
             self.rows.append(("normal", k, 0))
         for k in mode.stick:
@@ -80,11 +88,16 @@ class Configuration:
                 Gc.append(cs.JS[k][:, j])
                 Wc.append(cs.JS[k][:, j])
                 self.rows.append(("tangent", k, j))
+        for k, i in mode.edge:  # the slip along the facet's tangent is held
+            col = cs.JS[k] @ cs.facet(k, i)[1]
+            Gc.append(col)
+            Wc.append(col)
+            self.rows.append(("tangent", k, 0))
         self.G = np.column_stack(Gc) if Gc else np.zeros((n, 0))
         self.W = np.column_stack(Wc) if Wc else np.zeros((n, 0))
         self.N, rank = _null(self.G, n)
         self.redundant = self.G.shape[1] - rank
-        if slide:
+        if slide or edge:
             L, rank_w = _null(self.W, n)
             self.L = L if rank_w == rank else self.N
         else:

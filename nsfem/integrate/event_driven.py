@@ -64,8 +64,9 @@ class EventDriven(Integrator):
     def _phase(self, mode: Mode, t: float, q: np.ndarray, v: np.ndarray) -> Phase:
         """The phase of configuration ``mode`` from (t, q, v); sticking slips held at their value."""
         cs = self.system.contacts
-        g0 = np.concatenate([cs.jN[list(mode.closed)]] + [-(cs.JS[k].T @ q) for k in mode.stick]) \
-            if (mode.closed or mode.stick) else np.zeros(0)
+        g0 = np.concatenate([cs.jN[list(mode.closed)]] + [-(cs.JS[k].T @ q) for k in mode.stick]
+                            + [[-(cs.facet(k, i)[1] @ (cs.JS[k].T @ q))] for k, i in mode.edge]) \
+            if mode.closed else np.zeros(0)
         return Phase(self.configuration(mode), t, q, v, g0)
 
     def _advance(self, phase: Phase, rows: Rows, t0: float, t1: float):  # pragma: no cover - abstract
@@ -140,23 +141,28 @@ class EventDriven(Integrator):
                     for i, (kind, k) in enumerate(zip(rows.kinds, rows.contacts)):
                         if kind == "close":
                             gap_tol[k] = ev.tol[i]
-                slipping = {}
-                slip_rows = [i for i in ev.rows if rows.kinds[i] == "slip"]
-                if slip_rows:
-                    lam = phase.force_map() @ xi_fun(t_next)
-                    idx = {key: j for j, key in enumerate(phase.config.rows)}
-                    for i in slip_rows:
-                        k = rows.contacts[i]
-                        lamT = np.array([lam[idx[("tangent", k, j)]] for j in range(cs.JS[k].shape[1])])
-                        # the friction force leaves the cone here: slide along the generator
-                        # nearest to its direction
-                        slipping[k] = int(np.argmax(cs.generators(k).T @ lamT))
+                # slipping: contacts whose force leaves the cone at a generator (they slide on it);
+                # facets: contacts whose force reached a polygon facet (stick limit) or whose slip
+                # velocity reached a facet normal (turn): LCP (29) decides facet or vertex
+                slipping, facets = {}, {}
+                lam = None
+                for i in ev.rows:
+                    kind, k, det = rows.kinds[i], rows.contacts[i], rows.detail[i]
+                    if kind == "vertex":
+                        slipping[k] = det
+                    elif kind in ("slip", "turn") and det is not None:
+                        facets[k] = det
+                    elif kind == "slip":  # 1-D tangent: the force leaves at one end
+                        if lam is None:
+                            lam = phase.force_map() @ xi_fun(t_next)
+                            idx = {key: j for j, key in enumerate(phase.config.rows)}
+                        slipping[k] = 0 if lam[idx[("tangent", k, 0)]] > 0 else 1
                 # a gap that re-closes without having risen above its zero band: the rebound is
                 # below resolution, the impact sequence has accumulated (plastic impact)
                 settled = {rows.contacts[i] for j, i in enumerate(ev.rows)
                            if rows.kinds[i] == "close" and ev.in_band is not None and ev.in_band[j]}
                 mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping,
-                                       settled)
+                                       settled, facets)
                 mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
                                        memory, cs, v)
                 if imp:
@@ -207,7 +213,7 @@ class EventDriven(Integrator):
             return
         lam = phase.force_map() @ xi
         idx = {key: i for i, key in enumerate(phase.config.rows)}
-        slide = dict(mode.slide)
+        slide, edge = dict(mode.slide), dict(mode.edge)
         for k in mode.closed:
             out["gap"][k, sel] = 0.0  # held by the constraint (round-off shown as 0)
             lamN = lam[idx[("normal", k, 0)]]
@@ -222,6 +228,11 @@ class EventDriven(Integrator):
                     e = cs.generators(k)[:, slide[k]]
                     for j in range(e.size):
                         out["tangential_force"][k, j, sel] = cs.mu[k] * lamN * e[j]
+                elif k in edge:
+                    n_f, t_f, c, _ = cs.facet(k, edge[k])
+                    s_f = lam[idx[("tangent", k, 0)]]
+                    for j in range(2):
+                        out["tangential_force"][k, j, sel] = cs.mu[k] * c * lamN * n_f[j] + s_f * t_f[j]
 
     def _energy(self, phase, mode, xi_fun, t0, t1, K, P, D, energy) -> float:
         """Add the work integrals over [t0, t1]; return max E seen (at the evaluation points).
@@ -251,11 +262,10 @@ class EventDriven(Integrator):
             energy["dissipated_damping_J"] += float(np.sum(w * np.einsum("it,it->t", v, D @ v)))
         if np.any(P):
             energy["work_circulatory_J"] += float(np.sum(w * np.einsum("it,it->t", v, P @ q)))
-        if mode.slide:
+        if mode.slide or mode.edge:
             lam = phase.force_map() @ xi
             idx = {key: i for i, key in enumerate(phase.config.rows)}
-            for k, i in mode.slide:
-                e = cs.generators(k)[:, i]
+            for k, e in _friction_directions(cs, mode):
                 vT = cs.JS[k].T @ v
                 power = cs.mu[k] * lam[idx[("normal", k, 0)]] * (e @ vT)   # <= 0
                 energy["dissipated_friction_J"] -= float(np.sum(w * power))
@@ -274,11 +284,10 @@ class EventDriven(Integrator):
             F[:, r2 + 1], F[:, r2 + 2] = sysm.fc, sysm.fs
         forms = [Pv.T @ F, Pv.T @ D @ Pv, Pv.T @ P @ Pq]
         fric = np.zeros((phase.dim, phase.dim))
-        if mode.slide:
+        if mode.slide or mode.edge:
             Pf = phase.force_map()
             idx = {key: i for i, key in enumerate(phase.config.rows)}
-            for k, i in mode.slide:
-                e = cs.generators(k)[:, i]
+            for k, e in _friction_directions(cs, mode):
                 fric += cs.mu[k] * np.outer(Pf[idx[("normal", k, 0)]], e @ (cs.JS[k].T @ Pv))
         forms.append(fric)
         ints = phase.quadratic_integrals(forms, t1)
@@ -292,6 +301,16 @@ class EventDriven(Integrator):
         q, v = Pq @ xi, Pv @ xi
         E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))
         return float(np.max(np.abs(E)))
+
+
+def _friction_directions(cs, mode: Mode):
+    """(contact, d) with the sliding friction force mu lam_N d . (the part that works: on a
+    facet the reaction along it does no work, the slip being along -n_f)."""
+    out = [(k, cs.generators(k)[:, i]) for k, i in mode.slide]
+    for k, i in mode.edge:
+        n_f, _, c, _ = cs.facet(k, i)
+        out.append((k, c * n_f))
+    return out
 
 
 class Exact(EventDriven):

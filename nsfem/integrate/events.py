@@ -9,7 +9,10 @@ while h >= 0:
   polygon, mu lam_N cos(pi / r) - n_f . lam_T (r = 2: mu lam_N -+ lam_T),
 - ``turn``: for a contact sliding with its friction force along generator e_i, the slip
   velocity v_T must keep e_i the most opposing generator: (e_j - e_i) . v_T >= 0 for its
-  neighbours j (r = 2: -e_i . v_T >= 0, i.e. the slip stops or reverses).
+  neighbours j (r = 2: -e_i . v_T >= 0, i.e. the slip stops or reverses); for a contact
+  sliding with its force on facet f (``edge``), the slip along -n_f: -n_f . v_T >= 0,
+- ``vertex``: for a contact sliding on facet f, the force's position s on the facet must
+  stay inside it: mu lam_N sin(pi / r) -+ s >= 0.
 
 Roots are found without missing any: h and h' = H A_aug xi are sampled at a step of at most
 1/8 of the configuration's fastest period (:meth:`Phase.max_step`); a sign change of h is a
@@ -44,11 +47,14 @@ CHUNK = 256
 
 @dataclass
 class Rows:
-    """Event rows H (k x dim) of a phase, with their kind and contact."""
+    """Event rows H (k x dim) of a phase, with their kind, contact and detail: the polygon
+    facet of a ``slip`` or ``turn`` row (None on a 1-D tangent), the generator a ``vertex``
+    row's force reaches."""
 
     H: np.ndarray
     kinds: list
     contacts: list
+    detail: list | None = None
 
     @property
     def size(self) -> int:
@@ -60,20 +66,23 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
     cs = cfg.system.contacts
     Pq, Pv, Pf = phase.q_map(), phase.v_map(), phase.force_map()
     const = 2 * cfg.r  # index of the constant component of xi
-    H, kinds, contacts = [], [], []
+    H, kinds, contacts, detail = [], [], [], []
+
+    def add(row, kind, k, det=None):
+        H.append(row)
+        kinds.append(kind)
+        contacts.append(k)
+        detail.append(det)
+
     closed = set(mode.closed)
     for k in range(cs.m):
         if k not in closed:
             row = cs.JN[:, k] @ Pq
             row[const] += cs.jN[k]
-            H.append(row)
-            kinds.append("close")
-            contacts.append(k)
+            add(row, "close", k)
     index = {(kind, k, j): i for i, (kind, k, j) in enumerate(cfg.rows)}
     for k in mode.closed:
-        H.append(Pf[index[("normal", k, 0)]])
-        kinds.append("release")
-        contacts.append(k)
+        add(Pf[index[("normal", k, 0)]], "release", k)
     for k in mode.stick:
         lamN = Pf[index[("normal", k, 0)]]
         d, r = cs.JS[k].shape[1], int(cs.r[k])
@@ -83,20 +92,23 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
         else:
             a = (2 * np.arange(r) + 1) * math.pi / r
             facets, bound = np.column_stack([np.cos(a), np.sin(a)]), math.cos(math.pi / r)
-        for nf in facets:
-            H.append(cs.mu[k] * bound * lamN - nf @ lamT)
-            kinds.append("slip")
-            contacts.append(k)
+        for j, nf in enumerate(facets):
+            add(cs.mu[k] * bound * lamN - nf @ lamT, "slip", k, j if d == 2 and r >= 3 else None)
     for k, i in mode.slide:
         B = cs.generators(k)
         vT = cs.JS[k].T @ Pv
         r = B.shape[1]
         neigh = {(i + 1) % r, (i - 1) % r} if B.shape[0] == 2 else {(i + r // 2) % r}
         for j in sorted(neigh):
-            H.append((B[:, j] - B[:, i]) @ vT)
-            kinds.append("turn")
-            contacts.append(k)
-    return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts)
+            facet = (i if j == (i + 1) % r else j) if B.shape[0] == 2 and r >= 3 else None
+            add((B[:, j] - B[:, i]) @ vT, "turn", k, facet)
+    for k, i in mode.edge:
+        lamN, s_f = Pf[index[("normal", k, 0)]], Pf[index[("tangent", k, 0)]]
+        n_f, _, _, sn = cs.facet(k, i)
+        add(cs.mu[k] * sn * lamN - s_f, "vertex", k, (i + 1) % int(cs.r[k]))
+        add(cs.mu[k] * sn * lamN + s_f, "vertex", k, i)
+        add(-(n_f @ (cs.JS[k].T @ Pv)), "turn", k, None)  # the slip along -n_f stops
+    return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts, detail)
 
 
 @dataclass
@@ -283,20 +295,50 @@ def _polynomial_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -
     T = t_stop - t_start
     # the size of the terms over the horizon (each power at its largest)
     tol = ZERO * (np.abs(C) @ (max(T, 1.0) ** np.arange(C.shape[1])) + 1e-300)
+    def real_roots(c):
+        nz = np.flatnonzero(np.abs(c) > 0)
+        if nz.size == 0 or nz[-1] == 0:
+            return np.zeros(0)
+        roots = np.roots(c[: nz[-1] + 1][::-1])
+        return np.sort(roots[(np.abs(roots.imag) <= 1e-9 * np.abs(roots)) & (roots.real > 0)].real)
+
     best = None
+
+    def keep(hit, i):
+        nonlocal best
+        if best is None or hit[0] < best[0][0] - 1e-12 * max(1.0, abs(hit[0])):
+            best = (list(hit), [i])
+        elif abs(hit[0] - best[0][0]) <= 1e-12 * max(1.0, abs(hit[0])):
+            best[1].append(i)
+
     for i in range(rows.size):
         c = C[i].copy()
         start_in_band = abs(c[0]) <= tol[i]
         c0 = c.copy()
         if start_in_band:
             c0[0] = 0.0
-        nz = np.flatnonzero(np.abs(c0) > 0)
-        if nz.size == 0 or nz[-1] == 0:
-            continue
-        roots = np.roots(c0[: nz[-1] + 1][::-1])
-        real = np.sort(roots[(np.abs(roots.imag) <= 1e-9 * np.abs(roots)) & (roots.real > 0)].real)
+            # leaving the band downwards before ever rising above it: root of h + band, with the
+            # band sized by the terms at that time (a rigid rebound is resolved however small)
+            band, tau = tol[i], None
+            for _ in range(3):
+                cb = c0.copy()
+                cb[0] = band
+                down = [x for x in real_roots(cb) if x <= T * (1 + 1e-15)]
+                if not down:
+                    tau = None
+                    break
+                tau = down[0]
+                local = ZERO * (abs(c[0]) + float(np.abs(c[1:]) @ tau ** np.arange(1, c.size))) + 1e-300
+                if local >= band:
+                    break
+                band = local
+            if tau is not None:
+                ext = [x for x in real_roots(np.polynomial.polynomial.polyder(c0)) if x < tau]
+                if max(np.polynomial.polynomial.polyval(np.array(ext + [tau]), c0), default=0.0) <= band:
+                    keep((t_start + tau, False, True), i)
+                    continue
         val = lambda tau: np.polynomial.polynomial.polyval(tau, c0)  # noqa: E731
-        for tau in real:
+        for tau in real_roots(c0):
             if tau > T * (1 + 1e-15):
                 break
             if start_in_band and tau <= 1e-12 * T:
@@ -304,17 +346,13 @@ def _polynomial_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -
             d = 1e-7 * max(tau, T * 1e-9)
             after, before_ = val(tau + d), val(max(tau - d, 0.0))
             if after < 0:
-                hit = (t_start + tau, False)
+                keep((t_start + tau, False, False), i)
             elif before_ >= 0 and after >= 0:
-                hit = (t_start + tau, True)   # touches zero without crossing: a graze
+                keep((t_start + tau, True, False), i)   # touches zero without crossing: a graze
             else:
                 continue
-            if best is None or hit[0] < best[0][0] - 1e-12 * max(1.0, abs(hit[0])):
-                best = ([hit[0], hit[1]], [i])
-            elif abs(hit[0] - best[0][0]) <= 1e-12 * max(1.0, abs(hit[0])):
-                best[1].append(i)
             break
     if best is None:
         return None
-    (t_e, graze), idx = best
-    return Event(float(t_e), idx, [graze] * len(idx), tol)
+    (t_e, graze, in_band), idx = best
+    return Event(float(t_e), idx, [graze] * len(idx), tol, [in_band] * len(idx))

@@ -88,7 +88,7 @@ def _tol(J: np.ndarray, x: np.ndarray, const=None) -> np.ndarray:
 
 def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray, before: Mode,
             memory: Memory, touching=(), gap_tol=None, slipping=None,
-            settled=()) -> tuple[Mode, np.ndarray, dict | None]:
+            settled=(), facets=None) -> tuple[Mode, np.ndarray, dict | None]:
     """The configuration after an event at t, the velocity after it, and the impact record.
 
     ``touching`` are contacts whose gap root was just located (candidates by definition);
@@ -97,6 +97,9 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     their friction force reached: at that instant sticking on the cone's boundary also
     solves LCP (29), but the stick force is leaving the cone, so they slide. ``settled``
     contacts re-closed after a rebound below the gap's resolution: their impact is plastic.
+    ``facets`` maps contacts whose stick force reached a polygon facet, or whose slip velocity
+    reached a facet's normal, to that facet: LCP (29), with the force's position on the
+    facet as a bounded unknown, decides between sliding on the facet and on a generator.
     """
     cs = system.contacts
     if cs.m == 0:
@@ -138,11 +141,12 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     closed = [k for k in cand if abs(gv[k]) <= tv[k]]
     memory.degenerate = []
     while True:
-        stick, slide = _friction_states(cs, closed, v, slipping, memory)
+        stick, slide, edge = _friction_states(cs, closed, v, slipping, facets or {}, memory)
         fstar = system.load(t) - system.C @ v - system.Q @ q
         if closed:
-            lcp = transition_lcp(cs, Mf, fstar, closed, stick,
-                                 {k: cs.generators(k)[:, i] for k, i in slide.items()})
+            cs_l, extra = _facet_contacts(cs, edge)
+            lcp = transition_lcp(cs_l, Mf, fstar, closed, stick + sorted(edge),
+                                 {k: cs.generators(k)[:, i] for k, i in slide.items()}, extra)
             res = lcp.solve()
             if not res.success:
                 raise NsfemError(f"transition LCP (29) at t = {t:.9g} s: {res.message}")
@@ -183,7 +187,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     wsize = bsize + np.abs(lcp.b[:mc]) + np.abs(lcp.A[:mc]) @ np.abs(res.x)
     wtol = ZERO * (wsize + 1e-3 * float(wsize.max(initial=0.0))) + 1e-300
     memory.degenerate = [k for j, k in enumerate(closed) if k not in keep and abs(res.w[j]) <= wtol[j]]
-    new_stick, new_slide = [], []
+    new_stick, new_slide, new_edge = [], [], []
     row = 0
     zk = dict(zip((int(k) for k in lcp.friction), z))
     betas = {}
@@ -194,30 +198,73 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     for k in keep:
         if k in slide:
             new_slide.append((k, slide[k]))
+        elif k in edge:
+            f = edge[k]
+            if zk[k] <= 1e-10 * bscale:   # the force stays inside the facet
+                new_edge.append((k, f))
+            else:                         # it leaves at a vertex: slide on that generator
+                new_slide.append((k, (f + 1) % int(cs.r[k]) if betas[k][0] >= betas[k][1] else f))
         elif k in zk:
             if zk[k] <= 1e-10 * bscale:
                 new_stick.append(k)
             else:
-                new_slide.append((k, int(np.argmax(betas[k]))))
-    mode = Mode(tuple(sorted(keep)), tuple(sorted(new_stick)), tuple(sorted(new_slide)))
+                b = betas[k]
+                i = int(np.argmax(b))
+                r = b.size
+                if cs.JS[k].shape[1] == 2 and r >= 3:
+                    j = (i + 1) % r if b[(i + 1) % r] >= b[(i - 1) % r] else (i - 1) % r
+                    if b[j] > 1e-9 * b[i]:   # the force lies inside a facet: slide on it
+                        new_edge.append((k, i if j == (i + 1) % r else j))
+                        continue
+                new_slide.append((k, i))
+    mode = Mode(tuple(sorted(keep)), tuple(sorted(new_stick)), tuple(sorted(new_slide)), tuple(sorted(new_edge)))
     return mode, v, impact
 
 
-def _friction_states(cs, closed, v, slipping, memory):
-    """Sticking contacts (zero slip rate) and sliding ones with their generator: the one the
-    stick limit was reached on, else the one most opposing the slip velocity."""
-    stick, slide = [], {}
+def _friction_states(cs, closed, v, slipping, facets, memory):
+    """Sticking contacts (zero slip rate), sliding ones with their generator (the one the stick
+    limit was reached on, else the one most opposing the slip velocity) and facet candidates
+    (a stick limit reached on a facet, or a slip velocity on a facet normal: a tie between two
+    neighbouring generators)."""
+    stick, slide, edge = [], {}, {}
     for k in closed:
         if cs.r[k] == 0:
             continue
         vT = cs.JS[k].T @ v
+        tolv = max(ZERO * memory.slip_scale[k], float(_tol(cs.JS[k], v).max()))
         if k in slipping:
             slide[k] = slipping[k]
-        elif np.all(np.abs(vT) <= max(ZERO * memory.slip_scale[k], float(_tol(cs.JS[k], v).max()))):
+        elif k in facets:
+            edge[k] = facets[k]
+        elif np.all(np.abs(vT) <= tolv):
             stick.append(k)
         else:
-            slide[k] = int(np.argmin(cs.generators(k).T @ vT))
-    return stick, slide
+            B = cs.generators(k)
+            p = B.T @ vT
+            i, r = int(np.argmin(p)), B.shape[1]
+            if B.shape[0] == 2 and r >= 3:
+                j = (i + 1) % r if p[(i + 1) % r] <= p[(i - 1) % r] else (i - 1) % r
+                if p[j] - p[i] <= 4.0 * tolv:
+                    edge[k] = i if j == (i + 1) % r else j
+                    continue
+            slide[k] = i
+    return stick, slide, edge
+
+
+def _facet_contacts(cs, edge: dict):
+    """The contact set of LCP (29) with facet candidates: on facet f the friction force is
+    mu lam_N (cos(pi/r) n_f + s t_f); the fixed part goes to the normal column (``extra``),
+    s is a 1-D friction unknown along t_f with coefficient mu sin(pi/r)."""
+    if not edge:
+        return cs, None
+    JS, mu, r = list(cs.JS), cs.mu.copy(), cs.r.copy()
+    extra = {}
+    for k, f in edge.items():
+        n_f, t_f, c, sn = cs.facet(k, f)
+        JS[k] = (cs.JS[k] @ t_f)[:, None]
+        mu[k], r[k] = cs.mu[k] * sn, 2
+        extra[k] = cs.mu[k] * c * (cs.JS[k] @ n_f)
+    return replace(cs, JS=tuple(JS), mu=mu, r=r), extra
 
 
 def _settle(cs, Mf: Factorization, v: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray]:

@@ -107,12 +107,14 @@ class ContactLCP:
 
 
 def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, slide=None,
-                base: np.ndarray | None = None) -> ContactLCP:
+                base: np.ndarray | None = None, extra=None) -> ContactLCP:
     """Assemble the LCP of the module docstring.
 
     ``normal``: contact indices with a normal unknown; ``friction``: those of them with
     tangential unknowns (mu > 0); ``slide``: {contact: unit tangent-plane vector of its
     friction force} for contacts that slide (their friction is not an unknown).
+    ``extra``: {contact: generalized force (n,) per unit lam_N added to its normal column}
+    (a friction force of fixed direction given in the full coordinates).
     """
     normal = np.asarray(normal, dtype=int).ravel()
     friction = np.asarray(friction, dtype=int).ravel()
@@ -121,6 +123,8 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
     for j, k in enumerate(normal):
         if int(k) in slide:
             WN[:, j] += cs.mu[k] * (cs.JS[k] @ np.asarray(slide[int(k)], dtype=float))
+        if extra and int(k) in extra:
+            WN[:, j] += np.asarray(extra[int(k)], dtype=float)
     JT = cs.JT(friction)
     E = cs.E(friction)
     W = np.hstack([WN, JT])
@@ -157,13 +161,15 @@ def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, norm
     return contact_lcp(Q, cs, normal, friction, cs.gaps(q0)[normal], cs.JT(friction).T @ q0, base=q0)
 
 
-def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, stick, slide=None
-                   ) -> ContactLCP:
+def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, stick, slide=None,
+                   extra=None) -> ContactLCP:
     """LCP (29): which closed contacts stay closed, which stick and which slip.
 
     ``fstar`` = f(t) - C q' - Q q; ``closed`` contacts have g = g' = 0; ``stick`` are the
     closed frictional ones at zero slip velocity; ``slide`` maps the others to the
-    direction of their friction force. Accelerations: q'' = M^-1 f* + ``response(x)``.
+    direction of their friction force; ``extra`` adds a generalized force per unit lam_N to
+    a closed contact's normal column (see :func:`contact_lcp`). Accelerations:
+    q'' = M^-1 f* + ``response(x)``.
     """
     closed = np.asarray(closed, dtype=int)
     stick = np.array([k for k in stick if cs.r[k] > 0], dtype=int)
@@ -179,7 +185,12 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
             raise NsfemError(f"transition LCP: the slide direction of contact {k} must be a unit vector with "
                              f"{cs.JS[k].shape[1]} components (its tangent directions)")
     a0 = M.solve(fstar)
-    return contact_lcp(M, cs, closed, stick, cs.JN[:, closed].T @ a0, cs.JT(stick).T @ a0, slide, base=a0)
+    for k in extra or {}:
+        if int(k) not in where or np.shape(extra[k]) != (cs.n,):
+            raise NsfemError(f"transition LCP: the extra force of contact {k} needs a closed contact and {cs.n} "
+                             "components")
+    return contact_lcp(M, cs, closed, stick, cs.JN[:, closed].T @ a0, cs.JT(stick).T @ a0, slide, base=a0,
+                       extra=extra)
 
 
 def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active) -> ContactLCP:
