@@ -14,7 +14,7 @@ import time
 from typing import Sequence
 
 from . import __version__
-from .errors import NsfemError
+from .errors import IntegrationError, NsfemError
 
 EXIT_ERROR = 2
 _RANGE = re.compile(r"^[^=]+=\s*[-+0-9.eE]+:[-+0-9.eE]+:[0-9]+\s*$")
@@ -210,7 +210,26 @@ def cmd_run(args) -> int:
     method = args.method or scene["simulation"]["method"]
     out_dir = Path(args.out or scene["output"]["dir"])
     t0 = time.perf_counter()
-    result, system = run_scene(scene, method, progress=None)
+    text_path = Path(scene.path) if scene.path else default_scene_path()
+    scene_text = text_path.read_text() if text_path.exists() else ""
+    if args.overrides:
+        scene_text += "\n# overrides: " + " ".join(args.overrides) + "\n"
+    import signal
+
+    def terminate(signum, frame):  # a scheduler's SIGTERM ends the run like Ctrl-C: results kept
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        result, system = run_scene(scene, method, progress=None, warn=lambda text: print(
+            f"nsfem run: warning: {text}", file=sys.stderr))
+    except IntegrationError as exc:  # keep what was computed, then report the error
+        res, sysm = exc.result, exc.system
+        path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.contacts.x,
+                        dict(scene))
+        raise NsfemError(f"{exc} (the run up to t = {res.t_end:g} s is in {path})") from exc
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     red = system.info["reduction"]
     top = red.info.get("max_frequency_hz")
     if scene["rotation"]["speed_hz"] and top:
@@ -221,10 +240,6 @@ def cmd_run(args) -> int:
         warning = supercritical_warning(scene["rotation"]["speed_hz"], div[div <= 0.5 * top])
         if warning:
             print(f"nsfem run: warning: {warning}", file=sys.stderr)
-    text_path = Path(scene.path) if scene.path else default_scene_path()
-    scene_text = text_path.read_text() if text_path.exists() else ""
-    if args.overrides:
-        scene_text += "\n# overrides: " + " ".join(args.overrides) + "\n"
     path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, dict(scene))
     summary = result.summary()
     payload = {"title": scene["title"], **summary, "wall_s": time.perf_counter() - t0,

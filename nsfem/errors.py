@@ -12,3 +12,12 @@ class SceneError(NsfemError, ValueError):
         self.key = key
         self.reason = reason
         super().__init__(f"{key}: {reason}" if key else reason)
+
+
+class IntegrationError(NsfemError):
+    """A time integration stopped before its end; ``result`` holds the run up to there
+    (``completed`` False, ``info['error']`` the message), ready to be saved."""
+
+    def __init__(self, message: str, result):
+        self.result = result
+        super().__init__(message)

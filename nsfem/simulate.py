@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import NsfemError
+from .errors import IntegrationError, NsfemError
 from .integrate import ContactSystem, integrate
 from .integrate.base import output_times
 from .result import Result
@@ -54,9 +54,29 @@ def integrator_options(scene, method: str) -> dict:
     return {}
 
 
-def run_scene(scene, method: str | None = None, progress: bool | None = False, model=None, reduction=None
-              ) -> tuple[Result, ContactSystem]:
-    """Integrate a scene with its (or the given) method; returns the Result and the system."""
+#: event-search samples per run above which :func:`run_scene` warns
+SAMPLES_WARN = 2e6
+
+
+def search_cost(system: ContactSystem, t_end: float) -> tuple[float, float]:
+    """(f_max [Hz], samples): the fastest free mode of the model and the number of event-search
+    samples it implies over t_end (a step of 1/8 of its period, as ``exact`` samples)."""
+    import scipy.linalg as sla
+
+    if system.n == 0:
+        return 0.0, 0.0
+    lam = sla.eigvals(system.Q, system.M)
+    w = float(np.sqrt(np.max(np.abs(lam[np.isfinite(lam)]), initial=0.0)))
+    return w / (2 * np.pi), t_end * 4.0 * w / np.pi
+
+
+def run_scene(scene, method: str | None = None, progress: bool | None = False, model=None, reduction=None,
+              warn=None) -> tuple[Result, ContactSystem]:
+    """Integrate a scene with its (or the given) method; returns the Result and the system.
+
+    ``warn(text)`` receives warnings before the integration starts (an unreduced model whose
+    fastest mode makes the run long). A run that stops early raises
+    :class:`~nsfem.errors.IntegrationError` whose ``result`` holds it up to there."""
     from .fem.assemble import build_model
     from .reduce import scene_reduction
 
@@ -73,8 +93,20 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
     red = scene_reduction(scene, model) if reduction is None else reduction
     system = ContactSystem.from_scene(scene, model, red)
     q0, v0 = initial_state(scene, model, red, system)
-    result = integrate(system, sim["t_end"], method, sim["output_dt"], q0, v0, progress=progress,
-                       **integrator_options(scene, method))
-    result.info.update({"ndof_full": model.n, "reduction": red.info, "title": scene["title"],
-                        "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.contacts.labels)})
+    if warn is not None and method in ("exact", "rk"):
+        f_max, samples = search_cost(system, sim["t_end"])
+        if samples > SAMPLES_WARN:
+            warn(f"the fastest mode of this {system.n}-dof model ({f_max:.4g} Hz) sets the time scale of "
+                 f"'{method}': about {samples:.2g} event-search samples for t_end = {sim['t_end']:g} s; a reduced "
+                 "model (reduction.method = craig_bampton or modal) runs far faster")
+    info = {"ndof_full": model.n, "reduction": red.info, "title": scene["title"],
+            "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.contacts.labels)}
+    try:
+        result = integrate(system, sim["t_end"], method, sim["output_dt"], q0, v0, progress=progress,
+                           **integrator_options(scene, method))
+    except IntegrationError as exc:
+        exc.result.info.update(info)
+        exc.system = system
+        raise
+    result.info.update(info)
     return result, system

@@ -847,6 +847,8 @@ def test_result_save_load_round_trip(tmp_path):
     ({"t_end": 1.0, "method": "rk", "solver": "LSODA"}, "solver"),
     ({"t_end": 1.0, "method": "rk", "rtol": 0.0}, "tolerances"),
     ({"t_end": 1.0, "zeno": 1.5}, "zeno"),
+    ({"t_end": 1.0, "q0": [-1.0]}, "penetrates"),   # review D8: the stop is at q = -0.1
+    ({"t_end": 1.0, "v0": [float("nan")]}, "finite"),
 ])
 def test_bad_inputs(kwargs, match):
     with pytest.raises(NsfemError, match=match):
@@ -868,6 +870,8 @@ def test_release_is_not_decided_by_round_off():
     b = integrate(s, 10.0, "rk", 0.01, rtol=1e-12, atol=1e-15)
     assert len(a.events) == len(b.events) >= 10
     assert np.abs(a.q - b.q).max() <= 1e-11 * max(np.abs(a.q).max(), 1.0)
+    # review D9: every release opens the contact (no event that changes nothing first)
+    assert all(e["before"] != e["after"] or e["impact"] for e in a.events)
 
 
 def _spring_bounce_times(F, c, eps, n):

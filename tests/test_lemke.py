@@ -23,7 +23,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -366,6 +366,9 @@ def test_property_positive_scaling_of_b(prob, e):
     # LCP(A, t b) is solved by t x: same pivots, same basis
     A, b = prob
     t = 10.0 ** e
+    # the invariance is exact only while every entry stays a normal float (no underflow)
+    nz = np.abs(b[b != 0])
+    assume(np.all((nz * t > 1e-290) & (nz * t < 1e290) & (nz > 1e-290)))
     ref = lemke(A, b).check()
     res = lemke(A, t * b).check()
     assert res.pivots == ref.pivots

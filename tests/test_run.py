@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from nsfem import cli
+from nsfem.errors import NsfemError
 from nsfem.integrate import configuration
 from nsfem.result import Result
 
@@ -80,6 +81,32 @@ def test_interrupted_run_leaves_a_valid_results_file(tmp_path, capsys, monkeypat
     res, meta, _ = Result.load(tmp_path / "result.npz")
     assert not res.completed and 0 < res.t.size < 201
     assert np.all(np.diff(res.t) > 0) and res.gap.shape == (9, res.t.size)
+    # the work integrals stop where the state does: the balance holds for the partial run
+    assert out["energy"] < 1e-9
+
+
+def test_failed_run_keeps_its_results(tmp_path, capsys, monkeypatch):
+    """Review D7: an error during the integration (here a contact problem that fails at the
+    third event) still writes the run up to there, names the file, exits 2."""
+    from nsfem.integrate import event_driven
+
+    calls = {"n": 0}
+    original = event_driven.resolve
+
+    def resolve(*args, **kw):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise NsfemError("transition LCP (29) at t = 0.1 s: no solution (injected)")
+        return original(*args, **kw)
+
+    monkeypatch.setattr(event_driven, "resolve", resolve)
+    code = cli.main(["run", "--json", "--out", str(tmp_path), "--set", "simulation.t_end=0.2"])
+    assert code == cli.EXIT_ERROR
+    err = capsys.readouterr().err
+    assert "injected" in err and str(tmp_path / "result.npz") in err
+    res, meta, _ = Result.load(tmp_path / "result.npz")
+    assert not res.completed and "injected" in meta["info"]["error"] and 0 < res.t[-1] < 0.2
+    assert res.energy["relative_residual"] < 1e-9
 
 
 @pytest.mark.parametrize("extra, horizon", [
@@ -102,3 +129,4 @@ def test_run_impact_clusters_end(extra, horizon, tmp_path, capsys):
     assert np.max(np.searchsorted(t, t + 1e-5) - np.arange(t.size)) <= 100
     for imp in meta["impacts"]:
         assert imp["kinetic_after_J"] <= imp["kinetic_before_J"] * (1 + 1e-12), imp["t"]
+    assert all(e["before"] != e["after"] or e["impact"] or e["graze"] for e in meta["events"])

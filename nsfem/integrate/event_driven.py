@@ -28,7 +28,7 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..errors import NsfemError
+from ..errors import IntegrationError, NsfemError
 from ..linalg import factorize
 from ..result import Result
 from .base import Integrator, Progress, output_times
@@ -82,6 +82,16 @@ class EventDriven(Integrator):
         v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
         if q.shape != (n,) or v.shape != (n,):
             raise NsfemError(f"initial q0 and v0 must have {n} entries")
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise NsfemError("initial q0 and v0 must be finite")
+        if m:
+            g0 = cs.gaps(q)
+            size = np.abs(cs.JN).T @ np.abs(q) + np.abs(cs.jN)
+            bad = np.flatnonzero(g0 < -1e-8 * (size + float(size.max(initial=0.0))))
+            if bad.size:
+                k = int(bad[0])
+                raise NsfemError(f"the initial state penetrates {cs.labels[k]} "
+                                 f"(gap {g0[k]:.6g} m < 0); start on or above every contact")
         wall0 = time.perf_counter()
         Mf = factorize(sysm.M, "the mass matrix M")
         K = 0.5 * (sysm.Q + sysm.Q.T)
@@ -99,17 +109,19 @@ class EventDriven(Integrator):
                   "lost_in_impacts_J": 0.0}
         e_max = abs(energy["initial_J"])
         progress = Progress(t_end, self.progress)
-        completed = True
+        completed, failure = True, None
         t = 0.0
         stuck = 0
-        phase = None
+        phase, phase_integrated = None, False
         try:
             mode, v, imp = resolve(sysm, Mf, 0.0, q, v, Mode(), memory)
+            mode = hold_degenerate(mode, lambda md, q_=q, v_=v: self._phase(md, 0.0, q_, v_), memory, cs, v)
             if imp:
                 impacts.append(imp)
                 energy["lost_in_impacts_J"] += imp["kinetic_before_J"] - imp["kinetic_after_J"]
             while True:
                 phase = self._phase(mode, t, q, v)
+                phase_integrated = False
                 rows = event_rows(phase, mode)
                 ev, xi_fun = self._advance(phase, rows, t, t_end)
                 t_next = t_end if ev is None else ev.t
@@ -123,6 +135,7 @@ class EventDriven(Integrator):
                     memory.observe(cs, phase.q_map() @ xi_out, phase.v_map() @ xi_out)
                     filled = int(sel[-1]) + 1
                 e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy))
+                phase_integrated = True
                 xi_end = xi_fun(t_next)
                 q, v = phase.q_map() @ xi_end, phase.v_map() @ xi_end
                 progress(t_next, len(events))
@@ -173,11 +186,12 @@ class EventDriven(Integrator):
                                "graze": bool(any(ev.graze)), "impact": imp is not None,
                                "before": before.describe(), "after": mode.describe()})
                 t = t_next
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, NsfemError) as exc:
             completed = False
+            failure = exc if isinstance(exc, NsfemError) else None
             # the part of the current phase already searched has no event: keep its outputs
             until = getattr(phase, "searched_until", None)
-            if phase is not None and until is not None and until > phase.t0:
+            if phase is not None and not phase_integrated and until is not None and until > phase.t0:
                 sel = np.flatnonzero((t_out >= phase.t0) & (t_out <= until))
                 sel = sel[sel >= filled]
                 if sel.size:
@@ -185,6 +199,9 @@ class EventDriven(Integrator):
                     self._outputs(phase, mode, xi_out, sel, out)
                     filled = int(sel[-1]) + 1
                     q, v = phase.q_map() @ xi_out[:, -1], phase.v_map() @ xi_out[:, -1]
+                    # the work integrals follow the state to the last output
+                    e_max = max(e_max, self._energy(phase, mode, phase.xi, phase.t0, float(t_out[sel[-1]]), K, P,
+                                                    D, energy))
         finally:
             progress.close()
         e_final = 0.5 * float(v @ sysm.M @ v + q @ K @ q)
@@ -201,6 +218,9 @@ class EventDriven(Integrator):
                      events, impacts, energy, time.perf_counter() - wall0, float(t_out[k - 1]) if k else 0.0,
                      completed, {**{kk: vv for kk, vv in sysm.info.items() if kk == "ndof_full"},
                                  "configurations": len(self._cache)})
+        if failure is not None:
+            res.info["error"] = str(failure)
+            raise IntegrationError(str(failure), res) from failure
         return res
 
     # ------------------------------------------------------------------------------

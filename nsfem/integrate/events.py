@@ -135,13 +135,14 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
     armed = None
     thr = None
     t_a = t_start
+    rows_at = phase.row_map(np.vstack([H, Hd]))
     while t_a < t_stop:
         n = max(1, min(CHUNK, math.ceil((t_stop - t_a) / h_step)))
         ts = np.linspace(t_a, min(t_stop, t_a + n * h_step), n + 1)
-        xi = phase.xi(ts)
-        h, hd = H @ xi, Hd @ xi
+        hh = rows_at(ts)
+        h, hd = hh[: rows.size], hh[rows.size:]
         if scale is None:
-            scale = np.max(np.abs(H) @ np.abs(xi), axis=1) + 1e-300
+            scale = np.max(np.abs(H) @ np.abs(phase.xi(ts)), axis=1) + 1e-300
             # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
             bound4 = phase.derivative_bound(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
             tol = ZERO * scale

@@ -177,13 +177,18 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     if not closed:
         return Mode(), v, impact
     lamN, beta, z = lcp.split(res.x)
-    fscale = max(float(lamN.max(initial=0.0)), 1e-300)
-    keep = [k for j, k in enumerate(closed) if lamN[j] > 1e-12 * fscale]
-    # opened with zero force and zero gap acceleration: decided by higher derivatives later
     mc = len(closed)
     # the size of the terms of f* (f - C q' - Q q cancels to round-off when the springs are unstressed)
     fterms = np.abs(system.load(t)) + np.abs(system.C) @ np.abs(v) + np.abs(system.Q) @ np.abs(q)
     bsize = np.abs(cs.JN[:, closed]).T @ np.abs(Mf.solve(fterms))
+    # lam_N counts as zero below the round-off of the terms that make it (b_j over the
+    # Delassus diagonal), not only relative to the largest force: a single contact whose
+    # force has just vanished must open (one release event, not a no-op one first)
+    fscale = max(float(lamN.max(initial=0.0)), 1e-300)
+    diag = np.maximum(np.abs(np.diag(lcp.A)[:mc]), 1e-300)
+    lam_tol = np.maximum(1e-12 * fscale, ZERO * (bsize + np.abs(lcp.b[:mc])) / diag)
+    keep = [k for j, k in enumerate(closed) if lamN[j] > lam_tol[j]]
+    # opened with zero force and zero gap acceleration: decided by higher derivatives later
     wsize = bsize + np.abs(lcp.b[:mc]) + np.abs(lcp.A[:mc]) @ np.abs(res.x)
     wtol = ZERO * (wsize + 1e-3 * float(wsize.max(initial=0.0))) + 1e-300
     memory.degenerate = [k for j, k in enumerate(closed) if k not in keep and abs(res.w[j]) <= wtol[j]]
