@@ -907,3 +907,17 @@ def test_zeno_with_a_spring(eps):
     assert res.state[0, -1] == 2 and res.normal_force[0, -1] == pytest.approx(F - c, rel=1e-12)
     assert abs(got[-1] - t_inf) <= 3e-6 and res.impacts[-1]["plastic"] == [0]
     assert res.energy["relative_residual"] <= 1e-10
+
+
+def test_initial_degenerate_contact_stays_closed():
+    """Review D10: m1 at rest on the wall, spring k to m2 pushed toward the wall by F: at
+    t = 0 lam_N = 0 and g'' = 0, but the 4th gap derivative -k F / m^2 < 0, so the contact
+    holds from the start (no opening and re-closing impact); lam_N = F (1 - cos w t) to
+    round-off until it touches zero again at t = 2 pi / w."""
+    k, m, F = 100.0, 1.0, 10.0
+    s = ContactSystem.from_arrays(M=np.eye(2), Q=np.array([[k, -k], [-k, k]]), f0=[0.0, -F],
+                                  contacts=ContactSet.from_arrays([[1.0], [0.0]], [0.0], eps=0.0))
+    res = integrate(s, 0.6, "exact", 0.001)
+    w = math.sqrt(k / m)
+    assert res.events == [] and res.impacts == [] and np.all(res.state[0] == 2)
+    np.testing.assert_allclose(res.normal_force[0], F * (1 - np.cos(w * res.t)), atol=1e-12 * F)
