@@ -142,6 +142,9 @@ class EventDriven(Integrator):
                 if ev is None:
                     break
                 stuck = stuck + 1 if t_next - t <= 1e-12 * max(1.0, t_next) else 0
+                if not ev.rows and stuck <= MAX_STUCK:  # rk: a restart of the same configuration
+                    t = t_next
+                    continue
                 if stuck > MAX_STUCK:
                     raise NsfemError(f"no progress at t = {t_next:.12g} s: {stuck} events in a row at the same time "
                                      f"(configuration {mode.describe()}); the contact problem chatters")
@@ -164,7 +167,7 @@ class EventDriven(Integrator):
                     if kind == "vertex":
                         slipping[k] = det
                     elif kind in ("slip", "turn") and det is not None:
-                        facets[k] = det
+                        facets[k] = (det, kind)
                     elif kind == "slip":  # 1-D tangent: the force leaves at one end
                         if lam is None:
                             lam = phase.force_map() @ xi_fun(t_next)
@@ -373,13 +376,27 @@ class RungeKutta(EventDriven):
         scale = np.abs(H) @ np.abs(xi0) + 1e-300
         tol = 1e-11 * scale
         h0 = H @ xi0
-        thr = np.where(h0 > tol, 0.0, -tol)
-        funcs = []
+        armed = h0 > tol
+        # as in exact: an unarmed row fires by going down by tol from where it starts, and is
+        # armed at its first maximum (the phase restarts there: a rebound can be shorter than
+        # a step, and solve_ivp sees only sign changes between steps)
+        thr = np.where(armed, 0.0, np.minimum(-tol, h0 - tol))
+        Hd = H @ A_aug
+        tol_d = 1e-11 * (np.abs(Hd) @ np.abs(xi0)) + 1e-300
+        funcs, kinds = [], []
         for i in range(rows.size):
             def ev(t, x, i=i):
                 return float(H[i, :r2] @ x + H[i, r2:] @ harm(t)) - thr[i]
             ev.terminal, ev.direction = True, -1
             funcs.append(ev)
+            kinds.append(("row", i))
+        hd0 = Hd @ xi0
+        for i in np.flatnonzero(~armed & (hd0 > tol_d)):  # rising from its band: stop at the top
+            def top(t, x, i=i):
+                return float(Hd[i, :r2] @ x + Hd[i, r2:] @ harm(t)) + tol_d[i]
+            top.terminal, top.direction = True, -1
+            funcs.append(top)
+            kinds.append(("max", int(i)))
         sol = solve_ivp(rhs, (t0, t1), xi0[:r2], method=self.solver, rtol=self.rtol, atol=self.atol,
                         events=funcs or None, dense_output=True)
         if sol.status == -1:
@@ -391,8 +408,12 @@ class RungeKutta(EventDriven):
             return np.concatenate([x, harm(t)], axis=0) if t.ndim else np.concatenate([x, harm(t)])
 
         if sol.status == 1:
-            hits = [(te[0], i) for i, te in enumerate(sol.t_events) if len(te)]
+            hits = [(te[0], j) for j, te in enumerate(sol.t_events) if len(te)]
             t_e = min(h[0] for h in hits)
-            rows_at = [i for te, i in hits if te <= t_e + 1e-12 * max(1.0, abs(t_e))]
-            return Event(float(t_e), rows_at, [False] * len(rows_at)), xi_fun
+            at = [kinds[j] for te, j in hits if te <= t_e + 1e-12 * max(1.0, abs(t_e))]
+            rows_at = [i for kind, i in at if kind == "row"]
+            if not rows_at:  # a maximum of an unarmed row: restart the phase there (armed if above its band)
+                return Event(float(t_e), [], []), xi_fun
+            return Event(float(t_e), rows_at, [False] * len(rows_at), None,
+                         [bool(thr[i] != 0.0) for i in rows_at]), xi_fun
         return None, xi_fun

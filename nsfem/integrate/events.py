@@ -142,13 +142,20 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
         hh = rows_at(ts)
         h, hd = hh[: rows.size], hh[rows.size:]
         if scale is None:
-            scale = np.max(np.abs(H) @ np.abs(phase.xi(ts)), axis=1) + 1e-300
+            # the size of the terms that make each row, over the next 4 periods of the fastest
+            # mode or up to t_stop if sooner (so t_end matters only within 4 periods of it)
+            step = phase.max_step(math.inf)
+            window = min(step, t_stop - t_start) if math.isfinite(step) else t_stop - t_start
+            scale = np.max(np.abs(H) @ np.abs(phase.xi(t_start + window * np.linspace(0.0, 1.0, 33))),
+                           axis=1) + 1e-300
             # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
             bound4 = phase.derivative_bound(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
             tol = ZERO * scale
             # a row that starts inside its zero band is armed once it has left it upwards
             armed = h[:, 0] > tol
-            thr = np.where(armed, 0.0, -tol)
+            # unarmed rows fire by going down by tol from where they start (a row can start
+            # below -tol: a gap located with a previous phase's larger band)
+            thr = np.where(armed, 0.0, np.minimum(-tol, h[:, 0] - tol))
         found = []
         for i in range(rows.size):
             hi, hdi = h[i], hd[i]

@@ -97,9 +97,10 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     their friction force reached: at that instant sticking on the cone's boundary also
     solves LCP (29), but the stick force is leaving the cone, so they slide. ``settled``
     contacts re-closed after a rebound below the gap's resolution: their impact is plastic.
-    ``facets`` maps contacts whose stick force reached a polygon facet, or whose slip velocity
-    reached a facet's normal, to that facet: LCP (29), with the force's position on the
-    facet as a bounded unknown, decides between sliding on the facet and on a generator.
+    ``facets`` maps contacts whose stick force reached a polygon facet (kind ``slip``), or whose
+    slip velocity reached a facet's normal (``turn``), to (facet, kind): LCP (29), with the
+    force's position on the facet as a bounded unknown, decides between sliding on the facet
+    and on a generator (a slip that has stopped at the turn goes to the stick test instead).
     """
     cs = system.contacts
     if cs.m == 0:
@@ -237,11 +238,14 @@ def _friction_states(cs, closed, v, slipping, facets, memory):
             continue
         vT = cs.JS[k].T @ v
         tolv = max(ZERO * memory.slip_scale[k], float(_tol(cs.JS[k], v).max()))
+        still = bool(np.all(np.abs(vT) <= tolv))
         if k in slipping:
             slide[k] = slipping[k]
-        elif k in facets:
-            edge[k] = facets[k]
-        elif np.all(np.abs(vT) <= tolv):
+        elif k in facets and (facets[k][1] == "slip" or not still):
+            # a stick limit reached on a facet, or a slip velocity turning onto a facet normal
+            # (a slip that stops there instead goes to the stick test)
+            edge[k] = facets[k][0]
+        elif still:
             stick.append(k)
         else:
             B = cs.generators(k)
