@@ -803,6 +803,8 @@ def test_gaps_and_slip():
     (dict(r=0), "even"),
     (dict(JS=[np.eye(3)]), "tangent directions"),
     (dict(JN=[[np.nan], [0.0], [1.0]]), "finite"),
+    (dict(JS=[E3[:, [0, 2]]]), "dependent"),            # a tangent along the normal
+    (dict(JS=[np.array([[1.0, 2.0], [0, 0], [0, 0]])]), "dependent"),   # two parallel tangents
 ])
 def test_from_arrays_rejects_bad_input(kwargs, match):
     args = dict(JN=E3[:, 2:], jN=[0.0], mu=0.3, eps=0.5, JS=[E3[:, :2]], r=4)

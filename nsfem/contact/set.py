@@ -99,6 +99,11 @@ class ContactSet:
                 raise NsfemError(f"contact set: JS[{k}] must be a finite n x d array (n = {n}), got shape {S.shape}")
             if S.shape[1] > 2:
                 raise NsfemError(f"contact set: contact {k} has {S.shape[1]} tangent directions (at most 2)")
+            if S.shape[1]:
+                sv = np.linalg.svd(np.column_stack([JN[:, k], S]), compute_uv=False)
+                if sv[-1] <= 1e-10 * sv[0]:
+                    raise NsfemError(f"contact set: the tangent directions JS[{k}] of contact {k} are dependent on "
+                                     "each other or on its normal J_N (a slip that moves the gap)")
             blocks.append(S)
         # r = 2 on a plane: friction along the first tangent only (the second is frictionless)
         blocks = [b[:, :1] if b.shape[1] == 2 and rr[k] == 2 else b for k, b in enumerate(blocks)]
