@@ -805,6 +805,7 @@ def test_gaps_and_slip():
     (dict(JN=[[np.nan], [0.0], [1.0]]), "finite"),
     (dict(JS=[E3[:, [0, 2]]]), "dependent"),            # a tangent along the normal
     (dict(JS=[np.array([[1.0, 2.0], [0, 0], [0, 0]])]), "dependent"),   # two parallel tangents
+    (dict(JN=[[0.0], [1.0]], JS=[np.eye(2)]), "dependent"),              # 2 dofs: no room for 2 tangents
 ])
 def test_from_arrays_rejects_bad_input(kwargs, match):
     args = dict(JN=E3[:, 2:], jN=[0.0], mu=0.3, eps=0.5, JS=[E3[:, :2]], r=4)

@@ -923,3 +923,55 @@ def test_initial_degenerate_contact_stays_closed():
     w = math.sqrt(k / m)
     assert res.events == [] and res.impacts == [] and np.all(res.state[0] == 2)
     np.testing.assert_allclose(res.normal_force[0], F * (1 - np.cos(w * res.t)), atol=1e-12 * F)
+
+
+def _random_frictional_system(seed):
+    """A random system of the stress review: 3-6 dofs, 1-3 contacts with 2-D friction polygons
+    (r = 4, 6, 8), Newton restitution 0 or 0.3, springs (definite or semi-definite), loads
+    pressing into the contacts, sometimes harmonic loads and damping."""
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(2, 7)), int(rng.integers(1, 4))
+    A = rng.normal(size=(n, n))
+    M = A @ A.T / n + np.eye(n)
+    B = rng.normal(size=(n, n))
+    if rng.random() < 0.5:
+        Q = B @ B.T * rng.uniform(0.5, 20)
+    else:
+        Bk = B[:, : int(rng.integers(0, n))]
+        Q = Bk @ Bk.T * rng.uniform(0.5, 20)
+    C = 0.02 * (np.eye(n) + 0.1 * Q) if rng.random() < 0.3 else None
+    JN = rng.normal(size=(n, m))
+    JN /= np.linalg.norm(JN, axis=0)
+    JS = []
+    for k in range(m):
+        S = rng.normal(size=(n, 2))
+        S -= np.outer(JN[:, k], JN[:, k] @ S)
+        JS.append(np.linalg.qr(S)[0])
+    jN = rng.uniform(0, 0.05, size=m) * (rng.random(m) < 0.6)
+    mu, eps, r = float(rng.uniform(0.1, 0.8)), float(rng.choice([0.0, 0.3])), int(rng.choice([4, 6, 8]))
+    f0 = -M @ JN.sum(axis=1) * rng.uniform(2, 15) + rng.normal(size=n)
+    fc = fs = None
+    omega = 0.0
+    if rng.random() < 0.5:
+        fc, fs, omega = rng.normal(size=n) * 3, rng.normal(size=n) * 3, float(rng.uniform(1, 10))
+    v0 = rng.normal(size=n) * rng.uniform(0, 1)
+    cs = ContactSet.from_arrays(JN, jN, mu=mu, eps=eps, JS=JS, r=r)
+    return ContactSystem.from_arrays(M=M, Q=Q, C=C, f0=f0, fc=fc, fs=fs, omega=omega, contacts=cs), v0
+
+
+@pytest.mark.parametrize("seed", [3, 4, 10, 38, 68, 125])
+def test_random_frictional_systems_exact_and_rk_agree(seed):
+    """Stress-review systems that once penetrated contacts (rk: gaps to -3.8), stalled ('no
+    progress' on approaches of 1e-9 m/s next to 0.2 m/s sliding) or depended on t_end: both
+    methods complete 2 s without penetration (beyond 1e-9 of the motion), keep the work
+    balance (exact 1e-9) and agree on q to 1e-6 of its size (their event logs may differ by
+    where an in-band re-closure is placed)."""
+    s, v0 = _random_frictional_system(seed)
+    a = integrate(s, 2.0, "exact", 0.01, v0=v0, max_events=5000)
+    b = integrate(s, 2.0, "rk", 0.01, v0=v0, max_events=5000, rtol=1e-12, atol=1e-15)
+    size = np.abs(a.q).max()
+    for res in (a, b):
+        assert res.completed and res.gap.min() >= -1e-9 * size
+        assert res.energy["dissipated_friction_J"] >= 0.0
+    assert a.energy["relative_residual"] < 1e-9
+    assert np.abs(a.q - b.q).max() <= 1e-6 * size

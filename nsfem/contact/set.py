@@ -101,7 +101,7 @@ class ContactSet:
                 raise NsfemError(f"contact set: contact {k} has {S.shape[1]} tangent directions (at most 2)")
             if S.shape[1]:
                 sv = np.linalg.svd(np.column_stack([JN[:, k], S]), compute_uv=False)
-                if sv[-1] <= 1e-10 * sv[0]:
+                if sv.size < 1 + S.shape[1] or sv[-1] <= 1e-10 * sv[0]:
                     raise NsfemError(f"contact set: the tangent directions JS[{k}] of contact {k} are dependent on "
                                      "each other or on its normal J_N (a slip that moves the gap)")
             blocks.append(S)

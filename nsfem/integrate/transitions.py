@@ -47,6 +47,8 @@ from .problem import ContactSystem
 
 #: relative size (to the terms that make it) below which a gap, gap rate or slip rate is zero
 ZERO = 1e-10
+#: approach speeds below this fraction of the contact velocities at an event are settled, not impacts
+CREEP = 1e-7
 
 
 @dataclass
@@ -114,6 +116,13 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     tv = np.maximum(ZERO * memory.rate_scale, _tol(cs.JN, v))
     cand = [k for k in range(cs.m) if g[k] <= tg[k] or k in before.closed or k in touching]
     approaching = [k for k in cand if gv[k] < -tv[k]]
+    # creeping: an approach slower than CREEP of the contact velocities in the impact LCP is
+    # below what that LCP resolves (its certificate is relative to its largest entry); such a
+    # contact is settled by projecting its g' onto 0 (below), not by an impact
+    vscale = max([abs(float(gv[k])) for k in cand]
+                 + [float(np.abs(cs.JS[k].T @ v).max(initial=0.0)) for k in cand], default=0.0)
+    creeping = [k for k in approaching if -gv[k] <= CREEP * vscale]
+    approaching = [k for k in approaching if k not in creeping]
     impact = None
     if approaching:
         active = [k for k in cand if gv[k] <= tv[k]]
@@ -139,6 +148,21 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         v = v_new
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v))  # what cancelled in the impact sets the round-off
+    creeping = [k for k in creeping if gv[k] < -tv[k]]
+    if creeping:
+        hold = sorted(set(creeping) | {k for k in cand if abs(gv[k]) <= tv[k]})
+        v_new, P = _settle(cs, Mf, v, hold)
+        ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
+        if impact is None:
+            impact = {"t": t, "contacts": [int(k) for k in hold], "impulse_Ns": P.tolist(),
+                      "approach_m_s": [float(-gv[k]) for k in hold], "plastic": [int(k) for k in creeping],
+                      "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
+        else:
+            impact["kinetic_after_J"] = ke[1]
+        impact["settled"] = sorted(set(impact.get("settled", [])) | {int(k) for k in creeping})
+        v = v_new
+        gv = cs.JN.T @ v
+        tv = np.maximum(tv, _tol(cs.JN, v))
     closed = [k for k in cand if abs(gv[k]) <= tv[k]]
     memory.degenerate = []
     while True:
