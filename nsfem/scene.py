@@ -43,6 +43,7 @@ SUPPORT_DOFS_BY_NAME = {
 REDUCTIONS = ("none", "modal", "craig-bampton")
 METHODS = ("exact", "rk", "penalty", "moreau")
 RK_SOLVERS = ("DOP853", "RK45")
+STIFF_SOLVERS = ("BDF", "Radau", "LSODA")
 PLOTS = ("phase", "gap", "psd", "forces", "campbell")
 INITIAL_STATES = ("rest", "stationary")
 AXIAL = ("P1", "P2")
@@ -88,6 +89,10 @@ def _unit(v):
 
 def _tolerance(v):
     return None if 0.0 < v < 1.0 else f"must lie in (0, 1), got {v}"
+
+
+def _theta(v):
+    return None if 0.5 <= v <= 1.0 else f"must lie in [0.5, 1], got {v}"
 
 
 def _even(v):
@@ -202,9 +207,16 @@ SCHEMA: dict[str, Any] = {
         "t_end": Key("float", 1.0, "simulated time [s]", check=_positive),
         "output_dt": Key("float", 1e-3, "output sampling step [s] (at most t_end)", check=_positive),
         "rk_solver": Key("str", "DOP853", "solve_ivp method of rk between events: DOP853 | RK45", RK_SOLVERS),
-        "rtol": Key("float", 1e-8, "relative tolerance of rk", check=_tolerance),
-        "atol": Key("float", 1e-12, "absolute tolerance of rk (reduced coordinates, about m and m/s)",
+        "rtol": Key("float", 1e-8, "relative tolerance of rk and penalty", check=_tolerance),
+        "atol": Key("float", 1e-12, "absolute tolerance of rk and penalty (reduced coordinates, about m and m/s)",
                     check=_positive),
+        "penalty_stiffness": Key("float", 0.0, "penalty contact stiffness c_p [N/m]; 0 = penalty_factor times the "
+                                 "largest static stiffness of the structure at a contact", check=_nonneg),
+        "penalty_factor": Key("float", 100.0, "c_p as a multiple of the structure's contact stiffness (when "
+                              "penalty_stiffness = 0)", check=_positive),
+        "stiff_solver": Key("str", "BDF", "solve_ivp method of penalty: BDF | Radau | LSODA", STIFF_SOLVERS),
+        "moreau_step": Key("float", 0.0, "time step of moreau [s]; 0 = output_dt / 10", check=_nonneg),
+        "moreau_theta": Key("float", 0.5, "theta of moreau's theta-method, in [0.5, 1]", check=_theta),
     },
     "output": {
         "dir": Key("str", "out", "output directory (relative to the working directory)"),
@@ -444,6 +456,8 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     sim = tree["simulation"]
     if sim["output_dt"] > sim["t_end"]:
         raise SceneError("simulation.output_dt", f"{sim['output_dt']} s exceeds t_end = {sim['t_end']} s")
+    if sim["moreau_step"] > sim["output_dt"]:
+        raise SceneError("simulation.moreau_step", f"{sim['moreau_step']} s exceeds output_dt = {sim['output_dt']} s")
     if sim["t_end"] / sim["output_dt"] > 1e7:
         raise SceneError("simulation.output_dt", f"t_end / output_dt = {sim['t_end'] / sim['output_dt']:.3g} "
                          "output steps exceeds the limit of 1e7")

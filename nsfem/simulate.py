@@ -51,6 +51,11 @@ def integrator_options(scene, method: str) -> dict:
     sim = scene["simulation"]
     if method == "rk":
         return {"solver": sim["rk_solver"], "rtol": sim["rtol"], "atol": sim["atol"]}
+    if method == "penalty":
+        return {"solver": sim["stiff_solver"], "rtol": sim["rtol"], "atol": sim["atol"],
+                "stiffness": sim["penalty_stiffness"] or None, "factor": sim["penalty_factor"]}
+    if method == "moreau":
+        return {"step": sim["moreau_step"] or sim["output_dt"] / 10.0, "theta": sim["moreau_theta"]}
     return {}
 
 

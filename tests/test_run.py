@@ -50,7 +50,10 @@ def test_run_rk_agrees_with_exact(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, match", [
-    (["--method", "penalty"], "not available"),
+    (["--method", "euler"], "invalid choice"),
+    (["--set", "simulation.moreau_step=0.01"], "moreau_step"),
+    (["--set", "simulation.moreau_theta=0.3"], "moreau_theta"),
+    (["--set", "simulation.stiff_solver=RK45"], "stiff_solver"),
     (["--set", "simulation.output_dt=2"], "output_dt"),
     (["--set", "simulation.rtol=2"], "rtol"),
     (["--set", "simulation.rk_solver=LSODA"], "rk_solver"),

@@ -1,0 +1,290 @@
+"""Moreau-Jean time stepping (method ``moreau``): a fixed step, one velocity-level LCP per step.
+
+Moreau's sweeping process discretized as in Jean's NSCD scheme (M. Jean, "The non-smooth
+contact dynamics method", CMAME 177 (1999); J.J. Moreau, "Unilateral contact and dry friction
+in finite freedom dynamics", CISM 302 (1988); Acary & Brogliato, "Numerical methods for
+nonsmooth dynamical systems" (2008), ch. 10). Over a step [t_k, t_k + h], with
+x_theta = (1 - theta) x_k + theta x_k+1 and the contact impulses p = J_N Lam_N + J_T beta:
+
+    M (v_k+1 - v_k) + h C v_theta + h Q q_theta = h f_theta + p,   q_k+1 = q_k + h v_theta.
+
+Eliminating q_theta = q_k + h theta v_theta gives, with the iteration matrix
+W = M + h theta C + h^2 theta^2 Q (factorized once),
+
+    v_k+1 = v_free + W^-1 p,   v_free = v_k + h W^-1 (f_theta - C v_k - Q (q_k + h theta v_k)).
+
+The impulses solve the LCP of the impact law, paper eqs. (30-32), with W in place of M and
+v_free as the unconstrained velocity (:func:`~nsfem.lcp.builders.contact_lcp`): Newton's law
+0 <= g'_k+1 + eps min(g'_k, 0) _|_ Lam_N >= 0 (as in ``impact_lcp``: a contact separating at
+the step start must merely not approach) and the polygonal friction cone on the slip
+velocity J_T^T v_k+1. Only the contacts of Jean's active set enter, those whose gap predicted
+at mid-step g_k + (h/2) g'_k is <= 0. The scheme is first-order accurate in time through
+impacts (and with friction); between them theta = 1/2 (the default) is the second-order,
+non-dissipative trapezoidal rule, theta > 1/2 damps high frequencies (algorithmically).
+
+Result: outputs at the output times are the step states there. The step is ``step`` (default
+output_dt / 10), shortened to output_dt / ceil(output_dt / step) so that every output time is a
+step time (``info['step_s']`` is the step used; a last output interval shorter than output_dt
+gets its own equal substeps). ``normal_force`` and ``tangential_force`` are the impulses of the
+step ending at the output time divided by h (mean forces; at t = 0 those of the first step);
+``state`` 0 open (inactive, or active without impulse), 1 stick, 2 slide (the LCP's slip speed
+z > 0, or a frictionless contact under load). ``events`` is empty (no events are located).
+``impacts`` lists the steps where a contact with an impulse approached faster than the smooth
+forces change its gap velocity within the step (|J_N^T (v_free - v_k)|), with t the step's end
+and the kinetic energies at its start and end. Gaps are not projected: ``info['max_penetration_m']`` is the
+deepest penetration, O(h) times the approach speeds.
+
+Energy: E = 1/2 v^T M v + 1/2 q^T K q (K, D, P the symmetric parts of Q and C and the skew part
+of Q). Multiplying the step equation by v_theta gives exactly
+
+    E_k+1 - E_k + (theta - 1/2) (dv^T M dv + dq^T K dq) = h f_theta.v_theta - h v_theta^T D v_theta
+                                                          - h v_theta^T P q_theta + p.v_theta.
+
+The terms are summed per step: work_external_J (h f_theta.v_theta), dissipated_damping_J
+(h v_theta^T D v_theta), work_circulatory_J (h v_theta^T P q_theta), and the contact work with the
+mean step velocity v_mid = (v_k + v_k+1) / 2 (the kinetic energy an impulse removes):
+lost_in_impacts_J = -sum Lam_N.(J_N^T v_mid), dissipated_friction_J = -sum beta.(J_T^T v_mid).
+The residual is then exactly minus the algorithmic dissipation
+(theta - 1/2) (dv^T M dv + dq^T K dq - p.dv), reported as ``info['numerical_dissipation_J']``:
+round-off for theta = 1/2 (the discrete balance is exact), first order in h otherwise (the
+impulsive part of dv cancels against p.dv, so impacts do not inflate it). For eps = 1 an
+impulse on an approaching contact does no work (J_N^T v_mid = 0); one that stops a contact
+separating at the step start (g'_k > 0, g'_k+1 = 0) does the work Lam_N g'_k / 2 > 0.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..errors import IntegrationError, NsfemError
+from ..lcp.builders import contact_lcp
+from ..linalg import Factorization, factorize
+from ..result import Result
+from .base import EXTRA_METHODS, Integrator, Progress, output_times
+from .problem import ContactSystem
+
+#: slip speed z (relative to the step's velocity scale) above which a contact slides
+SLIP_TOL = 1e-9
+
+
+class MoreauJean(Integrator):
+    """Moreau-Jean theta-method with one velocity-level contact LCP per step.
+
+    Options: ``step`` (s, default output_dt / 10), ``theta`` in [0.5, 1] (default 0.5),
+    ``progress`` (progress bar on a terminal; None = if stderr is one).
+    """
+
+    name = "moreau"
+
+    def __init__(self, system: ContactSystem, step: float | None = None, theta: float = 0.5,
+                 progress: bool | None = None, **options):
+        if options:
+            raise NsfemError(f"moreau: unknown option(s) {', '.join(sorted(options))} "
+                             "(available: step, theta, progress)")
+        super().__init__(system)
+        if step is not None:
+            try:
+                step = float(step)
+            except (TypeError, ValueError):
+                raise NsfemError(f"moreau: step must be a positive number of seconds, got {step!r}") from None
+            if not (math.isfinite(step) and step > 0):
+                raise NsfemError(f"moreau: step must be a positive number of seconds, got {step}")
+        try:
+            theta = float(theta)
+        except (TypeError, ValueError):
+            raise NsfemError(f"moreau: theta must be a number in [0.5, 1], got {theta!r}") from None
+        if not 0.5 <= theta <= 1.0:
+            raise NsfemError(f"moreau: theta must lie in [0.5, 1], got {theta}")
+        self.step, self.theta, self.progress = step, theta, progress
+        self._W: dict[float, tuple] = {}
+
+    def iteration_matrix(self, h: float) -> tuple[Factorization, np.ndarray, np.ndarray, np.ndarray]:
+        """W = M + h theta C + h^2 theta^2 Q factorized, and the free-velocity maps of step h
+        (cached per step size): v_free = A_v v + A_q q + G f_theta with G = h W^-1,
+        A_v = I - G (C + h theta Q), A_q = -G Q."""
+        if h not in self._W:
+            s, th = self.system, self.theta
+            Wf = factorize(s.M + h * th * s.C + (h * th) ** 2 * s.Q, "the Moreau iteration matrix W",
+                           "M + h theta C + h^2 theta^2 Q; a smaller step makes it closer to M")
+            G = h * Wf.solve(np.eye(s.n))
+            self._W[h] = (Wf, np.eye(s.n) - G @ (s.C + h * th * s.Q), -G @ s.Q, G)
+        return self._W[h]
+
+    def run(self, t_end: float, output_dt: float, q0=None, v0=None) -> Result:
+        sysm, th = self.system, self.theta
+        cs = sysm.contacts
+        n, m = sysm.n, cs.m
+        t_out = output_times(t_end, output_dt)
+        q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
+        v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
+        if q.shape != (n,) or v.shape != (n,):
+            raise NsfemError(f"initial q0 and v0 must have {n} entries")
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise NsfemError("initial q0 and v0 must be finite")
+        if m:
+            g0 = cs.gaps(q)
+            size = np.abs(cs.JN).T @ np.abs(q) + np.abs(cs.jN)
+            bad = np.flatnonzero(g0 < -1e-8 * (size + float(size.max(initial=0.0))))
+            if bad.size:
+                k = int(bad[0])
+                raise NsfemError(f"the initial state penetrates {cs.labels[k]} "
+                                 f"(gap {g0[k]:.6g} m < 0); start on or above every contact")
+        h_req = output_dt / 10 if self.step is None else self.step
+        if h_req > output_dt * (1 + 1e-12):
+            raise NsfemError(f"moreau: step ({h_req:g} s) must not exceed simulation.output_dt ({output_dt:g} s)")
+        per_output = max(1, math.ceil(output_dt / h_req - 1e-9))
+        wall0 = time.perf_counter()
+        K = 0.5 * (sysm.Q + sysm.Q.T)
+        P = 0.5 * (sysm.Q - sysm.Q.T)
+        D = 0.5 * (sysm.C + sysm.C.T)
+        n_out = len(t_out)
+        out = {"q": np.zeros((n, n_out)), "v": np.zeros((n, n_out)), "gap": np.zeros((m, n_out)),
+               "normal_force": np.zeros((m, n_out)), "tangential_force": np.zeros((m, 2, n_out)),
+               "state": np.zeros((m, n_out), dtype=np.int8)}
+        out["q"][:, 0], out["v"][:, 0], out["gap"][:, 0] = q, v, cs.gaps(q)
+        filled = 1
+        impacts: list = []
+        energy = {"initial_J": 0.5 * float(v @ sysm.M @ v + q @ K @ q), "work_external_J": 0.0,
+                  "dissipated_damping_J": 0.0, "work_circulatory_J": 0.0, "dissipated_friction_J": 0.0,
+                  "lost_in_impacts_J": 0.0}
+        e_max = abs(energy["initial_J"])
+        numerical, pivots, steps, penetration = 0.0, 0, 0, 0.0
+        saved = (q, v, dict(energy), numerical, steps, 0)  # the state at the last output
+        frictional = set(int(k) for k in cs.frictional)
+        progress = Progress(t_end, self.progress)
+        completed, failure = True, None
+        h_full = output_dt / per_output
+        harmonic, damped, circulatory = sysm.harmonic, bool(np.any(D)), bool(np.any(P))
+        try:
+            for i in range(1, n_out):
+                t0, span = float(t_out[i - 1]), float(t_out[i] - t_out[i - 1])
+                if abs(span - output_dt) <= 1e-9 * output_dt:
+                    k_sub, h = per_output, h_full
+                else:  # a last interval shorter than output_dt: equal substeps of at most the step
+                    k_sub = max(1, math.ceil(span / h_req - 1e-9))
+                    h = span / k_sub
+                Wf, Av, Aq, G = self.iteration_matrix(h)
+                f_next = sysm.load(t0) if harmonic else sysm.f0
+                for j in range(k_sub):
+                    t = t0 + j * h
+                    f_prev = f_next
+                    f_next = sysm.load(t0 + (j + 1) * h) if harmonic else sysm.f0
+                    f_th = (1 - th) * f_prev + th * f_next
+                    v_free = Av @ v + Aq @ q + G @ f_th
+                    v_new, impulse, forces, state, imp, n_piv = self._contact_step(Wf, q, v, v_free, h, t + h,
+                                                                                   frictional)
+                    pivots += n_piv
+                    v_th = (1 - th) * v + th * v_new
+                    q_new = q + h * v_th
+                    # energy terms, theta-weighted (exact discrete balance for theta = 1/2)
+                    energy["work_external_J"] += h * float(f_th @ v_th)
+                    if damped:
+                        energy["dissipated_damping_J"] += h * float(v_th @ D @ v_th)
+                    if circulatory:
+                        energy["work_circulatory_J"] += h * float(v_th @ P @ (q + th * h * v_th))
+                    dv = v_new - v
+                    if impulse is not None:  # contact work with the mean step velocity
+                        p_N, p_T = impulse
+                        v_mid = v + 0.5 * dv
+                        energy["lost_in_impacts_J"] -= float(p_N @ v_mid)
+                        energy["dissipated_friction_J"] -= float(p_T @ v_mid)
+                    if th != 0.5:
+                        dq = q_new - q
+                        p = 0.0 if impulse is None else float((p_N + p_T) @ dv)
+                        numerical += (th - 0.5) * (float(dv @ sysm.M @ dv + dq @ K @ dq) - p)
+                    if imp is not None:
+                        impacts.append(imp)
+                    q, v = q_new, v_new
+                    steps += 1
+                    e_max = max(e_max, abs(0.5 * float(v @ sysm.M @ v + q @ K @ q)))
+                    if m:
+                        penetration = max(penetration, -float(cs.gaps(q).min()))
+                        if steps == 1:  # t = 0 shows the forces of the first step
+                            out["normal_force"][:, 0], out["tangential_force"][:, :, 0] = forces[0], forces[1]
+                            out["state"][:, 0] = state
+                    progress(t + h, len(impacts))
+                out["q"][:, i], out["v"][:, i], out["gap"][:, i] = q, v, cs.gaps(q)
+                if m:
+                    out["normal_force"][:, i], out["tangential_force"][:, :, i] = forces[0], forces[1]
+                    out["state"][:, i] = state
+                filled = i + 1
+                saved = (q, v, dict(energy), numerical, steps, len(impacts))
+        except (KeyboardInterrupt, NsfemError) as exc:
+            # a partial result ends at the last output: the state and work terms as they were there
+            completed, failure = False, exc if isinstance(exc, NsfemError) else None
+            q, v, energy, numerical, steps, n_imp = saved
+            del impacts[n_imp:]
+        finally:
+            progress.close()
+        e_final = 0.5 * float(v @ sysm.M @ v + q @ K @ q)
+        energy["final_J"] = e_final
+        e_max = max(e_max, abs(e_final))
+        balance = (e_final - energy["initial_J"] - energy["work_external_J"] + energy["dissipated_damping_J"]
+                   + energy["work_circulatory_J"] + energy["dissipated_friction_J"] + energy["lost_in_impacts_J"])
+        energy["residual_J"] = balance
+        energy["max_J"] = e_max
+        energy["relative_residual"] = abs(balance) / e_max if e_max > 0 else 0.0
+        k = n_out if completed else filled
+        info = {**{kk: vv for kk, vv in sysm.info.items() if kk == "ndof_full"},
+                "step_s": h_full, "theta": th, "steps": steps, "lcp_pivots_total": pivots,
+                "max_penetration_m": max(penetration, 0.0), "numerical_dissipation_J": numerical}
+        res = Result(self.name, t_out[:k], out["q"][:, :k], out["v"][:, :k], out["gap"][:, :k],
+                     out["normal_force"][:, :k], out["tangential_force"][:, :, :k], out["state"][:, :k],
+                     [], impacts, energy, time.perf_counter() - wall0, float(t_out[k - 1]), completed, info)
+        if failure is not None:
+            res.info["error"] = str(failure)
+            raise IntegrationError(str(failure), res) from failure
+        return res
+
+    def _contact_step(self, Wf: Factorization, q, v, v_free, h: float, t_new: float, frictional: set):
+        """One LCP (30-32) with W over Jean's active set.
+
+        Returns (v_k+1, (J_N Lam_N, J_T beta) or None, (normal force (m,), tangential force (m, 2)),
+        state (m,), impact record or None, Lemke pivots).
+        """
+        sysm = self.system
+        cs = sysm.contacts
+        m = cs.m
+        nf, tf, state = np.zeros(m), np.zeros((m, 2)), np.zeros(m, dtype=np.int8)
+        if m == 0:
+            return v_free, None, (nf, tf), state, None, 0
+        gv = cs.JN.T @ v
+        active = np.flatnonzero(cs.gaps(q) + 0.5 * h * gv <= 0.0)
+        if active.size == 0:
+            return v_free, None, (nf, tf), state, None, 0
+        friction = np.array([k for k in active if int(k) in frictional], dtype=int)
+        g_free = cs.JN[:, active].T @ v_free
+        bN = g_free + cs.eps[active] * np.minimum(gv[active], 0.0)
+        lcp = contact_lcp(Wf, cs, active, friction, bN, cs.JT(friction).T @ v_free, base=v_free)
+        res = lcp.solve()
+        if not res.success:
+            raise NsfemError(f"moreau: contact LCP at t = {t_new:.9g} s: {res.message}")
+        v_new = lcp.motion(res.x)
+        lamN, beta, z = lcp.split(res.x)
+        p_N = cs.JN[:, active] @ lamN
+        p_T = lcp.W[:, active.size:] @ beta
+        nf[active] = lamN / h
+        scale = max(float(np.abs(bN).max(initial=0.0)), float(np.abs(lcp.b).max(initial=0.0)),
+                    float(np.abs(gv[active]).max(initial=0.0)), 1e-300)
+        slip = dict(zip((int(k) for k in friction), z))
+        for k, lam_T in zip(friction, lcp.tangential(res.x)):
+            tf[k, :lam_T.size] = lam_T / h
+        for j, k in enumerate(active):
+            if lamN[j] > 0:
+                state[k] = 1 if int(k) in slip and slip[int(k)] <= SLIP_TOL * scale else 2
+        # an impact: an approach faster than the smooth forces change the gap velocity in the step
+        smooth = np.abs(g_free - gv[active])
+        hit = (lamN > 0) & (-gv[active] > smooth)
+        imp = None
+        if np.any(hit):
+            imp = {"t": t_new, "contacts": [int(k) for k in active], "impulse_Ns": lamN.tolist(),
+                   "approach_m_s": [float(-gv[k]) for k in active], "plastic": [],
+                   "kinetic_before_J": 0.5 * float(v @ sysm.M @ v),
+                   "kinetic_after_J": 0.5 * float(v_new @ sysm.M @ v_new)}
+        return v_new, (p_N, p_T), (nf, tf), state, imp, res.pivots
+
+
+EXTRA_METHODS["moreau"] = MoreauJean
