@@ -133,3 +133,27 @@ def test_run_impact_clusters_end(extra, horizon, tmp_path, capsys):
     for imp in meta["impacts"]:
         assert imp["kinetic_after_J"] <= imp["kinetic_before_J"] * (1 + 1e-12), imp["t"]
     assert all(e["before"] != e["after"] or e["impact"] or e["graze"] for e in meta["events"])
+
+
+def test_four_methods_agree_on_the_shipped_scene():
+    """Shipped scene from rest, 0.1 s (the interface touches at midspan once): every method
+    within its expected error of `exact` in max |g - g_exact| / max |g_exact| (measured: rk at
+    rtol 1e-10 6e-10; moreau 2.0e-2 at h = 1e-4 s and 2.7e-3 at 2.5e-5 s; penalty 3.9e-5 at
+    factor 100 and 3.6e-6 at 1000). Bounds: rk 1e-7; moreau 5e-2 and, first order, at least
+    2x better at a quarter of the step; penalty 1e-3 and better when stiffer."""
+    from nsfem import load_scene
+    from nsfem.simulate import run_scene
+
+    gaps = {}
+    for name, sets in [("exact", []), ("rk", ["simulation.rtol=1e-10", "simulation.atol=1e-14"]),
+                       ("moreau", ["simulation.moreau_step=1e-4"]), ("moreau4", ["simulation.moreau_step=2.5e-5"]),
+                       ("penalty", []), ("penalty_stiff", ["simulation.penalty_factor=1e3"])]:
+        scene = load_scene(None, ["simulation.t_end=0.1", *sets])
+        res, _ = run_scene(scene, name.rstrip("4").replace("_stiff", ""))
+        assert res.completed and res.t.size == 101
+        gaps[name] = res.gap
+    ref = gaps["exact"]
+    err = {k: float(np.abs(g - ref).max() / np.abs(ref).max()) for k, g in gaps.items()}
+    assert err["rk"] < 1e-7
+    assert err["moreau"] < 5e-2 and err["moreau4"] < 0.5 * err["moreau"]
+    assert err["penalty"] < 1e-3 and err["penalty_stiff"] < 0.3 * err["penalty"]
