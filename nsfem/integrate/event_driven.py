@@ -391,16 +391,30 @@ class RungeKutta(EventDriven):
             funcs.append(ev)
             kinds.append(("row", i))
         hd0 = Hd @ xi0
-        for i in np.flatnonzero(~armed & (hd0 > tol_d)):  # rising from its band: stop at the top
-            def top(t, x, i=i):
-                return float(Hd[i, :r2] @ x + Hd[i, r2:] @ harm(t)) + tol_d[i]
-            top.terminal, top.direction = True, -1
-            funcs.append(top)
-            kinds.append(("max", int(i)))
-        sol = solve_ivp(rhs, (t0, t1), xi0[:r2], method=self.solver, rtol=self.rtol, atol=self.atol,
-                        events=funcs or None, dense_output=True)
-        if sol.status == -1:
-            raise NsfemError(f"rk ({self.solver}) failed at t = {sol.t[-1]:.6g} s: {sol.message}")
+        n_rows = len(funcs)
+        tops = list(np.flatnonzero(~armed & (hd0 > tol_d)))  # rising from its band: stop at the top
+        while True:
+            funcs, kinds = funcs[:n_rows], kinds[:n_rows]
+            for i in tops:
+                def top(t, x, i=i):
+                    return float(Hd[i, :r2] @ x + Hd[i, r2:] @ harm(t)) + tol_d[i]
+                top.terminal, top.direction = True, -1
+                funcs.append(top)
+                kinds.append(("max", int(i)))
+            sol = solve_ivp(rhs, (t0, t1), xi0[:r2], method=self.solver, rtol=self.rtol, atol=self.atol,
+                            events=funcs or None, dense_output=True)
+            if sol.status == -1:
+                raise NsfemError(f"rk ({self.solver}) failed at t = {sol.t[-1]:.6g} s: {sol.message}")
+            if sol.status != 1:
+                break
+            hits = [(te[0], j) for j, te in enumerate(sol.t_events) if len(te)]
+            t_e = min(h[0] for h in hits)
+            at = [kinds[j] for te, j in hits if te <= t_e + 1e-12 * max(1.0, abs(t_e))]
+            early = [i for kind, i in at if kind == "max" and t_e <= t0 + 1e-12 * max(1.0, abs(t0))]
+            if not early:
+                break
+            # a top at the phase start: below what rk's dense output resolves; the row stays unarmed
+            tops = [i for i in tops if i not in early]
 
         def xi_fun(t):
             t = np.asarray(t, dtype=float)
@@ -408,9 +422,6 @@ class RungeKutta(EventDriven):
             return np.concatenate([x, harm(t)], axis=0) if t.ndim else np.concatenate([x, harm(t)])
 
         if sol.status == 1:
-            hits = [(te[0], j) for j, te in enumerate(sol.t_events) if len(te)]
-            t_e = min(h[0] for h in hits)
-            at = [kinds[j] for te, j in hits if te <= t_e + 1e-12 * max(1.0, abs(t_e))]
             rows_at = [i for kind, i in at if kind == "row"]
             if not rows_at:  # a maximum of an unarmed row: restart the phase there (armed if above its band)
                 return Event(float(t_e), [], []), xi_fun
