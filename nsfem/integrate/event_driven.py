@@ -373,7 +373,11 @@ class RungeKutta(EventDriven):
             return Ax @ x + Af @ harm(t)
 
         H = rows.H
-        scale = np.abs(H) @ np.abs(xi0) + 1e-300
+        # the band of each row as in exact: the size of its terms over the first sampling step
+        step = phase.max_step(math.inf)
+        window = min(step, t1 - t0) if math.isfinite(step) else t1 - t0
+        xis = phase.xi(t0 + window * np.linspace(0.0, 1.0, 9))
+        scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
         tol = 1e-11 * scale
         h0 = H @ xi0
         armed = h0 > tol
@@ -382,7 +386,7 @@ class RungeKutta(EventDriven):
         # a step, and solve_ivp sees only sign changes between steps)
         thr = np.where(armed, 0.0, np.minimum(-tol, h0 - tol))
         Hd = H @ A_aug
-        tol_d = 1e-11 * (np.abs(Hd) @ np.abs(xi0)) + 1e-300
+        tol_d = 1e-11 * np.max(np.abs(Hd) @ np.abs(xis), axis=1) + 1e-300
         funcs, kinds = [], []
         for i in range(rows.size):
             def ev(t, x, i=i):
@@ -393,14 +397,21 @@ class RungeKutta(EventDriven):
         hd0 = Hd @ xi0
         n_rows = len(funcs)
         tops = list(np.flatnonzero(~armed & (hd0 > tol_d)))  # rising from its band: stop at the top
+        ups = list(np.flatnonzero(~armed))
         while True:
             funcs, kinds = funcs[:n_rows], kinds[:n_rows]
+            for i in ups:  # leaving the band upwards (a slow rise): restart armed
+                def up(t, x, i=i):
+                    return float(H[i, :r2] @ x + H[i, r2:] @ harm(t)) - 2.0 * tol[i]
+                up.terminal, up.direction = True, 1
+                funcs.append(up)
+                kinds.append(("up", int(i)))
             for i in tops:
                 def top(t, x, i=i):
                     return float(Hd[i, :r2] @ x + Hd[i, r2:] @ harm(t)) + tol_d[i]
                 top.terminal, top.direction = True, -1
                 funcs.append(top)
-                kinds.append(("max", int(i)))
+                kinds.append(("top", int(i)))
             sol = solve_ivp(rhs, (t0, t1), xi0[:r2], method=self.solver, rtol=self.rtol, atol=self.atol,
                             events=funcs or None, dense_output=True)
             if sol.status == -1:
@@ -410,11 +421,16 @@ class RungeKutta(EventDriven):
             hits = [(te[0], j) for j, te in enumerate(sol.t_events) if len(te)]
             t_e = min(h[0] for h in hits)
             at = [kinds[j] for te, j in hits if te <= t_e + 1e-12 * max(1.0, abs(t_e))]
-            early = [i for kind, i in at if kind == "max" and t_e <= t0 + 1e-12 * max(1.0, abs(t0))]
-            if not early:
+            soon = t_e <= t0 + 1e-12 * max(1.0, abs(t0))
+            # a top at the phase start, or a band exit there that the state does not confirm, is
+            # below what rk's dense output resolves: that row is not watched this phase
+            early_top = [i for kind, i in at if soon and kind == "top"]
+            early_up = [i for kind, i in at if soon and kind == "up"
+                        and float(H[i, :r2] @ sol.sol(t_e) + H[i, r2:] @ harm(t_e)) <= tol[i]]
+            if not (early_top or early_up):
                 break
-            # a top at the phase start: below what rk's dense output resolves; the row stays unarmed
-            tops = [i for i in tops if i not in early]
+            tops = [i for i in tops if i not in early_top]
+            ups = [i for i in ups if i not in early_up]
 
         def xi_fun(t):
             t = np.asarray(t, dtype=float)
