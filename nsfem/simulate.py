@@ -98,6 +98,9 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
     red = scene_reduction(scene, model) if reduction is None else reduction
     system = ContactSystem.from_scene(scene, model, red)
     q0, v0 = initial_state(scene, model, red, system)
+    if warn is not None and method == "penalty" and np.any(system.contacts.mu > 0):
+        warn(f"penalty neglects friction, as in the paper: the friction coefficients of "
+             f"{int(np.sum(system.contacts.mu > 0))} contacts are ignored (use exact, rk or moreau for friction)")
     if warn is not None and method in ("exact", "rk"):
         f_max, samples = search_cost(system, sim["t_end"])
         if samples > SAMPLES_WARN:

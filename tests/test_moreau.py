@@ -230,7 +230,7 @@ def test_block_slides_above_the_friction_limit(r, direction):
 @pytest.mark.parametrize("options, match", [
     ({"step": 0.0}, "step"), ({"step": -1e-3}, "step"), ({"step": float("nan")}, "step"), ({"step": "x"}, "step"),
     ({"theta": 0.4}, "theta"), ({"theta": 1.1}, "theta"), ({"theta": "a"}, "theta"),
-    ({"gamma": 0.5}, "gamma"),
+    ({"gamma": 0.5}, "gamma"), ({"step": True}, "step"), ({"step": "1e-3"}, "step"), ({"theta": True}, "theta"),
 ])
 def test_bad_options(options, match):
     with pytest.raises(NsfemError, match=match):
@@ -292,3 +292,8 @@ def test_lcp_failure_raises_with_partial_result(monkeypatch):
     res = info.value.result
     assert not res.completed and res.t[-1] < 0.07 < res.t[-1] + 0.02  # first contact at t = 0.068 s
     assert "error" in res.info
+
+
+def test_too_many_steps_are_refused_before_running():
+    with pytest.raises(NsfemError, match="moreau_step"):
+        integrate(oscillator(0.5), 1.0, "moreau", 0.1, step=1e-12)

@@ -259,7 +259,7 @@ def test_default_stiffness_and_damping():
     ({"stiffness": float("nan")}, "stiffness"), ({"factor": 0}, "factor"),
     ({"damping": -1.0}, "damping"), ({"damping_ratio": -0.1}, "damping_ratio"), ({"rtol": 0.0}, "rtol"),
     ({"rtol": 1.0}, "rtol"), ({"atol": 0.0}, "atol"), ({"max_step": 0.0}, "max_step"),
-    ({"restitution_rule": "hertz"}, "restitution_rule"), ({"zeno": 1e-8}, "zeno"),
+    ({"restitution_rule": "hertz"}, "restitution_rule"), ({"zeno": 1e-8}, "zeno"), ({"stiffness": True}, "stiffness"),
 ])
 def test_bad_options(options, name):
     with pytest.raises(NsfemError, match=name):

@@ -173,3 +173,9 @@ def test_exact_and_rk_agree_through_impact_sequences():
     b = integrate(s, 0.02, "rk", 1e-4, rtol=1e-12, atol=1e-16)
     assert len(a.impacts) >= 20
     assert np.abs(a.gap - b.gap).max() <= 1e-7 * np.abs(a.gap).max()
+
+
+def test_penalty_warns_that_it_neglects_friction(tmp_path, capsys):
+    assert cli.main(["run", "--method", "penalty", "--out", str(tmp_path), "--set", "delamination.0.friction=0.3",
+                     "--set", "simulation.t_end=0.002", "--set", "simulation.output_dt=0.001"]) == 0
+    assert "penalty neglects friction" in capsys.readouterr().err

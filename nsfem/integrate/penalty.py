@@ -150,12 +150,12 @@ class Penalty(Integrator):
             raise NsfemError(f"penalty: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
 
         def positive(value, name):
-            if not (isinstance(value, numbers.Real) and math.isfinite(value) and value > 0):
+            if not (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value) and value > 0):
                 raise NsfemError(f"penalty: {name} must be a finite positive number, got {value!r}")
             return float(value)
 
         def nonnegative(value, name):
-            if not (isinstance(value, numbers.Real) and math.isfinite(value) and value >= 0):
+            if not (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value) and value >= 0):
                 raise NsfemError(f"penalty: {name} must be a finite number >= 0, got {value!r}")
             return float(value)
 
