@@ -125,6 +125,11 @@ def damping_ratio(eps: float, rule: str = "cut") -> float:
 _damping_ratio = damping_ratio  # Penalty's option of that name shadows the function
 
 
+def _number(value) -> bool:
+    """A finite real number (not a bool)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+
+
 class Penalty(Integrator):
     """Spring-dashpot penalty contacts, stiff ODE solver (see the module docstring).
 
@@ -150,12 +155,12 @@ class Penalty(Integrator):
             raise NsfemError(f"penalty: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
 
         def positive(value, name):
-            if not (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value) and value > 0):
+            if not (_number(value) and value > 0):
                 raise NsfemError(f"penalty: {name} must be a finite positive number, got {value!r}")
             return float(value)
 
         def nonnegative(value, name):
-            if not (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value) and value >= 0):
+            if not (_number(value) and value >= 0):
                 raise NsfemError(f"penalty: {name} must be a finite number >= 0, got {value!r}")
             return float(value)
 
