@@ -38,6 +38,27 @@ class Integrator:
         raise NotImplementedError
 
 
+def initial_state(system: ContactSystem, q0=None, v0=None) -> tuple[np.ndarray, np.ndarray]:
+    """(q, v) from q0, v0 (default rest), validated: n finite entries each, no contact penetrated
+    (beyond 1e-8 of the terms that make its gap)."""
+    n, cs = system.n, system.contacts
+    q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
+    v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
+    if q.shape != (n,) or v.shape != (n,):
+        raise NsfemError(f"initial q0 and v0 must have {n} entries")
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        raise NsfemError("initial q0 and v0 must be finite")
+    if cs.m:
+        g0 = cs.gaps(q)
+        size = np.abs(cs.JN).T @ np.abs(q) + np.abs(cs.jN)
+        bad = np.flatnonzero(g0 < -1e-8 * (size + float(size.max(initial=0.0))))
+        if bad.size:
+            k = int(bad[0])
+            raise NsfemError(f"the initial state penetrates {cs.labels[k]} "
+                             f"(gap {g0[k]:.6g} m < 0); start on or above every contact")
+    return q, v
+
+
 def output_times(t_end: float, output_dt: float) -> np.ndarray:
     if not (math.isfinite(t_end) and t_end > 0):
         raise NsfemError(f"simulation.t_end must be a positive number, got {t_end}")

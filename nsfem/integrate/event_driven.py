@@ -31,7 +31,7 @@ from scipy.integrate import solve_ivp
 from ..errors import IntegrationError, NsfemError
 from ..linalg import factorize
 from ..result import Result
-from .base import Integrator, Progress, output_times
+from .base import Integrator, Progress, initial_state, output_times
 from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event
 from .transitions import Memory, hold_degenerate, resolve
@@ -78,20 +78,7 @@ class EventDriven(Integrator):
         cs = sysm.contacts
         n, m = sysm.n, cs.m
         t_out = output_times(t_end, output_dt)
-        q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
-        v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
-        if q.shape != (n,) or v.shape != (n,):
-            raise NsfemError(f"initial q0 and v0 must have {n} entries")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            raise NsfemError("initial q0 and v0 must be finite")
-        if m:
-            g0 = cs.gaps(q)
-            size = np.abs(cs.JN).T @ np.abs(q) + np.abs(cs.jN)
-            bad = np.flatnonzero(g0 < -1e-8 * (size + float(size.max(initial=0.0))))
-            if bad.size:
-                k = int(bad[0])
-                raise NsfemError(f"the initial state penetrates {cs.labels[k]} "
-                                 f"(gap {g0[k]:.6g} m < 0); start on or above every contact")
+        q, v = initial_state(sysm, q0, v0)
         wall0 = time.perf_counter()
         Mf = factorize(sysm.M, "the mass matrix M")
         K = 0.5 * (sysm.Q + sysm.Q.T)

@@ -66,7 +66,7 @@ from ..errors import IntegrationError, NsfemError
 from ..lcp.builders import contact_lcp
 from ..linalg import Factorization, factorize
 from ..result import Result
-from .base import EXTRA_METHODS, Integrator, Progress, output_times
+from .base import EXTRA_METHODS, Integrator, Progress, initial_state, output_times
 from .problem import ContactSystem
 
 #: slip speed z (relative to the step's velocity scale) above which a contact slides
@@ -129,20 +129,7 @@ class MoreauJean(Integrator):
         cs = sysm.contacts
         n, m = sysm.n, cs.m
         t_out = output_times(t_end, output_dt)
-        q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
-        v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
-        if q.shape != (n,) or v.shape != (n,):
-            raise NsfemError(f"initial q0 and v0 must have {n} entries")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            raise NsfemError("initial q0 and v0 must be finite")
-        if m:
-            g0 = cs.gaps(q)
-            size = np.abs(cs.JN).T @ np.abs(q) + np.abs(cs.jN)
-            bad = np.flatnonzero(g0 < -1e-8 * (size + float(size.max(initial=0.0))))
-            if bad.size:
-                k = int(bad[0])
-                raise NsfemError(f"the initial state penetrates {cs.labels[k]} "
-                                 f"(gap {g0[k]:.6g} m < 0); start on or above every contact")
+        q, v = initial_state(sysm, q0, v0)
         h_req = output_dt / 10 if self.step is None else self.step
         if h_req > output_dt * (1 + 1e-12):
             raise NsfemError(f"moreau: step ({h_req:g} s) must not exceed simulation.output_dt ({output_dt:g} s)")

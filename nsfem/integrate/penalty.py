@@ -45,7 +45,7 @@ from scipy.optimize import brentq
 
 from ..errors import IntegrationError, NsfemError
 from ..result import Result
-from .base import EXTRA_METHODS, Integrator, Progress, output_times
+from .base import EXTRA_METHODS, Integrator, Progress, initial_state, output_times
 from .problem import ContactSystem
 
 SOLVERS = {"BDF": BDF, "Radau": Radau, "LSODA": LSODA}
@@ -258,17 +258,7 @@ class Penalty(Integrator):
         sysm, cs = self.system, self.system.contacts
         n, m = sysm.n, cs.m
         t_out = output_times(t_end, output_dt)
-        q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
-        v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
-        if q.shape != (n,) or v.shape != (n,):
-            raise NsfemError(f"initial q0 and v0 must have {n} entries")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            raise NsfemError("initial q0 and v0 must be finite")
-        g0 = cs.gaps(q)
-        if m and np.any(g0 < 0):
-            k = int(np.argmin(g0))
-            raise NsfemError(f"the initial state penetrates {cs.labels[k]} (gap {g0[k]:.6g} m < 0); "
-                             "start on or above every contact")
+        q, v = initial_state(sysm, q0, v0)
         wall0 = time.perf_counter()
         X = np.zeros((2 * n + 4, len(t_out)))
         x = np.concatenate([q, v, np.zeros(4)])
