@@ -151,16 +151,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     creeping = [k for k in creeping if gv[k] < -tv[k]]
     if creeping:
         hold = sorted(set(creeping) | {k for k in cand if abs(gv[k]) <= tv[k]})
-        v_new, P = _settle(cs, Mf, v, hold)
-        ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
-        if impact is None:
-            impact = {"t": t, "contacts": [int(k) for k in hold], "impulse_Ns": P.tolist(),
-                      "approach_m_s": [float(-gv[k]) for k in hold], "plastic": [int(k) for k in creeping],
-                      "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
-        else:
-            impact["kinetic_after_J"] = ke[1]
-        impact["settled"] = sorted(set(impact.get("settled", [])) | {int(k) for k in creeping})
-        v = v_new
+        v, impact = _settle(system, Mf, t, v, hold, creeping, impact, plastic=True)
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v))
     closed = [k for k in cand if abs(gv[k]) <= tv[k]]
@@ -187,16 +178,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         if not micro:
             break
         closed = sorted(closed + micro)
-        v_new, P = _settle(cs, Mf, v, closed)
-        ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
-        if impact is None:
-            impact = {"t": t, "contacts": [int(k) for k in closed], "impulse_Ns": P.tolist(),
-                      "approach_m_s": [float(-gv[k]) for k in closed], "plastic": [],
-                      "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
-        else:
-            impact["kinetic_after_J"] = ke[1]
-        impact["settled"] = sorted(set(impact.get("settled", [])) | {int(k) for k in micro})
-        v = v_new
+        v, impact = _settle(system, Mf, t, v, closed, micro, impact)
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v))
     if not closed:
@@ -300,12 +282,26 @@ def _facet_contacts(cs, edge: dict):
     return replace(cs, JS=tuple(JS), mu=mu, r=r), extra
 
 
-def _settle(cs, Mf: Factorization, v: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray]:
-    """The velocity nearest to v in the kinetic metric with g' = 0 on ``closed`` (and the impulses)."""
-    J = cs.JN[:, closed]
+def _settle(system: ContactSystem, Mf: Factorization, t: float, v: np.ndarray, hold, settled, impact,
+            plastic: bool = False) -> tuple[np.ndarray, dict]:
+    """Project v onto g' = 0 on ``hold`` (the nearest velocity in the kinetic metric) and record
+    it in the event's impact record (created if there is none; ``settled`` are the contacts it
+    settles, the kinetic energy it removes counts as impact loss)."""
+    cs = system.contacts
+    J = cs.JN[:, hold]
     Y = Mf.solve(J)
     P = np.linalg.lstsq(J.T @ Y, -(J.T @ v), rcond=1e-12)[0]
-    return v + Y @ P, P
+    v_new = v + Y @ P
+    ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
+    if impact is None:
+        gv = J.T @ v
+        impact = {"t": t, "contacts": [int(k) for k in hold], "impulse_Ns": P.tolist(),
+                  "approach_m_s": [float(-x) for x in gv], "plastic": [int(k) for k in settled] if plastic else [],
+                  "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
+    else:
+        impact["kinetic_after_J"] = ke[1]
+    impact["settled"] = sorted(set(impact.get("settled", [])) | {int(k) for k in settled})
+    return v_new, impact
 
 
 def hold_degenerate(mode: Mode, phase_of, memory: Memory, cs, v: np.ndarray) -> Mode:
