@@ -241,9 +241,17 @@ def cmd_run(args) -> int:
         if warning:
             print(f"nsfem run: warning: {warning}", file=sys.stderr)
     path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, dict(scene))
+    outputs = [str(path)]
+    if result.completed:
+        from .plot.results import write_plots
+
+        def warn(text):
+            print(f"nsfem run: warning: {text}", file=sys.stderr)
+
+        outputs += [str(p) for p in write_plots(result, system, out_dir, scene["output"]["plots"], warn=warn)]
     summary = result.summary()
     payload = {"title": scene["title"], **summary, "wall_s": time.perf_counter() - t0,
-               "integration_wall_s": result.wall_s, "outputs": [str(path)],
+               "integration_wall_s": result.wall_s, "outputs": outputs,
                "energy_terms": result.energy, "speed_hz": scene["rotation"]["speed_hz"]}
     lines = [scene["title"], f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
@@ -252,7 +260,7 @@ def cmd_run(args) -> int:
              f"{100 * summary['closed_fraction']:.2f} % of the time, max normal force "
              f"{summary['max_normal_force_N']:.4g} N, energy residual "
              f"{summary['energy']:.1e}" if summary["min_gap_m"] is not None else "no contacts",
-             f"wrote {path}"]
+             "wrote " + ", ".join(outputs)]
     if not result.completed:
         lines.append(f"interrupted at t = {result.t_end:g} s: the results file holds the run up to there")
     _emit(args, payload, "\n".join(lines))

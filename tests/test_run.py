@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,7 +26,10 @@ def test_run_json_contract_and_results_file(tmp_path, capsys):
     assert out["method"] == "exact" and out["t_end"] == pytest.approx(0.05) and out["completed"]
     assert out["energy"] < 1e-9  # closed-form propagation: the work balance holds to round-off
     path = tmp_path / "result.npz"
-    assert out["outputs"] == [str(path)]
+    # the results file, then the plots of output.plots that have data (0.05 s: no contact force yet)
+    assert out["outputs"][0] == str(path) and str(tmp_path / "phase.png") in out["outputs"]
+    assert str(tmp_path / "gap.png") in out["outputs"]
+    assert all(Path(p).stat().st_size > 10_000 for p in out["outputs"][1:])
     with np.load(path) as r:  # numpy alone
         meta = json.loads(str(r["meta"]))
         assert r["t"].shape == (11,) and r["gap"].shape == (9, 11)

@@ -1,0 +1,173 @@
+"""Result plots (nsfem.plot.results): files written off-screen and atomically, and the numbers behind them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nsfem import load_scene
+from nsfem.analysis.modes import natural_frequencies
+from nsfem.errors import NsfemError
+from nsfem.integrate import ContactSystem
+from nsfem.plot import results as rp
+from nsfem.result import Result
+from nsfem.simulate import run_scene
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def run():
+    return run_scene(load_scene(None, ["simulation.t_end=0.3"]))
+
+
+def assert_png(path, min_bytes=10_000):
+    assert path.exists()
+    assert path.read_bytes()[:8] == PNG
+    assert path.stat().st_size > min_bytes
+
+
+@pytest.mark.parametrize("name", rp.RESULT_PLOTS)
+def test_each_plot_is_written_without_display(run, tmp_path, name):
+    result, system = run
+    out = rp.PLOT_FUNCTIONS[name](result, system, tmp_path / "sub" / f"{name}.png")
+    assert out == tmp_path / "sub" / f"{name}.png"
+    assert_png(out)
+    assert [p.name for p in out.parent.iterdir()] == [f"{name}.png"]  # no temporary file left
+
+
+def test_write_plots_selects_and_skips_campbell(run, tmp_path):
+    result, system = run
+    warned = []
+    paths = rp.write_plots(result, system, tmp_path, ["gap", "campbell", "phase", "gap"], warn=warned.append)
+    assert [p.name for p in paths] == ["gap.png", "phase.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["gap.png", "phase.png"]
+    assert warned == []
+    with pytest.raises(NsfemError, match="unknown plot"):
+        rp.write_plots(result, system, tmp_path, ["phase", "bode"])
+
+
+def test_modal_basis_is_the_open_non_rotating_one(run):
+    result, system = run
+    f, Phi = rp.modal_basis(system)
+    M = system.M
+    assert np.allclose(Phi.T @ M @ Phi, np.eye(system.n), atol=1e-9)
+    model = system.info["model"]
+    # the reduced model's lowest modes are those of the full finite-element model (non-rotating)
+    ref = natural_frequencies(model, "open", 3).frequencies_hz
+    assert np.allclose(f[:3], ref, rtol=1e-4)
+    # ... and not those of the rotating system's Q (centrifugal softening at 21 Hz)
+    fq = np.sqrt(np.abs(np.linalg.eigvals(np.linalg.solve(M, system.Q)))) / (2 * np.pi)
+    assert abs(np.sort(fq)[0] - f[0]) > 1.0
+
+
+def test_modal_coordinates_reconstruct_the_motion(run):
+    result, system = run
+    f, eta, deta = rp.modal_coordinates(result, system)
+    _, Phi = rp.modal_basis(system)
+    assert eta.shape == result.q.shape == deta.shape
+    scale = np.abs(result.q).max()
+    assert np.abs(Phi @ eta - result.q).max() < 1e-8 * scale
+    assert np.abs(Phi @ deta - result.v).max() < 1e-8 * np.abs(result.v).max()
+    # the first three modes carry the vibration (as in the paper's fig. 3a)
+    rms = eta.std(axis=1)
+    assert set(np.argsort(rms)[-3:]) == {0, 1, 2}
+
+
+def test_welch_peak_and_power_of_a_pure_harmonic():
+    dt, f0, amp = 1e-3, 21.0, 2e-4
+    t = np.arange(0.0, 2.0, dt)
+    f, P = rp.welch_psd(amp * np.sin(2 * np.pi * f0 * t) + 1e-3, dt)  # offset removed
+    df = f[1] - f[0]
+    assert abs(f[np.argmax(P)] - f0) <= df
+    assert np.sum(P) * df == pytest.approx(amp**2 / 2, rel=0.05)  # Parseval: variance
+    assert P[0] < 1e-6 * P.max()
+
+
+def test_psd_point_lies_in_an_undamaged_region(run):
+    _, system = run
+    model = system.info["model"]
+    pt = rp.measurement_point(model)
+    assert pt["undamaged"] and pt["segment"] == "intact_0"
+    assert 0.0 < pt["x"] < 0.1  # outside the delamination (0.1, 0.9), off the support
+    assert pt["dof"] == model.dof("intact_0", "W", pt["x"])
+    assert np.abs(system.info["reduction"].T[pt["dof"]]).max() > 0  # a free dof, not a support
+    right = rp.measurement_point(model, x=0.95)
+    assert right["segment"] == "intact_1" and right["x"] == pytest.approx(0.95, abs=0.02)
+
+
+def test_gap_plot_uses_the_midspan_contact(run):
+    result, system = run
+    (g,) = rp.delamination_middles(system)
+    assert g["name"] == "delamination.0" and g["span"] == (0.1, 0.9)
+    assert g["x"] == pytest.approx(0.5)
+    assert system.contacts.labels[g["middle"]] == "delamination.0.4"
+    assert g["indices"] == list(range(system.contacts.m))
+
+
+def test_closed_intervals_from_events_and_from_states(run):
+    result, _ = run
+    k = 4
+    spans = rp.closed_intervals(result, k)
+    assert spans and all(a <= b for a, b in spans)
+    closes = [e["t"] for e in result.events if k in e["after"]["closed"]]
+    assert spans[0][0] in closes
+    # without events, the sampled states give the intervals
+    t = np.linspace(0.0, 1.0, 11)
+    state = np.zeros((1, 11), int)
+    state[0, 2:4] = 1
+    state[0, 9:] = 2
+    r = Result("moreau", t, np.zeros((1, 11)), np.zeros((1, 11)), np.zeros((1, 11)), np.zeros((1, 11)),
+               np.zeros((1, 2, 11)), state)
+    assert rp.closed_intervals(r, 0) == [(0.2, pytest.approx(0.3)), (pytest.approx(0.9), 1.0)]
+
+
+def test_loaded_contacts_are_those_with_force_or_impulse(run):
+    result, _ = run
+    rows = rp.loaded_contacts(result)
+    hit = {k for im in result.impacts for k in im["contacts"]}
+    assert hit <= set(rows)
+    for k in set(range(result.gap.shape[0])) - set(rows):
+        assert not result.normal_force[k].any()
+
+
+def test_plots_without_data_are_skipped_with_a_reason(tmp_path):
+    # two uncoupled oscillators (1 and 3 Hz), no contacts, no finite-element model
+    w = 2 * np.pi * np.array([1.0, 3.0])
+    system = ContactSystem.from_arrays(M=np.eye(2), Q=np.diag(w**2))
+    t = np.linspace(0.0, 2.0, 201)
+    q = np.vstack([np.cos(w[0] * t), 0.1 * np.sin(w[1] * t)])
+    v = np.vstack([-w[0] * np.sin(w[0] * t), 0.1 * w[1] * np.cos(w[1] * t)])
+    empty = np.zeros((0, t.size))
+    r = Result("exact", t, q, v, empty, empty, np.zeros((0, 2, t.size)), empty.astype(int), t_end=2.0)
+    warned = []
+    paths = rp.write_plots(r, system, tmp_path, list(rp.RESULT_PLOTS), warn=warned.append)
+    assert [p.name for p in paths] == ["phase.png"]
+    assert_png(paths[0])
+    assert len(warned) == 3 and all("skipped" in m for m in warned)
+    assert any("gap" in m and "no contacts" in m for m in warned)
+    assert any("psd" in m and "model" in m for m in warned)
+    f, eta, _ = rp.modal_coordinates(r, system)  # no model: the symmetric part of Q
+    assert np.allclose(f, [1.0, 3.0])
+    assert np.allclose(np.abs(eta), np.abs(q))
+    with pytest.warns(UserWarning, match="forces.*no contacts"):
+        assert rp.write_plots(r, system, tmp_path, ["forces"]) == []
+
+
+def test_a_failed_write_keeps_the_old_file(run, tmp_path, monkeypatch):
+    from matplotlib.figure import Figure
+
+    result, system = run
+    path = rp.psd_plot(result, system, tmp_path / "psd.png")
+    before = path.read_bytes()
+
+    def broken(self, fname, *args, **kwargs):
+        with open(fname, "wb") as fh:
+            fh.write(b"partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(Figure, "savefig", broken)
+    with pytest.raises(OSError, match="disk full"):
+        rp.psd_plot(result, system, path)
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["psd.png"]
