@@ -120,7 +120,7 @@ def cmd_pending(args) -> int:
         # still validate what the user wrote (a sweep's START:STOP:N ranges aside)
         load_scene(args.scene, [o for o in args.overrides if not _RANGE.match(o)])
     raise NsfemError(f"nsfem {args.command}: not implemented in nsfem {__version__} "
-                     "(available now: nsfem run, modes, campbell, stationary)")
+                     "(available now: nsfem run, modes, campbell, stationary, export)")
 
 
 def cmd_campbell(args) -> int:
@@ -249,6 +249,10 @@ def cmd_run(args) -> int:
             print(f"nsfem run: warning: {text}", file=sys.stderr)
 
         outputs += [str(p) for p in write_plots(result, system, out_dir, scene["output"]["plots"], warn=warn)]
+        if scene["output"]["vtu_every"]:
+            from .export.vtu import write_series
+
+            outputs.append(str(write_series(result, system, out_dir, every=scene["output"]["vtu_every"])))
     summary = result.summary()
     payload = {"title": scene["title"], **summary, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
@@ -267,7 +271,35 @@ def cmd_run(args) -> int:
     return 0 if result.completed else 130
 
 
-COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run}
+def cmd_export(args) -> int:
+    """Re-export a saved results file as a VTU/PVD series (ParaView)."""
+    from pathlib import Path
+
+    from .export.vtu import write_series
+    from .fem.assemble import build_model
+    from .result import Result
+    from .scene import HIGH_LEVEL, LOW_LEVEL, scene_from_tree
+
+    path = Path(args.result)
+    if not path.is_file():
+        raise NsfemError(f"nsfem export: {path} does not exist")
+    try:
+        res, meta, extra = Result.load(path)
+        tree = meta["scene_tree"]
+    except Exception as exc:  # noqa: BLE001 - any unreadable file gets the same message
+        raise NsfemError(f"nsfem export: {path} is not an nsfem results file ({exc})") from exc
+    # the resolved tree (every default filled in, overrides applied) holds one of the two forms;
+    # the other is empty
+    form = HIGH_LEVEL if any(tree.get(k) for k in LOW_LEVEL) else LOW_LEVEL
+    scene = scene_from_tree({k: v for k, v in tree.items() if k not in form})
+    model = build_model(scene)
+    pvd = write_series(res, (model, extra["basis"]), Path(args.vtu), every=scene["output"]["vtu_every"] or 1)
+    print(f"wrote {pvd} ({res.t[:: scene['output']['vtu_every'] or 1].size} times)")
+    return 0
+
+
+COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run,
+            "export": cmd_export}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,0 +1,164 @@
+"""VTU/PVD export: geometry, kinematics, gaps and file handling (nsfem.export.vtu)."""
+
+import xml.etree.ElementTree as ET
+
+import meshio
+import numpy as np
+import pytest
+
+from nsfem import load_scene
+from nsfem.export import displacements, stack_geometry, write_series
+from nsfem.export.vtu import nodal_dofs
+from nsfem.simulate import run_scene
+
+EVERY = 10
+
+
+@pytest.fixture(scope="module")
+def run():
+    res, sysm = run_scene(load_scene(None, ["simulation.t_end=0.05"]))
+    return res, sysm, sysm.info["model"], np.asarray(sysm.info["reduction"].T @ res.q)
+
+
+@pytest.fixture(scope="module")
+def series(run, tmp_path_factory):
+    res, sysm, _, _ = run
+    out = tmp_path_factory.mktemp("vtu")
+    return out, write_series(res, sysm, out, every=EVERY)
+
+
+def _hex_volumes(points, cells):
+    """Volume of hexahedra (VTK ordering) by the divergence theorem over two triangles per face;
+    exact for the planar faces of the undeformed stack."""
+    faces = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    vol = np.zeros(len(cells))
+    for f in faces:
+        a, b, c, d = (points[cells[:, i]] for i in f)
+        for p, q, r in ((a, b, c), (a, c, d)):
+            vol += np.einsum("ij,ij->i", p, np.cross(q, r)) / 6.0
+    return vol
+
+
+def test_geometry_volumes_and_separate_sub_beams(run):
+    _, _, model, _ = run
+    pts, cells, seg, book = stack_geometry(model)
+    assert pts.shape == book.shape and cells.shape[1] == 8
+    vol = _hex_volumes(pts, cells)
+    assert np.all(vol > 0)
+    for i, s in enumerate(model.stack.segments):
+        assert vol[seg == i].sum() == pytest.approx(s.width * s.height * s.length, rel=1e-12)
+    # a delamination's sub-beams share no point, and the upper's bottom face is the lower's top face
+    up, lo = (k for k, s in enumerate(model.stack.segments) if s.name.startswith("delamination_0_"))
+    zu, zl = pts[book[:, 0] == up, 2], pts[book[:, 0] == lo, 2]
+    assert zu.min() == pytest.approx(zl.max(), abs=1e-15)
+    # the same check with pyvista's cell sizes
+    pv = pytest.importorskip("pyvista")
+    grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: cells}, pts)
+    sizes = grid.compute_cell_sizes(length=False, area=False, volume=True).cell_data["Volume"]
+    assert np.allclose(sizes, vol, rtol=1e-12, atol=0)
+
+
+def test_displacement_kinematics(run):
+    res, _, model, Q = run
+    q = Q[:, -1]
+    u = displacements(model, q)
+    pts, _, _, book = stack_geometry(model)
+    assert u.shape == pts.shape
+    s = model.stack.segments[1]
+    d = nodal_dofs(model, s.name)
+    node = 5
+    x = model.spaces[s.name].x[node]
+    for corner in range(4):
+        p = np.flatnonzero((book[:, 0] == 1) & (book[:, 1] == node) & (book[:, 2] == corner))[0]
+        eta, zeta = pts[p, 1] - s.offset[0], pts[p, 2] - s.offset[1]
+        want = [q[model.dof(s.name, "U", x)] - eta * q[model.dof(s.name, "V'", x)]
+                - zeta * q[model.dof(s.name, "W'", x)], q[model.dof(s.name, "V", x)], q[model.dof(s.name, "W", x)]]
+        assert np.allclose(u[p], want, rtol=0, atol=1e-15)
+        assert q[d["W"][node]] == q[model.dof(s.name, "W", x)]
+
+
+def test_series_files_meshio_vtk_and_pvd(run, series):
+    res, _, model, Q = run
+    out, pvd = series
+    assert pvd.name == "nsfem.pvd" and pvd.is_file()
+    assert not [p for p in out.iterdir() if p.name.startswith(".") or p.suffix == ".tmp"]
+    root = ET.parse(pvd).getroot()
+    assert root.get("type") == "Collection"
+    ds = root.find("Collection").findall("DataSet")
+    taken = np.arange(0, res.t.size, EVERY)
+    for part in ("0", "1"):
+        t = np.array([float(d.get("timestep")) for d in ds if d.get("part") == part])
+        assert np.all(np.diff(t) > 0) and np.array_equal(t, res.t[taken])
+    files = [d.get("file") for d in ds if d.get("part") == "0"]
+    pts, cells, seg, _ = stack_geometry(model)
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+
+    for i, f in zip(taken, files):
+        m = meshio.read(out / f)
+        assert m.points.shape == pts.shape and m.point_data["displacement"].shape == (len(pts), 3)
+        assert np.array_equal(m.cells_dict["hexahedron"], cells)
+        assert np.array_equal(m.cell_data["segment"][0], seg)
+        want = displacements(model, Q[:, i])  # T q per column vs T Q: rounding only
+        assert np.allclose(m.point_data["displacement"], want, rtol=0, atol=1e-14 * np.abs(want).max())
+        r = vtkXMLUnstructuredGridReader()
+        r.SetFileName(str(out / f))
+        r.Update()
+        g = r.GetOutput()
+        assert g.GetNumberOfPoints() == len(pts) and g.GetNumberOfCells() == len(cells)
+        assert vtk_to_numpy(g.GetPointData().GetArray("displacement")).shape == (len(pts), 3)
+    cfiles = [d.get("file") for d in ds if d.get("part") == "1"]
+    for i, f in zip(taken, cfiles):
+        c = meshio.read(out / f)
+        assert c.points.shape == (res.gap.shape[0], 3)
+        assert np.array_equal(c.point_data["gap"], res.gap[:, i])
+        assert np.array_equal(c.point_data["normal_force"], res.normal_force[:, i])
+        assert c.point_data["tangential_force"].shape == (res.gap.shape[0], 3)
+        assert np.array_equal(c.point_data["state"], res.state[:, i])
+
+
+def test_gap_seen_in_vtu_equals_result_gap(run, series):
+    res, _, model, _ = run
+    out, pvd = series
+    _, _, _, book = stack_geometry(model)
+    names = [s.name for s in model.stack.segments]
+    ds = [d for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part") == "0"]
+    worst = 0.0
+    for k_out, d in enumerate(ds):
+        i = k_out * EVERY
+        m = meshio.read(out / d.get("file"))
+        cur = m.points + m.point_data["displacement"]
+        for k, c in enumerate(model.stack.contacts):
+            up, lo = (names.index(n) for n in c.segments)
+            nu = model.spaces[c.segments[0]].node(c.x)
+            nl = model.spaces[c.segments[1]].node(c.x)
+            bottom = cur[(book[:, 0] == up) & (book[:, 1] == nu) & np.isin(book[:, 2], (0, 1)), 2]
+            top = cur[(book[:, 0] == lo) & (book[:, 1] == nl) & np.isin(book[:, 2], (2, 3)), 2]
+            gap = bottom.mean() - top.mean()
+            worst = max(worst, abs(gap - res.gap[k, i]))
+    assert worst < 1e-12
+    assert np.abs(res.gap).max() > 1e-7  # the check is not vacuous: the interface does open
+
+
+def test_inertial_frame_rotates_about_x(run, tmp_path):
+    res, sysm, model, Q = run
+    pvd = write_series(res, sysm, tmp_path, every=25, frame="inertial", prefix="iner")
+    ds = [d for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part") == "0"]
+    pts, _, _, _ = stack_geometry(model)
+    omega = 2 * np.pi * res.info["speed_hz"]
+    for k, d in enumerate(ds):
+        i = 25 * k
+        m = meshio.read(tmp_path / d.get("file"))
+        a = omega * res.t[i]
+        R = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+        assert np.allclose(m.points, pts @ R.T, rtol=0, atol=1e-15)
+        assert np.allclose(m.point_data["displacement"], displacements(model, Q[:, i]) @ R.T, rtol=0, atol=1e-15)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_model_and_T_tuple_and_bad_args(run, tmp_path):
+    res, sysm, model, _ = run
+    pvd = write_series(res, (model, sysm.info["reduction"].T), tmp_path, every=50)
+    assert len([d for d in ET.parse(pvd).getroot().iter("DataSet")]) == 2 * len(range(0, res.t.size, 50))
+    with pytest.raises(Exception, match="frame"):
+        write_series(res, sysm, tmp_path, frame="lab")
