@@ -75,6 +75,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("result")
     p.add_argument("--time", type=float)
     p.add_argument("--png", metavar="FILE")
+    p.add_argument("--exaggeration", type=float, metavar="X",
+                   help="displacement scale (default: 10 %% of the stack's length over the largest displacement)")
     p.add_argument("--debug", action="store_true")
     return top
 
@@ -120,7 +122,7 @@ def cmd_pending(args) -> int:
         # still validate what the user wrote (a sweep's START:STOP:N ranges aside)
         load_scene(args.scene, [o for o in args.overrides if not _RANGE.match(o)])
     raise NsfemError(f"nsfem {args.command}: not implemented in nsfem {__version__} "
-                     "(available now: nsfem run, modes, campbell, stationary, export)")
+                     "(available now: nsfem run, modes, campbell, stationary, export, render)")
 
 
 def cmd_campbell(args) -> int:
@@ -271,35 +273,58 @@ def cmd_run(args) -> int:
     return 0 if result.completed else 130
 
 
+def _saved(path_text: str, command: str):
+    """(Result, extra arrays, model) of a results file, the model rebuilt from its stored scene."""
+    from pathlib import Path
+
+    from .fem.assemble import build_model
+    from .result import Result
+    from .scene import HIGH_LEVEL, LOW_LEVEL, scene_from_tree
+
+    path = Path(path_text)
+    if not path.is_file():
+        raise NsfemError(f"nsfem {command}: {path} does not exist")
+    try:
+        res, meta, extra = Result.load(path)
+        tree = meta["scene_tree"]
+    except Exception as exc:  # noqa: BLE001 - any unreadable file gets the same message
+        raise NsfemError(f"nsfem {command}: {path} is not an nsfem results file ({exc})") from exc
+    # the resolved tree (every default filled in, overrides applied) holds one of the two forms;
+    # the other is empty
+    form = HIGH_LEVEL if any(tree.get(k) for k in LOW_LEVEL) else LOW_LEVEL
+    scene = scene_from_tree({k: v for k, v in tree.items() if k not in form})
+    return res, extra, build_model(scene), scene
+
+
+def cmd_render(args) -> int:
+    """Off-screen picture of the deformed stack at one output time."""
+    from pathlib import Path
+
+    from .export.render import render
+
+    if args.exaggeration is not None and not (args.exaggeration > 0):
+        raise NsfemError(f"nsfem render: --exaggeration must be positive, got {args.exaggeration}")
+    res, extra, model, _ = _saved(args.result, "render")
+    png = Path(args.png) if args.png else Path(args.result).with_name("render.png")
+    path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
+    print(f"wrote {path}")
+    return 0
+
+
 def cmd_export(args) -> int:
     """Re-export a saved results file as a VTU/PVD series (ParaView)."""
     from pathlib import Path
 
     from .export.vtu import write_series
-    from .fem.assemble import build_model
-    from .result import Result
-    from .scene import HIGH_LEVEL, LOW_LEVEL, scene_from_tree
 
-    path = Path(args.result)
-    if not path.is_file():
-        raise NsfemError(f"nsfem export: {path} does not exist")
-    try:
-        res, meta, extra = Result.load(path)
-        tree = meta["scene_tree"]
-    except Exception as exc:  # noqa: BLE001 - any unreadable file gets the same message
-        raise NsfemError(f"nsfem export: {path} is not an nsfem results file ({exc})") from exc
-    # the resolved tree (every default filled in, overrides applied) holds one of the two forms;
-    # the other is empty
-    form = HIGH_LEVEL if any(tree.get(k) for k in LOW_LEVEL) else LOW_LEVEL
-    scene = scene_from_tree({k: v for k, v in tree.items() if k not in form})
-    model = build_model(scene)
+    res, extra, model, scene = _saved(args.result, "export")
     pvd = write_series(res, (model, extra["basis"]), Path(args.vtu), every=scene["output"]["vtu_every"] or 1)
     print(f"wrote {pvd} ({res.t[:: scene['output']['vtu_every'] or 1].size} times)")
     return 0
 
 
 COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run,
-            "export": cmd_export}
+            "export": cmd_export, "render": cmd_render}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
