@@ -59,6 +59,17 @@ def initial_state(system: ContactSystem, q0=None, v0=None) -> tuple[np.ndarray, 
     return q, v
 
 
+def close_energy(energy: dict, e_final: float, e_max: float) -> dict:
+    """Complete an energy record: final_J, residual_J = E(T) - E(0) - W_ext + W_diss (damping,
+    circulatory, friction, impacts), max_J and relative_residual = |residual| / max E."""
+    e_max = max(e_max, abs(e_final))
+    balance = (e_final - energy["initial_J"] - energy["work_external_J"] + energy["dissipated_damping_J"]
+               + energy["work_circulatory_J"] + energy["dissipated_friction_J"] + energy["lost_in_impacts_J"])
+    energy.update(final_J=e_final, residual_J=float(balance), max_J=e_max,
+                  relative_residual=abs(balance) / e_max if e_max > 0 else 0.0)
+    return energy
+
+
 def output_times(t_end: float, output_dt: float) -> np.ndarray:
     if not (math.isfinite(t_end) and t_end > 0):
         raise NsfemError(f"simulation.t_end must be a positive number, got {t_end}")

@@ -31,7 +31,7 @@ from scipy.integrate import solve_ivp
 from ..errors import IntegrationError, NsfemError
 from ..linalg import factorize
 from ..result import Result
-from .base import Integrator, Progress, initial_state, output_times
+from .base import Integrator, Progress, close_energy, initial_state, output_times
 from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event
 from .transitions import Memory, hold_degenerate, resolve
@@ -194,14 +194,7 @@ class EventDriven(Integrator):
                                                     D, energy))
         finally:
             progress.close()
-        e_final = 0.5 * float(v @ sysm.M @ v + q @ K @ q)
-        energy["final_J"] = e_final
-        e_max = max(e_max, abs(e_final))
-        balance = (e_final - energy["initial_J"] - energy["work_external_J"] + energy["dissipated_damping_J"]
-                   + energy["work_circulatory_J"] + energy["dissipated_friction_J"] + energy["lost_in_impacts_J"])
-        energy["residual_J"] = balance
-        energy["max_J"] = e_max
-        energy["relative_residual"] = abs(balance) / e_max if e_max > 0 else 0.0
+        close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q), e_max)
         k = filled if not completed else K_out
         res = Result(self.name, t_out[:k], out["q"][:, :k], out["v"][:, :k], out["gap"][:, :k],
                      out["normal_force"][:, :k], out["tangential_force"][:, :, :k], out["state"][:, :k],

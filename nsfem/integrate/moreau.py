@@ -66,7 +66,7 @@ from ..errors import IntegrationError, NsfemError
 from ..lcp.builders import contact_lcp
 from ..linalg import Factorization, factorize
 from ..result import Result
-from .base import EXTRA_METHODS, Integrator, Progress, initial_state, output_times
+from .base import EXTRA_METHODS, Integrator, Progress, close_energy, initial_state, output_times
 from .problem import ContactSystem
 
 #: slip speed z (relative to the step's velocity scale) above which a contact slides
@@ -220,14 +220,7 @@ class MoreauJean(Integrator):
             del impacts[n_imp:]
         finally:
             progress.close()
-        e_final = 0.5 * float(v @ sysm.M @ v + q @ K @ q)
-        energy["final_J"] = e_final
-        e_max = max(e_max, abs(e_final))
-        balance = (e_final - energy["initial_J"] - energy["work_external_J"] + energy["dissipated_damping_J"]
-                   + energy["work_circulatory_J"] + energy["dissipated_friction_J"] + energy["lost_in_impacts_J"])
-        energy["residual_J"] = balance
-        energy["max_J"] = e_max
-        energy["relative_residual"] = abs(balance) / e_max if e_max > 0 else 0.0
+        close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q), e_max)
         k = n_out if completed else filled
         info = {**{kk: vv for kk, vv in sysm.info.items() if kk == "ndof_full"},
                 "step_s": h_full, "theta": th, "steps": steps, "lcp_pivots_total": pivots,

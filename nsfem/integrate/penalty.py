@@ -45,7 +45,7 @@ from scipy.optimize import brentq
 
 from ..errors import IntegrationError, NsfemError
 from ..result import Result
-from .base import EXTRA_METHODS, Integrator, Progress, initial_state, output_times
+from .base import EXTRA_METHODS, Integrator, Progress, close_energy, initial_state, output_times
 from .problem import ContactSystem
 
 SOLVERS = {"BDF": BDF, "Radau": Radau, "LSODA": LSODA}
@@ -337,13 +337,8 @@ class Penalty(Integrator):
         w_ext, d_damp, w_circ, w_contact = X[2 * n:, -1]
         energy = {"initial_J": float(E[0]), "work_external_J": float(w_ext), "dissipated_damping_J": float(d_damp),
                   "work_circulatory_J": float(w_circ), "dissipated_friction_J": 0.0,
-                  "lost_in_impacts_J": float(w_contact - 0.5 * self.c_p * np.sum(np.minimum(gap[:, -1], 0.0) ** 2)),
-                  "final_J": float(E[-1])}
-        balance = (energy["final_J"] - energy["initial_J"] - energy["work_external_J"] + energy["dissipated_damping_J"]
-                   + energy["work_circulatory_J"] + energy["lost_in_impacts_J"])
-        e_max = float(np.max(np.abs(E)))
-        energy.update(residual_J=float(balance), max_J=e_max,
-                      relative_residual=abs(balance) / e_max if e_max > 0 else 0.0)
+                  "lost_in_impacts_J": float(w_contact - 0.5 * self.c_p * np.sum(np.minimum(gap[:, -1], 0.0) ** 2))}
+        close_energy(energy, float(E[-1]), float(np.max(np.abs(E))))
         max_pen = max(max_pen, float(-gap.min(initial=0.0)))
         info = {**{kk: vv for kk, vv in sysm.info.items() if kk == "ndof_full"},
                 "stiffness_N_m": self.c_p, "damping_N_s_m": self.d_p.tolist(), "solver": self.solver,
