@@ -221,10 +221,12 @@ def cmd_run(args) -> int:
     def terminate(signum, frame):  # a scheduler's SIGTERM ends the run like Ctrl-C: results kept
         raise KeyboardInterrupt
 
+    def warn(text):
+        print(f"nsfem run: warning: {text}", file=sys.stderr)
+
     previous = signal.signal(signal.SIGTERM, terminate)
     try:
-        result, system = run_scene(scene, method, progress=None, warn=lambda text: print(
-            f"nsfem run: warning: {text}", file=sys.stderr))
+        result, system = run_scene(scene, method, progress=None, warn=warn)
     except IntegrationError as exc:  # keep what was computed, then report the error
         res, sysm = exc.result, exc.system
         path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.contacts.x,
@@ -241,14 +243,11 @@ def cmd_run(args) -> int:
         div = divergence_speeds(rotor_operators(system.info["model"], red.T))
         warning = supercritical_warning(scene["rotation"]["speed_hz"], div[div <= 0.5 * top])
         if warning:
-            print(f"nsfem run: warning: {warning}", file=sys.stderr)
+            warn(warning)
     path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, dict(scene))
     outputs = [str(path)]
     if result.completed:
         from .plot.results import write_plots
-
-        def warn(text):
-            print(f"nsfem run: warning: {text}", file=sys.stderr)
 
         outputs += [str(p) for p in write_plots(result, system, out_dir, scene["output"]["plots"], warn=warn)]
         if scene["output"]["vtu_every"]:
@@ -274,7 +273,7 @@ def cmd_run(args) -> int:
 
 
 def _saved(path_text: str, command: str):
-    """(Result, extra arrays, model) of a results file, the model rebuilt from its stored scene."""
+    """(Result, extra arrays, model, scene) of a results file, the model rebuilt from its stored scene."""
     from pathlib import Path
 
     from .fem.assemble import build_model
