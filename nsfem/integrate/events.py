@@ -168,6 +168,13 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
                 lim = hi.size - 1 if arm is None else arm[1] + 1
                 res = _scan(phase, H[i], Hd[i], ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], tol[i],
                             bound4[i])
+                if (res is not None and arm is not None and res[0] <= arm[0]
+                        and (res[0] <= ts[0] or float(Hd[i] @ phase.xi(res[0])) > 0.0)):
+                    # a "crossing" at the phase's start, or where the row is rising, is the
+                    # round-off of evaluating the row near its start (a gap lifted at 1e-4 m/s or
+                    # opening from rest, evaluated to 1e-18 m next to a band of 1e-20 m): not a
+                    # descent by tol; the row arms where it rises above its band
+                    res = None
                 if res is not None and (arm is None or res[0] <= arm[0]):
                     res = (res[0], res[1], True)
                 elif arm is not None:
