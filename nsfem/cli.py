@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 import time
 from typing import Sequence
@@ -17,7 +16,6 @@ from . import __version__
 from .errors import IntegrationError, NsfemError
 
 EXIT_ERROR = 2
-_RANGE = re.compile(r"^[^=]+=\s*[-+0-9.eE]+:[-+0-9.eE]+:[0-9]+\s*$")
 FIELD_NAMES = {"U": "U (axial)", "V": "V (bending x-y)", "W": "W (bending x-z)"}
 
 
@@ -61,10 +59,12 @@ def parser() -> argparse.ArgumentParser:
     p = sub.add_parser("stationary", help="stationary contact state (LCP 28)")
     _scene_args(p)
 
-    p = sub.add_parser("sweep", help="one run per parameter value")
+    p = sub.add_parser("sweep", help="one run per parameter value (--set KEY=START:STOP:N), on a Dask cluster")
     _scene_args(p)
-    p.add_argument("--workers", type=int)
-    p.add_argument("--scheduler", metavar="ADDRESS")
+    p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"))
+    p.add_argument("--workers", type=int, help="local worker processes (default: one per core, at most one per run)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
+    p.add_argument("--out", metavar="DIR", help="sweep folder (default: <output.dir>/sweep); a rerun resumes it")
 
     p = sub.add_parser("export", help="re-export a saved result")
     p.add_argument("result")
@@ -114,15 +114,40 @@ def cmd_modes(args) -> int:
     return 0
 
 
-def cmd_pending(args) -> int:
-    """Commands of the contract whose analyses this version does not have yet."""
-    if getattr(args, "scene", None) is not None or getattr(args, "overrides", None):
-        from .scene import load_scene
+def cmd_sweep(args) -> int:
+    """One run per value of the swept keys; the table, JSON and resonance curve in the sweep folder."""
+    from .sweep import run_sweep
 
-        # still validate what the user wrote (a sweep's START:STOP:N ranges aside)
-        load_scene(args.scene, [o for o in args.overrides if not _RANGE.match(o)])
-    raise NsfemError(f"nsfem {args.command}: not implemented in nsfem {__version__} "
-                     "(available now: nsfem run, modes, campbell, stationary, export, render)")
+    if args.workers is not None and args.scheduler:
+        raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
+
+    def progress(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    res = run_sweep(args.scene, args.overrides, args.out, method=args.method, workers=args.workers,
+                    scheduler=args.scheduler, progress=progress)
+    payload = res.to_json()
+    keys = [a.key for a in res.axes]
+    lines = [f"{len(res.runs)} runs ({res.info['executed']} run now, {res.info['resumed']} already done) in "
+             f"{res.info['wall_s']:.3g} s on {res.info['workers']} workers; {res.info['models_built']} model(s) built",
+             "  " + "  ".join(keys) + "  events  closed [%]  min gap [m]  max gap [m]  max force [N]"]
+    for r in res.runs:
+        vals = "  ".join(f"{r[k]}" for k in keys)
+        if r.get("error"):
+            lines.append(f"  {vals}  failed: {r['error']}")
+        else:
+            lines.append(f"  {vals}  {r['events']}  {100 * r['closed_fraction']:.2f}  {r['min_gap_m']:.4e}  "
+                         f"{r['max_gap_m']:.4e}  {r['max_normal_force_N']:.4g}")
+    lines.append(f"wrote {res.table}" + (f", {res.figure}" if res.figure else ""))
+    _emit(args, payload, "\n".join(lines))
+    failed = res.failed
+    if failed:
+        first = failed[0]
+        print(f"nsfem: error: {len(failed)} of {len(res.runs)} runs failed (first: "
+              + ", ".join(f"{k}={first[k]}" for k in keys) + f": {' '.join(first['error'].split())}); see {res.table}",
+              file=sys.stderr)
+        return EXIT_ERROR
+    return 0
 
 
 def cmd_campbell(args) -> int:
@@ -323,7 +348,7 @@ def cmd_export(args) -> int:
 
 
 COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run,
-            "export": cmd_export, "render": cmd_render}
+            "sweep": cmd_sweep, "export": cmd_export, "render": cmd_render}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -331,7 +356,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = "--debug" in argv
     try:
         args = parser().parse_args(argv)
-        return COMMANDS.get(args.command, cmd_pending)(args)
+        return COMMANDS[args.command](args)
     except NsfemError as exc:
         if debug:
             raise

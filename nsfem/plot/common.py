@@ -16,7 +16,7 @@ def figure(**kw):
     return plt.subplots(**kw)
 
 
-def save(fig, path: str | Path) -> Path:
+def save(fig, path: str | Path, dpi: int = 130) -> Path:
     """Save ``fig`` as PNG through a temporary file and a rename; close it."""
     import matplotlib.pyplot as plt
 
@@ -24,7 +24,7 @@ def save(fig, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
     try:
-        fig.savefig(tmp, dpi=130)
+        fig.savefig(tmp, dpi=dpi)
         os.replace(tmp, path)
     finally:
         plt.close(fig)
