@@ -1,0 +1,172 @@
+"""Parameter sweeps (``nsfem sweep``): the same numbers as single runs, failures in their rows,
+resumption, one model per sweep of the speed, and the command line's errors."""
+
+from __future__ import annotations
+
+import csv
+import importlib
+import json
+
+import numpy as np
+import pytest
+
+import nsfem
+from nsfem import cli
+from nsfem.errors import NsfemError
+from nsfem.result import Result
+from nsfem.simulate import run_scene
+from nsfem.sweep import RUN_KEYS, parse_ranges, run_sweep
+
+ASSEMBLE = importlib.import_module("nsfem.fem.assemble")  # the module, not the function
+REDUCE = importlib.import_module("nsfem.reduce")
+BASE = ["mesh.elements=20", "simulation.t_end=0.04"]
+
+
+@pytest.fixture(scope="module")
+def client():
+    """One 2-process LocalCluster for the module (starting one takes a few seconds)."""
+    distributed = pytest.importorskip("distributed")
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                       silence_logs=50)
+    c = distributed.Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+@pytest.fixture
+def inprocess():
+    """A one-thread in-process cluster: monkeypatches reach the runs."""
+    distributed = pytest.importorskip("distributed")
+    c = distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0")
+    yield c
+    c.close()
+
+
+def test_sweep_equals_single_runs(client, tmp_path):
+    lines = []
+    res = run_sweep(None, BASE + ["rotation.speed_hz=15:25:3"], tmp_path, client=client, progress=lines.append)
+    assert [p["rotation.speed_hz"] for p in res.points] == [15, 20, 25]
+    assert res.info["executed"] == 3 and res.info["models_built"] == 1 and not res.failed
+    assert len(lines) == 3 and all(line.startswith("[") and "rotation.speed_hz=" in line for line in lines)
+    for point, row in zip(res.points, res.runs):
+        scene = nsfem.load_scene(None, BASE + [f"rotation.speed_hz={point['rotation.speed_hz']}"])
+        ref, _ = run_scene(scene)
+        want = ref.summary()
+        for key in RUN_KEYS:
+            if key != "wall_s":
+                assert row[key] == want[key], key
+        got, _, _ = Result.load(row["result"])
+        for name in ("t", "q", "v", "gap", "normal_force", "state"):
+            assert np.array_equal(getattr(got, name), getattr(ref, name)), name
+    assert res.runs[0]["events"] > 0  # 15 Hz touches within the window: the comparison is not trivial
+    with open(res.table) as fh:
+        rows = list(csv.DictReader(fh))
+    assert [float(r["rotation.speed_hz"]) for r in rows] == [15, 20, 25]
+    assert all(r["error"] == "" and r["result"].endswith("result.npz") for r in rows)
+    assert res.figure is not None and res.figure.stat().st_size > 0
+    payload = json.loads((tmp_path / "sweep.json").read_text())
+    assert payload["parameter"] == "rotation.speed_hz" and payload["values"] == [15, 20, 25]
+    assert len(payload["runs"]) == 3
+
+
+def test_failing_run_is_reported_in_its_row_and_retried_on_resume(client, tmp_path):
+    # beyond the divergence speeds the stationary state (LCP 28) has no solution Lemke can reach:
+    # a genuine failure of the 90 Hz run only, after every value validated
+    args = BASE + ["initial.state=stationary", "rotation.speed_hz=20:90:2"]
+    res = run_sweep(None, args, tmp_path, client=client)
+    ok, bad = res.runs
+    assert ok["error"] == "" and ok["completed"] is True
+    assert "stationary LCP" in bad["error"] and bad["result"] == "" and bad["closed_fraction"] is None
+    assert len(res.failed) == 1
+    with open(res.table) as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 2 and rows[1]["error"] and not rows[0]["error"]
+    again = run_sweep(None, args, tmp_path, client=client)
+    assert again.info["resumed"] == 1 and again.info["executed"] == 1  # only the failed one runs again
+
+
+def test_resume_skips_finished_runs(client, tmp_path):
+    args = BASE + ["rotation.speed_hz=15:25:3"]
+    first = run_sweep(None, args, tmp_path, client=client)
+    again = run_sweep(None, args, tmp_path, client=client)
+    assert again.info["executed"] == 0 and again.info["resumed"] == 3
+    assert [r["result"] for r in again.runs] == [r["result"] for r in first.runs]
+    more = run_sweep(None, BASE + ["rotation.speed_hz=15:30:4"], tmp_path, client=client)  # adds 30 Hz
+    assert more.info["executed"] == 1 and more.info["resumed"] == 3
+    (tmp_path / "rotation.speed_hz=20" / "record.json").unlink()  # as if that run had been cut short
+    assert run_sweep(None, args, tmp_path, client=client).info["executed"] == 1
+    # another scene setting in the same folder would mix results: refused before anything runs
+    with pytest.raises(NsfemError, match="holds another sweep"):
+        run_sweep(None, args + ["rotation.gravity=5.0"], tmp_path, client=client)
+
+
+def test_speed_sweep_builds_one_model(inprocess, tmp_path, monkeypatch):
+    calls = {"build_model": 0, "scene_reduction": 0}
+
+    def counting(name, fn):
+        def wrapper(*a, **k):
+            calls[name] += 1
+            return fn(*a, **k)
+        return wrapper
+
+    monkeypatch.setattr(ASSEMBLE, "build_model", counting("build_model", ASSEMBLE.build_model))
+    monkeypatch.setattr(REDUCE, "scene_reduction", counting("scene_reduction", REDUCE.scene_reduction))
+    args = ["simulation.t_end=0.02", "initial.state=stationary", "damping.external=0.1"]
+    res = run_sweep(None, args + ["mesh.elements=20", "rotation.speed_hz=10:30:3"], tmp_path / "a",
+                    client=inprocess, plot=False)
+    assert not res.failed and res.info["executed"] == 3
+    assert calls == {"build_model": 1, "scene_reduction": 1} and res.info["models_built"] == 1
+    # a grid over speed and mesh: one model per mesh, shared by that mesh's speeds
+    res = run_sweep(None, args + ["rotation.speed_hz=10:30:2", "mesh.elements=20:24:2"], tmp_path / "b",
+                    client=inprocess, plot=False)
+    assert not res.failed and res.info["models_built"] == 2
+    assert calls == {"build_model": 3, "scene_reduction": 3}
+    payload = res.to_json()
+    assert payload["parameter"] == ["rotation.speed_hz", "mesh.elements"]
+    assert payload["values"] == [[10, 20], [10, 24], [30, 20], [30, 24]]
+    assert [r["ndof_full"] for r in res.runs][:2] == [175, 215]
+
+
+def test_cli_sweep_reports_failures_with_exit_2(tmp_path, capsys):
+    argv = ["sweep", "--set", "mesh.elements=20", "--set", "simulation.t_end=0.02", "--set",
+            "initial.state=stationary", "--set", "rotation.speed_hz=20:90:2", "--workers", "1",
+            "--out", str(tmp_path), "--json"]
+    assert cli.main(argv) == cli.EXIT_ERROR
+    out, err = capsys.readouterr()
+    payload = json.loads(out)
+    assert out.count("\n") == 1 and payload["values"] == [20, 90] and payload["failed"] == 1
+    assert payload["runs"][0]["error"] == "" and payload["runs"][1]["error"]
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("[1/2]") and lines[1].startswith("[2/2]")
+    assert lines[-1].startswith("nsfem: error: 1 of 2 runs failed") and len(lines) == 3
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--set", "rotation.speed_hz=10:20"], "START:STOP:N"),
+    (["--set", "rotation.speed_hz=10:20:0"], "N >= 1"),
+    (["--set", "rotation.speed_hz=10:20:x"], "rotation.speed_hz: must be a number"),
+    (["--set", "rotation.speed_hz=10:20:3", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),
+    (["--set", "rotation.speed_hz=10:20:3", "--workers", "0"], "positive"),
+    (["--set", "rotation.sped_hz=10:20:3"], "rotation.sped_hz: unknown key"),
+    (["--set", "rotation.speed_hz=-10:20:3"], "rotation.speed_hz: must be >= 0"),
+    (["--set", "rotation.speed_hz=10:20:3", "--set", "rotation.speed_hz=5"], "both swept and fixed"),
+    (["--set", "mesh.elements=5:25:3"], "mesh.elements"),
+    ([], "nothing to sweep"),
+], ids=["two-parts", "n-zero", "n-not-a-number", "workers-and-scheduler", "workers-zero", "unknown-key",
+        "bad-value", "swept-and-fixed", "bad-value-in-range", "no-range"])
+def test_cli_sweep_errors_are_one_line(argv, words, capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(ASSEMBLE, "build_model", lambda *a: pytest.fail("built a model for a bad sweep"))
+    assert cli.main(["sweep", *argv, "--out", str(tmp_path / "s")]) == cli.EXIT_ERROR
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert out == "" and len(lines) == 1 and lines[0].startswith("nsfem: error:"), err
+    assert words in lines[0]
+    assert not (tmp_path / "s").exists()
+
+
+def test_parse_ranges_integers_and_floats():
+    fixed, axes = parse_ranges(["mesh.elements=20:40:3", "rotation.speed_hz=10:11:3", 'initial.state="rest"'])
+    assert fixed == ['initial.state="rest"']
+    assert axes[0].values == (20, 30, 40) and all(isinstance(v, int) for v in axes[0].values)
+    assert axes[1].values == (10.0, 10.5, 11.0)
