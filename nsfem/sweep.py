@@ -38,6 +38,7 @@ import os
 import re
 import tempfile
 import time
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
@@ -368,7 +369,8 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
         raise NsfemError(f"--workers must be a positive integer, got {workers}")
     t0 = time.perf_counter()
     p = plan(scene_path, overrides, method)
-    out = Path(out_dir) if out_dir is not None else Path(p.scenes[0]["output"]["dir"]) / "sweep"
+    # absolute: the workers (maybe started elsewhere) write there
+    out = (Path(out_dir) if out_dir is not None else Path(p.scenes[0]["output"]["dir"]) / "sweep").absolute()
     _check_folder(out, p, scene_path)
     keys = [a.key for a in p.axes]
     runs: list[dict | None] = [read_record(out / run_name(pt), p.fp) for pt in p.points]
@@ -416,9 +418,10 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
         for mk, idx in groups.items():
             [shared] = cl.scatter([built[mk]], broadcast=True, hash=False)
             for i in idx:
+                # a fresh key: the scheduler must never hand back a finished task of an earlier sweep
                 fut = cl.submit(run_point, p.scenes[i], p.method, shared, str(out / run_name(p.points[i])),
                                 p.scene_text + "\n# overrides: " + " ".join(p.fixed + point_overrides(p.points[i])),
-                                p.points[i], p.fp, key=f"nsfem-sweep-{p.fp}-{i}", pure=False)
+                                p.points[i], p.fp, key=f"nsfem-run-{uuid.uuid4().hex}", pure=False)
                 futures[fut] = i
         done = 0
         try:
