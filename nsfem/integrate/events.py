@@ -157,7 +157,13 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
             # below -tol: a gap located with a previous phase's larger band)
             thr = np.where(armed, 0.0, np.minimum(-tol, h[:, 0] - tol))
         found = []
-        for i in range(rows.size):
+        # rows in the order of their first sample below threshold (a cheap lower bound of where
+        # their root lies); a row whose first candidate interval starts after the earliest root
+        # refined so far cannot be the first event and is not refined (same result, fewer roots)
+        below = (h - thr[:, None]) < -tol[:, None]
+        first = np.where(below.any(axis=1), np.argmax(below, axis=1), h.shape[1])
+        limit = math.inf
+        for i in np.argsort(first, kind="stable"):
             hi, hdi = h[i], hd[i]
             res = None
             if not armed[i]:
@@ -167,7 +173,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
                 arm = _arm(phase, H[i], Hd[i], ts, hi, hdi, tol[i], bound4[i])
                 lim = hi.size - 1 if arm is None else arm[1] + 1
                 res = _scan(phase, H[i], Hd[i], ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], tol[i],
-                            bound4[i])
+                            bound4[i], limit)
                 if (res is not None and arm is not None and res[0] <= arm[0]
                         and (res[0] <= ts[0] or float(Hd[i] @ phase.xi(res[0])) > 0.0)):
                     # a "crossing" at the phase's start, or where the row is rising, is the
@@ -185,14 +191,16 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
                     ts2 = np.concatenate([[t_arm], ts[k + 1:]])
                     h2 = np.concatenate([[H[i] @ x_arm], hi[k + 1:]])
                     hd2 = np.concatenate([[Hd[i] @ x_arm], hdi[k + 1:]])
-                    res = _scan(phase, H[i], Hd[i], ts2, h2, hd2, 0.0, tol[i], bound4[i])
+                    res = _scan(phase, H[i], Hd[i], ts2, h2, hd2, 0.0, tol[i], bound4[i], limit)
             else:
-                res = _scan(phase, H[i], Hd[i], ts, hi, hdi, thr[i], tol[i], bound4[i])
+                res = _scan(phase, H[i], Hd[i], ts, hi, hdi, thr[i], tol[i], bound4[i], limit)
             if res is not None:
-                found.append((res[0], i, res[1], len(res) > 2))
+                found.append((res[0], int(i), res[1], len(res) > 2))
+                limit = min(limit, res[0] + 1e-12 * max(1.0, abs(res[0])))
         if found:
             t_e = min(f[0] for f in found)
-            close = [f for f in found if f[0] <= t_e + 1e-12 * max(1.0, abs(t_e))]
+            close = sorted(f for f in found if f[0] <= t_e + 1e-12 * max(1.0, abs(t_e)))
+            close = sorted(close, key=lambda f: f[1])
             return Event(t_e, [f[1] for f in close], [f[2] for f in close], tol, [f[3] for f in close])
         t_a = ts[-1]
         phase.searched_until = t_a  # no event before this time (an interrupted run keeps it)
@@ -249,8 +257,9 @@ def _root(fun, a, b):
     return brentq(fun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200)
 
 
-def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf):
+def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
+    Candidate intervals that start after ``limit`` (an earlier root of another row) are skipped.
 
     A crossing must reach below -tol at a sample (a sample at a touching point may be a
     round-off below zero: that is a dip, not a crossing). A dip (h' from - to + with h
@@ -279,6 +288,8 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf):
 
     for k in list(dips) + ([k_c] if k_c is not None else []):
         a, b = ts[k], ts[k + 1]
+        if a > limit:
+            return None
         if k == k_c:
             if fun(a) < 0:  # the sample before is itself (round-off) below: the root is there
                 return a, False
