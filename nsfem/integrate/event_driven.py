@@ -33,7 +33,7 @@ from ..linalg import factorize
 from ..result import Result
 from .base import Integrator, Progress, close_energy, initial_state, output_times
 from .configuration import Configuration, Mode, Phase
-from .events import Event, Rows, event_rows, first_event
+from .events import Event, Rows, event_rows, first_event, round_off
 from .transitions import Memory, hold_degenerate, resolve
 
 #: Gauss-Legendre nodes and weights on [0, 1]
@@ -358,7 +358,7 @@ class RungeKutta(EventDriven):
         window = min(step, t1 - t0) if math.isfinite(step) else t1 - t0
         xis = phase.xi(t0 + window * np.linspace(0.0, 1.0, 9))
         scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
-        tol = 1e-11 * scale
+        tol = np.maximum(1e-11 * scale, round_off(H, xis, r2))
         h0 = H @ xi0
         armed = h0 > tol
         # as in exact: an unarmed row fires by going down by tol from where it starts, and is

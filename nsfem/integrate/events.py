@@ -146,11 +146,11 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
             # mode or up to t_stop if sooner (so t_end matters only within 4 periods of it)
             step = phase.max_step(math.inf)
             window = min(step, t_stop - t_start) if math.isfinite(step) else t_stop - t_start
-            scale = np.max(np.abs(H) @ np.abs(phase.xi(t_start + window * np.linspace(0.0, 1.0, 33))),
-                           axis=1) + 1e-300
+            xis = phase.xi(t_start + window * np.linspace(0.0, 1.0, 33))
+            scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
             # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
             bound4 = phase.derivative_bound(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
-            tol = ZERO * scale
+            tol = np.maximum(ZERO * scale, round_off(H, xis, 2 * phase.config.r))
             # a row that starts inside its zero band is armed once it has left it upwards
             armed = h[:, 0] > tol
             # unarmed rows fire by going down by tol from where they start (a row can start
@@ -205,6 +205,16 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
         t_a = ts[-1]
         phase.searched_until = t_a  # no event before this time (an interrupted run keeps it)
     return None
+
+
+def round_off(H: np.ndarray, xis: np.ndarray, r2: int) -> np.ndarray:
+    """Per row, the round-off of evaluating h = H xi from a state: a few ulps of the largest
+    state component times the row's weights. A row can be much smaller than the state it is
+    read from (the gap coordinate of a Craig-Bampton model, 1e-8 m, next to velocities of
+    1e-2 m/s): its band must not fall below what a restart from that state reproduces."""
+    if r2 == 0:
+        return np.zeros(H.shape[0])
+    return 16.0 * np.finfo(float).eps * np.abs(H[:, :r2]).sum(axis=1) * float(np.abs(xis[:r2]).max())
 
 
 def _hermite_min(f0, f1, d0, d1, dt):
