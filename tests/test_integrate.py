@@ -1016,3 +1016,16 @@ def test_many_contacts_opening_from_rest_start_without_chatter():
     assert res.completed and S.contacts.m == 33
     assert res.gap.min() > -1e-15
     assert res.gap[:, -1].min() > 0.0    # all open at the end: the sub-beams separate
+
+
+@pytest.mark.parametrize("method", ["exact", "rk", "moreau", "penalty"])
+@pytest.mark.parametrize("t_end, dt", [(0.7, 1e-3), (0.03, 1e-4), (0.06, 1e-4)])
+def test_last_output_is_t_end_and_filled(method, t_end, dt):
+    """700 x 1e-3 = 0.7000000000000001: the last output time was a few ulps past t_end, and the
+    event-driven loop (outputs up to t_end) left that column at zero (found by
+    studies/extremes.py). The free oscillator q = A cos(w t) (no contact reached) checks it."""
+    A = 0.05
+    res = integrate(oscillator(0.0), t_end, method, dt, [A], [0.0])
+    assert res.t[-1] == t_end and res.t.size == round(t_end / dt) + 1
+    tol = 1e-9 if method in ("exact", "rk") else 1e-3
+    assert abs(res.q[0, -1] - A * math.cos(W1 * t_end)) < tol * A

@@ -81,6 +81,8 @@ def output_times(t_end: float, output_dt: float) -> np.ndarray:
     t = np.arange(n + 1) * output_dt
     if t_end - t[-1] > 1e-9 * output_dt:
         t = np.append(t, t_end)
+    else:  # n dt may round a few ulps past t_end (0.7 = 700 x 1e-3 + 1.1e-16): the last output is t_end
+        t[-1] = t_end
     return t
 
 
