@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import IntegrationError, NsfemError
@@ -75,6 +77,28 @@ def search_cost(system: ContactSystem, t_end: float) -> tuple[float, float]:
     return w / (2 * np.pi), t_end * 4.0 * w / np.pi
 
 
+#: models larger than this skip the (dense) growth-rate check of :func:`growth_rate`
+GROWTH_CHECK_MAX_DOF = 400
+
+
+def growth_rate(system: ContactSystem) -> float:
+    """Largest real part [1/s] of the eigenvalues of the contact-free linear system
+    M q'' + C q' + Q q = 0 (positive: the open structure is unstable at this speed: divergence
+    or flutter; the linear model then leaves its range unless contacts or damping hold it)."""
+    import scipy.linalg as sla
+
+    n = system.n
+    if n == 0:
+        return 0.0
+    Mi = np.linalg.inv(system.M)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Mi @ system.Q, -Mi @ system.C]])
+    lam = sla.eigvals(A)
+    lam = lam[np.isfinite(lam)]
+    # round-off of the eigenvalues: eps times the largest one
+    return float(np.max(lam.real, initial=0.0)) if np.max(lam.real, initial=0.0) > 1e-9 * np.max(
+        np.abs(lam), initial=0.0) else 0.0
+
+
 def run_scene(scene, method: str | None = None, progress: bool | None = False, model=None, reduction=None,
               warn=None) -> tuple[Result, ContactSystem]:
     """Integrate a scene with its (or the given) method; returns the Result and the system.
@@ -107,6 +131,12 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
             warn(f"the fastest mode of this {system.n}-dof model ({f_max:.4g} Hz) sets the time scale of "
                  f"'{method}': about {samples:.2g} event-search samples for t_end = {sim['t_end']:g} s; a reduced "
                  "model (reduction.method = craig_bampton or modal) runs far faster")
+    if warn is not None and system.n <= GROWTH_CHECK_MAX_DOF:
+        rate = growth_rate(system)
+        if rate > 0.0:
+            warn(f"the structure without contact forces is unstable at {scene['rotation']['speed_hz']:g} Hz: its "
+                 f"fastest-growing mode grows at {rate:.3g} 1/s (x10 every {math.log(10) / rate:.3g} s); unless the "
+                 "contacts or damping hold it, displacements soon exceed the linear model's range")
     info = {"ndof_full": model.n, "reduction": red.info, "title": scene["title"],
             "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.contacts.labels)}
     try:

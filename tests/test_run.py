@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nsfem import cli
+from nsfem import cli, load_scene
 from nsfem.errors import NsfemError
 from nsfem.integrate import configuration
 from nsfem.result import Result
@@ -199,3 +199,23 @@ def test_export_rewrites_the_vtu_series_of_a_results_file(tmp_path, capsys):
         assert (tmp_path / "run" / name).read_bytes() == (tmp_path / "again" / name).read_bytes(), name
     assert cli.main(["export", str(tmp_path / "missing.npz"), "--vtu", str(tmp_path / "x")]) == cli.EXIT_ERROR
     assert "does not exist" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("overrides, unstable", [
+    (["rotation.speed_hz=120"], True),                  # flutter past the open bands (campbell: 255 1/s)
+    (["delamination.0.upper_height=0.0199"], True),     # a 0.1 mm sub-beam diverges from 0.85 Hz on
+    ([], False),                                        # the shipped scene: stable at 21 Hz
+])
+def test_run_warns_when_the_open_structure_is_unstable(overrides, unstable):
+    """Found by studies/extremes.py: runs at 120 Hz and with a very thin sub-beam grew to 1e20 m
+    without a word. The growth rate of the contact-free linearization (its eigenvalues) is the
+    independent check: Campbell's growth rate at 120 Hz is 255 1/s."""
+    from nsfem.simulate import growth_rate, run_scene
+
+    said = []
+    scene = load_scene(None, ["mesh.elements=20", "simulation.t_end=0.001", *overrides])
+    result, system = run_scene(scene, warn=said.append)
+    grows = [w for w in said if "unstable at" in w]
+    assert bool(grows) == unstable
+    if overrides == ["rotation.speed_hz=120"]:
+        assert growth_rate(system) == pytest.approx(255, rel=0.05)

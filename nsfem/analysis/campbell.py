@@ -323,5 +323,5 @@ def supercritical_warning(speed_hz: float, divergence_hz) -> str | None:
         return None
     inside = [(a, b) for a, b in divergence_bands(d) if a < speed_hz < b]
     where = (f"inside the divergence band {inside[0][0]:.3f}-{inside[0][1]:.3f} Hz, where the static response "
-             "diverges" if inside else "past a divergence band: only gyroscopic coupling keeps it stable")
+             "diverges" if inside else "past a divergence band, where only gyroscopic coupling can keep it stable")
     return f"rotation.speed_hz = {speed_hz:g} Hz is supercritical (first divergence speed {d[0]:.3f} Hz), {where}"
