@@ -54,8 +54,8 @@ SHARED_TABLES = ("title", "rotation", "damping", "initial", "simulation", "outpu
 #: The run keys of every row (design section 5), then the row's error and results file.
 RUN_KEYS = ("method", "t_end", "completed", "wall_s", "ndof_full", "ndof", "events", "impacts", "min_gap_m",
             "max_gap_m", "closed_fraction", "max_normal_force_N", "energy")
-#: An override whose value looks like numbers and colons is taken for a range.
-_RANGE_LIKE = re.compile(r"^[-+0-9.eE:\s]*:[-+0-9.eE:\s]*$")
+#: The most runs one sweep may have (a typo in N should not plan a billion runs).
+MAX_POINTS = 100_000
 
 
 @dataclass(frozen=True)
@@ -74,16 +74,26 @@ def parse_range(key: str, text: str) -> tuple:
     ((15, 17.5, 20, 22.5, 25), (0.5,), (0.001, 0.002, 0.003))
     """
     parts = [p.strip() for p in text.split(":")]
-    bad = f"a range must be START:STOP:N with numbers START, STOP and a whole N >= 1, got {text.strip()!r}"
+    head = f"--set {key}=START:STOP:N"
     if len(parts) != 3:
-        raise NsfemError(f"{key}: {bad}")
-    try:
-        start, stop = float(parts[0]), float(parts[1])
-        n = int(parts[2])
-    except ValueError:
-        raise NsfemError(f"{key}: {bad}") from None
-    if n < 1 or not (np.isfinite(start) and np.isfinite(stop)):
-        raise NsfemError(f"{key}: {bad}")
+        raise NsfemError(f"{head}: a range has three parts separated by ':', got {text.strip()!r}")
+    ends = []
+    for name, part in zip(("START", "STOP"), parts):
+        try:
+            v = float(part)
+        except ValueError:
+            v = float("nan")
+        if not np.isfinite(v):
+            raise NsfemError(f"{head}: {name} must be a finite number, got {part!r}")
+        ends.append(v)
+    start, stop = ends
+    if not re.fullmatch(r"\+?\d+", parts[2]) or int(parts[2]) < 1:
+        raise NsfemError(f"{head}: N must be a positive integer, got {parts[2]!r}")
+    n = int(parts[2])
+    if n > MAX_POINTS:
+        raise NsfemError(f"{head}: N = {n} exceeds the limit of {MAX_POINTS} runs per sweep")
+    if n == 1 and start != stop:
+        raise NsfemError(f"{head}: N = 1 needs START = STOP, got {parts[0]} and {parts[1]}")
     vals = [float(f"{v:.12g}") for v in np.linspace(start, stop, n)]
     if re.fullmatch(r"[-+]?\d+", parts[0]) and re.fullmatch(r"[-+]?\d+", parts[1]):
         vals = [int(v) if v.is_integer() else v for v in vals]
@@ -91,12 +101,15 @@ def parse_range(key: str, text: str) -> tuple:
 
 
 def parse_ranges(overrides: Iterable[str]) -> tuple[list[str], list[Axis]]:
-    """Split ``--set`` overrides into fixed ones (``KEY=VALUE``) and swept axes (``KEY=START:STOP:N``)."""
+    """Split ``--set`` overrides into fixed ones (``KEY=VALUE``) and swept axes (``KEY=START:STOP:N``).
+
+    A value with a ``:`` after a number (``10:``, ``nan:``) is a range; other values (``C:/out``) are not.
+    """
     fixed: list[str] = []
     axes: list[Axis] = []
     for o in overrides:
         key, sep, text = o.partition("=")
-        if sep and _RANGE_LIKE.match(text):
+        if sep and ":" in text and _is_float(text.partition(":")[0]):
             key = key.strip()
             if any(a.key == key for a in axes):
                 raise NsfemError(f"{key}: swept twice (give one range per key)")
@@ -107,7 +120,18 @@ def parse_ranges(overrides: Iterable[str]) -> tuple[list[str], list[Axis]]:
         key = o.partition("=")[0].strip()
         if any(a.key == key for a in axes):
             raise NsfemError(f"{key}: both swept and fixed (drop one of its --set)")
+    total = int(np.prod([len(a.values) for a in axes], dtype=float)) if axes else 0
+    if total > MAX_POINTS:
+        raise NsfemError(f"the sweep has {total} runs, more than the limit of {MAX_POINTS}")
     return fixed, axes
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def sweep_values(axes: Sequence[Axis]) -> list[dict]:

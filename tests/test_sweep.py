@@ -144,8 +144,14 @@ def test_cli_sweep_reports_failures_with_exit_2(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, words", [
     (["--set", "rotation.speed_hz=10:20"], "START:STOP:N"),
-    (["--set", "rotation.speed_hz=10:20:0"], "N >= 1"),
-    (["--set", "rotation.speed_hz=10:20:x"], "rotation.speed_hz: must be a number"),
+    (["--set", "rotation.speed_hz=10:20:0"], "N must be a positive integer, got '0'"),
+    (["--set", "rotation.speed_hz=10:20:x"],
+     "--set rotation.speed_hz=START:STOP:N: N must be a positive integer, got 'x'"),
+    (["--set", "rotation.speed_hz=10:20:1"], "N = 1 needs START = STOP"),
+    (["--set", "rotation.speed_hz=nan:20:3"], "START must be a finite number, got 'nan'"),
+    (["--set", "rotation.speed_hz=10:inf:3"], "STOP must be a finite number, got 'inf'"),
+    (["--set", "rotation.speed_hz=10:20:1000001"], "exceeds the limit of 100000"),
+    (["--set", "rotation.speed_hz=10:20:1000", "--set", "damping.external=0:1:1000"], "more than the limit"),
     (["--set", "rotation.speed_hz=10:20:3", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),
     (["--set", "rotation.speed_hz=10:20:3", "--workers", "0"], "positive"),
     (["--set", "rotation.sped_hz=10:20:3"], "rotation.sped_hz: unknown key"),
@@ -153,7 +159,8 @@ def test_cli_sweep_reports_failures_with_exit_2(tmp_path, capsys):
     (["--set", "rotation.speed_hz=10:20:3", "--set", "rotation.speed_hz=5"], "both swept and fixed"),
     (["--set", "mesh.elements=5:25:3"], "mesh.elements"),
     ([], "nothing to sweep"),
-], ids=["two-parts", "n-zero", "n-not-a-number", "workers-and-scheduler", "workers-zero", "unknown-key",
+], ids=["two-parts", "n-zero", "n-not-a-number", "n-one-two-ends", "nan", "inf", "too-many", "grid-too-many",
+        "workers-and-scheduler", "workers-zero", "unknown-key",
         "bad-value", "swept-and-fixed", "bad-value-in-range", "no-range"])
 def test_cli_sweep_errors_are_one_line(argv, words, capsys, tmp_path, monkeypatch):
     monkeypatch.setattr(ASSEMBLE, "build_model", lambda *a: pytest.fail("built a model for a bad sweep"))
