@@ -64,7 +64,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"))
     p.add_argument("--workers", type=int, help="local worker processes (default: one per core, at most one per run)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
-    p.add_argument("--out", metavar="DIR", help="sweep folder (default: <output.dir>/sweep); a rerun resumes it")
+    p.add_argument("--out", metavar="DIR", help="sweep folder (default: <output.dir>/sweep-<swept keys>); a rerun "
+                   "resumes it")
 
     p = sub.add_parser("export", help="re-export a saved result")
     p.add_argument("result")
@@ -116,7 +117,9 @@ def cmd_modes(args) -> int:
 
 def cmd_sweep(args) -> int:
     """One run per value of the swept keys; the table, JSON and resonance curve in the sweep folder."""
-    from .sweep import run_sweep
+    import signal
+
+    from .sweep import SweepInterrupted, run_sweep
 
     if args.workers is not None and args.scheduler:
         raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
@@ -124,26 +127,44 @@ def cmd_sweep(args) -> int:
     def progress(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
-    res = run_sweep(args.scene, args.overrides, args.out, method=args.method, workers=args.workers,
-                    scheduler=args.scheduler, progress=progress)
+    def terminate(signum, frame):  # a scheduler's SIGTERM ends the sweep like Ctrl-C: finished rows kept
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    interrupted = False
+    try:
+        res = run_sweep(args.scene, args.overrides, args.out, method=args.method, workers=args.workers,
+                        scheduler=args.scheduler, progress=progress)
+    except SweepInterrupted as exc:
+        res, interrupted = exc.result, True
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     payload = res.to_json()
     keys = [a.key for a in res.axes]
-    lines = [f"{len(res.runs)} runs ({res.info['executed']} run now, {res.info['resumed']} already done) in "
-             f"{res.info['wall_s']:.3g} s on {res.info['workers']} workers; {res.info['models_built']} model(s) built",
+    shown = [r for r in res.runs if r is not None]
+    lines = [f"{len(shown)} runs in the folder ({res.info['executed']} run now, {res.info['resumed']} already done) "
+             f"in {res.info['wall_s']:.3g} s on {res.info['workers']} workers; {res.info['models_built']} model(s) "
+             "built",
              "  " + "  ".join(keys) + "  events  closed [%]  min gap [m]  max gap [m]  max force [N]"]
-    for r in res.runs:
+    for r in shown:
         vals = "  ".join(f"{r[k]}" for k in keys)
         if r.get("error"):
             lines.append(f"  {vals}  failed: {r['error']}")
+        elif r["min_gap_m"] is None:
+            lines.append(f"  {vals}  {r['events']}  no contacts")
         else:
             lines.append(f"  {vals}  {r['events']}  {100 * r['closed_fraction']:.2f}  {r['min_gap_m']:.4e}  "
                          f"{r['max_gap_m']:.4e}  {r['max_normal_force_N']:.4g}")
     lines.append(f"wrote {res.table}" + (f", {res.figure}" if res.figure else ""))
     _emit(args, payload, "\n".join(lines))
+    if interrupted:
+        print(f"nsfem: interrupted: the finished runs are in {res.out_dir}; run the same command again to "
+              "resume", file=sys.stderr)
+        return 130
     failed = res.failed
     if failed:
         first = failed[0]
-        print(f"nsfem: error: {len(failed)} of {len(res.runs)} runs failed (first: "
+        print(f"nsfem: error: {len(failed)} of {len(res.current)} runs failed (first: "
               + ", ".join(f"{k}={first[k]}" for k in keys) + f": {' '.join(first['error'].split())}); see {res.table}",
               file=sys.stderr)
         return EXIT_ERROR

@@ -54,8 +54,8 @@ SHARED_TABLES = ("title", "rotation", "damping", "initial", "simulation", "outpu
 #: The run keys of every row (design section 5), then the row's error and results file.
 RUN_KEYS = ("method", "t_end", "completed", "wall_s", "ndof_full", "ndof", "events", "impacts", "min_gap_m",
             "max_gap_m", "closed_fraction", "max_normal_force_N", "energy")
-#: An override whose value looks like numbers and colons is taken for a range.
-_RANGE_LIKE = re.compile(r"^[-+0-9.eE:\s]*:[-+0-9.eE:\s]*$")
+#: The most runs one sweep may have (a typo in N should not plan a billion runs).
+MAX_POINTS = 100_000
 
 
 @dataclass(frozen=True)
@@ -74,16 +74,26 @@ def parse_range(key: str, text: str) -> tuple:
     ((15, 17.5, 20, 22.5, 25), (0.5,), (0.001, 0.002, 0.003))
     """
     parts = [p.strip() for p in text.split(":")]
-    bad = f"a range must be START:STOP:N with numbers START, STOP and a whole N >= 1, got {text.strip()!r}"
+    head = f"--set {key}=START:STOP:N"
     if len(parts) != 3:
-        raise NsfemError(f"{key}: {bad}")
-    try:
-        start, stop = float(parts[0]), float(parts[1])
-        n = int(parts[2])
-    except ValueError:
-        raise NsfemError(f"{key}: {bad}") from None
-    if n < 1 or not (np.isfinite(start) and np.isfinite(stop)):
-        raise NsfemError(f"{key}: {bad}")
+        raise NsfemError(f"{head}: a range has three parts separated by ':', got {text.strip()!r}")
+    ends = []
+    for name, part in zip(("START", "STOP"), parts):
+        try:
+            v = float(part)
+        except ValueError:
+            v = float("nan")
+        if not np.isfinite(v):
+            raise NsfemError(f"{head}: {name} must be a finite number, got {part!r}")
+        ends.append(v)
+    start, stop = ends
+    if not re.fullmatch(r"\+?\d+", parts[2]) or int(parts[2]) < 1:
+        raise NsfemError(f"{head}: N must be a positive integer, got {parts[2]!r}")
+    n = int(parts[2])
+    if n > MAX_POINTS:
+        raise NsfemError(f"{head}: N = {n} exceeds the limit of {MAX_POINTS} runs per sweep")
+    if n == 1 and start != stop:
+        raise NsfemError(f"{head}: N = 1 needs START = STOP, got {parts[0]} and {parts[1]}")
     vals = [float(f"{v:.12g}") for v in np.linspace(start, stop, n)]
     if re.fullmatch(r"[-+]?\d+", parts[0]) and re.fullmatch(r"[-+]?\d+", parts[1]):
         vals = [int(v) if v.is_integer() else v for v in vals]
@@ -91,12 +101,15 @@ def parse_range(key: str, text: str) -> tuple:
 
 
 def parse_ranges(overrides: Iterable[str]) -> tuple[list[str], list[Axis]]:
-    """Split ``--set`` overrides into fixed ones (``KEY=VALUE``) and swept axes (``KEY=START:STOP:N``)."""
+    """Split ``--set`` overrides into fixed ones (``KEY=VALUE``) and swept axes (``KEY=START:STOP:N``).
+
+    A value with a ``:`` after a number (``10:``, ``nan:``) is a range; other values (``C:/out``) are not.
+    """
     fixed: list[str] = []
     axes: list[Axis] = []
     for o in overrides:
         key, sep, text = o.partition("=")
-        if sep and _RANGE_LIKE.match(text):
+        if sep and ":" in text and _is_float(text.partition(":")[0]):
             key = key.strip()
             if any(a.key == key for a in axes):
                 raise NsfemError(f"{key}: swept twice (give one range per key)")
@@ -107,7 +120,18 @@ def parse_ranges(overrides: Iterable[str]) -> tuple[list[str], list[Axis]]:
         key = o.partition("=")[0].strip()
         if any(a.key == key for a in axes):
             raise NsfemError(f"{key}: both swept and fixed (drop one of its --set)")
+    total = int(np.prod([len(a.values) for a in axes], dtype=float)) if axes else 0
+    if total > MAX_POINTS:
+        raise NsfemError(f"the sweep has {total} runs, more than the limit of {MAX_POINTS}")
     return fixed, axes
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def sweep_values(axes: Sequence[Axis]) -> list[dict]:
@@ -134,10 +158,33 @@ def model_key(scene) -> str:
     return json.dumps([tree, str(scene.mesh_file or "")], sort_keys=True, default=str)
 
 
-def fingerprint(scene_text: str, fixed: Sequence[str], keys: Sequence[str], method: str) -> str:
-    """Hash of what makes two sweeps' runs comparable: scene text, fixed overrides, swept keys, method."""
-    blob = json.dumps({"scene": scene_text, "fixed": list(fixed), "keys": list(keys), "method": method})
+def fingerprint(base, keys: Sequence[str], method: str) -> str:
+    """Hash of what makes two sweeps' runs comparable: the validated scene (every default filled in,
+    fixed overrides applied, ``[output]`` and the swept keys left out, the mesh file's bytes), the
+    swept keys and the method. Reordered or no-op ``--set`` flags give the same fingerprint."""
+    tree = json.loads(json.dumps(dict(base), default=str))
+    tree.pop("output", None)
+    for key in keys:
+        _drop(tree, key)
+    mesh = base.mesh_file
+    mesh_hash = hashlib.sha256(mesh.read_bytes()).hexdigest() if mesh is not None and mesh.is_file() else ""
+    blob = json.dumps({"scene": tree, "mesh": mesh_hash, "keys": list(keys), "method": method}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _drop(tree, key: str) -> None:
+    """Remove a dotted key (list items by index) from a tree, if there."""
+    *path, last = key.split(".")
+    node = tree
+    try:
+        for part in path:
+            node = node[int(part)] if isinstance(node, list) else node[part]
+        if isinstance(node, dict):
+            node.pop(last, None)
+        elif isinstance(node, list):
+            node[int(last)] = None
+    except (KeyError, IndexError, ValueError, TypeError):
+        pass
 
 
 def scene_source(scene_path) -> str:
@@ -188,7 +235,7 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
     run_dir = Path(run_dir)
     model, red = shared if shared is not None else (None, None)
     warnings: list[str] = []
-    row: dict = {**point, **dict.fromkeys(RUN_KEYS), "method": method, "error": "", "result": ""}
+    row = error_row(point, method, "")
     t0 = time.perf_counter()
     try:
         try:
@@ -199,31 +246,63 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
             result, system, error = exc.result, exc.system, str(exc)
         red = system.info["reduction"]
         path = result.save(run_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, dict(scene))
-        row.update(result.summary(), error=error, result=str(path))
+        summary = result.summary()
+        row.update(summary, error=error, result=str(path), outputs=[str(path)],
+                   integration_wall_s=summary["wall_s"])
     except Exception as exc:  # noqa: BLE001 - every failure is reported in its row
-        row["error"] = f"{type(exc).__name__}: {exc}" if not isinstance(exc, NsfemError) else str(exc)
-    row["run_wall_s"] = time.perf_counter() - t0
+        row["error"] = _message(exc)
+    row["wall_s"] = time.perf_counter() - t0  # as nsfem run: the whole run (the shared model built before)
     row["warnings"] = warnings
     write_json(run_dir / "record.json", {"fingerprint": fp, "point": point, "row": row})
     return row
 
 
+def _message(exc: BaseException) -> str:
+    text = str(exc) if isinstance(exc, NsfemError) else f"{type(exc).__name__}: {exc}"
+    return " ".join(text.split())
+
+
+def error_row(point: dict, method: str, error: str) -> dict:
+    """A row with no results (yet): the point, every run key None, ``error``."""
+    return {**point, **dict.fromkeys(RUN_KEYS), "method": method, "error": error, "result": "", "outputs": [],
+            "warnings": []}
+
+
 def read_record(run_dir: Path, fp: str) -> dict | None:
-    """The row of a finished, successful run of this sweep in ``run_dir``, else None."""
+    """The row of a finished (completed), successful run of this sweep in ``run_dir``, else None."""
     try:
         rec = json.loads((Path(run_dir) / "record.json").read_text())
     except (OSError, ValueError):
         return None
     row = rec.get("row") if isinstance(rec, dict) else None
-    if rec.get("fingerprint") != fp or not isinstance(row, dict) or row.get("error") or not row.get("result"):
+    if (not isinstance(row, dict) or rec.get("fingerprint") != fp or row.get("error") or not row.get("result")
+            or row.get("completed") is not True):
         return None
     return row if Path(row["result"]).is_file() else None
 
 
 # --------------------------------------------------------------------------- the sweep (on the client)
+#: Seconds to connect to a scheduler and for its first worker to be there; seconds to close a cluster.
+CONNECT_TIMEOUT = 10.0
+CLOSE_TIMEOUT = 2.0
+#: A worker preload script (run in the worker process's main thread as it starts).
+_IGNORE_SIGINT = "import signal; signal.signal(signal.SIGINT, signal.SIG_IGN)"
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C (or SIGTERM, from the command line) during a sweep: ``result`` holds the finished rows,
+    already written to the sweep folder."""
+
+    def __init__(self, result: "SweepResult"):
+        super().__init__(f"sweep interrupted; the finished runs are in {result.out_dir}")
+        self.result = result
+
+
 @dataclass
 class SweepResult:
-    """The rows of a sweep in its order (``runs``), where they are, and how it went (``info``)."""
+    """The rows of the sweep folder in the order of the swept values (``points``, ``runs``): this
+    sweep's values and those of earlier sweeps into the same folder with the same fingerprint;
+    ``current`` names this invocation's runs, ``info`` says how it went."""
 
     axes: list[Axis]
     points: list[dict]
@@ -232,19 +311,36 @@ class SweepResult:
     table: Path
     figure: Path | None = None
     info: dict = field(default_factory=dict)
+    current: set = field(default_factory=set)
+    entries: dict = field(default_factory=dict)
+
+    def set_row(self, point: dict, row: dict | None) -> None:
+        """Enter (or replace) a point's row; ``points``/``runs`` stay sorted by the swept values."""
+        name = run_name(point)
+        if row is None and name in self.entries:
+            return
+        self.entries[name] = (point, row)
+        keys = [a.key for a in self.axes]
+        order = sorted(self.entries.values(), key=lambda e: tuple(e[0][k] for k in keys))
+        self.points = [e[0] for e in order]
+        self.runs = [e[1] for e in order]
 
     @property
     def failed(self) -> list[dict]:
-        return [r for r in self.runs if r is not None and r.get("error")]
+        """The failed runs among this invocation's values."""
+        return [r for p, r in zip(self.points, self.runs)
+                if r is not None and r.get("error") and run_name(p) in self.current]
 
     def to_json(self) -> dict:
-        """``parameter``/``values``: a key and numbers for one axis; lists of keys and of value lists for a grid."""
+        """``parameter``/``values``: a key and numbers for one axis; lists of keys and of value lists for a grid.
+        ``values``/``runs``: every finished row of the folder (unfinished values are left out)."""
         keys = [a.key for a in self.axes]
+        done = [(p, r) for p, r in zip(self.points, self.runs) if r is not None]
         if len(keys) == 1:
-            parameter, values = keys[0], [p[keys[0]] for p in self.points]
+            parameter, values = keys[0], [p[keys[0]] for p, _ in done]
         else:
-            parameter, values = keys, [[p[k] for k in keys] for p in self.points]
-        return {"parameter": parameter, "values": values, "runs": self.runs, "out": str(self.out_dir),
+            parameter, values = keys, [[p[k] for k in keys] for p, _ in done]
+        return {"parameter": parameter, "values": values, "runs": [r for _, r in done], "out": str(self.out_dir),
                 "table": str(self.table), "figure": str(self.figure) if self.figure else None,
                 "failed": len(self.failed), **self.info}
 
@@ -262,18 +358,34 @@ def write_table(path: Path, axes: Sequence[Axis], runs: Sequence[dict | None]) -
     return _atomic_text(Path(path), buf.getvalue())
 
 
+def folder_rows(out: Path, fp: str, keys: Sequence[str]) -> list[tuple[dict, dict]]:
+    """(point, row) of every run record in ``out`` written by a sweep with fingerprint ``fp``."""
+    found = []
+    for path in sorted(Path(out).glob("*/record.json")):
+        try:
+            rec = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if not isinstance(rec, dict) or rec.get("fingerprint") != fp:
+            continue
+        point, row = rec.get("point"), rec.get("row")
+        if isinstance(point, dict) and list(point) == list(keys) and isinstance(row, dict):
+            found.append((point, row))
+    return found
+
+
 def format_progress(k: int, n: int, row: dict, keys: Sequence[str]) -> str:
     """``[k/n] rotation.speed_hz=21: exact, 17 events, closed 3.1 %, 0.25 s`` (or the error).
 
     >>> format_progress(1, 5, {"s": 21, "method": "exact", "events": 17, "closed_fraction": 0.031,
-    ...                        "run_wall_s": 0.25, "error": ""}, ["s"])
+    ...                        "wall_s": 0.25, "error": ""}, ["s"])
     '[1/5] s=21: exact, 17 events, closed 3.1 %, 0.25 s'
     """
     head = f"[{k}/{n}] " + ", ".join(f"{key}={_num(row[key])}" for key in keys)
     if row.get("error"):
         return f"{head}: failed: {row['error']}"
     return (f"{head}: {row['method']}, {row['events']} events, closed {100 * row['closed_fraction']:.1f} %, "
-            f"{row['run_wall_s']:.2f} s")
+            f"{row['wall_s']:.2f} s")
 
 
 @dataclass
@@ -285,6 +397,7 @@ class _Plan:
     method: str
     scene_text: str
     fp: str
+    base: Any = None
 
 
 def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Plan:
@@ -302,63 +415,146 @@ def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Pl
     method = method or base["simulation"]["method"]
     if any(a.key == "simulation.method" for a in axes):  # pragma: no cover - ranges are numbers
         raise NsfemError("simulation.method cannot be swept")
-    text = scene_source(scene_path)
-    return _Plan(points, scenes, fixed, axes, method, text,
-                 fingerprint(text, fixed, [a.key for a in axes], method))
+    keys = [a.key for a in axes]
+    return _Plan(points, scenes, fixed, axes, method, scene_source(scene_path), fingerprint(base, keys, method),
+                 base)
 
 
-def _check_folder(out: Path, p: _Plan, scene_path) -> None:
-    """Refuse a folder that holds another sweep (other scene text, fixed overrides, swept keys or method)."""
+def default_folder(p: _Plan) -> Path:
+    """``<output.dir>/sweep-<swept keys>``: sweeps of other keys get other folders."""
+    return Path(p.base["output"]["dir"]) / ("sweep-" + ",".join(a.key for a in p.axes))
+
+
+def _check_writable(out: Path) -> None:
+    """A one-line error if ``out`` cannot become the sweep folder (nothing is created here)."""
+    if out.exists() and not out.is_dir():
+        raise NsfemError(f"--out {out}: exists and is not a folder")
+    parent = out
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise NsfemError(f"--out {out}: {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise NsfemError(f"--out {out}: {parent} is not writable")
+
+
+def _check_folder(out: Path, p: _Plan, scene_path, write: bool = False) -> None:
+    """Refuse a folder that holds another sweep (other scene, fixed settings, swept keys or method);
+    ``write``: stamp the folder as this sweep's."""
     stamp = out / "sweep-id.json"
-    mine = {"fingerprint": p.fp, "scene": str(scene_path or "(shipped scene)"), "fixed": p.fixed,
-            "keys": [a.key for a in p.axes], "method": p.method}
     if stamp.is_file():
         try:
             theirs = json.loads(stamp.read_text())
         except ValueError:
             theirs = {}
-        if theirs.get("fingerprint") != p.fp:
+        if not isinstance(theirs, dict) or theirs.get("fingerprint") != p.fp:
+            theirs = theirs if isinstance(theirs, dict) else {}
             raise NsfemError(f"{out} holds another sweep (scene {theirs.get('scene')}, fixed {theirs.get('fixed')}, "
                              f"swept {theirs.get('keys')}, method {theirs.get('method')}); its results would mix "
                              "with this one's: choose another --out or remove that folder")
-    else:
-        write_json(stamp, mine)
+    elif write:
+        write_json(stamp, {"fingerprint": p.fp, "scene": str(scene_path or "(shipped scene)"), "fixed": p.fixed,
+                           "keys": [a.key for a in p.axes], "method": p.method})
 
 
 def _client(client, workers: int | None, scheduler: str | None, n_runs: int):
-    """(client, things to close): the given client, one connected to ``scheduler``, or a LocalCluster."""
+    """(client, things to close): the given client, one connected to ``scheduler``, or a LocalCluster.
+    Any failure to connect, or a cluster without workers, is a one-line NsfemError."""
+    import logging
+    import threading
+
     from distributed import Client, LocalCluster
 
     if client is not None:
-        return client, []
-    if scheduler:
-        try:
-            c = Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError) as exc:
-            raise NsfemError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
-        return c, [c]
-    n = workers or max(1, min(os.cpu_count() or 1, n_runs))
-    env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+        c, closing, where = client, [], "the client's cluster"
+    elif scheduler:
+        # in a thread, bounded: an endpoint that accepts the connection but never answers the
+        # handshake (not a Dask scheduler) would otherwise hang the client
+        box: dict = {}
+
+        def connect():
+            try:
+                box["client"] = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s")
+            except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+                box["error"] = exc
+
+        thread = threading.Thread(target=connect, daemon=True, name="nsfem-connect")
+        thread.start()
+        thread.join(CONNECT_TIMEOUT + 2.0)
+        if "client" not in box:
+            exc = box.get("error")
+            why = _message(exc)[:200] if exc is not None else f"no answer within {CONNECT_TIMEOUT:g} s"
+            raise NsfemError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({why})")
+        c = box["client"]
+        closing, where = [c], f"--scheduler {scheduler}"
+    else:
+        n = workers or max(1, min(os.cpu_count() or 1, n_runs))
+        env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+        # the workers ignore SIGINT: Ctrl-C in the terminal (sent to the whole process group)
+        # reaches only this process, which cancels the runs and closes the cluster, quietly
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
+        c = Client(cluster)
+        closing, where = [c, cluster], "the local cluster"
+    try:
+        c.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+    except Exception:  # noqa: BLE001 - a TimeoutError, or the scheduler went away
+        _close(closing)
+        raise NsfemError(f"{where}: no worker within {CONNECT_TIMEOUT:g} s (start workers with "
+                         f"`dask worker {scheduler or 'ADDRESS'}`)") from None
+    return c, closing
+
+
+def _close(closing) -> None:
+    """Close clients and clusters promptly, without the log lines of workers lost on the way."""
     import logging
 
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR, env=env)
-    c = Client(cluster)
-    return c, [c, cluster]
+    names = ["distributed"] + [n for n in logging.root.manager.loggerDict if n.startswith("distributed.")]
+    levels = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+    try:
+        for c in closing:
+            try:
+                c.close(timeout=CLOSE_TIMEOUT)
+            except Exception:  # noqa: BLE001 - closing is best effort
+                pass
+    finally:
+        for n, level in levels.items():
+            logging.getLogger(n).setLevel(level)
+
+
+def _hold_signals() -> dict:
+    """Ignore SIGINT and SIGTERM (main thread only); returns what to restore."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
+def _release_signals(held: dict) -> None:
+    import signal
+
+    for sig, handler in held.items():
+        signal.signal(sig, handler)
 
 
 def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | None = None, client=None,
               workers: int | None = None, scheduler: str | None = None,
               progress: Callable[[str], None] | None = None, plot: bool = True) -> SweepResult:
-    """Run a sweep; returns its rows in sweep order (``runs``) with ``info``.
+    """Run a sweep; returns the rows of its folder in the order of the swept values with ``info``.
 
     ``client``: a ``distributed.Client`` to use; else ``scheduler`` (an address) or a
     LocalCluster of ``workers`` processes (default: one per core, at most one per run), one
-    thread each. ``out_dir`` defaults to ``<output.dir>/sweep``. Runs already done in
+    thread each. ``out_dir`` defaults to ``<output.dir>/sweep-<swept keys>``. Runs already done in
     ``out_dir`` by the same sweep are not run again; failed ones are. ``progress(line)``
-    receives one line per finished run. Ctrl-C cancels the pending runs and keeps the table
-    of the finished ones. ``info``: ``executed``, ``resumed``, ``models_built``, ``workers``,
-    ``wall_s``.
+    receives one line per finished run (and one per warning of it). A model that cannot be
+    built fails the rows of its values only. Ctrl-C cancels the pending runs, writes the table
+    of the finished ones and raises :class:`SweepInterrupted` (a KeyboardInterrupt) carrying
+    them. ``info``: ``executed``, ``resumed``, ``models_built``, ``workers``, ``wall_s``
+    (and ``interrupted``).
     """
     from .fem.assemble import build_model
     from .reduce import scene_reduction
@@ -370,77 +566,99 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
     t0 = time.perf_counter()
     p = plan(scene_path, overrides, method)
     # absolute: the workers (maybe started elsewhere) write there
-    out = (Path(out_dir) if out_dir is not None else Path(p.scenes[0]["output"]["dir"]) / "sweep").absolute()
+    out = (Path(out_dir) if out_dir is not None else default_folder(p)).absolute()
+    _check_writable(out)
     _check_folder(out, p, scene_path)
     keys = [a.key for a in p.axes]
-    runs: list[dict | None] = [read_record(out / run_name(pt), p.fp) for pt in p.points]
-    todo = [i for i, r in enumerate(runs) if r is None]
+    done_rows = [read_record(out / run_name(pt), p.fp) for pt in p.points]
+    todo = [i for i, r in enumerate(done_rows) if r is None]
     resumed = len(p.points) - len(todo)
-    res = SweepResult(p.axes, p.points, runs, out, out / "sweep.csv",
+    res = SweepResult(p.axes, [], [], out, out / "sweep.csv", current={run_name(pt) for pt in p.points},
                       info={"executed": 0, "resumed": resumed, "models_built": 0, "workers": 0, "wall_s": 0.0})
+    for point, row in folder_rows(out, p.fp, keys):  # earlier sweeps into this folder, this one's resumed runs
+        res.set_row(point, row)
+    for pt in p.points:
+        res.set_row(pt, None)
     say = progress or (lambda line: None)
-    if resumed:
-        say(f"{resumed} of {len(p.points)} runs already done in {out}")
 
     def record(i: int, row: dict) -> None:
-        runs[i] = row
-        write_table(res.table, p.axes, runs)
+        res.set_row(p.points[i], row)
+        write_table(res.table, p.axes, res.runs)
         write_json(out / "sweep.json", res.to_json())
+        res.info["executed"] += 1
+        say(format_progress(resumed + res.info["executed"], len(p.points), row, keys))
+        for w in row.get("warnings") or []:
+            say(f"  warning: {w}")
 
     def finish() -> SweepResult:
         res.info["wall_s"] = time.perf_counter() - t0
-        write_table(res.table, p.axes, runs)
-        if plot and any(r is not None and not r.get("error") for r in runs):
+        write_table(res.table, p.axes, res.runs)
+        if plot and any(r is not None and not r.get("error") for r in res.runs):
             from .plot.sweep import plot_resonance
 
-            res.figure = plot_resonance(out / "resonance.png", keys, p.points, runs, p.scenes[0]["title"])
+            res.figure = plot_resonance(out / "resonance.png", keys, res.points, res.runs, p.base["title"])
         write_json(out / "sweep.json", res.to_json())
         return res
 
     if not todo:
+        if resumed:
+            say(f"{resumed} of {len(p.points)} runs already done in {out}")
         return finish()
-    # one model and reduction per distinct model key, built here once
-    groups: dict[str, list[int]] = {}
-    for i in todo:
-        groups.setdefault(model_key(p.scenes[i]), []).append(i)
-    built = {}
-    for mk, idx in groups.items():
-        scene = p.scenes[idx[0]]
-        model = build_model(scene)
-        built[mk] = (model, scene_reduction(scene, model))
-    res.info["models_built"] = len(built)
-    cl, closing = _client(client, workers, scheduler, len(todo))
-    futures = {}
+    cl, closing, futures = None, [], {}
     try:
+        cl, closing = _client(client, workers, scheduler, len(todo))
         res.info["workers"] = len(cl.nthreads())
+        _check_folder(out, p, scene_path, write=True)
+        if resumed:
+            say(f"{resumed} of {len(p.points)} runs already done in {out}")
         from distributed import as_completed
 
-        for mk, idx in groups.items():
-            [shared] = cl.scatter([built[mk]], broadcast=True, hash=False)
+        # one model and reduction per distinct model key, built here once; a failed build fails its rows only
+        groups: dict[str, list[int]] = {}
+        for i in todo:
+            groups.setdefault(model_key(p.scenes[i]), []).append(i)
+        for idx in groups.values():
+            scene = p.scenes[idx[0]]
+            try:
+                model = build_model(scene)
+                built = (model, scene_reduction(scene, model))
+            except Exception as exc:  # noqa: BLE001 - reported in the rows of this model's values
+                for i in idx:
+                    row = error_row(p.points[i], p.method, f"model build failed: {_message(exc)}")
+                    write_json(out / run_name(p.points[i]) / "record.json",
+                               {"fingerprint": p.fp, "point": p.points[i], "row": row})
+                    record(i, row)
+                continue
+            res.info["models_built"] += 1
+            [shared] = cl.scatter([built], broadcast=True, hash=False)
             for i in idx:
                 # a fresh key: the scheduler must never hand back a finished task of an earlier sweep
                 fut = cl.submit(run_point, p.scenes[i], p.method, shared, str(out / run_name(p.points[i])),
                                 p.scene_text + "\n# overrides: " + " ".join(p.fixed + point_overrides(p.points[i])),
                                 p.points[i], p.fp, key=f"nsfem-run-{uuid.uuid4().hex}", pure=False)
                 futures[fut] = i
-        done = 0
+        for fut in as_completed(list(futures), loop=cl.loop):
+            i = futures[fut]
+            try:
+                row = fut.result()
+            except Exception as exc:  # noqa: BLE001 - a lost worker, an unpicklable result
+                row = error_row(p.points[i], p.method, _message(exc))
+            record(i, row)
+    except KeyboardInterrupt:
+        held = _hold_signals()  # a second Ctrl-C must not cut the writing of the finished rows short
+        if cl is not None:
+            try:
+                cl.cancel([f for f in futures if not f.done()])
+            except Exception:  # noqa: BLE001 - the cluster may be going away too
+                pass
+        _close(closing)
+        closing = []
+        res.info["interrupted"] = True
         try:
-            for fut in as_completed(list(futures)):
-                i = futures[fut]
-                try:
-                    row = fut.result()
-                except Exception as exc:  # noqa: BLE001 - a lost worker, an unpicklable result
-                    row = {**p.points[i], **dict.fromkeys(RUN_KEYS), "method": p.method,
-                           "error": f"{type(exc).__name__}: {exc}", "result": "", "run_wall_s": 0.0}
-                done += 1
-                res.info["executed"] = done
-                record(i, row)
-                say(format_progress(resumed + done, len(p.points), row, keys))
-        except KeyboardInterrupt:
-            cl.cancel([f for f in futures if not f.done()])
             finish()
-            raise
+        finally:
+            _release_signals(held)
+        raise SweepInterrupted(res) from None
     finally:
-        for c in closing:
-            c.close()
+        _close(closing)
     return finish()

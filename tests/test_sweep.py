@@ -144,16 +144,24 @@ def test_cli_sweep_reports_failures_with_exit_2(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, words", [
     (["--set", "rotation.speed_hz=10:20"], "START:STOP:N"),
-    (["--set", "rotation.speed_hz=10:20:0"], "N >= 1"),
-    (["--set", "rotation.speed_hz=10:20:x"], "rotation.speed_hz: must be a number"),
+    (["--set", "rotation.speed_hz=10:20:0"], "N must be a positive integer, got '0'"),
+    (["--set", "rotation.speed_hz=10:20:x"],
+     "--set rotation.speed_hz=START:STOP:N: N must be a positive integer, got 'x'"),
+    (["--set", "rotation.speed_hz=10:20:1"], "N = 1 needs START = STOP"),
+    (["--set", "rotation.speed_hz=nan:20:3"], "START must be a finite number, got 'nan'"),
+    (["--set", "rotation.speed_hz=10:inf:3"], "STOP must be a finite number, got 'inf'"),
+    (["--set", "rotation.speed_hz=10:20:1000001"], "exceeds the limit of 100000"),
+    (["--set", "rotation.speed_hz=10:20:1000", "--set", "damping.external=0:1:1000"], "more than the limit"),
     (["--set", "rotation.speed_hz=10:20:3", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),
     (["--set", "rotation.speed_hz=10:20:3", "--workers", "0"], "positive"),
+    (["--set", "rotation.speed_hz=10:20:3", "--scheduler", "nonsense"], "--scheduler nonsense: cannot connect"),
     (["--set", "rotation.sped_hz=10:20:3"], "rotation.sped_hz: unknown key"),
     (["--set", "rotation.speed_hz=-10:20:3"], "rotation.speed_hz: must be >= 0"),
     (["--set", "rotation.speed_hz=10:20:3", "--set", "rotation.speed_hz=5"], "both swept and fixed"),
     (["--set", "mesh.elements=5:25:3"], "mesh.elements"),
     ([], "nothing to sweep"),
-], ids=["two-parts", "n-zero", "n-not-a-number", "workers-and-scheduler", "workers-zero", "unknown-key",
+], ids=["two-parts", "n-zero", "n-not-a-number", "n-one-two-ends", "nan", "inf", "too-many", "grid-too-many",
+        "workers-and-scheduler", "workers-zero", "bad-scheduler", "unknown-key",
         "bad-value", "swept-and-fixed", "bad-value-in-range", "no-range"])
 def test_cli_sweep_errors_are_one_line(argv, words, capsys, tmp_path, monkeypatch):
     monkeypatch.setattr(ASSEMBLE, "build_model", lambda *a: pytest.fail("built a model for a bad sweep"))
@@ -170,3 +178,99 @@ def test_parse_ranges_integers_and_floats():
     assert fixed == ['initial.state="rest"']
     assert axes[0].values == (20, 30, 40) and all(isinstance(v, int) for v in axes[0].values)
     assert axes[1].values == (10.0, 10.5, 11.0)
+
+
+def test_friction_sweep_equals_single_runs(client, tmp_path):
+    # friction enters the contact set through the model's stack: one model per value, else the
+    # 0.3 run would silently reuse the frictionless model
+    base = BASE + ["rotation.speed_hz=15"]
+    res = run_sweep(None, base + ["delamination.0.friction=0:0.3:2"], tmp_path, client=client, plot=False)
+    assert not res.failed and res.info["models_built"] == 2
+    refs = []
+    for point, row in zip(res.points, res.runs):
+        value = point["delamination.0.friction"]
+        ref, _ = run_scene(nsfem.load_scene(None, base + [f"delamination.0.friction={value}"]))
+        refs.append(ref)
+        got, _, _ = Result.load(row["result"])
+        for name in ("t", "q", "v", "gap", "normal_force", "tangential_force", "state"):
+            assert np.array_equal(getattr(got, name), getattr(ref, name)), name
+    assert not np.array_equal(refs[0].q, refs[1].q)  # friction matters here: the comparison can fail
+
+
+def _wait_idle(client, timeout=60.0):
+    import time
+
+    t0 = time.monotonic()
+    while any(client.processing().values()) and time.monotonic() - t0 < timeout:
+        time.sleep(0.1)
+
+
+def test_interrupted_sweep_keeps_finished_rows_and_resumes(client, tmp_path):
+    from nsfem.sweep import SweepInterrupted, run_name
+
+    args = BASE + ["rotation.speed_hz=15:25:3"]
+
+    def stop(line):
+        raise KeyboardInterrupt
+
+    with pytest.raises(SweepInterrupted) as info:
+        run_sweep(None, args, tmp_path, client=client, progress=stop)
+    assert info.value.result.info["interrupted"] is True
+    with open(tmp_path / "sweep.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    payload = json.loads((tmp_path / "sweep.json").read_text())
+    assert len(rows) == 1 and rows[0]["error"] == "" and payload["interrupted"] is True
+    assert len(payload["runs"]) == 1 and payload["values"] == [float(rows[0]["rotation.speed_hz"])]
+    assert payload["runs"][0]["result"] == rows[0]["result"]
+    _wait_idle(client)  # a run already started on a worker finishes and is kept
+    done = sum((tmp_path / run_name({"rotation.speed_hz": s}) / "record.json").is_file() for s in (15, 20, 25))
+    assert 1 <= done < 3
+    again = run_sweep(None, args, tmp_path, client=client, plot=False)
+    assert again.info["resumed"] == done and again.info["executed"] == 3 - done and not again.failed
+    assert len(json.loads((tmp_path / "sweep.json").read_text())["runs"]) == 3
+
+
+def test_model_build_failure_fails_its_rows_only(inprocess, tmp_path):
+    res = run_sweep(None, ["mesh.elements=12", "simulation.t_end=0.02", "reduction.modes=16:400:2"], tmp_path,
+                    client=inprocess, plot=False)
+    ok, bad = res.runs
+    assert ok["error"] == "" and ok["completed"] is True
+    assert bad["error"].startswith("model build failed: reduction.modes = 400 exceeds")
+    assert res.info["models_built"] == 1 and len(res.failed) == 1
+
+
+def test_scheduler_without_workers_is_one_line(tmp_path, capsys, monkeypatch):
+    distributed = pytest.importorskip("distributed")
+    monkeypatch.setattr(ASSEMBLE, "build_model", lambda *a: pytest.fail("built a model before connecting"))
+    monkeypatch.setattr(importlib.import_module("nsfem.sweep"), "CONNECT_TIMEOUT", 1.0, raising=False)
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as empty:
+        argv = ["sweep", "--set", "rotation.speed_hz=10:20:2", "--scheduler", empty.scheduler_address,
+                "--out", str(tmp_path / "s")]
+        assert cli.main(argv) == cli.EXIT_ERROR
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and f"--scheduler {empty.scheduler_address}: no worker" in err
+    assert not (tmp_path / "s").exists()
+
+
+def test_cli_sweep_scene_without_contacts(tmp_path, capsys):
+    scene = tmp_path / "plain.toml"
+    scene.write_text('title = "plain shaft"\n[shaft]\nlength = 1.0\n')
+    argv = ["sweep", str(scene), "--set", "mesh.elements=12", "--set", "simulation.t_end=0.02", "--set",
+            "rotation.speed_hz=10:20:2", "--workers", "1", "--out", str(tmp_path / "s")]
+    assert cli.main(argv) == 0
+    out, err = capsys.readouterr()
+    assert out.count("no contacts") == 2 and "wrote" in out
+
+
+def test_folder_table_covers_every_sweep_into_it(inprocess, tmp_path):
+    fixed = ["mesh.elements=12", "simulation.t_end=0.02"]
+    run_sweep(None, fixed + ["rotation.speed_hz=10:30:3"], tmp_path, client=inprocess, plot=False)
+    # a finer range later, the fixed settings reordered plus a no-op override: the same sweep
+    fine = run_sweep(None, ["simulation.t_end=0.02", "mesh.elements=12", "damping.external=0.0",
+                            "rotation.speed_hz=15:25:2"], tmp_path, client=inprocess)
+    assert fine.info["executed"] == 2
+    with open(tmp_path / "sweep.csv") as fh:
+        assert [float(r["rotation.speed_hz"]) for r in csv.DictReader(fh)] == [10, 15, 20, 25, 30]
+    payload = json.loads((tmp_path / "sweep.json").read_text())
+    assert payload["values"] == [10, 15, 20, 25, 30] and len(payload["runs"]) == 5
+    assert [p["rotation.speed_hz"] for p in fine.points] == [10, 15, 20, 25, 30]
