@@ -19,9 +19,11 @@ t_end = 0.5 s (about 3 minutes on 2 cores).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import shutil
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -87,6 +89,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--out", default="studies/out/speed_sweep")
     args = ap.parse_args(argv)
+    # with --json, stdout holds the JSON object only: the report goes to stderr
+    say = functools.partial(print, file=sys.stderr) if args.json else print
     out = Path(args.out)
     t_end = args.t_end or (0.5 if args.quick else 1.0)
     fixed = ['initial.state="stationary"', f"simulation.t_end={t_end:g}"]
@@ -104,7 +108,7 @@ def main(argv=None) -> dict:
                       silence_logs=50) as cluster, Client(cluster) as client:
         for rng in ranges(args.quick, res):
             sw = run_sweep(None, fixed + [rng], runs_dir, client=client, plot=False,
-                           progress=lambda line: print(line, flush=True))
+                           progress=lambda line: say(line, flush=True))
             rows.update({float(r[KEY]): r for r in sw.runs if r is not None})
     sweep_wall = time.perf_counter() - t0
     table = [rows[s] for s in sorted(rows)]
@@ -138,18 +142,18 @@ def main(argv=None) -> dict:
                "sweep_wall_s": sweep_wall, "workers": args.workers, "throughput": speed, "findings": findings,
                "machine": machine(), "runs_dir": str(runs_dir)}
     write_outputs(out, "speed_sweep", [{k: v for k, v in r.items() if k != "warnings"} for r in table], payload)
-    print(f"{len(table)} speeds in {sweep_wall:.1f} s on {args.workers} workers; gravity resonances "
+    say(f"{len(table)} speeds in {sweep_wall:.1f} s on {args.workers} workers; gravity resonances "
           + ", ".join(f"{x:.2f}" for x in res) + " Hz; divergence bands "
           + ", ".join(f"{a:.2f}-{b:.2f}" for a, b in bands) + " Hz")
-    print("gap closes at: " + (", ".join(f"{r[KEY]:g} Hz ({100 * r['closed_fraction']:.1f} %)" for r in closed)
+    say("gap closes at: " + (", ".join(f"{r[KEY]:g} Hz ({100 * r['closed_fraction']:.1f} %)" for r in closed)
                                or "no speed"))
     if near_open:
-        print(f"smallest gap outside the divergence bands: {near_open['min_gap_m']:.3e} m at {near_open[KEY]:g} Hz")
+        say(f"smallest gap outside the divergence bands: {near_open['min_gap_m']:.3e} m at {near_open[KEY]:g} Hz")
     for s in speed:
-        print(f"{s['workers']} worker(s): {s['runs']} runs in {s['wall_s']:.2f} s = {s['runs_per_s']:.2f} runs/s "
+        say(f"{s['workers']} worker(s): {s['runs']} runs in {s['wall_s']:.2f} s = {s['runs_per_s']:.2f} runs/s "
               f"({s['runs_per_s_with_startup']:.2f} runs/s with the cluster start; load average "
               f"{s['load_average_1min']:.1f} on {os.cpu_count()} cores)")
-    print(f"wrote {out}/speed_sweep.csv, .json, {fig}")
+    say(f"wrote {out}/speed_sweep.csv, .json, {fig}")
     if args.json:
         print(json.dumps(payload))
     return payload
