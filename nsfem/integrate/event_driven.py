@@ -337,6 +337,13 @@ class RungeKutta(EventDriven):
         if not (0 < rtol < 1) or not (atol > 0):
             raise NsfemError(f"rk tolerances must satisfy 0 < rtol < 1 and atol > 0, got {rtol}, {atol}")
         self.solver, self.rtol, self.atol = solver, rtol, atol
+        #: the bands and arming of the phase that ended in a restart (an ``up`` or ``top`` event):
+        #: (config, t, H, tol, tol_d, thr, armed); the next phase, if it is that restart, continues them
+        self._carry = None
+
+    def run(self, t_end, output_dt, q0=None, v0=None):
+        self._carry = None
+        return super().run(t_end, output_dt, q0, v0)
 
     def _advance(self, phase, rows, t0, t1):
         r2 = 2 * phase.config.r
@@ -353,20 +360,33 @@ class RungeKutta(EventDriven):
             return Ax @ x + Af @ harm(t)
 
         H = rows.H
-        # the band of each row as in exact: the size of its terms over the first sampling step
-        step = phase.max_step(math.inf)
-        window = min(step, t1 - t0) if math.isfinite(step) else t1 - t0
-        xis = phase.xi(t0 + window * np.linspace(0.0, 1.0, 9))
-        scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
-        tol = np.maximum(1e-11 * scale, round_off(H, xis, r2))
-        h0 = H @ xi0
-        armed = h0 > tol
-        # as in exact: an unarmed row fires by going down by tol from where it starts, and is
-        # armed at its first maximum (the phase restarts there: a rebound can be shorter than
-        # a step, and solve_ivp sees only sign changes between steps)
-        thr = np.where(armed, 0.0, np.minimum(-tol, h0 - tol))
         Hd = H @ A_aug
-        tol_d = 1e-11 * np.max(np.abs(Hd) @ np.abs(xis), axis=1) + 1e-300
+        h0 = H @ xi0
+        carry, self._carry = self._carry, None
+        if (carry is not None and carry[0] is phase.config and carry[1] == t0 and carry[2].shape == H.shape
+                and np.array_equal(carry[2], H)):
+            # a restart of the same configuration (rk stops at the maximum of an unarmed row or where
+            # it leaves its band upwards, exact does not): the same phase continued, with its bands,
+            # thresholds and arming. Re-deriving them from the restart state would read a row that
+            # has just risen above its band (to 2 tol) back inside it: a gap of 4e-19 m re-evaluated
+            # from a state of 1e-3 m is round-off, and the same up event fired again and again.
+            tol, tol_d, thr, armed = (np.array(a) for a in carry[3:])
+            # an armed row that the restart reads below 0 (round-off) fires once it has gone down
+            # by tol from there (a sign change from its start would never come)
+            thr = np.where(armed & (h0 <= 0.0), h0 - tol, thr)
+        else:
+            # the band of each row as in exact: the size of its terms over the first sampling step
+            step = phase.max_step(math.inf)
+            window = min(step, t1 - t0) if math.isfinite(step) else t1 - t0
+            xis = phase.xi(t0 + window * np.linspace(0.0, 1.0, 9))
+            scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
+            tol = np.maximum(1e-11 * scale, round_off(H, xis, r2))
+            armed = h0 > tol
+            # as in exact: an unarmed row fires by going down by tol from where it starts, and is
+            # armed at its first maximum (the phase restarts there: a rebound can be shorter than
+            # a step, and solve_ivp sees only sign changes between steps)
+            thr = np.where(armed, 0.0, np.minimum(-tol, h0 - tol))
+            tol_d = 1e-11 * np.max(np.abs(Hd) @ np.abs(xis), axis=1) + 1e-300
         funcs, kinds = [], []
         for i in range(rows.size):
             def ev(t, x, i=i):
@@ -378,7 +398,7 @@ class RungeKutta(EventDriven):
         n_rows = len(funcs)
         tops = list(np.flatnonzero(~armed & (hd0 > tol_d)))  # rising from its band: stop at the top
         ups = list(np.flatnonzero(~armed))
-        while True:
+        for _ in range(4 * rows.size + 8):
             funcs, kinds = funcs[:n_rows], kinds[:n_rows]
             for i in ups:  # leaving the band upwards (a slow rise): restart armed
                 def up(t, x, i=i):
@@ -407,10 +427,24 @@ class RungeKutta(EventDriven):
             early_top = [i for kind, i in at if soon and kind == "top"]
             early_up = [i for kind, i in at if soon and kind == "up"
                         and float(H[i, :r2] @ sol.sol(t_e) + H[i, r2:] @ harm(t_e)) <= tol[i]]
-            if not (early_top or early_up):
+            # as in exact: a "crossing" of an unarmed row at the phase's start, or where the row is
+            # rising, is the round-off of evaluating it near its start, not a descent by tol; the
+            # row is watched from there (down by tol from its value there; up: armed)
+            false_row = []
+            for kind, i in at:
+                if kind == "row" and not armed[i]:
+                    x_e = sol.sol(t_e)
+                    hd_e = float(Hd[i, :r2] @ x_e + Hd[i, r2:] @ harm(t_e))
+                    if hd_e > 0.0 or (soon and hd0[i] > -tol_d[i]):
+                        false_row.append(i)
+                        h_e = float(H[i, :r2] @ x_e + H[i, r2:] @ harm(t_e))
+                        thr[i] = min(thr[i], h_e - tol[i])
+            if not (early_top or early_up or false_row):
                 break
             tops = [i for i in tops if i not in early_top]
             ups = [i for i in ups if i not in early_up]
+        else:
+            raise NsfemError(f"rk ({self.solver}): no consistent event at t = {t0:.12g} s")
 
         def xi_fun(t):
             t = np.asarray(t, dtype=float)
@@ -420,7 +454,15 @@ class RungeKutta(EventDriven):
         if sol.status == 1:
             rows_at = [i for kind, i in at if kind == "row"]
             if not rows_at:  # a maximum of an unarmed row: restart the phase there (armed if above its band)
+                x_e = xi_fun(float(t_e))
+                h_e = H @ x_e
+                armed = armed.copy()
+                for kind, i in at:
+                    if kind == "up" or h_e[i] > tol[i]:
+                        armed[i] = True
+                thr = np.where(armed, 0.0, thr)
+                self._carry = (phase.config, float(t_e), H, tol, tol_d, thr, armed)
                 return Event(float(t_e), [], []), xi_fun
             return Event(float(t_e), rows_at, [False] * len(rows_at), None,
-                         [bool(thr[i] != 0.0) for i in rows_at]), xi_fun
+                         [bool(not armed[i]) for i in rows_at]), xi_fun
         return None, xi_fun
