@@ -202,8 +202,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
                 limit = min(limit, res[0] + 1e-12 * max(1.0, abs(res[0])))
         if found:
             t_e = min(f[0] for f in found)
-            close = sorted(f for f in found if f[0] <= t_e + 1e-12 * max(1.0, abs(t_e)))
-            close = sorted(close, key=lambda f: f[1])
+            close = sorted((f for f in found if f[0] <= t_e + 1e-12 * max(1.0, abs(t_e))), key=lambda f: f[1])
             return Event(t_e, [f[1] for f in close], [f[2] for f in close], tol, [f[3] for f in close])
         t_a = ts[-1]
         phase.searched_until = t_a  # no event before this time (an interrupted run keeps it)
