@@ -150,10 +150,9 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
             scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
             # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
             bound4 = phase.derivative_bound(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
-            # (no round-off floor here, unlike rk: exact's start-of-phase guard below handles the
-            # round-off of a row's start, and a floor made a frictional see-saw on a stop cycle
-            # at 1e-8 m/s instead of settling; studies/extremes.py case rest-mu0.3)
-            tol = ZERO * scale
+            # the band never below the round-off of evaluating the row from the state: a row
+            # starting at ~0 (a gap of 1e-19 m read to +-1e-18 m) must not fire by that noise
+            tol = np.maximum(ZERO * scale, round_off(H, xis, 2 * phase.config.r))
             # a row that starts inside its zero band is armed once it has left it upwards
             armed = h[:, 0] > tol
             # unarmed rows fire by going down by tol from where they start (a row can start
