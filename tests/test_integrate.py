@@ -977,6 +977,16 @@ def test_random_frictional_systems_exact_and_rk_agree(seed):
     assert np.abs(a.q - b.q).max() <= 1e-6 * size
 
 
+def on_open_orbit(scene) -> tuple[ContactSystem, np.ndarray, np.ndarray]:
+    """The scene's system and the state at t = 0 of its open linear periodic orbit,
+    q = a + b cos(w t) + c sin(w t) (stationary part plus gravity-forced harmonic part)."""
+    S = ContactSystem.from_scene(scene)
+    n, w = S.n, S.omega
+    K = S.Q - w**2 * S.M
+    bc = np.linalg.solve(np.block([[K, w * S.C], [-w * S.C, K]]), np.concatenate([S.fc, S.fs]))
+    return S, np.linalg.solve(S.Q, S.f0) + bc[:n], w * bc[n:]
+
+
 @pytest.mark.parametrize("method, t_end", [("exact", 0.25), ("rk", 0.065)])
 def test_contact_lifted_by_an_impact_rises_despite_round_off_at_its_start(method, t_end):
     """A contact lifted at 8e-5 m/s by another contact's plastic impact starts its open phase with
@@ -992,11 +1002,7 @@ def test_contact_lifted_by_an_impact_rises_despite_round_off_at_its_start(method
     scene = load_scene(None, ['reduction.method="craig-bampton"', "reduction.modes=7",
                               "rotation.speed_hz=22.77659972822025", "rotation.phase_deg=90.0",
                               "damping.external=0.3240359367738454"])
-    S = ContactSystem.from_scene(scene)
-    n, w = S.n, S.omega
-    K = S.Q - w**2 * S.M
-    bc = np.linalg.solve(np.block([[K, w * S.C], [-w * S.C, K]]), np.concatenate([S.fc, S.fs]))
-    q0, v0 = np.linalg.solve(S.Q, S.f0) + bc[:n], w * bc[n:]
+    S, q0, v0 = on_open_orbit(scene)
     assert S.contacts.gaps(q0).min() > 0
     res = integrate(S, t_end, method, 5e-4, q0, v0)
     assert res.completed and len(res.impacts) > 20
@@ -1058,11 +1064,7 @@ def test_paper_resonance_runs_through_its_impact_bursts():
     scene = load_scene(None, ['reduction.method="craig-bampton"', "reduction.modes=7",
                               "rotation.speed_hz=22.776520431157753", "rotation.phase_deg=90.0",
                               "damping.external=0.8100898419346135"])
-    S = ContactSystem.from_scene(scene)
-    n, w = S.n, S.omega
-    K = S.Q - w**2 * S.M
-    bc = np.linalg.solve(np.block([[K, w * S.C], [-w * S.C, K]]), np.concatenate([S.fc, S.fs]))
-    q0, v0 = np.linalg.solve(S.Q, S.f0) + bc[:n], w * bc[n:]
+    S, q0, v0 = on_open_orbit(scene)
     res = integrate(S, 6.0, "exact", 5e-4, q0, v0)
     assert res.completed and len(res.impacts) > 1000
     assert res.gap.min() > -1e-12 and res.energy["relative_residual"] < 1e-8
