@@ -79,7 +79,7 @@ class Result:
                       tangential_force=self.tangential_force, state=self.state,
                       basis=np.zeros((0, self.q.shape[0])) if basis is None else np.asarray(basis),
                       contact_x=np.zeros(self.gap.shape[0]) if contact_x is None else np.asarray(contact_x),
-                      meta=np.array(json.dumps(meta, default=_default)))
+                      meta=np.array(json.dumps(meta, default=json_default)))
         fd, tmp = tempfile.mkstemp(prefix=".result-", suffix=".npz", dir=path.parent)
         try:
             with os.fdopen(fd, "wb") as fh:
@@ -108,13 +108,14 @@ class Result:
 
 def _jsonable(v) -> bool:
     try:
-        json.dumps(v, default=_default)
+        json.dumps(v, default=json_default)
         return True
     except TypeError:
         return False
 
 
-def _default(o):
+def json_default(o):
+    """``json.dumps(..., default=json_default)``: numpy scalars and arrays as Python values."""
     if isinstance(o, np.generic):
         return o.item()
     if isinstance(o, np.ndarray):

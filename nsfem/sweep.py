@@ -46,6 +46,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from .errors import IntegrationError, NsfemError
+from .result import json_default
 
 #: Scene tables that enter neither the assembled model nor its reduction basis (build_model
 #: reads the stack and [mesh], scene_reduction reads [reduction], the contact set reads
@@ -216,11 +217,11 @@ def _atomic_text(path: Path, text: str) -> Path:
 
 
 def _default(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    return str(o)
+    """numpy values as Python values (:func:`nsfem.result.json_default`), anything else as text."""
+    try:
+        return json_default(o)
+    except TypeError:
+        return str(o)
 
 
 def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: dict, fp: str) -> dict:

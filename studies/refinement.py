@@ -54,6 +54,7 @@ from nsfem.analysis.stationary import scene_stationary
 from nsfem.errors import IntegrationError
 from nsfem.fem.rotating import rotor_operators
 from nsfem.reduce import reduce, scene_reduction
+from nsfem.result import json_default
 from nsfem.simulate import run_scene
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -564,7 +565,7 @@ def main(argv=None) -> dict:
     payload = {"mode": "quick" if args.quick else "full", "wall_s": wall, "machine": machine(),
                "elements": sizes, "fit_range_elements": list(FIT), "richardson_pair": list(RICH), **summary,
                "contacts": csum, "per_mesh": pd["data"], "outputs": [str(f) for f in figs]}
-    write_outputs(out, "refinement", rows, json.loads(json.dumps(payload, default=_jsonable)))
+    write_outputs(out, "refinement", rows, json.loads(json.dumps(payload, default=json_default)))
     compact = {
         "mode": payload["mode"], "wall_s": round(wall, 1),
         "orders": {k: None if v is None else round(v, 2) for k, v in summary["orders"].items()},
@@ -582,18 +583,11 @@ def main(argv=None) -> dict:
                      for r in csum["rows"]],
     }
     if args.json:
-        print(json.dumps(json.loads(json.dumps(compact, default=_jsonable))))
+        print(json.dumps(json.loads(json.dumps(compact, default=json_default))))
     else:
         report(summary, csum, wall)
     return payload
 
-
-def _jsonable(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(type(o))
 
 
 def report(summary: dict, csum: dict, wall: float) -> None:
