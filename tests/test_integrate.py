@@ -29,6 +29,7 @@ from nsfem.contact.set import ContactSet
 from nsfem.errors import NsfemError
 from nsfem.integrate import ContactSystem, integrate
 from nsfem.result import Result
+from nsfem.simulate import uniform_velocity
 
 RK = {"rtol": 1e-10, "atol": 1e-14}
 
@@ -1053,6 +1054,56 @@ def test_rk_restart_keeps_a_row_armed_once_it_has_left_its_band():
     assert a.completed and b.completed and gmax > 1e-12
     assert b.gap.min() > -1e-16 and a.gap.min() > -1e-16
     assert np.abs(b.gap - a.gap).max() <= 1e-4 * gmax
+
+
+def test_shaft_settling_on_a_stop_with_interface_friction():
+    """The shaft released from rest at 0 Hz onto a stop under its midspan, interface friction 0.3,
+    all impacts plastic (studies/extremes.py case rest-mu0.3). From rest every zero band relative
+    to the motion is tiny (1e-8 m of motion after 45 us): exact see-saw between interface contacts
+    {2, 6} and {4}, each lifted by the other's impact 1e-18 m high, every 3e-9 s (18810 events in
+    5 min without reaching 1e-4 s) until gaps got the structure's position resolution as a floor
+    (ContactSet.gap_floor, 9e-16 m); rk cycled contact 4 between a facet and the opposite one at
+    4.5e-5 s until a stopped slip went to the stick test (below). Both must run through and
+    agree: two independent propagations (closed form and DOP853), measured 8e-6 of the largest gap
+    apart over 0.01 s; the energy balance closes."""
+    S = ContactSystem.from_scene(load_scene(None, [
+        "rotation.speed_hz=0", "delamination.0.friction=0.3",
+        'obstacle=[{x=0.5, normal="-z", clearance=0, restitution=0, friction=0}]']))
+    assert S.contacts.gap_floor == pytest.approx(4 * np.finfo(float).eps * 0.9)
+    # about 30 events: the see-saw (an event every 3e-9 s) stops at 1000 instead of running for hours
+    a = integrate(S, 0.003, "exact", 1e-5, max_events=1000)
+    b = integrate(S, 0.003, "rk", 1e-5, max_events=1000, **RK)
+    assert a.completed and b.completed and len(a.impacts) > 10
+    gmax = np.abs(a.gap).max()
+    assert gmax > 1e-7                              # the layers separate: the comparison can fail
+    assert a.gap.min() > -1e-15 and b.gap.min() > -1e-15
+    assert np.abs(b.gap - a.gap).max() <= 1e-4 * gmax
+    assert np.array_equal(a.state, b.state)
+    assert a.energy["relative_residual"] < 1e-10 and b.energy["relative_residual"] < 1e-8
+
+
+def test_high_friction_contact_stops_on_a_facet_and_sticks():
+    """mu = 1.5 on the interface, the shaft thrown at 0.1 m/s onto a stop (extremes case
+    throw-mu1.5): at 9.262 us contact 4's slip, on the normal of a facet of its friction pyramid,
+    stops. The stop row located it within its zero band (7.5e-15 m/s) while the stick test read
+    the slip against the contact's own round-off (3.2e-16 m/s): the slip was taken as reversing
+    onto the opposite facet, and back, every 5e-16 s ('no progress'). A stop event now sends the
+    contact to the stick test (LCP 29 decides stick or slip): it sticks, and exact and rk agree
+    (1.8e-4 of the largest gap over 0.01 s, every contact state equal at the outputs)."""
+    scene = load_scene(None, ["rotation.speed_hz=5", "delamination.0.friction=1.5",
+                              "initial.velocity=[0.0, 0.0, -0.1]",
+                              'obstacle=[{x=0.5, normal="-z", clearance=0.0002, restitution=0, friction=0}]'])
+    S = ContactSystem.from_scene(scene)
+    v0 = uniform_velocity(S.info["model"], S.info["reduction"], S, scene["initial"]["velocity"])
+    a = integrate(S, 0.003, "exact", 1e-5, None, v0)
+    b = integrate(S, 0.003, "rk", 1e-5, None, v0, **RK)
+    assert a.completed and b.completed
+    # the slip of contact 4 on a facet's normal stops at 9.262 us: it sticks there
+    assert any(4 in e["after"]["stick"] and e["before"]["edge"] for e in a.events if 9.26e-6 < e["t"] < 9.27e-6)
+    gmax = np.abs(a.gap).max()
+    assert np.abs(b.gap - a.gap).max() <= 1e-3 * gmax
+    assert np.array_equal(a.state, b.state)
+    assert a.energy["relative_residual"] < 1e-10
 
 
 @pytest.mark.slow

@@ -55,6 +55,15 @@ class ContactSet:
         return self.JN.shape[0]
 
     @property
+    def gap_floor(self) -> float:
+        """The smallest gap [m] that means anything: positions in space of points up to max |x|
+        from the origin carry a few ulps of it (4 eps max |x|, 9e-16 m on a 1 m shaft); a gap or
+        a rebound below that is not resolved by any representation of the configuration. 0 when
+        the positions are unknown (sets built from arrays without ``x``)."""
+        x = self.x[np.isfinite(self.x)]
+        return 4.0 * np.finfo(float).eps * float(np.abs(x).max(initial=0.0))
+
+    @property
     def frictional(self) -> np.ndarray:
         """Indices of the contacts with friction rows (mu > 0 and a tangent direction)."""
         return np.flatnonzero(self.r > 0)

@@ -90,7 +90,7 @@ class EventDriven(Integrator):
                "state": np.zeros((m, K_out), dtype=np.int8)}
         filled = 0
         events, impacts = [], []
-        memory = Memory(np.zeros(m), np.zeros(m, dtype=int), self.zeno)
+        memory = Memory(np.zeros(m), np.zeros(m, dtype=int), self.zeno, gap_floor=cs.gap_floor)
         energy = {"initial_J": 0.5 * float(v @ sysm.M @ v + q @ K @ q), "work_external_J": 0.0,
                   "dissipated_damping_J": 0.0, "work_circulatory_J": 0.0, "dissipated_friction_J": 0.0,
                   "lost_in_impacts_J": 0.0}
@@ -147,12 +147,16 @@ class EventDriven(Integrator):
                 # slipping: contacts whose force leaves the cone at a generator (they slide on it);
                 # facets: contacts whose force reached a polygon facet (stick limit) or whose slip
                 # velocity reached a facet normal (turn): LCP (29) decides facet or vertex
-                slipping, facets = {}, {}
+                # stopped: contacts whose slip stopped (a 1-D slip reversing, a slip on a facet's
+                # normal reaching zero): the stick test decides, whatever round-off is left of the slip
+                slipping, facets, stopped = {}, {}, set()
                 lam = None
                 for i in ev.rows:
                     kind, k, det = rows.kinds[i], rows.contacts[i], rows.detail[i]
                     if kind == "vertex":
                         slipping[k] = det
+                    elif kind == "turn" and det is None:
+                        stopped.add(k)
                     elif kind in ("slip", "turn") and det is not None:
                         facets[k] = (det, kind)
                     elif kind == "slip":  # 1-D tangent: the force leaves at one end
@@ -165,7 +169,7 @@ class EventDriven(Integrator):
                 settled = {rows.contacts[i] for j, i in enumerate(ev.rows)
                            if rows.kinds[i] == "close" and ev.in_band is not None and ev.in_band[j]}
                 mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping,
-                                       settled, facets)
+                                       settled, facets, stopped)
                 mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
                                        memory, cs, v)
                 if imp:

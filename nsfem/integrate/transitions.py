@@ -21,7 +21,11 @@ Rebounds below resolution: a contact that was touching and is lifted by another 
 impact so slowly that its flight g'^2 / (2 |g''|) stays inside its gap's zero band stays
 closed (its velocity is projected onto g' = 0, the nearest velocity in the kinetic metric;
 the energy this removes counts as impact loss). Without this, an elastic layer landing on
-three contacts see-saws between two of them, 1e-15 m high, every 3e-9 s.
+three contacts see-saws between two of them, 1e-15 m high, every 3e-9 s. The zero band never
+falls below the position resolution of the structure (``ContactSet.gap_floor``, 9e-16 m on a
+1 m shaft): bands relative to the motion shrink with it, and a shaft settling from rest on a
+stop (1e-8 m of motion after 45 us) otherwise see-saws between interface contacts lifted by
+1e-18 m every 3e-9 s.
 
 Impact accumulation (Zeno; eps < 1): an impact whose approach speed is below
 ``zeno`` times the largest approach speed of that contact's earlier impacts is treated as
@@ -55,6 +59,8 @@ CREEP = 1e-7
 class Memory:
     """What transitions remember between events (per contact).
 
+    ``gap_floor``: the smallest meaningful gap (:attr:`ContactSet.gap_floor`), a floor of every
+    gap's zero band: a contact lifted below it stays closed (see micro-lifts in :func:`resolve`).
     ``gap_scale``, ``rate_scale``, ``slip_scale``: the largest size so far of the terms that
     make each contact's gap, gap rate and slip rate (|J|^T |q| + |j|, |J|^T |q'|, |S|^T |q'|).
     A value counts as zero below ZERO times these: a quantity that has just cancelled (a
@@ -65,6 +71,7 @@ class Memory:
     max_approach: np.ndarray
     impacts: np.ndarray
     zeno: float = 1e-8
+    gap_floor: float = 0.0
     gap_scale: np.ndarray | None = None
     rate_scale: np.ndarray | None = None
     slip_scale: np.ndarray | None = None
@@ -90,7 +97,7 @@ def _tol(J: np.ndarray, x: np.ndarray, const=None) -> np.ndarray:
 
 def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray, before: Mode,
             memory: Memory, touching=(), gap_tol=None, slipping=None,
-            settled=(), facets=None) -> tuple[Mode, np.ndarray, dict | None]:
+            settled=(), facets=None, stopped=()) -> tuple[Mode, np.ndarray, dict | None]:
     """The configuration after an event at t, the velocity after it, and the impact record.
 
     ``touching`` are contacts whose gap root was just located (candidates by definition);
@@ -103,6 +110,10 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     slip velocity reached a facet's normal (``turn``), to (facet, kind): LCP (29), with the
     force's position on the facet as a bounded unknown, decides between sliding on the facet
     and on a generator (a slip that has stopped at the turn goes to the stick test instead).
+    ``stopped`` contacts' slip has just stopped (a 1-D slip reversing, a slip along a facet's
+    normal reaching zero): they go to the stick test, whatever round-off of the slip is left
+    (read against the contact's own slip scale, a stop located within the phase's zero band
+    could look like a reversal onto the opposite facet, and back, every 5e-16 s).
     """
     cs = system.contacts
     if cs.m == 0:
@@ -113,6 +124,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     tg = np.maximum(ZERO * memory.gap_scale, _tol(cs.JN, q, cs.jN))
     if gap_tol is not None:
         tg = np.maximum(tg, gap_tol)
+    tg = np.maximum(tg, memory.gap_floor)
     tv = np.maximum(ZERO * memory.rate_scale, _tol(cs.JN, v))
     cand = [k for k in range(cs.m) if g[k] <= tg[k] or k in before.closed or k in touching]
     approaching = [k for k in cand if gv[k] < -tv[k]]
@@ -157,7 +169,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     closed = [k for k in cand if abs(gv[k]) <= tv[k]]
     memory.degenerate = []
     while True:
-        stick, slide, edge = _friction_states(cs, closed, v, slipping, facets or {}, memory)
+        stick, slide, edge = _friction_states(cs, closed, v, slipping, facets or {}, memory, stopped)
         fstar = system.load(t) - system.C @ v - system.Q @ q
         if closed:
             cs_l, extra = _facet_contacts(cs, edge)
@@ -233,7 +245,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     return mode, v, impact
 
 
-def _friction_states(cs, closed, v, slipping, facets, memory):
+def _friction_states(cs, closed, v, slipping, facets, memory, stopped=()):
     """Sticking contacts (zero slip rate), sliding ones with their generator (the one the stick
     limit was reached on, else the one most opposing the slip velocity) and facet candidates
     (a stick limit reached on a facet, or a slip velocity on a facet normal: a tie between two
@@ -244,7 +256,7 @@ def _friction_states(cs, closed, v, slipping, facets, memory):
             continue
         vT = cs.JS[k].T @ v
         tolv = max(ZERO * memory.slip_scale[k], float(_tol(cs.JS[k], v).max()))
-        still = bool(np.all(np.abs(vT) <= tolv))
+        still = k in stopped or bool(np.all(np.abs(vT) <= tolv))
         if k in slipping:
             slide[k] = slipping[k]
         elif k in facets and (facets[k][1] == "slip" or not still):
