@@ -56,7 +56,9 @@ class Result:
             "events": len(self.events), "impacts": len(self.impacts),
             "min_gap_m": float(self.gap.min()) if m and self.t.size else None,
             "max_gap_m": float(self.gap.max()) if m and self.t.size else None,
-            "closed_fraction": float(closed_any.mean()) if self.t.size else 0.0,
+            # event-driven runs know it between events; the others sample their outputs
+            "closed_fraction": float(self.info["closed_fraction"]) if "closed_fraction" in self.info
+            else float(closed_any.mean()) if self.t.size else 0.0,
             "max_normal_force_N": float(self.normal_force.max(initial=0.0)) if m else 0.0,
             "energy": self.energy.get("relative_residual"),
         }

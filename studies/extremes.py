@@ -20,8 +20,9 @@ timeout | killed | refused (SceneError: the scene was rejected before any comput
 setup-failed (another NsfemError before the integration) | crashed (any other exception: a bug).
 
 Columns: events, impacts, energy (relative work-balance residual), min_gap_m (negative =
-penetration, expected for penalty and moreau), max_gap_m, closed_fraction (share of output
-times with a closed contact), stick/slip_fraction (the same for the contacts with friction),
+penetration, expected for penalty and moreau), max_gap_m, closed_fraction (share of the time
+with a closed contact; of the output times for penalty and moreau), stick/slip_fraction (share
+of output times, for the contacts with friction),
 wall_s (setup + integration, one core), gap_diff (max |g - g_ref| / max |g_ref| over the output times, against ``exact``
 of the same case, or ``rk`` where exact did not complete) and flags (the checks a row fails:
 energy residual > 1e-6 for exact/rk, penetration by an event-driven method, > 1e5 events per

@@ -165,6 +165,8 @@ def test_plastic_stop_with_pushing_force_stays_closed():
     np.testing.assert_allclose(res.q[0, after], -C_STOP, rtol=1e-14)
     np.testing.assert_allclose(res.v[0, after], 0.0, atol=1e-14)
     assert np.all(res.gap[0, after] == 0.0)
+    # closed from t1 to the end: the share of time, not of the 2001 output samples (1e-3 s apart)
+    assert res.summary()["closed_fraction"] == pytest.approx((2.0 - t1) / 2.0, rel=1e-12)
     before = res.t < t1
     np.testing.assert_allclose(res.q[0, before], -F / K1 + R * np.cos(W1 * res.t[before] + phi), atol=1e-14)
     assert np.all(res.normal_force[0, before] == 0.0)

@@ -98,6 +98,7 @@ class EventDriven(Integrator):
         progress = Progress(t_end, self.progress)
         completed, failure = True, None
         t = 0.0
+        closed_time, covered = 0.0, 0.0   # time with at least one contact closed, of the time integrated
         stuck = 0
         phase, phase_integrated = None, False
         try:
@@ -123,6 +124,9 @@ class EventDriven(Integrator):
                     filled = int(sel[-1]) + 1
                 e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy))
                 phase_integrated = True
+                if mode.closed:
+                    closed_time += t_next - t
+                covered = t_next
                 xi_end = xi_fun(t_next)
                 q, v = phase.q_map() @ xi_end, phase.v_map() @ xi_end
                 progress(t_next, len(events))
@@ -196,6 +200,9 @@ class EventDriven(Integrator):
                     # the work integrals follow the state to the last output
                     e_max = max(e_max, self._energy(phase, mode, phase.xi, phase.t0, float(t_out[sel[-1]]), K, P,
                                                     D, energy))
+                    covered = float(t_out[sel[-1]])
+                    if mode.closed:
+                        closed_time += covered - phase.t0
         finally:
             progress.close()
         close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q), e_max)
@@ -204,7 +211,9 @@ class EventDriven(Integrator):
                      out["normal_force"][:, :k], out["tangential_force"][:, :, :k], out["state"][:, :k],
                      events, impacts, energy, time.perf_counter() - wall0, float(t_out[k - 1]) if k else 0.0,
                      completed, {**{kk: vv for kk, vv in sysm.info.items() if kk == "ndof_full"},
-                                 "configurations": len(self._cache)})
+                                 "configurations": len(self._cache),
+                                 # exact in time (between events), not sampled at the outputs
+                                 "closed_fraction": closed_time / covered if covered > 0.0 else 0.0})
         if failure is not None:
             res.info["error"] = str(failure)
             raise IntegrationError(str(failure), res) from failure
