@@ -18,12 +18,12 @@ q_full = basis q; ``contact_x`` (m,). ``meta`` is a JSON string. Written atomica
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from .atomic import write_atomic
 
 STATES = ("open", "stick", "slip")
 
@@ -70,8 +70,6 @@ class Result:
         ``scene_text`` is the scene file as written (plus overrides), ``scene_tree`` the
         validated scene with every default filled in.
         """
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         meta = {"method": self.method, "t_end": self.t_end, "completed": self.completed, "wall_s": self.wall_s,
                 "events": self.events, "impacts": self.impacts, "energy": self.energy, "scene": scene_text,
                 "scene_tree": scene_tree or {},
@@ -82,19 +80,12 @@ class Result:
                       basis=np.zeros((0, self.q.shape[0])) if basis is None else np.asarray(basis),
                       contact_x=np.zeros(self.gap.shape[0]) if contact_x is None else np.asarray(contact_x),
                       meta=np.array(json.dumps(meta, default=json_default)))
-        fd, tmp = tempfile.mkstemp(prefix=".result-", suffix=".npz", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
+
+        def write(tmp):
+            with open(tmp, "wb") as fh:  # a file object: numpy would append .npz to a name
                 np.savez_compressed(fh, **arrays)
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; give it the usual mode
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
-        return path
+
+        return write_atomic(path, write)
 
     @classmethod
     def load(cls, path) -> tuple[Result, dict, dict]:

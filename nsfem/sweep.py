@@ -36,7 +36,6 @@ import itertools
 import json
 import os
 import re
-import tempfile
 import time
 import uuid
 from dataclasses import dataclass, field
@@ -45,6 +44,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from .atomic import write_text_atomic
 from .errors import IntegrationError, NsfemError
 from .result import json_default
 
@@ -198,22 +198,7 @@ def scene_source(scene_path) -> str:
 # --------------------------------------------------------------------------- one run (on a worker)
 def write_json(path: Path, payload: Any) -> Path:
     """Write JSON atomically (temporary file in the same folder, then rename)."""
-    return _atomic_text(Path(path), json.dumps(payload, indent=1, default=_default) + "\n")
-
-
-def _atomic_text(path: Path, text: str) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_text_atomic(path, json.dumps(payload, indent=1, default=_default) + "\n")
 
 
 def _default(o):
@@ -356,7 +341,7 @@ def write_table(path: Path, axes: Sequence[Axis], runs: Sequence[dict | None]) -
     w = csv.DictWriter(buf, fieldnames=table_columns(axes), extrasaction="ignore", lineterminator="\n")
     w.writeheader()
     w.writerows({k: ("" if v is None else v) for k, v in r.items()} for r in runs if r is not None)
-    return _atomic_text(Path(path), buf.getvalue())
+    return write_text_atomic(path, buf.getvalue())
 
 
 def folder_rows(out: Path, fp: str, keys: Sequence[str]) -> list[tuple[dict, dict]]:

@@ -14,8 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import write_atomic
 from ..errors import NsfemError
-from .vtu import _write_atomic, contact_points, displacements, stack_geometry
+from .vtu import contact_points, displacements, stack_geometry
 
 
 def render(result, model, T, path, time: float | None = None, exaggeration: float | None = None,
@@ -64,5 +65,5 @@ def render(result, model, T, path, time: float | None = None, exaggeration: floa
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    _write_atomic(path, lambda tmp: mpimg.imsave(tmp, img, format="png"))
+    write_atomic(path, lambda tmp: mpimg.imsave(tmp, img, format="png"))
     return path

@@ -32,13 +32,12 @@ output folder and renamed, so a reader never sees a half-written file.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from ..atomic import write_atomic
 from ..errors import NsfemError
 
 #: corner (eta, zeta) signs of a section, counter-clockwise seen from -x looking along +x
@@ -143,26 +142,10 @@ def _model_and_T(system_or_model_and_T):
     return info["model"], info["reduction"].T, getattr(system_or_model_and_T, "contacts", None)
 
 
-def _write_atomic(path: Path, write) -> None:
-    """Call ``write(tmp)`` on a temporary file next to ``path``, then rename it to ``path``."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _write_vtu(path: Path, mesh) -> None:
     import meshio
 
-    _write_atomic(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
+    write_atomic(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
 
 
 def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame: str = "rotating",
@@ -229,5 +212,5 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         lines.append(f'    <DataSet timestep="{t!r}" group="" part="1" file={quoteattr(cname)}/>')
     lines += ["  </Collection>", "</VTKFile>", ""]
     pvd = out / f"{prefix}.pvd"
-    _write_atomic(pvd, lambda tmp: Path(tmp).write_text("\n".join(lines), encoding="utf-8"))
+    write_atomic(pvd, lambda tmp: Path(tmp).write_text("\n".join(lines), encoding="utf-8"))
     return pvd
