@@ -63,7 +63,4 @@ def render(result, model, T, path, time: float | None = None, exaggeration: floa
     plotter.close()
     import matplotlib.image as mpimg
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, lambda tmp: mpimg.imsave(tmp, img, format="png"))
-    return path
+    return write_atomic(path, lambda tmp: mpimg.imsave(tmp, img, format="png"))
