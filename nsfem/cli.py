@@ -109,7 +109,10 @@ def cmd_modes(args) -> int:
     lines = [scene["title"], f"contact {modes.contact}: {modes.ndof} dofs ({red.name}; full model "
              f"{modes.ndof_full}), {model.mesh.elements} elements",
              "  mode  frequency [Hz]  field"]
-    lines += [f"  {k + 1:4d}  {f:14.4f}  {FIELD_NAMES[fld]}"
+    # 4 decimals for Hz-sized frequencies; 5 significant digits for tiny or huge ones (a
+    # nondimensional E = rho = 1 shaft's first frequency is 8.2e-3, which .4f would show as 0.0082)
+    lines += [f"  {k + 1:4d}  {f:14.4f}  {FIELD_NAMES[fld]}" if 0.1 <= f < 1e9 else
+              f"  {k + 1:4d}  {f:14.5g}  {FIELD_NAMES[fld]}"
               for k, (f, fld) in enumerate(zip(modes.frequencies_hz, modes.fields))]
     _emit(args, payload, "\n".join(lines))
     return 0
@@ -184,6 +187,10 @@ def cmd_campbell(args) -> int:
         raise NsfemError(f"--count must be a positive integer, got {args.count}")
     speeds = parse_speeds(args.speeds) if args.speeds else None
     scene = load_scene(args.scene, args.overrides)
+    if speeds is not None:
+        from .scene import check_speed
+
+        check_speed(float(speeds.max()), scene.stack, "--speeds")
     t0 = time.perf_counter()
     model = build_model(scene)
     red = scene_reduction(scene, model)

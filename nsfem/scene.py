@@ -58,6 +58,22 @@ MIN_SPACING = 0.05
 MAX_ELEMENTS = 5000
 #: Upper bound on contact points per delamination (a guard against typos like 1e9).
 MAX_CONTACT_POINTS = 100_000
+#: Most generators r of a polygonal friction cone. The inscribed r-gon approximates the
+#: circular cone to 1 - cos(pi / r) (r = 4: 29 %, 16: 1.9 %, 64: 0.12 %): at 64 the error is far
+#: below the uncertainty of any measured friction coefficient, while each generator adds an LCP
+#: unknown per frictional contact (the dense LCP grows like (m (r + 2))^2).
+MAX_FRICTION_DIRECTIONS = 64
+#: Bytes per squared LCP unknown of the dense pivoting (the matrix, the basis inverse and its
+#: LU refactorization, 8 bytes each): the largest contact LCP must fit in the machine's memory.
+LCP_BYTES_PER_ENTRY = 3 * 8
+#: Deepest nesting of tables and lists a scene needs (an array of tables holding a list) plus margin.
+MAX_NESTING = 8
+#: E and rho must lie within these decades of 1 (in any consistent units). The finite-element
+#: matrices carry E and rho as factors and the eigen solvers square their entries: the shipped
+#: shaft's frequencies follow sqrt(E / rho) to 1e-8 for E and rho scaled by 1e-130 to 1e130, and
+#: are lost (underflow, ARPACK failure) near 1e+-160. Every unit system in use (SI, mm-t-s with
+#: rho ~ 1e-9, a nondimensional E = rho = 1) lies far inside.
+MATERIAL_RANGE = (1e-100, 1e100)
 #: Scene keys that hold file paths (relative to the scene file; ``--set`` ones to the cwd).
 PATH_KEYS = ("mesh.file",)
 
@@ -95,8 +111,24 @@ def _theta(v):
     return None if 0.5 <= v <= 1.0 else f"must lie in [0.5, 1], got {v}"
 
 
-def _even(v):
-    return None if v >= 2 and v % 2 == 0 else f"must be an even integer >= 2, got {v}"
+def _friction_directions(v):
+    if v < 2 or v % 2:
+        return f"must be an even integer >= 2, got {v}"
+    if v > MAX_FRICTION_DIRECTIONS:
+        return (f"{v} exceeds {MAX_FRICTION_DIRECTIONS}: the polygonal cone with r generators misses the circular "
+                f"one by 1 - cos(pi/r) ({1 - math.cos(math.pi / MAX_FRICTION_DIRECTIONS):.1e} at r = "
+                f"{MAX_FRICTION_DIRECTIONS}), and each generator adds an LCP unknown per frictional contact")
+    return None
+
+
+def _material(v):
+    lo, hi = MATERIAL_RANGE
+    if not v > 0:
+        return f"must be positive, got {v}"
+    if not lo <= v <= hi:
+        return (f"{v:g} lies outside [{lo:g}, {hi:g}], where the eigen solvers' squares of the stiffness and mass "
+                "entries leave double precision; choose units closer to 1 (E = rho = 1 nondimensionalizes)")
+    return None
 
 
 def _at_least(n):
@@ -111,8 +143,9 @@ _SHAFT = {
     "length": Key("float", 1.0, "shaft length [m]", check=_positive),
     "width": Key("float", 0.02, "section width b along y [m]", check=_positive),
     "height": Key("float", 0.02, "section height h along z [m]", check=_positive),
-    "E": Key("float", 2.1e11, "Young's modulus [Pa] (the paper gives none; steel assumed)", check=_positive),
-    "rho": Key("float", 7500.0, "density [kg/m^3]", check=_positive),
+    "E": Key("float", 2.1e11, "Young's modulus [Pa] (the paper gives none; steel assumed; 1e-100 to 1e100)",
+             check=_material),
+    "rho": Key("float", 7500.0, "density [kg/m^3] (1e-100 to 1e100)", check=_material),
     "supports": Key("str", "pinned-pinned", "end conditions; pinned-pinned fixes U at x = 0 only", SUPPORTS),
 }
 _DELAMINATION = {
@@ -122,7 +155,8 @@ _DELAMINATION = {
     "contact_points": Key("points", 9, "count evenly spaced strictly inside (start, end), or a list of x [m]"),
     "weighting": Key("str", "dirac", "contact force ansatz: Dirac points or hat-weighted gaps (eq. 19)", WEIGHTINGS),
     "friction": Key("float", 0.0, "Coulomb coefficient mu (0 leaves friction out)", check=_nonneg),
-    "friction_directions": Key("int", 4, "generators r of the polygonal friction cone (even, >= 2)", check=_even),
+    "friction_directions": Key("int", 4, "generators r of the polygonal friction cone (even, 2 to 64)",
+                                  check=_friction_directions),
     "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
 }
 _OBSTACLE = {
@@ -131,7 +165,8 @@ _OBSTACLE = {
                   NORMALS),
     "clearance": Key("float", 0.0, "initial gap [m]", check=_nonneg),
     "friction": Key("float", 0.0, "Coulomb coefficient mu", check=_nonneg),
-    "friction_directions": Key("int", 4, "generators of the friction cone (even, >= 2)", check=_even),
+    "friction_directions": Key("int", 4, "generators of the friction cone (even, 2 to 64)",
+                                  check=_friction_directions),
     "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
 }
 _SEGMENT = {
@@ -141,8 +176,8 @@ _SEGMENT = {
     "width": Key("float", 0.02, "section width b [m]", check=_positive),
     "height": Key("float", 0.02, "section height h [m]", check=_positive),
     "offset": Key("floats", [0.0, 0.0], "centroid offset (y_c, z_c) from the rotation axis [m]", length=2),
-    "E": Key("float", 2.1e11, "Young's modulus [Pa]", check=_positive),
-    "rho": Key("float", 7500.0, "density [kg/m^3]", check=_positive),
+    "E": Key("float", 2.1e11, "Young's modulus [Pa] (1e-100 to 1e100)", check=_material),
+    "rho": Key("float", 7500.0, "density [kg/m^3] (1e-100 to 1e100)", check=_material),
 }
 _JUNCTION = {
     "x": Key("float", 0.0, "position [m]; an end of the master and of every slave"),
@@ -163,7 +198,8 @@ _CONTACT = {
     "normal": Key("str", "+z", "obstacle normal", NORMALS),
     "clearance": Key("float", 0.0, "obstacle initial gap [m]", check=_nonneg),
     "friction": Key("float", 0.0, "Coulomb mu", check=_nonneg),
-    "friction_directions": Key("int", 4, "friction cone generators", check=_even),
+    "friction_directions": Key("int", 4, "friction cone generators (even, 2 to 64)",
+                                  check=_friction_directions),
     "restitution": Key("float", 0.0, "Newton eps", check=_unit),
 }
 
@@ -344,6 +380,29 @@ def parse_value(text: str) -> Any:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text
+    except RecursionError:  # a value nested deeper than the parser's recursion limit
+        raise SceneError("", f"the value is nested too deeply to parse (a scene needs at most {MAX_NESTING} "
+                         "levels of tables and lists)") from None
+
+
+def nesting_depth(value: Any) -> int:
+    """Levels of tables and lists in ``value`` (0 for a number or string), without recursion.
+
+    >>> nesting_depth(1), nesting_depth([1, [2]]), nesting_depth({"a": [{"b": 1}]}), nesting_depth([[]])
+    (0, 2, 3, 2)
+    """
+    depth, level = 0, [value]
+    while level := [node for node in level if isinstance(node, (dict, list))]:
+        depth += 1
+        level = [v for node in level for v in (node.values() if isinstance(node, dict) else node)]
+    return depth
+
+
+def _check_nesting(value: Any, key: str, what: str) -> None:
+    d = nesting_depth(value)
+    if d > MAX_NESTING:
+        raise SceneError(key, f"{what} is nested {d} levels deep; a scene needs at most {MAX_NESTING} levels of "
+                         "tables and lists")
 
 
 def apply_override(tree: dict, assignment: str, cwd: Path | None = None) -> None:
@@ -355,7 +414,11 @@ def apply_override(tree: dict, assignment: str, cwd: Path | None = None) -> None
     parts = key.split(".")
     if not key or any(p == "" for p in parts):
         raise SceneError(key or assignment, "empty key in override")
-    value = parse_value(text.strip())
+    try:
+        value = parse_value(text.strip())
+    except SceneError as exc:
+        raise SceneError(key, exc.reason) from None
+    _check_nesting(value, key, "the value")
     if key in PATH_KEYS and isinstance(value, str) and value:
         value = str((cwd or Path.cwd()) / value)
     node: Any = tree
@@ -443,6 +506,10 @@ def load_scene(path: str | Path | None = None, overrides: Iterable[str] = (),
         raise SceneError("scene", f"{p.name} is not valid TOML: {exc}") from None
     except UnicodeDecodeError:
         raise SceneError("scene", f"{p.name} is not a UTF-8 text file") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise SceneError("scene", f"{p.name} is nested too deeply to parse (a scene needs at most "
+                         f"{MAX_NESTING} levels of tables and lists)") from None
+    _check_nesting(raw, "scene", p.name)
     return scene_from_tree(raw, overrides, path=p if path is not None else None, base=p.parent, cwd=cwd)
 
 
@@ -471,6 +538,8 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
         stack = high_level_stack(tree)
     base = base or Path.cwd()
     stack = stack.validate()
+    check_scales(tree, stack)
+    check_speed(tree["rotation"]["speed_hz"], stack)
     if not tree["mesh"]["file"]:
         from .mesh import breakpoints
 
@@ -491,6 +560,63 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
         if not f.is_file():
             raise SceneError("mesh.file", f"file not found: {f}")
     return Scene(tree, stack, path, base)
+
+
+# --------------------------------------------------------------------------- speed bound
+def speed_limit_hz(stack: BeamStack) -> tuple[float, Segment]:
+    """The speed [Hz] at which a section's outermost fibre reaches the bar wave speed sqrt(E/rho),
+    and the segment that sets it.
+
+    The centrifugal stress of a fibre at radius r is about rho (Omega r)^2, its strain
+    rho (Omega r)^2 / E = (Omega r / c)^2: at Omega = c / r the rotor would stretch by 100 %
+    from spinning alone, beyond any elastic model (the shipped steel shaft: 59.6 kHz, 1200
+    times its first critical speed).
+    """
+    def limit(s: Segment) -> float:
+        r = math.hypot(abs(s.offset[0]) + s.width / 2, abs(s.offset[1]) + s.height / 2)
+        return math.sqrt(s.E / s.rho) / r / (2 * math.pi)
+
+    seg = min(stack.segments, key=limit)
+    return limit(seg), seg
+
+
+def check_speed(speed_hz: float, stack: BeamStack, key: str = "rotation.speed_hz") -> None:
+    """Refuse a rotation speed whose centrifugal strain (Omega r / c)^2 reaches 1 (:func:`speed_limit_hz`)."""
+    if not stack.segments:
+        return
+    f_lim, seg = speed_limit_hz(stack)
+    if not speed_hz < f_lim:
+        strain = (speed_hz / f_lim) * (speed_hz / f_lim)  # inf, not OverflowError, past 1e154
+        raise SceneError(key, f"{speed_hz:g} Hz spins the outermost fibre of {seg.name} faster than the bar wave "
+                         f"speed sqrt(E/rho) = {math.sqrt(seg.E / seg.rho):.4g} m/s: centrifugal strain "
+                         f"rho (Omega r)^2 / E = {strain:.3g} >= 1, beyond any elastic model (the limit is "
+                         f"{f_lim:.4g} Hz)")
+
+
+# --------------------------------------------------------------------------- scales
+def check_scales(tree: dict, stack: BeamStack) -> None:
+    """Refuse material and size combinations whose element matrices leave double precision.
+
+    Per segment: the element mass rho A l, the stiffnesses E A / l and E I / l^3 and the squared
+    frequency scale (E A / l) / (rho A l) must lie in :data:`MATERIAL_RANGE` (l: the element
+    length). Inside it the frequencies scale exactly as sqrt(E / rho) (tests/test_bounds.py).
+    """
+    lo, hi = MATERIAL_RANGE
+    low = any(t in tree and tree[t] for t in LOW_LEVEL)
+    span = max(s.end for s in stack.segments) - min(s.start for s in stack.segments)
+    for i, s in enumerate(stack.segments):
+        prefix = f"segment.{i}" if low else "shaft"
+        le = span / tree["mesh"]["elements"] if not tree["mesh"]["file"] else s.length
+        mass, axial, bending = s.rho * s.area * le, s.E * s.area / le, s.E * s.I_y / le**3
+        w2 = axial / mass if mass > 0 else math.inf
+        for name, v, key in (("element mass rho A l", mass, "rho"), ("axial stiffness E A / l", axial, "E"),
+                             ("bending stiffness E I / l^3", bending, "E"),
+                             ("squared frequency scale E / (rho l^2)", w2,
+                              "E" if abs(math.log10(s.E)) >= abs(math.log10(s.rho)) else "rho")):
+            if not lo <= v <= hi:
+                raise SceneError(f"{prefix}.{key}", f"the {name} of {s.name} is {v:.3g}, outside [{lo:g}, {hi:g}] "
+                                 "where the eigen solvers stay in double precision; choose units closer to 1 "
+                                 "(E = rho = 1 nondimensionalizes)")
 
 
 # --------------------------------------------------------------------------- translation

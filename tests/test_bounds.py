@@ -1,0 +1,136 @@
+"""Bounds on scene values that no model can honour, and the linear-range warning (issue 16).
+
+Each bound is checked where the physics or double precision puts it: a deeply nested TOML
+value, a polygonal friction cone finer than any friction coefficient is known, a speed whose
+centrifugal strain reaches 1, material scales outside double precision, damping whose time
+scales double precision cannot separate, output arrays beyond memory, and deflections beyond
+the small-deflection theory of eq. (22).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from nsfem import cli, load_scene
+from nsfem.errors import SceneError
+from nsfem.scene import MAX_FRICTION_DIRECTIONS, nesting_depth, speed_limit_hz
+
+from test_scene_validation import check_cli_error, check_error, expect_scene_error, no_model, run_cli  # noqa: F401
+
+F = ["--set", "simulation.t_end=0.01", "--set", "output.vtu_every=0", "--set", "output.plots=[]"]
+
+
+# --------------------------------------------------------------------------- nesting
+def test_deeply_nested_scene_file_is_one_line_error(tmp_path, capsys, no_model):
+    path = tmp_path / "deep.toml"
+    path.write_text("title = " + "[" * 100000 + "]" * 100000 + "\n")
+    exc = expect_scene_error(load_scene, path)
+    check_error(exc, "scene", "nested too deeply")
+    check_cli_error(["modes", str(path)], capsys, "scene", "nested too deeply")
+
+
+def test_nested_scene_file_below_the_parser_limit_is_refused_by_depth(tmp_path):
+    # tomllib parses 100 levels; the scene never needs more than MAX_NESTING
+    path = tmp_path / "deep.toml"
+    path.write_text("title = " + "[" * 100 + "]" * 100 + "\n")
+    check_error(expect_scene_error(load_scene, path), "scene", "101 levels")  # the file is a table: +1
+
+
+def test_deeply_nested_override_names_the_key(capsys, no_model):
+    exc = expect_scene_error(load_scene, None, ["title=" + "[" * 100000 + "]" * 100000])
+    check_error(exc, "title", "nested too deeply")
+    check_cli_error(["modes", "--set", "title=" + "[" * 50 + "]" * 50], capsys, "title", "50 levels")
+
+
+def test_nesting_depth_counts_containers():
+    assert nesting_depth("x") == 0
+    assert nesting_depth({"delamination": [{"contact_points": [0.5]}]}) == 4
+    assert nesting_depth([[[[]]]]) == 4
+
+
+# --------------------------------------------------------------------------- friction cone
+@pytest.mark.parametrize("key", ["delamination.0.friction_directions", "obstacle.0.friction_directions"])
+def test_friction_directions_are_bounded(key, capsys, no_model):
+    over = [f"{key}={MAX_FRICTION_DIRECTIONS + 2}"]
+    check_error(expect_scene_error(load_scene, None, over), key, "1 - cos(pi/r)")
+    check_cli_error(["stationary", "--set", f"{key}=100000"], capsys, key, f"exceeds {MAX_FRICTION_DIRECTIONS}")
+    load_scene(None, [f"{key}={MAX_FRICTION_DIRECTIONS}"])  # the bound itself is allowed
+
+
+def test_friction_cone_bound_is_below_any_known_friction_coefficient():
+    # the inscribed r-gon under-estimates the circular cone by 1 - cos(pi/r): at the bound it must
+    # lie far below the ~10 % to which friction coefficients are known, at half of it not yet
+    assert 1 - math.cos(math.pi / MAX_FRICTION_DIRECTIONS) < 2e-3
+    assert 1 - math.cos(math.pi / 4) > 0.25  # the default r = 4: 29 %
+
+
+# --------------------------------------------------------------------------- speeds
+def test_speed_limit_is_the_bar_wave_speed_at_the_outer_fibre():
+    scene = load_scene(None)
+    f, seg = speed_limit_hz(scene.stack)
+    c = math.sqrt(2.1e11 / 7500.0)  # bar wave speed of the shipped steel
+    r = math.hypot(0.01, 0.01)  # corner of the 20 mm x 20 mm section
+    assert f == pytest.approx(c / r / (2 * math.pi), rel=1e-12)  # same formula, round-off only
+    assert 1000 * 48.0 < f  # far above the first critical speeds (43, 48 Hz): supercritical speeds allowed
+
+
+@pytest.mark.parametrize("speed", ["1e6", "1e300"])
+def test_absurd_rotation_speed_is_refused(speed, capsys, no_model):
+    check_error(expect_scene_error(load_scene, None, [f"rotation.speed_hz={speed}"]), "rotation.speed_hz",
+                "centrifugal strain")
+    check_cli_error(["stationary", "--set", f"rotation.speed_hz={speed}"], capsys, "rotation.speed_hz",
+                    "bar wave speed")
+
+
+def test_supercritical_speed_is_allowed():
+    load_scene(None, ["rotation.speed_hz=5000"])  # 100 x critical, strain 7e-3
+
+
+def test_campbell_speeds_beyond_the_limit_name_the_option(capsys, no_model):
+    check_cli_error(["campbell", "--speeds", "0:1e300:3"], capsys, "--speeds", "centrifugal strain")
+
+
+# --------------------------------------------------------------------------- material scales
+@pytest.mark.parametrize("overrides, key", [
+    (["shaft.E=1e-300"], "shaft.E"),
+    (["shaft.rho=1e300"], "shaft.rho"),
+    (["shaft.E=1e100", "shaft.rho=1e-100", "rotation.speed_hz=0"], "shaft.rho"),
+])
+def test_material_scales_outside_double_precision_are_refused(overrides, key, capsys, no_model):
+    exc = expect_scene_error(load_scene, None, overrides)
+    check_error(exc, key, "units closer to 1")
+    argv = ["modes"] + [a for o in overrides for a in ("--set", o)]
+    check_cli_error(argv, capsys, key, "outside")
+
+
+@pytest.mark.parametrize("scale", [1e-60, 1.0, 1e60])
+def test_frequencies_scale_as_sqrt_of_E_over_the_whole_allowed_range(scale):
+    # dimensional analysis: omega ~ sqrt(E I / (rho A L^4)), so f(s E) = sqrt(s) f(E) exactly; the
+    # computation must follow it. Tolerance 1e-8: the measured scale error is 1e-11 .. 1.5e-8 from
+    # 1e-130 to 1e130 (eigen solver round-off of a 25-dof reduced model, cond ~ 1e4 x eps).
+    from nsfem.analysis.modes import natural_frequencies
+    from nsfem.fem.assemble import build_model
+    from nsfem.reduce import scene_reduction
+
+    def freqs(E):
+        scene = load_scene(None, [f"shaft.E={E}", "rotation.speed_hz=0"])
+        model = build_model(scene)
+        m = natural_frequencies(model, "open", 4, scene_reduction(scene, model))
+        return np.array(m.frequencies_hz), m.fields
+
+    f0, fields0 = freqs(2.1e11)
+    f, fields = freqs(2.1e11 * scale)
+    np.testing.assert_allclose(f, f0 * math.sqrt(scale), rtol=1e-8)
+    assert fields == fields0
+
+
+def test_modes_prints_tiny_nondimensional_frequencies(capsys):
+    # E = rho = 1: frequencies shrink by sqrt(7500 / 2.1e11) = 1.89e-4 (43.37 Hz -> 8.197e-3)
+    code, out, err = run_cli(["modes", "--set", "shaft.E=1", "--set", "shaft.rho=1", "--set", "rotation.speed_hz=0",
+                              "--count", "2"], capsys)
+    assert code == 0, err
+    first = float(out.splitlines()[3].split()[1])
+    assert first == pytest.approx(43.373 * math.sqrt(7500 / 2.1e11), rel=1e-4)  # 5 printed digits
