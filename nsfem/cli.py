@@ -235,6 +235,9 @@ def cmd_stationary(args) -> int:
         payload["note"] = info["note"]
     if not st.existence["guaranteed"]:
         print(f"nsfem stationary: warning: {st.existence['reason']}", file=sys.stderr)
+    for w in info["warnings"]:
+        print(f"nsfem stationary: warning: {w}", file=sys.stderr)
+    payload["warnings"] = info["warnings"]
     loads = " + ".join(info["loads"]) or "none"
     lines = [scene["title"], f"speed {info['speed_hz']:g} Hz, constant loads: {loads}; {info['ndof']} dofs "
              f"({info['reduction']['method']}; full model {info['ndof_full']})",
@@ -274,7 +277,10 @@ def cmd_run(args) -> int:
     def terminate(signum, frame):  # a scheduler's SIGTERM ends the run like Ctrl-C: results kept
         raise KeyboardInterrupt
 
+    warnings: list[str] = []
+
     def warn(text):
+        warnings.append(text)
         print(f"nsfem run: warning: {text}", file=sys.stderr)
 
     previous = signal.signal(signal.SIGTERM, terminate)
@@ -310,7 +316,7 @@ def cmd_run(args) -> int:
     summary = result.summary()
     payload = {"title": scene["title"], **summary, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
-               "energy_terms": result.energy, "speed_hz": scene["rotation"]["speed_hz"]}
+               "energy_terms": result.energy, "speed_hz": scene["rotation"]["speed_hz"], "warnings": warnings}
     lines = [scene["title"], f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts",

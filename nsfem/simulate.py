@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .errors import IntegrationError, NsfemError
+from .errors import IntegrationError, NsfemError, SceneError
 from .integrate import ContactSystem, integrate
 from .integrate.base import output_times
 from .result import Result
@@ -63,18 +63,113 @@ def integrator_options(scene, method: str) -> dict:
 
 #: event-search samples per run above which :func:`run_scene` warns
 SAMPLES_WARN = 2e6
+#: event-search samples per run above which :func:`run_scene` refuses: ``exact`` and ``rk`` do
+#: 1e4 to 3e4 samples per second (measured: 25 and 355 dofs), so 1e11 is a month or more of
+#: computing; far below 1/eps = 4.5e15, where the step would vanish in the round-off of t.
+SAMPLES_MAX = 1e11
+#: Largest damping ratio zeta of any mode: an overdamped mode decays at two rates whose ratio is
+#: 4 zeta^2; beyond 1/eps the slow one is lost in the round-off of the fast one, i.e. beyond
+#: zeta = 1 / (2 sqrt(eps)) = 3.4e7 double precision cannot hold the damped system at all.
+ZETA_MAX = 0.5 / math.sqrt(np.finfo(float).eps)
+#: Dense eigenvalue problems (the spectrum of :func:`spectrum`) up to this many dofs.
+SPECTRUM_MAX_DOF = 2000
 
 
-def search_cost(system: ContactSystem, t_end: float) -> tuple[float, float]:
-    """(f_max [Hz], samples): the fastest free mode of the model and the number of event-search
-    samples it implies over t_end (a step of 1/8 of its period, as ``exact`` samples)."""
+def spectrum(system: ContactSystem) -> np.ndarray:
+    """Circular frequencies [rad/s] of the undamped open structure, sqrt|eig(Q, M)|, ascending."""
     import scipy.linalg as sla
 
     if system.n == 0:
-        return 0.0, 0.0
+        return np.zeros(0)
     lam = sla.eigvals(system.Q, system.M)
-    w = float(np.sqrt(np.max(np.abs(lam[np.isfinite(lam)]), initial=0.0)))
-    return w / (2 * np.pi), t_end * 4.0 * w / np.pi
+    return np.sort(np.sqrt(np.abs(lam[np.isfinite(lam)])))
+
+
+def search_cost(system: ContactSystem, t_end: float, w: np.ndarray | None = None) -> tuple[float, float]:
+    """(f_max [Hz], samples): the fastest free mode of the model and the number of event-search
+    samples it implies over t_end (a step of 1/8 of its period, as ``exact`` samples)."""
+    w = spectrum(system) if w is None else w
+    top = float(np.max(w, initial=0.0))
+    return top / (2 * np.pi), t_end * 4.0 * top / np.pi
+
+
+def damping_ratio(rayleigh, w: np.ndarray) -> tuple[float, float]:
+    """(largest damping ratio, its frequency [rad/s]) of Rayleigh damping C = alpha M + beta K over
+    the elastic modes ``w``: zeta(w) = alpha / (2 w) + beta w / 2, convex in w, so largest at the
+    lowest or the highest one (rigid modes, w below 1e-9 of the highest, are left out: alpha
+    merely stops them)."""
+    alpha, beta = rayleigh
+    w = np.asarray(w, dtype=float)
+    w = w[w > 1e-9 * np.max(w, initial=0.0)]
+    if w.size == 0:
+        return 0.0, 0.0
+    ends = np.array([w.min(), w.max()])
+    with np.errstate(over="ignore"):
+        zeta = alpha / (2 * ends) + beta * ends / 2
+    k = int(np.argmax(zeta))
+    return float(zeta[k]), float(ends[k])
+
+
+def check_damping(rayleigh, w: np.ndarray) -> None:
+    """Refuse Rayleigh damping beyond :data:`ZETA_MAX` on some mode of the model (``w`` rad/s)."""
+    zeta, at = damping_ratio(rayleigh, w)
+    if zeta > ZETA_MAX:
+        alpha, beta = rayleigh
+        raise SceneError("damping.rayleigh", f"[{alpha:g}, {beta:g}] gives the mode at {at / (2 * np.pi):.4g} Hz a "
+                         f"damping ratio alpha / (2 w) + beta w / 2 = {zeta:.3g}, beyond {ZETA_MAX:.2g}: its slow and "
+                         "fast decay rates differ by 4 zeta^2, more than double precision can hold "
+                         "(heavy overdamping up to that ratio runs)")
+
+
+def output_bytes(system: ContactSystem, t_end: float, output_dt: float) -> float:
+    """Bytes of a Result's output arrays: per sample q and v (2 n), gap, normal force, state and two
+    tangential components per contact (5 m) and t, 8 bytes each."""
+    samples = math.floor(t_end / output_dt) + 1
+    return 8.0 * samples * (2 * system.n + 5 * system.contacts.m + 1)
+
+
+def memory_bytes() -> float | None:
+    """Physical memory of this machine (None where the OS does not say)."""
+    import os
+
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        return None
+
+
+def check_outputs(system: ContactSystem, t_end: float, output_dt: float, memory: float | None = None) -> None:
+    """Refuse output arrays larger than the machine's memory (:func:`output_bytes`)."""
+    need = output_bytes(system, t_end, output_dt)
+    memory = memory_bytes() if memory is None else memory
+    if memory is not None and need > memory:
+        raise SceneError("simulation.output_dt", f"t_end / output_dt = {t_end / output_dt:.3g} output samples of "
+                         f"{system.n} dofs and {system.contacts.m} contacts need {need / 2**30:.3g} GiB, more than "
+                         f"this machine's {memory / 2**30:.3g} GiB; raise simulation.output_dt or shorten "
+                         "simulation.t_end")
+
+
+def check_search_cost(system: ContactSystem, t_end: float, method: str, reduction: dict, f_max: float,
+                      samples: float) -> str | None:
+    """The advice text when an event-driven run needs many search samples (None when few); raises
+    when it needs more than :data:`SAMPLES_MAX`. ``reduction``: the reduction's info (method,
+    max_frequency_hz of the kept modes)."""
+    if samples <= SAMPLES_WARN:
+        return None
+    kept = reduction.get("max_frequency_hz") or math.inf
+    if reduction.get("method", "none") == "none":
+        advice = "a reduced model (reduction.method = craig-bampton or modal) runs far faster"
+    elif f_max <= 1.01 * kept:  # the highest kept mode sets it
+        advice = "fewer kept modes (reduction.modes) or a shorter simulation.t_end lower it"
+    else:  # Craig-Bampton: a constraint mode at a contact point, stiffer than every kept mode
+        advice = ("its constraint modes at the contact points set it: fewer contact points or a shorter "
+                  "simulation.t_end lower it")
+    text = (f"the fastest mode of this {system.n}-dof model ({f_max:.4g} Hz) sets the time scale of '{method}': "
+            f"about {samples:.2g} event-search samples for t_end = {t_end:g} s; {advice}")
+    if samples > SAMPLES_MAX:
+        raise SceneError("simulation.t_end", f"{text}; more than {SAMPLES_MAX:.0e} samples (a month or more of "
+                         "computing) are refused")
+    return text
 
 
 #: models larger than this skip the (dense) growth-rate check of :func:`growth_rate`
@@ -104,7 +199,8 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
     """Integrate a scene with its (or the given) method; returns the Result and the system.
 
     ``warn(text)`` receives warnings before the integration starts (an unreduced model whose
-    fastest mode makes the run long). A run that stops early raises
+    fastest mode makes the run long) and after it (deflections beyond the linear model's range,
+    :mod:`nsfem.analysis.deflection`). Bad sample counts and damping raise SceneError first. A run that stops early raises
     :class:`~nsfem.errors.IntegrationError` whose ``result`` holds it up to there."""
     from .fem.assemble import build_model
     from .reduce import scene_reduction
@@ -121,16 +217,19 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
     model = build_model(scene) if model is None else model
     red = scene_reduction(scene, model) if reduction is None else reduction
     system = ContactSystem.from_scene(scene, model, red)
+    check_outputs(system, sim["t_end"], sim["output_dt"])
+    w = spectrum(system) if system.n <= SPECTRUM_MAX_DOF else None
+    if w is not None:
+        check_damping(scene["damping"]["rayleigh"], w)
+    if method in ("exact", "rk") and w is not None:
+        f_max, samples = search_cost(system, sim["t_end"], w)
+        text = check_search_cost(system, sim["t_end"], method, red.info, f_max, samples)
+        if text and warn is not None:
+            warn(text)
     q0, v0 = initial_state(scene, model, red, system)
     if warn is not None and method == "penalty" and np.any(system.contacts.mu > 0):
         warn(f"penalty neglects friction, as in the paper: the friction coefficients of "
              f"{int(np.sum(system.contacts.mu > 0))} contacts are ignored (use exact, rk or moreau for friction)")
-    if warn is not None and method in ("exact", "rk"):
-        f_max, samples = search_cost(system, sim["t_end"])
-        if samples > SAMPLES_WARN:
-            warn(f"the fastest mode of this {system.n}-dof model ({f_max:.4g} Hz) sets the time scale of "
-                 f"'{method}': about {samples:.2g} event-search samples for t_end = {sim['t_end']:g} s; a reduced "
-                 "model (reduction.method = craig_bampton or modal) runs far faster")
     if warn is not None and system.n <= GROWTH_CHECK_MAX_DOF:
         rate = growth_rate(system)
         if rate > 0.0:
@@ -147,4 +246,10 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
         exc.system = system
         raise
     result.info.update(info)
+    if warn is not None:
+        from .analysis.deflection import result_warning
+
+        text = result_warning(result, model, red.T)
+        if text:
+            warn(text)
     return result, system

@@ -134,3 +134,149 @@ def test_modes_prints_tiny_nondimensional_frequencies(capsys):
     assert code == 0, err
     first = float(out.splitlines()[3].split()[1])
     assert first == pytest.approx(43.373 * math.sqrt(7500 / 2.1e11), rel=1e-4)  # 5 printed digits
+
+
+# --------------------------------------------------------------------------- damping
+@pytest.mark.parametrize("rayleigh", ["[0, 1e300]", "[1e300, 0]"])
+def test_absurd_rayleigh_damping_is_refused_before_integrating(rayleigh, capsys, monkeypatch, tmp_path):
+    from nsfem import simulate
+
+    monkeypatch.setattr(simulate, "integrate", lambda *a, **k: pytest.fail("integrated absurd damping"))
+    check_cli_error(["run", *F, "--out", str(tmp_path), "--set", f"damping.rayleigh={rayleigh}"], capsys,
+                    "damping.rayleigh", "damping ratio")
+
+
+def test_damping_ratio_of_rayleigh_damping():
+    from nsfem.simulate import ZETA_MAX, damping_ratio
+
+    w = np.array([0.0, 100.0, 1000.0])  # a rigid mode and two elastic ones
+    # zeta(w) = alpha / (2 w) + beta w / 2 is largest at an end of the elastic spectrum (exact arithmetic)
+    assert damping_ratio((20.0, 0.0), w) == (pytest.approx(0.1, rel=1e-15), 100.0)
+    assert damping_ratio((0.0, 2e-4), w) == (pytest.approx(0.1, rel=1e-15), 1000.0)
+    # the bound: 4 zeta^2 (ratio of an overdamped pair's decay rates) reaches 1/eps
+    assert 4 * ZETA_MAX**2 == pytest.approx(1 / np.finfo(float).eps, rel=1e-15)
+
+
+def test_heavy_but_representable_overdamping_runs(tmp_path):
+    # alpha = 1e6 1/s: zeta = 4e3 at the lowest mode (38 Hz), heavily overdamped, far inside ZETA_MAX
+    from nsfem.simulate import run_scene
+
+    scene = load_scene(None, ["simulation.t_end=0.01", "damping.rayleigh=[1e6, 0]"])
+    result, _ = run_scene(scene)
+    assert result.completed and result.t[-1] == pytest.approx(0.01, rel=1e-12)
+
+
+# --------------------------------------------------------------------------- sample counts
+def test_absurd_t_end_is_refused_with_the_right_advice(capsys, tmp_path):
+    line = check_cli_error(["run", *F, "--out", str(tmp_path), "--set", "simulation.t_end=1e300", "--set",
+                            "simulation.output_dt=1e294"], capsys, "simulation.t_end", "refused")
+    assert "craig_bampton" not in line and "a reduced model" not in line  # it already is one
+    assert "shorter simulation.t_end" in line
+    line = check_cli_error(["run", *F, "--out", str(tmp_path), "--set", "simulation.t_end=1e300", "--set",
+                            "simulation.output_dt=1e294", "--set", "reduction.method=none"], capsys,
+                           "simulation.t_end", "refused")
+    assert "reduction.method = craig-bampton or modal" in line
+
+
+def test_search_cost_advice_fits_the_model():
+    from nsfem.fem.assemble import build_model
+    from nsfem.integrate import ContactSystem
+    from nsfem.reduce import scene_reduction
+    from nsfem.simulate import SAMPLES_WARN, check_search_cost
+
+    scene = load_scene(None, ["reduction.method=modal"])
+    model = build_model(scene)
+    red = scene_reduction(scene, model)
+    system = ContactSystem.from_scene(scene, model, red)
+    assert check_search_cost(system, 1.0, "exact", red.info, 900.0, SAMPLES_WARN) is None
+    text = check_search_cost(system, 1.0, "exact", red.info, 900.0, 2 * SAMPLES_WARN)
+    assert "reduction.modes" in text and "craig" not in text
+    text = check_search_cost(system, 1.0, "exact", {"method": "none"}, 5e5, 2 * SAMPLES_WARN)
+    assert "craig-bampton or modal" in text
+
+
+def test_output_arrays_beyond_memory_are_refused():
+    from nsfem.fem.assemble import build_model
+    from nsfem.integrate import ContactSystem
+    from nsfem.reduce import scene_reduction
+    from nsfem.simulate import check_outputs, output_bytes
+
+    scene = load_scene(None)
+    model = build_model(scene)
+    system = ContactSystem.from_scene(scene, model, scene_reduction(scene, model))
+    # 1e7 + 1 samples of (2 x 25 dofs + 5 x 9 contact values + t) doubles
+    need = output_bytes(system, 1e4, 1e-3)
+    assert need == 8.0 * (1e7 + 1) * (2 * 25 + 5 * 9 + 1)
+    check_outputs(system, 1e4, 1e-3, memory=2 * need)
+    with pytest.raises(SceneError) as exc:
+        check_outputs(system, 1e4, 1e-3, memory=need / 2)
+    check_error(exc.value, "simulation.output_dt", "GiB")
+
+
+# --------------------------------------------------------------------------- linear range
+LINEAR_RANGE = "range of the linear"
+
+
+@pytest.mark.parametrize("extra", [
+    ["rotation.gravity=1e6"],
+    ["rotation.gravity=1e6", "rotation.speed_hz=0"],
+    ["initial.velocity=[0, 0, 1e6]"],
+])
+def test_run_warns_beyond_the_linear_range(extra, capsys, tmp_path):
+    import json
+
+    argv = ["run", *F, "--out", str(tmp_path), "--json"] + [a for o in extra for a in ("--set", o)]
+    code, out, err = run_cli(argv, capsys)
+    assert code == 0, err
+    assert LINEAR_RANGE in err
+    payload = json.loads(out)
+    assert any(LINEAR_RANGE in w for w in payload["warnings"])
+    assert payload["max_gap_m"] > 0.009  # the gap the warning reports, wider than the 9 mm sub-beam
+
+
+def test_shipped_scene_stays_in_the_linear_range(capsys, tmp_path):
+    import json
+
+    code, out, err = run_cli(["run", *F, "--out", str(tmp_path), "--json"], capsys)
+    assert code == 0 and LINEAR_RANGE not in err and json.loads(out)["warnings"] == []
+
+
+def test_stationary_warns_beyond_the_linear_range(capsys):
+    import json
+
+    code, out, err = run_cli(["stationary", "--set", "rotation.speed_hz=0", "--set", "rotation.gravity=1e6",
+                              "--json"], capsys)
+    assert code == 0 and LINEAR_RANGE in err
+    assert any(LINEAR_RANGE in w for w in json.loads(out)["warnings"])
+    code, out, err = run_cli(["stationary", "--json"], capsys)
+    assert code == 0 and LINEAR_RANGE not in err and json.loads(out)["warnings"] == []
+
+
+def test_lateral_deflection_measures_the_static_sag():
+    # the stationary sag of a plain pinned shaft under gravity at rest against Euler-Bernoulli,
+    # 5 q L^4 / (384 E I) at midspan: Hermite cubics are nodally exact for a uniform load, so the
+    # unreduced model differs by round-off only, cond(K) ~ (40 elements)^4 x (slope scaling) ~ 1e7
+    # times eps: rtol 1e-8. (Craig-Bampton's 16 modes would miss 1e-5 of it: the static tail of
+    # the modes beyond.)
+    from nsfem.analysis.deflection import lateral_deflection
+    from nsfem.analysis.stationary import scene_stationary
+    from nsfem.fem.assemble import build_model
+    from nsfem.reduce import scene_reduction
+
+    scene = load_scene(None, ["rotation.speed_hz=0", "delamination=[]", "reduction.method=none"])
+    model = build_model(scene)
+    red = scene_reduction(scene, model)
+    st = scene_stationary(scene, model, red)
+    rows = lateral_deflection(model, red.T, st.q)
+    E, b, h, rho, g, L = 2.1e11, 0.02, 0.02, 7500.0, 9.81, 1.0
+    expect = 5 * rho * b * h * g * L**4 / (384 * E * b * h**3 / 12)
+    assert max(r[2] for r in rows) == pytest.approx(expect, rel=1e-8)
+    assert max(r[1] for r in rows) == pytest.approx(expect / h, rel=1e-8)  # measured against the height
+
+
+def test_stationary_without_contacts(capsys):
+    # a scene without delamination has no contacts: the state is Q^-1 f0 (was a ValueError: max of
+    # an empty array)
+    code, out, err = run_cli(["stationary", "--set", "delamination=[]"], capsys)
+    assert code == 0, err
+    assert "no contacts" in out

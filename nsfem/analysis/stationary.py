@@ -129,7 +129,7 @@ def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, **lemke_options) 
     q = lcp.motion(res.x)
     lamN, _, z = lcp.split(res.x)
     gap = cs.gaps(q)
-    gap[lamN > 0] = np.where(np.abs(gap[lamN > 0]) < 1e-12 * max(np.abs(lcp.b).max(), 1e-300), 0.0,
+    gap[lamN > 0] = np.where(np.abs(gap[lamN > 0]) < 1e-12 * max(np.abs(lcp.b).max(initial=0.0), 1e-300), 0.0,
                              gap[lamN > 0])
     tang = [np.zeros(len(t)) for t in cs.tangents]
     for k, t in zip(lcp.friction, lcp.tangential(res.x)):
@@ -180,6 +180,10 @@ def scene_stationary(scene, model=None, reduction=None) -> Stationary:
     st.wall_s = time.perf_counter() - t0
     st.info = {"speed_hz": rot["speed_hz"], "loads": loads, "ndof_full": model.n, "ndof": red.ndof,
                "reduction": red.info}
+    from .deflection import stationary_warning
+
+    text = stationary_warning(st, model, red.T)
+    st.info["warnings"] = [text] if text else []
     if rot["speed_hz"] and rot["gravity"]:
         st.info["note"] = ("gravity is harmonic in the rotating frame and is not a stationary load; "
                            "set rotation.speed_hz = 0 for the state at rest under gravity")
