@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import NsfemError
 from ..result import Result
+from .blas import single_threaded_blas
 from .problem import ContactSystem
 
 
@@ -126,7 +127,9 @@ def integrate(system: ContactSystem, t_end: float, method: str = "exact", output
     if method not in methods:
         raise NsfemError(f"unknown integration method {method!r} (available: {', '.join(methods)})")
     dt = t_end / 1000 if output_dt is None else output_dt
-    return methods[method](system, **options).run(t_end, dt, q0, v0)
+    integrator = methods[method](system, **options)
+    with single_threaded_blas():
+        return integrator.run(t_end, dt, q0, v0)
 
 
 #: methods registered by other modules (penalty, moreau) as name -> class
