@@ -95,6 +95,7 @@ class EventDriven(Integrator):
                   "lost_in_impacts_J": 0.0}
         e_max = abs(energy["initial_J"])
         progress = Progress(t_end, self.progress)
+        self._report = lambda t_now: progress(t_now, len(events))  # noqa: E731 - long phases report too
         completed, failure = True, None
         t = 0.0
         closed_time, covered = 0.0, 0.0   # time with at least one contact closed, of the time integrated
@@ -128,7 +129,10 @@ class EventDriven(Integrator):
                     self._outputs(phase, mode, xi_out, sel, out)
                     memory.observe(cs, phase.q_map() @ xi_out, phase.v_map() @ xi_out)
                     filled = int(sel[-1]) + 1
-                e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy))
+                with np.errstate(over="ignore", invalid="ignore"):  # overflow: judged just below
+                    e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy))
+                if not (math.isfinite(e_max) and all(math.isfinite(x) for x in energy.values())):
+                    raise overflow(t_next, mode, sysm, "energy")
                 phase_integrated = True
                 if mode.closed:
                     closed_time += t_next - t
@@ -349,7 +353,7 @@ class Exact(EventDriven):
     name = "exact"
 
     def _advance(self, phase, rows, t0, t1):
-        return first_event(phase, rows, t0, t1), phase.xi
+        return first_event(phase, rows, t0, t1, getattr(self, "_report", None)), phase.xi
 
 
 class RungeKutta(EventDriven):

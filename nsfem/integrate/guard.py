@@ -69,9 +69,9 @@ def check_phase(phase, t: float, t_end: float, mode) -> None:
     resolution = 16.0 * math.ulp(max(abs(t_end), abs(t)))
     if math.isfinite(rate) and np.all(np.isfinite(phase.A_aug)) and (not math.isfinite(step) or step > resolution):
         return
-    where = _describe_mode(cfg.system.contacts, mode)
+    where = describe_mode(cfg.system.contacts, mode)
     sysm = cfg.system
-    cause = _likely_cause(sysm)
+    cause = likely_cause(sysm)
     if not (math.isfinite(rate) and np.all(np.isfinite(phase.A_aug))):
         raise NsfemError(f"no progress at t = {t:.6g} s: the equations of motion of configuration {where} "
                          f"overflow the floating-point range (fastest rate {rate:.3g} 1/s){cause}; "
@@ -88,14 +88,13 @@ def check_state(t: float, q: np.ndarray, v: np.ndarray, mode, system) -> None:
         raise overflow(t, mode, system)
 
 
-def overflow(t: float, mode, system) -> NsfemError:
-    """The error of a state that overflowed at t in configuration ``mode``."""
-    return NsfemError(f"no progress at t = {t:.6g} s: the state overflowed (non-finite displacements or "
-                      f"velocities in configuration {_describe_mode(system.contacts, mode)})"
-                      f"{_likely_cause(system)}")
+def overflow(t: float, mode, system, what: str = "displacements or velocities") -> NsfemError:
+    """The error of a motion that overflowed by t in configuration ``mode`` (``what`` did)."""
+    return NsfemError(f"the motion overflowed the floating-point range at t = {t:.6g} s (non-finite {what} in "
+                      f"configuration {describe_mode(system.contacts, mode)}){likely_cause(system)}")
 
 
-def _likely_cause(system) -> str:
+def likely_cause(system) -> str:
     """What in M, C, Q makes time scales unresolvable: a clause naming the scene keys, or ''."""
     M, C, Q = system.M, system.C, system.Q
     with np.errstate(all="ignore"):
@@ -108,9 +107,12 @@ def _likely_cause(system) -> str:
     return " (check the stiffness, damping and rotation.speed_hz of the scene)"
 
 
-def _describe_mode(contacts, mode) -> str:
+def describe_mode(contacts, mode) -> str:
     closed = [contacts.labels[k] for k in mode.closed]
-    return "with " + ", ".join(closed) + " closed" if closed else "with all contacts open"
+    if not closed:
+        return "with all contacts open"
+    more = f" and {len(closed) - 4} more" if len(closed) > 4 else ""
+    return "with " + ", ".join(closed[:4]) + more + " closed"
 
 
 class EventGuard:
