@@ -75,11 +75,11 @@ def check_phase(phase, t: float, t_end: float, mode) -> None:
     if not (math.isfinite(rate) and np.all(np.isfinite(phase.A_aug))):
         raise NsfemError(f"no progress at t = {t:.6g} s: the equations of motion of configuration {where} "
                          f"overflow the floating-point range (fastest rate {rate:.3g} 1/s){cause}; "
-                         "method moreau (implicit time stepping) does not resolve such time scales")
+                         "try method moreau (implicit time stepping needs no event search on these time scales)")
     raise NsfemError(f"no progress at t = {t:.6g} s: the fastest time scale of configuration {where} "
                      f"(rate {rate:.3g} 1/s) gives an event-search step of {step:.3g} s, below the time "
-                     f"resolution at t_end = {t_end:g} s ({resolution:.3g} s){cause}; method moreau (implicit "
-                     "time stepping) does not resolve such time scales")
+                     f"resolution at t_end = {t_end:g} s ({resolution:.3g} s){cause}; try method moreau (implicit "
+                     "time stepping needs no event search on these time scales)")
 
 
 def check_state(t: float, q: np.ndarray, v: np.ndarray, mode, system) -> None:
