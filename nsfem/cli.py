@@ -285,7 +285,7 @@ def cmd_run(args) -> int:
 
     previous = signal.signal(signal.SIGTERM, terminate)
     try:
-        result, system = run_scene(scene, method, progress=None, warn=warn)
+        result, system = run_scene(scene, method, progress=True, warn=warn)  # on stderr after 5 s
     except IntegrationError as exc:  # keep what was computed, then report the error
         res, sysm = exc.result, exc.system
         path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.contacts.x,

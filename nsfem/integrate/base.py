@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import NsfemError
 from ..result import Result
+from .blas import single_threaded_blas
 from .problem import ContactSystem
 
 
@@ -87,12 +88,21 @@ def output_times(t_end: float, output_dt: float) -> np.ndarray:
 
 
 class Progress:
-    """A one-line progress bar on stderr, shown after ``delay`` s, only on a terminal."""
+    """Progress of a long run on stderr (never stdout), silent for the first ``delay`` seconds.
 
-    def __init__(self, t_end: float, enabled: bool | None = None, delay: float = 2.0, stream=None):
+    ``enabled``: None shows a one-line bar when stderr is a terminal (library default); True
+    also reports on a pipe or a log file, one line every ``every`` seconds (``nsfem run``);
+    False shows nothing.
+    """
+
+    def __init__(self, t_end: float, enabled: bool | None = None, delay: float = 2.0, stream=None,
+                 every: float = 5.0):
         self.stream = stream or sys.stderr
-        self.enabled = self.stream.isatty() if enabled is None else enabled
-        self.t_end, self.delay = t_end, delay
+        tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.enabled = tty if enabled is None else bool(enabled)
+        self.bar = tty
+        self.t_end, self.delay = t_end, delay if tty else max(delay, every)
+        self.every = 0.2 if tty else every
         self.t0 = time.perf_counter()
         self.last = 0.0
         self.shown = False
@@ -101,15 +111,17 @@ class Progress:
         if not self.enabled:
             return
         now = time.perf_counter()
-        if now - self.t0 < self.delay or now - self.last < 0.2:
+        if now - self.t0 < self.delay or now - self.last < self.every:
             return
         self.last = now
         frac = min(1.0, t / self.t_end)
-        bar = "#" * int(30 * frac)
-        self.stream.write(f"\r  [{bar:<30s}] {100 * frac:5.1f} %  t = {t:.4g} s  events {events}  "
-                          f"{now - self.t0:.1f} s")
+        text = f"t = {t:.4g} of {self.t_end:g} s ({100 * frac:.1f} %), events {events}, {now - self.t0:.1f} s"
+        if self.bar:
+            self.stream.write(f"\r  [{'#' * int(30 * frac):<30s}] {text}  ")
+            self.shown = True
+        else:
+            self.stream.write(f"nsfem: progress: {text}\n")
         self.stream.flush()
-        self.shown = True
 
     def close(self) -> None:
         if self.shown:
@@ -126,7 +138,11 @@ def integrate(system: ContactSystem, t_end: float, method: str = "exact", output
     if method not in methods:
         raise NsfemError(f"unknown integration method {method!r} (available: {', '.join(methods)})")
     dt = t_end / 1000 if output_dt is None else output_dt
-    return methods[method](system, **options).run(t_end, dt, q0, v0)
+    integrator = methods[method](system, **options)
+    # floating-point overflow is not printed as RuntimeWarnings: the integrators check their
+    # state, rates and energy and stop with an error naming it (nsfem.integrate.guard)
+    with single_threaded_blas(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return integrator.run(t_end, dt, q0, v0)
 
 
 #: methods registered by other modules (penalty, moreau) as name -> class

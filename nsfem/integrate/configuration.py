@@ -112,7 +112,14 @@ class Configuration:
         Mi = np.linalg.inv(Mr) if r else np.zeros((0, 0))
         self.Mi_L = Mi @ self.L.T                           # r x n
         Kr, Cr = self.L.T @ Q @ self.N, self.L.T @ C @ self.N
-        self.A = np.block([[np.zeros((r, r)), np.eye(r)], [-Mi @ Kr, -Mi @ Cr]]) if r else np.zeros((0, 0))
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.A = np.block([[np.zeros((r, r)), np.eye(r)], [-Mi @ Kr, -Mi @ Cr]]) if r else np.zeros((0, 0))
+        if not np.all(np.isfinite(self.A)):
+            from .guard import describe_mode, likely_cause
+
+            raise NsfemError(f"no progress: the equations of motion of configuration {describe_mode(cs, mode)} "
+                             "overflow the "
+                             f"floating-point range (M^-1 Q or M^-1 C is not finite){likely_cause(system)}")
         self.B = np.vstack([np.zeros((r, n)), self.Mi_L])   # x' = A x + B phi
         self.Gpinv = np.linalg.pinv(self.G.T) if self.G.shape[1] else np.zeros((n, 0))  # q_p = -Gpinv g0
         # constraint forces: W lam = R_x x + R_phi phi
@@ -340,7 +347,8 @@ class Phase:
         r2 = 2 * self.config.r
         if self._modal is not None:
             lam, V, c, xc, Xh = self._modal
-            grow = np.exp(np.maximum(lam.real, 0.0) * horizon)
+            with np.errstate(over="ignore"):  # an unstable mode over a long horizon: an infinite bound
+                grow = np.exp(np.maximum(lam.real, 0.0) * horizon)
             b = np.abs(H[:, :r2] @ V) @ (np.abs(c) * np.abs(lam) ** order * grow)
             if Xh is not None:
                 b = b + np.abs(H[:, :r2] @ Xh) * self.w ** order

@@ -122,8 +122,9 @@ class Event:
     in_band: list | None = None
 
 
-def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Event | None:
-    """The earliest root of any row in (t_start, t_stop], or None."""
+def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=None) -> Event | None:
+    """The earliest root of any row in (t_start, t_stop], or None. ``report(t)`` (optional) is
+    told how far the search has come after each chunk of samples (progress of long phases)."""
     if rows.size == 0:
         return None
     H = rows.H
@@ -205,6 +206,8 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float) -> Even
             return Event(t_e, [f[1] for f in close], [f[2] for f in close], tol, [f[3] for f in close])
         t_a = ts[-1]
         phase.searched_until = t_a  # no event before this time (an interrupted run keeps it)
+        if report is not None:
+            report(t_a)
     return None
 
 

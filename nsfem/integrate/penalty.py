@@ -46,6 +46,7 @@ from scipy.optimize import brentq
 from ..errors import IntegrationError, NsfemError
 from ..result import Result
 from .base import EXTRA_METHODS, Integrator, Progress, close_energy, initial_state, output_times
+from .guard import likely_cause
 from .problem import ContactSystem
 
 SOLVERS = {"BDF": BDF, "Radau": Radau, "LSODA": LSODA}
@@ -210,6 +211,9 @@ class Penalty(Integrator):
         A = np.zeros((2 * n + 4, 2 * n + 4))
         A[:n, n:2 * n] = np.eye(n)
         A[n:2 * n, :n], A[n:2 * n, n:2 * n] = -Kq, -Cv
+        if not np.all(np.isfinite(A)):
+            raise NsfemError("penalty: the equations of motion overflow the floating-point range (M^-1 (Q + c_p J J^T) "
+                             f"or M^-1 C is not finite){likely_cause(sysm)}")
 
         f0, fc, fs, jN = sysm.f0, sysm.fc, sysm.fs, cs.jN[idx]
 
@@ -279,7 +283,11 @@ class Penalty(Integrator):
                 s_prev = self._switch(x)
                 switched = None
                 while solver.status == "running":
-                    msg = solver.step()
+                    try:
+                        msg = solver.step()
+                    except (ValueError, ZeroDivisionError, np.linalg.LinAlgError) as exc:  # inf/nan in its solves
+                        raise NsfemError(f"penalty ({self.solver}) failed at t = {solver.t:.6g} s: {exc}"
+                                         f"{likely_cause(sysm)}") from exc
                     if solver.status == "failed" or not np.all(np.isfinite(solver.y)):
                         raise NsfemError(f"penalty ({self.solver}) failed at t = {solver.t:.6g} s: "
                                          f"{msg or 'non-finite state'}")
