@@ -177,10 +177,14 @@ def test_free_free_rotor_has_a_campbell_diagram():
     rep = campbell_report(scene, build_model(scene), [0.0, 30.0], 8)
     f30 = np.array(rep["frequencies_hz"][1])
     # the four lateral rigid motions appear at the rotation frequency in the rotating frame:
-    # translations to 1e-6 relative; tilts within 2e-4, since their inertia also holds the
-    # sub-beams' axial (Steiner) part that the lateral centrifugal term does not see
+    # tilts within 2e-4 (1.19e-4 low), since their inertia also holds the sub-beams' axial
+    # (Steiner) part that the lateral centrifugal term does not see; the translations exactly.
+    # They are a defective double root (uniform drift), which any eigen solver splits by
+    # ~sqrt(eps) omega_max (2.4e-6 relative under one OpenBLAS kernel, 1.4e-6 under another);
+    # campbell reports the split pair's mean (merge_defective), which is first-order accurate:
+    # eps omega_max^2 / Omega = 2.2e-16 x 1.5e11 / 188 rad/s = 1.8e-7 rad/s, 1e-9 relative
     assert np.count_nonzero(np.abs(f30 - 30.0) < 2e-4 * 30.0) == 4
-    assert np.count_nonzero(np.abs(f30 - 30.0) < 1e-6 * 30.0) == 2
+    assert np.count_nonzero(np.abs(f30 - 30.0) < 1e-8 * 30.0) == 2
     # a free rotor falls rigidly: gravity deforms it at no speed
     assert rep["gravity_resonances_hz"] == {"open": [], "closed": []}
     # divergence speeds of a free-free shaft are its natural frequencies but for the sub-beams'
@@ -261,8 +265,12 @@ def test_speed_on_a_divergence_speed_and_heavy_damping_stay_sane():
         # at a divergence speed a double root at 0 splits by ~sqrt(eps) x scale: 1e-4 Hz here
         assert np.allclose(sparse, dense, rtol=1e-6, atol=1e-3), (speed, sparse, dense)
         assert np.all(np.isfinite(sparse))
-    growth = campbell(ops, [d[1]], 4).growth_per_s[0]
-    assert abs(growth) < 1e-3
+    # on a divergence speed the double root at 0 is defective: its round-off split (+-5e-4 to
+    # +-1.4e-3 1/s, by BLAS kernel) and Arnoldi's errors in its edge roots (1.4e-3 1/s at 2748
+    # rad/s) lie below the resolution sqrt(eps) omega_max = 5.8e-3 1/s of this 20-element
+    # model, so campbell reports no growth there (growth_rate, merge_defective)
+    for speed in d:
+        assert campbell(ops, [speed], 4).growth_per_s[0] == 0.0
 
 
 def test_reduced_campbell_matches_the_full_one():

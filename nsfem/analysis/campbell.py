@@ -56,6 +56,19 @@ DENSE_LIMIT = 60
 VALID_FRACTION = 0.5
 #: Dense fallback when Arnoldi fails, up to this many dofs.
 DENSE_FALLBACK = 1500
+#: Two computed roots are one defective root split by round-off when they lie closer than
+#: RESOLUTION sqrt(eps) omega_max (omega_max: the model's fastest frequency, rad/s) and
+#: their unit eigenvectors are nearly parallel (1 - |cos| < DEFECTIVE, an angle under 2.6
+#: degrees). A Jordan block of the first-order form perturbed by round-off, eps |K| / m ~ eps
+#: omega_max^2 in its stiffness entry, splits into lambda_0 +- sqrt(eps) omega_max c with c of
+#: order one, its eigenvectors by an angle of the same order. Measured (20 elements, omega_max
+#: 3.9e5 rad/s, sqrt(eps) omega_max = 5.8e-3 1/s): splits of 1e-3 to 4e-3 1/s (a free rotor's
+#: rigid translations whirling at Omega, its axial drift at 0, a double root at 0 on a
+#: divergence speed) with 1 - |cos| from 6e-15 to 6e-6; physical pairs nearest to them, a
+#: free Euler-Bernoulli rotor's tilts at i Omega +- 2.05 and +- 3.77 1/s, lie 35 times the
+#: threshold away.
+RESOLUTION = 10.0
+DEFECTIVE = 1e-3
 #: Eigenvalues computed beyond 2 x count, so real (overdamped, divergent) ones do not crowd
 #: out oscillating modes.
 EXTRA = 12
@@ -67,7 +80,7 @@ class CampbellResult:
 
     speeds_hz: np.ndarray
     frequencies_hz: np.ndarray  # (speeds, count); nan where fewer modes exist
-    growth_per_s: np.ndarray  # (speeds,): max Re(lambda) over the computed modes
+    growth_per_s: np.ndarray  # (speeds,): max Re(lambda) over the reported and real roots (growth_rate)
 
 
 def state_eigenvalues(system: LinearSystem, count: int) -> np.ndarray:
@@ -81,7 +94,7 @@ def state_eigenvalues(system: LinearSystem, count: int) -> np.ndarray:
         return _dense_state(M, C, Q)
     A = sp.bmat([[None, sp.identity(n)], [-Q, -C]], format="csr")
     B = sp.block_diag([sp.identity(n), M], format="csr")
-    scale = math.sqrt(float((Q.diagonal() / M.diagonal()).max()))
+    scale = _omega_max(M, Q)
     # a small negative shift keeps A - sigma B regular at divergence boundaries, where Q is
     # singular; a factor with a pivot at round-off means sigma hit an eigenvalue: next shift
     for sigma in (-1e-6 * scale, -1.3e-5 * scale, 1.7e-5 * scale):
@@ -107,8 +120,8 @@ def state_eigenvalues(system: LinearSystem, count: int) -> np.ndarray:
         try:
             # heavy damping clusters overdamped roots near -1/beta, which stalls Arnoldi: give
             # up early and solve densely instead
-            lam = spla.eigs(A, k=k, M=B, sigma=sigma, OPinv=op, which="LM", v0=v0, maxiter=300,
-                            return_eigenvectors=False)
+            lam, V = spla.eigs(A, k=k, M=B, sigma=sigma, OPinv=op, which="LM", v0=v0, maxiter=300)
+            lam = merge_defective(lam, V, scale)
         except spla.ArpackNoConvergence:
             break
         finally:
@@ -121,14 +134,68 @@ def state_eigenvalues(system: LinearSystem, count: int) -> np.ndarray:
                      "([reduction] method = craig-bampton)")
 
 
+def _omega_max(M, Q) -> float:
+    """The fastest frequency [rad/s] as the largest diagonal ratio sqrt(Q_ii / M_ii) (an
+    estimate within a small factor for FE matrices, the scale of round-off in the roots)."""
+    d = np.abs(np.asarray(Q.diagonal(), dtype=float)) / np.asarray(M.diagonal(), dtype=float)
+    return math.sqrt(float(np.max(d, initial=0.0)))
+
+
 def _dense_state(M, C, Q) -> np.ndarray:
     """All eigenvalues of the first-order form, from the standard form with M^-1 (M is pd)."""
     n = M.shape[0]
     cho = sla.cho_factor(M.toarray())
     A = np.block([[np.zeros((n, n)), np.eye(n)],
                   [-sla.cho_solve(cho, Q.toarray()), -sla.cho_solve(cho, C.toarray())]])
-    lam = sla.eigvals(A)
+    lam, V = sla.eig(A)
+    lam = merge_defective(lam, V, _omega_max(M, Q))
     return lam[np.argsort(np.abs(lam))]
+
+
+def merge_defective(lam: np.ndarray, V: np.ndarray, omega_max: float) -> np.ndarray:
+    """Eigenvalues with each round-off split of a defective root replaced by its mean.
+
+    A defective root (a Jordan block: the rigid translations of a free rotor whirl at
+    exactly Omega in the rotating frame with a uniform drift; a double root at 0 on a
+    divergence speed) is ill-conditioned: any eigen solver returns it split by about
+    sqrt(eps |A|) (measured 2e-6 relative, +-1.4e-3 1/s of spurious growth), by an amount
+    that depends on the BLAS's order of summation. The mean of the split roots is the trace of
+    the block over its size, which is well-conditioned (Kato), so it is the same on every
+    machine to round-off. Split roots are recognized by their distance (below the resolution
+    RESOLUTION sqrt(eps) ``omega_max``) and their nearly parallel eigenvectors (:data:`DEFECTIVE`);
+    ``V`` holds one eigenvector per column.
+    """
+    lam = np.array(lam, dtype=complex)
+    m = lam.size
+    if m < 2:
+        return lam
+    U = V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
+    tol = RESOLUTION * math.sqrt(np.finfo(float).eps) * omega_max
+    order = np.argsort(lam.imag)
+    parent = np.arange(m)
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for a in range(m):
+        i = order[a]
+        for b in range(a + 1, m):
+            j = order[b]
+            if lam[j].imag - lam[i].imag > tol:
+                break
+            if abs(lam[j] - lam[i]) > tol or lam[i].imag * lam[j].imag < 0:  # (a conjugate is another root)
+                continue
+            if 1.0 - abs(np.vdot(U[:, i], U[:, j])) < DEFECTIVE:
+                parent[root(j)] = root(i)
+    roots = np.array([root(i) for i in range(m)])
+    for r in np.unique(roots):
+        group = roots == r
+        if np.count_nonzero(group) > 1:
+            lam[group] = lam[group].mean()
+    return lam
 
 
 def frequencies_of(lam: np.ndarray, count: int) -> np.ndarray:
@@ -156,10 +223,29 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
     F = np.full((len(speeds), count), np.nan)
     growth = np.zeros(len(speeds))
     for i, s in enumerate(speeds):
-        lam = state_eigenvalues(linear_system(ops, s, 0.0, 0.0, rayleigh, external), count)
+        system = linear_system(ops, s, 0.0, 0.0, rayleigh, external)
+        lam = state_eigenvalues(system, count)
         F[i] = frequencies_of(lam, count)
-        growth[i] = lam.real.max() if len(lam) else 0.0
+        growth[i] = growth_rate(lam, count, _omega_max(system.M, system.Q))
     return CampbellResult(speeds, F, growth)
+
+
+def growth_rate(lam: np.ndarray, count: int, omega_max: float) -> float:
+    """Largest real part [1/s] of the real roots and of the first ``count`` oscillating ones,
+    0 when below the round-off resolution sqrt(eps) ``omega_max`` of a root.
+
+    The extra roots beyond ``count`` that Arnoldi computes sit at the edge of its window and
+    carry errors of 1e-3 1/s in their real parts (measured at 2748 rad/s), and no root is
+    resolved better than sqrt(eps) omega_max where it is, or is near, a defective one
+    (:func:`merge_defective`): a smaller growth cannot be told from round-off.
+    """
+    if not len(lam):
+        return 0.0
+    osc = lam.imag > 1e-9 * np.maximum(np.abs(lam), 1.0)
+    ref = np.sort(np.abs(lam[osc]))[min(count, int(np.count_nonzero(osc))) - 1] if np.any(osc) else np.inf
+    seen = lam[~osc | (np.abs(lam) <= ref * (1 + 1e-9))]
+    g = float(seen.real.max())
+    return g if abs(g) > math.sqrt(np.finfo(float).eps) * omega_max else 0.0
 
 
 def gravity_resonances(ops: RotorOperators, phase_deg: float = 0.0, max_hz: float | None = None
