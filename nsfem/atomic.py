@@ -46,3 +46,53 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
             fh.write(text)
 
     return write_atomic(path, write)
+
+
+def check_folder(path: str | Path, what: str) -> Path:
+    """Raise :class:`~nsfem.errors.NsfemError` unless files can be written into folder ``path``.
+
+    Checked by doing, not by permission bits (root passes ``os.access`` everywhere, also on
+    /proc): a folder that exists gets a probe file written and removed; one that does not is
+    created with its missing parents and removed again, so a refused run leaves nothing behind.
+    ``what`` names the folder in the message (``--out``, ``output.dir``, ...).
+    """
+    from .errors import NsfemError
+
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise NsfemError(f"{what}: {path} is a file, not a folder")
+    missing = []
+    p = path
+    while not p.exists():
+        missing.append(p)
+        if p.parent == p:
+            break
+        p = p.parent
+    if p.exists() and not p.is_dir():
+        raise NsfemError(f"{what}: {p} is a file, so the folder {path} cannot be created")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".nsfem-probe.", dir=path)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise NsfemError(f"{what}: cannot write into {path}: {exc.strerror or exc}") from None
+    finally:
+        for q in missing:  # innermost first
+            try:
+                q.rmdir()
+            except OSError:
+                pass
+    return path
+
+
+def check_file(path: str | Path, what: str) -> Path:
+    """Raise :class:`~nsfem.errors.NsfemError` unless file ``path`` can be written (see
+    :func:`check_folder`; a folder of that name is refused)."""
+    from .errors import NsfemError
+
+    path = Path(path)
+    if path.is_dir():
+        raise NsfemError(f"{what}: {path} is a folder, not a file")
+    check_folder(path.parent if str(path.parent) else Path("."), what)
+    return path

@@ -82,12 +82,22 @@ def parser() -> argparse.ArgumentParser:
     return top
 
 
+def printable(text: str) -> str:
+    r"""``text`` with control characters (terminal escape codes from a scene's title, say) shown
+    as escapes, line breaks kept: what a user wrote is echoed, never executed by the terminal.
+
+    >>> printable("shaft \x1b[31mred\x1b[0m\nnext")
+    'shaft \\x1b[31mred\\x1b[0m\nnext'
+    """
+    return "".join(c if c == "\n" or c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 def _emit(args, payload: dict, text: str) -> None:
     if args.json:
         json.dump(payload, sys.stdout)
         sys.stdout.write("\n")
     else:
-        print(text)
+        print(printable(text))
 
 
 def cmd_modes(args) -> int:
@@ -187,6 +197,13 @@ def cmd_campbell(args) -> int:
         raise NsfemError(f"--count must be a positive integer, got {args.count}")
     speeds = parse_speeds(args.speeds) if args.speeds else None
     scene = load_scene(args.scene, args.overrides)
+    from .atomic import check_file
+
+    targets = [Path(args.png)] if args.png else []
+    if "campbell" in scene["output"]["plots"]:
+        targets.append(Path(scene["output"]["dir"]) / "campbell.png")
+    for t, what in zip(targets, ("--png" if args.png else "output.dir", "output.dir")):
+        check_file(t, what)
     if speeds is not None:
         from .scene import check_speed
 
@@ -201,9 +218,7 @@ def cmd_campbell(args) -> int:
     warning = supercritical_warning(scene["rotation"]["speed_hz"], rep["instability_hz"]["open"])
     if warning:
         print(f"nsfem campbell: warning: {warning}", file=sys.stderr)
-    targets = [Path(args.png)] if args.png else []
-    if "campbell" in scene["output"]["plots"]:
-        targets.append(Path(scene["output"]["dir"]) / "campbell.png")
+
     outputs = [str(campbell_plot(t, res["open"].speeds_hz, res["open"].frequencies_hz,
                                  res["closed"].frequencies_hz, rep["gravity_resonances_hz"], bands,
                                  scene["title"])) for t in targets]
@@ -267,6 +282,7 @@ def cmd_run(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     method = args.method or scene["simulation"]["method"]
     out_dir = Path(args.out or scene["output"]["dir"])
+    _check_run_targets(out_dir, scene, "--out" if args.out else "output.dir")
     t0 = time.perf_counter()
     text_path = Path(scene.path) if scene.path else default_scene_path()
     scene_text = text_path.read_text() if text_path.exists() else ""
@@ -289,7 +305,7 @@ def cmd_run(args) -> int:
     except IntegrationError as exc:  # keep what was computed, then report the error
         res, sysm = exc.result, exc.system
         path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.contacts.x,
-                        dict(scene))
+                        scene.record())
         raise NsfemError(f"{exc} (the run up to t = {res.t_end:g} s is in {path})") from exc
     finally:
         signal.signal(signal.SIGTERM, previous)
@@ -303,7 +319,7 @@ def cmd_run(args) -> int:
         warning = supercritical_warning(scene["rotation"]["speed_hz"], div[div <= 0.5 * top])
         if warning:
             warn(warning)
-    path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, dict(scene))
+    path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, scene.record())
     outputs = [str(path)]
     if result.completed:
         from .plot.results import write_plots
@@ -331,27 +347,74 @@ def cmd_run(args) -> int:
     return 0 if result.completed else 130
 
 
+def _check_run_targets(out_dir, scene, what: str) -> None:
+    """Refuse, before the run, an output folder or file that cannot be written."""
+    from .atomic import check_file, check_folder
+
+    check_folder(out_dir, what)
+    names = ["result.npz"] + [f"{n}.png" for n in scene["output"]["plots"]]
+    if scene["output"]["vtu_every"]:
+        names.append("nsfem.pvd")
+    for name in names:
+        check_file(out_dir / name, what)
+
+
 def _saved(path_text: str, command: str):
-    """(Result, extra arrays, model, scene) of a results file, the model rebuilt from its stored scene."""
+    """(Result, extra arrays, model, scene) of a results file, the model rebuilt from its stored
+    scene; every inconsistency of the file with that model is a one-line error."""
+    import hashlib
     from pathlib import Path
+
+    import numpy as np
 
     from .fem.assemble import build_model
     from .result import Result
-    from .scene import HIGH_LEVEL, LOW_LEVEL, scene_from_tree
+    from .scene import HIGH_LEVEL, LOW_LEVEL, SceneError, scene_from_tree
 
     path = Path(path_text)
+    if path.is_dir():
+        raise NsfemError(f"nsfem {command}: {path} is a folder; give its result.npz")
     if not path.is_file():
         raise NsfemError(f"nsfem {command}: {path} does not exist")
     try:
         res, meta, extra = Result.load(path)
         tree = meta["scene_tree"]
-    except Exception as exc:  # noqa: BLE001 - any unreadable file gets the same message
-        raise NsfemError(f"nsfem {command}: {path} is not an nsfem results file ({exc})") from exc
+    except Exception:  # noqa: BLE001 - any unreadable file gets the same message
+        raise NsfemError(f"nsfem {command}: {path} is not an nsfem results file (the result.npz that nsfem run "
+                         "writes)") from None
     # the resolved tree (every default filled in, overrides applied) holds one of the two forms;
     # the other is empty
     form = HIGH_LEVEL if any(tree.get(k) for k in LOW_LEVEL) else LOW_LEVEL
-    scene = scene_from_tree({k: v for k, v in tree.items() if k not in form})
-    return res, extra, build_model(scene), scene
+    tree = {k: v for k, v in tree.items() if k not in form}
+    mesh = dict(tree.get("mesh") or {})
+    digest = mesh.pop("sha256", None)
+    if mesh.get("file"):
+        f = Path(mesh["file"])
+        if not f.is_file():
+            raise NsfemError(f"nsfem {command}: the mesh file {f} of the run that wrote {path} is missing")
+        if digest is not None and hashlib.sha256(f.read_bytes()).hexdigest() != digest:
+            raise NsfemError(f"nsfem {command}: the mesh file {f} has changed since the run that wrote {path}")
+        tree["mesh"] = mesh
+    try:
+        scene = scene_from_tree(tree)
+    except SceneError as exc:
+        raise NsfemError(f"nsfem {command}: the scene stored in {path} is not valid: {exc}") from None
+    model = build_model(scene)
+    n, k = res.q.shape if res.q.ndim == 2 else (-1, -1)
+    m = len(model.stack.contacts)
+    want = {"basis": (extra["basis"].shape, (model.n_full, n)), "t": (res.t.shape, (k,)),
+            "v": (res.v.shape, (n, k)), "gap": (res.gap.shape, (m, k)), "state": (res.state.shape, (m, k)),
+            "normal_force": (res.normal_force.shape, (m, k)), "contact_x": (extra["contact_x"].shape, (m,))}
+    bad = [f"{name} is {got}, expected {exp}" for name, (got, exp) in want.items() if tuple(got) != exp]
+    if n < 0 or bad:
+        raise NsfemError(f"nsfem {command}: {path} does not match the model of its own scene ("
+                         + ("q is not a matrix" if n < 0 else "; ".join(bad)) + ")")
+    finite = np.all(np.isfinite(res.q), axis=0) & np.isfinite(res.t)
+    if not np.all(finite):
+        first = int(np.argmin(finite))
+        raise NsfemError(f"nsfem {command}: {path} holds non-finite displacements from output {first} on "
+                         f"(t = {res.t[first]:g} s): the run it comes from diverged")
+    return res, extra, model, scene
 
 
 def cmd_render(args) -> int:
@@ -360,10 +423,15 @@ def cmd_render(args) -> int:
 
     from .export.render import render
 
-    if args.exaggeration is not None and not (args.exaggeration > 0):
-        raise NsfemError(f"nsfem render: --exaggeration must be positive, got {args.exaggeration}")
-    res, extra, model, _ = _saved(args.result, "render")
+    import math
+
+    if args.exaggeration is not None and not (math.isfinite(args.exaggeration) and args.exaggeration > 0):
+        raise NsfemError(f"nsfem render: --exaggeration must be a finite positive number, got {args.exaggeration}")
+    from .atomic import check_file
+
     png = Path(args.png) if args.png else Path(args.result).with_name("render.png")
+    res, extra, model, _ = _saved(args.result, "render")
+    check_file(png, "--png")
     path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
     print(f"wrote {path}")
     return 0
@@ -375,7 +443,10 @@ def cmd_export(args) -> int:
 
     from .export.vtu import write_series
 
+    from .atomic import check_folder
+
     res, extra, model, scene = _saved(args.result, "export")
+    check_folder(Path(args.vtu), "--vtu")
     pvd = write_series(res, (model, extra["basis"]), Path(args.vtu), every=scene["output"]["vtu_every"] or 1)
     print(f"wrote {pvd} ({res.t[:: scene['output']['vtu_every'] or 1].size} times)")
     return 0
@@ -394,7 +465,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except NsfemError as exc:
         if debug:
             raise
-        print(f"nsfem: error: {exc}", file=sys.stderr)
+        print(printable(f"nsfem: error: {' '.join(str(exc).splitlines())}"), file=sys.stderr)
         return EXIT_ERROR
     except KeyboardInterrupt:
         print("nsfem: interrupted", file=sys.stderr)
@@ -404,6 +475,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except OSError as exc:  # a write that failed after the checks (disk full, a target that changed)
+        if debug:
+            raise
+        where = f" {exc.filename}" if getattr(exc, "filename", None) else ""
+        print(f"nsfem: error: cannot write{where}: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_ERROR
 
 
 if __name__ == "__main__":  # pragma: no cover

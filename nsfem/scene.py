@@ -486,6 +486,19 @@ class Scene(dict):
         f = self["mesh"]["file"]
         return (self.base / f) if f else None
 
+    def record(self) -> dict:
+        """The validated tree as a results file stores it: ``mesh.file`` resolved to the absolute
+        path this scene read (a relative one means nothing to a later ``export`` run from another
+        folder), and its SHA-256 under ``mesh.sha256`` so that a changed mesh is noticed."""
+        tree = copy.deepcopy(dict(self))
+        if self.mesh_file is not None:
+            import hashlib
+
+            path = self.mesh_file.resolve()
+            tree["mesh"]["file"] = str(path)
+            tree["mesh"]["sha256"] = hashlib.sha256(path.read_bytes()).hexdigest()
+        return tree
+
 
 def default_scene_path() -> Path:
     """Path of the scene shipped with the package (the paper's delaminated shaft)."""

@@ -231,7 +231,7 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
         except IntegrationError as exc:  # keep what was computed
             result, system, error = exc.result, exc.system, str(exc)
         red = system.info["reduction"]
-        path = result.save(run_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, dict(scene))
+        path = result.save(run_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, scene.record())
         summary = result.summary()
         row.update(summary, error=error, result=str(path), outputs=[str(path)],
                    integration_wall_s=summary["wall_s"])
@@ -412,16 +412,11 @@ def default_folder(p: _Plan) -> Path:
 
 
 def _check_writable(out: Path) -> None:
-    """A one-line error if ``out`` cannot become the sweep folder (nothing is created here)."""
-    if out.exists() and not out.is_dir():
-        raise NsfemError(f"--out {out}: exists and is not a folder")
-    parent = out
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise NsfemError(f"--out {out}: {parent} is not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise NsfemError(f"--out {out}: {parent} is not writable")
+    """A one-line error if ``out`` cannot become the sweep folder (tried, then left as it was:
+    permission bits do not tell, root passes them everywhere)."""
+    from .atomic import check_folder
+
+    check_folder(out, "--out")
 
 
 def _check_folder(out: Path, p: _Plan, scene_path, write: bool = False) -> None:

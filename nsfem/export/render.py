@@ -9,6 +9,7 @@ without a display through VTK's EGL window (Mesa); ``VTK_DEFAULT_OPENGL_WINDOW``
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -17,6 +18,10 @@ import numpy as np
 from ..atomic import write_atomic
 from ..errors import NsfemError
 from .vtu import contact_points, displacements, stack_geometry
+
+
+#: The largest drawn displacement, in stack lengths: beyond it the stack leaves the picture.
+MAX_SHOWN = 10.0
 
 
 def render(result, model, T, path, time: float | None = None, exaggeration: float | None = None,
@@ -39,7 +44,13 @@ def render(result, model, T, path, time: float | None = None, exaggeration: floa
     u = displacements(model, q_full)
     length = float(np.ptp(points[:, 0])) or 1.0
     umax = float(np.abs(u).max())
+    if exaggeration is not None and not (math.isfinite(exaggeration) and exaggeration > 0):
+        raise NsfemError(f"render: --exaggeration must be a finite positive number, got {exaggeration}")
     scale = exaggeration if exaggeration is not None else (0.1 * length / umax if umax > 0 else 1.0)
+    if scale * umax > MAX_SHOWN * length:
+        raise NsfemError(f"render: --exaggeration {scale:g} draws the largest displacement ({umax:.3g} m) as "
+                         f"{scale * umax:.3g} m, more than {MAX_SHOWN:g} times the stack's length ({length:g} m): the "
+                         f"picture would show nothing; at most {MAX_SHOWN * length / umax:.3g} here")
     grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: cells}, points + scale * u)
     grid.point_data["u3 [mm]"] = 1e3 * u[:, 2]
     plotter = pv.Plotter(off_screen=True, window_size=list(window))
