@@ -27,7 +27,41 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .errors import SceneError
 from .fem.rotating import RotorOperators
+
+#: Largest damping ratio zeta of any mode: an overdamped mode decays at two rates whose ratio is
+#: 4 zeta^2; beyond 1/eps the slow one is lost in the round-off of the fast one, i.e. beyond
+#: zeta = 1 / (2 sqrt(eps)) = 3.4e7 double precision cannot hold the damped system at all.
+ZETA_MAX = 0.5 / math.sqrt(np.finfo(float).eps)
+
+
+def damping_ratio(rayleigh, w: np.ndarray) -> tuple[float, float]:
+    """(largest damping ratio, its frequency [rad/s]) of Rayleigh damping C = alpha M + beta K over
+    the elastic modes ``w``: zeta(w) = alpha / (2 w) + beta w / 2, convex in w, so largest at the
+    lowest or the highest one (rigid modes, w below 1e-9 of the highest, are left out: alpha
+    merely stops them)."""
+    alpha, beta = rayleigh
+    w = np.asarray(w, dtype=float)
+    w = w[w > 1e-9 * np.max(w, initial=0.0)]
+    if w.size == 0:
+        return 0.0, 0.0
+    ends = np.array([w.min(), w.max()])
+    with np.errstate(over="ignore"):
+        zeta = alpha / (2 * ends) + beta * ends / 2
+    k = int(np.argmax(zeta))
+    return float(zeta[k]), float(ends[k])
+
+
+def check_damping(rayleigh, w: np.ndarray) -> None:
+    """Refuse Rayleigh damping beyond :data:`ZETA_MAX` on some mode of the model (``w`` rad/s)."""
+    zeta, at = damping_ratio(rayleigh, w)
+    if zeta > ZETA_MAX:
+        alpha, beta = rayleigh
+        raise SceneError("damping.rayleigh", f"[{alpha:g}, {beta:g}] gives the mode at {at / (2 * np.pi):.4g} Hz a "
+                         f"damping ratio alpha / (2 w) + beta w / 2 = {zeta:.3g}, beyond {ZETA_MAX:.2g}: its slow and "
+                         "fast decay rates differ by 4 zeta^2, more than double precision can hold "
+                         "(heavy overdamping up to that ratio runs)")
 
 
 @dataclass(frozen=True)

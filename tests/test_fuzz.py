@@ -81,6 +81,8 @@ REPRODUCTIONS = [
      "error", "friction_directions"),
     (["run", *F, "--set", "damping.rayleigh=[0,1e300]"], "error", "damping.rayleigh"),
     (["run", *F, "--set", "damping.rayleigh=[1e300,0]"], "error", "damping.rayleigh"),
+    (["campbell", "--set", "damping.rayleigh=[0,1e300]"], "error", "damping.rayleigh"),
+    (["campbell", "--set", "damping.rayleigh=[1e300,0]"], "error", "damping.rayleigh"),
     (["run", *F, "--set", "rotation.speed_hz=1e6"], "error", "rotation.speed_hz"),
     (["sweep", *F, "--set", "rotation.speed_hz=1e6:2e6:2"], "error", "rotation.speed_hz"),
     (["run", "--set", "simulation.t_end=1e300", "--set", "simulation.output_dt=1e294", "--set",
@@ -90,6 +92,8 @@ REPRODUCTIONS = [
     (["run", *F, "--set", "rotation.gravity=1e6", "--set", "rotation.speed_hz=0"], "warn", "range of the linear"),
     (["run", *F, "--set", "initial.velocity=[0,0,1e6]"], "warn", "range of the linear"),
     (["stationary", "--set", "rotation.speed_hz=0", "--set", "rotation.gravity=1e6"], "warn", "range of the linear"),
+    (["sweep", *F, "--set", "rotation.gravity=1e6", "--set", "rotation.speed_hz=20:21:2"], "warn",
+     "range of the linear"),
 ]
 
 

@@ -42,7 +42,7 @@ import scipy.sparse.linalg as spla
 from ..errors import NsfemError
 from ..fem.constraints import dense as _dense
 from ..fem.rotating import RotorOperators
-from ..system import LinearSystem, linear_system
+from ..system import LinearSystem, check_damping, linear_system
 
 #: A root counts as a gravity resonance when its excitation (see gravity_resonances, 0 for an
 #: isotropic shaft, 0.05-0.2 for the shipped scene's real ones) exceeds this. Roots of the
@@ -347,6 +347,16 @@ def default_speeds(ops_open: RotorOperators, scene_speed_hz: float = 0.0, n: int
     return np.linspace(0.0, stop, n)
 
 
+#: Models up to this many dofs have their Rayleigh damping checked by a dense eigen solve
+DAMPING_CHECK_MAX_DOF = 2000
+
+
+def standstill_frequencies(ops: RotorOperators) -> np.ndarray:
+    """Circular frequencies [rad/s] of the undamped structure at rest, sqrt|eig(K0, M)| (dense)."""
+    lam = sla.eigh(_dense(ops.K0), _dense(ops.M), eigvals_only=True)
+    return np.sqrt(np.abs(lam))
+
+
 def parse_speeds(text: str) -> np.ndarray:
     """``START:STOP:N`` -> N speeds [Hz]."""
     try:
@@ -372,6 +382,8 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
     ops = {c: rotor_operators(model, contact_basis(model, c, reduction)) for c in ("open", "closed")}
     if not model.stack.contacts:
         ops["closed"] = ops["open"]
+    if ops["open"].n <= DAMPING_CHECK_MAX_DOF:  # as nsfem run: damping double precision cannot hold
+        check_damping(damp["rayleigh"], standstill_frequencies(ops["open"]))
     speeds = default_speeds(ops["open"], rot["speed_hz"]) if speeds_hz is None else np.asarray(speeds_hz)
     res = {c: campbell(o, speeds, count, tuple(damp["rayleigh"]), damp["external"]) for c, o in ops.items()}
     grav = {c: gravity_resonances(o, rot["phase_deg"]) for c, o in ops.items()}
