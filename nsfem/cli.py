@@ -421,16 +421,16 @@ def cmd_render(args) -> int:
     """Off-screen picture of the deformed stack at one output time."""
     from pathlib import Path
 
-    from .export.render import render
-
     import math
+
+    from .export.render import render
 
     if args.exaggeration is not None and not (math.isfinite(args.exaggeration) and args.exaggeration > 0):
         raise NsfemError(f"nsfem render: --exaggeration must be a finite positive number, got {args.exaggeration}")
     from .atomic import check_file
 
-    png = Path(args.png) if args.png else Path(args.result).with_name("render.png")
-    res, extra, model, _ = _saved(args.result, "render")
+    res, extra, model, _ = _saved(args.result, "render")  # a folder or a missing file: one line first
+    png = Path(args.png) if args.png else Path(args.result).resolve().with_name("render.png")
     check_file(png, "--png")
     path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
     print(f"wrote {path}")

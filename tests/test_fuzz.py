@@ -88,6 +88,7 @@ REPRODUCTIONS = [
     (["run", "--set", "simulation.t_end=1e300", "--set", "simulation.output_dt=1e294", "--set",
       "output.vtu_every=0", "--set", "output.plots=[]"], "error", "simulation."),
     (["modes", "--set", "shaft.E=1e-300"], "error", "shaft.E"),
+    (["render", ".", "--time", "-1"], "error", "is a folder"),  # found by the slow fuzz (ValueError)
     (["run", *F, "--set", "rotation.gravity=1e6"], "warn", "range of the linear"),
     (["run", *F, "--set", "rotation.gravity=1e6", "--set", "rotation.speed_hz=0"], "warn", "range of the linear"),
     (["run", *F, "--set", "initial.velocity=[0,0,1e6]"], "warn", "range of the linear"),
