@@ -620,13 +620,19 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
     for i, s in enumerate(stack.segments):
         prefix = f"segment.{i}" if low else "shaft"
         le = span / tree["mesh"]["elements"] if not tree["mesh"]["file"] else s.length
-        mass, axial, bending = s.rho * s.area * le, s.E * s.area / le, s.E * s.I_y / le**3
-        w2 = axial / mass if mass > 0 else math.inf
-        for name, v, key in (("element mass rho A l", mass, "rho"), ("axial stiffness E A / l", axial, "E"),
-                             ("bending stiffness E I / l^3", bending, "E"),
-                             ("squared frequency scale E / (rho l^2)", w2,
-                              "E" if abs(math.log10(s.E)) >= abs(math.log10(s.rho)) else "rho")):
+        with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
+            E, rho, area, I_y, le = (np.float64(v) for v in (s.E, s.rho, s.area, s.I_y, le))
+            mass, axial, bending = rho * area * le, E * area / le, E * I_y / le**3
+            w2 = axial / mass if mass > 0 else np.inf
+        # the key to blame: the input farthest from 1 in orders of magnitude among those involved
+        span_key = "end" if low else "length"
+        size = {"E": abs(math.log10(s.E)), "rho": abs(math.log10(s.rho)), span_key: abs(math.log10(le))}
+        for name, v, keys in (("element mass rho A l", mass, ("rho", span_key)),
+                              ("axial stiffness E A / l", axial, ("E", span_key)),
+                              ("bending stiffness E I / l^3", bending, ("E", span_key)),
+                              ("squared frequency scale E / (rho l^2)", w2, ("E", "rho", span_key))):
             if not lo <= v <= hi:
+                key = max(keys, key=size.get)
                 raise SceneError(f"{prefix}.{key}", f"the {name} of {s.name} is {v:.3g}, outside [{lo:g}, {hi:g}] "
                                  "where the eigen solvers stay in double precision; choose units closer to 1 "
                                  "(E = rho = 1 nondimensionalizes)")

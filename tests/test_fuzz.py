@@ -88,6 +88,7 @@ REPRODUCTIONS = [
     (["run", "--set", "simulation.t_end=1e300", "--set", "simulation.output_dt=1e294", "--set",
       "output.vtu_every=0", "--set", "output.plots=[]"], "error", "simulation."),
     (["modes", "--set", "shaft.E=1e-300"], "error", "shaft.E"),
+    (["campbell", "--set", "shaft.length=1e300"], "error", "shaft.length"),  # slow fuzz: OverflowError
     (["render", ".", "--time", "-1"], "error", "is a folder"),  # found by the slow fuzz (ValueError)
     (["run", *F, "--set", "rotation.gravity=1e6"], "warn", "range of the linear"),
     (["run", *F, "--set", "rotation.gravity=1e6", "--set", "rotation.speed_hz=0"], "warn", "range of the linear"),
@@ -163,7 +164,7 @@ def fuzz_one(argv: list[str], result: Path) -> None:
         check_invocation(argv, root)
 
 
-@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+@settings(max_examples=80, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(invocations())
 def test_fuzz_cli(saved_result, argv):
@@ -171,7 +172,7 @@ def test_fuzz_cli(saved_result, argv):
 
 
 @pytest.mark.slow
-@settings(max_examples=400, deadline=None, database=None,
+@settings(max_examples=3000, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(invocations())
 def test_fuzz_cli_many(saved_result, argv):
