@@ -45,16 +45,20 @@ def test_geometry_volumes_and_separate_sub_beams(run):
     assert pts.shape == book.shape and cells.shape[1] == 8
     vol = _hex_volumes(pts, cells)
     assert np.all(vol > 0)
+    # the 12 triple products of a cell sum to at most 30x its volume (x up to 1 m against a 2 cm
+    # section): <= 12 eps x 30 = 8e-14 of each cell (measured 2.2e-16 per segment)
     for i, s in enumerate(model.stack.segments):
         assert vol[seg == i].sum() == pytest.approx(s.width * s.height * s.length, rel=1e-12)
-    # a delamination's sub-beams share no point, and the upper's bottom face is the lower's top face
+    # a delamination's sub-beams share no point, and the upper's bottom face is the lower's top face:
+    # offset + half height, operands <= 5.5 mm, ulp 8.7e-19 (measured 0)
     up, lo = (k for k, s in enumerate(model.stack.segments) if s.name.startswith("delamination_0_"))
     zu, zl = pts[book[:, 0] == up, 2], pts[book[:, 0] == lo, 2]
-    assert zu.min() == pytest.approx(zl.max(), abs=1e-15)
+    assert zu.min() == pytest.approx(zl.max(), abs=1e-17)
     # the same check with pyvista's cell sizes
     pv = pytest.importorskip("pyvista")
     grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: cells}, pts)
     sizes = grid.compute_cell_sizes(length=False, area=False, volume=True).cell_data["Volume"]
+    # VTK's own decomposition cancels alike: 8e-14 per cell (measured 6.2e-15)
     assert np.allclose(sizes, vol, rtol=1e-12, atol=0)
 
 
@@ -73,7 +77,8 @@ def test_displacement_kinematics(run):
         eta, zeta = pts[p, 1] - s.offset[0], pts[p, 2] - s.offset[1]
         want = [q[model.dof(s.name, "U", x)] - eta * q[model.dof(s.name, "V'", x)]
                 - zeta * q[model.dof(s.name, "W'", x)], q[model.dof(s.name, "V", x)], q[model.dof(s.name, "W", x)]]
-        assert np.allclose(u[p], want, rtol=0, atol=1e-15)
+        # the same three-term formula: at most a few roundings of terms <= max|u| (measured exact)
+        assert np.allclose(u[p], want, rtol=0, atol=1e-15 * np.abs(u).max())
         assert q[d["W"][node]] == q[model.dof(s.name, "W", x)]
 
 
@@ -99,8 +104,10 @@ def test_series_files_meshio_vtk_and_pvd(run, series):
         assert m.points.shape == pts.shape and m.point_data["displacement"].shape == (len(pts), 3)
         assert np.array_equal(m.cells_dict["hexahedron"], cells)
         assert np.array_equal(m.cell_data["segment"][0], seg)
-        want = displacements(model, Q[:, i])  # T q per column vs T Q: rounding only
-        assert np.allclose(m.point_data["displacement"], want, rtol=0, atol=1e-14 * np.abs(want).max())
+        # T q per column (gemv) vs T Q (gemm): sums of 25 products in another order, <= 25 eps |T| |q|
+        # = 25 x 2.2e-16 x 10.8 |T q| = 6e-14 of the largest (measured <= 6.4e-16 over four kernels)
+        want = displacements(model, Q[:, i])
+        assert np.allclose(m.point_data["displacement"], want, rtol=0, atol=1e-13 * np.abs(want).max())
         r = vtkXMLUnstructuredGridReader()
         r.SetFileName(str(out / f))
         r.Update()
@@ -118,7 +125,7 @@ def test_series_files_meshio_vtk_and_pvd(run, series):
 
 
 def test_gap_seen_in_vtu_equals_result_gap(run, series):
-    res, _, model, _ = run
+    res, _, model, Q = run
     out, pvd = series
     _, _, _, book = stack_geometry(model)
     names = [s.name for s in model.stack.segments]
@@ -136,7 +143,10 @@ def test_gap_seen_in_vtu_equals_result_gap(run, series):
             top = cur[(book[:, 0] == lo) & (book[:, 1] == nl) & np.isin(book[:, 2], (2, 3)), 2]
             gap = bottom.mean() - top.mean()
             worst = max(worst, abs(gap - res.gap[k, i]))
-    assert worst < 1e-12
+    # the gaps are reduced coordinates (C V = [I 0] to ~1e-13, test_reduce) against face heights from
+    # T q (6e-14 of max|T q|, above) added to 5 mm coordinates (ulp 8.7e-19): ~1e-13 max|T q|
+    # (measured 4.3e-19 m = 1e-16 of it)
+    assert worst < 1e-12 * np.abs(Q).max()
     assert np.abs(res.gap).max() > 1e-7  # the check is not vacuous: the interface does open
 
 
@@ -151,8 +161,12 @@ def test_inertial_frame_rotates_about_x(run, tmp_path):
         m = meshio.read(tmp_path / d.get("file"))
         a = omega * res.t[i]
         R = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+        # the same product with the same angle (numpy's and math's cos, sin may differ by an ulp): a few
+        # ulps of the 1 m coordinates (measured exact)
         assert np.allclose(m.points, pts @ R.T, rtol=0, atol=1e-15)
-        assert np.allclose(m.point_data["displacement"], displacements(model, Q[:, i]) @ R.T, rtol=0, atol=1e-15)
+        # displacements from T q vs T Q, as in test_series_files_meshio_vtk_and_pvd (measured 3.3e-19 m)
+        u = displacements(model, Q[:, i]) @ R.T
+        assert np.allclose(m.point_data["displacement"], u, rtol=0, atol=1e-13 * np.abs(u).max())
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
 
