@@ -76,11 +76,11 @@ def test_frequencies_do_not_depend_on_where_the_shaft_sits():
            "mesh": {"elements": 40}, "reduction": {"method": "none"}}
     f0 = natural_frequencies(build_model(scene_from_tree(base)), "open", 4).frequencies_hz
     f1 = natural_frequencies(build_model(scene_from_tree(low)), "open", 4).frequencies_hz
-    # the nodes at 1000 m are off by ulp(1000) = 1.1e-13 (4.5e-12 of an element), and scikit-fem's
-    # Hermite shape functions invert each element's monomial Vandermonde matrix (cond <= 4.5e6:
-    # eps cond = 1e-9 of the element matrices); the eigensolver adds eps x the componentwise
-    # condition of the Rayleigh quotient (1.3e6) = 2.9e-10. Measured 8e-12 to 1.2e-11
-    assert np.allclose(f0, f1, rtol=3e-9)
+    # the nodes at 1000 m are off by ulp(1000) = 1.1e-13 (4.5e-12 of an element; the element
+    # matrices, closed form in h (fem/hermite.py), move by 3x that at most through h^-3); the
+    # eigensolver adds eps x the componentwise condition of the Rayleigh quotient (1.3e6) = 2.9e-10.
+    # Sum 3.1e-10. Measured 1.2e-11 to 1.7e-11 over the kernels
+    assert np.allclose(f0, f1, rtol=1e-9)
 
 
 @pytest.mark.parametrize("supports, rigid", [("pinned-pinned", 0), ("clamped-free", 0), ("free-free", 5)])
@@ -144,10 +144,10 @@ def test_hat_weighting_averages_the_gap(points):
     q[up.dofs["W"][up.bending.nodal_dofs[1]]] = 1.0
     J, _ = gap_jacobian(model)
     want = [sum(c.extent) / 3 + c.x / 3 for c in model.stack.contacts]
-    # exact quadrature (the hat's kinks are nodes); the shape functions come from each element's
-    # monomial Vandermonde inverse (scikit-fem ElementGlobal, LAPACK), cond <= 2e6 for these 27 mm
-    # elements up to 0.8 m along the segment: eps cond = 4.4e-10 (measured 3e-14 to 4e-13, by kernel)
-    assert np.allclose(J.T @ q, want, rtol=1e-9)
+    # exact quadrature (the hat's kinks are nodes) of closed-form shape functions (fem/hermite.py):
+    # a sum of about 20 terms of one sign, 20 eps = 4.4e-15 (measured 6.7e-16 on every kernel; the
+    # Vandermonde-built scikit-fem shape functions gave 3e-14 to 4e-13, by kernel)
+    assert np.allclose(J.T @ q, want, rtol=1e-14, atol=0.0)
 
 
 @pytest.mark.parametrize("elements", [20, 40, 80])

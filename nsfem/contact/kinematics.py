@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 from skfem import LinearForm, asm
 
+from ..fem import hermite
 from ..fem.assemble import FEModel
 from ..stack import Contact
 
@@ -40,15 +41,19 @@ def point_row(model: FEModel, segment: str, fld: str, c: Contact) -> dict[int, f
     a, b = c.extent
     peak = 2.0 / (b - a)  # unit integral
 
-    @LinearForm
-    def hat(v, w):
-        x = w.x[0] + space.x[0]  # bases use local coordinates
+    def weight(x):
         up = peak * (x - a) / (c.x - a)
         down = peak * (b - x) / (b - c.x)
-        return np.where((x >= a) & (x <= b), np.minimum(up, down), 0.0) * (v.grad[0] if slope else v)
+        return np.where((x >= a) & (x <= b), np.minimum(up, down), 0.0)
 
-    basis = space.axial if fld == "U" else space.bending
-    vec = asm(hat, basis)
+    if fld == "U":
+        @LinearForm
+        def hat(v, w):
+            return weight(w.x[0] + space.x[0]) * (v.grad[0] if slope else v)  # bases use local coordinates
+
+        vec = asm(hat, space.axial)
+    else:  # closed-form Hermite shape functions, exact quadrature: the hat's kinks are nodes
+        vec = hermite.assemble_weighted(space.x, weight, slope)
     nz = np.flatnonzero(vec)
     return {int(space.dofs[fld][i]): float(vec[i]) for i in nz}
 

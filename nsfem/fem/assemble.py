@@ -24,7 +24,7 @@ from skfem import Basis, ElementLineHermite, ElementLineP1, ElementLineP2, MeshL
 from ..errors import SceneError
 from ..mesh import StackMesh, generate, read
 from ..stack import BeamStack
-from . import forms
+from . import forms, hermite
 from .constraints import constraint_basis, project
 
 AXIAL_ELEMENTS = {"P1": ElementLineP1, "P2": ElementLineP2}
@@ -117,9 +117,11 @@ def segment_spaces(stack: BeamStack, mesh: StackMesh, axial: str) -> dict[str, S
         unit = {
             "axial_mass": asm(forms.mass, ba).tocsr(),
             "axial_stretch": asm(forms.stretch, ba).tocsr(),
-            "bending_mass": asm(forms.mass, bb).tocsr(),
-            "bending_stretch": asm(forms.stretch, bb).tocsr(),
-            "bending_bend": asm(forms.bend, bb).tocsr(),
+            # the Hermite integrals in closed form: scikit-fem's quadrature of its Vandermonde-built
+            # shape functions carries 1e-11 of round-off that differs between BLAS kernels
+            "bending_mass": hermite.assemble(m.p[0], hermite.element_mass),
+            "bending_stretch": hermite.assemble(m.p[0], hermite.element_stretch),
+            "bending_bend": hermite.assemble(m.p[0], hermite.element_bend),
         }
         spaces[s.name] = SegmentSpace(x, ba, bb, dofs, unit)
     return spaces

@@ -36,15 +36,10 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import LinearForm, asm
 
+from . import hermite
 from .assemble import FEModel
 from .constraints import project
-
-
-@LinearForm
-def _unit_load(v, _):
-    return v
 
 
 @dataclass(frozen=True)
@@ -107,7 +102,7 @@ def full_operators(model: FEModel) -> RotorOperators:
     for s in model.stack.segments:
         space = model.spaces[s.name]
         Mb = space.unit["bending_mass"]
-        load = asm(_unit_load, space.bending)
+        load = hermite.assemble_load(space.x - space.x[0])  # int N dx, closed form
         V, W = space.dofs["V"], space.dofs["W"]
         rA = s.rho * s.area
         yc, zc = s.offset
