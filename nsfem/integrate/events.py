@@ -17,7 +17,9 @@ while h >= 0:
 Roots are found without missing any: h and h' = H A_aug xi are sampled at a step of at most
 1/8 of the configuration's fastest period (:meth:`Phase.max_step`); a sign change of h is a
 crossing, and a sign change of h' from - to + with h >= 0 at both samples is a dip whose
-minimum (root of h') is checked; roots are refined with Brent's method to round-off. A dip
+minimum (root of h') is checked; an interval where h' may change sign twice (both samples
+descending, yet the Hermite cubic through them, less its error bound, reaches the zero band) is
+subdivided and scanned again; roots are refined with Brent's method to round-off. A dip
 that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
 transition LCP, not an impact, decides what happens.
 
@@ -271,27 +273,43 @@ def _root(fun, a, b):
     return brentq(fun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200)
 
 
-def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf):
+#: samples per interval when a candidate interval is subdivided, and how often at most
+SUBDIVIDE, DEPTH = 16, 3
+
+
+def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
     Candidate intervals that start after ``limit`` (an earlier root of another row) are skipped.
 
     A crossing must reach below -tol at a sample (a sample at a touching point may be a
     round-off below zero: that is a dip, not a crossing). A dip (h' from - to + with h
     above -tol at both samples) is refined only when the Hermite cubic through the samples
-    comes within its interpolation error bound of zero."""
+    comes within its interpolation error bound of zero. Any other interval whose cubic comes
+    that close (h' may change sign twice between samples: a fast component turning a slow
+    descent around, e.g. right after a neighbouring contact closed) is subdivided into
+    :data:`SUBDIVIDE` samples and scanned again (the bound shrinks by 16^4): a dip below zero
+    between two samples that both descend is not missed."""
     if ts.size < 2:
         return None
     f = h - thr
     above = f >= -tol
     cross = np.flatnonzero(above[:-1] & ~above[1:])
+    both = above[:-1] & above[1:]
+    near = np.zeros(ts.size - 1, dtype=bool)
+    if np.any(both):
+        # the cubic's Hermite weights of the slopes are at most 4/27: a cheap lower bound first
+        dt = np.diff(ts)
+        rough = np.minimum(f[:-1], f[1:]) - 4.0 / 27.0 * dt * (np.abs(hd[:-1]) + np.abs(hd[1:]))
+        k = np.flatnonzero(both & (rough - bound4 <= tol))
+        lo = _hermite_min(f[k], f[k + 1], hd[k], hd[k + 1], dt[k])
+        near[k[lo - bound4 <= tol]] = True
     # h' sign change from - to + (or a sample at the minimum itself)
-    dip = np.flatnonzero(above[:-1] & above[1:] & (hd[:-1] < 0) & (hd[1:] >= 0))
-    if dip.size:
-        lo = _hermite_min(f[dip], f[dip + 1], hd[dip], hd[dip + 1], ts[dip + 1] - ts[dip])
-        dip = dip[lo - bound4 <= tol]
+    turn = (hd[:-1] < 0) & (hd[1:] >= 0)
     k_c = cross[0] if cross.size else None
-    dips = dip if k_c is None else dip[dip < k_c]
-    if k_c is None and not dips.size:
+    cand = np.flatnonzero(near)
+    if k_c is not None:
+        cand = cand[cand < k_c]
+    if k_c is None and not cand.size:
         return None
 
     def fun(t):
@@ -300,15 +318,25 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf):
     def dfun(t):
         return float(Hdi @ phase.xi(t))
 
-    for k in list(dips) + ([k_c] if k_c is not None else []):
+    subdivide = depth < DEPTH and math.isfinite(bound4)
+    for k in list(cand) + ([k_c] if k_c is not None else []):
         a, b = ts[k], ts[k + 1]
         if a > limit:
             return None
+        if subdivide and k != k_c and not turn[k]:
+            sub = np.linspace(a, b, SUBDIVIDE + 1)
+            hh = np.vstack([Hi, Hdi]) @ phase.xi(sub)
+            res = _scan(phase, Hi, Hdi, sub, hh[0], hh[1], thr, tol, bound4 / SUBDIVIDE**4, limit, depth + 1)
+            if res is not None:
+                return res
+            continue
         if k == k_c:
             if fun(a) < 0:  # the sample before is itself (round-off) below: the root is there
                 return a, False
             t_r = _root(fun, a, b)
             return (b if t_r is None else t_r), False
+        if not turn[k]:
+            continue
         # dip: minimum inside [a, b]
         tm = _root(dfun, a, b)
         if tm is None:  # h' is round-off at an end: take the lower end sample
