@@ -196,7 +196,8 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
     check_outputs(system, sim["t_end"], sim["output_dt"])
     w = spectrum(system) if system.n <= SPECTRUM_MAX_DOF else None
     if w is not None:
-        check_damping(scene["damping"]["rayleigh"], w)
+        check_damping(scene["damping"]["rayleigh"], w, scene["damping"]["external"],
+                      min(seg.rho * seg.area for seg in model.stack.segments))
     if method in ("exact", "rk") and w is not None:
         f_max, samples = search_cost(system, sim["t_end"], w)
         text = check_search_cost(system, sim["t_end"], method, red.info, f_max, samples)

@@ -53,8 +53,12 @@ def damping_ratio(rayleigh, w: np.ndarray) -> tuple[float, float]:
     return float(zeta[k]), float(ends[k])
 
 
-def check_damping(rayleigh, w: np.ndarray) -> None:
-    """Refuse Rayleigh damping beyond :data:`ZETA_MAX` on some mode of the model (``w`` rad/s)."""
+def check_damping(rayleigh, w: np.ndarray, external: float = 0.0, mass_per_length: float = math.inf) -> None:
+    """Refuse damping beyond :data:`ZETA_MAX` on some mode of the model (``w`` rad/s).
+
+    External damping c_e per unit length acts on the lateral motion like alpha_e M with
+    alpha_e <= c_e / min(rho A) (``mass_per_length``): its damping ratio is at most
+    c_e / (2 min(rho A) w), largest at the lowest mode."""
     zeta, at = damping_ratio(rayleigh, w)
     if zeta > ZETA_MAX:
         alpha, beta = rayleigh
@@ -62,6 +66,12 @@ def check_damping(rayleigh, w: np.ndarray) -> None:
                          f"damping ratio alpha / (2 w) + beta w / 2 = {zeta:.3g}, beyond {ZETA_MAX:.2g}: its slow and "
                          "fast decay rates differ by 4 zeta^2, more than double precision can hold "
                          "(heavy overdamping up to that ratio runs)")
+    if external > 0.0 and mass_per_length > 0.0:
+        zeta, at = damping_ratio((external / mass_per_length, 0.0), w)
+        if zeta > ZETA_MAX:
+            raise SceneError("damping.external", f"{external:g} N s/m^2 gives the lowest mode a damping ratio up "
+                             f"to c_e / (2 rho A w) = {zeta:.3g}, beyond {ZETA_MAX:.2g}: its slow and "
+                             "fast decay rates differ by 4 zeta^2, more than double precision can hold")
 
 
 @dataclass(frozen=True)

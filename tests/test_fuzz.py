@@ -83,6 +83,8 @@ REPRODUCTIONS = [
     (["run", *F, "--set", "damping.rayleigh=[1e300,0]"], "error", "damping.rayleigh"),
     (["campbell", "--set", "damping.rayleigh=[0,1e300]"], "error", "damping.rayleigh"),
     (["campbell", "--set", "damping.rayleigh=[1e300,0]"], "error", "damping.rayleigh"),
+    (["campbell", "--set", "damping.external=1e300"], "error", "damping.external"),
+    (["run", *F, "--set", "damping.external=1e300"], "error", "damping.external"),
     (["run", *F, "--set", "rotation.speed_hz=1e6"], "error", "rotation.speed_hz"),
     (["sweep", *F, "--set", "rotation.speed_hz=1e6:2e6:2"], "error", "rotation.speed_hz"),
     (["run", "--set", "simulation.t_end=1e300", "--set", "simulation.output_dt=1e294", "--set",

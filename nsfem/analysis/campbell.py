@@ -383,7 +383,8 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
     if not model.stack.contacts:
         ops["closed"] = ops["open"]
     if ops["open"].n <= DAMPING_CHECK_MAX_DOF:  # as nsfem run: damping double precision cannot hold
-        check_damping(damp["rayleigh"], standstill_frequencies(ops["open"]))
+        check_damping(damp["rayleigh"], standstill_frequencies(ops["open"]), damp["external"],
+                      min(seg.rho * seg.area for seg in model.stack.segments))
     speeds = default_speeds(ops["open"], rot["speed_hz"]) if speeds_hz is None else np.asarray(speeds_hz)
     res = {c: campbell(o, speeds, count, tuple(damp["rayleigh"]), damp["external"]) for c, o in ops.items()}
     grav = {c: gravity_resonances(o, rot["phase_deg"]) for c, o in ops.items()}
