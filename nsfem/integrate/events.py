@@ -19,7 +19,8 @@ Roots are found without missing any: h and h' = H A_aug xi are sampled at a step
 crossing, and a sign change of h' from - to + with h >= 0 at both samples is a dip whose
 minimum (root of h') is checked; an interval where h' may change sign twice (both samples
 descending, yet the Hermite cubic through them, less its error bound, reaches the zero band) is
-subdivided and scanned again; roots are refined with Brent's method to round-off. A dip
+subdivided and scanned again (armed rows; not on the matrix-exponential path, whose derivative
+bound is too crude); roots are refined with Brent's method to round-off. A dip
 that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
 transition LCP, not an impact, decides what happens.
 
@@ -294,17 +295,25 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
     f = h - thr
     above = f >= -tol
     cross = np.flatnonzero(above[:-1] & ~above[1:])
-    both = above[:-1] & above[1:]
+    # h' sign change from - to + (or a sample at the minimum itself): a dip candidate
+    turn = (hd[:-1] < 0) & (hd[1:] >= 0)
+    # a row can cross below its band and come back between two samples whatever their slopes (h'
+    # - + -, or + - + right after a lift): such an interval is subdivided when the cubic, less its
+    # error bound, reaches below the band. A bound4 that the remaining levels cannot bring down to
+    # the band (the crude derivative bound of the matrix-exponential path, 1e32 tol) screens
+    # nothing: subdividing on it would multiply the work
+    subdivide = depth < DEPTH and bound4 <= tol * float(SUBDIVIDE) ** (4 * (DEPTH - depth))
+    check = above[:-1] & above[1:] & (turn | subdivide)
     near = np.zeros(ts.size - 1, dtype=bool)
-    if np.any(both):
+    if np.any(check):
         # the cubic's Hermite weights of the slopes are at most 4/27: a cheap lower bound first
         dt = np.diff(ts)
         rough = np.minimum(f[:-1], f[1:]) - 4.0 / 27.0 * dt * (np.abs(hd[:-1]) + np.abs(hd[1:]))
-        k = np.flatnonzero(both & (rough - bound4 <= tol))
-        lo = _hermite_min(f[k], f[k + 1], hd[k], hd[k + 1], dt[k])
-        near[k[lo - bound4 <= tol]] = True
-    # h' sign change from - to + (or a sample at the minimum itself)
-    turn = (hd[:-1] < 0) & (hd[1:] >= 0)
+        k = np.flatnonzero(check & (rough - bound4 <= tol))
+        lo = _hermite_min(f[k], f[k + 1], hd[k], hd[k + 1], dt[k]) - bound4
+        # a dip (h' - to +) is refined when it comes within the band (a graze counts); any other
+        # interval only when it may cross below the band
+        near[k[np.where(turn[k], lo <= tol, lo < -tol)]] = True
     k_c = cross[0] if cross.size else None
     cand = np.flatnonzero(near)
     if k_c is not None:
@@ -318,7 +327,6 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
     def dfun(t):
         return float(Hdi @ phase.xi(t))
 
-    subdivide = depth < DEPTH and math.isfinite(bound4)
     for k in list(cand) + ([k_c] if k_c is not None else []):
         a, b = ts[k], ts[k + 1]
         if a > limit:
