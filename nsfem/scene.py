@@ -610,7 +610,7 @@ def check_speed(speed_hz: float, stack: BeamStack, key: str = "rotation.speed_hz
 def check_scales(tree: dict, stack: BeamStack) -> None:
     """Refuse material and size combinations whose element matrices leave double precision.
 
-    Per segment: the element mass rho A l, the stiffnesses E A / l and E I / l^3 and the squared
+    Per segment: the element mass rho A l, the stiffnesses E A / l and E I / l^3 (both planes) and the squared
     frequency scale (E A / l) / (rho A l) must lie in :data:`MATERIAL_RANGE` (l: the element
     length). Inside it the frequencies scale exactly as sqrt(E / rho) (tests/test_bounds.py).
     """
@@ -621,15 +621,22 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
         prefix = f"segment.{i}" if low else "shaft"
         le = span / tree["mesh"]["elements"] if not tree["mesh"]["file"] else s.length
         with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
-            E, rho, area, I_y, le = (np.float64(v) for v in (s.E, s.rho, s.area, s.I_y, le))
-            mass, axial, bending = rho * area * le, E * area / le, E * I_y / le**3
+            E, rho, area, I_y, I_z, le = (np.float64(v) for v in (s.E, s.rho, s.area, s.I_y, s.I_z, le))
+            mass, axial = rho * area * le, E * area / le
+            bend_w, bend_v = E * I_y / le**3, E * I_z / le**3
             w2 = axial / mass if mass > 0 else np.inf
         # the key to blame: the input farthest from 1 in orders of magnitude among those involved
         span_key = "end" if low else "length"
-        size = {"E": abs(math.log10(s.E)), "rho": abs(math.log10(s.rho)), span_key: abs(math.log10(le))}
-        for name, v, keys in (("element mass rho A l", mass, ("rho", span_key)),
-                              ("axial stiffness E A / l", axial, ("E", span_key)),
-                              ("bending stiffness E I / l^3", bending, ("E", span_key)),
+
+        def magnitude(v: float) -> float:
+            return abs(math.log10(v)) if v > 0 else math.inf
+
+        size = {"E": magnitude(s.E), "rho": magnitude(s.rho), span_key: magnitude(float(le)),
+                "width": magnitude(s.width), "height": magnitude(s.height)}
+        for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, "width", "height")),
+                              ("axial stiffness E A / l", axial, ("E", span_key, "width", "height")),
+                              ("bending stiffness E I_y / l^3", bend_w, ("E", span_key, "width", "height")),
+                              ("bending stiffness E I_z / l^3", bend_v, ("E", span_key, "width", "height")),
                               ("squared frequency scale E / (rho l^2)", w2, ("E", "rho", span_key))):
             if not lo <= v <= hi:
                 key = max(keys, key=size.get)

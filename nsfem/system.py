@@ -39,11 +39,12 @@ ZETA_MAX = 0.5 / math.sqrt(np.finfo(float).eps)
 def damping_ratio(rayleigh, w: np.ndarray) -> tuple[float, float]:
     """(largest damping ratio, its frequency [rad/s]) of Rayleigh damping C = alpha M + beta K over
     the elastic modes ``w``: zeta(w) = alpha / (2 w) + beta w / 2, convex in w, so largest at the
-    lowest or the highest one (rigid modes, w below 1e-9 of the highest, are left out: alpha
-    merely stops them)."""
+    lowest or the highest one (rigid modes are left out: alpha merely stops them; round-off puts
+    their computed frequencies near sqrt(eps) w_max = 1.5e-8 w_max, so everything below 1e-6 w_max
+    counts as rigid)."""
     alpha, beta = rayleigh
     w = np.asarray(w, dtype=float)
-    w = w[w > 1e-9 * np.max(w, initial=0.0)]
+    w = w[w > 1e-6 * np.max(w, initial=0.0)]
     if w.size == 0:
         return 0.0, 0.0
     ends = np.array([w.min(), w.max()])

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from nsfem import cli, load_scene
+from nsfem import build_model, cli, load_scene
 from nsfem.errors import SceneError
 from nsfem.scene import MAX_FRICTION_DIRECTIONS, nesting_depth, speed_limit_hz
 
@@ -159,6 +159,18 @@ def test_damping_ratio_of_rayleigh_damping():
     assert damping_ratio((0.0, 2e-4), w) == (pytest.approx(0.1, rel=1e-15), 1000.0)
     # the bound: 4 zeta^2 (ratio of an overdamped pair's decay rates) reaches 1/eps
     assert 4 * ZETA_MAX**2 == pytest.approx(1 / np.finfo(float).eps, rel=1e-15)
+
+
+def test_a_free_rotor_with_heavy_mass_damping_is_not_refused_for_its_rigid_modes():
+    # a free-free shaft's rigid modes come out of the eigen solver at ~sqrt(eps) w_max (4e-3..2e-2
+    # rad/s here), not 0: alpha = 1e6 1/s gave them zeta = 1e8 and was refused. Its lowest elastic
+    # mode (~110 Hz) has zeta = alpha / (2 w) = 730, far inside ZETA_MAX
+    from nsfem.analysis.campbell import campbell_report
+
+    scene = load_scene(None, ["delamination=[]", "obstacle=[]", "shaft.supports=free-free",
+                              "damping.rayleigh=[1e6, 0]", "mesh.elements=20"])
+    rep = campbell_report(scene, build_model(scene), [0.0], 4)
+    assert rep["speeds_hz"] == [0.0]
 
 
 def test_heavy_but_representable_overdamping_runs(tmp_path):

@@ -91,6 +91,11 @@ REPRODUCTIONS = [
       "output.vtu_every=0", "--set", "output.plots=[]"], "error", "simulation."),
     (["modes", "--set", "shaft.E=1e-300"], "error", "shaft.E"),
     (["campbell", "--set", "shaft.length=1e300"], "error", "shaft.length"),  # slow fuzz: OverflowError
+    # found by review: log10(0) of an underflowed element length; widths/heights blamed; I_z checked
+    (["modes", "plain.toml", "--set", "shaft.length=1e-322"], "error", "shaft.length"),
+    (["modes", "plain.toml", "--set", "shaft.width=1e-105"], "error", "shaft.width"),
+    (["modes", "plain.toml", "--set", "shaft.width=1e-40"], "error", "shaft.width"),
+    (["modes", "plain.toml", "--set", "shaft.height=1e-40"], "error", "shaft.height"),
     (["render", ".", "--time", "-1"], "error", "is a folder"),  # found by the slow fuzz (ValueError)
     (["run", *F, "--set", "rotation.gravity=1e6"], "warn", "range of the linear"),
     (["run", *F, "--set", "rotation.gravity=1e6", "--set", "rotation.speed_hz=0"], "warn", "range of the linear"),
@@ -103,6 +108,7 @@ REPRODUCTIONS = [
 
 @pytest.mark.parametrize("argv, outcome, text", REPRODUCTIONS, ids=[" ".join(r[0]) for r in REPRODUCTIONS])
 def test_issue_reproductions(argv, outcome, text, tmp_path):
+    (tmp_path / "plain.toml").write_text('title = "plain"\n[shaft]\nlength = 1.0\n')  # no delamination
     code, _, stderr = check_invocation(argv, tmp_path)
     assert code == (cli.EXIT_ERROR if outcome == "error" else 0), stderr
     assert text in stderr, stderr
