@@ -621,7 +621,8 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
         prefix = f"segment.{i}" if low else "shaft"
         le = span / tree["mesh"]["elements"] if not tree["mesh"]["file"] else s.length
         with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
-            E, rho, area, I_y, I_z, le = (np.float64(v) for v in (s.E, s.rho, s.area, s.I_y, s.I_z, le))
+            E, rho, b, h, le = (np.float64(v) for v in (s.E, s.rho, s.width, s.height, le))
+            area, I_y, I_z = b * h, b * h**3 / 12.0, h * b**3 / 12.0  # numpy: inf, not OverflowError
             mass, axial = rho * area * le, E * area / le
             bend_w, bend_v = E * I_y / le**3, E * I_z / le**3
             w2 = axial / mass if mass > 0 else np.inf

@@ -95,6 +95,7 @@ REPRODUCTIONS = [
     (["modes", "plain.toml", "--set", "shaft.length=1e-322"], "error", "shaft.length"),
     (["modes", "plain.toml", "--set", "shaft.width=1e-105"], "error", "shaft.width"),
     (["modes", "plain.toml", "--set", "shaft.width=1e-40"], "error", "shaft.width"),
+    (["campbell", "--set", "shaft.width=1e300"], "error", "shaft.width"),  # slow fuzz: OverflowError in I_z
     (["modes", "plain.toml", "--set", "shaft.height=1e-40"], "error", "shaft.height"),
     (["render", ".", "--time", "-1"], "error", "is a folder"),  # found by the slow fuzz (ValueError)
     (["run", *F, "--set", "rotation.gravity=1e6"], "warn", "range of the linear"),
