@@ -607,6 +607,11 @@ def check_speed(speed_hz: float, stack: BeamStack, key: str = "rotation.speed_hz
 
 
 # --------------------------------------------------------------------------- scales
+def _magnitude(v: float) -> float:
+    """Orders of magnitude between v and 1 (infinite for 0)."""
+    return abs(math.log10(v)) if v > 0 else math.inf
+
+
 def check_scales(tree: dict, stack: BeamStack) -> None:
     """Refuse material and size combinations whose element matrices leave double precision.
 
@@ -628,12 +633,8 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
             w2 = axial / mass if mass > 0 else np.inf
         # the key to blame: the input farthest from 1 in orders of magnitude among those involved
         span_key = "end" if low else "length"
-
-        def magnitude(v: float) -> float:
-            return abs(math.log10(v)) if v > 0 else math.inf
-
-        size = {"E": magnitude(s.E), "rho": magnitude(s.rho), span_key: magnitude(float(le)),
-                "width": magnitude(s.width), "height": magnitude(s.height)}
+        size = {"E": _magnitude(s.E), "rho": _magnitude(s.rho), span_key: _magnitude(float(le)),
+                "width": _magnitude(s.width), "height": _magnitude(s.height)}
         for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, "width", "height")),
                               ("axial stiffness E A / l", axial, ("E", span_key, "width", "height")),
                               ("bending stiffness E I_y / l^3", bend_w, ("E", span_key, "width", "height")),

@@ -44,7 +44,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from .atomic import write_text_atomic
+from .atomic import check_folder, write_text_atomic
 from .errors import IntegrationError, NsfemError
 from .result import json_default
 
@@ -411,14 +411,6 @@ def default_folder(p: _Plan) -> Path:
     return Path(p.base["output"]["dir"]) / ("sweep-" + ",".join(a.key for a in p.axes))
 
 
-def _check_writable(out: Path) -> None:
-    """A one-line error if ``out`` cannot become the sweep folder (tried, then left as it was:
-    permission bits do not tell, root passes them everywhere)."""
-    from .atomic import check_folder
-
-    check_folder(out, "--out")
-
-
 def _check_folder(out: Path, p: _Plan, scene_path, write: bool = False) -> None:
     """Refuse a folder that holds another sweep (other scene, fixed settings, swept keys or method);
     ``write``: stamp the folder as this sweep's."""
@@ -548,7 +540,7 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
     p = plan(scene_path, overrides, method)
     # absolute: the workers (maybe started elsewhere) write there
     out = (Path(out_dir) if out_dir is not None else default_folder(p)).absolute()
-    _check_writable(out)
+    check_folder(out, "--out")  # tried, then left as it was: root passes permission bits everywhere
     _check_folder(out, p, scene_path)
     keys = [a.key for a in p.axes]
     done_rows = [read_record(out / run_name(pt), p.fp) for pt in p.points]

@@ -52,12 +52,6 @@ def element_bend(h: np.ndarray) -> np.ndarray:
     return (one + h * lin + h * h * sq) / h**3
 
 
-def element_load(h: np.ndarray) -> np.ndarray:
-    """int N_i dx over elements of lengths h: (len(h), 4)."""
-    h = np.asarray(h, dtype=float)[:, None]
-    return h / 12.0 * np.array([6.0, 0.0, 6.0, 0.0]) + h * h / 12.0 * np.array([0.0, 1.0, 0.0, -1.0])
-
-
 def _element_dofs(n_nodes: int) -> np.ndarray:
     """(elements, 4): value and slope of the left node, then of the right one."""
     left = 2 * np.arange(n_nodes - 1)
@@ -73,14 +67,6 @@ def assemble(x: np.ndarray, element) -> sp.csr_matrix:
     cols = np.tile(dofs, (1, 4)).ravel()
     n = 2 * x.size
     return sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
-
-
-def assemble_load(x: np.ndarray) -> np.ndarray:
-    """int N_i dx over the nodes x: the consistent load vector of a unit distributed load."""
-    x = np.asarray(x, dtype=float)
-    out = np.zeros(2 * x.size)
-    np.add.at(out, _element_dofs(x.size), element_load(np.diff(x)))
-    return out
 
 
 def shape(xi: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -102,7 +102,7 @@ def full_operators(model: FEModel) -> RotorOperators:
     for s in model.stack.segments:
         space = model.spaces[s.name]
         Mb = space.unit["bending_mass"]
-        load = hermite.assemble_load(space.x - space.x[0])  # int N dx, closed form
+        load = hermite.assemble_weighted(space.x, np.ones_like)  # int N dx, exact quadrature
         V, W = space.dofs["V"], space.dofs["W"]
         rA = s.rho * s.area
         yc, zc = s.offset
