@@ -156,9 +156,12 @@ def growth_rate(system: ContactSystem) -> float:
         return 0.0
     from .analysis.campbell import merge_defective
 
-    Mi = np.linalg.inv(system.M)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Mi @ system.Q, -Mi @ system.C]])
-    lam, V = sla.eig(A)
+    from .integrate.configuration import Configuration, Mode
+
+    # the open configuration: its rigid-body coordinates split off (exactly zero roots, not the
+    # +-sqrt(eps) omega_max of a defective pair), the rest in first-order form
+    cfg = Configuration(system, Mode())
+    lam, V = sla.eig(cfg.A[cfg.k:, cfg.k:])
     keep = np.isfinite(lam)
     lam, V = lam[keep], V[:, keep]
     # a root is resolved to sqrt(eps) omega_max at best (a defective one, like the rigid drift

@@ -30,6 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import NsfemError
+from .closed_form import Motion, modal_motion
 from .problem import ContactSystem
 
 #: relative singular value below which a constraint direction is redundant
@@ -63,6 +64,31 @@ def _null(A: np.ndarray, n: int) -> tuple[np.ndarray, int]:
     U, s, _ = np.linalg.svd(A, full_matrices=True)
     rank = int(np.sum(s > RANK_TOL * s[0])) if s.size and s[0] > 0 else 0
     return U[:, rank:], rank
+
+
+#: a configuration mode with omega^2 below RIGID times the largest omega^2 (of the configuration, or of
+#: the full model's elements, ``system.info["omega2_ref"]``) is a rigid-body motion: stiffness
+#: round-off leaves it at about eps * omega_max^2 (1e-14 to 1e-13 relative, measured on free bars
+#: and rotors), a real mode of omega < 1e-6 omega_max is beyond what a first-order
+#: eigen-decomposition resolves anyway (the same cutoff as the damping check's rigid modes)
+RIGID = 1e-12
+
+
+def _rigid_split(D: np.ndarray, omega2_ref: float) -> tuple[int, np.ndarray | None]:
+    """(k, T): the number of rigid-body coordinates of y'' + ... + D y = ... and an orthogonal T
+    whose first k columns span them (D T[:, :k] = 0 to round-off); (0, None) without any."""
+    ev = np.linalg.eigvals(D)
+    scale = max(float(np.max(np.abs(ev), initial=0.0)), omega2_ref)
+    k = int(np.sum(np.abs(ev) <= RIGID * scale))
+    if k == 0 or scale == 0.0:
+        return (D.shape[0], np.eye(D.shape[0])) if scale == 0.0 else (0, None)
+    _, s, Vt = np.linalg.svd(D)
+    Z = Vt[-k:].T
+    # the null space must be a clear one: its residual at round-off of the largest omega^2
+    if np.abs(D @ Z).max() > 1e3 * RIGID * scale:
+        return 0, None
+    T, _ = np.linalg.qr(Z, mode="complete")
+    return k, T
 
 
 class Configuration:
@@ -110,8 +136,23 @@ class Configuration:
             raise NsfemError(f"configuration {mode.describe()}: no consistent acceleration (the sliding friction "
                              "couples the normal constraint into a singular inertia: a Painleve case)")
         Mi = np.linalg.inv(Mr) if r else np.zeros((0, 0))
+        Kr = self.L.T @ Q @ self.N
+        # rigid-body coordinates (no stiffness): split off first, their stiffness set to exactly 0,
+        # so that they move as polynomials in time instead of round-off exponentials
+        self.k = 0
+        if r:
+            k, T = _rigid_split(Mi @ Kr, float(system.info.get("omega2_ref", 0.0)))
+            if k:
+                same = self.L is self.N
+                self.N = self.N @ T
+                self.L = self.N if same else self.L
+                Mr = self.L.T @ M @ self.N
+                Mi = np.linalg.inv(Mr)
+                Kr = self.L.T @ Q @ self.N
+                Kr[:, :k] = 0.0
+                self.k = k
         self.Mi_L = Mi @ self.L.T                           # r x n
-        Kr, Cr = self.L.T @ Q @ self.N, self.L.T @ C @ self.N
+        Cr = self.L.T @ C @ self.N
         with np.errstate(over="ignore", invalid="ignore"):
             self.A = np.block([[np.zeros((r, r)), np.eye(r)], [-Mi @ Kr, -Mi @ Cr]]) if r else np.zeros((0, 0))
         if not np.all(np.isfinite(self.A)):
@@ -128,17 +169,20 @@ class Configuration:
         self.Rx = np.hstack([MN @ (-Mi @ Kr) + Q @ self.N, MN @ (-Mi @ Cr) + C @ self.N]) if r else np.zeros((n, 0))
         self.Rphi = MN @ self.Mi_L - np.eye(n)
         self.eig = None
+        k = self.k
         if r:
+            # the modal part w = (b, a', b') of x = (a, b, a', b'): x' = A x with A[:, :k] = 0, so
+            # w' = A_w w + B_w phi and a' = S w (S picks a' out of w)
             # balance (y, y') before the eigen-decomposition: with y scaled by a frequency per
             # coordinate, sqrt(K_ii / M_ii), an undamped mode's eigenvector has displacement and
             # velocity parts of one size, so cond(V) no longer grows with w_max / w_min
             dm, dk = np.abs(np.diag(Mr)), np.abs(np.diag(Kr))
             wy = np.sqrt(np.where((dm > 0) & (dk > 0), dk / np.where(dm > 0, dm, 1.0), 0.0))
             wy = np.where(wy > 0, wy, max(float(np.median(wy[wy > 0])) if np.any(wy > 0) else 1.0, 1e-300))
-            S = np.concatenate([wy, np.ones(r)])
-            lam, W = np.linalg.eig(self.A * (S[:, None] / S[None, :]))
+            S = np.concatenate([wy, np.ones(r)])[k:]
+            lam, W = np.linalg.eig(self.A[k:, k:] * (S[:, None] / S[None, :]))
             cond = np.linalg.cond(W)
-            self.eigenvalues = lam
+            self.eigenvalues = np.concatenate([np.zeros(k), lam])
             if np.isfinite(cond) and cond < COND_MAX:
                 self.eig = (lam, W / S[:, None], np.linalg.inv(W) * S[None, :])
         else:
@@ -182,7 +226,7 @@ class Phase:
         self.A_aug = A_aug
         self._modal = None
         if config.eig is not None and r:
-            self._modal = self._particular_solutions()
+            self._modal = self._motion()
         if self._modal is None:
             self._xi0 = np.concatenate([self.x0, self._harmonics(self.t0)])
 
@@ -194,38 +238,24 @@ class Phase:
             parts += [np.cos(self.w * t), np.sin(self.w * t)]
         return np.array(parts)
 
-    def _particular_solutions(self):
-        cfg, r = self.config, self.config.r
-        A = cfg.A
-        def solve(Z, rhs):
-            """Z^-1 rhs, or None when Z is (nearly) singular: judged by the residual."""
-            with np.errstate(all="ignore"):
-                try:
-                    x = np.linalg.solve(Z, rhs)
-                except np.linalg.LinAlgError:
-                    return None
-            if not np.all(np.isfinite(x)):
-                return None
-            res = np.abs(Z @ x - rhs).max(initial=0.0)
-            size = (np.abs(Z) @ np.abs(x) + np.abs(rhs)).max(initial=0.0)
-            # a near-singular Z returns a huge x with a small residual: bound the growth too
-            if res > 1e-12 * size or np.abs(x).max(initial=0.0) * np.abs(Z).max() > COND_MAX * (
-                    np.abs(rhs).max(initial=0.0) + 1e-300) * 1e4:
-                return None
-            return x
-
-        xc = solve(A, -(cfg.B @ self.forcing[0]))
-        if xc is None:
-            return None
-        Xh = None
-        if self.w:
-            Xh = solve(1j * self.w * np.eye(2 * r) - A, cfg.B @ (self.forcing[1] - 1j * self.forcing[2]))
-            if Xh is None:
-                return None
+    def _motion(self) -> Motion:
+        """x(t - t0) in closed form (:mod:`.closed_form`): modes, particular solutions, and divided
+        differences where the forcing is resonant or a rigid-body coordinate integrates a load."""
+        cfg, r, k = self.config, self.config.r, self.config.k
         lam, V, Vi = cfg.eig
-        xp0 = xc + (np.real(Xh * np.exp(1j * self.w * self.t0)) if Xh is not None else 0.0)
-        c = Vi @ (self.x0 - xp0)
-        return lam, V, c, xc, Xh
+        Bw = cfg.B[k:]
+        forcing = {0j: Bw @ self.forcing[0]}
+        if self.w:
+            ph = np.exp(1j * self.w * self.t0)
+            b = 0.5 * (Bw @ (self.forcing[1] - 1j * self.forcing[2])) * ph   # cos, sin = Re e^{iwt} (fc - i fs)
+            forcing[1j * self.w] = b
+            forcing[-1j * self.w] = np.conj(b)
+        S = np.zeros((k, 2 * r - k))
+        S[np.arange(k), r - k + np.arange(k)] = 1.0      # a' sits at w[r - k + i]
+        # nodes closer than 1e-9 of the fastest rate are one (eigenvalue round-off: a zero computed
+        # as 1e-14 |A|); divided differences are exact for any nodes, so a generous floor only costs
+        floor = 1e-9 * max(float(np.max(np.abs(lam), initial=0.0)), self.w)
+        return modal_motion(lam, V, Vi, self.x0[k:], forcing, k, S, self.x0[:k], floor)
 
     def xi(self, t) -> np.ndarray:
         """The augmented state at times t (scalar -> (dim,), array -> (dim, len(t)))."""
@@ -237,12 +267,7 @@ class Phase:
         out[r2:] = self._harmonics(tt)
         if r2:
             if self._modal is not None:
-                lam, V, c, xc, Xh = self._modal
-                E = np.exp(np.outer(lam, tt - self.t0)) * c[:, None]
-                x = np.real(V @ E) + xc[:, None]
-                if Xh is not None:
-                    x += np.real(np.outer(Xh, np.exp(1j * self.w * tt)))
-                out[:r2] = x
+                out[:r2] = self._modal.evaluate(tt - self.t0)
             else:
                 out[:r2] = self._expm_states(tt)[:r2]
         return out[:, 0] if scalar else out
@@ -253,27 +278,13 @@ class Phase:
         r2 = 2 * self.config.r
         if not r2 or self._modal is None:
             return lambda t: H @ self.xi(np.atleast_1d(np.asarray(t, dtype=float)))
-        lam, V, c, xc, Xh = self._modal
-        HV = (H[:, :r2] @ V) * c[None, :]
-        h0 = H[:, :r2] @ xc
-        hX = H[:, :r2] @ Xh if Xh is not None else None
+        mot = self._modal
+        Hm = Motion(mot.nu, H[:, :r2] @ mot.U, [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups])
         Hh = H[:, r2:]
 
         def rows(t):
             tt = np.atleast_1d(np.asarray(t, dtype=float))
-            d = np.diff(tt)
-            if tt.size > 8 and np.all(np.abs(d - d[0]) <= 1e-12 * abs(d[0])):
-                # a uniform grid: e^{lam t_k} by repeated multiplication (relative error ~ k eps)
-                E = np.empty((lam.size, tt.size), dtype=complex)
-                E[:, 0] = np.exp(lam * (tt[0] - self.t0))
-                E[:, 1:] = np.exp(lam * d[0])[:, None]
-                E = np.cumprod(E, axis=1)
-            else:
-                E = np.exp(np.outer(lam, tt - self.t0))
-            out = np.real(HV @ E) + h0[:, None] + Hh @ self._harmonics(tt)
-            if hX is not None:
-                out += np.real(np.outer(hX, np.exp(1j * self.w * tt)))
-            return out
+            return Hm.evaluate(tt - self.t0) + Hh @ self._harmonics(tt)
 
         return rows
 
@@ -299,35 +310,36 @@ class Phase:
         return out
 
     def exponential_terms(self):
-        """xi(t) = Re sum_j U[:, j] exp(mu_j (t - t0)) (modal path), or None.
+        """xi(t) = Re sum_j U[:, j] exp(mu_j (t - t0)) (modal path without divided differences), or None.
 
-        Terms: the configuration's modes (conjugate pairs), the constant particular
-        solution with the constant component, and the harmonic particular solution with the
-        cos/sin components split into exp(+-i w t).
+        Terms: the configuration's modes, the particular solutions with the constant component,
+        and the harmonic particular solutions with the cos/sin components split into exp(+-i w t).
         """
-        if self._modal is None:
+        if self._modal is None or self._modal.groups:
             return None
-        lam, V, c, xc, Xh = self._modal
+        mot = self._modal
         r2 = 2 * self.config.r
-        cols, mus = [], []
-        modes = np.zeros((self.dim, lam.size), dtype=complex)
-        modes[:r2] = V * c[None, :]
-        cols.append(modes)
-        mus.append(lam)
-        const = np.zeros((self.dim, 1), dtype=complex)
-        const[:r2, 0] = xc
-        const[r2, 0] = 1.0
-        cols.append(const)
-        mus.append(np.zeros(1))
-        if self.w:
-            up = np.zeros((self.dim, 1), dtype=complex)
-            ph = np.exp(1j * self.w * self.t0)
-            up[:r2, 0] = 0.5 * Xh * ph
-            up[r2 + 1, 0] = 0.5 * ph          # cos = (e^{iwt} + e^{-iwt}) / 2
-            up[r2 + 2, 0] = -0.5j * ph        # sin = (e^{iwt} - e^{-iwt}) / (2 i)
-            cols += [up, np.conj(up)]
-            mus += [np.array([1j * self.w]), np.array([-1j * self.w])]
-        return np.hstack(cols), np.concatenate(mus)
+        U = np.zeros((self.dim, mot.nu.size), dtype=complex)
+        U[:r2] = mot.U
+        nu = mot.nu
+        extra = []
+        for mu, row in [(0j, 0)] + ([(1j * self.w, 1), (-1j * self.w, 2)] if self.w else []):
+            hit = np.flatnonzero(nu[self.config.eig[0].size:] == mu)
+            if hit.size:
+                j = self.config.eig[0].size + int(hit[0])
+            else:
+                extra.append(mu)
+                U = np.hstack([U, np.zeros((self.dim, 1), dtype=complex)])
+                nu = np.append(nu, mu)
+                j = nu.size - 1
+            if row == 0:
+                U[r2, j] += 1.0
+            else:
+                ph = np.exp(1j * self.w * self.t0)
+                sgn = 1.0 if row == 1 else -1.0
+                U[r2 + 1, j] += 0.5 * (ph if sgn > 0 else np.conj(ph))     # cos = (e^{iwt} + e^{-iwt}) / 2
+                U[r2 + 2, j] += -0.5j * ph if sgn > 0 else 0.5j * np.conj(ph)  # sin = (e^{iwt} - e^{-iwt}) / 2i
+        return U, nu
 
     def quadratic_integrals(self, forms: list, t1: float) -> list | None:
         """int_{t0}^{t1} xi^T S xi dt for each S in ``forms``, in closed form (modal path)."""
@@ -346,12 +358,8 @@ class Phase:
         """Per row of H, a bound of the order-th time derivative of H xi over [t0, t0 + horizon]."""
         r2 = 2 * self.config.r
         if self._modal is not None:
-            lam, V, c, xc, Xh = self._modal
-            with np.errstate(over="ignore"):  # an unstable mode over a long horizon: an infinite bound
-                grow = np.exp(np.maximum(lam.real, 0.0) * horizon)
-            b = np.abs(H[:, :r2] @ V) @ (np.abs(c) * np.abs(lam) ** order * grow)
-            if Xh is not None:
-                b = b + np.abs(H[:, :r2] @ Xh) * self.w ** order
+            b = self._modal.bound(H[:, :r2], order, horizon)
+            if self.w:
                 b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * self.w ** order
             return b
         # crude: |H A_aug^order xi| <= |H| ||A_aug||^order max|xi| (with growth)

@@ -107,4 +107,13 @@ class ContactSystem:
         lin = scene_system(scene, rotor_operators(model, red.T), speed_hz)
         return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega,
                                ContactSet.from_model(model, red),
-                               {"model": model, "reduction": red, "ndof_full": model.n})
+                               {"model": model, "reduction": red, "ndof_full": model.n,
+                                "omega2_ref": omega2_ref(model.K, model.M)})
+
+
+def omega2_ref(K, M) -> float:
+    """max K_ii / M_ii [1/s^2]: the size of the full model's largest omega^2 (within a factor of a few),
+    the scale against which a reduced model's rigid-body modes (omega^2 at round-off) are recognized."""
+    k, m = np.abs(np.asarray(K.diagonal(), dtype=float)), np.abs(np.asarray(M.diagonal(), dtype=float))
+    ok = m > 0
+    return float(np.max(k[ok] / m[ok], initial=0.0))

@@ -1,0 +1,244 @@
+"""Closed-form solution of x' = A x + B phi(t) with phi(t) = sum_mu f_mu e^{mu t}, valid at resonance.
+
+With A = V diag(lam) V^-1 each modal coordinate obeys z_j' = lam_j z_j + sum_mu beta_mu,j e^{mu t},
+
+    z_j(tau) = e^{lam_j tau} z_j(0) + sum_mu beta_mu,j F[lam_j, mu](tau),
+
+where F[x_0, ..., x_m](tau) is the divided difference over the nodes x_i of x -> e^{x tau}
+(F[a, b] = (e^{b tau} - e^{a tau}) / (b - a), and tau e^{a tau} when a = b). Nodes far apart are
+split into exponentials (the usual particular solutions); nodes that nearly coincide (forcing at
+a natural frequency, a constant load on a zero eigenvalue) are kept as divided differences and
+evaluated without cancellation, so the exact resonance costs what its neighbourhood costs.
+
+Rigid-body positions a (coordinates with no stiffness, split off by the configuration) are
+integrals of velocity components of the modal part, a(tau) = a(0) + int_0^tau S w: divided
+differences over {0, lam_j, mu}, i.e. polynomials in tau for a free body under a constant load
+(no round-off exponential, no drift).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: nodes closer than RES times their size are evaluated together (a divided difference):
+#: split into exponentials their terms would cancel by up to 1 / (|a - b| tau); RES = 1e-3 keeps
+#: that loss below 1e3 eps relative to the steady amplitude |beta| / |a - b| of the pair
+RES = 1e-3
+
+
+def _close(a, b, floor: float) -> np.ndarray:
+    return np.abs(a - b) <= RES * np.maximum(np.abs(a), np.abs(b)) + floor
+
+
+def _phi1(z: np.ndarray) -> np.ndarray:
+    """(e^z - 1) / z, 1 at z = 0 (complex, without cancellation)."""
+    zs = np.where(z == 0, 1.0, z)
+    return np.where(z == 0, 1.0, np.expm1(zs) / zs)
+
+
+def divided_exp(nodes: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """F[x_0, .., x_{m-1}](tau) of x -> e^{x tau} for m = 2 or 3 nodes per column.
+
+    ``nodes``: (m, K) complex, ``tau``: (T,) >= 0; returns (K, T). Shifted by the first node,
+    F = e^{x_0 tau} F[0, x_1 - x_0, ..](tau): m = 2 is tau phi1(d tau) exactly; m = 3 is the
+    Taylor series when all (x_i - x_0) tau are at most 1, else the recursion over the farthest
+    pair (whose difference then is not small)."""
+    nodes = np.asarray(nodes, dtype=complex)
+    tau = np.asarray(tau, dtype=float)[None, :]
+    x0 = nodes[0][:, None]
+    base = np.exp(x0 * tau)
+    if nodes.shape[0] == 2:
+        d = (nodes[1] - nodes[0])[:, None]
+        return base * tau * _phi1(d * tau)
+    d1, d2 = (nodes[1] - nodes[0])[:, None], (nodes[2] - nodes[0])[:, None]
+    size = np.maximum(np.maximum(np.abs(d1), np.abs(d2)), np.abs(d2 - d1)) * tau
+    out = np.empty(np.broadcast_shapes(d1.shape, tau.shape), dtype=complex)
+    small = size <= 1.0
+    if np.any(small):
+        # F[0, d1, d2](tau) = sum_k tau^(k+2) / (k+2)! h_k(0, d1, d2), h_k = sum_{i<=k} d1^i d2^(k-i)
+        dd1, dd2, tt = np.broadcast_to(d1, out.shape)[small], np.broadcast_to(d2, out.shape)[small], \
+            np.broadcast_to(tau, out.shape)[small]
+        h = np.ones_like(dd1)        # h_0
+        p2 = np.ones_like(dd1)       # d2^k
+        term = tt * tt / 2.0
+        acc = term * h
+        for k in range(1, 30):
+            p2 = p2 * dd2
+            h = h * dd1 + p2          # h_k = d1 h_{k-1} + d2^k
+            term = term * tt / (k + 2)
+            acc = acc + term * h
+        out[small] = acc
+    if np.any(~small):
+        # F[0, d1, d2] = (F[0, d2] - F[0, d1]) / (d2 - d1) when d2 - d1 is the largest difference,
+        # else shift to the node that makes the farthest pair the outer one
+        D1, D2, TT = (np.broadcast_to(v, out.shape)[~small] for v in (d1, d2, tau))
+        g1, g2 = TT * _phi1(D1 * TT), TT * _phi1(D2 * TT)
+        far = np.abs(D2 - D1) >= np.maximum(np.abs(D1), np.abs(D2)) * 0.5
+        val = np.empty_like(D1)
+        val[far] = (g2[far] - g1[far]) / (D2[far] - D1[far])
+        # otherwise 0 is the outlier: F[0, d1, d2] = (F[d1, d2] - F[0, d1]) / d2 with F[d1, d2] close
+        nf = ~far
+        if np.any(nf):
+            f12 = np.exp(D1[nf] * TT[nf]) * TT[nf] * _phi1((D2[nf] - D1[nf]) * TT[nf])
+            val[nf] = (f12 - g1[nf]) / D2[nf]
+        out[~small] = val
+    return base * out
+
+
+def divided_exp_bound(nodes: np.ndarray, order: int, horizon: float) -> np.ndarray:
+    """Per column, a bound of |d^order/dtau^order F[nodes](tau)| on [0, horizon].
+
+    Hermite-Genocchi: F[x_0..x_{m-1}] averages tau^(m-1) e^{xi tau} / (m-1)! over the nodes' hull;
+    its derivatives are bounded with |xi| <= rho = max |x_i| and Re xi <= max Re x_i."""
+    nodes = np.asarray(nodes, dtype=complex)
+    m = nodes.shape[0]
+    rho = np.max(np.abs(nodes), axis=0)
+    with np.errstate(over="ignore"):
+        grow = np.exp(np.maximum(np.max(nodes.real, axis=0), 0.0) * horizon)
+    total = np.zeros_like(rho)
+    for i in range(min(order, m - 1) + 1):
+        total += math.comb(order, i) * math.perm(m - 1, i) * horizon ** (m - 1 - i) * rho ** (order - i)
+    return total * grow / math.factorial(m - 1)
+
+
+@dataclass
+class Motion:
+    """x(tau) = Re[U e^{nu tau} + sum over divided-difference groups D F[nodes](tau)]."""
+
+    nu: np.ndarray          # (p,) exponents
+    U: np.ndarray           # (d, p)
+    groups: list            # [(nodes (m, K), D (d, K))]
+
+    def evaluate(self, tau: np.ndarray, H: np.ndarray | None = None) -> np.ndarray:
+        """H x(tau) (x itself without H), tau: (T,) -> (rows, T)."""
+        U = self.U if H is None else H @ self.U
+        out = np.real(U @ exponentials(self.nu, tau))
+        for nodes, D in self.groups:
+            DD = D if H is None else H @ D
+            out += np.real(DD @ divided_exp(nodes, tau))
+        return out
+
+    def bound(self, H: np.ndarray, order: int, horizon: float) -> np.ndarray:
+        with np.errstate(over="ignore"):
+            grow = np.exp(np.maximum(self.nu.real, 0.0) * horizon)
+            b = np.abs(H @ self.U) @ (np.abs(self.nu) ** order * grow)
+            for nodes, D in self.groups:
+                b = b + np.abs(H @ D) @ divided_exp_bound(nodes, order, horizon)
+        return b
+
+
+def exponentials(nu: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """e^{nu tau} (p x T); on a uniform grid by repeated multiplication (relative error ~ k eps)."""
+    tau = np.atleast_1d(np.asarray(tau, dtype=float))
+    d = np.diff(tau)
+    if tau.size > 8 and np.all(np.abs(d - d[0]) <= 1e-12 * abs(d[0])):
+        E = np.empty((nu.size, tau.size), dtype=complex)
+        E[:, 0] = np.exp(nu * tau[0])
+        E[:, 1:] = np.exp(nu * d[0])[:, None]
+        return np.cumprod(E, axis=1)
+    return np.exp(np.outer(nu, tau))
+
+
+def modal_motion(lam, V, Vi, w0, forcing: dict, k: int, S: np.ndarray, a0: np.ndarray, floor: float) -> Motion:
+    """The motion of x = (a, w) from x(0) = (a0, w0) under w' = A_w w + sum_mu b_mu e^{mu tau},
+    a' = S w, with A_w = V diag(lam) Vi; ``forcing``: {mu: b_mu} (b_mu in w-space, e^{mu t0} folded
+    in). ``floor``: absolute closeness of nodes (round-off of the eigenvalues)."""
+    dw = V.shape[0]
+    d = k + dw
+    z0 = Vi @ w0
+    mus = sorted(forcing, key=lambda m: (abs(m), m.imag))
+    beta = {mu: Vi @ forcing[mu] for mu in mus}
+    coef = z0.astype(complex).copy()            # of e^{lam_j tau}, modal
+    X = {0j: np.zeros(d, dtype=complex)}        # of e^{mu tau}, x-space
+    X[0j][:k] = a0
+    Ua = np.zeros((k, lam.size), dtype=complex)  # a-rows of the e^{lam_j tau} terms
+    dd2n, dd2c, dd3n, dd3c = [], [], [], []
+    SV = S @ V if k else np.zeros((0, lam.size))
+
+    def add2(p, q, col):
+        dd2n.append((p, q))
+        dd2c.append(col)
+
+    for mu in mus:
+        X.setdefault(mu, np.zeros(d, dtype=complex))
+        b = beta[mu]
+        res = _close(lam, mu, floor)
+        far = ~res
+        with np.errstate(divide="ignore", invalid="ignore"):
+            g = np.where(far, b / np.where(far, mu - lam, 1.0), 0.0)
+        coef -= g
+        X[mu][k:] += V @ g
+        for j in np.flatnonzero(res):
+            col = np.zeros(d, dtype=complex)
+            col[k:] = V[:, j] * b[j]
+            add2(lam[j], mu, col)
+    if k:
+        # a(tau) = a0 + sum_j SV_j [z0_j F[0, lam_j] + sum_mu beta_mu,j F[0, lam_j, mu]]
+        for j in range(lam.size):
+            s = SV[:, j]
+            if not np.any(s):
+                continue
+            lj = lam[j]
+            terms = [(z0[j], (0j, lj))] + [(beta[mu][j], (0j, lj, mu)) for mu in mus]
+            for c, nodes in terms:
+                if c == 0:
+                    continue
+                _split(nodes, c * s, floor, k, d, j, lj, Ua, X, add2, dd3n, dd3c)
+    U = np.zeros((d, lam.size), dtype=complex)
+    U[k:] = V * coef[None, :]
+    U[:k] = Ua
+    nu = np.concatenate([lam, np.array(list(X), dtype=complex)])
+    U = np.hstack([U, np.column_stack(list(X.values()))])
+    groups = []
+    if dd2n:
+        groups.append((np.array(dd2n, dtype=complex).T, np.column_stack(dd2c)))
+    if dd3n:
+        groups.append((np.array(dd3n, dtype=complex).T, np.column_stack(dd3c)))
+    return Motion(nu, U, groups)
+
+
+def _split(nodes, vec, floor, k, d, j, lj, Ua, X, add2, dd3n, dd3c):
+    """Add vec * F[nodes] (a-rows) as exponentials where nodes are far apart, divided differences
+    where they are close."""
+    def exp_term(x, c):
+        if x is lj:
+            Ua[:, j] += c
+        else:
+            X.setdefault(x, np.zeros(d, dtype=complex))
+            X[x][:k] += c
+
+    def col(c):
+        out = np.zeros(d, dtype=complex)
+        out[:k] = c
+        return out
+
+    if len(nodes) == 2:
+        p, q = nodes
+        if _close(p, q, floor):
+            add2(p, q, col(vec))
+        else:
+            exp_term(q, vec / (q - p))
+            exp_term(p, -vec / (q - p))
+        return
+    x = list(nodes)
+    pairs = [(a, b) for a in range(3) for b in range(a + 1, 3) if _close(x[a], x[b], floor)]
+    if not pairs:
+        for i in range(3):
+            den = np.prod([x[i] - x[l] for l in range(3) if l != i])
+            exp_term(x[i], vec / den)
+        return
+    if len(pairs) >= 2:
+        dd3n.append(tuple(x))
+        dd3c.append(col(vec))
+        return
+    a, b = pairs[0]
+    s = 3 - a - b
+    # F[p, q, s] = (F[q, s] - F[p, q]) / (s - p), with F[q, s] far apart and F[p, q] close
+    p_, q_, s_ = x[a], x[b], x[s]
+    den = s_ - p_
+    exp_term(s_, vec / den / (s_ - q_))
+    exp_term(q_, -vec / den / (s_ - q_))
+    add2(p_, q_, col(-vec / den))
