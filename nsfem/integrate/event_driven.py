@@ -155,8 +155,8 @@ class EventDriven(Integrator):
                     closed_time += t_next - t
                 covered = t_next
                 xi_end = xi_fun(t_next)
-                check_state(t_next, phase.q_map() @ xi_end, phase.v_map() @ xi_end, mode, sysm)
                 q, v = phase.q_map() @ xi_end, phase.v_map() @ xi_end
+                check_state(t_next, q, v, mode, sysm)
                 progress(t_next, len(events))
                 if ev is None:
                     break
@@ -330,29 +330,59 @@ class EventDriven(Integrator):
 
 
     def _energy_closed_form(self, phase, mode, t1, K, P, D, energy):
+        """The work integrals int xi^T S xi dt of the phase in closed form, or None (no modal form).
+
+        With xi(t) = sum_j U_j e^{mu_j (t - t0)} (:meth:`Phase.exponential_terms`, conjugate terms
+        included) each integral is sum_ab S_ab G_ab with G = U Phi U^T, Phi_jk = int e^{(mu_j + mu_k) s} ds:
+        one G for all forms. The external work's form has nonzero columns only at the load's
+        components of xi (constant, cos, sin), so without damping, circulatory or friction work
+        (their forms are skipped when zero) only those columns of G are formed, from the terms
+        that reach them: O(terms) work per phase instead of O(dim^3) per form.
+        """
+        terms = phase.exponential_terms()
+        if terms is None:
+            return None
         sysm = self.system
         cs = sysm.contacts
         Pq, Pv = phase.q_map(), phase.v_map()
         r2 = 2 * phase.config.r
-        F = np.zeros((sysm.n, phase.dim))  # f(t) = F xi
-        F[:, r2] = sysm.f0
-        if phase.w:
-            F[:, r2 + 1], F[:, r2 + 2] = sysm.fc, sysm.fs
-        forms = [Pv.T @ F, Pv.T @ D @ Pv, Pv.T @ P @ Pq]
-        fric = np.zeros((phase.dim, phase.dim))
+        cols = [r2] + ([r2 + 1, r2 + 2] if phase.w else [])          # f(t) = F xi: f0, fc, fs there
+        F = np.column_stack([sysm.f0] + ([sysm.fc, sysm.fs] if phase.w else []))
+        ext = Pv.T @ F                                                  # the form's nonzero columns
+        flags = self.__dict__.get("_dp_flags")
+        if flags is None or flags[0] is not D or flags[1] is not P:
+            flags = self._dp_flags = (D, P, bool(np.any(D)), bool(np.any(P)))
+        full = []   # (key, dim x dim form)
+        if flags[2]:
+            full.append(("dissipated_damping_J", Pv.T @ D @ Pv))
+        if flags[3]:
+            full.append(("work_circulatory_J", Pv.T @ P @ Pq))
         if mode.slide or mode.edge:
             Pf = phase.force_map()
             idx = {key: i for i, key in enumerate(phase.config.rows)}
+            fric = np.zeros((phase.dim, phase.dim))
             for k, e in _friction_directions(cs, mode):
                 fric += cs.mu[k] * np.outer(Pf[idx[("normal", k, 0)]], e @ (cs.JS[k].T @ Pv))
-        forms.append(fric)
-        ints = phase.quadratic_integrals(forms, t1)
-        if ints is None:
-            return None
-        energy["work_external_J"] += ints[0]
-        energy["dissipated_damping_J"] += ints[1]
-        energy["work_circulatory_J"] += ints[2]
-        energy["dissipated_friction_J"] -= ints[3]
+            full.append(("dissipated_friction_J", -fric))
+        U, mu = terms
+        T = t1 - phase.t0
+        if full:
+            Uc, J = U, slice(None)
+        else:
+            Uc = U[cols]
+            J = np.flatnonzero(np.any(Uc != 0.0, axis=0))
+            Uc = Uc[:, J]
+        z = (mu[:, None] + mu[None, J]) * T
+        small = np.abs(z) < 1e-8
+        zs = np.where(small, 1.0, z)
+        phi = np.where(small, T * (1.0 + z / 2.0 + z * z / 6.0), T * (np.exp(zs) - 1.0) / zs)
+        G = U @ (phi @ Uc.T)      # G[:, c] = sum_jk U_j phi_jk U_ck over the columns c formed
+        if full:
+            energy["work_external_J"] += float(np.real(np.sum(ext * G[:, cols])))
+            for key, S in full:
+                energy[key] += float(np.real(np.sum(S * G)))
+        else:
+            energy["work_external_J"] += float(np.real(np.sum(ext * G)))
         xi = phase.xi(np.array([phase.t0, t1]))
         q, v = Pq @ xi, Pv @ xi
         E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))

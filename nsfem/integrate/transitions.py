@@ -76,22 +76,41 @@ class Memory:
     rate_scale: np.ndarray | None = None
     slip_scale: np.ndarray | None = None
     degenerate: list = field(default_factory=list)   # set by resolve: opened with lam_N = g'' = 0
+    #: the matrix parts of the impact and transition LCPs met so far, per structure (see
+    #: :func:`~nsfem.lcp.builders.contact_lcp`): a run meets the same few again and again
+    lcp_cache: dict = field(default_factory=dict, repr=False)
+    _abs: tuple | None = field(default=None, repr=False)
+    _abs_system: tuple | None = field(default=None, repr=False)
+
+    def abs_parts(self, cs) -> tuple:
+        """(|J_N|, |j_N|, [|S_k| or None]) of the contact set (formed once per set)."""
+        if self._abs is None or self._abs[0] is not cs:
+            self._abs = (cs, np.abs(cs.JN), np.abs(cs.jN), [np.abs(S) if S.shape[1] else None for S in cs.JS])
+        return self._abs[1:]
+
+    def abs_operators(self, system) -> tuple:
+        """(|C|, |Q|) of the system (formed once per system)."""
+        if self._abs_system is None or self._abs_system[0] is not system:
+            self._abs_system = (system, np.abs(system.C), np.abs(system.Q))
+        return self._abs_system[1:]
 
     def observe(self, cs, q: np.ndarray, v: np.ndarray) -> None:
         """Update the scales with a state (q, q') of the run (or several, as columns)."""
+        aJ, aj, aS = self.abs_parts(cs)
         q2, v2 = np.atleast_2d(q.T).T, np.atleast_2d(v.T).T
-        g = np.max(np.abs(cs.JN).T @ np.abs(q2), axis=1) + np.abs(cs.jN)
-        gv = np.max(np.abs(cs.JN).T @ np.abs(v2), axis=1)
-        sv = np.array([float(np.max(np.abs(S).T @ np.abs(v2), initial=0.0)) if S.shape[1] else 0.0
-                       for S in cs.JS])
+        av = np.abs(v2)
+        g = np.max(aJ.T @ np.abs(q2), axis=1) + aj
+        gv = np.max(aJ.T @ av, axis=1)
+        sv = np.array([float(np.max(S.T @ av, initial=0.0)) if S is not None else 0.0 for S in aS])
         self.gap_scale = g if self.gap_scale is None else np.maximum(self.gap_scale, g)
         self.rate_scale = gv if self.rate_scale is None else np.maximum(self.rate_scale, gv)
         self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
 
 
-def _tol(J: np.ndarray, x: np.ndarray, const=None) -> np.ndarray:
-    """Per column: ZERO times the size of the terms of J^T x (+ const), with a floor."""
-    terms = np.abs(J).T @ np.abs(x) + (0.0 if const is None else np.abs(const))
+def _tol(J: np.ndarray, x: np.ndarray, const=None, absJ=None) -> np.ndarray:
+    """Per column: ZERO times the size of the terms of J^T x (+ const), with a floor (``absJ``:
+    |J| when the caller has it)."""
+    terms = (np.abs(J) if absJ is None else absJ).T @ np.abs(x) + (0.0 if const is None else np.abs(const))
     return ZERO * terms + 1e-3 * ZERO * float(terms.max(initial=0.0)) + 1e-300
 
 
@@ -120,19 +139,20 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         return Mode(), v, None
     slipping = dict(slipping or {})
     memory.observe(cs, q, v)
+    aJ, _, aS = memory.abs_parts(cs)
     g, gv = cs.gaps(q), cs.JN.T @ v
-    tg = np.maximum(ZERO * memory.gap_scale, _tol(cs.JN, q, cs.jN))
+    tg = np.maximum(ZERO * memory.gap_scale, _tol(cs.JN, q, cs.jN, aJ))
     if gap_tol is not None:
         tg = np.maximum(tg, gap_tol)
     tg = np.maximum(tg, memory.gap_floor)
-    tv = np.maximum(ZERO * memory.rate_scale, _tol(cs.JN, v))
+    tv = np.maximum(ZERO * memory.rate_scale, _tol(cs.JN, v, absJ=aJ))
     cand = [k for k in range(cs.m) if g[k] <= tg[k] or k in before.closed or k in touching]
     approaching = [k for k in cand if gv[k] < -tv[k]]
     # creeping: an approach slower than CREEP of the contact velocities in the impact LCP is
     # below what that LCP resolves (its certificate is relative to its largest entry); such a
     # contact is settled by projecting its g' onto 0 (below), not by an impact
     vscale = max([abs(float(gv[k])) for k in cand]
-                 + [float(np.abs(cs.JS[k].T @ v).max(initial=0.0)) for k in cand], default=0.0)
+                 + [float(np.abs(cs.JS[k].T @ v).max(initial=0.0)) for k in cand if aS[k] is not None], default=0.0)
     creeping = [k for k in approaching if -gv[k] <= CREEP * vscale]
     approaching = [k for k in approaching if k not in creeping]
     impact = None
@@ -147,7 +167,8 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
                 plastic.append(k)
             memory.max_approach[k] = max(memory.max_approach[k], speed)
             memory.impacts[k] += 1
-        lcp = impact_lcp(replace(cs, eps=eps), Mf, v, active)
+        lcp = impact_lcp(replace(cs, eps=eps), Mf, v, active, memory.lcp_cache,
+                         (id(system), id(Mf), "impact", tuple(int(k) for k in active)))
         res = lcp.solve()
         if not res.success:
             raise NsfemError(f"impact LCP (30-32) at t = {t:.9g} s: {res.message}")
@@ -159,46 +180,52 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
                   "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
         v = v_new
         gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v))  # what cancelled in the impact sets the round-off
+        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))  # what cancelled in the impact sets the round-off
     creeping = [k for k in creeping if gv[k] < -tv[k]]
     if creeping:
         hold = sorted(set(creeping) | {k for k in cand if abs(gv[k]) <= tv[k]})
         v, impact = _settle(system, Mf, t, v, hold, creeping, impact, plastic=True)
         gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v))
+        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))
     closed = [k for k in cand if abs(gv[k]) <= tv[k]]
     memory.degenerate = []
     while True:
         stick, slide, edge = _friction_states(cs, closed, v, slipping, facets or {}, memory, stopped)
-        fstar = system.load(t) - system.C @ v - system.Q @ q
+        # micro-lift candidates (below): touching, not closed, not impacting, lifting
+        lifting = [k for k in cand if k not in closed and k not in approaching and gv[k] > 0.0]
         if closed:
+            fstar = system.load(t) - system.C @ v - system.Q @ q
             cs_l, extra = _facet_contacts(cs, edge)
+            key = (id(system), id(Mf), "transition", tuple(int(k) for k in closed), tuple(int(k) for k in stick),
+                   tuple(sorted((int(k), int(i)) for k, i in slide.items())),
+                   tuple(sorted((int(k), int(f)) for k, f in edge.items())))
             lcp = transition_lcp(cs_l, Mf, fstar, closed, stick + sorted(edge),
-                                 {k: cs.generators(k)[:, i] for k, i in slide.items()}, extra)
+                                 {k: cs.generators(k)[:, i] for k, i in slide.items()}, extra,
+                                 memory.lcp_cache, key)
             res = lcp.solve()
             if not res.success:
                 raise NsfemError(f"transition LCP (29) at t = {t:.9g} s: {res.message}")
             acc = cs.JN.T @ lcp.motion(res.x)
-        else:
-            acc = cs.JN.T @ Mf.solve(fstar)
+        elif lifting:
+            acc = cs.JN.T @ Mf.solve(system.load(t) - system.C @ v - system.Q @ q)
         # micro-lifts: a touching contact that did not impact itself but is lifted (by the
         # impact of another) so slowly that its flight, g'^2 / (2 |g''|), stays inside the gap's
         # zero band is not resolved: it stays closed. (Newton rebounds of impacting contacts are
         # resolved; when too small, the event search settles them.)
-        micro = [k for k in cand if k not in closed and k not in approaching and gv[k] > 0.0
-                 and acc[k] < 0.0 and gv[k] ** 2 <= -2.0 * acc[k] * tg[k]]
+        micro = [k for k in lifting if acc[k] < 0.0 and gv[k] ** 2 <= -2.0 * acc[k] * tg[k]]
         if not micro:
             break
         closed = sorted(closed + micro)
         v, impact = _settle(system, Mf, t, v, closed, micro, impact)
         gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v))
+        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))
     if not closed:
         return Mode(), v, impact
     lamN, beta, z = lcp.split(res.x)
     mc = len(closed)
     # the size of the terms of f* (f - C q' - Q q cancels to round-off when the springs are unstressed)
-    fterms = np.abs(system.load(t)) + np.abs(system.C) @ np.abs(v) + np.abs(system.Q) @ np.abs(q)
+    aC, aQ = memory.abs_operators(system)
+    fterms = np.abs(system.load(t)) + aC @ np.abs(v) + aQ @ np.abs(q)
     bsize = np.abs(cs.JN[:, closed]).T @ np.abs(Mf.solve(fterms))
     # lam_N counts as zero below the round-off of the terms that make it (b_j over the
     # Delassus diagonal), not only relative to the largest force: a single contact whose

@@ -44,7 +44,7 @@ import numpy as np
 from ..contact.set import ContactSet
 from ..errors import NsfemError
 from ..linalg import Factorization
-from .pivoting import LCPResult, lemke
+from .pivoting import LCPResult, equilibrate, lemke
 
 #: relative size (to the largest right-hand side entry) below which an entry is round-off
 ROUND_OFF = 1e-13
@@ -63,6 +63,8 @@ class ContactLCP:
     Y: np.ndarray               # S W
     generators: tuple           # B_k per friction contact
     base: np.ndarray            # the motion without contact forces: Q^-1 f0, M^-1 f* or q'^-
+    scales: tuple | None = None  # Lemke's equilibration of A, when built once for many solves
+
 
     @property
     def size(self) -> int:
@@ -71,12 +73,15 @@ class ContactLCP:
     @property
     def groups(self) -> np.ndarray:
         """Row kinds for the certificate: 0 motion rows (gaps, slips), 1 friction limits."""
-        f = self.friction.size
-        return np.r_[np.zeros(self.size - f, dtype=int), np.ones(f, dtype=int)]
+        g = np.zeros(self.size, dtype=int)
+        g[self.size - self.friction.size:] = 1
+        return g
 
     def solve(self, **kw) -> LCPResult:
         """Lemke's method on (A, b); keywords go to :func:`~nsfem.lcp.pivoting.lemke`."""
         kw.setdefault("groups", self.groups)
+        if self.scales is not None:
+            kw.setdefault("scales", self.scales)
         return lemke(self.A, self.b, **kw)
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -107,7 +112,7 @@ class ContactLCP:
 
 
 def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, slide=None,
-                base: np.ndarray | None = None, extra=None) -> ContactLCP:
+                base: np.ndarray | None = None, extra=None, cache: dict | None = None, key=None) -> ContactLCP:
     """Assemble the LCP of the module docstring.
 
     ``normal``: contact indices with a normal unknown; ``friction``: those of them with
@@ -115,10 +120,40 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
     friction force} for contacts that slide (their friction is not an unknown).
     ``extra``: {contact: generalized force (n,) per unit lam_N added to its normal column}
     (a friction force of fixed direction given in the full coordinates).
+
+    ``cache``, ``key``: the matrix part (W, S W, A and its equilibration) depends only on the
+    operator, the contact set and the structure (normal, friction, slide, extra); a caller that
+    meets the same structure again (an event-driven run: one per pair of configurations) passes
+    a dict and a hashable ``key`` that identifies that structure, and only the right-hand side
+    is formed anew. The cached arrays are read-only.
     """
     normal = np.asarray(normal, dtype=int).ravel()
     friction = np.asarray(friction, dtype=int).ravel()
-    slide = slide or {}
+    entry = cache.get(key) if cache is not None and key is not None else None
+    if entry is None:
+        entry = _matrix_part(solve, cs, normal, friction, slide or {}, extra, cache is not None and key is not None)
+        if cache is not None and key is not None:
+            if len(cache) >= CACHE_SIZE:
+                del cache[next(iter(cache))]
+            cache[key] = entry
+    A, W, Y, r, generators, scales = entry
+    b = np.concatenate([np.asarray(bN, dtype=float).ravel(), np.asarray(bT, dtype=float).ravel(),
+                        np.zeros(friction.size)])
+    # entries at round-off of the largest (J^T X^-1 f carries cond * eps of it) are zeros: a
+    # symmetric structure's midspan slip, say; left alone they make Lemke chase 1e-18 m
+    big = float(np.abs(b).max(initial=0.0))
+    b[np.abs(b) <= ROUND_OFF * big] = 0.0
+    return ContactLCP(A, b, normal, friction, r, W, Y, generators,
+                      np.zeros(cs.n) if base is None else np.asarray(base, dtype=float), scales)
+
+
+#: structures a cache of :func:`contact_lcp` keeps (the oldest is dropped beyond)
+CACHE_SIZE = 256
+
+
+def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, extra, keep: bool):
+    """(A, W, S W, r, generators, equilibration or None) of :func:`contact_lcp`; read-only when
+    ``keep`` (cached), with the equilibration computed then."""
     WN = cs.JN[:, normal].copy()
     for j, k in enumerate(normal):
         if int(k) in slide:
@@ -138,14 +173,12 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
     for i, k in enumerate(friction):
         A[m + p + i, pos[int(k)]] = cs.mu[k]
     A[m + p:, m: m + p] = -E.T
-    b = np.concatenate([np.asarray(bN, dtype=float).ravel(), np.asarray(bT, dtype=float).ravel(), np.zeros(f)])
-    # entries at round-off of the largest (J^T X^-1 f carries cond * eps of it) are zeros: a
-    # symmetric structure's midspan slip, say; left alone they make Lemke chase 1e-18 m
-    big = float(np.abs(b).max(initial=0.0))
-    b[np.abs(b) <= ROUND_OFF * big] = 0.0
-    return ContactLCP(A, b, normal, friction, cs.r[friction], W, Y,
-                      tuple(cs.generators(int(k)) for k in friction),
-                      np.zeros(cs.n) if base is None else np.asarray(base, dtype=float))
+    scales = None
+    if keep:
+        scales = equilibrate(A) if A.size and np.all(np.isfinite(A)) else None
+        for arr in (A, W, Y):
+            arr.setflags(write=False)
+    return A, W, Y, cs.r[friction], tuple(cs.generators(int(k)) for k in friction), scales
 
 
 def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, normal=None) -> ContactLCP:
@@ -162,14 +195,14 @@ def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, norm
 
 
 def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, stick, slide=None,
-                   extra=None) -> ContactLCP:
+                   extra=None, cache: dict | None = None, key=None) -> ContactLCP:
     """LCP (29): which closed contacts stay closed, which stick and which slip.
 
     ``fstar`` = f(t) - C q' - Q q; ``closed`` contacts have g = g' = 0; ``stick`` are the
     closed frictional ones at zero slip velocity; ``slide`` maps the others to the
     direction of their friction force; ``extra`` adds a generalized force per unit lam_N to
     a closed contact's normal column (see :func:`contact_lcp`). Accelerations:
-    q'' = M^-1 f* + ``response(x)``.
+    q'' = M^-1 f* + ``response(x)``. ``cache``, ``key``: see :func:`contact_lcp`.
     """
     closed = np.asarray(closed, dtype=int)
     stick = np.array([k for k in stick if cs.r[k] > 0], dtype=int)
@@ -190,19 +223,21 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
             raise NsfemError(f"transition LCP: the extra force of contact {k} needs a closed contact and {cs.n} "
                              "components")
     return contact_lcp(M, cs, closed, stick, cs.JN[:, closed].T @ a0, cs.JT(stick).T @ a0, slide, base=a0,
-                       extra=extra)
+                       extra=extra, cache=cache, key=key)
 
 
-def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active) -> ContactLCP:
+def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: dict | None = None,
+               key=None) -> ContactLCP:
     """LCP (30-32): impulses with Newton restitution and frictional impulses.
 
     ``active`` are the contacts closed or just closing at the impact (g = 0); ``v`` the
     velocity before it. After the impact q'^+ = q'^- + ``response(x)`` satisfies
-    0 <= g'^+ + eps g'^- _|_ Lambda_N >= 0 and the tangential impact law (33).
+    0 <= g'^+ + eps g'^- _|_ Lambda_N >= 0 and the tangential impact law (33). ``cache``, ``key``:
+    see :func:`contact_lcp` (the restitutions eps enter only the right-hand side).
     """
     active = np.asarray(active, dtype=int)
     friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
     gv = cs.JN[:, active].T @ v
     # Newton's law acts on approaching contacts; a separating one must merely not approach
     bN = gv + cs.eps[active] * np.minimum(gv, 0.0)
-    return contact_lcp(M, cs, active, friction, bN, cs.JT(friction).T @ v, base=v)
+    return contact_lcp(M, cs, active, friction, bN, cs.JT(friction).T @ v, base=v, cache=cache, key=key)

@@ -43,7 +43,7 @@ from scipy.linalg.blas import dger as _dger
 
 from ..errors import NsfemError
 
-__all__ = ["LCPError", "LCPResult", "lemke", "certificate"]
+__all__ = ["LCPError", "LCPResult", "lemke", "certificate", "equilibrate"]
 
 #: ratios within this relative distance of the minimum are ties (lexicographic rule)
 TIE = 1e-15
@@ -57,6 +57,8 @@ ACCEPT = 1e-8
 INACCURATE = 1e-4
 #: rows whose terms are this small against the largest equilibrated row count as zero rows
 FLOOR = 1e-10
+
+_EPS, _TINY = float(np.finfo(float).eps), float(np.finfo(float).tiny)
 
 
 class LCPError(NsfemError):
@@ -108,24 +110,37 @@ def certificate(A: np.ndarray, b: np.ndarray, x: np.ndarray, scales=None, groups
     """
     x = np.asarray(x, dtype=float)
     w = A @ x + b
+    return _certificate(A, b, x, w, scales, groups)
+
+
+def _certificate(A, b, x, w, scales, groups) -> dict:
+    """:func:`certificate` of x with w = A x + b already formed."""
     if x.size == 0:
         return {"x_min": 0.0, "w_min": 0.0, "complementarity": 0.0, "relative": 0.0}
-    _, c = _equilibrate(A) if scales is None else scales
+    r, c = _equilibrate(A) if scales is None else scales
     xs = x / c
-    sx = max(float(np.max(np.abs(xs))), np.finfo(float).tiny)
-    r = _equilibrate(A)[0] if scales is None else scales[0]
+    sx = max(float(np.abs(xs).max()), _TINY)
     sw = np.abs(b) + np.abs(A) @ np.abs(x)
     if groups is not None:
         groups = np.asarray(groups)
-        for g in np.unique(groups):
-            sel = groups == g
-            sw[sel] = sw[sel].max()
+        if groups.size and (groups == groups.flat[0]).all():   # one group (the common case): no masks
+            sw[:] = sw.max()
+        else:
+            for g in np.unique(groups):
+                sel = groups == g
+                sw[sel] = sw[sel].max()
     # a row whose terms are all below 1e-10 of the largest (equilibrated) row is round-off
-    sw = np.maximum(sw, FLOOR * float(np.max(r * sw)) / r)
+    sw = np.maximum(sw, FLOOR * float((r * sw).max()) / r)
     sw = np.where(sw > 0, sw, 1.0)
     rel = np.abs(np.minimum(xs / sx, w / sw))
     return {"x_min": float(min(0.0, x.min())), "w_min": float(min(0.0, w.min())),
-            "complementarity": float(np.max(np.abs(x * w))), "relative": float(rel.max())}
+            "complementarity": float(np.abs(x * w).max()), "relative": float(rel.max())}
+
+
+def equilibrate(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The row and column scalings (r, c) Lemke applies to A (``scales`` of :func:`lemke`)."""
+    A = np.asarray(A, dtype=float)
+    return _equilibrate(A) if A.size else (np.ones(A.shape[0]), np.ones(A.shape[0]))
 
 
 def _equilibrate(A: np.ndarray, sweeps: int = 8) -> tuple[np.ndarray, np.ndarray]:
@@ -134,10 +149,13 @@ def _equilibrate(A: np.ndarray, sweeps: int = 8) -> tuple[np.ndarray, np.ndarray
     r, c = np.ones(n), np.ones(n)
     S = np.abs(A)
     for _ in range(sweeps):
-        rm = np.max(S, axis=1)
-        cm = np.max(S, axis=0)
-        fr = np.where(rm > 0, 1.0 / np.sqrt(np.where(rm > 0, rm, 1.0)), 1.0)
-        fc = np.where(cm > 0, 1.0 / np.sqrt(np.where(cm > 0, cm, 1.0)), 1.0)
+        rm = S.max(axis=1)
+        cm = S.max(axis=0)
+        pr, pc = rm > 0, cm > 0
+        fr = np.where(pr, 1.0 / np.sqrt(np.where(pr, rm, 1.0)), 1.0)
+        fc = np.where(pc, 1.0 / np.sqrt(np.where(pc, cm, 1.0)), 1.0)
+        if (fr == 1.0).all() and (fc == 1.0).all():
+            break   # a fixed point: the remaining sweeps would change nothing
         r *= fr
         c *= fc
         S = fr[:, None] * S * fc[None, :]
@@ -157,21 +175,24 @@ def _lexmin(rows: np.ndarray, idx: np.ndarray) -> int:
 
 
 def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, refactor: int | None = None,
-          pivot_tol: float = 1e-11, groups=None) -> LCPResult:
+          pivot_tol: float = 1e-11, groups=None, scales=None) -> LCPResult:
     """Solve LCP(A, b) by Lemke's method with the lexicographic anti-cycling rule.
 
     ``d`` is the covering vector (strictly positive, default ones in the equilibrated
     problem); ``max_pivots`` defaults to 50 n + 1000; the basis inverse is recomputed
     every ``refactor`` pivots (default max(50, n / 4)). ``groups`` labels rows of one
-    physical kind for the certificate (see :func:`certificate`); default: row by row. The result is returned, never
-    raised: check ``result.success`` or call ``result.check()``.
+    physical kind for the certificate (see :func:`certificate`); default: row by row.
+    ``scales``: the row and column scalings of A as :func:`equilibrate` returns them, when the
+    caller has them (an LCP matrix solved many times with new right-hand sides); used when
+    ``scale`` is true. The result is returned, never raised: check ``result.success`` or call
+    ``result.check()``.
     """
     A = np.array(A, dtype=float)
     b = np.array(b, dtype=float).ravel()
     n = b.size
     if A.shape != (n, n):
         raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
-    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(b))):
+    if not (np.isfinite(A).all() and np.isfinite(b).all()):
         raise NsfemError("lemke: A and b must be finite (found nan or inf)")
     if d is not None:
         d = np.array(d, dtype=float).ravel()
@@ -180,13 +201,18 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     max_pivots = 50 * n + 1000 if max_pivots is None else int(max_pivots)
     refactor = max(50, n // 4) if refactor is None else int(refactor)
 
-    r_s, c_s = _equilibrate(A) if scale and n else (np.ones(n), np.ones(n))
+    if scale and n:
+        r_s, c_s = _equilibrate(A) if scales is None else scales
+    else:
+        r_s, c_s = np.ones(n), np.ones(n)
 
-    def result(x, status, pivots, message):
-        cert = certificate(A, b, x, (r_s, c_s), groups)
-        return LCPResult(x, A @ x + b, status, pivots, cert["relative"], message, cert)
+    def result(x, status, pivots, message, cert=None):
+        w = A @ x + b
+        if cert is None:
+            cert = _certificate(A, b, x, w, (r_s, c_s), groups)
+        return LCPResult(x, w, status, pivots, cert["relative"], message, cert)
 
-    if n == 0 or np.all(b >= 0):
+    if n == 0 or (b >= 0).all():
         return result(np.zeros(n), "solved", 0, "trivial solution x = 0 (b >= 0)")
 
     As = r_s[:, None] * A * c_s[None, :]
@@ -217,7 +243,7 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     while True:
         c = Binv @ column(entering) if entering != z0 else -Binv @ dv
         if pivots > 0:
-            cmax = np.max(np.abs(c))
+            cmax = np.abs(c).max()
             pos = np.flatnonzero(c > pivot_tol * max(cmax, 1e-300))
             if pos.size == 0:
                 # a secondary ray; its start may still solve the LCP when z0 is ~0 in round-off.
@@ -251,8 +277,10 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
                 trial = basis.copy()
                 trial[pos[k0[0]]] = entering
                 x = _polish(A, b, None, trial, n, r_s, c_s, groups)
-                if x is not None and certificate(A, b, x, (r_s, c_s), groups)["relative"] <= ACCEPT:
-                    return result(x, "solved", pivots + 1, f"solved in {pivots + 1} pivots")
+                if x is not None:
+                    cert = certificate(A, b, x, (r_s, c_s), groups)
+                    if cert["relative"] <= ACCEPT:
+                        return result(x, "solved", pivots + 1, f"solved in {pivots + 1} pivots", cert)
             if ties.size == 1:
                 r = int(ties[0])
             else:
@@ -289,8 +317,8 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
         entering = leaving + n if leaving < n else leaving - n
 
     x = _basic_x(basis, xB, n) * c_s
-    x = _polish(A, b, x, basis, n, r_s, c_s, groups)
-    res = result(x, "solved", pivots, f"solved in {pivots} pivots")
+    x, cert = _polish_certified(A, b, x, basis, n, r_s, c_s, groups)
+    res = result(x, "solved", pivots, f"solved in {pivots} pivots", cert)
     # a complementary basis is a solution only when its point certifies (componentwise backward
     # error ACCEPT); on bases of condition ~1e13 the refined solve can leave rows violated by
     # 1e-7..1e-1 of their terms (measured: stiff friction LCPs, tests/test_lemke.py): not 'solved'
@@ -313,6 +341,11 @@ def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: np.ndarra
             r_s: np.ndarray, c_s: np.ndarray, groups=None) -> np.ndarray:
     """Re-solve the complementary basis (A_SS x_S = -b_S, equilibrated), refined from the
     pivoting's x where given (:func:`_refined_solve`); keep the better x."""
+    return _polish_certified(A, b, x, basis, n, r_s, c_s, groups)[0]
+
+
+def _polish_certified(A, b, x, basis, n, r_s, c_s, groups=None) -> tuple[np.ndarray, dict | None]:
+    """:func:`_polish`, with the certificate of the x it keeps when it computed one (else None)."""
     S = np.sort(basis[(basis >= n) & (basis < 2 * n)] - n)
     if S.size == 0:
         y = np.zeros(n)
@@ -320,16 +353,17 @@ def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: np.ndarra
         start = None if x is None else x[S] / c_s[S]
         xs = _refined_solve(r_s[S, None] * A[np.ix_(S, S)] * c_s[None, S], -r_s[S] * b[S], start)
         if xs is None:
-            return x
+            return x, None
         y = np.zeros(n)
         y[S] = c_s[S] * xs
-    if not np.all(np.isfinite(y)):
-        return x
+    if not np.isfinite(y).all():
+        return x, None
     y = np.maximum(y, 0.0)
+    if x is None:
+        return y, None
     sc = (r_s, c_s)
-    if x is None or certificate(A, b, y, sc, groups)["relative"] <= certificate(A, b, x, sc, groups)["relative"]:
-        return y
-    return x
+    cy, cx = certificate(A, b, y, sc, groups), certificate(A, b, x, sc, groups)
+    return (y, cy) if cy["relative"] <= cx["relative"] else (x, cx)
 
 
 #: iterative-refinement steps of the final basis solve (Skeel: one step in working precision
@@ -351,16 +385,25 @@ def _refined_solve(B: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None)
     leaves a rank-deficient but consistent A_SS; the correction then stays in its range, so the
     start ``x0`` (the pivoting's nonnegative x) is only nudged. Returns None when no finite
     solution is found."""
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", sla.LinAlgWarning)  # a singular B is handled below
+    with np.errstate(all="ignore"):
         svd = None
         lu = None
-        try:
-            lu = sla.lu_factor(B, check_finite=False)
-            if not np.all(np.abs(np.diag(lu[0])) > np.finfo(float).eps * max(float(np.max(np.abs(B))), 1e-300)):
-                lu = None
-        except (ValueError, np.linalg.LinAlgError):
-            lu = None
+        if B.shape == (1, 1):
+            # one unknown: LU is the pivot itself and its solve a division (bitwise the same), without
+            # LAPACK's call overhead (most impact LCPs of a run have one or two unknowns)
+            a = float(B[0, 0])
+            if abs(a) > _EPS * max(abs(a), 1e-300):
+                lu = a
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", sla.LinAlgWarning)  # a singular B is handled below
+                try:
+                    lu = sla.lu_factor(B, check_finite=False)
+                    if not np.all(np.abs(np.diag(lu[0])) > np.finfo(float).eps * max(float(np.max(np.abs(B))),
+                                                                                       1e-300)):
+                        lu = None
+                except (ValueError, np.linalg.LinAlgError):
+                    lu = None
         if lu is None:
             try:
                 U, sv, Vt = np.linalg.svd(B)
@@ -370,24 +413,26 @@ def _refined_solve(B: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None)
             svd = (U[:, keep], sv[keep], Vt[keep])
 
         def solve(v):
+            if isinstance(lu, float):
+                return v / lu
             if lu is not None:
                 return sla.lu_solve(lu, v, check_finite=False)
             U, sv, Vt = svd
             return Vt.T @ ((U.T @ v) / sv)
 
         x = solve(rhs) if x0 is None else np.array(x0, dtype=float)
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             return None
         worst = np.inf
         for _ in range(REFINE_STEPS + 1):
             r = rhs - B @ x
             size = np.abs(B) @ np.abs(x) + np.abs(rhs)
-            now = float(np.max(np.abs(r) / np.where(size > 0, size, 1.0), initial=0.0))
-            if not now < worst or now <= 4 * np.finfo(float).eps:
+            now = float((np.abs(r) / np.where(size > 0, size, 1.0)).max(initial=0.0))
+            if not now < worst or now <= 4 * _EPS:
                 break
             worst = now
             dx = solve(r)
-            if not np.all(np.isfinite(dx)):
+            if not np.isfinite(dx).all():
                 break
             x = x + dx
     return x
