@@ -146,16 +146,18 @@ class EventDriven(Integrator):
                     self._outputs(phase, mode, xi_out, sel, out)
                     memory.observe(cs, phase.q_map() @ xi_out, phase.v_map() @ xi_out)
                     filled = int(sel[-1]) + 1
+                xi_end = xi_fun(t_next)
+                q_end, v_end = phase.q_map() @ xi_end, phase.v_map() @ xi_end
                 with np.errstate(over="ignore", invalid="ignore"):  # overflow: judged just below
-                    e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy))
+                    e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy,
+                                                    ends=(q, v, q_end, v_end)))
                 if not (math.isfinite(e_max) and all(math.isfinite(x) for x in energy.values())):
                     raise overflow(t_next, mode, sysm, "energy")
                 phase_integrated = True
                 if mode.closed:
                     closed_time += t_next - t
                 covered = t_next
-                xi_end = xi_fun(t_next)
-                q, v = phase.q_map() @ xi_end, phase.v_map() @ xi_end
+                q, v = q_end, v_end
                 check_state(t_next, q, v, mode, sysm)
                 progress(t_next, len(events))
                 if ev is None:
@@ -279,8 +281,9 @@ class EventDriven(Integrator):
                     for j in range(2):
                         out["tangential_force"][k, j, sel] = cs.mu[k] * c * lamN * n_f[j] + s_f * t_f[j]
 
-    def _energy(self, phase, mode, xi_fun, t0, t1, K, P, D, energy) -> float:
+    def _energy(self, phase, mode, xi_fun, t0, t1, K, P, D, energy, ends=None) -> float:
         """Add the work integrals over [t0, t1]; return max E seen (at the evaluation points).
+        ``ends``: (q, q') at t0 and at t1 when the caller has them (the closed form then evaluates E there).
 
         On the modal path (and for ``exact``) the integrals are quadratic forms of sums of
         exponentials, integrated in closed form; otherwise 4-point Gauss-Legendre on the
@@ -291,7 +294,7 @@ class EventDriven(Integrator):
         sysm = self.system
         cs = sysm.contacts
         if self.name == "exact":
-            done = self._energy_closed_form(phase, mode, t1, K, P, D, energy)
+            done = self._energy_closed_form(phase, mode, t1, K, P, D, energy, ends)
             if done is not None:
                 return done
         step = phase.max_step(t1 - t0)
@@ -329,7 +332,7 @@ class EventDriven(Integrator):
         return float(np.max(np.abs(E), initial=0.0))
 
 
-    def _energy_closed_form(self, phase, mode, t1, K, P, D, energy):
+    def _energy_closed_form(self, phase, mode, t1, K, P, D, energy, ends=None):
         """The work integrals int xi^T S xi dt of the phase in closed form, or None (no modal form).
 
         With xi(t) = sum_j U_j e^{mu_j (t - t0)} (:meth:`Phase.exponential_terms`, conjugate terms
@@ -347,8 +350,12 @@ class EventDriven(Integrator):
         Pq, Pv = phase.q_map(), phase.v_map()
         r2 = 2 * phase.config.r
         cols = [r2] + ([r2 + 1, r2 + 2] if phase.w else [])          # f(t) = F xi: f0, fc, fs there
-        F = np.column_stack([sysm.f0] + ([sysm.fc, sysm.fs] if phase.w else []))
-        ext = Pv.T @ F                                                  # the form's nonzero columns
+        ext_cache = self.__dict__.setdefault("_ext_forms", {})
+        hit = ext_cache.get(id(phase.config))
+        if hit is None or hit[0] is not phase.config or hit[1] != (phase.dim, bool(phase.w)):
+            F = np.column_stack([sysm.f0] + ([sysm.fc, sysm.fs] if phase.w else []))
+            hit = ext_cache[id(phase.config)] = (phase.config, (phase.dim, bool(phase.w)), Pv.T @ F)
+        ext = hit[2]                                                    # the form's nonzero columns
         flags = self.__dict__.get("_dp_flags")
         if flags is None or flags[0] is not D or flags[1] is not P:
             flags = self._dp_flags = (D, P, bool(np.any(D)), bool(np.any(P)))
@@ -375,7 +382,9 @@ class EventDriven(Integrator):
         z = (mu[:, None] + mu[None, J]) * T
         small = np.abs(z) < 1e-8
         zs = np.where(small, 1.0, z)
-        phi = np.where(small, T * (1.0 + z / 2.0 + z * z / 6.0), T * (np.exp(zs) - 1.0) / zs)
+        phi = T * (np.exp(zs) - 1.0) / zs
+        zz = z[small]
+        phi[small] = T * (1.0 + zz / 2.0 + zz * zz / 6.0)
         G = U @ (phi @ Uc.T)      # G[:, c] = sum_jk U_j phi_jk U_ck over the columns c formed
         if full:
             energy["work_external_J"] += float(np.real(np.sum(ext * G[:, cols])))
@@ -383,8 +392,11 @@ class EventDriven(Integrator):
                 energy[key] += float(np.real(np.sum(S * G)))
         else:
             energy["work_external_J"] += float(np.real(np.sum(ext * G)))
-        xi = phase.xi(np.array([phase.t0, t1]))
-        q, v = Pq @ xi, Pv @ xi
+        if ends is None:
+            xi = phase.xi(np.array([phase.t0, t1]))
+            q, v = Pq @ xi, Pv @ xi
+        else:
+            q, v = np.column_stack(ends[0::2]), np.column_stack(ends[1::2])
         E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))
         return float(np.max(np.abs(E)))
 
