@@ -20,7 +20,8 @@ points. All ratios below are a method's wall time over exact's (> 1: exact is fa
 - ``fastest_any_answer``: the fastest wall time any non-exact method took to give any answer
   at all (with its error, however large) against exact's wall time for its certified one; the
   goal of issue 17 is that no method answers faster than exact (``exact_is_fastest``).
-- ``exact_ms_per_event``: exact's wall time per event (impacts, closures, releases).
+- ``exact_ms_per_event``: exact's wall time over its number of events (impacts, closures,
+  releases): all of it, the search between events included.
 
     python studies/work_precision.py [--quick] [--json] [--scene shipped|stop|both]
 
