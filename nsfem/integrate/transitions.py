@@ -44,7 +44,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import NsfemError
-from ..lcp.builders import impact_lcp, transition_lcp
+from ..lcp.builders import LCPCache, impact_lcp, transition_lcp
 from ..linalg import Factorization
 from .configuration import Mode
 from .problem import ContactSystem
@@ -78,7 +78,7 @@ class Memory:
     degenerate: list = field(default_factory=list)   # set by resolve: opened with lam_N = g'' = 0
     #: the matrix parts of the impact and transition LCPs met so far, per structure (see
     #: :func:`~nsfem.lcp.builders.contact_lcp`): a run meets the same few again and again
-    lcp_cache: dict = field(default_factory=dict, repr=False)
+    lcp_cache: LCPCache = field(default_factory=LCPCache, repr=False)
     _abs: tuple | None = field(default=None, repr=False)
     _abs_system: tuple | None = field(default=None, repr=False)
 
@@ -167,8 +167,8 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
                 plastic.append(k)
             memory.max_approach[k] = max(memory.max_approach[k], speed)
             memory.impacts[k] += 1
-        lcp = impact_lcp(replace(cs, eps=eps), Mf, v, active, memory.lcp_cache,
-                         (id(system), id(Mf), "impact", tuple(int(k) for k in active)))
+        lcp = impact_lcp(cs, Mf, v, active, memory.lcp_cache,
+                         (id(system), id(Mf), "impact", tuple(int(k) for k in active)), eps=eps)
         res = lcp.solve()
         if not res.success:
             raise NsfemError(f"impact LCP (30-32) at t = {t:.9g} s: {res.message}")

@@ -112,7 +112,7 @@ class ContactLCP:
 
 
 def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, slide=None,
-                base: np.ndarray | None = None, extra=None, cache: dict | None = None, key=None) -> ContactLCP:
+                base: np.ndarray | None = None, extra=None, cache: LCPCache | None = None, key=None) -> ContactLCP:
     """Assemble the LCP of the module docstring.
 
     ``normal``: contact indices with a normal unknown; ``friction``: those of them with
@@ -124,18 +124,17 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
     ``cache``, ``key``: the matrix part (W, S W, A and its equilibration) depends only on the
     operator, the contact set and the structure (normal, friction, slide, extra); a caller that
     meets the same structure again (an event-driven run: one per pair of configurations) passes
-    a dict and a hashable ``key`` that identifies that structure, and only the right-hand side
-    is formed anew. The cached arrays are read-only.
+    an :class:`LCPCache` and a hashable ``key`` that identifies that structure, and only the
+    right-hand side is formed anew. The cached arrays are read-only.
     """
     normal = np.asarray(normal, dtype=int).ravel()
     friction = np.asarray(friction, dtype=int).ravel()
-    entry = cache.get(key) if cache is not None and key is not None else None
+    keep = cache is not None and key is not None
+    entry = cache.get(key) if keep else None
     if entry is None:
-        entry = _matrix_part(solve, cs, normal, friction, slide or {}, extra, cache is not None and key is not None)
-        if cache is not None and key is not None:
-            if len(cache) >= CACHE_SIZE:
-                del cache[next(iter(cache))]
-            cache[key] = entry
+        entry = _matrix_part(solve, cs, normal, friction, slide or {}, extra, keep)
+        if keep:
+            cache.put(key, entry, sum(a.nbytes for a in entry[:3]))
     A, W, Y, r, generators, scales = entry
     b = np.concatenate([np.asarray(bN, dtype=float).ravel(), np.asarray(bT, dtype=float).ravel(),
                         np.zeros(friction.size)])
@@ -147,8 +146,30 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
                       np.zeros(cs.n) if base is None else np.asarray(base, dtype=float), scales)
 
 
-#: structures a cache of :func:`contact_lcp` keeps (the oldest is dropped beyond)
-CACHE_SIZE = 256
+class LCPCache:
+    """Matrix parts of contact LCPs by structure (:func:`contact_lcp`): at most ``entries`` of them
+    and ``nbytes`` in all, the oldest dropped first (an unreduced model's M^-1 W is n x contacts)."""
+
+    def __init__(self, entries: int = 256, nbytes: int = 2 ** 27):
+        self.entries, self.nbytes = int(entries), int(nbytes)
+        self._items: dict = {}
+        self._size = 0
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def get(self, key):
+        hit = self._items.get(key)
+        return None if hit is None else hit[0]
+
+    def put(self, key, entry, nbytes: int) -> None:
+        if nbytes > self.nbytes or key in self._items:
+            return
+        while self._items and (len(self._items) >= self.entries or self._size + nbytes > self.nbytes):
+            old = next(iter(self._items))
+            self._size -= self._items.pop(old)[1]
+        self._items[key] = (entry, nbytes)
+        self._size += nbytes
 
 
 def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, extra, keep: bool):
@@ -195,7 +216,7 @@ def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, norm
 
 
 def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, stick, slide=None,
-                   extra=None, cache: dict | None = None, key=None) -> ContactLCP:
+                   extra=None, cache: LCPCache | None = None, key=None) -> ContactLCP:
     """LCP (29): which closed contacts stay closed, which stick and which slip.
 
     ``fstar`` = f(t) - C q' - Q q; ``closed`` contacts have g = g' = 0; ``stick`` are the
@@ -226,18 +247,19 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
                        extra=extra, cache=cache, key=key)
 
 
-def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: dict | None = None,
-               key=None) -> ContactLCP:
+def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: LCPCache | None = None,
+               key=None, eps: np.ndarray | None = None) -> ContactLCP:
     """LCP (30-32): impulses with Newton restitution and frictional impulses.
 
     ``active`` are the contacts closed or just closing at the impact (g = 0); ``v`` the
     velocity before it. After the impact q'^+ = q'^- + ``response(x)`` satisfies
     0 <= g'^+ + eps g'^- _|_ Lambda_N >= 0 and the tangential impact law (33). ``cache``, ``key``:
-    see :func:`contact_lcp` (the restitutions eps enter only the right-hand side).
+    see :func:`contact_lcp` (the restitutions eps enter only the right-hand side); ``eps``: the
+    restitutions per contact to use instead of the contact set's.
     """
     active = np.asarray(active, dtype=int)
     friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
     gv = cs.JN[:, active].T @ v
     # Newton's law acts on approaching contacts; a separating one must merely not approach
-    bN = gv + cs.eps[active] * np.minimum(gv, 0.0)
+    bN = gv + (cs.eps if eps is None else np.asarray(eps, dtype=float))[active] * np.minimum(gv, 0.0)
     return contact_lcp(M, cs, active, friction, bN, cs.JT(friction).T @ v, base=v, cache=cache, key=key)
