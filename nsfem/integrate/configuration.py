@@ -132,7 +132,8 @@ class Configuration:
         self.r = r
         M, C, Q = system.M, system.C, system.Q
         Mr = self.L.T @ M @ self.N
-        if r and np.linalg.cond(Mr) > 1e12:
+        # (with L = N, Mr = N^T M N is positive definite: only sliding friction can make it singular)
+        if r and self.L is not self.N and np.linalg.cond(Mr) > 1e12:
             raise NsfemError(f"configuration {mode.describe()}: no consistent acceleration (the sliding friction "
                              "couples the normal constraint into a singular inertia: a Painleve case)")
         Mi = np.linalg.inv(Mr) if r else np.zeros((0, 0))
@@ -181,10 +182,16 @@ class Configuration:
             wy = np.where(wy > 0, wy, max(float(np.median(wy[wy > 0])) if np.any(wy > 0) else 1.0, 1e-300))
             S = np.concatenate([wy, np.ones(r)])[k:]
             lam, W = np.linalg.eig(self.A[k:, k:] * (S[:, None] / S[None, :]))
-            cond = np.linalg.cond(W)
             self.eigenvalues = np.concatenate([np.zeros(k), lam])
+            # cond(W) in the 1-norm from the inverse (an SVD of W costs several inverses)
+            with np.errstate(all="ignore"):
+                try:
+                    Wi = np.linalg.inv(W)
+                    cond = np.linalg.norm(W, 1) * np.linalg.norm(Wi, 1)
+                except np.linalg.LinAlgError:
+                    cond = np.inf
             if np.isfinite(cond) and cond < COND_MAX:
-                self.eig = (lam, W / S[:, None], np.linalg.inv(W) * S[None, :])
+                self.eig = (lam, W / S[:, None], Wi * S[None, :])
         else:
             self.eigenvalues = np.zeros(0)
 
@@ -287,6 +294,68 @@ class Phase:
             return Hm.evaluate(tt - self.t0) + Hh @ self._harmonics(tt)
 
         return rows
+
+    def search_map(self, H: np.ndarray, budget: np.ndarray, horizon: float):
+        """(rows, rate, e, bound): ``rows(t)`` = H xi(t) without the fastest exponential terms whose
+        contributions to row i sum to at most budget[i] over the horizon (e[i] that sum), ``rate``
+        the fastest rate left (it sets the sampling step), ``bound(H, order, horizon)`` the
+        derivative bound of what is left. Without a modal form: the full rows."""
+        r2 = 2 * self.config.r
+        full = (self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]), self.derivative_bound)
+        if not r2 or self._modal is None:
+            return full
+        mot = self._modal
+        with np.errstate(over="ignore"):
+            grow = np.exp(np.maximum(mot.nu.real, 0.0) * horizon)
+        size = np.abs(H[:, :r2] @ mot.U) * grow[None, :]
+        speed = np.abs(mot.nu)
+        order = np.argsort(-speed, kind="stable")
+        cum = np.cumsum(size[:, order], axis=1)
+        fits = np.all(cum <= budget[:, None], axis=0)            # a prefix (cum is nondecreasing)
+        n_drop = int(np.argmin(fits)) if not fits.all() else fits.size
+        # terms of one speed (a conjugate pair) are left out together or not at all
+        while 0 < n_drop < order.size and speed[order[n_drop]] == speed[order[n_drop - 1]]:
+            n_drop -= 1
+        if n_drop == 0:
+            return full
+        keep = np.sort(order[n_drop:])
+        e = cum[:, n_drop - 1]
+        kept = Motion(mot.nu[keep], mot.U[:, keep], mot.groups)
+        rate = float(np.max(speed[keep], initial=0.0))
+        for nodes, _ in mot.groups:
+            rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
+        Hm = Motion(kept.nu, H[:, :r2] @ kept.U, [(nodes, H[:, :r2] @ D) for nodes, D in kept.groups])
+        Hh = H[:, r2:]
+
+        def rows(t):
+            tt = np.atleast_1d(np.asarray(t, dtype=float))
+            return Hm.evaluate(tt - self.t0) + Hh @ self._harmonics(tt)
+
+        def bound(Hb, order_, horizon_):
+            b = kept.bound(Hb[:, :r2], order_, horizon_)
+            if self.w:
+                b = b + (np.abs(Hb[:, r2 + 1]) + np.abs(Hb[:, r2 + 2])) * self.w ** order_
+            return b
+
+        return rows, rate, e, bound
+
+    def pruned_xi(self, rel: float, horizon: float):
+        """(xi_fun, rate): xi(t) without the fastest terms whose sum stays below ``rel`` of the
+        positions' (velocities') total size over the horizon (round-off amplitudes of stiff
+        modes), and the fastest rate left; for quadratures of the work integrals."""
+        r, r2 = self.config.r, 2 * self.config.r
+        if not r2 or self._modal is None:
+            return self.xi, self.config.fastest_rate()
+        from .closed_form import divided_exp_bound
+
+        with np.errstate(over="ignore"):
+            size = np.abs(self._modal.U) @ np.exp(np.maximum(self._modal.nu.real, 0.0) * horizon)
+            for nodes, D in self._modal.groups:   # a rigid body's travel, a resonant growth
+                size = size + np.abs(D) @ divided_exp_bound(nodes, 0, horizon)
+        budget = np.concatenate([np.full(r, rel * size[:r].max(initial=0.0)),
+                                 np.full(r, rel * size[r:].max(initial=0.0)), np.full(self.dim - r2, np.inf)])
+        rows, rate, _, _ = self.search_map(np.eye(self.dim), budget, horizon)
+        return rows, rate
 
     def _expm_states(self, tt: np.ndarray) -> np.ndarray:
         """xi at times tt by the matrix exponential, stepping through the sorted times and
@@ -400,8 +469,9 @@ class Phase:
         return P
 
 
-    def max_step(self, horizon: float) -> float:
-        """Sampling step for event search: 1/8 of the fastest period (or time constant)."""
-        rate = max(self.config.fastest_rate(), self.w)
+    def max_step(self, horizon: float, rate: float | None = None) -> float:
+        """Sampling step for event search: 1/8 of the fastest period (or time constant), of the
+        configuration or of the given ``rate`` (the fastest term a search follows)."""
+        rate = max(self.config.fastest_rate() if rate is None else rate, self.w)
         h = math.pi / (4.0 * rate) if rate > 0 else math.inf
         return min(h, horizon / 8.0) if horizon > 0 else h

@@ -135,41 +135,47 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         return None
     H = rows.H
     Hd = H @ phase.A_aug
-    h_step = phase.max_step(t_stop - t_start)
     if phase.config.fastest_rate() == 0.0 and phase.w == 0.0:
         return _polynomial_event(phase, rows, t_start, t_stop)
-    scale = None
+    # the size of the terms that make each row, over the next 4 periods of the fastest
+    # mode or up to t_stop if sooner (so t_end matters only within 4 periods of it)
+    step = phase.max_step(math.inf)
+    window = min(step, t_stop - t_start) if math.isfinite(step) else t_stop - t_start
+    xis = phase.xi(t_start + window * np.linspace(0.0, 1.0, 33))
+    scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
+    # the band never below the round-off of evaluating the row from the state: a row
+    # starting at ~0 (a gap of 1e-19 m read to +-1e-18 m) must not fire by that noise
+    tol = np.maximum(ZERO * scale, round_off(H, xis, 2 * phase.config.r))
+    # the search follows the rows without the fastest terms whose sum stays below a quarter of each
+    # row's band over the horizon (round-off amplitudes of stiff modes, modes a row does not see):
+    # they no longer set the step. A row then crosses -tol no earlier than its search version
+    # crosses -(tol - e), e the left-out terms' bound: the search uses that band
+    rows_at, rate, e, bound_of = phase.search_map(np.vstack([H, Hd]), np.concatenate([tol / 4.0, np.full(
+        H.shape[0], np.inf)]), t_stop - t_start)
+    e = e[: rows.size]
+    band = tol - e
+    h_step = phase.max_step(t_stop - t_start, rate)
+    # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
+    bound4 = bound_of(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
     armed = None
     thr = None
     t_a = t_start
-    rows_at = phase.row_map(np.vstack([H, Hd]))
     while t_a < t_stop:
         n = max(1, min(CHUNK, math.ceil((t_stop - t_a) / h_step)))
         ts = np.linspace(t_a, min(t_stop, t_a + n * h_step), n + 1)
         hh = rows_at(ts)
         h, hd = hh[: rows.size], hh[rows.size:]
-        if scale is None:
-            # the size of the terms that make each row, over the next 4 periods of the fastest
-            # mode or up to t_stop if sooner (so t_end matters only within 4 periods of it)
-            step = phase.max_step(math.inf)
-            window = min(step, t_stop - t_start) if math.isfinite(step) else t_stop - t_start
-            xis = phase.xi(t_start + window * np.linspace(0.0, 1.0, 33))
-            scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
-            # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
-            bound4 = phase.derivative_bound(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
-            # the band never below the round-off of evaluating the row from the state: a row
-            # starting at ~0 (a gap of 1e-19 m read to +-1e-18 m) must not fire by that noise
-            tol = np.maximum(ZERO * scale, round_off(H, xis, 2 * phase.config.r))
+        if armed is None:
             # a row that starts inside its zero band is armed once it has left it upwards
-            armed = h[:, 0] > tol
-            # unarmed rows fire by going down by tol from where they start (a row can start
+            armed = h[:, 0] > band
+            # unarmed rows fire by going down by the band from where they start (a row can start
             # below -tol: a gap located with a previous phase's larger band)
-            thr = np.where(armed, 0.0, np.minimum(-tol, h[:, 0] - tol))
+            thr = np.where(armed, 0.0, np.minimum(-band, h[:, 0] - band))
         found = []
         # rows in the order of their first sample below threshold (a cheap lower bound of where
         # their root lies); a row whose first candidate interval starts after the earliest root
         # refined so far cannot be the first event and is not refined (same result, fewer roots)
-        below = (h - thr[:, None]) < -tol[:, None]
+        below = (h - thr[:, None]) < -band[:, None]
         first = np.where(below.any(axis=1), np.argmax(below, axis=1), h.shape[1])
         limit = math.inf
         for i in np.argsort(first, kind="stable"):
@@ -179,9 +185,9 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                 # the row starts in its zero band: it fires from there only by leaving it downwards
                 # (root at -tol, flagged: it never rose above the band); once it has left the band
                 # upwards (a sample or a maximum between samples above tol) it is armed at 0
-                arm = _arm(phase, H[i], Hd[i], ts, hi, hdi, tol[i], bound4[i])
+                arm = _arm(phase, H[i], Hd[i], ts, hi, hdi, band[i], bound4[i])
                 lim = hi.size - 1 if arm is None else arm[1] + 1
-                res = _scan(phase, H[i], Hd[i], ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], tol[i],
+                res = _scan(phase, H[i], Hd[i], ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], band[i],
                             bound4[i], limit)
                 if (res is not None and arm is not None and res[0] <= arm[0]
                         and (res[0] <= ts[0] or float(Hd[i] @ phase.xi(res[0])) > 0.0)):
@@ -200,9 +206,9 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     ts2 = np.concatenate([[t_arm], ts[k + 1:]])
                     h2 = np.concatenate([[H[i] @ x_arm], hi[k + 1:]])
                     hd2 = np.concatenate([[Hd[i] @ x_arm], hdi[k + 1:]])
-                    res = _scan(phase, H[i], Hd[i], ts2, h2, hd2, 0.0, tol[i], bound4[i], limit)
+                    res = _scan(phase, H[i], Hd[i], ts2, h2, hd2, 0.0, band[i], bound4[i], limit)
             else:
-                res = _scan(phase, H[i], Hd[i], ts, hi, hdi, thr[i], tol[i], bound4[i], limit)
+                res = _scan(phase, H[i], Hd[i], ts, hi, hdi, thr[i], band[i], bound4[i], limit)
             if res is not None:
                 found.append((res[0], int(i), res[1], len(res) > 2))
                 limit = min(limit, res[0] + 1e-12 * max(1.0, abs(res[0])))
