@@ -1,0 +1,543 @@
+"""The event search (``nsfem.integrate.events.first_event``) against a dense brute-force scan
+(issue 17, "the search stays certified").
+
+Each case is a random phase of a small LTI system built directly as a :class:`ContactSystem`
+(no contacts: the event rows are random linear maps H of the phase's augmented state xi, handed
+to ``first_event`` as :class:`Rows`). The system is written in modal coordinates p = Phi^-1 q
+(Phi random, cond <= e^2) so that a case can aim a row at a mode: M = Phi^-T Phi^-1,
+K = Phi^-T diag(w^2) Phi^-1, C = Phi^-T (diag(2 zeta w) + G) Phi^-1 (G skew: gyroscopic
+coupling), loads Phi^-T (modal loads). Spectra span up to 2.5 decades below a fastest frequency
+of 10..1e4 rad/s; states, loads, damping (30 % of the modes undamped) and harmonic forcing are
+random; horizons are 3..40 fastest periods, from t0 = 0 or up to 5 s. A third of the cases aim
+at the matrix-exponential path of :class:`Phase` with a resonant harmonic load, a rigid mode
+under a constant load (both now closed forms with divided differences) or a critically damped,
+defective mode (the matrix exponential, or a nearly defective modal form); the path taken is
+recorded, and each kind must cover the modal path and the matrix exponential.
+
+Kinds of rows (every row starts well above its band, so it is armed):
+
+- ``generic``: 1-4 random rows (modal displacements and velocities, harmonic components), each
+  shifted (its weight on the constant component of xi) to cross at a random depth, or not at all;
+- ``graze``: a row shifted so that its lowest (or first) minimum, between samples wherever it
+  falls, is delta tol with delta uniform in (-4, 4): a near-grazing dip, plus rows that mostly
+  do not cross;
+- ``three_roots``: a slow trend (a slow mode, a rigid mode under a constant load, or a critically
+  damped one) plus a fast mode weighted so that its velocity outruns the trend's by a factor
+  1 + eps, eps = 1e-3..3e-2: the row turns briefly up (a minimum then a maximum within
+  +-sqrt(2 eps) rad of the fast period) and the level is put between the two, so the row has
+  three roots within about 1/8 of the fastest period (the sampling step), mostly inside one
+  sampling interval (the gap of the previous search: it returned one of the three);
+- ``wiggle_graze``: the same wiggle with the level within +-4 tol of its minimum (a hidden
+  near-grazing dip between two descending samples, followed at once by the crossing).
+
+The brute force: the phase's xi on 200 000 uniform points per phase, every local minimum of a
+row that could reach its band between grid points (grid value less max|h''| dt^2 / 4) refined
+(root of h' by Brent, h evaluated there). On a closed-form path the grid is the phase's own xi,
+evaluated at the grid's times in a shuffled order (no exponential propagated by repeated
+multiplication: over 2e5 points its phase error, k eps, would reach the band); on the
+matrix-exponential path it is expm(A_aug (t - t0)) xi(t0) (the phase's own stepping would take
+seconds and carry k eps too).
+
+The verdict (certified search), with t_f the found event time (t_stop if none):
+
+- no event missed: no row is below -tol - slack anywhere in [t0, t_f] (grid points and refined
+  minima before t_f, and the row's value at t_f itself): a row that goes below its band must be
+  found no later than its first crossing, up to the root tolerance;
+- root to the band: every reported row has |h(t_f)| <= tol + slack + |h'(t_f)| dt_root.
+
+Tolerances. tol is the band first_event uses for each row (``Event.tol``: 1e-11 of the size of
+the terms that make the row, or the round-off of reading it from the state), read by a second
+call with a sentinel row added that fires at once (the band of a row does not depend on the
+other rows). The slack is what the function checked is known to, no more: 1e-3 tol, plus twice
+the difference between the brute force's grid and the phase's own xi at 64 grid points (0 on a
+closed-form path; on the matrix-exponential path both carry the scaling and squaring's error, up
+to ~10 tol for a defective A over 1e5 |A_aug| t, which is the function the search sees), plus
+twice the rows' own round-off near the points checked (deviation from a straight line of 17
+values 4 ulps of t apart: ~eps of the terms, 1e-5 tol, except for a nearly defective mode, whose
+closed form reads cond(V) eps, up to 100 tol). dt_root = 4 (4e-16 max(1, |t|) + 8.9e-16 |t|) is
+the time resolution Brent is asked for in ``_root`` (xtol, rtol), with a factor 4 for brentq's
+stopping test: a root located to dt_root sits within |h'| dt_root of zero.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from scipy.optimize import brentq
+
+from nsfem.contact.set import ContactSet
+from nsfem.integrate import ContactSystem
+from nsfem.integrate.configuration import Configuration, Mode, Phase
+from nsfem.integrate.events import Rows, _hermite_min, first_event
+
+#: brute-force points per phase (and on the coarser grid that shapes the rows)
+N_BRUTE, N_BUILD = 200_000, 20_000
+#: points per anchor of the brute force on the matrix-exponential path
+BLOCK = 400
+KINDS = ("generic", "graze", "three_roots", "wiggle_graze")
+#: cases per kind: 50 x 4 = 200 by default, 500 x 4 = 2000 under -m slow
+SEEDS, SLOW_SEEDS = range(50), range(50, 550)
+
+
+# --------------------------------------------------------------------------------------------
+# random phases
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class Case:
+    seed: int
+    kind: str
+    phase: Phase
+    t0: float
+    t1: float
+    ref: Reference
+    U: np.ndarray                     # rows without their constant part (k x dim)
+    levels: np.ndarray                # h_i = U_i xi - levels_i
+    info: dict = field(default_factory=dict)
+
+    @property
+    def H(self) -> np.ndarray:
+        H = self.U.copy()
+        H[:, self.ref.const] -= self.levels
+        return H
+
+
+class Reference:
+    """xi(t) of the phase on a uniform grid of [t0, t1] and at single times, accurately.
+
+    On a closed-form path (modal, divided differences) the phase's own xi, evaluated at the
+    grid's times in a shuffled order (so that no exponential is propagated by repeated
+    multiplication: its phase error would grow as k eps over 2e5 points, the size of the band);
+    on the matrix-exponential path expm(A_aug (t - t0)) xi(t0): anchors every ``block`` points and
+    the points between them by products of two direct exponentials (:func:`_expm_steps`; the
+    phase's own stepping through 2e5 points would carry k eps too, and take seconds)."""
+
+    def __init__(self, phase: Phase, t0: float, t1: float, n: int = N_BRUTE, block: int = BLOCK):
+        A = phase.A_aug
+        self.phase, self.A, self.t0, self.xi0 = phase, A, t0, phase.xi(t0)
+        # the constant component of xi: zero derivative and value 1
+        const = [j for j in range(A.shape[0]) if not np.any(A[j]) and self.xi0[j] == 1.0]
+        self.const = const[0]
+        self.dt = (t1 - t0) / (n - 1)
+        self.t = t0 + self.dt * np.arange(n)
+        # the phase's closed form (modal, divided differences) is kept in _modal; None on the
+        # matrix-exponential path (were it renamed, every phase would be read as a closed form)
+        self.expm = getattr(phase, "_modal", True) is None
+        if self.expm:
+            nb = math.ceil(n / block)
+            E = _expm_steps(A, self.dt, block)
+            anchors = _expm_steps(A, block * self.dt, nb) @ self.xi0
+            self.xi = np.einsum("jde,ae->daj", E, anchors).reshape(A.shape[0], -1)[:, :n]
+        else:
+            perm = np.random.default_rng(0).permutation(n)
+            self.xi = np.empty((A.shape[0], n))
+            self.xi[:, perm] = phase.xi(self.t[perm])
+
+    def at(self, t: float) -> np.ndarray:
+        return sla.expm(self.A * (t - self.t0)) @ self.xi0 if self.expm else self.phase.xi(t)
+
+
+def _expm_steps(A: np.ndarray, dt: float, m: int) -> np.ndarray:
+    """expm(A j dt) for j < m (m x d x d), as expm(A L q dt) expm(A r dt), j = L q + r, L ~ sqrt(m):
+    2 sqrt(m) exponentials, each product within a few eps of the direct one."""
+    L = math.ceil(math.sqrt(m))
+    R = np.stack([sla.expm(A * (r * dt)) for r in range(L)])
+    Q = np.stack([sla.expm(A * (L * q * dt)) for q in range(math.ceil(m / L))])
+    return np.einsum("qab,rbc->qrac", Q, R).reshape(-1, *A.shape)[:m]
+
+
+def _system(rng, w, zeta, gyro=0.0, f0=None, fc=None, fs=None, omega=0.0):
+    """The system with modal frequencies w, damping ratios zeta, modal loads; and Phi^-1."""
+    n = len(w)
+    Q1, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    Q2, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    Phi = Q1 @ np.diag(np.exp(rng.uniform(-1.0, 1.0, n))) @ Q2     # cond(Phi) <= e^2
+    Pi = np.linalg.inv(Phi)
+    Cm = np.diag(2.0 * np.asarray(zeta) * w)
+    if gyro and n >= 2:
+        G = rng.standard_normal((n, n))
+        Cm = Cm + gyro * (G - G.T)
+    z = np.zeros(n)
+    load = (lambda f: Pi.T @ (z if f is None else np.asarray(f, dtype=float)))
+    S = ContactSystem.from_arrays(M=Pi.T @ Pi, Q=Pi.T @ np.diag(np.square(w)) @ Pi, C=Pi.T @ Cm @ Pi,
+                                  f0=load(f0), fc=load(fc), fs=load(fs), omega=omega,
+                                  contacts=ContactSet.from_arrays(np.zeros((n, 0)), np.zeros(0)))
+    return S, Pi
+
+
+def _spectrum(rng, n, wmax):
+    w = np.sort(wmax * 10.0 ** (-rng.uniform(0.0, 2.5, n - 1)))
+    w = np.append(w, wmax)
+    zeta = np.where(rng.random(n) < 0.3, 0.0, 10.0 ** rng.uniform(-4.0, -0.7, n))
+    return w, zeta
+
+
+def _phase(rng, kind: str, path: str):
+    """A random system and phase for the kind and the intended path; (phase, Pi, w, t0, t1, info)."""
+    n = int(rng.integers(2, 5)) if kind in ("three_roots", "wiggle_graze") else int(rng.integers(1, 5))
+    wmax = 10.0 ** rng.uniform(1.0, 4.0)
+    w, zeta = _spectrum(rng, n, wmax)
+    periods = rng.uniform(3.0, 40.0)
+    T = periods * 2 * math.pi / wmax
+    amp = 10.0 ** rng.uniform(-3.0, 0.0, n)
+    f0 = np.square(w) * rng.standard_normal(n) * 0.5
+    fc = fs = None
+    omega, gyro = 0.0, 0.0
+    info = {"path": path}
+    if kind in ("three_roots", "wiggle_graze"):
+        # slow mode 0, fast mode n-1, 1.3..2.5 decades apart, no coupling, no harmonic load on the slow one
+        w[0] = wmax * 10.0 ** -rng.uniform(1.3, 2.5)
+        w = np.sort(w)
+        amp[0], amp[-1] = 1.0, 10.0 ** rng.uniform(-3.0, -1.0)
+    elif path == "modal" and n >= 2 and rng.random() < 0.3:
+        gyro = 0.2 * float(np.sqrt(w[0] * wmax)) * rng.uniform(0.1, 1.0)
+    if path == "modal" and kind not in ("three_roots", "wiggle_graze") and rng.random() < 0.4:
+        omega = wmax * 10.0 ** rng.uniform(-2.5, 0.3)
+        while np.any(np.abs(omega - w) < 0.02 * w):
+            omega *= 1.07
+        fc, fs = (np.square(w) * rng.standard_normal(n) * 0.3 for _ in range(2))
+    if path == "expm":
+        how = ["resonance", "rigid", "critical"][int(rng.integers(0, 3))]
+        info["how"] = how
+        if how == "resonance":
+            j = int(rng.integers(1 if kind in ("three_roots", "wiggle_graze") else 0, n))
+            zeta[j], gyro, omega = 0.0, 0.0, float(w[j])
+            fc, fs = np.zeros(n), np.zeros(n)
+            fc[j], fs[j] = (w[j] ** 2 * rng.standard_normal() * 0.3 for _ in range(2))
+        elif how == "rigid":
+            if n == 1:  # a rigid body alone is the polynomial path: add a flexible mode
+                w, zeta, amp, f0, n = np.append(w, wmax), np.append(zeta, 0.01), np.append(amp, 0.1), \
+                    np.append(f0, 0.0), 2
+            w[0], zeta[0] = 0.0, 0.0
+            f0[0] = rng.standard_normal() * 2.0 / T ** 2      # moves it ~1 over the horizon
+        else:  # (a wiggle's fast mode must oscillate: there, the slow mode creeps)
+            j = 0 if kind in ("three_roots", "wiggle_graze") else int(rng.integers(0, n))
+            zeta[j] = 1.0
+    S, Pi = _system(rng, w, zeta, gyro, f0, fc, fs, omega)
+    p0 = amp * rng.standard_normal(n)
+    pd0 = amp * np.where(w > 0, w, 2 * math.pi / T) * rng.standard_normal(n)
+    t0 = float(rng.uniform(0.0, 5.0)) if rng.random() < 0.5 else 0.0
+    Phi = np.linalg.inv(Pi)
+    phase = Phase(Configuration(S, Mode()), t0, Phi @ p0, Phi @ pd0, np.zeros(0))
+    motion = getattr(phase, "_modal", None)
+    info["path_taken"] = "expm" if motion is None else "divided" if getattr(motion, "groups", None) else "modal"
+    return phase, Pi, w, t0, t0 + T, info
+
+
+def _modal_rows(phase: Phase, Pi: np.ndarray, w: np.ndarray, T: float):
+    """Rows reading each modal coordinate p_j and its velocity times 1/w_j (xi-space)."""
+    D = Pi @ phase.q_map()
+    V = (Pi @ phase.v_map()) / np.where(w > 0, w, 2 * math.pi / T)[:, None]
+    return D, V
+
+
+def _random_row(rng, phase, D, V, ref: Reference):
+    n = D.shape[0]
+    a = rng.standard_normal(n) * (rng.random(n) > 0.3)
+    b = rng.standard_normal(n) * (rng.random(n) > 0.3)
+    if not np.any(a) and not np.any(b):
+        a[-1] = 1.0
+    u = a @ D + b @ V
+    # the forcing components (harmonics), as in a force row
+    r2 = 2 * phase.config.r
+    extra = np.zeros(phase.dim)
+    size = float(np.abs(u @ ref.xi[:, :: 997]).max()) + 1e-300
+    extra[r2:] = rng.standard_normal(phase.dim - r2) * size * (rng.random(phase.dim - r2) < 0.3)
+    extra[ref.const] = 0.0
+    return u + extra
+
+
+def _level_generic(rng, g):
+    g0, lo, hi = g[0], g.min(), g.max()
+    span = hi - lo + 1e-300
+    if rng.random() < 0.2 or g0 - lo < 0.05 * span:
+        return lo - 0.05 * span          # never crosses
+    return rng.uniform(lo, g0 - 0.02 * (g0 - lo))
+
+
+def _bands(phase: Phase, H: np.ndarray, t0: float, t1: float, ref: Reference) -> np.ndarray:
+    """Event.tol of the rows H, read from a call with a sentinel row that fires at once."""
+    # h_s = beta g + alpha with g = v . xi, v = A_aug xi(t0) (g' = |v|^2 > 0 at t0), beta and alpha
+    # such that h_s(t0) = 1 and its root is at t0 + tau, tau = 1e-7 of the time scale |g| / |g'|:
+    # its band, 1e-11 of its terms (~1 / (tau |g'| / |g|) = 1e7), is 1e-4, far below its start
+    v = ref.A @ ref.xi0
+    v[ref.const] = 0.0
+    g0, s = float(v @ ref.xi0), float(v @ ref.A @ ref.xi0)
+    assert s > 0
+    tau = 1e-7 * float(np.abs(v) @ np.abs(ref.xi0)) / s
+    beta = -1.0 / (tau * s)
+    sent = beta * v
+    sent[ref.const] = 1.0 - beta * g0
+    Hs = np.vstack([H, sent])
+    ev = first_event(phase, Rows(Hs, ["close"] * Hs.shape[0], list(range(Hs.shape[0]))), t0, t1)
+    assert ev is not None and ev.rows == [H.shape[0]], "the sentinel row fires first"
+    return np.asarray(ev.tol[: H.shape[0]], dtype=float)
+
+
+def _jitter(ref: Reference, H: np.ndarray, t: float) -> np.ndarray:
+    """Per row, the round-off of evaluating it near t: its largest deviation from the straight
+    line through 17 values a few ulps apart."""
+    d = 4 * np.spacing(max(abs(t), 1e-300))
+    ts = t + d * np.arange(-8, 9)
+    X = np.column_stack([ref.at(x) for x in ts])
+    h = H @ X
+    fit = np.polynomial.polynomial.polyfit(np.arange(-8, 9), h.T, 1)
+    line = np.polynomial.polynomial.polyval(np.arange(-8, 9), fit)
+    return np.abs(h - line).max(axis=1)
+
+
+def _refined_min(ref: Reference, u: np.ndarray, k: int) -> tuple[float, float]:
+    """(t, value) of the minimum of u . xi near grid point k."""
+    ud = u @ ref.A
+    a, b = ref.t[max(k - 1, 0)], ref.t[min(k + 1, ref.t.size - 1)]
+
+    def d(t):
+        return float(ud @ ref.at(t))
+
+    da, db = d(a), d(b)
+    if da < 0 < db:
+        tm = brentq(d, a, b, xtol=1e-17 * max(1.0, abs(b)), rtol=4 * np.finfo(float).eps, maxiter=200)
+    else:
+        tm = ref.t[k]
+    return float(tm), float(u @ ref.at(tm))
+
+
+def _wiggle(rng, phase, D, ref: Reference, w):
+    """u = slow + beta fast with a brief upturn; (u, (t_a, m), (t_b, M)) or None."""
+    A = ref.A
+    us, uf = D[0].copy(), D[-1].copy()
+    gsd = (us @ A) @ ref.xi
+    if gsd[1] > 0:
+        us, gsd = -us, -gsd
+    neg = np.flatnonzero(gsd < 0)
+    if neg.size == 0:
+        return None
+    # the first descending run of the slow part
+    start = neg[0]
+    stop = start + (np.argmax(gsd[start:] >= 0) if np.any(gsd[start:] >= 0) else gsd.size - start)
+    Tf = 2 * math.pi / w[-1]
+    span = int(Tf / ref.dt)
+    lo, hi = start + span, min(stop, gsd.size) - 2 * span
+    if hi <= lo:
+        return None
+    run = np.arange(lo, hi)
+    strong = run[gsd[run] < -0.3 * np.abs(gsd[run]).max()]
+    if strong.size == 0:
+        return None
+    kw = int(rng.choice(strong))
+    gfd = (uf @ A) @ ref.xi
+    gfdd = (uf @ A @ A) @ ref.xi
+    # the next maximum of the fast velocity (h'' from + to -) with positive velocity
+    peaks = np.flatnonzero((gfdd[kw:-1] > 0) & (gfdd[kw + 1:] <= 0)) + kw
+    peaks = peaks[gfd[peaks] > 0]
+    if peaks.size == 0:
+        return None
+    ks = int(peaks[0])
+    # g' = g_s' (1 - (1 + eps) cos(w_f (t - t*))) near t*: extrema at +-acos(1 / (1 + eps)) ~ sqrt(2 eps)
+    # rad, the three roots within +-sqrt(6 eps): one sampling step (pi / 4 rad) holds them for eps < 0.026
+    eps = 10.0 ** rng.uniform(-3.0, -1.5)
+    beta = -gsd[ks] / gfd[ks] * (1.0 + eps)
+    u = us + beta * uf
+    gd = (u @ A) @ ref.xi
+    win = slice(max(ks - span, 1), min(ks + span, gd.size - 1))
+    idx = np.arange(win.start, win.stop)
+    up = idx[(gd[idx - 1] < 0) & (gd[idx] >= 0)]
+    down = idx[(gd[idx - 1] > 0) & (gd[idx] <= 0)]
+    up, down = up[up <= ks], down[down > ks]
+    if up.size == 0 or down.size == 0:
+        return None
+    ka, kb = int(up[-1]), int(down[0])
+    ta, m = _refined_min(ref, u, ka)
+    tb, Mneg = _refined_min(ref, -u, kb)
+    return u, (ta, m), (tb, -Mneg)
+
+
+def make_case(seed: int, kind: str) -> Case | None:
+    rng = np.random.default_rng([17, KINDS.index(kind), seed])
+    path = "expm" if seed % 3 == 2 else "modal"
+    for _attempt in range(20):
+        phase, Pi, w, t0, t1, info = _phase(rng, kind, path)
+        ref = Reference(phase, t0, t1, N_BUILD)
+        if not np.all(np.isfinite(ref.xi)):
+            continue
+        D, V = _modal_rows(phase, Pi, w, t1 - t0)
+        U, levels = [], []
+        if kind in ("three_roots", "wiggle_graze"):
+            wig = _wiggle(rng, phase, D, ref, w)
+            if wig is None:
+                continue
+            u, (ta, m), (tb, M) = wig
+            info.update(t_min=ta, t_max=tb, fast_period=2 * math.pi / w[-1])
+            U.append(u)
+            if kind == "three_roots":
+                theta = rng.uniform(0.05, 0.95)
+                levels.append(m + theta * (M - m))
+            else:
+                levels.append(m)   # set to m - delta tol below, once the band is known
+        elif kind == "graze":
+            u = _random_row(rng, phase, D, V, ref)
+            g = u @ ref.xi
+            k = int(np.argmin(g))
+            mins = np.flatnonzero((g[1:-1] <= g[:-2]) & (g[1:-1] <= g[2:])) + 1
+            if rng.random() < 0.5 and mins.size:
+                k = int(mins[0])    # the first minimum, if the row starts above it
+            span = g.max() - g.min()
+            if not (0 < k < g.size - 1) or g[0] - g[k] < 0.05 * span:
+                continue
+            tm, gm = _refined_min(ref, u, k)
+            info.update(t_min=tm)
+            U.append(u)
+            levels.append(gm)
+        for _ in range(int(rng.integers(0 if kind != "generic" else 1, 3 if kind != "generic" else 5))):
+            u = _random_row(rng, phase, D, V, ref)
+            g = u @ ref.xi
+            U.append(u)
+            if kind == "generic" or rng.random() < 0.3:
+                levels.append(_level_generic(rng, g))
+            else:
+                levels.append(g.min() - 0.05 * (g.max() - g.min()))
+        case = Case(seed, kind, phase, t0, t1, ref, np.array(U), np.array(levels, dtype=float), info)
+        h = case.H @ ref.xi
+        if np.any(h[:, 0] <= 1e-6 * np.abs(h).max(axis=1)):
+            continue   # every row starts well above its band (armed)
+        if kind in ("graze", "wiggle_graze"):
+            delta = rng.uniform(-4.0, 4.0)
+            base = case.levels[0]
+            for _ in range(3):  # the band depends (weakly) on the level: iterate
+                tol = _bands(phase, case.H, t0, t1, ref)
+                case.levels[0] = base - delta * tol[0]
+            info["delta"] = delta
+        if kind == "three_roots":
+            # the three roots and their span, against the fastest period's 1/8 (the sampling step)
+            g = case.U[0] @ ref.xi - case.levels[0]
+            lo = np.searchsorted(ref.t, info["t_min"] - info["fast_period"] / 2)
+            hi = np.searchsorted(ref.t, info["t_max"] + info["fast_period"] / 2)
+            s = np.sign(g[lo:hi])
+            roots = ref.t[lo:hi][np.flatnonzero(s[1:] != s[:-1])]
+            info["span_over_step"] = (roots[-1] - roots[0]) / (info["fast_period"] / 8) if roots.size >= 3 else None
+        case.ref = Reference(phase, t0, t1)
+        return case
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# brute force and verdict
+# --------------------------------------------------------------------------------------------
+
+def check_case(case: Case) -> tuple[str | None, dict]:
+    """None when the search is certified on this case, else a description; and case facts."""
+    phase, ref, t0, t1 = case.phase, case.ref, case.t0, case.t1
+    H = case.H
+    k = H.shape[0]
+    Hd, Hdd = H @ ref.A, H @ ref.A @ ref.A
+    h, hdd = H @ ref.xi, Hdd @ ref.xi
+    tol = _bands(phase, H, t0, t1, ref)
+    # the reference against the phase's closed form, on 64 grid points
+    rng = np.random.default_rng(case.seed)
+    pick = np.sort(rng.choice(ref.t.size, 64, replace=False))
+    disc = np.abs(H @ phase.xi(ref.t[pick]) - h[:, pick]).max(axis=1)
+    # the rows' own round-off (a closed form with a nearly defective mode is noisy: cond(V) eps)
+    noise = np.max([_jitter(ref, H, t) for t in ref.t[pick[:4]]], axis=0)
+    # (on the matrix-exponential path xi itself is known to ~ |A_aug (t - t0)| eps only, the scaling
+    # and squaring's error, more for a defective A: up to ~10 bands after 1e5 of |A_aug| t; the slack
+    # takes it in, this only checks that the brute force is sane)
+    assert np.all(disc <= (64.0 if ref.expm else 0.25) * tol + 4 * noise), \
+        f"brute force off by {disc / tol} tol: {case.info}"
+    assert np.all(h[:, 0] > 100 * tol), "rows start above their band"
+
+    ev = first_event(phase, Rows(H, ["close"] * k, list(range(k))), t0, t1)
+    t_f = ev.t if ev is not None else t1
+    noise = np.maximum(noise, _jitter(ref, H, t_f))
+    slack = 2 * disc + 2 * noise + 1e-3 * tol
+    facts = {"tol": tol, "disc_over_tol": float((disc / tol).max()), "noise_over_tol": float((noise / tol).max())}
+    facts["t_found"] = None if ev is None else ev.t
+    dt, kf = ref.dt, int(np.searchsorted(ref.t, t_f, side="left"))
+    problems = []
+    first_exc = math.inf
+    for i in range(k):
+        # grid points before t_f
+        below = np.flatnonzero(h[i, :kf] < -tol[i] - slack[i])
+        if below.size:
+            first_exc = min(first_exc, ref.t[below[0]])
+        # minima that may reach the band between grid points
+        interior = np.flatnonzero((h[i, 1:-1] <= h[i, :-2]) & (h[i, 1:-1] <= h[i, 2:])) + 1
+        curv = np.maximum(np.abs(hdd[i, interior - 1]), np.abs(hdd[i, interior + 1]))
+        near = interior[h[i, interior] - 2 * curv * dt * dt / 8 <= tol[i]]
+        for j in near:
+            if ref.t[j - 1] > t_f:
+                break
+            tm, hm = _refined_min(ref, H[i], int(j))
+            if tm <= t_f and hm < -tol[i] - slack[i]:
+                first_exc = min(first_exc, tm)
+        if ev is not None:
+            hf = float(H[i] @ ref.at(t_f))
+            if hf < -tol[i] - slack[i]:
+                problems.append(f"late: row {i} is {hf / tol[i]:.3g} tol at the found time")
+            if i in ev.rows:
+                t_root = 4 * (4e-16 * max(1.0, abs(t_f)) + 8.9e-16 * abs(t_f))
+                allow = tol[i] + slack[i] + abs(float(Hd[i] @ ref.at(t_f))) * t_root
+                if abs(hf) > allow:
+                    problems.append(f"off band: row {i} is {hf / tol[i]:.3g} tol at the found time")
+    if first_exc < math.inf:
+        problems.insert(0, f"missed: a row is below -tol at t = {first_exc!r} before the found "
+                           f"{'none' if ev is None else repr(ev.t)}")
+    facts["first_excursion"] = first_exc
+    if problems:
+        return "; ".join(problems) + f" [{case.kind} seed {case.seed} {case.info}]", facts
+    return None, facts
+
+
+def _run(kind: str, seeds) -> None:
+    failures, paths, spans = [], {"modal": 0, "divided": 0, "expm": 0}, []
+    for seed in seeds:
+        case = make_case(seed, kind)
+        assert case is not None, f"{kind} seed {seed}: no case drawn"
+        paths[case.info["path_taken"]] += 1
+        if case.info.get("span_over_step") is not None:
+            spans.append(case.info["span_over_step"])
+        bad, _ = check_case(case)
+        if bad:
+            failures.append(bad)
+    assert not failures, f"{len(failures)} of {len(seeds)} cases fail:\n" + "\n".join(failures[:10])
+    # the cases exercise what they claim: both paths of Phase; three roots within one sampling step
+    assert paths["modal"] and paths["expm"], paths
+    if kind == "three_roots":
+        assert sum(s < 1.0 for s in spans) >= 0.25 * len(seeds), spans
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_first_event_matches_brute_force(kind):
+    _run(kind, SEEDS)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS)
+def test_first_event_matches_brute_force_many(kind):
+    _run(kind, SLOW_SEEDS)
+
+
+
+def test_hermite_min_is_the_cubics_exact_minimum():
+    """``_hermite_min`` against a dense evaluation of 2000 random cubics (slopes up to 30 times
+    the values: minima well inside the interval, narrow against the old 17-point grid): never
+    above the dense minimum, and below it by no more than the grid can miss, max|p''| ds^2 / 8
+    (ds = 1 / 20000), plus round-off."""
+    rng = np.random.default_rng(17)
+    n = 2000
+    f0, f1 = rng.standard_normal((2, n))
+    d0, d1 = rng.standard_normal((2, n)) * 10.0 ** rng.uniform(-2.0, 1.5, (2, n))
+    dt = 10.0 ** rng.uniform(-3.0, 1.0, n)
+    got = _hermite_min(f0, f1, d0, d1, dt)
+    s = np.linspace(0.0, 1.0, 20001)[:, None]
+    m0, m1 = d0 * dt, d1 * dt
+    p = (2 * s**3 - 3 * s**2 + 1) * f0 + (s**3 - 2 * s**2 + s) * m0 + (-2 * s**3 + 3 * s**2) * f1 + (s**3 - s**2) * m1
+    dense = p.min(axis=0)
+    size = np.abs(f0) + np.abs(f1) + np.abs(m0) + np.abs(m1)
+    # p'' = (12 s - 6) (f0 - f1) + (6 s - 4) m0 + (6 s - 2) m1: at most 6 |f0 - f1| + 4 |m0| + 4 |m1|
+    curv = 6 * np.abs(f0 - f1) + 4 * np.abs(m0) + 4 * np.abs(m1)
+    assert np.all(got <= dense + 1e-14 * size)
+    assert np.all(dense - got <= curv / 20000**2 / 8 + 1e-14 * size)
