@@ -19,11 +19,16 @@ Roots are found without missing any: h and h' = H A_aug xi are sampled at a step
 crossing, and a sign change of h' from - to + with h >= 0 at both samples is a dip whose
 minimum (root of h') is checked; an interval where h' may change sign twice (no - to + turn at
 the samples, yet the Hermite cubic through them, less its error bound, reaches below the band) is
-subdivided and scanned again (not on the matrix-exponential path, whose derivative bound is too
-crude to screen); roots are refined with Brent's method to round-off. Known gaps: a crossing
-interval holding three roots returns one of them, not necessarily the first, and the cubic's
-minimum is taken on 17 points, not exactly (a review found 0.7 % of random dip intervals
-screened out); a certified search is issue 17's. A dip
+subdivided and scanned again, and so are a dip interval whose cubic is not certainly convex (it may
+hold two minima) and a crossing interval unless the row certainly stays above -tol before the root
+Brent found (three roots: Brent may return the last): the row decreasing up to the root (the
+cubic's slope with its error bound, Birkhoff and Priver's sqrt(3) / 216 dt^3 max|h^(4)|, below
+zero) and above -tol before that. The cubic's minimum is exact (its ends and the roots of its
+derivative). Where the phase's derivative bound is too crude to screen (the matrix-exponential
+path), a local one is formed from the state at each sample (A_aug balanced, Taylor terms and a
+remainder). Roots are refined with Brent's method to round-off; after 3 subdivisions (4096 times
+finer than the step) Brent's root is taken as it is. tests/test_event_search.py checks the search
+against a dense brute-force scan of random phases. A dip
 that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
 transition LCP, not an impact, decides what happens.
 
@@ -233,11 +238,73 @@ def round_off(H: np.ndarray, xis: np.ndarray, r2: int) -> np.ndarray:
     return 16.0 * np.finfo(float).eps * np.abs(H[:, :r2]).sum(axis=1) * float(np.abs(xis[:r2]).max())
 
 
+def _cubic(f0, f1, d0, d1, dt):
+    """Coefficients c0..c3 of the Hermite cubic with end values f0, f1 and slopes d0, d1 over an
+    interval of length dt, in s = (t - a) / dt: c0 + c1 s + c2 s^2 + c3 s^3."""
+    m0, m1 = dt * d0, dt * d1
+    df = f1 - f0
+    return f0, m0, 3.0 * df - 2.0 * m0 - m1, m0 + m1 - 2.0 * df
+
+
+def _quadratic_roots(a, b, c):
+    """The two roots of a s^2 + b s + c (vectorized; nan or inf where there is none), by the
+    formula without cancellation (a = 0 leaves the linear root -c / b in the second)."""
+    with np.errstate(all="ignore"):
+        disc = b * b - 4.0 * a * c
+        q = -0.5 * (b + np.copysign(np.sqrt(np.where(disc >= 0, disc, np.nan)), b))
+        return q / a, c / q
+
+
 def _hermite_min(f0, f1, d0, d1, dt):
-    """Minimum over each interval of the cubic with end values f0, f1 and slopes d0, d1."""
-    s = np.linspace(0.0, 1.0, 17)[:, None]
-    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-    return np.min(h00 * f0 + h10 * dt * d0 + h01 * f1 + h11 * dt * d1, axis=0)
+    """Minimum over each interval of the cubic with end values f0, f1 and slopes d0, d1: exact,
+    at the ends or at a root of its derivative (a quadratic) inside the interval."""
+    c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt)
+    out = np.minimum(f0, f1)
+    for r in _quadratic_roots(3.0 * c3, 2.0 * c2, c1):
+        inside = np.isfinite(r) & (r > 0.0) & (r < 1.0)
+        s = np.where(inside, r, 0.0)
+        out = np.where(inside, np.minimum(out, c0 + s * (c1 + s * (c2 + s * c3))), out)
+    return out
+
+
+#: Birkhoff and Priver (1967): the cubic Hermite interpolant's slope is off by at most
+#: sqrt(3) / 216 dt^3 max|h^(4)|, i.e. by SLOPE * bound4 in units of the interval (d/ds = dt d/dt,
+#: bound4 = dt^4 / 384 max|h^(4)|); its value by 16 bound4 s^2 (1 - s)^2, its curvature by 32 bound4
+SLOPE = 384.0 * math.sqrt(3.0) / 216.0
+
+
+def _convex(f0, f1, d0, d1, dt, bound4):
+    """True when the row is certainly convex on the interval (a dip's minimum is its only one):
+    the cubic's second derivative, linear, less its error bound (Birkhoff and Priver:
+    dt^2 / 12 max|h^(4)|, 32 bound4 in units of the interval) is positive at both ends."""
+    _, _, c2, c3 = _cubic(f0, f1, d0, d1, dt)
+    return min(2.0 * c2, 2.0 * c2 + 6.0 * c3) > 32.0 * bound4
+
+
+def _envelope_min(f0, f1, d0, d1, dt, bound4, s_hi=1.0):
+    """The lowest the row can be on [0, s_hi] of the interval (in its units): the Hermite cubic
+    less its pointwise error bound 16 bound4 s^2 (1 - s)^2, a quartic, at the ends or where its
+    derivative (a cubic) vanishes inside (real parts of all its roots: extra points only lower it)."""
+    c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt)
+    e = 16.0 * bound4
+    ss = [0.0, s_hi] + [float(r.real) for r in np.roots([-4.0 * e, 3.0 * c3 + 6.0 * e, 2.0 * c2 - 2.0 * e, c1])
+                        if 0.0 < r.real < s_hi]
+    return min(c0 + s * (c1 + s * (c2 + s * c3)) - e * (s * (1.0 - s)) ** 2 for s in ss)
+
+
+def _first_root(f0, f1, d0, d1, dt, s_r, bound4, tol):
+    """True when no earlier point of the interval than s_r (a root, in units of the interval) can
+    be below -tol: the row is certainly decreasing on [s_x, s_r] (the cubic's slope plus its
+    error bound below zero there) and certainly above -tol on [0, s_x] (the cubic less its error
+    bound). Three roots in the interval fail it."""
+    c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt)
+    e1 = SLOPE * bound4
+    if not c1 + e1 + s_r * (2.0 * c2 + 3.0 * c3 * s_r) < 0.0:
+        return False
+    s_x = max([float(r) for r in _quadratic_roots(3.0 * c3, 2.0 * c2, c1 + e1)
+               if np.isfinite(r) and 0.0 < r < s_r], default=0.0)
+    # decreasing from the sample (>= -tol) to the root, or above -tol up to where it certainly is
+    return s_x == 0.0 or _envelope_min(f0, f1, d0, d1, dt, bound4, s_x) >= -tol
 
 
 def _arm(phase, Hi, Hdi, ts, h, hd, tol, bound4):
@@ -285,20 +352,53 @@ def _root(fun, a, b):
 
 #: samples per interval when a candidate interval is subdivided, and how often at most
 SUBDIVIDE, DEPTH = 16, 3
+#: Taylor terms of the local bound of the fourth derivative (:func:`_local_bound4`)
+TAYLOR = 8
 
 
-def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0):
+def _local_bound4(phase, Hi, ts):
+    """Per interval [ts[k], ts[k + 1]] (length dt), a bound of dt^4 / 384 max |h^(4)| from the
+    state at ts[k], for a phase whose own derivative bound is too crude to screen (the matrix-
+    exponential path). With A_aug balanced, A_aug = D B D^-1, h^(4)(ts[k] + tau) = g B^4 e^{B tau} x
+    (g = Hi D, x = D^-1 xi(ts[k])): its Taylor terms g B^(4+j) x tau^j / j! for j < TAYLOR, and the
+    remainder |g B^(4+TAYLOR)| |x| e^{|B| dt} dt^TAYLOR / TAYLOR!."""
+    from scipy.linalg import matrix_balance
+
+    B, (d, _) = matrix_balance(phase.A_aug, permute=False, separate=True)
+    g = np.asarray(Hi, dtype=float) * d
+    for _ in range(4):
+        g = g @ B
+    G = [g]
+    for _ in range(TAYLOR):
+        G.append(G[-1] @ B)
+    G = np.array(G)
+    X = phase.xi(ts[:-1]) / d[:, None]
+    dt = np.diff(ts)
+    j = np.arange(TAYLOR)
+    terms = np.abs(G[:TAYLOR] @ X) * dt[None, :] ** j[:, None] / np.array([math.factorial(i) for i in j])[:, None]
+    with np.errstate(over="ignore"):
+        rest = (np.linalg.norm(G[TAYLOR]) * np.linalg.norm(X, axis=0) * dt ** TAYLOR / math.factorial(TAYLOR)
+                * np.exp(np.linalg.norm(B, 2) * dt))
+    return (terms.sum(axis=0) + rest) * dt ** 4 / 384.0
+
+
+def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0, row_at=None):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
     Candidate intervals that start after ``limit`` (an earlier root of another row) are skipped.
 
     A crossing must reach below -tol at a sample (a sample at a touching point may be a
     round-off below zero: that is a dip, not a crossing). A dip (h' from - to + with h
     above -tol at both samples) is refined only when the Hermite cubic through the samples
-    comes within its interpolation error bound of zero. Any other interval whose cubic comes
-    that close (h' may change sign twice between samples: a fast component turning a slow
-    descent around, e.g. right after a neighbouring contact closed) is subdivided into
-    :data:`SUBDIVIDE` samples and scanned again (the bound shrinks by 16^4): a dip below zero
-    between two samples that both descend is not missed."""
+    comes within its interpolation error bound (``bound4``, per interval or for all) of zero. Any
+    other interval whose cubic comes that close (h' may change sign twice between samples: a fast
+    component turning a slow descent around, e.g. right after a neighbouring contact closed) is
+    subdivided into :data:`SUBDIVIDE` samples and scanned again (the bound shrinks by 16^4): a dip
+    below zero between two samples that both descend is not missed. A root found in a crossing
+    interval is the first one only if the row certainly stays above -tol before it (:func:`first`);
+    otherwise the interval is subdivided too (three roots: Brent may return the last), and so is a
+    dip interval whose row may not be convex (two minima: Brent may return either, or the maximum
+    between). Finer samples come from ``row_at`` (t -> (h, h') at times t, the row as the samples
+    were taken; None: ``Hi``, ``Hdi`` times :meth:`Phase.xi`)."""
     if ts.size < 2:
         return None
     f = h - thr
@@ -309,20 +409,25 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
     # a row can cross below its band and come back between two samples whatever their slopes (h'
     # - + -, or + - + right after a lift): such an interval is subdivided when the cubic, less its
     # error bound, reaches below the band. A bound4 that the remaining levels cannot bring down to
-    # the band (the crude derivative bound of the matrix-exponential path, 1e32 tol) screens
-    # nothing: subdividing on it would multiply the work
-    subdivide = depth < DEPTH and bound4 <= tol * float(SUBDIVIDE) ** (4 * (DEPTH - depth))
+    # the band screens nothing: subdividing on it would multiply the work. When the phase's bound is
+    # that crude (the matrix-exponential path's, 1e32 tol), a local one is formed from the states
+    reach = tol * float(SUBDIVIDE) ** (4 * (DEPTH - depth))
+    b4 = np.broadcast_to(np.asarray(bound4, dtype=float), (ts.size - 1,))
+    if depth == 0 and not np.all(b4 <= reach):
+        b4 = np.minimum(b4, _local_bound4(phase, Hi, ts))
+    subdivide = (b4 <= reach) if depth < DEPTH else np.zeros(ts.size - 1, dtype=bool)
     check = above[:-1] & above[1:] & (turn | subdivide)
     near = np.zeros(ts.size - 1, dtype=bool)
+    dt = np.diff(ts)
     if np.any(check):
         # the cubic's Hermite weights of the slopes are at most 4/27: a cheap lower bound first
-        dt = np.diff(ts)
         rough = np.minimum(f[:-1], f[1:]) - 4.0 / 27.0 * dt * (np.abs(hd[:-1]) + np.abs(hd[1:]))
-        k = np.flatnonzero(check & (rough - bound4 <= tol))
-        lo = _hermite_min(f[k], f[k + 1], hd[k], hd[k + 1], dt[k]) - bound4
-        # a dip (h' - to +) is refined when it comes within the band (a graze counts); any other
-        # interval only when it may cross below the band
-        near[k[np.where(turn[k], lo <= tol, lo < -tol)]] = True
+        k = np.flatnonzero(check & (rough - b4 <= tol))
+        if k.size:
+            lo = _hermite_min(f[k], f[k + 1], hd[k], hd[k + 1], dt[k]) - b4[k]
+            # a dip (h' - to +) is refined when it comes within the band (a graze counts); any
+            # other interval only when it may cross below the band
+            near[k[np.where(turn[k], lo <= tol, lo < -tol)]] = True
     k_c = cross[0] if cross.size else None
     cand = np.flatnonzero(near)
     if k_c is not None:
@@ -336,14 +441,37 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
     def dfun(t):
         return float(Hdi @ phase.xi(t))
 
+    def samples(t):
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return np.vstack([Hi, Hdi]) @ phase.xi(t) if row_at is None else row_at(t)
+
+    def finer(k):
+        sub = np.linspace(ts[k], ts[k + 1], SUBDIVIDE + 1)
+        hh = samples(sub)
+        return _scan(phase, Hi, Hdi, sub, hh[0], hh[1], thr, tol, b4[k] / SUBDIVIDE**4, limit, depth + 1, row_at)
+
+    def first(k, t_r):
+        """t_r, or the earlier root a finer scan finds when t_r may not be the first: certain when
+        the row decreases up to t_r (:func:`_first_root`), or when the cubic over [ts[k], t_r] alone
+        (its error bound smaller by ((t_r - ts[k]) / dt)^4: a root just after a rebound off the
+        band) stays above -tol."""
+        if not subdivide[k] or _first_root(f[k], f[k + 1], hd[k], hd[k + 1], dt[k], (t_r - ts[k]) / dt[k], b4[k],
+                                           tol):
+            return t_r, False
+        u = (t_r - ts[k]) / dt[k]
+        if u > 0.0:
+            hr = samples(t_r)[:, 0]
+            if _envelope_min(f[k], hr[0] - thr, hd[k], hr[1], t_r - ts[k], b4[k] * u**4) >= -tol:
+                return t_r, False
+        res = finer(k)
+        return (t_r, False) if res is None else res
+
     for k in list(cand) + ([k_c] if k_c is not None else []):
         a, b = ts[k], ts[k + 1]
         if a > limit:
             return None
-        if subdivide and k != k_c and not turn[k]:
-            sub = np.linspace(a, b, SUBDIVIDE + 1)
-            hh = np.vstack([Hi, Hdi]) @ phase.xi(sub)
-            res = _scan(phase, Hi, Hdi, sub, hh[0], hh[1], thr, tol, bound4 / SUBDIVIDE**4, limit, depth + 1)
+        if subdivide[k] and k != k_c and not turn[k]:
+            res = finer(k)
             if res is not None:
                 return res
             continue
@@ -351,15 +479,22 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
             if fun(a) < 0:  # the sample before is itself (round-off) below: the root is there
                 return a, False
             t_r = _root(fun, a, b)
-            return (b if t_r is None else t_r), False
+            return first(k, b if t_r is None else t_r)
         if not turn[k]:
             continue
-        # dip: minimum inside [a, b]
+        if subdivide[k] and not _convex(f[k], f[k + 1], hd[k], hd[k + 1], dt[k], b4[k]):
+            # h' may change sign three times: the interval may hold two minima, Brent would
+            # find one of them (or the maximum between): scanned again on finer samples
+            res = finer(k)
+            if res is not None:
+                return res
+            continue
+        # dip: the minimum inside [a, b]
         tm = _root(dfun, a, b)
         if tm is None:  # h' is round-off at an end: take the lower end sample
             tm = a if f[k] <= f[k + 1] else b
         fm = fun(tm)
-        if fm < -tol:
+        if fm < -tol:   # (decreasing up to the minimum, the only one: the root is the first)
             t_r = _root(fun, a, tm)
             return (tm if t_r is None else t_r), False
         if fm <= tol and thr == 0.0:
