@@ -161,7 +161,7 @@ def growth_rate(system: ContactSystem) -> float:
     # the open configuration: its rigid-body coordinates split off (exactly zero roots, not the
     # +-sqrt(eps) omega_max of a defective pair), the rest in first-order form
     cfg = Configuration(system, Mode())
-    lam, V = sla.eig(cfg.A[cfg.k:, cfg.k:])
+    lam, V = cfg.eig[:2] if cfg.eig is not None else sla.eig(cfg.A[cfg.k:, cfg.k:])
     keep = np.isfinite(lam)
     lam, V = lam[keep], V[:, keep]
     # a root is resolved to sqrt(eps) omega_max at best (a defective one, like the rigid drift

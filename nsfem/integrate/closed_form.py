@@ -121,12 +121,13 @@ class Motion:
             out += np.real(DD @ divided_exp(nodes, tau))
         return out
 
-    def bound(self, H: np.ndarray, order: int, horizon: float) -> np.ndarray:
+    def bound(self, H: np.ndarray | None, order: int, horizon: float) -> np.ndarray:
+        """Per row of H x (of x without H), a bound of its order-th derivative on [0, horizon]."""
         with np.errstate(over="ignore"):
             grow = np.exp(np.maximum(self.nu.real, 0.0) * horizon)
-            b = np.abs(H @ self.U) @ (np.abs(self.nu) ** order * grow)
+            b = np.abs(self.U if H is None else H @ self.U) @ (np.abs(self.nu) ** order * grow)
             for nodes, D in self.groups:
-                b = b + np.abs(H @ D) @ divided_exp_bound(nodes, order, horizon)
+                b = b + np.abs(D if H is None else H @ D) @ divided_exp_bound(nodes, order, horizon)
         return b
 
 
@@ -158,10 +159,6 @@ def modal_motion(lam, V, Vi, w0, forcing: dict, k: int, S: np.ndarray, a0: np.nd
     dd2n, dd2c, dd3n, dd3c = [], [], [], []
     SV = S @ V if k else np.zeros((0, lam.size))
 
-    def add2(p, q, col):
-        dd2n.append((p, q))
-        dd2c.append(col)
-
     for mu in mus:
         X.setdefault(mu, np.zeros(d, dtype=complex))
         b = beta[mu]
@@ -174,19 +171,31 @@ def modal_motion(lam, V, Vi, w0, forcing: dict, k: int, S: np.ndarray, a0: np.nd
         for j in np.flatnonzero(res):
             col = np.zeros(d, dtype=complex)
             col[k:] = V[:, j] * b[j]
-            add2(lam[j], mu, col)
+            dd2n.append((lam[j], mu))
+            dd2c.append(col)
     if k:
         # a(tau) = a0 + sum_j SV_j [z0_j F[0, lam_j] + sum_mu beta_mu,j F[0, lam_j, mu]]
         for j in range(lam.size):
             s = SV[:, j]
             if not np.any(s):
                 continue
-            lj = lam[j]
-            terms = [(z0[j], (0j, lj))] + [(beta[mu][j], (0j, lj, mu)) for mu in mus]
+            mode = (lam[j], "mode")
+            terms = [(z0[j], [(0j, 0j), mode])] + [(beta[mu][j], [(0j, 0j), mode, (mu, mu)]) for mu in mus]
             for c, nodes in terms:
                 if c == 0:
                     continue
-                _split(nodes, c * s, floor, k, d, j, lj, Ua, X, add2, dd3n, dd3c)
+                vec = c * s
+                exps, dds = _split(nodes, floor)
+                for key, div in exps:   # a-rows of e^{x tau}: the mode's own column, or a forcing's
+                    if key == "mode":
+                        Ua[:, j] += _divide(vec, div)
+                    else:
+                        X.setdefault(key, np.zeros(d, dtype=complex))[:k] += _divide(vec, div)
+                for dd_nodes, div in dds:
+                    col = np.zeros(d, dtype=complex)
+                    col[:k] = _divide(vec, div)
+                    (dd2n if len(dd_nodes) == 2 else dd3n).append(dd_nodes)
+                    (dd2c if len(dd_nodes) == 2 else dd3c).append(col)
     U = np.zeros((d, lam.size), dtype=complex)
     U[k:] = V * coef[None, :]
     U[:k] = Ua
@@ -200,45 +209,33 @@ def modal_motion(lam, V, Vi, w0, forcing: dict, k: int, S: np.ndarray, a0: np.nd
     return Motion(nu, U, groups)
 
 
-def _split(nodes, vec, floor, k, d, j, lj, Ua, X, add2, dd3n, dd3c):
-    """Add vec * F[nodes] (a-rows) as exponentials where nodes are far apart, divided differences
-    where they are close."""
-    def exp_term(x, c):
-        if x is lj:
-            Ua[:, j] += c
-        else:
-            X.setdefault(x, np.zeros(d, dtype=complex))
-            X[x][:k] += c
+def _divide(vec: np.ndarray, div: tuple) -> np.ndarray:
+    """sign * vec / d_1 / d_2 ... for div = (sign, d_1, d_2, ...)."""
+    out = vec if div[0] > 0 else -vec
+    for d in div[1:]:
+        out = out / d
+    return out
 
-    def col(c):
-        out = np.zeros(d, dtype=complex)
-        out[:k] = c
-        return out
 
+def _split(nodes: list, floor: float) -> tuple[list, list]:
+    """F[x_0, .., x_m] (m = 1, 2) as exponentials where the nodes are far apart and divided
+    differences where they are close: ([(key, divisors)], [(close nodes, divisors)]), each term
+    :func:`_divide` of the coefficient by its divisors; ``nodes``: [(x, key)], the key naming the
+    exponential a node's term belongs to."""
+    x = [v for v, _ in nodes]
     if len(nodes) == 2:
-        p, q = nodes
+        (p, kp), (q, kq) = nodes
         if _close(p, q, floor):
-            add2(p, q, col(vec))
-        else:
-            exp_term(q, vec / (q - p))
-            exp_term(p, -vec / (q - p))
-        return
-    x = list(nodes)
+            return [], [((p, q), (1,))]
+        return [(kq, (1, q - p)), (kp, (-1, q - p))], []
     pairs = [(a, b) for a in range(3) for b in range(a + 1, 3) if _close(x[a], x[b], floor)]
-    if not pairs:
-        for i in range(3):
-            den = np.prod([x[i] - x[l] for l in range(3) if l != i])
-            exp_term(x[i], vec / den)
-        return
+    if not pairs:   # partial fractions
+        return [(nodes[i][1], (1, np.prod([x[i] - x[j] for j in range(3) if j != i]))) for i in range(3)], []
     if len(pairs) >= 2:
-        dd3n.append(tuple(x))
-        dd3c.append(col(vec))
-        return
+        return [], [(tuple(x), (1,))]
+    # one close pair {p, q}, s far: F[p, q, s] = (F[q, s] - F[p, q]) / (s - p), F[q, s] split
     a, b = pairs[0]
-    s = 3 - a - b
-    # F[p, q, s] = (F[q, s] - F[p, q]) / (s - p), with F[q, s] far apart and F[p, q] close
-    p_, q_, s_ = x[a], x[b], x[s]
-    den = s_ - p_
-    exp_term(s_, vec / den / (s_ - q_))
-    exp_term(q_, -vec / den / (s_ - q_))
-    add2(p_, q_, col(-vec / den))
+    c = 3 - a - b
+    (p, _), (q, kq), (s_, ks) = nodes[a], nodes[b], nodes[c]
+    den = s_ - p
+    return [(ks, (1, den, s_ - q)), (kq, (-1, den, s_ - q))], [((p, q), (-1, den))]

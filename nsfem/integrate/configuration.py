@@ -79,10 +79,12 @@ def _rigid_split(D: np.ndarray, omega2_ref: float) -> tuple[int, np.ndarray | No
     whose first k columns span them (D T[:, :k] = 0 to round-off); (0, None) without any."""
     ev = np.linalg.eigvals(D)
     scale = max(float(np.max(np.abs(ev), initial=0.0)), omega2_ref)
+    if scale == 0.0:   # no stiffness at all: every coordinate is rigid
+        return D.shape[0], np.eye(D.shape[0])
     k = int(np.sum(np.abs(ev) <= RIGID * scale))
-    if k == 0 or scale == 0.0:
-        return (D.shape[0], np.eye(D.shape[0])) if scale == 0.0 else (0, None)
-    _, s, Vt = np.linalg.svd(D)
+    if k == 0:
+        return 0, None
+    Vt = np.linalg.svd(D)[2]
     Z = Vt[-k:].T
     # the null space must be a clear one: its residual at round-off of the largest omega^2
     if np.abs(D @ Z).max() > 1e3 * RIGID * scale:
@@ -291,7 +293,11 @@ class Phase:
         r2 = 2 * self.config.r
         if not r2 or self._modal is None:
             return lambda t: H @ self.xi(np.atleast_1d(np.asarray(t, dtype=float)))
-        mot = self._modal
+        return self._rows(self._modal, H)
+
+    def _rows(self, mot: Motion, H: np.ndarray):
+        """t -> H xi(t) with xi's modal part from ``mot`` (H's products with it formed once)."""
+        r2 = 2 * self.config.r
         Hm = Motion(mot.nu, H[:, :r2] @ mot.U, [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups])
         Hh = H[:, r2:]
 
@@ -330,20 +336,13 @@ class Phase:
         rate = float(np.max(speed[keep], initial=0.0))
         for nodes, _ in mot.groups:
             rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
-        Hm = Motion(kept.nu, H[:, :r2] @ kept.U, [(nodes, H[:, :r2] @ D) for nodes, D in kept.groups])
-        Hh = H[:, r2:]
-
-        def rows(t):
-            tt = np.atleast_1d(np.asarray(t, dtype=float))
-            return Hm.evaluate(tt - self.t0) + Hh @ self._harmonics(tt)
-
         def bound(Hb, order_, horizon_):
             b = kept.bound(Hb[:, :r2], order_, horizon_)
             if self.w:
                 b = b + (np.abs(Hb[:, r2 + 1]) + np.abs(Hb[:, r2 + 2])) * self.w ** order_
             return b
 
-        return rows, rate, e, bound
+        return self._rows(kept, H), rate, e, bound
 
     def pruned_xi(self, rel: float, horizon: float):
         """(xi_fun, rate): xi(t) without the fastest terms whose sum stays below ``rel`` of the
@@ -352,12 +351,7 @@ class Phase:
         r, r2 = self.config.r, 2 * self.config.r
         if not r2 or self._modal is None:
             return self.xi, self.config.fastest_rate()
-        from .closed_form import divided_exp_bound
-
-        with np.errstate(over="ignore"):
-            size = np.abs(self._modal.U) @ np.exp(np.maximum(self._modal.nu.real, 0.0) * horizon)
-            for nodes, D in self._modal.groups:   # a rigid body's travel, a resonant growth
-                size = size + np.abs(D) @ divided_exp_bound(nodes, 0, horizon)
+        size = self._modal.bound(None, 0, horizon)   # with a rigid body's travel, a resonant growth
         budget = np.concatenate([np.full(r, rel * size[:r].max(initial=0.0)),
                                  np.full(r, rel * size[r:].max(initial=0.0)), np.full(self.dim - r2, np.inf)])
         rows, rate, _, _ = self.search_map(np.eye(self.dim), budget, horizon)
@@ -394,40 +388,23 @@ class Phase:
             return None
         mot = self._modal
         r2 = 2 * self.config.r
-        U = np.zeros((self.dim, mot.nu.size), dtype=complex)
-        U[:r2] = mot.U
-        nu = mot.nu
-        extra = []
-        for mu, row in [(0j, 0)] + ([(1j * self.w, 1), (-1j * self.w, 2)] if self.w else []):
-            hit = np.flatnonzero(nu[self.config.eig[0].size:] == mu)
-            if hit.size:
-                j = self.config.eig[0].size + int(hit[0])
-            else:
-                extra.append(mu)
-                U = np.hstack([U, np.zeros((self.dim, 1), dtype=complex)])
-                nu = np.append(nu, mu)
-                j = nu.size - 1
-            if row == 0:
-                U[r2, j] += 1.0
-            else:
-                ph = np.exp(1j * self.w * self.t0)
-                sgn = 1.0 if row == 1 else -1.0
-                U[r2 + 1, j] += 0.5 * (ph if sgn > 0 else np.conj(ph))     # cos = (e^{iwt} + e^{-iwt}) / 2
-                U[r2 + 2, j] += -0.5j * ph if sgn > 0 else 0.5j * np.conj(ph)  # sin = (e^{iwt} - e^{-iwt}) / 2i
+        # the constant, cos and sin components of xi as exponentials: 1, (e^{iwt} +- e^{-iwt}) / (2, 2i)
+        extra = {0j: {r2: 1.0}}
+        if self.w:
+            ph = np.exp(1j * self.w * self.t0)
+            extra[1j * self.w] = {r2 + 1: 0.5 * ph, r2 + 2: -0.5j * ph}
+            extra[-1j * self.w] = {r2 + 1: 0.5 * np.conj(ph), r2 + 2: 0.5j * np.conj(ph)}
+        m = self.config.eig[0].size           # mot.nu: the modes, then the forcing's exponents
+        U = np.zeros((self.dim, mot.nu.size + len(extra)), dtype=complex)
+        U[:r2, : mot.nu.size] = mot.U
+        nu = np.concatenate([mot.nu, np.zeros(len(extra), dtype=complex)])
+        for i, (mu, comps) in enumerate(extra.items()):
+            hit = np.flatnonzero(mot.nu[m:] == mu)
+            j = m + int(hit[0]) if hit.size else mot.nu.size + i
+            nu[j] = mu
+            for row, val in comps.items():
+                U[row, j] += val
         return U, nu
-
-    def quadratic_integrals(self, forms: list, t1: float) -> list | None:
-        """int_{t0}^{t1} xi^T S xi dt for each S in ``forms``, in closed form (modal path)."""
-        terms = self.exponential_terms()
-        if terms is None:
-            return None
-        U, mu = terms
-        T = t1 - self.t0
-        z = (mu[:, None] + mu[None, :]) * T
-        small = np.abs(z) < 1e-8
-        zs = np.where(small, 1.0, z)
-        phi = np.where(small, T * (1.0 + z / 2.0 + z * z / 6.0), T * (np.exp(zs) - 1.0) / zs)
-        return [float(np.real(np.sum((U.T @ S @ U) * phi))) for S in forms]
 
     def derivative_bound(self, H: np.ndarray, order: int, horizon: float) -> np.ndarray:
         """Per row of H, a bound of the order-th time derivative of H xi over [t0, t0 + horizon]."""
