@@ -477,9 +477,11 @@ class RungeKutta(EventDriven):
             # has just risen above its band (to 2 tol) back inside it: a gap of 4e-19 m re-evaluated
             # from a state of 1e-3 m is round-off, and the same up event fired again and again.
             tol, tol_d, thr, armed = (np.array(a) for a in carry[3:])
-            # an armed row that the restart reads below 0 (round-off) fires once it has gone down
-            # by tol from there (a sign change from its start would never come)
-            thr = np.where(armed & (h0 <= 0.0), h0 - tol, thr)
+            # a row that the restart reads at or below its threshold (round-off of re-reading the
+            # state, up to the band on an ill-conditioned modal basis) fires once it has gone down by
+            # tol from there: a sign change from its start would never come (armed rows: below 0)
+            low = (armed & (h0 <= 0.0)) | (h0 <= thr)
+            thr = np.where(low, np.minimum(np.where(armed, 0.0, thr), h0 - tol), thr)
         else:
             # the band of each row as in exact: the size of its terms over the first sampling step
             step = phase.max_step(math.inf)
