@@ -298,6 +298,9 @@ class EventDriven(Integrator):
             done = self._energy_closed_form(phase, mode, t1, K, P, D, energy, ends)
             if done is not None:
                 return done
+            done = self._energy_without_quadrature(phase, mode, t1, K, P, D, energy, ends)
+            if done is not None:
+                return done
         if self.name == "exact":
             # without the stiff modes' round-off terms (1e-13 of the state in all): they would set
             # the quadrature's step and cost, and carry no work
@@ -336,6 +339,31 @@ class EventDriven(Integrator):
         E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))
         return float(np.max(np.abs(E), initial=0.0))
 
+
+    def _energy_without_quadrature(self, phase, mode, t1, K, P, D, energy, ends=None):
+        """The work integrals when only a constant load does work, or None: int f0 . q' dt is
+        f0 . (q(t1) - q(t0)), exact; without damping, circulatory forces, sliding friction and a
+        harmonic load (a non-rotating undamped structure: the axial impact of a free bar) nothing
+        else is integrated, and no state is evaluated inside the phase."""
+        sysm = self.system
+        if mode.slide or mode.edge or (phase.w and (np.any(sysm.fc) or np.any(sysm.fs))):
+            return None
+        flags = self.__dict__.get("_dp_flags")
+        if flags is None or flags[0] is not D or flags[1] is not P:
+            flags = self._dp_flags = (D, P, bool(np.any(D)), bool(np.any(P)))
+        if flags[2] or flags[3]:
+            return None
+        if ends is None:
+            xi = phase.xi(np.array([phase.t0, t1]))
+            q, v = phase.q_map() @ xi, phase.v_map() @ xi
+        else:
+            q, v = np.column_stack(ends[0::2]), np.column_stack(ends[1::2])
+        # from the phase's own start: the configuration's constraints hold it, the state it came from
+        # may lie a gap band off them (a plastic impact located at -tol); that projection does no work
+        q_start = phase.config.N @ phase.x0[: phase.config.r] + phase.qp
+        energy["work_external_J"] += float(sysm.f0 @ (q[:, 1] - q_start))
+        E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))
+        return float(np.max(np.abs(E)))
 
     def _energy_closed_form(self, phase, mode, t1, K, P, D, energy, ends=None):
         """The work integrals int xi^T S xi dt of the phase in closed form, or None (no modal form).
