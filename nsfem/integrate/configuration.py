@@ -93,6 +93,68 @@ def _rigid_split(D: np.ndarray, omega2_ref: float) -> tuple[int, np.ndarray | No
     return k, T
 
 
+#: modal damping couplings (off-diagonal entries of Phi^T C Phi) below this fraction of the largest
+#: modal damping are round-off of a classical (Rayleigh-type) damping: C = a M + b K gives 1e-15 to
+#: 1e-13 (eps times the condition of the mode shapes); a non-proportional damping (external damping
+#: on translations only, bearings) couples the modes at 1e-3 to 1
+CLASSICAL = 1e-9
+
+
+def _classical_modes(Mr: np.ndarray, Kr: np.ndarray, Cr: np.ndarray):
+    """(w2, Phi, c): the undamped modes of a symmetric configuration, Kr Phi = Mr Phi diag(w2) with
+    Phi^T Mr Phi = I (ascending w2), and the modal damping c = diag(Phi^T Cr Phi); None when the
+    damping couples the modes (no real modes of the damped system)."""
+    w2, Phi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
+    Cm = Phi.T @ Cr @ Phi
+    c = np.diag(Cm).copy()
+    np.fill_diagonal(Cm, 0.0)
+    if np.abs(Cm).max(initial=0.0) > CLASSICAL * np.abs(c).max(initial=0.0):
+        return None
+    return w2, Phi, c
+
+
+def _rigid_count(w2: np.ndarray, omega2_ref: float) -> int:
+    """The number of rigid-body modes among ascending w2 (:data:`RIGID`)."""
+    scale = max(float(np.max(np.abs(w2), initial=0.0)), omega2_ref)
+    return w2.size if scale == 0.0 else int(np.sum(np.abs(w2) <= RIGID * scale))
+
+
+#: a damped pair whose two roots lie closer than this (relative) is critically damped: defective
+CRITICAL = 1e-6
+
+
+def _classical_eig(w2, Phi, Mr, Cr, k: int):
+    """(lam, V, Vi) of the modal part w = (b, y') of x = (y, y') (b: y without its first k, rigid,
+    coordinates) in closed form from real modes: a rigid mode phi moves w along (0, phi) at rate
+    -c (its modal damping, 0 without); an elastic one along (phi_b, lam phi) at the roots lam of
+    lam^2 + c lam + w^2; the left vectors follow from Phi^T Mr Phi = I (psi = Phi^T Mr; for an
+    elastic mode psi_a = 0: it is mass-orthogonal to the rigid ones). None when an elastic mode is
+    critically damped (a defective pair)."""
+    r = Phi.shape[0]
+    c = np.einsum("ij,ij->j", Phi, Cr @ Phi)
+    Psi = Phi.T @ Mr
+    e = np.arange(k, r)
+    disc = np.sqrt(0.25 * c[e] ** 2 - w2[e] + 0j)
+    lp, lm = -0.5 * c[e] + disc, -0.5 * c[e] - disc
+    if np.any(np.abs(lp - lm) <= CRITICAL * np.maximum(np.abs(lp), np.abs(lm))):
+        return None
+    m = r - k
+    V = np.zeros((m + r, k + 2 * m), dtype=complex)
+    Vi = np.zeros((k + 2 * m, m + r), dtype=complex)
+    V[m:, :k] = Phi[:, :k]                      # rigid: (0, phi)
+    Vi[:k, m:] = Psi[:k]
+    lam = np.concatenate([-c[:k] + 0j, lp, lm])
+    Pe, Qe = Phi[:, e], Psi[e]
+    for i, (l1, l2) in enumerate(((lp, lm), (lm, lp))):
+        cols = slice(k + i * m, k + (i + 1) * m)
+        V[:m, cols] = Pe[k:]
+        V[m:, cols] = Pe * l1[None, :]
+        # the left vector of l1: (l2 psi_b, -psi) / (l2 - l1)
+        Vi[cols, :m] = (l2 / (l2 - l1))[:, None] * Qe[:, k:]
+        Vi[cols, m:] = -(1.0 / (l2 - l1))[:, None] * Qe
+    return lam, V, Vi
+
+
 class Configuration:
     """The constrained LTI system of one :class:`Mode` (cached by the integrator)."""
 
@@ -138,24 +200,34 @@ class Configuration:
         if r and self.L is not self.N and np.linalg.cond(Mr) > 1e12:
             raise NsfemError(f"configuration {mode.describe()}: no consistent acceleration (the sliding friction "
                              "couples the normal constraint into a singular inertia: a Painleve case)")
-        Mi = np.linalg.inv(Mr) if r else np.zeros((0, 0))
         Kr = self.L.T @ Q @ self.N
-        # rigid-body coordinates (no stiffness): split off first, their stiffness set to exactly 0,
-        # so that they move as polynomials in time instead of round-off exponentials
-        self.k = 0
-        if r:
-            k, T = _rigid_split(Mi @ Kr, float(system.info.get("omega2_ref", 0.0)))
-            if k:
-                same = self.L is self.N
-                self.N = self.N @ T
-                self.L = self.N if same else self.L
-                Mr = self.L.T @ M @ self.N
-                Mi = np.linalg.inv(Mr)
-                Kr = self.L.T @ Q @ self.N
-                Kr[:, :k] = 0.0
-                self.k = k
-        self.Mi_L = Mi @ self.L.T                           # r x n
         Cr = self.L.T @ C @ self.N
+        # a symmetric configuration with classical damping: its real modes give the first-order
+        # eigen-decomposition in closed form (eigh of r x r instead of eig of 2r x 2r)
+        modes = _classical_modes(Mr, Kr, Cr) if r and self.L is self.N and system.symmetric else None
+        T = None
+        self.k = 0
+        if modes is not None:
+            w2, Phi, _ = modes
+            k = _rigid_count(w2, float(system.info.get("omega2_ref", 0.0)))
+            if k:
+                T, _ = np.linalg.qr(Phi[:, :k], mode="complete")
+        elif r:
+            # rigid-body coordinates (no stiffness): split off first, their stiffness set to exactly 0,
+            # so that they move as polynomials in time instead of round-off exponentials
+            k, T = _rigid_split(np.linalg.inv(Mr) @ Kr, float(system.info.get("omega2_ref", 0.0)))
+        if T is not None:
+            same = self.L is self.N
+            self.N = self.N @ T
+            self.L = self.N if same else self.L
+            Mr, Kr, Cr = (self.L.T @ X @ self.N for X in (M, Q, C))
+            Kr[:, :k] = 0.0
+            self.k = k
+            if modes is not None:
+                modes = (modes[0], T.T @ modes[1], modes[2])
+        # (Phi^T Mr Phi = I: Mr^-1 = Phi Phi^T)
+        Mi = (modes[1] @ modes[1].T if modes is not None else np.linalg.inv(Mr)) if r else np.zeros((0, 0))
+        self.Mi_L = Mi @ self.L.T                           # r x n
         if self.k:
             # the rigid coordinates' damping at round-off (a stiffness-proportional C on a zero
             # stiffness) is exactly 0: entries of 1e-20 next to 1e2 make LAPACK's balancing lose
@@ -179,7 +251,11 @@ class Configuration:
         self.Rphi = MN @ self.Mi_L - np.eye(n)
         self.eig = None
         k = self.k
-        if r:
+        if r and modes is not None:
+            self.eig = _classical_eig(modes[0], modes[1], Mr, Cr, k)
+        if r and self.eig is not None:
+            self.eigenvalues = np.concatenate([np.zeros(k), self.eig[0]])
+        elif r:
             # the modal part w = (b, a', b') of x = (a, b, a', b'): x' = A x with A[:, :k] = 0, so
             # w' = A_w w + B_w phi and a' = S w (S picks a' out of w)
             # balance (y, y') before the eigen-decomposition: with y scaled by a frequency per
@@ -295,9 +371,16 @@ class Phase:
             return lambda t: H @ self.xi(np.atleast_1d(np.asarray(t, dtype=float)))
         return self._rows(self._modal, H)
 
-    def _rows(self, mot: Motion, H: np.ndarray):
-        """t -> H xi(t) with xi's modal part from ``mot`` (H's products with it formed once)."""
+    def _rows(self, mot: Motion, H: np.ndarray | None):
+        """t -> H xi(t) with xi's modal part from ``mot`` (H's products with it formed once); xi(t)
+        itself without H."""
         r2 = 2 * self.config.r
+        if H is None:
+            def states(t):
+                tt = np.atleast_1d(np.asarray(t, dtype=float))
+                return np.vstack([mot.evaluate(tt - self.t0), self._harmonics(tt)])
+
+            return states
         Hm = Motion(mot.nu, H[:, :r2] @ mot.U, [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups])
         Hh = H[:, r2:]
 
@@ -311,15 +394,17 @@ class Phase:
         """(rows, rate, e, bound): ``rows(t)`` = H xi(t) without the fastest exponential terms whose
         contributions to row i sum to at most budget[i] over the horizon (e[i] that sum), ``rate``
         the fastest rate left (it sets the sampling step), ``bound(H, order, horizon)`` the
-        derivative bound of what is left. Without a modal form: the full rows."""
+        derivative bound of what is left. Without a modal form: the full rows. H None: xi itself
+        (budget per component of its modal part)."""
         r2 = 2 * self.config.r
-        full = (self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]), self.derivative_bound)
+        full = (self.row_map(H) if H is not None else self.xi, self.config.fastest_rate(),
+                np.zeros(self.dim if H is None else H.shape[0]), self.derivative_bound)
         if not r2 or self._modal is None:
             return full
         mot = self._modal
         with np.errstate(over="ignore"):
             grow = np.exp(np.maximum(mot.nu.real, 0.0) * horizon)
-        size = np.abs(H[:, :r2] @ mot.U) * grow[None, :]
+        size = np.abs(mot.U if H is None else H[:, :r2] @ mot.U) * grow[None, :]
         speed = np.abs(mot.nu)
         order = np.argsort(-speed, kind="stable")
         cum = np.cumsum(size[:, order], axis=1)
@@ -354,7 +439,7 @@ class Phase:
         size = self._modal.bound(None, 0, horizon)   # with a rigid body's travel, a resonant growth
         budget = np.concatenate([np.full(r, rel * size[:r].max(initial=0.0)),
                                  np.full(r, rel * size[r:].max(initial=0.0)), np.full(self.dim - r2, np.inf)])
-        rows, rate, _, _ = self.search_map(np.eye(self.dim), budget, horizon)
+        rows, rate, _, _ = self.search_map(None, budget[:r2], horizon)
         return rows, rate
 
     def _expm_states(self, tt: np.ndarray) -> np.ndarray:

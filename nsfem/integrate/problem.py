@@ -17,6 +17,7 @@ directly from small arrays, so that tests can use systems with closed-form answe
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -42,6 +43,15 @@ class ContactSystem:
     @property
     def n(self) -> int:
         return self.M.shape[0]
+
+    @cached_property
+    def symmetric(self) -> bool:
+        """M, C and Q symmetric (to 1e-13 of their largest entries: assembly round-off): a structure
+        without gyroscopic and circulatory terms, whose configurations have real modes."""
+        def sym(X):
+            return bool(np.all(np.abs(X - X.T) <= 1e-13 * np.abs(X).max(initial=0.0)))
+
+        return sym(self.M) and sym(self.C) and sym(self.Q)
 
     @property
     def harmonic(self) -> bool:
