@@ -175,10 +175,19 @@ def modal_motion(lam, V, Vi, w0, forcing: dict, k: int, S: np.ndarray, a0: np.nd
             dd2c.append(col)
     if k:
         # a(tau) = a0 + sum_j SV_j [z0_j F[0, lam_j] + sum_mu beta_mu,j F[0, lam_j, mu]]
-        for j in range(lam.size):
+        moved = np.any(SV != 0, axis=0)
+        # modes far from 0 and from every forcing exponent (mu = 0 or far from 0): their terms split
+        # the same way for all of them, done at once (:func:`_far_rigid_terms`)
+        far = moved & ~_close(lam, 0j, floor)
+        for mu in mus:
+            far &= ~_close(lam, mu, floor)
+        if any(mu != 0 and _close(mu, 0j, floor) for mu in mus):
+            far[:] = False
+        if np.any(far):
+            _far_rigid_terms(lam[far], SV[:, far], z0[far], {mu: beta[mu][far] for mu in mus}, k, Ua, far, X,
+                             dd2n, dd2c)
+        for j in np.flatnonzero(moved & ~far):
             s = SV[:, j]
-            if not np.any(s):
-                continue
             mode = (lam[j], "mode")
             terms = [(z0[j], [(0j, 0j), mode])] + [(beta[mu][j], [(0j, 0j), mode, (mu, mu)]) for mu in mus]
             for c, nodes in terms:
@@ -201,12 +210,43 @@ def modal_motion(lam, V, Vi, w0, forcing: dict, k: int, S: np.ndarray, a0: np.nd
     U[:k] = Ua
     nu = np.concatenate([lam, np.array(list(X), dtype=complex)])
     U = np.hstack([U, np.column_stack(list(X.values()))])
-    groups = []
-    if dd2n:
-        groups.append((np.array(dd2n, dtype=complex).T, np.column_stack(dd2c)))
-    if dd3n:
-        groups.append((np.array(dd3n, dtype=complex).T, np.column_stack(dd3c)))
+    groups = [_merged(nodes, cols) for nodes, cols in ((dd2n, dd2c), (dd3n, dd3c)) if nodes]
     return Motion(nu, U, groups)
+
+
+def _merged(nodes: list, cols: list) -> tuple[np.ndarray, np.ndarray]:
+    """A divided-difference group (nodes (m, K), D (d, K)) with the columns of equal nodes summed (the
+    F[0, 0] of a constant load is shared by every mode of a rigid body)."""
+    index: dict = {}
+    for key in nodes:
+        index.setdefault(tuple(key), len(index))
+    D = np.zeros((cols[0].shape[0], len(index)), dtype=complex)
+    for key, col in zip(nodes, cols):
+        D[:, index[tuple(key)]] += col
+    return np.array(list(index), dtype=complex).T, D
+
+
+def _far_rigid_terms(lam, SV, z0, beta: dict, k: int, Ua, sel, X: dict, dd2n: list, dd2c: list) -> None:
+    """The rigid rows of modes far from 0 and from every forcing exponent mu (each mu 0 or far from
+    0), for all of them at once: F[0, lam] = (e^{lam tau} - 1) / lam; F[0, lam, mu] by partial
+    fractions over its three nodes, and for mu = 0, F[0, 0, lam] = (e^{lam tau} - 1 - lam tau) / lam^2
+    (the tau term a divided difference F[0, 0]). Same terms as :func:`_split` gives one mode at a time."""
+    V0 = SV * z0[None, :]
+    Ua[:, sel] += V0 / lam[None, :]
+    X[0j][:k] -= (V0 / lam[None, :]).sum(axis=1)
+    for mu, b in beta.items():
+        Vb = SV * b[None, :]
+        if mu == 0:
+            Ua[:, sel] += Vb / lam[None, :] / lam[None, :]
+            X[0j][:k] -= (Vb / lam[None, :] / lam[None, :]).sum(axis=1)
+            col = np.zeros(X[0j].shape[0], dtype=complex)
+            col[:k] = -(Vb / lam[None, :]).sum(axis=1)
+            dd2n.append((0j, 0j))
+            dd2c.append(col)
+            continue
+        Ua[:, sel] += Vb / (lam * (lam - mu))[None, :]
+        X[0j][:k] += (Vb / (lam * mu)[None, :]).sum(axis=1)
+        X[mu][:k] += (Vb / (mu * (mu - lam))[None, :]).sum(axis=1)
 
 
 def _divide(vec: np.ndarray, div: tuple) -> np.ndarray:
