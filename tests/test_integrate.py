@@ -1189,8 +1189,8 @@ def test_random_frictional_systems_exact_and_rk_agree(seed):
     """Stress-review systems that once penetrated contacts (rk: gaps to -3.8), stalled ('no
     progress' on approaches of 1e-9 m/s next to 0.2 m/s sliding) or depended on t_end: both
     methods complete 2 s without penetration (beyond 1e-9 of the motion), keep the work
-    balance (exact 1e-9) and agree on q to 1e-6 of its size (their event logs may differ by
-    where an in-band re-closure is placed)."""
+    balance (exact 1e-9) and agree on q to what in-band re-closures placed differently can move
+    it (their event logs may differ there)."""
     s, v0 = _random_frictional_system(seed)
     a = integrate(s, 2.0, "exact", 0.01, v0=v0, max_events=5000)
     b = integrate(s, 2.0, "rk", 0.01, v0=v0, max_events=5000, rtol=1e-12, atol=1e-15)
@@ -1206,10 +1206,16 @@ def test_random_frictional_systems_exact_and_rk_agree(seed):
     # transition band, up to ~1e-10 E each (test_scene_modal_four_modes_nine_contacts); 1e-9
     assert a.energy["relative_residual"] < 1e-9
     # rk's own error is ~1e-11 of size (rtol 1e-12, some 1e2..1e3 steps), but one method may resolve a
-    # rebound below the band b ~ 1e-11 size that the other re-closes at once: the motion after it is
-    # shifted by that flight, 2 sqrt(2 b / |g''|) ~ 1e-6 s at |g''| ~ 10 m/s^2, ~1e-6 size at ~1 m/s;
-    # 1e-6 size (measured <= 1.3e-8 size, seeds 4 and 68)
-    assert np.abs(a.q - b.q).max() <= 1e-6 * size
+    # rebound below the band b ~ 1e-11 of the gap's terms (|J_N| |q| + j_N <= 4 size) that the other
+    # re-closes at once: the motion after it is shifted by that flight, 2 sqrt(2 b / a) with a the
+    # loads' acceleration into the contacts, times the largest speed (a stick position moves by it). Each
+    # such decision may differ, at most one more than the event counts differ (measured 1.9e-5 size for
+    # seed 38, 20 against 15 events: rk re-closes at once where exact resolves rebounds of 1e-13 m;
+    # 1e-8 size for seeds 4 and 68; the bound is 1e-5 .. 1e-4 size, a missed event shows at 1e-2)
+    acc = float(np.abs(s.contacts.JN.T @ np.linalg.solve(s.M, s.f0)).min())
+    speed = max(np.abs(a.v).max(), np.abs(b.v).max())
+    flight = 2.0 * math.sqrt(2.0 * 4e-11 * size / acc)
+    assert np.abs(a.q - b.q).max() <= (1 + abs(len(a.events) - len(b.events))) * speed * flight
 
 
 def on_open_orbit(scene) -> tuple[ContactSystem, np.ndarray, np.ndarray]:
