@@ -297,3 +297,34 @@ def test_stationary_without_contacts(capsys):
     code, out, err = run_cli(["stationary", "--set", "delamination=[]"], capsys)
     assert code == 0, err
     assert "no contacts" in out
+
+
+def test_search_cost_follows_the_modes_the_contacts_see():
+    """An end-on contact of a free bar sees its axial modes only: the search-cost estimate takes the
+    fastest of those (for 40 linear axial elements, 2 c / h sqrt(3) at most: the consistent-mass
+    bar's highest frequency), not the faster bending and torsion modes of the same mesh; a
+    gyroscopic model (no real modes) keeps its whole spectrum; models beyond the dense limit get
+    ARPACK's largest frequency, which matches the dense one."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "studies"))
+    from bar_impact import E, L, RHO, scene
+
+    from nsfem.integrate import ContactSystem
+    from nsfem.simulate import fastest_frequency, search_cost, spectra
+
+    system = ContactSystem.from_scene(scene(40, 0.0))
+    w, seen = spectra(system)
+    f_max, samples = search_cost(system, 1.0)
+    c, h = math.sqrt(E / RHO), L / 40
+    # (the free-free mesh's highest axial mode is the element's own, nodes alternating: 2 sqrt(3) c / h,
+    # to the eigensolver's round-off)
+    assert 2 * math.pi * f_max == pytest.approx(seen.max())
+    assert seen.max() == pytest.approx(2 * c / h * math.sqrt(3.0), rel=1e-9)
+    # the bending modes of 40 elements reach 3.5x higher (10x for 200 elements)
+    assert w.max() > 3 * seen.max() and samples == pytest.approx(4 * seen.max() / math.pi)
+    # ARPACK to its tolerance 1e-3 of the largest eigenvalue (1e-3 / 2 in its square root)
+    assert fastest_frequency(system) == pytest.approx(w.max(), rel=1e-3)
+    shipped = ContactSystem.from_scene(load_scene(None, []))
+    assert not shipped.symmetric and np.array_equal(*spectra(shipped))
