@@ -21,13 +21,15 @@ minimum (root of h') is checked; an interval where h' may change sign twice (no 
 the samples, yet the Hermite cubic through them, less its error bound, reaches below the band) is
 subdivided and scanned again, and so are a dip interval whose cubic is not certainly convex (it may
 hold two minima) and a crossing interval unless the row certainly stays above -tol before the root
-Brent found (three roots: Brent may return the last): the row decreasing up to the root (the
+the refinement found (three roots: it may return the last): the row decreasing up to the root (the
 cubic's slope with its error bound, Birkhoff and Priver's sqrt(3) / 216 dt^3 max|h^(4)|, below
 zero) and above -tol before that. The cubic's minimum is exact (its ends and the roots of its
 derivative). Where the phase's derivative bound is too crude to screen (the matrix-exponential
 path), a local one is formed from the state at each sample (A_aug balanced, Taylor terms and a
-remainder). Roots are refined with Brent's method to round-off; after 3 subdivisions (4096 times
-finer than the step) Brent's root is taken as it is. tests/test_event_search.py checks the search
+remainder). Roots are refined to round-off by Newton's method kept inside the sign change's bracket,
+from the Hermite cubic's root, on the whole row read at one time from its modal coefficients
+(:meth:`Phase.row_values`); after 3 subdivisions (4096 times finer than the step) the refined root
+is taken as it is. tests/test_event_search.py checks the search
 against a dense brute-force scan of random phases. A dip
 that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
 transition LCP, not an impact, decides what happens.
@@ -46,7 +48,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .configuration import Mode, Phase
 
@@ -185,17 +186,17 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         limit = math.inf
         for i in np.argsort(first, kind="stable"):
             hi, hdi = h[i], hd[i]
+            row = _Row(phase, H[i], Hd[i])
             res = None
             if not armed[i]:
                 # the row starts in its zero band: it fires from there only by leaving it downwards
                 # (root at -tol, flagged: it never rose above the band); once it has left the band
                 # upwards (a sample or a maximum between samples above tol) it is armed at 0
-                arm = _arm(phase, H[i], Hd[i], ts, hi, hdi, band[i], bound4[i])
+                arm = _arm(row, ts, hi, hdi, band[i], bound4[i])
                 lim = hi.size - 1 if arm is None else arm[1] + 1
-                res = _scan(phase, H[i], Hd[i], ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], band[i],
-                            bound4[i], limit)
+                res = _scan(row, ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], band[i], bound4[i], limit)
                 if (res is not None and arm is not None and res[0] <= arm[0]
-                        and (res[0] <= ts[0] or float(Hd[i] @ phase.xi(res[0])) > 0.0)):
+                        and (res[0] <= ts[0] or row.at(res[0])[1] > 0.0)):
                     # a "crossing" at the phase's start, or where the row is rising, is the
                     # round-off of evaluating the row near its start (a gap lifted at 1e-4 m/s or
                     # opening from rest, evaluated to 1e-18 m next to a band of 1e-20 m): not a
@@ -207,13 +208,13 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     res = None
                     armed[i], thr[i] = True, 0.0
                     t_arm, k = arm
-                    x_arm = phase.xi(t_arm)
+                    h_arm, hd_arm = row.at(t_arm)
                     ts2 = np.concatenate([[t_arm], ts[k + 1:]])
-                    h2 = np.concatenate([[H[i] @ x_arm], hi[k + 1:]])
-                    hd2 = np.concatenate([[Hd[i] @ x_arm], hdi[k + 1:]])
-                    res = _scan(phase, H[i], Hd[i], ts2, h2, hd2, 0.0, band[i], bound4[i], limit)
+                    h2 = np.concatenate([[h_arm], hi[k + 1:]])
+                    hd2 = np.concatenate([[hd_arm], hdi[k + 1:]])
+                    res = _scan(row, ts2, h2, hd2, 0.0, band[i], bound4[i], limit)
             else:
-                res = _scan(phase, H[i], Hd[i], ts, hi, hdi, thr[i], band[i], bound4[i], limit)
+                res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit)
             if res is not None:
                 found.append((res[0], int(i), res[1], len(res) > 2))
                 limit = min(limit, res[0] + 1e-12 * max(1.0, abs(res[0])))
@@ -307,7 +308,7 @@ def _first_root(f0, f1, d0, d1, dt, s_r, bound4, tol):
     return s_x == 0.0 or _envelope_min(f0, f1, d0, d1, dt, bound4, s_x) >= -tol
 
 
-def _arm(phase, Hi, Hdi, ts, h, hd, tol, bound4):
+def _arm(row: "_Row", ts, h, hd, tol, bound4):
     """(t, k): the first time a row that starts in its zero band is above it (at a sample or
     at a maximum between samples ts[k], ts[k + 1]), or None.
 
@@ -321,13 +322,15 @@ def _arm(phase, Hi, Hdi, ts, h, hd, tol, bound4):
     cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
     for k in cand[:64]:
         a, b = ts[k], ts[k + 1]
-        if hd[k] > 0 >= hd[k + 1]:
-            tm = _root(lambda t: float(Hdi @ phase.xi(t)), a, b)
-            tm = (a if h[k] >= h[k + 1] else b) if tm is None else tm
-            hm = float(Hi @ phase.xi(tm))
+        tm = _root(row.slope, a, b, row.slope_noise) if hd[k] > 0 >= hd[k + 1] else None
+        if tm is not None:
+            hm = row.value(tm)
         else:
+            # no sign change of h' at the samples, or none left when re-evaluated: h' is round-off
+            # at an end (a gap lifting off from rest, h'(a) = +-1e-17, can rise 1e-9 and come back
+            # within the interval: its maximum is not at an end)
             grid = np.linspace(a, b, 33)
-            vals = Hi @ phase.xi(grid)
+            vals = row.samples(grid)[0]
             j = int(np.argmax(vals))
             tm, hm = float(grid[j]), float(vals[j])
         if hm > tol:
@@ -337,17 +340,118 @@ def _arm(phase, Hi, Hdi, ts, h, hd, tol, bound4):
     return None
 
 
-def _root(fun, a, b):
-    """Brent's method to round-off; None when the scalar re-evaluation shows no sign change
-    (the samples came from a matrix product whose round-off differs in the last bits)."""
-    fa, fb = fun(a), fun(b)
+class _Row:
+    """Row i of a search, h = H_i xi, with h' = Hd_i xi: exact values at one time for root refinement
+    (h'' from Hd_i A_aug: the Newton steps on h'), and samples at several."""
+
+    def __init__(self, phase: Phase, Hi: np.ndarray, Hdi: np.ndarray):
+        self.phase, self.H, self.Hd = phase, Hi, Hdi
+        self._values = self._map = None   # formed at the first call (most rows are never refined)
+
+    def _rows(self):
+        if self._values is None:
+            self._values = self.phase.row_values(np.vstack([self.H, self.Hd, self.Hd @ self.phase.A_aug]))
+        return self._values
+
+    def at(self, t: float) -> tuple[float, float]:
+        """(h, h') at t."""
+        v = self._rows()(t)
+        return float(v[0]), float(v[1])
+
+    def slope(self, t: float) -> tuple[float, float]:
+        """(h', h'') at t."""
+        v = self._rows()(t)
+        return float(v[1]), float(v[2])
+
+    def value(self, t: float) -> float:
+        """h at t."""
+        return float(self._rows()(t)[0])
+
+    def noise(self, t: float) -> float:
+        """The round-off of h at t."""
+        return float(self._rows().noise(t)[0])
+
+    def slope_noise(self, t: float) -> float:
+        """The round-off of h' at t."""
+        return float(self._rows().noise(t)[1])
+
+    def samples(self, ts: np.ndarray) -> np.ndarray:
+        """(h, h') at the times ts (2 x len(ts))."""
+        if self._map is None:
+            self._map = self.phase.row_map(np.vstack([self.H, self.Hd]))
+        return self._map(np.atleast_1d(np.asarray(ts, dtype=float)))
+
+
+#: Newton steps at most in :func:`_root` (bisections included: each halves the bracket at least)
+MAXITER = 200
+
+
+def _root(at, a, b, noise=None):
+    """A root of f in [a, b] to round-off, ``at(t)`` = (f(t), f'(t)); None when the re-evaluated ends
+    show no sign change (the samples came from a product whose round-off differs in the last bits).
+
+    Newton's method from the root of the Hermite cubic through the ends, kept inside the bracket
+    of the sign change (a step that leaves it, or does not halve the step before, bisects), until
+    a step is below xtol + rtol |t| (4e-16 max(1, |b|) + 8.9e-16 |t|, what Brent's method used to be
+    asked for: Newton's error after that step is of the order of its square, i.e. round-off), or until
+    Newton stalls where |f| is below its round-off ``noise(t)`` (a slow row read to 1e-19 with a
+    slope of 1e-4 has no root finer than 1e-15 s: bisecting on the noise would not sharpen it)."""
+    a, b = float(a), float(b)
+    fa, da = at(a)
+    fb, db = at(b)
     if fa == 0.0:
         return a
     if fb == 0.0:
         return b
     if (fa > 0) == (fb > 0):
         return None
-    return brentq(fun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200)
+    xtol = 4e-16 * max(1.0, abs(b))
+    x = a + (b - a) * _cubic_root(*_cubic(fa, fb, da, db, b - a))
+    prev = b - a
+    for _ in range(MAXITER):
+        fx, dx = at(x)
+        if fx == 0.0:
+            return x
+        if (fx > 0) == (fa > 0):
+            a, fa = x, fx
+        else:
+            b = x
+        step = fx / dx if dx != 0.0 else math.inf
+        tol = xtol + 8.9e-16 * abs(x)
+        if abs(step) <= tol:
+            return min(max(x - step, a), b)
+        x_new = x - step
+        if not (a < x_new < b) or abs(step) > 0.5 * prev:
+            if noise is not None and abs(fx) <= noise(x):
+                return x
+            x_new = 0.5 * (a + b)
+            step = x - x_new
+        if b - a <= 2.0 * tol:
+            return x_new
+        prev, x = abs(step), x_new
+    return x
+
+
+def _cubic_root(c0, c1, c2, c3):
+    """A root in [0, 1] of c0 + c1 s + c2 s^2 + c3 s^3 with c0 and the sum of the c of opposite signs (a
+    start for :func:`_root`): Newton's method on the cubic within the bracket, from the secant's root."""
+    lo, hi, f_lo = 0.0, 1.0, c0
+    f1 = c0 + c1 + c2 + c3
+    s = c0 / (c0 - f1)
+    for _ in range(8):
+        f = c0 + s * (c1 + s * (c2 + s * c3))
+        if (f > 0) == (f_lo > 0):
+            lo, f_lo = s, f
+        else:
+            hi = s
+        d = c1 + s * (2.0 * c2 + 3.0 * s * c3)
+        s_new = s - f / d if d != 0.0 else -1.0
+        if not (lo < s_new < hi):
+            s_new = 0.5 * (lo + hi)
+        if abs(s_new - s) <= 1e-12:
+            return s_new
+        s = s_new
+    return s
 
 
 #: samples per interval when a candidate interval is subdivided, and how often at most
@@ -382,7 +486,7 @@ def _local_bound4(phase, Hi, ts):
     return (terms.sum(axis=0) + rest) * dt ** 4 / 384.0
 
 
-def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0, row_at=None):
+def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
     Candidate intervals that start after ``limit`` (an earlier root of another row) are skipped.
 
@@ -395,10 +499,9 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
     subdivided into :data:`SUBDIVIDE` samples and scanned again (the bound shrinks by 16^4): a dip
     below zero between two samples that both descend is not missed. A root found in a crossing
     interval is the first one only if the row certainly stays above -tol before it (:func:`first`);
-    otherwise the interval is subdivided too (three roots: Brent may return the last), and so is a
-    dip interval whose row may not be convex (two minima: Brent may return either, or the maximum
-    between). Finer samples come from ``row_at`` (t -> (h, h') at times t, the row as the samples
-    were taken; None: ``Hi``, ``Hdi`` times :meth:`Phase.xi`)."""
+    otherwise the interval is subdivided too (three roots: the refinement may return the last), and so is a
+    dip interval whose row may not be convex (two minima: the refinement may return either, or the maximum
+    between). Finer samples and roots come from ``row`` (the whole row: no term left out).""" 
     if ts.size < 2:
         return None
     f = h - thr
@@ -414,7 +517,7 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
     reach = tol * float(SUBDIVIDE) ** (4 * (DEPTH - depth))
     b4 = np.broadcast_to(np.asarray(bound4, dtype=float), (ts.size - 1,))
     if depth == 0 and not np.all(b4 <= reach):
-        b4 = np.minimum(b4, _local_bound4(phase, Hi, ts))
+        b4 = np.minimum(b4, _local_bound4(row.phase, row.H, ts))
     subdivide = (b4 <= reach) if depth < DEPTH else np.zeros(ts.size - 1, dtype=bool)
     check = above[:-1] & above[1:] & (turn | subdivide)
     near = np.zeros(ts.size - 1, dtype=bool)
@@ -436,19 +539,13 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
         return None
 
     def fun(t):
-        return float(Hi @ phase.xi(t)) - thr
-
-    def dfun(t):
-        return float(Hdi @ phase.xi(t))
-
-    def samples(t):
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        return np.vstack([Hi, Hdi]) @ phase.xi(t) if row_at is None else row_at(t)
+        h_t, hd_t = row.at(t)
+        return h_t - float(thr), hd_t
 
     def finer(k):
         sub = np.linspace(ts[k], ts[k + 1], SUBDIVIDE + 1)
-        hh = samples(sub)
-        return _scan(phase, Hi, Hdi, sub, hh[0], hh[1], thr, tol, b4[k] / SUBDIVIDE**4, limit, depth + 1, row_at)
+        hh = row.samples(sub)
+        return _scan(row, sub, hh[0], hh[1], thr, tol, b4[k] / SUBDIVIDE**4, limit, depth + 1)
 
     def first(k, t_r):
         """t_r, or the earlier root a finer scan finds when t_r may not be the first: certain when
@@ -460,7 +557,7 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
             return t_r, False
         u = (t_r - ts[k]) / dt[k]
         if u > 0.0:
-            hr = samples(t_r)[:, 0]
+            hr = row.at(t_r)
             if _envelope_min(f[k], hr[0] - thr, hd[k], hr[1], t_r - ts[k], b4[k] * u**4) >= -tol:
                 return t_r, False
         res = finer(k)
@@ -476,26 +573,26 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
                 return res
             continue
         if k == k_c:
-            if fun(a) < 0:  # the sample before is itself (round-off) below: the root is there
+            if row.value(a) - thr < 0:  # the sample before is itself (round-off) below: the root is there
                 return a, False
-            t_r = _root(fun, a, b)
+            t_r = _root(fun, a, b, row.noise)
             return first(k, b if t_r is None else t_r)
         if not turn[k]:
             continue
         if subdivide[k] and not _convex(f[k], f[k + 1], hd[k], hd[k + 1], dt[k], b4[k]):
-            # h' may change sign three times: the interval may hold two minima, Brent would
+            # h' may change sign three times: the interval may hold two minima, the refinement would
             # find one of them (or the maximum between): scanned again on finer samples
             res = finer(k)
             if res is not None:
                 return res
             continue
         # dip: the minimum inside [a, b]
-        tm = _root(dfun, a, b)
+        tm = _root(row.slope, a, b, row.slope_noise)
         if tm is None:  # h' is round-off at an end: take the lower end sample
             tm = a if f[k] <= f[k + 1] else b
-        fm = fun(tm)
+        fm = row.value(tm) - thr
         if fm < -tol:   # (decreasing up to the minimum, the only one: the root is the first)
-            t_r = _root(fun, a, tm)
+            t_r = _root(fun, a, tm, row.noise)
             return (tm if t_r is None else t_r), False
         if fm <= tol and thr == 0.0:
             return tm, True
