@@ -53,8 +53,10 @@ from .configuration import Mode, Phase
 
 #: relative size (to the terms that make h) below which an event function counts as zero
 ZERO = 1e-11
-#: samples evaluated at once
-CHUNK = 256
+#: samples evaluated at once: FIRST_CHUNK intervals first, 4 times more each time after, up to CHUNK
+#: (most events of an impact sequence lie within the first sampling interval: 256 samples would
+#: cost more than the event's refinement)
+FIRST_CHUNK, CHUNK = 4, 256
 
 
 @dataclass
@@ -166,8 +168,10 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     armed = None
     thr = None
     t_a = t_start
+    chunk = FIRST_CHUNK
     while t_a < t_stop:
-        n = max(1, min(CHUNK, math.ceil((t_stop - t_a) / h_step)))
+        n = max(1, min(chunk, math.ceil((t_stop - t_a) / h_step)))
+        chunk = min(CHUNK, 4 * chunk)
         ts = np.linspace(t_a, min(t_stop, t_a + n * h_step), n + 1)
         hh = rows_at(ts)
         h, hd = hh[: rows.size], hh[rows.size:]
@@ -178,6 +182,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
             # below -tol: a gap located with a previous phase's larger band)
             thr = np.where(armed, 0.0, np.minimum(-band, h[:, 0] - band))
         found = []
+        maybe = _screened(ts, h - thr[:, None], hd, band, bound4) | ~armed
         # rows in the order of their first sample below threshold (a cheap lower bound of where
         # their root lies); a row whose first candidate interval starts after the earliest root
         # refined so far cannot be the first event and is not refined (same result, fewer roots)
@@ -185,6 +190,8 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         first = np.where(below.any(axis=1), np.argmax(below, axis=1), h.shape[1])
         limit = math.inf
         for i in np.argsort(first, kind="stable"):
+            if not maybe[i]:
+                continue
             hi, hdi = h[i], hd[i]
             row = _Row(phase, H[i], Hd[i])
             res = None
@@ -227,6 +234,18 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         if report is not None:
             report(t_a)
     return None
+
+
+def _screened(ts, f, hd, band, bound4) -> np.ndarray:
+    """Per row, False when :func:`_scan` certainly finds no candidate interval on these samples (no
+    crossing, no near dip, nothing to subdivide: all rows screened at once, as each scan would);
+    True also for a row whose bound needs the local one (the matrix-exponential path)."""
+    dt = np.diff(ts)
+    ok = bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH)   # depth 0: subdivided where the bound screens
+    b4 = np.broadcast_to(bound4[:, None], (f.shape[0], dt.size))
+    sub = np.broadcast_to(ok[:, None], b4.shape)
+    cross, _, near = _screen(dt, f, hd, band[:, None], b4, sub)
+    return ~ok | cross.any(axis=1) | near.any(axis=1)
 
 
 def round_off(H: np.ndarray, xis: np.ndarray, r2: int) -> np.ndarray:
@@ -486,6 +505,31 @@ def _local_bound4(phase, Hi, ts):
     return (terms.sum(axis=0) + rest) * dt ** 4 / 384.0
 
 
+def _screen(dt, f, hd, tol, b4, subdivide):
+    """The candidate intervals of rows (f = h - thr and h' sampled, rows x samples; ``tol``, a
+    scalar or per row as a column; ``b4`` per row and interval; ``subdivide`` where an interval may
+    be scanned again on finer samples): (cross, turn, near), per row and interval, of :func:`_scan`.
+
+    A crossing goes from at or above -tol to below it; a dip (h' from - to +, or a sample at the
+    minimum itself) is near when its cubic, less its error bound, comes within the band (a graze
+    counts); any other interval that may be subdivided is near when that reaches below the band."""
+    above = f >= -tol
+    cross = above[:, :-1] & ~above[:, 1:]
+    turn = (hd[:, :-1] < 0) & (hd[:, 1:] >= 0)
+    check = above[:, :-1] & above[:, 1:] & (turn | subdivide)
+    near = np.zeros(check.shape, dtype=bool)
+    if np.any(check):
+        # the cubic's Hermite weights of the slopes are at most 4/27: a cheap lower bound first
+        rough = np.minimum(f[:, :-1], f[:, 1:]) - 4.0 / 27.0 * dt * (np.abs(hd[:, :-1]) + np.abs(hd[:, 1:]))
+        i, k = np.nonzero(check & (rough - b4 <= tol))
+        if k.size:
+            lo = _hermite_min(f[i, k], f[i, k + 1], hd[i, k], hd[i, k + 1], dt[k]) - b4[i, k]
+            band = np.broadcast_to(tol, f.shape)[i, 0]
+            hit = np.where(turn[i, k], lo <= band, lo < -band)
+            near[i[hit], k[hit]] = True
+    return cross, turn, near
+
+
 def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
     Candidate intervals that start after ``limit`` (an earlier root of another row) are skipped.
@@ -505,10 +549,6 @@ def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0
     if ts.size < 2:
         return None
     f = h - thr
-    above = f >= -tol
-    cross = np.flatnonzero(above[:-1] & ~above[1:])
-    # h' sign change from - to + (or a sample at the minimum itself): a dip candidate
-    turn = (hd[:-1] < 0) & (hd[1:] >= 0)
     # a row can cross below its band and come back between two samples whatever their slopes (h'
     # - + -, or + - + right after a lift): such an interval is subdivided when the cubic, less its
     # error bound, reaches below the band. A bound4 that the remaining levels cannot bring down to
@@ -519,18 +559,9 @@ def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0
     if depth == 0 and not np.all(b4 <= reach):
         b4 = np.minimum(b4, _local_bound4(row.phase, row.H, ts))
     subdivide = (b4 <= reach) if depth < DEPTH else np.zeros(ts.size - 1, dtype=bool)
-    check = above[:-1] & above[1:] & (turn | subdivide)
-    near = np.zeros(ts.size - 1, dtype=bool)
     dt = np.diff(ts)
-    if np.any(check):
-        # the cubic's Hermite weights of the slopes are at most 4/27: a cheap lower bound first
-        rough = np.minimum(f[:-1], f[1:]) - 4.0 / 27.0 * dt * (np.abs(hd[:-1]) + np.abs(hd[1:]))
-        k = np.flatnonzero(check & (rough - b4 <= tol))
-        if k.size:
-            lo = _hermite_min(f[k], f[k + 1], hd[k], hd[k + 1], dt[k]) - b4[k]
-            # a dip (h' - to +) is refined when it comes within the band (a graze counts); any
-            # other interval only when it may cross below the band
-            near[k[np.where(turn[k], lo <= tol, lo < -tol)]] = True
+    cross, turn, near = (x[0] for x in _screen(dt, f[None], hd[None], tol, b4[None], subdivide[None]))
+    cross = np.flatnonzero(cross)
     k_c = cross[0] if cross.size else None
     cand = np.flatnonzero(near)
     if k_c is not None:
