@@ -298,9 +298,11 @@ class Phase:
     def _rows(self, mot: Motion, H: np.ndarray):
         """t -> H xi(t) with xi's modal part from ``mot`` (H's products with it formed once)."""
         r2 = 2 * self.config.r
-        Hm = Motion(mot.nu, H[:, :r2] @ mot.U, [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups])
-        Hh = H[:, r2:]
+        return self._rows_of(Motion(mot.nu, H[:, :r2] @ mot.U, [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups]),
+                             H[:, r2:])
 
+    def _rows_of(self, Hm: Motion, Hh: np.ndarray):
+        """t -> Hm(t - t0) + Hh (harmonic components of xi)(t): rows whose modal products are formed."""
         def rows(t):
             tt = np.atleast_1d(np.asarray(t, dtype=float))
             return Hm.evaluate(tt - self.t0) + Hh @ self._harmonics(tt)
@@ -315,16 +317,17 @@ class Phase:
     def search_map(self, H: np.ndarray, budget: np.ndarray, horizon: float):
         """(rows, rate, e, bound): ``rows(t)`` = H xi(t) without the fastest exponential terms whose
         contributions to row i sum to at most budget[i] over the horizon (e[i] that sum), ``rate``
-        the fastest rate left (it sets the sampling step), ``bound(H, order, horizon)`` the
-        derivative bound of what is left. Without a modal form: the full rows."""
+        the fastest rate left (it sets the sampling step), ``bound(order)`` per row of H the bound of
+        the order-th derivative of what is left over the horizon. Without a modal form: the full rows."""
         r2 = 2 * self.config.r
-        full = (self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]), self.derivative_bound)
         if not r2 or self._modal is None:
-            return full
+            return (self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]),
+                    lambda order: self.derivative_bound(H, order, horizon))
         mot = self._modal
+        HU = H[:, :r2] @ mot.U       # formed once: for the sizes, the rows and their bound
         with np.errstate(over="ignore"):
             grow = np.exp(np.maximum(mot.nu.real, 0.0) * horizon)
-        size = np.abs(H[:, :r2] @ mot.U) * grow[None, :]
+        size = np.abs(HU) * grow[None, :]
         speed = np.abs(mot.nu)
         order = np.argsort(-speed, kind="stable")
         cum = np.cumsum(size[:, order], axis=1)
@@ -333,21 +336,23 @@ class Phase:
         # terms of one speed (a conjugate pair) are left out together or not at all
         while 0 < n_drop < order.size and speed[order[n_drop]] == speed[order[n_drop - 1]]:
             n_drop -= 1
+        groups = [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups]
         if n_drop == 0:
-            return full
-        keep = np.sort(order[n_drop:])
-        e = cum[:, n_drop - 1]
-        kept = Motion(mot.nu[keep], mot.U[:, keep], mot.groups)
-        rate = float(np.max(speed[keep], initial=0.0))
-        for nodes, _ in mot.groups:
-            rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
-        def bound(Hb, order_, horizon_):
-            b = kept.bound(Hb[:, :r2], order_, horizon_)
+            kept, rate, e = Motion(mot.nu, HU, groups), self.config.fastest_rate(), np.zeros(H.shape[0])
+        else:
+            keep = np.sort(order[n_drop:])
+            kept, e = Motion(mot.nu[keep], HU[:, keep], groups), cum[:, n_drop - 1]
+            rate = float(np.max(speed[keep], initial=0.0))
+            for nodes, _ in mot.groups:
+                rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
+
+        def bound(order_):
+            b = kept.bound(None, order_, horizon)
             if self.w:
-                b = b + (np.abs(Hb[:, r2 + 1]) + np.abs(Hb[:, r2 + 2])) * self.w ** order_
+                b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * self.w ** order_
             return b
 
-        return self._rows(kept, H), rate, e, bound
+        return self._rows_of(kept, H[:, r2:]), rate, e, bound
 
     def pruned_xi(self, rel: float, horizon: float):
         """(xi_fun, rate): xi(t) without the fastest terms whose sum stays below ``rel`` of the
@@ -467,8 +472,9 @@ class Phase:
 
 class RowValues:
     """t -> R xi(t) at one time t (a float), for root refinement: on the modal path R's products with
-    the motion's terms are formed once, so a call costs one exponential per term and a short
-    product (microseconds, where ``R @ xi(t)`` forms the whole state)."""
+    the motion's terms are formed once (the constant and harmonic components of xi as terms e^{0 tau}
+    and e^{+-i w tau}), so a call costs one exponential per term and a short product (microseconds,
+    where ``R @ xi(t)`` forms the whole state)."""
 
     #: round-off of a value, in units of eps times its terms' sizes (a sum of products, e^{nu tau}
     #: off by |nu tau| eps, the time itself known to |t| eps)
@@ -482,21 +488,21 @@ class RowValues:
             self.RA = np.abs(R @ phase.A_aug)
             return
         mot = phase._modal
-        self.C = R[:, :r2] @ mot.U
+        C, nu = [R[:, :r2] @ mot.U, R[:, r2:r2 + 1]], [mot.nu, np.zeros(1)]
+        if phase.w:   # c cos w t + s sin w t = Re (c - i s) e^{i w t0} e^{i w tau}
+            C.append(((R[:, r2 + 1] - 1j * R[:, r2 + 2]) * np.exp(1j * phase.w * phase.t0))[:, None])
+            nu.append(np.array([1j * phase.w]))
+        self.C, self.nu, self.t0 = np.hstack(C), np.concatenate(nu), phase.t0
         self.groups = [(nodes, R[:, :r2] @ D) for nodes, D in mot.groups]
-        self.const, self.t0, self.w, self.nu = R[:, r2], phase.t0, phase.w, mot.nu
-        self.cs = R[:, r2 + 1: r2 + 3].copy() if self.w else None
-        self.absC, self.absCnu = np.abs(self.C), np.abs(self.C * mot.nu[None, :])
+        self.absC, self.absCnu = np.abs(self.C), np.abs(self.C * self.nu[None, :])
 
     def __call__(self, t: float) -> np.ndarray:
         if not self.modal:
             return self.R @ self.phase.xi(t)
         tau = t - self.t0
-        out = (self.C @ np.exp(self.nu * tau)).real + self.const
+        out = (self.C @ np.exp(self.nu * tau)).real
         for nodes, D in self.groups:
             out += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
-        if self.w:
-            out += self.cs[:, 0] * math.cos(self.w * t) + self.cs[:, 1] * math.sin(self.w * t)
         return out
 
     def noise(self, t: float) -> np.ndarray:
@@ -508,11 +514,8 @@ class RowValues:
         else:
             tau = t - self.t0
             grow = np.exp(self.nu.real * tau)
-            s0, s1 = self.absC @ grow + np.abs(self.const), self.absCnu @ grow
+            s0, s1 = self.absC @ grow, self.absCnu @ grow
             for nodes, D in self.groups:
                 size = np.abs(D) @ np.abs(divided_exp(nodes, np.array([tau]))[:, 0])
                 s0, s1 = s0 + size, s1 + size * float(np.max(np.abs(nodes), initial=0.0))
-            if self.w:
-                harm = np.abs(self.cs).sum(axis=1)
-                s0, s1 = s0 + harm, s1 + self.w * harm
         return self.ULPS * np.finfo(float).eps * (s0 + s1 * (abs(tau) + abs(t)))

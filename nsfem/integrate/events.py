@@ -164,7 +164,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     band = tol - e
     h_step = phase.max_step(t_stop - t_start, rate)
     # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
-    bound4 = bound_of(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
+    bound4 = bound_of(4)[: rows.size] * h_step ** 4 / 384.0
     armed = None
     thr = None
     t_a = t_start
@@ -281,9 +281,10 @@ def _hermite_min(f0, f1, d0, d1, dt):
     c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt)
     out = np.minimum(f0, f1)
     for r in _quadratic_roots(3.0 * c3, 2.0 * c2, c1):
-        inside = np.isfinite(r) & (r > 0.0) & (r < 1.0)
-        s = np.where(inside, r, 0.0)
-        out = np.where(inside, np.minimum(out, c0 + s * (c1 + s * (c2 + s * c3))), out)
+        inside = (r > 0.0) & (r < 1.0)   # (False for nan and inf)
+        if inside.any():
+            s = np.where(inside, r, 0.0)
+            out = np.where(inside, np.minimum(out, c0 + s * (c1 + s * (c2 + s * c3))), out)
     return out
 
 
@@ -366,25 +367,37 @@ class _Row:
     def __init__(self, phase: Phase, Hi: np.ndarray, Hdi: np.ndarray):
         self.phase, self.H, self.Hd = phase, Hi, Hdi
         self._values = self._map = None   # formed at the first call (most rows are never refined)
+        self._memo: dict = {}
 
     def _rows(self):
         if self._values is None:
             self._values = self.phase.row_values(np.vstack([self.H, self.Hd, self.Hd @ self.phase.A_aug]))
         return self._values
 
+    def _eval(self, t: float) -> tuple[float, float, float]:
+        """(h, h', h'') at t; the last few times are remembered (a root's bracket ends are often
+        where the caller has just read the row)."""
+        t = float(t)
+        v = self._memo.get(t)
+        if v is None:
+            if len(self._memo) >= 8:
+                self._memo.clear()
+            v = self._memo[t] = tuple(self._rows()(t).tolist())
+        return v
+
     def at(self, t: float) -> tuple[float, float]:
         """(h, h') at t."""
-        v = self._rows()(t)
-        return float(v[0]), float(v[1])
+        v = self._eval(t)
+        return v[0], v[1]
 
     def slope(self, t: float) -> tuple[float, float]:
         """(h', h'') at t."""
-        v = self._rows()(t)
-        return float(v[1]), float(v[2])
+        v = self._eval(t)
+        return v[1], v[2]
 
     def value(self, t: float) -> float:
         """h at t."""
-        return float(self._rows()(t)[0])
+        return self._eval(t)[0]
 
     def noise(self, t: float) -> float:
         """The round-off of h at t."""
