@@ -55,7 +55,7 @@ to ~10 tol for a defective A over 1e5 |A_aug| t, which is the function the searc
 twice the rows' own round-off near the points checked (deviation from a straight line of 17
 values 4 ulps of t apart: ~eps of the terms, 1e-5 tol, except for a nearly defective mode, whose
 closed form reads cond(V) eps, up to 100 tol). dt_root = 4 (4e-16 max(1, |t|) + 8.9e-16 |t|) is
-the time resolution Brent is asked for in ``_root`` (xtol, rtol), with a factor 4 for brentq's
+the time resolution ``_root`` is asked for (xtol, rtol), with a factor 4 for its
 stopping test: a root located to dt_root sits within |h'| dt_root of zero.
 """
 

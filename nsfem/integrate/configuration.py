@@ -30,7 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import NsfemError
-from .closed_form import Motion, modal_motion
+from .closed_form import Motion, divided_exp, modal_motion
 from .problem import ContactSystem
 
 #: relative singular value below which a constraint direction is redundant
@@ -376,35 +376,48 @@ class Phase:
         itself without H."""
         r2 = 2 * self.config.r
         if H is None:
-            def states(t):
-                tt = np.atleast_1d(np.asarray(t, dtype=float))
-                return np.vstack([mot.evaluate(tt - self.t0), self._harmonics(tt)])
+            return self._states_of(mot)
+        return self._rows_of(Motion(mot.nu, H[:, :r2] @ mot.U, [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups]),
+                             H[:, r2:])
 
-            return states
-        Hm = Motion(mot.nu, H[:, :r2] @ mot.U, [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups])
-        Hh = H[:, r2:]
+    def _states_of(self, mot: Motion):
+        """t -> xi(t) with its modal part from ``mot``."""
+        def states(t):
+            tt = np.atleast_1d(np.asarray(t, dtype=float))
+            return np.vstack([mot.evaluate(tt - self.t0), self._harmonics(tt)])
 
+        return states
+
+    def _rows_of(self, Hm: Motion, Hh: np.ndarray):
+        """t -> Hm(t - t0) + Hh (harmonic components of xi)(t): rows whose modal products are formed."""
         def rows(t):
             tt = np.atleast_1d(np.asarray(t, dtype=float))
             return Hm.evaluate(tt - self.t0) + Hh @ self._harmonics(tt)
 
         return rows
 
+    def row_values(self, R: np.ndarray) -> "RowValues":
+        """t -> R xi(t) (one value per row) at a scalar time t, with the round-off of that value
+        (:class:`RowValues`), for root refinement."""
+        return RowValues(self, R)
+
     def search_map(self, H: np.ndarray, budget: np.ndarray, horizon: float):
         """(rows, rate, e, bound): ``rows(t)`` = H xi(t) without the fastest exponential terms whose
         contributions to row i sum to at most budget[i] over the horizon (e[i] that sum), ``rate``
-        the fastest rate left (it sets the sampling step), ``bound(H, order, horizon)`` the
-        derivative bound of what is left. Without a modal form: the full rows. H None: xi itself
-        (budget per component of its modal part)."""
+        the fastest rate left (it sets the sampling step), ``bound(order)`` per row of H the bound of
+        the order-th derivative of what is left over the horizon. Without a modal form: the full rows.
+        H None: xi itself (budget per component of its modal part; for quadratures)."""
         r2 = 2 * self.config.r
-        full = (self.row_map(H) if H is not None else self.xi, self.config.fastest_rate(),
-                np.zeros(self.dim if H is None else H.shape[0]), self.derivative_bound)
+        if H is None and (not r2 or self._modal is None):
+            return self.xi, self.config.fastest_rate(), np.zeros(self.dim), None
         if not r2 or self._modal is None:
-            return full
+            return (self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]),
+                    lambda order: self.derivative_bound(H, order, horizon))
         mot = self._modal
+        HU = mot.U if H is None else H[:, :r2] @ mot.U   # formed once: for the sizes, the rows and their bound
         with np.errstate(over="ignore"):
             grow = np.exp(np.maximum(mot.nu.real, 0.0) * horizon)
-        size = np.abs(mot.U if H is None else H[:, :r2] @ mot.U) * grow[None, :]
+        size = np.abs(HU) * grow[None, :]
         speed = np.abs(mot.nu)
         order = np.argsort(-speed, kind="stable")
         cum = np.cumsum(size[:, order], axis=1)
@@ -413,21 +426,26 @@ class Phase:
         # terms of one speed (a conjugate pair) are left out together or not at all
         while 0 < n_drop < order.size and speed[order[n_drop]] == speed[order[n_drop - 1]]:
             n_drop -= 1
+        groups = mot.groups if H is None else [(nodes, H[:, :r2] @ D) for nodes, D in mot.groups]
         if n_drop == 0:
-            return full
-        keep = np.sort(order[n_drop:])
-        e = cum[:, n_drop - 1]
-        kept = Motion(mot.nu[keep], mot.U[:, keep], mot.groups)
-        rate = float(np.max(speed[keep], initial=0.0))
-        for nodes, _ in mot.groups:
-            rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
-        def bound(Hb, order_, horizon_):
-            b = kept.bound(Hb[:, :r2], order_, horizon_)
+            kept, rate, e = Motion(mot.nu, HU, groups), self.config.fastest_rate(), np.zeros(HU.shape[0])
+        else:
+            keep = np.sort(order[n_drop:])
+            kept, e = Motion(mot.nu[keep], HU[:, keep], groups), cum[:, n_drop - 1]
+            rate = float(np.max(speed[keep], initial=0.0))
+            for nodes, _ in mot.groups:
+                rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
+
+        if H is None:
+            return self._states_of(kept), rate, e, None
+
+        def bound(order_):
+            b = kept.bound(None, order_, horizon)
             if self.w:
-                b = b + (np.abs(Hb[:, r2 + 1]) + np.abs(Hb[:, r2 + 2])) * self.w ** order_
+                b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * self.w ** order_
             return b
 
-        return self._rows(kept, H), rate, e, bound
+        return self._rows_of(kept, H[:, r2:]), rate, e, bound
 
     def pruned_xi(self, rel: float, horizon: float):
         """(xi_fun, rate): xi(t) without the fastest terms whose sum stays below ``rel`` of the
@@ -543,3 +561,54 @@ class Phase:
         rate = max(self.config.fastest_rate() if rate is None else rate, self.w)
         h = math.pi / (4.0 * rate) if rate > 0 else math.inf
         return min(h, horizon / 8.0) if horizon > 0 else h
+
+
+class RowValues:
+    """t -> R xi(t) at one time t (a float), for root refinement: on the modal path R's products with
+    the motion's terms are formed once (the constant and harmonic components of xi as terms e^{0 tau}
+    and e^{+-i w tau}), so a call costs one exponential per term and a short product (microseconds,
+    where ``R @ xi(t)`` forms the whole state)."""
+
+    #: round-off of a value, in units of eps times its terms' sizes (a sum of products, e^{nu tau}
+    #: off by |nu tau| eps, the time itself known to |t| eps)
+    ULPS = 8.0
+
+    def __init__(self, phase: Phase, R: np.ndarray):
+        self.phase, self.R = phase, R
+        r2 = 2 * phase.config.r
+        self.modal = bool(r2) and phase._modal is not None
+        if not self.modal:
+            self.RA = np.abs(R @ phase.A_aug)
+            return
+        mot = phase._modal
+        C, nu = [R[:, :r2] @ mot.U, R[:, r2:r2 + 1]], [mot.nu, np.zeros(1)]
+        if phase.w:   # c cos w t + s sin w t = Re (c - i s) e^{i w t0} e^{i w tau}
+            C.append(((R[:, r2 + 1] - 1j * R[:, r2 + 2]) * np.exp(1j * phase.w * phase.t0))[:, None])
+            nu.append(np.array([1j * phase.w]))
+        self.C, self.nu, self.t0 = np.hstack(C), np.concatenate(nu), phase.t0
+        self.groups = [(nodes, R[:, :r2] @ D) for nodes, D in mot.groups]
+        self.absC, self.absCnu = np.abs(self.C), np.abs(self.C * self.nu[None, :])
+
+    def __call__(self, t: float) -> np.ndarray:
+        if not self.modal:
+            return self.R @ self.phase.xi(t)
+        tau = t - self.t0
+        out = (self.C @ np.exp(self.nu * tau)).real
+        for nodes, D in self.groups:
+            out += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
+        return out
+
+    def noise(self, t: float) -> np.ndarray:
+        """Per row, the round-off of its value at t: ULPS eps (S0 + S1 (|tau| + |t|)), S0 the sum of its
+        terms' sizes, S1 of their derivatives' (tau = t - t0 and t are rounded)."""
+        if not self.modal:
+            x = np.abs(self.phase.xi(t))
+            s0, s1, tau = np.abs(self.R) @ x, self.RA @ x, t - self.phase.t0
+        else:
+            tau = t - self.t0
+            grow = np.exp(self.nu.real * tau)
+            s0, s1 = self.absC @ grow, self.absCnu @ grow
+            for nodes, D in self.groups:
+                size = np.abs(D) @ np.abs(divided_exp(nodes, np.array([tau]))[:, 0])
+                s0, s1 = s0 + size, s1 + size * float(np.max(np.abs(nodes), initial=0.0))
+        return self.ULPS * np.finfo(float).eps * (s0 + s1 * (abs(tau) + abs(t)))

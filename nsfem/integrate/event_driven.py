@@ -6,7 +6,7 @@ transition LCP), and continue in the new configuration. They differ only in how 
 phase is propagated:
 
 - ``exact``: in closed form (:class:`.configuration.Phase`), events located on the exact
-  solution with a sampling step bounded by the fastest time scale and Brent refinement;
+  solution with a sampling step bounded by the fastest time scale and bracketed Newton refinement;
 - ``rk``: scipy's ``solve_ivp`` (DOP853 by default, RK45 selectable) on the configuration's
   ODE with terminal event functions, the paper's own approach, kept for comparison (a
   grazing dip between two steps can be missed there, as in the paper).

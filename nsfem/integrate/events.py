@@ -21,13 +21,15 @@ minimum (root of h') is checked; an interval where h' may change sign twice (no 
 the samples, yet the Hermite cubic through them, less its error bound, reaches below the band) is
 subdivided and scanned again, and so are a dip interval whose cubic is not certainly convex (it may
 hold two minima) and a crossing interval unless the row certainly stays above -tol before the root
-Brent found (three roots: Brent may return the last): the row decreasing up to the root (the
+the refinement found (three roots: it may return the last): the row decreasing up to the root (the
 cubic's slope with its error bound, Birkhoff and Priver's sqrt(3) / 216 dt^3 max|h^(4)|, below
 zero) and above -tol before that. The cubic's minimum is exact (its ends and the roots of its
 derivative). Where the phase's derivative bound is too crude to screen (the matrix-exponential
 path), a local one is formed from the state at each sample (A_aug balanced, Taylor terms and a
-remainder). Roots are refined with Brent's method to round-off; after 3 subdivisions (4096 times
-finer than the step) Brent's root is taken as it is. tests/test_event_search.py checks the search
+remainder). Roots are refined to round-off by Newton's method kept inside the sign change's bracket,
+from the Hermite cubic's root, on the whole row read at one time from its modal coefficients
+(:meth:`Phase.row_values`); after 3 subdivisions (4096 times finer than the step) the refined root
+is taken as it is. tests/test_event_search.py checks the search
 against a dense brute-force scan of random phases. A dip
 that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
 transition LCP, not an impact, decides what happens.
@@ -46,14 +48,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .configuration import Mode, Phase
 
 #: relative size (to the terms that make h) below which an event function counts as zero
 ZERO = 1e-11
-#: samples evaluated at once
-CHUNK = 256
+#: samples evaluated at once: FIRST_CHUNK intervals first, 4 times more each time after, up to CHUNK
+#: (most events of an impact sequence lie within the first sampling interval: 256 samples would
+#: cost more than the event's refinement)
+FIRST_CHUNK, CHUNK = 4, 256
 
 
 @dataclass
@@ -161,12 +164,14 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     band = tol - e
     h_step = phase.max_step(t_stop - t_start, rate)
     # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
-    bound4 = bound_of(H, 4, t_stop - t_start) * h_step ** 4 / 384.0
+    bound4 = bound_of(4)[: rows.size] * h_step ** 4 / 384.0
     armed = None
     thr = None
     t_a = t_start
+    chunk = FIRST_CHUNK
     while t_a < t_stop:
-        n = max(1, min(CHUNK, math.ceil((t_stop - t_a) / h_step)))
+        n = max(1, min(chunk, math.ceil((t_stop - t_a) / h_step)))
+        chunk = min(CHUNK, 4 * chunk)
         ts = np.linspace(t_a, min(t_stop, t_a + n * h_step), n + 1)
         hh = rows_at(ts)
         h, hd = hh[: rows.size], hh[rows.size:]
@@ -177,6 +182,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
             # below -tol: a gap located with a previous phase's larger band)
             thr = np.where(armed, 0.0, np.minimum(-band, h[:, 0] - band))
         found = []
+        maybe = _screened(ts, h - thr[:, None], hd, band, bound4) | ~armed
         # rows in the order of their first sample below threshold (a cheap lower bound of where
         # their root lies); a row whose first candidate interval starts after the earliest root
         # refined so far cannot be the first event and is not refined (same result, fewer roots)
@@ -184,18 +190,20 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         first = np.where(below.any(axis=1), np.argmax(below, axis=1), h.shape[1])
         limit = math.inf
         for i in np.argsort(first, kind="stable"):
+            if not maybe[i]:
+                continue
             hi, hdi = h[i], hd[i]
+            row = _Row(phase, H[i], Hd[i])
             res = None
             if not armed[i]:
                 # the row starts in its zero band: it fires from there only by leaving it downwards
                 # (root at -tol, flagged: it never rose above the band); once it has left the band
                 # upwards (a sample or a maximum between samples above tol) it is armed at 0
-                arm = _arm(phase, H[i], Hd[i], ts, hi, hdi, band[i], bound4[i])
+                arm = _arm(row, ts, hi, hdi, band[i], bound4[i])
                 lim = hi.size - 1 if arm is None else arm[1] + 1
-                res = _scan(phase, H[i], Hd[i], ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], band[i],
-                            bound4[i], limit)
+                res = _scan(row, ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], band[i], bound4[i], limit)
                 if (res is not None and arm is not None and res[0] <= arm[0]
-                        and (res[0] <= ts[0] or float(Hd[i] @ phase.xi(res[0])) > 0.0)):
+                        and (res[0] <= ts[0] or row.at(res[0])[1] > 0.0)):
                     # a "crossing" at the phase's start, or where the row is rising, is the
                     # round-off of evaluating the row near its start (a gap lifted at 1e-4 m/s or
                     # opening from rest, evaluated to 1e-18 m next to a band of 1e-20 m): not a
@@ -207,13 +215,13 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     res = None
                     armed[i], thr[i] = True, 0.0
                     t_arm, k = arm
-                    x_arm = phase.xi(t_arm)
+                    h_arm, hd_arm = row.at(t_arm)
                     ts2 = np.concatenate([[t_arm], ts[k + 1:]])
-                    h2 = np.concatenate([[H[i] @ x_arm], hi[k + 1:]])
-                    hd2 = np.concatenate([[Hd[i] @ x_arm], hdi[k + 1:]])
-                    res = _scan(phase, H[i], Hd[i], ts2, h2, hd2, 0.0, band[i], bound4[i], limit)
+                    h2 = np.concatenate([[h_arm], hi[k + 1:]])
+                    hd2 = np.concatenate([[hd_arm], hdi[k + 1:]])
+                    res = _scan(row, ts2, h2, hd2, 0.0, band[i], bound4[i], limit)
             else:
-                res = _scan(phase, H[i], Hd[i], ts, hi, hdi, thr[i], band[i], bound4[i], limit)
+                res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit)
             if res is not None:
                 found.append((res[0], int(i), res[1], len(res) > 2))
                 limit = min(limit, res[0] + 1e-12 * max(1.0, abs(res[0])))
@@ -226,6 +234,18 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         if report is not None:
             report(t_a)
     return None
+
+
+def _screened(ts, f, hd, band, bound4) -> np.ndarray:
+    """Per row, False when :func:`_scan` certainly finds no candidate interval on these samples (no
+    crossing, no near dip, nothing to subdivide: all rows screened at once, as each scan would);
+    True also for a row whose bound needs the local one (the matrix-exponential path)."""
+    dt = np.diff(ts)
+    ok = bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH)   # depth 0: subdivided where the bound screens
+    b4 = np.broadcast_to(bound4[:, None], (f.shape[0], dt.size))
+    sub = np.broadcast_to(ok[:, None], b4.shape)
+    cross, _, near = _screen(dt, f, hd, band[:, None], b4, sub)
+    return ~ok | cross.any(axis=1) | near.any(axis=1)
 
 
 def round_off(H: np.ndarray, xis: np.ndarray, r2: int) -> np.ndarray:
@@ -261,9 +281,10 @@ def _hermite_min(f0, f1, d0, d1, dt):
     c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt)
     out = np.minimum(f0, f1)
     for r in _quadratic_roots(3.0 * c3, 2.0 * c2, c1):
-        inside = np.isfinite(r) & (r > 0.0) & (r < 1.0)
-        s = np.where(inside, r, 0.0)
-        out = np.where(inside, np.minimum(out, c0 + s * (c1 + s * (c2 + s * c3))), out)
+        inside = (r > 0.0) & (r < 1.0)   # (False for nan and inf)
+        if inside.any():
+            s = np.where(inside, r, 0.0)
+            out = np.where(inside, np.minimum(out, c0 + s * (c1 + s * (c2 + s * c3))), out)
     return out
 
 
@@ -307,7 +328,7 @@ def _first_root(f0, f1, d0, d1, dt, s_r, bound4, tol):
     return s_x == 0.0 or _envelope_min(f0, f1, d0, d1, dt, bound4, s_x) >= -tol
 
 
-def _arm(phase, Hi, Hdi, ts, h, hd, tol, bound4):
+def _arm(row: "_Row", ts, h, hd, tol, bound4):
     """(t, k): the first time a row that starts in its zero band is above it (at a sample or
     at a maximum between samples ts[k], ts[k + 1]), or None.
 
@@ -321,13 +342,15 @@ def _arm(phase, Hi, Hdi, ts, h, hd, tol, bound4):
     cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
     for k in cand[:64]:
         a, b = ts[k], ts[k + 1]
-        if hd[k] > 0 >= hd[k + 1]:
-            tm = _root(lambda t: float(Hdi @ phase.xi(t)), a, b)
-            tm = (a if h[k] >= h[k + 1] else b) if tm is None else tm
-            hm = float(Hi @ phase.xi(tm))
+        tm = _root(row.slope, a, b, row.slope_noise) if hd[k] > 0 >= hd[k + 1] else None
+        if tm is not None:
+            hm = row.value(tm)
         else:
+            # no sign change of h' at the samples, or none left when re-evaluated: h' is round-off
+            # at an end (a gap lifting off from rest, h'(a) = +-1e-17, can rise 1e-9 and come back
+            # within the interval: its maximum is not at an end)
             grid = np.linspace(a, b, 33)
-            vals = Hi @ phase.xi(grid)
+            vals = row.samples(grid)[0]
             j = int(np.argmax(vals))
             tm, hm = float(grid[j]), float(vals[j])
         if hm > tol:
@@ -337,17 +360,130 @@ def _arm(phase, Hi, Hdi, ts, h, hd, tol, bound4):
     return None
 
 
-def _root(fun, a, b):
-    """Brent's method to round-off; None when the scalar re-evaluation shows no sign change
-    (the samples came from a matrix product whose round-off differs in the last bits)."""
-    fa, fb = fun(a), fun(b)
+class _Row:
+    """Row i of a search, h = H_i xi, with h' = Hd_i xi: exact values at one time for root refinement
+    (h'' from Hd_i A_aug: the Newton steps on h'), and samples at several."""
+
+    def __init__(self, phase: Phase, Hi: np.ndarray, Hdi: np.ndarray):
+        self.phase, self.H, self.Hd = phase, Hi, Hdi
+        self._values = self._map = None   # formed at the first call (most rows are never refined)
+        self._memo: dict = {}
+
+    def _rows(self):
+        if self._values is None:
+            self._values = self.phase.row_values(np.vstack([self.H, self.Hd, self.Hd @ self.phase.A_aug]))
+        return self._values
+
+    def _eval(self, t: float) -> tuple[float, float, float]:
+        """(h, h', h'') at t; the last few times are remembered (a root's bracket ends are often
+        where the caller has just read the row)."""
+        t = float(t)
+        v = self._memo.get(t)
+        if v is None:
+            if len(self._memo) >= 8:
+                self._memo.clear()
+            v = self._memo[t] = tuple(self._rows()(t).tolist())
+        return v
+
+    def at(self, t: float) -> tuple[float, float]:
+        """(h, h') at t."""
+        v = self._eval(t)
+        return v[0], v[1]
+
+    def slope(self, t: float) -> tuple[float, float]:
+        """(h', h'') at t."""
+        v = self._eval(t)
+        return v[1], v[2]
+
+    def value(self, t: float) -> float:
+        """h at t."""
+        return self._eval(t)[0]
+
+    def noise(self, t: float) -> float:
+        """The round-off of h at t."""
+        return float(self._rows().noise(t)[0])
+
+    def slope_noise(self, t: float) -> float:
+        """The round-off of h' at t."""
+        return float(self._rows().noise(t)[1])
+
+    def samples(self, ts: np.ndarray) -> np.ndarray:
+        """(h, h') at the times ts (2 x len(ts))."""
+        if self._map is None:
+            self._map = self.phase.row_map(np.vstack([self.H, self.Hd]))
+        return self._map(np.atleast_1d(np.asarray(ts, dtype=float)))
+
+
+#: Newton steps at most in :func:`_root` (bisections included: each halves the bracket at least)
+MAXITER = 200
+
+
+def _root(at, a, b, noise=None):
+    """A root of f in [a, b] to round-off, ``at(t)`` = (f(t), f'(t)); None when the re-evaluated ends
+    show no sign change (the samples came from a product whose round-off differs in the last bits).
+
+    Newton's method from the root of the Hermite cubic through the ends, kept inside the bracket
+    of the sign change (a step that leaves it, or does not halve the step before, bisects), until
+    a step is below xtol + rtol |t| (4e-16 max(1, |b|) + 8.9e-16 |t|, what Brent's method used to be
+    asked for: Newton's error after that step is of the order of its square, i.e. round-off), or until
+    Newton stalls where |f| is below its round-off ``noise(t)`` (a slow row read to 1e-19 with a
+    slope of 1e-4 has no root finer than 1e-15 s: bisecting on the noise would not sharpen it)."""
+    a, b = float(a), float(b)
+    fa, da = at(a)
+    fb, db = at(b)
     if fa == 0.0:
         return a
     if fb == 0.0:
         return b
     if (fa > 0) == (fb > 0):
         return None
-    return brentq(fun, a, b, xtol=4e-16 * max(1.0, abs(b)), rtol=8.9e-16, maxiter=200)
+    xtol = 4e-16 * max(1.0, abs(b))
+    x = a + (b - a) * _cubic_root(*_cubic(fa, fb, da, db, b - a))
+    prev = b - a
+    for _ in range(MAXITER):
+        fx, dx = at(x)
+        if fx == 0.0:
+            return x
+        if (fx > 0) == (fa > 0):
+            a, fa = x, fx
+        else:
+            b = x
+        step = fx / dx if dx != 0.0 else math.inf
+        tol = xtol + 8.9e-16 * abs(x)
+        if abs(step) <= tol:
+            return min(max(x - step, a), b)
+        x_new = x - step
+        if not (a < x_new < b) or abs(step) > 0.5 * prev:
+            if noise is not None and abs(fx) <= noise(x):
+                return x
+            x_new = 0.5 * (a + b)
+            step = x - x_new
+        if b - a <= 2.0 * tol:
+            return x_new
+        prev, x = abs(step), x_new
+    return x
+
+
+def _cubic_root(c0, c1, c2, c3):
+    """A root in [0, 1] of c0 + c1 s + c2 s^2 + c3 s^3 with c0 and the sum of the c of opposite signs (a
+    start for :func:`_root`): Newton's method on the cubic within the bracket, from the secant's root."""
+    lo, hi, f_lo = 0.0, 1.0, c0
+    f1 = c0 + c1 + c2 + c3
+    s = c0 / (c0 - f1)
+    for _ in range(8):
+        f = c0 + s * (c1 + s * (c2 + s * c3))
+        if (f > 0) == (f_lo > 0):
+            lo, f_lo = s, f
+        else:
+            hi = s
+        d = c1 + s * (2.0 * c2 + 3.0 * s * c3)
+        s_new = s - f / d if d != 0.0 else -1.0
+        if not (lo < s_new < hi):
+            s_new = 0.5 * (lo + hi)
+        if abs(s_new - s) <= 1e-12:
+            return s_new
+        s = s_new
+    return s
 
 
 #: samples per interval when a candidate interval is subdivided, and how often at most
@@ -382,7 +518,32 @@ def _local_bound4(phase, Hi, ts):
     return (terms.sum(axis=0) + rest) * dt ** 4 / 384.0
 
 
-def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0, row_at=None):
+def _screen(dt, f, hd, tol, b4, subdivide):
+    """The candidate intervals of rows (f = h - thr and h' sampled, rows x samples; ``tol``, a
+    scalar or per row as a column; ``b4`` per row and interval; ``subdivide`` where an interval may
+    be scanned again on finer samples): (cross, turn, near), per row and interval, of :func:`_scan`.
+
+    A crossing goes from at or above -tol to below it; a dip (h' from - to +, or a sample at the
+    minimum itself) is near when its cubic, less its error bound, comes within the band (a graze
+    counts); any other interval that may be subdivided is near when that reaches below the band."""
+    above = f >= -tol
+    cross = above[:, :-1] & ~above[:, 1:]
+    turn = (hd[:, :-1] < 0) & (hd[:, 1:] >= 0)
+    check = above[:, :-1] & above[:, 1:] & (turn | subdivide)
+    near = np.zeros(check.shape, dtype=bool)
+    if np.any(check):
+        # the cubic's Hermite weights of the slopes are at most 4/27: a cheap lower bound first
+        rough = np.minimum(f[:, :-1], f[:, 1:]) - 4.0 / 27.0 * dt * (np.abs(hd[:, :-1]) + np.abs(hd[:, 1:]))
+        i, k = np.nonzero(check & (rough - b4 <= tol))
+        if k.size:
+            lo = _hermite_min(f[i, k], f[i, k + 1], hd[i, k], hd[i, k + 1], dt[k]) - b4[i, k]
+            band = np.broadcast_to(tol, f.shape)[i, 0]
+            hit = np.where(turn[i, k], lo <= band, lo < -band)
+            near[i[hit], k[hit]] = True
+    return cross, turn, near
+
+
+def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
     Candidate intervals that start after ``limit`` (an earlier root of another row) are skipped.
 
@@ -395,17 +556,12 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
     subdivided into :data:`SUBDIVIDE` samples and scanned again (the bound shrinks by 16^4): a dip
     below zero between two samples that both descend is not missed. A root found in a crossing
     interval is the first one only if the row certainly stays above -tol before it (:func:`first`);
-    otherwise the interval is subdivided too (three roots: Brent may return the last), and so is a
-    dip interval whose row may not be convex (two minima: Brent may return either, or the maximum
-    between). Finer samples come from ``row_at`` (t -> (h, h') at times t, the row as the samples
-    were taken; None: ``Hi``, ``Hdi`` times :meth:`Phase.xi`)."""
+    otherwise the interval is subdivided too (three roots: the refinement may return the last), and so is a
+    dip interval whose row may not be convex (two minima: the refinement may return either, or the maximum
+    between). Finer samples and roots come from ``row`` (the whole row: no term left out).""" 
     if ts.size < 2:
         return None
     f = h - thr
-    above = f >= -tol
-    cross = np.flatnonzero(above[:-1] & ~above[1:])
-    # h' sign change from - to + (or a sample at the minimum itself): a dip candidate
-    turn = (hd[:-1] < 0) & (hd[1:] >= 0)
     # a row can cross below its band and come back between two samples whatever their slopes (h'
     # - + -, or + - + right after a lift): such an interval is subdivided when the cubic, less its
     # error bound, reaches below the band. A bound4 that the remaining levels cannot bring down to
@@ -414,20 +570,11 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
     reach = tol * float(SUBDIVIDE) ** (4 * (DEPTH - depth))
     b4 = np.broadcast_to(np.asarray(bound4, dtype=float), (ts.size - 1,))
     if depth == 0 and not np.all(b4 <= reach):
-        b4 = np.minimum(b4, _local_bound4(phase, Hi, ts))
+        b4 = np.minimum(b4, _local_bound4(row.phase, row.H, ts))
     subdivide = (b4 <= reach) if depth < DEPTH else np.zeros(ts.size - 1, dtype=bool)
-    check = above[:-1] & above[1:] & (turn | subdivide)
-    near = np.zeros(ts.size - 1, dtype=bool)
     dt = np.diff(ts)
-    if np.any(check):
-        # the cubic's Hermite weights of the slopes are at most 4/27: a cheap lower bound first
-        rough = np.minimum(f[:-1], f[1:]) - 4.0 / 27.0 * dt * (np.abs(hd[:-1]) + np.abs(hd[1:]))
-        k = np.flatnonzero(check & (rough - b4 <= tol))
-        if k.size:
-            lo = _hermite_min(f[k], f[k + 1], hd[k], hd[k + 1], dt[k]) - b4[k]
-            # a dip (h' - to +) is refined when it comes within the band (a graze counts); any
-            # other interval only when it may cross below the band
-            near[k[np.where(turn[k], lo <= tol, lo < -tol)]] = True
+    cross, turn, near = (x[0] for x in _screen(dt, f[None], hd[None], tol, b4[None], subdivide[None]))
+    cross = np.flatnonzero(cross)
     k_c = cross[0] if cross.size else None
     cand = np.flatnonzero(near)
     if k_c is not None:
@@ -436,19 +583,13 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
         return None
 
     def fun(t):
-        return float(Hi @ phase.xi(t)) - thr
-
-    def dfun(t):
-        return float(Hdi @ phase.xi(t))
-
-    def samples(t):
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        return np.vstack([Hi, Hdi]) @ phase.xi(t) if row_at is None else row_at(t)
+        h_t, hd_t = row.at(t)
+        return h_t - float(thr), hd_t
 
     def finer(k):
         sub = np.linspace(ts[k], ts[k + 1], SUBDIVIDE + 1)
-        hh = samples(sub)
-        return _scan(phase, Hi, Hdi, sub, hh[0], hh[1], thr, tol, b4[k] / SUBDIVIDE**4, limit, depth + 1, row_at)
+        hh = row.samples(sub)
+        return _scan(row, sub, hh[0], hh[1], thr, tol, b4[k] / SUBDIVIDE**4, limit, depth + 1)
 
     def first(k, t_r):
         """t_r, or the earlier root a finer scan finds when t_r may not be the first: certain when
@@ -460,7 +601,7 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
             return t_r, False
         u = (t_r - ts[k]) / dt[k]
         if u > 0.0:
-            hr = samples(t_r)[:, 0]
+            hr = row.at(t_r)
             if _envelope_min(f[k], hr[0] - thr, hd[k], hr[1], t_r - ts[k], b4[k] * u**4) >= -tol:
                 return t_r, False
         res = finer(k)
@@ -476,26 +617,26 @@ def _scan(phase, Hi, Hdi, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, de
                 return res
             continue
         if k == k_c:
-            if fun(a) < 0:  # the sample before is itself (round-off) below: the root is there
+            if row.value(a) - thr < 0:  # the sample before is itself (round-off) below: the root is there
                 return a, False
-            t_r = _root(fun, a, b)
+            t_r = _root(fun, a, b, row.noise)
             return first(k, b if t_r is None else t_r)
         if not turn[k]:
             continue
         if subdivide[k] and not _convex(f[k], f[k + 1], hd[k], hd[k + 1], dt[k], b4[k]):
-            # h' may change sign three times: the interval may hold two minima, Brent would
+            # h' may change sign three times: the interval may hold two minima, the refinement would
             # find one of them (or the maximum between): scanned again on finer samples
             res = finer(k)
             if res is not None:
                 return res
             continue
         # dip: the minimum inside [a, b]
-        tm = _root(dfun, a, b)
+        tm = _root(row.slope, a, b, row.slope_noise)
         if tm is None:  # h' is round-off at an end: take the lower end sample
             tm = a if f[k] <= f[k + 1] else b
-        fm = fun(tm)
+        fm = row.value(tm) - thr
         if fm < -tol:   # (decreasing up to the minimum, the only one: the root is the first)
-            t_r = _root(fun, a, tm)
+            t_r = _root(fun, a, tm, row.noise)
             return (tm if t_r is None else t_r), False
         if fm <= tol and thr == 0.0:
             return tm, True
