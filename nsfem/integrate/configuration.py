@@ -30,7 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import NsfemError
-from .closed_form import Motion, divided_exp, modal_motion
+from .closed_form import Motion, modal_motion
 from .problem import ContactSystem
 
 #: relative singular value below which a constraint direction is redundant
@@ -396,11 +396,6 @@ class Phase:
 
         return rows
 
-    def row_values(self, R: np.ndarray) -> "RowValues":
-        """t -> R xi(t) (one value per row) at a scalar time t, with the round-off of that value
-        (:class:`RowValues`), for root refinement."""
-        return RowValues(self, R)
-
     def search_map(self, H: np.ndarray, budget: np.ndarray, horizon: float):
         """(rows, rate, e, bound): ``rows(t)`` = H xi(t) without the fastest exponential terms whose
         contributions to row i sum to at most budget[i] over the horizon (e[i] that sum), ``rate``
@@ -562,53 +557,3 @@ class Phase:
         h = math.pi / (4.0 * rate) if rate > 0 else math.inf
         return min(h, horizon / 8.0) if horizon > 0 else h
 
-
-class RowValues:
-    """t -> R xi(t) at one time t (a float), for root refinement: on the modal path R's products with
-    the motion's terms are formed once (the constant and harmonic components of xi as terms e^{0 tau}
-    and e^{+-i w tau}), so a call costs one exponential per term and a short product (microseconds,
-    where ``R @ xi(t)`` forms the whole state)."""
-
-    #: round-off of a value, in units of eps times its terms' sizes (a sum of products, e^{nu tau}
-    #: off by |nu tau| eps, the time itself known to |t| eps)
-    ULPS = 8.0
-
-    def __init__(self, phase: Phase, R: np.ndarray):
-        self.phase, self.R = phase, R
-        r2 = 2 * phase.config.r
-        self.modal = bool(r2) and phase._modal is not None
-        if not self.modal:
-            self.RA = np.abs(R @ phase.A_aug)
-            return
-        mot = phase._modal
-        C, nu = [R[:, :r2] @ mot.U, R[:, r2:r2 + 1]], [mot.nu, np.zeros(1)]
-        if phase.w:   # c cos w t + s sin w t = Re (c - i s) e^{i w t0} e^{i w tau}
-            C.append(((R[:, r2 + 1] - 1j * R[:, r2 + 2]) * np.exp(1j * phase.w * phase.t0))[:, None])
-            nu.append(np.array([1j * phase.w]))
-        self.C, self.nu, self.t0 = np.hstack(C), np.concatenate(nu), phase.t0
-        self.groups = [(nodes, R[:, :r2] @ D) for nodes, D in mot.groups]
-        self.absC, self.absCnu = np.abs(self.C), np.abs(self.C * self.nu[None, :])
-
-    def __call__(self, t: float) -> np.ndarray:
-        if not self.modal:
-            return self.R @ self.phase.xi(t)
-        tau = t - self.t0
-        out = (self.C @ np.exp(self.nu * tau)).real
-        for nodes, D in self.groups:
-            out += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
-        return out
-
-    def noise(self, t: float) -> np.ndarray:
-        """Per row, the round-off of its value at t: ULPS eps (S0 + S1 (|tau| + |t|)), S0 the sum of its
-        terms' sizes, S1 of their derivatives' (tau = t - t0 and t are rounded)."""
-        if not self.modal:
-            x = np.abs(self.phase.xi(t))
-            s0, s1, tau = np.abs(self.R) @ x, self.RA @ x, t - self.phase.t0
-        else:
-            tau = t - self.t0
-            grow = np.exp(self.nu.real * tau)
-            s0, s1 = self.absC @ grow, self.absCnu @ grow
-            for nodes, D in self.groups:
-                size = np.abs(D) @ np.abs(divided_exp(nodes, np.array([tau]))[:, 0])
-                s0, s1 = s0 + size, s1 + size * float(np.max(np.abs(nodes), initial=0.0))
-        return self.ULPS * np.finfo(float).eps * (s0 + s1 * (abs(tau) + abs(t)))

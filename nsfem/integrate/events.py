@@ -27,8 +27,7 @@ zero) and above -tol before that. The cubic's minimum is exact (its ends and the
 derivative). Where the phase's derivative bound is too crude to screen (the matrix-exponential
 path), a local one is formed from the state at each sample (A_aug balanced, Taylor terms and a
 remainder). Roots are refined to round-off by Newton's method kept inside the sign change's bracket,
-from the Hermite cubic's root, on the whole row read at one time from its modal coefficients
-(:meth:`Phase.row_values`); after 3 subdivisions (4096 times finer than the step) the refined root
+from the Hermite cubic's root, on the whole row read from the state; after 3 subdivisions (4096 times finer than the step) the refined root
 is taken as it is. tests/test_event_search.py checks the search
 against a dense brute-force scan of random phases. A dip
 that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
@@ -342,7 +341,7 @@ def _arm(row: "_Row", ts, h, hd, tol, bound4):
     cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
     for k in cand[:64]:
         a, b = ts[k], ts[k + 1]
-        tm = _root(row.slope, a, b, row.slope_noise) if hd[k] > 0 >= hd[k + 1] else None
+        tm = _root(row.slope, a, b) if hd[k] > 0 >= hd[k + 1] else None
         if tm is not None:
             hm = row.value(tm)
         else:
@@ -361,7 +360,7 @@ def _arm(row: "_Row", ts, h, hd, tol, bound4):
 
 
 class _Row:
-    """Row i of a search, h = H_i xi, with h' = Hd_i xi: exact values at one time for root refinement
+    """Row i of a search, h = H_i xi, with h' = Hd_i xi: values at one time for root refinement
     (h'' from Hd_i A_aug: the Newton steps on h'), and samples at several."""
 
     def __init__(self, phase: Phase, Hi: np.ndarray, Hdi: np.ndarray):
@@ -370,8 +369,13 @@ class _Row:
         self._memo: dict = {}
 
     def _rows(self):
+        # read from the state xi(t), not from the rows' own modal coefficients H U: with terms that
+        # cancel (a nearly rigid mode's 1 / lam^2 coefficients, 1e5 for a row of 0.04) the two differ
+        # by 1e-12 in their rounding, above a band of 4e-13; the root must be one of the state the
+        # next phase starts from (its gap inside the band)
         if self._values is None:
-            self._values = self.phase.row_values(np.vstack([self.H, self.Hd, self.Hd @ self.phase.A_aug]))
+            R = np.vstack([self.H, self.Hd, self.Hd @ self.phase.A_aug])
+            self._values = lambda t: R @ self.phase.xi(t)
         return self._values
 
     def _eval(self, t: float) -> tuple[float, float, float]:
@@ -399,14 +403,6 @@ class _Row:
         """h at t."""
         return self._eval(t)[0]
 
-    def noise(self, t: float) -> float:
-        """The round-off of h at t."""
-        return float(self._rows().noise(t)[0])
-
-    def slope_noise(self, t: float) -> float:
-        """The round-off of h' at t."""
-        return float(self._rows().noise(t)[1])
-
     def samples(self, ts: np.ndarray) -> np.ndarray:
         """(h, h') at the times ts (2 x len(ts))."""
         if self._map is None:
@@ -418,16 +414,17 @@ class _Row:
 MAXITER = 200
 
 
-def _root(at, a, b, noise=None):
+def _root(at, a, b):
     """A root of f in [a, b] to round-off, ``at(t)`` = (f(t), f'(t)); None when the re-evaluated ends
     show no sign change (the samples came from a product whose round-off differs in the last bits).
 
     Newton's method from the root of the Hermite cubic through the ends, kept inside the bracket
-    of the sign change (a step that leaves it, or does not halve the step before, bisects), until
-    a step is below xtol + rtol |t| (4e-16 max(1, |b|) + 8.9e-16 |t|, what Brent's method used to be
-    asked for: Newton's error after that step is of the order of its square, i.e. round-off), or until
-    Newton stalls where |f| is below its round-off ``noise(t)`` (a slow row read to 1e-19 with a
-    slope of 1e-4 has no root finer than 1e-15 s: bisecting on the noise would not sharpen it)."""
+    of the sign change, until a step is below xtol + rtol |t| (4e-16 max(1, |b|) + 8.9e-16 |t|, what
+    Brent's method used to be asked for: Newton's error after that step is of the order of its
+    square, i.e. round-off) or the bracket is that narrow. A step that does not halve the one before
+    (Newton stalls: on a near-double root, or on the round-off of a slow row, 1e-19 read with a slope
+    of 1e-4) is taken twice over, past the root, to close the bracket there; if that does not halve
+    it either, or a step leaves the bracket, it is bisected."""
     a, b = float(a), float(b)
     fa, da = at(a)
     fb, db = at(b)
@@ -439,7 +436,7 @@ def _root(at, a, b, noise=None):
         return None
     xtol = 4e-16 * max(1.0, abs(b))
     x = a + (b - a) * _cubic_root(*_cubic(fa, fb, da, db, b - a))
-    prev = b - a
+    prev, overshot = b - a, False
     for _ in range(MAXITER):
         fx, dx = at(x)
         if fx == 0.0:
@@ -452,14 +449,16 @@ def _root(at, a, b, noise=None):
         tol = xtol + 8.9e-16 * abs(x)
         if abs(step) <= tol:
             return min(max(x - step, a), b)
-        x_new = x - step
-        if not (a < x_new < b) or abs(step) > 0.5 * prev:
-            if noise is not None and abs(fx) <= noise(x):
-                return x
-            x_new = 0.5 * (a + b)
-            step = x - x_new
         if b - a <= 2.0 * tol:
-            return x_new
+            return 0.5 * (a + b)
+        x_new = x - step
+        if a < x_new < b and abs(step) <= 0.5 * prev:
+            overshot = False
+        elif not overshot and a < x - 2.0 * step < b:
+            x_new, step, overshot = x - 2.0 * step, 2.0 * step, True
+        else:
+            x_new = 0.5 * (a + b)
+            step, overshot = x - x_new, False
         prev, x = abs(step), x_new
     return x
 
@@ -619,7 +618,7 @@ def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0
         if k == k_c:
             if row.value(a) - thr < 0:  # the sample before is itself (round-off) below: the root is there
                 return a, False
-            t_r = _root(fun, a, b, row.noise)
+            t_r = _root(fun, a, b)
             return first(k, b if t_r is None else t_r)
         if not turn[k]:
             continue
@@ -631,12 +630,12 @@ def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0
                 return res
             continue
         # dip: the minimum inside [a, b]
-        tm = _root(row.slope, a, b, row.slope_noise)
+        tm = _root(row.slope, a, b)
         if tm is None:  # h' is round-off at an end: take the lower end sample
             tm = a if f[k] <= f[k + 1] else b
         fm = row.value(tm) - thr
         if fm < -tol:   # (decreasing up to the minimum, the only one: the root is the first)
-            t_r = _root(fun, a, tm, row.noise)
+            t_r = _root(fun, a, tm)
             return (tm if t_r is None else t_r), False
         if fm <= tol and thr == 0.0:
             return tm, True
