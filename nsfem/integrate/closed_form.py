@@ -231,16 +231,18 @@ def _far_rigid_terms(lam, SV, z0, beta: dict, k: int, Ua, sel, X: dict, dd2n: li
     0), for all of them at once: F[0, lam] = (e^{lam tau} - 1) / lam; F[0, lam, mu] by partial
     fractions over its three nodes, and for mu = 0, F[0, 0, lam] = (e^{lam tau} - 1 - lam tau) / lam^2
     (the tau term a divided difference F[0, 0]). Same terms as :func:`_split` gives one mode at a time."""
-    V0 = SV * z0[None, :]
-    Ua[:, sel] += V0 / lam[None, :]
-    X[0j][:k] -= (V0 / lam[None, :]).sum(axis=1)
+    V0 = SV * z0[None, :] / lam[None, :]
+    Ua[:, sel] += V0
+    X[0j][:k] -= V0.sum(axis=1)
     for mu, b in beta.items():
         Vb = SV * b[None, :]
         if mu == 0:
-            Ua[:, sel] += Vb / lam[None, :] / lam[None, :]
-            X[0j][:k] -= (Vb / lam[None, :] / lam[None, :]).sum(axis=1)
+            V1 = Vb / lam[None, :]
+            V2 = V1 / lam[None, :]
+            Ua[:, sel] += V2
+            X[0j][:k] -= V2.sum(axis=1)
             col = np.zeros(X[0j].shape[0], dtype=complex)
-            col[:k] = -(Vb / lam[None, :]).sum(axis=1)
+            col[:k] = -V1.sum(axis=1)
             dd2n.append((0j, 0j))
             dd2c.append(col)
             continue

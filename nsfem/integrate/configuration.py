@@ -81,7 +81,7 @@ def _rigid_split(D: np.ndarray, omega2_ref: float) -> tuple[int, np.ndarray | No
     scale = max(float(np.max(np.abs(ev), initial=0.0)), omega2_ref)
     if scale == 0.0:   # no stiffness at all: every coordinate is rigid
         return D.shape[0], np.eye(D.shape[0])
-    k = int(np.sum(np.abs(ev) <= RIGID * scale))
+    k = _rigid_count(np.abs(ev), omega2_ref)
     if k == 0:
         return 0, None
     Vt = np.linalg.svd(D)[2]

@@ -340,6 +340,13 @@ class EventDriven(Integrator):
         return float(np.max(np.abs(E), initial=0.0))
 
 
+    def _forms_present(self, D, P) -> tuple:
+        """(D, P, any damping, any circulatory term), computed once per run (D and P are the run's)."""
+        flags = self.__dict__.get("_dp_flags")
+        if flags is None or flags[0] is not D or flags[1] is not P:
+            flags = self._dp_flags = (D, P, bool(np.any(D)), bool(np.any(P)))
+        return flags
+
     def _energy_without_quadrature(self, phase, mode, t1, K, P, D, energy, ends=None):
         """The work integrals when only a constant load does work, or None: int f0 . q' dt is
         f0 . (q(t1) - q(t0)), exact; without damping, circulatory forces, sliding friction and a
@@ -348,9 +355,7 @@ class EventDriven(Integrator):
         sysm = self.system
         if mode.slide or mode.edge or (phase.w and (np.any(sysm.fc) or np.any(sysm.fs))):
             return None
-        flags = self.__dict__.get("_dp_flags")
-        if flags is None or flags[0] is not D or flags[1] is not P:
-            flags = self._dp_flags = (D, P, bool(np.any(D)), bool(np.any(P)))
+        flags = self._forms_present(D, P)
         if flags[2] or flags[3]:
             return None
         if ends is None:
@@ -389,9 +394,7 @@ class EventDriven(Integrator):
             F = np.column_stack([sysm.f0] + ([sysm.fc, sysm.fs] if phase.w else []))
             hit = ext_cache[id(phase.config)] = (phase.config, (phase.dim, bool(phase.w)), Pv.T @ F)
         ext = hit[2]                                                    # the form's nonzero columns
-        flags = self.__dict__.get("_dp_flags")
-        if flags is None or flags[0] is not D or flags[1] is not P:
-            flags = self._dp_flags = (D, P, bool(np.any(D)), bool(np.any(P)))
+        flags = self._forms_present(D, P)
         full = []   # (key, dim x dim form)
         if flags[2]:
             full.append(("dissipated_damping_J", Pv.T @ D @ Pv))
