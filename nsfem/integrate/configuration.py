@@ -30,7 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import NsfemError
-from .closed_form import Motion, modal_motion
+from .closed_form import Motion, divided_exp, modal_motion
 from .problem import ContactSystem
 
 #: relative singular value below which a constraint direction is redundant
@@ -350,6 +350,8 @@ class Phase:
 
     def xi(self, t) -> np.ndarray:
         """The augmented state at times t (scalar -> (dim,), array -> (dim, len(t)))."""
+        if self._modal is not None and isinstance(t, float):
+            return self._xi_at(t)
         t = np.asarray(t, dtype=float)
         scalar = t.ndim == 0
         tt = np.atleast_1d(t)
@@ -362,6 +364,17 @@ class Phase:
             else:
                 out[:r2] = self._expm_states(tt)[:r2]
         return out[:, 0] if scalar else out
+
+    def _xi_at(self, t: float) -> np.ndarray:
+        """xi at one time on the modal path (root refinement reads rows from it many times per
+        event): the same sums as :meth:`xi`, without its array set-up."""
+        mot, tau = self._modal, t - self.t0
+        x = (mot.U @ np.exp(mot.nu * tau)).real
+        for nodes, D in mot.groups:
+            x += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
+        if self.w:
+            return np.concatenate((x, (1.0, math.cos(self.w * t), math.sin(self.w * t))))
+        return np.append(x, 1.0)
 
     def row_map(self, H: np.ndarray):
         """t -> H xi(t) (rows x len(t)), cheaper than ``H @ xi(t)`` on the modal path: the

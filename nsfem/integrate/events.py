@@ -199,8 +199,13 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                 # (root at -tol, flagged: it never rose above the band); once it has left the band
                 # upwards (a sample or a maximum between samples above tol) it is armed at 0
                 arm = _arm(row, ts, hi, hdi, band[i], bound4[i])
-                lim = hi.size - 1 if arm is None else arm[1] + 1
-                res = _scan(row, ts[:lim + 1], hi[:lim + 1], hdi[:lim + 1], thr[i], band[i], bound4[i], limit)
+                if arm is None:
+                    res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit)
+                else:
+                    # only a descent before the arming time is the row's own: after it the row is
+                    # armed at 0 and scanned from there (its first samples end at the arming point)
+                    ts1, h1, hd1 = _up_to(row, ts, hi, hdi, *arm)
+                    res = _scan(row, ts1, h1, hd1, thr[i], band[i], _shorter(bound4[i], ts1, ts[1] - ts[0]), limit)
                 if (res is not None and arm is not None and res[0] <= arm[0]
                         and (res[0] <= ts[0] or row.at(res[0])[1] > 0.0)):
                     # a "crossing" at the phase's start, or where the row is rising, is the
@@ -218,7 +223,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     ts2 = np.concatenate([[t_arm], ts[k + 1:]])
                     h2 = np.concatenate([[h_arm], hi[k + 1:]])
                     hd2 = np.concatenate([[hd_arm], hdi[k + 1:]])
-                    res = _scan(row, ts2, h2, hd2, 0.0, band[i], bound4[i], limit)
+                    res = _scan(row, ts2, h2, hd2, 0.0, band[i], _shorter(bound4[i], ts2, ts[1] - ts[0]), limit)
             else:
                 res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit)
             if res is not None:
@@ -293,6 +298,22 @@ def _hermite_min(f0, f1, d0, d1, dt):
 SLOPE = 384.0 * math.sqrt(3.0) / 216.0
 
 
+def _cubic_argmax(c0, c1, c2, c3) -> float:
+    """Where on [0, 1] the cubic c0 + c1 s + c2 s^2 + c3 s^3 is largest (an end or a root of its
+    derivative)."""
+    ss = [0.0, 1.0]
+    a, b, c = 3.0 * c3, 2.0 * c2, c1
+    if a == 0.0:
+        if b != 0.0:
+            ss.append(-c / b)
+    else:
+        disc = b * b - 4.0 * a * c
+        if disc >= 0.0:
+            q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+            ss += [q / a] + ([c / q] if q != 0.0 else [])
+    return max((s for s in ss if 0.0 <= s <= 1.0), key=lambda s: c0 + s * (c1 + s * (c2 + s * c3)))
+
+
 def _convex(f0, f1, d0, d1, dt, bound4):
     """True when the row is certainly convex on the interval (a dip's minimum is its only one):
     the cubic's second derivative, linear, less its error bound (Birkhoff and Priver:
@@ -327,6 +348,20 @@ def _first_root(f0, f1, d0, d1, dt, s_r, bound4, tol):
     return s_x == 0.0 or _envelope_min(f0, f1, d0, d1, dt, bound4, s_x) >= -tol
 
 
+def _up_to(row: "_Row", ts, h, hd, t_arm: float, k: int):
+    """The samples of a row up to its arming time t_arm in [ts[k], ts[k + 1]], that point included."""
+    if t_arm <= ts[k]:
+        return ts[:k + 1], h[:k + 1], hd[:k + 1]
+    h_arm, hd_arm = row.at(t_arm)
+    return (np.append(ts[:k + 1], t_arm), np.append(h[:k + 1], h_arm), np.append(hd[:k + 1], hd_arm))
+
+
+def _shorter(bound4: float, ts: np.ndarray, step: float) -> np.ndarray:
+    """Per interval of ts, the interpolation bound ``bound4`` of a sampling step scaled to the
+    interval's own length (it goes with dt^4): an interval cut at an arming point is much shorter."""
+    return bound4 * np.minimum(np.diff(ts) / step, 1.0) ** 4
+
+
 def _arm(row: "_Row", ts, h, hd, tol, bound4):
     """(t, k): the first time a row that starts in its zero band is above it (at a sample or
     at a maximum between samples ts[k], ts[k + 1]), or None.
@@ -341,6 +376,13 @@ def _arm(row: "_Row", ts, h, hd, tol, bound4):
     cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
     for k in cand[:64]:
         a, b = ts[k], ts[k + 1]
+        if hmax[k] - bound4 > tol:
+            # the cubic's maximum, less its error bound, is above the band: the row there is too
+            # (read from the state to be sure); the arming time need not be the row's own maximum
+            tc = a + (b - a) * _cubic_argmax(*_cubic(h[k], h[k + 1], hd[k], hd[k + 1], b - a))
+            hc = row.value(tc)
+            if hc > tol:
+                return tc, int(k)
         tm = _root(row.slope, a, b) if hd[k] > 0 >= hd[k + 1] else None
         if tm is not None:
             hm = row.value(tm)
@@ -538,6 +580,12 @@ def _screen(dt, f, hd, tol, b4, subdivide):
             lo = _hermite_min(f[i, k], f[i, k + 1], hd[i, k], hd[i, k + 1], dt[k]) - b4[i, k]
             band = np.broadcast_to(tol, f.shape)[i, 0]
             hit = np.where(turn[i, k], lo <= band, lo < -band)
+            # the bound b4 holds at mid-interval; at the samples the error vanishes (16 b4 s^2 (1 - s)^2):
+            # an interval starting just above the band (a gap just lifted off) is judged on that
+            for j in np.flatnonzero(hit & np.isfinite(b4[i, k])):
+                ij, kj = i[j], k[j]
+                lo_j = _envelope_min(f[ij, kj], f[ij, kj + 1], hd[ij, kj], hd[ij, kj + 1], dt[kj], b4[ij, kj])
+                hit[j] = lo_j <= band[j] if turn[ij, kj] else lo_j < -band[j]
             near[i[hit], k[hit]] = True
     return cross, turn, near
 
