@@ -72,14 +72,15 @@ from scipy.optimize import brentq
 from nsfem.contact.set import ContactSet
 from nsfem.integrate import ContactSystem
 from nsfem.integrate.configuration import Configuration, Mode, Phase
+from nsfem.integrate import events
 from nsfem.integrate.events import Rows, _hermite_min, first_event
 
 #: brute-force points per phase (and on the coarser grid that shapes the rows)
 N_BRUTE, N_BUILD = 200_000, 20_000
 #: points per anchor of the brute force on the matrix-exponential path
 BLOCK = 400
-KINDS = ("generic", "graze", "three_roots", "wiggle_graze")
-#: cases per kind: 50 x 4 = 200 by default, 500 x 4 = 2000 under -m slow
+KINDS = ("generic", "graze", "three_roots", "wiggle_graze", "stiff")
+#: cases per kind: 50 x 5 = 250 by default, 500 x 5 = 2500 under -m slow
 SEEDS, SLOW_SEEDS = range(50), range(50, 550)
 
 
@@ -176,8 +177,32 @@ def _spectrum(rng, n, wmax):
     return w, zeta
 
 
+def _stiff_phase(rng):
+    """Slow modes (a decade) and 1-2 modes 30-300 times faster whose motion is 1e-6..1e-3 of the
+    slow ones' (an unreduced structure's stiff modes, barely excited): the search's coarse pass."""
+    n_slow, n_fast = int(rng.integers(1, 4)), int(rng.integers(1, 3))
+    w_slow = 10.0 ** rng.uniform(0.5, 2.0)
+    w = np.concatenate([np.sort(w_slow * 10.0 ** -rng.uniform(0.0, 1.0, n_slow)),
+                        np.sort(w_slow * 10.0 ** rng.uniform(1.5, 2.5, n_fast))])
+    n = w.size
+    zeta = np.where(rng.random(n) < 0.3, 0.0, 10.0 ** rng.uniform(-4.0, -1.5, n))
+    amp = np.concatenate([10.0 ** rng.uniform(-1.0, 0.0, n_slow), 10.0 ** rng.uniform(-6.0, -3.0, n_fast)])
+    f0 = np.square(w) * rng.standard_normal(n) * 0.5
+    f0[n_slow:] = 0.0   # (a static load on a fast mode would start it oscillating about its deflection)
+    T = rng.uniform(3.0, 10.0) * 2 * math.pi / w_slow
+    S, Pi = _system(rng, w, zeta, 0.0, f0)
+    p0 = amp * rng.standard_normal(n)
+    pd0 = amp * w * rng.standard_normal(n)
+    t0 = float(rng.uniform(0.0, 5.0)) if rng.random() < 0.5 else 0.0
+    Phi = np.linalg.inv(Pi)
+    phase = Phase(Configuration(S, Mode()), t0, Phi @ p0, Phi @ pd0, np.zeros(0))
+    return phase, Pi, w, t0, t0 + T, {"path": "modal", "path_taken": "modal"}
+
+
 def _phase(rng, kind: str, path: str):
     """A random system and phase for the kind and the intended path; (phase, Pi, w, t0, t1, info)."""
+    if kind == "stiff":
+        return _stiff_phase(rng)
     n = int(rng.integers(2, 5)) if kind in ("three_roots", "wiggle_graze") else int(rng.integers(1, 5))
     wmax = 10.0 ** rng.uniform(1.0, 4.0)
     w, zeta = _spectrum(rng, n, wmax)
@@ -378,7 +403,7 @@ def make_case(seed: int, kind: str) -> Case | None:
                 levels.append(m + theta * (M - m))
             else:
                 levels.append(m)   # set to m - delta tol below, once the band is known
-        elif kind == "graze":
+        elif kind == "graze" or (kind == "stiff" and rng.random() < 0.5):
             u = _random_row(rng, phase, D, V, ref)
             g = u @ ref.xi
             k = int(np.argmin(g))
@@ -392,11 +417,12 @@ def make_case(seed: int, kind: str) -> Case | None:
             info.update(t_min=tm)
             U.append(u)
             levels.append(gm)
-        for _ in range(int(rng.integers(0 if kind != "generic" else 1, 3 if kind != "generic" else 5))):
+        crossing = kind == "generic" or (kind == "stiff" and not U)
+        for _ in range(int(rng.integers(1 if crossing else 0, 5 if crossing else 3))):
             u = _random_row(rng, phase, D, V, ref)
             g = u @ ref.xi
             U.append(u)
-            if kind == "generic" or rng.random() < 0.3:
+            if crossing or rng.random() < 0.3:
                 levels.append(_level_generic(rng, g))
             else:
                 levels.append(g.min() - 0.05 * (g.max() - g.min()))
@@ -404,7 +430,7 @@ def make_case(seed: int, kind: str) -> Case | None:
         h = case.H @ ref.xi
         if np.any(h[:, 0] <= 1e-6 * np.abs(h).max(axis=1)):
             continue   # every row starts well above its band (armed)
-        if kind in ("graze", "wiggle_graze"):
+        if kind in ("graze", "wiggle_graze") or (kind == "stiff" and "t_min" in info):
             delta = rng.uniform(-4.0, 4.0)
             base = case.levels[0]
             for _ in range(3):  # the band depends (weakly) on the level: iterate
@@ -492,19 +518,35 @@ def check_case(case: Case) -> tuple[str | None, dict]:
 
 
 def _run(kind: str, seeds) -> None:
-    failures, paths, spans = [], {"modal": 0, "divided": 0, "expm": 0}, []
-    for seed in seeds:
-        case = make_case(seed, kind)
-        assert case is not None, f"{kind} seed {seed}: no case drawn"
-        paths[case.info["path_taken"]] += 1
-        if case.info.get("span_over_step") is not None:
-            spans.append(case.info["span_over_step"])
-        bad, _ = check_case(case)
-        if bad:
-            failures.append(bad)
+    failures, paths, spans, skipped = [], {"modal": 0, "divided": 0, "expm": 0}, [], []
+    coarse_of = events._Coarse.of
+
+    def watched(*args):   # how much of each search the coarse pass certified at once
+        c = coarse_of(*args)
+        if c is not None:
+            c._extend = lambda c=c, f=c._extend: (f(), skipped.append(float(c.clear.mean())))
+        return c
+
+    events._Coarse.of = watched
+    try:
+        for seed in seeds:
+            case = make_case(seed, kind)
+            assert case is not None, f"{kind} seed {seed}: no case drawn"
+            paths[case.info["path_taken"]] += 1
+            if case.info.get("span_over_step") is not None:
+                spans.append(case.info["span_over_step"])
+            bad, _ = check_case(case)
+            if bad:
+                failures.append(bad)
+    finally:
+        events._Coarse.of = coarse_of
     assert not failures, f"{len(failures)} of {len(seeds)} cases fail:\n" + "\n".join(failures[:10])
-    # the cases exercise what they claim: both paths of Phase; three roots within one sampling step
-    assert paths["modal"] and paths["expm"], paths
+    # the cases exercise what they claim: both paths of Phase (stiff ones: the coarse pass, skipping
+    # most of the search); three roots within one sampling step
+    if kind == "stiff":
+        assert sum(f > 0.5 for f in skipped) >= 0.25 * len(seeds), skipped
+    else:
+        assert paths["modal"] and paths["expm"], paths
     if kind == "three_roots":
         assert sum(s < 1.0 for s in spans) >= 0.25 * len(seeds), spans
 

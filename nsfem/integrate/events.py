@@ -164,14 +164,29 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     h_step = phase.max_step(t_stop - t_start, rate)
     # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
     bound4 = bound_of(4)[: rows.size] * h_step ** 4 / 384.0
+    coarse, tried = None, False
     armed = None
     thr = None
     t_a = t_start
     chunk = FIRST_CHUNK
     while t_a < t_stop:
-        n = max(1, min(chunk, math.ceil((t_stop - t_a) / h_step)))
+        t_b = t_stop
+        if not tried and armed is not None and armed.all():
+            # formed once a first chunk has found nothing (most phases of an impact burst end in it)
+            coarse, tried = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop), True
+        if coarse is not None:
+            # every row armed at 0: skip what the coarse pass certifies, search the rest finely
+            t_skip, t_b = coarse.unclear(t_a)
+            if t_skip > t_a:
+                t_a = phase.searched_until = t_skip
+                chunk = FIRST_CHUNK
+                if report is not None:
+                    report(t_a)
+                if t_a >= t_stop:
+                    break
+        n = max(1, min(chunk, math.ceil((t_b - t_a) / h_step)))
         chunk = min(CHUNK, 4 * chunk)
-        ts = np.linspace(t_a, min(t_stop, t_a + n * h_step), n + 1)
+        ts = np.linspace(t_a, min(t_b, t_a + n * h_step), n + 1)
         hh = rows_at(ts)
         h, hd = hh[: rows.size], hh[rows.size:]
         if armed is None:
@@ -238,6 +253,86 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         if report is not None:
             report(t_a)
     return None
+
+
+#: the coarse pass leaves out the fastest terms up to COARSE of each row's size; it is used when that
+#: slows its sampling COARSE_GAIN times or more than the fine search's
+COARSE, COARSE_GAIN = 1e-3, 4.0
+
+
+class _Coarse:
+    """Certified skipping for rows armed at 0 (paper's rows h = H xi, all of them at once).
+
+    The slow part s of each row (the fastest terms left out up to COARSE of its size, their sum e
+    over the horizon: |h - s| <= e) is sampled at the step of the slowest rate that leaves; on an
+    interval where s, by its Hermite cubic less the interpolation bound, stays above band + e, the
+    row stays above its band: no crossing, no dip, nothing for the fine search. A stiff mode a gap
+    barely sees (an unreduced shaft's 500 kHz modes, 1e-4 of the gap's swing) then sets the step
+    only where some gap comes within that much of zero."""
+
+    def __init__(self, rows_at, margin, b4, step, t_start, t_stop, k):
+        self.rows_at, self.margin, self.b4, self.step = rows_at, margin, b4, step
+        self.t_start, self.t_stop, self.k = t_start, t_stop, k
+        self.ts = np.zeros(0)
+        self.clear = np.zeros(0, dtype=bool)
+
+    @classmethod
+    def of(cls, phase, H, Hd, band, rate, t_start, t_stop) -> "_Coarse | None":
+        """The coarse pass of a search from t_start, or None when it would not sample COARSE_GAIN times
+        slower."""
+        horizon = t_stop - phase.t0   # the terms' bounds hold from the phase's start
+        k = H.shape[0]
+        # a row's size: the sum of its modal terms' amplitudes (a gap's, not the layers' it is the
+        # difference of) and its constant
+        size = phase.derivative_bound(H, 0, horizon) + np.abs(H[:, 2 * phase.config.r])
+        budget = np.concatenate([COARSE * size, np.full(k, np.inf)])
+        rows_at, rate_c, e, bound_of = phase.search_map(np.vstack([H, Hd]), budget, horizon)
+        step = phase.max_step(horizon, rate_c)
+        if rate_c * COARSE_GAIN > rate or bound_of is None or step * 4.0 > t_stop - t_start:
+            return None
+        b4 = bound_of(4)[:k] * step ** 4 / 384.0
+        return cls(rows_at, band + e[:k], b4, step, t_start, t_stop, k)
+
+    def _extend(self) -> None:
+        """Sample the next CHUNK coarse intervals and judge them."""
+        t0 = self.ts[-1] if self.ts.size else self.t_start
+        n = max(1, min(CHUNK, math.ceil((self.t_stop - t0) / self.step)))
+        ts = np.linspace(t0, min(self.t_stop, t0 + n * self.step), n + 1)
+        ss = self.rows_at(ts)
+        s, sd = ss[: self.k] - self.margin[:, None], ss[self.k:]
+        dt = np.diff(ts)
+        # the cubic's Hermite weights of the slopes are at most 4/27: a cheap lower bound first
+        lo = np.minimum(s[:, :-1], s[:, 1:]) - 4.0 / 27.0 * dt * (np.abs(sd[:, :-1]) + np.abs(sd[:, 1:]))
+        lo -= self.b4[:, None]
+        i, j = np.nonzero(lo <= 0.0)
+        if i.size:
+            lo[i, j] = _hermite_min(s[i, j], s[i, j + 1], sd[i, j], sd[i, j + 1], dt[j]) - self.b4[i]
+        clear = np.all(lo > 0.0, axis=0)
+        self.ts = ts if not self.ts.size else np.concatenate([self.ts, ts[1:]])
+        self.clear = np.concatenate([self.clear, clear])
+
+    def unclear(self, t: float) -> tuple[float, float]:
+        """(a, b): the first stretch at or after t not certified clear, from a (t itself when t lies in
+        one) to b (the end of its run of coarse intervals); a = t_stop when all is clear."""
+        j = max(int(np.searchsorted(self.ts, t, side="right")) - 1, 0)
+        while True:
+            while j >= self.clear.size:
+                if self.ts.size and self.ts[-1] >= self.t_stop:
+                    return self.t_stop, self.t_stop
+                self._extend()
+            if not self.clear[j]:
+                break
+            j += 1
+        a = max(t, float(self.ts[j]))
+        while True:
+            if j >= self.clear.size:
+                if self.ts[-1] >= self.t_stop:
+                    return a, self.t_stop
+                self._extend()
+                continue
+            if self.clear[j]:
+                return a, float(self.ts[j])
+            j += 1
 
 
 def _screened(ts, f, hd, band, bound4) -> np.ndarray:
@@ -325,11 +420,26 @@ def _convex(f0, f1, d0, d1, dt, bound4):
 def _envelope_min(f0, f1, d0, d1, dt, bound4, s_hi=1.0):
     """The lowest the row can be on [0, s_hi] of the interval (in its units): the Hermite cubic
     less its pointwise error bound 16 bound4 s^2 (1 - s)^2, a quartic, at the ends or where its
-    derivative (a cubic) vanishes inside (real parts of all its roots: extra points only lower it)."""
+    derivative (a cubic) vanishes inside. Candidates: the real parts of that cubic's roots, and the
+    cubic's own turning points (when the bound is negligible the quartic's leading coefficient is
+    too, and the companion matrix's roots are not accurate), each refined by Newton's method;
+    extra points only lower the minimum towards the true one."""
     c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt)
     e = 16.0 * bound4
-    ss = [0.0, s_hi] + [float(r.real) for r in np.roots([-4.0 * e, 3.0 * c3 + 6.0 * e, 2.0 * c2 - 2.0 * e, c1])
-                        if 0.0 < r.real < s_hi]
+    a3, a2, a1 = -4.0 * e, 3.0 * c3 + 6.0 * e, 2.0 * c2 - 2.0 * e    # the derivative: a3 s^3 + a2 s^2 + a1 s + c1
+    cand = [float(r) for r in _quadratic_roots(3.0 * c3, 2.0 * c2, c1) if np.isfinite(r)]
+    if a3 != 0.0:
+        cand += [float(r.real) for r in np.roots([a3, a2, a1, c1])]
+    ss = [0.0, s_hi]
+    for s in cand:
+        for _ in range(3):
+            if not 0.0 < s < s_hi:
+                break
+            ss.append(s)
+            dd = 3.0 * a3 * s * s + 2.0 * a2 * s + a1
+            if dd == 0.0:
+                break
+            s -= (c1 + s * (a1 + s * (a2 + s * a3))) / dd
     return min(c0 + s * (c1 + s * (c2 + s * c3)) - e * (s * (1.0 - s)) ** 2 for s in ss)
 
 
