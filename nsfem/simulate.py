@@ -173,8 +173,9 @@ def check_search_cost(system: ContactSystem, t_end: float, method: str, reductio
     else:  # Craig-Bampton: a constraint mode at a contact point, stiffer than every kept mode
         advice = ("its constraint modes at the contact points set it: fewer contact points or a shorter "
                   "simulation.t_end lower it")
-    text = (f"the fastest mode of this {system.n}-dof model ({f_max:.4g} Hz) sets the time scale of '{method}': "
-            f"about {samples:.2g} event-search samples for t_end = {t_end:g} s; {advice}")
+    text = (f"the fastest mode of this {system.n}-dof model ({f_max:.4g} Hz) sets the time scale of '{method}' "
+            f"wherever the contacts come within reach of its motion: up to about {samples:.2g} event-search "
+            f"samples for t_end = {t_end:g} s; {advice}")
     if samples > SAMPLES_MAX:
         raise SceneError("simulation.t_end", f"{text}; more than {SAMPLES_MAX:.0e} samples (a month or more of "
                          "computing) are refused")
