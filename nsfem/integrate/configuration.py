@@ -320,7 +320,10 @@ class Configuration:
 
 
 class Phase:
-    """Exact motion of one configuration from (t0, q0, v0); all outputs are maps of xi(t)."""
+    """Exact motion of one configuration from (t0, q0, v0); all outputs are maps of xi(t).
+
+    ``amplitudes``: (c, g) with x(t0 + s) = V (c e^{lam s} + sum_mu g_mu e^{mu s}) when the motion is modes
+    and particular solutions only (no rigid coordinates, no divided differences); None otherwise."""
 
     def __init__(self, config: Configuration, t0: float, q0: np.ndarray, v0: np.ndarray, g0: np.ndarray):
         sysm = config.system
