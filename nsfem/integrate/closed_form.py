@@ -213,10 +213,10 @@ class ModalPlan:
 
     @staticmethod
     def _group(terms: list, m: int, nmu: int):
-        """(nodes (n, K), factors of the w-rows and of the a-rows (1 + nmu, m, K), the terms' sources
-        ((1 + nmu) m, K), columns kept with zero coefficients (K,)) of the divided differences with n nodes,
-        equal nodes one column (the F[0, 0] of a constant load is shared by every mode of a rigid body);
-        None without any."""
+        """(nodes (n, K), factors of the w-rows and of the a-rows (1 + nmu, m, K; None without any), the
+        terms' sources ((1 + nmu) m, K), columns kept with zero coefficients (K,)) of the divided
+        differences with n nodes, equal nodes one column (the F[0, 0] of a constant load is shared by
+        every mode of a rigid body); None without any."""
         if not terms:
             return None
         index: dict = {}
@@ -230,7 +230,8 @@ class ModalPlan:
             (Fr if rigid else Fw)[src, j, c] += factor
             source[src, j, c] = 1.0
             always[c] |= keep
-        return np.array(list(index), dtype=complex).T, Fw, Fr, source.reshape(-1, K), always
+        return (np.array(list(index), dtype=complex).T, Fw if Fw.any() else None, Fr if Fr.any() else None,
+                source.reshape(-1, K), always)
 
     def motion(self, z0: np.ndarray, beta: np.ndarray, a0: np.ndarray) -> tuple[Motion, tuple]:
         """(Motion, (c, g)) from z0 = V^-1 w0, beta (len(mus), m) = V^-1 b_mu (e^{mu t0} folded in) and a0:
@@ -250,9 +251,10 @@ class ModalPlan:
             U[:k, m] += a0
         groups = []
         for nodes, Fw, Fr, source, always in self.groups:
-            D = np.empty((U.shape[0], nodes.shape[1]), dtype=complex)
-            D[k:] = V @ np.einsum("imK,im->mK", Fw, C)
-            if not k:
+            D = np.zeros((U.shape[0], nodes.shape[1]), dtype=complex)
+            if Fw is not None:      # resonant pairs
+                D[k:] = V @ np.einsum("imK,im->mK", Fw, C)
+            if Fr is None:
                 groups.append((nodes, D))
                 continue
             D[:k] = self.SV @ np.einsum("imK,im->mK", Fr, C)

@@ -471,34 +471,30 @@ class EventDriven(Integrator):
             hit = forms_cache[cfg] = (forms, np.array(loads) @ Vv, keys, np.array(S), Vv)
         _, E, keys, S, Vv = hit
         nu, mus = cfg.plan.nu, cfg.plan.nu[m:]
-        T = t1 - phase.t0
-        # Phi over the rows the forms need: the load's exponents, or all of z's
-        Phi = _exp_integrals(nu if keys else mus, nu, T)
-        Pf = Phi[-mus.size:]                                   # rows of the exponents mus
-        EZ = np.empty((mus.size, nu.size), dtype=complex)      # (load at mu_i) . (term b of q')
-        EZ[:, :m] = E * c
-        EZ[:, m:] = E @ g.T
-        energy["work_external_J"] += float(np.einsum("i,ib,ib->", np.exp(mus * phase.t0), Pf, EZ).real)
+        # Phi over the rows the forms need: the load's exponents, or all of z's (Phi is symmetric)
+        Phi = _exp_integrals(nu if keys else mus, nu, t1 - phase.t0)
+        if keys:
+            ZP = c[:, None] * Phi[:m] + g.T @ Phi[m:]          # Z Phi
+            PZ = ZP[:, m:].T                                    # rows mus of Phi Z^T
+        else:
+            PZ = Phi[:, :m] * c + Phi[:, m:] @ g
+        energy["work_external_J"] += float(np.einsum("i,ij,ij->", np.exp(mus * phase.t0), E, PZ).real)
         if not keys:
             return
-        # Gz = Z Phi Z^T over the modal coordinates, one for all forms: int z^T S z = sum S * Gz
-        Pm = Phi[:m]
-        Gz = c[:, None] * (Pm[:, :m] * c + Pm[:, m:] @ g) + g.T @ (Pf[:, :m] * c + Pf[:, m:] @ g)
-        vals = np.einsum("fjk,jk->f", S, Gz)
-        if circulatory and phase.g0.size:   # v^T P q_p: the constant q_p against every term of q'
-            pq = Vv.T @ (P @ phase.qp)
-            vals[keys.index("work_circulatory_J")] += Pf[0, :m] @ (pq * c) + Pf[0, m:] @ (g @ pq)
+        vals = np.einsum("fjk,jk->f", S, ZP[:, :m] * c + ZP[:, m:] @ g)     # S * (Z Phi Z^T)
+        if circulatory and phase.g0.size:   # v^T P q_p: the constant q_p (mu = 0) against every term of q'
+            vals[keys.index("work_circulatory_J")] += PZ[0] @ (Vv.T @ (P @ phase.qp))
         for key, val in zip(keys, vals):
-            energy[key] += float(np.real(val))
+            energy[key] += float(val.real)
 
 
 def _exp_integrals(a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
     """int_0^T e^{(a_j + b_k) s} ds (len(a) x len(b)): (e^{a_j T} e^{b_k T} - 1) / (a_j + b_k) (exponentials of
     the nodes, not of every pair), by its series where (a_j + b_k) T is small."""
-    z = np.add.outer(a, b) * T
-    small = np.abs(z) < 1e-8
-    phi = (np.multiply.outer(np.exp(a * T), np.exp(b * T)) - 1.0) / np.where(small, 1.0, z) * T
-    zz = z[small]
+    s = np.add.outer(a, b)
+    small = np.abs(s) < 1e-8 / T
+    phi = (np.multiply.outer(np.exp(a * T), np.exp(b * T)) - 1.0) / np.where(small, 1.0, s)
+    zz = s[small] * T
     phi[small] = T * (1.0 + zz / 2.0 + zz * zz / 6.0)
     return phi
 
