@@ -282,19 +282,19 @@ class Configuration:
 
     def _phase_parts(self) -> None:
         """What every :class:`Phase` of this configuration shares: the forcing's fixed parts (the harmonic
-        loads, the augmented matrix but for the constant load's column, which q_p changes) and the modal
-        path's :class:`.closed_form.ModalPlan` with the harmonic loads' modal coefficients."""
+        loads, ``A_aug_base``: the augmented matrix but for the constant load's column, which q_p changes)
+        and on the modal path the :class:`.closed_form.ModalPlan` and the harmonic load in w-space."""
         sysm, r, k = self.system, self.r, self.k
         self.w = sysm.omega if sysm.harmonic else 0.0
         self.loads = [sysm.fc, sysm.fs] if self.w else []        # of the cos and sin components of xi
         dim = 2 * r + 1 + len(self.loads)
-        self.A_aug = np.zeros((dim, dim))                       # order: x, 1, cos, sin
-        self.A_aug[: 2 * r, : 2 * r] = self.A
+        Aa = self.A_aug_base = np.zeros((dim, dim))               # order: x, 1, cos, sin
+        Aa[: 2 * r, : 2 * r] = self.A
         for j, f in enumerate(self.loads):
-            self.A_aug[: 2 * r, 2 * r + 1 + j] = self.B @ f
+            Aa[: 2 * r, 2 * r + 1 + j] = self.B @ f
         if self.w:
-            self.A_aug[2 * r + 1, 2 * r + 2] = -self.w   # d/dt cos = -w sin
-            self.A_aug[2 * r + 2, 2 * r + 1] = self.w    # d/dt sin = w cos
+            Aa[2 * r + 1, 2 * r + 2] = -self.w   # d/dt cos = -w sin
+            Aa[2 * r + 2, 2 * r + 1] = self.w    # d/dt sin = w cos
         self.plan = None
         if self.eig is None or not r:
             return
@@ -338,7 +338,7 @@ class Phase:
         self.dim = 2 * r + len(self.forcing)
         self.x0 = np.concatenate([N.T @ (q0 - self.qp), N.T @ v0])
         # augmented matrix (order: x, 1, cos, sin): the configuration's, with this phase's constant load
-        self.A_aug = config.A_aug.copy()
+        self.A_aug = config.A_aug_base.copy()
         self.A_aug[: 2 * r, 2 * r] = Bf0 = config.B @ f0
         self._modal = self.amplitudes = None
         if config.plan is not None:
