@@ -341,13 +341,13 @@ class EventDriven(Integrator):
 
 
     def _run_forms(self, K, P, D) -> tuple:
-        """(K, P, D, any damping, any circulatory term, E's form diag(K, M) on (q, q')), computed once per
-        run (K, P and D are the run's)."""
+        """(K, P, D, any damping, any circulatory term, E's form diag(K, M) / 2 on (q, q')), computed once
+        per run (K, P and D are the run's)."""
         forms = self.__dict__.get("_forms")
         if forms is None or forms[0] is not K or forms[1] is not P or forms[2] is not D:
             n = K.shape[0]
             H = np.zeros((2 * n, 2 * n))
-            H[:n, :n], H[n:, n:] = K, self.system.M
+            H[:n, :n], H[n:, n:] = 0.5 * K, 0.5 * self.system.M
             forms = self._forms = (K, P, D, bool(np.any(D)), bool(np.any(P)), H)
         return forms
 
@@ -358,7 +358,7 @@ class EventDriven(Integrator):
             X = np.vstack([phase.q_map() @ xi, phase.v_map() @ xi]).T
         else:
             X = np.array(ends).reshape(2, -1)      # (q, q') at t0, then at t1
-        E = 0.5 * np.einsum("ti,ti->t", X @ forms[5], X)
+        E = np.einsum("ti,ti->t", X @ forms[5], X)
         return float(np.abs(E).max()), X
 
     def _energy_without_quadrature(self, phase, mode, t1, K, P, D, energy, ends=None):
@@ -468,9 +468,9 @@ class EventDriven(Integrator):
             if circulatory:
                 keys.append("work_circulatory_J")
                 S.append(Vv.T @ P @ Vq)
-            hit = forms_cache[cfg] = (forms, np.array(loads) @ Vv, keys, np.array(S), Vv)
-        _, E, keys, S, Vv = hit
-        nu, mus = cfg.plan.nu, cfg.plan.nu[m:]
+            hit = forms_cache[cfg] = (forms, np.array(loads) @ Vv, keys, np.array(S), Vv, cfg.plan.nu[m:])
+        _, E, keys, S, Vv, mus = hit
+        nu = cfg.plan.nu
         # Phi over the rows the forms need: the load's exponents, or all of z's (Phi is symmetric)
         Phi = _exp_integrals(nu if keys else mus, nu, t1 - phase.t0)
         if keys:
@@ -490,12 +490,13 @@ class EventDriven(Integrator):
 
 def _exp_integrals(a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
     """int_0^T e^{(a_j + b_k) s} ds (len(a) x len(b)): (e^{a_j T} e^{b_k T} - 1) / (a_j + b_k) (exponentials of
-    the nodes, not of every pair), by its series where (a_j + b_k) T is small."""
+    the nodes, not of every pair), by its series T + T^2 x / 2 + T^3 x^2 / 6 where x = a_j + b_k is below
+    1e-8 / T."""
     s = np.add.outer(a, b)
     small = np.abs(s) < 1e-8 / T
     phi = (np.multiply.outer(np.exp(a * T), np.exp(b * T)) - 1.0) / np.where(small, 1.0, s)
-    zz = s[small] * T
-    phi[small] = T * (1.0 + zz / 2.0 + zz * zz / 6.0)
+    x = s[small]
+    phi[small] = T + x * (T * T / 2.0 + x * (T ** 3 / 6.0))
     return phi
 
 
