@@ -143,112 +143,126 @@ def exponentials(nu: np.ndarray, tau: np.ndarray) -> np.ndarray:
     return np.exp(np.outer(nu, tau))
 
 
-def modal_motion(lam, V, Vi, w0, forcing: dict, k: int, S: np.ndarray, a0: np.ndarray, floor: float) -> Motion:
-    """The motion of x = (a, w) from x(0) = (a0, w0) under w' = A_w w + sum_mu b_mu e^{mu tau},
-    a' = S w, with A_w = V diag(lam) Vi; ``forcing``: {mu: b_mu} (b_mu in w-space, e^{mu t0} folded
-    in). ``floor``: absolute closeness of nodes (round-off of the eigenvalues)."""
-    dw = V.shape[0]
-    d = k + dw
-    z0 = Vi @ w0
-    mus = sorted(forcing, key=lambda m: (abs(m), m.imag))
-    beta = {mu: Vi @ forcing[mu] for mu in mus}
-    coef = z0.astype(complex).copy()            # of e^{lam_j tau}, modal
-    X = {0j: np.zeros(d, dtype=complex)}        # of e^{mu tau}, x-space
-    X[0j][:k] = a0
-    Ua = np.zeros((k, lam.size), dtype=complex)  # a-rows of the e^{lam_j tau} terms
-    dd2n, dd2c, dd3n, dd3c = [], [], [], []
-    SV = S @ V if k else np.zeros((0, lam.size))
+class ModalPlan:
+    """The motion of x = (a, w) from x(0) = (a0, w0) under w' = A_w w + sum_mu b_mu e^{mu tau}, a' = S w,
+    with A_w = V diag(lam) V^-1, split into what the configuration fixes and what each phase adds.
 
-    for mu in mus:
-        X.setdefault(mu, np.zeros(d, dtype=complex))
-        b = beta[mu]
-        res = _close(lam, mu, floor)
-        far = ~res
-        with np.errstate(divide="ignore", invalid="ignore"):
-            g = np.where(far, b / np.where(far, mu - lam, 1.0), 0.0)
-        coef -= g
-        X[mu][k:] += V @ g
-        for j in np.flatnonzero(res):
-            col = np.zeros(d, dtype=complex)
-            col[k:] = V[:, j] * b[j]
-            dd2n.append((lam[j], mu))
-            dd2c.append(col)
-    if k:
-        # a(tau) = a0 + sum_j SV_j [z0_j F[0, lam_j] + sum_mu beta_mu,j F[0, lam_j, mu]]
-        moved = np.any(SV != 0, axis=0)
-        # modes far from 0 and from every forcing exponent (mu = 0 or far from 0): their terms split
-        # the same way for all of them, done at once (:func:`_far_rigid_terms`)
+    Every term of the motion is a modal coefficient, z0 = V^-1 w0 or beta_mu = V^-1 b_mu, times a factor
+    that depends on the nodes only: the particular solutions' 1 / (mu - lam_j), the divided differences
+    of resonant pairs and the rigid rows' partial fractions. They are found once here (which nodes are
+    close, how the rigid rows split); :meth:`motion` is then a few products per phase.
+    ``mus``: the forcing exponents, 0 (the constant load) first; ``floor``: absolute closeness of nodes
+    (round-off of the eigenvalues)."""
+
+    def __init__(self, lam: np.ndarray, V: np.ndarray, mus: list, k: int, S: np.ndarray, floor: float):
+        m, nmu = lam.size, len(mus)
+        self.V, self.k, self.mus = V, k, list(mus)
+        self.nu = np.concatenate([lam, np.array(mus, dtype=complex)])   # of U's columns: modes, then the mus
+        self.nu.flags.writeable = False                                  # shared by the phases' motions
+        res = np.array([_close(lam, mu, floor) for mu in mus]).reshape(nmu, m)
+        # the particular solutions' divisors mu - lam_j; a resonant pair has none (b / inf = 0): its term
+        # is a divided difference
+        self.den = np.where(res, np.inf, np.subtract.outer(np.array(mus, dtype=complex), lam))
+        # divided-difference terms: (nodes, source (0: z0, 1 + i: beta of mus[i]), mode, factor, rigid row,
+        # kept also with a zero coefficient); sources index the rows of (z0, beta)
+        terms = [((lam[j], mu), 1 + i, j, 1.0, False, True) for i, mu in enumerate(mus) for j in np.flatnonzero(res[i])]
+        self.SV = S @ V if k else np.zeros((0, m))
+        if k:
+            self.Fa = np.zeros((1 + nmu, m), dtype=complex)        # a-rows of the e^{lam_j tau} terms
+            self.Fx = np.zeros((1 + nmu, m, nmu), dtype=complex)   # a-rows of the e^{mu tau} terms
+            self._rigid(lam, mus, floor, terms)
+        self.groups = [self._group([t for t in terms if len(t[0]) == n], m, nmu) for n in (2, 3)]
+        self.groups = [g for g in self.groups if g is not None]
+
+    def _rigid(self, lam, mus, floor, terms: list) -> None:
+        """The factors of the rigid rows a(tau) = a0 + sum_j SV_j [z0_j F[0, lam_j] + sum_mu beta_mu,j
+        F[0, lam_j, mu]]."""
+        moved = np.any(self.SV != 0, axis=0)
+        # modes far from 0 and from every forcing exponent (mu = 0 or far from 0): F[0, lam] = (e^{lam tau} - 1)
+        # / lam; F[0, lam, mu] by partial fractions over its three nodes, and for mu = 0, F[0, 0, lam] =
+        # (e^{lam tau} - 1 - lam tau) / lam^2 (the tau term a divided difference F[0, 0]): the terms
+        # :func:`_split` gives, for all of them at once
         far = moved & ~_close(lam, 0j, floor)
         for mu in mus:
             far &= ~_close(lam, mu, floor)
         if any(mu != 0 and _close(mu, 0j, floor) for mu in mus):
             far[:] = False
-        if np.any(far):
-            _far_rigid_terms(lam[far], SV[:, far], z0[far], {mu: beta[mu][far] for mu in mus}, k, Ua, far, X,
-                             dd2n, dd2c)
+        lf = lam[far]
+        self.Fa[0, far] += 1.0 / lf
+        self.Fx[0, far, 0] -= 1.0 / lf
+        for i, mu in enumerate(mus):
+            if mu == 0:
+                self.Fa[1 + i, far] += 1.0 / lf / lf
+                self.Fx[1 + i, far, 0] -= 1.0 / lf / lf
+                terms += [((0j, 0j), 1 + i, j, -1.0 / lam[j], True, True) for j in np.flatnonzero(far)]
+                continue
+            self.Fa[1 + i, far] += 1.0 / (lf * (lf - mu))
+            self.Fx[1 + i, far, 0] += 1.0 / (lf * mu)
+            self.Fx[1 + i, far, i] += 1.0 / (mu * (mu - lf))
         for j in np.flatnonzero(moved & ~far):
-            s = SV[:, j]
             mode = (lam[j], "mode")
-            terms = [(z0[j], [(0j, 0j), mode])] + [(beta[mu][j], [(0j, 0j), mode, (mu, mu)]) for mu in mus]
-            for c, nodes in terms:
-                if c == 0:
-                    continue
-                vec = c * s
-                exps, dds = _split(nodes, floor)
+            nodes = [[(0j, 0j), mode]] + [[(0j, 0j), mode, (mu, mu)] for mu in mus]
+            for src, nodes_ in enumerate(nodes):
+                exps, dds = _split(nodes_, floor)
                 for key, div in exps:   # a-rows of e^{x tau}: the mode's own column, or a forcing's
                     if key == "mode":
-                        Ua[:, j] += _divide(vec, div)
+                        self.Fa[src, j] += _divide(1.0, div)
                     else:
-                        X.setdefault(key, np.zeros(d, dtype=complex))[:k] += _divide(vec, div)
-                for dd_nodes, div in dds:
-                    col = np.zeros(d, dtype=complex)
-                    col[:k] = _divide(vec, div)
-                    (dd2n if len(dd_nodes) == 2 else dd3n).append(dd_nodes)
-                    (dd2c if len(dd_nodes) == 2 else dd3c).append(col)
-    U = np.zeros((d, lam.size), dtype=complex)
-    U[k:] = V * coef[None, :]
-    U[:k] = Ua
-    nu = np.concatenate([lam, np.array(list(X), dtype=complex)])
-    U = np.hstack([U, np.column_stack(list(X.values()))])
-    groups = [_merged(nodes, cols) for nodes, cols in ((dd2n, dd2c), (dd3n, dd3c)) if nodes]
-    return Motion(nu, U, groups)
+                        self.Fx[src, j, mus.index(key)] += _divide(1.0, div)
+                terms += [(dd_nodes, src, j, _divide(1.0, div), True, False) for dd_nodes, div in dds]
 
+    @staticmethod
+    def _group(terms: list, m: int, nmu: int):
+        """(nodes (n, K), factors of the w-rows and of the a-rows (1 + nmu, m, K; None without any), the
+        terms' sources ((1 + nmu) m, K), columns kept with zero coefficients (K,)) of the divided
+        differences with n nodes, equal nodes one column (the F[0, 0] of a constant load is shared by
+        every mode of a rigid body); None without any."""
+        if not terms:
+            return None
+        index: dict = {}
+        for t in terms:
+            index.setdefault(tuple(t[0]), len(index))
+        K = len(index)
+        Fw, Fr = np.zeros((1 + nmu, m, K), dtype=complex), np.zeros((1 + nmu, m, K), dtype=complex)
+        source, always = np.zeros((1 + nmu, m, K)), np.zeros(K, dtype=bool)
+        for nodes, src, j, factor, rigid, keep in terms:
+            c = index[tuple(nodes)]
+            (Fr if rigid else Fw)[src, j, c] += factor
+            source[src, j, c] = 1.0
+            always[c] |= keep
+        return (np.array(list(index), dtype=complex).T, Fw if Fw.any() else None, Fr if Fr.any() else None,
+                source.reshape(-1, K), always)
 
-def _merged(nodes: list, cols: list) -> tuple[np.ndarray, np.ndarray]:
-    """A divided-difference group (nodes (m, K), D (d, K)) with the columns of equal nodes summed (the
-    F[0, 0] of a constant load is shared by every mode of a rigid body)."""
-    index: dict = {}
-    for key in nodes:
-        index.setdefault(tuple(key), len(index))
-    D = np.zeros((cols[0].shape[0], len(index)), dtype=complex)
-    for key, col in zip(nodes, cols):
-        D[:, index[tuple(key)]] += col
-    return np.array(list(index), dtype=complex).T, D
-
-
-def _far_rigid_terms(lam, SV, z0, beta: dict, k: int, Ua, sel, X: dict, dd2n: list, dd2c: list) -> None:
-    """The rigid rows of modes far from 0 and from every forcing exponent mu (each mu 0 or far from
-    0), for all of them at once: F[0, lam] = (e^{lam tau} - 1) / lam; F[0, lam, mu] by partial
-    fractions over its three nodes, and for mu = 0, F[0, 0, lam] = (e^{lam tau} - 1 - lam tau) / lam^2
-    (the tau term a divided difference F[0, 0]). Same terms as :func:`_split` gives one mode at a time."""
-    V0 = SV * z0[None, :] / lam[None, :]
-    Ua[:, sel] += V0
-    X[0j][:k] -= V0.sum(axis=1)
-    for mu, b in beta.items():
-        Vb = SV * b[None, :]
-        if mu == 0:
-            V1 = Vb / lam[None, :]
-            V2 = V1 / lam[None, :]
-            Ua[:, sel] += V2
-            X[0j][:k] -= V2.sum(axis=1)
-            col = np.zeros(X[0j].shape[0], dtype=complex)
-            col[:k] = -V1.sum(axis=1)
-            dd2n.append((0j, 0j))
-            dd2c.append(col)
-            continue
-        Ua[:, sel] += Vb / (lam * (lam - mu))[None, :]
-        X[0j][:k] += (Vb / (lam * mu)[None, :]).sum(axis=1)
-        X[mu][:k] += (Vb / (mu * (mu - lam))[None, :]).sum(axis=1)
+    def motion(self, z0: np.ndarray, beta: np.ndarray, a0: np.ndarray) -> tuple[Motion, tuple]:
+        """(Motion, (c, g)) from z0 = V^-1 w0, beta (len(mus), m) = V^-1 b_mu (e^{mu t0} folded in) and a0:
+        w(tau) = V (c e^{lam tau} + sum_mu g_mu e^{mu tau}) plus the divided differences."""
+        k, V, m = self.k, self.V, z0.size
+        g = beta / self.den                     # the particular solutions, modal
+        c = z0
+        U = np.empty((k + V.shape[0], self.nu.size), dtype=complex)
+        for i, gi in enumerate(g):              # one mu at a time: the same round-off for any number of them
+            c = c - gi
+            U[k:, m + i] = V @ gi
+        U[k:, :m] = V * c[None, :]
+        C = np.vstack([z0, beta]) if k or self.groups else None     # the coefficients by source
+        if k:
+            U[:k, :m] = self.SV * np.einsum("im,im->m", self.Fa, C)
+            U[:k, m:] = self.SV @ np.einsum("imc,im->mc", self.Fx, C)
+            U[:k, m] += a0
+        groups = []
+        for nodes, Fw, Fr, source, always in self.groups:
+            D = np.zeros((U.shape[0], nodes.shape[1]), dtype=complex)
+            if Fw is not None:      # resonant pairs
+                D[k:] = V @ np.einsum("imK,im->mK", Fw, C)
+            if Fr is None:
+                groups.append((nodes, D))
+                continue
+            D[:k] = self.SV @ np.einsum("imK,im->mK", Fr, C)
+            # a rigid row's term of a zero coefficient is no term (its nodes would set the search's rate)
+            kept = always | (source.T @ (C != 0).ravel() > 0)
+            if kept.any():
+                groups.append((nodes, D) if kept.all() else (nodes[:, kept], D[:, kept]))
+        return Motion(self.nu, U, groups), (c, g)
 
 
 def _divide(vec: np.ndarray, div: tuple) -> np.ndarray:

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import NsfemError
-from .closed_form import Motion, divided_exp, modal_motion
+from .closed_form import ModalPlan, Motion, divided_exp
 from .problem import ContactSystem
 
 #: relative singular value below which a constraint direction is redundant
@@ -278,6 +278,36 @@ class Configuration:
                 self.eig = (lam, W / S[:, None], Wi * S[None, :])
         else:
             self.eigenvalues = np.zeros(0)
+        self._phase_parts()
+
+    def _phase_parts(self) -> None:
+        """What every :class:`Phase` of this configuration shares: the forcing's fixed parts (the harmonic
+        loads, ``A_aug_base``: the augmented matrix but for the constant load's column, which q_p changes)
+        and on the modal path the :class:`.closed_form.ModalPlan` and the harmonic load in w-space."""
+        sysm, r, k = self.system, self.r, self.k
+        self.w = sysm.omega if sysm.harmonic else 0.0
+        self.loads = [sysm.fc, sysm.fs] if self.w else []        # of the cos and sin components of xi
+        dim = 2 * r + 1 + len(self.loads)
+        Aa = self.A_aug_base = np.zeros((dim, dim))               # order: x, 1, cos, sin
+        Aa[: 2 * r, : 2 * r] = self.A
+        for j, f in enumerate(self.loads):
+            Aa[: 2 * r, 2 * r + 1 + j] = self.B @ f
+        if self.w:
+            Aa[2 * r + 1, 2 * r + 2] = -self.w   # d/dt cos = -w sin
+            Aa[2 * r + 2, 2 * r + 1] = self.w    # d/dt sin = w cos
+        self.plan = None
+        if self.eig is None or not r:
+            return
+        lam, V, Vi = self.eig
+        # cos, sin = Re e^{iwt} (fc - i fs): the load at e^{iwt} but for its phase e^{iw t0}, in w-space
+        self.harmonic_b = 0.5 * (self.B[k:] @ (sysm.fc - 1j * sysm.fs)) if self.w else None
+        mus = [0j] + ([-1j * self.w, 1j * self.w] if self.w else [])
+        S = np.zeros((k, 2 * r - k))
+        S[np.arange(k), r - k + np.arange(k)] = 1.0      # a' sits at w[r - k + i]
+        # nodes closer than 1e-9 of the fastest rate are one (eigenvalue round-off: a zero computed
+        # as 1e-14 |A|); divided differences are exact for any nodes, so a generous floor only costs
+        floor = 1e-9 * max(float(np.max(np.abs(lam), initial=0.0)), self.w)
+        self.plan = ModalPlan(lam, V, mus, k, S, floor)
 
     # ------------------------------------------------------------------------------
     def particular(self, g0: np.ndarray) -> np.ndarray:
@@ -290,7 +320,10 @@ class Configuration:
 
 
 class Phase:
-    """Exact motion of one configuration from (t0, q0, v0); all outputs are maps of xi(t)."""
+    """Exact motion of one configuration from (t0, q0, v0); all outputs are maps of xi(t).
+
+    ``amplitudes``: (c, g) with x(t0 + s) = V (c e^{lam s} + sum_mu g_mu e^{mu s}) when the motion is modes
+    and particular solutions only (no rigid coordinates, no divided differences); None otherwise."""
 
     def __init__(self, config: Configuration, t0: float, q0: np.ndarray, v0: np.ndarray, g0: np.ndarray):
         sysm = config.system
@@ -298,26 +331,18 @@ class Phase:
         self.g0 = np.asarray(g0, dtype=float)
         self.qp = config.particular(self.g0)
         N, r = config.N, config.r
-        self.w = sysm.omega if sysm.harmonic else 0.0
+        self.w = config.w
         # forcing phi(t) = (f0 - Q q_p) + fc cos + fs sin as extra state components
         f0 = sysm.f0 - sysm.Q @ self.qp
-        self.forcing = [f0] + ([sysm.fc, sysm.fs] if self.w else [])
-        nf = len(self.forcing)
-        self.dim = 2 * r + nf
-        y0, yd0 = N.T @ (q0 - self.qp), N.T @ v0
-        self.x0 = np.concatenate([y0, yd0])
-        # augmented matrix (order: x, 1, cos, sin)
-        A_aug = np.zeros((self.dim, self.dim))
-        A_aug[: 2 * r, : 2 * r] = config.A
-        for j, f in enumerate(self.forcing):
-            A_aug[: 2 * r, 2 * r + j] = config.B @ f
-        if self.w:
-            A_aug[2 * r + 1, 2 * r + 2] = -self.w   # d/dt cos = -w sin
-            A_aug[2 * r + 2, 2 * r + 1] = self.w    # d/dt sin = w cos
-        self.A_aug = A_aug
-        self._modal = None
-        if config.eig is not None and r:
-            self._modal = self._motion()
+        self.forcing = [f0] + config.loads
+        self.dim = 2 * r + len(self.forcing)
+        self.x0 = np.concatenate([N.T @ (q0 - self.qp), N.T @ v0])
+        # augmented matrix (order: x, 1, cos, sin): the configuration's, with this phase's constant load
+        self.A_aug = config.A_aug_base.copy()
+        self.A_aug[: 2 * r, 2 * r] = Bf0 = config.B @ f0
+        self._modal = self.amplitudes = None
+        if config.plan is not None:
+            self._modal = self._motion(Bf0)
         if self._modal is None:
             self._xi0 = np.concatenate([self.x0, self._harmonics(self.t0)])
 
@@ -329,24 +354,22 @@ class Phase:
             parts += [np.cos(self.w * t), np.sin(self.w * t)]
         return np.array(parts)
 
-    def _motion(self) -> Motion:
-        """x(t - t0) in closed form (:mod:`.closed_form`): modes, particular solutions, and divided
-        differences where the forcing is resonant or a rigid-body coordinate integrates a load."""
-        cfg, r, k = self.config, self.config.r, self.config.k
-        lam, V, Vi = cfg.eig
-        Bw = cfg.B[k:]
-        forcing = {0j: Bw @ self.forcing[0]}
+    def _motion(self, Bf0: np.ndarray) -> Motion:
+        """x(t - t0) in closed form (:class:`.closed_form.ModalPlan`): modes, particular solutions, and
+        divided differences where the forcing is resonant or a rigid-body coordinate integrates a load.
+        Without those (modes and particular solutions only) ``amplitudes`` keeps its modal coefficients."""
+        cfg, k = self.config, self.config.k
+        Vi = cfg.eig[2]
+        beta = np.empty((len(cfg.plan.mus), Vi.shape[0]), dtype=complex)     # mus: 0, -iw, iw
+        beta[0] = Vi @ Bf0[k:]
         if self.w:
-            ph = np.exp(1j * self.w * self.t0)
-            b = 0.5 * (Bw @ (self.forcing[1] - 1j * self.forcing[2])) * ph   # cos, sin = Re e^{iwt} (fc - i fs)
-            forcing[1j * self.w] = b
-            forcing[-1j * self.w] = np.conj(b)
-        S = np.zeros((k, 2 * r - k))
-        S[np.arange(k), r - k + np.arange(k)] = 1.0      # a' sits at w[r - k + i]
-        # nodes closer than 1e-9 of the fastest rate are one (eigenvalue round-off: a zero computed
-        # as 1e-14 |A|); divided differences are exact for any nodes, so a generous floor only costs
-        floor = 1e-9 * max(float(np.max(np.abs(lam), initial=0.0)), self.w)
-        return modal_motion(lam, V, Vi, self.x0[k:], forcing, k, S, self.x0[:k], floor)
+            b = cfg.harmonic_b * np.exp(1j * self.w * self.t0)
+            beta[1] = Vi @ np.conj(b)
+            beta[2] = Vi @ b
+        mot, amplitudes = cfg.plan.motion(Vi @ self.x0[k:], beta, self.x0[:k])
+        if not k and not mot.groups:
+            self.amplitudes = amplitudes
+        return mot
 
     def xi(self, t) -> np.ndarray:
         """The augmented state at times t (scalar -> (dim,), array -> (dim, len(t)))."""

@@ -340,12 +340,26 @@ class EventDriven(Integrator):
         return float(np.max(np.abs(E), initial=0.0))
 
 
-    def _forms_present(self, D, P) -> tuple:
-        """(D, P, any damping, any circulatory term), computed once per run (D and P are the run's)."""
-        flags = self.__dict__.get("_dp_flags")
-        if flags is None or flags[0] is not D or flags[1] is not P:
-            flags = self._dp_flags = (D, P, bool(np.any(D)), bool(np.any(P)))
-        return flags
+    def _run_forms(self, K, P, D) -> tuple:
+        """(K, P, D, any damping, any circulatory term, E's form diag(K, M) / 2 on (q, q')), computed once
+        per run (K, P and D are the run's)."""
+        forms = self.__dict__.get("_forms")
+        if forms is None or forms[0] is not K or forms[1] is not P or forms[2] is not D:
+            n = K.shape[0]
+            H = np.zeros((2 * n, 2 * n))
+            H[:n, :n], H[n:, n:] = 0.5 * K, 0.5 * self.system.M
+            forms = self._forms = (K, P, D, bool(np.any(D)), bool(np.any(P)), H)
+        return forms
+
+    def _end_energy(self, phase, t1, forms, ends=None) -> tuple[float, np.ndarray]:
+        """(max |E| at t0 and t1, the states (q, q') there as rows) from ``ends`` or the phase."""
+        if ends is None:
+            xi = phase.xi(np.array([phase.t0, t1]))
+            X = np.vstack([phase.q_map() @ xi, phase.v_map() @ xi]).T
+        else:
+            X = np.array(ends).reshape(2, -1)      # (q, q') at t0, then at t1
+        E = np.einsum("ti,ti->t", X @ forms[5], X)
+        return float(np.abs(E).max()), X
 
     def _energy_without_quadrature(self, phase, mode, t1, K, P, D, energy, ends=None):
         """The work integrals when only a constant load does work, or None: int f0 . q' dt is
@@ -355,20 +369,15 @@ class EventDriven(Integrator):
         sysm = self.system
         if mode.slide or mode.edge or (phase.w and (np.any(sysm.fc) or np.any(sysm.fs))):
             return None
-        flags = self._forms_present(D, P)
-        if flags[2] or flags[3]:
+        forms = self._run_forms(K, P, D)
+        if forms[3] or forms[4]:
             return None
-        if ends is None:
-            xi = phase.xi(np.array([phase.t0, t1]))
-            q, v = phase.q_map() @ xi, phase.v_map() @ xi
-        else:
-            q, v = np.column_stack(ends[0::2]), np.column_stack(ends[1::2])
+        e_max, X = self._end_energy(phase, t1, forms, ends)
         # from the phase's own start: the configuration's constraints hold it, the state it came from
         # may lie a gap band off them (a plastic impact located at -tol); that projection does no work
         q_start = phase.config.N @ phase.x0[: phase.config.r] + phase.qp
-        energy["work_external_J"] += float(sysm.f0 @ (q[:, 1] - q_start))
-        E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))
-        return float(np.max(np.abs(E)))
+        energy["work_external_J"] += float(sysm.f0 @ (X[1, : sysm.n] - q_start))
+        return e_max
 
     def _energy_closed_form(self, phase, mode, t1, K, P, D, energy, ends=None):
         """The work integrals int xi^T S xi dt of the phase in closed form, or None (no modal form).
@@ -378,11 +387,22 @@ class EventDriven(Integrator):
         one G for all forms. The external work's form has nonzero columns only at the load's
         components of xi (constant, cos, sin), so without damping, circulatory or friction work
         (their forms are skipped when zero) only those columns of G are formed, from the terms
-        that reach them: O(terms) work per phase instead of O(dim^3) per form.
+        that reach them: O(terms) work per phase instead of O(dim^3) per form. Without friction and rigid
+        coordinates the forms are taken in the configuration's modal coordinates instead
+        (:meth:`_energy_modal`).
         """
-        terms = phase.exponential_terms()
-        if terms is None:
-            return None
+        forms = self._run_forms(K, P, D)
+        if phase.amplitudes is not None and not (mode.slide or mode.edge):
+            self._energy_modal(phase, t1, forms, energy)
+        else:
+            terms = phase.exponential_terms()
+            if terms is None:
+                return None
+            self._energy_terms(phase, mode, terms, t1, forms, energy)
+        return self._end_energy(phase, t1, forms, ends)[0]
+
+    def _energy_terms(self, phase, mode, terms, t1, forms, energy) -> None:
+        """The work integrals from the exponential terms (U, mu) of xi."""
         sysm = self.system
         cs = sysm.contacts
         Pq, Pv = phase.q_map(), phase.v_map()
@@ -394,11 +414,11 @@ class EventDriven(Integrator):
             F = np.column_stack([sysm.f0] + ([sysm.fc, sysm.fs] if phase.w else []))
             hit = ext_cache[id(phase.config)] = (phase.config, (phase.dim, bool(phase.w)), Pv.T @ F)
         ext = hit[2]                                                    # the form's nonzero columns
-        flags = self._forms_present(D, P)
+        _, P, D, damped, circulatory, _ = forms
         full = []   # (key, dim x dim form)
-        if flags[2]:
+        if damped:
             full.append(("dissipated_damping_J", Pv.T @ D @ Pv))
-        if flags[3]:
+        if circulatory:
             full.append(("work_circulatory_J", Pv.T @ P @ Pq))
         if mode.slide or mode.edge:
             Pf = phase.force_map()
@@ -415,12 +435,7 @@ class EventDriven(Integrator):
             Uc = U[cols]
             J = np.flatnonzero(np.any(Uc != 0.0, axis=0))
             Uc = Uc[:, J]
-        z = (mu[:, None] + mu[None, J]) * T
-        small = np.abs(z) < 1e-8
-        zs = np.where(small, 1.0, z)
-        phi = T * (np.exp(zs) - 1.0) / zs
-        zz = z[small]
-        phi[small] = T * (1.0 + zz / 2.0 + zz * zz / 6.0)
+        phi = _exp_integrals(mu, mu[J], T)
         G = U @ (phi @ Uc.T)      # G[:, c] = sum_jk U_j phi_jk U_ck over the columns c formed
         if full:
             energy["work_external_J"] += float(np.real(np.sum(ext * G[:, cols])))
@@ -428,13 +443,61 @@ class EventDriven(Integrator):
                 energy[key] += float(np.real(np.sum(S * G)))
         else:
             energy["work_external_J"] += float(np.real(np.sum(ext * G)))
-        if ends is None:
-            xi = phase.xi(np.array([phase.t0, t1]))
-            q, v = Pq @ xi, Pv @ xi
+
+    def _energy_modal(self, phase, t1, forms, energy) -> None:
+        """The work integrals in the configuration's modal coordinates z: x(t0 + s) = V z(s) with
+        z = c e^{lam s} + sum_mu g_mu e^{mu s} = Z e^{nu s} (``Phase.amplitudes``, Z = [diag(c), g^T]),
+        q = Vq z + q_p, q' = Vv z. The forms Vv^T D Vv, Vv^T P Vq and the load's F_mu^T Vv are the
+        configuration's (formed once); per phase int z^T S z ds = sum S * (Z Phi Z^T), one m x m product for
+        all forms, in which diag(c) only scales rows and columns."""
+        sysm, cfg = self.system, phase.config
+        c, g = phase.amplitudes
+        m, r = c.size, cfg.r
+        _, P, D, damped, circulatory, _ = forms
+        forms_cache = self.__dict__.setdefault("_modal_forms", {})
+        hit = forms_cache.get(cfg)
+        if hit is None or hit[0] is not forms:
+            V = cfg.eig[1]
+            Vq, Vv = cfg.N @ V[:r], cfg.N @ V[r:]
+            # the load at the exponents mus (0, -iw, iw), but for the phases e^{mu t0}
+            loads = [sysm.f0] + ([0.5 * (sysm.fc + 1j * sysm.fs), 0.5 * (sysm.fc - 1j * sysm.fs)] if cfg.w else [])
+            keys, S = [], []
+            if damped:
+                keys.append("dissipated_damping_J")
+                S.append(Vv.T @ D @ Vv)
+            if circulatory:
+                keys.append("work_circulatory_J")
+                S.append(Vv.T @ P @ Vq)
+            hit = forms_cache[cfg] = (forms, np.array(loads) @ Vv, keys, np.array(S), Vv, cfg.plan.nu[m:])
+        _, E, keys, S, Vv, mus = hit
+        nu = cfg.plan.nu
+        # Phi over the rows the forms need: the load's exponents, or all of z's (Phi is symmetric)
+        Phi = _exp_integrals(nu if keys else mus, nu, t1 - phase.t0)
+        if keys:
+            ZP = c[:, None] * Phi[:m] + g.T @ Phi[m:]          # Z Phi
+            PZ = ZP[:, m:].T                                    # rows mus of Phi Z^T
         else:
-            q, v = np.column_stack(ends[0::2]), np.column_stack(ends[1::2])
-        E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))
-        return float(np.max(np.abs(E)))
+            PZ = Phi[:, :m] * c + Phi[:, m:] @ g
+        energy["work_external_J"] += float(np.einsum("i,ij,ij->", np.exp(mus * phase.t0), E, PZ).real)
+        if not keys:
+            return
+        vals = np.einsum("fjk,jk->f", S, ZP[:, :m] * c + ZP[:, m:] @ g)     # S * (Z Phi Z^T)
+        if circulatory and phase.g0.size:   # v^T P q_p: the constant q_p (mu = 0) against every term of q'
+            vals[keys.index("work_circulatory_J")] += PZ[0] @ (Vv.T @ (P @ phase.qp))
+        for key, val in zip(keys, vals):
+            energy[key] += float(val.real)
+
+
+def _exp_integrals(a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
+    """int_0^T e^{(a_j + b_k) s} ds (len(a) x len(b)): (e^{a_j T} e^{b_k T} - 1) / (a_j + b_k) (exponentials of
+    the nodes, not of every pair), by its series T + T^2 x / 2 + T^3 x^2 / 6 where x = a_j + b_k is below
+    1e-8 / T."""
+    s = np.add.outer(a, b)
+    small = np.abs(s) < 1e-8 / T
+    phi = (np.multiply.outer(np.exp(a * T), np.exp(b * T)) - 1.0) / np.where(small, 1.0, s)
+    x = s[small]
+    phi[small] = T + x * (T * T / 2.0 + x * (T ** 3 / 6.0))
+    return phi
 
 
 def _finite_prefix(xi: np.ndarray) -> int:
