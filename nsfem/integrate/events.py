@@ -374,6 +374,18 @@ def _quadratic_roots(a, b, c):
         return q / a, c / q
 
 
+def _roots2(a: float, b: float, c: float) -> list[float]:
+    """The real roots of a s^2 + b s + c for scalars (the formula without cancellation; a = 0: the
+    linear root)."""
+    if a == 0.0:
+        return [-c / b] if b != 0.0 else []
+    disc = b * b - 4.0 * a * c
+    if not disc >= 0.0:
+        return []
+    q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+    return [q / a, c / q] if q != 0.0 else [0.0]
+
+
 def _hermite_min(f0, f1, d0, d1, dt):
     """Minimum over each interval of the cubic with end values f0, f1 and slopes d0, d1: exact,
     at the ends or at a root of its derivative (a quadratic) inside the interval."""
@@ -396,16 +408,7 @@ SLOPE = 384.0 * math.sqrt(3.0) / 216.0
 def _cubic_argmax(c0, c1, c2, c3) -> float:
     """Where on [0, 1] the cubic c0 + c1 s + c2 s^2 + c3 s^3 is largest (an end or a root of its
     derivative)."""
-    ss = [0.0, 1.0]
-    a, b, c = 3.0 * c3, 2.0 * c2, c1
-    if a == 0.0:
-        if b != 0.0:
-            ss.append(-c / b)
-    else:
-        disc = b * b - 4.0 * a * c
-        if disc >= 0.0:
-            q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
-            ss += [q / a] + ([c / q] if q != 0.0 else [])
+    ss = [0.0, 1.0] + _roots2(3.0 * c3, 2.0 * c2, c1)
     return max((s for s in ss if 0.0 <= s <= 1.0), key=lambda s: c0 + s * (c1 + s * (c2 + s * c3)))
 
 
@@ -427,7 +430,7 @@ def _envelope_min(f0, f1, d0, d1, dt, bound4, s_hi=1.0):
     c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt)
     e = 16.0 * bound4
     a3, a2, a1 = -4.0 * e, 3.0 * c3 + 6.0 * e, 2.0 * c2 - 2.0 * e    # the derivative: a3 s^3 + a2 s^2 + a1 s + c1
-    cand = [float(r) for r in _quadratic_roots(3.0 * c3, 2.0 * c2, c1) if np.isfinite(r)]
+    cand = _roots2(3.0 * c3, 2.0 * c2, c1)
     if a3 != 0.0:
         cand += [float(r.real) for r in np.roots([a3, a2, a1, c1])]
     ss = [0.0, s_hi]
@@ -452,8 +455,7 @@ def _first_root(f0, f1, d0, d1, dt, s_r, bound4, tol):
     e1 = SLOPE * bound4
     if not c1 + e1 + s_r * (2.0 * c2 + 3.0 * c3 * s_r) < 0.0:
         return False
-    s_x = max([float(r) for r in _quadratic_roots(3.0 * c3, 2.0 * c2, c1 + e1)
-               if np.isfinite(r) and 0.0 < r < s_r], default=0.0)
+    s_x = max([r for r in _roots2(3.0 * c3, 2.0 * c2, c1 + e1) if 0.0 < r < s_r], default=0.0)
     # decreasing from the sample (>= -tol) to the root, or above -tol up to where it certainly is
     return s_x == 0.0 or _envelope_min(f0, f1, d0, d1, dt, bound4, s_x) >= -tol
 
