@@ -244,3 +244,19 @@ def test_symmetric_configurations_use_real_modes_and_propagate_like_the_matrix_e
             ref = sla.expm(cfg.A[k:, k:] * t) @ w0
             got = np.real(V @ (np.exp(lam * t) * (Vi @ w0)))
             assert np.abs(got - ref).max() <= 1e-10 * np.abs(ref).max()
+
+
+def test_exp_integrals_of_nearly_cancelling_pairs():
+    """The work integrals' table int_0^T e^{(a + b) s} ds for a pair that nearly cancels without being
+    conjugate (a double mode, round-off real parts): a = 1e4 i, b = -1e4 i + 2e-9, T = 10, so
+    (a + b) T = 2e-8. Reference: the series T + x T^2 / 2 + x^2 T^3 / 6 with x = 2e-9 (next term
+    x^3 T^4 / 24 ~ 3e-24 of T). Formed from the nodes' exponentials, e^{aT} e^{bT} - 1 carries up to
+    eps |a T| = 2e-11 absolute, up to 1e-3 relative after the division by a + b (5e-9 measured for this
+    pair); expm1 of (a + b) T keeps it to a few eps."""
+    from nsfem.integrate.event_driven import _exp_integrals
+
+    a, b, T = np.array([1e4j]), np.array([-1e4j + 2e-9]), 10.0
+    x = 2e-9
+    ref = T + x * T * T / 2 + x * x * T ** 3 / 6
+    got = _exp_integrals(a, b, T)[0, 0]
+    assert abs(got - ref) <= 4 * np.finfo(float).eps * ref

@@ -190,7 +190,14 @@ def _stiff_phase(rng):
     f0 = np.square(w) * rng.standard_normal(n) * 0.5
     f0[n_slow:] = 0.0   # (a static load on a fast mode would start it oscillating about its deflection)
     T = rng.uniform(3.0, 10.0) * 2 * math.pi / w_slow
-    S, Pi = _system(rng, w, zeta, 0.0, f0)
+    fc = fs = None
+    omega = 0.0
+    if rng.random() < 0.4:
+        # a harmonic load between the slow and the fast modes: the coarse pass leaves the fast modes
+        # out, never the load's particular solution (its slope would no longer match its value)
+        omega = w_slow * 10.0 ** rng.uniform(0.2, 1.2)
+        fc, fs = (np.square(w) * rng.standard_normal(n) * 0.3 * np.where(w > omega, 1e-4, 1.0) for _ in range(2))
+    S, Pi = _system(rng, w, zeta, 0.0, f0, fc, fs, omega)
     p0 = amp * rng.standard_normal(n)
     pd0 = amp * w * rng.standard_normal(n)
     t0 = float(rng.uniform(0.0, 5.0)) if rng.random() < 0.5 else 0.0
@@ -583,3 +590,32 @@ def test_hermite_min_is_the_cubics_exact_minimum():
     curv = 6 * np.abs(f0 - f1) + 4 * np.abs(m0) + 4 * np.abs(m1)
     assert np.all(got <= dense + 1e-14 * size)
     assert np.all(dense - got <= curv / 20000**2 / 8 + 1e-14 * size)
+
+
+def test_search_map_slope_is_the_derivative_of_what_it_keeps():
+    """``Phase.search_map`` leaves out modes a row barely sees, never a harmonic load's particular
+    solution: the rows' direct harmonic terms stay, so without it the kept slope (read through
+    H A_aug) would not be the kept value's derivative and the Hermite cubic's error bound would not
+    hold. A slow mode (10 rad/s), a fast one (3000 rad/s) at 1e-7 of its motion, a load at 300 rad/s,
+    a velocity row; the budget leaves out everything it may. Tolerance: the central difference's
+    error at h = 2.5e-6 s, h^2 / 6 max|s'''| ~ 3e-8 (s''' ~ 1e4 from the slow mode, velocity 10 at
+    10 rad/s, and ~1.6e4 from the load's 6e-4 at 300 rad/s), plus its round-off eps 10 / h ~ 1e-9:
+    atol 1e-7, against the 0.18 by which the load's direct term is off when its particular solution
+    is left out."""
+    rng = np.random.default_rng(1)
+    w, om = np.array([10.0, 3000.0]), 300.0
+    S, Pi = _system(rng, w, np.zeros(2), 0.0, f0=[0.0, 0.0], fc=[0.18, 0.0], fs=[0.0, 0.0], omega=om)
+    Phi = np.linalg.inv(Pi)
+    phase = Phase(Configuration(S, Mode()), 0.0, Phi @ np.array([1.0, 1e-7]), Phi @ np.array([0.0, 3e-4]),
+                  np.zeros(0))
+    r = phase.config.r
+    H = np.zeros((1, phase.dim))
+    H[0, r:2 * r] = Pi[0]          # the slow mode's velocity
+    Hd = H @ phase.A_aug
+    assert np.any(Hd[0, 2 * r:] != 0.0), "the load acts on the row's slope directly"
+    rows_at, rate, e, _ = phase.search_map(np.vstack([H, Hd]), np.array([1e-3 * 10.0, np.inf]), 1.0)
+    assert rate < 3000.0 and e[0] > 0.0, "the fast mode is left out"
+    h = 2.5e-6
+    ts = np.linspace(0.01, 0.05, 41)
+    slope = (rows_at(ts + h)[0] - rows_at(ts - h)[0]) / (2 * h)
+    np.testing.assert_allclose(rows_at(ts)[1], slope, rtol=0, atol=1e-8 * 10.0)

@@ -450,7 +450,11 @@ class Phase:
             grow = np.exp(np.maximum(mot.nu.real, 0.0) * horizon)
         size = np.abs(HU) * grow[None, :]
         speed = np.abs(mot.nu)
-        order = np.argsort(-speed, kind="stable")
+        # only modes are left out, never the forcing's particular solutions (the last columns, after the
+        # modes'): the rows' direct harmonic terms stay, and without their particular solutions the kept
+        # slope (from H A_aug) would no longer be the kept value's derivative
+        modes = self.config.eig[0].size
+        order = np.argsort(-speed[:modes], kind="stable")
         cum = np.cumsum(size[:, order], axis=1)
         fits = np.all(cum <= budget[:, None], axis=0)            # a prefix (cum is nondecreasing)
         n_drop = int(np.argmin(fits)) if not fits.all() else fits.size
@@ -461,7 +465,7 @@ class Phase:
         if n_drop == 0:
             kept, rate, e = Motion(mot.nu, HU, groups), self.config.fastest_rate(), np.zeros(HU.shape[0])
         else:
-            keep = np.sort(order[n_drop:])
+            keep = np.concatenate([np.sort(order[n_drop:]), np.arange(modes, speed.size)])
             kept, e = Motion(mot.nu[keep], HU[:, keep], groups), cum[:, n_drop - 1]
             rate = float(np.max(speed[keep], initial=0.0))
             for nodes, _ in mot.groups:

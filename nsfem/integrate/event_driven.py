@@ -490,13 +490,17 @@ class EventDriven(Integrator):
 
 def _exp_integrals(a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
     """int_0^T e^{(a_j + b_k) s} ds (len(a) x len(b)): (e^{a_j T} e^{b_k T} - 1) / (a_j + b_k) (exponentials of
-    the nodes, not of every pair), by its series T + T^2 x / 2 + T^3 x^2 / 6 where x = a_j + b_k is below
-    1e-8 / T."""
+    the nodes, not of every pair) where |a_j + b_k| T >= 1/2; below, expm1((a_j + b_k) T) / (a_j + b_k): the
+    product's absolute round-off, eps |a_j T|, would be divided by a small |a_j + b_k| (nearly cancelling
+    pairs that are not conjugates: double modes, round-off real parts), and by its series
+    T + T^2 x / 2 + T^3 x^2 / 6 where x = a_j + b_k is below 1e-8 / T."""
     s = np.add.outer(a, b)
-    small = np.abs(s) < 1e-8 / T
-    phi = (np.multiply.outer(np.exp(a * T), np.exp(b * T)) - 1.0) / np.where(small, 1.0, s)
-    x = s[small]
-    phi[small] = T + x * (T * T / 2.0 + x * (T ** 3 / 6.0))
+    near = np.abs(s) * T < 0.5
+    phi = (np.multiply.outer(np.exp(a * T), np.exp(b * T)) - 1.0) / np.where(near, 1.0, s)
+    x = s[near]
+    small = np.abs(x) < 1e-8 / T
+    phi[near] = np.where(small, T + x * (T * T / 2.0 + x * (T ** 3 / 6.0)),
+                         np.expm1(x * T) / np.where(small, 1.0, x))
     return phi
 
 

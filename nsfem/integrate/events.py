@@ -288,7 +288,7 @@ class _Coarse:
         budget = np.concatenate([COARSE * size, np.full(k, np.inf)])
         rows_at, rate_c, e, bound_of = phase.search_map(np.vstack([H, Hd]), budget, horizon)
         step = phase.max_step(horizon, rate_c)
-        if rate_c * COARSE_GAIN > rate or bound_of is None or step * 4.0 > t_stop - t_start:
+        if step < COARSE_GAIN * phase.max_step(horizon, rate) or bound_of is None or step * 4.0 > t_stop - t_start:
             return None
         b4 = bound_of(4)[:k] * step ** 4 / 384.0
         return cls(rows_at, band + e[:k], b4, step, t_start, t_stop, k)
