@@ -487,7 +487,8 @@ def _refined_solve(B: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None)
     with np.errstate(all="ignore"):
         svd = None
         lu, piv, info = _getrf(B)
-        if info != 0 or not np.all(np.abs(np.diag(lu)) > _EPS * max(float(np.max(np.abs(B))), 1e-300)):
+        small = _EPS * max(float(np.abs(B).max()), 1e-300)
+        if info != 0 or not all(abs(u) > small for u in np.diag(lu).tolist()):
             lu = None
             try:
                 U, sv, Vt = np.linalg.svd(B)
@@ -509,7 +510,8 @@ def _refined_solve(B: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None)
         for _ in range(REFINE_STEPS + 1):
             r = rhs - B @ x
             size = np.abs(B) @ np.abs(x) + np.abs(rhs)
-            now = float((np.abs(r) / np.where(size > 0, size, 1.0)).max(initial=0.0))
+            ratios = [abs(ri) / (si if si > 0 else 1.0) for ri, si in zip(r.tolist(), size.tolist())]
+            now = max(0.0, *ratios) if not math.isnan(sum(ratios)) else math.nan   # as numpy's max: nan wins
             if not now < worst or now <= 4 * _EPS:
                 break
             worst = now
