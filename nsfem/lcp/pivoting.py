@@ -205,7 +205,8 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     n = b.size
     if A.shape != (n, n):
         raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
-    if not (np.isfinite(A).all() and np.isfinite(b).all()):
+    bl = b.tolist()
+    if not (np.isfinite(A).all() and all(map(math.isfinite, bl))):
         raise NsfemError("lemke: A and b must be finite (found nan or inf)")
     if d is not None:
         d = np.array(d, dtype=float).ravel()
@@ -230,12 +231,13 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
             cert = _certificate(A, b, x, w, (r_s, c_s), groups)
         return LCPResult(x, w, status, pivots, cert["relative"], message, cert)
 
-    if n == 0 or (b >= 0).all():
+    if min(bl, default=0.0) >= 0:
         return result(np.zeros(n), "solved", 0, "trivial solution x = 0 (b >= 0)")
 
     As = r_s[:, None] * A * c_s[None, :]
     bs = r_s * b
     dv = np.ones(n) if d is None else r_s * d
+    eq = (As, bs, r_s, c_s)
 
     z0 = 2 * n  # variables: w_0..w_{n-1}, x_0..x_{n-1}, z0
 
@@ -279,11 +281,11 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
                 # is tried as well (measured: a stiff friction LCP whose x_7 left at 3.5e-12
                 # instead of z0 certifies to 1e-16 that way, to 8e-8 without it)
                 zrow = basis.index(z0)
-                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, r_s, c_s, groups)
+                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, eq, groups)
                 if entering < n:
                     tied = basis.copy()
                     tied[zrow] = entering + n
-                    x = _polish(A, b, x, tied, n, r_s, c_s, groups)
+                    x = _polish(A, b, x, tied, n, eq, groups)
                 w, cert = _certify(A, b, x, (r_s, c_s), groups)
                 z0_gone = float(xB[zrow]) <= 1e-14 * max(float(np.max(np.abs(bs))), 1e-300)
                 if cert["relative"] <= ACCEPT:
@@ -305,7 +307,7 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
                 # complementary basis it leaves behind, accept it if it solves the LCP
                 trial = basis.copy()
                 trial[zrow] = entering
-                x = _polish(A, b, None, trial, n, r_s, c_s, groups)
+                x = _polish(A, b, None, trial, n, eq, groups)
                 if x is not None:
                     w, cert = _certify(A, b, x, (r_s, c_s), groups)
                     if cert["relative"] <= ACCEPT:
@@ -347,7 +349,7 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
         entering = leaving + n if leaving < n else leaving - n
 
     x = _basic_x(basis, xB, n) * c_s
-    x, cert = _polish_certified(A, b, x, basis, n, r_s, c_s, groups)
+    x, cert = _polish_certified(A, b, x, basis, n, eq, groups)
     res = result(x, "solved", pivots, f"solved in {pivots} pivots", cert)
     # a complementary basis is a solution only when its point certifies (componentwise backward
     # error ACCEPT); on bases of condition ~1e13 the refined solve can leave rows violated by
@@ -431,28 +433,28 @@ def _basic_x(basis, xB: np.ndarray, n: int) -> np.ndarray:
     return x
 
 
-def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: list, n: int,
-            r_s: np.ndarray, c_s: np.ndarray, groups=None) -> np.ndarray:
-    """Re-solve the complementary basis (A_SS x_S = -b_S, equilibrated), refined from the
-    pivoting's x where given (:func:`_refined_solve`); keep the better x."""
-    return _polish_certified(A, b, x, basis, n, r_s, c_s, groups)[0]
+def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: list, n: int, eq: tuple,
+            groups=None) -> np.ndarray:
+    """Re-solve the complementary basis (A_SS x_S = -b_S, equilibrated: ``eq`` = (R A C, R b, R, C)),
+    refined from the pivoting's x where given (:func:`_refined_solve`); keep the better x."""
+    return _polish_certified(A, b, x, basis, n, eq, groups)[0]
 
 
-def _polish_certified(A, b, x, basis, n, r_s, c_s, groups=None) -> tuple[np.ndarray, dict | None]:
+def _polish_certified(A, b, x, basis, n, eq, groups=None) -> tuple[np.ndarray, dict | None]:
     """:func:`_polish`, with the certificate of the x it keeps when it computed one (else None)."""
+    As, bs, r_s, c_s = eq
     S = sorted(v - n for v in basis if n <= v < 2 * n)
-    if not S:
-        y = np.zeros(n)
-    else:
-        start = None if x is None else x[S] / c_s[S]
-        xs = _refined_solve(r_s[S, None] * A[np.ix_(S, S)] * c_s[None, S], -r_s[S] * b[S], start)
+    y = [0.0] * n
+    if S:
+        cS = c_s.take(S)
+        xs = _refined_solve(As.take(S, 0).take(S, 1), -bs.take(S), None if x is None else x.take(S) / cS)
         if xs is None:
             return x, None
-        y = np.zeros(n)
-        y[S] = c_s[S] * xs
-    if not np.isfinite(y).all():
+        for i, v in zip(S, (cS * xs).tolist()):
+            y[i] = v
+    if not all(map(math.isfinite, y)):
         return x, None
-    y = np.maximum(y, 0.0)
+    y = np.array([v if v > 0.0 else 0.0 for v in y])   # np.maximum(y, 0): -0.0 becomes 0.0 too
     if x is None:
         return y, None
     sc = (r_s, c_s)
@@ -504,19 +506,20 @@ def _refined_solve(B: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None)
             return Vt.T @ ((U.T @ v) / sv)
 
         x = solve(rhs) if x0 is None else np.array(x0, dtype=float)
-        if not np.isfinite(x).all():
+        if not all(map(math.isfinite, x.tolist())):
             return None
         worst = np.inf
+        aB, arhs = np.abs(B), np.abs(rhs)
         for _ in range(REFINE_STEPS + 1):
             r = rhs - B @ x
-            size = np.abs(B) @ np.abs(x) + np.abs(rhs)
+            size = aB @ np.abs(x) + arhs
             ratios = [abs(ri) / (si if si > 0 else 1.0) for ri, si in zip(r.tolist(), size.tolist())]
             now = max(0.0, *ratios) if not math.isnan(sum(ratios)) else math.nan   # as numpy's max: nan wins
             if not now < worst or now <= 4 * _EPS:
                 break
             worst = now
             dx = solve(r)
-            if not np.isfinite(dx).all():
+            if not all(map(math.isfinite, dx.tolist())):
                 break
             x = x + dx
     return x
