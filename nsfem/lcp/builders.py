@@ -37,6 +37,7 @@ velocity change added to the unconstrained one.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,7 +87,8 @@ class ContactLCP:
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(lam_N, beta, z) from the LCP unknowns x."""
-        m, p = self.normal.size, int(self.r.sum())
+        m = self.normal.size
+        p = self.W.shape[1] - m   # W = [W_N, J_T]: J_T has the sum of r_k columns
         return x[:m], x[m:m + p], x[m + p:]
 
     def force(self, x: np.ndarray) -> np.ndarray:
@@ -148,12 +150,12 @@ def _parts(solve: Factorization, cs: ContactSet, normal, friction, slide, extra,
 def _assemble(entry: tuple, cs: ContactSet, normal, friction, bN, bT, base) -> ContactLCP:
     """:class:`ContactLCP` of a matrix part and the right-hand side (bN, bT)."""
     A, W, Y, r, generators, scales = entry[:6]
-    b = np.concatenate([np.asarray(bN, dtype=float).ravel(), np.asarray(bT, dtype=float).ravel(),
-                        np.zeros(friction.size)])
+    b = (np.asarray(bN, dtype=float).ravel().tolist() + np.asarray(bT, dtype=float).ravel().tolist()
+         + [0.0] * friction.size)   # a list: a few entries, read twice
     # entries at round-off of the largest (J^T X^-1 f carries cond * eps of it) are zeros: a
     # symmetric structure's midspan slip, say; left alone they make Lemke chase 1e-18 m
-    big = float(np.abs(b).max(initial=0.0))
-    b[np.abs(b) <= ROUND_OFF * big] = 0.0
+    big = math.nan if any(e != e for e in b) else max(map(abs, b), default=0.0)   # as numpy: a nan zeroes nothing
+    b = np.array([0.0 if abs(e) <= ROUND_OFF * big else e for e in b])
     return ContactLCP(A, b, normal, friction, r, W, Y, generators,
                       np.zeros(cs.n) if base is None else np.asarray(base, dtype=float), scales)
 
@@ -242,9 +244,10 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
     closed = np.asarray(closed, dtype=int)
     stick = np.array([k for k in stick if cs.r[k] > 0], dtype=int)
     slide = {int(k): np.asarray(d, dtype=float).ravel() for k, d in (slide or {}).items()}
-    if cache is None or key is None or cache.get(key) is None:   # a cached structure was checked when built
+    parts = None if cache is None or key is None else cache.get(key)
+    if parts is None:   # a cached structure was checked when built
         _check_transition(cs, closed, stick, slide, extra)
-    parts = _parts(M, cs, closed, stick, slide, extra, cache, key)
+        parts = _parts(M, cs, closed, stick, slide, extra, cache, key)
     a0 = M.solve(fstar)
     return _assemble(parts, cs, closed, stick, parts[6].T @ a0, parts[7].T @ a0, a0)
 

@@ -200,8 +200,8 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     ``scale`` is true. The result is returned, never raised: check ``result.success`` or call
     ``result.check()``.
     """
-    A = np.array(A, dtype=float)
-    b = np.array(b, dtype=float).ravel()
+    A = np.asarray(A, dtype=float)
+    b = np.asarray(b, dtype=float).ravel()
     n = b.size
     if A.shape != (n, n):
         raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
@@ -266,7 +266,8 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     pivots = 0
     since_refactor = 0
     while True:
-        c = Binv @ column(entering) if entering != z0 else -Binv @ dv
+        # z0 enters only first, against B = I: its column -B^-1 d is -d exactly
+        c = Binv @ column(entering) if entering != z0 else -dv
         if pivots > 0:
             # the ratio test on lists: a few entries, each read a few times (exact, as in numpy;
             # a nan in c makes the tolerance nan and ends on the ray, as np.max would)
@@ -489,8 +490,9 @@ def _refined_solve(B: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None)
     with np.errstate(all="ignore"):
         svd = None
         lu, piv, info = _getrf(B)
-        small = _EPS * max(float(np.abs(B).max()), 1e-300)
-        if info != 0 or not all(abs(u) > small for u in np.diag(lu).tolist()):
+        aB, arhs = np.abs(B), np.abs(rhs)
+        small = _EPS * max(float(aB.max()), 1e-300)
+        if info != 0 or not all(abs(u) > small for u in lu.diagonal().tolist()):
             lu = None
             try:
                 U, sv, Vt = np.linalg.svd(B)
@@ -509,7 +511,6 @@ def _refined_solve(B: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None)
         if not all(map(math.isfinite, x.tolist())):
             return None
         worst = np.inf
-        aB, arhs = np.abs(B), np.abs(rhs)
         for _ in range(REFINE_STEPS + 1):
             r = rhs - B @ x
             size = aB @ np.abs(x) + arhs
