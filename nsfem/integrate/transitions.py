@@ -220,7 +220,8 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
             res = lcp.solve()
             if not res.success:
                 raise NsfemError(f"transition LCP (29) at t = {t:.9g} s: {res.message}")
-            acc = (cs.JN.T @ lcp.motion(res.x)).tolist()
+            if lifting:
+                acc = (cs.JN.T @ lcp.motion(res.x)).tolist()
         elif lifting:
             acc = (cs.JN.T @ Mf.solve(load - system.C @ v - system.Q @ q)).tolist()
         # micro-lifts: a touching contact that did not impact itself but is lifted (by the

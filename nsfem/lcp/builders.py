@@ -249,7 +249,7 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
         _check_transition(cs, closed, stick, slide, extra)
         parts = _parts(M, cs, closed, stick, slide, extra, cache, key)
     a0 = M.solve(fstar)
-    return _assemble(parts, cs, closed, stick, parts[6].T @ a0, parts[7].T @ a0, a0)
+    return _assemble(parts, cs, closed, stick, parts[6].T @ a0, parts[7].T @ a0 if stick.size else (), a0)
 
 
 def _check_transition(cs: ContactSet, closed, stick, slide: dict, extra) -> None:
@@ -284,7 +284,8 @@ def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: L
     active = np.asarray(active, dtype=int)
     friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
     parts = _parts(M, cs, active, friction, {}, None, cache, key)
-    gv = parts[6].T @ v
+    e = (cs.eps if eps is None else np.asarray(eps, dtype=float)).tolist()
     # Newton's law acts on approaching contacts; a separating one must merely not approach
-    bN = gv + (cs.eps if eps is None else np.asarray(eps, dtype=float))[active] * np.minimum(gv, 0.0)
-    return _assemble(parts, cs, active, friction, bN, parts[7].T @ v, v)
+    # (min(g', 0) as numpy's: nan stays nan, -0.0 gives 0.0)
+    bN = [g + e[k] * (g if g < 0.0 or g != g else 0.0) for g, k in zip((parts[6].T @ v).tolist(), active.tolist())]
+    return _assemble(parts, cs, active, friction, bN, parts[7].T @ v if friction.size else (), v)
