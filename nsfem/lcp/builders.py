@@ -201,7 +201,7 @@ def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, 
     E = cs.E(friction)
     W = np.hstack([WN, JT])
     Y = solve.solve(W)
-    D = np.hstack([cs.JN[:, normal], JT]).T @ Y
+    D = np.hstack([JN, JT]).T @ Y
     m, p, f = normal.size, JT.shape[1], friction.size
     A = np.zeros((m + p + f, m + p + f))
     A[: m + p, : m + p] = D
