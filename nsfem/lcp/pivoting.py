@@ -269,12 +269,7 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
         # z0 enters only first, against B = I: its column -B^-1 d is -d exactly
         c = Binv @ column(entering) if entering != z0 else -dv
         if pivots > 0:
-            # the ratio test on lists: a few entries, each read a few times (exact, as in numpy;
-            # a nan in c makes the tolerance nan and ends on the ray, as np.max would)
-            cl, xl = c.tolist(), xB.tolist()
-            cmax = max(map(abs, cl)) if not math.isnan(sum(cl)) else math.nan
-            tol = pivot_tol * max(cmax, 1e-300)
-            pos = [i for i in range(n) if cl[i] > tol]
+            tol, pos, theta, ties = _ratio_test(c, xB, pivot_tol)
             if not pos:
                 # a secondary ray; its start may still solve the LCP when z0 is ~0 in round-off.
                 # The variable that just left (the complement of the entering one) may then have
@@ -299,11 +294,8 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
                                      "ill-conditioned for this LCP", cert)
                 return LCPResult(x, w, "ray", pivots, cert["relative"],
                                  _ray_message(pivots, xB[zrow:zrow + 1], _psd_hint(A)), cert)
-            ratios = [xl[i] / cl[i] for i in pos]
-            theta = min(ratios)
-            ties = [i for i, q in zip(pos, ratios) if q <= theta + TIE * abs(theta)]  # exact ties and round-off
             zrow = basis.index(z0)
-            if cl[zrow] > tol and xl[zrow] / cl[zrow] <= theta * (1.0 + NEAR_TIE):
+            if c[zrow] > tol and xB[zrow] / c[zrow] <= theta * (1.0 + NEAR_TIE):
                 # z0 ties for leaving (possibly only up to round-off in the data): try the
                 # complementary basis it leaves behind, accept it if it solves the LCP
                 trial = basis.copy()
@@ -361,6 +353,35 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
                          f"(relative residual {res.residual:.1e}): A is too ill-conditioned for this LCP",
                          res.certificate)
     return res
+
+
+#: LCPs up to this many unknowns take the ratio test on lists (a numpy call costs as much as ~20
+#: list entries; measured on random PD LCPs: lists win below ~25 unknowns, lose 40 % at 500)
+SMALL = 24
+
+
+def _ratio_test(c: np.ndarray, xB: np.ndarray, pivot_tol: float) -> tuple[float, list, float | None, list]:
+    """(tol, pos, theta, ties): the rows where c_i > tol = pivot_tol max|c| (a nan in c makes tol
+    nan: no row, the ray, as np.max would), the least ratio xB_i / c_i over them and the rows
+    within TIE of it (exact ties and round-off). The same values on lists and arrays."""
+    n = c.size
+    if n <= SMALL:
+        cl, xl = c.tolist(), xB.tolist()
+        cmax = max(map(abs, cl)) if not math.isnan(sum(cl)) else math.nan
+        tol = pivot_tol * max(cmax, 1e-300)
+        pos = [i for i in range(n) if cl[i] > tol]
+        if not pos:
+            return tol, pos, None, []
+        ratios = [xl[i] / cl[i] for i in pos]
+        theta = min(ratios)
+        return tol, pos, theta, [i for i, q in zip(pos, ratios) if q <= theta + TIE * abs(theta)]
+    tol = pivot_tol * max(np.abs(c).max(), 1e-300)
+    pos = np.flatnonzero(c > tol)
+    if pos.size == 0:
+        return tol, [], None, []
+    ratios = xB[pos] / c[pos]
+    theta = ratios.min()
+    return tol, pos.tolist(), theta, pos[ratios <= theta + TIE * abs(theta)].tolist()
 
 
 def _lemke_one(A: np.ndarray, b: np.ndarray, r_s: np.ndarray, c_s: np.ndarray, dv: float,
