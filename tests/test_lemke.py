@@ -1040,3 +1040,34 @@ def test_friction_lcp_large_mu_success_rate(mu):
     solved, solvable, total, unreached = friction_success_rate(mu)
     assert solved >= 0.96 * solvable
     assert solved >= 0.85 * total
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")   # the 1e+-300 entries
+def test_one_unknown_in_floats_is_the_pivot_loop_bitwise(monkeypatch):
+    # lemke solves LCPs of one unknown (most impact LCPs of a run) in float arithmetic
+    # (pivoting._lemke_one); it repeats the pivot loop's operations in order, so the result,
+    # certificate and message are the loop's to the bit, on every branch it takes or leaves
+    import nsfem.lcp.pivoting as pivoting
+
+    rng = np.random.default_rng(5)
+    edge = [0.0, -0.0, 1.0, -1.0, 3.0, -7.5, 1e-17, 1e-300, -1e-300, 1e300, -1e300, 5e-324]
+    cases = [(a, b, {}) for a in edge for b in edge]
+    for _ in range(400):
+        a, b = rng.standard_normal(2) * 10.0 ** rng.integers(-12, 12, 2)
+        kw = {"d": [rng.uniform(0.01, 2.0)]} if rng.random() < 0.3 else {}
+        cases.append((a, b, kw))
+    for a, b, kw in cases:
+        with monkeypatch.context() as m:
+            m.setattr(pivoting, "_lemke_one", lambda *args: None)
+            try:
+                loop = lemke([[a]], [b], **kw)
+            except (ValueError, IndexError):
+                loop = None
+        if loop is None:   # the equilibrated b overflows (a = 1e-300, b = -1e300): both fail
+            with pytest.raises((ValueError, IndexError)):
+                lemke([[a]], [b], **kw)
+            continue
+        fast = lemke([[a]], [b], **kw)
+        assert (fast.status, fast.pivots, fast.message) == (loop.status, loop.pivots, loop.message)
+        assert fast.x.tobytes() == loop.x.tobytes() and fast.w.tobytes() == loop.w.tobytes()
+        assert repr(fast.certificate) == repr(loop.certificate)

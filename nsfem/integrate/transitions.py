@@ -94,23 +94,31 @@ class Memory:
             self._abs_system = (system, np.abs(system.C), np.abs(system.Q))
         return self._abs_system[1:]
 
-    def observe(self, cs, q: np.ndarray, v: np.ndarray) -> None:
-        """Update the scales with a state (q, q') of the run (or several, as columns)."""
+    def observe(self, cs, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Update the scales with a state (q, q') of the run (or several, as columns); return the
+        state's gap and gap-rate terms |J_N|^T |q| + |j_N|, |J_N|^T |q'| (of one column: numpy's
+        matmul takes the same BLAS gemv for a column and a vector, so they are :func:`_tol`'s)."""
         aJ, aj, aS = self.abs_parts(cs)
-        q2, v2 = np.atleast_2d(q.T).T, np.atleast_2d(v.T).T
-        av = np.abs(v2)
-        g = np.max(aJ.T @ np.abs(q2), axis=1) + aj
-        gv = np.max(aJ.T @ av, axis=1)
-        sv = np.array([float(np.max(S.T @ av, initial=0.0)) if S is not None else 0.0 for S in aS])
+        av = np.abs(v.reshape(v.shape[0], -1))
+        G, V = aJ.T @ np.abs(q.reshape(q.shape[0], -1)), aJ.T @ av
+        g = (G[:, 0] if G.shape[1] == 1 else G.max(axis=1)) + aj   # one column is its own maximum
+        gv = V[:, 0] if V.shape[1] == 1 else V.max(axis=1)
         self.gap_scale = g if self.gap_scale is None else np.maximum(self.gap_scale, g)
         self.rate_scale = gv if self.rate_scale is None else np.maximum(self.rate_scale, gv)
-        self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
+        if self.slip_scale is None or any(S is not None for S in aS):   # else it stays 0
+            sv = np.array([float((S.T @ av).max(initial=0.0)) if S is not None else 0.0 for S in aS])
+            self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
+        return g, gv
 
 
 def _tol(J: np.ndarray, x: np.ndarray, const=None, absJ=None) -> np.ndarray:
     """Per column: ZERO times the size of the terms of J^T x (+ const), with a floor (``absJ``:
     |J| when the caller has it)."""
-    terms = (np.abs(J) if absJ is None else absJ).T @ np.abs(x) + (0.0 if const is None else np.abs(const))
+    return _band((np.abs(J) if absJ is None else absJ).T @ np.abs(x) + (0.0 if const is None else np.abs(const)))
+
+
+def _band(terms: np.ndarray) -> np.ndarray:
+    """ZERO times the sizes of terms, with a floor of 1e-3 ZERO times the largest (see :func:`_tol`)."""
     return ZERO * terms + 1e-3 * ZERO * float(terms.max(initial=0.0)) + 1e-300
 
 
@@ -138,65 +146,72 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     if cs.m == 0:
         return Mode(), v, None
     slipping = dict(slipping or {})
-    memory.observe(cs, q, v)
+    gterms, vterms = memory.observe(cs, q, v)
     aJ, _, aS = memory.abs_parts(cs)
-    g, gv = cs.gaps(q), cs.JN.T @ v
-    tg = np.maximum(ZERO * memory.gap_scale, _tol(cs.JN, q, cs.jN, aJ))
+    # per-contact values as lists: the loops below read each a few times (a float's compare costs
+    # a tenth of a numpy scalar's; the values are the same)
+    g, gv = cs.gaps(q).tolist(), cs.JN.T @ v
+    tg = np.maximum(ZERO * memory.gap_scale, _band(gterms))
     if gap_tol is not None:
         tg = np.maximum(tg, gap_tol)
-    tg = np.maximum(tg, memory.gap_floor)
-    tv = np.maximum(ZERO * memory.rate_scale, _tol(cs.JN, v, absJ=aJ))
+    tg = np.maximum(tg, memory.gap_floor).tolist()
+    tv = np.maximum(ZERO * memory.rate_scale, _band(vterms))
+    gvl, tvl = gv.tolist(), tv.tolist()
     cand = [k for k in range(cs.m) if g[k] <= tg[k] or k in before.closed or k in touching]
-    approaching = [k for k in cand if gv[k] < -tv[k]]
+    approaching = [k for k in cand if gvl[k] < -tvl[k]]
     # creeping: an approach slower than CREEP of the contact velocities in the impact LCP is
     # below what that LCP resolves (its certificate is relative to its largest entry); such a
     # contact is settled by projecting its g' onto 0 (below), not by an impact
-    vscale = max([abs(float(gv[k])) for k in cand]
+    vscale = max([abs(gvl[k]) for k in cand]
                  + [float(np.abs(cs.JS[k].T @ v).max(initial=0.0)) for k in cand if aS[k] is not None], default=0.0)
-    creeping = [k for k in approaching if -gv[k] <= CREEP * vscale]
+    creeping = [k for k in approaching if -gvl[k] <= CREEP * vscale]
     approaching = [k for k in approaching if k not in creeping]
     impact = None
     if approaching:
-        active = [k for k in cand if gv[k] <= tv[k]]
+        active = [k for k in cand if gvl[k] <= tvl[k]]
         eps = cs.eps.copy()
         plastic = []
         for k in approaching:
-            speed = -gv[k]
+            speed = -gvl[k]
             if k in settled or (memory.impacts[k] and speed < memory.zeno * memory.max_approach[k]):
                 eps[k] = 0.0
                 plastic.append(k)
             memory.max_approach[k] = max(memory.max_approach[k], speed)
             memory.impacts[k] += 1
-        lcp = impact_lcp(cs, Mf, v, active, memory.lcp_cache,
-                         (id(system), id(Mf), "impact", tuple(int(k) for k in active)), eps=eps)
+        lcp = impact_lcp(cs, Mf, v, active, memory.lcp_cache, (id(system), id(Mf), "impact", tuple(active)), eps=eps)
         res = lcp.solve()
         if not res.success:
             raise NsfemError(f"impact LCP (30-32) at t = {t:.9g} s: {res.message}")
         v_new = lcp.motion(res.x)
         lamN = lcp.split(res.x)[0]
         ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
-        impact = {"t": t, "contacts": [int(k) for k in active], "impulse_Ns": lamN.tolist(),
-                  "approach_m_s": [float(-gv[k]) for k in active], "plastic": plastic,
+        impact = {"t": t, "contacts": list(active), "impulse_Ns": lamN.tolist(),
+                  "approach_m_s": [-gvl[k] for k in active], "plastic": plastic,
                   "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
         v = v_new
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))  # what cancelled in the impact sets the round-off
-    creeping = [k for k in creeping if gv[k] < -tv[k]]
+        gvl, tvl = gv.tolist(), tv.tolist()
+    creeping = [k for k in creeping if gvl[k] < -tvl[k]]
     if creeping:
-        hold = sorted(set(creeping) | {k for k in cand if abs(gv[k]) <= tv[k]})
+        hold = sorted(set(creeping) | {k for k in cand if abs(gvl[k]) <= tvl[k]})
         v, impact = _settle(system, Mf, t, v, hold, creeping, impact, plastic=True)
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))
-    closed = [k for k in cand if abs(gv[k]) <= tv[k]]
+        gvl, tvl = gv.tolist(), tv.tolist()
+    closed = [k for k in cand if abs(gvl[k]) <= tvl[k]]
     memory.degenerate = []
+    load = None   # f(t), formed once when needed
     while True:
         stick, slide, edge = _friction_states(cs, closed, v, slipping, facets or {}, memory, stopped)
         # micro-lift candidates (below): touching, not closed, not impacting, lifting
-        lifting = [k for k in cand if k not in closed and k not in approaching and gv[k] > 0.0]
+        lifting = [k for k in cand if k not in closed and k not in approaching and gvl[k] > 0.0]
+        if load is None and (closed or lifting):
+            load = system.load(t)
         if closed:
-            fstar = system.load(t) - system.C @ v - system.Q @ q
+            fstar = load - system.C @ v - system.Q @ q
             cs_l, extra = _facet_contacts(cs, edge)
-            key = (id(system), id(Mf), "transition", tuple(int(k) for k in closed), tuple(int(k) for k in stick),
+            key = (id(system), id(Mf), "transition", tuple(closed), tuple(stick),
                    tuple(sorted((int(k), int(i)) for k, i in slide.items())),
                    tuple(sorted((int(k), int(f)) for k, f in edge.items())))
             lcp = transition_lcp(cs_l, Mf, fstar, closed, stick + sorted(edge),
@@ -205,9 +220,10 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
             res = lcp.solve()
             if not res.success:
                 raise NsfemError(f"transition LCP (29) at t = {t:.9g} s: {res.message}")
-            acc = cs.JN.T @ lcp.motion(res.x)
+            if lifting:
+                acc = (cs.JN.T @ lcp.motion(res.x)).tolist()
         elif lifting:
-            acc = cs.JN.T @ Mf.solve(system.load(t) - system.C @ v - system.Q @ q)
+            acc = (cs.JN.T @ Mf.solve(load - system.C @ v - system.Q @ q)).tolist()
         # micro-lifts: a touching contact that did not impact itself but is lifted (by the
         # impact of another) so slowly that its flight, g'^2 / (2 |g''|), stays inside the gap's
         # zero band is not resolved: it stays closed. (Newton rebounds of impacting contacts are
@@ -219,25 +235,29 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         v, impact = _settle(system, Mf, t, v, closed, micro, impact)
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))
+        gvl, tvl = gv.tolist(), tv.tolist()
     if not closed:
         return Mode(), v, impact
     lamN, beta, z = lcp.split(res.x)
     mc = len(closed)
     # the size of the terms of f* (f - C q' - Q q cancels to round-off when the springs are unstressed)
     aC, aQ = memory.abs_operators(system)
-    fterms = np.abs(system.load(t)) + aC @ np.abs(v) + aQ @ np.abs(q)
-    bsize = np.abs(cs.JN[:, closed]).T @ np.abs(Mf.solve(fterms))
+    fterms = np.abs(load) + aC @ np.abs(v) + aQ @ np.abs(q)
+    # per closed contact on lists (all finite: the LCP certified its solution)
+    bsize = (aJ[:, closed].T @ np.abs(Mf.solve(fterms))).tolist()
+    lam, bN, w = lamN.tolist(), lcp.b[:mc].tolist(), res.w[:mc].tolist()
     # lam_N counts as zero below the round-off of the terms that make it (b_j over the
     # Delassus diagonal), not only relative to the largest force: a single contact whose
     # force has just vanished must open (one release event, not a no-op one first)
-    fscale = max(float(lamN.max(initial=0.0)), 1e-300)
-    diag = np.maximum(np.abs(np.diag(lcp.A)[:mc]), 1e-300)
-    lam_tol = np.maximum(1e-12 * fscale, ZERO * (bsize + np.abs(lcp.b[:mc])) / diag)
-    keep = [k for j, k in enumerate(closed) if lamN[j] > lam_tol[j]]
+    fscale = max(max(lam, default=0.0), 0.0, 1e-300)
+    lam_tol = [max(1e-12 * fscale, ZERO * (s + abs(bj)) / max(abs(a), 1e-300))
+               for s, bj, a in zip(bsize, bN, lcp.A.diagonal()[:mc].tolist())]
+    keep = [k for j, k in enumerate(closed) if lam[j] > lam_tol[j]]
     # opened with zero force and zero gap acceleration: decided by higher derivatives later
-    wsize = bsize + np.abs(lcp.b[:mc]) + np.abs(lcp.A[:mc]) @ np.abs(res.x)
-    wtol = ZERO * (wsize + 1e-3 * float(wsize.max(initial=0.0))) + 1e-300
-    memory.degenerate = [k for j, k in enumerate(closed) if k not in keep and abs(res.w[j]) <= wtol[j]]
+    wsize = [s + abs(bj) + t for s, bj, t in zip(bsize, bN, (np.abs(lcp.A[:mc]) @ np.abs(res.x)).tolist())]
+    top = 1e-3 * max(max(wsize, default=0.0), 0.0)
+    memory.degenerate = [k for j, k in enumerate(closed)
+                         if k not in keep and abs(w[j]) <= ZERO * (wsize[j] + top) + 1e-300]
     new_stick, new_slide, new_edge = [], [], []
     row = 0
     zk = dict(zip((int(k) for k in lcp.friction), z))
@@ -245,7 +265,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     for k, rk in zip(lcp.friction, lcp.r):
         betas[int(k)] = beta[row:row + rk]
         row += rk
-    bscale = max(float(np.abs(lcp.b).max(initial=0.0)), 1e-300)
+    bscale = max(float(np.abs(lcp.b).max(initial=0.0)), 1e-300) if zk else None   # (friction contacts only)
     for k in keep:
         if k in slide:
             new_slide.append((k, slide[k]))

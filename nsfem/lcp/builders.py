@@ -37,6 +37,7 @@ velocity change added to the unconstrained one.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,7 +87,8 @@ class ContactLCP:
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(lam_N, beta, z) from the LCP unknowns x."""
-        m, p = self.normal.size, int(self.r.sum())
+        m = self.normal.size
+        p = self.W.shape[1] - m   # W = [W_N, J_T]: J_T has the sum of r_k columns
         return x[:m], x[m:m + p], x[m + p:]
 
     def force(self, x: np.ndarray) -> np.ndarray:
@@ -129,19 +131,31 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
     """
     normal = np.asarray(normal, dtype=int).ravel()
     friction = np.asarray(friction, dtype=int).ravel()
+    return _assemble(_parts(solve, cs, normal, friction, slide or {}, extra, cache, key), cs, normal, friction,
+                     bN, bT, base)
+
+
+def _parts(solve: Factorization, cs: ContactSet, normal, friction, slide, extra, cache, key) -> tuple:
+    """The matrix part of :func:`contact_lcp`, from ``cache`` under ``key`` when there (else built,
+    and kept when both are given)."""
     keep = cache is not None and key is not None
     entry = cache.get(key) if keep else None
     if entry is None:
-        entry = _matrix_part(solve, cs, normal, friction, slide or {}, extra, keep)
+        entry = _matrix_part(solve, cs, normal, friction, slide, extra, keep)
         if keep:
-            cache.put(key, entry, sum(a.nbytes for a in entry[:3]))
-    A, W, Y, r, generators, scales = entry
-    b = np.concatenate([np.asarray(bN, dtype=float).ravel(), np.asarray(bT, dtype=float).ravel(),
-                        np.zeros(friction.size)])
+            cache.put(key, entry, sum(a.nbytes for a in entry[:3] + entry[6:]))
+    return entry
+
+
+def _assemble(entry: tuple, cs: ContactSet, normal, friction, bN, bT, base) -> ContactLCP:
+    """:class:`ContactLCP` of a matrix part and the right-hand side (bN, bT)."""
+    A, W, Y, r, generators, scales = entry[:6]
+    b = (np.asarray(bN, dtype=float).ravel().tolist() + np.asarray(bT, dtype=float).ravel().tolist()
+         + [0.0] * friction.size)   # a list: a few entries, read twice
     # entries at round-off of the largest (J^T X^-1 f carries cond * eps of it) are zeros: a
     # symmetric structure's midspan slip, say; left alone they make Lemke chase 1e-18 m
-    big = float(np.abs(b).max(initial=0.0))
-    b[np.abs(b) <= ROUND_OFF * big] = 0.0
+    big = math.nan if any(e != e for e in b) else max(map(abs, b), default=0.0)   # as numpy: a nan zeroes nothing
+    b = np.array([0.0 if abs(e) <= ROUND_OFF * big else e for e in b])
     return ContactLCP(A, b, normal, friction, r, W, Y, generators,
                       np.zeros(cs.n) if base is None else np.asarray(base, dtype=float), scales)
 
@@ -173,9 +187,11 @@ class LCPCache:
 
 
 def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, extra, keep: bool):
-    """(A, W, S W, r, generators, equilibration or None) of :func:`contact_lcp`; read-only when
-    ``keep`` (cached), with the equilibration computed then."""
-    WN = cs.JN[:, normal].copy()
+    """(A, W, S W, r, generators, equilibration or None, J_N of the normal contacts, J_T) of
+    :func:`contact_lcp` (the last two give the right-hand sides' rows); read-only when ``keep``
+    (cached), with the equilibration computed then."""
+    JN = cs.JN[:, normal]
+    WN = JN.copy()
     for j, k in enumerate(normal):
         if int(k) in slide:
             WN[:, j] += cs.mu[k] * (cs.JS[k] @ np.asarray(slide[int(k)], dtype=float))
@@ -185,7 +201,7 @@ def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, 
     E = cs.E(friction)
     W = np.hstack([WN, JT])
     Y = solve.solve(W)
-    D = np.hstack([cs.JN[:, normal], JT]).T @ Y
+    D = np.hstack([JN, JT]).T @ Y
     m, p, f = normal.size, JT.shape[1], friction.size
     A = np.zeros((m + p + f, m + p + f))
     A[: m + p, : m + p] = D
@@ -197,9 +213,9 @@ def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, 
     scales = None
     if keep:
         scales = equilibrate(A) if A.size and np.all(np.isfinite(A)) else None
-        for arr in (A, W, Y):
+        for arr in (A, W, Y, JN, JT):
             arr.setflags(write=False)
-    return A, W, Y, cs.r[friction], tuple(cs.generators(int(k)) for k in friction), scales
+    return A, W, Y, cs.r[friction], tuple(cs.generators(int(k)) for k in friction), scales, JN, JT
 
 
 def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, normal=None) -> ContactLCP:
@@ -228,6 +244,17 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
     closed = np.asarray(closed, dtype=int)
     stick = np.array([k for k in stick if cs.r[k] > 0], dtype=int)
     slide = {int(k): np.asarray(d, dtype=float).ravel() for k, d in (slide or {}).items()}
+    parts = None if cache is None or key is None else cache.get(key)
+    if parts is None:   # a cached structure was checked when built
+        _check_transition(cs, closed, stick, slide, extra)
+        parts = _parts(M, cs, closed, stick, slide, extra, cache, key)
+    a0 = M.solve(fstar)
+    return _assemble(parts, cs, closed, stick, parts[6].T @ a0, parts[7].T @ a0 if stick.size else (), a0)
+
+
+def _check_transition(cs: ContactSet, closed, stick, slide: dict, extra) -> None:
+    """Raise NsfemError unless sticking and sliding contacts are closed, none does both, slide
+    directions are unit tangent vectors and extra forces belong to closed contacts."""
     where = set(int(k) for k in closed)
     for k in set(int(k) for k in stick) | set(slide):
         if k not in where:
@@ -238,13 +265,10 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
         if d.shape != (cs.JS[k].shape[1],) or not abs(np.linalg.norm(d) - 1.0) < 1e-9:
             raise NsfemError(f"transition LCP: the slide direction of contact {k} must be a unit vector with "
                              f"{cs.JS[k].shape[1]} components (its tangent directions)")
-    a0 = M.solve(fstar)
     for k in extra or {}:
         if int(k) not in where or np.shape(extra[k]) != (cs.n,):
             raise NsfemError(f"transition LCP: the extra force of contact {k} needs a closed contact and {cs.n} "
                              "components")
-    return contact_lcp(M, cs, closed, stick, cs.JN[:, closed].T @ a0, cs.JT(stick).T @ a0, slide, base=a0,
-                       extra=extra, cache=cache, key=key)
 
 
 def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: LCPCache | None = None,
@@ -259,7 +283,9 @@ def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: L
     """
     active = np.asarray(active, dtype=int)
     friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
-    gv = cs.JN[:, active].T @ v
+    parts = _parts(M, cs, active, friction, {}, None, cache, key)
+    e = (cs.eps if eps is None else np.asarray(eps, dtype=float)).tolist()
     # Newton's law acts on approaching contacts; a separating one must merely not approach
-    bN = gv + (cs.eps if eps is None else np.asarray(eps, dtype=float))[active] * np.minimum(gv, 0.0)
-    return contact_lcp(M, cs, active, friction, bN, cs.JT(friction).T @ v, base=v, cache=cache, key=key)
+    # (min(g', 0) as numpy's: nan stays nan, -0.0 gives 0.0)
+    bN = [g + e[k] * (g if g < 0.0 or g != g else 0.0) for g, k in zip((parts[6].T @ v).tolist(), active.tolist())]
+    return _assemble(parts, cs, active, friction, bN, parts[7].T @ v if friction.size else (), v)

@@ -34,12 +34,13 @@ Implementation notes:
 
 from __future__ import annotations
 
-import warnings
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 from scipy.linalg.blas import dger as _dger
+from scipy.linalg.lapack import dgetrf as _getrf, dgetrs as _getrs
 
 from ..errors import NsfemError
 
@@ -108,33 +109,45 @@ def certificate(A: np.ndarray, b: np.ndarray, x: np.ndarray, scales=None, groups
     Rows whose terms are all below 1e-10 of the largest row (equilibrated) are judged
     against that floor.
     """
-    x = np.asarray(x, dtype=float)
+    return _certify(A, b, np.asarray(x, dtype=float), scales, groups)[1]
+
+
+def _certify(A, b, x, scales, groups) -> tuple[np.ndarray, dict]:
+    """(w = A x + b, :func:`certificate` of x)."""
     w = A @ x + b
-    return _certificate(A, b, x, w, scales, groups)
+    return w, _certificate(A, b, x, w, scales, groups)
 
 
 def _certificate(A, b, x, w, scales, groups) -> dict:
-    """:func:`certificate` of x with w = A x + b already formed."""
+    """:func:`certificate` of x with w = A x + b already formed.
+
+    After the one product |A| |x| the work is per row and done on lists (an LCP of a few rows
+    otherwise pays ~1 us per numpy call, ~25 of them); max and min are exact, so the values are
+    numpy's. A non-finite x or w never certifies (numpy's nan propagation, kept)."""
     if x.size == 0:
         return {"x_min": 0.0, "w_min": 0.0, "complementarity": 0.0, "relative": 0.0}
     r, c = _equilibrate(A) if scales is None else scales
-    xs = x / c
-    sx = max(float(np.abs(xs).max()), _TINY)
-    sw = np.abs(b) + np.abs(A) @ np.abs(x)
-    if groups is not None:
-        groups = np.asarray(groups)
-        if groups.size and (groups == groups.flat[0]).all():   # one group (the common case): no masks
-            sw[:] = sw.max()
-        else:
-            for g in np.unique(groups):
-                sel = groups == g
-                sw[sel] = sw[sel].max()
+    xl, wl = x.tolist(), w.tolist()
+    if not (all(map(math.isfinite, xl)) and all(map(math.isfinite, wl))):
+        return {"x_min": float(min(0.0, x.min())), "w_min": float(min(0.0, w.min())),
+                "complementarity": float(np.abs(x * w).max()), "relative": math.nan}
+    sw = (np.abs(b) + np.abs(A) @ np.abs(x)).tolist()
+    labels = None if groups is None else np.asarray(groups).tolist()
+    if labels:
+        top = {}
+        for g, v in zip(labels, sw):
+            if g not in top or v > top[g]:
+                top[g] = v
+        sw = [top[g] for g in labels]
     # a row whose terms are all below 1e-10 of the largest (equilibrated) row is round-off
-    sw = np.maximum(sw, FLOOR * float((r * sw).max()) / r)
-    sw = np.where(sw > 0, sw, 1.0)
-    rel = np.abs(np.minimum(xs / sx, w / sw))
-    return {"x_min": float(min(0.0, x.min())), "w_min": float(min(0.0, w.min())),
-            "complementarity": float(np.abs(x * w).max()), "relative": float(rel.max())}
+    rl = r.tolist()
+    floor = FLOOR * max(ri * v for ri, v in zip(rl, sw))
+    sw = [max(v, floor / ri) for v, ri in zip(sw, rl)]
+    xs = [xi / ci for xi, ci in zip(xl, c.tolist())]
+    sx = max(max(map(abs, xs)), _TINY)
+    rel = max(abs(min(e / sx, f / (v if v > 0 else 1.0))) for e, f, v in zip(xs, wl, sw))
+    return {"x_min": min(0.0, min(xl)), "w_min": min(0.0, min(wl)),
+            "complementarity": max(abs(xi * wi) for xi, wi in zip(xl, wl)), "relative": rel}
 
 
 def equilibrate(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -187,12 +200,13 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     ``scale`` is true. The result is returned, never raised: check ``result.success`` or call
     ``result.check()``.
     """
-    A = np.array(A, dtype=float)
-    b = np.array(b, dtype=float).ravel()
+    A = np.asarray(A, dtype=float)
+    b = np.asarray(b, dtype=float).ravel()
     n = b.size
     if A.shape != (n, n):
         raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
-    if not (np.isfinite(A).all() and np.isfinite(b).all()):
+    bl = b.tolist()
+    if not (np.isfinite(A).all() and all(map(math.isfinite, bl))):
         raise NsfemError("lemke: A and b must be finite (found nan or inf)")
     if d is not None:
         d = np.array(d, dtype=float).ravel()
@@ -206,18 +220,24 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     else:
         r_s, c_s = np.ones(n), np.ones(n)
 
+    if n == 1 and max_pivots >= 2 and refactor >= 2:
+        one = _lemke_one(A, b, r_s, c_s, 1.0 if d is None else float(r_s[0] * d[0]), pivot_tol)
+        if one is not None:
+            return one
+
     def result(x, status, pivots, message, cert=None):
         w = A @ x + b
         if cert is None:
             cert = _certificate(A, b, x, w, (r_s, c_s), groups)
         return LCPResult(x, w, status, pivots, cert["relative"], message, cert)
 
-    if n == 0 or (b >= 0).all():
+    if min(bl, default=0.0) >= 0:
         return result(np.zeros(n), "solved", 0, "trivial solution x = 0 (b >= 0)")
 
     As = r_s[:, None] * A * c_s[None, :]
     bs = r_s * b
     dv = np.ones(n) if d is None else r_s * d
+    eq = (As, bs, r_s, c_s)
 
     z0 = 2 * n  # variables: w_0..w_{n-1}, x_0..x_{n-1}, z0
 
@@ -230,62 +250,67 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
             return -As[:, v - n]
         return -dv
 
-    basis = np.arange(n)
+    basis = list(range(n))
     Binv = np.eye(n, order="F")  # Fortran order: BLAS dger updates it in place
     xB = bs.copy()
 
-    # first pivot: z0 enters where b_i / d_i is lexicographically smallest
-    rows = np.column_stack([xB / dv, Binv / dv[:, None]])
-    r = _lexmin(rows, np.arange(n))
+    # first pivot: z0 enters where b_i / d_i is lexicographically smallest; with d = 1 the
+    # rows [b_i, e_i] tied on b_i are told apart by e_i: the last of them is the smallest
+    if d is None:
+        levels = bs.tolist()
+        lo = min(levels)
+        r = [i for i, v in enumerate(levels) if v <= lo + 16 * TIE * max(abs(v), abs(lo))][-1]
+    else:
+        r = _lexmin(np.column_stack([xB / dv, Binv / dv[:, None]]), np.arange(n))
     entering = z0
     pivots = 0
     since_refactor = 0
     while True:
-        c = Binv @ column(entering) if entering != z0 else -Binv @ dv
+        # z0 enters only first, against B = I: its column -B^-1 d is -d exactly
+        c = Binv @ column(entering) if entering != z0 else -dv
         if pivots > 0:
-            cmax = np.abs(c).max()
-            pos = np.flatnonzero(c > pivot_tol * max(cmax, 1e-300))
-            if pos.size == 0:
+            tol, pos, theta, ties = _ratio_test(c, xB, pivot_tol)
+            if not pos:
                 # a secondary ray; its start may still solve the LCP when z0 is ~0 in round-off.
                 # The variable that just left (the complement of the entering one) may then have
                 # tied with z0 in exact arithmetic: the complementary basis with it in place of z0
                 # is tried as well (measured: a stiff friction LCP whose x_7 left at 3.5e-12
                 # instead of z0 certifies to 1e-16 that way, to 8e-8 without it)
-                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, r_s, c_s, groups)
+                zrow = basis.index(z0)
+                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, eq, groups)
                 if entering < n:
                     tied = basis.copy()
-                    tied[basis == z0] = entering + n
-                    x = _polish(A, b, x, tied, n, r_s, c_s, groups)
-                rel = certificate(A, b, x, (r_s, c_s), groups)["relative"]
-                z0_gone = float(xB[basis == z0][0]) <= 1e-14 * max(float(np.max(np.abs(bs))), 1e-300)
-                if rel <= ACCEPT:
-                    return result(x, "solved", pivots, f"solved in {pivots} pivots (z0 vanished to round-off)")
-                if z0_gone and rel <= INACCURATE:
-                    res = result(x, "solved", pivots, "")
-                    return LCPResult(res.x, res.w, "inaccurate", pivots, res.residual,
+                    tied[zrow] = entering + n
+                    x = _polish(A, b, x, tied, n, eq, groups)
+                w, cert = _certify(A, b, x, (r_s, c_s), groups)
+                z0_gone = float(xB[zrow]) <= 1e-14 * max(float(np.max(np.abs(bs))), 1e-300)
+                if cert["relative"] <= ACCEPT:
+                    return LCPResult(x, w, "solved", pivots, cert["relative"],
+                                     f"solved in {pivots} pivots (z0 vanished to round-off)", cert)
+                if z0_gone and cert["relative"] <= INACCURATE:
+                    return LCPResult(x, w, "inaccurate", pivots, cert["relative"],
                                      f"Lemke ended on a ray where z0 vanished to round-off after {pivots} pivots, "
-                                     f"but the point certifies only to {res.residual:.1e}: A is too "
-                                     "ill-conditioned for this LCP", res.certificate)
-                return result(x, "ray", pivots, _ray_message(pivots, xB[basis == z0], _psd_hint(A)))
-            ratios = xB[pos] / c[pos]
-            theta = ratios.min()
-            ties = pos[ratios <= theta + TIE * abs(theta)]  # exact ties (degenerate zeros) and round-off
-            k0 = np.flatnonzero(basis[pos] == z0)
-            if k0.size and ratios[k0[0]] <= theta * (1.0 + NEAR_TIE):
+                                     f"but the point certifies only to {cert['relative']:.1e}: A is too "
+                                     "ill-conditioned for this LCP", cert)
+                return LCPResult(x, w, "ray", pivots, cert["relative"],
+                                 _ray_message(pivots, xB[zrow:zrow + 1], _psd_hint(A)), cert)
+            zrow = basis.index(z0)
+            if c[zrow] > tol and xB[zrow] / c[zrow] <= theta * (1.0 + NEAR_TIE):
                 # z0 ties for leaving (possibly only up to round-off in the data): try the
                 # complementary basis it leaves behind, accept it if it solves the LCP
                 trial = basis.copy()
-                trial[pos[k0[0]]] = entering
-                x = _polish(A, b, None, trial, n, r_s, c_s, groups)
+                trial[zrow] = entering
+                x = _polish(A, b, None, trial, n, eq, groups)
                 if x is not None:
-                    cert = certificate(A, b, x, (r_s, c_s), groups)
+                    w, cert = _certify(A, b, x, (r_s, c_s), groups)
                     if cert["relative"] <= ACCEPT:
-                        return result(x, "solved", pivots + 1, f"solved in {pivots + 1} pivots", cert)
-            if ties.size == 1:
-                r = int(ties[0])
+                        return LCPResult(x, w, "solved", pivots + 1, cert["relative"],
+                                         f"solved in {pivots + 1} pivots", cert)
+            if len(ties) == 1:
+                r = ties[0]
             else:
                 rows = np.column_stack([xB[ties], Binv[ties]]) / c[ties][:, None]
-                r = int(ties[_lexmin(rows, ties)])
+                r = ties[_lexmin(rows, ties)]
         # pivot on (r, entering)
         p = c[r]
         Binv[r] /= p
@@ -294,7 +319,7 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
         cr[r] = 0.0
         Binv = _dger(-1.0, cr, row, a=Binv, overwrite_a=True)  # Binv -= outer(c, row), row r kept
         xB -= cr * xB[r]
-        leaving = int(basis[r])
+        leaving = basis[r]
         basis[r] = entering
         pivots += 1
         since_refactor += 1
@@ -317,7 +342,7 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
         entering = leaving + n if leaving < n else leaving - n
 
     x = _basic_x(basis, xB, n) * c_s
-    x, cert = _polish_certified(A, b, x, basis, n, r_s, c_s, groups)
+    x, cert = _polish_certified(A, b, x, basis, n, eq, groups)
     res = result(x, "solved", pivots, f"solved in {pivots} pivots", cert)
     # a complementary basis is a solution only when its point certifies (componentwise backward
     # error ACCEPT); on bases of condition ~1e13 the refined solve can leave rows violated by
@@ -330,35 +355,128 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     return res
 
 
-def _basic_x(basis: np.ndarray, xB: np.ndarray, n: int) -> np.ndarray:
-    x = np.zeros(n)
-    sel = (basis >= n) & (basis < 2 * n)
-    x[basis[sel] - n] = xB[sel]
+#: LCPs up to this many unknowns take the ratio test on lists (a numpy call costs as much as ~20
+#: list entries; measured on random PD LCPs: lists win below ~25 unknowns, lose 40 % at 500)
+SMALL = 24
+
+
+def _ratio_test(c: np.ndarray, xB: np.ndarray, pivot_tol: float) -> tuple[float, list, float | None, list]:
+    """(tol, pos, theta, ties): the rows where c_i > tol = pivot_tol max|c| (a nan in c makes tol
+    nan: no row, the ray, as np.max would), the least ratio xB_i / c_i over them and the rows
+    within TIE of it (exact ties and round-off). The same values on lists and arrays."""
+    n = c.size
+    if n <= SMALL:
+        cl, xl = c.tolist(), xB.tolist()
+        cmax = max(map(abs, cl)) if not math.isnan(sum(cl)) else math.nan
+        tol = pivot_tol * max(cmax, 1e-300)
+        pos = [i for i in range(n) if cl[i] > tol]
+        if not pos:
+            return tol, pos, None, []
+        ratios = [xl[i] / cl[i] for i in pos]
+        theta = min(ratios)
+        return tol, pos, theta, [i for i, q in zip(pos, ratios) if q <= theta + TIE * abs(theta)]
+    tol = pivot_tol * max(np.abs(c).max(), 1e-300)
+    pos = np.flatnonzero(c > tol)
+    if pos.size == 0:
+        return tol, [], None, []
+    ratios = xB[pos] / c[pos]
+    theta = ratios.min()
+    return tol, pos.tolist(), theta, pos[ratios <= theta + TIE * abs(theta)].tolist()
+
+
+def _lemke_one(A: np.ndarray, b: np.ndarray, r_s: np.ndarray, c_s: np.ndarray, dv: float,
+               pivot_tol: float) -> LCPResult | None:
+    """:func:`lemke` on one unknown (most impact LCPs of a run), in float arithmetic: the same
+    operations in the same order, so bitwise the same result, without numpy's overhead of ~1 us
+    per call on 1-element arrays (~40 calls). x = 0 when b >= 0; else z0 enters, then x enters
+    and z0 leaves, and the basis {x} is polished (:func:`_solve_one`) and certified. None where
+    the general loop takes another branch (a ray, a basis that does not polish or certify)."""
+    a, bb, r, c = float(A[0, 0]), float(b[0]), float(r_s[0]), float(c_s[0])
+    if bb >= 0.0:
+        return _result_one(a, bb, c, r, 0.0, 0, "trivial solution x = 0 (b >= 0)")
+    s = r * a * c                         # the equilibrated a
+    if not math.isfinite(r * bb / -dv):   # z0's level after its pivot (inf: the ratio test fails)
+        return None
+    col = 0.0 + (1.0 / -dv) * -s          # x's column after z0's pivot (0.0 +: BLAS's sum)
+    if not col > pivot_tol * max(abs(col), 1e-300):
+        return None
+    x = _solve_one(s, -r * bb)
+    if x is None or not math.isfinite(c * x):
+        return None
+    y = c * x
+    res = _result_one(a, bb, c, r, y if y > 0.0 else 0.0, 2, "solved in 2 pivots")
+    return res if res.residual <= ACCEPT else None
+
+
+def _solve_one(B: float, rhs: float, x0: float | None = None) -> float | None:
+    """:func:`_refined_solve` of one equation (B != 0), in floats: the same operations in the
+    same order (``0.0 +``: the sum BLAS starts from). None where it would fall back to the SVD or
+    find no finite solution."""
+    if not abs(B) > _EPS * max(abs(B), 1e-300):
+        return None
+    x = rhs / B if x0 is None else x0
+    if not math.isfinite(x):
+        return None
+    worst = math.inf
+    for _ in range(REFINE_STEPS + 1):
+        res = rhs - (0.0 + B * x)
+        size = (0.0 + abs(B) * abs(x)) + abs(rhs)
+        now = abs(res) / (size if size > 0 else 1.0)
+        if not now < worst or now <= 4 * _EPS:
+            break
+        worst = now
+        dx = res / B
+        if not math.isfinite(dx):
+            break
+        x = x + dx
     return x
 
 
-def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: np.ndarray, n: int,
-            r_s: np.ndarray, c_s: np.ndarray, groups=None) -> np.ndarray:
-    """Re-solve the complementary basis (A_SS x_S = -b_S, equilibrated), refined from the
-    pivoting's x where given (:func:`_refined_solve`); keep the better x."""
-    return _polish_certified(A, b, x, basis, n, r_s, c_s, groups)[0]
+def _result_one(a: float, b: float, c: float, r: float, x: float, pivots: int, message: str) -> LCPResult:
+    """The solved :class:`LCPResult` of x for LCP(a, b) with its certificate (:func:`_certificate`
+    on one row, in floats)."""
+    w = (0.0 + a * x) + b
+    xs = x / c
+    sw = abs(b) + (0.0 + abs(a) * abs(x))
+    floor = FLOOR * (r * sw) / r
+    sw = sw if sw > floor else floor
+    sw = sw if sw > 0 else 1.0
+    e, f = xs / max(abs(xs), _TINY), w / sw
+    rel = abs(e if e < f else f)
+    cert = {"x_min": min(0.0, x), "w_min": min(0.0, w), "complementarity": abs(x * w), "relative": rel}
+    return LCPResult(np.array([x]), np.array([w]), "solved", pivots, rel, message, cert)
 
 
-def _polish_certified(A, b, x, basis, n, r_s, c_s, groups=None) -> tuple[np.ndarray, dict | None]:
+def _basic_x(basis, xB: np.ndarray, n: int) -> np.ndarray:
+    x = np.zeros(n)
+    for i, v in enumerate(basis):
+        if n <= v < 2 * n:
+            x[v - n] = xB[i]
+    return x
+
+
+def _polish(A: np.ndarray, b: np.ndarray, x: np.ndarray | None, basis: list, n: int, eq: tuple,
+            groups=None) -> np.ndarray:
+    """Re-solve the complementary basis (A_SS x_S = -b_S, equilibrated: ``eq`` = (R A C, R b, R, C)),
+    refined from the pivoting's x where given (:func:`_refined_solve`); keep the better x."""
+    return _polish_certified(A, b, x, basis, n, eq, groups)[0]
+
+
+def _polish_certified(A, b, x, basis, n, eq, groups=None) -> tuple[np.ndarray, dict | None]:
     """:func:`_polish`, with the certificate of the x it keeps when it computed one (else None)."""
-    S = np.sort(basis[(basis >= n) & (basis < 2 * n)] - n)
-    if S.size == 0:
-        y = np.zeros(n)
-    else:
-        start = None if x is None else x[S] / c_s[S]
-        xs = _refined_solve(r_s[S, None] * A[np.ix_(S, S)] * c_s[None, S], -r_s[S] * b[S], start)
+    As, bs, r_s, c_s = eq
+    S = sorted(v - n for v in basis if n <= v < 2 * n)
+    y = [0.0] * n
+    if S:
+        cS = c_s.take(S)
+        xs = _refined_solve(As.take(S, 0).take(S, 1), -bs.take(S), None if x is None else x.take(S) / cS)
         if xs is None:
             return x, None
-        y = np.zeros(n)
-        y[S] = c_s[S] * xs
-    if not np.isfinite(y).all():
+        for i, v in zip(S, (cS * xs).tolist()):
+            y[i] = v
+    if not all(map(math.isfinite, y)):
         return x, None
-    y = np.maximum(y, 0.0)
+    y = np.array([v if v > 0.0 else 0.0 for v in y])   # np.maximum(y, 0): -0.0 becomes 0.0 too
     if x is None:
         return y, None
     sc = (r_s, c_s)
@@ -384,55 +502,47 @@ def _refined_solve(B: np.ndarray, rhs: np.ndarray, x0: np.ndarray | None = None)
     the pseudo-inverse (SVD) when B is singular: a basis that ends on a ray with z0 at round-off
     leaves a rank-deficient but consistent A_SS; the correction then stays in its range, so the
     start ``x0`` (the pivoting's nonnegative x) is only nudged. Returns None when no finite
-    solution is found."""
+    solution is found. LAPACK's getrf and getrs are called directly: scipy's lu_factor and
+    lu_solve wrap the same calls in ~6 us of batching and warning machinery each."""
+    b00 = float(B[0, 0]) if B.shape == (1, 1) else 0.0
+    if abs(b00) > _EPS * max(abs(b00), 1e-300):
+        # one unknown: LU is the pivot itself and its solve a division (bitwise the same)
+        x = _solve_one(b00, float(rhs[0]), None if x0 is None else float(x0[0]))
+        return None if x is None else np.array([x])
     with np.errstate(all="ignore"):
         svd = None
-        lu = None
-        if B.shape == (1, 1):
-            # one unknown: LU is the pivot itself and its solve a division (bitwise the same), without
-            # LAPACK's call overhead (most impact LCPs of a run have one or two unknowns)
-            a = float(B[0, 0])
-            if abs(a) > _EPS * max(abs(a), 1e-300):
-                lu = a
-        else:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", sla.LinAlgWarning)  # a singular B is handled below
-                try:
-                    lu = sla.lu_factor(B, check_finite=False)
-                    if not np.all(np.abs(np.diag(lu[0])) > np.finfo(float).eps * max(float(np.max(np.abs(B))),
-                                                                                       1e-300)):
-                        lu = None
-                except (ValueError, np.linalg.LinAlgError):
-                    lu = None
-        if lu is None:
+        lu, piv, info = _getrf(B)
+        aB, arhs = np.abs(B), np.abs(rhs)
+        small = _EPS * max(float(aB.max()), 1e-300)
+        if info != 0 or not all(abs(u) > small for u in lu.diagonal().tolist()):
+            lu = None
             try:
                 U, sv, Vt = np.linalg.svd(B)
             except np.linalg.LinAlgError:
                 return None
-            keep = sv > B.shape[0] * np.finfo(float).eps * max(float(sv[0]) if sv.size else 0.0, 1e-300)
+            keep = sv > B.shape[0] * _EPS * max(float(sv[0]) if sv.size else 0.0, 1e-300)
             svd = (U[:, keep], sv[keep], Vt[keep])
 
         def solve(v):
-            if isinstance(lu, float):
-                return v / lu
             if lu is not None:
-                return sla.lu_solve(lu, v, check_finite=False)
+                return _getrs(lu, piv, v)[0]
             U, sv, Vt = svd
             return Vt.T @ ((U.T @ v) / sv)
 
         x = solve(rhs) if x0 is None else np.array(x0, dtype=float)
-        if not np.isfinite(x).all():
+        if not all(map(math.isfinite, x.tolist())):
             return None
         worst = np.inf
         for _ in range(REFINE_STEPS + 1):
             r = rhs - B @ x
-            size = np.abs(B) @ np.abs(x) + np.abs(rhs)
-            now = float((np.abs(r) / np.where(size > 0, size, 1.0)).max(initial=0.0))
+            size = aB @ np.abs(x) + arhs
+            ratios = [abs(ri) / (si if si > 0 else 1.0) for ri, si in zip(r.tolist(), size.tolist())]
+            now = max(0.0, *ratios) if not math.isnan(sum(ratios)) else math.nan   # as numpy's max: nan wins
             if not now < worst or now <= 4 * _EPS:
                 break
             worst = now
             dx = solve(r)
-            if not np.isfinite(dx).all():
+            if not all(map(math.isfinite, dx.tolist())):
                 break
             x = x + dx
     return x
