@@ -422,28 +422,44 @@ def _convex(f0, f1, d0, d1, dt, bound4):
 
 def _envelope_min(f0, f1, d0, d1, dt, bound4, s_hi=1.0):
     """The lowest the row can be on [0, s_hi] of the interval (in its units): the Hermite cubic
-    less its pointwise error bound 16 bound4 s^2 (1 - s)^2, a quartic, at the ends or where its
-    derivative (a cubic) vanishes inside. Candidates: the real parts of that cubic's roots, and the
-    cubic's own turning points (when the bound is negligible the quartic's leading coefficient is
-    too, and the companion matrix's roots are not accurate), each refined by Newton's method;
-    extra points only lower the minimum towards the true one."""
+    less its pointwise error bound 16 bound4 s^2 (1 - s)^2, a quartic p, at the ends or at a minimum
+    inside. The roots of p'' (a quadratic) cut [0, s_hi] into pieces on which p' is monotone; a piece
+    where p' goes from - to + holds one minimum, found by Newton's method kept inside the piece."""
     c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt)
     e = 16.0 * bound4
-    a3, a2, a1 = -4.0 * e, 3.0 * c3 + 6.0 * e, 2.0 * c2 - 2.0 * e    # the derivative: a3 s^3 + a2 s^2 + a1 s + c1
-    cand = _roots2(3.0 * c3, 2.0 * c2, c1)
-    if a3 != 0.0:
-        cand += [float(r.real) for r in np.roots([a3, a2, a1, c1])]
-    ss = [0.0, s_hi]
-    for s in cand:
-        for _ in range(3):
-            if not 0.0 < s < s_hi:
+    a3, a2, a1 = -4.0 * e, 3.0 * c3 + 6.0 * e, 2.0 * c2 - 2.0 * e    # p' = c1 + a1 s + a2 s^2 + a3 s^3
+
+    def p(s):
+        return c0 + s * (c1 + s * (c2 + s * c3)) - e * (s * (1.0 - s)) ** 2
+
+    def dp(s):
+        return c1 + s * (a1 + s * (a2 + s * a3))
+
+    knots = [0.0] + sorted(r for r in _roots2(3.0 * a3, 2.0 * a2, a1) if 0.0 < r < s_hi) + [s_hi]
+    low = min(p(s) for s in knots)
+    for u, v in zip(knots[:-1], knots[1:]):
+        fu, fv = dp(u), dp(v)
+        if not (fu < 0.0 < fv):
+            continue
+        x = u - fu * (v - u) / (fv - fu)
+        for _ in range(MAXITER):
+            fx = dp(x)
+            if fx == 0.0:
                 break
-            ss.append(s)
-            dd = 3.0 * a3 * s * s + 2.0 * a2 * s + a1
-            if dd == 0.0:
+            if fx < 0.0:
+                u = x
+            else:
+                v = x
+            d2 = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+            x_new = x - fx / d2 if d2 > 0.0 else 0.5 * (u + v)
+            if not u < x_new < v:
+                x_new = 0.5 * (u + v)
+            if abs(x_new - x) <= 4e-16 * max(1.0, abs(x)) or v - u <= 4e-16 * max(1.0, abs(v)):
+                x = x_new
                 break
-            s -= (c1 + s * (a1 + s * (a2 + s * a3))) / dd
-    return min(c0 + s * (c1 + s * (c2 + s * c3)) - e * (s * (1.0 - s)) ** 2 for s in ss)
+            x = x_new
+        low = min(low, p(x))
+    return low
 
 
 def _first_root(f0, f1, d0, d1, dt, s_r, bound4, tol):
