@@ -196,7 +196,8 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
             # below -tol: a gap located with a previous phase's larger band)
             thr = np.where(armed, 0.0, np.minimum(-band, h[:, 0] - band))
         found = []
-        maybe = _screened(ts, h - thr[:, None], hd, band, bound4) | ~armed
+        maybe, screens = _screened(ts, h - thr[:, None], hd, band, bound4)
+        maybe |= ~armed
         # rows in the order of their first sample below threshold (a cheap lower bound of where
         # their root lies); a row whose first candidate interval starts after the earliest root
         # refined so far cannot be the first event and is not refined (same result, fewer roots)
@@ -240,7 +241,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     hd2 = np.concatenate([[hd_arm], hdi[k + 1:]])
                     res = _scan(row, ts2, h2, hd2, 0.0, band[i], _shorter(bound4[i], ts2, ts[1] - ts[0]), limit)
             else:
-                res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit)
+                res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit, screen=screens[i])
             if res is not None:
                 found.append((res[0], int(i), res[1], len(res) > 2))
                 limit = min(limit, res[0] + 1e-12 * max(1.0, abs(res[0])))
@@ -335,16 +336,18 @@ class _Coarse:
             j += 1
 
 
-def _screened(ts, f, hd, band, bound4) -> np.ndarray:
-    """Per row, False when :func:`_scan` certainly finds no candidate interval on these samples (no
-    crossing, no near dip, nothing to subdivide: all rows screened at once, as each scan would);
-    True also for a row whose bound needs the local one (the matrix-exponential path)."""
+def _screened(ts, f, hd, band, bound4) -> tuple[np.ndarray, list]:
+    """(maybe, screens): per row, False when :func:`_scan` certainly finds no candidate interval on
+    these samples (no crossing, no near dip, nothing to subdivide: all rows screened at once, as each
+    scan would), True also for a row whose bound needs the local one (the matrix-exponential path);
+    and per row the (cross, turn, near) its scan of these samples would form (None for the latter)."""
     dt = np.diff(ts)
     ok = bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH)   # depth 0: subdivided where the bound screens
     b4 = np.broadcast_to(bound4[:, None], (f.shape[0], dt.size))
     sub = np.broadcast_to(ok[:, None], b4.shape)
-    cross, _, near = _screen(dt, f, hd, band[:, None], b4, sub)
-    return ~ok | cross.any(axis=1) | near.any(axis=1)
+    cross, turn, near = _screen(dt, f, hd, band[:, None], b4, sub)
+    screens = [(cross[i], turn[i], near[i]) if ok[i] else None for i in range(f.shape[0])]
+    return ~ok | cross.any(axis=1) | near.any(axis=1), screens
 
 
 def round_off(H: np.ndarray, xis: np.ndarray, r2: int) -> np.ndarray:
@@ -718,9 +721,11 @@ def _screen(dt, f, hd, tol, b4, subdivide):
     return cross, turn, near
 
 
-def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0):
+def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0, screen=None):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
     Candidate intervals that start after ``limit`` (an earlier root of another row) are skipped.
+    ``screen``: the (cross, turn, near) of these samples when the caller has formed them
+    (:func:`_screened`, the same rule on all rows at once).
 
     A crossing must reach below -tol at a sample (a sample at a touching point may be a
     round-off below zero: that is a dip, not a crossing). A dip (h' from - to + with h
@@ -748,7 +753,8 @@ def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0
         b4 = np.minimum(b4, _local_bound4(row.phase, row.H, ts))
     subdivide = (b4 <= reach) if depth < DEPTH else np.zeros(ts.size - 1, dtype=bool)
     dt = np.diff(ts)
-    cross, turn, near = (x[0] for x in _screen(dt, f[None], hd[None], tol, b4[None], subdivide[None]))
+    cross, turn, near = screen if screen is not None else \
+        (x[0] for x in _screen(dt, f[None], hd[None], tol, b4[None], subdivide[None]))
     cross = np.flatnonzero(cross)
     k_c = cross[0] if cross.size else None
     cand = np.flatnonzero(near)
