@@ -645,3 +645,26 @@ def test_envelope_min_is_the_quartics_minimum():
         curv = 2 * abs(c2) + 6 * abs(c3) + 16 * b4 * 12
         assert got <= dense + 1e-13 * size
         assert dense - got <= curv * (s[1] - s[0]) ** 2 / 8 + 1e-14 * size
+
+
+def test_screen_row_is_screen():
+    """The one-row screen in plain floats (``_screen_row``, what a scan of a few intervals uses) and the
+    array screen of all rows (``_screen``) are the same rule: equal verdicts on 3000 random rows of 1-20
+    intervals, with values near the band (some exactly at -tol), slopes of either sign (some exactly 0),
+    bounds from 0 to 100 bands, inf and nan among them, and intervals that may or may not be subdivided."""
+    from nsfem.integrate.events import _screen, _screen_row
+
+    rng = np.random.default_rng(23)
+    for _ in range(3000):
+        n = int(rng.integers(1, 21))
+        tol = 10.0 ** rng.uniform(-12, -3)
+        f = tol * rng.choice([-3.0, -1.0, -0.5, 0.0, 0.5, 1.0, 3.0, 30.0], n + 1) * rng.uniform(0.5, 1.5, n + 1)
+        hd = rng.standard_normal(n + 1) * tol * 10.0 ** rng.uniform(0, 3)
+        f[rng.random(n + 1) < 0.05] = -tol        # ties with the rule's comparisons
+        hd[rng.random(n + 1) < 0.1] = 0.0
+        dt = rng.uniform(0.1, 1.0, n)
+        b4 = tol * rng.choice([0.0, 0.01, 1.0, 10.0, 100.0, np.inf, np.nan], n)
+        sub = rng.random(n) < 0.7
+        want = [x[0].tolist() for x in _screen(dt, f[None], hd[None], tol, b4[None], sub[None])]
+        got = list(_screen_row(dt.tolist(), f.tolist(), hd.tolist(), tol, b4.tolist(), sub.tolist()))
+        assert got == want, (f, hd, dt, b4, sub, tol)

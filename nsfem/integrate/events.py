@@ -721,6 +721,36 @@ def _screen(dt, f, hd, tol, b4, subdivide):
     return cross, turn, near
 
 
+def _screen_row(dt, f, hd, tol: float, b4, subdivide) -> tuple[list, list, list]:
+    """:func:`_screen` for one row in plain floats (cross, turn, near as lists per interval), the same
+    rule: a scan's few intervals (an arming point, a subdivision's 16) cost less this way than as
+    arrays. tests/test_event_search.py checks the two agree."""
+    n = len(dt)
+    cross, turn, near = [False] * n, [False] * n, [False] * n
+    above = [x >= -tol for x in f]
+    for k in range(n):
+        f0, f1, d0, d1 = f[k], f[k + 1], hd[k], hd[k + 1]
+        cross[k] = above[k] and not above[k + 1]
+        turn[k] = d0 < 0 and d1 >= 0
+        if not (above[k] and above[k + 1] and (turn[k] or subdivide[k])):
+            continue
+        if not min(f0, f1) - 4.0 / 27.0 * dt[k] * (abs(d0) + abs(d1)) - b4[k] <= tol:
+            continue
+        c0, c1, c2, c3 = _cubic(f0, f1, d0, d1, dt[k])
+        lo = min([f0, f1] + [c0 + s * (c1 + s * (c2 + s * c3)) for s in _roots2(3.0 * c3, 2.0 * c2, c1)
+                             if 0.0 < s < 1.0]) - b4[k]
+        hit = lo <= tol if turn[k] else lo < -tol
+        if hit and math.isfinite(b4[k]):
+            lo = _envelope_min(f0, f1, d0, d1, dt[k], b4[k])
+            hit = lo <= tol if turn[k] else lo < -tol
+        near[k] = hit
+    return cross, turn, near
+
+
+#: at most this many intervals a scan screens in plain floats (:func:`_screen_row`), more as arrays
+ROW_SCREEN = 16
+
+
 def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0, screen=None):
     """First root of h - thr on the samples (crossing or dip), refined; (t, graze) or None.
     Candidate intervals that start after ``limit`` (an earlier root of another row) are skipped.
@@ -753,14 +783,20 @@ def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0
         b4 = np.minimum(b4, _local_bound4(row.phase, row.H, ts))
     subdivide = (b4 <= reach) if depth < DEPTH else np.zeros(ts.size - 1, dtype=bool)
     dt = np.diff(ts)
-    cross, turn, near = screen if screen is not None else \
-        (x[0] for x in _screen(dt, f[None], hd[None], tol, b4[None], subdivide[None]))
-    cross = np.flatnonzero(cross)
-    k_c = cross[0] if cross.size else None
-    cand = np.flatnonzero(near)
-    if k_c is not None:
-        cand = cand[cand < k_c]
-    if k_c is None and not cand.size:
+    if screen is not None:
+        cross, turn, near = screen
+    elif dt.size <= ROW_SCREEN:
+        cross, turn, near = _screen_row(dt.tolist(), f.tolist(), hd.tolist(), float(tol), b4.tolist(),
+                                        subdivide.tolist())
+    else:
+        cross, turn, near = (x[0] for x in _screen(dt, f[None], hd[None], tol, b4[None], subdivide[None]))
+    if isinstance(cross, np.ndarray):
+        cross, near = np.flatnonzero(cross).tolist(), np.flatnonzero(near).tolist()
+    else:
+        cross, near = [k for k, c in enumerate(cross) if c], [k for k, x in enumerate(near) if x]
+    k_c = cross[0] if cross else None
+    cand = [k for k in near if k_c is None or k < k_c]
+    if k_c is None and not cand:
         return None
 
     def fun(t):
@@ -788,7 +824,7 @@ def _scan(row: _Row, ts, h, hd, thr, tol, bound4=np.inf, limit=math.inf, depth=0
         res = finer(k)
         return (t_r, False) if res is None else res
 
-    for k in list(cand) + ([k_c] if k_c is not None else []):
+    for k in cand + ([k_c] if k_c is not None else []):
         a, b = ts[k], ts[k + 1]
         if a > limit:
             return None
