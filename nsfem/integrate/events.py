@@ -28,8 +28,11 @@ derivative). Where the phase's derivative bound is too crude to screen (the matr
 path), a local one is formed from the state at each sample (A_aug balanced, Taylor terms and a
 remainder). Roots are refined to round-off by Newton's method kept inside the sign change's bracket,
 from the Hermite cubic's root, on the whole row read from the state; after 3 subdivisions (4096 times finer than the step) the refined root
-is taken as it is. tests/test_event_search.py checks the search
-against a dense brute-force scan of random phases. A dip
+is taken as it is. Terms that no row's band can notice (a quarter of it over the horizon) do not
+set the step; once every row is armed, a coarse pass (:class:`_Coarse`) leaves out the modes each
+row barely sees (1e-3 of its terms) and skips the stretches where the rest stays above the band
+by more than their bound: a stiff mode then sets the step only near a root. tests/test_event_search.py
+checks the search against a dense brute-force scan of random phases. A dip
 that just touches zero (within the row's tolerance) is a ``graze``: it is reported, and the
 transition LCP, not an impact, decides what happens.
 
