@@ -668,3 +668,28 @@ def test_screen_row_is_screen():
         want = [x[0].tolist() for x in _screen(dt, f[None], hd[None], tol, b4[None], sub[None])]
         got = list(_screen_row(dt.tolist(), f.tolist(), hd.tolist(), tol, b4.tolist(), sub.tolist()))
         assert got == want, (f, hd, dt, b4, sub, tol)
+
+
+def test_search_certificates_do_not_depend_on_the_scale():
+    """Rows in any units: scaling a row by a power of two (exact in floating point) leaves the
+    envelope's minimum (scaled the same) and the screens' verdicts unchanged, also where b^2 - 4ac
+    of the quadratics inside would under- or overflow (coefficients beyond 1e+-154). Before the
+    quadratics were scaled, the envelope skipped an interior minimum at 2^-560 (returned 0.25 instead
+    of -0.32) and the array screen missed a graze at 1e-160."""
+    from nsfem.integrate.events import _envelope_min, _screen, _screen_row
+
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        f0, f1 = rng.standard_normal(2)
+        d0, d1 = rng.standard_normal(2) * 4.0
+        b4 = abs(rng.standard_normal()) / 8.0
+        ref = _envelope_min(f0, f1, d0, d1, 1.0, b4)
+        for k in (-560, -520, 520, 560):
+            s = 2.0 ** k
+            assert _envelope_min(f0 * s, f1 * s, d0 * s, d1 * s, 1.0, b4 * s) == ref * s
+    f, hd, dt, b4 = np.array([0.5, 0.5]), np.array([-2.0, 2.0]), np.array([1.0]), np.array([0.0])
+    want = [[False], [True], [True]]    # a dip touching 0 at mid-interval: near (a graze)
+    for k in (0, -532, 515):
+        s = 2.0 ** k
+        assert [x[0].tolist() for x in _screen(dt, f[None] * s, hd[None] * s, 0.0, b4[None], np.array([[True]]))] == want
+        assert [list(x) for x in _screen_row([1.0], (f * s).tolist(), (hd * s).tolist(), 0.0, [0.0], [True])] == want

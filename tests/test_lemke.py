@@ -1071,3 +1071,15 @@ def test_one_unknown_in_floats_is_the_pivot_loop_bitwise(monkeypatch):
         assert (fast.status, fast.pivots, fast.message) == (loop.status, loop.pivots, loop.message)
         assert fast.x.tobytes() == loop.x.tobytes() and fast.w.tobytes() == loop.w.tobytes()
         assert repr(fast.certificate) == repr(loop.certificate)
+
+
+def test_overflowing_solution_is_reported_not_raised():
+    """x = 1e600 solves LCP([[1e-300]], [-1e300]) but is beyond the floating-point range: the result
+    says so (status ``overflow``, success False) instead of raising or calling nan a solution."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for A, b in (([[1e-300]], [-1e300]), ([[1e-300, 0.0], [0.0, 1.0]], [-1e300, -1.0])):
+            res = lemke(A, b)
+            assert res.status == "overflow" and not res.success

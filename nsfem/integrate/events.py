@@ -371,10 +371,20 @@ def _cubic(f0, f1, d0, d1, dt):
     return f0, m0, 3.0 * df - 2.0 * m0 - m1, m0 + m1 - 2.0 * df
 
 
+#: coefficients of a quadratic beyond 2^+-SAFE are scaled by a power of two (exactly) first: b^2 - 4ac
+#: under- or overflows beyond about 1e+-154, and the roots do not depend on the scale
+SAFE = 400
+
+
 def _quadratic_roots(a, b, c):
     """The two roots of a s^2 + b s + c (vectorized; nan or inf where there is none), by the
     formula without cancellation (a = 0 leaves the linear root -c / b in the second)."""
     with np.errstate(all="ignore"):
+        m = np.maximum(np.maximum(np.abs(a), np.abs(b)), np.abs(c))
+        far = (m > 0) & np.isfinite(m) & ((m < 2.0 ** -SAFE) | (m > 2.0 ** SAFE))
+        if np.any(far):
+            k = np.where(far, -np.frexp(m)[1], 0)
+            a, b, c = np.ldexp(a, k), np.ldexp(b, k), np.ldexp(c, k)
         disc = b * b - 4.0 * a * c
         q = -0.5 * (b + np.copysign(np.sqrt(np.where(disc >= 0, disc, np.nan)), b))
         return q / a, c / q
@@ -382,7 +392,11 @@ def _quadratic_roots(a, b, c):
 
 def _roots2(a: float, b: float, c: float) -> list[float]:
     """The real roots of a s^2 + b s + c for scalars (the formula without cancellation; a = 0: the
-    linear root)."""
+    linear root; coefficients beyond 2^+-SAFE scaled first)."""
+    m = max(abs(a), abs(b), abs(c))
+    if 0.0 < m < math.inf and not 2.0 ** -SAFE <= m <= 2.0 ** SAFE:
+        k = -math.frexp(m)[1]
+        a, b, c = math.ldexp(a, k), math.ldexp(b, k), math.ldexp(c, k)
     if a == 0.0:
         return [-c / b] if b != 0.0 else []
     disc = b * b - 4.0 * a * c

@@ -35,7 +35,7 @@ Implementation notes:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -70,7 +70,8 @@ class LCPError(NsfemError):
 class LCPResult:
     """The outcome of :func:`lemke`.
 
-    ``status`` is ``solved``, ``ray`` (secondary-ray termination) or ``max_pivots``.
+    ``status`` is ``solved``, ``ray`` (secondary-ray termination), ``max_pivots`` or ``overflow`` (the
+    solution is beyond the floating-point range: entries of A near 1e-300 against b near 1e300).
     ``residual`` is the relative min-map residual max_i |min(x_i / s_x, w_i / s_i)|
     (0 for an exact solution, see :func:`certificate`).
     """
@@ -217,15 +218,21 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
 
     if scale and n:
         r_s, c_s = _equilibrate(A) if scales is None else scales
+        with np.errstate(over="ignore"):
+            big = float(np.max(r_s)) * max(float(np.max(np.abs(A))) * float(np.max(c_s)), max(map(abs, bl)))
+        if not math.isfinite(big):   # the equilibrated problem would overflow (entries near 1e300): unscaled
+            r_s, c_s = np.ones(n), np.ones(n)
     else:
         r_s, c_s = np.ones(n), np.ones(n)
 
     if n == 1 and max_pivots >= 2 and refactor >= 2:
         one = _lemke_one(A, b, r_s, c_s, 1.0 if d is None else float(r_s[0] * d[0]), pivot_tol)
         if one is not None:
-            return one
+            return _finite(one)
 
     def result(x, status, pivots, message, cert=None):
+        if status == "solved" and not np.all(np.isfinite(x)):
+            status, message = "overflow", "the solution is beyond the floating-point range (overflow)"
         w = A @ x + b
         if cert is None:
             cert = _certificate(A, b, x, w, (r_s, c_s), groups)
@@ -430,6 +437,13 @@ def _solve_one(B: float, rhs: float, x0: float | None = None) -> float | None:
             break
         x = x + dx
     return x
+
+
+def _finite(res: LCPResult) -> LCPResult:
+    """``res``, or its ``overflow`` verdict when its solution is not finite."""
+    if res.success and not all(map(math.isfinite, res.x.tolist())):
+        return replace(res, status="overflow", message="the solution is beyond the floating-point range (overflow)")
+    return res
 
 
 def _result_one(a: float, b: float, c: float, r: float, x: float, pivots: int, message: str) -> LCPResult:
