@@ -380,9 +380,9 @@ def _quadratic_roots(a, b, c):
     """The two roots of a s^2 + b s + c (vectorized; nan or inf where there is none), by the
     formula without cancellation (a = 0 leaves the linear root -c / b in the second)."""
     with np.errstate(all="ignore"):
-        m = np.maximum(np.maximum(np.abs(a), np.abs(b)), np.abs(c))
-        far = (m > 0) & np.isfinite(m) & ((m < 2.0 ** -SAFE) | (m > 2.0 ** SAFE))
-        if np.any(far):
+        m = np.abs(a) + np.abs(b) + np.abs(c)
+        if not 2.0 ** -SAFE <= np.min(m) <= np.max(m) <= 2.0 ** SAFE:   # (rare: then per entry)
+            far = (m > 0) & np.isfinite(m) & ((m < 2.0 ** -SAFE) | (m > 2.0 ** SAFE))
             k = np.where(far, -np.frexp(m)[1], 0)
             a, b, c = np.ldexp(a, k), np.ldexp(b, k), np.ldexp(c, k)
         disc = b * b - 4.0 * a * c
@@ -730,10 +730,13 @@ def _screen(dt, f, hd, tol, b4, subdivide):
             hit = np.where(turn[i, k], lo <= band, lo < -band)
             # the bound b4 holds at mid-interval; at the samples the error vanishes (16 b4 s^2 (1 - s)^2):
             # an interval starting just above the band (a gap just lifted off) is judged on that
-            for j in np.flatnonzero(hit & np.isfinite(b4[i, k])):
-                ij, kj = i[j], k[j]
-                lo_j = _envelope_min(f[ij, kj], f[ij, kj + 1], hd[ij, kj], hd[ij, kj + 1], dt[kj], b4[ij, kj])
-                hit[j] = lo_j <= band[j] if turn[ij, kj] else lo_j < -band[j]
+            sel = np.flatnonzero(hit & np.isfinite(b4[i, k]))
+            if sel.size:   # (in floats: NumPy scalars would make each step several times dearer)
+                ii, kk = i[sel], k[sel]
+                cols = (f[ii, kk], f[ii, kk + 1], hd[ii, kk], hd[ii, kk + 1], dt[kk], b4[ii, kk], turn[ii, kk], band[sel])
+                for j, (f0, f1, d0, d1, dtj, b4j, tj, bj) in zip(sel.tolist(), zip(*(c.tolist() for c in cols))):
+                    lo_j = _envelope_min(f0, f1, d0, d1, dtj, b4j)
+                    hit[j] = lo_j <= bj if tj else lo_j < -bj
             near[i[hit], k[hit]] = True
     return cross, turn, near
 
