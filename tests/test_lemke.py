@@ -1043,6 +1043,7 @@ def test_friction_lcp_large_mu_success_rate(mu):
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")   # the 1e+-300 entries
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")  # (their overflowing x)
 def test_one_unknown_in_floats_is_the_pivot_loop_bitwise(monkeypatch):
     # lemke solves LCPs of one unknown (most impact LCPs of a run) in float arithmetic
     # (pivoting._lemke_one); it repeats the pivot loop's operations in order, so the result,
@@ -1059,14 +1060,7 @@ def test_one_unknown_in_floats_is_the_pivot_loop_bitwise(monkeypatch):
     for a, b, kw in cases:
         with monkeypatch.context() as m:
             m.setattr(pivoting, "_lemke_one", lambda *args: None)
-            try:
-                loop = lemke([[a]], [b], **kw)
-            except (ValueError, IndexError):
-                loop = None
-        if loop is None:   # the equilibrated b overflows (a = 1e-300, b = -1e300): both fail
-            with pytest.raises((ValueError, IndexError)):
-                lemke([[a]], [b], **kw)
-            continue
+            loop = lemke([[a]], [b], **kw)   # (a = 1e-300, b = -1e300: both report an overflow)
         fast = lemke([[a]], [b], **kw)
         assert (fast.status, fast.pivots, fast.message) == (loop.status, loop.pivots, loop.message)
         assert fast.x.tobytes() == loop.x.tobytes() and fast.w.tobytes() == loop.w.tobytes()
