@@ -29,8 +29,10 @@ search, the events themselves and the set-up of each configuration met:
 - samples per second: the search samples every event row (a gap per open contact, a force per
   closed one, friction rows) at a step set by the fastest rate that the step rule takes into
   account: with the step a fixed fraction of the configuration's fastest period (pi / (4 w_max)
-  when this study was written), samples per second are proportional to w_max. A step taken from
-  each row's own derivative bound would let only the modes that matter to the rows set it.
+  when this study was written), samples per second are proportional to w_max. Since issue 17's
+  third session a coarse pass lets only the modes that matter to the rows set the step away from
+  a root (the modes a row barely sees are left out with their bound): far from contact the growth
+  with w_max is gone; near roots and in impact bursts it stays.
 - cost per sample: in a modal form of the configuration a row is a sum over its 2r modes,
   O(rows x r); a dense product with the 2n-state costs O(rows x n) to O(n^2).
 - cost per event: an impact LCP and a transition LCP over the contacts involved (a few dozen
