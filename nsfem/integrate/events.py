@@ -223,7 +223,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                 else:
                     # only a descent before the arming time is the row's own: after it the row is
                     # armed at 0 and scanned from there (its first samples end at the arming point)
-                    ts1, h1, hd1 = _up_to(row, ts, hi, hdi, *arm)
+                    (ts1, h1, hd1), after = _cut(row, ts, hi, hdi, *arm)
                     res = _scan(row, ts1, h1, hd1, thr[i], band[i], _shorter(bound4[i], ts1, ts[1] - ts[0]), limit)
                 if (res is not None and arm is not None and res[0] <= arm[0]
                         and (res[0] <= ts[0] or row.at(res[0])[1] > 0.0)):
@@ -237,11 +237,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                 elif arm is not None:
                     res = None
                     armed[i], thr[i] = True, 0.0
-                    t_arm, k = arm
-                    h_arm, hd_arm = row.at(t_arm)
-                    ts2 = np.concatenate([[t_arm], ts[k + 1:]])
-                    h2 = np.concatenate([[h_arm], hi[k + 1:]])
-                    hd2 = np.concatenate([[hd_arm], hdi[k + 1:]])
+                    ts2, h2, hd2 = after
                     res = _scan(row, ts2, h2, hd2, 0.0, band[i], _shorter(bound4[i], ts2, ts[1] - ts[0]), limit)
             else:
                 res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit, screen=screens[i])
@@ -496,12 +492,14 @@ def _first_root(f0, f1, d0, d1, dt, s_r, bound4, tol):
     return s_x == 0.0 or _envelope_min(f0, f1, d0, d1, dt, bound4, s_x) >= -tol
 
 
-def _up_to(row: "_Row", ts, h, hd, t_arm: float, k: int):
-    """The samples of a row up to its arming time t_arm in [ts[k], ts[k + 1]], that point included."""
-    if t_arm <= ts[k]:
-        return ts[:k + 1], h[:k + 1], hd[:k + 1]
+def _cut(row: "_Row", ts, h, hd, t_arm: float, k: int):
+    """The samples (times, h, h') of a row up to its arming time t_arm in [ts[k], ts[k + 1]] and from
+    it on, that point in both (once in the first when it is ts[k])."""
     h_arm, hd_arm = row.at(t_arm)
-    return (np.append(ts[:k + 1], t_arm), np.append(h[:k + 1], h_arm), np.append(hd[:k + 1], hd_arm))
+    after = (np.append(t_arm, ts[k + 1:]), np.append(h_arm, h[k + 1:]), np.append(hd_arm, hd[k + 1:]))
+    if t_arm <= ts[k]:
+        return (ts[:k + 1], h[:k + 1], hd[:k + 1]), after
+    return (np.append(ts[:k + 1], t_arm), np.append(h[:k + 1], h_arm), np.append(hd[:k + 1], hd_arm)), after
 
 
 def _shorter(bound4: float, ts: np.ndarray, step: float) -> np.ndarray:

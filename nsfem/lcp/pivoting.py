@@ -231,12 +231,10 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
             return _finite(one)
 
     def result(x, status, pivots, message, cert=None):
-        if status == "solved" and not np.all(np.isfinite(x)):
-            status, message = "overflow", "the solution is beyond the floating-point range (overflow)"
         w = A @ x + b
         if cert is None:
             cert = _certificate(A, b, x, w, (r_s, c_s), groups)
-        return LCPResult(x, w, status, pivots, cert["relative"], message, cert)
+        return _finite(LCPResult(x, w, status, pivots, cert["relative"], message, cert))
 
     if min(bl, default=0.0) >= 0:
         return result(np.zeros(n), "solved", 0, "trivial solution x = 0 (b >= 0)")
