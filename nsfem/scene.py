@@ -29,7 +29,8 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from .errors import SceneError
-from .stack import NORMALS, SUPPORT_DOFS, THEORIES, WEIGHTINGS, BeamStack, Contact, Junction, Segment, Support
+from .stack import (NORMALS, SECTIONS, SUPPORT_DOFS, THEORIES, WEIGHTINGS, BeamStack, Bearing, Contact, Disk, Junction,
+                    Segment, Support, Unbalance)
 
 SUPPORTS = ("pinned-pinned", "clamped-free", "clamped-clamped", "clamped-pinned", "free-free")
 #: Dofs fixed at (x = 0, x = L) for each support name. Pinned-pinned fixes U at x = 0 only.
@@ -45,6 +46,7 @@ METHODS = ("exact", "rk", "penalty", "moreau")
 RK_SOLVERS = ("DOP853", "RK45")
 STIFF_SOLVERS = ("BDF", "Radau", "LSODA")
 PLOTS = ("phase", "gap", "psd", "forces", "campbell")
+FRAMES = ("rotating", "inertial")
 INITIAL_STATES = ("rest", "stationary")
 AXIAL = ("P1", "P2")
 #: Thinnest sub-beam, as a fraction of the shaft's height (bending stiffness ~ thickness^3).
@@ -139,10 +141,17 @@ def _all_nonneg(v):
     return None if all(x >= 0 for x in v) else f"entries must be >= 0, got {v}"
 
 
+_SECTION = {
+    "section": Key("str", "rectangle", "cross-section: rectangle (width, height) or circle (diameter, "
+                   "inner_diameter)", SECTIONS),
+    "width": Key("float", 0.02, "rectangle: section width b along y [m]", check=_positive),
+    "height": Key("float", 0.02, "rectangle: section height h along z [m]", check=_positive),
+    "diameter": Key("float", 0.02, "circle: outer diameter D [m]", check=_positive),
+    "inner_diameter": Key("float", 0.0, "circle: bore d [m] (0 = solid)", check=_nonneg),
+}
 _SHAFT = {
     "length": Key("float", 1.0, "shaft length [m]", check=_positive),
-    "width": Key("float", 0.02, "section width b along y [m]", check=_positive),
-    "height": Key("float", 0.02, "section height h along z [m]", check=_positive),
+    **_SECTION,
     "E": Key("float", 2.1e11, "Young's modulus [Pa] (the paper gives none; steel assumed; 1e-100 to 1e100)",
              check=_material),
     "rho": Key("float", 7500.0, "density [kg/m^3] (1e-100 to 1e100)", check=_material),
@@ -173,8 +182,7 @@ _SEGMENT = {
     "name": Key("str", "", "unique name (default segment_<index>); mesh files name cell sets by it"),
     "start": Key("float", 0.0, "x of the left end [m]"),
     "end": Key("float", 1.0, "x of the right end [m]"),
-    "width": Key("float", 0.02, "section width b [m]", check=_positive),
-    "height": Key("float", 0.02, "section height h [m]", check=_positive),
+    **_SECTION,
     "offset": Key("floats", [0.0, 0.0], "centroid offset (y_c, z_c) from the rotation axis [m]", length=2),
     "E": Key("float", 2.1e11, "Young's modulus [Pa] (1e-100 to 1e100)", check=_material),
     "rho": Key("float", 7500.0, "density [kg/m^3] (1e-100 to 1e100)", check=_material),
@@ -203,6 +211,31 @@ _CONTACT = {
     "restitution": Key("float", 0.0, "Newton eps", check=_unit),
 }
 
+_DISK = {
+    "x": Key("float?", None, "position on the shaft [m] (default: the rotor's middle)"),
+    "mass": Key("float?", None, "mass [kg]; or leave it out and give outer_diameter and width"),
+    "polar_inertia": Key("float?", None, "polar moment of inertia I_p about the axis [kg m^2] (with mass; "
+                         "default 0)"),
+    "diametral_inertia": Key("float?", None, "diametral moment of inertia I_d [kg m^2] (with mass; default 0)"),
+    "outer_diameter": Key("float?", None, "geometry instead of mass: outer diameter [m]"),
+    "inner_diameter": Key("float", 0.0, "geometry: bore [m]", check=_nonneg),
+    "width": Key("float?", None, "geometry: axial width [m]"),
+    "rho": Key("float", 7850.0, "geometry: density [kg/m^3]", check=_material),
+}
+_BEARING = {
+    "x": Key("float", 0.0, "position on the shaft [m]"),
+    **{f"k{a}{b}": Key("float", 0.0, f"stiffness, force along {a} per displacement along {b} [N/m]")
+       for a, b in ("yy", "zz", "yz", "zy")},
+    **{f"c{a}{b}": Key("float", 0.0, f"damping, force along {a} per velocity along {b} [N s/m]")
+       for a, b in ("yy", "zz", "yz", "zy")},
+    "kxx": Key("float", 0.0, "axial stiffness on U [N/m] (a thrust bearing; 0 = none)", check=_nonneg),
+}
+_UNBALANCE = {
+    "x": Key("float?", None, "position on the shaft [m] (default: the rotor's middle)"),
+    "magnitude": Key("float", 0.0, "mass times eccentricity [kg m]", check=_nonneg),
+    "phase_deg": Key("float", 0.0, "angle in the rotating frame from +y towards +z [deg]"),
+}
+
 #: The scene schema: tables of keys; a one-element list marks an array of tables.
 SCHEMA: dict[str, Any] = {
     "title": Key("str", "nsfem scene", "free text shown in outputs"),
@@ -217,6 +250,8 @@ SCHEMA: dict[str, Any] = {
         "gravity": Key("float", 9.81, "gravitational acceleration along inertial -Z [m/s^2] (0 = none)",
                        check=_nonneg),
         "phase_deg": Key("float", 0.0, "angle of the rotating frame at t = 0 [deg]"),
+        "frame": Key("str", "rotating", "frame of the coordinates: rotating with the shaft (any rotor, isotropic "
+                     "bearings) or inertial (axisymmetric rotors, any bearings)", FRAMES),
     },
     "damping": {
         "rayleigh": Key("floats", [0.0, 0.0], "internal Rayleigh damping [alpha 1/s, beta s]", length=2,
@@ -259,6 +294,9 @@ SCHEMA: dict[str, Any] = {
         "vtu_every": Key("int", 10, "write a VTU every N output steps (0 = none)", check=_nonneg),
         "plots": Key("strs", ["phase", "gap", "psd", "forces"], "PNG plots to write", PLOTS),
     },
+    "disk": [_DISK],
+    "bearing": [_BEARING],
+    "unbalance": [_UNBALANCE],
     "segment": [_SEGMENT],
     "junction": [_JUNCTION],
     "support": [_SUPPORT],
@@ -550,8 +588,9 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     else:
         stack = high_level_stack(tree)
     base = base or Path.cwd()
-    stack = stack.validate()
+    stack = point_components(tree, stack).validate()
     check_scales(tree, stack)
+    check_frame(tree, stack)
     check_speed(tree["rotation"]["speed_hz"], stack)
     if not tree["mesh"]["file"]:
         from .mesh import breakpoints
@@ -586,7 +625,10 @@ def speed_limit_hz(stack: BeamStack) -> tuple[float, Segment]:
     times its first critical speed).
     """
     def limit(s: Segment) -> float:
-        r = math.hypot(abs(s.offset[0]) + s.width / 2, abs(s.offset[1]) + s.height / 2)
+        if s.section == "circle":
+            r = math.hypot(s.offset[0], s.offset[1]) + s.width / 2
+        else:
+            r = math.hypot(abs(s.offset[0]) + s.width / 2, abs(s.offset[1]) + s.height / 2)
         return math.sqrt(s.E / s.rho) / r / (2 * math.pi)
 
     seg = min(stack.segments, key=limit)
@@ -627,7 +669,11 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
         le = span / tree["mesh"]["elements"] if not tree["mesh"]["file"] else s.length
         with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
             E, rho, b, h, le = (np.float64(v) for v in (s.E, s.rho, s.width, s.height, le))
-            area, I_y, I_z = b * h, b * h**3 / 12.0, h * b**3 / 12.0  # numpy: inf, not OverflowError
+            if s.section == "circle":
+                area, I_y = np.pi / 4 * (b * b - s.inner**2), np.pi / 64 * (b**4 - np.float64(s.inner) ** 4)
+                I_z = I_y
+            else:
+                area, I_y, I_z = b * h, b * h**3 / 12.0, h * b**3 / 12.0  # numpy: inf, not OverflowError
             mass, axial = rho * area * le, E * area / le
             bend_w, bend_v = E * I_y / le**3, E * I_z / le**3
             w2 = axial / mass if mass > 0 else np.inf
@@ -665,11 +711,27 @@ def contact_positions(d: dict) -> list[float]:
     return sorted(cp)
 
 
+def section(table: dict, key: str) -> dict:
+    """The Segment keywords of a table's section: width and height (a circle's diameter twice), section,
+    inner (a circle's bore)."""
+    if table["section"] == "circle":
+        D, d = table["diameter"], table["inner_diameter"]
+        if not d < D:
+            raise SceneError(f"{key}.inner_diameter", f"must be smaller than diameter ({D}), got {d}")
+        return dict(width=D, height=D, section="circle", inner=d)
+    return dict(width=table["width"], height=table["height"])
+
+
 def high_level_stack(tree: dict) -> BeamStack:
     """Translate ``[shaft]``, ``[[delamination]]``, ``[[obstacle]]`` into a BeamStack (checked first)."""
     sh = tree["shaft"]
-    L, b, h = sh["length"], sh["width"], sh["height"]
+    L = sh["length"]
+    sec = section(sh, "shaft")
+    b, h = sec["width"], sec["height"]
     mat = dict(E=sh["E"], rho=sh["rho"])
+    if tree["delamination"] and sh["section"] != "rectangle":
+        raise SceneError("delamination.0", "a delamination splits a rectangular section into two layers; "
+                         "use shaft.section = \"rectangle\"")
     dels = sorted(enumerate(tree["delamination"]), key=lambda it: it[1]["start"])
     for i, d in dels:
         key = f"delamination.{i}"
@@ -711,8 +773,8 @@ def high_level_stack(tree: dict) -> BeamStack:
     layers: dict[int, tuple[Segment, Segment]] = {}
 
     def intact(a: float, c: float) -> Segment:
-        seg = Segment(f"intact_{sum(s.name.startswith('intact_') for s in segments)}", a, c, b, h,
-                      (0.0, 0.0), **mat)
+        seg = Segment(f"intact_{sum(s.name.startswith('intact_') for s in segments)}", a, c, offset=(0.0, 0.0),
+                      **sec, **mat)
         segments.append(seg)
         return seg
 
@@ -771,8 +833,8 @@ def high_level_stack(tree: dict) -> BeamStack:
 
 def low_level_stack(tree: dict) -> BeamStack:
     """Build a BeamStack from ``[[segment]]``, ``[[junction]]``, ``[[support]]``, ``[[contact]]``."""
-    segs = tuple(Segment(s["name"] or f"segment_{i}", s["start"], s["end"], s["width"], s["height"],
-                         tuple(s["offset"]), s["E"], s["rho"]) for i, s in enumerate(tree["segment"]))
+    segs = tuple(Segment(s["name"] or f"segment_{i}", s["start"], s["end"], offset=tuple(s["offset"]), E=s["E"],
+                         rho=s["rho"], **section(s, f"segment.{i}")) for i, s in enumerate(tree["segment"]))
     juns = tuple(Junction(j["x"], j["master"], tuple(j["slaves"])) for j in tree["junction"])
     sups = tuple(Support(s["segment"], s["x"], tuple(s["fix"])) for s in tree["support"])
     cons = []
@@ -784,6 +846,88 @@ def low_level_stack(tree: dict) -> BeamStack:
                             c["normal"], c["clearance"], c["friction"], c["friction_directions"],
                             c["restitution"], label=f"contact.{i}"))
     return BeamStack(segs, juns, sups, tuple(cons), tree["beam"]["theory"])
+
+
+def disk_inertia(d: dict, key: str) -> tuple[float, float, float]:
+    """(mass, polar, diametral) of a ``[[disk]]``: given, or from its geometry (a thick annulus:
+    m = rho pi (D^2 - d^2) w / 4, I_p = m (D^2 + d^2) / 8, I_d = I_p / 2 + m w^2 / 12)."""
+    geometry = d["outer_diameter"] is not None or d["width"] is not None
+    if d["mass"] is not None:
+        if geometry:
+            raise SceneError(f"{key}.mass", "give either mass (and inertias) or the geometry (outer_diameter, width), "
+                             "not both")
+        m, ip, id_ = d["mass"], d["polar_inertia"] or 0.0, d["diametral_inertia"] or 0.0
+        for name, v in (("mass", m), ("polar_inertia", ip), ("diametral_inertia", id_)):
+            if not v >= 0.0:
+                raise SceneError(f"{key}.{name}", f"must be >= 0, got {v}")
+        if not m > 0.0:
+            raise SceneError(f"{key}.mass", f"must be positive, got {m}")
+        return m, ip, id_
+    if d["polar_inertia"] is not None or d["diametral_inertia"] is not None:
+        raise SceneError(f"{key}.mass", "inertias need a mass (or give the geometry alone)")
+    if d["outer_diameter"] is None or d["width"] is None:
+        raise SceneError(f"{key}.mass", "a disk needs a mass, or its outer_diameter and width")
+    D, di, w = d["outer_diameter"], d["inner_diameter"], d["width"]
+    if not (D > 0 and w > 0):
+        raise SceneError(f"{key}.outer_diameter" if not D > 0 else f"{key}.width", "must be positive")
+    if not di < D:
+        raise SceneError(f"{key}.inner_diameter", f"must be smaller than outer_diameter ({D}), got {di}")
+    m = d["rho"] * math.pi / 4.0 * (D * D - di * di) * w
+    ip = m * (D * D + di * di) / 8.0
+    return m, ip, ip / 2.0 + m * w * w / 12.0
+
+
+def point_components(tree: dict, stack: BeamStack) -> BeamStack:
+    """``stack`` with the scene's ``[[disk]]``, ``[[bearing]]`` and ``[[unbalance]]`` on it."""
+    from dataclasses import replace
+
+    lo, hi = min(s.start for s in stack.segments), max(s.end for s in stack.segments)
+    middle = float(f"{(lo + hi) / 2:.12g}")
+    disks = tuple(Disk(middle if d["x"] is None else d["x"], *disk_inertia(d, f"disk.{i}"), label=f"disk.{i}")
+                  for i, d in enumerate(tree["disk"]))
+    bearings = tuple(Bearing(b["x"], ((b["kyy"], b["kyz"]), (b["kzy"], b["kzz"])),
+                             ((b["cyy"], b["cyz"]), (b["czy"], b["czz"])), b["kxx"], label=f"bearing.{i}")
+                     for i, b in enumerate(tree["bearing"]))
+    unbalances = tuple(Unbalance(middle if u["x"] is None else u["x"], u["magnitude"], math.radians(u["phase_deg"]),
+                                 label=f"unbalance.{i}") for i, u in enumerate(tree["unbalance"]))
+    return replace(stack, disks=disks, bearings=bearings, unbalances=unbalances)
+
+
+def check_frame(tree: dict, stack: BeamStack) -> None:
+    """Refuse a scene whose equations have periodic coefficients in its frame (design section 8).
+
+    Rotating frame: a bearing that is not isotropic turns with respect to the coordinates. Inertial
+    frame: a rotor that is not axisymmetric (a delamination, a rectangular section, an offset centroid)
+    turns with respect to them; and friction at a stop fixed in space acts against a surface that
+    slides past it at Omega r, which a point stop does not model."""
+    rot = tree["rotation"]
+    spinning = rot["speed_hz"] > 0.0
+    odd = next((s for s in stack.segments if not s.axisymmetric), None)
+    if rot["frame"] == "rotating":
+        bad = next((i for i, b in enumerate(stack.bearings) if not b.isotropic), None)
+        if spinning and bad is not None:
+            b = stack.bearings[bad]
+            why = (f"bearing.{bad} is not isotropic (K = {[list(r) for r in b.K]}, C = {[list(r) for r in b.C]}): in "
+                   "the rotating frame its force has periodic coefficients")
+            if odd is None:
+                raise SceneError("rotation.frame", f"{why}; this rotor is axisymmetric, so use rotation.frame = "
+                                 "\"inertial\"")
+            raise SceneError("rotation.frame", f"{why}, and segment {odd.name!r} is not axisymmetric, so the "
+                             "inertial frame cannot carry it either: the equations have periodic coefficients in "
+                             "both frames (no closed-form propagation)")
+        return
+    if odd is not None:
+        what = ("its centroid sits off the axis" if odd.offset != (0.0, 0.0) else
+                f"its section is {odd.width:g} x {odd.height:g}, not square or round")
+        raise SceneError("rotation.frame", f"the inertial frame needs an axisymmetric rotor, but segment {odd.name!r} "
+                         f"is not ({what}): its stiffness would turn with the shaft; use rotation.frame = "
+                         "\"rotating\"")
+    if spinning:
+        for c in stack.contacts:
+            if c.friction > 0.0:
+                raise SceneError(f"{c.label}.friction", "friction at a stop fixed in space acts against the shaft "
+                                 "surface sliding past it at Omega r, which a point stop does not model; set it to "
+                                 "0 in the inertial frame")
 
 
 # --------------------------------------------------------------------------- reference

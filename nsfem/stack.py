@@ -29,9 +29,18 @@ WEIGHTINGS = ("dirac", "hat")
 THEORIES = ("euler-bernoulli", "rayleigh")
 
 
+SECTIONS = ("rectangle", "circle")
+
+
 @dataclass(frozen=True)
 class Segment:
-    """An Euler-Bernoulli beam on [start, end] with a rectangular section."""
+    """A beam on [start, end]: a rectangular section (``width`` b along y, ``height`` h along z) or a
+    circular one (``section = "circle"``: outer diameter ``width`` = ``height``, bore ``inner``).
+
+    >>> s = Segment("tube", 0.0, 1.0, 0.05, 0.05, section="circle", inner=0.03)
+    >>> round(s.area / (3.141592653589793 / 4 * (0.05**2 - 0.03**2)), 12), s.I_y == s.I_z
+    (1.0, True)
+    """
 
     name: str
     start: float
@@ -41,6 +50,8 @@ class Segment:
     offset: tuple[float, float] = (0.0, 0.0)
     E: float = 2.1e11
     rho: float = 7500.0
+    section: str = "rectangle"
+    inner: float = 0.0
 
     @property
     def length(self) -> float:
@@ -48,17 +59,71 @@ class Segment:
 
     @property
     def area(self) -> float:
+        if self.section == "circle":
+            return math.pi / 4.0 * (self.width**2 - self.inner**2)
         return self.width * self.height
 
     @property
     def I_y(self) -> float:
-        """Second moment for bending in the x-z plane (field W): b h^3 / 12."""
+        """Second moment for bending in the x-z plane (field W): b h^3 / 12 (circle: pi (D^4 - d^4) / 64)."""
+        if self.section == "circle":
+            return math.pi / 64.0 * (self.width**4 - self.inner**4)
         return self.width * self.height**3 / 12.0
 
     @property
     def I_z(self) -> float:
-        """Second moment for bending in the x-y plane (field V): h b^3 / 12."""
+        """Second moment for bending in the x-y plane (field V): h b^3 / 12 (circle: pi (D^4 - d^4) / 64)."""
+        if self.section == "circle":
+            return self.I_y
         return self.height * self.width**3 / 12.0
+
+    @property
+    def axisymmetric(self) -> bool:
+        """Equal bending stiffness and inertia in y and z, centroid on the axis: the section looks the
+        same in every direction of the y-z plane (what the inertial frame needs)."""
+        return (self.section == "circle" or self.width == self.height) and self.offset == (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Disk:
+    """A rigid disk at ``x`` on the rotor axis: ``mass`` on V and W, ``diametral`` inertia on the slopes
+    V' and W', ``polar`` inertia about x (gyroscopic in the inertial frame, eq. in docs/theory.md)."""
+
+    x: float
+    mass: float
+    polar: float = 0.0
+    diametral: float = 0.0
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Bearing:
+    """A linear spring-damper from the rotor at ``x`` to ground, lateral: force = -K (v, w) - C (v', w')
+    with K = [[kyy, kyz], [kzy, kzz]], C likewise (in the frame the bearing is fixed in), and an axial
+    spring ``kxx`` on U (a thrust bearing)."""
+
+    x: float
+    K: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0), (0.0, 0.0))
+    C: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0), (0.0, 0.0))
+    kxx: float = 0.0
+    label: str = ""
+
+    @property
+    def isotropic(self) -> bool:
+        """K and C commute with a rotation about x (form [[a, b], [-b, a]]): the bearing looks the same
+        from a frame spinning with the shaft, so the rotating frame can carry it."""
+        return all(A[0][0] == A[1][1] and A[0][1] == -A[1][0] for A in (self.K, self.C))
+
+
+@dataclass(frozen=True)
+class Unbalance:
+    """A mass eccentricity ``magnitude`` (kg m) at ``x``, at angle ``phase`` (rad) in the rotating frame
+    from +y towards +z: a centrifugal force magnitude Omega^2 along that direction."""
+
+    x: float
+    magnitude: float
+    phase: float = 0.0
+    label: str = ""
 
 
 @dataclass(frozen=True)
@@ -110,6 +175,9 @@ class BeamStack:
     supports: tuple[Support, ...] = ()
     contacts: tuple[Contact, ...] = ()
     theory: str = "euler-bernoulli"
+    disks: tuple[Disk, ...] = ()
+    bearings: tuple[Bearing, ...] = ()
+    unbalances: tuple[Unbalance, ...] = ()
     _index: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def segment(self, name: str) -> Segment:
@@ -129,7 +197,22 @@ class BeamStack:
                 xs.add(c.x)
                 if c.extent is not None:
                     xs.update(c.extent)
+        xs.update(p.x for p in self.points() if self.carrier(p.x) == name)
         return sorted(xs)
+
+    def points(self) -> tuple:
+        """The point components on the rotor axis: disks, bearings, unbalances."""
+        return self.disks + self.bearings + self.unbalances
+
+    def carrier(self, x: float) -> str | None:
+        """The segment that carries a point component at ``x``: the one segment whose span holds x (at a
+        junction or a shared end, the first of them; the junction ties their V, W and slopes), None
+        where two layers of a delamination both span x."""
+        at = [s for s in self.segments if s.start <= x <= s.end]
+        inside = [s for s in at if s.start < x < s.end]
+        if len(inside) > 1:
+            return None
+        return (inside or at)[0].name if at else None
 
     def validate(self) -> "BeamStack":
         """Check consistency; raise :class:`SceneError` naming the offending item."""
@@ -151,6 +234,13 @@ class BeamStack:
                     raise SceneError(f"{key}.{attr}", f"must be positive, got {getattr(s, attr)}")
             if not s.start < s.end:
                 raise SceneError(f"{key}.end", f"must exceed start ({s.start}), got {s.end}")
+            if s.section not in SECTIONS:
+                raise SceneError(f"{key}.section", f"unknown section {s.section!r} (use {' | '.join(SECTIONS)})")
+            if s.section == "circle":
+                if s.width != s.height:
+                    raise SceneError(f"{key}.diameter", "a circular section has one diameter (width = height)")
+                if not (math.isfinite(s.inner) and 0.0 <= s.inner < s.width):
+                    raise SceneError(f"{key}.inner_diameter", f"must lie in [0, diameter = {s.width}), got {s.inner}")
         slaved: set[tuple[str, float]] = set()
         for i, j in enumerate(self.junctions):
             key = f"junction.{i}"
@@ -176,7 +266,41 @@ class BeamStack:
             if ident in seen:
                 raise SceneError(f"{key}.x", f"duplicate contact point at x={c.x}")
             seen.add(ident)
+        for p in self.points():
+            self._check_point(p)
         return self
+
+    def _check_point(self, p) -> None:
+        kind = type(p).__name__.lower()
+        key = p.label or kind
+        if not math.isfinite(p.x) or self.carrier(p.x) is None:
+            lo, hi = min(s.start for s in self.segments), max(s.end for s in self.segments)
+            if math.isfinite(p.x) and lo <= p.x <= hi:
+                raise SceneError(f"{key}.x", f"x={p.x} lies where two layers of a delamination run side by side; "
+                                 f"a {kind} sits on the intact shaft")
+            raise SceneError(f"{key}.x", f"x={p.x} lies outside the rotor [{lo}, {hi}]")
+        values = {"Disk": ("mass", "polar", "diametral"), "Unbalance": ("magnitude",),
+                  "Bearing": ("kxx",)}[type(p).__name__]
+        for name in values:
+            v = getattr(p, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise SceneError(f"{key}.{name}", f"must be finite and >= 0, got {v}")
+        if isinstance(p, Disk) and p.mass <= 0.0:
+            raise SceneError(f"{key}.mass", f"must be positive, got {p.mass}")
+        if isinstance(p, Bearing):
+            for sym, A in (("k", p.K), ("c", p.C)):
+                for i, a in enumerate("yz"):
+                    for j, b in enumerate("yz"):
+                        if not math.isfinite(A[i][j]):
+                            raise SceneError(f"{key}.{sym}{a}{b}", f"must be finite, got {A[i][j]}")
+                # a bearing may not feed energy in when the shaft stands still: the symmetric part of
+                # K and of C must be positive semidefinite (cross terms beyond that are circulatory)
+                sym_part = [[(A[i][j] + A[j][i]) / 2 for j in range(2)] for i in range(2)]
+                det = sym_part[0][0] * sym_part[1][1] - sym_part[0][1] ** 2
+                if sym_part[0][0] < 0 or sym_part[1][1] < 0 or det < -1e-12 * (sym_part[0][0] * sym_part[1][1]):
+                    raise SceneError(f"{key}.{sym}yy", f"the symmetric part of [[{sym}yy, {sym}yz], [{sym}zy, "
+                                     f"{sym}zz]] = {[list(r) for r in A]} must be positive semidefinite "
+                                     "(else the bearing feeds energy in at rest)")
 
     def _check_end(self, key: str, name: str, x: float) -> None:
         if name not in {s.name for s in self.segments}:

@@ -104,39 +104,69 @@ class LinearSystem:
 
 
 def linear_system(ops: RotorOperators, speed_hz: float = 0.0, gravity: float = 0.0, phase_deg: float = 0.0,
-                  rayleigh: tuple[float, float] = (0.0, 0.0), external: float = 0.0) -> LinearSystem:
-    """Eq. (22) at ``speed_hz`` from operators assembled once (any basis)."""
+                  rayleigh: tuple[float, float] = (0.0, 0.0), external: float = 0.0,
+                  frame: str = "rotating") -> LinearSystem:
+    """Eq. (22) at ``speed_hz`` from operators assembled once (any basis), in the rotating frame (the
+    paper's) or the inertial one (axisymmetric rotors; docs/theory.md, "The inertial frame").
+
+    Rotating: C = Omega G1 + D_i + c_e De1 + C_b, Q = K0 + Omega^2 Kc1 + Omega (c_e P1 + C_b J),
+    f = Omega^2 (fc1 + fu1) + Omega c_e fd1 + gravity turning at Omega.
+    Inertial: C = Omega Gp1 + D_i + c_e De1 + C_b, Q = K0 - Omega D_i J (the rotating internal damping's
+    circulatory part), f = gravity along -z + the unbalance turning at Omega.
+    D_i = alpha M + beta (K0 - K_b): Rayleigh damping of the rotor, not of its bearings."""
+    if frame not in ("rotating", "inertial"):
+        raise ValueError(f"unknown frame {frame!r}")
     w = 2.0 * math.pi * speed_hz
     alpha, beta = rayleigh
     phi = math.radians(phase_deg)
-    C = None
+    inertial = frame == "inertial"
+    bearings = ops.Cb.nnz > 0
     parts = []
     if w:
-        parts.append(w * ops.G1)
+        parts.append(w * (ops.Gp1 if inertial else ops.G1))
     if alpha:
         parts.append(alpha * ops.M)
     if beta:
-        parts.append(beta * ops.K0)
+        parts.append(beta * (ops.K0 - ops.Kb) if ops.Kb.nnz else beta * ops.K0)
     if external:
         parts.append(external * ops.De1)
-    if parts:
-        C = sum(parts[1:], parts[0]).tocsr()
+    if bearings:
+        parts.append(ops.Cb)
+    parts = [p for p in parts if p.nnz]
+    C = sum(parts[1:], parts[0]).tocsr() if parts else None
     Q = ops.K0
-    if w:
+    if w and inertial:
+        if alpha:
+            Q = Q - w * alpha * ops.MJ
+        if beta:
+            Q = Q - w * beta * ops.KJ
+    elif w:
         Q = Q + w**2 * ops.Kc1
         if external:
             Q = Q + w * external * ops.P1
+        if bearings:
+            Q = Q + w * ops.CbJ
     f0 = fc = fs = None
-    if w:
-        f0 = w**2 * ops.fc1 + (w * external * ops.fd1 if external else 0.0)
-    if gravity:
-        gy, gz = -gravity * math.sin(phi), -gravity * math.cos(phi)
+    unbalanced = bool(np.any(ops.fu1)) and w
+    if inertial:
+        if gravity:
+            f0 = -gravity * ops.Fz
+        if unbalanced:
+            # m e Omega^2 along the rotating direction (cos phi_u, sin phi_u) turned by Omega t + phi
+            c, s = math.cos(phi), math.sin(phi)
+            fc = w**2 * (c * ops.fu1 + s * ops.fq1)
+            fs = w**2 * (c * ops.fq1 - s * ops.fu1)
+    else:
         if w:
-            # g_y = -g sin(wt + phi) = gy cos(wt) - g cos(phi) sin(wt), g_z likewise
-            fc = gy * ops.Fy + gz * ops.Fz
-            fs = -gravity * math.cos(phi) * ops.Fy + gravity * math.sin(phi) * ops.Fz
-        else:
-            f0 = gy * ops.Fy + gz * ops.Fz
+            f0 = w**2 * (ops.fc1 + ops.fu1) + (w * external * ops.fd1 if external else 0.0)
+        if gravity:
+            gy, gz = -gravity * math.sin(phi), -gravity * math.cos(phi)
+            if w:
+                # g_y = -g sin(wt + phi) = gy cos(wt) - g cos(phi) sin(wt), g_z likewise
+                fc = gy * ops.Fy + gz * ops.Fz
+                fs = -gravity * math.cos(phi) * ops.Fy + gravity * math.sin(phi) * ops.Fz
+            else:
+                f0 = gy * ops.Fy + gz * ops.Fz
     return LinearSystem(ops.M, C, sp.csr_matrix(Q), f0, fc, fs, w)
 
 
@@ -144,4 +174,4 @@ def scene_system(scene, ops: RotorOperators, speed_hz: float | None = None) -> L
     """The system of a scene's ``[rotation]`` and ``[damping]`` (speed overridable)."""
     rot, damp = scene["rotation"], scene["damping"]
     return linear_system(ops, rot["speed_hz"] if speed_hz is None else speed_hz, rot["gravity"],
-                         rot["phase_deg"], tuple(damp["rayleigh"]), damp["external"])
+                         rot["phase_deg"], tuple(damp["rayleigh"]), damp["external"], rot["frame"])

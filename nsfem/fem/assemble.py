@@ -24,7 +24,7 @@ from skfem import Basis, ElementLineHermite, ElementLineP1, ElementLineP2, MeshL
 from ..errors import SceneError
 from ..mesh import StackMesh, generate, read
 from ..stack import BeamStack
-from . import forms, hermite
+from . import components, forms, hermite
 from .constraints import constraint_basis, project
 
 AXIAL_ELEMENTS = {"P1": ElementLineP1, "P2": ElementLineP2}
@@ -60,6 +60,9 @@ class FEModel:
     T: sp.csr_matrix
     M: sp.csr_matrix
     K: sp.csr_matrix
+    #: the bearings' part of K_full and their damping (full coordinates; zero without bearings)
+    K_bearing: sp.csr_matrix | None = None
+    C_bearing: sp.csr_matrix | None = None
 
     @property
     def n_full(self) -> int:
@@ -187,12 +190,20 @@ class _Numbering:
 
 
 def assemble(stack: BeamStack, mesh: StackMesh, axial: str = "P1") -> FEModel:
-    """Assemble M, K of a validated stack on a mesh and eliminate supports and junctions."""
+    """Assemble M, K of a validated stack on a mesh and eliminate supports and junctions.
+
+    M and K are the structure's: the shaft's with the disks' mass and inertia and the bearings'
+    stiffness (:mod:`nsfem.fem.components`), so modes and reductions see the rotor as built."""
     spaces = segment_spaces(stack, mesh, axial)
     M_full, K_full = mass_stiffness(stack, spaces)
-    C, prefer = support_and_junction_rows(_Numbering(spaces, M_full.shape[0]), stack)
-    T, _ = constraint_basis(C, M_full.shape[0], prefer)
-    return FEModel(stack, mesh, axial, spaces, M_full, K_full, T, project(T, M_full), project(T, K_full))
+    n = M_full.shape[0]
+    numbering = _Numbering(spaces, n)
+    Kb, Cb = components.bearing_matrices(stack, numbering.dof, n)
+    M_full = (M_full + components.disk_mass(stack, numbering.dof, n)).tocsr()
+    K_full = (K_full + Kb).tocsr()
+    C, prefer = support_and_junction_rows(numbering, stack)
+    T, _ = constraint_basis(C, n, prefer)
+    return FEModel(stack, mesh, axial, spaces, M_full, K_full, T, project(T, M_full), project(T, K_full), Kb, Cb)
 
 
 def build_model(scene) -> FEModel:

@@ -37,7 +37,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 import scipy.sparse as sp
 
-from . import hermite
+from . import components, hermite
 from .assemble import FEModel
 from .constraints import project
 
@@ -59,6 +59,15 @@ class RotorOperators:
     fd1: np.ndarray
     Fy: np.ndarray
     Fz: np.ndarray
+    # rotor components (design section 8; zero without them) and the inertial frame's operators
+    Kb: sp.csr_matrix            # the bearings' part of K0 (Rayleigh's beta K damps the shaft only)
+    Cb: sp.csr_matrix            # bearing damping
+    CbJ: sp.csr_matrix           # C_b J: a fixed bearing's damping seen from the rotating frame (x Omega)
+    MJ: sp.csr_matrix            # M J and (K0 - Kb) J: rotating internal damping seen from the inertial
+    KJ: sp.csr_matrix            # frame (x -Omega alpha, -Omega beta)
+    Gp1: sp.csr_matrix           # inertial frame: gyroscopic couple of the spin (x Omega), skew
+    fu1: np.ndarray              # unbalance load per Omega^2 along its rotating-frame direction
+    fq1: np.ndarray              # ... and turned a quarter forwards (inertial frame's harmonic)
     basis: sp.csr_matrix | np.ndarray | None = None
 
     @property
@@ -89,7 +98,7 @@ def rotor_operators(model: FEModel, basis: sp.spmatrix | None = None) -> RotorOp
 def full_operators(model: FEModel) -> RotorOperators:
     """The operators in full finite-element coordinates (before supports and junctions)."""
     n = model.n_full
-    names = ("G1", "Kc1", "De1", "P1")
+    names = ("G1", "Kc1", "De1", "P1", "Gp1")
     rows, cols, vals = ({k: [] for k in names} for _ in range(3))
     vec = {k: np.zeros(n) for k in ("fc1", "fd1", "Fy", "Fz")}
 
@@ -124,6 +133,24 @@ def full_operators(model: FEModel) -> RotorOperators:
         vec["fd1"][W] += -yc * load
         vec["Fy"][V] += rA * load
         vec["Fz"][W] += rA * load
+        if model.stack.theory == "rayleigh":
+            # the spin of the sections: polar inertia rho (I_y + I_z) per length, on the slopes
+            Ip = s.rho * (s.I_y + s.I_z) * space.unit["bending_stretch"]
+            put("Gp1", V, W, Ip)
+            put("Gp1", W, V, -Ip)
     mats = {k: sp.csr_matrix((np.concatenate(vals[k]), (np.concatenate(rows[k]), np.concatenate(cols[k]))),
-                             shape=(n, n)) for k in rows}
-    return RotorOperators(model.M_full, model.K_full, **mats, **vec)
+                             shape=(n, n)) if vals[k] else sp.csr_matrix((n, n)) for k in rows}
+    dof = model.dof
+    G, Kc, Fy, Fz, fc = components.disk_rotating(model.stack, dof, n)
+    mats["G1"] = (mats["G1"] + G).tocsr()
+    mats["Kc1"] = (mats["Kc1"] + Kc).tocsr()
+    mats["Gp1"] = (mats["Gp1"] + components.disk_gyroscopic(model.stack, dof, n)).tocsr()
+    vec["Fy"] += Fy
+    vec["Fz"] += Fz
+    vec["fc1"] += fc
+    Kb = model.K_bearing if model.K_bearing is not None else sp.csr_matrix((n, n))
+    Cb = model.C_bearing if model.C_bearing is not None else sp.csr_matrix((n, n))
+    J = components.lateral_turn(model.spaces, n)
+    fu1, fq1 = components.unbalance_loads(model.stack, dof, n)
+    return RotorOperators(model.M_full, model.K_full, **mats, **vec, Kb=Kb, Cb=Cb, CbJ=(Cb @ J).tocsr(),
+                          MJ=(model.M_full @ J).tocsr(), KJ=((model.K_full - Kb) @ J).tocsr(), fu1=fu1, fq1=fq1)
