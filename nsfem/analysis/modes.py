@@ -25,7 +25,7 @@ import scipy.sparse.linalg as spla
 from ..errors import NsfemError
 from ..fem.assemble import FEModel
 from ..fem.constraints import project
-from ..fem.rigid import admissible, rigid_fields
+from ..fem.rigid import rigid_modes
 
 CONTACT_STATES = ("open", "closed")
 #: Models up to this many dofs are solved with dense LAPACK (see :func:`eigenpairs`).
@@ -159,7 +159,7 @@ def natural_frequencies(model: FEModel, contact: str = "open", count: int = 10, 
         raise NsfemError(f"count must be a positive integer, got {count!r}")
     T = contact_basis(model, contact, reduction)
     K, M = project(T, model.K_full), project(T, model.M_full)
-    lam, X = eigenpairs(K, M, int(count), admissible(T, rigid_fields(model)))
+    lam, X = eigenpairs(K, M, int(count), rigid_modes(model, T))
     freqs = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * np.pi)
     shapes = np.asarray(T @ X)
     ndof = model.n if reduction is None else reduction.ndof

@@ -75,3 +75,18 @@ def admissible(T: sp.spmatrix, R: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     keep = s < tol
     C = np.linalg.solve(Rr, Vt[keep].T)
     return Q @ C
+
+
+def rigid_modes(model, T: sp.spmatrix) -> np.ndarray:
+    """Basis (in q, q_full = T q) of the rigid motions the constraints admit and the bearings leave free
+    of strain energy (a shaft on bearings keeps only the motions they do not resist, e.g. axial travel
+    without a thrust bearing)."""
+    A = admissible(T, rigid_fields(model))
+    Kb = getattr(model, "K_bearing", None)
+    if A.shape[1] == 0 or Kb is None or Kb.nnz == 0:
+        return A
+    B = np.asarray(T @ A)
+    E = B.T @ (Kb @ B)
+    w, V = np.linalg.eigh((E + E.T) / 2)
+    scale = float(abs(Kb).max()) * float(np.abs(B).max()) ** 2
+    return A @ V[:, w <= 1e-12 * scale]

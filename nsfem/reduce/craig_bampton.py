@@ -29,7 +29,7 @@ from ..analysis.modes import eigenpairs
 from ..contact.kinematics import gap_jacobian, slip_jacobian
 from ..errors import NsfemError
 from ..fem.constraints import constraint_basis, project
-from ..fem.rigid import admissible, rigid_fields
+from ..fem.rigid import rigid_modes
 from . import Reduction
 
 #: Fixed-interface modes whose frequencies agree to this relative tolerance with the last
@@ -54,7 +54,7 @@ def contact_functionals(model) -> sp.csr_matrix:
 
 def _restrain_rigid(model, C: sp.csr_matrix) -> sp.csr_matrix:
     """Add unit rows (single dofs) until no rigid motion leaves every row of C at zero."""
-    R = admissible(model.T, rigid_fields(model))
+    R = rigid_modes(model, model.T)
     if R.shape[1] == 0:
         return C
     n = model.n

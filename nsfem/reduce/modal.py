@@ -6,7 +6,7 @@ import numpy as np
 
 from ..analysis.modes import eigenpairs
 from ..errors import NsfemError
-from ..fem.rigid import admissible, rigid_fields
+from ..fem.rigid import rigid_modes
 from . import Reduction
 
 
@@ -24,6 +24,6 @@ class ModalTruncation(Reduction):
         m = self.model
         if self.modes > m.n:
             raise NsfemError(f"reduction.modes = {self.modes} exceeds the model's {m.n} dofs")
-        lam, X = eigenpairs(m.K, m.M, self.modes, admissible(m.T, rigid_fields(m)))
+        lam, X = eigenpairs(m.K, m.M, self.modes, rigid_modes(m, m.T))
         return np.asarray(X), {"modes": self.modes,
                                "max_frequency_hz": float(np.sqrt(max(lam[-1], 0.0)) / (2 * np.pi))}

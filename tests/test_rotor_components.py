@@ -1,0 +1,251 @@
+"""Rotors as engineers build them: circular sections, disks, bearings, unbalance, both frames.
+
+Each check is against a closed form or an independent model (design section 8, docs/theory.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from nsfem import build_model, natural_frequencies
+from nsfem.errors import SceneError
+from nsfem.fem.rotating import rotor_operators
+from nsfem.scene import scene_from_tree
+from nsfem.system import linear_system
+
+E, RHO = 2.1e11, 7850.0
+
+
+def rotor_tree(elements=40, diameter=0.05, inner=0.0, supports="pinned-pinned", length=1.0, rho=RHO, **extra):
+    tree = {"shaft": {"length": length, "section": "circle", "diameter": diameter, "inner_diameter": inner,
+                      "E": E, "rho": rho, "supports": supports},
+            "mesh": {"elements": elements}, "reduction": {"method": "none"},
+            "rotation": {"speed_hz": 0.0, "gravity": 0.0}}
+    tree.update(extra)
+    return tree
+
+
+def model_of(tree):
+    return build_model(scene_from_tree(tree))
+
+
+def state_eigs(sys_) -> np.ndarray:
+    M, C, Q = (A.toarray() if A is not None else None for A in (sys_.M, sys_.C, sys_.Q))
+    n = M.shape[0]
+    C = np.zeros((n, n)) if C is None else C
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, Q), -np.linalg.solve(M, C)]])
+    return np.linalg.eigvals(A)
+
+
+@pytest.mark.parametrize("inner", [0.0, 0.03])
+def test_circular_shaft_against_euler_bernoulli(inner):
+    D, L, n_el = 0.05, 1.0, 40
+    model = model_of(rotor_tree(n_el, D, inner))
+    A, I = math.pi / 4 * (D**2 - inner**2), math.pi / 64 * (D**4 - inner**4)
+    f = natural_frequencies(model, count=8).frequencies_hz
+    lateral = np.sort(f)[:6]                       # three bending pairs (V and W alike); axial modes are higher
+    for k in range(3):
+        exact = (k + 1) ** 2 * math.pi / (2 * L**2) * math.sqrt(E * I / (RHO * A))
+        # Hermite cubics: relative error of w^2 about (k h)^4 / 720 (k = n pi / L, h = L / n_el); 2x margin
+        tol = 2 * ((k + 1) * math.pi / n_el) ** 4 / 720
+        assert lateral[2 * k] == pytest.approx(exact, rel=tol)
+        # y and z alike, up to the shift-invert Lanczos's own accuracy on a repeated pair (1e-9: it holds
+        # eigenvalues to about 1e-10 of the spectrum's bottom, analysis/modes.py)
+        assert lateral[2 * k + 1] == pytest.approx(lateral[2 * k], rel=1e-9)
+
+
+def test_disk_on_a_light_shaft_is_the_jeffcott_rotor():
+    D, L, m = 0.02, 0.8, 5.0
+    rho = 1e-3   # shaft mass 2e-7 of the disk's: its effect on the frequency ~ 17/35 of that ratio
+    tree = rotor_tree(20, D, rho=rho, length=L, disk=[{"x": L / 2, "mass": m, "polar_inertia": 0.01,
+                                                         "diametral_inertia": 0.005}])
+    f = natural_frequencies(model_of(tree), count=2).frequencies_hz
+    k = 48 * E * (math.pi * D**4 / 64) / L**3      # midspan stiffness; the mode's slope there is zero
+    exact = math.sqrt(k / m) / (2 * math.pi)
+    # a point load's deflection is cubic per element, so Hermite elements hold k exactly; the residue is
+    # the shaft's mass (ratio 2e-7) and round-off
+    np.testing.assert_allclose(f, exact, rtol=1e-6)
+
+
+def disk_tip_closed_form(m, Id, Ip, k11, k12, k22, spin):
+    """Whirl frequencies of a disk on a massless cantilever tip, gyroscopic (inertial frame): with
+    z = v + i w and theta = V' + i W' ~ e^{i w t}, det [[k11 - m w^2, k12], [k12, k22 - Id w^2 + Ip Omega w]]
+    = 0; w > 0 whirls forwards (the sense of the spin), w < 0 backwards."""
+    poly = np.polymul([-m, 0, k11], [-Id, Ip * spin, k22])
+    poly = np.polysub(poly, [k12 * k12])
+    w = np.roots(poly).real
+    return np.sort(w[w > 0]), np.sort(-w[w < 0])
+
+
+def test_gyroscopic_splitting_of_a_disk_on_a_cantilever():
+    D, L, m, Id, Ip = 0.02, 0.5, 4.0, 0.02, 0.04
+    tree = rotor_tree(16, D, rho=1e-3, length=L, supports="clamped-free",
+                      disk=[{"x": L, "mass": m, "polar_inertia": Ip, "diametral_inertia": Id}],
+                      rotation={"speed_hz": 0.0, "gravity": 0.0, "frame": "inertial"})
+    model = model_of(tree)
+    ops = rotor_operators(model)
+    EI = E * math.pi * D**4 / 64
+    # tip (w, w') of a clamped beam: EI / L^3 [[12, -6 L], [-6 L, 4 L^2]]
+    k11, k12, k22 = 12 * EI / L**3, -6 * EI / L**2, 4 * EI / L
+    for spin in (0.0, 300.0, 3000.0):
+        lam = state_eigs(linear_system(ops, spin / (2 * math.pi), frame="inertial"))
+        w = np.sort(np.abs(lam.imag[lam.imag > 0]))[:4]
+        fwd, bwd = disk_tip_closed_form(m, Id, Ip, k11, k12, k22, spin)
+        # the light shaft (mass 1e-6 of the disk's) and round-off of the 1e6-wide spectrum: 1e-5
+        np.testing.assert_allclose(w, np.sort(np.concatenate([fwd, bwd])), rtol=1e-5)
+
+
+def test_free_disk_nutates_forwards():
+    # the whirl sense of the inertial gyroscopic term: a disk on a soft cantilever at high spin nutates
+    # at Ip Omega / Id in the sense of the spin (+y towards +z)
+    D, L, m, Id, Ip = 0.01, 0.5, 4.0, 0.02, 0.04
+    tree = rotor_tree(8, D, rho=1e-3, length=L, supports="clamped-free",
+                      disk=[{"x": L, "mass": m, "polar_inertia": Ip, "diametral_inertia": Id}],
+                      rotation={"speed_hz": 0.0, "gravity": 0.0, "frame": "inertial"})
+    model = model_of(tree)
+    ops = rotor_operators(model)
+    spin = 2e4
+    sys_ = linear_system(ops, spin / (2 * math.pi), frame="inertial")
+    M, C, Q = sys_.M.toarray(), sys_.C.toarray(), sys_.Q.toarray()
+    n = M.shape[0]
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, Q), -np.linalg.solve(M, C)]])
+    lam, X = np.linalg.eig(A)
+    j = int(np.argmin(np.abs(lam - 1j * Ip * spin / Id)))
+    assert lam[j].imag == pytest.approx(Ip * spin / Id, rel=1e-3)   # the tip's stiffness shifts it by ~1e-4
+    vs, ws = model.dof("intact_0", "V'", L), model.dof("intact_0", "W'", L)
+    col = np.asarray(model.T.T @ np.eye(model.n_full)[:, [vs, ws]])   # full dof -> q via T^T (T picks dofs)
+    v, w = col[:, 0] @ X[:n, j], col[:, 1] @ X[:n, j]
+    # z = V' + i W' ~ e^{+i w t}: w = -i v for a forward whirl (V' = cos, W' = sin)
+    assert abs(w + 1j * v) < 1e-6 * abs(v)
+
+
+def equivalent_rotor(elements=8):
+    """An axisymmetric rotor with everything both frames can carry: disks with I_p != 2 I_d, isotropic
+    bearings with cross-coupling and damping, internal Rayleigh and external damping."""
+    return rotor_tree(elements, 0.04, supports="free-free", length=1.2,
+                      disk=[{"x": 0.4, "mass": 12.0, "polar_inertia": 0.2, "diametral_inertia": 0.12},
+                            {"x": 0.9, "outer_diameter": 0.25, "width": 0.04}],
+                      bearing=[{"x": 0.0, "kyy": 2e6, "kzz": 2e6, "kyz": 3e5, "kzy": -3e5, "cyy": 400.0,
+                                "czz": 400.0, "cyz": 50.0, "czy": -50.0, "kxx": 1e7},
+                               {"x": 1.2, "kyy": 3e6, "kzz": 3e6, "cyy": 300.0, "czz": 300.0}],
+                      damping={"rayleigh": [0.5, 2e-5], "external": 3.0},
+                      beam={"theory": "rayleigh"})
+
+
+@pytest.mark.parametrize("speed_hz", [7.0, 55.0])
+def test_rotating_and_inertial_frames_agree(speed_hz):
+    """An axisymmetric rotor seen from both frames: every inertial eigenvalue lambda appears in the
+    rotating frame as lambda - i Omega s, s = +1 for a forward lateral mode, -1 backward, 0 axial.
+    This ties together the disks' Coriolis, centrifugal and gyroscopic terms, the bearings' damping
+    seen from the rotating frame and the internal damping seen from the inertial one."""
+    model = model_of(equivalent_rotor())
+    ops = rotor_operators(model)
+    rd = ((0.5, 2e-5), 3.0)
+    lam_i = state_eigs(linear_system(ops, speed_hz, rayleigh=rd[0], external=rd[1], frame="inertial"))
+    lam_r = state_eigs(linear_system(ops, speed_hz, rayleigh=rd[0], external=rd[1], frame="rotating"))
+    w = 2 * math.pi * speed_hz
+    scale = np.abs(lam_i).max()
+    used = np.zeros(lam_r.size, dtype=bool)
+    for lam in lam_i:
+        cand = np.array([lam - 1j * w * s for s in (1, -1, 0)])
+        d = np.abs(lam_r[None, :] - cand[:, None])
+        d[:, used] = np.inf
+        best = np.unravel_index(np.argmin(d), d.shape)
+        # eigenvalues of a 2n = 108 state matrix spanning 1e5: a few hundred ulps of its norm
+        assert d[best] < 1e-9 * scale, (lam, d[best])
+        used[best[1]] = True
+
+
+def jeffcott(frame, speed_hz, beta, c_e, unbalance=(), rho=1e-3, phase_deg=0.0):
+    """A disk of 5 kg at the middle of a light pinned-pinned shaft, a damper c_e to ground at the disk."""
+    D, L, m = 0.02, 0.8, 5.0
+    tree = rotor_tree(10, D, rho=rho, length=L,
+                      disk=[{"x": L / 2, "mass": m}],
+                      bearing=[{"x": L / 2, "cyy": c_e, "czz": c_e}],
+                      unbalance=list(unbalance),
+                      rotation={"speed_hz": speed_hz, "gravity": 0.0, "frame": frame, "phase_deg": phase_deg},
+                      damping={"rayleigh": [0.0, beta]})
+    model = model_of(tree)
+    k = 48 * E * (math.pi * D**4 / 64) / L**3
+    return model, rotor_operators(model), k, m
+
+
+@pytest.mark.parametrize("frame", ["inertial", "rotating"])
+def test_internal_damping_destabilizes_beyond_the_jeffcott_threshold(frame):
+    """Jeffcott rotor with internal (rotating) damping c_i = beta k and external c_e: stable below
+    Omega = w_n (1 + c_e / c_i), unstable above (a closed form)."""
+    beta, c_e = 1e-4, 20.0
+    model, ops, k, m = jeffcott(frame, 0.0, beta, c_e)
+    wn = math.sqrt(k / m)
+    threshold = wn * (1 + c_e / (beta * k))
+    growth = []
+    for f in (0.98, 1.02):
+        w = f * threshold
+        lam = state_eigs(linear_system(ops, w / (2 * math.pi), rayleigh=(0.0, beta), frame=frame))
+        growth.append(lam.real.max())
+    # the light shaft's own modes (1e7 rad/s) are damped by beta; 2 % off the threshold the disk's
+    # growth rate is about 1e-2 (c_i / 2 m) w_n, far beyond the shaft's effect (mass ratio 2e-7)
+    assert growth[0] < 0 < growth[1]
+
+
+def test_unbalance_response_in_both_frames():
+    """Jeffcott rotor with an unbalance and a damper: |z| = m e Omega^2 / sqrt((k - m Omega^2)^2 +
+    (c Omega)^2); in the rotating frame a stationary deflection, in the inertial one a forward circle."""
+    me, c_e, speed_hz, phase, turned = 1e-4, 40.0, 30.0, 30.0, 50.0   # turned: the rotor's angle at t = 0
+    w = 2 * math.pi * speed_hz
+    for frame in ("rotating", "inertial"):
+        model, ops, k, m = jeffcott(frame, speed_hz, 0.0, c_e, [{"x": 0.4, "magnitude": me, "phase_deg": phase}])
+        sys_ = linear_system(ops, speed_hz, phase_deg=turned, frame=frame)
+        exact = me * w**2 / math.hypot(k - m * w**2, c_e * w)
+        lag = math.atan2(c_e * w, k - m * w**2)        # the response trails the force by this angle
+        v, wd = model.dof("intact_0", "V", 0.4), model.dof("intact_0", "W", 0.4)
+        pick = np.asarray(model.T.T @ np.eye(model.n_full)[:, [v, wd]])
+        if frame == "rotating":
+            y, z = pick.T @ np.linalg.solve(sys_.Q.toarray(), sys_.f0)
+            r, angle = math.hypot(y, z), math.atan2(z, y) + math.radians(turned)   # the frame's angle added
+        else:
+            # the harmonic response Re(X e^{i w t}) to f = fc cos + fs sin = Re((fc - i fs) e^{i w t})
+            H = -w**2 * sys_.M.toarray() + 1j * w * sys_.C.toarray() + sys_.Q.toarray()
+            y, z = pick.T @ np.linalg.solve(H, sys_.fc - 1j * sys_.fs)
+            r, angle = abs(y), float(np.angle(y))     # at t = 0: (Re y, Re z) = r (cos, sin) of the angle
+            assert abs(z + 1j * y) < 1e-9 * r          # z = -i y: a forward circle
+        # mass ratio 2e-7, and the point load's static deflection is exact on Hermite elements
+        assert r == pytest.approx(exact, rel=1e-5)
+        assert math.remainder(angle - (math.radians(phase + turned) - lag), 2 * math.pi) == pytest.approx(0.0, abs=1e-5)
+
+
+def test_frames_refuse_what_they_cannot_carry():
+    aniso = [{"x": 0.0, "kyy": 1e6, "kzz": 2e6}, {"x": 1.0, "kyy": 1e6, "kzz": 1e6}]
+    spin = {"speed_hz": 10.0, "gravity": 0.0}
+    with pytest.raises(SceneError, match="rotation.frame.*bearing.0 is not isotropic.*use rotation.frame"):
+        scene_from_tree(rotor_tree(bearing=aniso, supports="free-free", rotation=spin))
+    rect = rotor_tree(bearing=aniso, supports="free-free", rotation=spin)
+    rect["shaft"].update(section="rectangle", width=0.03, height=0.02)
+    with pytest.raises(SceneError, match="periodic coefficients in both frames"):
+        scene_from_tree(rect)
+    rect["rotation"]["frame"] = "inertial"
+    with pytest.raises(SceneError, match="needs an axisymmetric rotor"):
+        scene_from_tree(rect)
+    # not spinning: the frames coincide and any bearing is fine
+    scene_from_tree(rotor_tree(bearing=aniso, supports="free-free"))
+    with pytest.raises(SceneError, match="disk.0.mass: a disk needs a mass"):
+        scene_from_tree(rotor_tree(disk=[{"x": 0.5}]))
+    with pytest.raises(SceneError, match="disk.0.x: x=2.0 lies outside"):
+        scene_from_tree(rotor_tree(disk=[{"x": 2.0, "mass": 1.0}]))
+    with pytest.raises(SceneError, match="bearing.0.kyy: the symmetric part"):
+        scene_from_tree(rotor_tree(bearing=[{"x": 0.0, "kyy": -1.0}]))
+    with pytest.raises(SceneError, match="shaft.inner_diameter"):
+        scene_from_tree(rotor_tree(inner=0.05))
+
+
+def test_disk_from_geometry():
+    tree = rotor_tree(disk=[{"x": 0.5, "outer_diameter": 0.3, "inner_diameter": 0.05, "width": 0.04, "rho": 7800.0}])
+    d = scene_from_tree(tree).stack.disks[0]
+    m = 7800.0 * math.pi / 4 * (0.3**2 - 0.05**2) * 0.04
+    assert d.mass == pytest.approx(m, rel=1e-14)
+    assert d.polar == pytest.approx(m * (0.3**2 + 0.05**2) / 8, rel=1e-14)
+    assert d.diametral == pytest.approx(d.polar / 2 + m * 0.04**2 / 12, rel=1e-14)
