@@ -213,24 +213,36 @@ def cmd_campbell(args) -> int:
     red = scene_reduction(scene, model)
     rep = campbell_report(scene, model, speeds, args.count, red)
     res, bands = rep.pop("_results"), rep.pop("_bands")
-    from .analysis.campbell import supercritical_warning
+    from .analysis.campbell import supercritical_warning, unstable_warning
 
-    warning = supercritical_warning(scene["rotation"]["speed_hz"], rep["instability_hz"]["open"])
+    inertial = rep["frame"] == "inertial"
+    speed = scene["rotation"]["speed_hz"]
+    warning = (unstable_warning(speed, rep["instability_hz"]["open"], rep["instability_bands_hz"]["open"])
+               if inertial else supercritical_warning(speed, rep["instability_hz"]["open"]))
     if warning:
         print(f"nsfem campbell: warning: {warning}", file=sys.stderr)
 
     outputs = [str(campbell_plot(t, res["open"].speeds_hz, res["open"].frequencies_hz,
-                                 res["closed"].frequencies_hz, rep["gravity_resonances_hz"], bands,
-                                 scene["title"])) for t in targets]
+                                 res["closed"].frequencies_hz,
+                                 rep["critical_speeds_hz"] if inertial else rep["gravity_resonances_hz"], bands,
+                                 scene["title"], whirl=res["open"].whirl)) for t in targets]
     payload = {"title": scene["title"], **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
                "outputs": outputs}
     fmt = ", ".join
     lines = [scene["title"], f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
-             f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz",
-             "gravity resonances [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["open"]),
-             "                       closed: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["closed"]),
-             "divergence speeds [Hz]   open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
-             "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
+             f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
+    if inertial:
+        lines += ["critical speeds [Hz]     open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
+                      rep["critical_speeds_hz"]["open"], rep["critical_whirl"]["open"])),
+                  "                       closed: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
+                      rep["critical_speeds_hz"]["closed"], rep["critical_whirl"]["closed"])),
+                  "instability onsets [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
+                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
+    else:
+        lines += ["gravity resonances [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["open"]),
+                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["closed"]),
+                  "divergence speeds [Hz]   open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
+                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
     lines += [f"wrote {o}" for o in outputs]
     _emit(args, payload, "\n".join(lines))
     return 0

@@ -543,12 +543,21 @@ def default_scene_path() -> Path:
     return Path(str(resources.files("nsfem.scenes").joinpath("default.toml")))
 
 
+def shipped_scenes() -> dict[str, Path]:
+    """The scenes shipped in the package, by name (``nsfem run ross_example``)."""
+    root = resources.files("nsfem.scenes")
+    return {Path(str(f)).stem: Path(str(f)) for f in root.iterdir() if str(f).endswith(".toml")}
+
+
 def load_scene(path: str | Path | None = None, overrides: Iterable[str] = (),
                cwd: Path | None = None) -> Scene:
-    """Read, override and validate a scene; ``path=None`` is the shipped default scene."""
+    """Read, override and validate a scene; ``path=None`` is the shipped default scene, and a name
+    that is no file but a shipped scene's (:func:`shipped_scenes`) is that scene."""
     p = Path(path) if path is not None else default_scene_path()
+    if not p.exists() and path is not None and str(path) in shipped_scenes():
+        p = shipped_scenes()[str(path)]
     if not p.exists():
-        raise SceneError("scene", f"file not found: {p}")
+        raise SceneError("scene", f"file not found: {p} (shipped scenes: {', '.join(sorted(shipped_scenes()))})")
     if not p.is_file():
         raise SceneError("scene", f"not a file: {p}")
     try:

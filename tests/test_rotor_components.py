@@ -249,3 +249,82 @@ def test_disk_from_geometry():
     assert d.mass == pytest.approx(m, rel=1e-14)
     assert d.polar == pytest.approx(m * (0.3**2 + 0.05**2) / 8, rel=1e-14)
     assert d.diametral == pytest.approx(d.polar / 2 + m * 0.04**2 / 12, rel=1e-14)
+
+
+#: ross.rotor_example() rebuilt with ShaftElement(shear_effects=False, rotary_inertia=True, gyroscopic=True),
+#: ROSS 2.3.0 (pip ross-rotordynamics with plotly<6), rotor.run_modal(speed, num_modes=16).wd, the lowest
+#: 8 lateral whirl frequencies [rad/s] (its torsional mode at 774.35 rad/s left out); whirl senses from
+#: ROSS's own rule on each mode's node orbits. How: docs/validation.md, "ROSS's example rotor".
+ROSS_WD = {
+    0.0: [91.8492060360, 96.3499118862, 274.9147854489, 296.9516346243, 723.2783736375, 765.3844447649,
+          1075.7316346736, 1109.7058610250],
+    200.0: [91.8101438341, 96.3779790148, 272.9984468013, 298.8227944899, 705.3499098300, 781.9692372490,
+            1074.6224854335, 1110.4003216187],
+    500.0: [91.6123493171, 96.5180583638, 265.7141976607, 305.8725781451, 658.5167860192, 822.0463482465,
+            1069.3440596147, 1113.4973043892],
+    1000.0: [90.9804405140, 96.9439707375, 250.3497522099, 320.4354592869, 577.0132627755, 882.8651850937,
+             1054.1043657953, 1120.8990868498],
+}
+
+
+def test_ross_example_rotor_whirl_frequencies():
+    """The shipped ross_example scene on ROSS's own mesh (6 Rayleigh elements): the same element, so
+    the same numbers up to the eigen solvers' round-off (ROSS's printed to 1e-10 rad/s; the 8 x 8 tables
+    agree to 3e-12 here, 1e-9 leaves room for other BLAS kernels; a physics change, or 60 elements
+    instead of ROSS's 6, moves them by 1e-6 to 5e-4)."""
+    from nsfem.analysis.campbell import campbell
+    from nsfem.fem.components import lateral_turn
+    from nsfem.scene import load_scene
+
+    scene = load_scene("ross_example", ["mesh.elements=6", "reduction.method=none"])
+    model = build_model(scene)
+    ops = rotor_operators(model)
+    speeds = np.array(sorted(ROSS_WD)) / (2 * math.pi)
+    res = campbell(ops, speeds, 9, frame="inertial", turn=lateral_turn(model.spaces, model.n_full))
+    for i, w in enumerate(sorted(ROSS_WD)):
+        lateral = res.whirl[i] != 2                      # our model has the axial mode (thrust bearing) too
+        got = 2 * math.pi * res.frequencies_hz[i][lateral][:8]
+        np.testing.assert_allclose(got, ROSS_WD[w], rtol=1e-9)
+        senses = res.whirl[i][lateral][:8]
+        # at rest every mode is planar; spinning, each pair splits into backward (lower) and forward
+        assert list(senses) == ([0] * 8 if w == 0 else [-1, 1] * 4)
+
+
+def test_instability_onset_and_critical_speed_of_the_jeffcott_rotor():
+    from nsfem.analysis.campbell import campbell, critical_speeds, instability_onsets
+    from nsfem.fem.components import lateral_turn
+
+    beta, c_e = 1e-4, 20.0
+    # a shaft of density 1 (mass 5e-5 of the disk's): a lighter one's stiff modes (3e8 rad/s) would put
+    # the growth rates' round-off resolution sqrt(eps) w_max above the 0.7 1/s measured here
+    model, ops, k, m = jeffcott("inertial", 0.0, beta, c_e, rho=1.0)
+    wn = math.sqrt(k / m)
+    threshold_hz = wn * (1 + c_e / (beta * k)) / (2 * math.pi)
+    speeds = np.linspace(0.0, 2 * threshold_hz, 9)
+    res = campbell(ops, speeds, 2, (0.0, beta), 0.0, frame="inertial")
+    onsets = instability_onsets(ops, speeds, res.growth_per_s, 2, (0.0, beta), 0.0)
+    # bisection to 1e-6 of the speed; the shaft's mass (ratio 5e-5, about 17/35 of it moving with the
+    # disk) shifts w_n and the closed form by about 1e-5
+    np.testing.assert_allclose(onsets, [threshold_hz], rtol=1e-4)
+    crit, whirl = critical_speeds(ops, lateral_turn(model.spaces, model.n_full))
+    # the disk sits at midspan (no tilt): both whirl senses at w_n; the shaft's own modes far above
+    np.testing.assert_allclose(crit[:2], wn / (2 * math.pi), rtol=1e-4)
+    assert sorted(whirl[:2]) in ([-1, 1], [0, 0])
+
+
+def test_shipped_scene_by_name_and_the_inertial_campbell_json(tmp_path, capsys):
+    import json
+
+    from nsfem import cli
+
+    assert cli.main(["campbell", "ross_example", "--speeds", "0:100:3", "--json",
+                     "--png", str(tmp_path / "c.png")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["frame"] == "inertial" and out["gravity_resonances_hz"] == {"open": [], "closed": []}
+    assert out["whirl"][0] == ["planar", "planar", "axial", "planar", "planar", "planar"]
+    assert out["whirl"][1][:2] == ["backward", "forward"]
+    # the first critical speeds lie near the lowest whirl frequencies (15-16 Hz, ROSS: 91.8 and 96.3 rad/s)
+    assert out["critical_speeds_hz"]["open"][0] == pytest.approx(14.62, abs=0.01)
+    with pytest.raises(SceneError, match="shipped scenes: .*ross_example"):
+        from nsfem.scene import load_scene
+        load_scene("no_such_scene")

@@ -170,9 +170,13 @@ def scene_stationary(scene, model=None, reduction=None) -> Stationary:
     cs = ContactSet.from_model(model, red)
     st = stationary(system.Q, system.f0, cs)
     rot = scene["rotation"]
+    inertial = rot["frame"] == "inertial"
+    unbalanced = any(u.magnitude for u in model.stack.unbalances)
     loads = []
-    if rot["speed_hz"]:
+    if rot["speed_hz"] and not inertial:
         loads.append("centrifugal")
+        if unbalanced:
+            loads.append("unbalance")
         if scene["damping"]["external"]:
             loads.append("external-damping drag")
     elif rot["gravity"]:
@@ -184,9 +188,12 @@ def scene_stationary(scene, model=None, reduction=None) -> Stationary:
 
     text = stationary_warning(st, model, red.T)
     st.info["warnings"] = [text] if text else []
-    if rot["speed_hz"] and rot["gravity"]:
+    if rot["speed_hz"] and rot["gravity"] and not inertial:
         st.info["note"] = ("gravity is harmonic in the rotating frame and is not a stationary load; "
                            "set rotation.speed_hz = 0 for the state at rest under gravity")
+    elif rot["speed_hz"] and unbalanced and inertial:
+        st.info["note"] = ("the unbalance is harmonic in the inertial frame and is not a stationary load; "
+                           "rotation.frame = \"rotating\" (isotropic bearings) makes it one")
     return st
 
 

@@ -1,4 +1,4 @@
-"""Campbell diagram: rotating-frame frequencies against speed, 1x line, resonances, bands."""
+"""Campbell diagram: frequencies against speed (rotating frame, or inertial-frame whirl), 1x line, resonances, bands."""
 
 from __future__ import annotations
 
@@ -10,8 +10,12 @@ from .common import figure, save
 
 
 def campbell_plot(path: str | Path, speeds_hz, open_hz, closed_hz=None, resonances=None, bands=(),
-                  title: str = "") -> Path:
-    """Write the diagram; ``resonances`` maps "open"/"closed" to gravity-resonance speeds."""
+                  title: str = "", whirl=None) -> Path:
+    """Write the diagram; ``resonances`` maps "open"/"closed" to gravity-resonance speeds (rotating
+    frame) or critical speeds (inertial frame: ``whirl`` given, +1 forward / -1 backward per point)."""
+    if whirl is not None:
+        return _whirl_plot(path, np.asarray(speeds_hz), np.asarray(open_hz), np.asarray(whirl), resonances,
+                           bands, title)
     fig, ax = figure(figsize=(7.0, 4.8))
     s = np.asarray(speeds_hz)
     top = float(s.max()) if len(s) else 1.0
@@ -36,6 +40,40 @@ def campbell_plot(path: str | Path, speeds_hz, open_hz, closed_hz=None, resonanc
             ax.plot(r, r, marker, color=color, mfc="none", ms=9, label=f"gravity resonance ({name})")
     ax.set_xlabel("rotation speed [Hz]")
     ax.set_ylabel("rotating-frame natural frequency [Hz]")
+    ax.set_xlim(s.min(), top)
+    ax.set_ylim(bottom=0)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return save(fig, path)
+
+
+def _whirl_plot(path, s, F, W, resonances, bands, title) -> Path:
+    """Inertial frame: whirl frequencies, forward and backward apart, the 1x line of the unbalance,
+    critical speeds where it meets them, the bands where the rotor is unstable."""
+    fig, ax = figure(figsize=(7.0, 4.8))
+    top = float(s.max()) if len(s) else 1.0
+    for lo, hi in bands:
+        if lo < top:
+            ax.axvspan(lo, min(hi, top), color="tab:red", alpha=0.08, lw=0)
+    if bands:
+        ax.plot([], [], color="tab:red", alpha=0.3, lw=6, label="unstable")
+    x = np.repeat(s, F.shape[1])
+    for code, name, marker, color in ((1, "forward", "^", "tab:blue"), (-1, "backward", "v", "tab:orange"),
+                                      (0, "at rest or planar", ".", "tab:gray"), (2, "axial", "s", "tab:green")):
+        sel = W.ravel() == code
+        if np.any(sel & np.isfinite(F.ravel())):
+            ax.plot(x[sel], F.ravel()[sel], marker, color=color, ms=3, mew=0.6, mfc="none" if code == 2 else None,
+                    label=f"{name} whirl" if code in (1, -1) else name)
+    ax.plot(s, s, ":", color="k", lw=1, label="1x (unbalance forcing)")
+    r = np.asarray((resonances or {}).get("open", []), dtype=float)
+    r = r[r <= top]
+    if len(r):
+        ax.plot(r, r, "o", color="k", mfc="none", ms=9, label="critical speed")
+    ax.set_xlabel("rotation speed [Hz]")
+    ax.set_ylabel("whirl frequency [Hz]")
     ax.set_xlim(s.min(), top)
     ax.set_ylim(bottom=0)
     ax.grid(True, alpha=0.3)
