@@ -323,7 +323,7 @@ def cmd_run(args) -> int:
         signal.signal(signal.SIGTERM, previous)
     red = system.info["reduction"]
     top = red.info.get("max_frequency_hz")
-    if scene["rotation"]["speed_hz"] and top:
+    if scene["rotation"]["speed_hz"] and top and scene["rotation"]["frame"] == "rotating":
         from .analysis.campbell import divergence_speeds
         from .fem.rotating import rotor_operators
 
@@ -341,8 +341,21 @@ def cmd_run(args) -> int:
             from .export.vtu import write_series
 
             outputs.append(str(write_series(result, system, out_dir, every=scene["output"]["vtu_every"])))
+    extra = {}
+    if scene.sensors:
+        from .sensors import write_csv
+        from .simulate import sensor_signals
+
+        values = sensor_signals(result, system)
+        extra["sensors"] = str(write_csv(out_dir / "sensors.csv", result.t, scene.sensors, values))
+        outputs.append(extra["sensors"])
+        if scene["output"]["plots"] and result.t.size > 1:
+            from .plot.sensors import sensors_plot
+
+            outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
+                                            scene["rotation"]["speed_hz"], scene["title"])))
     summary = result.summary()
-    payload = {"title": scene["title"], **summary, "wall_s": time.perf_counter() - t0,
+    payload = {"title": scene["title"], **summary, **extra, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
                "energy_terms": result.energy, "speed_hz": scene["rotation"]["speed_hz"], "warnings": warnings}
     lines = [scene["title"], f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
@@ -367,6 +380,8 @@ def _check_run_targets(out_dir, scene, what: str) -> None:
     names = ["result.npz"] + [f"{n}.png" for n in scene["output"]["plots"]]
     if scene["output"]["vtu_every"]:
         names.append("nsfem.pvd")
+    if scene.sensors:
+        names += ["sensors.csv", "sensors.png"]
     for name in names:
         check_file(out_dir / name, what)
 

@@ -236,6 +236,15 @@ _UNBALANCE = {
     "phase_deg": Key("float", 0.0, "angle in the rotating frame from +y towards +z [deg]"),
 }
 
+_SENSOR = {
+    "name": Key("str", "", "column name in sensors.csv (default sensor_<index>)"),
+    "x": Key("float", 0.0, "position on the shaft [m]"),
+    "direction": Key("str", "+z", "displacement component read", ("+y", "+z", "-y", "-z")),
+    "frame": Key("str", "inertial", "frame the displacement is measured in (a probe on the casing: inertial)",
+                 FRAMES),
+    "layer": Key("str", "", "inside a delamination: upper | lower", ("", "upper", "lower")),
+}
+
 #: The scene schema: tables of keys; a one-element list marks an array of tables.
 SCHEMA: dict[str, Any] = {
     "title": Key("str", "nsfem scene", "free text shown in outputs"),
@@ -297,6 +306,7 @@ SCHEMA: dict[str, Any] = {
     "disk": [_DISK],
     "bearing": [_BEARING],
     "unbalance": [_UNBALANCE],
+    "sensor": [_SENSOR],
     "segment": [_SEGMENT],
     "junction": [_JUNCTION],
     "support": [_SUPPORT],
@@ -513,11 +523,12 @@ class Scene(dict):
     the directory relative paths in it refer to.
     """
 
-    def __init__(self, tree: dict, stack: BeamStack, path: Path | None, base: Path):
+    def __init__(self, tree: dict, stack: BeamStack, path: Path | None, base: Path, sensors: tuple = ()):
         super().__init__(tree)
         self.stack = stack
         self.path = path
         self.base = base
+        self.sensors = sensors
 
     @property
     def mesh_file(self) -> Path | None:
@@ -620,7 +631,9 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
         f = base / tree["mesh"]["file"]
         if not f.is_file():
             raise SceneError("mesh.file", f"file not found: {f}")
-    return Scene(tree, stack, path, base)
+    from .sensors import sensors_from_scene
+
+    return Scene(tree, stack, path, base, sensors_from_scene(tree, stack))
 
 
 # --------------------------------------------------------------------------- speed bound

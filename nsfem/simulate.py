@@ -258,7 +258,9 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
                  f"fastest-growing mode grows at {rate:.3g} 1/s (x10 every {math.log(10) / rate:.3g} s); unless the "
                  "contacts or damping hold it, displacements soon exceed the linear model's range")
     info = {"ndof_full": model.n, "reduction": red.info, "title": scene["title"],
-            "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.contacts.labels)}
+            "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.contacts.labels),
+            "frame": scene["rotation"]["frame"], "phase_deg": scene["rotation"]["phase_deg"]}
+    system.info["sensors"] = scene.sensors
     try:
         result = integrate(system, sim["t_end"], method, sim["output_dt"], q0, v0, progress=progress,
                            **integrator_options(scene, method))
@@ -274,3 +276,15 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
         if text:
             warn(text)
     return result, system
+
+
+def sensor_signals(result: Result, system: ContactSystem) -> np.ndarray:
+    """The signals (len(result.t), sensors) of the sensors ``run_scene`` put on ``system``."""
+    from .fem.constraints import dense
+    from .sensors import read
+
+    sensors = system.info.get("sensors", ())
+    if not sensors:
+        return np.zeros((result.t.size, 0))
+    return read(sensors, system.info["model"], dense(system.info["reduction"].T), result.t, result.q,
+                result.info.get("frame", "rotating"), result.info.get("speed_hz", 0.0), result.info.get("phase_deg", 0.0))

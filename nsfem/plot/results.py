@@ -351,13 +351,26 @@ def psd_plot(result, system, path, x: float | None = None, field: str = "W",
     model, T = _model_and_T(system)
     if model is None:
         raise NoPlotData("psd: the system carries no finite-element model to locate a point on")
-    pt = measurement_point(model, x, field)
-    row = _dense(T[pt["dof"]]).ravel()
     sel = _window(result.t, steady_from)
     if sel.sum() < 8:
         raise NoPlotData("psd: fewer than 8 samples in the steady-state window")
     t = result.t[sel]
-    w = row @ result.q[:, sel]
+    frame = result.info.get("frame", "rotating")
+    sensors = system.info.get("sensors", ()) if x is None else ()
+    if sensors:
+        # the first sensor, in its own frame: what the probe on the machine would give
+        from ..sensors import read
+
+        s = sensors[0]
+        w = read(sensors[:1], model, _dense(T), t, result.q[:, sel], frame, result.info.get("speed_hz", 0.0),
+                 result.info.get("phase_deg", 0.0))[:, 0]
+        pt = {"x": s.x, "segment": s.segment, "undamaged": True}
+        field, frame, label = f"{s.direction} ({s.name})", s.frame, f"sensor {s.name} at x = {s.x:.4g} m"
+    else:
+        pt = measurement_point(model, x, field)
+        row = _dense(T[pt["dof"]]).ravel()
+        w = row @ result.q[:, sel]
+        label = f"{field} at x = {pt['x']:.4g} m ({pt['segment']})"
     dt, w = _uniform(t, w)
     f, P = welch_psd(w, dt, nperseg=nperseg or w.size)
     speed = _speed_hz(result, system)
@@ -365,8 +378,7 @@ def psd_plot(result, system, path, x: float | None = None, field: str = "W",
     top = min(nyq, f_max if f_max else (10.0 * speed if speed > 0 else 250.0))
     keep = (f > 0) & (f <= top)
     fig, ax = figure(figsize=FIGSIZE)
-    ax.semilogy(f[keep], P[keep], lw=1.2, color="tab:blue",
-                label=f"{field} at x = {pt['x']:.4g} m ({pt['segment']})")
+    ax.semilogy(f[keep], P[keep], lw=1.2, color="tab:blue", label=label)
     if speed > 0:
         for h in range(1, int(top // speed) + 1):
             ax.axvline(h * speed, color="tab:red", ls=":", lw=0.9,
@@ -376,8 +388,9 @@ def psd_plot(result, system, path, x: float | None = None, field: str = "W",
     ax.set_xlim(0.0, top)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"PSD of {field} [m$^2$/Hz]")
-    where = "undamaged region" if pt["undamaged"] else "no undamaged region: delaminated segment"
-    ax.set_title(f"Power spectrum of the displacement {field} (rotating frame), {where}\n"
+    where = ("sensor" if sensors else "undamaged region") if pt["undamaged"] else \
+        "no undamaged region: delaminated segment"
+    ax.set_title(f"Power spectrum of the displacement {field} ({frame} frame), {where}\n"
                  f"t = {t[0]:.3g} to {t[-1]:.3g} s, resolution {f[1] - f[0]:.3g} Hz", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
