@@ -155,8 +155,9 @@ def test_rotating_and_inertial_frames_agree(speed_hz):
         d = np.abs(lam_r[None, :] - cand[:, None])
         d[:, used] = np.inf
         best = np.unravel_index(np.argmin(d), d.shape)
-        # eigenvalues of a 2n = 108 state matrix spanning 1e5: a few hundred ulps of its norm
-        assert d[best] < 1e-9 * scale, (lam, d[best])
+        # eigenvalues of two 108 x 108 state matrices spanning 1e5: measured 4e-15 of the largest, and
+        # dense eigen solvers hold simple roots to a few hundred ulps of the matrix norm on any BLAS
+        assert d[best] < 1e-11 * scale, (lam, d[best])
         used[best[1]] = True
 
 
