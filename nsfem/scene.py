@@ -236,6 +236,22 @@ _UNBALANCE = {
     "phase_deg": Key("float", 0.0, "angle in the rotating frame from +y towards +z [deg]"),
 }
 
+_STATOR = {
+    "x": Key("float?", None, "position on the shaft [m] (default: the rotor's middle)"),
+    "clearance": Key("float", 1e-4, "radial gap at rest between the shaft surface and the ring [m]",
+                     check=_positive),
+    "facets": Key("int", 32, "sides of the polygon tangent to the clearance circle (3 to 1024; it misses "
+                  "the circle by 1 - cos(pi / facets) of the clearance)",
+                  check=lambda v: None if 3 <= v <= 1024 else f"must lie in [3, 1024], got {v}"),
+    "stiffness": Key("float", 0.0, "0: rigid ring (Signorini, impacts); an elastic ring is not in this version",
+                     check=_nonneg),
+    "damping": Key("float", 0.0, "ring damping [N s/m] (with an elastic ring, not in this version)",
+                   check=_nonneg),
+    "friction": Key("float", 0.0, "Coulomb mu against the sliding shaft surface (not in this version: 0)",
+                    check=_nonneg),
+    "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
+    "radius": Key("float", 0.0, "shaft surface radius at x [m]; 0 = half the section's depth", check=_nonneg),
+}
 _SENSOR = {
     "name": Key("str", "", "column name in sensors.csv (default sensor_<index>)"),
     "x": Key("float", 0.0, "position on the shaft [m]"),
@@ -306,6 +322,7 @@ SCHEMA: dict[str, Any] = {
     "disk": [_DISK],
     "bearing": [_BEARING],
     "unbalance": [_UNBALANCE],
+    "stator": [_STATOR],
     "sensor": [_SENSOR],
     "segment": [_SEGMENT],
     "junction": [_JUNCTION],
@@ -912,7 +929,39 @@ def point_components(tree: dict, stack: BeamStack) -> BeamStack:
                      for i, b in enumerate(tree["bearing"]))
     unbalances = tuple(Unbalance(middle if u["x"] is None else u["x"], u["magnitude"], math.radians(u["phase_deg"]),
                                  label=f"unbalance.{i}") for i, u in enumerate(tree["unbalance"]))
-    return replace(stack, disks=disks, bearings=bearings, unbalances=unbalances)
+    return replace(stack, disks=disks, bearings=bearings, unbalances=unbalances,
+                   contacts=stack.contacts + stator_contacts(tree, stack, middle))
+
+
+def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contact, ...]:
+    """Each ``[[stator]]`` as ``facets`` rigid stops at one x: facet k's normal points at the angle
+    2 pi k / facets in the y-z plane, its gap is clearance - n.(v, w) (the polygon tangent to the
+    clearance circle; a ring fixed in the frame of the coordinates: in space in the inertial frame,
+    an approximation of the same circle in the rotating one)."""
+    out = []
+    for i, st in enumerate(tree["stator"]):
+        key = f"stator.{i}"
+        if st["stiffness"] > 0.0 or st["damping"] > 0.0:
+            raise SceneError(f"{key}.stiffness" if st["stiffness"] > 0 else f"{key}.damping",
+                             "an elastic stator ring (a unilateral spring-damper) is not in this version: "
+                             "stiffness and damping must be 0 (a rigid ring)")
+        if st["friction"] > 0.0:
+            raise SceneError(f"{key}.friction", "friction at a stator acts against the shaft surface sliding past "
+                             "at Omega r (paper eq. 27: a slip velocity affine in q'), which this version does "
+                             "not model; set it to 0")
+        x = middle if st["x"] is None else st["x"]
+        seg = stack.carrier(x) if math.isfinite(x) else None
+        if seg is None:
+            lo, hi = min(g.start for g in stack.segments), max(g.end for g in stack.segments)
+            raise SceneError(f"{key}.x", f"x={x} must lie on the intact shaft within [{lo}, {hi}]")
+        n = st["facets"]
+        for k in range(n):
+            angle = 2.0 * math.pi * k / n
+            c, s_ = math.cos(angle), math.sin(angle)
+            axis = ("+y" if c > 0 else "-y") if abs(c) >= abs(s_) else ("+z" if s_ > 0 else "-z")
+            out.append(Contact("obstacle", x, (seg,), "dirac", None, axis, st["clearance"], 0.0, 4,
+                               st["restitution"], label=f"{key}.{k}", angle=angle))
+    return tuple(out)
 
 
 def check_frame(tree: dict, stack: BeamStack) -> None:

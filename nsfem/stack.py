@@ -164,6 +164,9 @@ class Contact:
     friction_directions: int = 4
     restitution: float = 0.0
     label: str = ""
+    #: obstacle only: the normal's angle in the y-z plane from +y towards +z [rad], n = (0, cos, sin), in place of
+    #: an axis (a stator's facet; ``normal`` then names the nearest axis, for display)
+    angle: float | None = None
 
 
 @dataclass(frozen=True)
@@ -262,7 +265,7 @@ class BeamStack:
         for i, c in enumerate(self.contacts):
             key = c.label or f"contact.{i}"
             self._check_contact(key, c)
-            ident = (c.kind, c.segments, c.x, c.normal)
+            ident = (c.kind, c.segments, c.x, c.normal, c.angle)
             if ident in seen:
                 raise SceneError(f"{key}.x", f"duplicate contact point at x={c.x}")
             seen.add(ident)
@@ -344,6 +347,8 @@ class BeamStack:
                     raise SceneError(f"{key}.extent", f"hat extent leaves segment {n!r}")
         if c.normal not in NORMALS:
             raise SceneError(f"{key}.normal", f"unknown normal {c.normal!r} (use {' | '.join(NORMALS)})")
+        if c.angle is not None and (c.kind != "obstacle" or not math.isfinite(c.angle)):
+            raise SceneError(f"{key}.angle", "an angled normal needs an obstacle and a finite angle")
         if not (math.isfinite(c.clearance) and c.clearance >= 0):
             raise SceneError(f"{key}.clearance", f"must be finite and >= 0, got {c.clearance}")
         if not (math.isfinite(c.friction) and c.friction >= 0):

@@ -3,7 +3,8 @@
 Interface contacts (delaminations): g = W_upper - W_lower at the point (Dirac ansatz,
 paper section 2.2) or averaged with a hat weight Lambda_k of unit integral whose support
 reaches the neighbouring contact points (eq. 19). Obstacles: g = clearance - n.u at the
-centroid of the carrying segment (n one of +-x, +-y, +-z in the rotating frame).
+centroid of the carrying segment (n one of +-x, +-y, +-z, or at an angle in the y-z plane for a
+stator's facet, in the frame of the coordinates).
 
 Tangential rows and friction cones are built on the same helpers (later issue).
 
@@ -65,6 +66,10 @@ def contact_row(model: FEModel, c: Contact) -> tuple[dict[int, float], float]:
         for i, v in point_row(model, c.segments[1], "W", c).items():
             row[i] = row.get(i, 0.0) - v
         return row, 0.0
+    if c.angle is not None:   # a stator's facet: n = (cos, sin) in the y-z plane
+        cy, sz = float(np.cos(c.angle)), float(np.sin(c.angle))
+        row = _combine((-cy, point_row(model, c.segments[0], "V", c)), (-sz, point_row(model, c.segments[0], "W", c)))
+        return {i: v for i, v in row.items() if v != 0.0}, c.clearance
     sign = 1.0 if c.normal[0] == "+" else -1.0
     row = {i: -sign * v for i, v in point_row(model, c.segments[0], _AXIS[c.normal[1]], c).items()}
     return row, c.clearance
@@ -91,6 +96,8 @@ def slip_rows(model: FEModel, c: Contact) -> list[dict[int, float]]:
         hu, hl = model.stack.segment(up).height, model.stack.segment(lo).height
         sx = _combine((1.0, pr(up, "U")), (hu / 2, pr(up, "W'")), (-1.0, pr(lo, "U")), (hl / 2, pr(lo, "W'")))
         return [sx, _combine((1.0, pr(up, "V")), (-1.0, pr(lo, "V")))]
+    if c.angle is not None:
+        raise NotImplementedError("friction at a stator facet (the surface sliding past at Omega r) is not modelled")
     seg = model.stack.segment(c.segments[0])
     sign = 1.0 if c.normal[0] == "+" else -1.0
     axis = c.normal[1]

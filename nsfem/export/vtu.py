@@ -169,8 +169,10 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     points, cells, seg_ids, _ = stack_geometry(model)
-    omega = 2.0 * math.pi * float(result.info.get("speed_hz", 0.0)) if frame == "inertial" else 0.0
-    phase = math.radians(phase_deg) if frame == "inertial" else 0.0
+    # a result computed in the inertial frame is already there: nothing to turn
+    turn = frame == "inertial" and result.info.get("frame", "rotating") == "rotating"
+    omega = 2.0 * math.pi * float(result.info.get("speed_hz", 0.0)) if turn else 0.0
+    phase = math.radians(phase_deg) if turn else 0.0
     m = result.gap.shape[0]
     stack_contacts = model.stack.contacts
     if len(stack_contacts) != m:
