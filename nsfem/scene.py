@@ -582,7 +582,7 @@ def load_scene(path: str | Path | None = None, overrides: Iterable[str] = (),
     """Read, override and validate a scene; ``path=None`` is the shipped default scene, and a name
     that is no file but a shipped scene's (:func:`shipped_scenes`) is that scene."""
     p = Path(path) if path is not None else default_scene_path()
-    if not p.exists() and path is not None and str(path) in shipped_scenes():
+    if not p.is_file() and path is not None and str(path) in shipped_scenes():
         p = shipped_scenes()[str(path)]
     if not p.exists():
         raise SceneError("scene", f"file not found: {p} (shipped scenes: {', '.join(sorted(shipped_scenes()))})")
