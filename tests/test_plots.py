@@ -184,3 +184,20 @@ def test_a_failed_write_keeps_the_old_file(run, tmp_path, monkeypatch):
         rp.psd_plot(result, system, path)
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["psd.png"]
+
+
+def test_hermite_refine_draws_a_harmonic_between_samples():
+    from nsfem.plot.results import hermite_refine
+
+    f = 83.0
+    w = 2 * np.pi * f
+    t = np.arange(0.0, 0.05, 1e-3)          # 12 samples per period: a 12-gon when joined by chords
+    x, dx = hermite_refine(t, np.cos(w * t), -w * np.sin(w * t), f)
+    assert x.size > 3 * t.size               # 48 points per period
+    # on the circle x^2 + (x'/w)^2 = 1 to the interpolant's accuracy: (w h)^4 / 384 = 2e-4 for the value,
+    # (w h)^3 / 72 = 2e-3 for the slope; a chord's midpoint sits 1 - cos(pi / 12) = 3.4e-2 inside
+    r = np.hypot(x, dx / w)
+    assert np.max(np.abs(r - 1)) < 3e-3
+    # an impact between two samples keeps that interval a chord (no loop across the jump)
+    x2, _ = hermite_refine(t, np.cos(w * t), -w * np.sin(w * t), f, kicks=[0.0105])
+    assert x2.size == x.size - (x.size - t.size) // (t.size - 1)

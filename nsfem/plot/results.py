@@ -242,6 +242,35 @@ def measurement_point(model, x: float | None = None, field: str = "W") -> dict:
 
 
 # --------------------------------------------------------------------------- plots
+def hermite_refine(t: np.ndarray, x: np.ndarray, dx: np.ndarray, f_hz: float, kicks=(),
+                   per_period: int = 48) -> tuple[np.ndarray, np.ndarray]:
+    """(x, x') drawn between samples as the cubic Hermite interpolant of the values and rates there,
+    about ``per_period`` points per period of ``f_hz`` (an 83 Hz mode sampled every 1 ms is a 12-gon; 48 sag by 2e-3;
+    the interpolant is within (w h)^4 / 384 of a harmonic, 2e-4 there, its slope within (w h)^3 / 72).
+    Intervals holding an impact (a jump in x') keep their straight chord."""
+    t, x, dx = (np.asarray(a, dtype=float) for a in (t, x, dx))
+    if t.size < 2 or not f_hz > 0:
+        return x, dx
+    h = np.diff(t)
+    n = np.clip(np.ceil(h * f_hz * per_period).astype(int), 1, 64)
+    if np.all(n == 1):
+        return x, dx
+    kicks = np.asarray(sorted(kicks), dtype=float)
+    xs, dxs = [x[:1]], [dx[:1]]
+    for i in range(t.size - 1):
+        hit = kicks.size and np.any((kicks > t[i]) & (kicks <= t[i + 1]))
+        if n[i] == 1 or hit:
+            xs.append(x[i + 1:i + 2])
+            dxs.append(dx[i + 1:i + 2])
+            continue
+        s = np.arange(1, n[i] + 1) / n[i]
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
+        xs.append(h00 * x[i] + h10 * h[i] * dx[i] + h01 * x[i + 1] + h11 * h[i] * dx[i + 1])
+        dxs.append((d00 * x[i] + d01 * x[i + 1]) / h[i] + d10 * dx[i] + d11 * dx[i + 1])
+    return np.concatenate(xs), np.concatenate(dxs)
+
+
 def phase_plot(result, system, path, modes: int = 3, steady_from: float | None = None) -> Path:
     """Phase portraits eta_j' over eta_j of the first ``modes`` modal coordinates (see
     :func:`modal_basis`) for t >= ``steady_from`` (default: the last half of the run), and
@@ -257,9 +286,11 @@ def phase_plot(result, system, path, modes: int = 3, steady_from: float | None =
     nrows = math.ceil((nm + 1) / ncols)
     fig, axes = figure(nrows=nrows, ncols=ncols, figsize=(FIGSIZE[0], FIGSIZE[1] * nrows / 2.0), squeeze=False)
     axes = axes.ravel()
+    kicks = [float(i["t"]) for i in result.impacts]
     for j in range(nm):
         ax = axes[j]
-        ax.plot(eta[j, sel], deta[j, sel], lw=0.7, color="tab:blue")
+        x, dx = hermite_refine(result.t[sel], eta[j, sel], deta[j, sel], f[j], kicks)
+        ax.plot(x, dx, lw=0.7, color="tab:blue")
         ax.plot(eta[j, sel][-1:], deta[j, sel][-1:], "o", ms=4, color="tab:red", label="end")
         ax.set_xlabel(rf"$\eta_{j + 1}$ [$\sqrt{{kg}}\,$m]")
         ax.set_ylabel(rf"$\dot\eta_{j + 1}$ [$\sqrt{{kg}}\,$m/s]")
