@@ -577,13 +577,20 @@ def shipped_scenes() -> dict[str, Path]:
     return {Path(str(f)).stem: Path(str(f)) for f in root.iterdir() if str(f).endswith(".toml")}
 
 
+def scene_file(path: str | Path | None) -> Path:
+    """The file a SCENE argument names: the path itself, or a shipped scene's file when the path is no
+    file but a shipped scene's name (``None``: the default scene)."""
+    p = Path(path) if path is not None else default_scene_path()
+    if not p.is_file() and path is not None and str(path) in shipped_scenes():
+        p = shipped_scenes()[str(path)]
+    return p
+
+
 def load_scene(path: str | Path | None = None, overrides: Iterable[str] = (),
                cwd: Path | None = None) -> Scene:
     """Read, override and validate a scene; ``path=None`` is the shipped default scene, and a name
     that is no file but a shipped scene's (:func:`shipped_scenes`) is that scene."""
-    p = Path(path) if path is not None else default_scene_path()
-    if not p.is_file() and path is not None and str(path) in shipped_scenes():
-        p = shipped_scenes()[str(path)]
+    p = scene_file(path)
     if not p.exists():
         raise SceneError("scene", f"file not found: {p} (shipped scenes: {', '.join(sorted(shipped_scenes()))})")
     if not p.is_file():
@@ -616,6 +623,7 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     if sim["t_end"] / sim["output_dt"] > 1e7:
         raise SceneError("simulation.output_dt", f"t_end / output_dt = {sim['t_end'] / sim['output_dt']:.3g} "
                          "output steps exceeds the limit of 1e7")
+    _check_section_keys(raw)
     if any(t in raw for t in LOW_LEVEL):
         mixed = [t for t in HIGH_LEVEL if t in raw]
         if mixed:
@@ -627,6 +635,7 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     base = base or Path.cwd()
     stack = point_components(tree, stack).validate()
     check_scales(tree, stack)
+    check_components(tree, stack)
     check_frame(tree, stack)
     check_speed(tree["rotation"]["speed_hz"], stack)
     if not tree["mesh"]["file"]:
@@ -732,6 +741,32 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
                                  "(E = rho = 1 nondimensionalizes)")
 
 
+#: Disks and bearings may differ from the shaft element they sit on by at most this factor (mass, stiffness):
+#: beyond it the eigen solvers lose the shaft next to them (a bearing 1e12 times stiffer than the shaft is
+#: a support: ``supports`` holds it exactly)
+COMPONENT_RANGE = 1e12
+
+
+def check_components(tree: dict, stack: BeamStack) -> None:
+    """Refuse disks and bearings whose mass or stiffness leaves double precision next to the shaft's."""
+    span = max(s.end for s in stack.segments) - min(s.start for s in stack.segments)
+    le = span / tree["mesh"]["elements"]
+    mass = min(s.rho * s.area * le for s in stack.segments)
+    stiff = max(max(s.E * s.area / le, s.E * max(s.I_y, s.I_z) / le**3) for s in stack.segments)
+    for d in stack.disks:
+        if d.mass > COMPONENT_RANGE * mass:
+            given = tree["disk"][int(d.label.split(".")[1])]["mass"] is not None if d.label else True
+            raise SceneError(f"{d.label}.{'mass' if given else 'outer_diameter'}", f"{d.mass:.3g} kg is more than {COMPONENT_RANGE:g} times a shaft "
+                             f"element's mass ({mass:.3g} kg): double precision cannot hold both")
+    for b in stack.bearings:
+        for name, v in (("kyy", b.K[0][0]), ("kzz", b.K[1][1]), ("kyz", b.K[0][1]), ("kzy", b.K[1][0]),
+                        ("kxx", b.kxx)):
+            if abs(v) > COMPONENT_RANGE * stiff:
+                raise SceneError(f"{b.label}.{name}", f"{v:.3g} N/m is more than {COMPONENT_RANGE:g} times the "
+                                 f"shaft's stiffest element ({stiff:.3g} N/m): a rigid support is what it models "
+                                 "(shaft.supports)")
+
+
 # --------------------------------------------------------------------------- translation
 def _node_key(stack: BeamStack, *xs: float) -> str:
     """The scene key of a contact at one of ``xs`` (else the mesh), for error messages."""
@@ -748,6 +783,23 @@ def contact_positions(d: dict) -> list[float]:
         a, b = d["start"], d["end"]
         return [float(f"{a + (b - a) * (k + 1) / (cp + 1):.12g}") for k in range(cp)]
     return sorted(cp)
+
+
+def _check_section_keys(raw: dict) -> None:
+    """Refuse a section key the section does not use (a circle's width, a rectangle's diameter) set to
+    anything but its default: it would be silently ignored (a results file's full tree holds every key
+    at its default)."""
+    tables = [("shaft", raw.get("shaft"))] + [(f"segment.{i}", t) for i, t in enumerate(raw.get("segment", []))
+                                              if isinstance(raw.get("segment"), list)]
+    for key, t in tables:
+        if not isinstance(t, dict):
+            continue
+        circle = t.get("section", "rectangle") == "circle"
+        unused = [k for k in (("width", "height") if circle else ("diameter", "inner_diameter"))
+                  if k in t and t[k] != _SECTION[k].default]
+        if unused:
+            raise SceneError(f"{key}.{unused[0]}", f"a {'circular' if circle else 'rectangular'} section does not use "
+                             f"{unused[0]} (circle: diameter, inner_diameter; rectangle: width, height)")
 
 
 def section(table: dict, key: str) -> dict:
@@ -972,9 +1024,20 @@ def check_frame(tree: dict, stack: BeamStack) -> None:
     turns with respect to them; and friction at a stop fixed in space acts against a surface that
     slides past it at Omega r, which a point stop does not model."""
     rot = tree["rotation"]
-    spinning = rot["speed_hz"] > 0.0
+    check_frame_at_speed(rot["frame"], stack, rot["speed_hz"] > 0.0)
+    if rot["frame"] == "inertial" and rot["speed_hz"] > 0.0:
+        for c in stack.contacts:
+            if c.friction > 0.0:
+                raise SceneError(f"{c.label}.friction", "friction at a stop fixed in space acts against the shaft "
+                                 "surface sliding past it at Omega r, which a point stop does not model; set it to "
+                                 "0 in the inertial frame")
+
+
+def check_frame_at_speed(frame: str, stack: BeamStack, spinning: bool = True) -> None:
+    """The frame check of :func:`check_frame` for a rotor that spins (``campbell`` and speed sweeps
+    spin a scene given at rest)."""
     odd = next((s for s in stack.segments if not s.axisymmetric), None)
-    if rot["frame"] == "rotating":
+    if frame == "rotating":
         bad = next((i for i, b in enumerate(stack.bearings) if not b.isotropic), None)
         if spinning and bad is not None:
             b = stack.bearings[bad]
@@ -993,12 +1056,6 @@ def check_frame(tree: dict, stack: BeamStack) -> None:
         raise SceneError("rotation.frame", f"the inertial frame needs an axisymmetric rotor, but segment {odd.name!r} "
                          f"is not ({what}): its stiffness would turn with the shaft; use rotation.frame = "
                          "\"rotating\"")
-    if spinning:
-        for c in stack.contacts:
-            if c.friction > 0.0:
-                raise SceneError(f"{c.label}.friction", "friction at a stop fixed in space acts against the shaft "
-                                 "surface sliding past it at Omega r, which a point stop does not model; set it to "
-                                 "0 in the inertial frame")
 
 
 # --------------------------------------------------------------------------- reference

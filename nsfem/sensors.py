@@ -63,6 +63,9 @@ def sensors_from_scene(tree: dict, stack) -> tuple[Sensor, ...]:
             pick = max if s["layer"] == "upper" else min
             seg = pick(inside, key=lambda g: g.offset[1])
         else:
+            if s["layer"]:
+                raise SceneError(f"{key}.layer", f"x={x} lies on the intact shaft: a layer is chosen only inside a "
+                                 "delamination")
             seg = (inside or at)[0]
         out.append(Sensor(name, x, s["direction"], s["frame"], seg.name))
     return tuple(out)

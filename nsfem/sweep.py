@@ -189,10 +189,9 @@ def _drop(tree, key: str) -> None:
 
 
 def scene_source(scene_path) -> str:
-    from .scene import default_scene_path
+    from .scene import scene_file
 
-    p = Path(scene_path) if scene_path is not None else default_scene_path()
-    return p.read_text(encoding="utf-8")
+    return scene_file(scene_path).read_text(encoding="utf-8")
 
 
 # --------------------------------------------------------------------------- one run (on a worker)

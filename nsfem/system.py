@@ -109,11 +109,12 @@ def linear_system(ops: RotorOperators, speed_hz: float = 0.0, gravity: float = 0
     """Eq. (22) at ``speed_hz`` from operators assembled once (any basis), in the rotating frame (the
     paper's) or the inertial one (axisymmetric rotors; docs/theory.md, "The inertial frame").
 
-    Rotating: C = Omega G1 + D_i + c_e De1 + C_b, Q = K0 + Omega^2 Kc1 + Omega (c_e P1 + C_b J),
+    Rotating: C = Omega G1 + D_i + c_e De1 + C_b, Q = K0 + K_c + Omega^2 Kc1 + Omega (c_e P1 + C_b J),
     f = Omega^2 (fc1 + fu1) + Omega c_e fd1 + gravity turning at Omega.
-    Inertial: C = Omega Gp1 + D_i + c_e De1 + C_b, Q = K0 - Omega D_i J (the rotating internal damping's
+    Inertial: C = Omega Gp1 + D_i + c_e De1 + C_b, Q = K0 + K_c - Omega D_i J (the rotating internal damping's
     circulatory part), f = gravity along -z + the unbalance turning at Omega.
-    D_i = alpha M + beta (K0 - K_b): Rayleigh damping of the rotor, not of its bearings."""
+    D_i = alpha M + beta (K0 - K_b): Rayleigh damping of the rotor, not of its bearings; K_c the bearings'
+    cross coupling (skew)."""
     if frame not in ("rotating", "inertial"):
         raise ValueError(f"unknown frame {frame!r}")
     w = 2.0 * math.pi * speed_hz
@@ -134,7 +135,7 @@ def linear_system(ops: RotorOperators, speed_hz: float = 0.0, gravity: float = 0
         parts.append(ops.Cb)
     parts = [p for p in parts if p.nnz]
     C = sum(parts[1:], parts[0]).tocsr() if parts else None
-    Q = ops.K0
+    Q = ops.K0 + ops.Kbc if ops.Kbc.nnz else ops.K0
     if w and inertial:
         if alpha:
             Q = Q - w * alpha * ops.MJ

@@ -93,10 +93,16 @@ def test_gyroscopic_splitting_of_a_disk_on_a_cantilever():
     k11, k12, k22 = 12 * EI / L**3, -6 * EI / L**2, 4 * EI / L
     for spin in (0.0, 300.0, 3000.0):
         lam = state_eigs(linear_system(ops, spin / (2 * math.pi), frame="inertial"))
-        w = np.sort(np.abs(lam.imag[lam.imag > 0]))[:4]
+        w = np.abs(lam.imag[lam.imag > 0])
         fwd, bwd = disk_tip_closed_form(m, Id, Ip, k11, k12, k22, spin)
-        # the light shaft (mass 1e-6 of the disk's) and round-off of the 1e6-wide spectrum: 1e-5
-        np.testing.assert_allclose(w, np.sort(np.concatenate([fwd, bwd])), rtol=1e-5)
+        ref = np.sort(np.concatenate([fwd, bwd]))
+        # the disk's axial mode on the shaft's axial stiffness, sqrt(E A / (L m)), lies among them: each
+        # closed-form whirl frequency has its own root (nearest), to the light shaft (mass 1e-6 of the
+        # disk's) and round-off of the 1e6-wide spectrum: 1e-5
+        got = np.array([w[np.argmin(np.abs(w - r))] for r in ref])
+        np.testing.assert_allclose(got, ref, rtol=1e-5)
+        axial = math.sqrt(E * math.pi * D**2 / 4 / L / m)
+        assert np.min(np.abs(w - axial)) < 1e-4 * axial      # the disk's mass is on U too
 
 
 def test_free_disk_nutates_forwards():
@@ -225,7 +231,10 @@ def test_frames_refuse_what_they_cannot_carry():
     with pytest.raises(SceneError, match="rotation.frame.*bearing.0 is not isotropic.*use rotation.frame"):
         scene_from_tree(rotor_tree(bearing=aniso, supports="free-free", rotation=spin))
     rect = rotor_tree(bearing=aniso, supports="free-free", rotation=spin)
-    rect["shaft"].update(section="rectangle", width=0.03, height=0.02)
+    with pytest.raises(SceneError, match="shaft.diameter: a rectangular section does not use diameter"):
+        rect["shaft"].update(section="rectangle", width=0.03, height=0.02)
+        scene_from_tree(rect)
+    del rect["shaft"]["diameter"], rect["shaft"]["inner_diameter"]
     with pytest.raises(SceneError, match="periodic coefficients in both frames"):
         scene_from_tree(rect)
     rect["rotation"]["frame"] = "inertial"
@@ -329,3 +338,99 @@ def test_shipped_scene_by_name_and_the_inertial_campbell_json(tmp_path, capsys):
     with pytest.raises(SceneError, match="shipped scenes: .*ross_example"):
         from nsfem.scene import load_scene
         load_scene("no_such_scene")
+
+
+def test_a_disk_moves_axially_with_the_shaft():
+    """The axial rigid translation carries the shaft's and the disks' mass (r^T M r, exact), and on a
+    thrust spring the rotor's axial mode is sqrt(k / m_total) up to the shaft's own axial flexibility
+    (k L / E A = 3.6e-3: it lowers the frequency by about a sixth of that)."""
+    from nsfem.scene import load_scene
+
+    scene = load_scene("ross_example", ["reduction.method=none"])
+    model = build_model(scene)
+    r = np.zeros(model.n_full)
+    r[model.field_dofs("U")] = 1.0
+    shaft = 7810.0 * math.pi * 0.05**2 / 4 * 1.5
+    disks = sum(d.mass for d in scene.stack.disks)
+    assert float(r @ model.M_full @ r) == pytest.approx(shaft + disks, rel=1e-12)
+    f = natural_frequencies(model, count=6)
+    axial = [fr for fr, fld in zip(f.frequencies_hz, f.fields) if fld == "U"]
+    assert axial[0] == pytest.approx(math.sqrt(1e6 / (shaft + disks)) / (2 * math.pi), rel=1e-3)
+
+
+def test_cross_coupled_bearings_are_circulatory():
+    """A bearing's skew stiffness kyz = -kzy is no potential: K0 stays symmetric (modes, reductions and
+    the symmetric solvers see the conservative rotor), the skew part acts in Q only; undamped, a rotor
+    on such bearings is unstable at rest (Campbell: an onset at 0)."""
+    from nsfem.analysis.campbell import campbell_report
+    from nsfem.scene import load_scene
+
+    plain = build_model(load_scene("ross_example", ["reduction.method=none"]))
+    cross = build_model(load_scene("ross_example", ["reduction.method=none", "bearing.0.kyz=5e5",
+                                                    "bearing.0.kzy=-5e5"]))
+    assert abs(cross.K - cross.K.T).max() == 0.0
+    np.testing.assert_array_equal(cross.K.toarray(), plain.K.toarray())
+    ops = rotor_operators(cross)
+    Q = linear_system(ops, 10.0, frame="inertial").Q
+    assert abs(Q - Q.T).max() == pytest.approx(2 * 5e5, rel=1e-12)      # the skew pair, doubled in Q - Q^T
+    scene = load_scene("ross_example", ["reduction.method=none", "bearing.0.kyz=1e6", "bearing.0.kzy=-1e6",
+                                        "mesh.elements=10"])
+    rep = campbell_report(scene, build_model(scene), [10.0, 20.0, 30.0], 4)
+    assert rep["instability_hz"]["open"] == [0.0]
+
+
+def test_instability_below_the_speed_grid_is_found():
+    """A Jeffcott rotor with internal damping, asked on a grid that starts above its threshold: the
+    onset is found below the grid (closed form w_n (1 + c_e / c_i))."""
+    from nsfem.analysis.campbell import campbell, instability_onsets
+
+    beta, c_e = 1e-4, 20.0
+    model, ops, k, m = jeffcott("inertial", 0.0, beta, c_e, rho=1.0)
+    threshold_hz = math.sqrt(k / m) * (1 + c_e / (beta * k)) / (2 * math.pi)
+    speeds = np.linspace(1.5 * threshold_hz, 3 * threshold_hz, 4)
+    res = campbell(ops, speeds, 2, (0.0, beta), 0.0, frame="inertial")
+    assert res.growth_per_s[0] > 0
+    onsets = instability_onsets(ops, speeds, res.growth_per_s, 2, (0.0, beta), 0.0)
+    np.testing.assert_allclose(onsets, [threshold_hz], rtol=1e-4)      # as the on-grid test
+
+
+def test_forward_critical_speeds_of_a_gyroscopic_disk():
+    """Isotropic supports: only forward whirl is driven by an unbalance; the disk on a light cantilever's
+    tip whirls synchronously forwards where (k11 - m w^2)(k22 - (I_d - I_p) w^2) = k12^2 (the 2-dof tip
+    model of test_gyroscopic_splitting with whirl = spin = w)."""
+    from nsfem.analysis.campbell import critical_speeds
+    from nsfem.fem.components import lateral_turn
+
+    D, L, m, Id, Ip = 0.02, 0.5, 4.0, 0.02, 0.04
+    # shaft density 1 (mass 4e-5 of the disk's): the critical-speed pencil drops roots more than 1e12
+    # below its largest one (in w^2) as rigid, and a lighter shaft's spectrum is that wide
+    tree = rotor_tree(16, D, rho=1.0, length=L, supports="clamped-free",
+                      disk=[{"x": L, "mass": m, "polar_inertia": Ip, "diametral_inertia": Id}],
+                      rotation={"speed_hz": 0.0, "gravity": 0.0, "frame": "inertial"})
+    model = model_of(tree)
+    EI = E * math.pi * D**4 / 64
+    k11, k12, k22 = 12 * EI / L**3, -6 * EI / L**2, 4 * EI / L
+    # (k11 - m x)(k22 - (Id - Ip) x) - k12^2 = 0 in x = w^2: with Ip > Id one positive root only (the
+    # disk's spin stiffens its tilt without bound)
+    a, b, c = m * (Id - Ip), -(k11 * (Id - Ip) + m * k22), k11 * k22 - k12**2
+    x = np.roots([a, b, c])
+    exact = np.sort(np.sqrt(x[x > 0].real)) / (2 * math.pi)
+    crit, sense = critical_speeds(rotor_operators(model), lateral_turn(model.spaces, model.n_full),
+                                  forward_only=True)
+    # the shaft's mass (ratio 4e-5, about a quarter of it moving with the tip) shifts the root by about 1e-5
+    np.testing.assert_allclose(crit[: exact.size], exact, rtol=1e-4)
+    assert np.all(sense == 1)
+    both, senses = critical_speeds(rotor_operators(model), lateral_turn(model.spaces, model.n_full))
+    assert -1 in senses.tolist()                                       # backward crossings exist
+
+
+def test_rotating_frame_campbell_refuses_anisotropic_bearings_even_at_rest():
+    from nsfem.analysis.campbell import campbell_report
+    from nsfem.scene import load_scene, scene_file
+    from nsfem.sweep import scene_source
+
+    scene = load_scene("ross_example", ["rotation.speed_hz=0", 'rotation.frame="rotating"'])
+    with pytest.raises(SceneError, match="rotation.frame: bearing.0 is not isotropic"):
+        campbell_report(scene, build_model(scene), [0.0, 10.0], 4)
+    # a sweep reads the shipped scene's text by its name too
+    assert scene_source("ross_example") == scene_file("ross_example").read_text(encoding="utf-8")

@@ -278,15 +278,20 @@ def _oscillating(lam: np.ndarray, count: int) -> np.ndarray:
     return idx[np.argsort(lam[idx].imag, kind="stable")][:count]
 
 
-def critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None = None,
+                    forward_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Inertial frame: (speeds [Hz], whirl) where the undamped rotor whirls synchronously, K0 x =
     Omega^2 (M - i Gp1) x (a Hermitian pencil: Gp1 is real skew), the resonances an unbalance can
-    drive (forward whirl; backward ones too on anisotropic bearings). Axial modes are left out."""
+    drive. On isotropic bearings (``forward_only``) only forward whirl can be driven (a backward mode
+    is orthogonal to every load turning with the shaft); on anisotropic ones the backward crossings
+    are resonances too. Axial modes are left out. A bearing's cross coupling (circulatory) is not in
+    K0: these are the critical speeds of the rotor without it."""
     nu, X, _ = _pencil(_dense(ops.M) - 1j * _dense(ops.Gp1), _dense(ops.K0))
     f = 1.0 / np.sqrt(nu) / (2 * math.pi)
     w = whirl_sense(X, ops.basis, turn)
     keep = (w != AXIAL) & (f <= (math.inf if max_hz is None else max_hz))
+    if forward_only:
+        keep &= w == 1
     order = np.argsort(f[keep])
     return f[keep][order], w[keep][order]
 
@@ -302,9 +307,23 @@ def instability_onsets(ops: RotorOperators, speeds_hz: np.ndarray, growth: np.nd
     def roots(speed):
         return state_eigenvalues(linear_system(ops, speed, 0.0, 0.0, rayleigh, external, frame), count)
 
+    def grows(speed):
+        system = linear_system(ops, speed, 0.0, 0.0, rayleigh, external, frame)
+        return growth_rate(state_eigenvalues(system, count), count, _omega_max(system.M, system.Q)) > 0.0
+
+    speeds_hz, growth = np.asarray(speeds_hz, dtype=float), np.asarray(growth, dtype=float)
+    brackets = [(float(speeds_hz[i]), float(speeds_hz[i + 1]))
+                for i in np.flatnonzero((growth[:-1] <= 0.0) & (growth[1:] > 0.0))]
     out = []
-    for i in np.flatnonzero((growth[:-1] <= 0.0) & (growth[1:] > 0.0)):
-        a, b = float(speeds_hz[i]), float(speeds_hz[i + 1])
+    if growth.size and growth[0] > 0.0:
+        # unstable from the grid's first speed on: from rest (a bearing's cross coupling), or from
+        # some speed below the grid
+        first = float(speeds_hz[0])
+        if first == 0.0 or grows(0.0):
+            out.append(0.0)
+        else:
+            brackets.insert(0, (0.0, first))
+    for a, b in brackets:
         lam = roots(b)
         track = lam[np.argmax(lam.real)]
         while b - a > 1e-6 * b:
@@ -467,7 +486,10 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
     from ..fem.rotating import rotor_operators
     from .modes import contact_basis
 
+    from ..scene import check_frame_at_speed
+
     rot, damp = scene["rotation"], scene["damping"]
+    check_frame_at_speed(rot["frame"], model.stack)     # the diagram spins a scene given at rest too
     ops = {c: rotor_operators(model, contact_basis(model, c, reduction)) for c in ("open", "closed")}
     if not model.stack.contacts:
         ops["closed"] = ops["open"]
@@ -519,9 +541,11 @@ def _inertial_report(model, ops: dict, rot: dict, damp: dict, speeds_hz, count: 
     top = None if reduction is None else reduction.info.get("max_frequency_hz")
     valid = VALID_FRACTION * top if top else math.inf
     turn = lateral_turn(model.spaces, model.n_full)
-    crit = {c: critical_speeds(o, turn, None if math.isinf(valid) else valid) for c, o in ops.items()}
+    isotropic = all(b.isotropic for b in model.stack.bearings)
+    crit = {c: critical_speeds(o, turn, None if math.isinf(valid) else valid, isotropic) for c, o in ops.items()}
     if speeds_hz is None:
-        c = crit["open"][0]
+        # past the second forward critical speed (the first of the second mode pair)
+        c = crit["open"][0][crit["open"][1] == 1]
         stop = max(1.23 * (c[min(1, len(c) - 1)] if len(c) else 0.0), 2.0 * rot["speed_hz"], 1.0)
         speeds = np.linspace(0.0, stop, 61)
     else:

@@ -121,8 +121,9 @@ def _eigenpairs(K, M, count, rigid):
         if k and np.abs(lam[: min(k, count)]).max() > 1e-8 * scale:
             raise NsfemError("internal error: fewer zero eigenvalues than rigid-body motions")
         if count > k and lam[k] < 1e-10 * scale:
-            raise NsfemError("the structure has a zero-energy motion that is not a rigid-body motion "
-                             "(a mechanism): check supports and junctions")
+            raise NsfemError("the structure has a zero-energy motion that is not a rigid-body motion (a mechanism), "
+                             "or one held only by springs over 1e10 times softer than its stiffest part: check "
+                             "supports, junctions and bearings")
         lam[: min(k, count)] = 0.0
         return lam, X
     v0 = np.random.default_rng(0).standard_normal(n)  # reproducible Lanczos start

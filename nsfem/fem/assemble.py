@@ -60,9 +60,11 @@ class FEModel:
     T: sp.csr_matrix
     M: sp.csr_matrix
     K: sp.csr_matrix
-    #: the bearings' part of K_full and their damping (full coordinates; zero without bearings)
+    #: the bearings' part of K_full (symmetric), their cross coupling (skew, circulatory: not in K_full) and
+    #: their damping (full coordinates; None without bearings)
     K_bearing: sp.csr_matrix | None = None
     C_bearing: sp.csr_matrix | None = None
+    K_circulatory: sp.csr_matrix | None = None
 
     @property
     def n_full(self) -> int:
@@ -193,17 +195,18 @@ def assemble(stack: BeamStack, mesh: StackMesh, axial: str = "P1") -> FEModel:
     """Assemble M, K of a validated stack on a mesh and eliminate supports and junctions.
 
     M and K are the structure's: the shaft's with the disks' mass and inertia and the bearings'
-    stiffness (:mod:`nsfem.fem.components`), so modes and reductions see the rotor as built."""
+    stiffness (:mod:`nsfem.fem.components`), so modes and reductions see the rotor as built. K stays
+    symmetric: a bearing's cross coupling (skew) is kept apart as ``K_circulatory``."""
     spaces = segment_spaces(stack, mesh, axial)
     M_full, K_full = mass_stiffness(stack, spaces)
     n = M_full.shape[0]
     numbering = _Numbering(spaces, n)
-    Kb, Cb = components.bearing_matrices(stack, numbering.dof, n)
+    Kb, Kc, Cb = components.bearing_matrices(stack, numbering.dof, n)
     M_full = (M_full + components.disk_mass(stack, numbering.dof, n)).tocsr()
     K_full = (K_full + Kb).tocsr()
     C, prefer = support_and_junction_rows(numbering, stack)
     T, _ = constraint_basis(C, n, prefer)
-    return FEModel(stack, mesh, axial, spaces, M_full, K_full, T, project(T, M_full), project(T, K_full), Kb, Cb)
+    return FEModel(stack, mesh, axial, spaces, M_full, K_full, T, project(T, M_full), project(T, K_full), Kb, Cb, Kc)
 
 
 def build_model(scene) -> FEModel:

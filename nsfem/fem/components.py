@@ -3,12 +3,13 @@
 Each acts at one node of the segment that carries it (:meth:`~nsfem.stack.BeamStack.carrier`), on the
 lateral values V, W and the slopes V', W' there (docs/theory.md, "Disks, bearings, unbalance"):
 
-- disk: mass m on V and W, diametral inertia I_d on V' and W'. Its polar inertia I_p enters only
+- disk: mass m on U, V and W, diametral inertia I_d on V' and W'. Its polar inertia I_p enters only
   with rotation: in the inertial frame as the gyroscopic couple Omega I_p (V' row, W' column +, W'
   row, V' column -); in the rotating frame as the Coriolis coupling (2 I_d - I_p) Omega and the
   centrifugal term (I_p - I_d) Omega^2 of the slopes, next to the translational 2 m Omega and
   -m Omega^2 (:func:`disk_rotating`).
-- bearing: K = [[kyy, kyz], [kzy, kzz]] on (V, W) and C likewise; an axial spring kxx on U.
+- bearing: K = [[kyy, kyz], [kzy, kzz]] on (V, W) and C likewise; an axial spring kxx on U. K's
+  symmetric part joins the structure's stiffness, its skew part (cross coupling) is circulatory.
 - unbalance: magnitude m e at angle phi in the rotating frame: the load m e Omega^2 (cos phi, sin phi)
   on (V, W) there, and its quarter-turn (-sin phi, cos phi) for the harmonic load of the inertial
   frame (:func:`unbalance_loads`).
@@ -42,11 +43,11 @@ def _sparse(entries: list[tuple[int, int, float]], n: int) -> sp.csr_matrix:
 
 
 def disk_mass(stack: BeamStack, dof: Dof, n: int) -> sp.csr_matrix:
-    """The disks' mass: m on V and W, I_d on V' and W' at each disk's node."""
+    """The disks' mass: m on U, V and W, I_d on V' and W' at each disk's node."""
     out = []
     for d in stack.disks:
-        v, w, vs, ws = _node(stack, dof, d.x)
-        out += [(v, v, d.mass), (w, w, d.mass), (vs, vs, d.diametral), (ws, ws, d.diametral)]
+        u, v, w, vs, ws = _node(stack, dof, d.x, ("U", "V", "W", "V'", "W'"))
+        out += [(u, u, d.mass), (v, v, d.mass), (w, w, d.mass), (vs, vs, d.diametral), (ws, ws, d.diametral)]
     return _sparse(out, n)
 
 
@@ -82,20 +83,26 @@ def disk_rotating(stack: BeamStack, dof: Dof, n: int) -> tuple[sp.csr_matrix, sp
     return _sparse(G, n), _sparse(K, n), Fy, Fz, fc
 
 
-def bearing_matrices(stack: BeamStack, dof: Dof, n: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-    """(K_b, C_b): the bearings' stiffness (lateral K on V, W and the axial kxx on U) and damping."""
-    K, C = [], []
+def bearing_matrices(stack: BeamStack, dof: Dof, n: int) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
+    """(K_b, K_c, C_b): the bearings' stiffness split into its symmetric part K_b (lateral, with the
+    axial kxx on U: potential energy, part of the structure's K) and its skew part K_c (the cross
+    coupling kyz - kzy of a fluid film: circulatory, a force no potential gives), and their damping."""
+    K, Kc, C = [], [], []
     for b in stack.bearings:
         v, w = _node(stack, dof, b.x, ("V", "W"))
-        for out, A in ((K, b.K), (C, b.C)):
-            for i, r in enumerate((v, w)):
-                for j, c in enumerate((v, w)):
-                    if A[i][j]:
-                        out.append((r, c, A[i][j]))
+        for i, r in enumerate((v, w)):
+            for j, c in enumerate((v, w)):
+                sym, skew = (b.K[i][j] + b.K[j][i]) / 2, (b.K[i][j] - b.K[j][i]) / 2
+                if sym:
+                    K.append((r, c, sym))
+                if skew:
+                    Kc.append((r, c, skew))
+                if b.C[i][j]:
+                    C.append((r, c, b.C[i][j]))
         if b.kxx:
             (u,) = _node(stack, dof, b.x, ("U",))
             K.append((u, u, b.kxx))
-    return _sparse(K, n), _sparse(C, n)
+    return _sparse(K, n), _sparse(Kc, n), _sparse(C, n)
 
 
 def unbalance_loads(stack: BeamStack, dof: Dof, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -61,6 +61,7 @@ class RotorOperators:
     Fz: np.ndarray
     # rotor components (design section 8; zero without them) and the inertial frame's operators
     Kb: sp.csr_matrix            # the bearings' part of K0 (Rayleigh's beta K damps the shaft only)
+    Kbc: sp.csr_matrix           # the bearings' cross coupling: skew, circulatory, in Q but not in K0
     Cb: sp.csr_matrix            # bearing damping
     CbJ: sp.csr_matrix           # C_b J: a fixed bearing's damping seen from the rotating frame (x Omega)
     MJ: sp.csr_matrix            # M J and (K0 - Kb) J: rotating internal damping seen from the inertial
@@ -150,7 +151,8 @@ def full_operators(model: FEModel) -> RotorOperators:
     vec["fc1"] += fc
     Kb = model.K_bearing if model.K_bearing is not None else sp.csr_matrix((n, n))
     Cb = model.C_bearing if model.C_bearing is not None else sp.csr_matrix((n, n))
+    Kbc = model.K_circulatory if model.K_circulatory is not None else sp.csr_matrix((n, n))
     J = components.lateral_turn(model.spaces, n)
     fu1, fq1 = components.unbalance_loads(model.stack, dof, n)
-    return RotorOperators(model.M_full, model.K_full, **mats, **vec, Kb=Kb, Cb=Cb, CbJ=(Cb @ J).tocsr(),
+    return RotorOperators(model.M_full, model.K_full, **mats, **vec, Kb=Kb, Kbc=Kbc, Cb=Cb, CbJ=(Cb @ J).tocsr(),
                           MJ=(model.M_full @ J).tocsr(), KJ=((model.K_full - Kb) @ J).tocsr(), fu1=fu1, fq1=fq1)
