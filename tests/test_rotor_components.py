@@ -148,16 +148,26 @@ def test_rotating_and_inertial_frames_agree(speed_hz):
     rotating frame as lambda - i Omega s, s = +1 for a forward lateral mode, -1 backward, 0 axial.
     This ties together the disks' Coriolis, centrifugal and gyroscopic terms, the bearings' damping
     seen from the rotating frame and the internal damping seen from the inertial one."""
+    from nsfem.analysis.campbell import AXIAL, whirl_sense
+    from nsfem.fem.components import lateral_turn
+
     model = model_of(equivalent_rotor())
     ops = rotor_operators(model)
     rd = ((0.5, 2e-5), 3.0)
-    lam_i = state_eigs(linear_system(ops, speed_hz, rayleigh=rd[0], external=rd[1], frame="inertial"))
+    sys_i = linear_system(ops, speed_hz, rayleigh=rd[0], external=rd[1], frame="inertial")
+    M, C, Q = sys_i.M.toarray(), sys_i.C.toarray(), sys_i.Q.toarray()
+    n = M.shape[0]
+    lam_i, X = np.linalg.eig(np.block([[np.zeros((n, n)), np.eye(n)],
+                                       [-np.linalg.solve(M, Q), -np.linalg.solve(M, C)]]))
+    # each inertial root's own whirl sense says which shift it must take: forward -1 i Omega, ...
+    senses = whirl_sense(X[:n], ops.basis, lateral_turn(model.spaces, model.n_full))
     lam_r = state_eigs(linear_system(ops, speed_hz, rayleigh=rd[0], external=rd[1], frame="rotating"))
     w = 2 * math.pi * speed_hz
     scale = np.abs(lam_i).max()
     used = np.zeros(lam_r.size, dtype=bool)
-    for lam in lam_i:
-        cand = np.array([lam - 1j * w * s for s in (1, -1, 0)])
+    for lam, sense in zip(lam_i, senses):
+        assert sense != 0                                # no planar mode on an isotropic spinning rotor
+        cand = np.array([lam - 1j * w * (0 if sense == AXIAL else sense)])
         d = np.abs(lam_r[None, :] - cand[:, None])
         d[:, used] = np.inf
         best = np.unravel_index(np.argmin(d), d.shape)
