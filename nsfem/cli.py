@@ -213,7 +213,8 @@ def cmd_campbell(args) -> int:
     red = scene_reduction(scene, model)
     rep = campbell_report(scene, model, speeds, args.count, red)
     res, bands = rep.pop("_results"), rep.pop("_bands")
-    from .analysis.campbell import supercritical_warning, unstable_warning
+    from .analysis.campbell import supercritical_warning
+    from .analysis.whirl import unstable_warning
 
     inertial = rep["frame"] == "inertial"
     speed = scene["rotation"]["speed_hz"]

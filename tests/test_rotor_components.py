@@ -148,7 +148,7 @@ def test_rotating_and_inertial_frames_agree(speed_hz):
     rotating frame as lambda - i Omega s, s = +1 for a forward lateral mode, -1 backward, 0 axial.
     This ties together the disks' Coriolis, centrifugal and gyroscopic terms, the bearings' damping
     seen from the rotating frame and the internal damping seen from the inertial one."""
-    from nsfem.analysis.campbell import AXIAL, whirl_sense
+    from nsfem.analysis.whirl import AXIAL, whirl_sense
     from nsfem.fem.components import lateral_turn
 
     model = model_of(equivalent_rotor())
@@ -311,7 +311,8 @@ def test_ross_example_rotor_whirl_frequencies():
 
 
 def test_instability_onset_and_critical_speed_of_the_jeffcott_rotor():
-    from nsfem.analysis.campbell import campbell, critical_speeds, instability_onsets
+    from nsfem.analysis.campbell import campbell
+    from nsfem.analysis.whirl import critical_speeds, instability_onsets
     from nsfem.fem.components import lateral_turn
 
     beta, c_e = 1e-4, 20.0
@@ -392,7 +393,8 @@ def test_cross_coupled_bearings_are_circulatory():
 def test_instability_below_the_speed_grid_is_found():
     """A Jeffcott rotor with internal damping, asked on a grid that starts above its threshold: the
     onset is found below the grid (closed form w_n (1 + c_e / c_i))."""
-    from nsfem.analysis.campbell import campbell, instability_onsets
+    from nsfem.analysis.campbell import campbell
+    from nsfem.analysis.whirl import instability_onsets
 
     beta, c_e = 1e-4, 20.0
     model, ops, k, m = jeffcott("inertial", 0.0, beta, c_e, rho=1.0)
@@ -408,7 +410,7 @@ def test_forward_critical_speeds_of_a_gyroscopic_disk():
     """Isotropic supports: only forward whirl is driven by an unbalance; the disk on a light cantilever's
     tip whirls synchronously forwards where (k11 - m w^2)(k22 - (I_d - I_p) w^2) = k12^2 (the 2-dof tip
     model of test_gyroscopic_splitting with whirl = spin = w)."""
-    from nsfem.analysis.campbell import critical_speeds
+    from nsfem.analysis.whirl import critical_speeds
     from nsfem.fem.components import lateral_turn
 
     D, L, m, Id, Ip = 0.02, 0.5, 4.0, 0.02, 0.04

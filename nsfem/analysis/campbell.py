@@ -1,4 +1,5 @@
-"""Campbell diagram, gravity resonances and divergence speeds of a rotating beam stack.
+"""Campbell diagram, gravity resonances and divergence speeds of a rotating beam stack (the inertial
+frame's whirl senses, critical speeds and instability onsets: :mod:`.whirl`).
 
 Rotating-frame natural frequencies come from the first-order form of eq. (22),
 
@@ -224,7 +225,7 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
              frame: str = "rotating", turn: sp.spmatrix | None = None) -> CampbellResult:
     """Natural frequencies at each speed (damping as given, no gravity needed): in the rotating frame,
     those a frame turning with the shaft sees; in the inertial frame, whirl frequencies, each marked
-    forward or backward by :func:`whirl_sense` (``turn``: the quarter turn J in full coordinates,
+    forward or backward by :func:`.whirl.whirl_sense` (``turn``: the quarter turn J in full coordinates,
     :func:`nsfem.fem.components.lateral_turn`; ops.basis maps to them)."""
     speeds = np.asarray(speeds_hz, dtype=float)
     F = np.full((len(speeds), count), np.nan)
@@ -238,35 +239,14 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
             lam, X = state_eigenvalues(system, count, vectors=True)
             pick = _oscillating(lam, count)
             if turn is not None and len(pick):
+                from .whirl import AXIAL, whirl_sense
+
                 sense = whirl_sense(X[:, pick], ops.basis, turn)
                 # at rest no mode whirls: an isotropic pair's eigenvectors are any combination
                 W[i, : len(pick)] = sense if s > 0 else np.where(sense == AXIAL, AXIAL, 0)
         F[i] = frequencies_of(lam, count)
         growth[i] = growth_rate(lam, count, _omega_max(system.M, system.Q))
     return CampbellResult(speeds, F, growth, W)
-
-
-#: A mode whirls forward (backward) when its orbits turn with (against) the spin by more than this
-#: share of its lateral amplitude (a circle: 1; a line: 0); between, it is planar (at rest, or on
-#: anisotropic bearings where a mode's orbits are flat ellipses)
-WHIRL = 1e-3
-#: whirl code of a mode without lateral motion
-AXIAL = 2
-
-
-def whirl_sense(X: np.ndarray, basis, turn: sp.spmatrix) -> np.ndarray:
-    """Per column x of X (eigenvectors of roots with Im > 0, ~ e^{i w t}): +1 when its orbits turn from
-    +y towards +z (the spin's sense: forward), -1 backward, 0 planar. With J the quarter turn,
-    Im(x^H J x) / (x^H x)_lateral is +1 for a forward circle (w = -i v), -1 backward, 0 for a line."""
-    xf = np.asarray(basis @ X) if basis is not None else X
-    Jx = turn @ xf
-    lateral = np.asarray(abs(turn).sum(axis=1)).ravel() > 0
-    size = np.einsum("ij,ij->j", np.conj(xf[lateral]), xf[lateral]).real
-    total = np.einsum("ij,ij->j", np.conj(xf), xf).real
-    ratio = np.einsum("ij,ij->j", np.conj(xf), Jx).imag / np.maximum(size, 1e-300)
-    sense = np.where(ratio > WHIRL, 1, np.where(ratio < -WHIRL, -1, 0))
-    # no lateral motion beyond round-off (an axial mode): no whirl at all
-    return np.where(size > 1e-12 * total, sense, AXIAL)
 
 
 def _oscillating(lam: np.ndarray, count: int) -> np.ndarray:
@@ -276,66 +256,6 @@ def _oscillating(lam: np.ndarray, count: int) -> np.ndarray:
         ref = np.sort(np.abs(lam[idx]))[min(count, len(idx)) - 1]
         idx = idx[np.abs(lam[idx]) > 1e-5 * ref]
     return idx[np.argsort(lam[idx].imag, kind="stable")][:count]
-
-
-def critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None = None,
-                    forward_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Inertial frame: (speeds [Hz], whirl) where the undamped rotor whirls synchronously, K0 x =
-    Omega^2 (M - i Gp1) x (a Hermitian pencil: Gp1 is real skew), the resonances an unbalance can
-    drive. On isotropic bearings (``forward_only``) only forward whirl can be driven (a backward mode
-    is orthogonal to every load turning with the shaft); on anisotropic ones the backward crossings
-    are resonances too. Axial modes are left out. A bearing's cross coupling (circulatory) is not in
-    K0: these are the critical speeds of the rotor without it."""
-    nu, X, _ = _pencil(_dense(ops.M) - 1j * _dense(ops.Gp1), _dense(ops.K0))
-    f = 1.0 / np.sqrt(nu) / (2 * math.pi)
-    w = whirl_sense(X, ops.basis, turn)
-    keep = (w != AXIAL) & (f <= (math.inf if max_hz is None else max_hz))
-    if forward_only:
-        keep &= w == 1
-    order = np.argsort(f[keep])
-    return f[keep][order], w[keep][order]
-
-
-def instability_onsets(ops: RotorOperators, speeds_hz: np.ndarray, growth: np.ndarray, count: int,
-                       rayleigh=(0.0, 0.0), external: float = 0.0, frame: str = "inertial") -> np.ndarray:
-    """Speeds [Hz] where the growth rate turns positive between grid points (internal damping, cross-
-    coupled bearings), each refined by bisection to 1e-6 of the speed.
-
-    The grid's growth rates are clipped at their round-off resolution (:func:`growth_rate`); the
-    bisection instead follows the root that grows at the bracket's unstable end, a simple root whose
-    real part is accurate to round-off, and finds where that real part changes sign."""
-    def roots(speed):
-        return state_eigenvalues(linear_system(ops, speed, 0.0, 0.0, rayleigh, external, frame), count)
-
-    def grows(speed):
-        system = linear_system(ops, speed, 0.0, 0.0, rayleigh, external, frame)
-        return growth_rate(state_eigenvalues(system, count), count, _omega_max(system.M, system.Q)) > 0.0
-
-    speeds_hz, growth = np.asarray(speeds_hz, dtype=float), np.asarray(growth, dtype=float)
-    brackets = [(float(speeds_hz[i]), float(speeds_hz[i + 1]))
-                for i in np.flatnonzero((growth[:-1] <= 0.0) & (growth[1:] > 0.0))]
-    out = []
-    if growth.size and growth[0] > 0.0:
-        # unstable from the grid's first speed on: from rest (a bearing's cross coupling), or from
-        # some speed below the grid
-        first = float(speeds_hz[0])
-        if first == 0.0 or grows(0.0):
-            out.append(0.0)
-        else:
-            brackets.insert(0, (0.0, first))
-    for a, b in brackets:
-        lam = roots(b)
-        track = lam[np.argmax(lam.real)]
-        while b - a > 1e-6 * b:
-            mid = 0.5 * (a + b)
-            lam = roots(mid)
-            track = lam[np.argmin(np.abs(lam - track))]
-            if track.real > 0.0:
-                b = mid
-            else:
-                a = mid
-        out.append(0.5 * (a + b))
-    return np.array(out)
 
 
 def growth_rate(lam: np.ndarray, count: int, omega_max: float) -> float:
@@ -484,9 +404,8 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
     reduced once and reused for every speed.
     """
     from ..fem.rotating import rotor_operators
-    from .modes import contact_basis
-
     from ..scene import check_frame_at_speed
+    from .modes import contact_basis
 
     rot, damp = scene["rotation"], scene["damping"]
     check_frame_at_speed(rot["frame"], model.stack)     # the diagram spins a scene given at rest too
@@ -497,7 +416,9 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
         check_damping(damp["rayleigh"], standstill_frequencies(ops["open"]), damp["external"],
                       min(seg.rho * seg.area for seg in model.stack.segments))
     if rot["frame"] == "inertial":
-        return _inertial_report(model, ops, rot, damp, speeds_hz, count, reduction)
+        from .whirl import inertial_report
+
+        return inertial_report(model, ops, rot, damp, speeds_hz, count, reduction)
     speeds = default_speeds(ops["open"], rot["speed_hz"]) if speeds_hz is None else np.asarray(speeds_hz)
     res = {c: campbell(o, speeds, count, tuple(damp["rayleigh"]), damp["external"]) for c, o in ops.items()}
     grav = {c: gravity_resonances(o, rot["phase_deg"]) for c, o in ops.items()}
@@ -527,72 +448,6 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
         "valid_up_to_hz": None if math.isinf(valid) else valid,
         "_results": res, "_bands": divergence_bands(div["open"]),
     }
-
-
-WHIRL_NAMES = {1: "forward", -1: "backward", 0: "planar", AXIAL: "axial"}
-
-
-def _inertial_report(model, ops: dict, rot: dict, damp: dict, speeds_hz, count: int, reduction) -> dict:
-    """``campbell_report`` in the inertial frame: whirl frequencies marked forward or backward,
-    critical speeds (synchronous whirl, what an unbalance drives), the speeds where the rotor turns
-    unstable. Gravity is a constant load here: no gravity resonance."""
-    from ..fem.components import lateral_turn
-
-    top = None if reduction is None else reduction.info.get("max_frequency_hz")
-    valid = VALID_FRACTION * top if top else math.inf
-    turn = lateral_turn(model.spaces, model.n_full)
-    isotropic = all(b.isotropic for b in model.stack.bearings)
-    crit = {c: critical_speeds(o, turn, None if math.isinf(valid) else valid, isotropic) for c, o in ops.items()}
-    if speeds_hz is None:
-        # past the second forward critical speed (the first of the second mode pair)
-        c = crit["open"][0][crit["open"][1] == 1]
-        stop = max(1.23 * (c[min(1, len(c) - 1)] if len(c) else 0.0), 2.0 * rot["speed_hz"], 1.0)
-        speeds = np.linspace(0.0, stop, 61)
-    else:
-        speeds = np.asarray(speeds_hz, dtype=float)
-    rd = (tuple(damp["rayleigh"]), damp["external"])
-    res = {c: campbell(o, speeds, count, *rd, frame="inertial", turn=turn) for c, o in ops.items()}
-    onsets = {c: instability_onsets(o, speeds, res[c].growth_per_s, count, *rd) for c, o in ops.items()}
-
-    def clean(a):
-        return [None if not np.isfinite(x) else float(x) for x in np.ravel(a)]
-
-    def bands(c):
-        g, out = res[c].growth_per_s, []
-        for a in onsets[c]:
-            back = np.flatnonzero((speeds > a) & (g <= 0.0))
-            out.append([float(a), float(speeds[back[0]]) if len(back) else None])
-        return out
-
-    whirl = [[WHIRL_NAMES[int(w)] if np.isfinite(f) else None for w, f in zip(wr, fr)]
-             for wr, fr in zip(res["open"].whirl, res["open"].frequencies_hz)]
-    return {
-        "frame": "inertial",
-        "speeds_hz": clean(speeds),
-        "frequencies_hz": [clean(row) for row in res["open"].frequencies_hz],
-        "whirl": whirl,
-        "frequencies_closed_hz": [clean(row) for row in res["closed"].frequencies_hz],
-        "growth_rate_per_s": {c: clean(r.growth_per_s) for c, r in res.items()},
-        "critical_speeds_hz": {c: clean(v[0][:count]) for c, v in crit.items()},
-        "critical_whirl": {c: [WHIRL_NAMES[int(w)] for w in v[1][:count]] for c, v in crit.items()},
-        "gravity_resonances_hz": {"open": [], "closed": []},
-        "gravity_excitation": {"open": [], "closed": []},
-        "instability_hz": {c: clean(v) for c, v in onsets.items()},
-        "instability_bands_hz": {c: bands(c) for c in res},
-        "ndof_full": model.n, "ndof": model.n if reduction is None else reduction.ndof,
-        "valid_up_to_hz": None if math.isinf(valid) else valid,
-        "_results": res, "_bands": [(a, math.inf if b is None else b) for a, b in bands("open")],
-    }
-
-
-def unstable_warning(speed_hz: float, onsets_hz, bands) -> str | None:
-    """Inertial frame: a warning when ``speed_hz`` lies where the rotor's motion grows (past an onset
-    of instability: internal damping beyond its threshold, cross-coupled bearings), else None."""
-    for a, b in bands:
-        if a < speed_hz and (b is None or speed_hz < b):
-            return (f"rotation.speed_hz = {speed_hz:g} Hz lies beyond the onset of instability at {a:.4g} Hz "
-                    "(internal damping or cross-coupled bearings): free motion grows")
-    return None
 
 
 def supercritical_warning(speed_hz: float, divergence_hz) -> str | None:
