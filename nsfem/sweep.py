@@ -234,12 +234,30 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
         summary = result.summary()
         row.update(summary, error=error, result=str(path), outputs=[str(path)],
                    integration_wall_s=summary["wall_s"])
+        row.update(sensor_amplitudes(result, system))
     except Exception as exc:  # noqa: BLE001 - every failure is reported in its row
         row["error"] = _message(exc)
     row["wall_s"] = time.perf_counter() - t0  # as nsfem run: the whole run (the shared model built before)
     row["warnings"] = warnings
     write_json(run_dir / "record.json", {"fingerprint": fp, "point": point, "row": row})
     return row
+
+
+#: the columns of sensor amplitudes: ``amplitude_<sensor name>_m``
+AMPLITUDE = "amplitude_{}_m"
+
+
+def sensor_amplitudes(result, system) -> dict:
+    """Per sensor of the run, half its peak-to-peak over the last half of the run [m] (the steady
+    response's amplitude once the start has died out): the resonance curve of a rotor without contacts."""
+    from .simulate import sensor_signals
+
+    sensors = system.info.get("sensors", ())
+    if not sensors or result.t.size < 2:
+        return {}
+    values = sensor_signals(result, system)
+    half = result.t >= result.t[0] + 0.5 * (result.t[-1] - result.t[0])
+    return {AMPLITUDE.format(s.name): float(np.ptp(values[half, k]) / 2) for k, s in enumerate(sensors)}
 
 
 def _message(exc: BaseException) -> str:
@@ -330,14 +348,16 @@ class SweepResult:
                 "failed": len(self.failed), **self.info}
 
 
-def table_columns(axes: Sequence[Axis]) -> list[str]:
-    return [a.key for a in axes] + list(RUN_KEYS) + ["error", "result"]
+def table_columns(axes: Sequence[Axis], runs: Sequence[dict | None] = ()) -> list[str]:
+    """The swept keys, the run keys, the sensors' amplitudes the rows hold, error and result file."""
+    amplitudes = sorted({k for r in runs if r for k in r if k.startswith("amplitude_") and k.endswith("_m")})
+    return [a.key for a in axes] + list(RUN_KEYS) + amplitudes + ["error", "result"]
 
 
 def write_table(path: Path, axes: Sequence[Axis], runs: Sequence[dict | None]) -> Path:
     """The CSV of the finished rows (atomically); unfinished points are left out."""
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=table_columns(axes), extrasaction="ignore", lineterminator="\n")
+    w = csv.DictWriter(buf, fieldnames=table_columns(axes, runs), extrasaction="ignore", lineterminator="\n")
     w.writeheader()
     w.writerows({k: ("" if v is None else v) for k, v in r.items()} for r in runs if r is not None)
     return write_text_atomic(path, buf.getvalue())

@@ -294,3 +294,32 @@ def test_folder_table_covers_every_sweep_into_it(inprocess, tmp_path):
     payload = json.loads((tmp_path / "sweep.json").read_text())
     assert payload["values"] == [10, 15, 20, 25, 30] and len(payload["runs"]) == 5
     assert [p["rotation.speed_hz"] for p in fine.points] == [10, 15, 20, 25, 30]
+
+
+def test_a_rotor_sweep_records_its_sensors_steady_amplitudes(inprocess, tmp_path):
+    """The shipped critical_speed rotor (no contacts): each run's row holds its probes' amplitudes over
+    the last half of the run, which equal the steady unbalance response of the linear system (the
+    harmonic solve of (-w^2 M + i w C + Q) X = fc - i fs) once the start has decayed (its slowest
+    lateral mode decays at 5 1/s: e^-20 by the last half's start; 1e-4 leaves room for that and the
+    sampling of the peaks, 1 ms against 26 to 31 Hz)."""
+    import math
+
+    from nsfem import load_scene
+    from nsfem.fem.rotating import rotor_operators
+    from nsfem.sensors import hermite_row
+    from nsfem.simulate import run_scene
+    from nsfem.system import linear_system
+
+    res = run_sweep("critical_speed", ["rotation.speed_hz=26:31:2"], tmp_path, client=inprocess)
+    text = (tmp_path / "sweep.csv").read_text().splitlines()
+    assert "amplitude_disk_y_m" in text[0] and "amplitude_disk_z_m" in text[0]
+    for speed, row in zip((26.0, 31.0), res.runs):
+        _, system = run_scene(load_scene("critical_speed", [f"rotation.speed_hz={speed}", "simulation.t_end=0.01"]))
+        model, red = system.info["model"], system.info["reduction"]
+        s = linear_system(rotor_operators(model, red.T), speed, frame="inertial")
+        w = 2 * math.pi * speed
+        X = np.linalg.solve(-w**2 * s.M.toarray() + 1j * w * s.C.toarray() + s.Q.toarray(), s.fc - 1j * s.fs)
+        for field, name in (("V", "disk_y"), ("W", "disk_z")):
+            steady = abs((hermite_row(model, "intact_0", field, 0.5) @ np.asarray(red.T)) @ X)[0]
+            assert row[f"amplitude_{name}_m"] == pytest.approx(steady, rel=1e-4)
+    assert res.figure is not None and res.figure.exists()

@@ -1,8 +1,10 @@
 """The resonance curve of a sweep: contact measures against the swept parameter.
 
 Three panels against the first swept key: the share of time with a closed contact, the
-smallest and largest gap, the largest normal force. A grid draws one curve per combination
-of the other keys' values. Failed runs are left out (and counted in the title).
+smallest and largest gap, the largest normal force; with sensors, a panel of their steady
+amplitudes (a rotor without contacts has that panel alone: its unbalance response curve). A grid
+draws one curve per combination of the other keys' values. Failed runs are left out (and counted
+in the title).
 """
 
 from __future__ import annotations
@@ -23,13 +25,18 @@ def plot_resonance(path: str | Path, keys: Sequence[str], points: Sequence[dict]
     ``marks`` {label: [x, ...]} draws dotted vertical lines (e.g. gravity resonances),
     ``bands`` [(a, b), ...] shades intervals of the swept parameter (e.g. divergence bands).
     """
-    fig, axes = figure(nrows=3, sharex=True, figsize=(7.0, 7.5))
+    amp_keys = sorted({k for r in runs if r for k in r if k.startswith("amplitude_") and k.endswith("_m")})
+    contacts = any(r is not None and not r.get("error") and r.get("min_gap_m") is not None for r in runs)
+    nrows = (3 if contacts or not amp_keys else 0) + (1 if amp_keys else 0)
+    fig, axes = figure(nrows=nrows, sharex=True, figsize=(7.0, 2.5 * nrows + 0.5), squeeze=False)
+    axes = list(axes.ravel())
+    amp_ax = axes.pop() if amp_keys else None
     curves: dict[tuple, list[tuple[float, dict]]] = {}
     failed = 0
     for pt, row in zip(points, runs):
         if row is None:
             continue
-        if row.get("error") or row.get("min_gap_m") is None:
+        if row.get("error") or (row.get("min_gap_m") is None and not amp_keys):
             failed += bool(row.get("error"))
             continue
         curves.setdefault(tuple(pt[k] for k in keys[1:]), []).append((float(pt[keys[0]]), row))
@@ -37,29 +44,43 @@ def plot_resonance(path: str | Path, keys: Sequence[str], points: Sequence[dict]
         pts.sort(key=lambda p: p[0])
         x = np.array([p[0] for p in pts])
         name = ", ".join(f"{k.split('.')[-1]}={v:g}" for k, v in zip(keys[1:], label)) or None
-        closed = [100 * r["closed_fraction"] for _, r in pts]
-        line, = axes[0].plot(x, closed, "o-", ms=3, label=name)
-        axes[1].plot(x, [1e3 * r["max_gap_m"] for _, r in pts], "o-", ms=3, color=line.get_color())
-        axes[1].plot(x, [1e3 * r["min_gap_m"] for _, r in pts], "s--", ms=3, color=line.get_color(), alpha=0.6)
-        axes[2].plot(x, [r["max_normal_force_N"] for _, r in pts], "o-", ms=3, color=line.get_color())
-    for ax in axes:
+        color = None
+        if axes:
+            closed = [100 * r["closed_fraction"] for _, r in pts]
+            line, = axes[0].plot(x, closed, "o-", ms=3, label=name)
+            color = line.get_color()
+            axes[1].plot(x, [1e3 * r["max_gap_m"] for _, r in pts], "o-", ms=3, color=color)
+            axes[1].plot(x, [1e3 * r["min_gap_m"] for _, r in pts], "s--", ms=3, color=color, alpha=0.6)
+            axes[2].plot(x, [r["max_normal_force_N"] for _, r in pts], "o-", ms=3, color=color)
+        if amp_ax is not None:
+            for j, k in enumerate(amp_keys):
+                amp_ax.plot(x, [1e6 * r[k] if r.get(k) is not None else np.nan for _, r in pts],
+                            ["o-", "s--", "^-.", "v:"][j % 4], ms=3, color=color,
+                            label=f"{k[len('amplitude_'):-2]}" + (f" ({name})" if name else ""))
+    every = axes + ([amp_ax] if amp_ax is not None else [])
+    for ax in every:
         for k, (a, b) in enumerate(bands):
-            ax.axvspan(a, b, color="0.85", zorder=0, label="divergence band" if (ax is axes[0] and k == 0) else None)
+            ax.axvspan(a, b, color="0.85", zorder=0, label="divergence band" if (ax is every[0] and k == 0) else None)
         for j, (label, xs) in enumerate((marks or {}).items()):
             for i, x in enumerate(xs):
-                ax.axvline(x, ls=":", color=f"C{3 + j}", lw=1, label=label if (ax is axes[0] and i == 0) else None)
-    for ax in axes[1:]:  # gaps and forces span decades near divergence: linear below, log above
-        ax.set_yscale("symlog", linthresh=1e-3 if ax is axes[1] else 1.0)
-        ax.set_ylim(bottom=0.0)
-    axes[0].set_ylabel("closed [% of time]")
-    axes[1].set_ylabel("gap [mm]\nmax (—), min (--)")
-    axes[2].set_ylabel("max normal force [N]")
-    axes[2].set_xlabel(keys[0])
-    for ax in axes:
+                ax.axvline(x, ls=":", color=f"C{3 + j}", lw=1, label=label if (ax is every[0] and i == 0) else None)
+    if axes:
+        for ax in axes[1:]:  # gaps and forces span decades near divergence: linear below, log above
+            ax.set_yscale("symlog", linthresh=1e-3 if ax is axes[1] else 1.0)
+            ax.set_ylim(bottom=0.0)
+        axes[0].set_ylabel("closed [% of time]")
+        axes[1].set_ylabel("gap [mm]\nmax (—), min (--)")
+        axes[2].set_ylabel("max normal force [N]")
+        if any(k for k in curves if k) or marks or bands:
+            axes[0].legend(fontsize=7)
+    if amp_ax is not None:
+        amp_ax.set_yscale("log")
+        amp_ax.set_ylabel("sensor amplitude [um]\n(last half of each run)")
+        amp_ax.legend(fontsize=7)
+    every[-1].set_xlabel(keys[0])
+    for ax in every:
         ax.grid(True, alpha=0.3)
-    if any(k for k in curves if k) or marks or bands:
-        axes[0].legend(fontsize=7)
     head = title + (f"\n{failed} failed run(s) not shown" if failed else "")
-    axes[0].set_title(head, fontsize=9)
+    every[0].set_title(head, fontsize=9)
     fig.tight_layout()
     return save(fig, path, dpi)
