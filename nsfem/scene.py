@@ -250,7 +250,8 @@ _STATOR = {
     "friction": Key("float", 0.0, "Coulomb mu against the sliding shaft surface (not in this version: 0)",
                     check=_nonneg),
     "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
-    "radius": Key("float", 0.0, "shaft surface radius at x [m]; 0 = half the section's depth", check=_nonneg),
+    "radius": Key("float", 0.0, "shaft surface radius at x [m] for the surface speed of friction (not in this "
+                  "version: 0)", check=_nonneg),
 }
 _SENSOR = {
     "name": Key("str", "", "column name in sensors.csv (default sensor_<index>)"),
@@ -997,6 +998,9 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
             raise SceneError(f"{key}.stiffness" if st["stiffness"] > 0 else f"{key}.damping",
                              "an elastic stator ring (a unilateral spring-damper) is not in this version: "
                              "stiffness and damping must be 0 (a rigid ring)")
+        if st["radius"] > 0.0:
+            raise SceneError(f"{key}.radius", "the shaft's surface radius enters only the surface speed of "
+                             "friction at the ring, which this version does not model; leave it at 0")
         if st["friction"] > 0.0:
             raise SceneError(f"{key}.friction", "friction at a stator acts against the shaft surface sliding past "
                              "at Omega r (paper eq. 27: a slip velocity affine in q'), which this version does "

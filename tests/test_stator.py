@@ -140,3 +140,29 @@ def test_shipped_scenes_run(name, tmp_path):
     scene = load_scene(name, ["simulation.t_end=0.02", "simulation.output_dt=1e-3"])
     res, _ = run_scene(scene, "exact")
     assert res.completed and abs(res.energy["relative_residual"]) < 1e-9
+
+
+def test_review_fixes_critical_speed_of_an_unsplit_pair_gap_panel_and_radius(tmp_path):
+    """A disk at midspan on isotropic supports: the spin does not split its pair, the solver returns
+    two planar vectors, and the critical speed is still listed, once (the rotating frame's divergence
+    speed of the same rotor); a stator's facets share one panel of the gap plot; an unused radius is
+    refused."""
+    from nsfem import build_model, load_scene
+    from nsfem.analysis.campbell import divergence_speeds
+    from nsfem.analysis.whirl import critical_speeds
+    from nsfem.fem.components import lateral_turn
+    from nsfem.fem.rotating import rotor_operators
+    from nsfem.plot.results import delamination_middles
+
+    scene = load_scene("rub", ['rotation.frame="inertial"', "reduction.method=none"])
+    model = build_model(scene)
+    ops = rotor_operators(model)
+    crit, sense = critical_speeds(ops, lateral_turn(model.spaces, model.n_full), forward_only=True)
+    # divergence speeds come in pairs for an isotropic rotor (one per plane); the same eigenproblem at rest
+    assert crit[0] == pytest.approx(divergence_speeds(ops)[0], rel=1e-9) and crit[1] > 2 * crit[0]
+    assert np.all(sense == 1)
+    _, system = run_scene(load_scene("rub", ["simulation.t_end=0.001"]), "exact")
+    groups = delamination_middles(system)
+    assert [g["name"] for g in groups] == ["stator.0"] and len(groups[0]["indices"]) == 64
+    with pytest.raises(SceneError, match="stator.0.radius"):
+        load_scene("rub", ["stator.0.radius=0.5"])

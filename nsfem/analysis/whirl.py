@@ -56,7 +56,15 @@ def critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None
     w = whirl_sense(X, ops.basis, turn)
     keep = (w != AXIAL) & (f <= (math.inf if max_hz is None else max_hz))
     if forward_only:
-        keep &= w == 1
+        # a pair the spin does not split (a disk at midspan, a shaft without disks) is degenerate: the
+        # solver returns two planar vectors for its one forward critical speed; keep it once
+        keep &= w != -1
+        f, w = f[keep], w[keep]
+        order = np.argsort(f)
+        f, w = f[order], w[order]
+        single = np.ones(f.size, dtype=bool)
+        single[1:] = ~((w[1:] == 0) & (w[:-1] == 0) & (np.abs(f[1:] - f[:-1]) <= 1e-9 * f[1:]))
+        return f[single], np.where(w[single] == 0, 1, w[single])
     order = np.argsort(f[keep])
     return f[keep][order], w[keep][order]
 

@@ -150,6 +150,9 @@ def delamination_middles(system) -> list[dict]:
                 span = (seg.start, seg.end)
                 name = labels[k].rsplit(".", 1)[0] if labels[k].startswith("delamination.") \
                     else f"interface {c.segments[0]}/{c.segments[1]}"
+            elif c.angle is not None:   # a stator's facets: one ring, one panel
+                name = labels[k].rsplit(".", 1)[0]
+                key, span = ("stator", name), (c.x, c.x)
             else:
                 key, span, name = ("stop", k), (c.x, c.x), labels[k]
             groups.setdefault(key, {"name": name, "indices": [], "span": span})["indices"].append(k)
