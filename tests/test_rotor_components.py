@@ -71,6 +71,14 @@ def test_disk_on_a_light_shaft_is_the_jeffcott_rotor():
     np.testing.assert_allclose(f, exact, rtol=1e-6)
 
 
+def tip_disk(elements, D, rho, L, m, Id, Ip):
+    """A disk on the tip of a cantilever of density rho, inertial frame, not spinning (the speed is
+    given to linear_system)."""
+    return model_of(rotor_tree(elements, D, rho=rho, length=L, supports="clamped-free",
+                               disk=[{"x": L, "mass": m, "polar_inertia": Ip, "diametral_inertia": Id}],
+                               rotation={"speed_hz": 0.0, "gravity": 0.0, "frame": "inertial"}))
+
+
 def disk_tip_closed_form(m, Id, Ip, k11, k12, k22, spin):
     """Whirl frequencies of a disk on a massless cantilever tip, gyroscopic (inertial frame): with
     z = v + i w and theta = V' + i W' ~ e^{i w t}, det [[k11 - m w^2, k12], [k12, k22 - Id w^2 + Ip Omega w]]
@@ -83,10 +91,7 @@ def disk_tip_closed_form(m, Id, Ip, k11, k12, k22, spin):
 
 def test_gyroscopic_splitting_of_a_disk_on_a_cantilever():
     D, L, m, Id, Ip = 0.02, 0.5, 4.0, 0.02, 0.04
-    tree = rotor_tree(16, D, rho=1e-3, length=L, supports="clamped-free",
-                      disk=[{"x": L, "mass": m, "polar_inertia": Ip, "diametral_inertia": Id}],
-                      rotation={"speed_hz": 0.0, "gravity": 0.0, "frame": "inertial"})
-    model = model_of(tree)
+    model = tip_disk(16, D, 1e-3, L, m, Id, Ip)
     ops = rotor_operators(model)
     EI = E * math.pi * D**4 / 64
     # tip (w, w') of a clamped beam: EI / L^3 [[12, -6 L], [-6 L, 4 L^2]]
@@ -109,10 +114,7 @@ def test_free_disk_nutates_forwards():
     # the whirl sense of the inertial gyroscopic term: a disk on a soft cantilever at high spin nutates
     # at Ip Omega / Id in the sense of the spin (+y towards +z)
     D, L, m, Id, Ip = 0.01, 0.5, 4.0, 0.02, 0.04
-    tree = rotor_tree(8, D, rho=1e-3, length=L, supports="clamped-free",
-                      disk=[{"x": L, "mass": m, "polar_inertia": Ip, "diametral_inertia": Id}],
-                      rotation={"speed_hz": 0.0, "gravity": 0.0, "frame": "inertial"})
-    model = model_of(tree)
+    model = tip_disk(8, D, 1e-3, L, m, Id, Ip)
     ops = rotor_operators(model)
     spin = 2e4
     sys_ = linear_system(ops, spin / (2 * math.pi), frame="inertial")
@@ -416,10 +418,7 @@ def test_forward_critical_speeds_of_a_gyroscopic_disk():
     D, L, m, Id, Ip = 0.02, 0.5, 4.0, 0.02, 0.04
     # shaft density 1 (mass 4e-5 of the disk's): the critical-speed pencil drops roots more than 1e12
     # below its largest one (in w^2) as rigid, and a lighter shaft's spectrum is that wide
-    tree = rotor_tree(16, D, rho=1.0, length=L, supports="clamped-free",
-                      disk=[{"x": L, "mass": m, "polar_inertia": Ip, "diametral_inertia": Id}],
-                      rotation={"speed_hz": 0.0, "gravity": 0.0, "frame": "inertial"})
-    model = model_of(tree)
+    model = tip_disk(16, D, 1.0, L, m, Id, Ip)
     EI = E * math.pi * D**4 / 64
     k11, k12, k22 = 12 * EI / L**3, -6 * EI / L**2, 4 * EI / L
     # (k11 - m x)(k22 - (Id - Ip) x) - k12^2 = 0 in x = w^2: with Ip > Id one positive root only (the

@@ -211,13 +211,9 @@ def frequencies_of(lam: np.ndarray, count: int) -> np.ndarray:
     zero, where a double root at a divergence speed splits at round-off into a real or a
     complex pair. Missing entries are nan.
     """
-    osc = lam[lam.imag > 1e-9 * np.maximum(np.abs(lam), 1.0)]
-    if len(osc):
-        ref = np.sort(np.abs(osc))[min(count, len(osc)) - 1]
-        osc = osc[np.abs(osc) > 1e-5 * ref]
-    f = np.sort(osc.imag) / (2 * math.pi)
+    f = lam[_oscillating(lam, count)].imag / (2 * math.pi)
     out = np.full(count, np.nan)
-    out[: min(count, len(f))] = f[:count]
+    out[: f.size] = f
     return out
 
 
@@ -250,7 +246,7 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
 
 
 def _oscillating(lam: np.ndarray, count: int) -> np.ndarray:
-    """Indices of the roots :func:`frequencies_of` reports, in its order (ascending frequency)."""
+    """Indices of the roots :func:`frequencies_of` reports (at most ``count``), by ascending frequency."""
     idx = np.flatnonzero(lam.imag > 1e-9 * np.maximum(np.abs(lam), 1.0))
     if len(idx):
         ref = np.sort(np.abs(lam[idx]))[min(count, len(idx)) - 1]

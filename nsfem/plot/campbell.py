@@ -16,14 +16,8 @@ def campbell_plot(path: str | Path, speeds_hz, open_hz, closed_hz=None, resonanc
     if whirl is not None:
         return _whirl_plot(path, np.asarray(speeds_hz), np.asarray(open_hz), np.asarray(whirl), resonances,
                            bands, title)
-    fig, ax = figure(figsize=(7.0, 4.8))
     s = np.asarray(speeds_hz)
-    top = float(s.max()) if len(s) else 1.0
-    for lo, hi in bands:
-        if lo < top:
-            ax.axvspan(lo, min(hi, top), color="tab:red", alpha=0.08, lw=0)
-    if bands:
-        ax.plot([], [], color="tab:red", alpha=0.3, lw=6, label="divergence band (open)")
+    fig, ax, top = _axes(s, bands, "divergence band (open)")
     for F, name in ((np.asarray(open_hz), "open"), (None if closed_hz is None else np.asarray(closed_hz), "closed")):
         if F is None:
             continue
@@ -38,28 +32,13 @@ def campbell_plot(path: str | Path, speeds_hz, open_hz, closed_hz=None, resonanc
         r = r[r <= top]
         if len(r):
             ax.plot(r, r, marker, color=color, mfc="none", ms=9, label=f"gravity resonance ({name})")
-    ax.set_xlabel("rotation speed [Hz]")
-    ax.set_ylabel("rotating-frame natural frequency [Hz]")
-    ax.set_xlim(s.min(), top)
-    ax.set_ylim(bottom=0)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
-    if title:
-        ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    return save(fig, path)
+    return _finish(fig, ax, s, top, "rotating-frame natural frequency [Hz]", title, path)
 
 
 def _whirl_plot(path, s, F, W, resonances, bands, title) -> Path:
     """Inertial frame: whirl frequencies, forward and backward apart, the 1x line of the unbalance,
     critical speeds where it meets them, the bands where the rotor is unstable."""
-    fig, ax = figure(figsize=(7.0, 4.8))
-    top = float(s.max()) if len(s) else 1.0
-    for lo, hi in bands:
-        if lo < top:
-            ax.axvspan(lo, min(hi, top), color="tab:red", alpha=0.08, lw=0)
-    if bands:
-        ax.plot([], [], color="tab:red", alpha=0.3, lw=6, label="unstable")
+    fig, ax, top = _axes(s, bands, "unstable")
     x = np.repeat(s, F.shape[1])
     for code, name, marker, color in ((1, "forward", "^", "tab:blue"), (-1, "backward", "v", "tab:orange"),
                                       (0, "at rest or planar", ".", "tab:gray"), (2, "axial", "s", "tab:green")):
@@ -72,8 +51,25 @@ def _whirl_plot(path, s, F, W, resonances, bands, title) -> Path:
     r = r[r <= top]
     if len(r):
         ax.plot(r, r, "o", color="k", mfc="none", ms=9, label="critical speed")
+    return _finish(fig, ax, s, top, "whirl frequency [Hz]", title, path)
+
+
+def _axes(s: np.ndarray, bands, band_label: str):
+    """(fig, ax, top): the diagram's axes with the speed bands shaded up to the last speed ``top``."""
+    fig, ax = figure(figsize=(7.0, 4.8))
+    top = float(s.max()) if len(s) else 1.0
+    for lo, hi in bands:
+        if lo < top:
+            ax.axvspan(lo, min(hi, top), color="tab:red", alpha=0.08, lw=0)
+    if bands:
+        ax.plot([], [], color="tab:red", alpha=0.3, lw=6, label=band_label)
+    return fig, ax, top
+
+
+def _finish(fig, ax, s: np.ndarray, top: float, ylabel: str, title: str, path) -> Path:
+    """Labels, limits, grid, legend and title; save."""
     ax.set_xlabel("rotation speed [Hz]")
-    ax.set_ylabel("whirl frequency [Hz]")
+    ax.set_ylabel(ylabel)
     ax.set_xlim(s.min(), top)
     ax.set_ylim(bottom=0)
     ax.grid(True, alpha=0.3)
