@@ -247,11 +247,12 @@ _STATOR = {
                      check=_nonneg),
     "damping": Key("float", 0.0, "ring damping [N s/m] (with an elastic ring, not in this version)",
                    check=_nonneg),
-    "friction": Key("float", 0.0, "Coulomb mu against the sliding shaft surface (not in this version: 0)",
+    "friction": Key("float", 0.0, "Coulomb mu against the shaft surface, which slides past the ring at Omega "
+                    "radius besides its whirl (circumferential friction; the axial slip is frictionless)",
                     check=_nonneg),
     "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
-    "radius": Key("float", 0.0, "shaft surface radius at x [m] for the surface speed of friction (not in this "
-                  "version: 0)", check=_nonneg),
+    "radius": Key("float", 0.0, "shaft surface radius at x [m] for the surface speed of friction (0: half "
+                  "the section's depth)", check=_nonneg),
 }
 _SENSOR = {
     "name": Key("str", "", "column name in sensors.csv (default sensor_<index>)"),
@@ -990,7 +991,9 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
     """Each ``[[stator]]`` as ``facets`` rigid stops at one x: facet k's normal points at the angle
     2 pi k / facets in the y-z plane, its gap is clearance - n.(v, w) (the polygon tangent to the
     clearance circle; a ring fixed in the frame of the coordinates: in space in the inertial frame,
-    an approximation of the same circle in the rotating one)."""
+    an approximation of the same circle in the rotating one). Friction acts along the circumference
+    against the shaft surface of radius ``radius`` sliding past (see
+    :func:`~nsfem.contact.set.surface_velocity`)."""
     out = []
     for i, st in enumerate(tree["stator"]):
         key = f"stator.{i}"
@@ -998,25 +1001,20 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
             raise SceneError(f"{key}.stiffness" if st["stiffness"] > 0 else f"{key}.damping",
                              "an elastic stator ring (a unilateral spring-damper) is not in this version: "
                              "stiffness and damping must be 0 (a rigid ring)")
-        if st["radius"] > 0.0:
-            raise SceneError(f"{key}.radius", "the shaft's surface radius enters only the surface speed of "
-                             "friction at the ring, which this version does not model; leave it at 0")
-        if st["friction"] > 0.0:
-            raise SceneError(f"{key}.friction", "friction at a stator acts against the shaft surface sliding past "
-                             "at Omega r (paper eq. 27: a slip velocity affine in q'), which this version does "
-                             "not model; set it to 0")
         x = middle if st["x"] is None else st["x"]
         seg = stack.carrier(x) if math.isfinite(x) else None
         if seg is None:
             lo, hi = min(g.start for g in stack.segments), max(g.end for g in stack.segments)
             raise SceneError(f"{key}.x", f"x={x} must lie on the intact shaft within [{lo}, {hi}]")
         n = st["facets"]
+        radius = st["radius"] or stack.segment(seg).height / 2.0
         for k in range(n):
             angle = 2.0 * math.pi * k / n
             c, s_ = math.cos(angle), math.sin(angle)
             axis = ("+y" if c > 0 else "-y") if abs(c) >= abs(s_) else ("+z" if s_ > 0 else "-z")
-            out.append(Contact("obstacle", x, (seg,), "dirac", None, axis, st["clearance"], 0.0, 4,
-                               st["restitution"], label=f"{key}.{k}", angle=angle))
+            # friction along the circumference only (r = 2 on the first tangent, slip_rows' order)
+            out.append(Contact("obstacle", x, (seg,), "dirac", None, axis, st["clearance"], st["friction"], 2,
+                               st["restitution"], label=f"{key}.{k}", angle=angle, radius=radius))
     return tuple(out)
 
 
@@ -1031,7 +1029,7 @@ def check_frame(tree: dict, stack: BeamStack) -> None:
     check_frame_at_speed(rot["frame"], stack, rot["speed_hz"] > 0.0)
     if rot["frame"] == "inertial" and rot["speed_hz"] > 0.0:
         for c in stack.contacts:
-            if c.friction > 0.0:
+            if c.friction > 0.0 and c.angle is None:   # (a stator's facet models the sliding surface)
                 raise SceneError(f"{c.label}.friction", "friction at a stop fixed in space acts against the shaft "
                                  "surface sliding past it at Omega r, which a point stop does not model; set it to "
                                  "0 in the inertial frame")

@@ -167,6 +167,9 @@ class Contact:
     #: obstacle only: the normal's angle in the y-z plane from +y towards +z [rad], n = (0, cos, sin), in place of
     #: an axis (a stator's facet; ``normal`` then names the nearest axis, for display)
     angle: float | None = None
+    #: a stator's facet: the radius [m] of the shaft surface it touches, which slides past it at Omega times
+    #: this radius (the constant part of the slip velocity, paper eq. 27)
+    radius: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -121,12 +121,29 @@ def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, **lemke_options) 
     Qf = factorize(Q, "the stiffness Q = K0 + Kc + P",
                    "the structure has rigid-body motion no support restrains, or the speed is a "
                    "divergence speed; a stationary state needs Q to be invertible")
-    lcp = stationary_lcp(cs, Qf, f0)
-    res = lcp.solve(**lemke_options)
-    if not res.success:
-        extra = "" if ex["guaranteed"] else f" ({ex['reason']})"
-        raise LCPError(f"stationary LCP (28) with {lcp.size} unknowns: {res.message}{extra}")
-    q = lcp.motion(res.x)
+    # a moving surface (a stator's facet) slides: its friction opposes the slip velocity Sq^T q + w of the
+    # state, whose direction is taken from the state without contact forces, then from each solution
+    # until it agrees (the constant w, Omega times the radius, dominates: one pass in practice)
+    moving = [k for k in range(cs.m) if cs.r[k] > 0 and cs.moving[k]]
+    q = None if f0 is None else Qf.solve(f0)
+    slide: dict = {}
+    for _ in range(4):
+        rates = {k: cs.slip_rate(k, np.zeros(cs.n) if q is None else q, np.zeros(cs.n)) for k in moving}
+        want = {k: -u / np.linalg.norm(u) for k, u in rates.items() if np.linalg.norm(u) > 0.0}
+        if q is not None and slide and all(k in slide and np.allclose(slide[k], d) for k, d in want.items()):
+            break
+        slide = want
+        lcp = stationary_lcp(cs, Qf, f0, slide=slide)
+        res = lcp.solve(**lemke_options)
+        if not res.success:
+            extra = "" if ex["guaranteed"] else f" ({ex['reason']})"
+            raise LCPError(f"stationary LCP (28) with {lcp.size} unknowns: {res.message}{extra}")
+        q = lcp.motion(res.x)
+        if not moving:
+            break
+    else:
+        raise LCPError("stationary LCP (28): no state whose friction at the moving surfaces opposes their slip "
+                       "velocity (its direction changed with each solution)")
     lamN, _, z = lcp.split(res.x)
     gap = cs.gaps(q)
     gap[lamN > 0] = np.where(np.abs(gap[lamN > 0]) < 1e-12 * max(np.abs(lcp.b).max(initial=0.0), 1e-300), 0.0,
@@ -134,14 +151,17 @@ def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, **lemke_options) 
     tang = [np.zeros(len(t)) for t in cs.tangents]
     for k, t in zip(lcp.friction, lcp.tangential(res.x)):
         tang[int(k)] = t
+    for j, k in enumerate(lcp.normal):
+        if int(k) in slide:
+            tang[int(k)] = cs.mu[k] * lamN[j] * slide[int(k)]
     slip = [cs.slip(k, q) for k in range(cs.m)]
     # a contact is closed when it carries force; friction slides when the cone is saturated (z > 0)
     fscale = max(float(lamN.max(initial=0.0)), _closing_force(lcp))
     dscale = max(float(np.abs(lcp.b).max(initial=0.0)), 1e-300)
     closed = lamN > 1e-9 * fscale
     zk = dict(zip((int(k) for k in lcp.friction), z))
-    state = ["open" if not closed[k] else ("stick" if cs.r[k] > 0 and zk.get(k, 0.0) <= 1e-9 * dscale
-                                            else "slip") for k in range(cs.m)]
+    state = ["open" if not closed[k] else ("stick" if cs.r[k] > 0 and k not in slide
+                                            and zk.get(k, 0.0) <= 1e-9 * dscale else "slip") for k in range(cs.m)]
     return Stationary(q, gap, lamN.copy(), tang, slip, state, ex, res, cs, time.perf_counter() - t0)
 
 
@@ -167,9 +187,9 @@ def scene_stationary(scene, model=None, reduction=None) -> Stationary:
     red = scene_reduction(scene, model) if reduction is None else reduction
     ops = rotor_operators(model, red.T)
     system = scene_system(scene, ops)
-    cs = ContactSet.from_model(model, red)
-    st = stationary(system.Q, system.f0, cs)
     rot = scene["rotation"]
+    cs = ContactSet.from_model(model, red, omega=2.0 * math.pi * rot["speed_hz"], frame=rot["frame"])
+    st = stationary(system.Q, system.f0, cs)
     inertial = rot["frame"] == "inertial"
     unbalanced = any(u.magnitude for u in model.stack.unbalances)
     loads = []

@@ -88,7 +88,10 @@ def slip_rows(model: FEModel, c: Contact) -> list[dict[int, float]]:
 
     Interface (design section 3): s_x = (U_u + h_u/2 W_u') - (U_l - h_l/2 W_l'),
     s_y = V_u - V_l. Obstacle: the displacement of the touched surface point
-    (u1 = U - eta V' - zeta W', u2 = V, u3 = W) along the two axes normal to n.
+    (u1 = U - eta V' - zeta W', u2 = V, u3 = W) along the two axes normal to n. A stator's facet
+    (normal n = (cos a, sin a) in the y-z plane): the circumferential t.(V, W), t = (-sin a, cos a),
+    then the axial U - R n.(V', W') of the surface point at radius R (the moving surface's constant
+    part of the slip velocity is :func:`surface_velocity`'s).
     """
     pr = lambda seg, f: point_row(model, seg, f, c)  # noqa: E731
     if c.kind == "interface":
@@ -96,8 +99,11 @@ def slip_rows(model: FEModel, c: Contact) -> list[dict[int, float]]:
         hu, hl = model.stack.segment(up).height, model.stack.segment(lo).height
         sx = _combine((1.0, pr(up, "U")), (hu / 2, pr(up, "W'")), (-1.0, pr(lo, "U")), (hl / 2, pr(lo, "W'")))
         return [sx, _combine((1.0, pr(up, "V")), (-1.0, pr(lo, "V")))]
-    if c.angle is not None:
-        raise NotImplementedError("friction at a stator facet (the surface sliding past at Omega r) is not modelled")
+    if c.angle is not None:   # a stator's facet: the circumferential slip, then the axial one
+        seg, cy, sz = c.segments[0], float(np.cos(c.angle)), float(np.sin(c.angle))
+        circ = _combine((-sz, pr(seg, "V")), (cy, pr(seg, "W")))
+        axial = _combine((1.0, pr(seg, "U")), (-c.radius * cy, pr(seg, "V'")), (-c.radius * sz, pr(seg, "W'")))
+        return [circ, axial]
     seg = model.stack.segment(c.segments[0])
     sign = 1.0 if c.normal[0] == "+" else -1.0
     axis = c.normal[1]

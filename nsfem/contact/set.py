@@ -8,7 +8,10 @@ For m contact points in n generalized coordinates q (paper eq. 17-24):
 - the polygonal friction cone of contact k: r_k unit generators e_i in its tangent
   plane (eq. 20, 21), the columns of B_k; the tangential force is lam_T = B_k beta_k,
   beta_k >= 0, mu_k lam_N,k - 1^T beta_k >= 0, and J_T = [S_k B_k] (eq. 24),
-- Coulomb mu and Newton restitution eps per contact.
+- Coulomb mu and Newton restitution eps per contact,
+- a moving surface (a stator's facet, which the shaft surface slides past): the slip velocity is
+  affine in (q', q), u_T' = S_k^T q' + Sq_k^T q + w_k (paper eq. 27 and 32: g_T^T q' + g_0T'),
+  ``JSq[k]`` n x d_k and ``wS[k]`` (d_k,); zero elsewhere.
 
 With r_k generators on a two-dimensional tangent plane e_i = (cos, sin)(2 pi i / r_k);
 r_k = 2 there gives friction along the first tangent only (the shaft axis for a
@@ -23,13 +26,15 @@ delamination). Where one tangent direction exists, r_k = 2 (+-t).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from ..errors import NsfemError
 
 #: names of the tangent directions per contact kind/normal, in the order of slip_rows
-_TANGENTS = {"interface": ("x", "y"), "x": ("y", "z"), "y": ("x", "z"), "z": ("x", "y")}
+_TANGENTS = {"interface": ("x", "y"), "x": ("y", "z"), "y": ("x", "z"), "z": ("x", "y"),
+             "stator": ("circumferential", "x")}
 
 
 @dataclass(frozen=True)
@@ -45,6 +50,19 @@ class ContactSet:
     labels: tuple[str, ...]
     tangents: tuple[tuple[str, ...], ...]
     x: np.ndarray
+    JSq: tuple[np.ndarray, ...] | None = None
+    wS: tuple[np.ndarray, ...] | None = None
+
+    def __post_init__(self):
+        if self.JSq is None:
+            object.__setattr__(self, "JSq", tuple(np.zeros_like(S) for S in self.JS))
+        if self.wS is None:
+            object.__setattr__(self, "wS", tuple(np.zeros(S.shape[1]) for S in self.JS))
+
+    @cached_property
+    def moving(self) -> np.ndarray:
+        """Per contact: whether its surface moves (a slip velocity with a part besides S_k^T q')."""
+        return np.array([bool(np.any(w) or np.any(Sq)) for w, Sq in zip(self.wS, self.JSq)], dtype=bool)
 
     @property
     def m(self) -> int:
@@ -69,11 +87,14 @@ class ContactSet:
         return np.flatnonzero(self.r > 0)
 
     @classmethod
-    def from_arrays(cls, JN, jN, mu=0.0, eps=0.0, JS=None, r=4, labels=None, x=None) -> ContactSet:
+    def from_arrays(cls, JN, jN, mu=0.0, eps=0.0, JS=None, r=4, labels=None, x=None, JSq=None,
+                    wS=None) -> ContactSet:
         """A contact set from plain arrays (validated), e.g. for systems with closed-form answers.
 
         ``JS`` is a list with one (n x d_k) array (d_k in 0, 1, 2) per contact, or None;
-        a contact without tangent directions is frictionless whatever its mu.
+        a contact without tangent directions is frictionless whatever its mu. ``JSq``, ``wS``:
+        per contact the moving surface's parts of the slip velocity (shaped like JS[k] and its
+        columns), or None.
         ``mu``, ``eps``, ``r`` are scalars or one value per contact.
         """
         JN = np.atleast_2d(np.asarray(JN, dtype=float))
@@ -114,49 +135,73 @@ class ContactSet:
                     raise NsfemError(f"contact set: the tangent directions JS[{k}] of contact {k} are dependent on "
                                      "each other or on its normal J_N (a slip that moves the gap)")
             blocks.append(S)
+        sq, ws = [], []
+        for k, S in enumerate(blocks):
+            d = S.shape[1]
+            a = np.zeros((n, d)) if JSq is None or JSq[k] is None or not d else np.asarray(JSq[k], dtype=float)
+            b = np.zeros(d) if wS is None or wS[k] is None or not d else np.asarray(wS[k], dtype=float).ravel()
+            if a.ndim == 1:
+                a = a[:, None]
+            if a.shape != (n, d) or b.shape != (d,) or not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+                raise NsfemError(f"contact set: the moving surface of contact {k} needs a finite JSq[{k}] of shape "
+                                 f"{(n, d)} and wS[{k}] of {d} entries")
+            sq.append(a)
+            ws.append(b)
         # r = 2 on a plane: friction along the first tangent only (the second is frictionless)
-        blocks = [b[:, :1] if b.shape[1] == 2 and rr[k] == 2 else b for k, b in enumerate(blocks)]
+        cut = [b.shape[1] == 2 and rr[k] == 2 for k, b in enumerate(blocks)]
+        blocks = [b[:, :1] if c else b for b, c in zip(blocks, cut)]
+        sq = [a[:, :1] if c else a for a, c in zip(sq, cut)]
+        ws = [b[:1] if c else b for b, c in zip(ws, cut)]
         dims = np.array([b.shape[1] for b in blocks])
         rr = np.where(dims == 0, 0, np.where(dims == 1, 2, rr))
         labels = tuple(labels) if labels is not None else tuple(f"contact {k}" for k in range(m))
         tangents = tuple(("t1", "t2")[: d] for d in dims)
         xs = np.full(m, np.nan) if x is None else np.asarray(x, dtype=float)
-        return cls(JN, jN, mu, eps, tuple(blocks), rr, labels, tangents, xs)
+        return cls(JN, jN, mu, eps, tuple(blocks), rr, labels, tangents, xs, tuple(sq), tuple(ws))
 
     @classmethod
-    def from_model(cls, model, reduction=None, frozen_tol: float = 1e-10) -> ContactSet:
+    def from_model(cls, model, reduction=None, frozen_tol: float = 1e-10, omega: float = 0.0,
+                   frame: str = "rotating") -> ContactSet:
         """The contacts of ``model`` in the coordinates of ``reduction`` (default: no reduction).
 
         A tangent direction whose slip row vanishes in these coordinates (nothing can slip
-        that way) is dropped; a contact left with one direction gets r = 2.
+        that way) is dropped; a contact left with one direction gets r = 2. A stator's facet at
+        the speed ``omega`` [rad/s] gets its moving surface (:func:`surface_velocity`).
         """
         from ..reduce import NoReduction
 
         red = NoReduction(model) if reduction is None else reduction
         JN, jN, JS_all = red.jacobians()
+        JN = np.asarray(JN, dtype=float)
         contacts = model.stack.contacts
-        blocks, tangents, r = [], [], []
+        blocks, tangents, r, sq, ws = [], [], [], [], []
         col = 0
         for k, c in enumerate(contacts):
-            names = _TANGENTS["interface" if c.kind == "interface" else c.normal[1]]
+            names = _TANGENTS["interface" if c.kind == "interface" else "stator" if c.angle is not None
+                              else c.normal[1]]
             if c.friction > 0:
                 S = JS_all[:, col:col + 2]
                 col += 2
+                Sq, w = surface_velocity(c, JN[:, k], omega, frame)
                 norms = np.linalg.norm(S, axis=0)
                 keep = norms > frozen_tol * max(float(norms.max()), np.linalg.norm(JN[:, k]), 1e-300)
-                S, names = S[:, keep], tuple(nm for nm, kp in zip(names, keep) if kp)
+                S, Sq, w = S[:, keep], Sq[:, keep], w[keep]
+                names = tuple(nm for nm, kp in zip(names, keep) if kp)
                 rk = 0 if S.shape[1] == 0 else (2 if S.shape[1] == 1 else c.friction_directions)
             else:
                 S, names, rk = np.zeros((JN.shape[0], 0)), (), 0
-            if rk == 2 and S.shape[1] == 2:
-                S, names = S[:, :1], names[:1]  # r = 2 on a plane: friction along the first tangent
+                Sq, w = S, np.zeros(0)
+            if rk == 2 and S.shape[1] == 2:   # r = 2 on a plane: friction along the first tangent
+                S, Sq, w, names = S[:, :1], Sq[:, :1], w[:1], names[:1]
             blocks.append(S)
+            sq.append(Sq)
+            ws.append(w)
             tangents.append(names)
             r.append(rk)
-        return cls(np.asarray(JN, dtype=float), np.asarray(jN, dtype=float),
+        return cls(JN, np.asarray(jN, dtype=float),
                    np.array([c.friction for c in contacts]), np.array([c.restitution for c in contacts]),
                    tuple(blocks), np.array(r, dtype=int), tuple(c.label for c in contacts), tuple(tangents),
-                   np.array([c.x for c in contacts]))
+                   np.array([c.x for c in contacts]), tuple(sq), tuple(ws))
 
     # --- friction cone -------------------------------------------------------------
     def generators(self, k: int) -> np.ndarray:
@@ -204,12 +249,60 @@ class ContactSet:
         return g + (self.jN if g.ndim == 1 else self.jN[:, None])
 
     def slip(self, k: int, q: np.ndarray) -> np.ndarray:
-        """Tangential relative displacement (or velocity, given q') of contact k (d_k,)."""
+        """Tangential relative displacement (or velocity, given q', of a contact without a moving
+        surface) of contact k (d_k,)."""
         return self.JS[k].T @ q
+
+    def slip_rate(self, k: int, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The slip velocity of contact k, S_k^T q' + Sq_k^T q + w_k (d_k,), eq. (27, 32)."""
+        return self.JS[k].T @ v + (self.JSq[k].T @ q + self.wS[k] if self.moving[k] else 0.0)
+
+    def surface_offsets(self, contacts, q: np.ndarray) -> np.ndarray:
+        """B_k^T (Sq_k^T q + w_k) for the listed contacts, stacked (sum r_k,): what a moving surface adds to
+        the slip velocity along each cone generator (the right-hand side of LCP 30-32)."""
+        parts = [self.generators(k).T @ (self.JSq[k].T @ q + self.wS[k]) if self.moving[k]
+                 else np.zeros(int(self.r[k])) for k in contacts]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def surface_drifts(self, contacts, v: np.ndarray) -> np.ndarray:
+        """B_k^T Sq_k^T q' for the listed contacts, stacked: what a moving surface adds to the slip
+        acceleration (the right-hand side of LCP 29)."""
+        parts = [self.generators(k).T @ (self.JSq[k].T @ v) if self.moving[k] else np.zeros(int(self.r[k]))
+                 for k in contacts]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def slip_rate_rows(self, k: int, Pq: np.ndarray, Pv: np.ndarray, const: int) -> np.ndarray:
+        """Rows (d_k x dim) mapping an augmented state xi (q = Pq xi, q' = Pv xi, xi[const] = 1) to the slip
+        velocity of contact k."""
+        rows = self.JS[k].T @ Pv
+        if self.moving[k]:
+            rows = rows + self.JSq[k].T @ Pq
+            rows[:, const] += self.wS[k]
+        return rows
 
     def subset(self, keep) -> ContactSet:
         """The contacts with indices ``keep``, in that order."""
         keep = [int(k) for k in keep]
         return ContactSet(self.JN[:, keep], self.jN[keep], self.mu[keep], self.eps[keep],
                           tuple(self.JS[k] for k in keep), self.r[keep], tuple(self.labels[k] for k in keep),
-                          tuple(self.tangents[k] for k in keep), self.x[keep])
+                          tuple(self.tangents[k] for k in keep), self.x[keep],
+                          tuple(self.JSq[k] for k in keep), tuple(self.wS[k] for k in keep))
+
+
+def surface_velocity(contact, jn: np.ndarray, omega: float, frame: str) -> tuple[np.ndarray, np.ndarray]:
+    """(Sq, w): the moving surface's part of the slip velocity of a stator facet (Sq n x 2, w (2,), for the
+    circumferential and axial slips of :func:`~nsfem.contact.kinematics.slip_rows`); zeros elsewhere.
+
+    The shaft surface point at radius R on the facet normal n slides past the ring, fixed in space,
+    with the relative velocity (v', w') + Omega e_x x ((v, w) + R n) in the rotating frame, whose
+    circumferential part is t.(v', w') + Omega n.(v, w) + Omega R, and n.(v, w) = -J_N^T q (the gap
+    is clearance - n.(v, w)): Sq = -Omega J_N. In the inertial frame the coordinates are the
+    displacements in space: t.(v', w') + Omega R. The axial slip has no moving part."""
+    n = jn.size
+    if contact.angle is None or omega == 0.0:
+        return np.zeros((n, 2)), np.zeros(2)
+    Sq = np.zeros((n, 2))
+    if frame == "rotating":
+        Sq[:, 0] = -omega * jn
+    return Sq, np.array([omega * contact.radius, 0.0])
+

@@ -61,11 +61,18 @@ def initial_state(system: ContactSystem, q0=None, v0=None) -> tuple[np.ndarray, 
 
 
 def close_energy(energy: dict, e_final: float, e_max: float) -> dict:
-    """Complete an energy record: final_J, residual_J = E(T) - E(0) - W_ext + W_diss (damping,
-    circulatory, friction, impacts), max_J and relative_residual = |residual| / max E."""
+    """Complete an energy record: final_J, residual_J = E(T) - E(0) - W_ext - W_spin + W_diss (damping,
+    circulatory, friction, impacts), max_J and relative_residual = |residual| / max E.
+
+    ``work_spin_J`` is the work the drive holding Omega does on the lateral motion through friction at a
+    moving surface: the friction force does lam_T . (S^T q') on the structure, the slip velocity is
+    S^T q' + Sq^T q + w, so that work is -int lam_T . (Sq^T q + w) dt beside the dissipation
+    -int lam_T . u_T' dt >= 0 (``dissipated_friction_J``)."""
     e_max = max(e_max, abs(e_final))
-    balance = (e_final - energy["initial_J"] - energy["work_external_J"] + energy["dissipated_damping_J"]
-               + energy["work_circulatory_J"] + energy["dissipated_friction_J"] + energy["lost_in_impacts_J"])
+    energy.setdefault("work_spin_J", 0.0)
+    balance = (e_final - energy["initial_J"] - energy["work_external_J"] - energy["work_spin_J"]
+               + energy["dissipated_damping_J"] + energy["work_circulatory_J"] + energy["dissipated_friction_J"]
+               + energy["lost_in_impacts_J"])
     energy.update(final_J=e_final, residual_J=float(balance), max_J=e_max,
                   relative_residual=abs(balance) / e_max if e_max > 0 else 0.0)
     return energy

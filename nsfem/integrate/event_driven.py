@@ -109,7 +109,7 @@ class EventDriven(Integrator):
         memory = Memory(np.zeros(m), np.zeros(m, dtype=int), self.zeno, gap_floor=cs.gap_floor)
         energy = {"initial_J": 0.5 * float(v @ sysm.M @ v + q @ K @ q), "work_external_J": 0.0,
                   "dissipated_damping_J": 0.0, "work_circulatory_J": 0.0, "dissipated_friction_J": 0.0,
-                  "lost_in_impacts_J": 0.0}
+                  "work_spin_J": 0.0, "lost_in_impacts_J": 0.0}
         e_max = abs(energy["initial_J"])
         progress = Progress(t_end, self.progress)
         self._report = lambda t_now: progress(t_now, len(events))  # noqa: E731 - long phases report too
@@ -123,7 +123,7 @@ class EventDriven(Integrator):
             mode = hold_degenerate(mode, lambda md, q_=q, v_=v: self._phase(md, 0.0, q_, v_), memory, cs, v)
             if imp:
                 impacts.append(imp)
-                energy["lost_in_impacts_J"] += imp["kinetic_before_J"] - imp["kinetic_after_J"]
+                _impact_energy(energy, imp)
             while True:
                 phase = self._phase(mode, t, q, v)
                 phase_integrated = False
@@ -205,7 +205,7 @@ class EventDriven(Integrator):
                                        memory, cs, v)
                 if imp:
                     impacts.append(imp)
-                    energy["lost_in_impacts_J"] += imp["kinetic_before_J"] - imp["kinetic_after_J"]
+                    _impact_energy(energy, imp)
                 events.append({"t": t_next, "kinds": sorted({rows.kinds[i] for i in ev.rows}),
                                "contacts": sorted({int(rows.contacts[i]) for i in ev.rows}),
                                "graze": bool(any(ev.graze)), "impact": imp is not None,
@@ -334,8 +334,12 @@ class EventDriven(Integrator):
             idx = {key: i for i, key in enumerate(phase.config.rows)}
             for k, e in _friction_directions(cs, mode):
                 vT = cs.JS[k].T @ v
-                power = cs.mu[k] * lam[idx[("normal", k, 0)]] * (e @ vT)   # <= 0
-                energy["dissipated_friction_J"] -= float(np.sum(w * power))
+                force = cs.mu[k] * lam[idx[("normal", k, 0)]]
+                if cs.moving[k]:   # the surface's part of the slip: the spin's work (see _spin_forms)
+                    off = e @ (cs.JSq[k].T @ q + cs.wS[k][:, None])
+                    vT = vT + (cs.JSq[k].T @ q + cs.wS[k][:, None])
+                    energy["work_spin_J"] -= float(np.sum(w * force * off))
+                energy["dissipated_friction_J"] -= float(np.sum(w * force * (e @ vT)))   # power <= 0
         E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))
         return float(np.max(np.abs(E), initial=0.0))
 
@@ -423,10 +427,16 @@ class EventDriven(Integrator):
         if mode.slide or mode.edge:
             Pf = phase.force_map()
             idx = {key: i for i, key in enumerate(phase.config.rows)}
-            fric = np.zeros((phase.dim, phase.dim))
+            fric, spin = np.zeros((phase.dim, phase.dim)), np.zeros((phase.dim, phase.dim))
             for k, e in _friction_directions(cs, mode):
-                fric += cs.mu[k] * np.outer(Pf[idx[("normal", k, 0)]], e @ (cs.JS[k].T @ Pv))
+                fric += cs.mu[k] * np.outer(Pf[idx[("normal", k, 0)]], e @ cs.slip_rate_rows(k, Pq, Pv, r2))
+                if cs.moving[k]:
+                    off = cs.JSq[k].T @ Pq
+                    off[:, r2] += cs.wS[k]
+                    spin += cs.mu[k] * np.outer(Pf[idx[("normal", k, 0)]], e @ off)
             full.append(("dissipated_friction_J", -fric))
+            if np.any(spin):
+                full.append(("work_spin_J", -spin))
         U, mu = terms
         T = t1 - phase.t0
         if full:
@@ -502,6 +512,14 @@ def _exp_integrals(a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
     phi[near] = np.where(small, T + x * (T * T / 2.0 + x * (T ** 3 / 6.0)),
                          np.expm1(x * T) / np.where(small, 1.0, x))
     return phi
+
+
+def _impact_energy(energy: dict, imp: dict) -> None:
+    """Book an impact: the kinetic energy it removes, less the spin's work through a frictional impulse
+    against a moving surface (which may make that change a gain), is lost; the spin's work is the spin's."""
+    spin = imp.get("work_spin_J", 0.0)
+    energy["lost_in_impacts_J"] += imp["kinetic_before_J"] - imp["kinetic_after_J"] + spin
+    energy["work_spin_J"] += spin
 
 
 def _finite_prefix(xi: np.ndarray) -> int:

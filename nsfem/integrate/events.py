@@ -8,7 +8,7 @@ while h >= 0:
 - ``slip``: the stick limit of a sticking contact, one row per facet of its friction
   polygon, mu lam_N cos(pi / r) - n_f . lam_T (r = 2: mu lam_N -+ lam_T),
 - ``turn``: for a contact sliding with its friction force along generator e_i, the slip
-  velocity v_T must keep e_i the most opposing generator: (e_j - e_i) . v_T >= 0 for its
+  velocity v_T (with a moving surface's part, affine in xi) must keep e_i the most opposing generator: (e_j - e_i) . v_T >= 0 for its
   neighbours j (r = 2: -e_i . v_T >= 0, i.e. the slip stops or reverses); for a contact
   sliding with its force on facet f (``edge``), the slip along -n_f: -n_f . v_T >= 0,
 - ``vertex``: for a contact sliding on facet f, the force's position s on the facet must
@@ -112,7 +112,7 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
             add(cs.mu[k] * bound * lamN - nf @ lamT, "slip", k, j if d == 2 and r >= 3 else None)
     for k, i in mode.slide:
         B = cs.generators(k)
-        vT = cs.JS[k].T @ Pv
+        vT = cs.slip_rate_rows(k, Pq, Pv, const)   # a moving surface's part too (eq. 27)
         r = B.shape[1]
         neigh = {(i + 1) % r, (i - 1) % r} if B.shape[0] == 2 else {(i + r // 2) % r}
         for j in sorted(neigh):
@@ -123,7 +123,7 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
         n_f, _, _, sn = cs.facet(k, i)
         add(cs.mu[k] * sn * lamN - s_f, "vertex", k, (i + 1) % int(cs.r[k]))
         add(cs.mu[k] * sn * lamN + s_f, "vertex", k, i)
-        add(-(n_f @ (cs.JS[k].T @ Pv)), "turn", k, None)  # the slip along -n_f stops
+        add(-(n_f @ cs.slip_rate_rows(k, Pq, Pv, const)), "turn", k, None)  # the slip along -n_f stops
     return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts, detail)
 
 

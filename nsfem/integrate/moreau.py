@@ -43,7 +43,8 @@ of Q). Multiplying the step equation by v_theta gives exactly
 The terms are summed per step: work_external_J (h f_theta.v_theta), dissipated_damping_J
 (h v_theta^T D v_theta), work_circulatory_J (h v_theta^T P q_theta), and the contact work with the
 mean step velocity v_mid = (v_k + v_k+1) / 2 (the kinetic energy an impulse removes):
-lost_in_impacts_J = -sum Lam_N.(J_N^T v_mid), dissipated_friction_J = -sum beta.(J_T^T v_mid).
+lost_in_impacts_J = -sum Lam_N.(J_N^T v_mid), dissipated_friction_J = -sum beta.(J_T^T v_mid + a moving
+surface's part of the slip velocity, at q), work_spin_J = -sum beta.(that part).
 The residual is then exactly minus the algorithmic dissipation
 (theta - 1/2) (dv^T M dv + dq^T K dq - p.dv), reported as ``info['numerical_dissipation_J']``:
 round-off for theta = 1/2 (the discrete balance is exact), first order in h otherwise. Only the
@@ -150,7 +151,7 @@ class MoreauJean(Integrator):
         impacts: list = []
         energy = {"initial_J": 0.5 * float(v @ sysm.M @ v + q @ K @ q), "work_external_J": 0.0,
                   "dissipated_damping_J": 0.0, "work_circulatory_J": 0.0, "dissipated_friction_J": 0.0,
-                  "lost_in_impacts_J": 0.0}
+                  "work_spin_J": 0.0, "lost_in_impacts_J": 0.0}
         e_max = abs(energy["initial_J"])
         numerical, pivots, steps, penetration = 0.0, 0, 0, 0.0
         saved = (q, v, dict(energy), numerical, steps, 0)  # the state at the last output
@@ -188,13 +189,16 @@ class MoreauJean(Integrator):
                         energy["work_circulatory_J"] += h * float(v_th @ P @ (q + th * h * v_th))
                     dv = v_new - v
                     if impulse is not None:  # contact work with the mean step velocity
-                        p_N, p_T = impulse
+                        p_N, p_T, spin = impulse
                         v_mid = v + 0.5 * dv
                         energy["lost_in_impacts_J"] -= float(p_N @ v_mid)
-                        energy["dissipated_friction_J"] -= float(p_T @ v_mid)
+                        # friction's work on the structure p_T . v_mid: the spin's work (through a moving
+                        # surface) less the dissipation -Lambda_T . u_T'
+                        energy["dissipated_friction_J"] += spin - float(p_T @ v_mid)
+                        energy["work_spin_J"] += spin
                     if th != 0.5:
                         dq = q_new - q
-                        p = 0.0 if impulse is None else float((p_N + p_T) @ dv)
+                        p = 0.0 if impulse is None else float((impulse[0] + impulse[1]) @ dv)
                         numerical += (th - 0.5) * (float(dv @ sysm.M @ dv + dq @ K @ dq) - p)
                     if imp is not None:
                         impacts.append(imp)
@@ -236,7 +240,8 @@ class MoreauJean(Integrator):
     def _contact_step(self, Wf: Factorization, q, v, v_free, h: float, t_new: float, frictional: set):
         """One LCP (30-32) with W over Jean's active set.
 
-        Returns (v_k+1, (J_N Lam_N, J_T beta) or None, (normal force (m,), tangential force (m, 2)),
+        Returns (v_k+1, (J_N Lam_N, J_T beta, the spin's work through friction at moving surfaces) or None,
+        (normal force (m,), tangential force (m, 2)),
         state (m,), impact record or None, Lemke pivots).
         """
         sysm = self.system
@@ -252,7 +257,10 @@ class MoreauJean(Integrator):
         friction = np.array([k for k in active if int(k) in frictional], dtype=int)
         g_free = cs.JN[:, active].T @ v_free
         bN = g_free + cs.eps[active] * np.minimum(gv[active], 0.0)
-        lcp = contact_lcp(Wf, cs, active, friction, bN, cs.JT(friction).T @ v_free, base=v_free)
+        bT = cs.JT(friction).T @ v_free
+        if friction.size and np.any(cs.moving[friction]):   # the slip velocity of a moving surface (eq. 32)
+            bT = bT + cs.surface_offsets(friction, q)
+        lcp = contact_lcp(Wf, cs, active, friction, bN, bT, base=v_free)
         res = lcp.solve()
         if not res.success:
             raise NsfemError(f"moreau: contact LCP at t = {t_new:.9g} s: {res.message}")
@@ -264,8 +272,11 @@ class MoreauJean(Integrator):
         scale = max(float(np.abs(bN).max(initial=0.0)), float(np.abs(lcp.b).max(initial=0.0)),
                     float(np.abs(gv[active]).max(initial=0.0)), 1e-300)
         slip = dict(zip((int(k) for k in friction), z))
+        spin = 0.0
         for k, lam_T in zip(friction, lcp.tangential(res.x)):
             tf[k, :lam_T.size] = lam_T / h
+            if cs.moving[k]:
+                spin -= float(lam_T @ (cs.JSq[k].T @ q + cs.wS[k]))
         for j, k in enumerate(active):
             if lamN[j] > 0:
                 state[k] = 1 if int(k) in slip and slip[int(k)] <= SLIP_TOL * scale else 2
@@ -278,7 +289,7 @@ class MoreauJean(Integrator):
                    "approach_m_s": [float(-gv[k]) for k in active], "plastic": [],
                    "kinetic_before_J": 0.5 * float(v @ sysm.M @ v),
                    "kinetic_after_J": 0.5 * float(v_new @ sysm.M @ v_new)}
-        return v_new, (p_N, p_T), (nf, tf), state, imp, res.pivots
+        return v_new, (p_N, p_T, spin), (nf, tf), state, imp, res.pivots
 
 
 EXTRA_METHODS["moreau"] = MoreauJean

@@ -344,7 +344,7 @@ class Penalty(Integrator):
                    + self.c_p * np.sum(np.minimum(gap, 0.0) ** 2, axis=0))
         w_ext, d_damp, w_circ, w_contact = X[2 * n:, -1]
         energy = {"initial_J": float(E[0]), "work_external_J": float(w_ext), "dissipated_damping_J": float(d_damp),
-                  "work_circulatory_J": float(w_circ), "dissipated_friction_J": 0.0,
+                  "work_circulatory_J": float(w_circ), "dissipated_friction_J": 0.0, "work_spin_J": 0.0,
                   "lost_in_impacts_J": float(w_contact - 0.5 * self.c_p * np.sum(np.minimum(gap[:, -1], 0.0) ** 2))}
         close_energy(energy, float(E[-1]), float(np.max(np.abs(E))))
         max_pen = max(max_pen, float(-gap.min(initial=0.0)))

@@ -115,8 +115,9 @@ class ContactSystem:
         model = build_model(scene) if model is None else model
         red = scene_reduction(scene, model) if reduction is None else reduction
         lin = scene_system(scene, rotor_operators(model, red.T), speed_hz)
+        spin = 2.0 * np.pi * (scene["rotation"]["speed_hz"] if speed_hz is None else speed_hz)
         return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega,
-                               ContactSet.from_model(model, red),
+                               ContactSet.from_model(model, red, omega=spin, frame=scene["rotation"]["frame"]),
                                {"model": model, "reduction": red, "ndof_full": model.n,
                                 "omega2_ref": omega2_ref(model.K, model.M)})
 

@@ -107,6 +107,10 @@ class Memory:
         self.rate_scale = gv if self.rate_scale is None else np.maximum(self.rate_scale, gv)
         if self.slip_scale is None or any(S is not None for S in aS):   # else it stays 0
             sv = np.array([float((S.T @ av).max(initial=0.0)) if S is not None else 0.0 for S in aS])
+            if np.any(cs.moving):   # a moving surface's terms |Sq|^T |q| + |w|
+                aq = np.abs(q.reshape(q.shape[0], -1))
+                for k in np.flatnonzero(cs.moving):
+                    sv[k] += float((np.abs(cs.JSq[k]).T @ aq).max(initial=0.0)) + float(np.abs(cs.wS[k]).max())
             self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
         return g, gv
 
@@ -163,7 +167,8 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     # below what that LCP resolves (its certificate is relative to its largest entry); such a
     # contact is settled by projecting its g' onto 0 (below), not by an impact
     vscale = max([abs(gvl[k]) for k in cand]
-                 + [float(np.abs(cs.JS[k].T @ v).max(initial=0.0)) for k in cand if aS[k] is not None], default=0.0)
+                 + [float(np.abs(cs.slip_rate(k, q, v)).max(initial=0.0)) for k in cand if aS[k] is not None],
+                 default=0.0)
     creeping = [k for k in approaching if -gvl[k] <= CREEP * vscale]
     approaching = [k for k in approaching if k not in creeping]
     impact = None
@@ -178,7 +183,8 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
                 plastic.append(k)
             memory.max_approach[k] = max(memory.max_approach[k], speed)
             memory.impacts[k] += 1
-        lcp = impact_lcp(cs, Mf, v, active, memory.lcp_cache, (id(system), id(Mf), "impact", tuple(active)), eps=eps)
+        lcp = impact_lcp(cs, Mf, v, active, memory.lcp_cache, (id(system), id(Mf), "impact", tuple(active)), eps=eps,
+                         q=q)
         res = lcp.solve()
         if not res.success:
             raise NsfemError(f"impact LCP (30-32) at t = {t:.9g} s: {res.message}")
@@ -188,6 +194,11 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         impact = {"t": t, "contacts": list(active), "impulse_Ns": lamN.tolist(),
                   "approach_m_s": [-gvl[k] for k in active], "plastic": plastic,
                   "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
+        if np.any(cs.moving[lcp.friction]):
+            # the frictional impulse against a moving surface: its work -Lambda_T . (Sq^T q + w) is the spin's
+            # (the kinetic energy may grow in the impact), the rest of the change is lost
+            impact["work_spin_J"] = -sum(float(lt @ (cs.JSq[k].T @ q + cs.wS[k]))
+                                         for k, lt in zip(lcp.friction, lcp.tangential(res.x)) if cs.moving[k])
         v = v_new
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))  # what cancelled in the impact sets the round-off
@@ -203,7 +214,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     memory.degenerate = []
     load = None   # f(t), formed once when needed
     while True:
-        stick, slide, edge = _friction_states(cs, closed, v, slipping, facets or {}, memory, stopped)
+        stick, slide, edge = _friction_states(cs, closed, q, v, slipping, facets or {}, memory, stopped)
         # micro-lift candidates (below): touching, not closed, not impacting, lifting
         lifting = [k for k in cand if k not in closed and k not in approaching and gvl[k] > 0.0]
         if load is None and (closed or lifting):
@@ -216,7 +227,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
                    tuple(sorted((int(k), int(f)) for k, f in edge.items())))
             lcp = transition_lcp(cs_l, Mf, fstar, closed, stick + sorted(edge),
                                  {k: cs.generators(k)[:, i] for k, i in slide.items()}, extra,
-                                 memory.lcp_cache, key)
+                                 memory.lcp_cache, key, v=v)
             res = lcp.solve()
             if not res.success:
                 raise NsfemError(f"transition LCP (29) at t = {t:.9g} s: {res.message}")
@@ -288,11 +299,17 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
                         new_edge.append((k, i if j == (i + 1) % r else j))
                         continue
                 new_slide.append((k, i))
+    rolling = [k for k in new_stick if cs.moving[k]]
+    if rolling:
+        raise NsfemError(f"{cs.labels[rolling[0]]} would stick to the stator's moving surface at t = {t:.9g} s "
+                         "(rolling contact: the slip velocity and the friction the cone allows both say so); the "
+                         "event-driven methods hold a sticking contact as a fixed slip, which a surface sliding "
+                         "past at Omega r is not: run this scene with simulation.method = \"moreau\"")
     mode = Mode(tuple(sorted(keep)), tuple(sorted(new_stick)), tuple(sorted(new_slide)), tuple(sorted(new_edge)))
     return mode, v, impact
 
 
-def _friction_states(cs, closed, v, slipping, facets, memory, stopped=()):
+def _friction_states(cs, closed, q, v, slipping, facets, memory, stopped=()):
     """Sticking contacts (zero slip rate), sliding ones with their generator (the one the stick
     limit was reached on, else the one most opposing the slip velocity) and facet candidates
     (a stick limit reached on a facet, or a slip velocity on a facet normal: a tie between two
@@ -301,8 +318,10 @@ def _friction_states(cs, closed, v, slipping, facets, memory, stopped=()):
     for k in closed:
         if cs.r[k] == 0:
             continue
-        vT = cs.JS[k].T @ v
+        vT = cs.slip_rate(k, q, v)
         tolv = max(ZERO * memory.slip_scale[k], float(_tol(cs.JS[k], v).max()))
+        if cs.moving[k]:
+            tolv = max(tolv, float(_tol(cs.JSq[k], q, cs.wS[k]).max()))
         still = k in stopped or bool(np.all(np.abs(vT) <= tolv))
         if k in slipping:
             slide[k] = slipping[k]
@@ -331,14 +350,15 @@ def _facet_contacts(cs, edge: dict):
     s is a 1-D friction unknown along t_f with coefficient mu sin(pi/r)."""
     if not edge:
         return cs, None
-    JS, mu, r = list(cs.JS), cs.mu.copy(), cs.r.copy()
+    JS, mu, r, JSq, wS = list(cs.JS), cs.mu.copy(), cs.r.copy(), list(cs.JSq), list(cs.wS)
     extra = {}
     for k, f in edge.items():
         n_f, t_f, c, sn = cs.facet(k, f)
         JS[k] = (cs.JS[k] @ t_f)[:, None]
+        JSq[k], wS[k] = (cs.JSq[k] @ t_f)[:, None], np.array([cs.wS[k] @ t_f])
         mu[k], r[k] = cs.mu[k] * sn, 2
         extra[k] = cs.mu[k] * c * (cs.JS[k] @ n_f)
-    return replace(cs, JS=tuple(JS), mu=mu, r=r), extra
+    return replace(cs, JS=tuple(JS), mu=mu, r=r, JSq=tuple(JSq), wS=tuple(wS)), extra
 
 
 def _settle(system: ContactSystem, Mf: Factorization, t: float, v: np.ndarray, hold, settled, impact,
@@ -375,6 +395,7 @@ def hold_degenerate(mode: Mode, phase_of, memory: Memory, cs, v: np.ndarray) -> 
     phase = phase_of(mode)
     xi = phase.xi(phase.t0)
     Pq = phase.q_map()
+    q = Pq @ xi
     const = 2 * phase.config.r
     hold = []
     for k in deg:
@@ -399,8 +420,8 @@ def hold_degenerate(mode: Mode, phase_of, memory: Memory, cs, v: np.ndarray) -> 
     for k in hold:
         if cs.r[k] == 0:
             continue
-        vT = cs.JS[k].T @ v
-        if np.all(np.abs(vT) <= ZERO * max(memory.slip_scale[k], 1e-300)):
+        vT = cs.slip_rate(k, q, v)
+        if np.all(np.abs(vT) <= ZERO * max(memory.slip_scale[k], 1e-300)) and not cs.moving[k]:
             stick.append(k)
         else:
             slide.append((k, int(np.argmin(cs.generators(k).T @ vT))))

@@ -218,28 +218,35 @@ def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, 
     return A, W, Y, cs.r[friction], tuple(cs.generators(int(k)) for k in friction), scales, JN, JT
 
 
-def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, normal=None) -> ContactLCP:
+def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, normal=None,
+                   slide=None) -> ContactLCP:
     """LCP (28): the stationary contact state under the constant load f0.
 
     Friction as in the paper's section 3.1: tangential displacements start at zero and
     grow monotonically, so the friction force opposes the tangential displacement.
+    ``slide`` maps contacts that slide whatever the state (a moving surface: the slip velocity
+    Sq^T q + w of a state at rest keeps its direction) to the unit direction of their friction
+    force, which is then no unknown: LCP (28) with sliding friction of known direction.
     The solution is q = Q^-1 f0 + ``response(x)`` = ``motion(x)``.
     """
     normal = np.arange(cs.m) if normal is None else np.asarray(normal, dtype=int)
+    slide = {int(k): np.asarray(d, dtype=float).ravel() for k, d in (slide or {}).items()}
     q0 = np.zeros(cs.n) if f0 is None else Q.solve(f0)
-    friction = np.array([k for k in normal if cs.r[k] > 0], dtype=int)
-    return contact_lcp(Q, cs, normal, friction, cs.gaps(q0)[normal], cs.JT(friction).T @ q0, base=q0)
+    friction = np.array([k for k in normal if cs.r[k] > 0 and int(k) not in slide], dtype=int)
+    return contact_lcp(Q, cs, normal, friction, cs.gaps(q0)[normal], cs.JT(friction).T @ q0, slide=slide,
+                       base=q0)
 
 
 def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, stick, slide=None,
-                   extra=None, cache: LCPCache | None = None, key=None) -> ContactLCP:
+                   extra=None, cache: LCPCache | None = None, key=None, v: np.ndarray | None = None) -> ContactLCP:
     """LCP (29): which closed contacts stay closed, which stick and which slip.
 
     ``fstar`` = f(t) - C q' - Q q; ``closed`` contacts have g = g' = 0; ``stick`` are the
     closed frictional ones at zero slip velocity; ``slide`` maps the others to the
     direction of their friction force; ``extra`` adds a generalized force per unit lam_N to
     a closed contact's normal column (see :func:`contact_lcp`). Accelerations:
-    q'' = M^-1 f* + ``response(x)``. ``cache``, ``key``: see :func:`contact_lcp`.
+    q'' = M^-1 f* + ``response(x)``. ``cache``, ``key``: see :func:`contact_lcp`. ``v``: q', for
+    the part Sq^T q' a moving surface adds to the slip acceleration.
     """
     closed = np.asarray(closed, dtype=int)
     stick = np.array([k for k in stick if cs.r[k] > 0], dtype=int)
@@ -249,7 +256,12 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
         _check_transition(cs, closed, stick, slide, extra)
         parts = _parts(M, cs, closed, stick, slide, extra, cache, key)
     a0 = M.solve(fstar)
-    return _assemble(parts, cs, closed, stick, parts[6].T @ a0, parts[7].T @ a0 if stick.size else (), a0)
+    bT = ()
+    if stick.size:
+        bT = parts[7].T @ a0
+        if v is not None and np.any(cs.moving[stick]):
+            bT = bT + cs.surface_drifts(stick, v)
+    return _assemble(parts, cs, closed, stick, parts[6].T @ a0, bT, a0)
 
 
 def _check_transition(cs: ContactSet, closed, stick, slide: dict, extra) -> None:
@@ -272,14 +284,16 @@ def _check_transition(cs: ContactSet, closed, stick, slide: dict, extra) -> None
 
 
 def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: LCPCache | None = None,
-               key=None, eps: np.ndarray | None = None) -> ContactLCP:
+               key=None, eps: np.ndarray | None = None, q: np.ndarray | None = None) -> ContactLCP:
     """LCP (30-32): impulses with Newton restitution and frictional impulses.
 
     ``active`` are the contacts closed or just closing at the impact (g = 0); ``v`` the
     velocity before it. After the impact q'^+ = q'^- + ``response(x)`` satisfies
     0 <= g'^+ + eps g'^- _|_ Lambda_N >= 0 and the tangential impact law (33). ``cache``, ``key``:
     see :func:`contact_lcp` (the restitutions eps enter only the right-hand side); ``eps``: the
-    restitutions per contact to use instead of the contact set's.
+    restitutions per contact to use instead of the contact set's; ``q``: the configuration, for the
+    slip velocity a moving surface adds (eq. 32: the tangential law acts on the slip velocity after the
+    impact, J_T^T q'^+ + g_0T').
     """
     active = np.asarray(active, dtype=int)
     friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
@@ -288,4 +302,11 @@ def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: L
     # Newton's law acts on approaching contacts; a separating one must merely not approach
     # (min(g', 0) as numpy's: nan stays nan, -0.0 gives 0.0)
     bN = [g + e[k] * (g if g < 0.0 or g != g else 0.0) for g, k in zip((parts[6].T @ v).tolist(), active.tolist())]
-    return _assemble(parts, cs, active, friction, bN, parts[7].T @ v if friction.size else (), v)
+    bT = ()
+    if friction.size:
+        bT = parts[7].T @ v
+        if np.any(cs.moving[friction]):
+            if q is None:
+                raise NsfemError("impact LCP: a moving surface's slip velocity needs the configuration q")
+            bT = bT + cs.surface_offsets(friction, q)
+    return _assemble(parts, cs, active, friction, bN, bT, v)
