@@ -46,18 +46,19 @@ def polygon_forces(closed, facets, w, mu=0.0):
     their vertex); (k - m w^2 + i c w) z + sum N_j (1 + i mu) n_j = m e w^2 in the rotating frame
     (complex y + i z; the friction force -mu N_j i n_j on the shaft opposes the surface sliding forward
     past the ring), solved for the facets' forces (and the position along a single facet). Returns
-    the forces and the condition number of that solve."""
+    the forces and the condition number of that solve (its columns scaled to unit length: the unknowns
+    are in N and m)."""
     A = K - M * w * w + 1j * C_E * w
     n = [np.exp(2j * math.pi * j / facets) for j in closed]
     if len(closed) == 1:
         rhs = ME * w * w / n[0] - A * CLEARANCE        # A i s + (1 + i mu) N = rhs, s along the facet
         G = np.array([[(1j * A).real, 1.0], [(1j * A).imag, mu]])
-        return np.linalg.solve(G, [rhs.real, rhs.imag])[1:], np.linalg.cond(G)
+        return np.linalg.solve(G, [rhs.real, rhs.imag])[1:], np.linalg.cond(G / np.linalg.norm(G, axis=0))
     z = CLEARANCE / math.cos(math.pi / facets) * (n[0] + n[1]) / abs(n[0] + n[1])   # adjacent facets' vertex
     rhs = ME * w * w - A * z
     m = [(1 + 1j * mu) * x for x in n]
     G = np.array([[m[0].real, m[1].real], [m[0].imag, m[1].imag]])
-    return np.linalg.solve(G, [rhs.real, rhs.imag]), np.linalg.cond(G)
+    return np.linalg.solve(G, [rhs.real, rhs.imag]), np.linalg.cond(G / np.linalg.norm(G, axis=0))
 
 
 @pytest.mark.parametrize("facets", [16, 64])
@@ -119,8 +120,8 @@ def test_stator_inputs_refused():
 
 
 def test_shipped_rub_scene_is_the_closed_form():
-    """`nsfem stationary rub`: the shipped Jeffcott rub against the circle's closed form, read off its
-    own keys (disk, damper, unbalance, ring), within the polygon's distance from the circle."""
+    """`nsfem stationary rub`: the shipped Jeffcott rub against the circle's closed form with friction, read
+    off its own keys (disk, damper, unbalance, ring), within the polygon's distance from the circle."""
     from nsfem import load_scene
 
     scene = load_scene("rub")
@@ -132,7 +133,10 @@ def test_shipped_rub_scene_is_the_closed_form():
     # the shaft's own mass (7850 kg/m^3, 2 kg: about 1 kg moves with the disk) is part of the model, not of
     # the closed form: compare with the disk's mass plus the shaft's modal share 17/35 rho A L
     m_eff = m + 17 / 35 * sh["rho"] * math.pi * sh["diameter"] ** 2 / 4 * sh["length"]
-    N = -(k - m_eff * w * w) * r + math.sqrt((me * w * w) ** 2 - (c * w * r) ** 2)
+    mu = ring["friction"]
+    a_, b_, f_ = (k - m_eff * w * w) * r, c * w * r, me * w * w
+    N = (-(a_ + mu * b_) + math.sqrt((a_ + mu * b_) ** 2 - (1 + mu * mu) * (a_ * a_ + b_ * b_ - f_ * f_))) / (1 + mu * mu)
+    assert mu > 0
     st = scene_stationary(scene)
     closed = np.flatnonzero(st.normal_force > 0)
     total = abs(sum(st.normal_force[j] * np.exp(2j * math.pi * j / ring["facets"]) for j in closed))
