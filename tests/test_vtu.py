@@ -176,3 +176,28 @@ def test_model_and_T_tuple_and_bad_args(run, tmp_path):
     assert len([d for d in ET.parse(pvd).getroot().iter("DataSet")]) == 2 * len(range(0, res.t.size, 50))
     with pytest.raises(Exception, match="frame"):
         write_series(res, sysm, tmp_path, frame="lab")
+
+
+def test_stator_friction_force_is_drawn_along_the_circumference(tmp_path):
+    """A frictional rub's contact file: each closed facet's tangential force is mu N along its circumferential
+    tangent t = (0, -sin a, cos a), opposing the surface's motion (a vector, not a component per axis)."""
+    import math
+
+    import meshio
+
+    from nsfem import load_scene
+    from nsfem.export.vtu import write_series
+    from nsfem.simulate import run_scene
+
+    scene = load_scene("rub", ["simulation.t_end=0.3", "simulation.output_dt=1e-2"])
+    res, system = run_scene(scene, "exact")
+    write_series(res, system, tmp_path, every=30)
+    mesh = meshio.read(tmp_path / "nsfem_contacts_00030.vtu")
+    tf = mesh.point_data["tangential_force"]
+    mu, facets = scene["stator"][0]["friction"], scene["stator"][0]["facets"]
+    closed = np.flatnonzero(res.normal_force[:, 30] > 0)
+    assert closed.size
+    for k in closed:
+        a = 2 * math.pi * k / facets
+        np.testing.assert_allclose(tf[k], -mu * res.normal_force[k, 30] * np.array([0.0, -math.sin(a), math.cos(a)]),
+                                   rtol=1e-12, atol=1e-12 * res.normal_force[k, 30])

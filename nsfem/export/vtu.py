@@ -48,6 +48,14 @@ _TANGENTS = {"interface": ("x", "y"), "x": ("y", "z"), "y": ("x", "z"), "z": ("x
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
 
+def _tangent_vector(contact, name: str) -> np.ndarray:
+    """The unit vector of a contact's tangent direction ``name`` (an axis, or a stator facet's
+    circumferential t = (0, -sin a, cos a))."""
+    if name == "circumferential":
+        return np.array([0.0, -math.sin(contact.angle), math.cos(contact.angle)])
+    return np.eye(3)[_AXIS[name]]
+
+
 def stack_geometry(model):
     """Hexahedral solids of every segment.
 
@@ -177,11 +185,11 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     stack_contacts = model.stack.contacts
     if len(stack_contacts) != m:
         raise NsfemError(f"export: the result has {m} contacts, the model {len(stack_contacts)}")
-    tangents = []
+    tangents = []   # per contact: the unit vector (x, y, z) of each tangent direction of its force
     for k, c in enumerate(stack_contacts):
         names = contacts.tangents[k] if contacts is not None else _TANGENTS[
-            "interface" if c.kind == "interface" else c.normal[1]]
-        tangents.append(names)
+            "interface" if c.kind == "interface" else "stator" if c.angle is not None else c.normal[1]]
+        tangents.append([_tangent_vector(c, name) for name in names[:2]])
     idx = list(range(0, result.t.size, every))
     entries = []
     for i in idx:
@@ -190,8 +198,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         cpos, cdisp = contact_points(model, q_full)
         tf = np.zeros((m, 3))
         for k in range(m):
-            for j, name in enumerate(tangents[k][:2]):
-                tf[k, _AXIS[name]] = result.tangential_force[k, j, i]
+            for j, vec in enumerate(tangents[k]):
+                tf[k] += result.tangential_force[k, j, i] * vec
         p = points
         if frame == "inertial":
             R = rotation(omega * float(result.t[i]) + phase)
