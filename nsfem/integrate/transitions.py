@@ -81,12 +81,33 @@ class Memory:
     lcp_cache: LCPCache = field(default_factory=LCPCache, repr=False)
     _abs: tuple | None = field(default=None, repr=False)
     _abs_system: tuple | None = field(default=None, repr=False)
+    _slip: tuple | None = field(default=None, repr=False)
 
     def abs_parts(self, cs) -> tuple:
         """(|J_N|, |j_N|, [|S_k| or None]) of the contact set (formed once per set)."""
         if self._abs is None or self._abs[0] is not cs:
             self._abs = (cs, np.abs(cs.JN), np.abs(cs.jN), [np.abs(S) if S.shape[1] else None for S in cs.JS])
         return self._abs[1:]
+
+    def _slip_terms(self, cs, av: np.ndarray, aq: np.ndarray) -> np.ndarray:
+        """Per contact the largest size of its slip rate's terms over the columns of (|q|, |q'|):
+        |S|^T |q'| (+ |Sq|^T |q| + |w| on a moving surface), from all contacts' rows at once."""
+        if self._slip is None or self._slip[0] is not cs:
+            cols = [k for k in range(cs.m) for _ in range(cs.JS[k].shape[1])]
+            n = cs.n
+            aS = np.hstack([np.abs(S) for S in cs.JS]) if cols else np.zeros((n, 0))
+            aSq = np.hstack([np.abs(S) for S in cs.JSq]) if cols and np.any(cs.moving) else None
+            aw = np.concatenate([np.abs(w) for w in cs.wS]) if cols else np.zeros(0)
+            self._slip = (cs, np.array(cols, dtype=int), aS, aSq, aw)
+        _, cols, aS, aSq, aw = self._slip
+        sv = np.zeros(cs.m)
+        if not cols.size:
+            return sv
+        terms = aS.T @ av
+        if aSq is not None:
+            terms = terms + aSq.T @ aq + aw[:, None]
+        np.maximum.at(sv, cols, terms.max(axis=1))
+        return sv
 
     def abs_operators(self, system) -> tuple:
         """(|C|, |Q|) of the system (formed once per system)."""
@@ -106,11 +127,7 @@ class Memory:
         self.gap_scale = g if self.gap_scale is None else np.maximum(self.gap_scale, g)
         self.rate_scale = gv if self.rate_scale is None else np.maximum(self.rate_scale, gv)
         if self.slip_scale is None or any(S is not None for S in aS):   # else it stays 0
-            sv = np.array([float((S.T @ av).max(initial=0.0)) if S is not None else 0.0 for S in aS])
-            if np.any(cs.moving):   # a moving surface's terms |Sq|^T |q| + |w|
-                aq = np.abs(q.reshape(q.shape[0], -1))
-                for k in np.flatnonzero(cs.moving):
-                    sv[k] += float((np.abs(cs.JSq[k]).T @ aq).max(initial=0.0)) + float(np.abs(cs.wS[k]).max())
+            sv = self._slip_terms(cs, av, np.abs(q.reshape(q.shape[0], -1)))
             self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
         return g, gv
 

@@ -1,0 +1,210 @@
+"""Rotor-stator rub of a Jeffcott rotor against speed and friction: ring force, orbits, friction work.
+
+The shipped ``rub`` rotor (a 5 kg disk at the middle of a light 20 mm shaft, an unbalance of 1e-3 kg m,
+a damper of 40 N s/m at the disk) inside a rigid ring 0.1 mm away, at speeds from 0.5 to 1.6 of its
+critical speed and for several friction coefficients mu against the shaft surface (radius 10 mm,
+sliding past the ring at Omega r). For each case, side by side:
+
+- the closed form of the synchronous full annular rub, ((k - m W^2) r + N)^2 + (c W r + mu N)^2 =
+  (m e W^2)^2, with the disk's mass plus 17/35 of the shaft's (no root N > 0: no synchronous rub);
+- ``stationary`` (LCP 28, rotating frame, sliding friction of known direction): the ring force;
+- a transient from rest (``exact``, rotating frame): the contact's closed fraction and the ring force
+  over the last half, the friction's dissipation and the spin's work over the run, the disk's orbit
+  (inertial probes) and its whirl sense, and whether it ended in the stationary state.
+
+    python studies/rub.py [--quick] [--json] [--t-end T] [--out DIR]
+
+Writes rub.csv/.json and rub.png into studies/out/rub and copies the figure to docs/figures/rub.png.
+--quick: 6 speeds, mu 0 and 0.2, t_end 1 s (about 15 s).
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import math
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from study_io import machine, write_outputs
+
+from nsfem import load_scene
+from nsfem.analysis.stationary import scene_stationary
+from nsfem.errors import IntegrationError, NsfemError
+from nsfem.simulate import run_scene, sensor_signals
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def jeffcott(scene) -> dict:
+    """k, m (the disk plus the shaft's modal share 17/35), c, m e, r, radius and w_n of the shipped rotor."""
+    sh, disk, ring = scene["shaft"], scene["disk"][0], scene["stator"][0]
+    k = 48 * sh["E"] * math.pi * sh["diameter"] ** 4 / 64 / sh["length"] ** 3
+    m = disk["mass"] + 17 / 35 * sh["rho"] * math.pi * sh["diameter"] ** 2 / 4 * sh["length"]
+    return {"k": k, "m": m, "c": scene["bearing"][0]["cyy"], "me": scene["unbalance"][0]["magnitude"],
+            "r": ring["clearance"], "w_n": math.sqrt(k / m)}
+
+
+def closed_form(j: dict, w: float, mu: float) -> float | None:
+    """The ring force N of the synchronous full annular rub at the speed w [rad/s], or None (no root N > 0)."""
+    a, b, f = (j["k"] - j["m"] * w * w) * j["r"], j["c"] * w * j["r"], j["me"] * w * w
+    p = a + mu * b
+    disc = p * p - (1 + mu * mu) * (a * a + b * b - f * f)
+    if disc < 0:
+        return None
+    n = (-p + math.sqrt(disc)) / (1 + mu * mu)
+    return n if n > 0 else None
+
+
+def ring_load(forces: np.ndarray, facets: int) -> np.ndarray:
+    """|sum_j N_j n_j| per column: the resultant of the facets' normal forces [N]."""
+    ang = np.exp(2j * math.pi * np.arange(facets) / facets)
+    return np.abs(ang @ forces)
+
+
+def one_case(ratio: float, mu: float, t_end: float, j: dict) -> dict:
+    speed_hz = ratio * j["w_n"] / (2 * math.pi)
+    scene = load_scene("rub", [f"rotation.speed_hz={speed_hz:.9g}", f"stator.0.friction={mu:g}",
+                               f"simulation.t_end={t_end:g}", "simulation.output_dt=2e-4"])
+    facets = scene["stator"][0]["facets"]
+    w = 2 * math.pi * speed_hz
+    n_cf = closed_form(j, w, mu)
+    row = {"speed_ratio": ratio, "speed_hz": speed_hz, "mu": mu, "closed_form_N": n_cf}
+    try:
+        st = scene_stationary(scene)
+        row["stationary_N"] = float(ring_load(st.normal_force[:, None], facets)[0])
+        row["stationary_closed"] = int(np.sum(st.normal_force > 0))
+    except NsfemError as exc:
+        row["stationary_N"], row["stationary_closed"], row["stationary_error"] = None, None, str(exc)
+        st = None
+    t0 = time.perf_counter()
+    try:
+        res, system = run_scene(scene, "exact")
+        row["error"] = ""
+    except IntegrationError as exc:   # rolling on the ring (dry whip): keep what was computed
+        res, system, row["error"] = exc.result, None, str(exc)
+    row["wall_s"] = time.perf_counter() - t0
+    row["events"] = len(res.events)
+    row["impacts"] = len(res.impacts)
+    late = res.t >= res.t[-1] / 2
+    load = ring_load(res.normal_force, facets)
+    row["closed_fraction_last_half"] = float(np.mean(np.any(res.normal_force[:, late] > 0, axis=0)))
+    row["ring_force_last_half_N"] = float(load[late].mean())
+    e = res.energy
+    row["dissipated_friction_J"] = e["dissipated_friction_J"]
+    row["work_spin_J"] = e["work_spin_J"]
+    row["lost_in_impacts_J"] = e["lost_in_impacts_J"]
+    row["energy_relative_residual"] = e["relative_residual"]
+    row["ends_in_stationary"] = bool(st is not None and res.completed and np.allclose(
+        res.normal_force[:, -1], st.normal_force, rtol=1e-3, atol=1e-3 * max(float(st.normal_force.max()), 1e-300)))
+    orbit = None
+    if system is not None:
+        s = sensor_signals(res, system)      # disk_y, disk_z in the inertial frame
+        y, z = s[late, 0], s[late, 1]
+        dy, dz = np.gradient(y, res.t[late]), np.gradient(z, res.t[late])
+        row["orbit_radius_max_m"] = float(np.hypot(y, z).max())
+        # the whirl's sense from the orbit's swept area: + forward (with the spin), - backward
+        row["whirl"] = "forward" if np.mean(y * dz - z * dy) > 0 else "backward"
+        orbit = (y.tolist(), z.tolist())
+    return {"row": row, "orbit": orbit}
+
+
+def plot(path: Path, rows: list[dict], orbits: dict, j: dict, mus: list[float]) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(16, 4.8))
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fine = np.linspace(min(r["speed_ratio"] for r in rows), max(r["speed_ratio"] for r in rows), 400)
+    for c, mu in zip(colors, mus):
+        mine = [r for r in rows if r["mu"] == mu]
+        cf = [closed_form(j, x * j["w_n"], mu) for x in fine]
+        ax[0].plot(fine, [np.nan if v is None else v for v in cf], color=c, lw=1, label=f"closed form, mu = {mu:g}")
+        ax[0].plot([r["speed_ratio"] for r in mine], [np.nan if r["stationary_N"] is None else r["stationary_N"]
+                                                      for r in mine], "o", mfc="none", color=c,
+                   label="stationary (LCP 28)" if mu == mus[0] else None)
+        ax[0].plot([r["speed_ratio"] for r in mine], [r["ring_force_last_half_N"] for r in mine], "x", color=c,
+                   label="transient, mean of the last half" if mu == mus[0] else None)
+        ax[1].plot([r["speed_ratio"] for r in mine], [r["dissipated_friction_J"] for r in mine], "o-", color=c,
+                   label=f"friction dissipated, mu = {mu:g}")
+        ax[1].plot([r["speed_ratio"] for r in mine], [r["work_spin_J"] for r in mine], "x--", color=c,
+                   label="spin's work through friction" if mu == mus[-1] else None)
+    ax[0].set(xlabel="speed / critical speed", ylabel="ring force [N]", title="synchronous full annular rub")
+    ax[1].set(xlabel="speed / critical speed", ylabel="work over the run [J]", title="friction")
+    theta = np.linspace(0, 2 * np.pi, 200)
+    ax[2].plot(1e6 * j["r"] * np.cos(theta), 1e6 * j["r"] * np.sin(theta), "k-", lw=0.8, label="clearance")
+    for c, (label, (y, z)) in zip(colors, orbits.items()):
+        ax[2].plot(1e6 * np.asarray(y), 1e6 * np.asarray(z), color=c, lw=0.8, label=label)
+    ax[2].set(xlabel="y [um]", ylabel="z [um]", title="disk orbits, last half (inertial)", aspect="equal")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="6 speeds, mu 0 and 0.2, t_end 1 s")
+    ap.add_argument("--json", action="store_true", help="print the JSON object")
+    ap.add_argument("--t-end", type=float, help="simulated time per run [s] (default 3, --quick 1)")
+    ap.add_argument("--out", default="studies/out/rub")
+    args = ap.parse_args(argv)
+    say = functools.partial(print, file=sys.stderr) if args.json else print
+    out = Path(args.out)
+    t_end = args.t_end or (1.0 if args.quick else 3.0)
+    ratios = np.linspace(0.5, 1.6, 6 if args.quick else 12).round(4).tolist()
+    mus = [0.0, 0.2] if args.quick else [0.0, 0.1, 0.3]
+    j = jeffcott(load_scene("rub"))
+    t0 = time.perf_counter()
+    rows, orbits = [], {}
+    show = {(ratios[len(ratios) // 3], mus[-1]), (ratios[-1], mus[-1]), (ratios[len(ratios) // 3], mus[0])}
+    for mu in mus:
+        for ratio in ratios:
+            case = one_case(ratio, mu, t_end, j)
+            r = case["row"]
+            rows.append(r)
+            if (ratio, mu) in show and case["orbit"] is not None:
+                orbits[f"{ratio:g} w_n, mu = {mu:g}"] = case["orbit"]
+            say(f"speed {ratio:.3f} w_n, mu {mu:g}: closed form "
+                + ("none" if r["closed_form_N"] is None else f"{r['closed_form_N']:.3f} N")
+                + ", stationary " + ("none" if r["stationary_N"] is None else f"{r['stationary_N']:.3f} N")
+                + f", transient {r['ring_force_last_half_N']:.3f} N (closed {100 * r['closed_fraction_last_half']:.0f} %,"
+                f" {r.get('whirl', '?')} whirl, {r['impacts']} impacts, {r['wall_s']:.2f} s)"
+                + (f"; stopped: {r['error']}" if r["error"] else ""), flush=True)
+    wall = time.perf_counter() - t0
+    out.mkdir(parents=True, exist_ok=True)
+    fig = plot(out / "rub.png", rows, orbits, j, mus)
+    docs_fig = ROOT / "docs" / "figures" / "rub.png"
+    if not args.quick or not docs_fig.exists():
+        shutil.copyfile(fig, docs_fig)
+    both = [r for r in rows if r["closed_form_N"] is not None and r["stationary_N"] is not None]
+    dev = max((abs(r["stationary_N"] / r["closed_form_N"] - 1) for r in both), default=None)
+    findings = {"jeffcott": j, "stationary_vs_closed_form_max_rel": dev,
+                "ended_in_stationary": sum(r["ends_in_stationary"] for r in rows),
+                "backward_whirl": [[r["speed_ratio"], r["mu"]] for r in rows if r.get("whirl") == "backward"],
+                "stopped": [[r["speed_ratio"], r["mu"], r["error"]] for r in rows if r["error"]],
+                "friction_dissipation_negative": [[r["speed_ratio"], r["mu"]] for r in rows
+                                                  if r["dissipated_friction_J"] < 0]}
+    payload = {"quick": args.quick, "t_end": t_end, "ratios": ratios, "mus": mus, "runs": len(rows),
+               "wall_s": wall, "findings": findings, "machine": machine()}
+    write_outputs(out, "rub", rows, payload)
+    say(f"{len(rows)} runs in {wall:.1f} s; stationary against the closed form: "
+        + ("-" if dev is None else f"{dev:.2e}") + f"; {findings['ended_in_stationary']} transients ended in the "
+        f"stationary state; backward whirl at {findings['backward_whirl']}")
+    say(f"wrote {out}/rub.csv, .json, {fig}")
+    if args.json:
+        print(json.dumps(payload))
+    return payload
+
+
+if __name__ == "__main__":
+    main()
