@@ -144,7 +144,7 @@ def test_shipped_rub_scene_is_the_closed_form():
     assert total == pytest.approx(N, rel=2 * (1 / math.cos(math.pi / ring["facets"]) - 1) + 1e-3)
 
 
-@pytest.mark.parametrize("name", ["default", "ross_example", "rub", "critical_speed"])
+@pytest.mark.parametrize("name", ["default", "ross_example", "rub", "critical_speed", "retainer_drop"])
 def test_shipped_scenes_run(name, tmp_path):
     from nsfem import load_scene
 
@@ -290,3 +290,40 @@ def test_a_block_dragged_by_a_moving_surface_until_it_rolls_with_it():
     # moreau: implicit steps of 1e-4 s; the velocity settles on -w to the LCP's round-off once it sticks
     np.testing.assert_allclose(mor.v[0, after], -w, rtol=1e-9)
     assert np.all(mor.state[0, after] == 1)
+
+
+def test_retainer_drop_falls_freely_then_friction_pushes_it_up_the_side_the_surface_leaves():
+    """The shipped retainer drop: until the first impact the rotor's vertical momentum is -m g t exactly (no
+    lateral support is left; the reduced basis carries the rigid translation, so the momentum r^T M T v of
+    the model is that of its rigid body to round-off); the first impact comes after the rigid fall time
+    through the clearance (the elastic rotor's ends lag behind its centre of mass at first); friction then
+    drives the shaft towards -y at the bottom (the surface there moves towards +y); the work balance,
+    with the spin's work through friction, closes to round-off and friction only dissipates."""
+    from nsfem import build_model, load_scene
+    from nsfem.fem.constraints import dense
+
+    scene = load_scene("retainer_drop", ["unbalance.0.magnitude=0.0", "simulation.t_end=0.05",
+                                         "simulation.output_dt=1e-4"])
+    res, system = run_scene(scene, "exact")
+    model, T = system.info["model"], dense(system.info["reduction"].T)      # q_full = T q
+    r = np.zeros(model.n_full)
+    for seg in model.stack.segments:   # a rigid vertical translation: W = 1 at every node, slopes 0
+        space = model.spaces[seg.name]
+        r[space.dofs["W"][space.bending.nodal_dofs[0]]] = 1.0
+    Mr = T.T @ (model.M_full @ r)
+    mass = float(r @ (model.M_full @ r))
+    assert mass == pytest.approx(10.0 + 7850.0 * math.pi / 4 * 0.05**2 * 0.6, rel=1e-12)   # disk and shaft
+    g = scene["rotation"]["gravity"]
+    t_hit = res.impacts[0]["t"]
+    before = res.t < t_hit
+    # round-off of the closed form: the momentum is a sum of terms of the size of the elastic swing's
+    # momentum, about the rigid one's, to 1e-12 each
+    np.testing.assert_allclose(Mr @ res.v[:, before], -mass * g * res.t[before], rtol=0, atol=1e-10 * mass * g * t_hit)
+    assert t_hit > math.sqrt(2 * scene["stator"][0]["clearance"] / g)
+    # friction against the spin at the bottom of the rings: the shaft is pushed towards -y first
+    bottom = [k for k, lab in enumerate(system.contacts.labels) if lab.endswith(".24")]   # 24 of 32: angle -90 deg
+    on = np.flatnonzero(np.any(res.normal_force[bottom] > 0, axis=0))
+    assert on.size and np.all(res.tangential_force[bottom, 0][:, on] <= 0.0)
+    e = res.energy
+    assert e["dissipated_friction_J"] > 0 and e["lost_in_impacts_J"] > 0 and e["work_spin_J"] > 0
+    assert abs(e["relative_residual"]) < 1e-9
