@@ -1006,6 +1006,10 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
         if seg is None:
             lo, hi = min(g.start for g in stack.segments), max(g.end for g in stack.segments)
             raise SceneError(f"{key}.x", f"x={x} must lie on the intact shaft within [{lo}, {hi}]")
+        held = [sp for sp in stack.supports if abs(sp.x - x) <= 1e-12 * max(1.0, abs(x)) and {"V", "W"} <= set(sp.fix)]
+        if held:
+            raise SceneError(f"{key}.x", f"x={x} is a support, which holds the shaft's centre there: the ring would "
+                             "never be touched; put it where the shaft can move")
         n = st["facets"]
         radius = st["radius"] or stack.segment(seg).height / 2.0
         for k in range(n):
