@@ -251,8 +251,9 @@ _STATOR = {
                     "radius besides its whirl (circumferential friction; the axial slip is frictionless)",
                     check=_nonneg),
     "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
-    "radius": Key("float", 0.0, "shaft surface radius at x [m] for the surface speed of friction (0: half "
-                  "the section's depth)", check=_nonneg),
+    "radius": Key("float", 0.0, "radius [m] of the surface the ring touches, for its speed Omega radius (0: "
+                  "half the section's depth, a rectangle's height; a ring around a disk's rim: the rim's radius)",
+                  check=_nonneg),
 }
 _SENSOR = {
     "name": Key("str", "", "column name in sensors.csv (default sensor_<index>)"),

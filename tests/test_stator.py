@@ -328,3 +328,30 @@ def test_retainer_drop_falls_freely_then_friction_pushes_it_up_the_side_the_surf
     e = res.energy
     assert e["dissipated_friction_J"] > 0 and e["lost_in_impacts_J"] > 0 and e["work_spin_J"] > 0
     assert abs(e["relative_residual"]) < 1e-9
+
+
+def test_review_fixes_moving_surfaces():
+    """A moving surface on a two-dimensional friction cone is refused (a force on a polygon facet is held by a
+    fixed slip); a model with a frictional stator needs its speed to build its contact set; LCP (29) with a
+    moving surface needs the velocity; the stationary loop accepts a state whose slip rates all vanish."""
+    from nsfem import build_model, load_scene
+    from nsfem.contact.set import ContactSet
+    from nsfem.errors import NsfemError
+    from nsfem.lcp.builders import transition_lcp
+    from nsfem.linalg import factorize
+
+    with pytest.raises(NsfemError, match="two-dimensional friction cone"):
+        ContactSet.from_arrays([[0.0], [0.0], [-1.0]], [0.0], mu=0.5, JS=[np.eye(3)[:, :2]], r=4,
+                               wS=[np.array([1.0, 0.0])])
+    with pytest.raises(NsfemError, match="pass omega"):
+        ContactSet.from_model(build_model(load_scene("rub")))
+    cs = ContactSet.from_arrays([[0.0], [-1.0]], [0.0], mu=0.5, JS=[np.array([[1.0], [0.0]])], r=2,
+                                wS=[np.array([0.3])])
+    with pytest.raises(NsfemError, match="needs the velocity"):
+        transition_lcp(cs, factorize(np.eye(2)), np.array([0.0, 1.0]), [0], [0])
+    # Sq^T q + w = 0 at the stationary state: no direction, the contact sticks (a surface at rest there)
+    from nsfem.analysis.stationary import stationary
+    still = ContactSet.from_arrays([[0.0], [-1.0]], [1e-3], mu=0.5, JS=[np.array([[1.0], [0.0]])], r=2,
+                                   JSq=[np.array([[0.0], [-1.0]])], wS=[np.array([1e-3])])
+    st = stationary(np.eye(2), np.array([0.0, 1.0]), still)
+    assert st.state == ["stick"] and st.normal_force[0] == pytest.approx(1.0 - 1e-3)

@@ -125,13 +125,15 @@ def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, **lemke_options) 
     # state, whose direction is taken from the state without contact forces, then from each solution
     # until it agrees (the constant w, Omega times the radius, dominates: one pass in practice)
     moving = [k for k in range(cs.m) if cs.r[k] > 0 and cs.moving[k]]
-    q = None if f0 is None else Qf.solve(f0)
-    slide: dict = {}
-    for _ in range(4):
-        rates = {k: cs.slip_rate(k, np.zeros(cs.n) if q is None else q, np.zeros(cs.n)) for k in moving}
-        want = {k: -u / np.linalg.norm(u) for k, u in rates.items() if np.linalg.norm(u) > 0.0}
-        if q is not None and slide and all(k in slide and np.allclose(slide[k], d) for k, d in want.items()):
-            break
+    q = np.zeros(cs.n) if f0 is None else Qf.solve(f0)
+    slide = None
+    for _ in range(5):
+        rates = {k: cs.slip_rate(k, q, np.zeros(cs.n)) for k in moving}
+        # a rate at the round-off of its terms has no direction: that contact's friction is an unknown
+        size = {k: float((np.abs(cs.JSq[k]).T @ np.abs(q)).sum() + np.abs(cs.wS[k]).sum()) for k in moving}
+        want = {k: -u / np.linalg.norm(u) for k, u in rates.items() if np.linalg.norm(u) > 1e-12 * size[k]}
+        if slide is not None and want.keys() == slide.keys() and all(np.allclose(slide[k], d) for k, d in want.items()):
+            break   # the last solution's friction opposes its slip velocities
         slide = want
         lcp = stationary_lcp(cs, Qf, f0, slide=slide)
         res = lcp.solve(**lemke_options)

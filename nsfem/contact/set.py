@@ -154,26 +154,39 @@ class ContactSet:
         ws = [b[:1] if c else b for b, c in zip(ws, cut)]
         dims = np.array([b.shape[1] for b in blocks])
         rr = np.where(dims == 0, 0, np.where(dims == 1, 2, rr))
+        for k in range(m):
+            if dims[k] == 2 and (np.any(sq[k]) or np.any(ws[k])):
+                raise NsfemError(f"contact set: contact {k} has a moving surface and a two-dimensional friction cone; "
+                                 "a moving surface needs one tangent direction (r = 2) in this version (the "
+                                 "event-driven methods hold a force on a polygon facet by a fixed slip)")
         labels = tuple(labels) if labels is not None else tuple(f"contact {k}" for k in range(m))
         tangents = tuple(("t1", "t2")[: d] for d in dims)
         xs = np.full(m, np.nan) if x is None else np.asarray(x, dtype=float)
         return cls(JN, jN, mu, eps, tuple(blocks), rr, labels, tangents, xs, tuple(sq), tuple(ws))
 
     @classmethod
-    def from_model(cls, model, reduction=None, frozen_tol: float = 1e-10, omega: float = 0.0,
+    def from_model(cls, model, reduction=None, frozen_tol: float = 1e-10, omega: float | None = None,
                    frame: str = "rotating") -> ContactSet:
         """The contacts of ``model`` in the coordinates of ``reduction`` (default: no reduction).
 
         A tangent direction whose slip row vanishes in these coordinates (nothing can slip
         that way) is dropped; a contact left with one direction gets r = 2. A stator's facet at
-        the speed ``omega`` [rad/s] gets its moving surface (:func:`surface_velocity`).
+        the speed ``omega`` [rad/s] gets its moving surface (:func:`surface_velocity`); ``omega`` is required
+        when there is one (with friction), and ``frame`` says in which frame the coordinates are.
         """
         from ..reduce import NoReduction
 
         red = NoReduction(model) if reduction is None else reduction
+        contacts = model.stack.contacts
+        if omega is None:
+            if any(c.angle is not None and c.friction > 0 for c in contacts):
+                raise NsfemError("contact set: the model has a stator with friction, whose surface slides past at "
+                                 "Omega r: pass omega [rad/s] and frame to ContactSet.from_model")
+            omega = 0.0
+        if frame not in ("rotating", "inertial"):
+            raise NsfemError(f"contact set: frame must be 'rotating' or 'inertial', got {frame!r}")
         JN, jN, JS_all = red.jacobians()
         JN = np.asarray(JN, dtype=float)
-        contacts = model.stack.contacts
         blocks, tangents, r, sq, ws = [], [], [], [], []
         col = 0
         for k, c in enumerate(contacts):

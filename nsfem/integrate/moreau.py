@@ -289,6 +289,8 @@ class MoreauJean(Integrator):
                    "approach_m_s": [float(-gv[k]) for k in active], "plastic": [],
                    "kinetic_before_J": 0.5 * float(v @ sysm.M @ v),
                    "kinetic_after_J": 0.5 * float(v_new @ sysm.M @ v_new)}
+            if spin:
+                imp["work_spin_J"] = spin
         return v_new, (p_N, p_T, spin), (nf, tf), state, imp, res.pivots
 
 

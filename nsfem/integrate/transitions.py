@@ -318,12 +318,16 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
                 new_slide.append((k, i))
     rolling = [k for k in new_stick if cs.moving[k]]
     if rolling:
-        raise NsfemError(f"{cs.labels[rolling[0]]} would stick to the stator's moving surface at t = {t:.9g} s "
-                         "(rolling contact: the slip velocity and the friction the cone allows both say so); the "
-                         "event-driven methods hold a sticking contact as a fixed slip, which a surface sliding "
-                         "past at Omega r is not: run this scene with simulation.method = \"moreau\"")
+        raise _rolling(cs, rolling[0], t, "the slip velocity and the friction the cone allows both say so")
     mode = Mode(tuple(sorted(keep)), tuple(sorted(new_stick)), tuple(sorted(new_slide)), tuple(sorted(new_edge)))
     return mode, v, impact
+
+
+def _rolling(cs, k: int, t: float, why: str) -> NsfemError:
+    """The error for a contact that would stick to (roll on) a moving surface."""
+    return NsfemError(f"{cs.labels[k]} would stick to the stator's moving surface at t = {t:.9g} s (rolling contact: "
+                      f"{why}); the event-driven methods hold a sticking contact as a fixed slip, which a surface "
+                      "sliding past at Omega r is not: run this scene with simulation.method = \"moreau\"")
 
 
 def _friction_states(cs, closed, q, v, slipping, facets, memory, stopped=()):
@@ -438,7 +442,9 @@ def hold_degenerate(mode: Mode, phase_of, memory: Memory, cs, v: np.ndarray) -> 
         if cs.r[k] == 0:
             continue
         vT = cs.slip_rate(k, q, v)
-        if np.all(np.abs(vT) <= ZERO * max(memory.slip_scale[k], 1e-300)) and not cs.moving[k]:
+        if np.all(np.abs(vT) <= ZERO * max(memory.slip_scale[k], 1e-300)):
+            if cs.moving[k]:   # its direction would be round-off's
+                raise _rolling(cs, k, phase.t0, "a contact held closed at zero slip velocity")
             stick.append(k)
         else:
             slide.append((k, int(np.argmin(cs.generators(k).T @ vT))))

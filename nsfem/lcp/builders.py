@@ -259,7 +259,9 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
     bT = ()
     if stick.size:
         bT = parts[7].T @ a0
-        if v is not None and np.any(cs.moving[stick]):
+        if np.any(cs.moving[stick]):
+            if v is None:
+                raise NsfemError("transition LCP: a moving surface's slip acceleration needs the velocity v")
             bT = bT + cs.surface_drifts(stick, v)
     return _assemble(parts, cs, closed, stick, parts[6].T @ a0, bT, a0)
 
