@@ -12,6 +12,10 @@ sliding past the ring at Omega r). For each case, side by side:
   over the last half, the friction's dissipation and the spin's work over the run, the disk's orbit
   (inertial probes) and its whirl sense, and whether it ended in the stationary state.
 
+Then the shipped scene itself (mu = 0.1) with ``exact`` and ``moreau`` side by side: wall times and
+what each finds over the last half (with friction the run from rest ends on a bouncing limit cycle
+beside the stable sliding state; both methods find it).
+
     python studies/rub.py [--quick] [--json] [--t-end T] [--out DIR]
 
 Writes rub.csv/.json and rub.png into studies/out/rub and copies the figure to docs/figures/rub.png.
@@ -109,8 +113,38 @@ def one_case(ratio: float, mu: float, t_end: float, j: dict) -> dict:
         row["orbit_radius_max_m"] = float(np.hypot(y, z).max())
         # the whirl's sense from the orbit's swept area: + forward (with the spin), - backward
         row["whirl"] = "forward" if np.mean(y * dz - z * dy) > 0 else "backward"
-        orbit = (y.tolist(), z.tolist())
+        # the same orbit seen turning with the shaft: the synchronous rub is a point, a vibration about it a loop;
+        # radial and circumferential offsets from its mean position, and the ring load over the last 20 ms
+        rot = (y + 1j * z) * np.exp(-1j * w * res.t[late])
+        centre = rot.mean()
+        local = (rot - centre) * np.conj(centre) / abs(centre) if abs(centre) > 0 else rot
+        last = res.t >= res.t[-1] - 0.02
+        orbit = {"radial": local.real.tolist(), "circumferential": local.imag.tolist(),
+                 "t": (res.t[last] - res.t[last][0]).tolist(), "load": load[last].tolist()}
     return {"row": row, "orbit": orbit}
+
+
+def methods_side_by_side(t_end: float) -> list[dict]:
+    """The shipped rub (mu = 0.1) from rest with exact and with moreau, in this process one after the other:
+    wall time and what each says of the motion over the last half (the contact's closed fraction, the
+    dominant frequency and size of the disk's vibration in the rotating frame)."""
+    out = []
+    for method in ("exact", "moreau"):
+        scene = load_scene("rub", [f"simulation.t_end={t_end:g}"])
+        t0 = time.perf_counter()
+        res, _ = run_scene(scene, method)
+        wall = time.perf_counter() - t0
+        late = res.t >= res.t[-1] / 2
+        q = res.q[:, late]
+        x = q[int(np.argmax(q.std(axis=1)))]
+        f = np.fft.rfftfreq(x.size, float(res.t[1] - res.t[0]))
+        peak = float(f[1 + int(np.argmax(np.abs(np.fft.rfft(x - x.mean()))[1:]))])
+        out.append({"method": method, "wall_s": wall, "t_end": t_end,
+                    "closed_fraction_last_half": float(np.mean(np.any(res.normal_force[:, late] > 0, axis=0))),
+                    "peak_hz": peak, "vibration_std_max": float(q.std(axis=1).max()), "impacts": len(res.impacts),
+                    "energy_relative_residual": res.energy["relative_residual"],
+                    "step_s": res.info.get("step_s")})
+    return out
 
 
 def plot(path: Path, rows: list[dict], orbits: dict, j: dict, mus: list[float]) -> Path:
@@ -119,7 +153,7 @@ def plot(path: Path, rows: list[dict], orbits: dict, j: dict, mus: list[float]) 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 3, figsize=(16, 4.8))
+    fig, ax = plt.subplots(1, 4, figsize=(20, 4.8))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     fine = np.linspace(min(r["speed_ratio"] for r in rows), max(r["speed_ratio"] for r in rows), 400)
     for c, mu in zip(colors, mus):
@@ -137,11 +171,12 @@ def plot(path: Path, rows: list[dict], orbits: dict, j: dict, mus: list[float]) 
                    label="spin's work through friction" if mu == mus[-1] else None)
     ax[0].set(xlabel="speed / critical speed", ylabel="ring force [N]", title="synchronous full annular rub")
     ax[1].set(xlabel="speed / critical speed", ylabel="work over the run [J]", title="friction")
-    theta = np.linspace(0, 2 * np.pi, 200)
-    ax[2].plot(1e6 * j["r"] * np.cos(theta), 1e6 * j["r"] * np.sin(theta), "k-", lw=0.8, label="clearance")
-    for c, (label, (y, z)) in zip(colors, orbits.items()):
-        ax[2].plot(1e6 * np.asarray(y), 1e6 * np.asarray(z), color=c, lw=0.8, label=label)
-    ax[2].set(xlabel="y [um]", ylabel="z [um]", title="disk orbits, last half (inertial)", aspect="equal")
+    for c, (label, o) in zip(colors, orbits.items()):
+        ax[2].plot(1e6 * np.asarray(o["circumferential"]), 1e6 * np.asarray(o["radial"]), color=c, lw=0.8, label=label)
+        ax[3].plot(1e3 * np.asarray(o["t"]), o["load"], color=c, lw=0.8, label=label)
+    ax[2].set(xlabel="along the ring [um]", ylabel="outwards [um]",
+              title="disk orbit turning with the shaft, last half\n(about its mean position on the ring)")
+    ax[3].set(xlabel="time [ms]", ylabel="ring load [N]", title="contact force, last 20 ms")
     for a in ax:
         a.grid(alpha=0.3)
         a.legend(fontsize=7)
@@ -166,7 +201,7 @@ def main(argv=None) -> dict:
     j = jeffcott(load_scene("rub"))
     t0 = time.perf_counter()
     rows, orbits = [], {}
-    show = {(ratios[len(ratios) // 3], mus[-1]), (ratios[-1], mus[-1]), (ratios[len(ratios) // 3], mus[0])}
+    show = {(ratios[len(ratios) // 3], mus[-1]), (ratios[len(ratios) // 3], mus[0]), (ratios[len(ratios) // 3], mus[1])}
     for mu in mus:
         for ratio in ratios:
             case = one_case(ratio, mu, t_end, j)
@@ -181,6 +216,11 @@ def main(argv=None) -> dict:
                 f" {r.get('whirl', '?')} whirl, {r['impacts']} impacts, {r['wall_s']:.2f} s)"
                 + (f"; stopped: {r['error']}" if r["error"] else ""), flush=True)
     wall = time.perf_counter() - t0
+    methods = methods_side_by_side(t_end)
+    for mm in methods:
+        say(f"shipped rub, {mm['method']}: {mm['wall_s']:.2f} s for {t_end:g} s; last half: closed "
+            f"{100 * mm['closed_fraction_last_half']:.1f} %, {mm['peak_hz']:.1f} Hz, {mm['impacts']} impacts")
+    say(f"exact is {methods[1]['wall_s'] / methods[0]['wall_s']:.1f}x faster than moreau (side by side)")
     out.mkdir(parents=True, exist_ok=True)
     fig = plot(out / "rub.png", rows, orbits, j, mus)
     docs_fig = ROOT / "docs" / "figures" / "rub.png"
@@ -195,7 +235,8 @@ def main(argv=None) -> dict:
                 "friction_dissipation_negative": [[r["speed_ratio"], r["mu"]] for r in rows
                                                   if r["dissipated_friction_J"] < 0]}
     payload = {"quick": args.quick, "t_end": t_end, "ratios": ratios, "mus": mus, "runs": len(rows),
-               "wall_s": wall, "findings": findings, "machine": machine()}
+               "wall_s": wall, "findings": findings, "methods": methods,
+               "moreau_over_exact_wall": methods[1]["wall_s"] / methods[0]["wall_s"], "machine": machine()}
     write_outputs(out, "rub", rows, payload)
     say(f"{len(rows)} runs in {wall:.1f} s; stationary against the closed form: "
         + ("-" if dev is None else f"{dev:.2e}") + f"; {findings['ended_in_stationary']} transients ended in the "
