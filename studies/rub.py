@@ -19,7 +19,7 @@ beside the stable sliding state; both methods find it).
     python studies/rub.py [--quick] [--json] [--t-end T] [--out DIR]
 
 Writes rub.csv/.json and rub.png into studies/out/rub and copies the figure to docs/figures/rub.png.
---quick: 6 speeds, mu 0 and 0.2, t_end 1 s (about 15 s).
+--quick: 6 speeds, mu 0 and 0.2, t_end 1 s (about 3 minutes; the full study about 36).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def jeffcott(scene) -> dict:
-    """k, m (the disk plus the shaft's modal share 17/35), c, m e, r, radius and w_n of the shipped rotor."""
+    """k, m (the disk plus the shaft's modal share 17/35), c, m e, the clearance r and w_n of the shipped rotor."""
     sh, disk, ring = scene["shaft"], scene["disk"][0], scene["stator"][0]
     k = 48 * sh["E"] * math.pi * sh["diameter"] ** 4 / 64 / sh["length"] ** 3
     m = disk["mass"] + 17 / 35 * sh["rho"] * math.pi * sh["diameter"] ** 2 / 4 * sh["length"]

@@ -335,10 +335,10 @@ class EventDriven(Integrator):
             for k, e in _friction_directions(cs, mode):
                 vT = cs.JS[k].T @ v
                 force = cs.mu[k] * lam[idx[("normal", k, 0)]]
-                if cs.moving[k]:   # the surface's part of the slip: the spin's work (see _spin_forms)
-                    off = e @ (cs.JSq[k].T @ q + cs.wS[k][:, None])
-                    vT = vT + (cs.JSq[k].T @ q + cs.wS[k][:, None])
-                    energy["work_spin_J"] -= float(np.sum(w * force * off))
+                if cs.moving[k]:   # the surface's part of the slip: its work is the spin's (see close_energy)
+                    off = cs.JSq[k].T @ q + cs.wS[k][:, None]
+                    vT = vT + off
+                    energy["work_spin_J"] -= float(np.sum(w * force * (e @ off)))
                 energy["dissipated_friction_J"] -= float(np.sum(w * force * (e @ vT)))   # power <= 0
         E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q))
         return float(np.max(np.abs(E), initial=0.0))
