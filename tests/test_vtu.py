@@ -195,6 +195,15 @@ def test_stator_friction_force_is_drawn_along_the_circumference(tmp_path):
     mesh = meshio.read(tmp_path / "nsfem_contacts_00030.vtu")
     tf = mesh.point_data["tangential_force"]
     mu, facets = scene["stator"][0]["friction"], scene["stator"][0]["facets"]
+    # each facet's point sits on the shaft surface it faces (radius 10 mm along its normal), and the ring's
+    # clearance less the normal part of that point's displacement is the result's gap (to the round-off
+    # of 1e-4 m clearances: 1e-12 of it)
+    a = 2 * math.pi * np.arange(facets) / facets
+    R = scene["shaft"]["diameter"] / 2
+    np.testing.assert_allclose(mesh.points[:, 1:], R * np.column_stack([np.cos(a), np.sin(a)]), atol=1e-15)
+    u = mesh.point_data["displacement"]
+    g = scene["stator"][0]["clearance"] - (np.cos(a) * u[:, 1] + np.sin(a) * u[:, 2])
+    np.testing.assert_allclose(g, res.gap[:, 30], rtol=0, atol=1e-12 * scene["stator"][0]["clearance"])
     closed = np.flatnonzero(res.normal_force[:, 30] > 0)
     assert closed.size
     for k in closed:

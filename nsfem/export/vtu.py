@@ -124,11 +124,21 @@ def contact_points(model, q_full) -> tuple[np.ndarray, np.ndarray]:
 
     Interface: on the interface plane (bottom face of the upper sub-beam) at y = y_c, with
     the mean displacement of the two touching faces there. Obstacle: the centroid of the
-    carrying segment (where its gap is measured) and its displacement (U, V, W).
+    carrying segment (where its gap is measured) and its displacement (U, V, W). A stator's
+    facet: the shaft surface point it faces, at the facet's radius R along its normal n, with that
+    point's displacement (U - R n.(V', W'), V, W): the gap is then the clearance less n.(its
+    displacement), measured from the surface the ring sees.
     """
     q_full = np.asarray(q_full, dtype=float).ravel()
     pos, disp = [], []
     for c in model.stack.contacts:
+        if c.angle is not None:
+            s = model.stack.segment(c.segments[0])
+            n = np.array([math.cos(c.angle), math.sin(c.angle)])
+            U, V, W, Vp, Wp = (q_full[model.dof(s.name, f, c.x)] for f in ("U", "V", "W", "V'", "W'"))
+            pos.append([c.x, s.offset[0] + c.radius * n[0], s.offset[1] + c.radius * n[1]])
+            disp.append([U - c.radius * (n[0] * Vp + n[1] * Wp), V, W])
+            continue
         segs = [model.stack.segment(n) for n in c.segments]
         us = []
         for k, s in enumerate(segs):
