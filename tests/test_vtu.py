@@ -210,3 +210,39 @@ def test_stator_friction_force_is_drawn_along_the_circumference(tmp_path):
         a = 2 * math.pi * k / facets
         np.testing.assert_allclose(tf[k], -mu * res.normal_force[k, 30] * np.array([0.0, -math.sin(a), math.cos(a)]),
                                    rtol=1e-12, atol=1e-12 * res.normal_force[k, 30])
+
+
+@pytest.mark.parametrize("inner", [0.0, 0.012])
+def test_round_shafts_are_drawn_round(inner, tmp_path):
+    """A circular section is a 32-gon tiled by quadrilaterals (from its centre, or between its bore and its
+    surface): every hexahedron has a positive volume, they add up to the polygons' areas times the length
+    (to 1e-12: the cells' triple products, as for the rectangles), and the surface points lie on the
+    circle, displaced by the beam kinematics u1 = U - eta V' - zeta W'."""
+    import math
+
+    from nsfem.export.vtu import SECTORS
+
+    scene = load_scene("rub", [f"shaft.inner_diameter={inner}", "simulation.t_end=0.01"])
+    res, system = run_scene(scene)
+    model = system.info["model"]
+    pts, cells, seg, book = stack_geometry(model)
+    vol = _hex_volumes(pts, cells)
+    assert np.all(vol > 0)
+    D, L, m = scene["shaft"]["diameter"], scene["shaft"]["length"], 2 * SECTORS
+    polygon = m / 2 * math.sin(2 * math.pi / m) * ((D / 2) ** 2 - (inner / 2) ** 2)
+    assert vol.sum() == pytest.approx(polygon * L, rel=1e-12)
+    r = np.hypot(pts[:, 1], pts[:, 2])
+    assert np.all(np.isclose(r, D / 2, rtol=1e-14) | np.isclose(r, inner / 2, rtol=1e-14, atol=1e-18))
+    q = np.asarray(system.info["reduction"].T @ res.q[:, -1]).ravel()
+    u = displacements(model, q)
+    s = model.stack.segments[0]
+    node = 7
+    x = model.spaces[s.name].x[node]
+    for p in np.flatnonzero((book[:, 1] == node))[:5]:
+        eta, zeta = pts[p, 1], pts[p, 2]
+        want = [q[model.dof(s.name, "U", x)] - eta * q[model.dof(s.name, "V'", x)] - zeta * q[model.dof(s.name, "W'", x)],
+                q[model.dof(s.name, "V", x)], q[model.dof(s.name, "W", x)]]
+        assert np.allclose(u[p], want, rtol=0, atol=1e-15 * np.abs(u).max())
+    write_series(res, system, tmp_path, every=5)     # and the files take the new cells
+    mesh = meshio.read(tmp_path / "nsfem_00000.vtu")
+    assert mesh.cells[0].data.shape == cells.shape
