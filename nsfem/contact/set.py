@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import NsfemError
 
 #: names of the tangent directions per contact kind/normal, in the order of slip_rows
-_TANGENTS = {"interface": ("x", "y"), "x": ("y", "z"), "y": ("x", "z"), "z": ("x", "y"),
+TANGENTS = {"interface": ("x", "y"), "x": ("y", "z"), "y": ("x", "z"), "z": ("x", "y"),
              "stator": ("circumferential", "x")}
 
 
@@ -190,7 +190,7 @@ class ContactSet:
         blocks, tangents, r, sq, ws = [], [], [], [], []
         col = 0
         for k, c in enumerate(contacts):
-            names = _TANGENTS["interface" if c.kind == "interface" else "stator" if c.angle is not None
+            names = TANGENTS["interface" if c.kind == "interface" else "stator" if c.angle is not None
                               else c.normal[1]]
             if c.friction > 0:
                 S = JS_all[:, col:col + 2]
