@@ -354,4 +354,5 @@ def test_review_fixes_moving_surfaces():
     still = ContactSet.from_arrays([[0.0], [-1.0]], [1e-3], mu=0.5, JS=[np.array([[1.0], [0.0]])], r=2,
                                    JSq=[np.array([[0.0], [-1.0]])], wS=[np.array([1e-3])])
     st = stationary(np.eye(2), np.array([0.0, 1.0]), still)
+    # lam_N = 1 - clearance exactly (Q = I, unit load); Lemke's polish leaves round-off, far below pytest's 1e-6
     assert st.state == ["stick"] and st.normal_force[0] == pytest.approx(1.0 - 1e-3)

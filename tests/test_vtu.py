@@ -211,6 +211,7 @@ def test_stator_friction_force_is_drawn_along_the_circumference(tmp_path):
     np.testing.assert_array_equal(again.point_data["tangential_force"], tf)
     closed = np.flatnonzero(res.normal_force[:, 30] > 0)
     assert closed.size
+    # the file's vector is mu N t formed from the same floats (a few roundings of each component: 1e-12)
     for k in closed:
         a = 2 * math.pi * k / facets
         np.testing.assert_allclose(tf[k], -mu * res.normal_force[k, 30] * np.array([0.0, -math.sin(a), math.cos(a)]),

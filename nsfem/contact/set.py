@@ -37,6 +37,12 @@ TANGENTS = {"interface": ("x", "y"), "x": ("y", "z"), "y": ("x", "z"), "z": ("x"
              "stator": ("circumferential", "x")}
 
 
+def tangent_names(contact) -> tuple[str, ...]:
+    """The names of a model contact's tangent directions, in the order of its slip rows."""
+    kind = "interface" if contact.kind == "interface" else "stator" if contact.angle is not None else contact.normal[1]
+    return TANGENTS[kind]
+
+
 @dataclass(frozen=True)
 class ContactSet:
     """Contacts in n generalized coordinates (see the module docstring)."""
@@ -190,8 +196,7 @@ class ContactSet:
         blocks, tangents, r, sq, ws = [], [], [], [], []
         col = 0
         for k, c in enumerate(contacts):
-            names = TANGENTS["interface" if c.kind == "interface" else "stator" if c.angle is not None
-                              else c.normal[1]]
+            names = tangent_names(c)
             if c.friction > 0:
                 S = JS_all[:, col:col + 2]
                 col += 2

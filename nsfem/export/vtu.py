@@ -39,7 +39,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from ..atomic import write_atomic
-from ..contact.set import TANGENTS   # a contact's tangent directions by kind, normal axis or stator
+from ..contact.set import tangent_names
 from ..errors import NsfemError
 
 #: corner (eta, zeta) signs of a section, counter-clockwise seen from -x looking along +x
@@ -223,8 +223,7 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         raise NsfemError(f"export: the result has {m} contacts, the model {len(stack_contacts)}")
     tangents = []   # per contact: the unit vector (x, y, z) of each tangent direction of its force
     for k, c in enumerate(stack_contacts):
-        names = contacts.tangents[k] if contacts is not None else TANGENTS[
-            "interface" if c.kind == "interface" else "stator" if c.angle is not None else c.normal[1]]
+        names = contacts.tangents[k] if contacts is not None else tangent_names(c)
         tangents.append([_tangent_vector(c, name) for name in names[:2]])
     idx = list(range(0, result.t.size, every))
     entries = []

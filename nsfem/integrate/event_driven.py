@@ -429,11 +429,14 @@ class EventDriven(Integrator):
             idx = {key: i for i, key in enumerate(phase.config.rows)}
             fric, spin = np.zeros((phase.dim, phase.dim)), np.zeros((phase.dim, phase.dim))
             for k, e in _friction_directions(cs, mode):
-                fric += cs.mu[k] * np.outer(Pf[idx[("normal", k, 0)]], e @ cs.slip_rate_rows(k, Pq, Pv, r2))
-                if cs.moving[k]:
-                    off = cs.JSq[k].T @ Pq
-                    off[:, r2] += cs.wS[k]
-                    spin += cs.mu[k] * np.outer(Pf[idx[("normal", k, 0)]], e @ off)
+                force = cs.mu[k] * Pf[idx[("normal", k, 0)]]
+                rate = e @ (cs.JS[k].T @ Pv)
+                if cs.moving[k]:   # the surface's part of the slip rate (slip_rate_rows less S^T Pv): the spin's
+                    off = e @ (cs.JSq[k].T @ Pq)
+                    off[r2] += e @ cs.wS[k]
+                    rate = rate + off
+                    spin += np.outer(force, off)
+                fric += np.outer(force, rate)
             full.append(("dissipated_friction_J", -fric))
             if np.any(spin):
                 full.append(("work_spin_J", -spin))

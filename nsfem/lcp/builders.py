@@ -256,14 +256,19 @@ def transition_lcp(cs: ContactSet, M: Factorization, fstar: np.ndarray, closed, 
         _check_transition(cs, closed, stick, slide, extra)
         parts = _parts(M, cs, closed, stick, slide, extra, cache, key)
     a0 = M.solve(fstar)
-    bT = ()
-    if stick.size:
-        bT = parts[7].T @ a0
-        if np.any(cs.moving[stick]):
-            if v is None:
-                raise NsfemError("transition LCP: a moving surface's slip acceleration needs the velocity v")
-            bT = bT + cs.surface_drifts(stick, v)
+    bT = _with_surface(cs, stick, parts[7].T @ a0, v, cs.surface_drifts,
+                       "transition LCP: a moving surface's slip acceleration needs the velocity v") if stick.size else ()
     return _assemble(parts, cs, closed, stick, parts[6].T @ a0, bT, a0)
+
+
+def _with_surface(cs: ContactSet, friction: np.ndarray, bT: np.ndarray, x, part, missing: str) -> np.ndarray:
+    """b_T plus what a moving surface adds to the slip rows of ``friction`` (``part(friction, x)``: its slip
+    velocity at q, or its slip acceleration at q'); ``x`` is needed only when one of them moves."""
+    if not np.any(cs.moving[friction]):
+        return bT
+    if x is None:
+        raise NsfemError(missing)
+    return bT + part(friction, x)
 
 
 def _check_transition(cs: ContactSet, closed, stick, slide: dict, extra) -> None:
@@ -304,11 +309,6 @@ def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: L
     # Newton's law acts on approaching contacts; a separating one must merely not approach
     # (min(g', 0) as numpy's: nan stays nan, -0.0 gives 0.0)
     bN = [g + e[k] * (g if g < 0.0 or g != g else 0.0) for g, k in zip((parts[6].T @ v).tolist(), active.tolist())]
-    bT = ()
-    if friction.size:
-        bT = parts[7].T @ v
-        if np.any(cs.moving[friction]):
-            if q is None:
-                raise NsfemError("impact LCP: a moving surface's slip velocity needs the configuration q")
-            bT = bT + cs.surface_offsets(friction, q)
+    bT = _with_surface(cs, friction, parts[7].T @ v, q, cs.surface_offsets,
+                       "impact LCP: a moving surface's slip velocity needs the configuration q") if friction.size else ()
     return _assemble(parts, cs, active, friction, bN, bT, v)
