@@ -317,7 +317,7 @@ def cmd_run(args) -> int:
         result, system = run_scene(scene, method, progress=True, warn=warn)  # on stderr after 5 s
     except IntegrationError as exc:  # keep what was computed, then report the error
         res, sysm = exc.result, exc.system
-        path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.contacts.x,
+        path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.model_contacts.x,
                         scene.record())
         raise NsfemError(f"{exc} (the run up to t = {res.t_end:g} s is in {path})") from exc
     finally:
@@ -332,7 +332,7 @@ def cmd_run(args) -> int:
         warning = supercritical_warning(scene["rotation"]["speed_hz"], div[div <= 0.5 * top])
         if warning:
             warn(warning)
-    path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, scene.record())
+    path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.model_contacts.x, scene.record())
     outputs = [str(path)]
     if result.completed:
         from .plot.results import write_plots

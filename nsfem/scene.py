@@ -243,10 +243,11 @@ _STATOR = {
     "facets": Key("int", 32, "sides of the polygon tangent to the clearance circle (3 to 1024; it misses "
                   "the circle by 1 - cos(pi / facets) of the clearance)",
                   check=lambda v: None if 3 <= v <= 1024 else f"must lie in [3, 1024], got {v}"),
-    "stiffness": Key("float", 0.0, "0: rigid ring (Signorini, impacts); an elastic ring is not in this version",
-                     check=_nonneg),
-    "damping": Key("float", 0.0, "ring damping [N s/m] (with an elastic ring, not in this version)",
-                   check=_nonneg),
+    "stiffness": Key("float", 0.0, "0: rigid ring (Signorini, impacts with `restitution`); > 0: an elastic ring, "
+                     "its radial mount stiffness [N/m]: the force is stiffness (r - clearance) + damping r' while "
+                     "it pushes (a unilateral spring-damper, no impacts)", check=_nonneg),
+    "damping": Key("float", 0.0, "radial damping of an elastic ring's mount [N s/m] (the force is released when "
+                   "it would pull)", check=_nonneg),
     "friction": Key("float", 0.0, "Coulomb mu against the shaft surface, which slides past the ring at Omega "
                     "radius besides its whirl (circumferential friction; the axial slip is frictionless)",
                     check=_nonneg),
@@ -989,7 +990,8 @@ def point_components(tree: dict, stack: BeamStack) -> BeamStack:
 
 
 def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contact, ...]:
-    """Each ``[[stator]]`` as ``facets`` rigid stops at one x: facet k's normal points at the angle
+    """Each ``[[stator]]`` as ``facets`` stops at one x (rigid, or the facets of an elastic ring,
+    :mod:`nsfem.contact.ring`): facet k's normal points at the angle
     2 pi k / facets in the y-z plane, its gap is clearance - n.(v, w) (the polygon tangent to the
     clearance circle; a ring fixed in the frame of the coordinates: in space in the inertial frame,
     an approximation of the same circle in the rotating one). Friction acts along the circumference
@@ -998,10 +1000,12 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
     out = []
     for i, st in enumerate(tree["stator"]):
         key = f"stator.{i}"
-        if st["stiffness"] > 0.0 or st["damping"] > 0.0:
-            raise SceneError(f"{key}.stiffness" if st["stiffness"] > 0 else f"{key}.damping",
-                             "an elastic stator ring (a unilateral spring-damper) is not in this version: "
-                             "stiffness and damping must be 0 (a rigid ring)")
+        if st["damping"] > 0.0 and st["stiffness"] == 0.0:
+            raise SceneError(f"{key}.damping", "damping belongs to an elastic ring's mount: give the ring a "
+                             "stiffness > 0 (a rigid ring, stiffness = 0, takes restitution instead)")
+        if st["stiffness"] > 0.0 and st["restitution"] > 0.0:
+            raise SceneError(f"{key}.restitution", "an elastic ring (stiffness > 0) has no impacts, so no "
+                             "restitution: set it to 0 (its damping sets the energy a rub loses)")
         x = middle if st["x"] is None else st["x"]
         seg = stack.carrier(x) if math.isfinite(x) else None
         if seg is None:
@@ -1019,7 +1023,8 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
             axis = ("+y" if c > 0 else "-y") if abs(c) >= abs(s_) else ("+z" if s_ > 0 else "-z")
             # friction along the circumference only (r = 2 on the first tangent, slip_rows' order)
             out.append(Contact("obstacle", x, (seg,), "dirac", None, axis, st["clearance"], st["friction"], 2,
-                               st["restitution"], label=f"{key}.{k}", angle=angle, radius=radius))
+                               st["restitution"], label=f"{key}.{k}", angle=angle, radius=radius,
+                               stiffness=st["stiffness"], damping=st["damping"]))
     return tuple(out)
 
 

@@ -94,7 +94,7 @@ def spectra(system: ContactSystem) -> tuple[np.ndarray, np.ndarray]:
     if system.symmetric:
         w2, Phi = sla.eigh(0.5 * (system.Q + system.Q.T), 0.5 * (system.M + system.M.T))
         w = np.sqrt(np.abs(w2))
-        cs = system.contacts
+        cs = system.model_contacts   # elastic rings' facets too
         if not cs.m:
             return np.sort(w), np.sort(w)
         J = np.hstack([cs.JN] + [cs.JS[k] for k in range(cs.m)])
@@ -258,7 +258,7 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
                  f"fastest-growing mode grows at {rate:.3g} 1/s (x10 every {math.log(10) / rate:.3g} s); unless the "
                  "contacts or damping hold it, displacements soon exceed the linear model's range")
     info = {"ndof_full": model.n, "reduction": red.info, "title": scene["title"],
-            "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.contacts.labels),
+            "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.model_contacts.labels),
             "frame": scene["rotation"]["frame"], "phase_deg": scene["rotation"]["phase_deg"]}
     system.info["sensors"] = scene.sensors
     try:

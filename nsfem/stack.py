@@ -170,6 +170,10 @@ class Contact:
     #: a stator's facet: the radius [m] of the shaft surface it touches, which slides past it at Omega times
     #: this radius (the constant part of the slip velocity, paper eq. 27)
     radius: float = 0.0
+    #: a stator's facet on an elastic ring: the ring's radial stiffness [N/m] and damping [N s/m] (0: rigid,
+    #: Signorini); the facets of one ring share them (:mod:`nsfem.contact.ring`)
+    stiffness: float = 0.0
+    damping: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -230,7 +230,7 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
         except IntegrationError as exc:  # keep what was computed
             result, system, error = exc.result, exc.system, str(exc)
         red = system.info["reduction"]
-        path = result.save(run_dir / "result.npz", scene_text, dense(red.T), system.contacts.x, scene.record())
+        path = result.save(run_dir / "result.npz", scene_text, dense(red.T), system.model_contacts.x, scene.record())
         summary = result.summary()
         row.update(summary, error=error, result=str(path), outputs=[str(path)],
                    integration_wall_s=summary["wall_s"])

@@ -110,7 +110,7 @@ def test_elastic_impacts_on_a_rigid_ring_keep_the_energy():
 
 
 def test_stator_inputs_refused():
-    for key, value, match in (("stiffness", 1e6, "stator.0.stiffness: an elastic stator"),
+    for key, value, match in (("damping", 10.0, "stator.0.damping: damping belongs to an elastic ring"),
                               ("x", 5.0, "stator.0.x: x=5.0 must lie on the intact shaft"),
                               ("facets", 2, "stator.0.facets: must lie in"),
                               ("x", 0.0, "stator.0.x: x=0.0 is a support")):

@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..contact.ring import compliance
 from ..contact.set import ContactSet
 from ..errors import NsfemError
 from ..lcp.builders import stationary_lcp
@@ -109,8 +110,11 @@ def _positive_definite(H) -> bool:
     return bool(np.all(lu.U.diagonal() > 0))
 
 
-def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, **lemke_options) -> Stationary:
-    """Solve LCP (28) for the stiffness Q, constant load f0 and ``contacts``.
+def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, compliance: np.ndarray | None = None,
+               **lemke_options) -> Stationary:
+    """Solve LCP (28) for the stiffness Q, constant load f0 and ``contacts``; ``compliance`` (m x m) adds the
+    contacts' own flexibility to the gaps (an elastic ring, :func:`~nsfem.contact.ring.compliance`): a
+    gap g + compliance lam >= 0, so a facet of an elastic ring carries its force at a negative gap.
 
     Raises :class:`~nsfem.lcp.pivoting.LCPError` with Lemke's diagnosis (and the existence
     caveat) when no solution is found, NsfemError when Q is singular.
@@ -136,6 +140,9 @@ def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, **lemke_options) 
             break   # the last solution's friction opposes its slip velocities
         slide = want
         lcp = stationary_lcp(cs, Qf, f0, slide=slide)
+        if compliance is not None:
+            m = lcp.normal.size
+            lcp.A[:m, :m] += compliance[np.ix_(lcp.normal, lcp.normal)]
         res = lcp.solve(**lemke_options)
         if not res.success:
             extra = "" if ex["guaranteed"] else f" ({ex['reason']})"
@@ -191,7 +198,7 @@ def scene_stationary(scene, model=None, reduction=None) -> Stationary:
     system = scene_system(scene, ops)
     rot = scene["rotation"]
     cs = ContactSet.from_model(model, red, omega=2.0 * math.pi * rot["speed_hz"], frame=rot["frame"])
-    st = stationary(system.Q, system.f0, cs)
+    st = stationary(system.Q, system.f0, cs, compliance(model.stack.contacts))
     inertial = rot["frame"] == "inertial"
     unbalanced = any(u.magnitude for u in model.stack.unbalances)
     loads = []

@@ -183,7 +183,8 @@ def _model_and_T(system_or_model_and_T):
         model, T = system_or_model_and_T
         return model, T, None
     info = system_or_model_and_T.info
-    return info["model"], info["reduction"].T, getattr(system_or_model_and_T, "contacts", None)
+    system = system_or_model_and_T
+    return info["model"], info["reduction"].T, getattr(system, "model_contacts", getattr(system, "contacts", None))
 
 
 def _write_vtu(path: Path, mesh) -> None:

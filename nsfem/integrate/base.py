@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from ..errors import NsfemError
+from ..errors import IntegrationError, NsfemError
 from ..result import Result
 from .blas import single_threaded_blas
 from .problem import ContactSystem
@@ -149,7 +149,50 @@ def integrate(system: ContactSystem, t_end: float, method: str = "exact", output
     # floating-point overflow is not printed as RuntimeWarnings: the integrators check their
     # state, rates and energy and stop with an error naming it (nsfem.integrate.guard)
     with single_threaded_blas(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return integrator.run(t_end, dt, q0, v0)
+        if not system.rings:
+            return integrator.run(t_end, dt, q0, v0)
+        try:
+            return with_ring_contacts(integrator.run(t_end, dt, q0, v0), system)
+        except IntegrationError as exc:
+            if exc.result is not None:
+                with_ring_contacts(exc.result, system)
+            raise
+
+
+def with_ring_contacts(res: Result, system: ContactSystem) -> Result:
+    """The contact outputs over the model's whole contact list (:attr:`ContactSystem.model_contacts`): the
+    rigid contacts' from the run, an elastic ring's facets from its force law at the output states. A facet
+    carries the part of the ring's normal force along it (both facets of a corner share it), its friction
+    -mu s lam along its circumferential tangent, state 2 (sliding) while it pushes. In place; returns res."""
+    from ..contact.ring import forces
+
+    full = system.model_contacts
+    index = system.info.get("contact_index")
+    if index is None or full is system.contacts:
+        return res
+    K = res.t.size
+    gap = full.gaps(res.q) if K else np.zeros((full.m, 0))
+    normal, tang = np.zeros((full.m, K)), np.zeros((full.m, 2, K))
+    state = np.zeros((full.m, K), dtype=res.state.dtype)
+    normal[index], tang[index], state[index] = res.normal_force, res.tangential_force, res.state
+    for ring in system.rings:
+        N, _, regions, slip = forces(ring, res.q, res.v)
+        on = np.flatnonzero(np.any(N != 0.0, axis=0))
+        for j in on:
+            reg = int(regions[j])
+            if reg < ring.F:
+                ks, lam = [reg], [float(ring.normals[reg] @ N[:, j])]
+            else:   # N = a n_k + b n_k+1 at corner k
+                k = reg - ring.F
+                ks = [k, (k + 1) % ring.F]
+                lam = list(np.linalg.solve(ring.normals[ks].T, N[:, j]))
+            for kk, lm in zip(ks, lam):
+                c = ring.facets[kk]
+                normal[c, j] = lm
+                tang[c, 0, j] = -ring.friction * np.sign(slip[j]) * lm
+                state[c, j] = 2
+    res.gap, res.normal_force, res.tangential_force, res.state = gap, normal, tang, state
+    return res
 
 
 #: methods registered by other modules (penalty, moreau) as name -> class

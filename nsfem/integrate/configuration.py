@@ -24,7 +24,7 @@ which is exact also for rigid-body modes (singular Q) and resonant forcing. Ever
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -51,10 +51,23 @@ class Mode:
     stick: tuple[int, ...] = ()
     slide: tuple[tuple[int, int], ...] = ()
     edge: tuple[tuple[int, int], ...] = ()
+    #: engaged elastic rings (ring, region, s): their force law adds to Q, C and f0 (:meth:`Ring.terms`)
+    ring: tuple[tuple[int, int, int], ...] = ()
+    #: released rings whose centre is still beyond the polygon (ring, region): no force, but their events
+    #: are the force's return and the region's exits
+    latent: tuple[tuple[int, int], ...] = ()
 
     def describe(self) -> dict:
-        return {"closed": list(self.closed), "stick": list(self.stick), "slide": [list(p) for p in self.slide],
-                "edge": [list(p) for p in self.edge]}
+        out = {"closed": list(self.closed), "stick": list(self.stick), "slide": [list(p) for p in self.slide],
+               "edge": [list(p) for p in self.edge]}
+        if self.ring or self.latent:
+            out.update(ring=[list(p) for p in self.ring], latent=[list(p) for p in self.latent])
+        return out
+
+    @property
+    def dynamics(self) -> Mode:
+        """The mode without its latent rings (they do not change the equations: one configuration)."""
+        return replace(self, latent=()) if self.latent else self
 
 
 def _null(A: np.ndarray, n: int) -> tuple[np.ndarray, int]:
@@ -195,6 +208,18 @@ class Configuration:
         r = self.N.shape[1]
         self.r = r
         M, C, Q = system.M, system.C, system.Q
+        self.f0 = system.f0
+        symmetric = system.symmetric
+        if mode.ring:   # engaged elastic rings: their piecewise-linear force on this region
+            C, Q, self.f0 = C.copy(), Q.copy(), self.f0.copy()
+            for i, region, s in mode.ring:
+                ring = system.rings[i]
+                Kr, Cr, fr = ring.terms(region, s)
+                Q += Kr
+                C += Cr
+                self.f0 += fr
+                symmetric = symmetric and not (ring.friction and s)
+        self.C, self.Q = C, Q
         Mr = self.L.T @ M @ self.N
         # (with L = N, Mr = N^T M N is positive definite: only sliding friction can make it singular)
         if r and self.L is not self.N and np.linalg.cond(Mr) > 1e12:
@@ -204,7 +229,7 @@ class Configuration:
         Cr = self.L.T @ C @ self.N
         # a symmetric configuration with classical damping: its real modes give the first-order
         # eigen-decomposition in closed form (eigh of r x r instead of eig of 2r x 2r)
-        modes = _classical_modes(Mr, Kr, Cr) if r and self.L is self.N and system.symmetric else None
+        modes = _classical_modes(Mr, Kr, Cr) if r and self.L is self.N and symmetric else None
         T = None
         self.k = 0
         if modes is not None:
@@ -333,7 +358,7 @@ class Phase:
         N, r = config.N, config.r
         self.w = config.w
         # forcing phi(t) = (f0 - Q q_p) + fc cos + fs sin as extra state components
-        f0 = sysm.f0 - sysm.Q @ self.qp
+        f0 = config.f0 - config.Q @ self.qp
         self.forcing = [f0] + config.loads
         self.dim = 2 * r + len(self.forcing)
         self.x0 = np.concatenate([N.T @ (q0 - self.qp), N.T @ v0])

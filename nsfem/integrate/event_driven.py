@@ -30,11 +30,13 @@ from scipy.integrate import solve_ivp
 
 from ..errors import IntegrationError, NsfemError
 from ..linalg import factorize
+from ..contact.ring import ROT, generalized_force, potential
 from ..result import Result
 from .base import Integrator, Progress, close_energy, initial_state, output_times
 from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
+from .rings import after_event, after_impact, initial_rings, with_rings
 from .transitions import Memory, hold_degenerate, resolve
 
 #: Gauss-Legendre nodes and weights on [0, 1]
@@ -73,6 +75,7 @@ class EventDriven(Integrator):
         self._cache: dict = {}
 
     def configuration(self, mode: Mode) -> Configuration:
+        mode = mode.dynamics
         if mode not in self._cache:
             self._cache[mode] = Configuration(self.system, mode)
         return self._cache[mode]
@@ -107,7 +110,8 @@ class EventDriven(Integrator):
         filled = 0
         events, impacts = [], []
         memory = Memory(np.zeros(m), np.zeros(m, dtype=int), self.zeno, gap_floor=cs.gap_floor)
-        energy = {"initial_J": 0.5 * float(v @ sysm.M @ v + q @ K @ q), "work_external_J": 0.0,
+        rings = sysm.rings
+        energy = {"initial_J": 0.5 * float(v @ sysm.M @ v + q @ K @ q) + potential(rings, q), "work_external_J": 0.0,
                   "dissipated_damping_J": 0.0, "work_circulatory_J": 0.0, "dissipated_friction_J": 0.0,
                   "work_spin_J": 0.0, "lost_in_impacts_J": 0.0}
         e_max = abs(energy["initial_J"])
@@ -116,10 +120,13 @@ class EventDriven(Integrator):
         completed, failure = True, None
         t = 0.0
         closed_time, covered = 0.0, 0.0   # time with at least one contact closed, of the time integrated
-        guard = EventGuard(cs, t_end, self.max_events, self.zeno)
+        guard = EventGuard(cs, t_end, self.max_events, self.zeno, [r.label for r in rings])
+        ring_load = (lambda v_, q_: generalized_force(rings, q_, v_)) if rings else None
         phase, phase_integrated = None, False
         try:
-            mode, v, imp = resolve(sysm, Mf, 0.0, q, v, Mode(), memory)
+            mode, v, imp = resolve(sysm, Mf, 0.0, q, v, Mode(), memory,
+                                   extra_load=None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))
+            mode = with_rings(mode, *initial_rings(rings, q, v))
             mode = hold_degenerate(mode, lambda md, q_=q, v_=v: self._phase(md, 0.0, q_, v_), memory, cs, v)
             if imp:
                 impacts.append(imp)
@@ -154,7 +161,7 @@ class EventDriven(Integrator):
                 if not (math.isfinite(e_max) and all(math.isfinite(x) for x in energy.values())):
                     raise overflow(t_next, mode, sysm, "energy")
                 phase_integrated = True
-                if mode.closed:
+                if mode.closed or mode.ring:
                     closed_time += t_next - t
                 covered = t_next
                 q, v = q_end, v_end
@@ -200,7 +207,14 @@ class EventDriven(Integrator):
                 settled = {rows.contacts[i] for j, i in enumerate(ev.rows)
                            if rows.kinds[i] == "close" and ev.in_band is not None and ev.in_band[j]}
                 mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping,
-                                       settled, facets, stopped)
+                                       settled, facets, stopped,
+                                       None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))
+                if rings:
+                    fired = [(rows.kinds[i], rows.detail[i]) for i in ev.rows if rows.kinds[i].startswith("ring_")]
+                    state = after_event(rings, before, fired, q, v, t_next)
+                    if imp:
+                        state = after_impact(rings, *state, q, v, t_next)
+                    mode = with_rings(mode, *state)
                 mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
                                        memory, cs, v)
                 if imp:
@@ -232,11 +246,11 @@ class EventDriven(Integrator):
                     e_max = max(e_max, self._energy(phase, mode, phase.xi, phase.t0, float(t_out[sel[-1]]), K, P,
                                                     D, energy))
                     covered = float(t_out[sel[-1]])
-                    if mode.closed:
+                    if mode.closed or mode.ring:
                         closed_time += covered - phase.t0
         finally:
             progress.close()
-        close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q), e_max)
+        close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q) + potential(rings, q), e_max)
         k = filled if not completed else K_out
         res = Result(self.name, t_out[:k], out["q"][:, :k], out["v"][:, :k], out["gap"][:, :k],
                      out["normal_force"][:, :k], out["tangential_force"][:, :, :k], out["state"][:, :k],
@@ -294,6 +308,14 @@ class EventDriven(Integrator):
             return 0.0
         sysm = self.system
         cs = sysm.contacts
+        if mode.latent:   # a released ring's stored energy goes to its damper (module ring)
+            if ends is None:
+                xs = xi_fun(np.array([t0, t1]))
+                qa, qb = phase.q_map() @ xs[:, 0], phase.q_map() @ xs[:, 1]
+            else:
+                qa, qb = ends[0], ends[2]
+            lat = [sysm.rings[i] for i, _ in mode.latent]
+            energy["dissipated_damping_J"] += potential(lat, qa) - potential(lat, qb)
         if self.name == "exact":
             done = self._energy_closed_form(phase, mode, t1, K, P, D, energy, ends)
             if done is not None:
@@ -329,6 +351,17 @@ class EventDriven(Integrator):
             energy["dissipated_damping_J"] += float(np.sum(w * np.einsum("it,it->t", v, D @ v)))
         if np.any(P):
             energy["work_circulatory_J"] += float(np.sum(w * np.einsum("it,it->t", v, P @ q)))
+        for i, reg, sgn in mode.ring:
+            ring = sysm.rings[i]
+            u, du = ring.P @ q, ring.P @ v
+            N = ring.force_rows(reg, phase.q_map(), phase.v_map(), 2 * phase.config.r) @ xi
+            nu = ring.parts(reg)[2]
+            energy["dissipated_damping_J"] += ring.damping * float(np.sum(w * (nu @ du) ** 2))
+            if ring.friction and sgn:
+                RN = ROT @ N
+                ws = ring.surface_speed * (ROT @ nu)[:, None] + ring.frame_spin * (ROT @ u)
+                energy["dissipated_friction_J"] += ring.friction * sgn * float(np.sum(w * np.sum(RN * (du + ws), 0)))
+                energy["work_spin_J"] += ring.friction * sgn * float(np.sum(w * np.sum(RN * ws, 0)))
         if mode.slide or mode.edge:
             lam = phase.force_map() @ xi
             idx = {key: i for i, key in enumerate(phase.config.rows)}
@@ -371,7 +404,7 @@ class EventDriven(Integrator):
         harmonic load (a non-rotating undamped structure: the axial impact of a free bar) nothing
         else is integrated, and no state is evaluated inside the phase."""
         sysm = self.system
-        if mode.slide or mode.edge or (phase.w and (np.any(sysm.fc) or np.any(sysm.fs))):
+        if mode.slide or mode.edge or mode.ring or (phase.w and (np.any(sysm.fc) or np.any(sysm.fs))):
             return None
         forms = self._run_forms(K, P, D)
         if forms[3] or forms[4]:
@@ -396,7 +429,7 @@ class EventDriven(Integrator):
         (:meth:`_energy_modal`).
         """
         forms = self._run_forms(K, P, D)
-        if phase.amplitudes is not None and not (mode.slide or mode.edge):
+        if phase.amplitudes is not None and not (mode.slide or mode.edge or mode.ring):
             self._energy_modal(phase, t1, forms, energy)
         else:
             terms = phase.exponential_terms()
@@ -440,6 +473,7 @@ class EventDriven(Integrator):
             full.append(("dissipated_friction_J", -fric))
             if np.any(spin):
                 full.append(("work_spin_J", -spin))
+        full += _ring_forms(sysm.rings, mode, Pq, Pv, r2)
         U, mu = terms
         T = t1 - phase.t0
         if full:
@@ -523,6 +557,28 @@ def _impact_energy(energy: dict, imp: dict) -> None:
     spin = imp.get("work_spin_J", 0.0)
     energy["lost_in_impacts_J"] += imp["kinetic_before_J"] - imp["kinetic_after_J"] + spin
     energy["work_spin_J"] += spin
+
+
+def _ring_forms(rings, mode: Mode, Pq: np.ndarray, Pv: np.ndarray, r2: int) -> list:
+    """(key, form S) with int xi^T S xi dt the engaged rings' damper dissipation c_s (nu . u')^2, friction
+    dissipation mu s (R N) . (u' + w_s) and the spin's work mu s (R N) . w_s, w_s = Omega R_s R nu + Omega_f R u
+    (the surface's velocity; :mod:`nsfem.contact.ring`)."""
+    out = []
+    for i, reg, sgn in mode.ring:
+        ring = rings[i]
+        U, dU = ring.P @ Pq, ring.P @ Pv
+        nu = ring.parts(reg)[2]
+        if ring.damping:
+            a = nu @ dU
+            out.append(("dissipated_damping_J", ring.damping * np.outer(a, a)))
+        if ring.friction and sgn:
+            RN = ROT @ ring.force_rows(reg, Pq, Pv, r2)
+            Ws = ring.frame_spin * (ROT @ U)
+            Ws[:, r2] += ring.surface_speed * (ROT @ nu)
+            c = ring.friction * sgn
+            out.append(("dissipated_friction_J", c * (RN.T @ (dU + Ws))))
+            out.append(("work_spin_J", c * (RN.T @ Ws)))
+    return out
 
 
 def _finite_prefix(xi: np.ndarray) -> int:

@@ -12,7 +12,9 @@ while h >= 0:
   neighbours j (r = 2: -e_i . v_T >= 0, i.e. the slip stops or reverses); for a contact
   sliding with its force on facet f (``edge``), the slip along -n_f: -n_f . v_T >= 0,
 - ``vertex``: for a contact sliding on facet f, the force's position s on the facet must
-  stay inside it: mu lam_N sin(pi / r) -+ s >= 0.
+  stay inside it: mu lam_N sin(pi / r) -+ s >= 0,
+- ``ring_engage``, ``ring_release``, ``ring_exit``, ``ring_turn``: an elastic ring's
+  (:mod:`.rings`).
 
 Roots are found without missing any: h and h' = H A_aug xi are sampled at a step of at most
 1/8 of the configuration's fastest period (:meth:`Phase.max_step`); a sign change of h is a
@@ -52,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .configuration import Mode, Phase
+from .rings import ring_rows
 
 #: relative size (to the terms that make h) below which an event function counts as zero
 ZERO = 1e-11
@@ -124,6 +127,7 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
         add(cs.mu[k] * sn * lamN - s_f, "vertex", k, (i + 1) % int(cs.r[k]))
         add(cs.mu[k] * sn * lamN + s_f, "vertex", k, i)
         add(-(n_f @ cs.slip_rate_rows(k, Pq, Pv, const)), "turn", k, None)  # the slip along -n_f stops
+    ring_rows(phase, mode, cfg.system.rings, cs.m, add)
     return Rows(np.array(H).reshape(len(kinds), phase.dim), kinds, contacts, detail)
 
 

@@ -118,8 +118,10 @@ def describe_mode(contacts, mode) -> str:
 class EventGuard:
     """Watches the events of a run; :meth:`record` raises NsfemError when the run cannot advance."""
 
-    def __init__(self, contacts, t_end: float, max_events: int, zeno: float):
+    def __init__(self, contacts, t_end: float, max_events: int, zeno: float, rings=()):
         self.contacts, self.t_end, self.max_events = contacts, float(t_end), int(max_events)
+        #: the names of the events' contacts: the rigid ones, then the elastic rings (m + i)
+        self.labels = tuple(contacts.labels) + tuple(rings)
         self.same_limit = same_time_limit(contacts, zeno)
         self.same = 0
         self.recent: deque = deque(maxlen=max(WINDOW, 2))
@@ -173,7 +175,7 @@ class EventGuard:
                 energies.append(kinetic)
         if not kinds:
             kinds["restart"] = len(recent)
-        contacts = ", ".join(f"{cs.labels[c]} ({n})" for c, n in where.most_common(4))
+        contacts = ", ".join(f"{self.labels[c]} ({n})" for c, n in where.most_common(4))
         if len(where) > 4:
             contacts += f" and {len(where) - 4} more"
         kind_text = ", ".join(f"{n} {k}" for k, n in kinds.most_common())
@@ -184,7 +186,7 @@ class EventGuard:
                          "impacts): the structure is unstable here")
             advice.append("a lower rotation.speed_hz or more damping")
         if impacts >= len(recent) // 2:
-            if any(cs.eps[c] > 0 for c in where):
+            if any(c < cs.m and cs.eps[c] > 0 for c in where):
                 advice.append("a lower restitution")
             advice.append("fewer contact points")
         if friction >= len(recent) // 2:

@@ -63,6 +63,7 @@ import time
 
 import numpy as np
 
+from ..contact.ring import ROT, potential
 from ..errors import IntegrationError, NsfemError
 from ..lcp.builders import contact_lcp
 from ..linalg import Factorization, factorize
@@ -113,17 +114,24 @@ class MoreauJean(Integrator):
         self.step, self.theta, self.progress = step, theta, progress
         self._W: dict[float, tuple] = {}
 
-    def iteration_matrix(self, h: float) -> tuple[Factorization, np.ndarray, np.ndarray, np.ndarray]:
+    def iteration_matrix(self, h: float, rings: tuple = ()) -> tuple[Factorization, np.ndarray, np.ndarray,
+                                                                       np.ndarray, np.ndarray]:
         """W = M + h theta C + h^2 theta^2 Q factorized, and the free-velocity maps of step h
-        (cached per step size): v_free = A_v v + A_q q + G f_theta with G = h W^-1,
-        A_v = I - G (C + h theta Q), A_q = -G Q."""
-        if h not in self._W:
+        (cached per step size and engaged rings): v_free = A_v v + A_q q + G (f_theta + f_r) with G = h W^-1,
+        A_v = I - G (C + h theta Q), A_q = -G Q. ``rings``: engaged elastic rings (ring, region, s), whose
+        force law on that region adds to C, Q and f_r (implicit like the structure's)."""
+        key = (h, rings)
+        if key not in self._W:
             s, th = self.system, self.theta
-            Wf = factorize(s.M + h * th * s.C + (h * th) ** 2 * s.Q, "the Moreau iteration matrix W",
+            C, Q, fr = s.C, s.Q, np.zeros(s.n)
+            for i, region, sgn in rings:
+                Kr, Cr, f = s.rings[i].terms(region, sgn)
+                C, Q, fr = C + Cr, Q + Kr, fr + f
+            Wf = factorize(s.M + h * th * C + (h * th) ** 2 * Q, "the Moreau iteration matrix W",
                            "M + h theta C + h^2 theta^2 Q; a smaller step makes it closer to M")
             G = h * Wf.solve(np.eye(s.n))
-            self._W[h] = (Wf, np.eye(s.n) - G @ (s.C + h * th * s.Q), -G @ s.Q, G)
-        return self._W[h]
+            self._W[key] = (Wf, np.eye(s.n) - G @ (C + h * th * Q), -G @ Q, G, fr)
+        return self._W[key]
 
     def run(self, t_end: float, output_dt: float, q0=None, v0=None) -> Result:
         sysm, th = self.system, self.theta
@@ -149,7 +157,8 @@ class MoreauJean(Integrator):
         out["q"][:, 0], out["v"][:, 0], out["gap"][:, 0] = q, v, cs.gaps(q)
         filled = 1
         impacts: list = []
-        energy = {"initial_J": 0.5 * float(v @ sysm.M @ v + q @ K @ q), "work_external_J": 0.0,
+        rings = sysm.rings
+        energy = {"initial_J": 0.5 * float(v @ sysm.M @ v + q @ K @ q) + potential(rings, q), "work_external_J": 0.0,
                   "dissipated_damping_J": 0.0, "work_circulatory_J": 0.0, "dissipated_friction_J": 0.0,
                   "work_spin_J": 0.0, "lost_in_impacts_J": 0.0}
         e_max = abs(energy["initial_J"])
@@ -168,14 +177,15 @@ class MoreauJean(Integrator):
                 else:  # a last interval shorter than output_dt: equal substeps of at most the step
                     k_sub = max(1, math.ceil(span / h_req - 1e-9))
                     h = span / k_sub
-                Wf, Av, Aq, G = self.iteration_matrix(h)
                 f_next = sysm.load(t0) if harmonic else sysm.f0
                 for j in range(k_sub):
                     t = t0 + j * h
                     f_prev = f_next
                     f_next = sysm.load(t0 + (j + 1) * h) if harmonic else sysm.f0
                     f_th = (1 - th) * f_prev + th * f_next
-                    v_free = Av @ v + Aq @ q + G @ f_th
+                    engaged, latent = ring_states(rings, q, v, t) if rings else ((), ())
+                    Wf, Av, Aq, G, f_r = self.iteration_matrix(h, engaged)
+                    v_free = Av @ v + Aq @ q + G @ (f_th + f_r)
                     v_new, impulse, forces, state, imp, n_piv = self._contact_step(Wf, q, v, v_free, h, t + h,
                                                                                    frictional)
                     pivots += n_piv
@@ -187,6 +197,8 @@ class MoreauJean(Integrator):
                         energy["dissipated_damping_J"] += h * float(v_th @ D @ v_th)
                     if circulatory:
                         energy["work_circulatory_J"] += h * float(v_th @ P @ (q + th * h * v_th))
+                    if rings:
+                        _ring_work(rings, engaged, latent, q, q_new, v_th, h, th, energy)
                     dv = v_new - v
                     if impulse is not None:  # contact work with the mean step velocity
                         p_N, p_T, spin = impulse
@@ -204,7 +216,7 @@ class MoreauJean(Integrator):
                         impacts.append(imp)
                     q, v = q_new, v_new
                     steps += 1
-                    e_max = max(e_max, abs(0.5 * float(v @ sysm.M @ v + q @ K @ q)))
+                    e_max = max(e_max, abs(0.5 * float(v @ sysm.M @ v + q @ K @ q) + potential(rings, q)))
                     if m:
                         penetration = max(penetration, -float(cs.gaps(q).min()))
                         if steps == 1:  # t = 0 shows the forces of the first step
@@ -224,7 +236,7 @@ class MoreauJean(Integrator):
             del impacts[n_imp:]
         finally:
             progress.close()
-        close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q), e_max)
+        close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q) + potential(rings, q), e_max)
         k = n_out if completed else filled
         info = {**{kk: vv for kk, vv in sysm.info.items() if kk == "ndof_full"},
                 "step_s": h_full, "theta": th, "steps": steps, "lcp_pivots_total": pivots,
@@ -295,3 +307,43 @@ class MoreauJean(Integrator):
 
 
 EXTRA_METHODS["moreau"] = MoreauJean
+
+
+def ring_states(rings, q: np.ndarray, v: np.ndarray, t: float) -> tuple[tuple, tuple]:
+    """(engaged, latent) rings at a step's start: engaged (ring, region, s) where the force law pushes, s the
+    slip's sign (at a slip at rest the friction is left out for that step: the step's force cannot follow
+    a stick on an elastic ring, a first-order error of the scheme), latent (ring, region) beyond the
+    polygon with the force released."""
+    eng, lat = [], []
+    for i, ring in enumerate(rings):
+        u, du = ring.P @ q, ring.P @ v
+        reg = ring.region(u)
+        if reg is None:
+            continue
+        if float(ring.normal_force(reg, u, du)) > 0.0:
+            rate = float(ring.slip_rate(reg, u, du)) if ring.friction else 0.0
+            eng.append((i, reg, int(np.sign(rate))))
+        else:
+            lat.append((i, reg))
+    return tuple(eng), tuple(lat)
+
+
+def _ring_work(rings, engaged, latent, q, q_new, v_th, h: float, th: float, energy: dict) -> None:
+    """Book a step's ring work (module :mod:`nsfem.contact.ring`): the damper's h c_s (nu . u'_theta)^2, the
+    friction's dissipation and the spin's work at (q_theta, v_theta); a latent ring's release of its stored
+    energy to its damper. The spring's work is the change of the stored energy in E."""
+    q_th = q + th * h * v_th
+    for i, reg, sgn in engaged:
+        ring = rings[i]
+        S, a, nu = ring.parts(reg)
+        u, du = ring.P @ q_th, ring.P @ v_th
+        rate = float(nu @ du)
+        energy["dissipated_damping_J"] += h * ring.damping * rate * rate
+        if ring.friction and sgn:
+            RN = ROT @ (ring.stiffness * (S @ u - a) + ring.damping * nu * rate)
+            ws = ring.surface_speed * (ROT @ nu) + ring.frame_spin * (ROT @ u)
+            energy["dissipated_friction_J"] += h * ring.friction * sgn * float(RN @ (du + ws))
+            energy["work_spin_J"] += h * ring.friction * sgn * float(RN @ ws)
+    if latent:
+        lat = [rings[i] for i, _ in latent]
+        energy["dissipated_damping_J"] += potential(lat, q) - potential(lat, q_new)

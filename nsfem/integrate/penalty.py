@@ -147,6 +147,10 @@ class Penalty(Integrator):
                  factor: float = 100.0, damping: float | None = None, damping_ratio: float | None = None,
                  restitution_rule: str = "cut", rtol: float = 1e-6, atol: float = 1e-10,
                  max_step: float | None = None, progress: bool | None = None, **options):
+        if system.rings:
+            raise NsfemError(f"penalty: {system.rings[0].label} is an elastic ring, a spring-damper already, which "
+                             "the penalty method (a regularization of rigid contacts) does not carry: run this "
+                             "scene with method exact, rk or moreau")
         if options:
             raise NsfemError(f"penalty: unknown option(s) {', '.join(sorted(options))} (known: solver, stiffness, "
                              "factor, damping, damping_ratio, restitution_rule, rtol, atol, max_step, "

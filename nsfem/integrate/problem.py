@@ -39,6 +39,9 @@ class ContactSystem:
     omega: float
     contacts: ContactSet
     info: dict = field(default_factory=dict, compare=False)
+    #: elastic stator rings (:mod:`nsfem.contact.ring`): force laws, not constraints; ``contacts`` holds the
+    #: rigid contacts only (``info["contact_index"]``: their places in the model's contact list)
+    rings: tuple = ()
 
     @property
     def n(self) -> int:
@@ -47,11 +50,17 @@ class ContactSystem:
     @cached_property
     def symmetric(self) -> bool:
         """M, C and Q symmetric (to 1e-13 of their largest entries: assembly round-off): a structure
-        without gyroscopic and circulatory terms, whose configurations have real modes."""
+        without gyroscopic and circulatory terms, whose configurations have real modes (an engaged ring's
+        friction is checked by its configuration)."""
         def sym(X):
             return bool(np.all(np.abs(X - X.T) <= 1e-13 * np.abs(X).max(initial=0.0)))
 
         return sym(self.M) and sym(self.C) and sym(self.Q)
+
+    @property
+    def model_contacts(self) -> ContactSet:
+        """Every contact of the model in its order: the rigid ones and the facets of elastic rings (outputs)."""
+        return self.info.get("all_contacts", self.contacts)
 
     @property
     def harmonic(self) -> bool:
@@ -68,8 +77,9 @@ class ContactSystem:
 
     @classmethod
     def from_arrays(cls, M, Q, C=None, f0=None, fc=None, fs=None, omega: float = 0.0,
-                    contacts: ContactSet | None = None, info=None) -> ContactSystem:
-        """Validate and build; missing parts are zero (C, loads) or no contacts."""
+                    contacts: ContactSet | None = None, info=None, rings=()) -> ContactSystem:
+        """Validate and build; missing parts are zero (C, loads) or no contacts; ``rings`` elastic stator
+        rings (:class:`~nsfem.contact.ring.Ring`) in the same coordinates."""
         M = np.atleast_2d(np.asarray(dense(M), dtype=float))
         n = M.shape[0]
 
@@ -99,7 +109,11 @@ class ContactSystem:
         cs = ContactSet.from_arrays(np.zeros((n, 0)), np.zeros(0)) if contacts is None else contacts
         if cs.n != n:
             raise NsfemError(f"contact system: the contacts live in {cs.n} coordinates, the system in {n}")
-        return cls(M, C, Q, vec(f0, "f0"), vec(fc, "fc"), vec(fs, "fs"), float(omega), cs, dict(info or {}))
+        rings = tuple(rings)
+        for ring in rings:
+            if ring.P.shape != (2, n):
+                raise NsfemError(f"contact system: ring {ring.label} maps {ring.P.shape[1]} coordinates, not {n}")
+        return cls(M, C, Q, vec(f0, "f0"), vec(fc, "fc"), vec(fs, "fs"), float(omega), cs, dict(info or {}), rings)
 
     @classmethod
     def from_scene(cls, scene, model=None, reduction=None, speed_hz: float | None = None) -> ContactSystem:
@@ -116,10 +130,30 @@ class ContactSystem:
         red = scene_reduction(scene, model) if reduction is None else reduction
         lin = scene_system(scene, rotor_operators(model, red.T), speed_hz)
         spin = 2.0 * np.pi * (scene["rotation"]["speed_hz"] if speed_hz is None else speed_hz)
-        return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega,
-                               ContactSet.from_model(model, red, omega=spin, frame=scene["rotation"]["frame"]),
-                               {"model": model, "reduction": red, "ndof_full": model.n,
-                                "omega2_ref": omega2_ref(model.K, model.M)})
+        frame = scene["rotation"]["frame"]
+        full = ContactSet.from_model(model, red, omega=spin, frame=frame)
+        rigid, rings = split_rings(full, model.stack.contacts, spin, frame == "rotating")
+        info = {"model": model, "reduction": red, "ndof_full": model.n, "omega2_ref": omega2_ref(model.K, model.M)}
+        if rings:
+            info.update(contact_index=rigid, all_contacts=full)
+        return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega, full.subset(rigid) if rings
+                               else full, info, rings)
+
+
+def split_rings(cs: ContactSet, contacts, spin: float, rotating: bool) -> tuple[list[int], tuple]:
+    """(rigid, rings): the indices of the rigid contacts in ``cs`` (the model's ``contacts``, in order) and
+    the elastic stator rings their facets with stiffness > 0 make, one per ``[[stator]]``."""
+    from ..contact.ring import from_facets
+
+    groups: dict[str, list[int]] = {}
+    rigid = []
+    for k, c in enumerate(contacts):
+        if c.stiffness > 0.0:
+            groups.setdefault(c.label.rsplit(".", 1)[0], []).append(k)
+        else:
+            rigid.append(k)
+    rings = tuple(from_facets(label, cs.JN[:, idx], contacts, idx, spin, rotating) for label, idx in groups.items())
+    return rigid, rings
 
 
 def omega2_ref(K, M) -> float:

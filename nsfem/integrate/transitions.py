@@ -145,7 +145,7 @@ def _band(terms: np.ndarray) -> np.ndarray:
 
 def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray, before: Mode,
             memory: Memory, touching=(), gap_tol=None, slipping=None,
-            settled=(), facets=None, stopped=()) -> tuple[Mode, np.ndarray, dict | None]:
+            settled=(), facets=None, stopped=(), extra_load=None) -> tuple[Mode, np.ndarray, dict | None]:
     """The configuration after an event at t, the velocity after it, and the impact record.
 
     ``touching`` are contacts whose gap root was just located (candidates by definition);
@@ -162,6 +162,8 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     normal reaching zero): they go to the stick test, whatever round-off of the slip is left
     (read against the contact's own slip scale, a stop located within the phase's zero band
     could look like a reversal onto the opposite facet, and back, every 5e-16 s).
+    ``extra_load(v)``: forces besides the system's at the velocity after any impact (elastic rings).
+    The returned mode has no rings: the caller adds their state.
     """
     cs = system.contacts
     if cs.m == 0:
@@ -235,7 +237,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         # micro-lift candidates (below): touching, not closed, not impacting, lifting
         lifting = [k for k in cand if k not in closed and k not in approaching and gvl[k] > 0.0]
         if load is None and (closed or lifting):
-            load = system.load(t)
+            load = system.load(t) if extra_load is None else system.load(t) + extra_load(v)
         if closed:
             fstar = load - system.C @ v - system.Q @ q
             cs_l, extra = _facet_contacts(cs, edge)
@@ -448,4 +450,5 @@ def hold_degenerate(mode: Mode, phase_of, memory: Memory, cs, v: np.ndarray) -> 
             stick.append(k)
         else:
             slide.append((k, int(np.argmin(cs.generators(k).T @ vT))))
-    return Mode(tuple(sorted(set(mode.closed) | set(hold))), tuple(sorted(stick)), tuple(sorted(slide)))
+    return replace(mode, closed=tuple(sorted(set(mode.closed) | set(hold))), stick=tuple(sorted(stick)),
+                   slide=tuple(sorted(slide)))

@@ -134,7 +134,7 @@ def delamination_middles(system) -> list[dict]:
     sub-beams' length; without a model, contacts are grouped by label prefix and the span is
     that of their positions.
     """
-    cs = system.contacts
+    cs = system.model_contacts
     m = cs.m
     if m == 0:
         return []
@@ -452,8 +452,8 @@ def forces_plot(result, system, path) -> Path:
     if not rows:
         raise NoPlotData("forces: no contact carried load or took an impact during the run")
     t = result.t
-    labels = list(system.contacts.labels)
-    xs = np.asarray(system.contacts.x, dtype=float)
+    labels = list(system.model_contacts.labels)
+    xs = np.asarray(system.model_contacts.x, dtype=float)
     fig, (ax, bx) = figure(nrows=2, ncols=1, sharex=True, figsize=FIGSIZE, gridspec_kw={"height_ratios": [3, 2]})
     colors = {k: f"C{i % 10}" for i, k in enumerate(rows)}
     friction = False
