@@ -183,20 +183,24 @@ def forces(ring: Ring, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.nda
     """The ring's force at states q, v (n, t): (N (2, t) the normal force vector, fric (2, t) the friction
     force on the shaft, region (t,) (-1 inside), slip (t,) the slip velocity); zero where released."""
     u, du = ring.P @ q, ring.P @ v
-    t = u.shape[1]
-    N, fric = np.zeros((2, t)), np.zeros((2, t))
-    regions, slip = np.full(t, -1), np.zeros(t)
-    for j in range(t):
-        reg = ring.region(u[:, j])
-        if reg is None:
-            continue
-        regions[j] = reg
-        slip[j] = float(ring.slip_rate(reg, u[:, j], du[:, j]))
-        if not engaged(ring, reg, u[:, j], du[:, j]):
-            continue
-        S, a, nu = ring.parts(reg)
-        N[:, j] = ring.stiffness * (S @ u[:, j] - a) + ring.damping * nu * (nu @ du[:, j])
-        fric[:, j] = -ring.friction * np.sign(slip[j]) * (ROT @ N[:, j])
+    F, t = ring.F, u.shape[1]
+    cols = np.arange(t)
+    s = ring.normals @ u - ring.clearance                      # F x t
+    k = np.argmax(s, axis=0)
+    outside = s[k, cols] > 0.0
+    along = np.einsum("ij,ij->j", (ring.normals @ ROT.T)[k].T, u)   # t_k . u (t_k = R n_k)
+    edge = np.abs(along) <= ring.half_edge
+    corner = np.where(along > 0.0, k, (k - 1) % F)
+    regions = np.where(outside, np.where(edge, k, F + corner), -1)
+    nu = np.where(edge, ring.normals[k].T, ring.bisectors[corner].T)        # 2 x t
+    d = np.where(edge, s[k, cols] * ring.normals[k].T, u - ring.corners[corner].T)
+    rate = np.einsum("ij,ij->j", nu, du)
+    N = ring.stiffness * d + ring.damping * nu * rate
+    on = outside & (np.einsum("ij,ij->j", nu, N) > 0.0)
+    N[:, ~on] = 0.0
+    slip = np.where(outside, np.einsum("ij,ij->j", ROT @ nu, du) + ring.frame_spin * np.einsum("ij,ij->j", nu, u)
+                    + ring.surface_speed, 0.0)
+    fric = -ring.friction * np.sign(slip) * (ROT @ N)
     return N, fric, regions, slip
 
 
