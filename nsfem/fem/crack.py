@@ -1,0 +1,121 @@
+"""Local flexibility of an open transverse crack (design section 8, the ``[[crack]]`` hinge).
+
+An open crack of depth ``a`` starting from one face of the section is a rotational spring between the
+two sides of the shaft: the relative slope theta = c M for a bending moment M. The crack has two axes:
+the moment that opens it (the face it starts from in tension) and the moment about the perpendicular
+axis (stress varying along the crack front). Both compliances are diagonal in these axes (the crack is
+symmetric about its depth direction, so the cross term integrates to zero).
+
+Sources and what is taken from each:
+
+- Rectangle, opening axis: c = 5.346 h J(a/h) / (E I) with the polynomial J of Dimarogonas (Rizos,
+  Aspragathos & Dimarogonas, J. Sound Vib. 138 (1990) 381-388), as the design fixes it.
+- Every other case by the strip integration of Dimarogonas & Papadopoulos (J. Sound Vib. 91 (1983)
+  583-593): the section is cut into strips dy along the crack front; strip y is an edge-cracked strip of
+  its own height h(y) with local crack depth alpha_max(y), loaded by the stress the moment puts on it,
+  with the stress intensity K_I = sigma sqrt(pi alpha) F(alpha / h) of Tada, Paris & Irwin (The Stress
+  Analysis of Cracks Handbook): F_b for the strip's bending (the opening moment, linear across the
+  strip), F_t for uniform tension (the other moment, constant across the strip). The strain energy of
+  the crack is U = int K_I^2 / E dA, so c = (2 / E) int dy int_0^alpha_max (K_I / M)^2 dalpha.
+
+Plane stress (E) throughout, as in the design's formula (the scene has no Poisson ratio). The two
+sources are not the same fit: for the rectangle's opening axis the strip integration gives 1.22 to 1.31
+times Rizos's compliance for a/h = 0.05 to 0.7 (:func:`strip_over_rizos`); docs/theory.md states this
+spread as the model's uncertainty. Hollow sections are not covered (a strip then crosses the bore).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.integrate import quad
+
+#: Dimarogonas' J(a/h) coefficients of a^2 .. a^10 (Rizos et al. 1990)
+J_COEFFICIENTS = (1.8624, -3.95, 16.375, -37.226, 76.81, -126.9, 172.0, -143.97, 66.56)
+#: the range of relative depths the fits are meant for
+MAX_DEPTH = 0.8
+
+
+def rizos_J(s: float) -> float:
+    """Dimarogonas' dimensionless compliance J(a/h) of an edge crack in a rectangle, bending that opens it."""
+    return float(sum(c * s ** (k + 2) for k, c in enumerate(J_COEFFICIENTS)))
+
+
+def _tada_root(s):
+    lam = 0.5 * math.pi * s
+    return math.sqrt(math.tan(lam) / lam) / math.cos(lam) if lam > 1e-12 else 1.0
+
+
+def tada_bending(s: float) -> float:
+    """F(a/h) of an edge crack in a strip under pure bending (Tada: 0.923 + 0.199 (1 - sin)^4, 0.5 % for any a/h)."""
+    lam = 0.5 * math.pi * s
+    return _tada_root(s) * (0.923 + 0.199 * (1.0 - math.sin(lam)) ** 4)
+
+
+def tada_tension(s: float) -> float:
+    """F(a/h) of an edge crack in a strip under uniform tension (Tada: 0.752 + 2.02 s + 0.37 (1 - sin)^3, 0.5 %)."""
+    lam = 0.5 * math.pi * s
+    return _tada_root(s) * (0.752 + 2.02 * s + 0.37 * (1.0 - math.sin(lam)) ** 3)
+
+
+def _check_depth(depth: float) -> None:
+    if not 0.0 < depth <= MAX_DEPTH:
+        raise ValueError(f"relative crack depth {depth} outside (0, {MAX_DEPTH}]: the stress-intensity fits are "
+                         "not meant for deeper cracks")
+
+
+def _strip_integral(F, s_max: float) -> float:
+    """int_0^s_max s F(s)^2 ds."""
+    return quad(lambda s: s * F(s) ** 2, 0.0, s_max, limit=200, epsabs=0.0, epsrel=1e-12)[0]
+
+
+def rectangle_compliance(E: float, depth_side: float, front_side: float, depth: float) -> tuple[float, float]:
+    """(c_open, c_other) in rad / (N m) of a crack of relative depth ``depth`` = a / depth_side across the
+    whole ``front_side`` of a rectangle: c_open = 5.346 h J(a/h) / (E I) about the axis along the crack front
+    (I = front h^3 / 12), c_other = 2 pi h / (E I') int_0^{a/h} s F_t(s)^2 ds about the axis along the depth
+    (I' = h front^3 / 12; strip integration: strip y carries the uniform stress M y / I')."""
+    _check_depth(depth)
+    h, b = depth_side, front_side
+    c_open = 5.346 * h * rizos_J(depth) / (E * b * h ** 3 / 12.0)
+    c_other = 2.0 * math.pi * h / (E * h * b ** 3 / 12.0) * _strip_integral(tada_tension, depth)
+    return c_open, c_other
+
+
+def strip_over_rizos(depth: float) -> float:
+    """The rectangle's opening compliance by strip integration, 6 pi h / (E I) int s F_b^2, over Rizos's."""
+    _check_depth(depth)
+    return 6.0 * math.pi * _strip_integral(tada_bending, depth) / (5.346 * rizos_J(depth))
+
+
+def circle_compliance(E: float, diameter: float, depth: float) -> tuple[float, float]:
+    """(c_open, c_other) in rad / (N m) of a straight-fronted crack of depth a = depth * diameter in a solid
+    circular section of radius R (Dimarogonas & Papadopoulos' strip integration): the crack face is the
+    segment of the circle up to R - a from the centre, its front of half-width beta = sqrt(a (2R - a)); strip
+    y (|y| < beta) has height h = 2 sqrt(R^2 - y^2) and local crack depth alpha_max = a - R + sqrt(R^2 - y^2);
+
+        c_open  = (2 / E) int dy (R^2 - y^2) / I^2 int_0^alpha_max pi alpha F_b(alpha / h)^2 dalpha,
+        c_other = (2 / E) int dy      y^2      / I^2 int_0^alpha_max pi alpha F_t(alpha / h)^2 dalpha,
+
+    I = pi R^4 / 4: the opening moment bends each strip with its extreme fibre stress M sqrt(R^2 - y^2) / I,
+    the other moment stresses strip y uniformly by M y / I."""
+    _check_depth(depth)
+    R = 0.5 * diameter
+    a = depth * diameter
+    beta = math.sqrt(a * (2.0 * R - a))
+    inertia = math.pi * R ** 4 / 4.0
+
+    def inner(F, y):
+        half = math.sqrt(R * R - y * y)
+        h = 2.0 * half
+        s_max = (a - R + half) / h
+        # int_0^alpha_max pi alpha F(alpha / h)^2 dalpha = pi h^2 int_0^s_max s F(s)^2 ds
+        return math.pi * h * h * _strip_integral(F, s_max) if s_max > 0.0 else 0.0
+
+    def outer(F, weight):
+        # the integrand is even in y; its end at the front's edge behaves like (beta - y)^2: smooth enough
+        return 2.0 * quad(lambda y: weight(y) * inner(F, y), 0.0, beta, limit=200, epsabs=0.0, epsrel=1e-10)[0]
+
+    c_open = 2.0 / E / inertia ** 2 * outer(tada_bending, lambda y: R * R - y * y)
+    c_other = 2.0 / E / inertia ** 2 * outer(tada_tension, lambda y: y * y)
+    return c_open, c_other
