@@ -36,7 +36,9 @@ output folder and renamed, so a reader never sees a half-written file.
 A stator ring is fixed in the frame the run was computed in (``result.info["frame"]``, as in the
 model, :func:`nsfem.scene.stator_contacts`): in space for an inertial run; for a rotating-frame run
 it is fixed in the rotating frame (where the polygon approximates the same circle), so it stands
-still in the default rotating output and turns with the shaft in a ``frame="inertial"`` one.
+still in the default rotating output and turns with the shaft in a ``frame="inertial"`` one. An
+elastic ring (:mod:`nsfem.contact.ring`) is drawn at rest too: where the shaft is pushed beyond its
+facet (gap < 0), the overlap of the drawn shaft and ring is its mount's compression.
 
 >>> from nsfem import build_model, load_scene
 >>> pts, cells, seg, book = stack_geometry(build_model(load_scene(None, ["mesh.elements=20"])))
@@ -375,7 +377,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     ``basis``). Every ``every``-th output time is written (indices 0, every, 2 every, ...).
     ``frame="inertial"`` rotates points and displacements about x by Omega t + phase
     (Omega = 2 pi ``result.info["speed_hz"]``; ``phase_deg`` as ``rotation.phase_deg``, the
-    frame in which gravity points along -z).
+    frame in which gravity points along -z). A model with disks or stators gets their parts too
+    (:func:`disk_geometry`, :func:`stator_geometry`; the module's docstring lists the parts).
     """
     import meshio
 
