@@ -978,7 +978,9 @@ def point_components(tree: dict, stack: BeamStack) -> BeamStack:
 
     lo, hi = min(s.start for s in stack.segments), max(s.end for s in stack.segments)
     middle = float(f"{(lo + hi) / 2:.12g}")
-    disks = tuple(Disk(middle if d["x"] is None else d["x"], *disk_inertia(d, f"disk.{i}"), label=f"disk.{i}")
+    disks = tuple(Disk(middle if d["x"] is None else d["x"], *disk_inertia(d, f"disk.{i}"), label=f"disk.{i}",
+                       **({"outer_diameter": d["outer_diameter"], "inner_diameter": d["inner_diameter"],
+                           "width": d["width"]} if d["mass"] is None else {}))
                   for i, d in enumerate(tree["disk"]))
     bearings = tuple(Bearing(b["x"], ((b["kyy"], b["kyz"]), (b["kzy"], b["kzz"])),
                              ((b["cyy"], b["cyz"]), (b["czy"], b["czz"])), b["kxx"], label=f"bearing.{i}")

@@ -87,13 +87,20 @@ class Segment:
 @dataclass(frozen=True)
 class Disk:
     """A rigid disk at ``x`` on the rotor axis: ``mass`` on V and W, ``diametral`` inertia on the slopes
-    V' and W', ``polar`` inertia about x (gyroscopic in the inertial frame, eq. in docs/theory.md)."""
+    V' and W', ``polar`` inertia about x (gyroscopic in the inertial frame, eq. in docs/theory.md).
+
+    ``outer_diameter``, ``inner_diameter`` and ``width`` [m] are the geometry a disk was given by (0: given
+    by its mass and inertias); the model uses only the mass and inertias, the VTU export draws the geometry
+    (:func:`nsfem.export.vtu.disk_size`)."""
 
     x: float
     mass: float
     polar: float = 0.0
     diametral: float = 0.0
     label: str = ""
+    outer_diameter: float = 0.0
+    inner_diameter: float = 0.0
+    width: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""VTU/PVD time series of a run: the beam stack as hexahedral solids, and its contact points.
+"""VTU/PVD time series of a run: the beam stack as hexahedral solids, its contact points, disks and stator rings.
 
 Every segment is drawn as its cross-section (a rectangle, width b along y and height h along
 z; a circle as a polygon of 32 sides, hollow when it has a bore; centroid at its offset
@@ -20,9 +20,25 @@ the trilinear hexahedron, not the Hermite cubic.
 The series is one ``.pvd`` with two parts: part 0 the stack (``<prefix>_NNNNN.vtu``, point
 data ``displacement``, cell data ``segment``), part 1 the contact points
 (``<prefix>_contacts_NNNNN.vtu``, vertex cells, point data ``displacement``, ``gap``,
-``normal_force``, ``tangential_force`` (3 components, x y z), ``state``). NNNNN is the index
+``normal_force``, ``tangential_force`` (3 components, x y z), ``state``). A rotor with disks adds
+the next part, the disks as short cylinders (``<prefix>_disks_NNNNN.vtu``, :func:`disk_geometry`:
+their geometry, or a steel cylinder of their mass and polar inertia, :func:`disk_size`; point data
+``displacement``, each disk moving rigidly with its node, cell data ``disk``); one with stators the
+next, the rings as polygons of their facets (``<prefix>_stators_NNNNN.vtu``,
+:func:`stator_geometry`; point data ``displacement`` (0: fixed), one cell per facet with cell data
+``stator``, ``contact`` (its row in the contacts part and the result), ``gap``, ``normal_force``,
+``tangential_force``, ``state``). Every part carries point data ``displacement``, so *Warp By
+Vector* applies to all of them; each ``DataSet`` of the .pvd is named (``stack``, ``contacts``,
+``disks``, ``stators``) and a comment in it says which frame the coordinates are in. NNNNN is the index
 of the output time in ``result.t``. Every file is written to a temporary name in the
 output folder and renamed, so a reader never sees a half-written file.
+
+A stator ring is fixed in the frame the run was computed in (``result.info["frame"]``, as in the
+model, :func:`nsfem.scene.stator_contacts`): in space for an inertial run; for a rotating-frame run
+it is fixed in the rotating frame (where the polygon approximates the same circle), so it stands
+still in the default rotating output and turns with the shaft in a ``frame="inertial"`` one. An
+elastic ring (:mod:`nsfem.contact.ring`) is drawn at rest too: where the shaft is pushed beyond its
+facet (gap < 0), the overlap of the drawn shaft and ring is its mount's compression.
 
 >>> from nsfem import build_model, load_scene
 >>> pts, cells, seg, book = stack_geometry(build_model(load_scene(None, ["mesh.elements=20"])))
@@ -34,6 +50,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import NamedTuple
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -139,6 +156,164 @@ def displacements(model, q_full) -> np.ndarray:
     return np.vstack(out)
 
 
+#: density [kg/m^3] of the steel cylinder a disk given by its mass and inertias is drawn as (:func:`disk_size`)
+DISK_RHO = 7850.0
+#: a stator ring is drawn RING_WIDTH times its inner radius (clearance + surface radius) wide along x and
+#: RING_THICKNESS times it thick radially (the scene gives neither: the model's ring touches at one x)
+RING_WIDTH = 1.0
+RING_THICKNESS = 0.25
+
+
+class _Round(NamedTuple):
+    """A round section for :func:`section_corners` (outer diameter ``width``, bore ``inner``)."""
+
+    width: float
+    inner: float
+    section: str = "circle"
+
+
+def disk_size(disk) -> tuple[float, float, float]:
+    """(outer diameter D, bore d, width w) [m] a :class:`~nsfem.stack.Disk` is drawn with.
+
+    A disk given by its geometry (``[[disk]]`` ``outer_diameter``, ``inner_diameter``, ``width``) is drawn
+    with it. A disk given by its mass m and polar inertia I_p is drawn as the solid steel cylinder (density
+    :data:`DISK_RHO`) with that mass and polar inertia: I_p = m R^2 / 2 gives its radius R = sqrt(2 I_p / m),
+    and m = rho pi R^2 w its width w = m / (rho pi R^2). Without a polar inertia (a point mass) it is the steel
+    cylinder of mass m as wide as its diameter, D = w = (4 m / (rho pi))^(1/3). The diametral inertia is not
+    used (a thin disk's I_d = I_p / 2 would give it no width).
+
+    >>> from nsfem.stack import Disk
+    >>> [round(v, 4) for v in disk_size(Disk(0.4, 5.0, polar=0.02))]    # the rub scene's disk
+    [0.1789, 0.0, 0.0253]
+    """
+    if disk.outer_diameter > 0.0 and disk.width > 0.0:
+        return float(disk.outer_diameter), float(disk.inner_diameter), float(disk.width)
+    if disk.polar > 0.0:
+        R = math.sqrt(2.0 * disk.polar / disk.mass)
+        return 2.0 * R, 0.0, disk.mass / (DISK_RHO * math.pi * R * R)
+    D = (4.0 * disk.mass / (DISK_RHO * math.pi)) ** (1.0 / 3.0)
+    return D, 0.0, D
+
+
+def _disk_centre(model, disk) -> tuple[str, np.ndarray]:
+    """The segment carrying ``disk`` and the disk's centre (x, y_c, z_c) on that segment's centroid axis."""
+    seg = model.stack.segment(model.stack.carrier(disk.x))
+    return seg.name, np.array([disk.x, seg.offset[0], seg.offset[1]])
+
+
+def disk_geometry(model):
+    """Each disk as a short cylinder of :func:`disk_size`: its face the 2 SECTORS-gon of a round shaft
+    (:func:`section_corners`, an annulus when it has a bore), centred on the carrying segment's centroid axis
+    at the disk's x and extruded over its width (x - w/2 to x + w/2), one hexahedron per quadrilateral.
+
+    Returns ``(points (P, 3), cells (C, 8), disk (C,), owner (P,))``: the disk index of each cell and point.
+    """
+    pts, cells, ids, owner = [np.zeros((0, 3))], [np.zeros((0, 8), dtype=np.int64)], [np.zeros(0, np.int64)], \
+        [np.zeros(0, np.int64)]
+    base = 0
+    for i, d in enumerate(model.stack.disks):
+        D, di, w = disk_size(d)
+        eta, zeta, quads = section_corners(_Round(D, di))
+        _, c = _disk_centre(model, d)
+        k = eta.size
+        p = np.empty((2, k, 3))
+        p[0, :, 0], p[1, :, 0] = d.x - w / 2.0, d.x + w / 2.0
+        p[:, :, 1] = c[1] + eta[None, :]
+        p[:, :, 2] = c[2] + zeta[None, :]
+        pts.append(p.reshape(-1, 3))
+        cells.append(np.hstack([base + quads, base + k + quads]))
+        ids.append(np.full(len(quads), i))
+        owner.append(np.full(2 * k, i))
+        base += 2 * k
+    return (np.vstack(pts), np.vstack(cells).astype(np.int64), np.concatenate(ids).astype(np.int64),
+            np.concatenate(owner).astype(np.int64))
+
+
+def disk_displacements(model, q_full) -> np.ndarray:
+    """(P, 3) displacement of every point of :func:`disk_geometry`: each disk moves rigidly with its node,
+    translated by (U, V, W) and tilted by the slopes; at (xi, eta, zeta) from its centre
+
+        u1 = U - eta V' - zeta W',   u2 = V + xi V',   u3 = W + xi W'
+
+    (the small rotation whose section part is the shaft's u1 of :func:`displacements`)."""
+    q_full = np.asarray(q_full, dtype=float).ravel()
+    pts, _, _, owner = disk_geometry(model)
+    u = np.zeros_like(pts)
+    for i, d in enumerate(model.stack.disks):
+        seg, c = _disk_centre(model, d)
+        U, V, W, Vp, Wp = (q_full[model.dof(seg, f, d.x)] for f in ("U", "V", "W", "V'", "W'"))
+        sel = owner == i
+        xi, eta, zeta = (pts[sel] - c).T
+        u[sel] = np.column_stack([U - eta * Vp - zeta * Wp, V + xi * Vp, W + xi * Wp])
+    return u
+
+
+def stator_rings(model) -> list[dict]:
+    """The model's stator rings: its facets (obstacles with an ``angle``) grouped by ring (the
+    ``stator.<i>`` of their labels, else by x, segment, clearance and radius), each ring that closes
+    (3 or more facets, no gap of pi or more between neighbouring normals) as a dict: ``label``, ``x``,
+    ``centre`` (y, z) (the carrying segment's centroid axis, where the gap is measured from), ``radius``
+    (clearance + the surface radius: the distance of every facet from the centre), ``contacts`` (the
+    facets' contact indices ordered by angle) and ``angles``."""
+    groups: dict[tuple, list[int]] = {}
+    for k, c in enumerate(model.stack.contacts):
+        if c.angle is None:
+            continue
+        parts = c.label.split(".")
+        ring = ".".join(parts[:2]) if len(parts) == 3 and parts[0] == "stator" else ""
+        groups.setdefault((ring, c.x, c.segments[0], c.clearance, c.radius), []).append(k)
+    rings = []
+    for (ring, x, seg, clearance, radius), ks in groups.items():
+        a = np.array([model.stack.contacts[k].angle for k in ks]) % (2.0 * math.pi)
+        order = np.argsort(a, kind="stable")
+        a = a[order]
+        if a.size < 3 or np.diff(np.append(a, a[0] + 2.0 * math.pi)).max() >= math.pi:
+            continue
+        rings.append({"label": ring or model.stack.contacts[ks[0]].label, "x": x,
+                      "centre": model.stack.segment(seg).offset, "radius": clearance + radius,
+                      "contacts": np.asarray(ks)[order], "angles": a})
+    return rings
+
+
+def stator_geometry(model):
+    """Each stator ring (:func:`stator_rings`) as the polygon the model has: facet k is the plane
+    n_k . (y, z) = clearance + radius from the ring's centre (n_k = (cos a_k, sin a_k)), so that the shaft
+    surface touches it when its gap is 0; neighbouring facets meet at the corners, at the angle halfway
+    between their normals and (clearance + radius) / cos(half the angle between them) from the centre
+    (for ``facets`` equal sides at (2 k + 1) pi / facets, (clearance + radius) / cos(pi / facets)). The ring
+    is :data:`RING_THICKNESS` of its inner radius thick (its outer facets parallel to the inner ones) and
+    :data:`RING_WIDTH` of it wide, centred at x: one hexahedron per facet.
+
+    Returns ``(points (P, 3), cells (C, 8), ring (C,), contact (C,))``: the ring index and the contact index
+    (the row of the result's gap, forces and state) of each facet's cell.
+    """
+    pts, cells, ids, cons = [np.zeros((0, 3))], [np.zeros((0, 8), dtype=np.int64)], [np.zeros(0, np.int64)], \
+        [np.zeros(0, np.int64)]
+    base = 0
+    for i, r in enumerate(stator_rings(model)):
+        a = r["angles"]
+        n = a.size
+        nxt = np.append(a[1:], a[0] + 2.0 * math.pi)
+        phi, half = (a + nxt) / 2.0, (nxt - a) / 2.0    # corner j: between facets j and j + 1
+        rad = np.concatenate([r["radius"] / np.cos(half), r["radius"] * (1.0 + RING_THICKNESS) / np.cos(half)])
+        ang = np.concatenate([phi, phi])                 # inner corners 0..n-1, outer n..2n-1
+        w = RING_WIDTH * r["radius"]
+        p = np.empty((2, 2 * n, 3))
+        p[0, :, 0], p[1, :, 0] = r["x"] - w / 2.0, r["x"] + w / 2.0
+        p[:, :, 1] = r["centre"][0] + rad * np.cos(ang)
+        p[:, :, 2] = r["centre"][1] + rad * np.sin(ang)
+        pts.append(p.reshape(-1, 3))
+        j = np.arange(n)
+        prev = (j - 1) % n                               # facet j runs from corner j - 1 to corner j
+        quad = base + np.column_stack([prev, n + prev, n + j, j])
+        cells.append(np.hstack([quad, quad + 2 * n]))
+        ids.append(np.full(n, i))
+        cons.append(r["contacts"])
+        base += 4 * n
+    return (np.vstack(pts), np.vstack(cells).astype(np.int64), np.concatenate(ids).astype(np.int64),
+            np.concatenate(cons).astype(np.int64))
+
+
 def rotation(angle: float) -> np.ndarray:
     """Rotation about +x by ``angle`` [rad]: rotating-frame vectors to inertial ones."""
     c, s = math.cos(angle), math.sin(angle)
@@ -202,7 +377,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     ``basis``). Every ``every``-th output time is written (indices 0, every, 2 every, ...).
     ``frame="inertial"`` rotates points and displacements about x by Omega t + phase
     (Omega = 2 pi ``result.info["speed_hz"]``; ``phase_deg`` as ``rotation.phase_deg``, the
-    frame in which gravity points along -z).
+    frame in which gravity points along -z). A model with disks or stators gets their parts too
+    (:func:`disk_geometry`, :func:`stator_geometry`; the module's docstring lists the parts).
     """
     import meshio
 
@@ -214,6 +390,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     points, cells, seg_ids, _ = stack_geometry(model)
+    dpoints, dcells, disk_ids, _ = disk_geometry(model)
+    spoints, scells, ring_ids, facet_contact = stator_geometry(model)
     # a result computed in the inertial frame is already there: nothing to turn
     turn = frame == "inertial" and result.info.get("frame", "rotating") == "rotating"
     omega = 2.0 * math.pi * float(result.info.get("speed_hz", 0.0)) if turn else 0.0
@@ -236,10 +414,11 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         for k in range(m):
             for j, vec in enumerate(tangents[k]):
                 tf[k] += result.tangential_force[k, j, i] * vec
-        p = points
+        du = disk_displacements(model, q_full)
+        p, dp, sp_ = points, dpoints, spoints
         if frame == "inertial":
             R = rotation(omega * float(result.t[i]) + phase)
-            p, u, cpos, cdisp, tf = (a @ R.T for a in (points, u, cpos, cdisp, tf))
+            p, u, cpos, cdisp, tf, dp, du, sp_ = (a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du, spoints))
         name = f"{prefix}_{i:05d}.vtu"
         _write_vtu(out / name, meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
                                            cell_data={"segment": [seg_ids]}))
@@ -250,12 +429,34 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
             point_data={"displacement": cdisp, "gap": np.asarray(result.gap[:, i], dtype=float),
                         "normal_force": np.asarray(result.normal_force[:, i], dtype=float),
                         "tangential_force": tf, "state": np.asarray(result.state[:, i], dtype=np.int32)}))
-        entries.append((float(result.t[i]), name, cname))
+        files = [name, cname]
+        if len(dcells):
+            files.append(f"{prefix}_disks_{i:05d}.vtu")
+            _write_vtu(out / files[-1], meshio.Mesh(dp, [("hexahedron", dcells)], point_data={"displacement": du},
+                                                    cell_data={"disk": [disk_ids]}))
+        if len(scells):
+            files.append(f"{prefix}_stators_{i:05d}.vtu")
+            fc = facet_contact
+            _write_vtu(out / files[-1], meshio.Mesh(
+                sp_, [("hexahedron", scells)], point_data={"displacement": np.zeros_like(sp_)},
+                cell_data={"stator": [ring_ids], "contact": [fc],
+                           "gap": [np.asarray(result.gap[fc, i], dtype=float)],
+                           "normal_force": [np.asarray(result.normal_force[fc, i], dtype=float)],
+                           "tangential_force": [tf[fc]], "state": [np.asarray(result.state[fc, i], dtype=np.int32)]}))
+        entries.append((float(result.t[i]), files))
+    names = ["stack", "contacts"] + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
+    written = "inertial" if turn else result.info.get("frame", "rotating")
+    note = (" (it turns with the shaft at Omega; stator rings are fixed in it, as in the model)" if written == "rotating"
+            else " (turned from the run's rotating frame by Omega t + phase: its stator rings, fixed in that frame "
+            "in the model, turn with it)" if turn else "")
     lines = ['<?xml version="1.0"?>',
-             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">', "  <Collection>"]
-    for t, name, cname in entries:
-        lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>')
-        lines.append(f'    <DataSet timestep="{t!r}" group="" part="1" file={quoteattr(cname)}/>')
+             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+             f"  <!-- nsfem: coordinates in the {written} frame{note}; parts: "
+             + ", ".join(f"{k} {n}" for k, n in enumerate(names)) + " -->",
+             "  <Collection>"]
+    for t, files in entries:
+        for part, (label, f) in enumerate(zip(names, files)):
+            lines.append(f'    <DataSet timestep="{t!r}" group="" part="{part}" name="{label}" file={quoteattr(f)}/>')
     lines += ["  </Collection>", "</VTKFile>", ""]
     pvd = out / f"{prefix}.pvd"
     write_atomic(pvd, lambda tmp: Path(tmp).write_text("\n".join(lines), encoding="utf-8"))
