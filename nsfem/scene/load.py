@@ -14,17 +14,34 @@ from ..errors import SceneError
 from ..stack import BeamStack
 from .checks import check_components, check_frame, check_scales, check_speed
 from .overrides import _check_nesting, apply_override
+from .parts import Damping, Initial, MeshOptions, Output, ReductionOptions, Rotation, Simulation, parts
 from .schema import HIGH_LEVEL, LOW_LEVEL, MAX_NESTING, MIN_SPACING
 from .translate import _check_section_keys, _node_key, high_level_stack, low_level_stack, point_components
 from .validate import validate_tree
 
 
 class Scene(dict):
-    """A validated scene: the full key tree (with defaults) plus its low-level BeamStack.
+    """A validated scene: the full key tree (with defaults) plus its typed parts.
+
+    The mapping is the scene as its file and overrides give it, every default filled in (what a
+    results file records and ``--set`` addresses). The parts are built from it once, here, and are
+    what the library reads: ``stack`` (the low-level :class:`~nsfem.stack.BeamStack`), ``sensors``,
+    ``title``, ``rotation``, ``damping``, ``mesh_options``, ``reduction``, ``initial``, ``simulation``
+    and ``output`` (:mod:`nsfem.scene.parts`). Like the stack, they do not follow later changes to
+    the mapping: load the scene again with overrides instead.
 
     ``scene.path`` is the file it came from (None for the shipped default), ``scene.base``
     the directory relative paths in it refer to.
     """
+
+    title: str
+    rotation: Rotation
+    damping: Damping
+    mesh_options: MeshOptions
+    reduction: ReductionOptions
+    initial: Initial
+    simulation: Simulation
+    output: Output
 
     def __init__(self, tree: dict, stack: BeamStack, path: Path | None, base: Path, sensors: tuple = ()):
         super().__init__(tree)
@@ -32,11 +49,13 @@ class Scene(dict):
         self.path = path
         self.base = base
         self.sensors = sensors
+        for name, part in parts(tree, base).items():
+            setattr(self, name, part)
 
     @property
     def mesh_file(self) -> Path | None:
-        f = self["mesh"]["file"]
-        return (self.base / f) if f else None
+        """The mesh file, resolved against :attr:`base` (None: the mesh is generated)."""
+        return self.mesh_options.file
 
     def record(self) -> dict:
         """The validated tree as a results file stores it: ``mesh.file`` resolved to the absolute
