@@ -146,7 +146,8 @@ class ContactSystem:
         spin = 2.0 * np.pi * (rotation.speed_hz if speed_hz is None else speed_hz)
         full = ContactSet.from_model(model, reduction, omega=spin, frame=rotation.frame)
         rigid, rings = split_rings(full, model.stack.contacts, spin, rotation.frame == "rotating")
-        info = {"model": model, "reduction": reduction, "ndof_full": model.n, "omega2_ref": omega2_ref(model.K, model.M)}
+        info = {"model": model, "reduction": reduction, "ndof_full": model.n,
+                "omega2_ref": omega2_ref(model.K, model.M)}
         if rings:
             info.update(contact_index=rigid, all_contacts=full)
         return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega, full.subset(rigid) if rings

@@ -24,8 +24,8 @@ parts), :mod:`~nsfem.scene.load` (the :class:`Scene`) and :mod:`~nsfem.scene.ref
 """
 
 from ..errors import SceneError
-from .checks import (COMPONENT_RANGE, check_components, check_frame, check_frame_at_speed, check_scales, check_speed,
-                     speed_limit_hz)
+from .checks import (COMPONENT_RANGE, check_components, check_frame, check_frame_at_speed, check_mesh, check_scales,
+                     check_speed, check_times, speed_limit_hz)
 from .load import Scene, default_scene_path, load_scene, scene_file, scene_from_tree, shipped_scenes
 from .overrides import apply_override, nesting_depth, parse_value
 from .parts import Damping, Initial, MeshOptions, Output, ReductionOptions, Rotation, Simulation
@@ -43,8 +43,9 @@ __all__ = [
     "MATERIAL_RANGE", "MAX_CONTACT_POINTS", "MAX_ELEMENTS", "MAX_FRICTION_DIRECTIONS", "MAX_NESTING", "METHODS",
     "MIN_LAYER", "MIN_SPACING", "PATH_KEYS", "PLOTS", "REDUCTIONS", "RK_SOLVERS", "SCHEMA", "STIFF_SOLVERS",
     "SUPPORTS", "SUPPORT_DOFS_BY_NAME", "Damping", "Initial", "Key", "MeshOptions", "Output", "ReductionOptions",
-    "Rotation", "Scene", "SceneError", "Simulation", "apply_override", "check_components", "check_frame", "check_frame_at_speed", "check_scales", "check_speed", "contact_positions", "default_scene_path",
-    "defaults", "disk_inertia", "high_level_stack", "load_scene", "low_level_stack", "nesting_depth", "parse_value",
-    "point_components", "scene_file", "scene_from_tree", "scene_reference", "section", "shipped_scenes",
-    "speed_limit_hz", "stator_contacts", "validate_tree",
+    "Rotation", "Scene", "SceneError", "Simulation", "apply_override", "check_components", "check_frame",
+    "check_frame_at_speed", "check_mesh", "check_scales", "check_speed", "check_times", "contact_positions",
+    "default_scene_path", "defaults", "disk_inertia", "high_level_stack", "load_scene", "low_level_stack",
+    "nesting_depth", "parse_value", "point_components", "scene_file", "scene_from_tree", "scene_reference",
+    "section", "shipped_scenes", "speed_limit_hz", "stator_contacts", "validate_tree",
 ]

@@ -3,12 +3,53 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import SceneError
 from ..stack import BeamStack, Segment
-from .schema import LOW_LEVEL, MATERIAL_RANGE
+from .schema import LOW_LEVEL, MATERIAL_RANGE, MIN_SPACING
+from .translate import _node_key
+
+
+# --------------------------------------------------------------------------- times
+def check_times(sim: dict) -> None:
+    """Refuse a ``[simulation]`` whose output step exceeds t_end, whose moreau step exceeds the output
+    step, or that has more than 1e7 output steps."""
+    if sim["output_dt"] > sim["t_end"]:
+        raise SceneError("simulation.output_dt", f"{sim['output_dt']} s exceeds t_end = {sim['t_end']} s")
+    if sim["moreau_step"] > sim["output_dt"]:
+        raise SceneError("simulation.moreau_step", f"{sim['moreau_step']} s exceeds output_dt = {sim['output_dt']} s")
+    if sim["t_end"] / sim["output_dt"] > 1e7:
+        raise SceneError("simulation.output_dt", f"t_end / output_dt = {sim['t_end'] / sim['output_dt']:.3g} "
+                         "output steps exceeds the limit of 1e7")
+
+
+# --------------------------------------------------------------------------- mesh
+def check_mesh(mesh: dict, stack: BeamStack, base: Path) -> None:
+    """Refuse a generated mesh with fewer elements than the intervals between required nodes (segment
+    ends, contact points) or two such nodes closer than :data:`MIN_SPACING` of the element length;
+    a mesh file that ``base / mesh.file`` does not name."""
+    if not mesh["file"]:
+        from ..mesh import breakpoints
+
+        bp = breakpoints(stack)
+        need = len(bp) - 1
+        if need > mesh["elements"]:
+            raise SceneError("mesh.elements", f"{mesh['elements']} is fewer than the {need} intervals "
+                             "between segment ends and contact points; use at least that many")
+        gaps = np.diff(bp)
+        h = (bp[-1] - bp[0]) / mesh["elements"]
+        k = int(np.argmin(gaps))
+        if gaps[k] < MIN_SPACING * h:
+            raise SceneError(_node_key(stack, bp[k], bp[k + 1]),
+                             f"nodes at x={bp[k]:.12g} and x={bp[k + 1]:.12g} are {gaps[k]:.3g} m apart, less than "
+                             f"{MIN_SPACING:g} of the element length {h:.3g} m; move them apart or refine the mesh")
+    if mesh["file"]:
+        f = base / mesh["file"]
+        if not f.is_file():
+            raise SceneError("mesh.file", f"file not found: {f}")
 
 
 # --------------------------------------------------------------------------- speed bound

@@ -8,15 +8,13 @@ from importlib import resources
 from pathlib import Path
 from typing import Iterable
 
-import numpy as np
-
 from ..errors import SceneError
 from ..stack import BeamStack
-from .checks import check_components, check_frame, check_scales, check_speed
+from .checks import check_components, check_frame, check_mesh, check_scales, check_speed, check_times
 from .overrides import _check_nesting, apply_override
 from .parts import Damping, Initial, MeshOptions, Output, ReductionOptions, Rotation, Simulation, parts
-from .schema import HIGH_LEVEL, LOW_LEVEL, MAX_NESTING, MIN_SPACING
-from .translate import _check_section_keys, _node_key, high_level_stack, low_level_stack, point_components
+from .schema import HIGH_LEVEL, LOW_LEVEL, MAX_NESTING
+from .translate import _check_section_keys, high_level_stack, low_level_stack, point_components
 from .validate import validate_tree
 
 
@@ -120,14 +118,7 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     for o in overrides:
         apply_override(raw, o, cwd)
     tree = validate_tree(raw)
-    sim = tree["simulation"]
-    if sim["output_dt"] > sim["t_end"]:
-        raise SceneError("simulation.output_dt", f"{sim['output_dt']} s exceeds t_end = {sim['t_end']} s")
-    if sim["moreau_step"] > sim["output_dt"]:
-        raise SceneError("simulation.moreau_step", f"{sim['moreau_step']} s exceeds output_dt = {sim['output_dt']} s")
-    if sim["t_end"] / sim["output_dt"] > 1e7:
-        raise SceneError("simulation.output_dt", f"t_end / output_dt = {sim['t_end'] / sim['output_dt']:.3g} "
-                         "output steps exceeds the limit of 1e7")
+    check_times(tree["simulation"])
     _check_section_keys(raw)
     if any(t in raw for t in LOW_LEVEL):
         mixed = [t for t in HIGH_LEVEL if t in raw]
@@ -143,25 +134,7 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     check_components(tree, stack)
     check_frame(tree, stack)
     check_speed(tree["rotation"]["speed_hz"], stack)
-    if not tree["mesh"]["file"]:
-        from ..mesh import breakpoints
-
-        bp = breakpoints(stack)
-        need = len(bp) - 1
-        if need > tree["mesh"]["elements"]:
-            raise SceneError("mesh.elements", f"{tree['mesh']['elements']} is fewer than the {need} intervals "
-                             "between segment ends and contact points; use at least that many")
-        gaps = np.diff(bp)
-        h = (bp[-1] - bp[0]) / tree["mesh"]["elements"]
-        k = int(np.argmin(gaps))
-        if gaps[k] < MIN_SPACING * h:
-            raise SceneError(_node_key(stack, bp[k], bp[k + 1]),
-                             f"nodes at x={bp[k]:.12g} and x={bp[k + 1]:.12g} are {gaps[k]:.3g} m apart, less than "
-                             f"{MIN_SPACING:g} of the element length {h:.3g} m; move them apart or refine the mesh")
-    if tree["mesh"]["file"]:
-        f = base / tree["mesh"]["file"]
-        if not f.is_file():
-            raise SceneError("mesh.file", f"file not found: {f}")
+    check_mesh(tree["mesh"], stack, base)
     from ..sensors import sensors_from_scene
 
     return Scene(tree, stack, path, base, sensors_from_scene(tree, stack))
