@@ -111,12 +111,12 @@ def cmd_modes(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     t0 = time.perf_counter()
     model = build_model(scene)
-    red = scene_reduction(scene, model)
+    red = scene_reduction(scene.reduction, model)
     modes = natural_frequencies(model, args.contact, args.count, red)
     wall = time.perf_counter() - t0
-    payload = {"title": scene["title"], **modes.to_json(), "reduction": red.info,
+    payload = {"title": scene.title, **modes.to_json(), "reduction": red.info,
                "elements": model.mesh.elements, "wall_s": wall}
-    lines = [scene["title"], f"contact {modes.contact}: {modes.ndof} dofs ({red.name}; full model "
+    lines = [scene.title, f"contact {modes.contact}: {modes.ndof} dofs ({red.name}; full model "
              f"{modes.ndof_full}), {model.mesh.elements} elements",
              "  mode  frequency [Hz]  field"]
     # 4 decimals for Hz-sized frequencies; 5 significant digits for tiny or huge ones (a
@@ -200,8 +200,8 @@ def cmd_campbell(args) -> int:
     from .atomic import check_file
 
     targets = [Path(args.png)] if args.png else []
-    if "campbell" in scene["output"]["plots"]:
-        targets.append(Path(scene["output"]["dir"]) / "campbell.png")
+    if "campbell" in scene.output.plots:
+        targets.append(scene.output.dir / "campbell.png")
     for t, what in zip(targets, ("--png" if args.png else "output.dir", "output.dir")):
         check_file(t, what)
     if speeds is not None:
@@ -210,14 +210,14 @@ def cmd_campbell(args) -> int:
         check_speed(float(speeds.max()), scene.stack, "--speeds")
     t0 = time.perf_counter()
     model = build_model(scene)
-    red = scene_reduction(scene, model)
+    red = scene_reduction(scene.reduction, model)
     rep = campbell_report(scene, model, speeds, args.count, red)
     res, bands = rep.pop("_results"), rep.pop("_bands")
     from .analysis.campbell import supercritical_warning
     from .analysis.whirl import unstable_warning
 
     inertial = rep["frame"] == "inertial"
-    speed = scene["rotation"]["speed_hz"]
+    speed = scene.rotation.speed_hz
     warning = (unstable_warning(speed, rep["instability_hz"]["open"], rep["instability_bands_hz"]["open"])
                if inertial else supercritical_warning(speed, rep["instability_hz"]["open"]))
     if warning:
@@ -226,11 +226,11 @@ def cmd_campbell(args) -> int:
     outputs = [str(campbell_plot(t, res["open"].speeds_hz, res["open"].frequencies_hz,
                                  res["closed"].frequencies_hz,
                                  rep["critical_speeds_hz"] if inertial else rep["gravity_resonances_hz"], bands,
-                                 scene["title"], whirl=res["open"].whirl)) for t in targets]
-    payload = {"title": scene["title"], **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
+                                 scene.title, whirl=res["open"].whirl)) for t in targets]
+    payload = {"title": scene.title, **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
                "outputs": outputs}
     fmt = ", ".join
-    lines = [scene["title"], f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
+    lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
     if inertial:
         lines += ["critical speeds [Hz]     open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
@@ -256,7 +256,7 @@ def cmd_stationary(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     st = scene_stationary(scene)
     info = st.info
-    payload = {"title": scene["title"], **st.to_json(), "speed_hz": info["speed_hz"], "loads": info["loads"],
+    payload = {"title": scene.title, **st.to_json(), "speed_hz": info["speed_hz"], "loads": info["loads"],
                "ndof_full": info["ndof_full"], "ndof": info["ndof"], "reduction": info["reduction"],
                "wall_s": st.wall_s}
     if "note" in info:
@@ -267,7 +267,7 @@ def cmd_stationary(args) -> int:
         print(f"nsfem stationary: warning: {w}", file=sys.stderr)
     payload["warnings"] = info["warnings"]
     loads = " + ".join(info["loads"]) or "none"
-    lines = [scene["title"], f"speed {info['speed_hz']:g} Hz, constant loads: {loads}; {info['ndof']} dofs "
+    lines = [scene.title, f"speed {info['speed_hz']:g} Hz, constant loads: {loads}; {info['ndof']} dofs "
              f"({info['reduction']['method']}; full model {info['ndof_full']})",
              f"LCP (28): {st.lcp.x.size} unknowns, {st.lcp.pivots} pivots, residual {st.lcp.residual:.1e}; "
              f"{st.existence['reason']}"]
@@ -293,9 +293,9 @@ def cmd_run(args) -> int:
     from .simulate import run_scene
 
     scene = load_scene(args.scene, args.overrides)
-    method = args.method or scene["simulation"]["method"]
-    out_dir = Path(args.out or scene["output"]["dir"])
-    _check_run_targets(out_dir, scene, "--out" if args.out else "output.dir")
+    method = args.method or scene.simulation.method
+    out_dir = Path(args.out or scene.output.dir)
+    _check_run_targets(out_dir, scene.output, scene.sensors, "--out" if args.out else "output.dir")
     t0 = time.perf_counter()
     text_path = Path(scene.path) if scene.path else default_scene_path()
     scene_text = text_path.read_text() if text_path.exists() else ""
@@ -324,12 +324,12 @@ def cmd_run(args) -> int:
         signal.signal(signal.SIGTERM, previous)
     red = system.info["reduction"]
     top = red.info.get("max_frequency_hz")
-    if scene["rotation"]["speed_hz"] and top and scene["rotation"]["frame"] == "rotating":
+    if scene.rotation.speed_hz and top and scene.rotation.frame == "rotating":
         from .analysis.campbell import divergence_speeds
         from .fem.rotating import rotor_operators
 
         div = divergence_speeds(rotor_operators(system.info["model"], red.T))
-        warning = supercritical_warning(scene["rotation"]["speed_hz"], div[div <= 0.5 * top])
+        warning = supercritical_warning(scene.rotation.speed_hz, div[div <= 0.5 * top])
         if warning:
             warn(warning)
     path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.model_contacts.x, scene.record())
@@ -337,11 +337,11 @@ def cmd_run(args) -> int:
     if result.completed:
         from .plot.results import write_plots
 
-        outputs += [str(p) for p in write_plots(result, system, out_dir, scene["output"]["plots"], warn=warn)]
-        if scene["output"]["vtu_every"]:
+        outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
+        if scene.output.vtu_every:
             from .export.vtu import write_series
 
-            outputs.append(str(write_series(result, system, out_dir, every=scene["output"]["vtu_every"])))
+            outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
     extra = {}
     if scene.sensors:
         from .sensors import write_csv
@@ -350,16 +350,16 @@ def cmd_run(args) -> int:
         values = sensor_signals(result, system)
         extra["sensors"] = str(write_csv(out_dir / "sensors.csv", result.t, scene.sensors, values))
         outputs.append(extra["sensors"])
-        if scene["output"]["plots"] and result.t.size > 1:
+        if scene.output.plots and result.t.size > 1:
             from .plot.sensors import sensors_plot
 
             outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
-                                            scene["rotation"]["speed_hz"], scene["title"])))
+                                            scene.rotation.speed_hz, scene.title)))
     summary = result.summary()
-    payload = {"title": scene["title"], **summary, **extra, "wall_s": time.perf_counter() - t0,
+    payload = {"title": scene.title, **summary, **extra, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
-               "energy_terms": result.energy, "speed_hz": scene["rotation"]["speed_hz"], "warnings": warnings}
-    lines = [scene["title"], f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
+               "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings}
+    lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts",
              f"gap {summary['min_gap_m']:.4e} .. {summary['max_gap_m']:.4e} m, closed "
@@ -373,15 +373,16 @@ def cmd_run(args) -> int:
     return 0 if result.completed else 130
 
 
-def _check_run_targets(out_dir, scene, what: str) -> None:
-    """Refuse, before the run, an output folder or file that cannot be written."""
+def _check_run_targets(out_dir, output, sensors, what: str) -> None:
+    """Refuse, before the run, an output folder or file that cannot be written (``output``: the
+    scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors)."""
     from .atomic import check_file, check_folder
 
     check_folder(out_dir, what)
-    names = ["result.npz"] + [f"{n}.png" for n in scene["output"]["plots"]]
-    if scene["output"]["vtu_every"]:
+    names = ["result.npz"] + [f"{n}.png" for n in output.plots]
+    if output.vtu_every:
         names.append("nsfem.pvd")
-    if scene.sensors:
+    if sensors:
         names += ["sensors.csv", "sensors.png"]
     for name in names:
         check_file(out_dir / name, what)
@@ -475,8 +476,8 @@ def cmd_export(args) -> int:
 
     res, extra, model, scene = _saved(args.result, "export")
     check_folder(Path(args.vtu), "--vtu")
-    pvd = write_series(res, (model, extra["basis"]), Path(args.vtu), every=scene["output"]["vtu_every"] or 1)
-    print(f"wrote {pvd} ({res.t[:: scene['output']['vtu_every'] or 1].size} times)")
+    pvd = write_series(res, (model, extra["basis"]), Path(args.vtu), every=scene.output.vtu_every or 1)
+    print(f"wrote {pvd} ({res.t[:: scene.output.vtu_every or 1].size} times)")
     return 0
 
 

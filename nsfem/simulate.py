@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,6 +19,9 @@ from .integrate import ContactSystem, integrate
 from .integrate.base import output_times
 from .result import Result
 from .system import ZETA_MAX, check_damping, damping_ratio  # noqa: F401 (public here too)
+
+if TYPE_CHECKING:
+    from .scene import Scene, Simulation
 
 
 def uniform_velocity(model, reduction, system: ContactSystem, velocity) -> np.ndarray:
@@ -39,26 +43,31 @@ def uniform_velocity(model, reduction, system: ContactSystem, velocity) -> np.nd
     return np.linalg.solve(system.M, np.asarray(rhs).ravel())
 
 
-def initial_state(scene, model, reduction, system: ContactSystem) -> tuple[np.ndarray, np.ndarray]:
-    """(q0, v0) of ``[initial]``: rest (undeformed) or the stationary state (LCP 28)."""
-    ini = scene["initial"]
+def initial_state(scene: Scene, model, reduction, system: ContactSystem) -> tuple[np.ndarray, np.ndarray]:
+    """(q0, v0) of a scene's ``[initial]``: rest (undeformed) or the stationary state (LCP 28) of its
+    ``[rotation]`` and ``[damping]``."""
+    ini = scene.initial
     q0 = np.zeros(system.n)
-    if ini["state"] == "stationary":
-        from .analysis.stationary import scene_stationary
+    if ini.state == "stationary":
+        from .analysis.stationary import rotor_stationary
 
-        q0 = scene_stationary(scene, model, reduction).q
-    return q0, uniform_velocity(model, reduction, system, ini["velocity"])
+        q0 = rotor_stationary(model, reduction, scene.rotation, scene.damping).q
+    return q0, uniform_velocity(model, reduction, system, ini.velocity)
 
 
-def integrator_options(scene, method: str) -> dict:
-    sim = scene["simulation"]
+def integrator_options(sim: Simulation | Scene, method: str) -> dict:
+    """The keyword arguments of ``method``'s integrator from ``[simulation]`` (``sim``, or a scene's)."""
+    from .scene import Simulation
+
+    if not isinstance(sim, Simulation):
+        sim = sim.simulation
     if method == "rk":
-        return {"solver": sim["rk_solver"], "rtol": sim["rtol"], "atol": sim["atol"]}
+        return {"solver": sim.rk_solver, "rtol": sim.rtol, "atol": sim.atol}
     if method == "penalty":
-        return {"solver": sim["stiff_solver"], "rtol": sim["rtol"], "atol": sim["atol"],
-                "stiffness": sim["penalty_stiffness"] or None, "factor": sim["penalty_factor"]}
+        return {"solver": sim.stiff_solver, "rtol": sim.rtol, "atol": sim.atol,
+                "stiffness": sim.penalty_stiffness or None, "factor": sim.penalty_factor}
     if method == "moreau":
-        return {"step": sim["moreau_step"] or sim["output_dt"] / 10.0, "theta": sim["moreau_theta"]}
+        return {"step": sim.moreau_step or sim.output_dt / 10.0, "theta": sim.moreau_theta}
     return {}
 
 
@@ -214,7 +223,7 @@ def growth_rate(system: ContactSystem) -> float:
     return g if g > math.sqrt(np.finfo(float).eps) * omega_max else 0.0
 
 
-def run_scene(scene, method: str | None = None, progress: bool | None = False, model=None, reduction=None,
+def run_scene(scene: Scene, method: str | None = None, progress: bool | None = False, model=None, reduction=None,
               warn=None) -> tuple[Result, ContactSystem]:
     """Integrate a scene with its (or the given) method; returns the Result and the system.
 
@@ -225,26 +234,27 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
     from .fem.assemble import build_model
     from .reduce import scene_reduction
 
-    sim = scene["simulation"]
-    method = method or sim["method"]
+    sim = scene.simulation
+    method = method or sim.method
     from .integrate.base import EXTRA_METHODS
 
     known = ("exact", "rk", *EXTRA_METHODS)
     if method not in known:
         raise NsfemError(f"simulation.method {method!r} is not available in this version (available: "
                          f"{', '.join(known)})")
-    output_times(sim["t_end"], sim["output_dt"])  # validate before building anything
+    output_times(sim.t_end, sim.output_dt)  # validate before building anything
     model = build_model(scene) if model is None else model
-    red = scene_reduction(scene, model) if reduction is None else reduction
-    system = ContactSystem.from_scene(scene, model, red)
-    check_outputs(system, sim["t_end"], sim["output_dt"])
+    red = scene_reduction(scene.reduction, model) if reduction is None else reduction
+    rot, damp = scene.rotation, scene.damping
+    system = ContactSystem.from_model(model, red, rot, damp)
+    check_outputs(system, sim.t_end, sim.output_dt)
     w, w_seen = spectra(system) if system.n <= (2 if system.symmetric else 1) * SPECTRUM_MAX_DOF else (None, None)
     if w is not None:
-        check_damping(scene["damping"]["rayleigh"], w, scene["damping"]["external"],
+        check_damping(damp.rayleigh, w, damp.external,
                       min(seg.rho * seg.area for seg in model.stack.segments))
     if method in ("exact", "rk"):
-        f_max, samples = search_cost(system, sim["t_end"], w_seen)
-        text = check_search_cost(system, sim["t_end"], method, red.info, f_max, samples)
+        f_max, samples = search_cost(system, sim.t_end, w_seen)
+        text = check_search_cost(system, sim.t_end, method, red.info, f_max, samples)
         if text and warn is not None:
             warn(text)
     q0, v0 = initial_state(scene, model, red, system)
@@ -254,16 +264,16 @@ def run_scene(scene, method: str | None = None, progress: bool | None = False, m
     if warn is not None and system.n <= GROWTH_CHECK_MAX_DOF:
         rate = growth_rate(system)
         if rate > 0.0:
-            warn(f"the structure without contact forces is unstable at {scene['rotation']['speed_hz']:g} Hz: its "
+            warn(f"the structure without contact forces is unstable at {rot.speed_hz:g} Hz: its "
                  f"fastest-growing mode grows at {rate:.3g} 1/s (x10 every {math.log(10) / rate:.3g} s); unless the "
                  "contacts or damping hold it, displacements soon exceed the linear model's range")
-    info = {"ndof_full": model.n, "reduction": red.info, "title": scene["title"],
-            "speed_hz": scene["rotation"]["speed_hz"], "contacts": list(system.model_contacts.labels),
-            "frame": scene["rotation"]["frame"], "phase_deg": scene["rotation"]["phase_deg"]}
+    info = {"ndof_full": model.n, "reduction": red.info, "title": scene.title,
+            "speed_hz": rot.speed_hz, "contacts": list(system.model_contacts.labels),
+            "frame": rot.frame, "phase_deg": rot.phase_deg}
     system.info["sensors"] = scene.sensors
     try:
-        result = integrate(system, sim["t_end"], method, sim["output_dt"], q0, v0, progress=progress,
-                           **integrator_options(scene, method))
+        result = integrate(system, sim.t_end, method, sim.output_dt, q0, v0, progress=progress,
+                           **integrator_options(sim, method))
     except IntegrationError as exc:
         exc.result.info.update(info)
         exc.system = system

@@ -182,6 +182,13 @@ class Contact:
     stiffness: float = 0.0
     damping: float = 0.0
 
+    @property
+    def table_key(self) -> str:
+        """The scene key of the table entry this contact came from (``stator.1`` for ``stator.1.7``, a facet of
+        it; ``delamination.0`` for one of its contact points; else the label itself)."""
+        head, _, tail = self.label.rpartition(".")
+        return head if head.startswith(("stator.", "delamination.")) and tail.isdigit() else self.label
+
 
 @dataclass(frozen=True)
 class BeamStack:
@@ -281,7 +288,7 @@ class BeamStack:
             self._check_contact(key, c)
             ident = (c.kind, c.segments, c.x, c.normal, c.angle)
             if ident in seen:
-                raise SceneError(f"{key}.x", f"duplicate contact point at x={c.x}")
+                raise SceneError(f"{c.table_key or key}.x", f"duplicate contact point at x={c.x}")
             seen.add(ident)
         for p in self.points():
             self._check_point(p)

@@ -49,7 +49,7 @@ from .errors import IntegrationError, NsfemError
 from .result import json_default
 
 #: Scene tables that enter neither the assembled model nor its reduction basis (build_model
-#: reads the stack and [mesh], scene_reduction reads [reduction], the contact set reads
+#: reads the stack and scene.mesh_options, scene_reduction scene.reduction, the contact set
 #: friction and restitution from the model's stack): runs differing only here share one model.
 SHARED_TABLES = ("title", "rotation", "damping", "initial", "simulation", "output")
 #: The run keys of every row (design section 5), then the row's error and results file.
@@ -417,7 +417,7 @@ def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Pl
         raise NsfemError(f"simulation.method {method!r} is not available (use {' | '.join(METHODS)})")
     points = sweep_values(axes)
     scenes = [load_scene(scene_path, fixed + point_overrides(p)) for p in points]
-    method = method or base["simulation"]["method"]
+    method = method or base.simulation.method
     if any(a.key == "simulation.method" for a in axes):  # pragma: no cover - ranges are numbers
         raise NsfemError("simulation.method cannot be swept")
     keys = [a.key for a in axes]
@@ -427,7 +427,7 @@ def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Pl
 
 def default_folder(p: _Plan) -> Path:
     """``<output.dir>/sweep-<swept keys>``: sweeps of other keys get other folders."""
-    return Path(p.base["output"]["dir"]) / ("sweep-" + ",".join(a.key for a in p.axes))
+    return p.base.output.dir / ("sweep-" + ",".join(a.key for a in p.axes))
 
 
 def _check_folder(out: Path, p: _Plan, scene_path, write: bool = False) -> None:
@@ -588,7 +588,7 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
         if plot and any(r is not None and not r.get("error") for r in res.runs):
             from .plot.sweep import plot_resonance
 
-            res.figure = plot_resonance(out / "resonance.png", keys, res.points, res.runs, p.base["title"])
+            res.figure = plot_resonance(out / "resonance.png", keys, res.points, res.runs, p.base.title)
         write_json(out / "sweep.json", res.to_json())
         return res
 
@@ -613,7 +613,7 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
             scene = p.scenes[idx[0]]
             try:
                 model = build_model(scene)
-                built = (model, scene_reduction(scene, model))
+                built = (model, scene_reduction(scene.reduction, model))
             except Exception as exc:  # noqa: BLE001 - reported in the rows of this model's values
                 for i in idx:
                     row = error_row(p.points[i], p.method, f"model build failed: {_message(exc)}")

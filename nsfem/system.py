@@ -23,12 +23,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
 from .errors import SceneError
 from .fem.rotating import RotorOperators
+
+if TYPE_CHECKING:
+    from .scene import Damping, Rotation, Scene
 
 #: Largest damping ratio zeta of any mode: an overdamped mode decays at two rates whose ratio is
 #: 4 zeta^2; beyond 1/eps the slow one is lost in the round-off of the fast one, i.e. beyond
@@ -171,8 +175,13 @@ def linear_system(ops: RotorOperators, speed_hz: float = 0.0, gravity: float = 0
     return LinearSystem(ops.M, C, sp.csr_matrix(Q), f0, fc, fs, w)
 
 
-def scene_system(scene, ops: RotorOperators, speed_hz: float | None = None) -> LinearSystem:
+def scene_system(scene: Scene, ops: RotorOperators, speed_hz: float | None = None) -> LinearSystem:
     """The system of a scene's ``[rotation]`` and ``[damping]`` (speed overridable)."""
-    rot, damp = scene["rotation"], scene["damping"]
-    return linear_system(ops, rot["speed_hz"] if speed_hz is None else speed_hz, rot["gravity"],
-                         rot["phase_deg"], tuple(damp["rayleigh"]), damp["external"], rot["frame"])
+    return rotor_system(ops, scene.rotation, scene.damping, speed_hz)
+
+
+def rotor_system(ops: RotorOperators, rotation: Rotation, damping: Damping,
+                 speed_hz: float | None = None) -> LinearSystem:
+    """The system of ``[rotation]`` and ``[damping]`` on ``ops`` (the speed overridable)."""
+    return linear_system(ops, rotation.speed_hz if speed_hz is None else speed_hz, rotation.gravity,
+                         rotation.phase_deg, damping.rayleigh, damping.external, rotation.frame)

@@ -288,10 +288,10 @@ def _supercritical(scene, system) -> str | None:
 
     red = system.info["reduction"]
     top = red.info.get("max_frequency_hz")
-    if not (scene["rotation"]["speed_hz"] and top):
+    if not (scene.rotation.speed_hz and top):
         return None
     div = divergence_speeds(rotor_operators(system.info["model"], red.T))
-    return supercritical_warning(scene["rotation"]["speed_hz"], div[div <= 0.5 * top])
+    return supercritical_warning(scene.rotation.speed_hz, div[div <= 0.5 * top])
 
 
 #: every run samples its outputs at OUTPUT_DT (finer than the shipped 1 ms, so that gaps and

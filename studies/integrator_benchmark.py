@@ -42,7 +42,7 @@ def main(argv=None) -> dict:
     rtols = [1e-6, 1e-8, 1e-10] if args.quick else [1e-6, 1e-8, 1e-10, 1e-12]
     scene = load_scene(None, [])
     system = ContactSystem.from_scene(scene)
-    dt = scene["simulation"]["output_dt"]
+    dt = scene.simulation.output_dt
 
     def run(method, **kw):
         t0 = time.perf_counter()

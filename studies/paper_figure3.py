@@ -67,8 +67,7 @@ class Model:
         self.red = scene_reduction(self.scene, self.fe)
         self.ops = rotor_operators(self.fe, self.red.T)
         self.contacts = ContactSet.from_model(self.fe, self.red)
-        rot = self.scene["rotation"]
-        self.gravity, self.phase = rot["gravity"], rot["phase_deg"]
+        self.gravity, self.phase = self.scene.rotation.gravity, self.scene.rotation.phase_deg
 
     def system(self, speed_hz: float, external: float, phase_deg: float | None = None) -> ContactSystem:
         lin = linear_system(self.ops, speed_hz, self.gravity, self.phase if phase_deg is None else phase_deg,

@@ -93,7 +93,7 @@ def study(scene_name: str, t_end: float, quick: bool) -> tuple[dict, list[dict]]
     model = build_model(scene)
     red = scene_reduction(scene, model)
     system = ContactSystem.from_scene(scene, model, red)
-    dt = scene["simulation"]["output_dt"]
+    dt = scene.simulation.output_dt
     q0, v0 = initial_state(scene, model, red, system)
 
     def run(method, opts):

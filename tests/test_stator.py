@@ -120,6 +120,17 @@ def test_stator_inputs_refused():
             scene_from_tree(tree)
 
 
+def test_two_stators_too_close_name_the_stator():
+    """Two rings at one x, or too close for the mesh: the error names the second ring's x (not a facet's label)."""
+    tree = rub_tree(8)
+    tree["stator"].append(dict(tree["stator"][0]))
+    with pytest.raises(SceneError, match=r"^stator\.1\.x: duplicate contact point"):
+        scene_from_tree(tree)
+    tree["stator"][1]["x"] = tree["stator"][0]["x"] + 1e-7
+    with pytest.raises(SceneError, match=r"^stator\.[01]\.x: nodes at x="):
+        scene_from_tree(tree)
+
+
 def test_shipped_rub_scene_is_the_closed_form():
     """`nsfem stationary rub`: the shipped Jeffcott rub against the circle's closed form with friction, read
     off its own keys (disk, damper, unbalance, ring), within the polygon's distance from the circle."""

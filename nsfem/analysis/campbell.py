@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
@@ -44,6 +45,9 @@ from ..errors import NsfemError
 from ..fem.constraints import dense as _dense
 from ..fem.rotating import RotorOperators
 from ..system import LinearSystem, check_damping, linear_system
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 #: A root counts as a gravity resonance when its excitation (see gravity_resonances, 0 for an
 #: isotropic shaft, 0.05-0.2 for the shipped scene's real ones) exceeds this. Roots of the
@@ -393,8 +397,9 @@ def parse_speeds(text: str) -> np.ndarray:
     return np.linspace(a, b, n)
 
 
-def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None) -> dict:
-    """Everything ``nsfem campbell`` prints: frequencies open/closed, resonances, divergence.
+def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reduction=None) -> dict:
+    """Everything ``nsfem campbell`` prints: frequencies open/closed, resonances, divergence (of the
+    scene's ``[rotation]`` and ``[damping]``).
 
     ``reduction`` (:func:`nsfem.reduce.reduce`) works on the reduced model; operators are
     reduced once and reused for every speed.
@@ -403,21 +408,21 @@ def campbell_report(scene, model, speeds_hz=None, count: int = 6, reduction=None
     from ..scene import check_frame_at_speed
     from .modes import contact_basis
 
-    rot, damp = scene["rotation"], scene["damping"]
-    check_frame_at_speed(rot["frame"], model.stack)     # the diagram spins a scene given at rest too
+    rot, damp = scene.rotation, scene.damping
+    check_frame_at_speed(rot.frame, model.stack)     # the diagram spins a scene given at rest too
     ops = {c: rotor_operators(model, contact_basis(model, c, reduction)) for c in ("open", "closed")}
     if not model.stack.contacts:
         ops["closed"] = ops["open"]
     if ops["open"].n <= DAMPING_CHECK_MAX_DOF:  # as nsfem run: damping double precision cannot hold
-        check_damping(damp["rayleigh"], standstill_frequencies(ops["open"]), damp["external"],
+        check_damping(damp.rayleigh, standstill_frequencies(ops["open"]), damp.external,
                       min(seg.rho * seg.area for seg in model.stack.segments))
-    if rot["frame"] == "inertial":
+    if rot.frame == "inertial":
         from .whirl import inertial_report
 
         return inertial_report(model, ops, rot, damp, speeds_hz, count, reduction)
-    speeds = default_speeds(ops["open"], rot["speed_hz"]) if speeds_hz is None else np.asarray(speeds_hz)
-    res = {c: campbell(o, speeds, count, tuple(damp["rayleigh"]), damp["external"]) for c, o in ops.items()}
-    grav = {c: gravity_resonances(o, rot["phase_deg"]) for c, o in ops.items()}
+    speeds = default_speeds(ops["open"], rot.speed_hz) if speeds_hz is None else np.asarray(speeds_hz)
+    res = {c: campbell(o, speeds, count, damp.rayleigh, damp.external) for c, o in ops.items()}
+    grav = {c: gravity_resonances(o, rot.phase_deg) for c, o in ops.items()}
     div = {c: divergence_speeds(o) for c, o in ops.items()}  # all: bands need every root
     # a reduced model is trusted up to half its highest kept mode: drop what lies beyond
     top = None if reduction is None else reduction.info.get("max_frequency_hz")

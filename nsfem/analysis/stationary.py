@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -35,6 +36,9 @@ from ..errors import NsfemError
 from ..lcp.builders import stationary_lcp
 from ..lcp.pivoting import LCPError, LCPResult
 from ..linalg import factorize
+
+if TYPE_CHECKING:
+    from ..scene import Damping, Rotation, Scene
 
 
 @dataclass
@@ -184,46 +188,54 @@ def _closing_force(lcp) -> float:
     return float(np.max(np.abs(lcp.b[:m]) / d, initial=1e-300))
 
 
-def scene_stationary(scene, model=None, reduction=None) -> Stationary:
-    """The stationary state of a scene at its speed, in the scene's reduced coordinates."""
+def scene_stationary(scene: Scene, model=None, reduction=None) -> Stationary:
+    """The stationary state of a scene at its speed, in the scene's reduced coordinates (its model
+    and reduction unless given; :func:`rotor_stationary`)."""
     from ..fem.assemble import build_model
-    from ..fem.rotating import rotor_operators
     from ..reduce import scene_reduction
-    from ..system import scene_system
 
     t0 = time.perf_counter()
     model = build_model(scene) if model is None else model
-    red = scene_reduction(scene, model) if reduction is None else reduction
-    ops = rotor_operators(model, red.T)
-    system = scene_system(scene, ops)
-    rot = scene["rotation"]
-    cs = ContactSet.from_model(model, red, omega=2.0 * math.pi * rot["speed_hz"], frame=rot["frame"])
+    red = scene_reduction(scene.reduction, model) if reduction is None else reduction
+    return rotor_stationary(model, red, scene.rotation, scene.damping, t0)
+
+
+def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0: float | None = None) -> Stationary:
+    """The stationary state of a model with ``[rotation]`` and ``[damping]`` at ``rotation.speed_hz``, in
+    ``reduction``'s coordinates; ``wall_s`` counts from ``t0`` (a ``time.perf_counter()``; default: now)."""
+    from ..fem.rotating import rotor_operators
+    from ..system import rotor_system
+
+    t0 = time.perf_counter() if t0 is None else t0
+    ops = rotor_operators(model, reduction.T)
+    system = rotor_system(ops, rotation, damping)
+    cs = ContactSet.from_model(model, reduction, omega=2.0 * math.pi * rotation.speed_hz, frame=rotation.frame)
     st = stationary(system.Q, system.f0, cs, compliance(model.stack.contacts))
-    inertial = rot["frame"] == "inertial"
+    inertial = rotation.frame == "inertial"
     unbalanced = any(u.magnitude for u in model.stack.unbalances)
     loads = []
-    if rot["speed_hz"] and not inertial:
+    if rotation.speed_hz and not inertial:
         loads.append("centrifugal")
         if unbalanced:
             loads.append("unbalance")
-        if scene["damping"]["external"]:
+        if damping.external:
             loads.append("external-damping drag")
-    elif rot["gravity"]:
+    elif rotation.gravity:
         loads.append("gravity")
     st.wall_s = time.perf_counter() - t0
-    st.info = {"speed_hz": rot["speed_hz"], "loads": loads, "ndof_full": model.n, "ndof": red.ndof,
-               "reduction": red.info}
+    st.info = {"speed_hz": rotation.speed_hz, "loads": loads, "ndof_full": model.n, "ndof": reduction.ndof,
+               "reduction": reduction.info}
     from .deflection import stationary_warning
 
-    text = stationary_warning(st, model, red.T)
+    text = stationary_warning(st, model, reduction.T)
     st.info["warnings"] = [text] if text else []
-    if rot["speed_hz"] and rot["gravity"] and not inertial:
+    if rotation.speed_hz and rotation.gravity and not inertial:
         st.info["note"] = ("gravity is harmonic in the rotating frame and is not a stationary load; "
                            "set rotation.speed_hz = 0 for the state at rest under gravity")
-    elif rot["speed_hz"] and unbalanced and inertial:
+    elif rotation.speed_hz and unbalanced and inertial:
         st.info["note"] = ("the unbalance is harmonic in the inertial frame and is not a stationary load; "
                            "rotation.frame = \"rotating\" (isotropic bearings) makes it one")
     return st
 
 
-__all__ = ["Stationary", "existence", "scene_stationary", "stationary", "NsfemError"]
+__all__ = ["Stationary", "existence", "rotor_stationary", "scene_stationary", "stationary", "NsfemError"]

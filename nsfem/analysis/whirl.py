@@ -11,6 +11,7 @@ where the growth rate turns positive (internal damping, cross-coupled bearings).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -19,6 +20,9 @@ from ..fem.constraints import dense as _dense
 from ..fem.rotating import RotorOperators
 from ..system import linear_system
 from .campbell import VALID_FRACTION, _omega_max, _pencil, campbell, growth_rate, state_eigenvalues
+
+if TYPE_CHECKING:
+    from ..scene import Damping, Rotation
 
 #: A mode whirls forward (backward) when its orbits turn with (against) the spin by more than this
 #: share of its lateral amplitude (a circle: 1; a line: 0); between, it is planar (at rest, or on
@@ -114,7 +118,7 @@ def instability_onsets(ops: RotorOperators, speeds_hz: np.ndarray, growth: np.nd
 WHIRL_NAMES = {1: "forward", -1: "backward", 0: "planar", AXIAL: "axial"}
 
 
-def inertial_report(model, ops: dict, rot: dict, damp: dict, speeds_hz, count: int, reduction) -> dict:
+def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, count: int, reduction) -> dict:
     """``campbell_report`` in the inertial frame: whirl frequencies marked forward or backward,
     critical speeds (synchronous whirl, what an unbalance drives), the speeds where the rotor turns
     unstable. Gravity is a constant load here: no gravity resonance."""
@@ -128,11 +132,11 @@ def inertial_report(model, ops: dict, rot: dict, damp: dict, speeds_hz, count: i
     if speeds_hz is None:
         # past the second forward critical speed (the first of the second mode pair)
         c = crit["open"][0][crit["open"][1] == 1]
-        stop = max(1.23 * (c[min(1, len(c) - 1)] if len(c) else 0.0), 2.0 * rot["speed_hz"], 1.0)
+        stop = max(1.23 * (c[min(1, len(c) - 1)] if len(c) else 0.0), 2.0 * rot.speed_hz, 1.0)
         speeds = np.linspace(0.0, stop, 61)
     else:
         speeds = np.asarray(speeds_hz, dtype=float)
-    rd = (tuple(damp["rayleigh"]), damp["external"])
+    rd = (damp.rayleigh, damp.external)
     res = {c: campbell(o, speeds, count, *rd, frame="inertial", turn=turn) for c, o in ops.items()}
     onsets = {c: instability_onsets(o, speeds, res[c].growth_per_s, count, *rd) for c, o in ops.items()}
 

@@ -16,6 +16,7 @@ True
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,6 +27,9 @@ from ..mesh import StackMesh, generate, read
 from ..stack import BeamStack
 from . import components, forms, hermite
 from .constraints import constraint_basis, project
+
+if TYPE_CHECKING:
+    from ..scene import MeshOptions, Scene
 
 AXIAL_ELEMENTS = {"P1": ElementLineP1, "P2": ElementLineP2}
 
@@ -209,8 +213,13 @@ def assemble(stack: BeamStack, mesh: StackMesh, axial: str = "P1") -> FEModel:
     return FEModel(stack, mesh, axial, spaces, M_full, K_full, T, project(T, M_full), project(T, K_full), Kb, Cb, Kc)
 
 
-def build_model(scene) -> FEModel:
-    """Mesh (generated from ``[mesh] elements`` or read from ``[mesh] file``) and assemble a scene."""
-    stack = scene.stack
-    mesh = read(scene.mesh_file, stack) if scene.mesh_file else generate(stack, scene["mesh"]["elements"])
-    return assemble(stack, mesh, scene["mesh"]["axial"])
+def build_model(scene: Scene) -> FEModel:
+    """Mesh and assemble a scene: its stack with its ``[mesh]`` (:func:`build_stack_model`)."""
+    return build_stack_model(scene.stack, scene.mesh_options)
+
+
+def build_stack_model(stack: BeamStack, options: MeshOptions) -> FEModel:
+    """Mesh ``stack`` (generated with ``options.elements`` elements or read from ``options.file``) and
+    assemble it with ``options.axial`` for U."""
+    mesh = read(options.file, stack) if options.file else generate(stack, options.elements)
+    return assemble(stack, mesh, options.axial)

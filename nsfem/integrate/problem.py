@@ -3,8 +3,9 @@
     M q'' + C q' + Q q = f0 + fc cos(omega t) + fs sin(omega t) + J_N lam_N + J_T lam_T
 
 with the unilateral contacts and friction cones of a :class:`~nsfem.contact.set.ContactSet`.
-Built from a scene (:meth:`ContactSystem.from_scene`, in the scene's reduced coordinates) or
-directly from small arrays, so that tests can use systems with closed-form answers.
+Built from a scene (:meth:`ContactSystem.from_scene`, in the scene's reduced coordinates), a model
+with its rotation and damping (:meth:`ContactSystem.from_model`) or directly from small arrays, so
+that tests can use systems with closed-form answers.
 
 >>> import numpy as np
 >>> from nsfem.contact.set import ContactSet
@@ -18,12 +19,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..contact.set import ContactSet
 from ..errors import NsfemError
 from ..fem.constraints import dense
+
+if TYPE_CHECKING:
+    from ..scene import Damping, Rotation, Scene
 
 
 @dataclass(frozen=True)
@@ -116,24 +121,33 @@ class ContactSystem:
         return cls(M, C, Q, vec(f0, "f0"), vec(fc, "fc"), vec(fs, "fs"), float(omega), cs, dict(info or {}), rings)
 
     @classmethod
-    def from_scene(cls, scene, model=None, reduction=None, speed_hz: float | None = None) -> ContactSystem:
-        """The scene's system at its speed (or ``speed_hz``) in its reduced coordinates.
+    def from_scene(cls, scene: Scene, model=None, reduction=None, speed_hz: float | None = None) -> ContactSystem:
+        """The scene's system at its speed (or ``speed_hz``) in its reduced coordinates (its model and
+        reduction unless given; :meth:`from_model`)."""
+        from ..fem.assemble import build_model
+        from ..reduce import scene_reduction
+
+        model = build_model(scene) if model is None else model
+        red = scene_reduction(scene.reduction, model) if reduction is None else reduction
+        return cls.from_model(model, red, scene.rotation, scene.damping, speed_hz)
+
+    @classmethod
+    def from_model(cls, model, reduction, rotation: Rotation, damping: Damping,
+                   speed_hz: float | None = None) -> ContactSystem:
+        """The system of a model in ``reduction``'s coordinates with ``[rotation]`` and ``[damping]``, at
+        ``rotation.speed_hz`` (or ``speed_hz``).
 
         ``info`` keeps the model, the reduction and the map T (q_full = T q) for outputs.
         """
-        from ..fem.assemble import build_model
         from ..fem.rotating import rotor_operators
-        from ..reduce import scene_reduction
-        from ..system import scene_system
+        from ..system import rotor_system
 
-        model = build_model(scene) if model is None else model
-        red = scene_reduction(scene, model) if reduction is None else reduction
-        lin = scene_system(scene, rotor_operators(model, red.T), speed_hz)
-        spin = 2.0 * np.pi * (scene["rotation"]["speed_hz"] if speed_hz is None else speed_hz)
-        frame = scene["rotation"]["frame"]
-        full = ContactSet.from_model(model, red, omega=spin, frame=frame)
-        rigid, rings = split_rings(full, model.stack.contacts, spin, frame == "rotating")
-        info = {"model": model, "reduction": red, "ndof_full": model.n, "omega2_ref": omega2_ref(model.K, model.M)}
+        lin = rotor_system(rotor_operators(model, reduction.T), rotation, damping, speed_hz)
+        spin = 2.0 * np.pi * (rotation.speed_hz if speed_hz is None else speed_hz)
+        full = ContactSet.from_model(model, reduction, omega=spin, frame=rotation.frame)
+        rigid, rings = split_rings(full, model.stack.contacts, spin, rotation.frame == "rotating")
+        info = {"model": model, "reduction": reduction, "ndof_full": model.n,
+                "omega2_ref": omega2_ref(model.K, model.M)}
         if rings:
             info.update(contact_index=rigid, all_contacts=full)
         return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega, full.subset(rigid) if rings

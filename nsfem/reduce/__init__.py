@@ -23,12 +23,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..errors import NsfemError
 from ..fem.assemble import FEModel
+
+if TYPE_CHECKING:
+    from ..scene import ReductionOptions, Scene
 
 
 @dataclass
@@ -102,6 +106,10 @@ def reduce(model: FEModel, method: str = "none", modes: int = 16) -> Reduction:
     return methods[method](model, int(modes))
 
 
-def scene_reduction(scene, model: FEModel) -> Reduction:
-    """The reduction a scene's ``[reduction]`` table asks for."""
-    return reduce(model, scene["reduction"]["method"], scene["reduction"]["modes"])
+def scene_reduction(options: ReductionOptions | Scene, model: FEModel) -> Reduction:
+    """The reduction ``[reduction]`` asks for: ``options``, or a scene's (``scene.reduction``)."""
+    from ..scene import ReductionOptions
+
+    if not isinstance(options, ReductionOptions):
+        options = options.reduction
+    return reduce(model, options.method, options.modes)

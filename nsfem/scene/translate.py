@@ -1,0 +1,270 @@
+"""Translation of the scene's tables into a low-level :class:`~nsfem.stack.BeamStack`: the high-level
+shaft with its delaminations and obstacles, the low-level segments, and the point components and stators."""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import SceneError
+from ..stack import BeamStack, Bearing, Contact, Disk, Junction, Segment, Support, Unbalance
+from .schema import _SECTION, MAX_CONTACT_POINTS, MIN_LAYER, SUPPORT_DOFS_BY_NAME
+
+
+def _node_key(stack: BeamStack, *xs: float) -> str:
+    """The scene key of a contact at one of ``xs`` (else the mesh), for error messages."""
+    for c in stack.contacts:
+        if c.x in xs:
+            if c.label.startswith("delamination"):
+                return c.table_key + ".contact_points"
+            return c.table_key + ".x" if c.table_key else "mesh.elements"
+    return "mesh.elements"
+
+
+def contact_positions(d: dict) -> list[float]:
+    """x positions of one delamination's contact points."""
+    cp = d["contact_points"]
+    if isinstance(cp, int):
+        a, b = d["start"], d["end"]
+        return [float(f"{a + (b - a) * (k + 1) / (cp + 1):.12g}") for k in range(cp)]
+    return sorted(cp)
+
+
+def _check_section_keys(raw: dict) -> None:
+    """Refuse a section key the section does not use (a circle's width, a rectangle's diameter) set to
+    anything but its default: it would be silently ignored (a results file's full tree holds every key
+    at its default)."""
+    tables = [("shaft", raw.get("shaft"))] + [(f"segment.{i}", t) for i, t in enumerate(raw.get("segment", []))
+                                              if isinstance(raw.get("segment"), list)]
+    for key, t in tables:
+        if not isinstance(t, dict):
+            continue
+        circle = t.get("section", "rectangle") == "circle"
+        unused = [k for k in (("width", "height") if circle else ("diameter", "inner_diameter"))
+                  if k in t and t[k] != _SECTION[k].default]
+        if unused:
+            raise SceneError(f"{key}.{unused[0]}", f"a {'circular' if circle else 'rectangular'} section does not use "
+                             f"{unused[0]} (circle: diameter, inner_diameter; rectangle: width, height)")
+
+
+def section(table: dict, key: str) -> dict:
+    """The Segment keywords of a table's section: width and height (a circle's diameter twice), section,
+    inner (a circle's bore)."""
+    if table["section"] == "circle":
+        D, d = table["diameter"], table["inner_diameter"]
+        if not d < D:
+            raise SceneError(f"{key}.inner_diameter", f"must be smaller than diameter ({D}), got {d}")
+        return dict(width=D, height=D, section="circle", inner=d)
+    return dict(width=table["width"], height=table["height"])
+
+
+def high_level_stack(tree: dict) -> BeamStack:
+    """Translate ``[shaft]``, ``[[delamination]]``, ``[[obstacle]]`` into a BeamStack (checked first)."""
+    sh = tree["shaft"]
+    L = sh["length"]
+    sec = section(sh, "shaft")
+    b, h = sec["width"], sec["height"]
+    mat = dict(E=sh["E"], rho=sh["rho"])
+    if tree["delamination"] and sh["section"] != "rectangle":
+        raise SceneError("delamination.0", "a delamination splits a rectangular section into two layers; "
+                         "use shaft.section = \"rectangle\"")
+    dels = sorted(enumerate(tree["delamination"]), key=lambda it: it[1]["start"])
+    for i, d in dels:
+        key = f"delamination.{i}"
+        if not 0.0 <= d["start"] < d["end"] <= L:
+            if d["start"] >= d["end"]:
+                raise SceneError(f"{key}.end", f"must exceed start ({d['start']}), got {d['end']}")
+            raise SceneError(key, f"[{d['start']}, {d['end']}] lies outside the shaft [0, {L}]")
+        if not 0.0 < d["upper_height"] < h:
+            raise SceneError(f"{key}.upper_height", f"must lie strictly between 0 and height ({h}), "
+                             f"got {d['upper_height']}")
+        if min(d["upper_height"], h - d["upper_height"]) < MIN_LAYER * h:
+            raise SceneError(f"{key}.upper_height", f"leaves a sub-beam thinner than {MIN_LAYER:g} of the height "
+                             f"({h}); its bending stiffness would be lost to round-off")
+        cp = d["contact_points"]
+        n_cp = cp if isinstance(cp, int) else len(cp)
+        if not tree["mesh"]["file"] and n_cp >= tree["mesh"]["elements"]:
+            raise SceneError("mesh.elements", f"{tree['mesh']['elements']} is fewer than the {n_cp + 1} "
+                             f"intervals that the {n_cp} contact points of {key} need")
+        if n_cp > MAX_CONTACT_POINTS:
+            raise SceneError(f"{key}.contact_points", f"{n_cp} exceeds the limit of {MAX_CONTACT_POINTS}")
+        xs = contact_positions(d)
+        if isinstance(d["contact_points"], list):
+            for x in xs:
+                if not d["start"] < x < d["end"]:
+                    raise SceneError(f"{key}.contact_points", f"x={x} lies outside the delamination "
+                                     f"({d['start']}, {d['end']})")
+            if len(set(xs)) != len(xs):
+                dup = next(x for x in xs if xs.count(x) > 1)
+                raise SceneError(f"{key}.contact_points", f"duplicate contact point x={dup}")
+    for (i, a), (j, c) in zip(dels, dels[1:]):
+        if c["start"] <= a["end"]:
+            raise SceneError(f"delamination.{j}", f"overlaps or touches delamination {i} "
+                             f"([{c['start']}, {c['end']}] vs [{a['start']}, {a['end']}])")
+
+    segments: list[Segment] = []
+    junctions: list[Junction] = []
+    contacts: list[Contact] = []
+    cursor, last = 0.0, None  # last: the intact segment that ends at cursor
+    layers: dict[int, tuple[Segment, Segment]] = {}
+
+    def intact(a: float, c: float) -> Segment:
+        seg = Segment(f"intact_{sum(s.name.startswith('intact_') for s in segments)}", a, c, offset=(0.0, 0.0),
+                      **sec, **mat)
+        segments.append(seg)
+        return seg
+
+    for n, (i, d) in enumerate(dels):
+        x0, x1 = d["start"], d["end"]
+        if x0 > cursor:
+            last = intact(cursor, x0)
+        hu = d["upper_height"]
+        hl = h - hu
+        zi = (hl - hu) / 2.0  # interface height that keeps the intact centroid on the axis
+        up = Segment(f"delamination_{i}_upper", x0, x1, b, hu, (0.0, zi + hu / 2), **mat)
+        lo = Segment(f"delamination_{i}_lower", x0, x1, b, hl, (0.0, zi - hl / 2), **mat)
+        segments += [up, lo]
+        layers[i] = (up, lo)
+        if last is not None and last.end == x0:
+            junctions.append(Junction(x0, last.name, (up.name, lo.name)))
+        xs = contact_positions(d)
+        knots = [x0, *xs, x1]
+        for k, x in enumerate(xs):
+            contacts.append(Contact(
+                "interface", x, (up.name, lo.name), d["weighting"],
+                (knots[k], knots[k + 2]) if d["weighting"] == "hat" else None,
+                friction=d["friction"], friction_directions=d["friction_directions"],
+                restitution=d["restitution"], label=f"delamination.{i}.{k}"))
+        cursor, last = x1, None
+        if x1 < L:
+            stop = dels[n + 1][1]["start"] if n + 1 < len(dels) else L
+            last = intact(x1, stop)
+            junctions.append(Junction(x1, last.name, (up.name, lo.name)))
+            cursor = stop
+    if cursor < L:
+        intact(cursor, L)
+
+    at0, atL = SUPPORT_DOFS_BY_NAME[sh["supports"]]
+    supports = [Support(s.name, 0.0, at0) for s in segments if s.start == 0.0 and at0]
+    supports += [Support(s.name, L, atL) for s in segments if s.end == L and atL]
+
+    for i, o in enumerate(tree["obstacle"]):
+        key = f"obstacle.{i}"
+        x = L if o["x"] is None else o["x"]
+        if not 0.0 <= x <= L:
+            raise SceneError(f"{key}.x", f"x={x} lies outside the shaft [0, {L}]")
+        whole = [s for s in segments if s.name.startswith("intact_") and s.start <= x <= s.end]
+        if whole:
+            seg = whole[0]
+        else:
+            j, (up, lo) = next((j, ud) for j, ud in layers.items() if ud[0].start <= x <= ud[0].end)
+            if o["normal"] not in ("+z", "-z"):
+                raise SceneError(f"{key}.normal", f"a stop with normal {o['normal']!r} at x={x} in delamination "
+                                 f"{j} would touch both sub-beams; only +z (upper) or -z (lower) stops may act there")
+            seg = up if o["normal"] == "+z" else lo
+        contacts.append(Contact("obstacle", x, (seg.name,), "dirac", None, o["normal"], o["clearance"],
+                                o["friction"], o["friction_directions"], o["restitution"], label=key))
+    return BeamStack(tuple(segments), tuple(junctions), tuple(supports), tuple(contacts), tree["beam"]["theory"])
+
+
+def low_level_stack(tree: dict) -> BeamStack:
+    """Build a BeamStack from ``[[segment]]``, ``[[junction]]``, ``[[support]]``, ``[[contact]]``."""
+    segs = tuple(Segment(s["name"] or f"segment_{i}", s["start"], s["end"], offset=tuple(s["offset"]), E=s["E"],
+                         rho=s["rho"], **section(s, f"segment.{i}")) for i, s in enumerate(tree["segment"]))
+    juns = tuple(Junction(j["x"], j["master"], tuple(j["slaves"])) for j in tree["junction"])
+    sups = tuple(Support(s["segment"], s["x"], tuple(s["fix"])) for s in tree["support"])
+    cons = []
+    for i, c in enumerate(tree["contact"]):
+        ext = c["extent"]
+        if ext and len(ext) != 2:
+            raise SceneError(f"contact.{i}.extent", f"must be [a, b], got {ext}")
+        cons.append(Contact(c["kind"], c["x"], tuple(c["segments"]), c["weighting"], tuple(ext) if ext else None,
+                            c["normal"], c["clearance"], c["friction"], c["friction_directions"],
+                            c["restitution"], label=f"contact.{i}"))
+    return BeamStack(segs, juns, sups, tuple(cons), tree["beam"]["theory"])
+
+
+def disk_inertia(d: dict, key: str) -> tuple[float, float, float]:
+    """(mass, polar, diametral) of a ``[[disk]]``: given, or from its geometry (a thick annulus:
+    m = rho pi (D^2 - d^2) w / 4, I_p = m (D^2 + d^2) / 8, I_d = I_p / 2 + m w^2 / 12)."""
+    geometry = d["outer_diameter"] is not None or d["width"] is not None
+    if d["mass"] is not None:
+        if geometry:
+            raise SceneError(f"{key}.mass", "give either mass (and inertias) or the geometry (outer_diameter, width), "
+                             "not both")
+        m, ip, id_ = d["mass"], d["polar_inertia"] or 0.0, d["diametral_inertia"] or 0.0
+        for name, v in (("mass", m), ("polar_inertia", ip), ("diametral_inertia", id_)):
+            if not v >= 0.0:
+                raise SceneError(f"{key}.{name}", f"must be >= 0, got {v}")
+        if not m > 0.0:
+            raise SceneError(f"{key}.mass", f"must be positive, got {m}")
+        return m, ip, id_
+    if d["polar_inertia"] is not None or d["diametral_inertia"] is not None:
+        raise SceneError(f"{key}.mass", "inertias need a mass (or give the geometry alone)")
+    if d["outer_diameter"] is None or d["width"] is None:
+        raise SceneError(f"{key}.mass", "a disk needs a mass, or its outer_diameter and width")
+    D, di, w = d["outer_diameter"], d["inner_diameter"], d["width"]
+    if not (D > 0 and w > 0):
+        raise SceneError(f"{key}.outer_diameter" if not D > 0 else f"{key}.width", "must be positive")
+    if not di < D:
+        raise SceneError(f"{key}.inner_diameter", f"must be smaller than outer_diameter ({D}), got {di}")
+    m = d["rho"] * math.pi / 4.0 * (D * D - di * di) * w
+    ip = m * (D * D + di * di) / 8.0
+    return m, ip, ip / 2.0 + m * w * w / 12.0
+
+
+def point_components(tree: dict, stack: BeamStack) -> BeamStack:
+    """``stack`` with the scene's ``[[disk]]``, ``[[bearing]]`` and ``[[unbalance]]`` on it."""
+    from dataclasses import replace
+
+    lo, hi = min(s.start for s in stack.segments), max(s.end for s in stack.segments)
+    middle = float(f"{(lo + hi) / 2:.12g}")
+    disks = tuple(Disk(middle if d["x"] is None else d["x"], *disk_inertia(d, f"disk.{i}"), label=f"disk.{i}",
+                       **({"outer_diameter": d["outer_diameter"], "inner_diameter": d["inner_diameter"],
+                           "width": d["width"]} if d["mass"] is None else {}))
+                  for i, d in enumerate(tree["disk"]))
+    bearings = tuple(Bearing(b["x"], ((b["kyy"], b["kyz"]), (b["kzy"], b["kzz"])),
+                             ((b["cyy"], b["cyz"]), (b["czy"], b["czz"])), b["kxx"], label=f"bearing.{i}")
+                     for i, b in enumerate(tree["bearing"]))
+    unbalances = tuple(Unbalance(middle if u["x"] is None else u["x"], u["magnitude"], math.radians(u["phase_deg"]),
+                                 label=f"unbalance.{i}") for i, u in enumerate(tree["unbalance"]))
+    return replace(stack, disks=disks, bearings=bearings, unbalances=unbalances,
+                   contacts=stack.contacts + stator_contacts(tree, stack, middle))
+
+
+def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contact, ...]:
+    """Each ``[[stator]]`` as ``facets`` stops at one x (rigid, or the facets of an elastic ring,
+    :mod:`nsfem.contact.ring`): facet k's normal points at the angle
+    2 pi k / facets in the y-z plane, its gap is clearance - n.(v, w) (the polygon tangent to the
+    clearance circle; a ring fixed in the frame of the coordinates: in space in the inertial frame,
+    an approximation of the same circle in the rotating one). Friction acts along the circumference
+    against the shaft surface of radius ``radius`` sliding past (see
+    :func:`~nsfem.contact.set.surface_velocity`)."""
+    out = []
+    for i, st in enumerate(tree["stator"]):
+        key = f"stator.{i}"
+        if st["damping"] > 0.0 and st["stiffness"] == 0.0:
+            raise SceneError(f"{key}.damping", "damping belongs to an elastic ring's mount: give the ring a "
+                             "stiffness > 0 (a rigid ring, stiffness = 0, takes restitution instead)")
+        if st["stiffness"] > 0.0 and st["restitution"] > 0.0:
+            raise SceneError(f"{key}.restitution", "an elastic ring (stiffness > 0) has no impacts, so no "
+                             "restitution: set it to 0 (its damping sets the energy a rub loses)")
+        x = middle if st["x"] is None else st["x"]
+        seg = stack.carrier(x) if math.isfinite(x) else None
+        if seg is None:
+            lo, hi = min(g.start for g in stack.segments), max(g.end for g in stack.segments)
+            raise SceneError(f"{key}.x", f"x={x} must lie on the intact shaft within [{lo}, {hi}]")
+        held = [sp for sp in stack.supports if abs(sp.x - x) <= 1e-12 * max(1.0, abs(x)) and {"V", "W"} <= set(sp.fix)]
+        if held:
+            raise SceneError(f"{key}.x", f"x={x} is a support, which holds the shaft's centre there: the ring would "
+                             "never be touched; put it where the shaft can move")
+        n = st["facets"]
+        radius = st["radius"] or stack.segment(seg).height / 2.0
+        for k in range(n):
+            angle = 2.0 * math.pi * k / n
+            c, s_ = math.cos(angle), math.sin(angle)
+            axis = ("+y" if c > 0 else "-y") if abs(c) >= abs(s_) else ("+z" if s_ > 0 else "-z")
+            # friction along the circumference only (r = 2 on the first tangent, slip_rows' order)
+            out.append(Contact("obstacle", x, (seg,), "dirac", None, axis, st["clearance"], st["friction"], 2,
+                               st["restitution"], label=f"{key}.{k}", angle=angle, radius=radius,
+                               stiffness=st["stiffness"], damping=st["damping"]))
+    return tuple(out)
