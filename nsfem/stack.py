@@ -151,12 +151,37 @@ class Support:
     fix: tuple[str, ...]
 
 
+CRACK_SIDES = ("+y", "-y", "+z", "-z")
+
+
+@dataclass(frozen=True)
+class Crack:
+    """A transverse crack at ``x`` between the abutting ends of ``segments = (left, right)`` (design section 8).
+
+    The two ends share U, V and W (a hinge) and differ in slope; the open crack is a rotational spring
+    of ``compliance = (c_V', c_W')`` [rad / (N m)]: the relative slopes (V'_right - V'_left,
+    W'_right - W'_left) = c M for a bending moment M (:mod:`nsfem.fem.crack`). The crack faces are
+    contacts of kind ``"crack"`` (their gaps hold the hinge shut where the faces touch), so a closed
+    crack is the intact shaft. ``depth`` is a / h (rectangle) or a / D (circle) from the face ``side``.
+    """
+
+    x: float
+    segments: tuple[str, str]
+    depth: float
+    side: str
+    compliance: tuple[float, float]
+    label: str = ""
+
+
 @dataclass(frozen=True)
 class Contact:
     """One unilateral contact point.
 
     ``kind = "interface"``: between ``segments = (upper, lower)``, gap W_upper - W_lower.
     ``kind = "obstacle"``: a rigid stop at segment ``segments[0]``, gap clearance - n.u.
+    ``kind = "crack"``: a point of a crack face between ``segments = (left, right)`` at ``arm = (y, z)`` from
+    the rotation centre of the hinge (the ligament's centroid), gap -(y dV' + z dW') with d the right
+    slope minus the left: the axial opening of the faces at that point.
     ``extent`` is the support (a, b) of the hat weight when ``weighting = "hat"`` (eq. 19).
     """
 
@@ -181,13 +206,15 @@ class Contact:
     #: Signorini); the facets of one ring share them (:mod:`nsfem.contact.ring`)
     stiffness: float = 0.0
     damping: float = 0.0
+    #: a crack face's point: (y, z) from the hinge's rotation centre [m]
+    arm: tuple[float, float] | None = None
 
     @property
     def table_key(self) -> str:
         """The scene key of the table entry this contact came from (``stator.1`` for ``stator.1.7``, a facet of
         it; ``delamination.0`` for one of its contact points; else the label itself)."""
         head, _, tail = self.label.rpartition(".")
-        return head if head.startswith(("stator.", "delamination.")) and tail.isdigit() else self.label
+        return head if head.startswith(("stator.", "delamination.", "crack.")) and tail.isdigit() else self.label
 
 
 @dataclass(frozen=True)
@@ -202,6 +229,7 @@ class BeamStack:
     disks: tuple[Disk, ...] = ()
     bearings: tuple[Bearing, ...] = ()
     unbalances: tuple[Unbalance, ...] = ()
+    cracks: tuple[Crack, ...] = ()
     _index: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def segment(self, name: str) -> Segment:
@@ -286,13 +314,31 @@ class BeamStack:
         for i, c in enumerate(self.contacts):
             key = c.label or f"contact.{i}"
             self._check_contact(key, c)
-            ident = (c.kind, c.segments, c.x, c.normal, c.angle)
+            ident = (c.kind, c.segments, c.x, c.normal, c.angle, c.arm)
             if ident in seen:
                 raise SceneError(f"{c.table_key or key}.x", f"duplicate contact point at x={c.x}")
             seen.add(ident)
         for p in self.points():
             self._check_point(p)
+        for i, k in enumerate(self.cracks):
+            self._check_crack(k.label or f"crack.{i}", k)
         return self
+
+    def _check_crack(self, key: str, k: Crack) -> None:
+        if len(k.segments) != 2:
+            raise SceneError(f"{key}.segments", "a crack joins two segments (left, right)")
+        left, right = (self.segment(n) for n in k.segments)
+        if not (left.end == k.x == right.start):
+            raise SceneError(f"{key}.x", f"x={k.x} must be the left segment's end and the right one's start")
+        if (left.width, left.height, left.section, left.inner, left.offset) != \
+                (right.width, right.height, right.section, right.inner, right.offset):
+            raise SceneError(f"{key}.x", "the two sides of a crack must have the same section")
+        if k.side not in CRACK_SIDES:
+            raise SceneError(f"{key}.side", f"unknown side {k.side!r} (use {' | '.join(CRACK_SIDES)})")
+        if not (0.0 < k.depth < 1.0):
+            raise SceneError(f"{key}.depth", f"must lie in (0, 1), got {k.depth}")
+        if not all(math.isfinite(c) and c > 0.0 for c in k.compliance):
+            raise SceneError(f"{key}.depth", f"compliance must be positive and finite, got {k.compliance}")
 
     def _check_point(self, p) -> None:
         kind = type(p).__name__.lower()
@@ -335,8 +381,15 @@ class BeamStack:
 
     def _check_contact(self, key: str, c: Contact) -> None:
         names = {s.name for s in self.segments}
-        if c.kind not in ("interface", "obstacle"):
+        if c.kind not in ("interface", "obstacle", "crack"):
             raise SceneError(f"{key}.kind", f"unknown contact kind {c.kind!r} (use interface | obstacle)")
+        if c.kind == "crack":
+            if c.arm is None or not any(k.segments == c.segments and k.x == c.x for k in self.cracks):
+                raise SceneError(f"{key}.segments", "a crack face's point needs its crack (and an arm)")
+            if c.friction > 0.0:
+                raise SceneError(f"{key}.friction", "the crack's hinge shares the faces' displacements, so they "
+                                 "cannot slide: face friction has no effect in this model")
+            return
         want = 2 if c.kind == "interface" else 1
         if len(c.segments) != want or any(n not in names for n in c.segments):
             raise SceneError(f"{key}.segments", f"a {c.kind} contact needs {want} existing segment name(s)")

@@ -4,7 +4,8 @@ Interface contacts (delaminations): g = W_upper - W_lower at the point (Dirac an
 paper section 2.2) or averaged with a hat weight Lambda_k of unit integral whose support
 reaches the neighbouring contact points (eq. 19). Obstacles: g = clearance - n.u at the
 centroid of the carrying segment (n one of +-x, +-y, +-z, or at an angle in the y-z plane for a
-stator's facet, in the frame of the coordinates).
+stator's facet, in the frame of the coordinates). Crack faces: the axial opening -(y dV' + z dW') of a
+face point (y, z) from the hinge's centre, d the jump of the slopes across the crack.
 
 Tangential rows and friction cones are built on the same helpers (later issue).
 
@@ -66,6 +67,11 @@ def contact_row(model: FEModel, c: Contact) -> tuple[dict[int, float], float]:
         for i, v in point_row(model, c.segments[1], "W", c).items():
             row[i] = row.get(i, 0.0) - v
         return row, 0.0
+    if c.kind == "crack":   # a crack face's point: -(y dV' + z dW'), d = right - left (paper eq. 17 on a hinge)
+        (left, right), (ay, az) = c.segments, c.arm
+        row = _combine((-ay, _node_row(model, right, "V'", c)), (ay, _node_row(model, left, "V'", c)),
+                       (-az, _node_row(model, right, "W'", c)), (az, _node_row(model, left, "W'", c)))
+        return {i: v for i, v in row.items() if v != 0.0}, 0.0
     if c.angle is not None:   # a stator's facet: n = (cos, sin) in the y-z plane
         cy, sz = float(np.cos(c.angle)), float(np.sin(c.angle))
         row = _combine((-cy, point_row(model, c.segments[0], "V", c)), (-sz, point_row(model, c.segments[0], "W", c)))
@@ -73,6 +79,11 @@ def contact_row(model: FEModel, c: Contact) -> tuple[dict[int, float], float]:
     sign = 1.0 if c.normal[0] == "+" else -1.0
     row = {i: -sign * v for i, v in point_row(model, c.segments[0], _AXIS[c.normal[1]], c).items()}
     return row, c.clearance
+
+
+def _node_row(model: FEModel, segment: str, fld: str, c: Contact) -> dict[int, float]:
+    """The dof of ``fld`` at the contact's node of ``segment`` (a crack's sides meet at one x)."""
+    return {model.dof(segment, fld, c.x): 1.0}
 
 
 def _combine(*terms: tuple[float, dict[int, float]]) -> dict[int, float]:
@@ -94,6 +105,8 @@ def slip_rows(model: FEModel, c: Contact) -> list[dict[int, float]]:
     part of the slip velocity is :func:`surface_velocity`'s).
     """
     pr = lambda seg, f: point_row(model, seg, f, c)  # noqa: E731
+    if c.kind == "crack":
+        raise ValueError(f"{c.label}: a crack's faces cannot slide (the hinge shares their displacements)")
     if c.kind == "interface":
         up, lo = c.segments
         hu, hl = model.stack.segment(up).height, model.stack.segment(lo).height

@@ -178,6 +178,11 @@ def support_and_junction_rows(model_like, stack: BeamStack) -> tuple[sp.csr_matr
                     k = dof(j.master, name, j.x)
                     e[k] = e.get(k, 0.0) + c
             add(e, us)
+    for k in stack.cracks:   # a crack's hinge: the right side's U, V, W follow the left's, the slopes are free
+        left, right = k.segments
+        for name in ("U", "V", "W"):
+            a, b = dof(right, name, k.x), dof(left, name, k.x)
+            add({a: 1.0, b: -1.0}, a)
     n = model_like.n_full
     C = sp.lil_matrix((len(rows), n))
     for r, entries in enumerate(rows):
@@ -199,7 +204,7 @@ def assemble(stack: BeamStack, mesh: StackMesh, axial: str = "P1") -> FEModel:
     """Assemble M, K of a validated stack on a mesh and eliminate supports and junctions.
 
     M and K are the structure's: the shaft's with the disks' mass and inertia and the bearings'
-    stiffness (:mod:`nsfem.fem.components`), so modes and reductions see the rotor as built. K stays
+    stiffness and the open cracks' hinge springs (:mod:`nsfem.fem.components`), so modes and reductions see the rotor as built. K stays
     symmetric: a bearing's cross coupling (skew) is kept apart as ``K_circulatory``."""
     spaces = segment_spaces(stack, mesh, axial)
     M_full, K_full = mass_stiffness(stack, spaces)
@@ -207,7 +212,7 @@ def assemble(stack: BeamStack, mesh: StackMesh, axial: str = "P1") -> FEModel:
     numbering = _Numbering(spaces, n)
     Kb, Kc, Cb = components.bearing_matrices(stack, numbering.dof, n)
     M_full = (M_full + components.disk_mass(stack, numbering.dof, n)).tocsr()
-    K_full = (K_full + Kb).tocsr()
+    K_full = (K_full + Kb + components.crack_stiffness(stack, numbering.dof, n)).tocsr()
     C, prefer = support_and_junction_rows(numbering, stack)
     T, _ = constraint_basis(C, n, prefer)
     return FEModel(stack, mesh, axial, spaces, M_full, K_full, T, project(T, M_full), project(T, K_full), Kb, Cb, Kc)

@@ -10,6 +10,9 @@ lateral values V, W and the slopes V', W' there (docs/theory.md, "Disks, bearing
   -m Omega^2 (:func:`disk_rotating`).
 - bearing: K = [[kyy, kyz], [kzy, kzz]] on (V, W) and C likewise; an axial spring kxx on U. K's
   symmetric part joins the structure's stiffness, its skew part (cross coupling) is circulatory.
+- crack (an open crack's hinge, :class:`~nsfem.stack.Crack`): a rotational spring diag(1 / c_V', 1 / c_W')
+  between the slopes of its two sides (:func:`crack_stiffness`); the hinge's shared U, V, W are
+  constraints (:func:`nsfem.fem.assemble.support_and_junction_rows`).
 - unbalance: magnitude m e at angle phi in the rotating frame: the load m e Omega^2 (cos phi, sin phi)
   on (V, W) there, and its quarter-turn (-sin phi, cos phi) for the harmonic load of the inertial
   frame (:func:`unbalance_loads`).
@@ -130,3 +133,15 @@ def lateral_turn(spaces: dict, n: int) -> sp.csr_matrix:
         cols += [W, V]
         vals += [-np.ones(V.size), np.ones(V.size)]
     return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+
+
+def crack_stiffness(stack: BeamStack, dof: Dof, n: int) -> sp.csr_matrix:
+    """The open cracks' rotational springs: energy (1/2) sum_s (s'_right - s'_left)^2 / c_s' over the slopes
+    s' = V', W' at each crack (stiffness [[k, -k], [-k, k]] on the two sides' slope dofs)."""
+    out = []
+    for k in stack.cracks:
+        left, right = k.segments
+        for name, c in zip(("V'", "W'"), k.compliance):
+            a, b = dof(left, name, k.x), dof(right, name, k.x)
+            out += [(a, a, 1.0 / c), (b, b, 1.0 / c), (a, b, -1.0 / c), (b, a, -1.0 / c)]
+    return _sparse(out, n)

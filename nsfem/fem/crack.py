@@ -119,3 +119,55 @@ def circle_compliance(E: float, diameter: float, depth: float) -> tuple[float, f
     c_open = 2.0 / E / inertia ** 2 * outer(tada_bending, lambda y: R * R - y * y)
     c_other = 2.0 / E / inertia ** 2 * outer(tada_tension, lambda y: y * y)
     return c_open, c_other
+
+
+#: the unit vector (y, z) from the centroid towards the face a crack starts from
+SIDE_DIRECTION = {"+y": (1.0, 0.0), "-y": (-1.0, 0.0), "+z": (0.0, 1.0), "-z": (0.0, -1.0)}
+def ligament_centroid(section: str, depth_side: float, depth: float) -> float:
+    """Position along the crack's depth direction (from the section's centroid towards the cracked face)
+    of the uncracked ligament's centroid, the hinge's centre of rotation: -a / 2 for a rectangle; for a
+    solid circle of radius R minus the segment of height a (half-angle psi, cos psi = 1 - a / R),
+    -A_s d_s / (pi R^2 - A_s) with A_s = R^2 (psi - sin psi cos psi), d_s = 2 R sin^3 psi / (3 (psi - sin psi cos psi))."""
+    a = depth * depth_side
+    if section != "circle":
+        return -a / 2.0
+    R = depth_side / 2.0
+    psi = math.acos(1.0 - a / R)
+    area = R * R * (psi - math.sin(psi) * math.cos(psi))
+    dist = 2.0 * R * math.sin(psi) ** 3 / (3.0 * (psi - math.sin(psi) * math.cos(psi)))
+    return -area * dist / (math.pi * R * R - area)
+
+
+def face_points(section: str, width: float, height: float, depth: float, side: str) -> np.ndarray:
+    """The two ends (y, z) of a crack's front, measured from the ligament's centroid (rows; the hinge's arms).
+
+    The faces' gap at a face point p is -p . (dV', dW') in the hinge's relative slopes: linear in p, so it
+    is least at a vertex of the face, and the feasible slopes form a cone in the plane whose edges are
+    set by the two vertices of extreme direction as seen from the hinge's centre. For a rectangle these
+    are the front's corners (a cracked face's far corner (+-B/2, H/2) is a positive combination of
+    (+B/2, H/2 - a) and (-B/2, H/2 - a) about the centre); for a circle the arc point at angle psi from
+    the depth axis has direction sin psi / (cos psi + c), c = -centre / R in (0, 1), increasing in psi,
+    so again the front's ends. Holding these two is holding the whole face: exact for rigid faces, and
+    the contact set stays of full rank (the hinge has two rotations).
+
+    >>> face_points("rectangle", 0.02, 0.01, 0.4, "-z").round(6).tolist()
+    [[-0.01, -0.003], [0.01, -0.003]]
+    """
+    dy, dz = SIDE_DIRECTION[side]
+    H, B = (width, height) if dy else (height, width)   # depth side, front side
+    a = depth * H
+    centre = ligament_centroid(section, H, depth)
+    half = math.sqrt(a * (H - a)) if section == "circle" else B / 2.0   # the front's half-width
+    along = np.full(2, H / 2.0 - a - centre)
+    front = np.array([-half, half])
+    # front axis: the depth direction turned by +90 degrees about x, (y, z) -> (-z, y)
+    return np.column_stack([along * dy - front * dz, along * dz + front * dy]) + 0.0
+
+
+def slope_compliance(section: str, E: float, width: float, height: float, depth: float, side: str) -> tuple[float, float]:
+    """(c_V', c_W') [rad / (N m)] of an open crack: the compliance about the axis that opens it on the
+    slope of the bending it opens under (W' for a crack from +-z), the other on the other slope."""
+    dy, _ = SIDE_DIRECTION[side]
+    H, B = (width, height) if dy else (height, width)
+    c_open, c_other = circle_compliance(E, H, depth) if section == "circle" else rectangle_compliance(E, H, B, depth)
+    return (c_open, c_other) if dy else (c_other, c_open)

@@ -15,7 +15,7 @@ import scipy.sparse.linalg as spla
 
 
 def components(stack) -> list[list[str]]:
-    """Segment names grouped into the parts that junctions connect."""
+    """Segment names grouped into the parts that junctions and cracks connect."""
     parent = {s.name: s.name for s in stack.segments}
 
     def root(a):
@@ -27,6 +27,8 @@ def components(stack) -> list[list[str]]:
     for j in stack.junctions:
         for s in j.slaves:
             parent[root(s)] = root(j.master)
+    for k in stack.cracks:   # a crack's hinge spring resists a relative rotation: one rigid part
+        parent[root(k.segments[1])] = root(k.segments[0])
     groups: dict[str, list[str]] = {}
     for s in stack.segments:
         groups.setdefault(root(s.name), []).append(s.name)

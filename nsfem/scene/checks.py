@@ -192,6 +192,10 @@ def check_frame_at_speed(frame: str, stack: BeamStack, spinning: bool = True) ->
                              "inertial frame cannot carry it either: the equations have periodic coefficients in "
                              "both frames (no closed-form propagation)")
         return
+    if stack.cracks:
+        raise SceneError("rotation.frame", f"the inertial frame needs an axisymmetric rotor, but {stack.cracks[0].label} "
+                         "turns with the shaft (its hinge is stiffer in one direction than in the other): use "
+                         "rotation.frame = \"rotating\" (sensors can still read in the inertial frame)")
     if odd is not None:
         what = ("its centroid sits off the axis" if odd.offset != (0.0, 0.0) else
                 f"its section is {odd.width:g} x {odd.height:g}, not square or round")

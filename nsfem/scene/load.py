@@ -11,6 +11,7 @@ from typing import Iterable
 from ..errors import SceneError
 from ..stack import BeamStack
 from .checks import check_components, check_frame, check_mesh, check_scales, check_speed, check_times
+from .cracks import crack_stack
 from .overrides import _check_nesting, apply_override
 from .parts import Damping, Initial, MeshOptions, Output, ReductionOptions, Rotation, Simulation, parts
 from .schema import HIGH_LEVEL, LOW_LEVEL, MAX_NESTING
@@ -129,7 +130,7 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     else:
         stack = high_level_stack(tree)
     base = base or Path.cwd()
-    stack = point_components(tree, stack).validate()
+    stack = point_components(tree, crack_stack(tree, stack, bool(tree["mesh"]["file"]))).validate()
     check_scales(tree, stack)
     check_components(tree, stack)
     check_frame(tree, stack)

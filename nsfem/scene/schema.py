@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from ..stack import NORMALS, SECTIONS, SUPPORT_DOFS, THEORIES, WEIGHTINGS
+from ..stack import CRACK_SIDES, NORMALS, SECTIONS, SUPPORT_DOFS, THEORIES, WEIGHTINGS
 
 
 SUPPORTS = ("pinned-pinned", "clamped-free", "clamped-clamped", "clamped-pinned", "free-free")
@@ -233,6 +233,21 @@ _STATOR = {
                   "half the section's depth, a rectangle's height; a ring around a disk's rim: the rim's radius)",
                   check=_nonneg),
 }
+_CRACK = {
+    "x": Key("float?", None, "position on the intact shaft [m] (default: the rotor's middle); it splits the shaft "
+             "there into two sides joined by a hinge"),
+    "depth": Key("float", 0.3, "relative depth a/h (rectangle, h the section's size along side) or a/D (solid "
+                 "circle), in (0, 0.8]", check=lambda v: None if 0.0 < v <= 0.8 else
+                 f"must lie in (0, 0.8] (the stress-intensity fits of the open crack's compliance end there), got {v}"),
+    "side": Key("str", "-z", "the section face the crack starts from, in the rotating frame (-z: the bottom at "
+                "phase 0, in tension under gravity at rest)", CRACK_SIDES),
+    "friction": Key("float", 0.0, "between the crack faces: must be 0 (the hinge shares the faces' "
+                    "displacements, so they cannot slide)", check=lambda v: None if v == 0.0 else
+                    f"must be 0: the crack's hinge shares the faces' displacements, so they cannot slide and face "
+                    f"friction would have no effect, got {v}"),
+    "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1] of the faces' impacts at closure",
+                       check=_unit),
+}
 _SENSOR = {
     "name": Key("str", "", "column name in sensors.csv (default sensor_<index>)"),
     "x": Key("float", 0.0, "position on the shaft [m]"),
@@ -304,6 +319,7 @@ SCHEMA: dict[str, Any] = {
     "bearing": [_BEARING],
     "unbalance": [_UNBALANCE],
     "stator": [_STATOR],
+    "crack": [_CRACK],
     "sensor": [_SENSOR],
     "segment": [_SEGMENT],
     "junction": [_JUNCTION],
