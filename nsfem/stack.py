@@ -382,7 +382,7 @@ class BeamStack:
     def _check_contact(self, key: str, c: Contact) -> None:
         names = {s.name for s in self.segments}
         if c.kind not in ("interface", "obstacle", "crack"):
-            raise SceneError(f"{key}.kind", f"unknown contact kind {c.kind!r} (use interface | obstacle)")
+            raise SceneError(f"{key}.kind", f"unknown contact kind {c.kind!r} (use interface | obstacle | crack)")
         if c.kind == "crack":
             if c.arm is None or not any(k.segments == c.segments and k.x == c.x for k in self.cracks):
                 raise SceneError(f"{key}.segments", "a crack face's point needs its crack (and an arm)")

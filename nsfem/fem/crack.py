@@ -33,8 +33,11 @@ from scipy.integrate import quad
 
 #: Dimarogonas' J(a/h) coefficients of a^2 .. a^10 (Rizos et al. 1990)
 J_COEFFICIENTS = (1.8624, -3.95, 16.375, -37.226, 76.81, -126.9, 172.0, -143.97, 66.56)
-#: the range of relative depths the fits are meant for
+#: the range of relative depths the fits are meant for (rectangles)
 MAX_DEPTH = 0.8
+#: solid circles: beyond a = R the strips at the front's ends are cut through (local depth = strip height),
+#: where F diverges and the strip integration has no meaning
+MAX_CIRCLE_DEPTH = 0.5
 
 
 def rizos_J(s: float) -> float:
@@ -59,9 +62,9 @@ def tada_tension(s: float) -> float:
     return _tada_root(s) * (0.752 + 2.02 * s + 0.37 * (1.0 - math.sin(lam)) ** 3)
 
 
-def _check_depth(depth: float) -> None:
-    if not 0.0 < depth <= MAX_DEPTH:
-        raise ValueError(f"relative crack depth {depth} outside (0, {MAX_DEPTH}]: the stress-intensity fits are "
+def _check_depth(depth: float, limit: float = MAX_DEPTH) -> None:
+    if not 0.0 < depth <= limit:
+        raise ValueError(f"relative crack depth {depth} outside (0, {limit}]: the stress-intensity fits are "
                          "not meant for deeper cracks")
 
 
@@ -99,7 +102,7 @@ def circle_compliance(E: float, diameter: float, depth: float) -> tuple[float, f
 
     I = pi R^4 / 4: the opening moment bends each strip with its extreme fibre stress M sqrt(R^2 - y^2) / I,
     the other moment stresses strip y uniformly by M y / I."""
-    _check_depth(depth)
+    _check_depth(depth, MAX_CIRCLE_DEPTH)
     R = 0.5 * diameter
     a = depth * diameter
     beta = math.sqrt(a * (2.0 * R - a))

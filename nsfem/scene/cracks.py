@@ -7,7 +7,7 @@ import math
 from dataclasses import replace
 
 from ..errors import SceneError
-from ..fem.crack import face_points, slope_compliance
+from ..fem.crack import MAX_CIRCLE_DEPTH, face_points, slope_compliance
 from ..stack import BeamStack, Contact, Crack, Junction, Segment, Support
 
 
@@ -34,8 +34,8 @@ def crack_stack(tree: dict, stack: BeamStack, mesh_file: bool = False) -> BeamSt
         return stack
     lo, hi = min(s.start for s in stack.segments), max(s.end for s in stack.segments)
     middle = float(f"{(lo + hi) / 2:.12g}")
-    order = sorted(range(len(tree["crack"])), key=lambda i: (tree["crack"][i]["x"] is None and middle)
-                   or tree["crack"][i]["x"])
+    at = [middle if cr["x"] is None else cr["x"] for cr in tree["crack"]]
+    order = sorted(range(len(at)), key=lambda i: at[i] if math.isfinite(at[i]) else math.inf)
     seen: dict[float, int] = {}
     for i in order:
         cr = tree["crack"][i]
@@ -60,6 +60,10 @@ def crack_stack(tree: dict, stack: BeamStack, mesh_file: bool = False) -> BeamSt
         seg = inside[0]
         if any(c.kind == "interface" and seg.name in c.segments for c in stack.contacts):
             raise SceneError(f"{key}.x", f"segment {seg.name!r} is a delamination's layer; a crack cuts the intact shaft")
+        if seg.section == "circle" and cr["depth"] > MAX_CIRCLE_DEPTH:
+            raise SceneError(f"{key}.depth", f"must be at most {MAX_CIRCLE_DEPTH} in a circular section, got "
+                             f"{cr['depth']}: deeper, the crack cuts through the strips at its front's ends and the "
+                             "strip integration of its compliance has no meaning")
         if seg.section == "circle" and seg.inner > 0.0:
             raise SceneError(f"{key}.depth", "the open crack's compliance is known for solid sections only (a hollow "
                              "shaft's strips cross the bore): use inner_diameter = 0")
