@@ -201,3 +201,25 @@ def test_hermite_refine_draws_a_harmonic_between_samples():
     # an impact between two samples keeps that interval a chord (no loop across the jump)
     x2, _ = hermite_refine(t, np.cos(w * t), -w * np.sin(w * t), f, kicks=[0.0105])
     assert x2.size == x.size - (x.size - t.size) // (t.size - 1)
+
+
+def test_plots_of_a_scene_whose_only_contacts_are_a_crack(tmp_path):
+    """A crack's two front ends are one group crack.0 (the gap plot's panel of its opening, the forces plot's
+    line of the faces' force), and every plot is written for a scene with no other contact."""
+    from nsfem.scene.load import scene_from_tree
+
+    from test_vtu_crack import cracked_tree
+
+    result, system = run_scene(scene_from_tree(cracked_tree()))
+    (g,) = rp.delamination_middles(system)
+    assert (g["name"], g["kind"], g["indices"], g["span"]) == ("crack.0", "crack", [0, 1], (0.5, 0.5))
+    assert rp._force_series(system, rp.loaded_contacts(result)) == [("crack.0 faces (x = 0.5 m)", [0, 1])]
+    # both ends closed lies within one end closed; the run has both (test_vtu_crack)
+    both, one = rp.closed_intervals(result, [0, 1]), rp.closed_intervals(result, [0, 1], every=False)
+    assert both and len(one) >= 1 and sum(b - a for a, b in both) < sum(b - a for a, b in one)
+    assert all(any(c <= a and b <= d for c, d in one) for a, b in both)
+    warned = []
+    paths = rp.write_plots(result, system, tmp_path, list(rp.RESULT_PLOTS), warn=warned.append)
+    assert [p.name for p in paths] == [f"{n}.png" for n in rp.RESULT_PLOTS] and warned == []
+    for p in paths:
+        assert_png(p)

@@ -1,4 +1,5 @@
-"""VTU/PVD time series of a run: the beam stack as hexahedral solids, its contact points, disks and stator rings.
+"""VTU/PVD time series of a run: the beam stack as hexahedral solids, its contact points, disks, stator rings
+and crack faces.
 
 Every segment is drawn as its cross-section (a rectangle, width b along y and height h along
 z; a circle as a polygon of 32 sides, hollow when it has a bore; centroid at its offset
@@ -27,9 +28,15 @@ their geometry, or a steel cylinder of their mass and polar inertia, :func:`disk
 next, the rings as polygons of their facets (``<prefix>_stators_NNNNN.vtu``,
 :func:`stator_geometry`; point data ``displacement`` (0: fixed), one cell per facet with cell data
 ``stator``, ``contact`` (its row in the contacts part and the result), ``gap``, ``normal_force``,
-``tangential_force``, ``state``). Every part carries point data ``displacement``, so *Warp By
-Vector* applies to all of them; each ``DataSet`` of the .pvd is named (``stack``, ``contacts``,
-``disks``, ``stators``) and a comment in it says which frame the coordinates are in. NNNNN is the index
+``tangential_force``, ``state``); one with cracks the next, each crack's face as a polygon in the
+section plane at its x (``<prefix>_cracks_NNNNN.vtu``, :func:`crack_geometry`: the strip or circular
+segment the crack has cut, moving with the left side's section; point data ``displacement`` and
+``face_gap``, the faces' axial opening at that point; one cell per crack with cell data ``crack``,
+``opening`` (the larger gap of its front's two contacts), ``state`` (how many of them are closed: 0 open,
+1 partly closed, 2 closed) and ``normal_force`` (their sum)). Every part carries point data
+``displacement``, so *Warp By Vector* applies to all of them; each ``DataSet`` of the .pvd is named
+(``stack``, ``contacts``, ``disks``, ``stators``, ``cracks``) and a comment in it says which frame the
+coordinates are in. NNNNN is the index
 of the output time in ``result.t``. Every file is written to a temporary name in the
 output folder and renamed, so a reader never sees a half-written file.
 
@@ -314,6 +321,101 @@ def stator_geometry(model):
             np.concatenate(cons).astype(np.int64))
 
 
+#: a round section's crack face is drawn with its arc as CRACK_ARC equal chords (the drawn segment's area is then
+#: within 1e-3 of the circular segment's for any depth up to 0.8: 1 / CRACK_ARC^2 for a shallow crack)
+CRACK_ARC = 4 * SECTORS
+
+
+def crack_faces(model) -> list[dict]:
+    """Each crack of the model (:class:`~nsfem.stack.Crack`) as drawn: the crack face, the part of the section
+    at the crack's x that the crack has cut (a rectangle: the strip of depth a along the face ``side``, across
+    the whole section; a circle: the circular segment of height a, its arc :data:`CRACK_ARC` chords),
+    counter-clockwise in the (y, z) plane.
+
+    Each entry: ``label``, ``x``, ``segment`` (the left side, whose node the face moves with), ``face`` (k, 2):
+    the vertices (y, z) from the axis, the first and last the ends of the crack front (where the crack's
+    contact points are, :func:`nsfem.fem.crack.face_points`); ``centre`` (y, z): the ligament's centroid (the
+    hinge's centre, the contacts' arms start there); ``contacts``: the rows of the front's contacts, in the
+    order of their labels.
+    """
+    from ..fem.crack import SIDE_DIRECTION, ligament_centroid
+
+    out = []
+    for k in model.stack.cracks:
+        seg = model.stack.segment(k.segments[0])
+        dy, dz = SIDE_DIRECTION[k.side]
+        H, B = (seg.width, seg.height) if dy else (seg.height, seg.width)   # depth side, front side
+        a = k.depth * H
+        if seg.section == "circle":
+            R = H / 2.0
+            psi = math.acos(1.0 - a / R)
+            phi = np.linspace(-psi, psi, CRACK_ARC + 1)
+            s, t = R * np.cos(phi), R * np.sin(phi)
+            s[[0, -1]] = R - a                  # the front's ends exactly (cos psi = 1 - a / R)
+        else:
+            s, t = np.array([H / 2.0 - a, H / 2.0, H / 2.0, H / 2.0 - a]), np.array([-B, -B, B, B]) / 2.0
+        # s along the depth direction d (towards the cracked face), t along the front d turned by +90 degrees
+        face = np.column_stack([s * dy - t * dz, s * dz + t * dy]) + np.asarray(seg.offset)
+        rows = [j for j, c in enumerate(model.stack.contacts)
+                if c.kind == "crack" and c.segments == k.segments and c.x == k.x]
+        rows.sort(key=lambda j: model.stack.contacts[j].label)
+        centre = ligament_centroid(seg.section, H, k.depth) * np.array([dy, dz]) + np.asarray(seg.offset)
+        out.append({"label": k.label, "x": k.x, "segment": seg.name, "face": face, "centre": centre,
+                    "contacts": np.asarray(rows, dtype=np.int64)})
+    return out
+
+
+def crack_geometry(model):
+    """The crack faces of :func:`crack_faces` as polygons in the section plane at each crack's x.
+
+    Returns ``(points (P, 3), polygons, owner (P,))``: ``polygons[i]`` the (k_i,) point indices of crack i's
+    face (one polygon cell each), ``owner`` the crack index of each point.
+    """
+    pts, polys, owner = [np.zeros((0, 3))], [], [np.zeros(0, np.int64)]
+    base = 0
+    for i, f in enumerate(crack_faces(model)):
+        k = len(f["face"])
+        pts.append(np.column_stack([np.full(k, f["x"]), f["face"]]))
+        polys.append(base + np.arange(k, dtype=np.int64))
+        owner.append(np.full(k, i))
+        base += k
+    return np.vstack(pts), polys, np.concatenate(owner).astype(np.int64)
+
+
+def crack_displacements(model, q_full) -> tuple[np.ndarray, np.ndarray]:
+    """(displacement (P, 3), face_gap (P,)) of every point of :func:`crack_geometry`.
+
+    The face moves with the left side's section at x: at (eta, zeta) from the centroid u1 = U - eta V' -
+    zeta W', u2 = V, u3 = W (:func:`displacements`). ``face_gap`` is the faces' axial opening there,
+    -(y dV' + z dW') with (y, z) from the ligament's centroid and d the right side's slope less the left's
+    (the crack contacts' gap, :func:`nsfem.contact.kinematics.contact_row`): at the front's ends it is their
+    gaps, and it grows towards the crack's mouth when the crack opens.
+    """
+    q_full = np.asarray(q_full, dtype=float).ravel()
+    pts, _, owner = crack_geometry(model)
+    u, gap = np.zeros_like(pts), np.zeros(len(pts))
+    for i, (k, f) in enumerate(zip(model.stack.cracks, crack_faces(model))):
+        (left, right), x = k.segments, k.x
+        U, V, W, Vp, Wp = (q_full[model.dof(left, n, x)] for n in ("U", "V", "W", "V'", "W'"))
+        dVp, dWp = (q_full[model.dof(right, n, x)] - q_full[model.dof(left, n, x)] for n in ("V'", "W'"))
+        sel = owner == i
+        eta, zeta = (pts[sel, 1:] - model.stack.segment(left).offset).T
+        u[sel] = np.column_stack([U - eta * Vp - zeta * Wp, np.full(eta.size, V), np.full(eta.size, W)])
+        y, z = (pts[sel, 1:] - f["centre"]).T
+        gap[sel] = -(y * dVp + z * dWp)
+    return u, gap
+
+
+def crack_data(result, faces, i: int) -> dict[str, np.ndarray]:
+    """Per crack of ``faces`` (:func:`crack_faces`) at output index i: ``opening`` (the largest gap of the
+    front's contacts), ``state`` (how many of them are closed: 0 open, 1 partly closed, 2 closed),
+    ``normal_force`` (their sum: the compressive force across the faces)."""
+    rows = [f["contacts"] for f in faces]
+    return {"opening": np.array([result.gap[r, i].max() for r in rows], dtype=float),
+            "state": np.array([int((result.state[r, i] != 0).sum()) for r in rows], dtype=np.int32),
+            "normal_force": np.array([result.normal_force[r, i].sum() for r in rows], dtype=float)}
+
+
 def rotation(angle: float) -> np.ndarray:
     """Rotation about +x by ``angle`` [rad]: rotating-frame vectors to inertial ones."""
     c, s = math.cos(angle), math.sin(angle)
@@ -328,11 +430,24 @@ def contact_points(model, q_full) -> tuple[np.ndarray, np.ndarray]:
     carrying segment (where its gap is measured) and its displacement (U, V, W). A stator's
     facet: the shaft surface point it faces, at the facet's radius R along its normal n, with that
     point's displacement (U - R n.(V', W'), V, W): the gap is then the clearance less n.(its
-    displacement), measured from the surface the ring sees.
+    displacement), measured from the surface the ring sees. A crack face's point: its end of the crack
+    front in the section at x (its arm from the ligament's centroid, :func:`crack_faces`), with the mean
+    of the two sides' displacements (U - eta V' - zeta W', V, W) there.
     """
     q_full = np.asarray(q_full, dtype=float).ravel()
+    centres = {(k.segments, k.x): f["centre"] for k, f in zip(model.stack.cracks, crack_faces(model))}
     pos, disp = [], []
     for c in model.stack.contacts:
+        if c.kind == "crack":
+            yz = centres[(c.segments, c.x)] + np.asarray(c.arm)
+            us = []
+            for name in c.segments:
+                eta, zeta = yz - model.stack.segment(name).offset
+                U, V, W, Vp, Wp = (q_full[model.dof(name, f, c.x)] for f in ("U", "V", "W", "V'", "W'"))
+                us.append([U - eta * Vp - zeta * Wp, V, W])
+            pos.append([c.x, yz[0], yz[1]])
+            disp.append(np.mean(us, axis=0))
+            continue
         if c.angle is not None:
             s = model.stack.segment(c.segments[0])
             n = np.array([math.cos(c.angle), math.sin(c.angle)])
@@ -377,8 +492,9 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     ``basis``). Every ``every``-th output time is written (indices 0, every, 2 every, ...).
     ``frame="inertial"`` rotates points and displacements about x by Omega t + phase
     (Omega = 2 pi ``result.info["speed_hz"]``; ``phase_deg`` as ``rotation.phase_deg``, the
-    frame in which gravity points along -z). A model with disks or stators gets their parts too
-    (:func:`disk_geometry`, :func:`stator_geometry`; the module's docstring lists the parts).
+    frame in which gravity points along -z). A model with disks, stators or cracks gets their parts too
+    (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`; the module's docstring lists
+    the parts).
     """
     import meshio
 
@@ -392,6 +508,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     points, cells, seg_ids, _ = stack_geometry(model)
     dpoints, dcells, disk_ids, _ = disk_geometry(model)
     spoints, scells, ring_ids, facet_contact = stator_geometry(model)
+    cpoints, cpolys, _ = crack_geometry(model)
+    faces = crack_faces(model)
     # a result computed in the inertial frame is already there: nothing to turn
     turn = frame == "inertial" and result.info.get("frame", "rotating") == "rotating"
     omega = 2.0 * math.pi * float(result.info.get("speed_hz", 0.0)) if turn else 0.0
@@ -415,10 +533,12 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
             for j, vec in enumerate(tangents[k]):
                 tf[k] += result.tangential_force[k, j, i] * vec
         du = disk_displacements(model, q_full)
-        p, dp, sp_ = points, dpoints, spoints
+        ku, kgap = crack_displacements(model, q_full)
+        p, dp, sp_, kp = points, dpoints, spoints, cpoints
         if frame == "inertial":
             R = rotation(omega * float(result.t[i]) + phase)
-            p, u, cpos, cdisp, tf, dp, du, sp_ = (a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du, spoints))
+            p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku = (a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du,
+                                                                            spoints, cpoints, ku))
         name = f"{prefix}_{i:05d}.vtu"
         _write_vtu(out / name, meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
                                            cell_data={"segment": [seg_ids]}))
@@ -443,8 +563,16 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
                            "gap": [np.asarray(result.gap[fc, i], dtype=float)],
                            "normal_force": [np.asarray(result.normal_force[fc, i], dtype=float)],
                            "tangential_force": [tf[fc]], "state": [np.asarray(result.state[fc, i], dtype=np.int32)]}))
+        if faces:
+            files.append(f"{prefix}_cracks_{i:05d}.vtu")
+            data = crack_data(result, faces, i)
+            _write_vtu(out / files[-1], meshio.Mesh(
+                kp, [("polygon", poly[None, :]) for poly in cpolys], point_data={"displacement": ku, "face_gap": kgap},
+                cell_data={"crack": [np.array([j]) for j in range(len(faces))],
+                           **{n: [v[j:j + 1] for j in range(len(faces))] for n, v in data.items()}}))
         entries.append((float(result.t[i]), files))
-    names = ["stack", "contacts"] + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
+    names = (["stack", "contacts"] + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
+             + ["cracks"] * bool(faces))
     written = "inertial" if turn else result.info.get("frame", "rotating")
     note = (" (it turns with the shaft at Omega; stator rings are fixed in it, as in the model)" if written == "rotating"
             else " (turned from the run's rotating frame by Omega t + phase: its stator rings, fixed in that frame "

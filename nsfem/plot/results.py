@@ -6,9 +6,9 @@ a path, writes one PNG atomically (temporary file in the same directory, then a 
 see :func:`nsfem.plot.common.save`) and returns the path:
 
 - :func:`phase_plot`: phase portraits of the first modal coordinates at steady state,
-- :func:`gap_plot`: the gap at the middle of each delamination over time,
+- :func:`gap_plot`: the gap at the middle of each delamination, and each crack's opening, over time,
 - :func:`psd_plot`: Welch PSD of the transverse displacement in an undamaged region,
-- :func:`forces_plot`: contact forces over time and the impact impulses,
+- :func:`forces_plot`: contact forces over time and the impact impulses (a crack's faces as one),
 - :func:`write_plots`: the plots named in ``output.plots`` (``campbell`` is drawn by
   :func:`nsfem.plot.campbell_plot`), skipping those without data.
 
@@ -125,14 +125,15 @@ def _uniform(t: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
 
 
 def delamination_middles(system) -> list[dict]:
-    """Per delamination (contacts on one interface) or stop: its contacts and the one nearest
-    its midspan.
+    """Per delamination (contacts on one interface), stator ring, crack or stop: its contacts and
+    the one nearest its midspan.
 
-    Each entry: ``name`` ("delamination.0", "obstacle.1", ...), ``indices`` (contact rows),
-    ``middle`` (the row nearest the middle), ``x`` (its position [m]) and ``span`` (start,
-    end) [m]. Interfaces are grouped by the pair of sub-beams they join and their span is the
-    sub-beams' length; without a model, contacts are grouped by label prefix and the span is
-    that of their positions.
+    Each entry: ``name`` ("delamination.0", "crack.0", "obstacle.1", ...), ``kind`` ("interface",
+    "stator", "crack" or "stop"), ``indices`` (contact rows), ``middle`` (the row nearest the
+    middle), ``x`` (its position [m]) and ``span`` (start, end) [m]. Interfaces are grouped by the
+    pair of sub-beams they join and their span is the sub-beams' length; a crack's two front ends
+    are one group; without a model, contacts are grouped by label prefix and the span is that of
+    their positions.
     """
     cs = system.model_contacts
     m = cs.m
@@ -153,13 +154,18 @@ def delamination_middles(system) -> list[dict]:
             elif c.angle is not None:   # a stator's facets: one ring, one panel
                 name = labels[k].rsplit(".", 1)[0]
                 key, span = ("stator", name), (c.x, c.x)
+            elif c.kind == "crack":     # a crack's front ends: one crack, one panel
+                name = c.table_key
+                key, span = ("crack", tuple(c.segments), c.x), (c.x, c.x)
             else:
                 key, span, name = ("stop", k), (c.x, c.x), labels[k]
-            groups.setdefault(key, {"name": name, "indices": [], "span": span})["indices"].append(k)
+            groups.setdefault(key, {"name": name, "kind": key[0], "indices": [], "span": span})["indices"].append(k)
     else:
         for k, lab in enumerate(labels):
-            key = lab.rsplit(".", 1)[0] if lab.startswith("delamination.") else lab
-            groups.setdefault(key, {"name": key, "indices": []})["indices"].append(k)
+            head = lab.split(".", 1)[0]
+            key = lab.rsplit(".", 1)[0] if head in ("delamination", "stator", "crack") and lab.count(".") == 2 else lab
+            kind = {"delamination": "interface", "stator": "stator", "crack": "crack"}.get(head, "stop")
+            groups.setdefault(key, {"name": key, "kind": kind, "indices": []})["indices"].append(k)
         for g in groups.values():
             gx = xs[g["indices"]]
             g["span"] = (float(np.nanmin(gx)), float(np.nanmax(gx))) if np.isfinite(gx).any() else (np.nan, np.nan)
@@ -171,23 +177,27 @@ def delamination_middles(system) -> list[dict]:
             k = int(idx[np.argmin(np.abs(xs[idx] - mid))])
         else:
             k = int(idx[len(idx) // 2])
-        out.append({"name": g["name"], "indices": [int(i) for i in idx], "middle": k, "x": float(xs[k]),
-                    "span": tuple(float(s) for s in g["span"])})
+        out.append({"name": g["name"], "kind": g["kind"], "indices": [int(i) for i in idx], "middle": k,
+                    "x": float(xs[k]), "span": tuple(float(s) for s in g["span"])})
     return out
 
 
-def closed_intervals(result, k: int) -> list[tuple[float, float]]:
+def closed_intervals(result, k, every: bool = True) -> list[tuple[float, float]]:
     """[(t_close, t_release)] of contact row k: from the events when the integrator records
-    them (exact), else from the sampled states."""
+    them (exact), else from the sampled states. ``k`` may be a list of rows (a crack's front
+    ends): closed when all of them are (``every``; else when any is: the crack at least partly
+    closed)."""
     t = result.t
     if t.size == 0:
         return []
+    rows = [int(r) for r in np.atleast_1d(k)]
     events = [e for e in result.events if isinstance(e.get("after"), dict) and "closed" in e["after"]]
     spans = []
     if events:
-        closed, start = bool(result.state[k, 0] != 0), float(t[0])
+        together = all if every else any
+        closed, start = together(result.state[r, 0] != 0 for r in rows), float(t[0])
         for e in sorted(events, key=lambda e: e["t"]):
-            now = k in e["after"]["closed"]
+            now = together(r in e["after"]["closed"] for r in rows)
             if now and not closed:
                 start = float(e["t"])
             elif closed and not now:
@@ -196,7 +206,7 @@ def closed_intervals(result, k: int) -> list[tuple[float, float]]:
         if closed:
             spans.append((start, float(t[-1])))
         return spans
-    on = result.state[k] != 0
+    on = (np.all if every else np.any)(result.state[rows] != 0, axis=0)
     edges = np.flatnonzero(np.diff(np.r_[0, on.astype(int), 0]))
     for a, b in zip(edges[::2], edges[1::2]):
         spans.append((float(t[a]), float(t[b - 1])))
@@ -330,8 +340,11 @@ def _mode_fields(system, count: int) -> list[str]:
 
 
 def gap_plot(result, system, path) -> Path:
-    """Gap [mm] over time at the middle of each delamination (bold), the other contacts of
-    the delamination in thin lines, its closed intervals shaded and its impacts marked."""
+    """Gap over time at the middle of each delamination (bold), the other contacts of the
+    delamination in thin lines, its closed intervals shaded and its impacts marked; for a crack
+    its opening (bold: the larger gap of its front's two ends, drawn thin), shaded where it is
+    closed (both ends) and, lighter, partly closed (one end). Gaps in mm, or in um when a panel's
+    largest is below 0.01 mm."""
     groups = delamination_middles(system)
     if not groups:
         raise NoPlotData("gap: the scene has no contacts")
@@ -339,35 +352,55 @@ def gap_plot(result, system, path) -> Path:
         raise NoPlotData("gap: the run has no samples")
     t = result.t
     impacts = result.impacts
+    labels = list(system.model_contacts.labels)
     fig, axes = figure(nrows=len(groups), ncols=1, sharex=True, squeeze=False,
                        figsize=(FIGSIZE[0], max(FIGSIZE[1], 2.4 * len(groups))))
+    wmin = 2e-3 * (t[-1] - t[0])  # closures often last far less than a pixel: widen them to one
     for ax, g in zip(axes[:, 0], groups):
-        for k in g["indices"]:
-            if k != g["middle"]:
-                ax.plot(t, 1e3 * result.gap[k], lw=0.5, color="0.65")
-        if len(g["indices"]) > 1:
-            ax.plot([], [], lw=0.5, color="0.65", label="other contacts")
-        k = g["middle"]
-        ax.plot(t, 1e3 * result.gap[k], lw=1.3, color="tab:blue", label=f"x = {g['x']:.4g} m (middle)")
+        crack = g["kind"] == "crack"
+        rows = g["indices"]
+        peak = float(np.abs(result.gap[rows]).max(initial=0.0))
+        scale, unit = (1e3, "mm") if peak >= 1e-5 or peak == 0.0 else (1e6, r"$\mu$m")
+        for k in rows:
+            if crack or k != g["middle"]:
+                ax.plot(t, scale * result.gap[k], lw=0.5, color="0.65")
+        if crack:
+            ax.plot([], [], lw=0.5, color="0.65", label="front ends " + ", ".join(labels[k].rsplit(".", 1)[-1]
+                                                                                for k in rows))
+            ax.plot(t, scale * result.gap[rows].max(axis=0), lw=1.3, color="tab:blue", label="opening")
+            partly = closed_intervals(result, rows, every=False)
+            for a, b in partly:
+                ax.axvspan(a, max(b, a + wmin), color="tab:orange", alpha=0.2, lw=0)
+            if partly:
+                ax.plot([], [], color="tab:orange", alpha=0.3, lw=6, label=f"one end or both closed ({len(partly)})")
+            spans = closed_intervals(result, rows)
+        else:
+            if len(rows) > 1:
+                ax.plot([], [], lw=0.5, color="0.65", label="other contacts")
+            k = g["middle"]
+            ax.plot(t, scale * result.gap[k], lw=1.3, color="tab:blue", label=f"x = {g['x']:.4g} m (middle)")
+            spans = closed_intervals(result, k)
         ax.axhline(0.0, color="k", lw=0.6)
-        spans = closed_intervals(result, k)
-        wmin = 2e-3 * (t[-1] - t[0])  # closures often last far less than a pixel: widen them to one
         for a, b in spans:
             ax.axvspan(a, max(b, a + wmin), color="tab:red", alpha=0.3, lw=0)
             ax.plot([a, max(b, a + wmin)], [0.0, 0.0], color="tab:red", lw=4, solid_capstyle="butt")
         if spans:
-            ax.plot([], [], color="tab:red", alpha=0.5, lw=6, label=f"closed ({len(spans)} intervals)")
-        ti = [im["t"] for im in impacts if k in im.get("contacts", [])]
+            ax.plot([], [], color="tab:red", alpha=0.5, lw=6,
+                    label=f"{'both ends ' if crack else ''}closed ({len(spans)} intervals)")
+        ti = [im["t"] for im in impacts if set(rows if crack else [g["middle"]]) & set(im.get("contacts", []))]
         if ti:
             ax.plot(ti, np.zeros(len(ti)), "v", color="tab:red", ms=5, label=f"impacts ({len(ti)})")
-        ax.set_ylabel("gap [mm]")
+        ax.set_ylabel(f"{'opening' if crack else 'gap'} [{unit}]")
         a, b = g["span"]
-        ax.set_title(f"{g['name']} ({a:.3g} to {b:.3g} m): gap at its middle", fontsize=9)
+        ax.set_title(f"{g['name']} (x = {g['x']:.4g} m): opening, the larger gap of its front's two ends" if crack
+                     else f"{g['name']} ({a:.3g} to {b:.3g} m): gap at its middle", fontsize=9)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc="upper right")
     axes[-1, 0].set_xlabel("time [s]")
     axes[-1, 0].set_xlim(t[0], t[-1])
-    fig.suptitle("Gap opening at the middle of the delamination", fontsize=10)
+    cracks = sum(g["kind"] == "crack" for g in groups)
+    fig.suptitle("Crack opening" if cracks == len(groups) else "Gap opening at the middle of the delamination"
+                 + ("; crack opening" if cracks else ""), fontsize=10)
     fig.tight_layout()
     return save(fig, path)
 
@@ -443,50 +476,66 @@ def loaded_contacts(result) -> list[int]:
     return sorted(hit | set(np.flatnonzero(loaded).tolist()))
 
 
+def _force_series(system, rows: list[int]) -> list[tuple[str, list[int]]]:
+    """(legend label, contact rows) of each line of :func:`forces_plot`: one per loaded contact, but a
+    crack's loaded front ends (labels ``crack.<i>.<k>``) as one line, ``crack.<i> faces``, their forces summed (an
+    end that never carries load adds nothing)."""
+    labels = list(system.model_contacts.labels)
+    xs = np.asarray(system.model_contacts.x, dtype=float)
+    series: dict[str, list[int]] = {}
+    for k in rows:
+        head, _, tail = labels[k].rpartition(".")
+        crack = head.startswith("crack.") and head.count(".") == 1 and tail.isdigit()
+        key = f"{head} faces (x = {xs[k]:.3g} m)" if crack else f"{labels[k]} (x = {xs[k]:.3g} m)"
+        series.setdefault(key, []).append(k)
+    return list(series.items())
+
+
 def forces_plot(result, system, path) -> Path:
     """Normal and tangential contact-force magnitudes [N] over time of the contacts that
-    ever carry load, and the impacts as stems of their impulses [N s]."""
+    ever carry load, and the impacts as stems of their impulses [N s]. A crack's front ends
+    are one line: the force across its faces (their normal forces summed, and impulses per
+    impact)."""
     if result.gap.shape[0] == 0:
         raise NoPlotData("forces: the scene has no contacts")
     rows = loaded_contacts(result)
     if not rows:
         raise NoPlotData("forces: no contact carried load or took an impact during the run")
     t = result.t
-    labels = list(system.model_contacts.labels)
-    xs = np.asarray(system.model_contacts.x, dtype=float)
+    series = _force_series(system, rows)
     fig, (ax, bx) = figure(nrows=2, ncols=1, sharex=True, figsize=FIGSIZE, gridspec_kw={"height_ratios": [3, 2]})
-    colors = {k: f"C{i % 10}" for i, k in enumerate(rows)}
+    colors = [f"C{i % 10}" for i in range(len(series))]
     friction = False
-    for k in rows:
-        name = f"{labels[k]} (x = {xs[k]:.3g} m)"
-        ax.plot(t, result.normal_force[k], lw=1.0, color=colors[k], label=name)
-        on = result.normal_force[k] > 0  # closures shorter than output_dt show as single samples
-        ax.plot(t[on], result.normal_force[k, on], ".", ms=4, color=colors[k])
-        tg = np.linalg.norm(result.tangential_force[k], axis=0)
+    for (name, ks), color in zip(series, colors):
+        normal = result.normal_force[ks].sum(axis=0)
+        ax.plot(t, normal, lw=1.0, color=color, label=name)
+        on = normal > 0  # closures shorter than output_dt show as single samples
+        ax.plot(t[on], normal[on], ".", ms=4, color=color)
+        tg = np.linalg.norm(result.tangential_force[ks], axis=1).sum(axis=0)
         if np.any(tg > 0):
             friction = True
-            ax.plot(t, tg, lw=0.9, ls="--", color=colors[k])
+            ax.plot(t, tg, lw=0.9, ls="--", color=color)
     if friction:
         ax.plot([], [], ls="--", color="k", lw=0.9, label="tangential |lam_T|")
     ax.set_ylabel("contact force [N]")
     ax.set_title("Normal force (solid)" + (" and tangential force magnitude (dashed)" if friction else "")
                  + " at the output times", fontsize=9)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="upper right", ncol=2 if len(rows) > 4 else 1)
+    ax.legend(fontsize=7, loc="upper right", ncol=2 if len(series) > 4 else 1)
     n_imp = 0
-    for k in rows:
+    for (_, ks), color in zip(series, colors):
         ti, pi = [], []
         for im in result.impacts:
-            for c, p in zip(im.get("contacts", []), im.get("impulse_Ns", [])):
-                if int(c) == k:
-                    ti.append(im["t"])
-                    pi.append(p)
+            mine = [p for c, p in zip(im.get("contacts", []), im.get("impulse_Ns", [])) if int(c) in ks]
+            if mine:
+                ti.append(im["t"])
+                pi.append(sum(mine))
         if ti:
             n_imp += len(ti)
             ml, sl, bl = bx.stem(ti, pi, basefmt=" ")
-            ml.set_color(colors[k])
+            ml.set_color(color)
             ml.set_markersize(4)
-            sl.set_color(colors[k])
+            sl.set_color(color)
     bx.axhline(0.0, color="k", lw=0.6)
     bx.set_ylabel("impulse [N s]")
     bx.set_xlabel("time [s]")
