@@ -98,7 +98,8 @@ def initial_rings(rings, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> tuple[
 
 
 def after_event(rings, mode: Mode, fired: list, q: np.ndarray, v: np.ndarray, t: float) -> tuple[tuple, tuple]:
-    """(ring, latent) after the ring rows ``fired`` ((kind, detail) pairs) at t, from ``mode``'s."""
+    """(ring, latent) after the ring rows ``fired`` ((kind, detail) pairs) at t, from ``mode``'s. A lone exit
+    reads engagement in the new region (nu . N changes with nu there)."""
     engaged = {i: reg for i, reg, _ in mode.ring}
     latent = dict(mode.latent)
     state = {i: ("engaged", reg) for i, reg in engaged.items()}
@@ -116,6 +117,8 @@ def after_event(rings, mode: Mode, fired: list, q: np.ndarray, v: np.ndarray, t:
         for kind, det in items:   # the region first
             if kind == "ring_exit":
                 flag, reg = (flag, det[2]) if det[2] is not None else ("clear", None)
+        if flag != "clear" and kinds == {"ring_exit"}:   # nu changes with the region: read nu . N there
+            flag = "engaged" if float(ring.normal_force(reg, u, ring.P @ v)) > 0.0 else "latent"
         for kind, det in items:
             if kind == "ring_engage" and det[1] is None:     # from clear, through facet k's line
                 k = det[2]
