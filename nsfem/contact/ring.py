@@ -1,29 +1,42 @@
 """Elastic stator rings: a unilateral spring-damper between the shaft and a ring fixed in space.
 
 The ring is the polygon of F facets tangent to the clearance circle (as a rigid stator's), held by
-a radial spring k_s and damper c_s (its mount, massless). The shaft's centre u = (v, w) = P q at the
-ring's x pushes the ring out by its distance from the polygon, d = u - p(u) with p the projection
-onto the polygon {p : n_k . p <= c}. Its force on the shaft is
+a spring k_s and damper c_s (its mount, massless, isotropic). The shaft's centre u = (v, w) = P q at
+the ring's x pushes the ring out by its distance from the polygon, d = u - p(u) with p the projection
+onto the polygon {p : n_k . p <= c}: the ring sits at d while touched (no hidden state). Its force on
+the shaft is
 
-    F = -(I + mu s R) N,   N = k_s d + c_s nu nu^T u'   (while nu . N > 0, else 0)
+    F = -(I + mu s R) N,   N = proj_K (X),   X = k_s d + c_s u'
 
-with R the rotation by +90 degrees (friction along the circumference, perpendicular to the normal
-force), s = +-1 the sign of the slip of the shaft surface past the ring and nu the region's normal.
-p(u) is piecewise linear, so F is, on the regions of u:
+with K the polygon's normal cone at p(u) (the ray n_k on facet k, the cone of n_k and n_k+1 at the
+corner v_k), R the rotation by +90 degrees (friction along the circumference, perpendicular to the
+normal force) and s = +-1 the sign of the slip of the shaft surface past the ring. proj_K is the
+velocity-level complementarity of the massless ring: facet forces lam >= 0 move the ring at
+r' = (sum lam_j n_j - k_s d) / c_s, and a facet with lam_j > 0 keeps up with the shaft, n_j . (r' -
+u') = 0, else separates (n_j . (r' - u') > 0, as n_j . (u - r) <= c): the KKT conditions of
+min |sum lam_j n_j - X| over lam >= 0. A ring never pulls, on any facet. p(u) is piecewise linear,
+so N is linear in (u, u') on the regions of u and the cases of proj_K (the ``law`` codes of :meth:`Ring.parts`):
 
-- ``edge`` k (u beyond facet k, |t_k . u| <= h = c tan(pi / F)): d = (n_k . u - c) n_k, nu = n_k;
-- ``vertex`` k (u beyond the corner v_k between facets k and k + 1): d = u - v_k, nu = m_k its
-  bisector (the damper acts along it).
+- ``edge`` k (u beyond facet k, |t_k . u| <= h = c tan(pi / F)): d = (n_k . u - c) n_k and
+  N = (n_k . X) n_k = k_s d + c_s n_k n_k^T u' while n_k . X > 0 (code k);
+- ``corner`` k (u beyond the corner v_k between facets k and k + 1): d = u - v_k and, with X = a n_k +
+  b n_k+1, N = X = k_s d + c_s u' while a, b > 0 (code F + k: both facets push, the ring follows the
+  shaft); N = (n_k . X) n_k while b <= 0 < n_k . X (code 2F + k: facet k alone, edge k's law) and
+  likewise facet k + 1 alone (code 3F + k).
 
-As F grows the vertex regions vanish and N = k_s (r - c) + c_s r' radially, the closed form of an
-elastic ring. The force is released (clipped at zero) when nu . N reaches zero, also with u still
-beyond the polygon (a damper pulling the shaft back would glue it): the contact is then ``latent``
-until nu . N rises again or u re-enters the polygon. Without a moving coordinate the force is a
-function of (q, q') alone (no hidden state), which is what :func:`forces` evaluates; the exact
-method follows the regions as configurations (:func:`terms`) with events at their boundaries.
+Elsewhere (n . X <= 0 on an edge, X in the polar cone at a corner) the force is released with u
+still beyond the polygon (a damper pulling the shaft back would glue it): the ring is ``latent``.
+As F grows the corner regions vanish and N = k_s (r - c) + c_s r' radially, the closed form of an
+elastic ring. The force is a function of (q, q') alone, which is what :func:`forces` evaluates; the
+exact method follows the regions and cases as configurations (:meth:`Ring.terms`) with events at
+their boundaries.
 
-Energy: the ring stores V = k_s |d|^2 / 2 (:func:`potential`); an engaged ring's damper dissipates
-c_s (nu . u')^2; a latent ring's release of V (from a damper that lets go) is dissipated by it.
+Energy: the ring stores V = k_s |d|^2 / 2 (:func:`potential`). The power it takes from the shaft,
+N . u' - dV/dt = |N - k_s d|^2 / c_s - k_s d . (X - N) / c_s, is never negative (X - N is in the
+polar cone, d in K). It is dissipated: an engaged law's damper c_s |D u'|^2 (D = n n^T or I), and
+the part of V that the law does not hold, V - H with H = k_s |S u - a|^2 / 2 its spring's energy
+(all of V when latent, k_s (t_k . d)^2 / 2 for one facet at a corner; :func:`unheld`), released to
+the damper as it shrinks.
 The slip velocity of the shaft surface past the ring along t = R nu is t . u' + Omega_f nu . u +
 Omega R_s (Omega_f = Omega in the rotating frame, 0 in the inertial one; the paper's eq. 27).
 """
@@ -96,7 +109,7 @@ class Ring:
 
     # -- regions -----------------------------------------------------------------------
     def region(self, u: np.ndarray) -> int | None:
-        """The region of the centre u (2,): None inside the polygon, k for edge k, F + k for vertex k."""
+        """The region of the centre u (2,): None inside the polygon, k for edge k, F + k for corner k."""
         s = self.normals @ u - self.clearance
         k = int(np.argmax(s))
         if s[k] <= 0.0:
@@ -107,30 +120,82 @@ class Ring:
             return k
         return self.F + (k if along > 0.0 else (k - 1) % self.F)
 
-    def parts(self, region: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(S, a, nu) of a region: d = S u - a, the damper along nu."""
+    def place(self, law: int) -> int:
+        """The region of a law code (module docstring): k and F + k are their own, 2F + k and 3F + k
+        corner k's."""
+        return law if law < 2 * self.F else self.F + law % self.F
+
+    def pushing(self, law: int) -> tuple[int, ...]:
+        """The facets a law pushes on."""
+        F, k = self.F, law % self.F
+        return ((k,), (k, (k + 1) % F), (k,), ((k + 1) % F,))[law // F]
+
+    def parts(self, law: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(S, a, nu) of a law (or a region, its own law): N = k_s (S u - a) + c_s D u' (:meth:`damper`),
+        nu the direction of the slip's normal (the facet's, the corner's bisector for both facets)."""
+        F = self.F
+        if law < F or law >= 2 * F:
+            n = self.normals[self.pushing(law)[0]]
+            return np.outer(n, n), self.clearance * n, n
+        k = law - F
+        return np.eye(2), self.corners[k], self.bisectors[k]
+
+    def damper(self, law: int) -> np.ndarray:
+        """D (2 x 2): the damper's projector, the spring's S (n n^T for one facet, I for both: the ring
+        follows u')."""
+        return self.parts(law)[0]
+
+    def push(self, region: int, u: np.ndarray, du: np.ndarray) -> np.ndarray:
+        """X = k_s d + c_s u' on a region at centres u, velocities du (2,) or (2, t)."""
+        S, a, _ = self.parts(region)
+        return self.stiffness * (S @ u - (a if u.ndim == 1 else a[:, None])) + self.damping * du
+
+    def switches(self, region: int, law: int | None) -> list[tuple[np.ndarray, int | None]]:
+        """The cases of proj_K next to a law (None: latent) on a region as (w, next): it holds while
+        w . X >= 0 (X = a n_k + b n_k+1 at a corner: b = t_k . X / sin, a = -t_k+1 . X / sin); past
+        it lies ``next`` (None: released)."""
         F = self.F
         if region < F:
             n = self.normals[region]
-            return np.outer(n, n), self.clearance * n, n
+            return [(n, None)] if law is not None else [(-n, region)]
         k = region - F
-        return np.eye(2), self.corners[k], self.bisectors[k]
+        n0, n1 = self.normals[k], self.normals[(k + 1) % F]
+        t0, t1 = ROT @ n0, ROT @ n1
+        if law is None:
+            return [(-n0, 2 * F + k), (-n1, 3 * F + k)]
+        return {F + k: [(-t1, 3 * F + k), (t0, 2 * F + k)],
+                2 * F + k: [(n0, None), (-t0, F + k)],
+                3 * F + k: [(n1, None), (t1, F + k)]}[law]
 
-    def normal_force(self, region: int, u: np.ndarray, du: np.ndarray) -> np.ndarray:
-        """nu . N of a region at centres u, velocities du (2,) or (2, t)."""
-        S, a, nu = self.parts(region)
-        d = S @ u - (a if u.ndim == 1 else a[:, None])
-        return self.stiffness * (nu @ d) + self.damping * (nu @ du)
+    def law(self, region: int, u: np.ndarray, du: np.ndarray) -> int | None:
+        """The case of proj_K at (u, u') on a region (None: released)."""
+        law = int(self.laws(np.array([region]), self.push(region, u, du)[:, None])[0])
+        return None if law < 0 else law
 
-    def slip_rate(self, region: int, u: np.ndarray, du: np.ndarray) -> np.ndarray:
+    def laws(self, regions: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """The laws (-1: released) of X (2, t) on regions (t,) beyond the polygon."""
+        F = self.F
+        if self.damping == 0.0:   # X = k_s d lies in K
+            return np.array(regions, dtype=int)
+        edge = regions < F
+        k = regions % F
+        n0, n1 = self.normals[k].T, self.normals[(k + 1) % F].T
+        p0, p1 = np.einsum("ij,ij->j", n0, X), np.einsum("ij,ij->j", n1, X)
+        b, a = np.einsum("ij,ij->j", ROT @ n0, X), -np.einsum("ij,ij->j", ROT @ n1, X)
+        corner = np.where((a > 0) & (b > 0), F + k, np.where((p0 > 0) & (b <= 0), 2 * F + k,
+                                                             np.where((p1 > 0) & (a <= 0), 3 * F + k, -1)))
+        return np.where(edge, np.where(p0 > 0, k, -1), corner)
+
+    def slip_rate(self, law: int, u: np.ndarray, du: np.ndarray) -> np.ndarray:
         """The slip velocity of the shaft surface past the ring along t = R nu (module docstring)."""
-        nu = self.parts(region)[2]
+        nu = self.parts(law)[2]
         return (ROT @ nu) @ du + self.frame_spin * (nu @ u) + self.surface_speed
 
     def boundaries(self, region: int) -> list[tuple[np.ndarray, float, int]]:
-        """The region's exits as (g, g0, next): it holds while g . u + g0 >= 0; past it lies ``next``
-        (None: inside the polygon)."""
+        """The region's (or a law's region's) exits as (g, g0, next): it holds while g . u + g0 >= 0; past
+        it lies ``next`` (None: inside the polygon)."""
         F, h = self.F, self.half_edge
+        region = self.place(region)
         if region < F:
             k = region
             n, t = self.normals[k], ROT @ self.normals[k]
@@ -142,21 +207,23 @@ class Ring:
         return [(tk, -float(tk @ v), k), (-tk1, float(tk1 @ v), (k + 1) % F)]
 
     # -- the linear terms of a region --------------------------------------------------
-    def terms(self, region: int, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(Kr, Cr, fr): an engaged region adds Kr q + Cr q' to the left side of M q'' + C q' + Q q = f and
-        fr to the load (F = -G (k_s (S u - a) + c_s nu nu^T u'), G = I + mu s R)."""
-        S, a, nu = self.parts(region)
+    def terms(self, law: int, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Kr, Cr, fr): an engaged law adds Kr q + Cr q' to the left side of M q'' + C q' + Q q = f and
+        fr to the load (F = -G (k_s (S u - a) + c_s D u'), G = I + mu s R)."""
+        S, a, _ = self.parts(law)
         G = np.eye(2) + self.friction * s * ROT
         P = self.P
         Kr = self.stiffness * (P.T @ (G @ S) @ P)
-        Cr = self.damping * (P.T @ (G @ np.outer(nu, nu)) @ P)
+        Cr = self.damping * (P.T @ (G @ self.damper(law)) @ P)
         fr = self.stiffness * (P.T @ (G @ a))
         return Kr, Cr, fr
 
-    def force_rows(self, region: int, Pq: np.ndarray, Pv: np.ndarray, const: int) -> np.ndarray:
-        """N (2 x dim) as rows on an augmented state xi (q = Pq xi, q' = Pv xi, xi[const] = 1)."""
-        S, a, nu = self.parts(region)
-        rows = self.stiffness * (S @ (self.P @ Pq)) + self.damping * np.outer(nu, nu @ (self.P @ Pv))
+    def force_rows(self, law: int, Pq: np.ndarray, Pv: np.ndarray, const: int, damper=None) -> np.ndarray:
+        """N (2 x dim) of a law as rows on an augmented state xi (q = Pq xi, q' = Pv xi, xi[const] = 1);
+        ``damper`` D in place of the law's (I: the rows of X on its region)."""
+        S, a, _ = self.parts(law)
+        D = self.damper(law) if damper is None else damper
+        rows = self.stiffness * (S @ (self.P @ Pq)) + self.damping * (D @ (self.P @ Pv))
         rows[:, const] -= self.stiffness * a
         return rows
 
@@ -174,14 +241,23 @@ def potential(rings, q: np.ndarray) -> float:
     return total
 
 
-def engaged(ring: Ring, region: int | None, u: np.ndarray, du: np.ndarray) -> bool:
-    """Whether the ring pushes at (u, u'): beyond the polygon and nu . N > 0."""
-    return region is not None and float(ring.normal_force(region, u, du)) > 0.0
+def unheld(ring: Ring, law: int | None, q: np.ndarray) -> float:
+    """V - H: the ring's stored energy that a law (None: released) does not hold, k_s |d|^2 / 2 less
+    k_s |S u - a|^2 / 2 of its spring [J]; released to the damper (module docstring)."""
+    if law is not None and ring.place(law) == law:
+        return 0.0
+    held = 0.0
+    if law is not None:
+        S, a, _ = ring.parts(law)
+        e = S @ (ring.P @ q) - a
+        held = 0.5 * ring.stiffness * float(e @ e)
+    return potential([ring], q) - held
 
 
 def forces(ring: Ring, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The ring's force at states q, v (n, t): (N (2, t) the normal force vector, fric (2, t) the friction
-    force on the shaft, region (t,) (-1 inside), slip (t,) the slip velocity); zero where released."""
+    """The ring's force at states q, v (n, t): (N (2, t) the normal force vector proj_K (X), fric (2, t) the
+    friction force on the shaft, law (t,) (the region where released, -1 inside), slip (t,) the slip
+    velocity); zero where released."""
     u, du = ring.P @ q, ring.P @ v
     F, t = ring.F, u.shape[1]
     cols = np.arange(t)
@@ -191,17 +267,20 @@ def forces(ring: Ring, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.nda
     along = np.einsum("ij,ij->j", (ring.normals @ ROT.T)[k].T, u)   # t_k . u (t_k = R n_k)
     edge = np.abs(along) <= ring.half_edge
     corner = np.where(along > 0.0, k, (k - 1) % F)
-    regions = np.where(outside, np.where(edge, k, F + corner), -1)
-    nu = np.where(edge, ring.normals[k].T, ring.bisectors[corner].T)        # 2 x t
+    regions = np.where(edge, k, F + corner)
     d = np.where(edge, s[k, cols] * ring.normals[k].T, u - ring.corners[corner].T)
-    rate = np.einsum("ij,ij->j", nu, du)
-    N = ring.stiffness * d + ring.damping * nu * rate
-    on = outside & (np.einsum("ij,ij->j", nu, N) > 0.0)
+    X = ring.stiffness * d + ring.damping * du
+    laws = np.where(outside, ring.laws(regions, X), -1)
+    one = (laws < F) | (laws >= 2 * F)
+    n = ring.normals[np.where(laws >= 3 * F, (regions + 1) % F, regions % F)].T     # the facet of one
+    N = np.where(one, n * np.einsum("ij,ij->j", n, X), X)
+    on = laws >= 0
     N[:, ~on] = 0.0
+    nu = np.where(one, n, ring.bisectors[corner].T)
     slip = np.where(outside, np.einsum("ij,ij->j", ROT @ nu, du) + ring.frame_spin * np.einsum("ij,ij->j", nu, u)
                     + ring.surface_speed, 0.0)
     fric = -ring.friction * np.sign(slip) * (ROT @ N)
-    return N, fric, regions, slip
+    return N, fric, np.where(on, laws, np.where(outside, regions, -1)), slip
 
 
 def generalized_force(rings, q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -162,8 +162,9 @@ def integrate(system: ContactSystem, t_end: float, method: str = "exact", output
 def with_ring_contacts(res: Result, system: ContactSystem) -> Result:
     """The contact outputs over the model's whole contact list (:attr:`ContactSystem.model_contacts`): the
     rigid contacts' from the run, an elastic ring's facets from its force law at the output states. A facet
-    carries the part of the ring's normal force along it (both facets of a corner share it), its friction
-    -mu s lam along its circumferential tangent, state 2 (sliding) while it pushes. In place; returns res."""
+    carries the part of the ring's normal force along it (both facets of a corner share it when both push;
+    lam >= 0, the force lies in the facets' cone), its friction -mu s lam along its circumferential tangent,
+    state 2 (sliding) while it pushes. In place; returns res."""
     from ..contact.ring import forces
 
     full = system.model_contacts
@@ -179,12 +180,10 @@ def with_ring_contacts(res: Result, system: ContactSystem) -> Result:
         N, _, regions, slip = forces(ring, res.q, res.v)
         on = np.flatnonzero(np.any(N != 0.0, axis=0))
         for j in on:
-            reg = int(regions[j])
-            if reg < ring.F:
-                ks, lam = [reg], [float(ring.normals[reg] @ N[:, j])]
+            ks = list(ring.pushing(int(regions[j])))
+            if len(ks) == 1:
+                lam = [float(ring.normals[ks[0]] @ N[:, j])]
             else:   # N = a n_k + b n_k+1 at corner k
-                k = reg - ring.F
-                ks = [k, (k + 1) % ring.F]
                 lam = list(np.linalg.solve(ring.normals[ks].T, N[:, j]))
             for kk, lm in zip(ks, lam):
                 c = ring.facets[kk]

@@ -30,7 +30,7 @@ from scipy.integrate import solve_ivp
 
 from ..errors import IntegrationError, NsfemError
 from ..linalg import factorize
-from ..contact.ring import ROT, generalized_force, potential
+from ..contact.ring import ROT, generalized_force, potential, unheld
 from ..result import Result
 from .base import Integrator, Progress, close_energy, initial_state, output_times
 from .configuration import Configuration, Mode, Phase
@@ -308,14 +308,17 @@ class EventDriven(Integrator):
             return 0.0
         sysm = self.system
         cs = sysm.contacts
-        if mode.latent:   # a released ring's stored energy goes to its damper (module ring)
+        # the stored energy a ring's law does not hold goes to its damper (module ring): released rings',
+        # one facet's at a corner
+        loose = [(sysm.rings[i], None) for i, _ in mode.latent]
+        loose += [(sysm.rings[i], law) for i, law, _ in mode.ring if sysm.rings[i].place(law) != law]
+        if loose:
             if ends is None:
                 xs = xi_fun(np.array([t0, t1]))
                 qa, qb = phase.q_map() @ xs[:, 0], phase.q_map() @ xs[:, 1]
             else:
                 qa, qb = ends[0], ends[2]
-            lat = [sysm.rings[i] for i, _ in mode.latent]
-            energy["dissipated_damping_J"] += potential(lat, qa) - potential(lat, qb)
+            energy["dissipated_damping_J"] += sum(unheld(r, law, qa) - unheld(r, law, qb) for r, law in loose)
         if self.name == "exact":
             done = self._energy_closed_form(phase, mode, t1, K, P, D, energy, ends)
             if done is not None:
@@ -356,7 +359,7 @@ class EventDriven(Integrator):
             u, du = ring.P @ q, ring.P @ v
             N = ring.force_rows(reg, phase.q_map(), phase.v_map(), 2 * phase.config.r) @ xi
             nu = ring.parts(reg)[2]
-            energy["dissipated_damping_J"] += ring.damping * float(np.sum(w * (nu @ du) ** 2))
+            energy["dissipated_damping_J"] += ring.damping * float(np.sum(w * np.sum((ring.damper(reg) @ du) ** 2, 0)))
             if ring.friction and sgn:
                 RN = ROT @ N
                 ws = ring.surface_speed * (ROT @ nu)[:, None] + ring.frame_spin * (ROT @ u)
@@ -560,7 +563,7 @@ def _impact_energy(energy: dict, imp: dict) -> None:
 
 
 def _ring_forms(rings, mode: Mode, Pq: np.ndarray, Pv: np.ndarray, r2: int) -> list:
-    """(key, form S) with int xi^T S xi dt the engaged rings' damper dissipation c_s (nu . u')^2, friction
+    """(key, form S) with int xi^T S xi dt the engaged rings' damper dissipation c_s |D u'|^2, friction
     dissipation mu s (R N) . (u' + w_s) and the spin's work mu s (R N) . w_s, w_s = Omega R_s R nu + Omega_f R u
     (the surface's velocity; :mod:`nsfem.contact.ring`)."""
     out = []
@@ -569,8 +572,8 @@ def _ring_forms(rings, mode: Mode, Pq: np.ndarray, Pv: np.ndarray, r2: int) -> l
         U, dU = ring.P @ Pq, ring.P @ Pv
         nu = ring.parts(reg)[2]
         if ring.damping:
-            a = nu @ dU
-            out.append(("dissipated_damping_J", ring.damping * np.outer(a, a)))
+            a = ring.damper(reg) @ dU
+            out.append(("dissipated_damping_J", ring.damping * (a.T @ a)))
         if ring.friction and sgn:
             RN = ROT @ ring.force_rows(reg, Pq, Pv, r2)
             Ws = ring.frame_spin * (ROT @ U)

@@ -63,7 +63,7 @@ import time
 
 import numpy as np
 
-from ..contact.ring import ROT, potential
+from ..contact.ring import ROT, potential, unheld
 from ..errors import IntegrationError, NsfemError
 from ..lcp.builders import contact_lcp
 from ..linalg import Factorization, factorize
@@ -310,7 +310,7 @@ EXTRA_METHODS["moreau"] = MoreauJean
 
 
 def ring_states(rings, q: np.ndarray, v: np.ndarray, t: float) -> tuple[tuple, tuple]:
-    """(engaged, latent) rings at a step's start: engaged (ring, region, s) where the force law pushes, s the
+    """(engaged, latent) rings at a step's start: engaged (ring, law, s) where the force law pushes, s the
     slip's sign (at a slip at rest the friction is left out for that step: the step's force cannot follow
     a stick on an elastic ring, a first-order error of the scheme), latent (ring, region) beyond the
     polygon with the force released."""
@@ -320,30 +320,32 @@ def ring_states(rings, q: np.ndarray, v: np.ndarray, t: float) -> tuple[tuple, t
         reg = ring.region(u)
         if reg is None:
             continue
-        if float(ring.normal_force(reg, u, du)) > 0.0:
-            rate = float(ring.slip_rate(reg, u, du)) if ring.friction else 0.0
-            eng.append((i, reg, int(np.sign(rate))))
+        law = ring.law(reg, u, du)
+        if law is not None:
+            rate = float(ring.slip_rate(law, u, du)) if ring.friction else 0.0
+            eng.append((i, law, int(np.sign(rate))))
         else:
             lat.append((i, reg))
     return tuple(eng), tuple(lat)
 
 
 def _ring_work(rings, engaged, latent, q, q_new, v_th, h: float, th: float, energy: dict) -> None:
-    """Book a step's ring work (module :mod:`nsfem.contact.ring`): the damper's h c_s (nu . u'_theta)^2, the
-    friction's dissipation and the spin's work at (q_theta, v_theta); a latent ring's release of its stored
-    energy to its damper. The spring's work is the change of the stored energy in E."""
+    """Book a step's ring work (module :mod:`nsfem.contact.ring`): the damper's h c_s |D u'_theta|^2, the
+    friction's dissipation and the spin's work at (q_theta, v_theta); the release of the stored energy its
+    law does not hold (all of it when latent) to its damper. The spring's work is the change of the stored
+    energy in E."""
     q_th = q + th * h * v_th
     for i, reg, sgn in engaged:
         ring = rings[i]
         S, a, nu = ring.parts(reg)
         u, du = ring.P @ q_th, ring.P @ v_th
-        rate = float(nu @ du)
-        energy["dissipated_damping_J"] += h * ring.damping * rate * rate
+        Ddu = ring.damper(reg) @ du
+        energy["dissipated_damping_J"] += h * ring.damping * float(Ddu @ Ddu)
         if ring.friction and sgn:
-            RN = ROT @ (ring.stiffness * (S @ u - a) + ring.damping * nu * rate)
+            RN = ROT @ (ring.stiffness * (S @ u - a) + ring.damping * Ddu)
             ws = ring.surface_speed * (ROT @ nu) + ring.frame_spin * (ROT @ u)
             energy["dissipated_friction_J"] += h * ring.friction * sgn * float(RN @ (du + ws))
             energy["work_spin_J"] += h * ring.friction * sgn * float(RN @ ws)
-    if latent:
-        lat = [rings[i] for i, _ in latent]
-        energy["dissipated_damping_J"] += potential(lat, q) - potential(lat, q_new)
+    loose = [(rings[i], None) for i, _ in latent] + [(rings[i], law) for i, law, _ in engaged
+                                                     if rings[i].place(law) != law]
+    energy["dissipated_damping_J"] += sum(unheld(r, law, q) - unheld(r, law, q_new) for r, law in loose)

@@ -1,17 +1,19 @@
 """Elastic rings in the event-driven loop: their event rows and their state across events.
 
-A ring (:mod:`nsfem.contact.ring`) is clear (its centre inside the polygon), engaged in a region
-(its force law in the configuration, ``Mode.ring``) or latent in a region (beyond the polygon with
-the force released, ``Mode.latent``). Its event rows, each valid while >= 0:
+A ring (:mod:`nsfem.contact.ring`) is clear (its centre inside the polygon), engaged with a law (a
+region and the case of the cone projection: which facets push, ``Mode.ring``) or latent in a region
+(beyond the polygon with the force released, ``Mode.latent``). Its event rows, each valid while >= 0:
 
-- ``ring_engage``: clear, per facet k the distance c - n_k . u to the facet's line; latent, -nu . N
-  (the force returns);
-- ``ring_release``: engaged, nu . N (the force would pull);
+- ``ring_engage``: clear, per facet k the distance c - n_k . u to the facet's line; latent or engaged,
+  a row of :meth:`Ring.switches` to a law with more facets (a facet's force returns);
+- ``ring_release``: engaged, a row of :meth:`Ring.switches` to fewer facets (a facet's force would
+  pull: its coordinate of X leaves the cone);
 - ``ring_exit``: engaged or latent, the region's boundaries (to a neighbouring region, or inside);
 - ``ring_turn``: engaged with friction, s times the slip velocity (it stops: the shaft would roll on
   the ring, which the event-driven methods do not hold).
 
-A row's contact is m + i (m rigid contacts, ring i), so that rows, events and the guard name rings.
+Without a damper X = k_s d lies in the cone: the exits alone change the law. A row's contact is m + i
+(m rigid contacts, ring i), so that rows, events and the guard name rings.
 """
 
 from __future__ import annotations
@@ -31,30 +33,40 @@ def ring_rows(phase, mode: Mode, rings, m: int, add) -> None:
         return
     Pq, Pv = phase.q_map(), phase.v_map()
     const = 2 * phase.config.r
-    engaged = {i: (reg, s) for i, reg, s in mode.ring}
+    engaged = {i: (law, s) for i, law, s in mode.ring}
     latent = dict(mode.latent)
     for i, ring in enumerate(rings):
         U, dU = ring.P @ Pq, ring.P @ Pv
         if i in engaged:
-            reg, s = engaged[i]
-            N = ring.force_rows(reg, Pq, Pv, const)
-            nu = ring.parts(reg)[2]
-            add(nu @ N, "ring_release", m + i, (i, reg))
+            law, s = engaged[i]
+            reg = ring.place(law)
+            _switches(ring, reg, law, Pq, Pv, const, add, m + i, i)
             _exits(ring, reg, U, const, add, m + i, i)
             if ring.friction and s:
+                nu = ring.parts(law)[2]
                 rate = (ROT @ nu) @ dU + ring.frame_spin * (nu @ U)
                 rate[const] += ring.surface_speed
-                add(s * rate, "ring_turn", m + i, (i, reg))
+                add(s * rate, "ring_turn", m + i, (i, law))
         elif i in latent:
             reg = latent[i]
-            N = ring.force_rows(reg, Pq, Pv, const)
-            add(-(ring.parts(reg)[2] @ N), "ring_engage", m + i, (i, reg, None))
+            _switches(ring, reg, None, Pq, Pv, const, add, m + i, i)
             _exits(ring, reg, U, const, add, m + i, i)
         else:
             for k, n in enumerate(ring.normals):
                 row = -(n @ U)
                 row[const] += ring.clearance
                 add(row, "ring_engage", m + i, (i, None, k))
+
+
+def _switches(ring: Ring, reg: int, law: int | None, Pq, Pv, const: int, add, contact: int, i: int) -> None:
+    """The rows w . X of the cone projection's cases next to ``law`` on region ``reg`` (detail (i, law, next))."""
+    if not ring.damping:
+        return
+    X = ring.force_rows(reg, Pq, Pv, const, damper=np.eye(2))
+    facets = 0 if law is None else len(ring.pushing(law))
+    for w, nxt in ring.switches(reg, law):
+        kind = "ring_release" if nxt is None or len(ring.pushing(nxt)) < facets else "ring_engage"
+        add(w @ X, kind, contact, (i, law, nxt))
 
 
 def _exits(ring: Ring, reg: int, U: np.ndarray, const: int, add, contact: int, i: int) -> None:
@@ -83,72 +95,71 @@ def rolling(ring: Ring, t: float) -> NsfemError:
 
 
 def initial_rings(rings, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> tuple[tuple, tuple]:
-    """(ring, latent) of ``Mode`` from a state: engaged where beyond the polygon with nu . N > 0."""
+    """(ring, latent) of ``Mode`` from a state: engaged with the law of proj_K (X) beyond the polygon."""
     eng, lat = [], []
     for i, ring in enumerate(rings):
         u, du = ring.P @ q, ring.P @ v
         reg = ring.region(u)
-        if reg is None:
-            continue
-        if float(ring.normal_force(reg, u, du)) > 0.0:
-            eng.append((i, reg, _sign(ring, reg, u, du, t)))
-        else:
-            lat.append((i, reg))
-    return tuple(eng), tuple(lat)
+        if reg is not None:
+            _place(eng, lat, ring, i, reg, ring.law(reg, u, du), u, du, t)
+    return tuple(sorted(eng)), tuple(sorted(lat))
+
+
+def _place(eng: list, lat: list, ring: Ring, i: int, reg: int, law: int | None, u, du, t: float) -> None:
+    if law is None:
+        lat.append((i, reg))
+    else:
+        eng.append((i, law, _sign(ring, law, u, du, t)))
 
 
 def after_event(rings, mode: Mode, fired: list, q: np.ndarray, v: np.ndarray, t: float) -> tuple[tuple, tuple]:
-    """(ring, latent) after the ring rows ``fired`` ((kind, detail) pairs) at t, from ``mode``'s."""
-    engaged = {i: reg for i, reg, _ in mode.ring}
-    latent = dict(mode.latent)
-    state = {i: ("engaged", reg) for i, reg in engaged.items()}
-    state.update({i: ("latent", reg) for i, reg in latent.items()})
+    """(ring, latent) after the ring rows ``fired`` ((kind, detail) pairs) at t, from ``mode``'s: a region
+    change reads the law in the new region (X's cone changes with it), a lone switch takes its case, two
+    at once read the state."""
+    state = {i: (law, rings[i].place(law)) for i, law, _ in mode.ring}
+    state.update({i: (None, reg) for i, reg in mode.latent})
     by_ring: dict[int, list] = {}
     for kind, det in fired:
         by_ring.setdefault(det[0], []).append((kind, det))
     for i, items in by_ring.items():
         ring = rings[i]
-        u = ring.P @ q
-        kinds = {k for k, _ in items}
-        if "ring_turn" in kinds:
+        u, du = ring.P @ q, ring.P @ v
+        if any(kind == "ring_turn" for kind, _ in items):
             raise rolling(ring, t)
-        flag, reg = state.get(i, ("clear", None))
-        for kind, det in items:   # the region first
-            if kind == "ring_exit":
-                flag, reg = (flag, det[2]) if det[2] is not None else ("clear", None)
-        for kind, det in items:
-            if kind == "ring_engage" and det[1] is None:     # from clear, through facet k's line
-                k = det[2]
-                along = float((ROT @ ring.normals[k]) @ u)
-                reg = k if abs(along) <= ring.half_edge else ring.F + (k if along > 0 else (k - 1) % ring.F)
-                flag = "engaged"
-            elif kind == "ring_engage":
-                flag = "engaged"
-            elif kind == "ring_release":
-                flag = "latent" if ring.damping > 0.0 else "clear"
-        if flag == "clear" or reg is None:
-            state.pop(i, None)
+        law, reg = state.get(i, (None, None))
+        exits = [det[2] for kind, det in items if kind == "ring_exit"]
+        moves = [det for kind, det in items if kind != "ring_exit"]
+        if reg is None and moves:   # from clear, through facet k's line
+            k = moves[0][2]
+            along = float((ROT @ ring.normals[k]) @ u)
+            reg = k if abs(along) <= ring.half_edge else ring.F + (k if along > 0 else (k - 1) % ring.F)
+            law = ring.law(reg, u, du)
+        elif exits:
+            reg = exits[-1]
+            law = None if reg is None else ring.law(reg, u, du)
+        elif len(moves) == 1:
+            law = moves[0][2]
         else:
-            state[i] = (flag, reg)
-    eng = tuple(sorted((i, reg, _sign(rings[i], reg, rings[i].P @ q, rings[i].P @ v, t))
-                       for i, (flag, reg) in state.items() if flag == "engaged"))
-    lat = tuple(sorted((i, reg) for i, (flag, reg) in state.items() if flag == "latent"))
-    return eng, lat
-
-
-def after_impact(rings, ring_state: tuple, latent: tuple, q: np.ndarray, v: np.ndarray, t: float) -> tuple[tuple, tuple]:
-    """Re-read engagement after a velocity jump (an impact elsewhere): the damper's force jumps with it."""
+            law = ring.law(reg, u, du)
+        state.pop(i, None)
+        if reg is not None:
+            state[i] = (law, reg)
     eng, lat = [], []
-    for i, reg, _ in ring_state:
+    for i, (law, reg) in state.items():
+        ring = rings[i]
+        _place(eng, lat, ring, i, reg, law, ring.P @ q, ring.P @ v, t)
+    return tuple(sorted(eng)), tuple(sorted(lat))
+
+
+def after_impact(rings, ring_state: tuple, latent: tuple, q: np.ndarray, v: np.ndarray,
+                 t: float) -> tuple[tuple, tuple]:
+    """Re-read the laws after a velocity jump (an impact elsewhere): the damper's force jumps with it."""
+    eng, lat = [], []
+    for i, reg in [(i, rings[i].place(law)) for i, law, _ in ring_state] + list(latent):
         ring = rings[i]
         u, du = ring.P @ q, ring.P @ v
-        (eng if float(ring.normal_force(reg, u, du)) > 0.0 else lat).append((i, reg))
-    for i, reg in latent:
-        ring = rings[i]
-        u, du = ring.P @ q, ring.P @ v
-        (eng if float(ring.normal_force(reg, u, du)) > 0.0 else lat).append((i, reg))
-    return (tuple(sorted((i, reg, _sign(rings[i], reg, rings[i].P @ q, rings[i].P @ v, t)) for i, reg in eng)),
-            tuple(sorted(lat)))
+        _place(eng, lat, ring, i, reg, ring.law(reg, u, du), u, du, t)
+    return tuple(sorted(eng)), tuple(sorted(lat))
 
 
 def with_rings(mode: Mode, ring_state: tuple, latent: tuple) -> Mode:
