@@ -258,7 +258,8 @@ class BeamStack:
 
     def carrier(self, x: float) -> str | None:
         """The segment that carries a point component at ``x``: the one segment whose span holds x (at a
-        junction or a shared end, the first of them; the junction ties their V, W and slopes), None
+        junction or a shared end, the first of them; a junction ties their V, W and slopes, a crack only
+        V and W: there it is the crack's left side), None
         where two layers of a delamination both span x."""
         at = [s for s in self.segments if s.start <= x <= s.end]
         inside = [s for s in at if s.start < x < s.end]

@@ -20,7 +20,7 @@ Sources and what is taken from each:
 
 Plane stress (E) throughout, as in the design's formula (the scene has no Poisson ratio). The two
 sources are not the same fit: for the rectangle's opening axis the strip integration gives 1.22 to 1.31
-times Rizos's compliance for a/h = 0.05 to 0.7 (:func:`strip_over_rizos`); docs/theory.md states this
+times Rizos's compliance for a/h = 0.05 to 0.7, 1.49 at 0.8 (:func:`strip_over_rizos`); docs/theory.md states this
 spread as the model's uncertainty. Hollow sections are not covered (a strip then crosses the bore).
 """
 

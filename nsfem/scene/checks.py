@@ -185,6 +185,10 @@ def check_frame_at_speed(frame: str, stack: BeamStack, spinning: bool = True) ->
             b = stack.bearings[bad]
             why = (f"bearing.{bad} is not isotropic (K = {[list(r) for r in b.K]}, C = {[list(r) for r in b.C]}): in "
                    "the rotating frame its force has periodic coefficients")
+            if odd is None and stack.cracks:
+                raise SceneError("rotation.frame", f"{why}, and {stack.cracks[0].label} turns with the shaft, so the "
+                                 "inertial frame cannot carry it either: the equations have periodic coefficients in "
+                                 "both frames (no closed-form propagation)")
             if odd is None:
                 raise SceneError("rotation.frame", f"{why}; this rotor is axisymmetric, so use rotation.frame = "
                                  "\"inertial\"")
