@@ -193,7 +193,7 @@ def prepare(scene_path, data, vary, misfit: str = "time", overrides: Sequence[st
             raise NsfemError("data: give a CSV path or (t, {sensor name: samples})") from None
         m = check_measurement(t, dict(signals))
     base = load_scene(scene_path, fixed)
-    columns = match_sensors(m, base.sensors, "data")
+    columns = match_sensors(m, base.sensors, f"--data {data}" if isinstance(data, (str, Path)) else "data")
     if misfit == "spectrum" and not is_uniform(m.t):
         raise NsfemError("--misfit spectrum: the data's t must be sampled at one step (an FFT needs it)")
     dt = min(base.simulation.output_dt, float(np.min(np.diff(m.t))))
