@@ -176,3 +176,23 @@ def test_cli_fit_json(tmp_path, capsys):
     assert set(payload) >= {"parameters", "misfit", "runs", "wall_s", "outputs"}
     assert payload["parameters"][KEY]["estimate"] == pytest.approx(TRUTH, abs=1e-5)
     assert "[global" in err and "local stage" in err
+
+
+def test_ctrl_c_keeps_the_runs_so_far(inprocess, clean, tmp_path):
+    from nsfem.fit import FitInterrupted
+
+    lines = []
+
+    def progress(line):
+        lines.append(line)
+        if len(lines) == 6:       # the header and five runs of the global stage
+            raise KeyboardInterrupt
+
+    with pytest.raises(FitInterrupted) as info:
+        fit(None, clean, {KEY: RANGE}, overrides=FIXED, client=inprocess, out_dir=tmp_path, progress=progress)
+    res = info.value.result
+    assert res.info["interrupted"] and len(res.evaluations) == 5 and res.uncertainty is None
+    rows = (tmp_path / "evaluations.csv").read_text().splitlines()
+    payload = json.loads((tmp_path / "fit.json").read_text())
+    assert len(rows) == 6 and payload["runs"] == 5 and payload["interrupted"] is True
+    assert payload["misfit"] == pytest.approx(min(e.misfit for e in res.evaluations))
