@@ -67,6 +67,17 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="sweep folder (default: <output.dir>/sweep-<swept keys>); a rerun "
                    "resumes it")
 
+    p = sub.add_parser("fit", help="estimate scene keys from measured sensor signals (--vary KEY=LOW:HIGH)")
+    _scene_args(p)
+    p.add_argument("--data", metavar="CSV", required=True, help="measured signals: a column t [s] and one per sensor")
+    p.add_argument("--vary", action="append", default=[], metavar="KEY=LOW:HIGH",
+                   help="a scene key to estimate and its range (repeatable)")
+    p.add_argument("--misfit", choices=("time", "spectrum"), default="time",
+                   help="compare the samples (default) or their amplitude spectra")
+    p.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: <output.dir>/fit-<varied keys>)")
+
     p = sub.add_parser("export", help="re-export a saved result")
     p.add_argument("result")
     p.add_argument("--vtu", metavar="DIR", required=True)
@@ -181,6 +192,54 @@ def cmd_sweep(args) -> int:
               + ", ".join(f"{k}={first[k]}" for k in keys) + f": {' '.join(first['error'].split())}); see {res.table}",
               file=sys.stderr)
         return EXIT_ERROR
+    return 0
+
+
+def cmd_fit(args) -> int:
+    """The estimates with their 95 % intervals; fit.json, evaluations.csv and the plots in the output folder."""
+    import signal
+
+    from .fit import FitInterrupted, fit
+
+    if args.workers is not None and args.scheduler:
+        raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
+
+    def progress(line: str) -> None:
+        print(printable(line), file=sys.stderr, flush=True)
+
+    def terminate(signum, frame):  # a scheduler's SIGTERM ends the fit like Ctrl-C: the runs so far kept
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    interrupted = False
+    try:
+        res = fit(args.scene, args.data, args.vary, misfit=args.misfit, workers=args.workers,
+                  scheduler=args.scheduler, overrides=args.overrides, out_dir=args.out, progress=progress)
+    except FitInterrupted as exc:
+        res, interrupted = exc.result, True
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    payload = res.to_json()
+    width = max(len(k) for k in res.keys)
+    lines = [f"  {'key':{width}s}  {'estimate':>12s}  {'95 % interval':>27s}  note"]
+    for key, p in payload["parameters"].items():
+        lo, hi = p["interval"]
+        interval = f"[{lo:.6g}, {hi:.6g}]" if lo is not None and hi is not None else "-"
+        notes = (["at bound"] if p["at_bound"] else []) + ([] if p["identified"] else ["not identified"])
+        lines.append(f"  {key:{width}s}  {p['estimate']:12.6g}  {interval:>27s}  {', '.join(notes)}")
+    ident = payload["identifiability"]
+    for d in (ident or {}).get("directions", []):
+        why = ("the data do not see it" if d["reason"] == "rank" else "its interval exceeds the ranges")
+        lines.append(f"  not identifiable: a combination of {', '.join(d['keys'])} ({why})")
+    misfit = payload["misfit"]
+    lines.append(f"misfit {100 * misfit:.4g} % (relative RMS, {res.kind}), {payload['runs']} runs in "
+                 f"{payload['wall_s']:.3g} s on {res.info.get('workers', 0)} workers" if misfit is not None
+                 else f"no successful run; {payload['runs']} runs")
+    lines.append("wrote " + ", ".join(res.outputs))
+    _emit(args, payload, "\n".join(lines))
+    if interrupted:
+        print(f"nsfem: interrupted: the runs so far are in {res.out_dir}", file=sys.stderr)
+        return 130
     return 0
 
 
@@ -482,7 +541,7 @@ def cmd_export(args) -> int:
 
 
 COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run,
-            "sweep": cmd_sweep, "export": cmd_export, "render": cmd_render}
+            "sweep": cmd_sweep, "fit": cmd_fit, "export": cmd_export, "render": cmd_render}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,0 +1,164 @@
+"""Measured sensor signals (``nsfem fit --data``) and their misfit against simulated ones.
+
+A measurement is a CSV like the ``sensors.csv`` that ``nsfem run`` writes: a column ``t`` [s] on the
+scene's clock (0 is the scene's ``[initial]`` state) and one column [m] per sensor, named as a
+``[[sensor]]`` of the scene. Its columns choose the sensors that are fitted: a sensor of the scene
+without a column is not fitted (a probe that was not recorded), a column that names no sensor is
+an error.
+
+Residuals are relative: each sensor's difference is divided by the measured signal's RMS (or, for
+``spectrum``, by the RMS of its amplitude spectrum), so sensors weigh alike whatever their
+amplitude, and the RMS of all residuals is the relative RMS misfit.
+
+>>> m = Measurement(np.array([0.0, 0.1, 0.2]), ("a",), np.array([[1.0], [-1.0], [1.0]]))
+>>> round(relative_rms(residuals(m.values + 0.1, m, "time")), 12)
+0.1
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import NsfemError
+
+MISFITS = ("time", "spectrum")
+#: steps of t that differ by less than this fraction of their median count as uniform (``spectrum``)
+UNIFORM = 1e-6
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """Sampled signals: times ``t`` (k,), sensor ``names`` and ``values`` (k, len(names))."""
+
+    t: np.ndarray
+    names: tuple[str, ...]
+    values: np.ndarray
+
+
+def read_measurement(path: str | Path) -> Measurement:
+    """The measurement in CSV file ``path`` (checked by :func:`check_measurement`)."""
+    path = Path(path)
+    what = f"--data {path}"
+    if not path.is_file():
+        raise NsfemError(f"{what}: no such file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise NsfemError(f"{what}: cannot read it as UTF-8 text ({exc})") from None
+    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
+    if not rows:
+        raise NsfemError(f"{what}: the file is empty")
+    head = [c.strip() for c in rows[0]]
+    if "t" not in head:
+        raise NsfemError(f"{what}: no column 't' (the header is {','.join(head)!r}; the first column names the "
+                         "time, the others sensors)")
+    data = np.empty((len(rows) - 1, len(head)))
+    for i, row in enumerate(rows[1:]):
+        if len(row) != len(head):
+            raise NsfemError(f"{what}: line {i + 2} has {len(row)} fields, the header {len(head)}")
+        for j, cell in enumerate(row):
+            try:
+                data[i, j] = float(cell)
+            except ValueError:
+                raise NsfemError(f"{what}: line {i + 2}, column {head[j]!r}: {cell.strip()!r} is not a number") \
+                    from None
+    k = head.index("t")
+    names = tuple(h for j, h in enumerate(head) if j != k)
+    return check_measurement(data[:, k], dict(zip(names, data[:, [j for j in range(len(head)) if j != k]].T)),
+                             what)
+
+
+def check_measurement(t, signals: dict, what: str = "data") -> Measurement:
+    """A :class:`Measurement` from times and {sensor name: samples}: at least two samples, t finite,
+    non-negative and increasing, every value finite, no duplicate or empty name, no signal that
+    is zero throughout (it could not be scaled)."""
+    t = np.asarray(t, dtype=float).ravel()
+    if not signals:
+        raise NsfemError(f"{what}: no sensor columns besides 't'")
+    names = tuple(signals)
+    if len(set(names)) != len(names) or any(not n for n in names) or "t" in names:
+        raise NsfemError(f"{what}: sensor columns must have distinct non-empty names other than 't', got "
+                         f"{', '.join(map(repr, names))}")
+    if t.size < 2:
+        raise NsfemError(f"{what}: needs at least two samples, got {t.size}")
+    if not np.all(np.isfinite(t)):
+        raise NsfemError(f"{what}: column 't' holds NaN or inf at sample {int(np.argmin(np.isfinite(t)))}")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        i = int(np.argmax(steps <= 0))
+        raise NsfemError(f"{what}: t must increase, but t = {t[i]:g} s is followed by {t[i + 1]:g} s (sample {i + 1})")
+    if t[0] < 0:
+        raise NsfemError(f"{what}: t starts at {t[0]:g} s; the scene's clock starts at 0 (its [initial] state)")
+    values = np.empty((t.size, len(names)))
+    for j, name in enumerate(names):
+        v = np.asarray(signals[name], dtype=float).ravel()
+        if v.size != t.size:
+            raise NsfemError(f"{what}: column {name!r} has {v.size} samples, 't' {t.size}")
+        if not np.all(np.isfinite(v)):
+            raise NsfemError(f"{what}: column {name!r} holds NaN or inf at sample {int(np.argmin(np.isfinite(v)))}")
+        if not np.any(v):
+            raise NsfemError(f"{what}: column {name!r} is zero throughout; a relative misfit needs a signal")
+        values[:, j] = v
+    return Measurement(t, names, values)
+
+
+def match_sensors(m: Measurement, sensors, what: str = "data") -> list[int]:
+    """Indices into the scene's ``sensors`` of the measurement's columns, in column order; a column
+    that names no sensor is an error (the scene's other sensors are not fitted)."""
+    index = {s.name: i for i, s in enumerate(sensors)}
+    if not index:
+        raise NsfemError(f"{what}: the scene has no [[sensor]]; add one per measured column")
+    unknown = [n for n in m.names if n not in index]
+    if unknown:
+        raise NsfemError(f"{what}: column {unknown[0]!r} is no sensor of the scene (its sensors: "
+                         f"{', '.join(index)})")
+    return [index[n] for n in m.names]
+
+
+def is_uniform(t: np.ndarray) -> bool:
+    """Whether ``t`` is sampled at one step (to :data:`UNIFORM`)."""
+    steps = np.diff(t)
+    return bool(np.ptp(steps) <= UNIFORM * np.median(steps))
+
+
+def spectra(values: np.ndarray) -> np.ndarray:
+    """Amplitude spectra (columns) of uniformly sampled signals: |FFT| of the Hann-windowed samples,
+    mean included (a static deflection is information too); a time shift leaves them nearly alone."""
+    window = np.hanning(values.shape[0])[:, None]
+    return np.abs(np.fft.rfft(values * window, axis=0)) * (2.0 / window.sum())
+
+
+def transform(values: np.ndarray, kind: str) -> np.ndarray:
+    """What the misfit compares: the samples (``time``) or their amplitude spectra (``spectrum``)."""
+    if kind not in MISFITS:
+        raise NsfemError(f"--misfit must be {' or '.join(MISFITS)}, got {kind!r}")
+    return values if kind == "time" else spectra(values)
+
+
+def scales(m: Measurement, kind: str) -> np.ndarray:
+    """Per sensor, the RMS of the measured signal (or of its spectrum) that divides its residuals."""
+    return np.sqrt(np.mean(transform(m.values, kind) ** 2, axis=0))
+
+
+def residuals(simulated: np.ndarray, m: Measurement, kind: str, scale: np.ndarray | None = None) -> np.ndarray:
+    """(simulated - measured) / scale per sensor, in the domain of ``kind``, flattened
+    (sample-major); ``simulated`` is sampled at ``m.t`` like ``m.values``."""
+    scale = scales(m, kind) if scale is None else scale
+    return ((transform(simulated, kind) - transform(m.values, kind)) / scale).ravel()
+
+
+def relative_rms(r: np.ndarray) -> float:
+    """The RMS of relative residuals: the misfit (0.01 is 1 % of the measured RMS)."""
+    return float(math.sqrt(np.mean(np.square(r)))) if r.size else math.nan
+
+
+def sample(t_run: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """A run's signals (len(t_run), s) at the measurement's times ``t`` (linear interpolation;
+    exact where the run's output times hold them)."""
+    return np.column_stack([np.interp(t, t_run, values[:, j]) for j in range(values.shape[1])])

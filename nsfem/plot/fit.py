@@ -1,0 +1,56 @@
+"""Plots of a fit: measured against fitted signals, and the misfit landscape of the global stage."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .common import figure, save
+
+
+def fit_plot(path: str | Path, t: np.ndarray, measured: np.ndarray, fitted: np.ndarray, names: Sequence[str],
+             misfit: float = float("nan")) -> Path:
+    """One panel per sensor: the measured signal (dots) and the fitted one (line), in um."""
+    n = len(names)
+    fig, axes = figure(nrows=n, sharex=True, figsize=(7.5, 2.2 * n + 0.6), squeeze=False)
+    for k, (ax, name) in enumerate(zip(axes[:, 0], names)):
+        ax.plot(t, 1e6 * measured[:, k], ".", ms=2.5, color="0.4", label="measured")
+        ax.plot(t, 1e6 * fitted[:, k], lw=1.0, color="tab:red", label="fitted")
+        ax.set_ylabel(f"{name} [um]")
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.suptitle(f"measured and fitted signals (relative RMS misfit {100 * misfit:.3g} %)", fontsize=10)
+    fig.tight_layout()
+    return save(fig, path)
+
+
+def landscape_plot(path: str | Path, keys: Sequence[str], samples: np.ndarray, misfit: np.ndarray,
+                   estimate: np.ndarray) -> Path:
+    """The global stage's misfit: against each key (one panel each), or over the plane of two keys
+    (colour: log10 of the misfit); the estimate marked. Failed runs are left out."""
+    ok = np.isfinite(misfit)
+    x, f = samples[ok], misfit[ok]
+    if len(keys) == 2:
+        fig, ax = figure(figsize=(6.0, 5.0))
+        sc = ax.scatter(x[:, 0], x[:, 1], c=np.log10(np.maximum(f, 1e-16)), cmap="viridis", s=30)
+        fig.colorbar(sc, ax=ax, label="log10 relative misfit")
+        ax.plot(estimate[0], estimate[1], "r*", ms=12, label="estimate")
+        ax.set_xlabel(keys[0])
+        ax.set_ylabel(keys[1])
+        ax.legend(fontsize=7)
+    else:
+        fig, axes = figure(ncols=len(keys), figsize=(4.2 * len(keys), 3.8), squeeze=False)
+        for k, (ax, key) in enumerate(zip(axes[0], keys)):
+            ax.semilogy(x[:, k], np.maximum(f, 1e-16), "o", ms=4)
+            ax.axvline(estimate[k], color="tab:red", ls=":", label="estimate")
+            ax.set_xlabel(key)
+            ax.set_ylabel("relative misfit")
+            ax.grid(True, which="both", alpha=0.3)
+        axes[0, 0].legend(fontsize=7)
+    fig.suptitle(f"global stage: {int(ok.sum())} runs" + (f" ({int((~ok).sum())} failed)" if (~ok).any() else ""),
+                 fontsize=10)
+    fig.tight_layout()
+    return save(fig, path)

@@ -1,0 +1,198 @@
+"""Parameter estimation (``nsfem fit``): the truth back from its own data, honest intervals, the
+parameters the data cannot see reported, bad inputs refused before any run.
+
+The scene: the shipped delaminated shaft, 20 elements, 6 Craig-Bampton modes, a 0.1 s record from
+rest of two probes outside the delamination (x = 0.05 m, +z; x = 0.95 m, +y); a run takes about
+0.05 s. The fitted key is the delamination's start (truth 0.23 m in 0.1..0.4 m).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from nsfem import cli
+from nsfem.errors import NsfemError
+from nsfem.fit import fit
+from nsfem.scene import load_scene
+from nsfem.simulate import run_scene, sensor_signals
+
+FIXED = ["mesh.elements=20", "reduction.modes=6", 'sensor.0.name="a"', "sensor.0.x=0.05", 'sensor.0.direction="+z"',
+         'sensor.1.name="b"', "sensor.1.x=0.95", 'sensor.1.direction="+y"']
+KEY, TRUTH, RANGE = "delamination.0.start", 0.23, (0.1, 0.4)
+
+
+def measure(extra=(), t_end=0.1, noise=0.0, seed=0):
+    """(t, {name: signal}) of the scene at the truth, with white noise of ``noise`` x each signal's RMS."""
+    scene = load_scene(None, [*FIXED, f"{KEY}={TRUTH}", f"simulation.t_end={t_end}", *extra])
+    result, system = run_scene(scene)
+    v = sensor_signals(result, system)
+    v = v + noise * np.sqrt(np.mean(v**2, axis=0)) * np.random.default_rng(seed).standard_normal(v.shape)
+    return result.t, {"a": v[:, 0], "b": v[:, 1]}
+
+
+def write_csv(path, t, signals):
+    names = list(signals)
+    rows = [",".join(repr(float(x)) for x in (ti, *(signals[n][k] for n in names))) for k, ti in enumerate(t)]
+    path.write_text("\n".join([",".join(["t", *names]), *rows]) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def inprocess():
+    """A one-thread in-process cluster (no process start-up)."""
+    distributed = pytest.importorskip("distributed")
+    c = distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0")
+    yield c
+    c.close()
+
+
+@pytest.fixture(scope="module")
+def clean():
+    return measure()
+
+
+def test_noise_free_data_give_back_the_truth(inprocess, clean, tmp_path):
+    # from the global stage (16 Sobol samples over the range) and from two starts on either side of
+    # the truth: the misfit of contact dynamics is rugged (events come and go), its basin about the
+    # truth about +-0.01 m wide; the global stage's job is to land in it
+    lines = []
+    res = fit(None, clean, {KEY: RANGE}, overrides=FIXED, client=inprocess, out_dir=tmp_path / "g",
+              progress=lines.append)
+    width = RANGE[1] - RANGE[0]
+    assert abs(res.estimate[0] - TRUTH) < 1e-5 * width and res.misfit < 1e-3
+    assert res.info["global_samples"] == 16 and any(line.startswith("[global") for line in lines)
+    for start in (0.222, 0.236):
+        other = fit(None, clean, {KEY: RANGE}, overrides=FIXED, client=inprocess, out_dir=tmp_path / str(start),
+                    n_global=0, start={KEY: start}, plot=False)
+        assert abs(other.estimate[0] - TRUTH) < 1e-5 * width
+    payload = json.loads((tmp_path / "g" / "fit.json").read_text())
+    p = payload["parameters"][KEY]
+    assert p["at_bound"] is False and p["identified"] is True and p["interval"][0] <= p["estimate"] <= p["interval"][1]
+    assert payload["runs"] == len(res.evaluations) and payload["misfit"] == pytest.approx(res.misfit)
+    assert len(payload["global_stage"]["samples"]) == 16 and payload["identifiability"]["rank"] == 1
+    for name in ("fit.json", "evaluations.csv", "fit.png", "landscape.png"):
+        assert (tmp_path / "g" / name).is_file() and str(tmp_path / "g" / name) in res.outputs
+    rows = (tmp_path / "g" / "evaluations.csv").read_text().splitlines()
+    assert rows[0] == f"run,stage,{KEY},misfit,error" and len(rows) == 1 + len(res.evaluations)
+
+
+def test_bad_inputs_are_one_line_errors_before_any_run(clean, tmp_path, monkeypatch):
+    import nsfem.sweep
+
+    def no_cluster(*args, **kwargs):
+        raise AssertionError("a cluster was started")
+
+    monkeypatch.setattr(nsfem.sweep, "_client", no_cluster)
+    t, sig = clean
+    good = write_csv(tmp_path / "good.csv", t, sig)
+    cases = {
+        "no t": (write_csv(tmp_path / "x.csv", t, {"a": sig["a"]}).read_text().replace("t,a", "time,a"),
+                 {KEY: RANGE}, "no column 't'"),
+        "unknown column": (write_csv(tmp_path / "x.csv", t, {"a": sig["a"], "c": sig["b"]}).read_text(), {KEY: RANGE},
+                           "column 'c' is no sensor of the scene"),
+        "NaN": (good.read_text().replace(repr(float(sig["b"][5])), "nan", 1), {KEY: RANGE},
+                "column 'b' holds NaN or inf at sample 5"),
+        "t not increasing": ("t,a\n0,1\n0.2,2\n0.1,3\n", {KEY: RANGE}, "t must increase"),
+        "unknown key": (None, {"delamination.0.begin": RANGE}, "delamination.0.begin: unknown key"),
+        "no such delamination": (None, {"delamination.3.start": RANGE}, "index 3 is past the end"),
+        "LOW >= HIGH": (None, {KEY: (0.4, 0.1)}, "LOW must be below HIGH"),
+        "invalid at an end": (None, {KEY: (0.1, 0.95)}, f"at {KEY}=0.95: delamination.0.end: must exceed start"),
+    }
+    for name, (text, vary, message) in cases.items():
+        path = good
+        if text is not None:
+            path = tmp_path / f"{name}.csv"
+            path.write_text(text)
+        with pytest.raises(NsfemError, match=message) as info:
+            fit(None, path, vary, overrides=FIXED, out_dir=tmp_path / "out")
+        assert "\n" not in str(info.value), name
+    with pytest.raises(NsfemError, match="varied twice"):
+        fit(None, good, [f"{KEY}=0.1:0.4", f"{KEY}=0.1:0.3"], overrides=FIXED)
+    with pytest.raises(NsfemError, match="both varied and fixed"):
+        fit(None, good, {KEY: RANGE}, overrides=[*FIXED, f"{KEY}=0.2"])
+    # the command line: exit code 2 and one line on stderr
+    argv = ["fit", "--data", str(tmp_path / "no t.csv"), "--vary", f"{KEY}=0.1:0.4", "--out", str(tmp_path / "o")]
+    for o in FIXED:
+        argv += ["--set", o]
+    assert cli.main(argv) == cli.EXIT_ERROR
+
+
+def test_a_key_the_sensors_do_not_see_is_not_identified(inprocess, clean, tmp_path):
+    # simulation.rtol is the tolerance of rk; the exact integrator does not read it: its Jacobian
+    # column is zero, the rank 1 of 2, and its interval the whole range
+    res = fit(None, clean, {KEY: RANGE, "simulation.rtol": (1e-9, 1e-6)}, overrides=FIXED, client=inprocess,
+              out_dir=tmp_path, n_global=0, start={KEY: 0.232}, plot=False)
+    assert abs(res.estimate[0] - TRUTH) < 1e-5 * (RANGE[1] - RANGE[0])
+    assert res.identified.tolist() == [True, False]
+    payload = res.to_json()
+    ident = payload["identifiability"]
+    assert ident["rank"] == 1 and ident["not_identified"] == ["simulation.rtol"]
+    [direction] = ident["directions"]
+    assert direction["reason"] == "rank" and direction["keys"] == ["simulation.rtol"]
+    assert payload["parameters"]["simulation.rtol"]["interval"] == [1e-9, 1e-6]
+    assert payload["correlation"]["matrix"][1][1] is None
+
+
+def _noisy_fit(client, tmp_path, t_end, seed):
+    data = measure(t_end=t_end, noise=0.01, seed=seed)
+    return fit(None, data, {KEY: RANGE}, overrides=FIXED, client=client, out_dir=tmp_path / f"{t_end}-{seed}",
+               n_global=0, start={KEY: 0.232}, plot=False)
+
+
+def test_noisy_data_cover_the_truth_and_longer_records_narrow_the_interval(inprocess, tmp_path):
+    # 1 % white noise. Seeds 0-2 here; seeds 0-9 gave 10 of 10 covered for both records (t_end
+    # 0.1 s: widths 4.1e-5 to 4.8e-5 m; 0.2 s: 1.4e-5 to 1.6e-5 m), so these seeds are not chosen
+    # to pass: 95 % coverage makes a miss among 3 seeds a 14 % event, among 10 a 40 % one
+    for seed in range(3):
+        short, long = (_noisy_fit(inprocess, tmp_path, t_end, seed) for t_end in (0.1, 0.2))
+        for res in (short, long):
+            lo, hi = res.interval[0]
+            assert lo <= TRUTH <= hi and res.identified[0]
+            assert 0.008 < res.misfit < 0.012           # the noise's 1 %: the model explains the rest
+            assert res.uncertainty.dof == 2 * res.data.t.size - 1
+        assert np.diff(long.interval[0])[0] < 0.6 * np.diff(short.interval[0])[0]
+
+
+@pytest.mark.slow
+def test_coverage_over_ten_seeds(inprocess, tmp_path):
+    covered = sum(bool(res.interval[0, 0] <= TRUTH <= res.interval[0, 1])
+                  for res in (_noisy_fit(inprocess, tmp_path, 0.1, seed) for seed in range(10)))
+    assert covered >= 8                                  # P(<= 7 of 10 | 95 %) = 1.2 %
+
+
+def test_cli_fit_json(tmp_path, capsys):
+    t, sig = measure(t_end=0.05)
+    path = write_csv(tmp_path / "m.csv", t, sig)
+    argv = ["fit", "--data", str(path), "--vary", f"{KEY}=0.2:0.26", "--workers", "1", "--out", str(tmp_path / "o"),
+            "--json"]
+    for o in FIXED:
+        argv += ["--set", o]
+    assert cli.main(argv) == 0
+    out, err = capsys.readouterr()
+    payload = json.loads(out)
+    assert set(payload) >= {"parameters", "misfit", "runs", "wall_s", "outputs"}
+    assert payload["parameters"][KEY]["estimate"] == pytest.approx(TRUTH, abs=1e-5)
+    assert "[global" in err and "local stage" in err
+
+
+def test_ctrl_c_keeps_the_runs_so_far(inprocess, clean, tmp_path):
+    from nsfem.fit import FitInterrupted
+
+    lines = []
+
+    def progress(line):
+        lines.append(line)
+        if len(lines) == 6:       # the header and five runs of the global stage
+            raise KeyboardInterrupt
+
+    with pytest.raises(FitInterrupted) as info:
+        fit(None, clean, {KEY: RANGE}, overrides=FIXED, client=inprocess, out_dir=tmp_path, progress=progress)
+    res = info.value.result
+    assert res.info["interrupted"] and len(res.evaluations) == 5 and res.uncertainty is None
+    rows = (tmp_path / "evaluations.csv").read_text().splitlines()
+    payload = json.loads((tmp_path / "fit.json").read_text())
+    assert len(rows) == 6 and payload["runs"] == 5 and payload["interrupted"] is True
+    assert payload["misfit"] == pytest.approx(min(e.misfit for e in res.evaluations))
