@@ -225,12 +225,18 @@ def cmd_fit(args) -> int:
     for key, p in payload["parameters"].items():
         lo, hi = p["interval"]
         interval = f"[{lo:.6g}, {hi:.6g}]" if lo is not None and hi is not None else "-"
-        notes = (["at bound"] if p["at_bound"] else []) + ([] if p["identified"] else ["not identified"])
+        notes = ((["at bound"] if p["at_bound"] else []) + ([] if p["identified"] else ["not identified"])
+                 + (["ambiguous: a second minimum"] if p["ambiguous"] else []))
         lines.append(f"  {key:{width}s}  {p['estimate']:12.6g}  {interval:>27s}  {', '.join(notes)}")
     ident = payload["identifiability"]
     for d in (ident or {}).get("directions", []):
         why = ("the data do not see it" if d["reason"] == "rank" else "its interval exceeds the ranges")
         lines.append(f"  not identifiable: a combination of {', '.join(d['keys'])} ({why})")
+    for alt in payload["alternatives"]:
+        if alt["indistinguishable"]:
+            lines.append(f"  not identifiable: {', '.join(f'{k}={v:.6g}' for k, v in alt['parameters'].items())} "
+                         f"explains the data as well (misfit {100 * alt['misfit']:.4g} %, F-test p = "
+                         f"{alt['p_value']:.3g}); the intervals of {', '.join(alt['differs'])} are not confident")
     misfit = payload["misfit"]
     lines.append(f"misfit {100 * misfit:.4g} % (relative RMS, {res.kind}), {payload['runs']} runs in "
                  f"{payload['wall_s']:.3g} s on {res.info.get('workers', 0)} workers" if misfit is not None

@@ -54,6 +54,21 @@ FAILED_RESIDUAL = 10.0
 AT_BOUND = 1e-3
 #: keys the fit sets itself
 FIT_KEYS = ("simulation.t_end", "simulation.output_dt")
+#: a global sample within this factor of the best sample's misfit, and at least SEPARATION (of a
+#: range, for some key) from the estimate, starts a second local stage: a second basin
+CANDIDATE_FACTOR = 2.0
+SEPARATION = 0.25
+#: a second minimum that lies within this fraction of every range from the estimate is the same one
+DISTINCT = 0.01
+#: relative RMS misfit below which residuals are resolution, not information: the optimizer stops
+#: within its tolerance of a minimum whose misfit is rugged (noise-free data from the same model:
+#: 3e-5 measured from rest, 1e-11 from a stationary state), and no measurement we know of is
+#: accurate to 0.1 % of its RMS. The F-test's floor; no residual warning below it
+RESOLUTION = 1e-3
+#: p-value at or above which two minima explain the data equally well (the F-test at 95 %)
+SAME_FIT = 0.05
+#: family-wise false-alarm rate of the residuals' whiteness test over the sensors
+WHITE_LEVEL = 0.01
 
 
 @dataclass(frozen=True)
@@ -214,6 +229,26 @@ def prepare(scene_path, data, vary, misfit: str = "time", overrides: Sequence[st
     return Problem(scene_path, params, m, tuple(columns), misfit, tuple(fixed), shared, base)
 
 
+@dataclass(frozen=True)
+class Alternative:
+    """A second minimum of the misfit, far from the estimate: its point ``u`` (unit box), ``estimate``
+    (physical values), ``misfit``, the F-test against the estimate (``F`` = RSS ratio with the
+    floor of :data:`RESOLUTION`, ``p_value``) and ``differs``: per parameter, whether its value lies
+    outside the estimate's interval and more than :data:`DISTINCT` of its range away."""
+
+    u: np.ndarray
+    estimate: np.ndarray
+    misfit: float
+    F: float
+    p_value: float
+    differs: np.ndarray
+
+    @property
+    def indistinguishable(self) -> bool:
+        """Whether the data cannot tell it from the estimate (F-test p-value >= :data:`SAME_FIT`)."""
+        return bool(self.p_value >= SAME_FIT)
+
+
 class FitInterrupted(KeyboardInterrupt):
     """Ctrl-C (or SIGTERM from the command line) during a fit: ``result`` holds the best run so far,
     its evaluations already written to the output folder."""
@@ -239,6 +274,8 @@ class FitResult:
     out_dir: Path
     outputs: tuple[str, ...] = ()
     info: dict = field(default_factory=dict)
+    alternatives: tuple[Alternative, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     @property
     def keys(self) -> list[str]:
@@ -260,11 +297,44 @@ class FitResult:
                          for p, x in zip(self.params, self.estimate)])
 
     @property
+    def ambiguous(self) -> np.ndarray:
+        """Per parameter, whether a second minimum the data cannot tell from the estimate puts it
+        elsewhere (its interval is then not a confident statement: the data allow both)."""
+        out = np.zeros(len(self.params), dtype=bool)
+        for alt in self.alternatives:
+            if alt.indistinguishable:
+                out |= alt.differs
+        return out
+
+    @property
     def identified(self) -> np.ndarray:
-        """Per parameter, whether its interval is narrower than its whole range."""
+        """Per parameter, whether its interval is narrower than its whole range and no equally good
+        second minimum puts it elsewhere."""
         if self.uncertainty is None:
             return np.zeros(len(self.params), dtype=bool)
-        return ~self.uncertainty.spans_range
+        return ~self.uncertainty.spans_range & ~self.ambiguous
+
+    @property
+    def identifiable(self) -> bool | None:
+        """Whether the data determine every key (None without statistics)."""
+        return None if self.uncertainty is None else bool(np.all(self.identified))
+
+    @property
+    def identifiable_reason(self) -> str | None:
+        """Why the data do not determine every key, naming them (None when they do)."""
+        if self.uncertainty is None:
+            return None
+        why = []
+        unseen = [p.key for p, s in zip(self.params, self.uncertainty.spans_range) if s]
+        if unseen:
+            why.append(f"the data do not determine {', '.join(unseen)} (interval spans the range)")
+        for alt in self.alternatives:
+            if alt.indistinguishable:
+                keys = [p.key for p, d in zip(self.params, alt.differs) if d]
+                why.append(f"a second minimum at {_values(self.params, alt.estimate)} (misfit {100 * alt.misfit:.3g} % "
+                           f"against {100 * self.misfit:.3g} %) explains the data as well (F-test p = "
+                           f"{alt.p_value:.3g}): the data cannot tell {', '.join(keys)} there from here")
+        return "; ".join(why) or None
 
     def to_json(self) -> dict:
         """design.md section 8's JSON, plus ``correlation``, ``identifiability``, ``global_stage`` and more."""
@@ -273,15 +343,23 @@ class FitResult:
         keys = self.keys
         unc = self.uncertainty
         params = {}
-        for k, (p, x, iv, b, ok) in enumerate(zip(self.params, self.estimate, self.interval, self.at_bound,
-                                                  self.identified)):
+        for p, x, iv, b, ok, amb in zip(self.params, self.estimate, self.interval, self.at_bound, self.identified,
+                                        self.ambiguous):
             params[p.key] = {"estimate": float(x), "interval": [_finite(iv[0]), _finite(iv[1])],
-                             "at_bound": bool(b), "identified": bool(ok), "range": [p.low, p.high]}
+                             "at_bound": bool(b), "identified": bool(ok), "ambiguous": bool(amb),
+                             "range": [p.low, p.high]}
         glob = [e for e in self.evaluations if e.stage == "global"]
         payload = {
             "parameters": params, "misfit": _finite(self.misfit), "misfit_kind": self.kind, "runs": len(self.evaluations),
             "wall_s": self.info.get("wall_s"), "outputs": list(self.outputs), "sensors": list(self.data.names),
             "samples": int(self.data.t.size), "out": str(self.out_dir),
+            "identifiable": self.identifiable, "identifiable_reason": self.identifiable_reason,
+            "alternatives": [{"parameters": {p.key: float(x) for p, x in zip(self.params, a.estimate)},
+                              "misfit": _finite(a.misfit), "F": _finite(a.F), "p_value": _finite(a.p_value),
+                              "indistinguishable": a.indistinguishable,
+                              "differs": [p.key for p, d in zip(self.params, a.differs) if d]}
+                             for a in self.alternatives],
+            "warnings": list(self.warnings),
             "correlation": None, "identifiability": None,
             "global_stage": {"keys": keys, "samples": [[p.value(x) for p, x in zip(self.params, e.u)] for e in glob],
                              "misfit": [_finite(e.misfit) for e in glob]},
@@ -376,6 +454,10 @@ def _point(params, u) -> str:
     return ", ".join(f"{p.key}={p.value(x):.6g}" for p, x in zip(params, u))
 
 
+def _values(params, x) -> str:
+    return ", ".join(f"{p.key}={v:.6g}" for p, v in zip(params, x))
+
+
 def _steps(u: np.ndarray) -> np.ndarray:
     """Per parameter, the forward step (backward at the upper end of the box)."""
     return np.where(u + STEP <= 1.0, STEP, -STEP)
@@ -395,9 +477,10 @@ def _residual_vector(ev: Evaluation, n: int) -> np.ndarray:
     return ev.residuals if ev.residuals is not None else np.full(n, FAILED_RESIDUAL)
 
 
-def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int) -> tuple[np.ndarray, np.ndarray,
-                                                                                         np.ndarray, object]:
-    """least_squares from ``u0`` in the unit box; (u, residuals, Jacobian at u, scipy's result)."""
+def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int,
+                stage: str = "local") -> tuple[np.ndarray, np.ndarray, np.ndarray, object]:
+    """least_squares from ``u0`` in the unit box; (u, residuals, Jacobian at u, scipy's result); its
+    runs are labelled ``stage``."""
     from scipy.optimize import least_squares
 
     n = runner.problem.data.values.size
@@ -405,21 +488,71 @@ def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int)
 
     def fun(u):
         batch = [u, *_perturbed(u)] if speculate else [u]
-        ev = runner.run(batch, "local")[0]
-        runner.say(f"[local {len(runner.evaluations)} runs] {_point(params, u)}: "
+        ev = runner.run(batch, stage)[0]
+        runner.say(f"[{stage} {len(runner.evaluations)} runs] {_point(params, u)}: "
                    + (f"failed: {ev.error}" if ev.error else f"misfit {100 * ev.misfit:.4g} %"))
         return _residual_vector(ev, n)
 
     def jac(u):
-        r0 = _residual_vector(runner.run([u], "local")[0], n)
-        evs = runner.run(_perturbed(u), "local")
+        r0 = _residual_vector(runner.run([u], stage)[0], n)
+        evs = runner.run(_perturbed(u), stage)
         h = _steps(u)
         return np.column_stack([(_residual_vector(e, n) - r0) / hi for e, hi in zip(evs, h)])
 
     sol = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0, xtol=1e-10, ftol=1e-10,
                         gtol=1e-10, max_nfev=max_nfev)
     u = np.clip(sol.x, 0.0, 1.0)
-    return u, _residual_vector(runner.run([u], "local")[0], n), jac(u), sol
+    return u, _residual_vector(runner.run([u], stage)[0], n), jac(u), sol
+
+
+def second_start(evaluations: Sequence[Evaluation], u: np.ndarray) -> Evaluation | None:
+    """The global sample that starts a second local stage: the best of those within
+    :data:`CANDIDATE_FACTOR` of the best sample's misfit that lie at least :data:`SEPARATION` of a
+    range (for some key) from the estimate ``u``; None when there is none (one basin)."""
+    ok = [e for e in evaluations if e.stage == "global" and math.isfinite(e.misfit)]
+    if not ok:
+        return None
+    best = min(e.misfit for e in ok)
+    far = [e for e in ok if e.misfit <= CANDIDATE_FACTOR * best and np.max(np.abs(e.u - u)) >= SEPARATION]
+    return min(far, key=lambda e: e.misfit) if far else None
+
+
+def alternative(params: Sequence[Parameter], u: np.ndarray, r: np.ndarray, unc, u2: np.ndarray,
+                r2: np.ndarray) -> Alternative | None:
+    """The minimum ``u2`` (residuals ``r2``) as an alternative to the estimate ``u`` (``r``, statistics
+    ``unc``), None when it is the same minimum (every key within :data:`DISTINCT` of its range or
+    inside the estimate's interval)."""
+    from .analysis.uncertainty import same_fit
+
+    iv = unc.interval
+    differs = (np.abs(u2 - u) > DISTINCT) & ((u2 < iv[:, 0]) | (u2 > iv[:, 1]))
+    if not np.any(differs):
+        return None
+    F, pv = same_fit(float(r @ r), float(r2 @ r2), r.size, len(params), RESOLUTION)
+    return Alternative(np.array(u2, float), np.array([q.value(x) for q, x in zip(params, u2)]), relative_rms(r2),
+                       F, pv, differs)
+
+
+def residual_check(r: np.ndarray, names: Sequence[str], kind: str, misfit: float) -> tuple[dict | None, str | None]:
+    """({sensor: lag-1 autocorrelation, bound}, a warning or None) of the residuals at the estimate
+    (:func:`nsfem.analysis.uncertainty.whiteness`, time misfit only: a spectrum's bins are correlated
+    by its window). It warns when some sensor's residuals are structured and the misfit is above
+    :data:`RESOLUTION`: a fit to round-off (noise-free data from the same model) leaves structured
+    but negligible residuals and is not warned about."""
+    from .analysis.uncertainty import whiteness
+
+    if kind != "time" or r is None:
+        return None, None
+    w = whiteness(r, len(names), WHITE_LEVEL)
+    stats = {"lag1_autocorrelation": {n: float(x) for n, x in zip(names, w.rho)}, "bound": w.bound,
+             "structured": [n for n, s in zip(names, w.structured) if s]}
+    if not (np.any(w.structured) and misfit > RESOLUTION):
+        return stats, None
+    rhos = ", ".join(f"{n} {x:.3g}" for n, x, s in zip(names, w.rho, w.structured) if s)
+    return stats, (f"the residuals are structured, not noise-like (lag-1 autocorrelation {rhos} above "
+                   f"{w.bound:.3g}, the bound for white noise; misfit {100 * misfit:.3g} %): the estimate may be a "
+                   "local minimum or the model cannot explain the data (try more global samples, other starts or "
+                   "ranges, or check the scene)")
 
 
 def default_folder(problem: Problem) -> Path:
@@ -490,6 +623,23 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
         info["local"] = {"nfev": int(sol.nfev), "njev": int(sol.njev or 0), "status": int(sol.status),
                          "message": str(sol.message)}
         unc = linearized(J, r, u)
+        alternatives = []
+        cand = second_start(runner.evaluations, u)
+        if cand is not None:
+            say(f"second local stage from {_point(params, cand.u)} (misfit {100 * cand.misfit:.4g} %, far from "
+                "the estimate: another basin?)")
+            u2, r2, J2, sol2 = local_stage(runner, np.array(cand.u, float), info["workers"] > 1, max_nfev, "second")
+            info["second_local"] = {"start": {q.key: q.value(x) for q, x in zip(params, cand.u)},
+                                    "nfev": int(sol2.nfev), "njev": int(sol2.njev or 0), "status": int(sol2.status),
+                                    "message": str(sol2.message)}
+            if relative_rms(r2) < relative_rms(r):      # the better minimum is the estimate
+                u, r, J, u2, r2 = u2, r2, J2, u, r
+                unc = linearized(J, r, u)
+            alt = alternative(params, u, r, unc, u2, r2)
+            if alt is not None:
+                alternatives.append(alt)
+                say(f"second minimum at {_point(params, u2)}: misfit {100 * alt.misfit:.4g} %, F-test p = "
+                    f"{alt.p_value:.3g}" + (" (as good as the estimate)" if alt.indistinguishable else ""))
         ev = runner.run([u], "local")[0]
     except KeyboardInterrupt:
         held = _hold_signals()  # a second Ctrl-C must not cut the writing short
@@ -507,9 +657,14 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     finally:
         _close(closing)
     est = np.array([q.value(x) for q, x in zip(params, u)])
+    stats, warning = residual_check(ev.residuals, problem.data.names, misfit, ev.misfit)
+    if stats is not None:
+        info["residuals"] = stats
+    if warning:
+        say(f"warning: {warning}")
     info["wall_s"] = time.perf_counter() - t0
     res = FitResult(params, est, ev.misfit, misfit, problem.data, ev.signals, tuple(runner.evaluations), unc, out,
-                    info=info)
+                    info=info, alternatives=tuple(alternatives), warnings=(warning,) if warning else ())
     return _write(res, plot=plot)
 
 

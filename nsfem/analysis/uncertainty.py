@@ -21,6 +21,7 @@ t s / S_k exceeds the box (1 in unit scale), so the data leave it anywhere in th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,3 +104,59 @@ def linearized(J: np.ndarray, r: np.ndarray, u: np.ndarray, level: float = 0.95)
     weak += [WeakDirection(V[:, k], "range", float(rel[k])) for k in range(rank)
              if not tq * np.sqrt(s2) / S[k] <= 1.0]
     return Uncertainty(interval, sigma, corr, rel, rank, s2, dof, tq, tuple(weak))
+
+
+def same_fit(rss: float, rss_other: float, n: int, p: int, floor: float = 0.0) -> tuple[float, float]:
+    """(F, p-value) of the F-test whether the minimum with residual sum of squares ``rss_other``
+    fits the same ``n`` data worse than the one with ``rss`` (each fitted with ``p`` parameters):
+    F = (RSS_other + n floor^2) / (RSS + n floor^2) with (n - p, n - p) degrees of freedom, the
+    p-value P(F_{n-p, n-p} >= F). ``floor`` is the RMS residual below which a misfit is resolution
+    (run reproducibility, optimizer tolerance), not information: noise-free data fitted twice to
+    round-off give F near 1 instead of a ratio of two round-offs. A p-value of 0.05 or more: the data
+    cannot tell the two minima apart.
+
+    >>> [round(x, 3) for x in same_fit(1.0, 1.0, 101, 1)]
+    [1.0, 0.5]
+    """
+    from scipy.stats import f as fisher
+
+    dof = n - p
+    if dof <= 0:
+        return math.nan, math.nan
+    F = (rss_other + n * floor**2) / (rss + n * floor**2) if rss + n * floor**2 > 0 else math.inf
+    return float(F), float(fisher.sf(F, dof, dof))
+
+
+@dataclass(frozen=True)
+class Whiteness:
+    """Lag-1 autocorrelation of the residuals per sensor (``rho``), its one-sided bound ``z / sqrt(k)``
+    for ``k`` white samples (``bound``) and the sensors above it (``structured``)."""
+
+    rho: np.ndarray
+    bound: float
+    structured: np.ndarray
+
+
+def whiteness(r: np.ndarray, sensors: int, level: float = 0.01) -> Whiteness:
+    """Whether the residuals ``r`` (sample-major, ``sensors`` columns) look like white noise: per
+    sensor, the lag-1 autocorrelation rho = sum r_i r_(i+1) / sum r_i^2 against its large-sample
+    bound z / sqrt(k) (rho of k white samples is about normal with variance 1 / k), z the one-sided
+    normal quantile at ``level`` / sensors (Bonferroni: white residuals exceed it in some sensor
+    with probability ``level``). A model that misses a smooth part of the signals (a wrong minimum,
+    a wrong model) leaves smooth residuals, rho near 1.
+
+    >>> w = whiteness(np.random.default_rng(0).standard_normal(2000), 2)
+    >>> w.structured.tolist(), round(w.bound, 3)
+    ([False, False], 0.081)
+    >>> whiteness(np.sin(np.linspace(0, 6, 2000)), 2).structured.tolist()
+    [True, True]
+    """
+    from scipy.stats import norm
+
+    R = np.asarray(r, float).reshape(-1, sensors)
+    k = R.shape[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.sum(R[1:] * R[:-1], axis=0) / np.sum(R**2, axis=0)
+    rho = np.where(np.isfinite(rho), rho, 0.0)
+    bound = float(norm.ppf(1.0 - level / sensors) / math.sqrt(max(k, 1)))
+    return Whiteness(rho, bound, rho > bound)
