@@ -9,7 +9,19 @@ and the statistics. Two stages minimize the relative residuals of :mod:`nsfem.me
   whose p perturbed runs are submitted together (with the base run, when the cluster has more
   than one worker: a rejected step then wastes p runs but no wall time).
 
-The uncertainty at the optimum is linearized (:mod:`nsfem.analysis.uncertainty`).
+The uncertainty at the optimum is linearized (:mod:`nsfem.analysis.uncertainty`). Two checks
+look past it:
+
+* a second basin: the best global sample within :data:`CANDIDATE_FACTOR` of the best sample's misfit
+  and at least :data:`SEPARATION` of a range from the estimate starts a second local stage (after
+  the first: its distance is from the estimate). A distinct second minimum is an
+  :class:`Alternative`, compared with the estimate (the better of the two) by an F-test on their
+  residual sums of squares; when the data cannot tell them apart at 95 % (a mirrored delamination
+  seen by mirrored sensors), the keys that differ are ambiguous and not identified, however narrow
+  their local intervals;
+* the residuals at the estimate: white when the model explains the data to their noise, smooth
+  when it does not (a wrong minimum, a wrong model). Structured residuals (lag-1 autocorrelation
+  above the white-noise bound in some sensor) with a misfit above :data:`RESOLUTION` are a warning.
 
 How the measurement is simulated: the scene (with its fixed overrides) says how it was made; the
 runs end at the data's last time (``simulation.t_end``) and write outputs at least as often as the

@@ -3,7 +3,8 @@ parameters the data cannot see reported, bad inputs refused before any run.
 
 The scene: the shipped delaminated shaft, 20 elements, 6 Craig-Bampton modes, a 0.1 s record from
 rest of two probes outside the delamination (x = 0.05 m, +z; x = 0.95 m, +y); a run takes about
-0.05 s. The fitted key is the delamination's start (truth 0.23 m in 0.1..0.4 m).
+0.05 s. The fitted key is the delamination's start (truth 0.23 m in 0.1..0.4 m). The mirrored
+delamination: the same shaft from its stationary state, probes at its middle (``SYMMETRIC``).
 """
 
 from __future__ import annotations
