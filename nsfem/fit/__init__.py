@@ -1,0 +1,188 @@
+"""Parameter estimation (``nsfem fit``): the scene keys that explain measured sensor signals.
+
+The varied keys live in a box (``--vary KEY=LOW:HIGH``), scaled to the unit box for the optimizer
+and the statistics. Two stages minimize the relative residuals of :mod:`nsfem.measurement`:
+
+* global: a scrambled Sobol design (scipy.stats.qmc, seeded) over the box, run on Dask like a
+  sweep, all runs at once; the best sample starts
+* local: scipy.optimize.least_squares (trust region, bounds) with a forward-difference Jacobian
+  whose p perturbed runs are submitted together (with the base run, when the cluster has more
+  than one worker: a rejected step then wastes p runs but no wall time).
+
+The uncertainty at the optimum is linearized (:mod:`nsfem.analysis.uncertainty`). Two checks
+look past it:
+
+* a second basin: the best global sample within :data:`CANDIDATE_FACTOR` of the best sample's misfit
+  and at least :data:`SEPARATION` of a range from the estimate starts a second local stage (after
+  the first: its distance is from the estimate). A distinct second minimum is an
+  :class:`Alternative`, compared with the estimate (the better of the two) by an F-test on their
+  residual sums of squares; when the data cannot tell them apart at 95 % (a mirrored delamination
+  seen by mirrored sensors), the keys that differ are ambiguous and not identified, however narrow
+  their local intervals;
+* the residuals at the estimate: white when the model explains the data to their noise, smooth
+  when it does not (a wrong minimum, a wrong model). Structured residuals (lag-1 autocorrelation
+  above the white-noise bound in some sensor) with a misfit above :data:`RESOLUTION` are a warning.
+
+How the measurement is simulated: the scene (with its fixed overrides) says how it was made; the
+runs end at the data's last time (``simulation.t_end``) and write outputs at least as often as the
+data were sampled (``simulation.output_dt`` = the smaller of the scene's and the data's smallest
+step), and their signals are interpolated linearly at the data's times (exactly the outputs when
+the data share the run's grid). Every input is checked before the first run: the data, its columns
+against the scene's sensors, every range (LOW < HIGH, a key varied once) and every key loaded at
+both ends and the middle of its range (the others at their middle).
+
+Runs whose varied keys all lie in tables that enter neither the model nor its reduction
+(:data:`nsfem.sweep.SHARED_TABLES`: speed, damping, initial state) share one model, built once
+here and sent once to every worker; other keys (delaminations, cracks, bearings) build the model
+on the worker, per run.
+
+>>> parse_vary(["delamination.0.start=0.1:0.3"])
+(Parameter(key='delamination.0.start', low=0.1, high=0.3),)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..atomic import check_folder
+from ..errors import NsfemError
+from ..measurement import relative_rms
+from .problem import FIT_KEYS, Evaluation, Parameter, Problem, overrides_at, parse_vary, prepare, run_signals
+from .result import AT_BOUND, SAME_FIT, Alternative, FitInterrupted, FitResult, _write, evaluations_csv
+from .stages import (CANDIDATE_FACTOR, DISTINCT, FAILED_RESIDUAL, RESOLUTION, SEPARATION, STEP, WHITE_LEVEL, _point,
+                     _Runner, alternative, local_stage, residual_check, second_start)
+
+__all__ = ["fit", "FitResult", "FitInterrupted", "Alternative", "Evaluation", "Parameter", "Problem", "parse_vary",
+           "prepare", "overrides_at", "run_signals", "evaluations_csv", "alternative", "local_stage", "residual_check",
+           "second_start", "FIT_KEYS", "AT_BOUND", "SAME_FIT", "CANDIDATE_FACTOR", "DISTINCT", "FAILED_RESIDUAL",
+           "RESOLUTION", "SEPARATION", "STEP", "WHITE_LEVEL"]
+
+
+def default_folder(problem: Problem) -> Path:
+    """``<output.dir>/fit-<varied keys>``."""
+    return problem.base.output.dir / ("fit-" + ",".join(p.key for p in problem.params))
+
+
+def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int | None = None,
+        scheduler: str | None = None, n_global: int | None = None, start: Mapping[str, float] | None = None,
+        overrides: Sequence[str] = (), out_dir=None, seed: int = 0, max_nfev: int = 40,
+        progress: Callable[[str], None] | None = None, plot: bool = True) -> FitResult:
+    """Estimate the keys of ``vary`` ({key: (low, high)} or ``KEY=LOW:HIGH`` texts) from ``data``
+    (a CSV path or (t, {sensor name: samples})); see the module's text.
+
+    ``n_global`` Sobol samples (rounded up to a power of 2; default 2^(3 + p), at most 256; 0 skips the
+    global stage); ``start`` {key: value} starts the local stage there instead of at the best sample
+    (default without a global stage: the middle of the box). ``client``, ``workers``, ``scheduler``: as
+    :func:`nsfem.sweep.run_sweep`. ``progress(line)`` receives a line per run of the global stage and
+    per step of the local one. Ctrl-C writes the runs so far and raises :class:`FitInterrupted`.
+    """
+    from ..analysis.uncertainty import linearized
+    from ..sweep import _client, _close, _hold_signals, _release_signals
+
+    if workers is not None and (scheduler or client is not None):
+        raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
+    if workers is not None and workers < 1:
+        raise NsfemError(f"--workers must be a positive integer, got {workers}")
+    t0 = time.perf_counter()
+    problem = prepare(scene_path, data, vary, misfit, overrides)
+    params, p = problem.params, len(problem.params)
+    if n_global is None:
+        n_global = min(256, 2 ** (3 + p))
+    if n_global < 0:
+        raise NsfemError(f"n_global must be 0 or more, got {n_global}")
+    u_start = None
+    if start is not None:
+        unknown = [k for k in start if k not in {q.key for q in params}]
+        if unknown:
+            raise NsfemError(f"start: {unknown[0]} is not varied")
+        u_start = np.array([(float(start.get(q.key, q.value(0.5))) - q.low) / (q.high - q.low) for q in params])
+        if np.any((u_start < 0) | (u_start > 1)) or not np.all(np.isfinite(u_start)):
+            raise NsfemError("start: every value must lie in its key's range")
+    out = (Path(out_dir) if out_dir is not None else default_folder(problem)).absolute()
+    check_folder(out, "--out")
+    say = progress or (lambda line: None)
+    cl, closing, runner = None, [], None
+    info: dict = {"workers": 0, "seed": seed, "global_samples": 0}
+    try:
+        cl, closing = _client(client, workers, scheduler, max(n_global, p + 1))
+        info["workers"] = len(cl.nthreads())
+        runner = _Runner(problem, cl, say)
+        best = None
+        if n_global:
+            from scipy.stats import qmc
+
+            m = max(0, math.ceil(math.log2(n_global)))
+            design = qmc.Sobol(d=p, scramble=True, seed=seed).random_base2(m)
+            info["global_samples"] = len(design)
+            say(f"global stage: {len(design)} runs over the box ({', '.join(f'{q.key} {q.low:g}..{q.high:g}' for q in params)})")
+            evs = runner.run(list(design), "global", report=True)
+            ok = [e for e in evs if math.isfinite(e.misfit)]
+            if not ok:
+                raise NsfemError(f"every run of the global stage failed (first: {evs[0].error})")
+            best = min(ok, key=lambda e: e.misfit)
+        u0 = u_start if u_start is not None else (best.u if best is not None else np.full(p, 0.5))
+        say(f"local stage from {_point(params, u0)}")
+        u, r, J, sol = local_stage(runner, np.array(u0, float), info["workers"] > 1, max_nfev)
+        info["local"] = {"nfev": int(sol.nfev), "njev": int(sol.njev or 0), "status": int(sol.status),
+                         "message": str(sol.message)}
+        unc = linearized(J, r, u)
+        alternatives = []
+        cand = second_start(runner.evaluations, u)
+        if cand is not None:
+            say(f"second local stage from {_point(params, cand.u)} (misfit {100 * cand.misfit:.4g} %, far from "
+                "the estimate: another basin?)")
+            u2, r2, J2, sol2 = local_stage(runner, np.array(cand.u, float), info["workers"] > 1, max_nfev, "second")
+            info["second_local"] = {"start": {q.key: q.value(x) for q, x in zip(params, cand.u)},
+                                    "nfev": int(sol2.nfev), "njev": int(sol2.njev or 0), "status": int(sol2.status),
+                                    "message": str(sol2.message)}
+            if relative_rms(r2) < relative_rms(r):      # the better minimum is the estimate
+                u, r, J, u2, r2 = u2, r2, J2, u, r
+                unc = linearized(J, r, u)
+            alt = alternative(params, u, r, unc, u2, r2)
+            if alt is not None:
+                alternatives.append(alt)
+                say(f"second minimum at {_point(params, u2)}: misfit {100 * alt.misfit:.4g} %, F-test p = "
+                    f"{alt.p_value:.3g}" + (" (as good as the estimate)" if alt.indistinguishable else ""))
+        ev = runner.run([u], "local")[0]
+    except KeyboardInterrupt:
+        held = _hold_signals()  # a second Ctrl-C must not cut the writing short
+        if runner is not None:
+            runner.cancel()
+        _close(closing)
+        closing = []
+        try:
+            info["interrupted"] = True
+            res = _partial(problem, runner, out, info, t0)
+            res = _write(res, plot=False)
+        finally:
+            _release_signals(held)
+        raise FitInterrupted(res) from None
+    finally:
+        _close(closing)
+    est = np.array([q.value(x) for q, x in zip(params, u)])
+    stats, warning = residual_check(ev.residuals, problem.data.names, misfit, ev.misfit)
+    if stats is not None:
+        info["residuals"] = stats
+    if warning:
+        say(f"warning: {warning}")
+    info["wall_s"] = time.perf_counter() - t0
+    res = FitResult(params, est, ev.misfit, misfit, problem.data, ev.signals, tuple(runner.evaluations), unc, out,
+                    info=info, alternatives=tuple(alternatives), warnings=(warning,) if warning else ())
+    return _write(res, plot=plot)
+
+
+def _partial(problem: Problem, runner: _Runner | None, out: Path, info: dict, t0: float) -> FitResult:
+    """The best run so far as a result without statistics."""
+    evs = tuple(runner.evaluations) if runner is not None else ()
+    ok = [e for e in evs if math.isfinite(e.misfit)]
+    best = min(ok, key=lambda e: e.misfit) if ok else None
+    u = best.u if best is not None else np.full(len(problem.params), np.nan)
+    est = np.array([q.low + x * (q.high - q.low) for q, x in zip(problem.params, u)])
+    info["wall_s"] = time.perf_counter() - t0
+    return FitResult(problem.params, est, best.misfit if best else math.nan, problem.kind, problem.data,
+                     best.signals if best else None, evs, None, out, info=info)

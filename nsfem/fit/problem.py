@@ -1,0 +1,176 @@
+"""The fit's problem: the varied keys and their ranges, the measurement and the runs' settings; one
+run of the scene at a point of the box (on a worker)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..errors import IntegrationError, NsfemError
+from ..measurement import (MISFITS, Measurement, check_measurement, is_uniform, match_sensors,
+                           read_measurement, sample)
+
+#: keys the fit sets itself
+FIT_KEYS = ("simulation.t_end", "simulation.output_dt")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A varied scene key and its range."""
+
+    key: str
+    low: float
+    high: float
+
+    def value(self, u: float) -> float:
+        """The key's value at ``u`` in [0, 1]."""
+        return self.low + float(np.clip(u, 0.0, 1.0)) * (self.high - self.low)
+
+
+def parse_vary(items: Sequence[str] | Mapping[str, tuple[float, float]]) -> tuple[Parameter, ...]:
+    """Parameters from ``KEY=LOW:HIGH`` texts or {key: (low, high)}: finite ends, LOW < HIGH, no key twice."""
+    pairs: list[tuple[str, str, str]] = []
+    if isinstance(items, Mapping):
+        for key, rng in items.items():
+            try:
+                lo, hi = rng
+            except (TypeError, ValueError):
+                raise NsfemError(f"--vary {key}: give (LOW, HIGH), got {rng!r}") from None
+            pairs.append((str(key), str(lo), str(hi)))
+    else:
+        for text in items:
+            key, sep, rng = text.partition("=")
+            lo, colon, hi = rng.partition(":")
+            if not sep or not colon or not key.strip():
+                raise NsfemError(f"--vary {text.strip()}: give KEY=LOW:HIGH")
+            pairs.append((key.strip(), lo, hi))
+    if not pairs:
+        raise NsfemError("nsfem fit: nothing to vary; give at least one --vary KEY=LOW:HIGH")
+    out: list[Parameter] = []
+    for key, lo, hi in pairs:
+        ends = []
+        for name, text in (("LOW", lo), ("HIGH", hi)):
+            try:
+                v = float(text)
+            except ValueError:
+                v = math.nan
+            if not math.isfinite(v):
+                raise NsfemError(f"--vary {key}: {name} must be a finite number, got {text.strip()!r}")
+            ends.append(v)
+        if ends[0] >= ends[1]:
+            raise NsfemError(f"--vary {key}: LOW must be below HIGH, got {lo.strip()}:{hi.strip()}")
+        if any(p.key == key for p in out):
+            raise NsfemError(f"--vary {key}: varied twice (give one range per key)")
+        if key in FIT_KEYS:
+            raise NsfemError(f"--vary {key}: the fit sets it from the data's times (it cannot be varied)")
+        out.append(Parameter(key, *ends))
+    return tuple(out)
+
+
+def _num(v: float) -> str:
+    return repr(float(v))
+
+
+def overrides_at(params: Sequence[Parameter], u) -> list[str]:
+    """The ``--set`` overrides of the point ``u`` of the unit box."""
+    return [f"{p.key}={_num(p.value(x))}" for p, x in zip(params, u)]
+
+
+# --------------------------------------------------------------------------- one run (on a worker)
+def run_signals(scene, shared, t: np.ndarray, columns: Sequence[int]) -> tuple[np.ndarray | None, str]:
+    """(signals (len(t), len(columns)), "") of one run at the measurement's times, or (None, error)."""
+    from ..simulate import run_scene, sensor_signals
+    from ..sweep import _message
+
+    model, red = shared if shared is not None else (None, None)
+    try:
+        result, system = run_scene(scene, progress=False, model=model, reduction=red)
+    except IntegrationError as exc:
+        return None, _message(exc)
+    except Exception as exc:  # noqa: BLE001 - a failed run scores FAILED_RESIDUAL, its error is kept
+        return None, _message(exc)
+    values = sensor_signals(result, system)[:, list(columns)]
+    return sample(result.t, values, t), ""
+
+
+# --------------------------------------------------------------------------- the problem (on the client)
+@dataclass(frozen=True)
+class Evaluation:
+    """One run of the fit: its point ``u`` (unit box), ``stage``, misfit, residuals and signals (None
+    when it failed, then ``error``)."""
+
+    u: np.ndarray
+    stage: str
+    misfit: float
+    residuals: np.ndarray | None = field(repr=False, default=None)
+    signals: np.ndarray | None = field(repr=False, default=None)
+    error: str = ""
+
+
+@dataclass(frozen=True)
+class Problem:
+    """Everything a run needs, validated: parameters, the measurement, which sensors, misfit kind,
+    fixed overrides (with the fit's time settings), the scene's path and whether runs share a model."""
+
+    scene_path: str | Path | None
+    params: tuple[Parameter, ...]
+    data: Measurement
+    columns: tuple[int, ...]
+    kind: str
+    fixed: tuple[str, ...]
+    shared: bool
+    base: object = field(repr=False, default=None)
+
+    def scene(self, u):
+        from ..scene import load_scene
+
+        return load_scene(self.scene_path, [*self.fixed, *overrides_at(self.params, u)])
+
+
+def prepare(scene_path, data, vary, misfit: str = "time", overrides: Sequence[str] = ()) -> Problem:
+    """Check every input (one-line errors, nothing run) and set up the problem."""
+    from ..scene import load_scene
+    from ..sweep import SHARED_TABLES
+
+    if misfit not in MISFITS:
+        raise NsfemError(f"--misfit must be {' or '.join(MISFITS)}, got {misfit!r}")
+    params = parse_vary(vary)
+    fixed = list(overrides)
+    for o in fixed:
+        key = o.partition("=")[0].strip()
+        if any(p.key == key for p in params):
+            raise NsfemError(f"{key}: both varied and fixed (drop its --set)")
+    if isinstance(data, Measurement):
+        m = check_measurement(data.t, dict(zip(data.names, data.values.T)))
+    elif isinstance(data, (str, Path)):
+        m = read_measurement(data)
+    else:
+        try:
+            t, signals = data
+        except (TypeError, ValueError):
+            raise NsfemError("data: give a CSV path or (t, {sensor name: samples})") from None
+        m = check_measurement(t, dict(signals))
+    base = load_scene(scene_path, fixed)
+    columns = match_sensors(m, base.sensors, f"--data {data}" if isinstance(data, (str, Path)) else "data")
+    if misfit == "spectrum" and not is_uniform(m.t):
+        raise NsfemError("--misfit spectrum: the data's t must be sampled at one step (an FFT needs it)")
+    dt = min(base.simulation.output_dt, float(np.min(np.diff(m.t))))
+    fixed += [f"simulation.t_end={_num(m.t[-1])}", f"simulation.output_dt={_num(dt)}"]
+    base = load_scene(scene_path, fixed)
+    mid = [0.5] * len(params)
+    for i, p in enumerate(params):
+        for u in (0.0, 0.5, 1.0):
+            point = mid.copy()
+            point[i] = u
+            try:
+                load_scene(scene_path, [*fixed, *overrides_at(params, point)])
+            except NsfemError as exc:
+                others = ", ".join(f"{q.key}={_num(q.value(0.5))}" for q in params if q is not p)
+                raise NsfemError(f"--vary {p.key}={_num(p.low)}:{_num(p.high)}: at {p.key}={_num(p.value(u))}"
+                                 + (f" (with {others})" if others else "") + f": {exc}") from None
+    shared = all(p.key.split(".")[0] in SHARED_TABLES for p in params)
+    return Problem(scene_path, params, m, tuple(columns), misfit, tuple(fixed), shared, base)

@@ -1,0 +1,201 @@
+"""The fit's stages: runs submitted to the cluster, least squares from a start, a second basin, the
+residuals' check."""
+
+from __future__ import annotations
+
+import math
+import uuid
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..errors import NsfemError
+from ..measurement import relative_rms, residuals, scales
+from .problem import Evaluation, Parameter, Problem, run_signals
+from .result import Alternative, _values
+
+#: finite-difference step of the Jacobian in the unit box (1e-4 of a range)
+STEP = 1e-4
+#: residual of every sample of a failed run: a relative misfit of 1000 %, worse than any fit
+FAILED_RESIDUAL = 10.0
+#: a global sample within this factor of the best sample's misfit, and at least SEPARATION (of a
+#: range, for some key) from the estimate, starts a second local stage: a second basin
+CANDIDATE_FACTOR = 2.0
+SEPARATION = 0.25
+#: a second minimum that lies within this fraction of every range from the estimate is the same one
+DISTINCT = 0.01
+#: relative RMS misfit below which residuals are resolution, not information: the optimizer stops
+#: within its tolerance of a minimum whose misfit is rugged (noise-free data from the same model:
+#: 3e-5 measured from rest, 1e-11 from a stationary state), and no measurement we know of is
+#: accurate to 0.1 % of its RMS. The F-test's floor; no residual warning below it
+RESOLUTION = 1e-3
+#: family-wise false-alarm rate of the residuals' whiteness test over the sensors
+WHITE_LEVEL = 0.01
+
+
+class _Runner:
+    """Submits runs to the cluster, caches them by point, keeps every evaluation in order of arrival."""
+
+    def __init__(self, problem: Problem, cl, say: Callable[[str], None]):
+        self.problem, self.cl, self.say = problem, cl, say
+        self.cache: dict[bytes, Evaluation] = {}
+        self.evaluations: list[Evaluation] = []
+        self.pending: list = []
+        self.scale = scales(problem.data, problem.kind)
+        self.shared = None
+        if problem.shared:
+            from ..fem.assemble import build_model
+            from ..reduce import scene_reduction
+
+            model = build_model(problem.base)
+            [self.shared] = cl.scatter([(model, scene_reduction(problem.base.reduction, model))], broadcast=True,
+                                       hash=False)
+
+    def run(self, us: Sequence[np.ndarray], stage: str, report: bool = False) -> list[Evaluation]:
+        """The evaluations at ``us`` (the new ones submitted together)."""
+        from distributed import as_completed
+
+        p = self.problem
+        futures = {}
+        for u in us:
+            k = np.asarray(u, float).tobytes()
+            if k in self.cache or any(k == kk for kk in futures.values()):
+                continue
+            try:
+                scene = p.scene(u)
+            except NsfemError as exc:  # a combination of values the scene refuses (start past end, say)
+                self._keep(k, Evaluation(np.array(u, float), stage, math.inf, error=str(exc)), report)
+                continue
+            fut = self.cl.submit(run_signals, scene, self.shared, p.data.t, p.columns,
+                                 key=f"nsfem-fit-{uuid.uuid4().hex}", pure=False)
+            futures[fut] = k
+        self.pending = list(futures)
+        for fut in as_completed(list(futures), loop=self.cl.loop):
+            k = futures[fut]
+            u = np.frombuffer(k)
+            try:
+                signals, error = fut.result()
+            except Exception as exc:  # noqa: BLE001 - a lost worker
+                signals, error = None, f"{type(exc).__name__}: {exc}"
+            if signals is None:
+                ev = Evaluation(u, stage, math.inf, error=error)
+            else:
+                r = residuals(signals, p.data, p.kind, self.scale)
+                ev = Evaluation(u, stage, relative_rms(r), r, signals)
+            self._keep(k, ev, report)
+        self.pending = []
+        return [self.cache[np.asarray(u, float).tobytes()] for u in us]
+
+    def _keep(self, k: bytes, ev: Evaluation, report: bool) -> None:
+        self.cache[k] = ev
+        self.evaluations.append(ev)
+        if report:
+            self.say(f"[{ev.stage} {len(self.evaluations)}] {_point(self.problem.params, ev.u)}: "
+                     + (f"failed: {ev.error}" if ev.error else f"misfit {100 * ev.misfit:.4g} %"))
+
+    def cancel(self) -> None:
+        try:
+            self.cl.cancel([f for f in self.pending if not f.done()])
+        except Exception:  # noqa: BLE001 - the cluster may be going away too
+            pass
+
+
+def _point(params, u) -> str:
+    return ", ".join(f"{p.key}={p.value(x):.6g}" for p, x in zip(params, u))
+
+
+def _steps(u: np.ndarray) -> np.ndarray:
+    """Per parameter, the forward step (backward at the upper end of the box)."""
+    return np.where(u + STEP <= 1.0, STEP, -STEP)
+
+
+def _perturbed(u: np.ndarray) -> list[np.ndarray]:
+    h = _steps(u)
+    out = []
+    for i in range(u.size):
+        v = u.copy()
+        v[i] += h[i]
+        out.append(v)
+    return out
+
+
+def _residual_vector(ev: Evaluation, n: int) -> np.ndarray:
+    return ev.residuals if ev.residuals is not None else np.full(n, FAILED_RESIDUAL)
+
+
+def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int,
+                stage: str = "local") -> tuple[np.ndarray, np.ndarray, np.ndarray, object]:
+    """least_squares from ``u0`` in the unit box; (u, residuals, Jacobian at u, scipy's result); its
+    runs are labelled ``stage``."""
+    from scipy.optimize import least_squares
+
+    n = runner.problem.data.values.size
+    params = runner.problem.params
+
+    def fun(u):
+        batch = [u, *_perturbed(u)] if speculate else [u]
+        ev = runner.run(batch, stage)[0]
+        runner.say(f"[{stage} {len(runner.evaluations)} runs] {_point(params, u)}: "
+                   + (f"failed: {ev.error}" if ev.error else f"misfit {100 * ev.misfit:.4g} %"))
+        return _residual_vector(ev, n)
+
+    def jac(u):
+        r0 = _residual_vector(runner.run([u], stage)[0], n)
+        evs = runner.run(_perturbed(u), stage)
+        h = _steps(u)
+        return np.column_stack([(_residual_vector(e, n) - r0) / hi for e, hi in zip(evs, h)])
+
+    sol = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0, xtol=1e-10, ftol=1e-10,
+                        gtol=1e-10, max_nfev=max_nfev)
+    u = np.clip(sol.x, 0.0, 1.0)
+    return u, _residual_vector(runner.run([u], stage)[0], n), jac(u), sol
+
+
+def second_start(evaluations: Sequence[Evaluation], u: np.ndarray) -> Evaluation | None:
+    """The global sample that starts a second local stage: the best of those within
+    :data:`CANDIDATE_FACTOR` of the best sample's misfit that lie at least :data:`SEPARATION` of a
+    range (for some key) from the estimate ``u``; None when there is none (one basin)."""
+    ok = [e for e in evaluations if e.stage == "global" and math.isfinite(e.misfit)]
+    if not ok:
+        return None
+    best = min(e.misfit for e in ok)
+    far = [e for e in ok if e.misfit <= CANDIDATE_FACTOR * best and np.max(np.abs(e.u - u)) >= SEPARATION]
+    return min(far, key=lambda e: e.misfit) if far else None
+
+
+def alternative(params: Sequence[Parameter], u: np.ndarray, r: np.ndarray, unc, u2: np.ndarray,
+                r2: np.ndarray) -> Alternative | None:
+    """The minimum ``u2`` (residuals ``r2``) as an alternative to the estimate ``u`` (``r``, statistics
+    ``unc``), None when it is the same minimum (every key within :data:`DISTINCT` of its range or
+    inside the estimate's interval)."""
+    from ..analysis.uncertainty import same_fit
+
+    iv = unc.interval
+    differs = (np.abs(u2 - u) > DISTINCT) & ((u2 < iv[:, 0]) | (u2 > iv[:, 1]))
+    if not np.any(differs):
+        return None
+    F, pv = same_fit(float(r @ r), float(r2 @ r2), r.size, len(params), RESOLUTION)
+    return Alternative(np.array(u2, float), np.array([q.value(x) for q, x in zip(params, u2)]), relative_rms(r2),
+                       F, pv, differs)
+
+
+def residual_check(r: np.ndarray, names: Sequence[str], kind: str, misfit: float) -> tuple[dict | None, str | None]:
+    """({sensor: lag-1 autocorrelation, bound}, a warning or None) of the residuals at the estimate
+    (:func:`nsfem.analysis.uncertainty.whiteness`, time misfit only: a spectrum's bins are correlated
+    by its window). It warns when some sensor's residuals are structured and the misfit is above
+    :data:`RESOLUTION`: a fit to round-off (noise-free data from the same model) leaves structured
+    but negligible residuals and is not warned about."""
+    from ..analysis.uncertainty import whiteness
+
+    if kind != "time" or r is None:
+        return None, None
+    w = whiteness(r, len(names), WHITE_LEVEL)
+    stats = {"lag1_autocorrelation": {n: float(x) for n, x in zip(names, w.rho)}, "bound": w.bound,
+             "structured": [n for n, s in zip(names, w.structured) if s]}
+    if not (np.any(w.structured) and misfit > RESOLUTION):
+        return stats, None
+    rhos = ", ".join(f"{n} {x:.3g}" for n, x, s in zip(names, w.rho, w.structured) if s)
+    return stats, (f"the residuals are structured, not noise-like (lag-1 autocorrelation {rhos} above "
+                   f"{w.bound:.3g}, the bound for white noise; misfit {100 * misfit:.3g} %): the estimate may be a "
+                   "local minimum or the model cannot explain the data (try more global samples, other starts or "
+                   "ranges, or check the scene)")
