@@ -274,3 +274,27 @@ def test_data_from_a_finer_model_keep_the_truth_inside(inprocess, tmp_path, seed
     low, high = res.interval[0]
     assert low <= TRUTH <= high and res.identifiable
     assert res.misfit > 0.02     # the fit is not handed its own discretization
+
+
+def _failing_above(monkeypatch, start):
+    """Runs of a delamination starting past ``start`` fail on the worker (an integration error, say)."""
+    import nsfem.fit.stages
+
+    run = nsfem.fit.stages.run_signals
+
+    def flaky(scene, shared, t, columns):
+        if scene["delamination"][0]["start"] > start:
+            return None, "simulated failure"
+        return run(scene, shared, t, columns)
+
+    monkeypatch.setattr(nsfem.fit.stages, "run_signals", flaky)
+
+
+def test_a_failed_run_in_the_local_stage_with_the_spectrum_misfit(inprocess, tmp_path, monkeypatch):
+    # a failed run scores FAILED_RESIDUAL in every entry of a residual vector as long as a real one: the
+    # spectrum's bins, not the samples. The start's forward step of the Jacobian fails: the fit goes on
+    _failing_above(monkeypatch, 0.24001)
+    res = fit(None, measure(t_end=0.05), {KEY: RANGE}, misfit="spectrum", overrides=FIXED, client=inprocess,
+              out_dir=tmp_path, n_global=0, start={KEY: 0.24}, plot=False)
+    assert any(e.error == "simulated failure" for e in res.evaluations)
+    assert res.estimate[0] <= 0.24001 and np.isfinite(res.misfit)

@@ -42,6 +42,8 @@ class _Runner:
         self.evaluations: list[Evaluation] = []
         self.pending: list = []
         self.scale = scales(problem.data, problem.kind)
+        #: the length of every run's residuals (a failed run's too): the data's, in the misfit's domain
+        self.n = residuals(problem.data.values, problem.data, problem.kind, self.scale).size
         self.shared = None
         if problem.shared:
             from ..fem.assemble import build_model
@@ -129,7 +131,7 @@ def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int,
     runs are labelled ``stage``."""
     from scipy.optimize import least_squares
 
-    n = runner.problem.data.values.size
+    n = runner.n
     params = runner.problem.params
 
     def fun(u):
