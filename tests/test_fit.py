@@ -99,7 +99,10 @@ def test_bad_inputs_are_one_line_errors_before_any_run(clean, tmp_path, monkeypa
                 "column 'b' holds NaN or inf at sample 5"),
         "t not increasing": ("t,a\n0,1\n0.2,2\n0.1,3\n", {KEY: RANGE}, "t must increase"),
         "unknown key": (None, {"delamination.0.begin": RANGE}, "delamination.0.begin: unknown key"),
-        "no such delamination": (None, {"delamination.3.start": RANGE}, "index 3 is past the end"),
+        "no such delamination": (None, {"delamination.3.start": RANGE}, "the scene has no delamination.3"),
+        # one past the end: an override would append an item (a crack the scene does not have)
+        "no crack": (None, {"crack.0.x": (0.95, 0.99)}, "the scene has no crack.0 "),
+        "no second delamination": (None, {"delamination.1.start": RANGE}, "the scene has no delamination.1 "),
         "LOW >= HIGH": (None, {KEY: (0.4, 0.1)}, "LOW must be below HIGH"),
         "invalid at an end": (None, {KEY: (0.1, 0.95)}, f"at {KEY}=0.95: delamination.0.end: must exceed start"),
     }

@@ -131,6 +131,25 @@ class Problem:
         return load_scene(self.scene_path, [*self.fixed, *overrides_at(self.params, u)])
 
 
+def _check_item(tree, key: str) -> None:
+    """Refuse a varied ``key`` in an item of a list the scene does not have: an override one past the
+    end appends an item (``--set crack.0.x=...`` adds a crack), which a fit must not do in silence."""
+    node = tree
+    parts = key.split(".")
+    for i, part in enumerate(parts[:-1]):
+        if isinstance(node, list):
+            if part.isascii() and part.isdigit() and int(part) >= len(node):
+                raise NsfemError(f"--vary {key}: the scene has no {'.'.join(parts[:i + 1])} (vary keys of items "
+                                 "the scene has)")
+            if not (part.isascii() and part.isdigit()):
+                return                                   # load_scene says what is wrong
+            node = node[int(part)]
+        elif isinstance(node, dict) and part in node:
+            node = node[part]
+        else:
+            return                                       # an unknown key: load_scene refuses it
+
+
 def prepare(scene_path, data, vary, misfit: str = "time", overrides: Sequence[str] = ()) -> Problem:
     """Check every input (one-line errors, nothing run) and set up the problem."""
     from ..scene import load_scene
@@ -155,6 +174,8 @@ def prepare(scene_path, data, vary, misfit: str = "time", overrides: Sequence[st
             raise NsfemError("data: give a CSV path or (t, {sensor name: samples})") from None
         m = check_measurement(t, dict(signals))
     base = load_scene(scene_path, fixed)
+    for p in params:
+        _check_item(base, p.key)
     columns = match_sensors(m, base.sensors, f"--data {data}" if isinstance(data, (str, Path)) else "data")
     if misfit == "spectrum" and not is_uniform(m.t):
         raise NsfemError("--misfit spectrum: the data's t must be sampled at one step (an FFT needs it)")
