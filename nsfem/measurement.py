@@ -159,6 +159,11 @@ def relative_rms(r: np.ndarray) -> float:
 
 
 def sample(t_run: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """A run's signals (len(t_run), s) at the measurement's times ``t`` (linear interpolation;
-    exact where the run's output times hold them)."""
-    return np.column_stack([np.interp(t, t_run, values[:, j]) for j in range(values.shape[1])])
+    """A run's signals (len(t_run), s) at the measurement's times ``t``: a cubic spline through the
+    outputs (exact where the run's output times hold the data's; the fit outputs :data:`nsfem.fit.problem.REFINE`
+    times per data step otherwise)."""
+    from scipy.interpolate import CubicSpline
+
+    if t_run.size < 4:
+        return np.column_stack([np.interp(t, t_run, values[:, j]) for j in range(values.shape[1])])
+    return CubicSpline(t_run, values, axis=0)(t)

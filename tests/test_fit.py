@@ -301,3 +301,18 @@ def test_a_failed_run_in_the_local_stage_with_the_spectrum_misfit(inprocess, tmp
               out_dir=tmp_path, n_global=0, start={KEY: 0.24}, plot=False)
     assert any(e.error == "simulated failure" for e in res.evaluations)
     assert res.estimate[0] <= 0.24001 and np.isfinite(res.misfit)
+
+
+def test_data_off_the_output_grid_are_not_interpolated_coarsely(inprocess, tmp_path):
+    # a DAQ clock 0.3 ms off the scene's: samples every 1 ms at 0.3, 1.3, ... ms, with 1 % noise. Linear
+    # interpolation of outputs every 1 ms made a misfit of 3 % at the truth; the runs output 8 times per
+    # data step and a cubic spline leaves the noise's 1 %
+    scene = load_scene(None, [*FIXED, f"{KEY}={TRUTH}", "simulation.t_end=0.1", "simulation.output_dt=1e-4"])
+    result, system = run_scene(scene)
+    v = sensor_signals(result, system)[3::10]
+    v = v + 0.01 * np.sqrt(np.mean(v**2, axis=0)) * np.random.default_rng(0).standard_normal(v.shape)
+    t = result.t[3::10]
+    res = fit(None, (t, {"a": v[:, 0], "b": v[:, 1]}), {KEY: RANGE}, overrides=FIXED, client=inprocess,
+              out_dir=tmp_path, n_global=0, start={KEY: 0.232}, plot=False)
+    assert 0.008 < res.misfit < 0.012 and not res.warnings
+    assert res.interval[0, 0] <= TRUTH <= res.interval[0, 1]

@@ -26,8 +26,10 @@ look past it:
 How the measurement is simulated: the scene (with its fixed overrides) says how it was made; the
 runs end at the data's last time (``simulation.t_end``) and write outputs at least as often as the
 data were sampled (``simulation.output_dt`` = the smaller of the scene's and the data's smallest
-step), and their signals are interpolated linearly at the data's times (exactly the outputs when
-the data share the run's grid). Every input is checked before the first run: the data, its columns
+step; when the data's times are not multiples of it, :data:`~nsfem.fit.problem.REFINE` times finer),
+and a cubic spline through the outputs gives their signals at the data's times (exactly the outputs
+when the data share the run's grid, else within 3e-4 of the amplitude at the data's Nyquist
+frequency). Every input is checked before the first run: the data, its columns
 against the scene's sensors, every range (LOW < HIGH, a key varied once) and every key loaded at
 both ends and the middle of its range (the others at their middle).
 
