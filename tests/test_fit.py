@@ -65,6 +65,9 @@ def test_noise_free_data_give_back_the_truth(inprocess, clean, tmp_path):
     width = RANGE[1] - RANGE[0]
     assert abs(res.estimate[0] - TRUTH) < 1e-5 * width and res.misfit < 1e-3
     assert not res.warnings and res.identifiable
+    # the residual variance is floored at the resolution (RESOLUTION): round-off alone made an interval
+    # 2.4e-7 m wide, 4 half-widths off the truth
+    assert res.interval[0, 0] <= TRUTH <= res.interval[0, 1] and np.diff(res.interval[0])[0] < 1e-4 * width
     assert res.info["global_samples"] == 16 and any(line.startswith("[global") for line in lines)
     for start in (0.222, 0.236):
         other = fit(None, clean, {KEY: RANGE}, overrides=FIXED, client=inprocess, out_dir=tmp_path / str(start),

@@ -71,9 +71,12 @@ class Uncertainty:
         return (self.interval[:, 0] <= 0.0) & (self.interval[:, 1] >= 1.0)
 
 
-def linearized(J: np.ndarray, r: np.ndarray, u: np.ndarray, level: float = 0.95) -> Uncertainty:
+def linearized(J: np.ndarray, r: np.ndarray, u: np.ndarray, level: float = 0.95, floor: float = 0.0) -> Uncertainty:
     """Intervals, correlation and identifiability from the Jacobian ``J`` (N, p) and residuals ``r``
-    (N,) at the estimate ``u`` (p,) in the unit box."""
+    (N,) at the estimate ``u`` (p,) in the unit box. The residual variance is
+    s^2 = max(RSS, N floor^2) / (N - p): ``floor`` is the RMS residual below which a misfit is
+    resolution, not noise (as in :func:`same_fit`); a fit to round-off (noise-free data) gets intervals
+    of that resolution instead of the round-off's, which would exclude the truth."""
     from scipy.stats import t as student
 
     J, r, u = np.asarray(J, float), np.asarray(r, float), np.asarray(u, float)
@@ -83,7 +86,7 @@ def linearized(J: np.ndarray, r: np.ndarray, u: np.ndarray, level: float = 0.95)
     rel = S / top
     rank = int(np.count_nonzero((rel > RANK_RTOL) & (S > 0)))
     dof = n - p
-    s2 = float(r @ r / dof) if dof > 0 else np.inf
+    s2 = float(max(r @ r, n * floor**2) / dof) if dof > 0 else np.inf
     tq = float(student.ppf(0.5 + level / 2, dof)) if dof > 0 else np.inf
     V = Vt.T
     seen, unseen = V[:, :rank], V[:, rank:]

@@ -132,7 +132,7 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
         u, r, J, sol = local_stage(runner, np.array(u0, float), info["workers"] > 1, max_nfev)
         info["local"] = {"nfev": int(sol.nfev), "njev": int(sol.njev or 0), "status": int(sol.status),
                          "message": str(sol.message)}
-        unc = linearized(J, r, u)
+        unc = linearized(J, r, u, floor=RESOLUTION)
         alternatives = []
         cand = second_start(runner.evaluations, u)
         if cand is not None:
@@ -144,7 +144,7 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
                                     "message": str(sol2.message)}
             if relative_rms(r2) < relative_rms(r):      # the better minimum is the estimate
                 u, r, J, u2, r2 = u2, r2, J2, u, r
-                unc = linearized(J, r, u)
+                unc = linearized(J, r, u, floor=RESOLUTION)
             alt = alternative(params, u, r, unc, u2, r2)
             if alt is not None:
                 alternatives.append(alt)
