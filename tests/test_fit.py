@@ -269,6 +269,19 @@ def test_ctrl_c_keeps_the_runs_so_far(inprocess, clean, tmp_path):
     assert len(rows) == 6 and payload["runs"] == 5 and payload["interrupted"] is True
     assert payload["misfit"] == pytest.approx(min(e.misfit for e in res.evaluations))
 
+    def at_once(line):
+        raise KeyboardInterrupt
+
+    # interrupted before any run: no estimate, written as null (a bare NaN is not JSON)
+    with pytest.raises(FitInterrupted):
+        fit(None, clean, {KEY: RANGE}, overrides=FIXED, client=inprocess, out_dir=tmp_path / "none", progress=at_once)
+
+    def refuse(name):
+        raise ValueError(f"{name} is not JSON")
+
+    payload = json.loads((tmp_path / "none" / "fit.json").read_text(), parse_constant=refuse)
+    assert payload["runs"] == 0 and payload["parameters"][KEY]["estimate"] is None
+
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_data_from_a_finer_model_keep_the_truth_inside(inprocess, tmp_path, seed):

@@ -136,7 +136,7 @@ class FitResult:
         params = {}
         for p, x, iv, b, ok, amb in zip(self.params, self.estimate, self.interval, self.at_bound, self.identified,
                                         self.ambiguous):
-            params[p.key] = {"estimate": float(x), "interval": [_finite(iv[0]), _finite(iv[1])],
+            params[p.key] = {"estimate": _finite(x), "interval": [_finite(iv[0]), _finite(iv[1])],
                              "at_bound": bool(b), "identified": bool(ok), "ambiguous": bool(amb),
                              "range": [p.low, p.high]}
         glob = [e for e in self.evaluations if e.stage == "global"]
