@@ -58,6 +58,10 @@ def read_measurement(path: str | Path) -> Measurement:
     if "t" not in head:
         raise NsfemError(f"{what}: no column 't' (the header is {','.join(head)!r}; the first column names the "
                          "time, the others sensors)")
+    twice = sorted({h for h in head if head.count(h) > 1})
+    if twice:
+        raise NsfemError(f"{what}: column {twice[0]!r} appears {head.count(twice[0])} times in the header (give each "
+                         "sensor one column)")
     data = np.empty((len(rows) - 1, len(head)))
     for i, row in enumerate(rows[1:]):
         if len(row) != len(head):

@@ -100,6 +100,7 @@ def test_bad_inputs_are_one_line_errors_before_any_run(clean, tmp_path, monkeypa
                            "column 'c' is no sensor of the scene"),
         "NaN": (good.read_text().replace(repr(float(sig["b"][5])), "nan", 1), {KEY: RANGE},
                 "column 'b' holds NaN or inf at sample 5"),
+        "duplicate column": ("t,a,a\n0,1,2\n0.1,3,4\n", {KEY: RANGE}, "column 'a' appears 2 times in the header"),
         "t not increasing": ("t,a\n0,1\n0.2,2\n0.1,3\n", {KEY: RANGE}, "t must increase"),
         "unknown key": (None, {"delamination.0.begin": RANGE}, "delamination.0.begin: unknown key"),
         "no such delamination": (None, {"delamination.3.start": RANGE}, "the scene has no delamination.3"),
