@@ -57,7 +57,7 @@ from ..measurement import relative_rms
 from .problem import FIT_KEYS, Evaluation, Parameter, Problem, overrides_at, parse_vary, prepare, run_signals
 from .result import AT_BOUND, SAME_FIT, Alternative, FitInterrupted, FitResult, _write, evaluations_csv
 from .stages import (CANDIDATE_FACTOR, DISTINCT, FAILED_RESIDUAL, RESOLUTION, SEPARATION, STEP, WHITE_LEVEL, _point,
-                     _Runner, alternative, local_stage, residual_check, second_start)
+                     _perturbed, _Runner, alternative, local_stage, residual_check, second_start)
 
 __all__ = ["fit", "FitResult", "FitInterrupted", "Alternative", "Evaluation", "Parameter", "Problem", "parse_vary",
            "prepare", "overrides_at", "run_signals", "evaluations_csv", "alternative", "local_stage", "residual_check",
@@ -150,6 +150,7 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
                 alternatives.append(alt)
                 say(f"second minimum at {_point(params, u2)}: misfit {100 * alt.misfit:.4g} %, F-test p = "
                     f"{alt.p_value:.3g}" + (" (as good as the estimate)" if alt.indistinguishable else ""))
+        unc, failed = _without_failed_steps(runner, params, u, unc)
         ev = runner.run([u], "local")[0]
     except KeyboardInterrupt:
         held = _hold_signals()  # a second Ctrl-C must not cut the writing short
@@ -170,12 +171,37 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     stats, warning = residual_check(ev.residuals, problem.data.names, misfit, ev.misfit)
     if stats is not None:
         info["residuals"] = stats
+    warnings = [failed] if failed else []
     if warning:
-        say(f"warning: {warning}")
+        warnings.append(warning)
+    for w in warnings:
+        say(f"warning: {w}")
     info["wall_s"] = time.perf_counter() - t0
     res = FitResult(params, est, ev.misfit, misfit, problem.data, ev.signals, tuple(runner.evaluations), unc, out,
-                    info=info, alternatives=tuple(alternatives), warnings=(warning,) if warning else ())
+                    info=info, alternatives=tuple(alternatives), warnings=tuple(warnings))
     return _write(res, plot=plot)
+
+
+def _without_failed_steps(runner: _Runner, params, u: np.ndarray, unc) -> tuple[object, str | None]:
+    """The statistics at ``u`` without the keys whose step of the final Jacobian failed (a failed run's
+    residuals are a penalty, not a derivative: its column would claim a confident, wrong interval):
+    their interval is the whole range and their sigma and correlations undetermined; and a warning
+    naming them (None when every step ran)."""
+    from dataclasses import replace
+
+    bad = np.array([bool(e.error) for e in runner.run(_perturbed(u), "local")])
+    if not bad.any():
+        return unc, None
+    interval, sigma, corr = unc.interval.copy(), unc.sigma.copy(), unc.correlation.copy()
+    interval[bad] = [0.0, 1.0]
+    sigma[bad] = np.inf
+    corr[bad, :] = np.nan
+    corr[:, bad] = np.nan
+    keys = ", ".join(q.key for q, b in zip(params, bad) if b)
+    return replace(unc, interval=interval, sigma=sigma, correlation=corr), (
+        f"the run one step from the estimate failed for {keys}: no derivative, no statistics; the interval of "
+        f"{keys} is its whole range (not identified). A region where runs fail borders the estimate: check the "
+        "failed runs in evaluations.csv, or narrow the range")
 
 
 def _partial(problem: Problem, runner: _Runner | None, out: Path, info: dict, t0: float) -> FitResult:
