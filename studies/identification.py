@@ -277,8 +277,10 @@ def plot(out: Path, rows: list[dict], summary: list[dict]) -> Path:
         ax[1].barh(i, s["coverage"], color="tab:blue" if s["coverage"] >= 0.9 else "tab:red")
         ax[1].text(min(s["coverage"], 0.85) + 0.02, i, f"{s['inside']}/{s['draws']}", va="center", fontsize=8)
         ax[2].barh(i, s["mean_width_over_range"], color="tab:gray")
+    reach = max(abs(v - r["truth"]) / (r["range_high"] - r["range_low"]) for r in rows for v in (r["low"], r["high"]))
     ax[0].axvline(0, color="k", lw=0.8)
     ax[0].set_xscale("symlog", linthresh=1e-4)
+    ax[0].set_xlim(-2 * reach, 2 * reach)
     ax[0].set(xlabel="(value - truth) / range width: 95 % intervals per draw (red: truth outside; orange: another minimum)",
               title="estimates and intervals")
     ax[0].legend(fontsize=8, loc="lower right")
@@ -298,6 +300,27 @@ def plot(out: Path, rows: list[dict], summary: list[dict]) -> Path:
     return path
 
 
+def read_rows(path: Path) -> list[dict]:
+    """The rows of a written identification.csv, typed again (for --replot)."""
+    import csv
+
+    def typed(v: str):
+        if v in ("True", "False"):
+            return v == "True"
+        if v == "":
+            return None
+        try:
+            return int(v)
+        except ValueError:
+            try:
+                return float(v)
+            except ValueError:
+                return v
+
+    with open(path, newline="") as fh:
+        return [{k: typed(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="3 draws, shorter records, no coarse or speed cases")
@@ -305,10 +328,18 @@ def main(argv=None) -> dict:
     ap.add_argument("--workers", type=int, default=2, help="Dask workers (0: one in-process thread)")
     ap.add_argument("--json", action="store_true", help="print the JSON object")
     ap.add_argument("--out", default="studies/out/identification")
+    ap.add_argument("--replot", action="store_true", help="redraw the figure from the written identification.csv")
     args = ap.parse_args(argv)
     say = functools.partial(print, file=sys.stderr) if args.json else print
     out = Path(args.out).absolute()
     out.mkdir(parents=True, exist_ok=True)
+    if args.replot:
+        rows = read_rows(out / "identification.csv")
+        fig = plot(out, rows, summarize(rows))
+        if not json.loads((out / "identification.json").read_text())["quick"]:
+            shutil.copyfile(fig, ROOT / "docs" / "figures" / fig.name)
+        say(f"wrote {fig}")
+        return {}
     q = args.quick
     n_draws = args.draws if args.draws is not None else (3 if q else 10)
     t0 = time.perf_counter()
