@@ -7,7 +7,9 @@ and exit non-zero (a traceback only with ``--debug``).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import signal
 import sys
 import time
 from typing import Sequence
@@ -103,6 +105,19 @@ def printable(text: str) -> str:
     return "".join(c if c == "\n" or c.isprintable() else repr(c)[1:-1] for c in text)
 
 
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """A scheduler's SIGTERM ends a command like Ctrl-C (what was computed is kept), within the block."""
+    def terminate(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _emit(args, payload: dict, text: str) -> None:
     if args.json:
         json.dump(payload, sys.stdout)
@@ -141,8 +156,6 @@ def cmd_modes(args) -> int:
 
 def cmd_sweep(args) -> int:
     """One run per value of the swept keys; the table, JSON and resonance curve in the sweep folder."""
-    import signal
-
     from .sweep import SweepInterrupted, run_sweep
 
     if args.workers is not None and args.scheduler:
@@ -151,18 +164,13 @@ def cmd_sweep(args) -> int:
     def progress(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
-    def terminate(signum, frame):  # a scheduler's SIGTERM ends the sweep like Ctrl-C: finished rows kept
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, terminate)
     interrupted = False
     try:
-        res = run_sweep(args.scene, args.overrides, args.out, method=args.method, workers=args.workers,
-                        scheduler=args.scheduler, progress=progress)
+        with sigterm_as_interrupt():   # finished rows kept
+            res = run_sweep(args.scene, args.overrides, args.out, method=args.method, workers=args.workers,
+                            scheduler=args.scheduler, progress=progress)
     except SweepInterrupted as exc:
         res, interrupted = exc.result, True
-    finally:
-        signal.signal(signal.SIGTERM, previous)
     payload = res.to_json()
     keys = [a.key for a in res.axes]
     shown = [r for r in res.runs if r is not None]
@@ -197,28 +205,18 @@ def cmd_sweep(args) -> int:
 
 def cmd_fit(args) -> int:
     """The estimates with their 95 % intervals; fit.json, evaluations.csv and the plots in the output folder."""
-    import signal
-
     from .fit import FitInterrupted, fit
-
-    if args.workers is not None and args.scheduler:
-        raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
 
     def progress(line: str) -> None:
         print(printable(line), file=sys.stderr, flush=True)
 
-    def terminate(signum, frame):  # a scheduler's SIGTERM ends the fit like Ctrl-C: the runs so far kept
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, terminate)
     interrupted = False
     try:
-        res = fit(args.scene, args.data, args.vary, misfit=args.misfit, workers=args.workers,
-                  scheduler=args.scheduler, overrides=args.overrides, out_dir=args.out, progress=progress)
+        with sigterm_as_interrupt():   # the runs so far kept; fit() refuses --workers with --scheduler
+            res = fit(args.scene, args.data, args.vary, misfit=args.misfit, workers=args.workers,
+                      scheduler=args.scheduler, overrides=args.overrides, out_dir=args.out, progress=progress)
     except FitInterrupted as exc:
         res, interrupted = exc.result, True
-    finally:
-        signal.signal(signal.SIGTERM, previous)
     payload = res.to_json()
     width = max(len(k) for k in res.keys)
     lines = [f"  {'key':{width}s}  {'estimate':>12s}  {'95 % interval':>27s}  note"]
@@ -366,27 +364,20 @@ def cmd_run(args) -> int:
     scene_text = text_path.read_text() if text_path.exists() else ""
     if args.overrides:
         scene_text += "\n# overrides: " + " ".join(args.overrides) + "\n"
-    import signal
-
-    def terminate(signum, frame):  # a scheduler's SIGTERM ends the run like Ctrl-C: results kept
-        raise KeyboardInterrupt
-
     warnings: list[str] = []
 
     def warn(text):
         warnings.append(text)
         print(f"nsfem run: warning: {text}", file=sys.stderr)
 
-    previous = signal.signal(signal.SIGTERM, terminate)
     try:
-        result, system = run_scene(scene, method, progress=True, warn=warn)  # on stderr after 5 s
+        with sigterm_as_interrupt():   # results kept
+            result, system = run_scene(scene, method, progress=True, warn=warn)  # on stderr after 5 s
     except IntegrationError as exc:  # keep what was computed, then report the error
         res, sysm = exc.result, exc.system
         path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.model_contacts.x,
                         scene.record())
         raise NsfemError(f"{exc} (the run up to t = {res.t_end:g} s is in {path})") from exc
-    finally:
-        signal.signal(signal.SIGTERM, previous)
     red = system.info["reduction"]
     top = red.info.get("max_frequency_hz")
     if scene.rotation.speed_hz and top and scene.rotation.frame == "rotating":

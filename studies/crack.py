@@ -457,6 +457,20 @@ def part_c(ratios, depth, revs, last, f_crit) -> list[dict]:
     return rows
 
 
+def _save(fig, axes, path: Path, legend: bool = True) -> Path:
+    """Grid (and legends) on every panel, written at 100 dpi, the figure closed."""
+    import matplotlib.pyplot as plt
+
+    for a in axes:
+        a.grid(alpha=0.3)
+        if legend:
+            a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 def plot(out: Path, rows_a, rows_b, rows_c, rows_d) -> list[Path]:
     import matplotlib
 
@@ -473,13 +487,7 @@ def plot(out: Path, rows_a, rows_b, rows_c, rows_d) -> list[Path]:
                    [r["f_exact_hz"] for r in mine if r["mode"] == 1 and r["plane"] == "W"], mk + "-", label=f"{sup}, {sec}")
     ax[0].set(xlabel="depth (points offset by mode)", ylabel="|f_FE / f_exact - 1|", title="(a) open crack vs spring beam")
     ax[1].set(xlabel="depth a/h, a/D", ylabel="first frequency, opening plane [Hz]", title="(a) closed form")
-    for a in ax:
-        a.grid(alpha=0.3)
-        a.legend(fontsize=7)
-    fig.tight_layout()
-    paths.append(out / "crack_frequencies.png")
-    fig.savefig(paths[-1], dpi=100)
-    plt.close(fig)
+    paths.append(_save(fig, ax, out / "crack_frequencies.png"))
 
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
     last = rows_b[-1]
@@ -488,13 +496,8 @@ def plot(out: Path, rows_a, rows_b, rows_c, rows_d) -> list[Path]:
     ax[1].plot([r["depth"] for r in rows_b], [r["measured_over_bilinear"] for r in rows_b], "o-", label="measured / bilinear - 1")
     ax[1].plot([r["depth"] for r in rows_b], [r["measured_over_closed"] for r in rows_b], "s--", label="measured / closed - 1")
     ax[1].set(xlabel="depth a/h", ylabel="relative", title="(b) breathing frequency")
-    for a in ax:
-        a.grid(alpha=0.3)
     ax[1].legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(out / "crack_breathing.png")
-    fig.savefig(paths[-1], dpi=100)
-    plt.close(fig)
+    paths.append(_save(fig, ax, out / "crack_breathing.png", legend=False))
 
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
     x = [r["speed_ratio"] for r in rows_c]
@@ -509,13 +512,7 @@ def plot(out: Path, rows_a, rows_b, rows_c, rows_d) -> list[Path]:
     ax[1].plot(d, [r["nsfem_2x_m"] * 1e6 for r in rows_d], "o-", label="nsfem")
     ax[1].plot(d, [r["gasch_2x_m"] * 1e6 for r in rows_d], "x--", label="Gasch")
     ax[1].set(xlabel="depth a/D", ylabel="2x amplitude [um]", title=f"(d) detection curve at {rows_d[0]['speed_ratio']:g} critical")
-    for a in ax:
-        a.grid(alpha=0.3)
-        a.legend(fontsize=7)
-    fig.tight_layout()
-    paths.append(out / "crack_speed.png")
-    fig.savefig(paths[-1], dpi=100)
-    plt.close(fig)
+    paths.append(_save(fig, ax, out / "crack_speed.png"))
     return paths
 
 

@@ -69,8 +69,8 @@ def contact_row(model: FEModel, c: Contact) -> tuple[dict[int, float], float]:
         return row, 0.0
     if c.kind == "crack":   # a crack face's point: -(y dV' + z dW'), d = right - left (paper eq. 17 on a hinge)
         (left, right), (ay, az) = c.segments, c.arm
-        row = _combine((-ay, _node_row(model, right, "V'", c)), (ay, _node_row(model, left, "V'", c)),
-                       (-az, _node_row(model, right, "W'", c)), (az, _node_row(model, left, "W'", c)))
+        row = _combine((-ay, point_row(model, right, "V'", c)), (ay, point_row(model, left, "V'", c)),
+                       (-az, point_row(model, right, "W'", c)), (az, point_row(model, left, "W'", c)))
         return {i: v for i, v in row.items() if v != 0.0}, 0.0
     if c.angle is not None:   # a stator's facet: n = (cos, sin) in the y-z plane
         cy, sz = float(np.cos(c.angle)), float(np.sin(c.angle))
@@ -79,11 +79,6 @@ def contact_row(model: FEModel, c: Contact) -> tuple[dict[int, float], float]:
     sign = 1.0 if c.normal[0] == "+" else -1.0
     row = {i: -sign * v for i, v in point_row(model, c.segments[0], _AXIS[c.normal[1]], c).items()}
     return row, c.clearance
-
-
-def _node_row(model: FEModel, segment: str, fld: str, c: Contact) -> dict[int, float]:
-    """The dof of ``fld`` at the contact's node of ``segment`` (a crack's sides meet at one x)."""
-    return {model.dof(segment, fld, c.x): 1.0}
 
 
 def _combine(*terms: tuple[float, dict[int, float]]) -> dict[int, float]:
