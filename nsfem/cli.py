@@ -79,6 +79,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--out", metavar="DIR", help="output folder (default: <output.dir>/fit-<varied keys>)")
+    p.add_argument("--no-refine", dest="refine", action="store_false",
+                   help="skip the refined run at the estimate (the intervals then leave out the model's "
+                        "discretization error)")
 
     p = sub.add_parser("export", help="re-export a saved result")
     p.add_argument("result")
@@ -214,7 +217,8 @@ def cmd_fit(args) -> int:
     try:
         with sigterm_as_interrupt():   # the runs so far kept; fit() refuses --workers with --scheduler
             res = fit(args.scene, args.data, args.vary, misfit=args.misfit, workers=args.workers,
-                      scheduler=args.scheduler, overrides=args.overrides, out_dir=args.out, progress=progress)
+                      scheduler=args.scheduler, overrides=args.overrides, out_dir=args.out, progress=progress,
+                      refine=args.refine)
     except FitInterrupted as exc:
         res, interrupted = exc.result, True
     payload = res.to_json()
@@ -223,7 +227,9 @@ def cmd_fit(args) -> int:
     for key, p in payload["parameters"].items():
         lo, hi = p["interval"]
         interval = f"[{lo:.6g}, {hi:.6g}]" if lo is not None and hi is not None else "-"
-        notes = ((["at bound"] if p["at_bound"] else []) + ([] if p["identified"] else ["not identified"])
+        shift = p["discretization_shift"]
+        notes = ((["at bound"] if p["at_bound"] else [])
+                 + ([f"discretization shift {shift:+.3g}"] if shift is not None else []) + ([] if p["identified"] else ["not identified"])
                  + (["ambiguous: a second minimum"] if p["ambiguous"] else []))
         lines.append(f"  {key:{width}s}  {p['estimate']:12.6g}  {interval:>27s}  {', '.join(notes)}")
     ident = payload["identifiability"]

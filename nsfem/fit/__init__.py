@@ -9,19 +9,26 @@ and the statistics. Two stages minimize the relative residuals of :mod:`nsfem.me
   whose p perturbed runs are submitted together (with the base run, when the cluster has more
   than one worker: a rejected step then wastes p runs but no wall time).
 
-The uncertainty at the optimum is linearized (:mod:`nsfem.analysis.uncertainty`). Two checks
-look past it:
+The uncertainty at the optimum is linearized (:mod:`nsfem.analysis.uncertainty`) and widened by
+the fitted model's discretization error, measured by refined runs at the estimate
+(:mod:`nsfem.fit.discretization`). Further local stages look past the first basin
+(:func:`_further_minima`):
 
+* the mirror image of the estimate about the shaft's middle (:func:`~nsfem.fit.stages.mirror_point`),
+  when its misfit is within :data:`CANDIDATE_FACTOR` of the estimate's: a symmetric shaft sees a
+  defect and its image alike but through the sensors and loads;
 * a second basin: the best global sample within :data:`CANDIDATE_FACTOR` of the best sample's misfit
-  and at least :data:`SEPARATION` of a range from the estimate starts a second local stage (after
-  the first: its distance is from the estimate). A distinct second minimum is an
-  :class:`Alternative`, compared with the estimate (the better of the two) by an F-test on their
-  residual sums of squares; when the data cannot tell them apart at 95 % (a mirrored delamination
-  seen by mirrored sensors), the keys that differ are ambiguous and not identified, however narrow
-  their local intervals;
-* the residuals at the estimate: white when the model explains the data to their noise, smooth
-  when it does not (a wrong minimum, a wrong model). Structured residuals (lag-1 autocorrelation
-  above the white-noise bound in some sensor) with a misfit above :data:`RESOLUTION` are a warning.
+  and at least :data:`SEPARATION` of a range from every minimum found;
+* zoomed designs (at most :data:`RESTARTS`) while the best minimum's residuals are structured (lag-1
+  autocorrelation above the white-noise bound in some sensor, misfit above :data:`RESOLUTION`: a
+  local minimum or a model that cannot explain the data): Sobol points within :data:`ZOOM` of each
+  range about the minima found, in order of misfit; the best point starts a local stage when it
+  beats the minimum it surrounds.
+
+The best minimum is the estimate; every other distinct one is an :class:`Alternative`, compared with
+it by an F-test on their residual sums of squares. When the data cannot tell them apart at 95 % (a
+mirrored delamination seen by mirrored sensors), the keys that differ are ambiguous and not
+identified, however narrow their local intervals. Structured residuals at the estimate are a warning.
 
 How the measurement is simulated: the scene (with its fixed overrides) says how it was made; the
 runs end at the data's last time (``simulation.t_end``) and write outputs at least as often as the
@@ -56,12 +63,14 @@ from ..errors import NsfemError
 from ..measurement import relative_rms
 from .problem import FIT_KEYS, Evaluation, Parameter, Problem, overrides_at, parse_vary, prepare, run_signals
 from .result import AT_BOUND, SAME_FIT, Alternative, FitInterrupted, FitResult, _write, evaluations_csv
-from .stages import (CANDIDATE_FACTOR, DISTINCT, FAILED_RESIDUAL, RESOLUTION, SEPARATION, STEP, WHITE_LEVEL, _point,
-                     _perturbed, _Runner, alternative, local_stage, residual_check, second_start)
+from . import discretization
+from .discretization import Discretization
+from .stages import (CANDIDATE_FACTOR, DISTINCT, FAILED_RESIDUAL, RESOLUTION, RESTARTS, SEPARATION, STEP, WHITE_LEVEL, ZOOM,
+                     _point, _perturbed, _Runner, alternative, jacobian, local_stage, mirror_point, residual_check, second_start, zoomed)
 
 __all__ = ["fit", "FitResult", "FitInterrupted", "Alternative", "Evaluation", "Parameter", "Problem", "parse_vary",
            "prepare", "overrides_at", "run_signals", "evaluations_csv", "alternative", "local_stage", "residual_check",
-           "second_start", "FIT_KEYS", "AT_BOUND", "SAME_FIT", "CANDIDATE_FACTOR", "DISTINCT", "FAILED_RESIDUAL",
+           "second_start", "mirror_point", "Discretization", "RESTARTS", "FIT_KEYS", "AT_BOUND", "SAME_FIT", "CANDIDATE_FACTOR", "DISTINCT", "FAILED_RESIDUAL",
            "RESOLUTION", "SEPARATION", "STEP", "WHITE_LEVEL"]
 
 
@@ -73,7 +82,7 @@ def default_folder(problem: Problem) -> Path:
 def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int | None = None,
         scheduler: str | None = None, n_global: int | None = None, start: Mapping[str, float] | None = None,
         overrides: Sequence[str] = (), out_dir=None, seed: int = 0, max_nfev: int = 40,
-        progress: Callable[[str], None] | None = None, plot: bool = True) -> FitResult:
+        progress: Callable[[str], None] | None = None, plot: bool = True, refine: bool = True) -> FitResult:
     """Estimate the keys of ``vary`` ({key: (low, high)} or ``KEY=LOW:HIGH`` texts) from ``data``
     (a CSV path or (t, {sensor name: samples})); see the module's text.
 
@@ -81,7 +90,9 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     global stage); ``start`` {key: value} starts the local stage there instead of at the best sample
     (default without a global stage: the middle of the box). ``client``, ``workers``, ``scheduler``: as
     :func:`nsfem.sweep.run_sweep`. ``progress(line)`` receives a line per run of the global stage and
-    per step of the local one. Ctrl-C writes the runs so far and raises :class:`FitInterrupted`.
+    per step of the local one. ``refine``: one more run at the estimate with the scene's discretization
+    refined, whose shift of the minimum widens the interval (:mod:`nsfem.fit.discretization`). Ctrl-C
+    writes the runs so far and raises :class:`FitInterrupted`.
     """
     from ..analysis.uncertainty import linearized
     from ..sweep import _client, _close, _hold_signals, _release_signals
@@ -129,29 +140,23 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
             best = min(ok, key=lambda e: e.misfit)
         u0 = u_start if u_start is not None else (best.u if best is not None else np.full(p, 0.5))
         say(f"local stage from {_point(params, u0)}")
-        u, r, J, sol = local_stage(runner, np.array(u0, float), info["workers"] > 1, max_nfev)
+        speculate = info["workers"] > 1
+        u, r, J, sol = local_stage(runner, np.array(u0, float), speculate, max_nfev)
         info["local"] = {"nfev": int(sol.nfev), "njev": int(sol.njev or 0), "status": int(sol.status),
                          "message": str(sol.message)}
+        minima = _further_minima(runner, problem, (u, r, J), speculate, max_nfev, info, seed)
+        u, r, J = min(minima, key=lambda m: relative_rms(m[1]))
         unc = linearized(J, r, u, floor=RESOLUTION)
         alternatives = []
-        cand = second_start(runner.evaluations, u)
-        if cand is not None:
-            say(f"second local stage from {_point(params, cand.u)} (misfit {100 * cand.misfit:.4g} %, far from "
-                "the estimate: another basin?)")
-            u2, r2, J2, sol2 = local_stage(runner, np.array(cand.u, float), info["workers"] > 1, max_nfev, "second")
-            info["second_local"] = {"start": {q.key: q.value(x) for q, x in zip(params, cand.u)},
-                                    "nfev": int(sol2.nfev), "njev": int(sol2.njev or 0), "status": int(sol2.status),
-                                    "message": str(sol2.message)}
-            if relative_rms(r2) < relative_rms(r):      # the better minimum is the estimate
-                u, r, J, u2, r2 = u2, r2, J2, u, r
-                unc = linearized(J, r, u, floor=RESOLUTION)
-            alt = alternative(params, u, r, unc, u2, r2)
+        for u2, r2, _ in minima:
+            alt = alternative(params, u, r, unc, u2, r2) if u2 is not u else None
             if alt is not None:
                 alternatives.append(alt)
-                say(f"second minimum at {_point(params, u2)}: misfit {100 * alt.misfit:.4g} %, F-test p = "
+                say(f"another minimum at {_point(params, u2)}: misfit {100 * alt.misfit:.4g} %, F-test p = "
                     f"{alt.p_value:.3g}" + (" (as good as the estimate)" if alt.indistinguishable else ""))
         unc, failed = _without_failed_steps(runner, params, u, unc)
         ev = runner.run([u], "local")[0]
+        disc = _refined(runner, problem, u, unc, say) if refine else None
     except KeyboardInterrupt:
         held = _hold_signals()  # a second Ctrl-C must not cut the writing short
         if runner is not None:
@@ -174,12 +179,95 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     warnings = [failed] if failed else []
     if warning:
         warnings.append(warning)
+    if disc is not None and disc.error:
+        warnings.append(f"the refined run at the estimate ({', '.join(disc.overrides)}) failed: {disc.error}; the "
+                        "interval leaves out the model's discretization error")
+    elif disc is not None:
+        big = discretization.warning(params, disc.shift, unc.interval, u, disc.overrides)
+        if big:
+            warnings.append(big)
     for w in warnings:
         say(f"warning: {w}")
     info["wall_s"] = time.perf_counter() - t0
     res = FitResult(params, est, ev.misfit, misfit, problem.data, ev.signals, tuple(runner.evaluations), unc, out,
-                    info=info, alternatives=tuple(alternatives), warnings=tuple(warnings))
+                    info=info, alternatives=tuple(alternatives), warnings=tuple(warnings), discretization=disc)
     return _write(res, plot=plot)
+
+
+def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, max_nfev: int, info: dict,
+                    seed: int = 0) -> list:
+    """The minima (u, residuals, Jacobian) of the first local stage and the further ones: from the mirror
+    image of the first minimum (:func:`~nsfem.fit.stages.mirror_point`) when its misfit is within
+    :data:`CANDIDATE_FACTOR` of the minimum's; from the best distant global sample within that factor of
+    the best sample (:func:`second_start`); then, while the best minimum's residuals are structured, up to
+    :data:`RESTARTS` zoomed designs (:func:`zoomed`, 2^(4 + p) runs within :data:`ZOOM` of each range)
+    about the minima in order of misfit, each starting a local stage from its best point when that beats
+    the minimum it surrounds and lies off every known one. A further stage that ends within
+    :data:`DISTINCT` of a known minimum adds none."""
+    params, say = problem.params, runner.say
+    minima, used, runs = [first], [], []
+
+    def explore(u0: np.ndarray, stage: str, why: str) -> None:
+        used.append(np.array(u0, float))
+        say(f"{stage} local stage from {_point(params, u0)} ({why})")
+        u2, r2, J2, sol = local_stage(runner, np.array(u0, float), speculate, max_nfev, stage)
+        runs.append({"stage": stage, "why": why, "start": {q.key: q.value(x) for q, x in zip(params, u0)},
+                     "end": {q.key: q.value(x) for q, x in zip(params, u2)}, "misfit": relative_rms(r2),
+                     "nfev": int(sol.nfev), "njev": int(sol.njev or 0), "status": int(sol.status),
+                     "message": str(sol.message)})
+        if not any(np.all(np.abs(u2 - m[0]) <= DISTINCT) for m in minima):
+            minima.append((u2, r2, J2))
+
+    u, r, _ = first
+    image = mirror_point(params, u, problem.extent)
+    if image is not None:
+        ev = runner.run([image], "mirror")[0]
+        if ev.misfit <= CANDIDATE_FACTOR * relative_rms(r):
+            explore(image, "mirror", f"the estimate reflected about the shaft's middle: misfit {100 * ev.misfit:.4g} %")
+    cand = second_start(runner.evaluations, [m[0] for m in minima], used=used)
+    if cand is not None:
+        explore(cand.u, "second", f"a good global sample far from the estimate: misfit {100 * cand.misfit:.4g} %; "
+                "another basin?")
+    zoomed_about: list[np.ndarray] = []
+    for _ in range(RESTARTS):
+        best = min(minima, key=lambda m: relative_rms(m[1]))
+        if residual_check(best[1], problem.data.names, problem.kind, relative_rms(best[1]))[1] is None:
+            break
+        todo = [m for m in sorted(minima, key=lambda m: relative_rms(m[1]))
+                if not any(np.array_equal(m[0], z) for z in zoomed_about)]
+        if not todo:
+            break
+        centre, level = todo[0][0], relative_rms(todo[0][1])
+        zoomed_about.append(centre)
+        design = zoomed(centre, 2 ** (4 + len(params)), seed)
+        say(f"zoomed stage: {len(design)} runs within {ZOOM:g} of each range about {_point(params, centre)} (the "
+            f"residuals at the best minimum, {100 * relative_rms(best[1]):.4g} %, are structured: a local minimum?)")
+        evs = [e for e in runner.run(list(design), "zoom") if math.isfinite(e.misfit)]
+        far = [e for e in evs if not any(np.all(np.abs(e.u - m[0]) <= ZOOM / 4) for m in minima)]
+        cand = min(far, key=lambda e: e.misfit) if far else None
+        if cand is not None and cand.misfit < level:
+            explore(cand.u, "zoom", f"the best of the zoomed design: misfit {100 * cand.misfit:.4g} %")
+    if runs:
+        info["further_local"] = runs
+    return minima
+
+
+def _refined(runner: _Runner, problem: Problem, u: np.ndarray, unc, say: Callable[[str], None]):
+    """The refined runs at the estimate (and one step from it per key) and the discretization shift they give
+    (:mod:`nsfem.fit.discretization`); None when the scene has nothing to refine."""
+    sets, kept = discretization.refined_overrides(problem.base)
+    if not sets:
+        return None
+    say(f"refined runs at the estimate ({', '.join(sets)}): the model's discretization error")
+    evs = runner.run_refined([u, *_perturbed(u)], sets)
+    p = len(problem.params)
+    failed = next((e.error for e in evs if e.error), "")
+    if failed:
+        return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, np.full(p, np.nan), failed)
+    Jf = jacobian(evs[0].residuals, evs[1:], u, runner.n)
+    du = discretization.shift(Jf, evs[0].residuals, np.isfinite(unc.sigma))
+    say("discretization shift: " + ", ".join(f"{q.key} {d * (q.high - q.low):+.3g}" for q, d in zip(problem.params, du)))
+    return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, du)
 
 
 def _without_failed_steps(runner: _Runner, params, u: np.ndarray, unc) -> tuple[object, str | None]:

@@ -144,10 +144,17 @@ class Problem:
     shared: bool
     base: object = field(repr=False, default=None)
 
-    def scene(self, u):
+    @property
+    def extent(self) -> tuple[float, float]:
+        """(a, b): the shaft's ends, the first segment's start and the last one's end [m]."""
+        segs = self.base.stack.segments
+        return min(s.start for s in segs), max(s.end for s in segs)
+
+    def scene(self, u, extra: Sequence[str] = ()):
+        """The scene at ``u`` (unit box), with ``extra`` overrides after the fixed ones."""
         from ..scene import load_scene
 
-        return load_scene(self.scene_path, [*self.fixed, *overrides_at(self.params, u)])
+        return load_scene(self.scene_path, [*self.fixed, *extra, *overrides_at(self.params, u)])
 
 
 def _check_item(tree, key: str) -> None:

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..atomic import write_text_atomic
 from ..measurement import Measurement
+from .discretization import Discretization, widen
 from .problem import Evaluation, Parameter
 
 #: an estimate within this fraction of its range's width from an end sits on the bound
@@ -67,19 +68,50 @@ class FitResult:
     info: dict = field(default_factory=dict)
     alternatives: tuple[Alternative, ...] = ()
     warnings: tuple[str, ...] = ()
+    discretization: Discretization | None = None
 
     @property
     def keys(self) -> list[str]:
         return [p.key for p in self.params]
 
     @property
-    def interval(self) -> np.ndarray:
-        """(p, 2) 95 % intervals in the keys' units (NaN without statistics)."""
+    def unit_interval(self) -> np.ndarray:
+        """(p, 2) 95 % intervals in the unit box: the noise interval widened by the discretization shift
+        (:func:`nsfem.fit.discretization.widen`; NaN without statistics)."""
         if self.uncertainty is None:
             return np.full((len(self.params), 2), np.nan)
+        iv = self.uncertainty.interval
+        d = self.discretization
+        if d is None or d.error:
+            return iv
+        u = np.array([(x - p.low) / (p.high - p.low) for p, x in zip(self.params, self.estimate)])
+        return widen(iv, u, d.shift)
+
+    @property
+    def interval(self) -> np.ndarray:
+        """(p, 2) 95 % intervals in the keys' units, the model's discretization error included (NaN
+        without statistics)."""
+        return self._physical(self.unit_interval)
+
+    @property
+    def noise_interval(self) -> np.ndarray:
+        """(p, 2) 95 % intervals from the noise alone (the linearized statistics), in the keys' units."""
+        if self.uncertainty is None:
+            return np.full((len(self.params), 2), np.nan)
+        return self._physical(self.uncertainty.interval)
+
+    @property
+    def discretization_shift(self) -> np.ndarray:
+        """(p,) the shift of the estimate a refined model gives, in the keys' units (NaN when not measured)."""
+        d = self.discretization
+        if d is None or d.error:
+            return np.full(len(self.params), np.nan)
+        return d.shift * np.array([p.high - p.low for p in self.params])
+
+    def _physical(self, unit: np.ndarray) -> np.ndarray:
         width = np.array([p.high - p.low for p in self.params])
         low = np.array([p.low for p in self.params])
-        return low[:, None] + self.uncertainty.interval * width[:, None]
+        return low[:, None] + unit * width[:, None]
 
     @property
     def at_bound(self) -> np.ndarray:
@@ -103,7 +135,12 @@ class FitResult:
         second minimum puts it elsewhere."""
         if self.uncertainty is None:
             return np.zeros(len(self.params), dtype=bool)
-        return ~self.uncertainty.spans_range & ~self.ambiguous
+        return ~self._spans_range & ~self.ambiguous
+
+    @property
+    def _spans_range(self) -> np.ndarray:
+        iv = self.unit_interval
+        return (iv[:, 0] <= 0.0) & (iv[:, 1] >= 1.0)
 
     @property
     def identifiable(self) -> bool | None:
@@ -116,7 +153,7 @@ class FitResult:
         if self.uncertainty is None:
             return None
         why = []
-        unseen = [p.key for p, s in zip(self.params, self.uncertainty.spans_range) if s]
+        unseen = [p.key for p, s in zip(self.params, self._spans_range) if s]
         if unseen:
             why.append(f"the data do not determine {', '.join(unseen)} (interval spans the range)")
         for alt in self.alternatives:
@@ -130,15 +167,18 @@ class FitResult:
     def to_json(self) -> dict:
         """design.md section 8's JSON, plus ``correlation``, ``identifiability``, ``global_stage`` and more."""
         from ..analysis.uncertainty import RANK_RTOL
+        from .discretization import FACTOR, ORDER
 
         keys = self.keys
         unc = self.uncertainty
         params = {}
-        for p, x, iv, b, ok, amb in zip(self.params, self.estimate, self.interval, self.at_bound, self.identified,
-                                        self.ambiguous):
+        for p, x, iv, ni, d, b, ok, amb in zip(self.params, self.estimate, self.interval, self.noise_interval,
+                                               self.discretization_shift, self.at_bound, self.identified, self.ambiguous):
             params[p.key] = {"estimate": _finite(x), "interval": [_finite(iv[0]), _finite(iv[1])],
+                             "noise_interval": [_finite(ni[0]), _finite(ni[1])], "discretization_shift": _finite(d),
                              "at_bound": bool(b), "identified": bool(ok), "ambiguous": bool(amb),
                              "range": [p.low, p.high]}
+        disc = self.discretization
         glob = [e for e in self.evaluations if e.stage == "global"]
         payload = {
             "parameters": params, "misfit": _finite(self.misfit), "misfit_kind": self.kind, "runs": len(self.evaluations),
@@ -151,6 +191,9 @@ class FitResult:
                               "differs": [p.key for p, d in zip(self.params, a.differs) if d]}
                              for a in self.alternatives],
             "warnings": list(self.warnings),
+            "discretization": None if disc is None else {
+                "refined": list(disc.overrides), "kept": list(disc.kept), "misfit": _finite(disc.misfit),
+                "error": disc.error or None, "order": ORDER, "factor": FACTOR},
             "correlation": None, "identifiability": None,
             "global_stage": {"keys": keys, "samples": [[p.value(x) for p, x in zip(self.params, e.u)] for e in glob],
                              "misfit": [_finite(e.misfit) for e in glob]},
