@@ -30,6 +30,10 @@ from .errors import NsfemError
 MISFITS = ("time", "spectrum")
 #: steps of t that differ by less than this fraction of their median count as uniform (``spectrum``)
 UNIFORM = 1e-6
+#: a step of t below this fraction of the median step is refused: the runs output at the data's
+#: smallest step, so one duplicated time stamp (a logger's double write, a CSV rounded to fewer
+#: digits) would make every run output a thousand times more often than the data were sampled
+CLOSE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -48,7 +52,7 @@ def read_measurement(path: str | Path) -> Measurement:
     if not path.is_file():
         raise NsfemError(f"{what}: no such file")
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")   # a spreadsheet's byte-order mark is not part of the header
     except (OSError, UnicodeDecodeError) as exc:
         raise NsfemError(f"{what}: cannot read it as UTF-8 text ({exc})") from None
     rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
@@ -80,7 +84,7 @@ def read_measurement(path: str | Path) -> Measurement:
 
 def check_measurement(t, signals: dict, what: str = "data") -> Measurement:
     """A :class:`Measurement` from times and {sensor name: samples}: at least two samples, t finite,
-    non-negative and increasing, every value finite, no duplicate or empty name, no signal that
+    non-negative and increasing (no step below :data:`CLOSE` of the median), every value finite, no duplicate or empty name, no signal that
     is zero throughout (it could not be scaled)."""
     t = np.asarray(t, dtype=float).ravel()
     if not signals:
@@ -97,6 +101,12 @@ def check_measurement(t, signals: dict, what: str = "data") -> Measurement:
     if np.any(steps <= 0):
         i = int(np.argmax(steps <= 0))
         raise NsfemError(f"{what}: t must increase, but t = {t[i]:g} s is followed by {t[i + 1]:g} s (sample {i + 1})")
+    tiny = steps < CLOSE * np.median(steps)
+    if np.any(tiny):
+        i = int(np.argmax(tiny))
+        raise NsfemError(f"{what}: samples {i + 1} and {i + 2} lie {steps[i]:.3g} s apart, against a median step of "
+                         f"{np.median(steps):.3g} s (a duplicated or garbled time stamp? the runs would have to "
+                         "output at that step)")
     if t[0] < 0:
         raise NsfemError(f"{what}: t starts at {t[0]:g} s; the scene's clock starts at 0 (its [initial] state)")
     values = np.empty((t.size, len(names)))

@@ -104,6 +104,9 @@ def test_bad_inputs_are_one_line_errors_before_any_run(clean, tmp_path, monkeypa
                 "column 'b' holds NaN or inf at sample 5"),
         "duplicate column": ("t,a,a\n0,1,2\n0.1,3,4\n", {KEY: RANGE}, "column 'a' appears 2 times in the header"),
         "t not increasing": ("t,a\n0,1\n0.2,2\n0.1,3\n", {KEY: RANGE}, "t must increase"),
+        # a duplicated time stamp a rounding step apart: the runs would output at 1e-9 s
+        "t nearly repeated": ("t,a\n0,1\n0.001,2\n0.001000001,3\n0.002,4\n", {KEY: RANGE},
+                              "samples 2 and 3 lie 1e-09 s apart"),
         "unknown key": (None, {"delamination.0.begin": RANGE}, "delamination.0.begin: unknown key"),
         "no such delamination": (None, {"delamination.3.start": RANGE}, "the scene has no delamination.3"),
         # one past the end: an override would append an item (a crack the scene does not have)
@@ -122,6 +125,14 @@ def test_bad_inputs_are_one_line_errors_before_any_run(clean, tmp_path, monkeypa
         assert "\n" not in str(info.value), name
     with pytest.raises(NsfemError, match="varied twice"):
         fit(None, good, [f"{KEY}=0.1:0.4", f"{KEY}=0.1:0.3"], overrides=FIXED)
+    with pytest.raises(NsfemError, match="workers= cannot be combined with client="):
+        fit(None, good, {KEY: RANGE}, overrides=FIXED, client=object(), workers=2)
+    # a spreadsheet's UTF-8 byte-order mark before the header is not part of the column 't'
+    from nsfem.measurement import read_measurement
+
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + good.read_bytes())
+    assert read_measurement(bom).names == ("a", "b")
     with pytest.raises(NsfemError, match="both varied and fixed"):
         fit(None, good, {KEY: RANGE}, overrides=[*FIXED, f"{KEY}=0.2"])
     # the command line: exit code 2 and one line on stderr

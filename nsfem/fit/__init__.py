@@ -98,7 +98,10 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     from ..sweep import _client, _close, _hold_signals, _release_signals
 
     if workers is not None and (scheduler or client is not None):
-        raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
+        raise NsfemError(("--workers cannot be combined with --scheduler" if scheduler else
+                          "workers= cannot be combined with client=") + " (the cluster has its own workers)")
+    if scheduler and client is not None:
+        raise NsfemError("scheduler= cannot be combined with client= (give one cluster)")
     if workers is not None and workers < 1:
         raise NsfemError(f"--workers must be a positive integer, got {workers}")
     t0 = time.perf_counter()

@@ -76,8 +76,9 @@ class _Runner:
             except NsfemError as exc:  # a combination of values the scene refuses (start past end, say)
                 self._keep(k, Evaluation(np.array(u, float), stage, math.inf, error=str(exc)), report)
                 continue
-            futures[self._submit(scene, self.shared)] = k
-        self.pending = list(futures)
+            fut = self._submit(scene, self.shared)
+            futures[fut] = k
+            self.pending.append(fut)     # cancelled on Ctrl-C even while the others are being submitted
         for fut in as_completed(list(futures), loop=self.cl.loop):
             k = futures[fut]
             self._keep(k, self._evaluation(fut, np.frombuffer(k), stage), report)
@@ -97,8 +98,9 @@ class _Runner:
             except NsfemError as exc:
                 evs[i] = Evaluation(np.array(u, float), "refined", math.inf, error=str(exc))
                 continue
-            futures[self._submit(scene, None)] = i
-        self.pending = list(futures)
+            fut = self._submit(scene, None)
+            futures[fut] = i
+            self.pending.append(fut)
         for fut in as_completed(list(futures), loop=self.cl.loop):
             i = futures[fut]
             evs[i] = self._evaluation(fut, np.array(us[i], float), "refined")
