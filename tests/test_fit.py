@@ -236,6 +236,19 @@ def test_a_start_in_a_wrong_basin_is_left_for_the_truth(inprocess, clean, tmp_pa
     assert further["stage"] == "second" and any(line.startswith("second local stage from") for line in lines)
 
 
+def test_a_zoomed_design_finds_a_narrow_basin_next_to_a_local_minimum(inprocess, clean, tmp_path):
+    # without a global stage, a local stage started at 0.27 m stops in a local minimum (structured
+    # residuals); the zoomed design within 0.1 of the range about it (32 runs, +-0.03 m) has a point in the
+    # truth's basin (about 0.01 m wide), whose local stage ends at the truth
+    res = fit(None, clean, {KEY: RANGE}, overrides=FIXED, client=inprocess, out_dir=tmp_path, n_global=0,
+              start={KEY: 0.27}, plot=False, refine=False)
+    assert abs(res.estimate[0] - TRUTH) < 1e-5 * (RANGE[1] - RANGE[0]) and res.misfit < 1e-3 and not res.warnings
+    assert [f["stage"] for f in res.info["further_local"]] == ["zoom"]
+    assert sum(e.stage == "zoom" for e in res.evaluations) == 32
+    [alt] = res.alternatives
+    assert alt.misfit > 0.1 and not alt.indistinguishable and res.identifiable
+
+
 def test_further_starts_keep_away_from_minima_and_used_starts():
     from nsfem.fit import Evaluation, second_start
 

@@ -210,11 +210,13 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
     params, say = problem.params, runner.say
     minima, used, runs = [first], [], []
 
-    def explore(u0: np.ndarray, stage: str, why: str) -> None:
+    def explore(u0: np.ndarray, kind: str, why: str) -> None:
         used.append(np.array(u0, float))
-        say(f"{stage} local stage from {_point(params, u0)} ({why})")
-        u2, r2, J2, sol = local_stage(runner, np.array(u0, float), speculate, max_nfev, stage)
-        runs.append({"stage": stage, "why": why, "start": {q.key: q.value(x) for q, x in zip(params, u0)},
+        say(f"{kind} local stage from {_point(params, u0)} ({why})")
+        # its runs' stage in evaluations.csv: apart from the mirror's and the zoomed design's own runs
+        label = kind if kind == "second" else f"{kind}-local"
+        u2, r2, J2, sol = local_stage(runner, np.array(u0, float), speculate, max_nfev, label)
+        runs.append({"stage": kind, "why": why, "start": {q.key: q.value(x) for q, x in zip(params, u0)},
                      "end": {q.key: q.value(x) for q, x in zip(params, u2)}, "misfit": relative_rms(r2),
                      "nfev": int(sol.nfev), "njev": int(sol.njev or 0), "status": int(sol.status),
                      "message": str(sol.message)})
