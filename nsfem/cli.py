@@ -231,7 +231,8 @@ def cmd_fit(args) -> int:
         notes = ((["at bound"] if p["at_bound"] else [])
                  + ([f"discretization shift {shift:+.3g}"] if shift is not None else []) + ([] if p["identified"] else ["not identified"])
                  + (["ambiguous: a second minimum"] if p["ambiguous"] else []))
-        lines.append(f"  {key:{width}s}  {p['estimate']:12.6g}  {interval:>27s}  {', '.join(notes)}")
+        est = f"{p['estimate']:12.6g}" if p["estimate"] is not None else f"{'-':>12s}"
+        lines.append(f"  {key:{width}s}  {est}  {interval:>27s}  {', '.join(notes)}")
     ident = payload["identifiability"]
     for d in (ident or {}).get("directions", []):
         why = ("the data do not see it" if d["reason"] == "rank" else "its interval exceeds the ranges")

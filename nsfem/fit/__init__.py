@@ -66,6 +66,7 @@ from .result import AT_BOUND, SAME_FIT, Alternative, FitInterrupted, FitResult, 
 from . import discretization
 from .discretization import Discretization
 from .stages import (CANDIDATE_FACTOR, DISTINCT, FAILED_RESIDUAL, RESOLUTION, RESTARTS, SEPARATION, STEP, WHITE_LEVEL, ZOOM,
+                     ZOOM_SAMPLES,
                      _point, _perturbed, _Runner, alternative, jacobian, local_stage, mirror_point, residual_check, second_start, zoomed)
 
 __all__ = ["fit", "FitResult", "FitInterrupted", "Alternative", "Evaluation", "Parameter", "Problem", "parse_vary",
@@ -147,19 +148,23 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
         u, r, J, sol = local_stage(runner, np.array(u0, float), speculate, max_nfev)
         info["local"] = {"nfev": int(sol.nfev), "njev": int(sol.njev or 0), "status": int(sol.status),
                          "message": str(sol.message)}
-        minima = _further_minima(runner, problem, (u, r, J), speculate, max_nfev, info, seed)
+        minima = _further_minima(runner, problem, (u, r, J), speculate, max_nfev, info, seed, explore=n_global > 0,
+                                 level=best.misfit if best is not None else 0.0)
         u, r, J = min(minima, key=lambda m: relative_rms(m[1]))
         unc = linearized(J, r, u, floor=RESOLUTION)
+        unc, failed = _without_failed_steps(runner, params, u, unc)
+        ev = runner.run([u], "local")[0]
+        disc = _refined(runner, problem, u, unc, say) if refine else None
+        interval = unc.interval
+        if disc is not None and not disc.error:
+            interval = discretization.widen(interval, disc.shift, disc.factor)
         alternatives = []
         for u2, r2, _ in minima:
-            alt = alternative(params, u, r, unc, u2, r2) if u2 is not u else None
+            alt = alternative(params, u, r, interval, u2, r2) if u2 is not u else None
             if alt is not None:
                 alternatives.append(alt)
                 say(f"another minimum at {_point(params, u2)}: misfit {100 * alt.misfit:.4g} %, F-test p = "
                     f"{alt.p_value:.3g}" + (" (as good as the estimate)" if alt.indistinguishable else ""))
-        unc, failed = _without_failed_steps(runner, params, u, unc)
-        ev = runner.run([u], "local")[0]
-        disc = _refined(runner, problem, u, unc, say) if refine else None
     except KeyboardInterrupt:
         held = _hold_signals()  # a second Ctrl-C must not cut the writing short
         if runner is not None:
@@ -183,10 +188,9 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     if warning:
         warnings.append(warning)
     if disc is not None and disc.error:
-        warnings.append(f"the refined run at the estimate ({', '.join(disc.overrides)}) failed: {disc.error}; the "
-                        "interval leaves out the model's discretization error")
+        warnings.append(f"{disc.error}: the interval leaves out the model's discretization error")
     elif disc is not None:
-        big = discretization.warning(params, disc.shift, unc.interval, u, disc.overrides)
+        big = discretization.warning(params, disc, unc.interval, u)
         if big:
             warnings.append(big)
     for w in warnings:
@@ -198,10 +202,11 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
 
 
 def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, max_nfev: int, info: dict,
-                    seed: int = 0) -> list:
+                    seed: int = 0, explore: bool = True, level: float = 0.0) -> list:
     """The minima (u, residuals, Jacobian) of the first local stage and the further ones: from the mirror
     image of the first minimum (:func:`~nsfem.fit.stages.mirror_point`) when its misfit is within
-    :data:`CANDIDATE_FACTOR` of the minimum's; from the best distant global sample within that factor of
+    :data:`CANDIDATE_FACTOR` of the minimum's or of ``level`` (the best global sample's), the larger;
+    with ``explore`` (a global stage ran): from the best distant global sample within that factor of
     the best sample (:func:`second_start`); then, while the best minimum's residuals are structured, up to
     :data:`RESTARTS` zoomed designs (:func:`zoomed`, 2^(4 + p) runs within :data:`ZOOM` of each range)
     about the minima in order of misfit, each starting a local stage from its best point when that beats
@@ -210,7 +215,7 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
     params, say = problem.params, runner.say
     minima, used, runs = [first], [], []
 
-    def explore(u0: np.ndarray, kind: str, why: str) -> None:
+    def start(u0: np.ndarray, kind: str, why: str) -> None:
         used.append(np.array(u0, float))
         say(f"{kind} local stage from {_point(params, u0)} ({why})")
         # its runs' stage in evaluations.csv: apart from the mirror's and the zoomed design's own runs
@@ -227,11 +232,14 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
     image = mirror_point(params, u, problem.extent)
     if image is not None:
         ev = runner.run([image], "mirror")[0]
-        if ev.misfit <= CANDIDATE_FACTOR * relative_rms(r):
-            explore(image, "mirror", f"the estimate reflected about the shaft's middle: misfit {100 * ev.misfit:.4g} %")
+        if ev.misfit <= CANDIDATE_FACTOR * max(relative_rms(r), level):
+            start(image, "mirror", f"the estimate reflected about the shaft's middle: misfit {100 * ev.misfit:.4g} %")
+    if not explore:
+        info["further_local"] = runs
+        return minima
     cand = second_start(runner.evaluations, [m[0] for m in minima], used=used)
     if cand is not None:
-        explore(cand.u, "second", f"a good global sample far from the estimate: misfit {100 * cand.misfit:.4g} %; "
+        start(cand.u, "second", f"a good global sample far from the estimate: misfit {100 * cand.misfit:.4g} %; "
                 "another basin?")
     zoomed_about: list[np.ndarray] = []
     for _ in range(RESTARTS):
@@ -244,35 +252,54 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
             break
         centre, level = todo[0][0], relative_rms(todo[0][1])
         zoomed_about.append(centre)
-        design = zoomed(centre, 2 ** (4 + len(params)), seed)
+        design = zoomed(centre, min(ZOOM_SAMPLES, 2 ** (4 + len(params))), seed)
         say(f"zoomed stage: {len(design)} runs within {ZOOM:g} of each range about {_point(params, centre)} (the "
             f"residuals at the best minimum, {100 * relative_rms(best[1]):.4g} %, are structured: a local minimum?)")
         evs = [e for e in runner.run(list(design), "zoom") if math.isfinite(e.misfit)]
         far = [e for e in evs if not any(np.all(np.abs(e.u - m[0]) <= ZOOM / 4) for m in minima)]
         cand = min(far, key=lambda e: e.misfit) if far else None
         if cand is not None and cand.misfit < level:
-            explore(cand.u, "zoom", f"the best of the zoomed design: misfit {100 * cand.misfit:.4g} %")
-    if runs:
-        info["further_local"] = runs
+            start(cand.u, "zoom", f"the best of the zoomed design: misfit {100 * cand.misfit:.4g} %")
+    info["further_local"] = runs
     return minima
 
 
-def _refined(runner: _Runner, problem: Problem, u: np.ndarray, unc, say: Callable[[str], None]):
-    """The refined runs at the estimate (and one step from it per key) and the discretization shift they give
-    (:mod:`nsfem.fit.discretization`); None when the scene has nothing to refine."""
+def _refined(runner: _Runner, problem: Problem, u: np.ndarray, unc, say: Callable[[str], None]) -> Discretization:
+    """The refined runs at the estimate ``u`` (and one step from it per key) and the discretization shift
+    they give (:mod:`nsfem.fit.discretization`; none for a key at a range end). Kept modes that the refined model cannot hold (a mesh from a file)
+    are kept as they were in a second try; with nothing to refine, or when the refined runs fail, the
+    result says so in ``error`` and has no shift."""
     sets, kept = discretization.refined_overrides(problem.base)
+    p = len(problem.params)
+    q = discretization.order(problem.base.simulation.method)
+    nothing = np.full(p, np.nan)
     if not sets:
-        return None
+        return discretization.Discretization((), tuple(kept), math.nan, nothing, q,
+                                             "the scene has no discretization setting to refine")
     say(f"refined runs at the estimate ({', '.join(sets)}): the model's discretization error")
     evs = runner.run_refined([u, *_perturbed(u)], sets)
-    p = len(problem.params)
     failed = next((e.error for e in evs if e.error), "")
+    modes = [o for o in sets if o.startswith("reduction.modes=")]
+    if failed and modes and "reduction.modes" in failed:
+        sets = [o for o in sets if o not in modes]
+        kept.append(f"{modes[0]}: the refined model cannot keep them ({failed})")
+        if not sets:
+            return discretization.Discretization((), tuple(kept), math.nan, nothing, q,
+                                                 "the scene has no discretization setting to refine")
+        say(f"refined runs again without {modes[0]}")
+        evs = runner.run_refined([u, *_perturbed(u)], sets)
+        failed = next((e.error for e in evs if e.error), "")
     if failed:
-        return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, np.full(p, np.nan), failed)
-    Jf = jacobian(evs[0].residuals, evs[1:], u, runner.n)
-    du = discretization.shift(Jf, evs[0].residuals, np.isfinite(unc.sigma))
-    say("discretization shift: " + ", ".join(f"{q.key} {d * (q.high - q.low):+.3g}" for q, d in zip(problem.params, du)))
-    return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, du)
+        return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, nothing, q,
+                                             f"the refined runs at the estimate ({', '.join(sets)}) failed: {failed}")
+    Jr = jacobian(evs[0].residuals, evs[1:], u, runner.n)
+    inside = np.array([min(x, 1.0 - x) > AT_BOUND for x in u])
+    du = discretization.shift(Jr, evs[0].residuals, np.isfinite(unc.sigma) & inside)
+    if not inside.all():
+        kept.append("no shift for " + ", ".join(k.key for k, i in zip(problem.params, inside) if not i)
+                    + ": at a range end (the fitted model's minimum lies beyond it)")
+    say("discretization shift: " + ", ".join(f"{k.key} {d * (k.high - k.low):+.3g}" for k, d in zip(problem.params, du)))
+    return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, du, q)
 
 
 def _without_failed_steps(runner: _Runner, params, u: np.ndarray, unc) -> tuple[object, str | None]:
@@ -300,7 +327,7 @@ def _without_failed_steps(runner: _Runner, params, u: np.ndarray, unc) -> tuple[
 def _partial(problem: Problem, runner: _Runner | None, out: Path, info: dict, t0: float) -> FitResult:
     """The best run so far as a result without statistics."""
     evs = tuple(runner.evaluations) if runner is not None else ()
-    ok = [e for e in evs if math.isfinite(e.misfit)]
+    ok = [e for e in evs if math.isfinite(e.misfit) and e.stage != "refined"]   # refined: another model's signals
     best = min(ok, key=lambda e: e.misfit) if ok else None
     u = best.u if best is not None else np.full(len(problem.params), np.nan)
     est = np.array([q.low + x * (q.high - q.low) for q, x in zip(problem.params, u)])

@@ -12,21 +12,32 @@ measures the shift instead of assuming it away:
 * one Gauss-Newton step of the refined model from the estimate, on the refined model's own
   Jacobian J_r and residuals r_r, gives the shift of the minimum, du = -J_r^+ r_r (:func:`shift`):
   where a fit with the refined settings would go. Measured on the delaminated shaft (20 elements
-  and 6 modes refined to 40 and 12, noise-free data from 40 and 12): 97.4-100.4 % of the estimate's
-  offset from the truth, from 5e-6 to 2e-3 m. The fitted model's Jacobian in its place got the
-  sign wrong where the two models differ by a misfit of 2 %;
+  and 6 modes refined to 40 and 12, noise-free data from 40 and 12): 97.4-100.4 % of the
+  estimate's offset from the truth, from 5e-6 to 2e-3 m. The fitted model's Jacobian in the
+  refined one's place got the sign wrong where the two models differ by a misfit of 2 %. The step
+  assumes that the estimate is the fitted model's minimum: a key at a range end (its minimum lies
+  beyond) is held and gets no shift. Subtracting the fitted model's own step instead (zero at an
+  exact minimum) was tried and fails: with a model-error misfit of 2 % the forward-difference
+  Jacobian's error makes that step 8e-4 m where the optimizer had converged;
 * if the model error falls like h^q when the settings double, the refined model keeps 2^-q of it
   and du is (1 - 2^-q) of the whole shift. Hermite elements converge with q = 4 in the
   frequencies, a doubled modal basis with q of 2 or more (the residual flexibility of mode k falls
-  like k^-4); :data:`ORDER` = 2 is the slower, so the whole shift is at most du / (1 - 2^-2) =
-  4/3 du (:data:`FACTOR`). The interval becomes the hull of the noise interval and the noise
-  interval moved by that shift (:func:`widen`): the truth lies in it when it lies in the noise
-  interval around the continuous model's minimum.
+  like k^-4), rk's tolerance a tenth: q = 3.3; :data:`ORDER` = 2 is the slowest of these, so the
+  whole shift is taken as du / (1 - 2^-2) = 4/3 du. Moreau's time stepping with impacts is first
+  order (:data:`MOREAU_ORDER`): 2 du. The interval becomes the hull of the noise interval and the
+  noise interval moved by that shift (:func:`widen`). It is an estimate, not a bound: a model
+  whose error does not fall steadily with refinement (error terms of opposite sign) can keep more
+  than the doubling shows (data of 80 elements and 24 modes, fitted with 20 and 6 from rest: a
+  shift of 1.5e-5 m for an offset of 3.7e-5 m).
+
+Not refined, and listed as kept: the contact discretization (a delamination's contact points, a
+stator's facets, friction cone generators), which is part of the model's geometry, and a penalty
+stiffness, which is part of its physics.
 
 A shift larger than the noise half-width is a warning: the estimate is limited by the model, and
 fitting with the refined settings would sharpen it.
 
->>> iv = widen(np.array([[0.4, 0.6]]), np.array([0.5]), np.array([0.15]))
+>>> iv = widen(np.array([[0.4, 0.6]]), np.array([0.15]), factor(2))
 >>> np.round(iv, 3).tolist()
 [[0.4, 0.8]]
 """
@@ -40,32 +51,55 @@ import numpy as np
 
 #: the slowest convergence order assumed for the fitted model's error when its settings double
 ORDER = 2
+#: moreau's order: time stepping through impacts is first order in its step
+MOREAU_ORDER = 1
 #: the whole discretization shift over the one measured by a doubling: 1 / (1 - 2^-ORDER)
 FACTOR = 1.0 / (1.0 - 2.0**-ORDER)
 #: rk's and penalty's tolerances in the refined run, as a fraction of the scene's
 TOLERANCE = 0.1
+#: solve_ivp's smallest relative tolerance (100 machine epsilons): a tighter one is raised to it
+RTOL_FLOOR = 100 * np.finfo(float).eps
+
+
+def order(method: str) -> int:
+    """The convergence order assumed for a scene integrated by ``method``."""
+    return MOREAU_ORDER if method == "moreau" else ORDER
+
+
+def factor(q: int) -> float:
+    """The whole shift over the one a doubling measures, for order ``q``: 1 / (1 - 2^-q)."""
+    return 1.0 / (1.0 - 2.0**-q)
 
 
 @dataclass(frozen=True)
 class Discretization:
-    """The refined run at the estimate: its ``overrides``, what was ``kept`` as it was (and why),
-    its relative RMS ``misfit``, the ``shift`` du of the minimum in the unit box (NaN per key
-    whose Jacobian column is undetermined) and ``error`` (the refined run failed: no shift)."""
+    """The refined runs at the estimate: their ``overrides``, what was ``kept`` as it was (and why),
+    the relative RMS ``misfit`` at the estimate, the ``shift`` du of the minimum in the unit box (NaN
+    per key whose Jacobian column is undetermined, all NaN without refined runs), the assumed
+    convergence ``order`` and ``error`` (the refined runs failed, or there was nothing to refine:
+    no shift)."""
 
     overrides: tuple[str, ...]
     kept: tuple[str, ...]
     misfit: float
     shift: np.ndarray
+    order: int = ORDER
     error: str = ""
+
+    @property
+    def factor(self) -> float:
+        """The whole shift over ``shift``: 1 / (1 - 2^-order)."""
+        return factor(self.order)
 
 
 def refined_overrides(scene) -> tuple[list[str], list[str]]:
-    """(``--set`` overrides that refine every discretization setting of ``scene``, notes on the
+    """(``--set`` overrides that refine the discretization settings of ``scene``, notes on the
     settings left as they are). Elements double unless the mesh comes from a file or would pass
-    the schema's element limit; kept modes double (capped by the model in the run: a reduction that
-    cannot keep them fails the refined run, reported); the integrator's own accuracy is refined
-    (rk and penalty: tolerances x :data:`TOLERANCE`; moreau: half the step; exact: nothing, it is
-    exact between events)."""
+    the schema's element limit; kept modes double (a reduction that cannot keep them fails the
+    refined runs, which are then run again without it); the integrator's own accuracy is refined
+    (rk and penalty: tolerances x :data:`TOLERANCE`, rtol no lower than solve_ivp's floor; moreau:
+    half the step; exact: nothing, it is exact between events). The contact discretization and a
+    penalty stiffness are noted as kept."""
     from ..scene.schema import MAX_ELEMENTS
 
     sets, kept = [], []
@@ -80,48 +114,61 @@ def refined_overrides(scene) -> tuple[list[str], list[str]]:
         sets.append(f"reduction.modes={2 * scene.reduction.modes}")
     sim = scene.simulation
     if sim.method in ("rk", "penalty"):
-        sets += [f"simulation.rtol={sim.rtol * TOLERANCE!r}", f"simulation.atol={sim.atol * TOLERANCE!r}"]
+        rtol = max(sim.rtol * TOLERANCE, RTOL_FLOOR)
+        if rtol < sim.rtol:
+            sets.append(f"simulation.rtol={rtol!r}")
+        else:
+            kept.append(f"simulation.rtol: {sim.rtol:g} is at solve_ivp's floor")
+        sets.append(f"simulation.atol={sim.atol * TOLERANCE!r}")
+        if sim.method == "penalty":
+            kept.append("the penalty stiffness: part of the model, not of its discretization")
     elif sim.method == "moreau":
         step = sim.moreau_step if sim.moreau_step > 0 else sim.output_dt / 10
         sets.append(f"simulation.moreau_step={step / 2!r}")
+    if scene.get("delamination") or scene.get("stator") or scene.get("obstacle") or scene.get("contact"):
+        kept.append("the contact discretization (contact points, stator facets, friction cone generators): part "
+                    "of the model's geometry")
     return sets, kept
 
 
-def shift(J: np.ndarray, r: np.ndarray, determined: np.ndarray, rtol: float = 1e-6) -> np.ndarray:
-    """The Gauss-Newton step du = -J^+ r of the refined model from the estimate (its Jacobian ``J`` and
-    residuals ``r`` there) in the unit box, over the ``determined`` columns (the others get NaN);
+def shift(J: np.ndarray, r: np.ndarray, free: np.ndarray, rtol: float = 1e-6) -> np.ndarray:
+    """The shift du = -J^+ r of the minimum in the unit box: the refined model's Gauss-Newton step from
+    the estimate (its Jacobian ``J`` and residuals ``r`` there) over the ``free`` columns, the others
+    held (NaN: a key at a range end, whose minimum lies beyond it, or whose column is undetermined);
     singular values below ``rtol`` of the largest are dropped (as the rank of
     :func:`nsfem.analysis.uncertainty.linearized`).
 
-    >>> shift(np.array([[1.0], [1.0]]), np.array([0.2, 0.2]), np.array([True])).tolist()
+    >>> np.round(shift(np.array([[1.0], [1.0]]), np.array([0.2, 0.2]), np.array([True])), 12).tolist()
     [-0.2]
     """
     out = np.full(J.shape[1], np.nan)
-    cols = np.flatnonzero(determined)
+    cols = np.flatnonzero(free)
     if cols.size:
         du, *_ = np.linalg.lstsq(J[:, cols], -np.asarray(r), rcond=rtol)
         out[cols] = du
     return out
 
 
-def widen(interval: np.ndarray, u: np.ndarray, du: np.ndarray) -> np.ndarray:
-    """The hull of the noise ``interval`` (p, 2) around ``u`` and the same interval moved by
-    :data:`FACTOR` x ``du`` (the whole discretization shift), clipped to the unit box; keys with an
-    undetermined shift (NaN) keep their noise interval."""
-    move = np.where(np.isfinite(du), FACTOR * np.nan_to_num(du), 0.0)
+def widen(interval: np.ndarray, du: np.ndarray, whole: float = FACTOR) -> np.ndarray:
+    """The hull of the noise ``interval`` (p, 2) and the same interval moved by ``whole`` x ``du`` (the
+    whole discretization shift), clipped to the unit box; keys with an undetermined shift (NaN) keep
+    their noise interval."""
+    move = np.where(np.isfinite(du), whole * np.nan_to_num(du), 0.0)
     low = np.minimum(interval[:, 0], interval[:, 0] + move)
     high = np.maximum(interval[:, 1], interval[:, 1] + move)
     return np.column_stack([np.clip(low, 0.0, 1.0), np.clip(high, 0.0, 1.0)])
 
 
-def warning(params, du: np.ndarray, interval: np.ndarray, u: np.ndarray, overrides) -> str | None:
-    """The warning when the whole discretization shift (:data:`FACTOR` x ``du``) of some key exceeds
-    its noise half-width (None if none does); it names the measured shift ``du``."""
+def warning(params, d: Discretization, interval: np.ndarray, u: np.ndarray) -> str | None:
+    """The warning when the whole discretization shift (``d.factor`` x ``d.shift``) of some key exceeds
+    its noise half-width (None if none does)."""
+    du, whole = d.shift, d.factor
     half = np.maximum(u - interval[:, 0], interval[:, 1] - u)
-    big = [i for i in range(len(params)) if math.isfinite(du[i]) and abs(FACTOR * du[i]) > half[i]]
+    big = [i for i in range(len(params)) if math.isfinite(du[i]) and abs(whole * du[i]) > half[i]]
     if not big:
         return None
-    what = "; ".join(f"{params[i].key} by {du[i] * (params[i].high - params[i].low):+.3g} against a noise "
-                     f"half-width of {half[i] * (params[i].high - params[i].low):.3g}" for i in big)
-    return (f"the model's discretization limits the estimate: refining it ({', '.join(overrides)}) moves {what}; "
+    what = "; ".join(f"{params[i].key} by {du[i] * (params[i].high - params[i].low):+.3g} (the whole shift taken as "
+                     f"{whole * du[i] * (params[i].high - params[i].low):+.3g}) against a noise half-width of "
+                     f"{half[i] * (params[i].high - params[i].low):.3g}" for i in big)
+    return (f"the model's discretization limits the estimate: refining it ({', '.join(d.overrides)}) moves {what}; "
             "the interval includes the shift. Fit with finer settings for a sharper estimate")

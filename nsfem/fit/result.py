@@ -84,8 +84,7 @@ class FitResult:
         d = self.discretization
         if d is None or d.error:
             return iv
-        u = np.array([(x - p.low) / (p.high - p.low) for p, x in zip(self.params, self.estimate)])
-        return widen(iv, u, d.shift)
+        return widen(iv, d.shift, d.factor)
 
     @property
     def interval(self) -> np.ndarray:
@@ -167,7 +166,6 @@ class FitResult:
     def to_json(self) -> dict:
         """design.md section 8's JSON, plus ``correlation``, ``identifiability``, ``global_stage`` and more."""
         from ..analysis.uncertainty import RANK_RTOL
-        from .discretization import FACTOR, ORDER
 
         keys = self.keys
         unc = self.uncertainty
@@ -193,7 +191,7 @@ class FitResult:
             "warnings": list(self.warnings),
             "discretization": None if disc is None else {
                 "refined": list(disc.overrides), "kept": list(disc.kept), "misfit": _finite(disc.misfit),
-                "error": disc.error or None, "order": ORDER, "factor": FACTOR},
+                "error": disc.error or None, "order": disc.order, "factor": disc.factor},
             "correlation": None, "identifiability": None,
             "global_stage": {"keys": keys, "samples": [[p.value(x) for p, x in zip(self.params, e.u)] for e in glob],
                              "misfit": [_finite(e.misfit) for e in glob]},

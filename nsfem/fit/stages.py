@@ -30,6 +30,11 @@ RESTARTS = 2
 #: truth whose basin is about as narrow (the delamination falling from rest: 0.017 and 0.014 m off
 #: for ranges of 0.3 m, a basin about 0.01 m wide), which a global design over the whole box misses
 ZOOM = 0.1
+#: the most runs of one zoomed design (the global stage's cap is 256)
+ZOOM_SAMPLES = 64
+#: a mirror image nearer the estimate than this (of a range, every key) is the estimate's own basin: a
+#: basin of contact dynamics is a few hundredths of a range wide (see ZOOM)
+MIRROR_SEPARATION = 0.05
 #: a second minimum that lies within this fraction of every range from the estimate is the same one
 DISTINCT = 0.01
 #: relative RMS misfit below which residuals are resolution, not information: the optimizer stops
@@ -97,6 +102,7 @@ class _Runner:
                 scene = self.problem.scene(u, overrides)
             except NsfemError as exc:
                 evs[i] = Evaluation(np.array(u, float), "refined", math.inf, error=str(exc))
+                self.evaluations.append(evs[i])
                 continue
             fut = self._submit(scene, None)
             futures[fut] = i
@@ -104,10 +110,9 @@ class _Runner:
         for fut in as_completed(list(futures), loop=self.cl.loop):
             i = futures[fut]
             evs[i] = self._evaluation(fut, np.array(us[i], float), "refined")
+            self.evaluations.append(evs[i])      # kept as it arrives: Ctrl-C loses no finished run
         self.pending = []
-        out = [evs[i] for i in range(len(us))]
-        self.evaluations.extend(out)
-        return out
+        return [evs[i] for i in range(len(us))]
 
     def _submit(self, scene, shared):
         p = self.problem
@@ -193,18 +198,18 @@ def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int,
     return u, _residual_vector(runner.run([u], stage)[0], n), jac(u), sol
 
 
-def second_start(evaluations: Sequence[Evaluation], found: Sequence[np.ndarray], factor: float = CANDIDATE_FACTOR,
+def second_start(evaluations: Sequence[Evaluation], found: Sequence[np.ndarray],
                  used: Sequence[np.ndarray] = ()) -> Evaluation | None:
-    """The global sample that starts a further local stage: the best of those within ``factor`` of the
-    best sample's misfit (:data:`CANDIDATE_FACTOR`: another basin as good as the first; ``math.inf``:
-    any) that lie at least :data:`SEPARATION` of a range (for some key) from every minimum ``found``
-    and every start ``used`` before; None when there is none."""
+    """The global sample that starts a further local stage: the best of those within
+    :data:`CANDIDATE_FACTOR` of the best sample's misfit (another basin as good as the first) that lie
+    at least :data:`SEPARATION` of a range (for some key) from every minimum ``found`` and every start
+    ``used`` before; None when there is none."""
     ok = [e for e in evaluations if e.stage == "global" and math.isfinite(e.misfit)]
     if not ok:
         return None
     best = min(e.misfit for e in ok)
     away = [*found, *used]
-    far = [e for e in ok if e.misfit <= factor * best
+    far = [e for e in ok if e.misfit <= CANDIDATE_FACTOR * best
            and all(np.max(np.abs(e.u - v)) >= SEPARATION for v in away)]
     return min(far, key=lambda e: e.misfit) if far else None
 
@@ -228,12 +233,14 @@ def mirror_point(params: Sequence[Parameter], u: np.ndarray, extent: tuple[float
     and its mirror image alike but through the sensors and loads, so the image is where a second
     minimum as good as the estimate is most likely (a crack seen by probes near mid-span). None when
     no key is a position, a reflected value leaves its range, or the image lies within
-    :data:`SEPARATION` of ``u`` (a defect about the middle).
+    :data:`MIRROR_SEPARATION` of ``u`` (a defect at the middle: the image is the estimate).
 
     >>> from nsfem.fit.problem import Parameter
     >>> ps = (Parameter("crack.0.x", 0.1, 0.7), Parameter("crack.0.depth", 0.1, 0.5))
-    >>> np.round(mirror_point(ps, np.array([0.5, 0.25]), (0.0, 0.8)), 6).tolist()
-    [0.666667, 0.25]
+    >>> mirror_point(ps, np.array([0.5, 0.25]), (0.0, 0.8)) is None   # x = 0.4: its own image
+    True
+    >>> np.round(mirror_point(ps, np.array([1 / 6, 0.25]), (0.0, 0.8)), 6).tolist()   # x = 0.2 -> 0.6
+    [0.833333, 0.25]
     """
     a, b = extent
     values = np.array([q.value(x) for q, x in zip(params, u)])
@@ -255,19 +262,19 @@ def mirror_point(params: Sequence[Parameter], u: np.ndarray, extent: tuple[float
     low = np.array([q.low for q in params])
     width = np.array([q.high - q.low for q in params])
     v = (out - low) / width
-    if np.any(v < -1e-12) or np.any(v > 1.0 + 1e-12) or np.max(np.abs(v - u)) < SEPARATION:
+    if np.any(v < -1e-12) or np.any(v > 1.0 + 1e-12) or np.max(np.abs(v - u)) < MIRROR_SEPARATION:
         return None
     return np.clip(v, 0.0, 1.0)
 
 
-def alternative(params: Sequence[Parameter], u: np.ndarray, r: np.ndarray, unc, u2: np.ndarray,
+def alternative(params: Sequence[Parameter], u: np.ndarray, r: np.ndarray, interval: np.ndarray, u2: np.ndarray,
                 r2: np.ndarray) -> Alternative | None:
-    """The minimum ``u2`` (residuals ``r2``) as an alternative to the estimate ``u`` (``r``, statistics
-    ``unc``), None when it is the same minimum (every key within :data:`DISTINCT` of its range or
-    inside the estimate's interval)."""
+    """The minimum ``u2`` (residuals ``r2``) as an alternative to the estimate ``u`` (``r``, its reported
+    ``interval`` (p, 2) in the unit box, the discretization shift included), None when it is the same
+    minimum (every key within :data:`DISTINCT` of its range or inside the estimate's interval)."""
     from ..analysis.uncertainty import same_fit
 
-    iv = unc.interval
+    iv = interval
     differs = (np.abs(u2 - u) > DISTINCT) & ((u2 < iv[:, 0]) | (u2 > iv[:, 1]))
     if not np.any(differs):
         return None
