@@ -15,11 +15,11 @@ the fitted model's discretization error, measured by refined runs at the estimat
 (:func:`_further_minima`):
 
 * the mirror image of the estimate about the shaft's middle (:func:`~nsfem.fit.stages.mirror_point`),
-  when its misfit is within :data:`CANDIDATE_FACTOR` of the estimate's: a symmetric shaft sees a
-  defect and its image alike but through the sensors and loads;
-* a second basin: the best global sample within :data:`CANDIDATE_FACTOR` of the best sample's misfit
-  and at least :data:`SEPARATION` of a range from every minimum found;
-* zoomed designs (at most :data:`RESTARTS`) while the best minimum's residuals are structured (lag-1
+  when its misfit is within :data:`CANDIDATE_FACTOR` of the estimate's or the best global sample's,
+  the larger: a symmetric shaft sees a defect and its image alike but through the sensors and loads;
+* with a global stage, a second basin: the best global sample within :data:`CANDIDATE_FACTOR` of the
+  best sample's misfit and at least :data:`SEPARATION` of a range from every minimum found;
+* with a global stage, zoomed designs (at most :data:`RESTARTS`, each at most :data:`ZOOM_SAMPLES` runs) while the best minimum's residuals are structured (lag-1
   autocorrelation above the white-noise bound in some sensor, misfit above :data:`RESOLUTION`: a
   local minimum or a model that cannot explain the data): Sobol points within :data:`ZOOM` of each
   range about the minima found, in order of misfit; the best point starts a local stage when it
@@ -214,6 +214,7 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
     :data:`DISTINCT` of a known minimum adds none."""
     params, say = problem.params, runner.say
     minima, used, runs = [first], [], []
+    info["further_local"] = runs          # filled as the stages end: a Ctrl-C keeps those that did
 
     def start(u0: np.ndarray, kind: str, why: str) -> None:
         used.append(np.array(u0, float))
@@ -235,7 +236,6 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
         if ev.misfit <= CANDIDATE_FACTOR * max(relative_rms(r), level):
             start(image, "mirror", f"the estimate reflected about the shaft's middle: misfit {100 * ev.misfit:.4g} %")
     if not explore:
-        info["further_local"] = runs
         return minima
     cand = second_start(runner.evaluations, [m[0] for m in minima], used=used)
     if cand is not None:
@@ -250,7 +250,7 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
                 if not any(np.array_equal(m[0], z) for z in zoomed_about)]
         if not todo:
             break
-        centre, level = todo[0][0], relative_rms(todo[0][1])
+        centre, around = todo[0][0], relative_rms(todo[0][1])
         zoomed_about.append(centre)
         design = zoomed(centre, min(ZOOM_SAMPLES, 2 ** (4 + len(params))), seed)
         say(f"zoomed stage: {len(design)} runs within {ZOOM:g} of each range about {_point(params, centre)} (the "
@@ -258,15 +258,14 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
         evs = [e for e in runner.run(list(design), "zoom") if math.isfinite(e.misfit)]
         far = [e for e in evs if not any(np.all(np.abs(e.u - m[0]) <= ZOOM / 4) for m in minima)]
         cand = min(far, key=lambda e: e.misfit) if far else None
-        if cand is not None and cand.misfit < level:
+        if cand is not None and cand.misfit < around:
             start(cand.u, "zoom", f"the best of the zoomed design: misfit {100 * cand.misfit:.4g} %")
-    info["further_local"] = runs
     return minima
 
 
 def _refined(runner: _Runner, problem: Problem, u: np.ndarray, unc, say: Callable[[str], None]) -> Discretization:
     """The refined runs at the estimate ``u`` (and one step from it per key) and the discretization shift
-    they give (:mod:`nsfem.fit.discretization`; none for a key at a range end). Kept modes that the refined model cannot hold (a mesh from a file)
+    they give (:mod:`nsfem.fit.discretization`). Kept modes that the refined model cannot hold (a mesh from a file)
     are kept as they were in a second try; with nothing to refine, or when the refined runs fail, the
     result says so in ``error`` and has no shift."""
     sets, kept = discretization.refined_overrides(problem.base)
@@ -285,7 +284,7 @@ def _refined(runner: _Runner, problem: Problem, u: np.ndarray, unc, say: Callabl
         kept.append(f"{modes[0]}: the refined model cannot keep them ({failed})")
         if not sets:
             return discretization.Discretization((), tuple(kept), math.nan, nothing, q,
-                                                 "the scene has no discretization setting to refine")
+                                                 f"nothing left to refine ({modes[0]} cannot be held)")
         say(f"refined runs again without {modes[0]}")
         evs = runner.run_refined([u, *_perturbed(u)], sets)
         failed = next((e.error for e in evs if e.error), "")
@@ -293,11 +292,7 @@ def _refined(runner: _Runner, problem: Problem, u: np.ndarray, unc, say: Callabl
         return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, nothing, q,
                                              f"the refined runs at the estimate ({', '.join(sets)}) failed: {failed}")
     Jr = jacobian(evs[0].residuals, evs[1:], u, runner.n)
-    inside = np.array([min(x, 1.0 - x) > AT_BOUND for x in u])
-    du = discretization.shift(Jr, evs[0].residuals, np.isfinite(unc.sigma) & inside)
-    if not inside.all():
-        kept.append("no shift for " + ", ".join(k.key for k, i in zip(problem.params, inside) if not i)
-                    + ": at a range end (the fitted model's minimum lies beyond it)")
+    du = discretization.shift(Jr, evs[0].residuals, u, np.isfinite(unc.sigma))
     say("discretization shift: " + ", ".join(f"{k.key} {d * (k.high - k.low):+.3g}" for k, d in zip(problem.params, du)))
     return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, du, q)
 
