@@ -197,7 +197,7 @@ def combine(rows: list[dict], names: list[str], keys: list[str]) -> list[dict]:
             lo, hi = max(min(x[j] - half, x[j] - half + move), ref["range_low"]), min(max(x[j] + half, x[j] + half + move),
                                                                                     ref["range_high"])
             out.append({"case": "delam_speeds_combined", "what": f"{len(xs)} steady speeds combined", "draw": draw,
-                        "noise": ref["noise"] if draw else 0.0, "key": key, "truth": ref["truth"],
+                        "noise": NOISE if draw else 0.0, "key": key, "truth": ref["truth"],
                         "range_low": ref["range_low"], "range_high": ref["range_high"], "estimate": float(x[j]),
                         "low": lo, "high": hi, "inside": bool(lo <= ref["truth"] <= hi), "width": hi - lo,
                         "noise_low": nlo, "noise_high": nhi, "inside_noise": bool(nlo <= ref["truth"] <= nhi),

@@ -351,25 +351,26 @@ def test_data_from_a_finer_model_keep_the_truth_inside(inprocess, tmp_path, seed
 
 def test_the_refined_runs_find_the_discretization_shift(inprocess, tmp_path):
     # noise-free data from 40 elements and 12 modes, 0.3 s from the stationary state, fitted with 20 and 6:
-    # the fitted model puts the start 6.7e-4 m off the truth, beyond its noise interval (+-4.4e-4 m, the
-    # model error's misfit of 1.7 % as its variance). The fit's refined runs are the data's model, so their
-    # Gauss-Newton step is the rest of the way to the truth up to the step's second-order error (measured
-    # 0.6 %; allowed 5 %); the interval, widened by it, holds the truth
+    # the fitted model's minimum lies off the truth by its discretization error; where exactly depends on the
+    # BLAS kernel (-6.7e-4 m with SkylakeX, +1.1e-4 m with Sandybridge: the misfit, 1.7 % of model error, is
+    # rugged at that scale). The refined runs are the data's model, so their Gauss-Newton step goes the rest
+    # of the way to the truth up to the step's second-order error (measured 0.6 % and 0.3 %; allowed 5 %)
     st = ['initial.state="stationary"', "damping.rayleigh=[20.0, 0.0]"]
     data = measure(extra=["mesh.elements=40", "reduction.modes=12", *st], t_end=0.3)
     lines = []
     res = fit(None, data, {KEY: RANGE}, overrides=[*FIXED, *st], client=inprocess, out_dir=tmp_path, n_global=0,
               start={KEY: 0.232}, plot=False, progress=lines.append)
     offset = TRUTH - res.estimate[0]
-    assert abs(offset) > 3e-4                                  # the bias this test is about
-    lo, hi = res.noise_interval[0]
-    assert not lo <= TRUTH <= hi
+    assert abs(offset) > 5e-5                                  # the bias this test is about
     assert res.discretization_shift[0] == pytest.approx(offset, rel=0.05)
     lo, hi = res.interval[0]
     assert lo <= TRUTH <= hi and res.identified[0]
     assert res.discretization.overrides == ("mesh.elements=40", "reduction.modes=12")
     assert sum(e.stage == "refined" for e in res.evaluations) == 2     # at the estimate and one step away
-    assert any("discretization limits the estimate" in w and KEY in w for w in res.warnings)
+    # the whole shift (4/3 of it) beyond the noise half-width is warned about, else not
+    half = np.max(np.abs(res.noise_interval[0] - res.estimate[0]))
+    assert any("discretization limits the estimate" in w and KEY in w for w in res.warnings) == (
+        abs(4 / 3 * res.discretization_shift[0]) > half)
     payload = json.loads((tmp_path / "fit.json").read_text())
     p = payload["parameters"][KEY]
     assert p["discretization_shift"] == pytest.approx(res.discretization_shift[0])
@@ -383,17 +384,18 @@ def test_the_refined_runs_find_the_discretization_shift(inprocess, tmp_path):
 
 
 def test_the_refined_runs_estimate_a_finer_models_shift(inprocess, tmp_path):
-    # the same record from 80 elements and 24 modes, finer than the refined runs (40 and 12): their doubling
-    # measures (1 - 2^-q) of the fitted model's error if it falls like h^q, q >= 2 assumed: 3/4 or more of
-    # the offset (measured 0.85); the interval, moved by 4/3 of the shift, holds the truth
+    # the same record from 80 elements and 24 modes, finer than the refined runs (40 and 12). If the model
+    # error falls like h^q with q >= 2 (the assumption behind the 4/3), the refined model keeps at most a
+    # quarter of the fitted one's error, i.e. a third of the measured shift: its step lands within |du| / 3
+    # of the truth (measured 1.2e-4 of 2.1e-4 m with SkylakeX, 9.4e-5 of 1.5e-4 m with Sandybridge), and the
+    # interval, moved by 4/3 of the shift, holds the truth
     st = ['initial.state="stationary"', "damping.rayleigh=[20.0, 0.0]"]
     data = measure(extra=["mesh.elements=80", "reduction.modes=24", *st], t_end=0.3)
     res = fit(None, data, {KEY: RANGE}, overrides=[*FIXED, *st], client=inprocess, out_dir=tmp_path, n_global=0,
               start={KEY: 0.232}, plot=False)
-    offset = TRUTH - res.estimate[0]
-    assert abs(offset) > 3e-4 and 0.75 <= res.discretization_shift[0] / offset <= 1.05
+    du = res.discretization_shift[0]
+    assert abs(du) > 5e-5 and abs(res.estimate[0] + du - TRUTH) <= abs(du) / 3
     assert res.interval[0, 0] <= TRUTH <= res.interval[0, 1]
-    assert not res.noise_interval[0, 0] <= TRUTH <= res.noise_interval[0, 1]
 
 
 def test_a_key_at_a_range_end_is_shifted_only_into_the_range(inprocess, clean, tmp_path):

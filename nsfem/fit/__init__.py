@@ -52,6 +52,7 @@ on the worker, per run.
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
@@ -91,7 +92,7 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     global stage); ``start`` {key: value} starts the local stage there instead of at the best sample
     (default without a global stage: the middle of the box). ``client``, ``workers``, ``scheduler``: as
     :func:`nsfem.sweep.run_sweep`. ``progress(line)`` receives a line per run of the global stage and
-    per step of the local one. ``refine``: one more run at the estimate with the scene's discretization
+    per step of the local one. ``refine``: p + 1 more runs at the estimate with the scene's discretization
     refined, whose shift of the minimum widens the interval (:mod:`nsfem.fit.discretization`). Ctrl-C
     writes the runs so far and raises :class:`FitInterrupted`.
     """
@@ -110,6 +111,10 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     params, p = problem.params, len(problem.params)
     if n_global is None:
         n_global = min(256, 2 ** (3 + p))
+    if not (isinstance(max_nfev, numbers.Integral) and max_nfev > 0):
+        raise NsfemError(f"max_nfev must be a positive integer, got {max_nfev!r}")
+    if not (isinstance(seed, numbers.Integral) and seed >= 0):
+        raise NsfemError(f"seed must be a non-negative integer, got {seed!r}")
     if n_global < 0:
         raise NsfemError(f"n_global must be 0 or more, got {n_global}")
     u_start = None
@@ -117,7 +122,10 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
         unknown = [k for k in start if k not in {q.key for q in params}]
         if unknown:
             raise NsfemError(f"start: {unknown[0]} is not varied")
-        u_start = np.array([(float(start.get(q.key, q.value(0.5))) - q.low) / (q.high - q.low) for q in params])
+        try:
+            u_start = np.array([(float(start.get(q.key, q.value(0.5))) - q.low) / (q.high - q.low) for q in params])
+        except (TypeError, ValueError):
+            raise NsfemError("start: every value must be a number") from None
         if np.any((u_start < 0) | (u_start > 1)) or not np.all(np.isfinite(u_start)):
             raise NsfemError("start: every value must lie in its key's range")
     out = (Path(out_dir) if out_dir is not None else default_folder(problem)).absolute()
@@ -208,7 +216,8 @@ def _further_minima(runner: _Runner, problem: Problem, first, speculate: bool, m
     :data:`CANDIDATE_FACTOR` of the minimum's or of ``level`` (the best global sample's), the larger;
     with ``explore`` (a global stage ran): from the best distant global sample within that factor of
     the best sample (:func:`second_start`); then, while the best minimum's residuals are structured, up to
-    :data:`RESTARTS` zoomed designs (:func:`zoomed`, 2^(4 + p) runs within :data:`ZOOM` of each range)
+    :data:`RESTARTS` zoomed designs (:func:`zoomed`, 2^(4 + p) runs, at most :data:`ZOOM_SAMPLES`, within
+    :data:`ZOOM` of each range)
     about the minima in order of misfit, each starting a local stage from its best point when that beats
     the minimum it surrounds and lies off every known one. A further stage that ends within
     :data:`DISTINCT` of a known minimum adds none."""
@@ -288,11 +297,18 @@ def _refined(runner: _Runner, problem: Problem, u: np.ndarray, unc, say: Callabl
         say(f"refined runs again without {modes[0]}")
         evs = runner.run_refined([u, *_perturbed(u)], sets)
         failed = next((e.error for e in evs if e.error), "")
-    if failed:
+    # the run at the estimate must succeed; a key whose refined step failed gets no shift (its fitted step
+    # usually failed too, and _without_failed_steps left it undetermined), the others keep theirs
+    if evs[0].error:
         return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, nothing, q,
-                                             f"the refined runs at the estimate ({', '.join(sets)}) failed: {failed}")
+                                             f"the refined run at the estimate ({', '.join(sets)}) failed: "
+                                             f"{evs[0].error}")
+    stepped = np.array([not e.error for e in evs[1:]])
+    if not stepped.all():
+        kept.append("no shift for " + ", ".join(k.key for k, ok in zip(problem.params, stepped) if not ok)
+                    + f": the refined run one step away failed ({next(e.error for e in evs[1:] if e.error)})")
     Jr = jacobian(evs[0].residuals, evs[1:], u, runner.n)
-    du = discretization.shift(Jr, evs[0].residuals, u, np.isfinite(unc.sigma))
+    du = discretization.shift(Jr, evs[0].residuals, u, np.isfinite(unc.sigma) & stepped)
     say("discretization shift: " + ", ".join(f"{k.key} {d * (k.high - k.low):+.3g}" for k, d in zip(problem.params, du)))
     return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, du, q)
 
