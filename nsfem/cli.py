@@ -80,7 +80,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--out", metavar="DIR", help="output folder (default: <output.dir>/fit-<varied keys>)")
     p.add_argument("--no-refine", dest="refine", action="store_false",
-                   help="skip the refined run at the estimate (the intervals then leave out the model's "
+                   help="skip the refined runs at the estimate (the intervals then leave out the model's "
                         "discretization error)")
 
     p = sub.add_parser("export", help="re-export a saved result")

@@ -60,7 +60,7 @@ from study_io import machine, write_outputs
 
 from nsfem import load_scene
 from nsfem.fit import fit
-from nsfem.fit.discretization import FACTOR
+from nsfem.fit.discretization import widen
 from nsfem.simulate import run_scene, sensor_signals
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -192,10 +192,10 @@ def combine(rows: list[dict], names: list[str], keys: list[str]) -> list[dict]:
         for j, key in enumerate(keys):
             ref = next(r for r in rows if r["case"] == names[0] and r["key"] == key)
             half = LEVEL_Z * math.sqrt(cov[j, j])
-            nlo, nhi = max(x[j] - half, ref["range_low"]), min(x[j] + half, ref["range_high"])
-            move = FACTOR * d[j]
-            lo, hi = max(min(x[j] - half, x[j] - half + move), ref["range_low"]), min(max(x[j] + half, x[j] + half + move),
-                                                                                    ref["range_high"])
+            low, span = ref["range_low"], ref["range_high"] - ref["range_low"]
+            unit = np.array([[x[j] - half - low, x[j] + half - low]]) / span
+            nlo, nhi = low + span * np.clip(unit[0], 0.0, 1.0)
+            lo, hi = low + span * widen(unit, np.array([d[j] / span]))[0]
             out.append({"case": "delam_speeds_combined", "what": f"{len(xs)} steady speeds combined", "draw": draw,
                         "noise": NOISE if draw else 0.0, "key": key, "truth": ref["truth"],
                         "range_low": ref["range_low"], "range_high": ref["range_high"], "estimate": float(x[j]),

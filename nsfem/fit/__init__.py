@@ -68,7 +68,7 @@ from . import discretization
 from .discretization import Discretization
 from .stages import (CANDIDATE_FACTOR, DISTINCT, FAILED_RESIDUAL, RESOLUTION, RESTARTS, SEPARATION, STEP, WHITE_LEVEL, ZOOM,
                      ZOOM_SAMPLES,
-                     _point, _perturbed, _Runner, alternative, jacobian, local_stage, mirror_point, residual_check, second_start, zoomed)
+                     _point, _perturbed, _Runner, alternative, jacobian, local_stage, mirror_point, residual_check, second_start, sobol, zoomed)
 
 __all__ = ["fit", "FitResult", "FitInterrupted", "Alternative", "Evaluation", "Parameter", "Problem", "parse_vary",
            "prepare", "overrides_at", "run_signals", "evaluations_csv", "alternative", "local_stage", "residual_check",
@@ -139,10 +139,7 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
         runner = _Runner(problem, cl, say)
         best = None
         if n_global:
-            from scipy.stats import qmc
-
-            m = max(0, math.ceil(math.log2(n_global)))
-            design = qmc.Sobol(d=p, scramble=True, seed=seed).random_base2(m)
+            design = sobol(p, n_global, seed)
             info["global_samples"] = len(design)
             say(f"global stage: {len(design)} runs over the box ({', '.join(f'{q.key} {q.low:g}..{q.high:g}' for q in params)})")
             evs = runner.run(list(design), "global", report=True)

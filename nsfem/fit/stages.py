@@ -214,15 +214,18 @@ def second_start(evaluations: Sequence[Evaluation], found: Sequence[np.ndarray],
     return min(far, key=lambda e: e.misfit) if far else None
 
 
-def zoomed(u: np.ndarray, n: int, seed: int) -> np.ndarray:
-    """A scrambled Sobol design of 2^ceil(log2 n) points in the box ``u`` +- :data:`ZOOM`, clipped to the
-    unit box (seeded)."""
+def sobol(p: int, n: int, seed: int) -> np.ndarray:
+    """A scrambled Sobol design (scipy.stats.qmc, seeded) of 2^ceil(log2 n) points in the unit box of
+    dimension ``p``."""
     from scipy.stats import qmc
 
-    p = u.size
+    return qmc.Sobol(d=p, scramble=True, seed=seed).random_base2(max(0, math.ceil(math.log2(n))))
+
+
+def zoomed(u: np.ndarray, n: int, seed: int) -> np.ndarray:
+    """:func:`sobol`'s design of ``n`` points in the box ``u`` +- :data:`ZOOM`, clipped to the unit box."""
     low, high = np.clip(u - ZOOM, 0.0, 1.0), np.clip(u + ZOOM, 0.0, 1.0)
-    pts = qmc.Sobol(d=p, scramble=True, seed=seed).random_base2(max(0, math.ceil(math.log2(n))))
-    return low + pts * (high - low)
+    return low + sobol(u.size, n, seed) * (high - low)
 
 
 def mirror_point(params: Sequence[Parameter], u: np.ndarray, extent: tuple[float, float]) -> np.ndarray | None:
