@@ -408,15 +408,44 @@ def test_a_key_at_a_range_end_is_shifted_only_into_the_range(inprocess, clean, t
     assert res.estimate[0] == pytest.approx(0.235, abs=1e-8) and abs(res.discretization_shift[0]) <= 1e-8
     assert res.interval == pytest.approx(res.noise_interval, abs=1e-8)
     assert not any("discretization" in w for w in res.warnings)
-    # the truth just inside the lower end, data from the refined settings (40 elements, 12 modes): the fitted
-    # minimum lies 3.6e-5 m below the truth, within 1e-3 of the range of its end (reported at the bound); the
-    # refined step points into the range and is the shift, to its second-order error (allowed 5 %, as above)
+    # the truth just inside the lower end, data from the refined settings (40 elements, 12 modes). Where the
+    # optimizer stops on this misfit depends on the BLAS kernel (the fitted model's minimum lies 3.6e-5 m
+    # below the truth, outside the range; stops measured from 3.6e-5 m below the truth at the end to 6e-7 m
+    # above it inside), so what is asserted is what must hold wherever it stops: the shifted estimate stays
+    # in the range, a shift at the lower end points into it, and, the data being the refined model's own,
+    # its Gauss-Newton step lands on the truth up to the error of its Jacobian, a forward difference over
+    # h = 1e-4 of the range (1.7e-5 m): a relative error h r''/(2 r') of the step, up to 5 % measured where an
+    # event comes or goes within h (the misfit is piecewise smooth); 10 % allowed. Below that the step has a
+    # floor: the model meets its own data only to its contact thresholds (approach speeds under 1e-7 of the
+    # contact velocities settle rather than impact), measured 1e-8 to 3e-8 m; 1e-6 of the range allowed
+    lo, hi = 0.2298, 0.4
     data = measure(extra=["mesh.elements=40", "reduction.modes=12"])
-    res = fit(None, data, {KEY: (0.2298, 0.4)}, overrides=FIXED, client=inprocess, out_dir=tmp_path / "in",
+    res = fit(None, data, {KEY: (lo, hi)}, overrides=FIXED, client=inprocess, out_dir=tmp_path / "in",
               n_global=0, start={KEY: 0.2299}, plot=False)
-    offset = TRUTH - res.estimate[0]
-    assert res.at_bound[0] and offset > 2e-5
-    assert res.discretization_shift[0] == pytest.approx(offset, rel=0.05)
+    est, du = res.estimate[0], res.discretization_shift[0]
+    assert np.isfinite(du) and lo <= est + du <= hi
+    if res.at_bound[0] and est - lo < hi - est:
+        assert du >= 0.0
+    assert abs(est + du - TRUTH) <= 0.1 * abs(est - TRUTH) + 1e-6 * (hi - lo)
+
+
+def test_a_shift_at_a_range_end_is_kept_when_it_points_into_the_range():
+    # the refined model's step from an estimate on a range end: into the range it is the shift, out of it
+    # the key is held (u + du stays in [0, 1]); one key held does not stop the other from moving
+    from nsfem.fit.discretization import shift
+
+    J = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    r_in = -J @ np.array([0.02, -0.03])               # the exact step is (+0.02, -0.03)
+    du = shift(J, r_in, np.array([0.0, 0.5]), np.array([True, True]))
+    np.testing.assert_allclose(du, [0.02, -0.03], atol=1e-14)     # lstsq of a consistent system: round-off
+    du = shift(J, r_in, np.array([0.5, 1.0]), np.array([True, True]))
+    np.testing.assert_allclose(du, [0.02, -0.03], atol=1e-14)     # from the upper end, back into the range
+    r_out = -J @ np.array([-0.02, 0.03])              # both steps point out of the range at their ends
+    du = shift(J, r_out, np.array([0.0, 1.0]), np.array([True, True]))
+    assert du.tolist() == [0.0, 0.0]
+    du = shift(J, -J @ np.array([-0.02, 0.03]), np.array([0.0, 0.5]), np.array([True, True]))
+    # the first key held at 0; the second, free, fits rows 2 and 3 (0.03 and 0.03 - 0.02): their mean, 0.02
+    np.testing.assert_allclose(du, [0.0, 0.02], atol=1e-12)
 
 
 def test_refined_settings_per_integrator():
