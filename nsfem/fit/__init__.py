@@ -97,15 +97,14 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     writes the runs so far and raises :class:`FitInterrupted`.
     """
     from ..analysis.uncertainty import linearized
-    from ..sweep import _client, _close, _hold_signals, _release_signals
+    from ..sweep import _client, _close, _hold_signals, _release_signals, check_workers
 
     if workers is not None and (scheduler or client is not None):
         raise NsfemError(("--workers cannot be combined with --scheduler" if scheduler else
                           "workers= cannot be combined with client=") + " (the cluster has its own workers)")
     if scheduler and client is not None:
         raise NsfemError("scheduler= cannot be combined with client= (give one cluster)")
-    if workers is not None and workers < 1:
-        raise NsfemError(f"--workers must be a positive integer, got {workers}")
+    check_workers(workers)
     t0 = time.perf_counter()
     problem = prepare(scene_path, data, vary, misfit, overrides)
     params, p = problem.params, len(problem.params)
@@ -145,7 +144,7 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
             evs = runner.run(list(design), "global", report=True)
             ok = [e for e in evs if math.isfinite(e.misfit)]
             if not ok:
-                raise NsfemError(f"every run of the global stage failed (first: {evs[0].error})")
+                raise NsfemError(f"every run of the global stage failed (first: {evs[0].error or 'no reason given'})")
             best = min(ok, key=lambda e: e.misfit)
         u0 = u_start if u_start is not None else (best.u if best is not None else np.full(p, 0.5))
         say(f"local stage from {_point(params, u0)}")
