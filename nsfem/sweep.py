@@ -29,6 +29,7 @@ at the end.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import io
@@ -575,12 +576,26 @@ def _client(client, workers: int | None, scheduler: str | None, n_runs: int):
         env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
         # the workers ignore SIGINT: Ctrl-C in the terminal (sent to the whole process group)
         # reaches only this process, which cancels the runs and closes the cluster, quietly
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
-        c = Client(cluster)
+        # Ctrl-C or SIGTERM while the cluster starts is held until it is there: an exception out of
+        # its constructor would leave worker processes that no one closes (and distributed's own
+        # close at exit fails on them with a traceback)
+        with _deferred_signals() as received:
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                   silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
+            try:
+                c = Client(cluster)
+            except BaseException:
+                _close([cluster])
+                raise
         closing, where = [c, cluster], "the local cluster"
+        if received:
+            _close(closing)
+            raise KeyboardInterrupt
     try:
         c.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+    except KeyboardInterrupt:
+        _close(closing)
+        raise
     except Exception:  # noqa: BLE001 - a TimeoutError, or the scheduler went away
         _close(closing)
         raise NsfemError(f"{where}: no worker within {CONNECT_TIMEOUT:g} s (start workers with "
@@ -605,6 +620,25 @@ def _close(closing) -> None:
     finally:
         for n, level in levels.items():
             logging.getLogger(n).setLevel(level)
+
+
+@contextlib.contextmanager
+def _deferred_signals():
+    """Within the block, SIGINT and SIGTERM are recorded (in the list yielded), not acted on; the
+    handlers before are restored after it (main thread only; elsewhere nothing changes)."""
+    import signal
+    import threading
+
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+    held = {sig: signal.signal(sig, lambda signum, frame: received.append(signum))
+            for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield received
+    finally:
+        _release_signals(held)
 
 
 def _hold_signals() -> dict:
