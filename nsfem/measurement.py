@@ -47,8 +47,8 @@ ABSURD = 1e100
 GAP = 1000.0
 #: a number in a CSV cell: decimal digits with an optional fraction and exponent, or nan/inf words
 #: (refused later with their line). Python's float() also takes ``1_0e-5`` (as 1e-4: a garbled
-#: 1,0e-5?), ``0x``-less words like ``infinity`` and whitespace inside; a measurement takes none
-NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf)", re.IGNORECASE)
+#: 1,0e-5?), words like ``infinity``, digits of other scripts (``１``); a measurement takes none
+NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:nan|inf)", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
