@@ -311,9 +311,12 @@ def read_record(run_dir: Path, fp: str) -> dict | None:
 
 
 # --------------------------------------------------------------------------- the sweep (on the client)
-#: Seconds to connect to a scheduler and for its first worker to be there; seconds to close a cluster.
+#: Seconds to connect to a scheduler and for its first worker to be there; seconds to close a cluster
+#: (its workers asked to stop, then killed): closing a local cluster whose workers are busy takes
+#: 4 s on a loaded machine; a close cut short at 2 s left the cluster to distributed's own close at
+#: exit, which then waited 10 s more (measured: 32 s from SIGTERM to exit, 21 s with 10 s here)
 CONNECT_TIMEOUT = 10.0
-CLOSE_TIMEOUT = 2.0
+CLOSE_TIMEOUT = 10.0
 #: A worker preload script (run in the worker process's main thread as it starts).
 _IGNORE_SIGINT = "import signal; signal.signal(signal.SIGINT, signal.SIG_IGN)"
 

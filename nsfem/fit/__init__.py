@@ -132,15 +132,21 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     say = progress or (lambda line: None)
     cl, closing, runner = None, [], None
     info: dict = {"workers": 0, "seed": seed, "global_samples": 0}
+    design = sobol(p, n_global, seed) if n_global else None
+    plan_line = (f"global stage: {len(design)} runs over the box ("
+                 + ", ".join(f"{q.key} {q.low:g}..{q.high:g}" for q in params) + ")") if n_global else None
+    local = client is None and not scheduler
+    if local and plan_line:      # at once, before the seconds a local cluster takes to start
+        say(plan_line)
     try:
         cl, closing = _client(client, workers, scheduler, max(n_global, p + 1))
         info["workers"] = len(cl.nthreads())
         runner = _Runner(problem, cl, say)
         best = None
         if n_global:
-            design = sobol(p, n_global, seed)
             info["global_samples"] = len(design)
-            say(f"global stage: {len(design)} runs over the box ({', '.join(f'{q.key} {q.low:g}..{q.high:g}' for q in params)})")
+            if not local:        # once connected: a scheduler that cannot be reached is one line
+                say(plan_line)
             evs = runner.run(list(design), "global", report=True)
             ok = [e for e in evs if math.isfinite(e.misfit)]
             if not ok:
