@@ -2,15 +2,18 @@
 
 ``--set KEY=START:STOP:N`` sweeps KEY over N evenly spaced values (several ranges make a
 grid, their cartesian product, the first key varying slowest); a plain ``--set KEY=VALUE``
-fixes a value for every run. Every value is validated (the scene loaded with its overrides)
-before anything is computed.
+fixes a value for every run. The values are validated (the scene loaded with its overrides)
+before anything is computed: every run's for sweeps of at most :data:`CHECK_ALL` runs, else
+:data:`CHECKED_VALUES` per key, the other scenes as their runs are submitted (:func:`checked_points`).
+At most :data:`MAX_POINTS` runs and :func:`max_workers` local workers, never more workers than runs.
 
 Runs that differ only in keys of :data:`SHARED_TABLES` (speed, damping, initial state,
 simulation and output settings) share one assembled model and one reduction basis: they are
 built once on the client and sent once to every worker (design section 2: speed-dependent
 matrices are never reassembled). Every other key (mesh, reduction, shaft, delaminations,
 friction and restitution, which the contact set reads from the model's stack) gets its own
-model, again once per distinct value.
+model, again once per distinct value, built when its first run is submitted. Runs are submitted
+two per worker ahead of the finished ones, so the first row comes after one run.
 
 Each run writes ``<out>/<name>/result.npz`` and ``<out>/<name>/record.json`` (its row; the
 ledger of resumption, written last and atomically); ``<out>/sweep.csv`` and
@@ -178,12 +181,6 @@ def _num(v) -> str:
 
 def point_overrides(point: dict) -> list[str]:
     return [f"{k}={_num(v)}" for k, v in point.items()]
-
-
-def model_key(scene) -> str:
-    """What identifies a scene's model and reduction: everything outside :data:`SHARED_TABLES`."""
-    tree = {k: v for k, v in scene.items() if k not in SHARED_TABLES}
-    return json.dumps([tree, str(scene.mesh_file or "")], sort_keys=True, default=str)
 
 
 def fingerprint(base, keys: Sequence[str], method: str) -> str:

@@ -206,7 +206,7 @@ from nsfem.errors import NsfemError
 from nsfem.jsonio import dumps
 from nsfem.measurement import ABSURD, GAP, read_measurement
 from nsfem.result import check_times
-from nsfem.sweep import MAX_POINTS, check_workers, local_workers, max_workers, parse_ranges
+from nsfem.sweep import MAX_POINTS, local_workers, max_workers, parse_ranges
 
 #: the shipped shaft with two probes (as tests/test_fit.py), for fit's data checks: every one of them
 #: comes before any run, so the data need not be the scene's
