@@ -17,8 +17,8 @@ two per worker ahead of the finished ones, so the first row comes after one run.
 
 Each run writes ``<out>/<name>/result.npz`` and ``<out>/<name>/record.json`` (its row; the
 ledger of resumption, written last and atomically); ``<out>/sweep.csv`` and
-``<out>/sweep.json`` are rewritten atomically after every finished run, ``<out>/resonance.png``
-at the end.
+``<out>/sweep.json`` are rewritten atomically as runs finish (at most once a second, see
+:data:`TABLE_EVERY`) and at the end, ``<out>/resonance.png`` at the end.
 
 >>> fixed, axes = parse_ranges(["rotation.speed_hz=10:20:3", "mesh.elements=20"])
 >>> fixed, axes
@@ -424,6 +424,12 @@ def format_progress(k: int, n: int, row: dict, keys: Sequence[str]) -> str:
             f"{row['wall_s']:.2f} s")
 
 
+#: The table and JSON are rewritten as runs finish, at most once per TABLE_EVERY seconds and after at
+#: least TABLE_SHARE times the last rewrite's duration (10 000 rows take 1.1 s to write: rewritten
+#: after every run, a sweep's writing grows with the square of its runs); always at the end or on
+#: Ctrl-C. Each run's record.json, the ledger a rerun resumes from, is written as the run ends.
+TABLE_EVERY = 1.0
+TABLE_SHARE = 10.0
 #: Sweeps of at most this many runs load every run's scene before anything runs (6 ms each for
 #: the crack scene: 1.5 s); larger ones load each key's values (at most CHECKED_VALUES of them, evenly
 #: spaced, the ends included) before, and every run's scene as it is submitted (a combination the
@@ -695,10 +701,16 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
     res.set_rows((pt, None) for pt in p.points)
     say = progress or (lambda line: None)
 
+    written = {"at": -math.inf, "took": 0.0}
+
     def record(i: int, row: dict) -> None:
         res.set_row(p.points[i], row)
-        write_table(res.table, p.axes, res.runs)
-        write_json(out / "sweep.json", res.to_json())
+        start = time.perf_counter()
+        if start - written["at"] >= max(TABLE_EVERY, TABLE_SHARE * written["took"]):
+            write_table(res.table, p.axes, res.runs)
+            write_json(out / "sweep.json", res.to_json())
+            written["at"] = time.perf_counter()
+            written["took"] = written["at"] - start
         res.info["executed"] += 1
         say(format_progress(resumed + res.info["executed"], len(p.points), row, keys))
         for w in row.get("warnings") or []:
