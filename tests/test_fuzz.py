@@ -633,3 +633,22 @@ def test_issue32_signals_while_the_cluster_starts_are_held():
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(0.05)
     assert received == [signal.SIGTERM] and signal.getsignal(signal.SIGTERM) is before
+
+
+@pytest.mark.parametrize("every, writes", [(0.0, 4), (1e9, 2)])
+def test_issue32_the_table_is_rewritten_at_most_once_per_interval(every, writes, tmp_path, monkeypatch):
+    """Three runs: the table is written after each (interval 0) or after the first and at the end
+    (an interval longer than the sweep); either way the final table holds all three rows."""
+    distributed = pytest.importorskip("distributed")
+    import nsfem.sweep
+
+    calls = []
+    real = nsfem.sweep.write_table
+    monkeypatch.setattr(nsfem.sweep, "TABLE_EVERY", every)
+    monkeypatch.setattr(nsfem.sweep, "TABLE_SHARE", 0.0)
+    monkeypatch.setattr(nsfem.sweep, "write_table", lambda *a: calls.append(1) or real(*a))
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        res = nsfem.sweep.run_sweep(None, ["mesh.elements=20", "simulation.t_end=0.01", "rotation.speed_hz=10:30:3"],
+                                    tmp_path, client=c, plot=False)
+    assert not res.failed and len(calls) == writes
+    assert len((tmp_path / "sweep.csv").read_text().splitlines()) == 1 + 3
