@@ -652,3 +652,39 @@ def test_issue32_the_table_is_rewritten_at_most_once_per_interval(every, writes,
                                     tmp_path, client=c, plot=False)
     assert not res.failed and len(calls) == writes
     assert len((tmp_path / "sweep.csv").read_text().splitlines()) == 1 + 3
+
+
+@given(st.floats(0.0, 1e7), st.floats(1e-6, 1e3), st.integers(2, 50), st.floats(1e-6, 1e-2))
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+def test_issue32_property_a_fits_simulated_span_is_bounded(t0, step, n, scene_dt):
+    """Data from t0 on, n samples ``step`` apart: refused, naming the data's column t and a line, exactly
+    when the runs (0 to the last sample, an output every output_step) would exceed MAX_OUTPUTS."""
+    from nsfem.fit.problem import MAX_OUTPUTS, check_span, output_step
+    from nsfem.measurement import Measurement
+
+    t = t0 + step * np.arange(n)
+    m = Measurement(t, ("a",), np.ones((n, 1)), tuple(range(2, n + 2)))
+    dt = output_step(t, scene_dt)
+    try:
+        check_span(m, dt, "--data d.csv")
+    except NsfemError as exc:
+        assert t[-1] / dt > MAX_OUTPUTS
+        assert str(exc).startswith("--data d.csv: column 't': ") and "line " in str(exc) and "\n" not in str(exc)
+        return
+    assert t[-1] / dt <= MAX_OUTPUTS
+
+
+def test_issue32_a_lazily_loaded_scene_the_scene_refuses_fails_its_row_only(tmp_path, monkeypatch):
+    """A large sweep checks some values before; a value it did not check and the scene refuses
+    (mesh.elements = 20.5 between 20 and 21) fails its own row, the others run."""
+    distributed = pytest.importorskip("distributed")
+    import nsfem.sweep
+
+    monkeypatch.setattr(nsfem.sweep, "CHECK_ALL", 1)
+    monkeypatch.setattr(nsfem.sweep, "CHECKED_VALUES", 2)      # the ends: 20 and 21
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        res = nsfem.sweep.run_sweep(None, ["simulation.t_end=0.01", "mesh.elements=20:21:3"], tmp_path, client=c,
+                                    plot=False)
+    errors = {p["mesh.elements"]: r["error"] for p, r in zip(res.points, res.runs)}
+    assert errors[20] == "" and errors[21] == "" and errors[20.5].startswith("scene refused: mesh.elements")
+    assert res.info["models_built"] == 2
