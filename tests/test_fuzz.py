@@ -688,3 +688,35 @@ def test_issue32_a_lazily_loaded_scene_the_scene_refuses_fails_its_row_only(tmp_
     errors = {p["mesh.elements"]: r["error"] for p, r in zip(res.points, res.runs)}
     assert errors[20] == "" and errors[21] == "" and errors[20.5].startswith("scene refused: mesh.elements")
     assert res.info["models_built"] == 2
+
+
+@pytest.mark.slow
+def test_issue32_sigterm_during_a_fit_leaves_no_process(tmp_path):
+    """As for the sweep: SIGTERM to ``nsfem fit --workers 2`` in its global stage exits 130 with the
+    runs so far, no traceback, and no process of it alive afterwards."""
+    if not Path("/proc/self/stat").is_file():
+        pytest.skip("needs /proc")
+    data = _data(tmp_path, T, A)
+    argv = [sys.executable, "-m", "nsfem", *_fit_argv(data, "--workers", "2", "--set", "mesh.elements=20",
+                                                      "--no-refine")]
+    proc = subprocess.Popen(argv, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, cwd=tmp_path)
+    try:
+        lines = []
+        while not (lines and lines[-1].startswith("[global")):
+            line = proc.stderr.readline()
+            assert line, "".join(lines)
+            lines.append(line)
+        family = _descendants(proc.pid)
+        assert len(family) >= 2, family
+        proc.send_signal(signal.SIGTERM)
+        err = proc.stderr.read()
+        code = proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert code == 130 and "Traceback" not in err and "nsfem: interrupted" in err, err
+    deadline = time.monotonic() + 30
+    while any(map(_running, family)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [p for p in family if _running(p)]
+    assert (tmp_path / "f" / "fit.json").is_file()
