@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import signal
 import sys
 import time
@@ -64,7 +63,8 @@ def parser() -> argparse.ArgumentParser:
     p = sub.add_parser("sweep", help="one run per parameter value (--set KEY=START:STOP:N), on a Dask cluster")
     _scene_args(p)
     p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"))
-    p.add_argument("--workers", type=int, help="local worker processes (default: one per core, at most one per run)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: one per core; never more than the runs, at "
+                   "most 4 per core)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--out", metavar="DIR", help="sweep folder (default: <output.dir>/sweep-<swept keys>); a rerun "
                    "resumes it")
@@ -76,7 +76,7 @@ def parser() -> argparse.ArgumentParser:
                    help="a scene key to estimate and its range (repeatable)")
     p.add_argument("--misfit", choices=("time", "spectrum"), default="time",
                    help="compare the samples (default) or their amplitude spectra")
-    p.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: one per core, at most 4 per core)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--out", metavar="DIR", help="output folder (default: <output.dir>/fit-<varied keys>)")
     p.add_argument("--no-refine", dest="refine", action="store_false",
@@ -123,8 +123,9 @@ def sigterm_as_interrupt():
 
 def _emit(args, payload: dict, text: str) -> None:
     if args.json:
-        json.dump(payload, sys.stdout)
-        sys.stdout.write("\n")
+        from .jsonio import as_text, dumps
+
+        sys.stdout.write(dumps(payload, as_text) + "\n")
     else:
         print(printable(text))
 
@@ -460,7 +461,7 @@ def _saved(path_text: str, command: str):
     import numpy as np
 
     from .fem.assemble import build_model
-    from .result import Result
+    from .result import Result, check_times
     from .scene import HIGH_LEVEL, LOW_LEVEL, SceneError, scene_from_tree
 
     path = Path(path_text)
@@ -487,6 +488,11 @@ def _saved(path_text: str, command: str):
         if digest is not None and hashlib.sha256(f.read_bytes()).hexdigest() != digest:
             raise NsfemError(f"nsfem {command}: the mesh file {f} has changed since the run that wrote {path}")
         tree["mesh"] = mesh
+    try:
+        t_end = float(meta["t_end"])
+    except (KeyError, TypeError, ValueError):
+        raise NsfemError(f"nsfem {command}: {path} has no valid t_end in its meta (a damaged or edited file)") from None
+    check_times(res.t, t_end, f"nsfem {command}: {path}")
     try:
         scene = scene_from_tree(tree)
     except SceneError as exc:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,17 +37,49 @@ UNIFORM = 1e-6
 CLOSE = 1e-3
 
 
+#: the largest magnitude of a sample, and the smallest RMS of a signal: the misfit squares residuals
+#: (differences over a signal's RMS) and sums them over up to 1e7 samples, so samples and RMS within
+#: 1e-100..1e100 keep every square and sum finite (1e200 x 1e7 << 1.8e308) with room for the simulated
+#: signals; a displacement in metres outside them is a unit or export error, never a measurement
+ABSURD = 1e100
+#: a step of t above this many median steps is a gap in the record: the runs would simulate through it
+#: (a gap of 1000 s in samples 1 ms apart: a million outputs per run that no sample is compared with)
+GAP = 1000.0
+#: a number in a CSV cell: decimal digits with an optional fraction and exponent, or nan/inf words
+#: (refused later with their line). Python's float() also takes ``1_0e-5`` (as 1e-4: a garbled
+#: 1,0e-5?), words like ``infinity``, digits of other scripts (``１``); a measurement takes none
+NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:nan|inf)", re.IGNORECASE)
+
+
 @dataclass(frozen=True)
 class Measurement:
-    """Sampled signals: times ``t`` (k,), sensor ``names`` and ``values`` (k, len(names))."""
+    """Sampled signals: times ``t`` (k,), sensor ``names`` and ``values`` (k, len(names)); ``lines``
+    the file's line of each sample (None when not read from a file)."""
 
     t: np.ndarray
     names: tuple[str, ...]
     values: np.ndarray
+    lines: tuple[int, ...] | None = None
+
+
+def parse_number(cell: str) -> float:
+    """A CSV cell as a float, strictly (:data:`NUMBER`): ValueError for anything else.
+
+    >>> parse_number(" 1.5e-3 "), parse_number("-2")
+    (0.0015, -2.0)
+    >>> parse_number("1_0e-5")
+    Traceback (most recent call last):
+    ValueError: '1_0e-5' is not a decimal number
+    """
+    text = cell.strip()
+    if not NUMBER.fullmatch(text):
+        raise ValueError(f"{text!r} is not a decimal number")
+    return float(text)
 
 
 def read_measurement(path: str | Path) -> Measurement:
-    """The measurement in CSV file ``path`` (checked by :func:`check_measurement`)."""
+    """The measurement in CSV file ``path`` (checked by :func:`check_measurement`, whose errors name
+    the file's lines)."""
     path = Path(path)
     what = f"--data {path}"
     if not path.is_file():
@@ -55,10 +88,14 @@ def read_measurement(path: str | Path) -> Measurement:
         text = path.read_text(encoding="utf-8-sig")   # a spreadsheet's byte-order mark is not part of the header
     except (OSError, UnicodeDecodeError) as exc:
         raise NsfemError(f"{what}: cannot read it as UTF-8 text ({exc})") from None
-    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
+    reader = csv.reader(io.StringIO(text))
+    try:
+        rows = [(reader.line_num, r) for r in reader if r and any(c.strip() for c in r)]
+    except csv.Error as exc:
+        raise NsfemError(f"{what}: line {reader.line_num}: not CSV ({exc})") from None
     if not rows:
         raise NsfemError(f"{what}: the file is empty")
-    head = [c.strip() for c in rows[0]]
+    head = [c.strip() for c in rows[0][1]]
     if "t" not in head:
         raise NsfemError(f"{what}: no column 't' (the header is {','.join(head)!r}; the first column names the "
                          "time, the others sensors)")
@@ -67,26 +104,35 @@ def read_measurement(path: str | Path) -> Measurement:
         raise NsfemError(f"{what}: column {twice[0]!r} appears {head.count(twice[0])} times in the header (give each "
                          "sensor one column)")
     data = np.empty((len(rows) - 1, len(head)))
-    for i, row in enumerate(rows[1:]):
+    for i, (line, row) in enumerate(rows[1:]):
         if len(row) != len(head):
-            raise NsfemError(f"{what}: line {i + 2} has {len(row)} fields, the header {len(head)}")
+            raise NsfemError(f"{what}: line {line} has {len(row)} fields, the header {len(head)}")
         for j, cell in enumerate(row):
             try:
-                data[i, j] = float(cell)
+                data[i, j] = parse_number(cell)
             except ValueError:
-                raise NsfemError(f"{what}: line {i + 2}, column {head[j]!r}: {cell.strip()!r} is not a number") \
-                    from None
+                raise NsfemError(f"{what}: line {line}, column {head[j]!r}: {cell.strip()!r} is not a number "
+                                 "(plain decimals such as -1.25e-5: no underscores, commas or units)") from None
     k = head.index("t")
     names = tuple(h for j, h in enumerate(head) if j != k)
     return check_measurement(data[:, k], dict(zip(names, data[:, [j for j in range(len(head)) if j != k]].T)),
-                             what)
+                             what, tuple(line for line, _ in rows[1:]))
 
 
-def check_measurement(t, signals: dict, what: str = "data") -> Measurement:
+def check_measurement(t, signals: dict, what: str = "data", lines: tuple[int, ...] | None = None) -> Measurement:
     """A :class:`Measurement` from times and {sensor name: samples}: at least two samples, t finite,
-    non-negative and increasing (no step below :data:`CLOSE` of the median), every value finite, no duplicate or empty name, no signal that
-    is zero throughout (it could not be scaled)."""
+    non-negative and increasing (no step below :data:`CLOSE` of the median, none above :data:`GAP`
+    medians), every value finite and within :data:`ABSURD`, no duplicate or empty name, no signal that
+    is zero or below 1 / :data:`ABSURD` throughout (it could not be scaled). ``lines``: each sample's
+    line in the file ``what`` names, which the errors then give (else the sample's index)."""
     t = np.asarray(t, dtype=float).ravel()
+
+    def at(i: int) -> str:
+        return f"line {lines[i]}" if lines is not None else f"sample {i}"
+
+    def pair(i: int) -> str:
+        return f"lines {lines[i]} and {lines[i + 1]}" if lines is not None else f"samples {i + 1} and {i + 2}"
+
     if not signals:
         raise NsfemError(f"{what}: no sensor columns besides 't'")
     names = tuple(signals)
@@ -96,30 +142,51 @@ def check_measurement(t, signals: dict, what: str = "data") -> Measurement:
     if t.size < 2:
         raise NsfemError(f"{what}: needs at least two samples, got {t.size}")
     if not np.all(np.isfinite(t)):
-        raise NsfemError(f"{what}: column 't' holds NaN or inf at sample {int(np.argmin(np.isfinite(t)))}")
+        raise NsfemError(f"{what}: column 't' holds NaN or inf at {at(int(np.argmin(np.isfinite(t))))}")
+    if np.max(np.abs(t)) > ABSURD:
+        i = int(np.argmax(np.abs(t)))
+        raise NsfemError(f"{what}: column 't', {at(i)}: t = {t[i]:g} s is beyond {ABSURD:g} s (a unit or export "
+                         "error?)")
     steps = np.diff(t)
     if np.any(steps <= 0):
         i = int(np.argmax(steps <= 0))
-        raise NsfemError(f"{what}: t must increase, but t = {t[i]:g} s is followed by {t[i + 1]:g} s (sample {i + 1})")
-    tiny = steps < CLOSE * np.median(steps)
+        raise NsfemError(f"{what}: column 't': t must increase, but t = {t[i]:g} s is followed by {t[i + 1]:g} s "
+                         f"({pair(i)})")
+    median = float(np.median(steps))
+    tiny = steps < CLOSE * median
     if np.any(tiny):
         i = int(np.argmax(tiny))
-        raise NsfemError(f"{what}: samples {i + 1} and {i + 2} lie {steps[i]:.3g} s apart, against a median step of "
-                         f"{np.median(steps):.3g} s (a duplicated or garbled time stamp? the runs would have to "
+        raise NsfemError(f"{what}: column 't': {pair(i)} lie {steps[i]:.3g} s apart, against a median step of "
+                         f"{median:.3g} s (a duplicated or garbled time stamp? the runs would have to "
                          "output at that step)")
+    gap = steps > GAP * median
+    if np.any(gap):
+        i = int(np.argmax(gap))
+        raise NsfemError(f"{what}: column 't': {pair(i)} lie {steps[i]:.3g} s apart, {steps[i] / median:.3g} times "
+                         f"the median step of {median:.3g} s (a gap in the record: the runs would simulate through "
+                         "it; fit the pieces separately)")
     if t[0] < 0:
-        raise NsfemError(f"{what}: t starts at {t[0]:g} s; the scene's clock starts at 0 (its [initial] state)")
+        raise NsfemError(f"{what}: column 't', {at(0)}: t starts at {t[0]:g} s; the scene's clock starts at 0 (its "
+                         "[initial] state)")
     values = np.empty((t.size, len(names)))
     for j, name in enumerate(names):
         v = np.asarray(signals[name], dtype=float).ravel()
         if v.size != t.size:
             raise NsfemError(f"{what}: column {name!r} has {v.size} samples, 't' {t.size}")
         if not np.all(np.isfinite(v)):
-            raise NsfemError(f"{what}: column {name!r} holds NaN or inf at sample {int(np.argmin(np.isfinite(v)))}")
+            raise NsfemError(f"{what}: column {name!r} holds NaN or inf at {at(int(np.argmin(np.isfinite(v))))}")
         if not np.any(v):
             raise NsfemError(f"{what}: column {name!r} is zero throughout; a relative misfit needs a signal")
+        big = int(np.argmax(np.abs(v)))
+        if abs(v[big]) > ABSURD:
+            raise NsfemError(f"{what}: column {name!r}, {at(big)}: {v[big]:g} m is beyond {ABSURD:g} m (a unit or "
+                             "export error? the misfit would overflow)")
+        if abs(v[big]) < 1.0 / ABSURD:
+            raise NsfemError(f"{what}: column {name!r}: its largest magnitude, {abs(v[big]):.3g} m at {at(big)}, is "
+                             f"below {1.0 / ABSURD:g} m (denormal or garbled values? a relative misfit divides by the "
+                             "signal's RMS)")
         values[:, j] = v
-    return Measurement(t, names, values)
+    return Measurement(t, names, values, lines)
 
 
 def match_sensors(m: Measurement, sensors, what: str = "data") -> list[int]:

@@ -18,12 +18,15 @@ q_full = basis q; ``contact_x`` (m,). ``meta`` is a JSON string. Written atomica
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .atomic import write_atomic
+from .errors import NsfemError
+from .jsonio import dumps
 
 STATES = ("open", "stick", "slip")
 
@@ -79,7 +82,7 @@ class Result:
                       tangential_force=self.tangential_force, state=self.state,
                       basis=np.zeros((0, self.q.shape[0])) if basis is None else np.asarray(basis),
                       contact_x=np.zeros(self.gap.shape[0]) if contact_x is None else np.asarray(contact_x),
-                      meta=np.array(json.dumps(meta, default=json_default)))
+                      meta=np.array(dumps(meta)))
 
         def write(tmp):
             with open(tmp, "wb") as fh:  # a file object: numpy would append .npz to a name
@@ -114,3 +117,32 @@ def json_default(o):
     if isinstance(o, np.ndarray):
         return o.tolist()
     raise TypeError(type(o))
+
+
+def check_times(t: np.ndarray, t_end: float, what: str) -> None:
+    """Refuse the output times ``t`` of a results file (``what`` names it) that hold no sample, are not
+    finite, do not increase, or lie outside [0, ``t_end``] (its stored end, to round-off): a file
+    truncated or edited by hand, whose export would be an empty or meaningless series.
+
+    >>> check_times(np.array([0.0, 0.5, 1.0]), 1.0, "r.npz")
+    >>> check_times(np.array([0.0, 1.0, 0.5]), 1.0, "r.npz")
+    Traceback (most recent call last):
+    nsfem.errors.NsfemError: r.npz: its output times do not increase (t = 1 s is followed by 0.5 s, outputs 1 and 2)
+    """
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size == 0:
+        raise NsfemError(f"{what}: holds no output time (zero samples)")
+    bad = ~np.isfinite(t)
+    if np.any(bad):
+        raise NsfemError(f"{what}: its output time {int(np.argmax(bad))} is {t[np.argmax(bad)]} (not finite)")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        i = int(np.argmax(steps <= 0))
+        raise NsfemError(f"{what}: its output times do not increase (t = {t[i]:g} s is followed by {t[i + 1]:g} s, "
+                         f"outputs {i} and {i + 1})")
+    # round-off of the integrator's clock: a few ulps of t_end
+    slack = 1e-9 * max(abs(float(t_end)), 1e-300)
+    if not (math.isfinite(t_end) and t[0] >= -slack and t[-1] <= t_end + slack):
+        raise NsfemError(f"{what}: its output times {t[0]:g}..{t[-1]:g} s lie outside the run's span 0..{t_end:g} s "
+                         "(a damaged or edited file)")
+

@@ -50,6 +50,10 @@ def sensors_from_scene(tree: dict, stack) -> tuple[Sensor, ...]:
             raise SceneError(f"{key}.name", f"{name!r} is taken (names are sensors.csv's column heads, after 't')")
         if any(c in name for c in ',"\n\r'):
             raise SceneError(f"{key}.name", f"{name!r} holds a comma, quote or line break (a CSV column head)")
+        if name != name.strip() or not name.isprintable():
+            # a CSV reader strips a column head's blanks: sensors.csv must name the sensor as the scene does
+            raise SceneError(f"{key}.name", f"{name!r} begins or ends with a blank or holds a control character "
+                             "(a CSV column head: nsfem fit reads sensors.csv back by these names)")
         names.add(name)
         x = s["x"]
         at = [g for g in stack.segments if g.start <= x <= g.end]

@@ -2,20 +2,23 @@
 
 ``--set KEY=START:STOP:N`` sweeps KEY over N evenly spaced values (several ranges make a
 grid, their cartesian product, the first key varying slowest); a plain ``--set KEY=VALUE``
-fixes a value for every run. Every value is validated (the scene loaded with its overrides)
-before anything is computed.
+fixes a value for every run. The values are validated (the scene loaded with its overrides)
+before anything is computed: every run's for sweeps of at most :data:`CHECK_ALL` runs, else
+:data:`CHECKED_VALUES` per key, the other scenes as their runs are submitted (:func:`checked_points`).
+At most :data:`MAX_POINTS` runs and :func:`max_workers` local workers, never more workers than runs.
 
 Runs that differ only in keys of :data:`SHARED_TABLES` (speed, damping, initial state,
 simulation and output settings) share one assembled model and one reduction basis: they are
 built once on the client and sent once to every worker (design section 2: speed-dependent
 matrices are never reassembled). Every other key (mesh, reduction, shaft, delaminations,
 friction and restitution, which the contact set reads from the model's stack) gets its own
-model, again once per distinct value.
+model, again once per distinct value, built when its first run is submitted. Runs are submitted
+two per worker ahead of the finished ones, so the first row comes after one run.
 
 Each run writes ``<out>/<name>/result.npz`` and ``<out>/<name>/record.json`` (its row; the
 ledger of resumption, written last and atomically); ``<out>/sweep.csv`` and
-``<out>/sweep.json`` are rewritten atomically after every finished run, ``<out>/resonance.png``
-at the end.
+``<out>/sweep.json`` are rewritten atomically as runs finish (at most once a second, see
+:data:`TABLE_EVERY`) and at the end, ``<out>/resonance.png`` at the end.
 
 >>> fixed, axes = parse_ranges(["rotation.speed_hz=10:20:3", "mesh.elements=20"])
 >>> fixed, axes
@@ -29,11 +32,13 @@ at the end.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import io
 import itertools
 import json
+import math
 import os
 import re
 import time
@@ -46,7 +51,7 @@ import numpy as np
 
 from .atomic import check_folder, write_text_atomic
 from .errors import IntegrationError, NsfemError
-from .result import json_default
+from .jsonio import as_text, dumps
 
 #: Scene tables that enter neither the assembled model nor its reduction basis (build_model
 #: reads the stack and scene.mesh_options, scene_reduction scene.reduction, the contact set
@@ -55,8 +60,31 @@ SHARED_TABLES = ("title", "rotation", "damping", "initial", "simulation", "outpu
 #: The run keys of every row (design section 5), then the row's error and results file.
 RUN_KEYS = ("method", "t_end", "completed", "wall_s", "ndof_full", "ndof", "events", "impacts", "min_gap_m",
             "max_gap_m", "closed_fraction", "max_normal_force_N", "energy")
-#: The most runs one sweep may have (a typo in N should not plan a billion runs).
-MAX_POINTS = 100_000
+#: The most runs one sweep may have (a typo in N should not plan a billion runs): a run takes a
+#: second or more, so 10 000 runs are hours on a workstation; more is a typo or a job for a cluster
+#: split into several sweeps (each resumable in its own folder)
+MAX_POINTS = 10_000
+#: The most local worker processes per core: each is a Python process holding the model (a few
+#: hundred MB); beyond a few per core they only compete for the cores and the memory (the issue's
+#: 1000 workers on 2 cores: 2.7 GB and no run done in 90 s), so a larger --workers is a typo
+WORKERS_PER_CORE = 4
+
+
+def max_workers() -> int:
+    """The largest ``--workers``: :data:`WORKERS_PER_CORE` per core of this machine."""
+    return WORKERS_PER_CORE * (os.cpu_count() or 1)
+
+
+def check_workers(workers: int | None) -> None:
+    """Refuse a ``--workers`` below 1 or above :func:`max_workers` (before anything is set up)."""
+    if workers is None:
+        return
+    if workers < 1:
+        raise NsfemError(f"--workers must be a positive integer, got {workers}")
+    if workers > max_workers():
+        raise NsfemError(f"--workers {workers}: more than {WORKERS_PER_CORE} per core ({max_workers()} on the "
+                         f"{os.cpu_count() or 1} cores here); more processes only compete for the cores and memory "
+                         "(use --scheduler for a larger cluster)")
 
 
 @dataclass(frozen=True)
@@ -92,7 +120,8 @@ def parse_range(key: str, text: str) -> tuple:
         raise NsfemError(f"{head}: N must be a positive integer, got {parts[2]!r}")
     n = int(parts[2])
     if n > MAX_POINTS:
-        raise NsfemError(f"{head}: N = {n} exceeds the limit of {MAX_POINTS} runs per sweep")
+        raise NsfemError(f"{head}: N = {n} exceeds the limit of {MAX_POINTS} runs per sweep (split it into "
+                         "several sweeps)")
     if n == 1 and start != stop:
         raise NsfemError(f"{head}: N = 1 needs START = STOP, got {parts[0]} and {parts[1]}")
     vals = [float(f"{v:.12g}") for v in np.linspace(start, stop, n)]
@@ -123,7 +152,8 @@ def parse_ranges(overrides: Iterable[str]) -> tuple[list[str], list[Axis]]:
             raise NsfemError(f"{key}: both swept and fixed (drop one of its --set)")
     total = int(np.prod([len(a.values) for a in axes], dtype=float)) if axes else 0
     if total > MAX_POINTS:
-        raise NsfemError(f"the sweep has {total} runs, more than the limit of {MAX_POINTS}")
+        raise NsfemError(f"the sweep has {total} runs ({' x '.join(f'{a.key}: {len(a.values)} values' for a in axes)}),"
+                         f" more than the limit of {MAX_POINTS} runs per sweep (split it into several sweeps)")
     return fixed, axes
 
 
@@ -151,12 +181,6 @@ def _num(v) -> str:
 
 def point_overrides(point: dict) -> list[str]:
     return [f"{k}={_num(v)}" for k, v in point.items()]
-
-
-def model_key(scene) -> str:
-    """What identifies a scene's model and reduction: everything outside :data:`SHARED_TABLES`."""
-    tree = {k: v for k, v in scene.items() if k not in SHARED_TABLES}
-    return json.dumps([tree, str(scene.mesh_file or "")], sort_keys=True, default=str)
 
 
 def fingerprint(base, keys: Sequence[str], method: str) -> str:
@@ -197,15 +221,7 @@ def scene_source(scene_path) -> str:
 # --------------------------------------------------------------------------- one run (on a worker)
 def write_json(path: Path, payload: Any) -> Path:
     """Write JSON atomically (temporary file in the same folder, then rename)."""
-    return write_text_atomic(path, json.dumps(payload, indent=1, default=_default) + "\n")
-
-
-def _default(o):
-    """numpy values as Python values (:func:`nsfem.result.json_default`), anything else as text."""
-    try:
-        return json_default(o)
-    except TypeError:
-        return str(o)
+    return write_text_atomic(path, dumps(payload, as_text, indent=1) + "\n")
 
 
 def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: dict, fp: str) -> dict:
@@ -232,9 +248,16 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
         red = system.info["reduction"]
         path = result.save(run_dir / "result.npz", scene_text, dense(red.T), system.model_contacts.x, scene.record())
         summary = result.summary()
+        amplitudes = sensor_amplitudes(result, system) if not error else {}  # a broken-off run has no steady state
+        bad = [k for k, v in {**summary, **amplitudes}.items()
+               if isinstance(v, float) and not math.isfinite(v) and k != "energy"]
+        if not error and (bad or not np.all(np.isfinite(result.q))):
+            error = (f"the result is not finite ({', '.join(bad) or 'the displacements'}): the motion overflowed "
+                     "the floating-point range")
+            amplitudes = {}
         row.update(summary, error=error, result=str(path), outputs=[str(path)],
                    integration_wall_s=summary["wall_s"])
-        row.update(sensor_amplitudes(result, system))
+        row.update(amplitudes)
     except Exception as exc:  # noqa: BLE001 - every failure is reported in its row
         row["error"] = _message(exc)
     row["wall_s"] = time.perf_counter() - t0  # as nsfem run: the whole run (the shared model built before)
@@ -285,9 +308,12 @@ def read_record(run_dir: Path, fp: str) -> dict | None:
 
 
 # --------------------------------------------------------------------------- the sweep (on the client)
-#: Seconds to connect to a scheduler and for its first worker to be there; seconds to close a cluster.
+#: Seconds to connect to a scheduler and for its first worker to be there; seconds to close a cluster
+#: (its workers asked to stop, then killed): closing a local cluster whose workers are busy takes
+#: 4 s on a loaded machine; a close cut short at 2 s left the cluster to distributed's own close at
+#: exit, which then waited 10 s more (measured: 32 s from SIGTERM to exit, 21 s with 10 s here)
 CONNECT_TIMEOUT = 10.0
-CLOSE_TIMEOUT = 2.0
+CLOSE_TIMEOUT = 10.0
 #: A worker preload script (run in the worker process's main thread as it starts).
 _IGNORE_SIGINT = "import signal; signal.signal(signal.SIGINT, signal.SIG_IGN)"
 
@@ -319,10 +345,15 @@ class SweepResult:
 
     def set_row(self, point: dict, row: dict | None) -> None:
         """Enter (or replace) a point's row; ``points``/``runs`` stay sorted by the swept values."""
-        name = run_name(point)
-        if row is None and name in self.entries:
-            return
-        self.entries[name] = (point, row)
+        self.set_rows([(point, row)])
+
+    def set_rows(self, pairs: Iterable[tuple[dict, dict | None]]) -> None:
+        """:meth:`set_row` for many points, sorted once (a sweep of 10 000 points starts at once)."""
+        for point, row in pairs:
+            name = run_name(point)
+            if row is None and name in self.entries:
+                continue
+            self.entries[name] = (point, row)
         keys = [a.key for a in self.axes]
         order = sorted(self.entries.values(), key=lambda e: tuple(e[0][k] for k in keys))
         self.points = [e[0] for e in order]
@@ -393,36 +424,91 @@ def format_progress(k: int, n: int, row: dict, keys: Sequence[str]) -> str:
             f"{row['wall_s']:.2f} s")
 
 
+#: The table and JSON are rewritten as runs finish, at most once per TABLE_EVERY seconds and after at
+#: least TABLE_SHARE times the last rewrite's duration (10 000 rows take 1.1 s to write: rewritten
+#: after every run, a sweep's writing grows with the square of its runs); always at the end or on
+#: Ctrl-C. Each run's record.json, the ledger a rerun resumes from, is written as the run ends.
+TABLE_EVERY = 1.0
+TABLE_SHARE = 10.0
+#: Sweeps of at most this many runs load every run's scene before anything runs (6 ms each for
+#: the crack scene: 1.5 s); larger ones load each key's values (at most CHECKED_VALUES of them, evenly
+#: spaced, the ends included) before, and every run's scene as it is submitted (a combination the
+#: scene refuses then fails its row): 90 000 scenes took 9 minutes before the first run
+CHECK_ALL = 256
+CHECKED_VALUES = 64
+
+
 @dataclass
 class _Plan:
     points: list[dict]
-    scenes: list
     fixed: list[str]
     axes: list[Axis]
     method: str
     scene_text: str
     fp: str
     base: Any = None
+    scene_path: Any = None
+    scenes: dict = field(default_factory=dict)
+
+    def scene(self, i: int):
+        """The scene of point ``i`` (loaded now unless checked before; NsfemError when refused)."""
+        from .scene import load_scene
+
+        if i in self.scenes:
+            return self.scenes.pop(i)
+        return load_scene(self.scene_path, self.fixed + point_overrides(self.points[i]))
+
+    def model_group(self, i: int) -> tuple:
+        """What identifies point ``i``'s model: its values of the keys outside :data:`SHARED_TABLES`
+        (the fixed overrides are the same for every point)."""
+        return tuple(v for k, v in self.points[i].items() if k.split(".")[0] not in SHARED_TABLES)
+
+
+def checked_points(axes: Sequence[Axis]) -> list[dict]:
+    """The points whose scenes are loaded before any run: every point of a sweep of at most
+    :data:`CHECK_ALL` runs, else, per key, at most :data:`CHECKED_VALUES` of its values (evenly spaced,
+    the ends included) with the other keys at their first value.
+
+    >>> len(checked_points([Axis("a", tuple(range(300))), Axis("b", (0, 1))])), len(checked_points([Axis("a", (1, 2))]))
+    (65, 2)
+    """
+    points = sweep_values(axes)
+    if len(points) <= CHECK_ALL:
+        return points
+    first = {a.key: a.values[0] for a in axes}
+    out = []
+    for a in axes:
+        picks = np.unique(np.linspace(0, len(a.values) - 1, min(len(a.values), CHECKED_VALUES)).round().astype(int))
+        out += [{**first, a.key: a.values[k]} for k in picks if a.values[k] != first[a.key] or not out]
+    return out
 
 
 def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Plan:
-    """Validate everything (ranges, the scene with its fixed overrides, every point) before any run."""
+    """Validate everything (ranges, the scene with its fixed overrides, the points of
+    :func:`checked_points`) before any run; the other scenes are loaded as their runs are submitted."""
     from .scene import METHODS, load_scene
+    from .scene.overrides import missing_item
 
     fixed, axes = parse_ranges(overrides)
     base = load_scene(scene_path, fixed)
+    for a in axes:
+        item = missing_item(base, a.key)
+        if item is not None:
+            raise NsfemError(f"--set {a.key}=START:STOP:N: the scene has no {item} (sweep keys of items the scene "
+                             "has; add the item to the scene, or with a fixed --set)")
     if not axes:
         raise NsfemError("nsfem sweep: nothing to sweep; give at least one --set KEY=START:STOP:N")
     if method is not None and method not in METHODS:
         raise NsfemError(f"simulation.method {method!r} is not available (use {' | '.join(METHODS)})")
     points = sweep_values(axes)
-    scenes = [load_scene(scene_path, fixed + point_overrides(p)) for p in points]
+    index = {run_name(pt): i for i, pt in enumerate(points)}
+    scenes = {index[run_name(pt)]: load_scene(scene_path, fixed + point_overrides(pt)) for pt in checked_points(axes)}
     method = method or base.simulation.method
     if any(a.key == "simulation.method" for a in axes):  # pragma: no cover - ranges are numbers
         raise NsfemError("simulation.method cannot be swept")
     keys = [a.key for a in axes]
-    return _Plan(points, scenes, fixed, axes, method, scene_source(scene_path), fingerprint(base, keys, method),
-                 base)
+    return _Plan(points, fixed, axes, method, scene_source(scene_path), fingerprint(base, keys, method), base,
+                 scene_path, scenes)
 
 
 def default_folder(p: _Plan) -> Path:
@@ -449,9 +535,21 @@ def _check_folder(out: Path, p: _Plan, scene_path, write: bool = False) -> None:
                            "keys": [a.key for a in p.axes], "method": p.method})
 
 
+def local_workers(workers: int | None, n_runs: int) -> int:
+    """The worker processes of a local cluster for ``n_runs`` runs at a time: ``workers`` (checked by
+    :func:`check_workers`; default one per core), never more than the runs (the others would idle).
+
+    >>> local_workers(8, 2), local_workers(1, 5), local_workers(None, 1)
+    (2, 1, 1)
+    """
+    check_workers(workers)
+    return max(1, min(workers or os.cpu_count() or 1, n_runs))
+
+
 def _client(client, workers: int | None, scheduler: str | None, n_runs: int):
-    """(client, things to close): the given client, one connected to ``scheduler``, or a LocalCluster.
-    Any failure to connect, or a cluster without workers, is a one-line NsfemError."""
+    """(client, things to close): the given client, one connected to ``scheduler``, or a LocalCluster
+    of :func:`local_workers` processes. Any failure to connect, or a cluster without workers, is a
+    one-line NsfemError."""
     import logging
     import threading
 
@@ -480,16 +578,30 @@ def _client(client, workers: int | None, scheduler: str | None, n_runs: int):
         c = box["client"]
         closing, where = [c], f"--scheduler {scheduler}"
     else:
-        n = workers or max(1, min(os.cpu_count() or 1, n_runs))
+        n = local_workers(workers, n_runs)
         env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
         # the workers ignore SIGINT: Ctrl-C in the terminal (sent to the whole process group)
         # reaches only this process, which cancels the runs and closes the cluster, quietly
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
-        c = Client(cluster)
+        # Ctrl-C or SIGTERM while the cluster starts is held until it is there: an exception out of
+        # its constructor would leave worker processes that no one closes (and distributed's own
+        # close at exit fails on them with a traceback)
+        with _deferred_signals() as received:
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                   silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
+            try:
+                c = Client(cluster)
+            except BaseException:
+                _close([cluster])
+                raise
         closing, where = [c, cluster], "the local cluster"
+        if received:
+            _close(closing)
+            raise KeyboardInterrupt
     try:
         c.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+    except KeyboardInterrupt:
+        _close(closing)
+        raise
     except Exception:  # noqa: BLE001 - a TimeoutError, or the scheduler went away
         _close(closing)
         raise NsfemError(f"{where}: no worker within {CONNECT_TIMEOUT:g} s (start workers with "
@@ -514,6 +626,25 @@ def _close(closing) -> None:
     finally:
         for n, level in levels.items():
             logging.getLogger(n).setLevel(level)
+
+
+@contextlib.contextmanager
+def _deferred_signals():
+    """Within the block, SIGINT and SIGTERM are recorded (in the list yielded), not acted on; the
+    handlers before are restored after it (main thread only; elsewhere nothing changes)."""
+    import signal
+    import threading
+
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+    held = {sig: signal.signal(sig, lambda signum, frame: received.append(signum))
+            for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield received
+    finally:
+        _release_signals(held)
 
 
 def _hold_signals() -> dict:
@@ -553,8 +684,7 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
 
     if workers is not None and (scheduler or client is not None):
         raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
-    if workers is not None and workers < 1:
-        raise NsfemError(f"--workers must be a positive integer, got {workers}")
+    check_workers(workers)
     t0 = time.perf_counter()
     p = plan(scene_path, overrides, method)
     # absolute: the workers (maybe started elsewhere) write there
@@ -567,16 +697,20 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
     resumed = len(p.points) - len(todo)
     res = SweepResult(p.axes, [], [], out, out / "sweep.csv", current={run_name(pt) for pt in p.points},
                       info={"executed": 0, "resumed": resumed, "models_built": 0, "workers": 0, "wall_s": 0.0})
-    for point, row in folder_rows(out, p.fp, keys):  # earlier sweeps into this folder, this one's resumed runs
-        res.set_row(point, row)
-    for pt in p.points:
-        res.set_row(pt, None)
+    res.set_rows(folder_rows(out, p.fp, keys))  # earlier sweeps into this folder, this one's resumed runs
+    res.set_rows((pt, None) for pt in p.points)
     say = progress or (lambda line: None)
+
+    written = {"at": -math.inf, "took": 0.0}
 
     def record(i: int, row: dict) -> None:
         res.set_row(p.points[i], row)
-        write_table(res.table, p.axes, res.runs)
-        write_json(out / "sweep.json", res.to_json())
+        start = time.perf_counter()
+        if start - written["at"] >= max(TABLE_EVERY, TABLE_SHARE * written["took"]):
+            write_table(res.table, p.axes, res.runs)
+            write_json(out / "sweep.json", res.to_json())
+            written["at"] = time.perf_counter()
+            written["took"] = written["at"] - start
         res.info["executed"] += 1
         say(format_progress(resumed + res.info["executed"], len(p.points), row, keys))
         for w in row.get("warnings") or []:
@@ -596,46 +730,90 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
         if resumed:
             say(f"{resumed} of {len(p.points)} runs already done in {out}")
         return finish()
+    line = (f"{len(todo)} runs to do ({', '.join(f'{a.key}: {len(a.values)} values' for a in p.axes)}"
+            + (f"; {resumed} already done" if resumed else "") + f") into {out}")
+    local = client is None and not scheduler
+    if local:  # at once, before the seconds a local cluster takes to start
+        say(line)
     cl, closing, futures = None, [], {}
     try:
         cl, closing = _client(client, workers, scheduler, len(todo))
+        if not local:  # once connected: a scheduler that cannot be reached is one line
+            say(line)
         res.info["workers"] = len(cl.nthreads())
+        if workers is not None and res.info["workers"] < workers:
+            say(f"note: --workers {workers} for {len(todo)} runs: {res.info['workers']} started (one per run)")
         _check_folder(out, p, scene_path, write=True)
-        if resumed:
-            say(f"{resumed} of {len(p.points)} runs already done in {out}")
         from distributed import as_completed
 
-        # one model and reduction per distinct model key, built here once; a failed build fails its rows only
-        groups: dict[str, list[int]] = {}
-        for i in todo:
-            groups.setdefault(model_key(p.scenes[i]), []).append(i)
-        for idx in groups.values():
-            scene = p.scenes[idx[0]]
-            try:
-                model = build_model(scene)
-                built = (model, scene_reduction(scene.reduction, model))
-            except Exception as exc:  # noqa: BLE001 - reported in the rows of this model's values
-                for i in idx:
-                    row = error_row(p.points[i], p.method, f"model build failed: {_message(exc)}")
-                    write_json(out / run_name(p.points[i]) / "record.json",
-                               {"fingerprint": p.fp, "point": p.points[i], "row": row})
-                    record(i, row)
-                continue
-            res.info["models_built"] += 1
-            [shared] = cl.scatter([built], broadcast=True, hash=False)
-            for i in idx:
+        # one model and reduction per group of points (their values of the keys outside SHARED_TABLES),
+        # built here once, when its first run is submitted; a failed build fails its rows only. The
+        # scenes are loaded and the runs submitted as others finish, a few per worker ahead: the first
+        # row arrives after one run, however many follow
+        rank = {g: k for k, g in enumerate(dict.fromkeys(p.model_group(i) for i in todo))}
+        order = sorted(todo, key=lambda i: rank[p.model_group(i)])     # stable: each group in sweep order
+        left = dict.fromkeys(rank, 0)
+        for i in order:
+            left[p.model_group(i)] += 1
+        models: dict[tuple, Any] = {}          # group -> scattered (model, reduction), or the build's error
+        queue = iter(order)
+        ahead = 2 * max(1, res.info["workers"])
+
+        def fail(i: int, error: str) -> None:
+            row = error_row(p.points[i], p.method, error)
+            write_json(out / run_name(p.points[i]) / "record.json", {"fingerprint": p.fp, "point": p.points[i],
+                                                                       "row": row})
+            record(i, row)
+
+        def shared_model(group: tuple, scene):
+            if group not in models:
+                try:
+                    model = build_model(scene)
+                    built = (model, scene_reduction(scene.reduction, model))
+                except Exception as exc:  # noqa: BLE001 - reported in the rows of this model's values
+                    models[group] = f"model build failed: {_message(exc)}"
+                else:
+                    res.info["models_built"] += 1
+                    [models[group]] = cl.scatter([built], broadcast=True, hash=False)
+            return models[group]
+
+        def submit_next() -> bool:
+            """Submit the next run (its scene and model made now); False when none is left."""
+            for i in queue:
+                group = p.model_group(i)
+                left[group] -= 1
+                try:
+                    scene = p.scene(i)
+                except NsfemError as exc:
+                    shared = f"scene refused: {_message(exc)}"
+                else:
+                    shared = shared_model(group, scene)
+                if not left[group]:
+                    models.pop(group, None)        # its runs hold the model now; the workers free it after them
+                if isinstance(shared, str):
+                    fail(i, shared)
+                    continue
                 # a fresh key: the scheduler must never hand back a finished task of an earlier sweep
-                fut = cl.submit(run_point, p.scenes[i], p.method, shared, str(out / run_name(p.points[i])),
+                fut = cl.submit(run_point, scene, p.method, shared, str(out / run_name(p.points[i])),
                                 p.scene_text + "\n# overrides: " + " ".join(p.fixed + point_overrides(p.points[i])),
                                 p.points[i], p.fp, key=f"nsfem-run-{uuid.uuid4().hex}", pure=False)
                 futures[fut] = i
-        for fut in as_completed(list(futures), loop=cl.loop):
+                running.add(fut)
+                return True
+            return False
+
+        running = as_completed([], loop=cl.loop)
+        for _ in range(ahead):
+            if not submit_next():
+                break
+        for fut in running:
             i = futures[fut]
             try:
                 row = fut.result()
             except Exception as exc:  # noqa: BLE001 - a lost worker, an unpicklable result
                 row = error_row(p.points[i], p.method, _message(exc))
             record(i, row)
+            submit_next()
     except KeyboardInterrupt:
         held = _hold_signals()  # a second Ctrl-C must not cut the writing of the finished rows short
         if cl is not None:

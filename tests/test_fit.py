@@ -100,12 +100,12 @@ def test_bad_inputs_are_one_line_errors_before_any_run(clean, tmp_path, monkeypa
         "unknown column": (write_csv(tmp_path / "x.csv", t, {"a": sig["a"], "c": sig["b"]}).read_text(), {KEY: RANGE},
                            "column 'c' is no sensor of the scene"),
         "NaN": (good.read_text().replace(repr(float(sig["b"][5])), "nan", 1), {KEY: RANGE},
-                "column 'b' holds NaN or inf at sample 5"),
+                "column 'b' holds NaN or inf at line 7"),
         "duplicate column": ("t,a,a\n0,1,2\n0.1,3,4\n", {KEY: RANGE}, "column 'a' appears 2 times in the header"),
         "t not increasing": ("t,a\n0,1\n0.2,2\n0.1,3\n", {KEY: RANGE}, "t must increase"),
         # a duplicated time stamp a rounding step apart: the runs would output at 1e-9 s
         "t nearly repeated": ("t,a\n0,1\n0.001,2\n0.001000001,3\n0.002,4\n", {KEY: RANGE},
-                              "samples 2 and 3 lie 1e-09 s apart"),
+                              "lines 3 and 4 lie 1e-09 s apart"),
         "unknown key": (None, {"delamination.0.begin": RANGE}, "delamination.0.begin: unknown key"),
         "no such delamination": (None, {"delamination.3.start": RANGE}, "the scene has no delamination.3"),
         # one past the end: an override would append an item (a crack the scene does not have)

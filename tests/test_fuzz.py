@@ -186,3 +186,537 @@ def test_fuzz_cli(saved_result, argv):
 @given(invocations())
 def test_fuzz_cli_many(saved_result, argv):
     fuzz_one(argv, saved_result)
+
+
+# --- issue 32: resources, parsing and error messages (sweep / fit / export / measurement) ---
+# The resources: --workers capped, run counts and simulated spans refused before any set-up, workers
+# torn down on SIGTERM. The parsing: CSV cells, sample values, times, list indices, sensor names.
+# The messages: each names the file, column and line (or the key and the count) it is about. And
+# every JSON written is strict (RFC 8259: no NaN or Infinity).
+import json
+import math
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from nsfem.errors import NsfemError
+from nsfem.jsonio import dumps
+from nsfem.measurement import ABSURD, GAP, read_measurement
+from nsfem.result import check_times
+from nsfem.sweep import MAX_POINTS, local_workers, max_workers, parse_ranges
+
+#: the shipped shaft with two probes (as tests/test_fit.py), for fit's data checks: every one of them
+#: comes before any run, so the data need not be the scene's
+PROBES = ["--set", 'sensor.0.name="a"', "--set", "sensor.0.x=0.05", "--set", 'sensor.0.direction="+z"']
+VARY = ["--vary", "delamination.0.start=0.1:0.4"]
+
+
+def _strict(text: str):
+    """JSON parsed strictly: NaN, Infinity and -Infinity are errors, as in every non-Python parser."""
+    def refuse(token):
+        raise ValueError(f"non-standard JSON token {token}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def _data(root: Path, t, a, name: str = "d.csv") -> str:
+    rows = [f"{ti!r},{ai!r}" for ti, ai in zip(map(float, t), map(float, a))]
+    (root / name).write_text("t,a\n" + "\n".join(rows) + "\n")
+    return name
+
+
+T = np.arange(50) * 1e-3                       # 50 samples, 1 ms apart (the default output step)
+A = 1e-4 * np.sin(2 * np.pi * 40 * T + 0.3)
+
+
+def _fit_argv(data: str, *extra: str) -> list[str]:
+    return ["fit", *PROBES, "--data", data, *VARY, "--out", "f", *extra]
+
+
+def _csv_case(root: Path, case: str) -> str:
+    """The issue's hostile data files, by name."""
+    t, a = T.copy(), A.copy()
+    if case == "1e308":
+        a[7] = 1e308
+    elif case == "denormal":
+        a = np.full_like(a, 5e-324) * np.sign(np.sin(np.arange(a.size)) + 0.5)
+    elif case == "duplicated":
+        t[10] = t[9]
+    elif case == "unsorted":
+        t[10], t[11] = t[11], t[10]
+    elif case == "gap":
+        t[25:] += 1000.0
+    elif case == "late":
+        t = t + 1e6
+    elif case == "apart":
+        t, a = np.array([0.0, 1000.0]), np.array([1e-4, -1e-4])
+    name = _data(root, t, a)
+    if case == "underscore":
+        path = root / name
+        lines = path.read_text().splitlines()
+        lines[5] = lines[5].split(",")[0] + ",1_0e-5"
+        path.write_text("\n".join(lines) + "\n")
+    return name
+
+
+# (case, words the one-line error must hold: the file, the column and the line it is about)
+DATA_CASES = [
+    ("1e308", ["d.csv", "column 'a'", "line 9", "1e+308"]),
+    ("denormal", ["d.csv", "column 'a'", "below 1e-100"]),
+    ("duplicated", ["d.csv", "column 't'", "lines 11 and 12"]),
+    ("unsorted", ["d.csv", "column 't'", "t must increase", "lines 12 and 13"]),
+    ("gap", ["d.csv", "column 't'", "lines 26 and 27", "gap"]),
+    ("late", ["d.csv", "column 't'", "starts at t = 1e+06 s (line 2)"]),
+    ("apart", ["d.csv", "column 't'", "2 samples up to line 3"]),
+    ("underscore", ["d.csv", "line 6", "column 'a'", "'1_0e-5' is not a number"]),
+]
+
+
+@pytest.mark.parametrize("case, words", DATA_CASES, ids=[c for c, _ in DATA_CASES])
+def test_issue32_hostile_data_name_the_file_column_and_line(case, words, tmp_path, monkeypatch):
+    import nsfem.sweep
+
+    monkeypatch.setattr(nsfem.sweep, "_client", lambda *a, **k: pytest.fail("a cluster was started"))
+    code, _, stderr = check_invocation(_fit_argv(_csv_case(tmp_path, case)), tmp_path)
+    assert code == cli.EXIT_ERROR
+    for w in words:
+        assert w in stderr, (w, stderr)
+    assert "simulation.output_dt" not in stderr      # a key the user never set is never blamed
+
+
+def test_issue32_two_million_samples_blame_the_data_not_output_dt():
+    """2e6 samples 1 ms apart: 2000 s of runs, 2e6 outputs each: the data are named, not a key."""
+    from nsfem.fit.problem import MAX_OUTPUTS, prepare
+
+    t = np.arange(2_000_000) * 1e-3
+    with pytest.raises(NsfemError, match=r"^data: column 't': the runs would simulate 0 to 2000 s") as info:
+        prepare(None, (t, {"a": np.sin(t)}), ["delamination.0.start=0.1:0.4"], overrides=[o for o in PROBES
+                                                                                          if o != "--set"])
+    assert f"{MAX_OUTPUTS:.0e}" in str(info.value) and "output_dt" not in str(info.value)
+
+
+@given(st.lists(st.sampled_from(["0", "1e-3", "-2.5e-4", " 7.0 ", "1_0e-5", "0x10", "1,5", "", "nan", "inf",
+                                 "1e308", "-1e101", "5e-324", "1e-99", "１", "1e", ".5", "5.", "+3", "infinity",
+                                 "1 0", "\u00a0"]),
+                min_size=2, max_size=8),
+       st.sampled_from([(0.0, 1e-3), (1e-3, 1e-3), (0.0, 0.0), (0.0, -1e-3), (1e6, 1e-3), (0.0, 1e3), (-1.0, 1.0)]),
+       st.integers(0, 7))
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+def test_issue32_property_data_are_refused_naming_the_file_or_kept_exactly(cells, clock, jump):
+    """Any data file: a one-line error naming the file (and a line or column), or a measurement whose
+    every value is the cell's decimal number, finite and within 1/ABSURD..ABSURD, times increasing
+    with no step below 1e-3 or above GAP median steps."""
+    t = clock[0] + clock[1] * np.arange(len(cells))
+    if jump < len(cells):
+        t[jump:] += 0.5                  # sometimes a step of its own
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "m.csv"
+        path.write_text("t,a\n" + "".join(f"{ti!r},{c}\n" for ti, c in zip(t, cells)))
+        try:
+            m = read_measurement(path)
+        except NsfemError as exc:
+            text = str(exc)
+            assert "\n" not in text and text.startswith(f"--data {path}: ")
+            assert any(w in text for w in ("line", "column", "samples", "empty")), text
+            return
+    values = m.values[:, 0]
+    assert np.all(np.isfinite(values)) and np.max(np.abs(values)) <= ABSURD
+    assert np.max(np.abs(values)) >= 1 / ABSURD
+    steps = np.diff(m.t)
+    assert np.all(steps > 0) and np.max(steps) <= GAP * np.median(steps) and m.t[0] >= 0
+    kept = [c for c in cells if c.strip()]
+    assert len(kept) == values.size     # blank cells are blank rows only when the whole row is; else refused
+    for c, v in zip(kept, values):
+        assert c.strip().isascii() and "_" not in c and v == float(c)
+
+
+# ----- run counts and workers
+def test_issue32_worker_counts_are_capped_and_never_exceed_the_runs(tmp_path, monkeypatch):
+    import nsfem.sweep
+
+    monkeypatch.setattr(nsfem.sweep, "_client", lambda *a, **k: pytest.fail("a cluster was started"))
+    cap = max_workers()
+    for argv in (["sweep", *CHEAP, "--set", "rotation.speed_hz=10:20:2", "--workers", "1000"],
+                 _fit_argv(_data(tmp_path, T, A), "--workers", "1000")):
+        code, _, stderr = check_invocation(argv, tmp_path)
+        assert code == cli.EXIT_ERROR and f"--workers 1000: more than 4 per core ({cap} " in stderr
+
+
+@given(st.one_of(st.none(), st.integers(-3, 10 ** 6)), st.integers(1, 10 ** 6))
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+def test_issue32_property_local_workers(workers, runs):
+    """Refused (below 1, above 4 per core) or between 1 and the runs: never a process without a run."""
+    try:
+        n = local_workers(workers, runs)
+    except NsfemError as exc:
+        assert workers is not None and (workers < 1 or workers > max_workers()) and "--workers" in str(exc)
+        return
+    assert 1 <= n <= runs and (workers is None or n <= workers)
+
+
+@given(st.lists(st.integers(1, 400), min_size=1, max_size=3))
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+def test_issue32_property_run_counts_are_refused_before_any_scene(counts):
+    """A grid of more than MAX_POINTS runs is one line naming each key, its count and the total; the
+    count is known from the ranges alone (no scene is loaded)."""
+    keys = ["rotation.speed_hz", "damping.external", "rotation.phase_deg"][:len(counts)]
+    sets = [f"{k}=0:1:{n}" if n > 1 else f"{k}=1:1:1" for k, n in zip(keys, counts)]
+    total = math.prod(counts)
+    try:
+        _, axes = parse_ranges(sets)
+    except NsfemError as exc:
+        assert total > MAX_POINTS and f"the sweep has {total} runs" in str(exc)
+        assert all(f"{k}: {n} values" in str(exc) for k, n in zip(keys, counts))
+        return
+    assert total <= MAX_POINTS and [len(a.values) for a in axes] == counts
+
+
+def test_issue32_huge_sweeps_are_refused_at_once(tmp_path):
+    for argv, words in ((["sweep", "crack", *F, "--set", "rotation.speed_hz=1:20:90000"], "N = 90000 exceeds"),
+                        (["sweep", *F, "--set", "rotation.speed_hz=1:20:300", "--set", "damping.external=0:1:300"],
+                         "the sweep has 90000 runs (rotation.speed_hz: 300 values x damping.external: 300 values)")):
+        t0 = time.perf_counter()
+        code, _, stderr = check_invocation(argv, tmp_path)
+        assert code == cli.EXIT_ERROR and words in stderr
+        assert time.perf_counter() - t0 < 60   # a generous bound (the refusal needs no scene): not a timing
+
+
+def test_issue32_a_large_sweep_loads_its_scenes_lazily(monkeypatch):
+    """1000 runs of the crack scene: 64 values are checked before anything runs; the others are loaded
+    as their runs are submitted (9 minutes for 90 000 scenes before the first run)."""
+    import nsfem.sweep
+    from nsfem.sweep import CHECKED_VALUES, plan
+
+    p = plan("crack", ["rotation.speed_hz=1:20:1000"])
+    assert len(p.points) == 1000 and len(p.scenes) == CHECKED_VALUES
+    assert p.scene(500).rotation.speed_hz == pytest.approx(p.points[500]["rotation.speed_hz"])
+    with pytest.raises(NsfemError, match="rotation.speed_hz"):   # a checked value the scene refuses
+        plan("crack", ["rotation.speed_hz=-1:20:1000"])
+
+
+# ----- list indices and sensor names
+@given(st.integers(0, 4), st.booleans())
+@settings(max_examples=10, deadline=None, derandomize=True, database=None)
+def test_issue32_property_a_swept_or_varied_item_must_exist(index, swept):
+    """``crack.K.depth`` on the crack scene (one crack): K = 0 is swept/varied, any other K is refused
+    by sweep and fit alike, naming the item (an override there would add a crack)."""
+    from nsfem.fit.problem import _check_item
+    from nsfem.scene import load_scene
+    from nsfem.sweep import plan
+
+    key = f"crack.{index}.depth"
+    try:
+        if swept:
+            plan("crack", [f"{key}=0.1:0.3:2"])
+        else:
+            _check_item(load_scene("crack"), key)
+    except NsfemError as exc:
+        assert index >= 1 and f"the scene has no crack.{index} " in str(exc)
+        return
+    assert index == 0
+
+
+def test_issue32_sweep_past_the_last_crack_is_refused(tmp_path):
+    code, _, stderr = check_invocation(["sweep", "crack", *F, "--set", "crack.1.depth=0.1:0.3:2"], tmp_path)
+    assert code == cli.EXIT_ERROR and "--set crack.1.depth=START:STOP:N: the scene has no crack.1" in stderr
+
+
+@given(st.text(st.sampled_from(list("ab_ -,\"'\t\n\x1b.é")), min_size=1, max_size=6))
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+def test_issue32_property_sensor_names_round_trip_or_are_refused(name):
+    """A sensor name is refused at scene load, naming sensor.0.name, or sensors.csv's header read back
+    (as fit reads it) gives the name exactly."""
+    from nsfem.measurement import read_measurement
+    from nsfem.scene import load_scene
+    from nsfem.sensors import write_csv
+
+    try:
+        scene = load_scene(None, [f"sensor.0.name={json.dumps(name)}", "sensor.0.x=0.05"])
+    except NsfemError as exc:
+        assert str(exc).startswith("sensor.0.name: ") and "\n" not in str(exc)
+        return
+    with tempfile.TemporaryDirectory() as d:
+        path = write_csv(Path(d) / "sensors.csv", T, scene.sensors, A[:, None])
+        assert read_measurement(path).names == (name,)
+
+
+def test_issue32_padded_sensor_name_is_refused_by_run(tmp_path):
+    code, _, stderr = check_invocation(["run", *CHEAP, "--set", 'sensor.0.name=" padded "', "--set",
+                                        "sensor.0.x=0.05"], tmp_path)
+    assert code == cli.EXIT_ERROR and "sensor.0.name: ' padded ' begins or ends with a blank" in stderr
+
+
+# ----- export of damaged results
+def _tampered(saved: Path, root: Path, case: str) -> str:
+    with np.load(saved) as r:
+        arrays = {k: r[k] for k in r.files}
+    t = arrays["t"]
+    if case == "empty":
+        for k in ("t", "q", "v", "gap", "normal_force", "state", "tangential_force"):
+            arrays[k] = arrays[k][..., :0]
+    elif case == "reversed":
+        arrays["t"] = t[::-1].copy()
+    elif case == "scaled":
+        arrays["t"] = t * 1e300
+    elif case == "nan":
+        arrays["t"] = t.copy()
+        arrays["t"][3] = np.nan
+    with open(root / f"{case}.npz", "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+    return f"{case}.npz"
+
+
+@pytest.mark.parametrize("case, words", [("empty", "holds no output time"), ("reversed", "do not increase"),
+                                         ("scaled", "lie outside the run's span"), ("nan", "is nan (not finite)")])
+def test_issue32_export_refuses_damaged_times(saved_result, case, words, tmp_path):
+    name = _tampered(saved_result, tmp_path, case)
+    for argv in (["export", name, "--vtu", "v"], ["render", name, "--png", "r.png"]):
+        code, _, stderr = check_invocation(argv, tmp_path)
+        assert code == cli.EXIT_ERROR and f"{name}: " in stderr and words in stderr, stderr
+        assert not (tmp_path / "v").exists() and not (tmp_path / "r.png").exists()
+
+
+@given(st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(0.0)), max_size=6),
+       st.floats(0.0, 10.0))
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+def test_issue32_property_result_times_are_refused_or_sane(times, t_end):
+    """Output times are refused (one line naming the file) or non-empty, finite, increasing and in
+    [0, t_end] to 1e-9 of t_end."""
+    t = np.array(times, dtype=float)
+    try:
+        check_times(t, t_end, "r.npz")
+    except NsfemError as exc:
+        assert str(exc).startswith("r.npz: ") and "\n" not in str(exc)
+        return
+    assert t.size and np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)
+    assert t[0] >= -1e-9 * t_end and t[-1] <= t_end * (1 + 1e-9)
+
+
+# ----- strict JSON
+FLOATS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10 ** 20, 10 ** 20),
+                   st.floats(allow_nan=True, allow_infinity=True).map(np.float64),
+                   st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=3).map(np.array))
+PAYLOADS = st.recursive(st.one_of(FLOATS, st.none(), st.booleans(), st.text(max_size=3)),
+                        lambda inner: st.one_of(st.lists(inner, max_size=3),
+                                                st.dictionaries(st.text(max_size=3), inner, max_size=3)),
+                        max_leaves=12)
+
+
+def _same(a, b) -> bool:
+    """``b`` (parsed JSON) is ``a`` with numpy values as Python ones and every non-finite float None."""
+    if isinstance(a, np.ndarray):
+        a = a.tolist()
+    if isinstance(a, np.generic):
+        a = a.item()
+    if isinstance(a, float) and not math.isfinite(a):
+        return b is None
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return isinstance(b, list) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return a == b and type(a) is type(b)
+
+
+@given(PAYLOADS)
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+def test_issue32_property_json_is_strict(payload):
+    """Whatever the payload, the JSON text parses strictly and gives it back, NaN/inf as null (finite
+    floats exactly: repr round-trips a double)."""
+    assert _same(payload, _strict(dumps(payload)))
+
+
+def test_issue32_overflowed_sweep_run_is_a_failed_row_in_strict_json(tmp_path):
+    """The issue's sweep: unbalance 1e300 overflows: its row fails with the reason, holds no amplitudes,
+    and sweep.json parses strictly (it printed ``"energy": NaN``)."""
+    distributed = pytest.importorskip("distributed")
+    from nsfem.sweep import run_sweep
+
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        res = run_sweep("ross_example", ["simulation.t_end=0.02", "output.plots=[]", "output.vtu_every=0",
+                                         "unbalance.0.magnitude=1e-3:1e300:2"], tmp_path, client=c, plot=False)
+    payload = _strict((tmp_path / "sweep.json").read_text())
+    ok, bad = payload["runs"]
+    assert ok["error"] == "" and ok["amplitude_disk1_y_m"] > 0
+    assert "overflowed" in bad["error"] and not any(k.startswith("amplitude_") for k in bad)
+    assert all(v is None or not isinstance(v, float) or abs(v) < 1e100 for k, v in bad.items()
+               if k != "unbalance.0.magnitude")
+    assert len(res.failed) == 1
+
+
+def test_issue32_fit_reports_a_reason_for_runs_whose_misfit_overflows():
+    """A run whose signals overflow the misfit is a failed evaluation with a reason (it was an empty
+    "(first: )" when every run of the global stage failed that way)."""
+    from nsfem.fit.stages import _Runner
+    from nsfem.measurement import Measurement, scales
+
+    class Done:
+        def __init__(self, value):
+            self.value = value
+
+        def result(self):
+            return self.value
+
+    m = Measurement(T, ("a",), A[:, None])
+    runner = _Runner.__new__(_Runner)
+    runner.problem = type("P", (), {"data": m, "kind": "time"})()
+    runner.scale = scales(m, "time")
+    ev = runner._evaluation(Done((np.full((T.size, 1), 1e300), "")), np.array([0.5]), "global")
+    assert math.isinf(ev.misfit) and "not finite" in ev.error
+    ev = runner._evaluation(Done((None, "")), np.array([0.5]), "global")
+    assert ev.error
+
+
+# ----- workers never outlive the command
+def _descendants(pid: int) -> set[int]:
+    parents: dict[int, list[int]] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            parents.setdefault(ppid, []).append(int(d.name))
+    out, todo = set(), [pid]
+    while todo:
+        for c in parents.get(todo.pop(), []):
+            out.add(c)
+            todo.append(c)
+    return out
+
+
+def _running(pid: int) -> bool:
+    try:
+        return (Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]) != "Z"
+    except OSError:
+        return False
+
+
+def test_issue32_sigterm_during_a_sweep_leaves_no_process(tmp_path):
+    """SIGTERM to ``nsfem sweep --workers 2`` once runs are under way: exit 130 with the finished rows,
+    no traceback, and none of its processes (scheduler, nannies, workers) alive a few seconds later."""
+    if not Path("/proc/self/stat").is_file():
+        pytest.skip("needs /proc")
+    argv = [sys.executable, "-m", "nsfem", "sweep", *CHEAP, "--set", "rotation.speed_hz=10:30:12", "--workers", "2",
+            "--out", str(tmp_path / "s")]
+    proc = subprocess.Popen(argv, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, cwd=tmp_path)
+    try:
+        lines = []
+        while not (lines and lines[-1].startswith("[")):   # a finished run: the cluster is up
+            line = proc.stderr.readline()
+            assert line, "".join(lines)
+            lines.append(line)
+        family = _descendants(proc.pid)
+        assert len(family) >= 2, family                    # at least the two workers
+        proc.send_signal(signal.SIGTERM)
+        err = proc.stderr.read()
+        code = proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert code == 130 and "Traceback" not in err and "nsfem: interrupted" in err, err
+    deadline = time.monotonic() + 30                       # the workers' own exit, on a loaded machine
+    while any(map(_running, family)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [p for p in family if _running(p)]
+
+
+def test_issue32_signals_while_the_cluster_starts_are_held():
+    """SIGTERM within the deferral is recorded and acted on after it (the cluster is then closed)."""
+    import os
+
+    from nsfem.sweep import _deferred_signals
+
+    before = signal.getsignal(signal.SIGTERM)
+    with _deferred_signals() as received:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)
+    assert received == [signal.SIGTERM] and signal.getsignal(signal.SIGTERM) is before
+
+
+@pytest.mark.parametrize("every, writes", [(0.0, 4), (1e9, 2)])
+def test_issue32_the_table_is_rewritten_at_most_once_per_interval(every, writes, tmp_path, monkeypatch):
+    """Three runs: the table is written after each (interval 0) or after the first and at the end
+    (an interval longer than the sweep); either way the final table holds all three rows."""
+    distributed = pytest.importorskip("distributed")
+    import nsfem.sweep
+
+    calls = []
+    real = nsfem.sweep.write_table
+    monkeypatch.setattr(nsfem.sweep, "TABLE_EVERY", every)
+    monkeypatch.setattr(nsfem.sweep, "TABLE_SHARE", 0.0)
+    monkeypatch.setattr(nsfem.sweep, "write_table", lambda *a: calls.append(1) or real(*a))
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        res = nsfem.sweep.run_sweep(None, ["mesh.elements=20", "simulation.t_end=0.01", "rotation.speed_hz=10:30:3"],
+                                    tmp_path, client=c, plot=False)
+    assert not res.failed and len(calls) == writes
+    assert len((tmp_path / "sweep.csv").read_text().splitlines()) == 1 + 3
+
+
+@given(st.floats(0.0, 1e7), st.floats(1e-6, 1e3), st.integers(2, 50), st.floats(1e-6, 1e-2))
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+def test_issue32_property_a_fits_simulated_span_is_bounded(t0, step, n, scene_dt):
+    """Data from t0 on, n samples ``step`` apart: refused, naming the data's column t and a line, exactly
+    when the runs (0 to the last sample, an output every output_step) would exceed MAX_OUTPUTS."""
+    from nsfem.fit.problem import MAX_OUTPUTS, check_span, output_step
+    from nsfem.measurement import Measurement
+
+    t = t0 + step * np.arange(n)
+    m = Measurement(t, ("a",), np.ones((n, 1)), tuple(range(2, n + 2)))
+    dt = output_step(t, scene_dt)
+    try:
+        check_span(m, dt, "--data d.csv")
+    except NsfemError as exc:
+        assert t[-1] / dt > MAX_OUTPUTS
+        assert str(exc).startswith("--data d.csv: column 't': ") and "line " in str(exc) and "\n" not in str(exc)
+        return
+    assert t[-1] / dt <= MAX_OUTPUTS
+
+
+def test_issue32_a_lazily_loaded_scene_the_scene_refuses_fails_its_row_only(tmp_path, monkeypatch):
+    """A large sweep checks some values before; a value it did not check and the scene refuses
+    (mesh.elements = 20.5 between 20 and 21) fails its own row, the others run."""
+    distributed = pytest.importorskip("distributed")
+    import nsfem.sweep
+
+    monkeypatch.setattr(nsfem.sweep, "CHECK_ALL", 1)
+    monkeypatch.setattr(nsfem.sweep, "CHECKED_VALUES", 2)      # the ends: 20 and 21
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        res = nsfem.sweep.run_sweep(None, ["simulation.t_end=0.01", "mesh.elements=20:21:3"], tmp_path, client=c,
+                                    plot=False)
+    errors = {p["mesh.elements"]: r["error"] for p, r in zip(res.points, res.runs)}
+    assert errors[20] == "" and errors[21] == "" and errors[20.5].startswith("scene refused: mesh.elements")
+    assert res.info["models_built"] == 2
+
+
+@pytest.mark.slow
+def test_issue32_sigterm_during_a_fit_leaves_no_process(tmp_path):
+    """As for the sweep: SIGTERM to ``nsfem fit --workers 2`` in its global stage exits 130 with the
+    runs so far, no traceback, and no process of it alive afterwards."""
+    if not Path("/proc/self/stat").is_file():
+        pytest.skip("needs /proc")
+    data = _data(tmp_path, T, A)
+    argv = [sys.executable, "-m", "nsfem", *_fit_argv(data, "--workers", "2", "--set", "mesh.elements=20",
+                                                      "--no-refine")]
+    proc = subprocess.Popen(argv, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, cwd=tmp_path)
+    try:
+        lines = []
+        while not (lines and lines[-1].startswith("[global")):
+            line = proc.stderr.readline()
+            assert line, "".join(lines)
+            lines.append(line)
+        family = _descendants(proc.pid)
+        assert len(family) >= 2, family
+        proc.send_signal(signal.SIGTERM)
+        err = proc.stderr.read()
+        code = proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert code == 130 and "Traceback" not in err and "nsfem: interrupted" in err, err
+    deadline = time.monotonic() + 30
+    while any(map(_running, family)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [p for p in family if _running(p)]
+    assert (tmp_path / "f" / "fit.json").is_file()

@@ -67,7 +67,8 @@ def test_sweep_equals_single_runs(client, tmp_path):
     res = run_sweep(None, BASE + ["rotation.speed_hz=15:25:3"], tmp_path, client=client, progress=lines.append)
     assert [p["rotation.speed_hz"] for p in res.points] == [15, 20, 25]
     assert res.info["executed"] == 3 and res.info["models_built"] == 1 and not res.failed
-    assert len(lines) == 3 and all(line.startswith("[") and "rotation.speed_hz=" in line for line in lines)
+    assert lines[0] == f"3 runs to do (rotation.speed_hz: 3 values) into {tmp_path}"  # before the cluster starts
+    assert len(lines) == 4 and all(line.startswith("[") and "rotation.speed_hz=" in line for line in lines[1:])
     for point, row in zip(res.points, res.runs):
         scene = nsfem.load_scene(None, BASE + [f"rotation.speed_hz={point['rotation.speed_hz']}"])
         ref, _ = run_scene(scene)
@@ -156,8 +157,9 @@ def test_cli_sweep_reports_failures_with_exit_2(tmp_path, capsys):
     assert out.count("\n") == 1 and payload["values"] == [20, 90] and payload["failed"] == 1
     assert payload["runs"][0]["error"] == "" and payload["runs"][1]["error"]
     lines = err.strip().splitlines()
-    assert lines[0].startswith("[1/2]") and lines[1].startswith("[2/2]")
-    assert lines[-1].startswith("nsfem: error: 1 of 2 runs failed") and len(lines) == 3
+    assert lines[0].startswith("2 runs to do (rotation.speed_hz: 2 values) into ")
+    assert lines[1].startswith("[1/2]") and lines[2].startswith("[2/2]")
+    assert lines[-1].startswith("nsfem: error: 1 of 2 runs failed") and len(lines) == 4
 
 
 @pytest.mark.parametrize("argv, words", [
@@ -168,7 +170,7 @@ def test_cli_sweep_reports_failures_with_exit_2(tmp_path, capsys):
     (["--set", "rotation.speed_hz=10:20:1"], "N = 1 needs START = STOP"),
     (["--set", "rotation.speed_hz=nan:20:3"], "START must be a finite number, got 'nan'"),
     (["--set", "rotation.speed_hz=10:inf:3"], "STOP must be a finite number, got 'inf'"),
-    (["--set", "rotation.speed_hz=10:20:1000001"], "exceeds the limit of 100000"),
+    (["--set", "rotation.speed_hz=10:20:10001"], "N = 10001 exceeds the limit of 10000"),
     (["--set", "rotation.speed_hz=10:20:1000", "--set", "damping.external=0:1:1000"], "more than the limit"),
     (["--set", "rotation.speed_hz=10:20:3", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),
     (["--set", "rotation.speed_hz=10:20:3", "--workers", "0"], "positive"),
@@ -232,7 +234,8 @@ def test_interrupted_sweep_keeps_finished_rows_and_resumes(client, tmp_path):
     args = BASE + ["rotation.speed_hz=15:25:16"]
 
     def stop(line):
-        raise KeyboardInterrupt
+        if line.startswith("["):       # the first finished run (not the plan's line)
+            raise KeyboardInterrupt
 
     with pytest.raises(SweepInterrupted) as info:
         run_sweep(None, args, tmp_path, client=client, progress=stop)

@@ -97,15 +97,14 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     writes the runs so far and raises :class:`FitInterrupted`.
     """
     from ..analysis.uncertainty import linearized
-    from ..sweep import _client, _close, _hold_signals, _release_signals
+    from ..sweep import _client, _close, _hold_signals, _release_signals, check_workers
 
     if workers is not None and (scheduler or client is not None):
         raise NsfemError(("--workers cannot be combined with --scheduler" if scheduler else
                           "workers= cannot be combined with client=") + " (the cluster has its own workers)")
     if scheduler and client is not None:
         raise NsfemError("scheduler= cannot be combined with client= (give one cluster)")
-    if workers is not None and workers < 1:
-        raise NsfemError(f"--workers must be a positive integer, got {workers}")
+    check_workers(workers)
     t0 = time.perf_counter()
     problem = prepare(scene_path, data, vary, misfit, overrides)
     params, p = problem.params, len(problem.params)
@@ -133,19 +132,25 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     say = progress or (lambda line: None)
     cl, closing, runner = None, [], None
     info: dict = {"workers": 0, "seed": seed, "global_samples": 0}
+    design = sobol(p, n_global, seed) if n_global else None
+    plan_line = (f"global stage: {len(design)} runs over the box ("
+                 + ", ".join(f"{q.key} {q.low:g}..{q.high:g}" for q in params) + ")") if n_global else None
+    local = client is None and not scheduler
+    if local and plan_line:      # at once, before the seconds a local cluster takes to start
+        say(plan_line)
     try:
         cl, closing = _client(client, workers, scheduler, max(n_global, p + 1))
         info["workers"] = len(cl.nthreads())
         runner = _Runner(problem, cl, say)
         best = None
         if n_global:
-            design = sobol(p, n_global, seed)
             info["global_samples"] = len(design)
-            say(f"global stage: {len(design)} runs over the box ({', '.join(f'{q.key} {q.low:g}..{q.high:g}' for q in params)})")
+            if not local:        # once connected: a scheduler that cannot be reached is one line
+                say(plan_line)
             evs = runner.run(list(design), "global", report=True)
             ok = [e for e in evs if math.isfinite(e.misfit)]
             if not ok:
-                raise NsfemError(f"every run of the global stage failed (first: {evs[0].error})")
+                raise NsfemError(f"every run of the global stage failed (first: {evs[0].error or 'no reason given'})")
             best = min(ok, key=lambda e: e.misfit)
         u0 = u_start if u_start is not None else (best.u if best is not None else np.full(p, 0.5))
         say(f"local stage from {_point(params, u0)}")

@@ -23,6 +23,10 @@ FIT_KEYS = ("simulation.t_end", "simulation.output_dt")
 REFINE = 8
 #: a data time within this fraction of an output step of an output time lies on the grid
 ON_GRID = 1e-6
+#: the most outputs of one run of a fit: every run holds q and v at each output (n reduced coordinates,
+#: 100 or more), 1.6 GB per worker at 1e6 outputs of 100 dofs, and a fit makes 50 runs and more; 5e5 is
+#: 500 s at the default output step of 1 ms (the scene's own limit, 1e7, is for one run)
+MAX_OUTPUTS = 5e5
 
 
 def output_step(t: np.ndarray, scene_dt: float) -> float:
@@ -35,6 +39,22 @@ def output_step(t: np.ndarray, scene_dt: float) -> float:
     if np.all(np.abs(k - np.rint(k)) <= ON_GRID):
         return dt
     return min(scene_dt, step / REFINE)
+
+
+def check_span(m: Measurement, dt: float, what: str) -> None:
+    """Refuse data whose runs (from the scene's initial state at t = 0 to the last sample, an output
+    every ``dt``) would write more than :data:`MAX_OUTPUTS` outputs, naming what sets the span: a
+    record that starts late, or its length (too many rows for one run)."""
+    outputs = m.t[-1] / dt
+    if outputs <= MAX_OUTPUTS:
+        return
+    row = (lambda i: f"line {m.lines[i]}") if m.lines is not None else (lambda i: f"sample {i}")
+    head = (f"{what}: column 't': the runs would simulate 0 to {m.t[-1]:g} s with an output every {dt:.3g} s "
+            f"({outputs:.3g} outputs, more than the limit of {MAX_OUTPUTS:.0e} per run of a fit)")
+    if m.t[0] >= m.t[-1] - m.t[0]:
+        raise NsfemError(f"{head}: the record starts at t = {m.t[0]:g} s ({row(0)}) on the scene's clock, which "
+                         "starts at 0 (the [initial] state); shift t, or start the scene where the record starts")
+    raise NsfemError(f"{head}: {m.t.size} samples up to {row(m.t.size - 1)}; fit a shorter record")
 
 
 @dataclass(frozen=True)
@@ -158,22 +178,12 @@ class Problem:
 
 
 def _check_item(tree, key: str) -> None:
-    """Refuse a varied ``key`` in an item of a list the scene does not have: an override one past the
-    end appends an item (``--set crack.0.x=...`` adds a crack), which a fit must not do in silence."""
-    node = tree
-    parts = key.split(".")
-    for i, part in enumerate(parts[:-1]):
-        if isinstance(node, list):
-            if part.isascii() and part.isdigit() and int(part) >= len(node):
-                raise NsfemError(f"--vary {key}: the scene has no {'.'.join(parts[:i + 1])} (vary keys of items "
-                                 "the scene has)")
-            if not (part.isascii() and part.isdigit()):
-                return                                   # load_scene says what is wrong
-            node = node[int(part)]
-        elif isinstance(node, dict) and part in node:
-            node = node[part]
-        else:
-            return                                       # an unknown key: load_scene refuses it
+    """Refuse a varied ``key`` in an item of a list the scene does not have (:func:`~nsfem.scene.overrides.missing_item`)."""
+    from ..scene.overrides import missing_item
+
+    item = missing_item(tree, key)
+    if item is not None:
+        raise NsfemError(f"--vary {key}: the scene has no {item} (vary keys of items the scene has)")
 
 
 def prepare(scene_path, data, vary, misfit: str = "time", overrides: Sequence[str] = ()) -> Problem:
@@ -190,7 +200,7 @@ def prepare(scene_path, data, vary, misfit: str = "time", overrides: Sequence[st
         if any(p.key == key for p in params):
             raise NsfemError(f"{key}: both varied and fixed (drop its --set)")
     if isinstance(data, Measurement):
-        m = check_measurement(data.t, dict(zip(data.names, data.values.T)))
+        m = check_measurement(data.t, dict(zip(data.names, data.values.T)), lines=data.lines)
     elif isinstance(data, (str, Path)):
         m = read_measurement(data)
     else:
@@ -206,6 +216,7 @@ def prepare(scene_path, data, vary, misfit: str = "time", overrides: Sequence[st
     if misfit == "spectrum" and not is_uniform(m.t):
         raise NsfemError("--misfit spectrum: the data's t must be sampled at one step (an FFT needs it)")
     dt = output_step(m.t, base.simulation.output_dt)
+    check_span(m, dt, f"--data {data}" if isinstance(data, (str, Path)) else "data")
     fixed += [f"simulation.t_end={_num(m.t[-1])}", f"simulation.output_dt={_num(dt)}"]
     base = load_scene(scene_path, fixed)
     mid = [0.5] * len(params)

@@ -233,9 +233,7 @@ def evaluations_csv(res: FitResult) -> str:
 def _write(res: FitResult, plot: bool = True) -> FitResult:
     """Write evaluations.csv, the PNGs (``plot``) and fit.json (last, listing them) atomically."""
     import dataclasses
-    import json
-
-    from ..sweep import _default
+    from ..jsonio import as_text, dumps
 
     out = res.out_dir
     outputs = [str(write_text_atomic(out / "evaluations.csv", evaluations_csv(res)))]
@@ -251,5 +249,5 @@ def _write(res: FitResult, plot: bool = True) -> FitResult:
             outputs.append(str(landscape_plot(out / "landscape.png", res.keys, x, np.array([e.misfit for e in glob]),
                                               res.estimate)))
     res = dataclasses.replace(res, outputs=tuple([str(out / "fit.json"), *outputs]))
-    write_text_atomic(out / "fit.json", json.dumps(res.to_json(), indent=1, default=_default) + "\n")
+    write_text_atomic(out / "fit.json", dumps(res.to_json(), as_text, indent=1) + "\n")
     return res

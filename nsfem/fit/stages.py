@@ -126,9 +126,15 @@ class _Runner:
         except Exception as exc:  # noqa: BLE001 - a lost worker
             signals, error = None, f"{type(exc).__name__}: {exc}"
         if signals is None:
-            return Evaluation(u, stage, math.inf, error=error)
-        r = residuals(signals, p.data, p.kind, self.scale)
-        return Evaluation(u, stage, relative_rms(r), r, signals)
+            return Evaluation(u, stage, math.inf, error=error or "the run failed without a message")
+        with np.errstate(over="ignore", invalid="ignore"):
+            r = residuals(signals, p.data, p.kind, self.scale)
+            misfit = relative_rms(r)
+        if not math.isfinite(misfit):
+            return Evaluation(u, stage, math.inf, error="the simulated signals or their misfit are not finite "
+                              f"(largest simulated magnitude {np.nanmax(np.abs(signals), initial=0.0):.3g} m): "
+                              "the run diverged")
+        return Evaluation(u, stage, misfit, r, signals)
 
     def _keep(self, k: bytes, ev: Evaluation, report: bool) -> None:
         self.cache[k] = ev

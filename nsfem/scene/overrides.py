@@ -105,3 +105,28 @@ def _step(node: Any, part: str, key: str, create: Any) -> Any:
             node[part] = [] if isinstance(SCHEMA.get(part), list) and node is not None else create
         return node[part]
     raise SceneError(key, f"cannot descend into {part!r}")
+
+
+def missing_item(tree: Any, key: str) -> str | None:
+    """The item (``crack.1``) that dotted ``key`` indexes one or more past the end of its list in
+    ``tree`` (a validated scene), else None. An override there appends an item (``--set
+    crack.1.depth=0.2`` adds a crack); a fit or sweep that varies such a key must refuse it, not add
+    one in silence. An unknown key or a non-index is left to :func:`load_scene` to refuse.
+
+    >>> missing_item({"crack": [{"x": 0.1}]}, "crack.1.depth"), missing_item({"crack": [{"x": 0.1}]}, "crack.0.x")
+    ('crack.1', None)
+    """
+    node = tree
+    parts = key.split(".")
+    for i, part in enumerate(parts[:-1]):
+        if isinstance(node, list):
+            if not _is_index(part):
+                return None
+            if int(part) >= len(node):
+                return ".".join(parts[:i + 1])
+            node = node[int(part)]
+        elif isinstance(node, dict) and part in node:
+            node = node[part]
+        else:
+            return None
+    return None

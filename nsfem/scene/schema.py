@@ -249,7 +249,7 @@ _CRACK = {
                        check=_unit),
 }
 _SENSOR = {
-    "name": Key("str", "", "column name in sensors.csv (default sensor_<index>)"),
+    "name": Key("str", "", "column name in sensors.csv (default sensor_<index>; no comma, quote, control character or blank at either end)"),
     "x": Key("float", 0.0, "position on the shaft [m]"),
     "direction": Key("str", "+z", "displacement component read", ("+y", "+z", "-y", "-z")),
     "frame": Key("str", "inertial", "frame the displacement is measured in (a probe on the casing: inertial)",
