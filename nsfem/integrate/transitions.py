@@ -17,6 +17,13 @@ that follows and the velocity after any impact:
    first non-zero higher derivative of its gap in the new configuration: if negative, the
    contact would penetrate at once, so it stays closed (:func:`hold_degenerate`).
 
+Accumulation over a set: an impact whose impulses drive a touching contact outside its LCP (one
+that was separating) into approach would be followed at once by that contact's impact, whose impulse
+drives the first back (crack-front ends, W_AB < 0): the alternating sequence converges to the plastic
+impact over the set, which is taken instead: the velocity after the impact LCP is projected onto the
+admissible cone of all touching contacts (LCP 30-32 with eps = 0 over them, no energy added); the
+impact record names them (``set_closure``). docs/theory.md, "Impact accumulation over a set".
+
 Rebounds below resolution: a contact that was touching and is lifted by another contact's
 impact so slowly that its flight g'^2 / (2 |g''|) stays inside its gap's zero band stays
 closed (its velocity is projected onto g' = 0, the nearest velocity in the kinetic metric;
