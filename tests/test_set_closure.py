@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from nsfem import load_scene
@@ -113,12 +113,10 @@ def test_set_closure_is_the_limit_of_alternating_plastic_impacts(seed):
     if W[0, 1] > 0:            # make the coupling negative: an impulse opening A closes B
         J[:, 1] *= -1.0
         W = J.T @ np.linalg.solve(M, J)
-    kappa = -W[0, 1] / math.sqrt(W[0, 0] * W[1, 1])
-    if kappa < 0.05:
-        return
+    assume(-W[0, 1] / math.sqrt(W[0, 0] * W[1, 1]) > 0.05)   # a coupling that matters
     # gap rates: A approaches at 1, B separates at a fraction of what A's plastic impulse drives into it
     gA, gB = -1.0, rng.uniform(0.05, 0.9) * (-W[0, 1] / W[0, 0])
-    v = np.linalg.lstsq(J.T, [gA, gB], rcond=None)[0] + rng.normal(size=n) * 0.0
+    v = np.linalg.lstsq(J.T, [gA, gB], rcond=None)[0]
     sysm = ContactSystem.from_arrays(M=M, Q=np.eye(n), contacts=ContactSet.from_arrays(J, [0.0, 0.0], eps=0.0))
     Mf = factorize(M, "M")
     memory = Memory(np.zeros(2), np.zeros(2, dtype=int))
@@ -221,7 +219,7 @@ def test_unreduced_cracked_shaft_short(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("state", ["rest", "stationary"])
 def test_unreduced_cracked_shaft_issue_case(tmp_path, state):
-    """The issue's case (100 elements) from rest and from the stationary state, over the first 3e-5 s
-    (the alternations at 2.1e-5 and 2.8e-5 s) and, slower, 1e-2 s."""
+    """The issue's case (100 elements) from rest and from the stationary state over 0.01 s (before the
+    fix: 90 impacts in 1.4e-9 s at 2.78e-5 s, the run with t_end = 2 s stopped there; about 1 min each)."""
     _check_cracked(_cracked_run(tmp_path, f'initial.state="{state}"', "simulation.t_end=1e-2",
                                 "simulation.output_dt=1e-4"))

@@ -148,7 +148,7 @@ def _spin_work(cs, lcp, x: np.ndarray, q: np.ndarray) -> float | None:
                 if cs.moving[k])
 
 
-def pushed(JN: np.ndarray, v: np.ndarray, cand, active, tv: np.ndarray, absJ: np.ndarray) -> list:
+def _pushed(JN: np.ndarray, v: np.ndarray, cand, active, tv: np.ndarray, absJ: np.ndarray) -> list:
     """The touching contacts (``cand``) outside the impact LCP (``active``) that the velocity v after
     its impulses makes approach beyond the round-off of their gap rate (the larger of ``tv`` and
     the size of the terms of J_N^T v)."""
@@ -245,7 +245,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         # the kinetic metric, von Neumann) is the plastic impact over the whole set. That limit is taken:
         # the velocity after the impacts is projected onto the cone of admissible velocities of all the
         # touching contacts (LCP 30-32 with eps = 0 over them), which never adds kinetic energy
-        joined = pushed(cs.JN, v_new, cand, active, tv, aJ)
+        joined = _pushed(cs.JN, v_new, cand, active, tv, aJ)
         if joined:
             lcp = impact_lcp(cs, Mf, v_new, cand, memory.lcp_cache, (id(system), id(Mf), "impact", tuple(cand)),
                              eps=np.zeros(cs.m), q=q)
