@@ -134,7 +134,9 @@ def test_set_closure_is_the_limit_of_alternating_plastic_impacts(seed):
 @given(st.integers(0, 2 ** 31 - 1), st.integers(2, 4), st.floats(0.0, 1.0))
 def test_no_touching_contact_approaches_after_an_impact(seed, m, eps):
     """Property: after the impact at an event no contact at zero gap is left approaching (it would
-    penetrate at once), and the impact never adds kinetic energy (eps <= 1, no friction)."""
+    penetrate at once), and the impact never adds kinetic energy (eps <= 1, no friction): the change of
+    the first LCP is sum_k Lambda_k (g'-_k + g'+_k) / 2 = -(1 - eps) sum Lambda_k |g'-_k| / 2 <= 0 over the
+    approaching contacts (g'+ = -eps g'-), that of the set's projection onto a cone containing 0 is <= 0."""
     rng = np.random.default_rng(seed)
     n = m + 2
     L = rng.normal(size=(n, n))
