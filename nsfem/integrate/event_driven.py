@@ -224,6 +224,8 @@ class EventDriven(Integrator):
                                "contacts": sorted({int(rows.contacts[i]) for i in ev.rows}),
                                "graze": bool(any(ev.graze)), "impact": imp is not None,
                                "before": before.describe(), "after": mode.describe()})
+                if imp and "set_closure" in imp:   # an alternating accumulation resolved as one impact
+                    events[-1]["set_closure"] = imp["set_closure"]
                 guard.record(t, t_next, events[-1]["kinds"], events[-1]["contacts"], imp)
                 t = t_next
         except (KeyboardInterrupt, NsfemError) as exc:

@@ -17,6 +17,13 @@ that follows and the velocity after any impact:
    first non-zero higher derivative of its gap in the new configuration: if negative, the
    contact would penetrate at once, so it stays closed (:func:`hold_degenerate`).
 
+Accumulation over a set: an impact whose impulses drive a touching contact outside its LCP (one
+that was separating) into approach would be followed at once by that contact's impact, whose impulse
+drives the first back (crack-front ends, W_AB < 0): the alternating sequence converges to the plastic
+impact over the set, which is taken instead: the velocity after the impact LCP is projected onto the
+admissible cone of all touching contacts (LCP 30-32 with eps = 0 over them, no energy added); the
+impact record names them (``set_closure``). docs/theory.md, "Impact accumulation over a set".
+
 Rebounds below resolution: a contact that was touching and is lifted by another contact's
 impact so slowly that its flight g'^2 / (2 |g''|) stays inside its gap's zero band stays
 closed (its velocity is projected onto g' = 0, the nearest velocity in the kinetic metric;
@@ -132,6 +139,27 @@ class Memory:
         return g, gv
 
 
+def _spin_work(cs, lcp, x: np.ndarray, q: np.ndarray) -> float | None:
+    """The work -Lambda_T . (Sq^T q + w) of an impact LCP's frictional impulses against moving surfaces, or
+    None without any."""
+    if not np.any(cs.moving[lcp.friction]):
+        return None
+    return -sum(float(lt @ (cs.JSq[k].T @ q + cs.wS[k])) for k, lt in zip(lcp.friction, lcp.tangential(x))
+                if cs.moving[k])
+
+
+def _pushed(JN: np.ndarray, v: np.ndarray, cand, active, tv: np.ndarray, absJ: np.ndarray) -> list:
+    """The touching contacts (``cand``) outside the impact LCP (``active``) that the velocity v after
+    its impulses makes approach beyond the round-off of their gap rate (the larger of ``tv`` and
+    the size of the terms of J_N^T v)."""
+    out = [k for k in cand if k not in active]
+    if not out:
+        return out
+    gv = JN[:, out].T @ v
+    tol = np.maximum(tv[out], _tol(JN[:, out], v, absJ=absJ[:, out]))
+    return [k for k, g, e in zip(out, gv.tolist(), tol.tolist()) if g < -e]
+
+
 def _tol(J: np.ndarray, x: np.ndarray, const=None, absJ=None) -> np.ndarray:
     """Per column: ZERO times the size of the terms of J^T x (+ const), with a floor (``absJ``:
     |J| when the caller has it)."""
@@ -208,16 +236,39 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         if not res.success:
             raise NsfemError(f"impact LCP (30-32) at t = {t:.9g} s: {res.message}")
         v_new = lcp.motion(res.x)
-        lamN = lcp.split(res.x)[0]
+        lamN = np.zeros(cs.m)
+        lamN[active] = lcp.split(res.x)[0]
+        spin = _spin_work(cs, lcp, res.x, q)
+        # set closure: a touching contact that was separating (so outside the LCP) but that the impulses
+        # drive into approach would hit at once within its zero band, its impulse drive the first back,
+        # and so on: an accumulation over the set whose limit (alternating plastic impacts: projections in
+        # the kinetic metric, von Neumann) is the plastic impact over the whole set. That limit is taken:
+        # the velocity after the impacts is projected onto the cone of admissible velocities of all the
+        # touching contacts (LCP 30-32 with eps = 0 over them), which never adds kinetic energy
+        joined = _pushed(cs.JN, v_new, cand, active, tv, aJ)
+        if joined:
+            lcp = impact_lcp(cs, Mf, v_new, cand, memory.lcp_cache, (id(system), id(Mf), "impact", tuple(cand)),
+                             eps=np.zeros(cs.m), q=q)
+            res = lcp.solve()
+            if not res.success:
+                raise NsfemError(f"impact LCP (30-32) over the touching contacts {cand} at t = {t:.9g} s: "
+                                 f"{res.message}")
+            v_new = lcp.motion(res.x)
+            lamN[cand] += lcp.split(res.x)[0]
+            more = _spin_work(cs, lcp, res.x, q)
+            if more is not None:
+                spin = more if spin is None else spin + more
+            active = cand
         ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
-        impact = {"t": t, "contacts": list(active), "impulse_Ns": lamN.tolist(),
+        impact = {"t": t, "contacts": list(active), "impulse_Ns": lamN[active].tolist(),
                   "approach_m_s": [-gvl[k] for k in active], "plastic": plastic,
                   "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
-        if np.any(cs.moving[lcp.friction]):
+        if joined:
+            impact["set_closure"] = [int(k) for k in joined]
+        if spin is not None:
             # the frictional impulse against a moving surface: its work -Lambda_T . (Sq^T q + w) is the spin's
             # (the kinetic energy may grow in the impact), the rest of the change is lost
-            impact["work_spin_J"] = -sum(float(lt @ (cs.JSq[k].T @ q + cs.wS[k]))
-                                         for k, lt in zip(lcp.friction, lcp.tangential(res.x)) if cs.moving[k])
+            impact["work_spin_J"] = spin
         v = v_new
         gv = cs.JN.T @ v
         tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))  # what cancelled in the impact sets the round-off
