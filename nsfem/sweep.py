@@ -125,6 +125,11 @@ def parse_range(key: str, text: str) -> tuple:
     if n == 1 and start != stop:
         raise NsfemError(f"{head}: N = 1 needs START = STOP, got {parts[0]} and {parts[1]}")
     vals = [float(f"{v:.12g}") for v in np.linspace(start, stop, n)]
+    if len(set(vals)) < n:
+        # the runs are deterministic and a run's folder is named by its value (12 digits): repeated
+        # values would run the same model again, several at once into one folder
+        raise NsfemError(f"{head}: the {n} values from {parts[0]} to {parts[1]} are not distinct at 12 significant "
+                         "digits (a run's folder is named by its value); give N = 1 for one value, or a wider range")
     if re.fullmatch(r"[-+]?\d+", parts[0]) and re.fullmatch(r"[-+]?\d+", parts[1]):
         vals = [int(v) if v.is_integer() else v for v in vals]
     return tuple(vals)
@@ -386,11 +391,14 @@ def table_columns(axes: Sequence[Axis], runs: Sequence[dict | None] = ()) -> lis
 
 
 def write_table(path: Path, axes: Sequence[Axis], runs: Sequence[dict | None]) -> Path:
-    """The CSV of the finished rows (atomically); unfinished points are left out."""
+    """The CSV of the finished rows (atomically); unfinished points are left out. An empty cell is a
+    value that is not there or not finite (``null`` in the JSON), whether the row was computed now or
+    read back from its record.json."""
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=table_columns(axes, runs), extrasaction="ignore", lineterminator="\n")
     w.writeheader()
-    w.writerows({k: ("" if v is None else v) for k, v in r.items()} for r in runs if r is not None)
+    w.writerows({k: ("" if v is None or (isinstance(v, float) and not math.isfinite(v)) else v) for k, v in r.items()}
+                for r in runs if r is not None)
     return write_text_atomic(path, buf.getvalue())
 
 
@@ -585,18 +593,25 @@ def _client(client, workers: int | None, scheduler: str | None, n_runs: int):
         # Ctrl-C or SIGTERM while the cluster starts is held until it is there: an exception out of
         # its constructor would leave worker processes that no one closes (and distributed's own
         # close at exit fails on them with a traceback)
-        with _deferred_signals() as received:
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                   silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
-            try:
+        # close, too, what exists when a signal comes as the handlers are restored, before the caller
+        # holds ``closing``
+        closing, where = [], "the local cluster"
+        try:
+            with _deferred_signals() as received:
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                       silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
+                closing = [cluster]
                 c = Client(cluster)
-            except BaseException:
-                _close([cluster])
-                raise
-        closing, where = [c, cluster], "the local cluster"
-        if received:
-            _close(closing)
-            raise KeyboardInterrupt
+                closing = [c, cluster]
+            if received:
+                raise KeyboardInterrupt
+        except BaseException:
+            held = _hold_signals()      # a second Ctrl-C must not cut the closing short
+            try:
+                _close(closing)
+            finally:
+                _release_signals(held)
+            raise
     try:
         c.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
     except KeyboardInterrupt:
@@ -829,6 +844,15 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
         finally:
             _release_signals(held)
         raise SweepInterrupted(res) from None
+    except Exception:
+        # the sweep stops (the cluster lost, the folder taken): the table and JSON, rewritten at most
+        # once a second, get the rows finished since, as on Ctrl-C (nothing is written before the
+        # first); the error goes on up
+        if res.info["executed"]:
+            with contextlib.suppress(Exception):
+                write_table(res.table, p.axes, res.runs)
+                write_json(out / "sweep.json", res.to_json())
+        raise
     finally:
         _close(closing)
     return finish()
