@@ -13,7 +13,8 @@ built once on the client and sent once to every worker (design section 2: speed-
 matrices are never reassembled). Every other key (mesh, reduction, shaft, delaminations,
 friction and restitution, which the contact set reads from the model's stack) gets its own
 model, again once per distinct value, built when its first run is submitted. Runs are submitted
-two per worker ahead of the finished ones, so the first row comes after one run.
+two per worker thread ahead of the finished ones (counted again as workers join), so the first row
+comes after one run.
 
 Each run writes ``<out>/<name>/result.npz`` and ``<out>/<name>/record.json`` (its row; the
 ledger of resumption, written last and atomically); ``<out>/sweep.csv`` and
@@ -444,6 +445,11 @@ TABLE_SHARE = 10.0
 #: scene refuses then fails its row): 90 000 scenes took 9 minutes before the first run
 CHECK_ALL = 256
 CHECKED_VALUES = 64
+#: Runs kept submitted per worker thread of the cluster (the next one waits on its worker, so none
+#: idles between runs), and the seconds between looks at the cluster's threads: workers started with
+#: ``dask worker`` may join a scheduler after the sweep began (it waits for the first only)
+AHEAD = 2
+THREADS_EVERY = 1.0
 
 
 @dataclass
@@ -772,7 +778,16 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
             left[p.model_group(i)] += 1
         models: dict[tuple, Any] = {}          # group -> scattered (model, reduction), or the build's error
         queue = iter(order)
-        ahead = 2 * max(1, res.info["workers"])
+        slots = {"at": -math.inf, "n": AHEAD}
+
+        def window() -> int:
+            """Runs to keep submitted: AHEAD per worker thread the cluster has now."""
+            now = time.perf_counter()
+            if now - slots["at"] >= THREADS_EVERY:
+                with contextlib.suppress(Exception):     # the scheduler busy or going: the last count
+                    slots["n"] = AHEAD * max(1, sum(cl.nthreads().values()))
+                slots["at"] = now
+            return slots["n"]
 
         def fail(i: int, error: str) -> None:
             row = error_row(p.points[i], p.method, error)
@@ -818,17 +833,22 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
             return False
 
         running = as_completed([], loop=cl.loop)
-        for _ in range(ahead):
-            if not submit_next():
-                break
+        in_flight = [0]
+
+        def top_up() -> None:
+            while in_flight[0] < window() and submit_next():
+                in_flight[0] += 1
+
+        top_up()
         for fut in running:
+            in_flight[0] -= 1
             i = futures[fut]
             try:
                 row = fut.result()
             except Exception as exc:  # noqa: BLE001 - a lost worker, an unpicklable result
                 row = error_row(p.points[i], p.method, _message(exc))
             record(i, row)
-            submit_next()
+            top_up()
     except KeyboardInterrupt:
         held = _hold_signals()  # a second Ctrl-C must not cut the writing of the finished rows short
         if cl is not None:

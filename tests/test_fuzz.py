@@ -839,3 +839,33 @@ def test_issue32_a_sweep_that_stops_on_an_error_keeps_its_finished_rows_in_the_t
                                   tmp_path, client=c, progress=progress, plot=False)
     assert len((tmp_path / "sweep.csv").read_text().splitlines()) == 1 + 2
     assert len(_strict((tmp_path / "sweep.json").read_text())["runs"]) == 2
+
+
+def test_issue32_workers_that_join_a_running_sweep_get_runs(tmp_path, monkeypatch):
+    """A scheduler's workers may join after the sweep began (it waits for the first only): the runs kept
+    submitted follow the cluster's threads, AHEAD per thread (they were fixed at 2 per worker present
+    at the start: one worker then, two runs at a time for the whole sweep, however many joined)."""
+    distributed = pytest.importorskip("distributed")
+    import nsfem.sweep
+    from nsfem.sweep import AHEAD
+
+    monkeypatch.setattr(nsfem.sweep, "THREADS_EVERY", 0.0)      # look at the threads before every submission
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        finished, in_flight = [0], []
+        submit = c.submit
+
+        def counted(*args, **kwargs):
+            in_flight.append(len(in_flight) + 1 - finished[0])      # with this one, as the client counts them
+            return submit(*args, **kwargs)
+        c.submit = counted
+
+        def progress(line):
+            if line.startswith("["):
+                finished[0] += 1
+                if finished[0] == 1:                                 # two more workers join
+                    c.cluster.scale(3)
+                    c.wait_for_workers(3, timeout=60)
+        res = nsfem.sweep.run_sweep(None, ["mesh.elements=20", "simulation.t_end=0.01", "rotation.speed_hz=10:30:12"],
+                                    tmp_path, client=c, progress=progress, plot=False)
+    assert not res.failed and len(in_flight) == 12
+    assert max(in_flight[:AHEAD]) == AHEAD and max(in_flight) == 3 * AHEAD, in_flight
