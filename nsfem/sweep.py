@@ -652,7 +652,8 @@ def _close(closing) -> None:
 @contextlib.contextmanager
 def _deferred_signals():
     """Within the block, SIGINT and SIGTERM are recorded (in the list yielded), not acted on; the
-    handlers before are restored after it (main thread only; elsewhere nothing changes)."""
+    handlers before are restored after it (main thread only; elsewhere nothing changes). A signal the
+    process ignores (SIGINT of a job started in the background by a shell) stays ignored."""
     import signal
     import threading
 
@@ -661,7 +662,7 @@ def _deferred_signals():
         yield received
         return
     held = {sig: signal.signal(sig, lambda signum, frame: received.append(signum))
-            for sig in (signal.SIGINT, signal.SIGTERM)}
+            for sig in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(sig) is not signal.SIG_IGN}
     try:
         yield received
     finally:

@@ -869,3 +869,18 @@ def test_issue32_workers_that_join_a_running_sweep_get_runs(tmp_path, monkeypatc
                                     tmp_path, client=c, progress=progress, plot=False)
     assert not res.failed and len(in_flight) == 12
     assert max(in_flight[:AHEAD]) == AHEAD and max(in_flight) == 3 * AHEAD, in_flight
+
+
+def test_issue32_an_ignored_signal_stays_ignored_while_the_cluster_starts():
+    """SIGINT ignored (a job a shell starts in the background): the deferral neither records it (it was
+    then raised as a KeyboardInterrupt once the cluster was there) nor leaves another handler behind."""
+    from nsfem.sweep import _deferred_signals
+
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with _deferred_signals() as received:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+        assert received == [] and signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)
