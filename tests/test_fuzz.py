@@ -884,3 +884,19 @@ def test_issue32_an_ignored_signal_stays_ignored_while_the_cluster_starts():
         assert received == [] and signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+def test_issue32_a_data_loggers_csv_is_read_exactly(tmp_path):
+    """A logger's export: a byte-order mark, quoted heads, CRLF line ends, a delimiter ending every line,
+    blanks around cells, '+' signs and exponents, negative values, nanometre amplitudes (1e-9 m, far above
+    1/ABSURD), t from 5 s, a trailing empty line: read back to the bit (every cell is a decimal that
+    float() reads exactly as it reads the text)."""
+    t = 5.0 + np.arange(200) / 51200
+    a = 3e-9 * np.sin(2 * np.pi * 120 * t)
+    cells = [(f"{ti:+.9e}", f" {ai:.6E} ") for ti, ai in zip(t, a)]
+    text = '\ufeff"t","a",\r\n' + "".join(f"{ti},{ai},\r\n" for ti, ai in cells) + "\r\n"
+    (tmp_path / "log.csv").write_bytes(text.encode("utf-8"))
+    m = read_measurement(tmp_path / "log.csv")
+    assert m.names == ("a",) and m.lines == tuple(range(2, 202))
+    assert np.array_equal(m.t, [float(ti) for ti, _ in cells])
+    assert np.array_equal(m.values[:, 0], [float(ai) for _, ai in cells])
