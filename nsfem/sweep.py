@@ -348,22 +348,34 @@ class SweepResult:
     info: dict = field(default_factory=dict)
     current: set = field(default_factory=set)
     entries: dict = field(default_factory=dict)
+    position: dict = field(default_factory=dict, repr=False)   # run name -> index into points/runs
 
     def set_row(self, point: dict, row: dict | None) -> None:
         """Enter (or replace) a point's row; ``points``/``runs`` stay sorted by the swept values."""
         self.set_rows([(point, row)])
 
     def set_rows(self, pairs: Iterable[tuple[dict, dict | None]]) -> None:
-        """:meth:`set_row` for many points, sorted once (a sweep of 10 000 points starts at once)."""
+        """:meth:`set_row` for many points, sorted once (a sweep of 10 000 points starts at once); a
+        row of a point already there takes its place, unsorted (sorting 10 000 points after every
+        finished run took 12 ms each: 2 minutes of the client's time over the sweep)."""
+        added = False
         for point, row in pairs:
             name = run_name(point)
-            if row is None and name in self.entries:
-                continue
+            if name in self.entries:
+                if row is None:
+                    continue
+                self.entries[name] = (point, row)
+                if name in self.position:
+                    self.runs[self.position[name]] = row
+                    continue
             self.entries[name] = (point, row)
-        keys = [a.key for a in self.axes]
-        order = sorted(self.entries.values(), key=lambda e: tuple(e[0][k] for k in keys))
-        self.points = [e[0] for e in order]
-        self.runs = [e[1] for e in order]
+            added = True
+        if added:
+            keys = [a.key for a in self.axes]
+            order = sorted(self.entries.items(), key=lambda e: tuple(e[1][0][k] for k in keys))
+            self.points = [e[1][0] for e in order]
+            self.runs = [e[1][1] for e in order]
+            self.position = {name: k for k, (name, _) in enumerate(order)}
 
     @property
     def failed(self) -> list[dict]:

@@ -900,3 +900,22 @@ def test_issue32_a_data_loggers_csv_is_read_exactly(tmp_path):
     assert m.names == ("a",) and m.lines == tuple(range(2, 202))
     assert np.array_equal(m.t, [float(ti) for ti, _ in cells])
     assert np.array_equal(m.values[:, 0], [float(ai) for _, ai in cells])
+
+
+@given(st.lists(st.tuples(st.integers(0, 5), st.integers(0, 3), st.one_of(st.none(), st.integers(0, 9))),
+                max_size=30))
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+def test_issue32_property_sweep_rows_stay_sorted_and_latest(entries):
+    """Rows entered in any order (None: a point to do; a row replaces the point's row, None never does):
+    the points sorted by the swept values, each with its latest row, whether it was sorted in or
+    replaced in place."""
+    from nsfem.sweep import Axis, SweepResult
+
+    res = SweepResult([Axis("a", tuple(range(6))), Axis("b", tuple(range(4)))], [], [], Path("o"), Path("o/t.csv"))
+    latest: dict = {}
+    for a, b, tag in entries:
+        res.set_row({"a": a, "b": b}, None if tag is None else {"tag": tag})
+        if tag is not None or (a, b) not in latest:
+            latest[(a, b)] = tag
+    assert [(p["a"], p["b"]) for p in res.points] == sorted(latest)
+    assert [None if r is None else r["tag"] for r in res.runs] == [latest[k] for k in sorted(latest)]
