@@ -43,6 +43,7 @@ import math
 import os
 import re
 import time
+import tomllib
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -197,10 +198,14 @@ def fingerprint(base, keys: Sequence[str], method: str) -> str:
     tree.pop("output", None)
     for key in keys:
         _drop(tree, key)
-    mesh = base.mesh_file
-    mesh_hash = hashlib.sha256(mesh.read_bytes()).hexdigest() if mesh is not None and mesh.is_file() else ""
-    blob = json.dumps({"scene": tree, "mesh": mesh_hash, "keys": list(keys), "method": method}, sort_keys=True)
+    blob = json.dumps({"scene": tree, "mesh": mesh_digest(base.mesh_file), "keys": list(keys), "method": method},
+                      sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def mesh_digest(mesh: Path | None) -> str:
+    """SHA-256 of a scene's mesh file (empty without one, or if it is gone)."""
+    return hashlib.sha256(mesh.read_bytes()).hexdigest() if mesh is not None and mesh.is_file() else ""
 
 
 def _drop(tree, key: str) -> None:
@@ -475,14 +480,21 @@ class _Plan:
     base: Any = None
     scene_path: Any = None
     scenes: dict = field(default_factory=dict)
+    raw: dict = field(default_factory=dict)
 
     def scene(self, i: int):
         """The scene of point ``i`` (loaded now unless checked before; NsfemError when refused)."""
-        from .scene import load_scene
-
         if i in self.scenes:
             return self.scenes.pop(i)
-        return load_scene(self.scene_path, self.fixed + point_overrides(self.points[i]))
+        return self.load(self.points[i])
+
+    def load(self, point: dict):
+        """The scene at ``point`` from the scene file's text as the sweep read it when it began (the
+        file edited during a sweep of hours must not change its later runs, as the fingerprint and
+        every run's stored text are of that text)."""
+        from .scene import scene_from_tree
+
+        return scene_from_tree(self.raw, self.fixed + point_overrides(point), path=self.base.path, base=self.base.base)
 
     def model_group(self, i: int) -> tuple:
         """What identifies point ``i``'s model: its values of the keys outside :data:`SHARED_TABLES`
@@ -527,14 +539,16 @@ def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Pl
     if method is not None and method not in METHODS:
         raise NsfemError(f"simulation.method {method!r} is not available (use {' | '.join(METHODS)})")
     points = sweep_values(axes)
-    index = {run_name(pt): i for i, pt in enumerate(points)}
-    scenes = {index[run_name(pt)]: load_scene(scene_path, fixed + point_overrides(pt)) for pt in checked_points(axes)}
     method = method or base.simulation.method
     if any(a.key == "simulation.method" for a in axes):  # pragma: no cover - ranges are numbers
         raise NsfemError("simulation.method cannot be swept")
     keys = [a.key for a in axes]
-    return _Plan(points, fixed, axes, method, scene_source(scene_path), fingerprint(base, keys, method), base,
-                 scene_path, scenes)
+    text = scene_source(scene_path)
+    p = _Plan(points, fixed, axes, method, text, fingerprint(base, keys, method), base, scene_path,
+              raw=tomllib.loads(text))
+    index = {run_name(pt): i for i, pt in enumerate(points)}
+    p.scenes = {index[run_name(pt)]: p.load(pt) for pt in checked_points(axes)}
+    return p
 
 
 def default_folder(p: _Plan) -> Path:
@@ -808,7 +822,14 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
                                                                        "row": row})
             record(i, row)
 
+        mesh = mesh_digest(p.base.mesh_file)
+
         def shared_model(group: tuple, scene):
+            if group not in models and mesh_digest(scene.mesh_file) != mesh:
+                # models are built as their first run is submitted: one built from a mesh edited since
+                # the sweep began would mix two meshes under the first one's fingerprint
+                models[group] = (f"the mesh file {scene.mesh_file} has changed since the sweep began (its runs "
+                                 "would mix two meshes; sweep into another --out)")
             if group not in models:
                 try:
                     model = build_model(scene)

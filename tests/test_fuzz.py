@@ -919,3 +919,44 @@ def test_issue32_property_sweep_rows_stay_sorted_and_latest(entries):
             latest[(a, b)] = tag
     assert [(p["a"], p["b"]) for p in res.points] == sorted(latest)
     assert [None if r is None else r["tag"] for r in res.runs] == [latest[k] for k in sorted(latest)]
+
+
+def test_issue32_a_scene_edited_during_a_sweep_does_not_change_its_later_runs(tmp_path, monkeypatch):
+    """Scenes loaded as their runs are submitted come from the scene's text as the sweep read it (the
+    file edited during a sweep of hours changed its later runs, under the first text's fingerprint)."""
+    import nsfem.sweep
+    from nsfem.scene import default_scene_path
+
+    monkeypatch.setattr(nsfem.sweep, "CHECK_ALL", 1)
+    monkeypatch.setattr(nsfem.sweep, "CHECKED_VALUES", 2)            # the ends; the middle loaded later
+    scene = tmp_path / "s.toml"
+    text = default_scene_path().read_text(encoding="utf-8")
+    title = next(line for line in text.splitlines() if line.startswith("title = "))
+    scene.write_text(text.replace(title, 'title = "as planned"'))
+    p = nsfem.sweep.plan(scene, ["rotation.speed_hz=10:20:3"])
+    assert 1 not in p.scenes
+    scene.write_text(text.replace(title, 'title = "edited"'))
+    later = p.scene(1)
+    assert later["title"] == "as planned" and later.rotation.speed_hz == 15 and later.path == scene
+
+
+def test_issue32_a_mesh_edited_during_a_sweep_fails_the_models_built_after(tmp_path, monkeypatch):
+    """Models are built as their first run is submitted: after the mesh file changed, the later models'
+    rows fail naming it (they were built from the edited mesh, under the first mesh's fingerprint)."""
+    distributed = pytest.importorskip("distributed")
+    import nsfem.sweep
+
+    mesh = tmp_path / "m.msh"
+    mesh.write_bytes((Path(__file__).parents[1] / "meshes" / "paper_stack_20.msh").read_bytes())
+    monkeypatch.setattr(nsfem.sweep, "AHEAD", 1)          # one run at a time: one model built per finished run
+
+    def progress(line):
+        if line.startswith("[1/"):
+            mesh.write_bytes(mesh.read_bytes() + b"\n")
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        res = nsfem.sweep.run_sweep(None, [f"mesh.file={mesh}", "simulation.t_end=0.01", "output.vtu_every=0",
+                                           "delamination.0.friction=0:0.2:3"], tmp_path / "s", client=c,
+                                    progress=progress, plot=False)
+    errors = [r["error"] for r in res.runs]
+    assert errors[0] == "" and all(f"the mesh file {mesh} has changed since the sweep began" in e for e in errors[1:])
+    assert res.info["models_built"] == 1
