@@ -96,6 +96,9 @@ def read_measurement(path: str | Path) -> Measurement:
     if not rows:
         raise NsfemError(f"{what}: the file is empty")
     head = [c.strip() for c in rows[0][1]]
+    if len(head) > 2 and not head[-1] and all(len(r) == len(head) and not r[-1].strip() for _, r in rows):
+        # a delimiter at the end of every line (some loggers write one): an empty last field, no column
+        head, rows = head[:-1], [(line, r[:-1]) for line, r in rows]
     if "t" not in head:
         raise NsfemError(f"{what}: no column 't' (the header is {','.join(head)!r}; the first column names the "
                          "time, the others sensors)")

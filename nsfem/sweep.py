@@ -13,7 +13,8 @@ built once on the client and sent once to every worker (design section 2: speed-
 matrices are never reassembled). Every other key (mesh, reduction, shaft, delaminations,
 friction and restitution, which the contact set reads from the model's stack) gets its own
 model, again once per distinct value, built when its first run is submitted. Runs are submitted
-two per worker ahead of the finished ones, so the first row comes after one run.
+two per worker thread ahead of the finished ones (counted again as workers join), so the first row
+comes after one run.
 
 Each run writes ``<out>/<name>/result.npz`` and ``<out>/<name>/record.json`` (its row; the
 ledger of resumption, written last and atomically); ``<out>/sweep.csv`` and
@@ -42,6 +43,7 @@ import math
 import os
 import re
 import time
+import tomllib
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -125,6 +127,11 @@ def parse_range(key: str, text: str) -> tuple:
     if n == 1 and start != stop:
         raise NsfemError(f"{head}: N = 1 needs START = STOP, got {parts[0]} and {parts[1]}")
     vals = [float(f"{v:.12g}") for v in np.linspace(start, stop, n)]
+    if len(set(vals)) < n:
+        # the runs are deterministic and a run's folder is named by its value (12 digits): repeated
+        # values would run the same model again, several at once into one folder
+        raise NsfemError(f"{head}: the {n} values from {parts[0]} to {parts[1]} are not distinct at 12 significant "
+                         "digits (a run's folder is named by its value); give N = 1 for one value, or a wider range")
     if re.fullmatch(r"[-+]?\d+", parts[0]) and re.fullmatch(r"[-+]?\d+", parts[1]):
         vals = [int(v) if v.is_integer() else v for v in vals]
     return tuple(vals)
@@ -191,10 +198,14 @@ def fingerprint(base, keys: Sequence[str], method: str) -> str:
     tree.pop("output", None)
     for key in keys:
         _drop(tree, key)
-    mesh = base.mesh_file
-    mesh_hash = hashlib.sha256(mesh.read_bytes()).hexdigest() if mesh is not None and mesh.is_file() else ""
-    blob = json.dumps({"scene": tree, "mesh": mesh_hash, "keys": list(keys), "method": method}, sort_keys=True)
+    blob = json.dumps({"scene": tree, "mesh": mesh_digest(base.mesh_file), "keys": list(keys), "method": method},
+                      sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def mesh_digest(mesh: Path | None) -> str:
+    """SHA-256 of a scene's mesh file (empty without one, or if it is gone)."""
+    return hashlib.sha256(mesh.read_bytes()).hexdigest() if mesh is not None and mesh.is_file() else ""
 
 
 def _drop(tree, key: str) -> None:
@@ -342,22 +353,34 @@ class SweepResult:
     info: dict = field(default_factory=dict)
     current: set = field(default_factory=set)
     entries: dict = field(default_factory=dict)
+    position: dict = field(default_factory=dict, repr=False)   # run name -> index into points/runs
 
     def set_row(self, point: dict, row: dict | None) -> None:
         """Enter (or replace) a point's row; ``points``/``runs`` stay sorted by the swept values."""
         self.set_rows([(point, row)])
 
     def set_rows(self, pairs: Iterable[tuple[dict, dict | None]]) -> None:
-        """:meth:`set_row` for many points, sorted once (a sweep of 10 000 points starts at once)."""
+        """:meth:`set_row` for many points, sorted once (a sweep of 10 000 points starts at once); a
+        row of a point already there takes its place, unsorted (sorting 10 000 points after every
+        finished run took 12 ms each: 2 minutes of the client's time over the sweep)."""
+        added = False
         for point, row in pairs:
             name = run_name(point)
-            if row is None and name in self.entries:
-                continue
+            if name in self.entries:
+                if row is None:
+                    continue
+                self.entries[name] = (point, row)
+                if name in self.position:
+                    self.runs[self.position[name]] = row
+                    continue
             self.entries[name] = (point, row)
-        keys = [a.key for a in self.axes]
-        order = sorted(self.entries.values(), key=lambda e: tuple(e[0][k] for k in keys))
-        self.points = [e[0] for e in order]
-        self.runs = [e[1] for e in order]
+            added = True
+        if added:
+            keys = [a.key for a in self.axes]
+            order = sorted(self.entries.items(), key=lambda e: tuple(e[1][0][k] for k in keys))
+            self.points = [e[1][0] for e in order]
+            self.runs = [e[1][1] for e in order]
+            self.position = {name: k for k, (name, _) in enumerate(order)}
 
     @property
     def failed(self) -> list[dict]:
@@ -386,11 +409,14 @@ def table_columns(axes: Sequence[Axis], runs: Sequence[dict | None] = ()) -> lis
 
 
 def write_table(path: Path, axes: Sequence[Axis], runs: Sequence[dict | None]) -> Path:
-    """The CSV of the finished rows (atomically); unfinished points are left out."""
+    """The CSV of the finished rows (atomically); unfinished points are left out. An empty cell is a
+    value that is not there or not finite (``null`` in the JSON), whether the row was computed now or
+    read back from its record.json."""
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=table_columns(axes, runs), extrasaction="ignore", lineterminator="\n")
     w.writeheader()
-    w.writerows({k: ("" if v is None else v) for k, v in r.items()} for r in runs if r is not None)
+    w.writerows({k: ("" if v is None or (isinstance(v, float) and not math.isfinite(v)) else v) for k, v in r.items()}
+                for r in runs if r is not None)
     return write_text_atomic(path, buf.getvalue())
 
 
@@ -436,6 +462,11 @@ TABLE_SHARE = 10.0
 #: scene refuses then fails its row): 90 000 scenes took 9 minutes before the first run
 CHECK_ALL = 256
 CHECKED_VALUES = 64
+#: Runs kept submitted per worker thread of the cluster (the next one waits on its worker, so none
+#: idles between runs), and the seconds between looks at the cluster's threads: workers started with
+#: ``dask worker`` may join a scheduler after the sweep began (it waits for the first only)
+AHEAD = 2
+THREADS_EVERY = 1.0
 
 
 @dataclass
@@ -449,14 +480,21 @@ class _Plan:
     base: Any = None
     scene_path: Any = None
     scenes: dict = field(default_factory=dict)
+    raw: dict = field(default_factory=dict)
 
     def scene(self, i: int):
         """The scene of point ``i`` (loaded now unless checked before; NsfemError when refused)."""
-        from .scene import load_scene
-
         if i in self.scenes:
             return self.scenes.pop(i)
-        return load_scene(self.scene_path, self.fixed + point_overrides(self.points[i]))
+        return self.load(self.points[i])
+
+    def load(self, point: dict):
+        """The scene at ``point`` from the scene file's text as the sweep read it when it began (the
+        file edited during a sweep of hours must not change its later runs, as the fingerprint and
+        every run's stored text are of that text)."""
+        from .scene import scene_from_tree
+
+        return scene_from_tree(self.raw, self.fixed + point_overrides(point), path=self.base.path, base=self.base.base)
 
     def model_group(self, i: int) -> tuple:
         """What identifies point ``i``'s model: its values of the keys outside :data:`SHARED_TABLES`
@@ -501,14 +539,16 @@ def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Pl
     if method is not None and method not in METHODS:
         raise NsfemError(f"simulation.method {method!r} is not available (use {' | '.join(METHODS)})")
     points = sweep_values(axes)
-    index = {run_name(pt): i for i, pt in enumerate(points)}
-    scenes = {index[run_name(pt)]: load_scene(scene_path, fixed + point_overrides(pt)) for pt in checked_points(axes)}
     method = method or base.simulation.method
     if any(a.key == "simulation.method" for a in axes):  # pragma: no cover - ranges are numbers
         raise NsfemError("simulation.method cannot be swept")
     keys = [a.key for a in axes]
-    return _Plan(points, fixed, axes, method, scene_source(scene_path), fingerprint(base, keys, method), base,
-                 scene_path, scenes)
+    text = scene_source(scene_path)
+    p = _Plan(points, fixed, axes, method, text, fingerprint(base, keys, method), base, scene_path,
+              raw=tomllib.loads(text))
+    index = {run_name(pt): i for i, pt in enumerate(points)}
+    p.scenes = {index[run_name(pt)]: p.load(pt) for pt in checked_points(axes)}
+    return p
 
 
 def default_folder(p: _Plan) -> Path:
@@ -585,18 +625,25 @@ def _client(client, workers: int | None, scheduler: str | None, n_runs: int):
         # Ctrl-C or SIGTERM while the cluster starts is held until it is there: an exception out of
         # its constructor would leave worker processes that no one closes (and distributed's own
         # close at exit fails on them with a traceback)
-        with _deferred_signals() as received:
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                   silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
-            try:
+        # close, too, what exists when a signal comes as the handlers are restored, before the caller
+        # holds ``closing``
+        closing, where = [], "the local cluster"
+        try:
+            with _deferred_signals() as received:
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                       silence_logs=logging.ERROR, env=env, preload=[_IGNORE_SIGINT])
+                closing = [cluster]
                 c = Client(cluster)
-            except BaseException:
-                _close([cluster])
-                raise
-        closing, where = [c, cluster], "the local cluster"
-        if received:
-            _close(closing)
-            raise KeyboardInterrupt
+                closing = [c, cluster]
+            if received:
+                raise KeyboardInterrupt
+        except BaseException:
+            held = _hold_signals()      # a second Ctrl-C must not cut the closing short
+            try:
+                _close(closing)
+            finally:
+                _release_signals(held)
+            raise
     try:
         c.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
     except KeyboardInterrupt:
@@ -631,7 +678,8 @@ def _close(closing) -> None:
 @contextlib.contextmanager
 def _deferred_signals():
     """Within the block, SIGINT and SIGTERM are recorded (in the list yielded), not acted on; the
-    handlers before are restored after it (main thread only; elsewhere nothing changes)."""
+    handlers before are restored after it (main thread only; elsewhere nothing changes). A signal the
+    process ignores (SIGINT of a job started in the background by a shell) stays ignored."""
     import signal
     import threading
 
@@ -640,7 +688,7 @@ def _deferred_signals():
         yield received
         return
     held = {sig: signal.signal(sig, lambda signum, frame: received.append(signum))
-            for sig in (signal.SIGINT, signal.SIGTERM)}
+            for sig in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(sig) is not signal.SIG_IGN}
     try:
         yield received
     finally:
@@ -757,7 +805,16 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
             left[p.model_group(i)] += 1
         models: dict[tuple, Any] = {}          # group -> scattered (model, reduction), or the build's error
         queue = iter(order)
-        ahead = 2 * max(1, res.info["workers"])
+        slots = {"at": -math.inf, "n": AHEAD}
+
+        def window() -> int:
+            """Runs to keep submitted: AHEAD per worker thread the cluster has now."""
+            now = time.perf_counter()
+            if now - slots["at"] >= THREADS_EVERY:
+                with contextlib.suppress(Exception):     # the scheduler busy or going: the last count
+                    slots["n"] = AHEAD * max(1, sum(cl.nthreads().values()))
+                slots["at"] = now
+            return slots["n"]
 
         def fail(i: int, error: str) -> None:
             row = error_row(p.points[i], p.method, error)
@@ -765,7 +822,14 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
                                                                        "row": row})
             record(i, row)
 
+        mesh = mesh_digest(p.base.mesh_file)
+
         def shared_model(group: tuple, scene):
+            if group not in models and mesh_digest(scene.mesh_file) != mesh:
+                # models are built as their first run is submitted: one built from a mesh edited since
+                # the sweep began would mix two meshes under the first one's fingerprint
+                models[group] = (f"the mesh file {scene.mesh_file} has changed since the sweep began (its runs "
+                                 "would mix two meshes; sweep into another --out)")
             if group not in models:
                 try:
                     model = build_model(scene)
@@ -803,17 +867,22 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
             return False
 
         running = as_completed([], loop=cl.loop)
-        for _ in range(ahead):
-            if not submit_next():
-                break
+        in_flight = [0]
+
+        def top_up() -> None:
+            while in_flight[0] < window() and submit_next():
+                in_flight[0] += 1
+
+        top_up()
         for fut in running:
+            in_flight[0] -= 1
             i = futures[fut]
             try:
                 row = fut.result()
             except Exception as exc:  # noqa: BLE001 - a lost worker, an unpicklable result
                 row = error_row(p.points[i], p.method, _message(exc))
             record(i, row)
-            submit_next()
+            top_up()
     except KeyboardInterrupt:
         held = _hold_signals()  # a second Ctrl-C must not cut the writing of the finished rows short
         if cl is not None:
@@ -829,6 +898,15 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
         finally:
             _release_signals(held)
         raise SweepInterrupted(res) from None
+    except Exception:
+        # the sweep stops (the cluster lost, the folder taken): the table and JSON, rewritten at most
+        # once a second, get the rows finished since, as on Ctrl-C (nothing is written before the
+        # first); the error goes on up
+        if res.info["executed"]:
+            with contextlib.suppress(Exception):
+                write_table(res.table, p.axes, res.runs)
+                write_json(out / "sweep.json", res.to_json())
+        raise
     finally:
         _close(closing)
     return finish()

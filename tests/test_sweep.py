@@ -67,7 +67,7 @@ def test_sweep_equals_single_runs(client, tmp_path):
     res = run_sweep(None, BASE + ["rotation.speed_hz=15:25:3"], tmp_path, client=client, progress=lines.append)
     assert [p["rotation.speed_hz"] for p in res.points] == [15, 20, 25]
     assert res.info["executed"] == 3 and res.info["models_built"] == 1 and not res.failed
-    assert lines[0] == f"3 runs to do (rotation.speed_hz: 3 values) into {tmp_path}"  # before the cluster starts
+    assert lines[0] == f"3 runs to do (rotation.speed_hz: 3 values) into {tmp_path}"  # the plan first
     assert len(lines) == 4 and all(line.startswith("[") and "rotation.speed_hz=" in line for line in lines[1:])
     for point, row in zip(res.points, res.runs):
         scene = nsfem.load_scene(None, BASE + [f"rotation.speed_hz={point['rotation.speed_hz']}"])
