@@ -188,6 +188,18 @@ def _closing_force(lcp) -> float:
     return float(np.max(np.abs(lcp.b[:m]) / d, initial=1e-300))
 
 
+def _check_damping(ops, damping: Damping, model) -> None:
+    """The damping check of ``nsfem run`` and ``campbell`` (:func:`nsfem.system.check_damping`): damping beyond
+    double precision enters Q too (external damping's circulatory part Omega c_e P1, internal damping's in
+    the inertial frame) and would otherwise be reported as a singular stiffness."""
+    from ..system import check_damping
+    from .campbell import DAMPING_CHECK_MAX_DOF, standstill_frequencies
+
+    if (damping.external or any(damping.rayleigh)) and ops.n <= DAMPING_CHECK_MAX_DOF:
+        check_damping(damping.rayleigh, standstill_frequencies(ops), damping.external,
+                      min(seg.rho * seg.area for seg in model.stack.segments))
+
+
 def scene_stationary(scene: Scene, model=None, reduction=None) -> Stationary:
     """The stationary state of a scene at its speed, in the scene's reduced coordinates (its model
     and reduction unless given; :func:`rotor_stationary`)."""
@@ -208,6 +220,7 @@ def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0:
 
     t0 = time.perf_counter() if t0 is None else t0
     ops = rotor_operators(model, reduction.T)
+    _check_damping(ops, damping, model)
     system = rotor_system(ops, rotation, damping)
     cs = ContactSet.from_model(model, reduction, omega=2.0 * math.pi * rotation.speed_hz, frame=rotation.frame)
     st = stationary(system.Q, system.f0, cs, compliance(model.stack.contacts))

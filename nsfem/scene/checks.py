@@ -138,7 +138,11 @@ COMPONENT_RANGE = 1e12
 
 
 def check_components(tree: dict, stack: BeamStack) -> None:
-    """Refuse disks and bearings whose mass or stiffness leaves double precision next to the shaft's."""
+    """Refuse disks, bearings and elastic stators whose mass, stiffness or damping leaves double precision next
+    to the shaft's: a mass or stiffness more than :data:`COMPONENT_RANGE` times a shaft element's, a damping
+    more than that times sqrt(stiffness mass), the damping that critically damps the stiffest element on the
+    lightest mass (a damper that much beyond critical has decay rates 1e24 apart, more than double precision
+    holds: ``nsfem.system.ZETA_MAX``)."""
     span = max(s.end for s in stack.segments) - min(s.start for s in stack.segments)
     le = span / tree["mesh"]["elements"]
     mass = min(s.rho * s.area * le for s in stack.segments)
@@ -155,6 +159,24 @@ def check_components(tree: dict, stack: BeamStack) -> None:
                 raise SceneError(f"{b.label}.{name}", f"{v:.3g} N/m is more than {COMPONENT_RANGE:g} times the "
                                  f"shaft's stiffest element ({stiff:.3g} N/m): a rigid support is what it models "
                                  "(shaft.supports)")
+    critical = math.sqrt(stiff * mass)
+    for b in stack.bearings:
+        for name, v in (("cyy", b.C[0][0]), ("czz", b.C[1][1]), ("cyz", b.C[0][1]), ("czy", b.C[1][0])):
+            if abs(v) > COMPONENT_RANGE * critical:
+                raise SceneError(f"{b.label}.{name}", f"{v:.3g} N s/m is more than {COMPONENT_RANGE:g} times the "
+                                 f"damping that critically damps the shaft's stiffest element on its lightest mass "
+                                 f"({critical:.3g} N s/m): its decay rates would lie further apart than double "
+                                 "precision holds")
+    for c in stack.contacts:
+        if c.stiffness > COMPONENT_RANGE * stiff:
+            raise SceneError(f"{c.table_key}.stiffness", f"{c.stiffness:.3g} N/m is more than {COMPONENT_RANGE:g} "
+                             f"times the shaft's stiffest element ({stiff:.3g} N/m): a rigid ring (stiffness = 0) "
+                             "is what it models")
+        if c.damping > COMPONENT_RANGE * critical:
+            raise SceneError(f"{c.table_key}.damping", f"{c.damping:.3g} N s/m is more than {COMPONENT_RANGE:g} "
+                             "times the damping that critically damps the shaft's stiffest element on its lightest "
+                             f"mass ({critical:.3g} N s/m): its decay rates would lie further apart than double "
+                             "precision holds")
 
 
 # --------------------------------------------------------------------------- frame

@@ -252,6 +252,12 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
         seg = stack.carrier(x) if math.isfinite(x) else None
         if seg is None:
             lo, hi = min(g.start for g in stack.segments), max(g.end for g in stack.segments)
+            inside = next(((k, d) for k, d in enumerate(tree["delamination"]) if d["start"] < x < d["end"]), None)
+            if inside is not None:
+                k, d = inside
+                raise SceneError(f"{key}.x", f"x={x} lies inside delamination.{k} [{d['start']}, {d['end']}], whose "
+                                 "two layers have no single shaft surface for the ring to touch; put the stator on "
+                                 "the intact shaft")
             raise SceneError(f"{key}.x", f"x={x} must lie on the intact shaft within [{lo}, {hi}]")
         held = [sp for sp in stack.supports if abs(sp.x - x) <= 1e-12 * max(1.0, abs(x)) and {"V", "W"} <= set(sp.fix)]
         if held:
