@@ -174,7 +174,8 @@ class Penalty(Integrator):
         if restitution_rule not in ("cut", "linear"):
             raise NsfemError(f"penalty: restitution_rule must be 'cut' or 'linear', got {restitution_rule!r}")
         if not (isinstance(rtol, numbers.Real) and 1e-13 <= rtol < 1):
-            raise NsfemError(f"penalty: rtol must lie in [1e-13, 1), got {rtol!r}")
+            raise NsfemError(f"simulation.rtol: penalty needs a relative tolerance in [1e-13, 1) (its BDF error "
+                             f"estimate is round-off below), got {rtol!r}")
         positive(atol, "atol")
         if max_step is not None:
             positive(max_step, "max_step")
