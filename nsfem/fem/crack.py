@@ -44,10 +44,11 @@ SHALLOW_CIRCLE = 1e-8
 #: The stiffest crack hinge, relative to the bending stiffness E I / l of a shaft element of the mean length l:
 #: a shallower crack's compliance is raised to l / (MAX_HINGE_STIFFNESS E I). Stiffer, the hinge's row in the
 #: stiffness matrix would dwarf the shaft's (a crack of 1e-3 D in the shipped cracked rotor is 5e9 times
-#: stiffer than an element on its other axis: its two first frequencies split by 0.2 % from round-off alone).
-#: The raised compliance adds at most 1e-6 of one element's bending flexibility, a relative change of the
-#: frequencies far below the discretization's (the shallow crack is the intact shaft to that).
-MAX_HINGE_STIFFNESS = 1e6
+#: stiffer than an element on its other axis: its two first frequencies split by 0.2 % from round-off alone;
+#: at 1e5 times the mechanism check of a 10-element model already fails). The raised compliance adds at most
+#: 1e-4 of one element's bending flexibility: the shipped cracked rotor with a crack of 1e-300 D lies 1.2e-5
+#: (10 elements) and 5.9e-6 (20) below the intact shaft's first frequency, a crack of 0.4 D 4.3 % below.
+MAX_HINGE_STIFFNESS = 1e4
 #: A crack front narrower than this fraction of its distance from the hinge's centre is one face point
 #: (a circle's shallower than 2.5e-5 D; :func:`face_points`)
 NARROW_FRONT = 1e-2
@@ -191,7 +192,7 @@ def face_points(section: str, width: float, height: float, depth: float, side: s
     A circle's front is only sqrt(a D) wide: below :data:`NARROW_FRONT` of the arm the two ends' gap rows are
     nearly parallel (the reduction's constraint modes would divide by their difference), and the front's middle
     is its one point, the cone then a half-plane (an error in the direction of its edges of that relative size,
-    on a hinge :data:`MAX_HINGE_STIFFNESS` times stiffer than an element on either axis).
+    on a hinge at least that shallow crack's stiffness on either axis).
 
     >>> face_points("rectangle", 0.02, 0.01, 0.4, "-z").round(6).tolist()
     [[-0.01, -0.003], [0.01, -0.003]]

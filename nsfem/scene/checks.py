@@ -117,12 +117,15 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
             w2 = axial / mass if mass > 0 else np.inf
         # the key to blame: the input farthest from 1 in orders of magnitude among those involved
         span_key = "end" if low else "length"
-        size = {"E": _magnitude(s.E), "rho": _magnitude(s.rho), span_key: _magnitude(float(le)),
-                "width": _magnitude(s.width), "height": _magnitude(s.height)}
-        for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, "width", "height")),
-                              ("axial stiffness E A / l", axial, ("E", span_key, "width", "height")),
-                              ("bending stiffness E I_y / l^3", bend_w, ("E", span_key, "width", "height")),
-                              ("bending stiffness E I_z / l^3", bend_v, ("E", span_key, "width", "height")),
+        size = {"E": _magnitude(s.E), "rho": _magnitude(s.rho), span_key: _magnitude(float(le))}
+        # a circle's section size is its diameter (held in width and height)
+        cut = ("diameter",) if s.section == "circle" else ("width", "height")
+        size.update({"diameter": _magnitude(s.width)} if s.section == "circle" else
+                    {"width": _magnitude(s.width), "height": _magnitude(s.height)})
+        for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, *cut)),
+                              ("axial stiffness E A / l", axial, ("E", span_key, *cut)),
+                              ("bending stiffness E I_y / l^3", bend_w, ("E", span_key, *cut)),
+                              ("bending stiffness E I_z / l^3", bend_v, ("E", span_key, *cut)),
                               ("squared frequency scale E / (rho l^2)", w2, ("E", "rho", span_key))):
             if not lo <= v <= hi:
                 key = max(keys, key=size.get)
@@ -137,6 +140,10 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
 COMPONENT_RANGE = 1e12
 
 
+#: A stator's surface radius may be at most this many rotor lengths (:func:`check_components`)
+MAX_RADIUS = 1e3
+
+
 def check_components(tree: dict, stack: BeamStack) -> None:
     """Refuse disks, bearings and elastic stators whose mass, stiffness or damping leaves double precision next
     to the shaft's: a mass or stiffness more than :data:`COMPONENT_RANGE` times a shaft element's, a damping
@@ -148,10 +155,21 @@ def check_components(tree: dict, stack: BeamStack) -> None:
     mass = min(s.rho * s.area * le for s in stack.segments)
     stiff = max(max(s.E * s.area / le, s.E * max(s.I_y, s.I_z) / le**3) for s in stack.segments)
     for d in stack.disks:
+        for name, v in (("polar_inertia", d.polar), ("diametral_inertia", d.diametral)):
+            if v > COMPONENT_RANGE * mass * le * le:
+                given = tree["disk"][int(d.label.split(".")[1])]["mass"] is not None if d.label else True
+                raise SceneError(f"{d.label}.{name if given else 'outer_diameter'}", f"the disk's {name.replace('_', ' ')} "
+                                 f"{v:.3g} kg m^2 is more than {COMPONENT_RANGE:g} times a shaft element's rotary "
+                                 f"scale m l^2 ({mass * le * le:.3g} kg m^2): double precision cannot hold both")
         if d.mass > COMPONENT_RANGE * mass:
             given = tree["disk"][int(d.label.split(".")[1])]["mass"] is not None if d.label else True
             raise SceneError(f"{d.label}.{'mass' if given else 'outer_diameter'}", f"{d.mass:.3g} kg is more than {COMPONENT_RANGE:g} times a shaft "
                              f"element's mass ({mass:.3g} kg): double precision cannot hold both")
+    for u in stack.unbalances:
+        if u.magnitude > COMPONENT_RANGE * mass * span:
+            raise SceneError(f"{u.label}.magnitude", f"{u.magnitude:.3g} kg m is more than {COMPONENT_RANGE:g} times a "
+                             f"shaft element's mass times the rotor's length ({mass * span:.3g} kg m): its load leaves "
+                             "double precision beside the shaft's own inertia")
     for b in stack.bearings:
         for name, v in (("kyy", b.K[0][0]), ("kzz", b.K[1][1]), ("kyz", b.K[0][1]), ("kzy", b.K[1][0]),
                         ("kxx", b.kxx)):
@@ -168,6 +186,10 @@ def check_components(tree: dict, stack: BeamStack) -> None:
                                  f"({critical:.3g} N s/m): its decay rates would lie further apart than double "
                                  "precision holds")
     for c in stack.contacts:
+        if c.radius > MAX_RADIUS * span:
+            raise SceneError(f"{c.table_key}.radius", f"{c.radius:g} m is more than {MAX_RADIUS:g} times the rotor's "
+                             f"length ({span:g} m): the radius arms the slopes in the friction's slip rows, where it "
+                             "would dwarf every other entry (no rim is that large)")
         if c.stiffness > COMPONENT_RANGE * stiff:
             raise SceneError(f"{c.table_key}.stiffness", f"{c.stiffness:.3g} N/m is more than {COMPONENT_RANGE:g} "
                              f"times the shaft's stiffest element ({stiff:.3g} N/m): a rigid ring (stiffness = 0) "

@@ -11,12 +11,18 @@ from .schema import _SECTION, MAX_CONTACT_POINTS, MIN_LAYER, SUPPORT_DOFS_BY_NAM
 
 
 def _node_key(stack: BeamStack, *xs: float) -> str:
-    """The scene key of a contact at one of ``xs`` (else the mesh), for error messages."""
-    for c in stack.contacts:
-        if c.x in xs:
-            if c.label.startswith("delamination"):
-                return c.table_key + ".contact_points"
-            return c.table_key + ".x" if c.table_key else "mesh.elements"
+    """The scene key of a contact or a point component (disk, bearing, unbalance) at one of ``xs`` (else the
+    mesh), for error messages; one away from the segments' ends first (an end cannot be moved)."""
+    ends = {x for s in stack.segments for x in (s.start, s.end)}
+    for inner in (True, False):
+        for c in stack.contacts:
+            if c.x in xs and (c.x not in ends or not inner):
+                if c.label.startswith("delamination"):
+                    return c.table_key + ".contact_points"
+                return c.table_key + ".x" if c.table_key else "mesh.elements"
+        for p in stack.points():
+            if p.x in xs and p.label and (p.x not in ends or not inner):
+                return p.label + ".x"
     return "mesh.elements"
 
 
@@ -209,7 +215,14 @@ def disk_inertia(d: dict, key: str) -> tuple[float, float, float]:
         raise SceneError(f"{key}.inner_diameter", f"must be smaller than outer_diameter ({D}), got {di}")
     m = d["rho"] * math.pi / 4.0 * (D * D - di * di) * w
     ip = m * (D * D + di * di) / 8.0
-    return m, ip, ip / 2.0 + m * w * w / 12.0
+    id_ = ip / 2.0 + m * w * w / 12.0
+    if not all(math.isfinite(v) and v > 0.0 for v in (m, ip, id_)):
+        # the geometry key farthest from 1 in orders of magnitude is the one that over- or underflowed
+        sizes = {"outer_diameter": D, "width": w, "rho": d["rho"]}
+        name = max(sizes, key=lambda k: abs(math.log10(sizes[k])))
+        raise SceneError(f"{key}.{name}", f"{sizes[name]:g} gives the disk a mass {m:.3g} kg and inertias {ip:.3g}, "
+                         f"{id_:.3g} kg m^2, beyond double precision")
+    return m, ip, id_
 
 
 def point_components(tree: dict, stack: BeamStack) -> BeamStack:
