@@ -42,6 +42,12 @@ def test_jeffcott_critical_speed_with_cross_coupling_closed_form():
     exact = (np.sqrt((k - 1j * q) / M_DISK)).real / (2 * math.pi)
     assert exact > 1.05 * math.sqrt(k / M_DISK) / (2 * math.pi)
     np.testing.assert_allclose(crit[:2], exact, rtol=1e-4)
+    # the bearing is isotropic ([[k, q], [-q, k]] commutes with a turn): an unbalance drives the forward
+    # root alone, one critical speed, forward (the backward root crosses at the same speed)
+    fwd, sense = critical_speeds(rotor_operators(model), lateral_turn(model.spaces, model.n_full), max_hz=40.0,
+                                 forward_only=True)
+    np.testing.assert_allclose(fwd, [exact], rtol=1e-4)
+    assert sense.tolist() == [1]
 
 
 def test_cross_coupled_critical_speeds_are_synchronous_roots():

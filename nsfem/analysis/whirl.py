@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from ..fem.constraints import dense as _dense
 from ..fem.rotating import RotorOperators
 from ..system import linear_system
-from .campbell import (VALID_FRACTION, _omega_max, _pencil, campbell, frequencies_of, growth_rate,
+from .campbell import (VALID_FRACTION, _omega_max, _oscillating, _pencil, campbell, frequencies_of, growth_rate,
                        state_eigenvalues)
 
 if TYPE_CHECKING:
@@ -122,8 +122,9 @@ def cross_coupled_critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz
             speed = grid[i] if g[i] == 0.0 else brentq(excess, grid[i], grid[i + 1], args=(j,), xtol=1e-12 * top,
                                                        rtol=1e-10)
             lam, X = roots(speed)
-            # the crossing root: its frequency is the speed (its growth rate may be large: match Im only)
-            k = int(np.argmin(np.abs(lam.imag - 2 * math.pi * speed)))
+            # the crossing root: the j-th by frequency (two roots of one frequency, a forward and a backward
+            # one growing and decaying, are two crossings, each its own root)
+            k = int(_oscillating(lam, m)[j])
             found.append((speed, int(whirl_sense(X[:, [k]], ops.basis, turn)[0])))
     f = np.array([s for s, _ in found])
     w = np.array([v for _, v in found], dtype=int)
