@@ -102,38 +102,36 @@ def result_warning(result, model, basis) -> str | None:
     return "; ".join(t for t in texts if t) or None
 
 
-#: Warn when the rigid contacts are penetrated deeper than this fraction of the gap scale (the smallest
-#: clearance; without one, the widest gap of the run): a penalty spring lets 1 / (1 + factor) of the contact-free
-#: motion through (1 % at the default factor 100), moreau's steps O(h) of the approach speed; beyond 10 % the
-#: contact no longer holds the motion it is meant to.
+#: Warn when a rigid stop with a clearance (an obstacle, a stator's facet) is penetrated deeper than this
+#: fraction of the smallest clearance: a penalty spring lets 1 / (1 + factor) of the contact-free motion
+#: through (1 % at the default factor 100), moreau's steps O(h) of the approach speed; beyond 10 % the stop
+#: no longer holds the motion it is meant to. (Contacts without a clearance, delamination interfaces and
+#: crack faces, have no such scale: their gaps are the motion itself.)
 PENETRATION_FRACTION = 0.1
 
 
 def penetration_warning(result, stack) -> str | None:
-    """The warning text when a run's rigid contacts (not elastic rings, which carry force at a negative gap)
-    were penetrated deeper than :data:`PENETRATION_FRACTION` of the gap scale, else None."""
-    elastic = {c.label for c in stack.contacts if c.stiffness > 0.0}
+    """The warning text when a run's rigid stops with a clearance (not elastic rings, which carry force at a
+    negative gap) were penetrated deeper than :data:`PENETRATION_FRACTION` of the smallest clearance, else None."""
     labels = list(result.info.get("contacts", ()))
     gap = np.asarray(result.gap)
-    if gap.size == 0 or (elastic and len(labels) != gap.shape[0]):
+    stops = {c.label: c.clearance for c in stack.contacts if c.stiffness == 0.0 and c.clearance > 0.0}
+    if gap.size == 0 or len(labels) != gap.shape[0]:
         return None
-    rows = [i for i, lab in enumerate(labels) if lab not in elastic] if elastic else list(range(gap.shape[0]))
+    rows = [i for i, lab in enumerate(labels) if lab in stops]
     if not rows:
         return None
     depth = max(float(-gap[rows].min()), 0.0)
-    if not elastic:
-        depth = max(depth, float(result.info.get("max_penetration_m", 0.0) or 0.0))
-    clearances = [c.clearance for c in stack.contacts if c.stiffness == 0.0 and c.clearance > 0.0]
-    scale = min(clearances) if clearances else float(gap[rows].max())
-    if not (scale > 0.0 and depth > PENETRATION_FRACTION * scale):
+    scale = min(stops.values())
+    if not depth > PENETRATION_FRACTION * scale:
         return None
     k = int(np.unravel_index(np.argmin(gap[rows]), gap[rows].shape)[0])
-    where = f" at {labels[rows[k]]}" if len(labels) == gap.shape[0] else ""
+    where = f" at {labels[rows[k]]}"
     remedy = {"penalty": "the penalty spring is too soft for these contacts: raise simulation.penalty_factor (or "
                          "simulation.penalty_stiffness)",
               "moreau": "moreau's step is too coarse for these approach speeds: lower simulation.moreau_step"}
-    return (f"the contacts were penetrated {depth:.3g} m deep{where}, more than {PENETRATION_FRACTION:g} of the gap "
-            f"scale {scale:.3g} m: {remedy.get(result.method, 'the contact constraint was not held')}; the motion "
+    return (f"the contacts were penetrated {depth:.3g} m deep{where}, more than {PENETRATION_FRACTION:g} of the "
+            f"clearance {scale:.3g} m: {remedy.get(result.method, 'the contact constraint was not held')}; the motion "
             "beyond the contact is the model's, not the structure's")
 
 

@@ -23,6 +23,12 @@ def _node_key(stack: BeamStack, *xs: float) -> str:
         for p in stack.points():
             if p.x in xs and p.label and (p.x not in ends or not inner):
                 return p.label + ".x"
+    for s in stack.segments:   # a delamination's end (its layers are named delamination_<i>_upper)
+        parts = s.name.split("_")
+        if len(parts) == 3 and parts[0] == "delamination" and parts[2] == "upper":
+            for x, end in ((s.start, "start"), (s.end, "end")):
+                if x in xs and x not in (min(ends), max(ends)):
+                    return f"delamination.{parts[1]}.{end}"
     return "mesh.elements"
 
 
@@ -78,8 +84,11 @@ def high_level_stack(tree: dict) -> BeamStack:
         key = f"delamination.{i}"
         if not 0.0 <= d["start"] < d["end"] <= L:
             if d["start"] >= d["end"]:
+                if d["start"] >= L:   # the start moved past the shaft's end
+                    raise SceneError(f"{key}.start", f"x={d['start']} lies outside the shaft [0, {L}]")
                 raise SceneError(f"{key}.end", f"must exceed start ({d['start']}), got {d['end']}")
-            raise SceneError(key, f"[{d['start']}, {d['end']}] lies outside the shaft [0, {L}]")
+            raise SceneError(f"{key}.start" if d["start"] < 0.0 else f"{key}.end",
+                             f"[{d['start']}, {d['end']}] lies outside the shaft [0, {L}]")
         if not 0.0 < d["upper_height"] < h:
             raise SceneError(f"{key}.upper_height", f"must lie strictly between 0 and height ({h}), "
                              f"got {d['upper_height']}")
@@ -167,6 +176,11 @@ def high_level_stack(tree: dict) -> BeamStack:
                 raise SceneError(f"{key}.normal", f"a stop with normal {o['normal']!r} at x={x} in delamination "
                                  f"{j} would touch both sub-beams; only +z (upper) or -z (lower) stops may act there")
             seg = up if o["normal"] == "+z" else lo
+        dof = {"x": "U", "y": "V", "z": "W"}[o["normal"][1]]
+        if any(sp.x == x and dof in sp.fix for sp in supports):
+            raise SceneError(f"{key}.x", f"x={x} is a support, which holds the shaft's {dof} there: a stop with normal "
+                             f"{o['normal']} would never be touched (and its effective mass is infinite); put it where "
+                             "the shaft can move")
         contacts.append(Contact("obstacle", x, (seg.name,), "dirac", None, o["normal"], o["clearance"],
                                 o["friction"], o["friction_directions"], o["restitution"], label=key))
     return BeamStack(tuple(segments), tuple(junctions), tuple(supports), tuple(contacts), tree["beam"]["theory"])
