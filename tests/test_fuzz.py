@@ -236,6 +236,11 @@ PHYSICS_CASES = [
     (["stationary", *RUB, "--set", "disk.0.diametral_inertia=1e300"], "error", "disk.0.diametral_inertia"),
     (["stationary", *RUB, "--set", "stator.0.radius=1e300"], "error", "stator.0.radius"),  # was LinAlgError
     (["stationary", *RUB, "--set", "unbalance.0.magnitude=1e300"], "error", "unbalance.0.magnitude"),
+    (["modes", "--set", "delamination.0.start=1e-300"], "error", "delamination.0.start"),  # mesh.elements
+    (["modes", "--set", "delamination.0.start=1e300"], "error", "delamination.0.start"),   # blamed .end
+    (["modes", "--set", "delamination.0.end=1e300"], "error", "delamination.0.end"),       # "delamination.0:"
+    (["run", "--method", "penalty", *TINY_RUN, "--set", "obstacle.0.clearance=0"], "error",
+     "obstacle.0.x"),                                     # a stop on a pinned end: penalty's RuntimeWarning
 ]
 
 
