@@ -158,7 +158,8 @@ def check_components(tree: dict, stack: BeamStack) -> None:
         for name, v in (("polar_inertia", d.polar), ("diametral_inertia", d.diametral)):
             if v > COMPONENT_RANGE * mass * le * le:
                 given = tree["disk"][int(d.label.split(".")[1])]["mass"] is not None if d.label else True
-                raise SceneError(f"{d.label}.{name if given else 'outer_diameter'}", f"the disk's {name.replace('_', ' ')} "
+                what = name.replace("_", " ")
+                raise SceneError(f"{d.label}.{name if given else 'outer_diameter'}", f"the disk's {what} "
                                  f"{v:.3g} kg m^2 is more than {COMPONENT_RANGE:g} times a shaft element's rotary "
                                  f"scale m l^2 ({mass * le * le:.3g} kg m^2): double precision cannot hold both")
         if d.mass > COMPONENT_RANGE * mass:

@@ -264,7 +264,8 @@ _CRACK = {
              "there into two sides joined by a hinge"),
     "depth": Key("float", 0.3, "relative depth a/h (rectangle, h the section's size along side; up to 0.8) or a/D "
                  "(solid circle; up to 0.5); any depth above 0: a crack too shallow to hold in double precision is "
-                 "a hinge 1e4 times stiffer than a shaft element, the intact shaft to 1e-4 of an element's flexibility", check=lambda v: None if 0.0 < v <= 0.8 else
+                 "a hinge 1e4 times stiffer than a shaft element, the intact shaft to 1e-4 of an element's flexibility",
+                 check=lambda v: None if 0.0 < v <= 0.8 else
                  f"must lie in (0, 0.8] (the stress-intensity fits of the open crack's compliance end there), got {v}"),
     "side": Key("str", "-z", "the section face the crack starts from, in the rotating frame (-z: the bottom at "
                 "phase 0, in tension under gravity at rest)", CRACK_SIDES),
