@@ -87,7 +87,7 @@ def high_level_stack(tree: dict) -> BeamStack:
                 if d["start"] >= L:   # the start moved past the shaft's end
                     raise SceneError(f"{key}.start", f"x={d['start']} lies outside the shaft [0, {L}]")
                 raise SceneError(f"{key}.end", f"must exceed start ({d['start']}), got {d['end']}")
-            raise SceneError(f"{key}.start" if d["start"] < 0.0 else f"{key}.end",
+            raise SceneError(f"{key}.start" if not 0.0 <= d["start"] < L else f"{key}.end",
                              f"[{d['start']}, {d['end']}] lies outside the shaft [0, {L}]")
         if not 0.0 < d["upper_height"] < h:
             raise SceneError(f"{key}.upper_height", f"must lie strictly between 0 and height ({h}), "
