@@ -145,11 +145,11 @@ MAX_RADIUS = 1e3
 
 
 def check_components(tree: dict, stack: BeamStack) -> None:
-    """Refuse disks, bearings and elastic stators whose mass, stiffness or damping leaves double precision next
-    to the shaft's: a mass or stiffness more than :data:`COMPONENT_RANGE` times a shaft element's, a damping
-    more than that times sqrt(stiffness mass), the damping that critically damps the stiffest element on the
-    lightest mass (a damper that much beyond critical has decay rates 1e24 apart, more than double precision
-    holds: ``nsfem.system.ZETA_MAX``)."""
+    """Refuse disks, bearings, unbalances and stators whose mass, stiffness, damping or size leaves double
+    precision next to the shaft's: a mass or stiffness more than :data:`COMPONENT_RANGE` times a shaft element's;
+    a damping c whose ratio c / (2 sqrt(k m)) on the stiffest element k with the lightest one's mass m exceeds
+    ``nsfem.system.ZETA_MAX`` = 1 / (2 sqrt(eps)), the bound of ``damping.rayleigh`` (the slow and fast decay
+    rates of so overdamped a mode differ by 4 zeta^2, more than double precision holds)."""
     span = max(s.end for s in stack.segments) - min(s.start for s in stack.segments)
     le = span / tree["mesh"]["elements"]
     mass = min(s.rho * s.area * le for s in stack.segments)
@@ -178,14 +178,14 @@ def check_components(tree: dict, stack: BeamStack) -> None:
                 raise SceneError(f"{b.label}.{name}", f"{v:.3g} N/m is more than {COMPONENT_RANGE:g} times the "
                                  f"shaft's stiffest element ({stiff:.3g} N/m): a rigid support is what it models "
                                  "(shaft.supports)")
+    from ..system import ZETA_MAX
+
     critical = math.sqrt(stiff * mass)
+    c_max = 2.0 * ZETA_MAX * critical
     for b in stack.bearings:
         for name, v in (("cyy", b.C[0][0]), ("czz", b.C[1][1]), ("cyz", b.C[0][1]), ("czy", b.C[1][0])):
-            if abs(v) > COMPONENT_RANGE * critical:
-                raise SceneError(f"{b.label}.{name}", f"{v:.3g} N s/m is more than {COMPONENT_RANGE:g} times the "
-                                 f"damping that critically damps the shaft's stiffest element on its lightest mass "
-                                 f"({critical:.3g} N s/m): its decay rates would lie further apart than double "
-                                 "precision holds")
+            if abs(v) > c_max:
+                raise SceneError(f"{b.label}.{name}", _overdamped(v, critical))
     for c in stack.contacts:
         if c.radius > MAX_RADIUS * span:
             raise SceneError(f"{c.table_key}.radius", f"{c.radius:g} m is more than {MAX_RADIUS:g} times the rotor's "
@@ -195,11 +195,16 @@ def check_components(tree: dict, stack: BeamStack) -> None:
             raise SceneError(f"{c.table_key}.stiffness", f"{c.stiffness:.3g} N/m is more than {COMPONENT_RANGE:g} "
                              f"times the shaft's stiffest element ({stiff:.3g} N/m): a rigid ring (stiffness = 0) "
                              "is what it models")
-        if c.damping > COMPONENT_RANGE * critical:
-            raise SceneError(f"{c.table_key}.damping", f"{c.damping:.3g} N s/m is more than {COMPONENT_RANGE:g} "
-                             "times the damping that critically damps the shaft's stiffest element on its lightest "
-                             f"mass ({critical:.3g} N s/m): its decay rates would lie further apart than double "
-                             "precision holds")
+        if c.damping > c_max:
+            raise SceneError(f"{c.table_key}.damping", _overdamped(c.damping, critical))
+
+
+def _overdamped(c: float, critical: float) -> str:
+    from ..system import ZETA_MAX
+
+    return (f"{c:.3g} N s/m gives the shaft's stiffest element, on its lightest mass, a damping ratio c / (2 sqrt(k m)) "
+            f"= {c / (2.0 * critical):.3g}, beyond {ZETA_MAX:.2g}: its slow and fast decay rates differ by 4 zeta^2, "
+            "more than double precision can hold")
 
 
 # --------------------------------------------------------------------------- frame
