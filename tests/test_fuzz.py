@@ -241,8 +241,8 @@ PHYSICS_CASES = [
     (["modes", "--set", "delamination.0.start=1e-300"], "error", "delamination.0.start"),  # mesh.elements
     (["modes", "--set", "delamination.0.start=1e300"], "error", "delamination.0.start"),   # blamed .end
     (["modes", "--set", "delamination.0.end=1e300"], "error", "delamination.0.end"),       # "delamination.0:"
-    (["run", "--method", "penalty", *TINY_RUN, "--set", "obstacle.0.clearance=0"], "error",
-     "obstacle.0.x"),                                     # a stop on a pinned end: penalty's RuntimeWarning
+    (["run", "--method", "penalty", *TINY_RUN, "--set", "obstacle.0.clearance=0"], "ok",
+     ""),                                    # a stop on a pinned end (never touched): penalty's RuntimeWarning
 ]
 
 

@@ -171,8 +171,7 @@ _DELAMINATION = {
     "restitution": Key("float", 0.0, "Newton restitution eps in [0, 1]", check=_unit),
 }
 _OBSTACLE = {
-    "x": Key("float?", None, "position of the stop along the shaft [m] (default: the shaft's end); not at a "
-             "support that holds the displacement along its normal (it would never be touched)"),
+    "x": Key("float?", None, "position of the stop along the shaft [m] (default: the shaft's end)"),
     "normal": Key("str", "+z", "direction n in the rotating frame; the stop is hit when n.u reaches the clearance",
                   NORMALS),
     "clearance": Key("float", 0.0, "initial gap [m]", check=_nonneg),

@@ -176,11 +176,6 @@ def high_level_stack(tree: dict) -> BeamStack:
                 raise SceneError(f"{key}.normal", f"a stop with normal {o['normal']!r} at x={x} in delamination "
                                  f"{j} would touch both sub-beams; only +z (upper) or -z (lower) stops may act there")
             seg = up if o["normal"] == "+z" else lo
-        dof = {"x": "U", "y": "V", "z": "W"}[o["normal"][1]]
-        if any(sp.x == x and dof in sp.fix for sp in supports):
-            raise SceneError(f"{key}.x", f"x={x} is a support, which holds the shaft's {dof} there: a stop with normal "
-                             f"{o['normal']} would never be touched (and its effective mass is infinite); put it where "
-                             "the shaft can move")
         contacts.append(Contact("obstacle", x, (seg.name,), "dirac", None, o["normal"], o["clearance"],
                                 o["friction"], o["friction_directions"], o["restitution"], label=key))
     return BeamStack(tuple(segments), tuple(junctions), tuple(supports), tuple(contacts), tree["beam"]["theory"])
