@@ -352,10 +352,11 @@ class BeamStack:
             raise SceneError(f"{key}.x", f"x={p.x} lies outside the rotor [{lo}, {hi}]")
         values = {"Disk": ("mass", "polar", "diametral"), "Unbalance": ("magnitude",),
                   "Bearing": ("kxx",)}[type(p).__name__]
+        scene_names = {"polar": "polar_inertia", "diametral": "diametral_inertia"}
         for name in values:
             v = getattr(p, name)
             if not (math.isfinite(v) and v >= 0.0):
-                raise SceneError(f"{key}.{name}", f"must be finite and >= 0, got {v}")
+                raise SceneError(f"{key}.{scene_names.get(name, name)}", f"must be finite and >= 0, got {v}")
         if isinstance(p, Disk) and p.mass <= 0.0:
             raise SceneError(f"{key}.mass", f"must be positive, got {p.mass}")
         if isinstance(p, Bearing):
@@ -366,10 +367,14 @@ class BeamStack:
                             raise SceneError(f"{key}.{sym}{a}{b}", f"must be finite, got {A[i][j]}")
                 # a bearing may not feed energy in when the shaft stands still: the symmetric part of
                 # K and of C must be positive semidefinite (cross terms beyond that are circulatory)
-                sym_part = [[(A[i][j] + A[j][i]) / 2 for j in range(2)] for i in range(2)]
-                det = sym_part[0][0] * sym_part[1][1] - sym_part[0][1] ** 2
+                # halves before the sum and products, not powers: 1e300 entries give inf, never OverflowError
+                sym_part = [[A[i][j] / 2 + A[j][i] / 2 for j in range(2)] for i in range(2)]
+                det = sym_part[0][0] * sym_part[1][1] - sym_part[0][1] * sym_part[0][1]
                 if sym_part[0][0] < 0 or sym_part[1][1] < 0 or det < -1e-12 * (sym_part[0][0] * sym_part[1][1]):
-                    raise SceneError(f"{key}.{sym}yy", f"the symmetric part of [[{sym}yy, {sym}yz], [{sym}zy, "
+                    # the entry at fault: a negative diagonal one, else the larger cross term
+                    at = ("yy" if sym_part[0][0] < 0 else "zz" if sym_part[1][1] < 0 else
+                          "yz" if abs(A[0][1]) >= abs(A[1][0]) else "zy")
+                    raise SceneError(f"{key}.{sym}{at}", f"the symmetric part of [[{sym}yy, {sym}yz], [{sym}zy, "
                                      f"{sym}zz]] = {[list(r) for r in A]} must be positive semidefinite "
                                      "(else the bearing feeds energy in at rest)")
 

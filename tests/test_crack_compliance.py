@@ -77,3 +77,58 @@ def test_circle_symmetric_cross_section_numbers_increase_with_depth():
 def test_depth_outside_the_fits(depth):
     with pytest.raises(ValueError, match="crack depth"):
         circle_compliance(E, 0.05, depth)
+
+
+# --- issue 32: shallow cracks ------------------------------------------------------------------------------
+@pytest.mark.parametrize("depth", [1e-6, 1e-7, 2e-8])
+def test_circle_quadrature_keeps_its_accuracy_when_shallow(depth):
+    """The scaled strip integrals keep their relative tolerance however shallow the crack (they used to
+    warn and lose it near 1e-10): the error against the closed-form limit is O(a / D), below 4 a / D."""
+    D = 0.05
+    R, a = D / 2, depth * D
+    beta, inertia = math.sqrt(a * (2 * R - a)), math.pi * R ** 4 / 4
+    c_open, c_other = circle_compliance(E, D, depth)
+    open_limit = 16 / 15 * math.pi * tada_bending(0.0) ** 2 * R ** 2 * a ** 2 * beta / (E * inertia ** 2)
+    other_limit = 16 / 105 * math.pi * tada_tension(0.0) ** 2 * a ** 2 * beta ** 3 / (E * inertia ** 2)
+    assert c_open == pytest.approx(open_limit, rel=4 * depth)
+    assert c_other == pytest.approx(other_limit, rel=4 * depth)
+
+
+def test_shallow_cracks_need_no_quadrature_warning():
+    """From 1e-300 to 0.5 no quadrature warning, finite non-negative compliances, and a centroid of the
+    ligament that tends to the section's (the old acos(1 - a/R) was 0/0 below a = 1e-16 R)."""
+    import warnings
+
+    from nsfem.fem.crack import ligament_centroid
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for depth in (1e-300, 1e-200, 1e-17, 1e-10, 1e-3, 0.5):
+            assert all(math.isfinite(c) and c >= 0.0 for c in circle_compliance(E, 0.02, depth))
+            assert all(math.isfinite(c) and c >= 0.0 for c in rectangle_compliance(E, 0.02, 0.01, depth))
+            assert -0.01 < ligament_centroid("circle", 0.02, depth) <= 0.0
+
+
+@pytest.mark.parametrize("depth", [0.05, 0.3, 0.5])
+def test_ligament_centroid_against_its_definition(depth):
+    """The centroid of the disc minus the segment of height a, from the segment's area and centroid in their
+    textbook form (fine for these depths): the rewritten, cancellation-free form agrees to round-off."""
+    from nsfem.fem.crack import ligament_centroid
+
+    R = 0.01
+    psi = math.acos(1 - depth * 2 * R / R)
+    area = R * R * (psi - math.sin(psi) * math.cos(psi))
+    dist = 2 * R * math.sin(psi) ** 3 / (3 * (psi - math.sin(psi) * math.cos(psi)))
+    assert ligament_centroid("circle", 2 * R, depth) == pytest.approx(-area * dist / (math.pi * R * R - area),
+                                                                      rel=1e-12)
+
+
+def test_hinge_compliance_floor():
+    """A compliance below l / (MAX_HINGE_STIFFNESS E I) is raised to it, per slope with its own I; larger
+    ones are kept exactly."""
+    from nsfem.fem.crack import MAX_HINGE_STIFFNESS, hinge_compliance
+
+    EI_z, EI_y, le = 2.0, 8.0, 0.05
+    floor_v, floor_w = le / (MAX_HINGE_STIFFNESS * EI_z), le / (MAX_HINGE_STIFFNESS * EI_y)
+    assert hinge_compliance((0.0, 1e-300), 1.0, EI_z, EI_y, le) == (floor_v, floor_w)
+    assert hinge_compliance((3e-3, 4e-3), 1.0, EI_z, EI_y, le) == (3e-3, 4e-3)

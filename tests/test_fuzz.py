@@ -388,7 +388,6 @@ def test_issue32_huge_sweeps_are_refused_at_once(tmp_path, monkeypatch):
 def test_issue32_a_large_sweep_loads_its_scenes_lazily(monkeypatch):
     """1000 runs of the crack scene: 64 values are checked before anything runs; the others are loaded
     as their runs are submitted (9 minutes for 90 000 scenes before the first run)."""
-    import nsfem.sweep
     from nsfem.sweep import CHECKED_VALUES, plan
 
     p = plan("crack", ["rotation.speed_hz=1:20:1000"])
@@ -960,3 +959,140 @@ def test_issue32_a_mesh_edited_during_a_sweep_fails_the_models_built_after(tmp_p
     errors = [r["error"] for r in res.runs]
     assert errors[0] == "" and all(f"the mesh file {mesh} has changed since the sweep began" in e for e in errors[1:])
     assert res.info["models_built"] == 1
+
+
+# --- issue 32: physics validation (tracebacks, silently wrong results, errors that blame the wrong key) ---
+# Each listed case: (argv, outcome, text): "error" = exit 2 with one line holding text (the key the user
+# set); "ok" = exit 0; "warn" = exit 0 with text on stderr. No Python warning may leak (IntegrationWarning,
+# RuntimeWarning): the messages are ours. Tiny models (6 to 10 elements): the checks act before or around
+# the computation, whatever its size.
+ROSS = ["ross_example", "--set", "mesh.elements=6", "--set", "reduction.modes=8"]
+RUB = ["rub", "--set", "mesh.elements=8", "--set", "reduction.modes=6"]
+CRACK = ["crack", "--set", "mesh.elements=10"]
+TINY_RUN = ["--set", "simulation.t_end=0.002", "--set", "simulation.output_dt=0.001", "--set", "output.vtu_every=0",
+            "--set", "output.plots=[]"]
+PHYSICS_CASES = [
+    # shallow cracks: a stiff hinge tending to the intact shaft, no ZeroDivisionError, no IntegrationWarning
+    *[(["modes", *CRACK, "--set", f"crack.0.depth={d}"], "ok", "") for d in ("1e-300", "1e-200", "1e-17", "1e-10",
+                                                                             "1e-6", "1e-3")],
+    (["modes", *CRACK, "--set", "crack.0.depth=1e-10", "--set", "shaft.section=\"rectangle\"",
+      "--set", "shaft.width=0.02", "--set", "shaft.height=0.02"], "ok", ""),
+    # absurd penalty factors and tolerances are refused at load, naming the key
+    (["run", "rub", "--method", "penalty", *TINY_RUN, "--set", "simulation.penalty_factor=1e-300"], "error",
+     "simulation.penalty_factor"),
+    (["run", "rub", "--method", "penalty", *TINY_RUN, "--set", "simulation.penalty_factor=1e300"], "error",
+     "simulation.penalty_factor"),
+    (["run", "--method", "rk", *TINY_RUN, "--set", "simulation.rtol=1e-300"], "error", "simulation.rtol"),
+    (["run", "--method", "penalty", *TINY_RUN, "--set", "simulation.rtol=1e-14"], "error", "simulation.rtol"),
+    # damping beyond double precision is blamed on damping in stationary as in run; a bearing's on the bearing
+    (["stationary", "--set", "damping.external=1e300"], "error", "damping.external"),
+    (["run", *ROSS, *TINY_RUN, "--set", "bearing.0.cyy=1e300"], "error", "bearing.0.cyy"),
+    # zeta = c / (2 sqrt(k m)) = 3e11 on the stiffest element: "no progress" at t = 0 before, a result without samples
+    (["run", *ROSS, *TINY_RUN, "--set", "bearing.0.cyy=5e16"], "error", "bearing.0.cyy"),
+    (["run", *RUB, *TINY_RUN, "--set", "stator.0.stiffness=1e300"], "error", "stator.0.stiffness"),
+    (["run", *RUB, *TINY_RUN, "--set", "stator.0.stiffness=1e6", "--set", "stator.0.damping=1e300"], "error",
+     "stator.0.damping"),
+    (["run", *TINY_RUN, "--set", "stator=[{x=0.5}]"], "error", "inside delamination.0 [0.1, 0.9]"),
+    # stationary names the actual cause of an unsymmetric Q
+    (["stationary", *RUB, "--set", "bearing.0.kyz=1e3", "--set", "bearing.0.kzy=-1e3"], "warn",
+     "bearing.0's cross coupling"),
+    # found by the hunt over keys x extreme values x commands
+    (["modes", *ROSS, "--set", "bearing.0.kyz=1e300"], "error", "bearing.0.kyz"),        # was OverflowError
+    (["campbell", *ROSS, "--speeds", "0:10:2", "--set", "bearing.0.czy=1e300"], "error", "bearing.0.czy"),
+    (["modes", *ROSS, "--set", "bearing.0.kzz=-1"], "error", "bearing.0.kzz"),            # blamed kyy
+    (["modes", *ROSS, "--set", "bearing.0.czy=-1"], "error", "bearing.0.czy"),            # blamed cyy
+    (["modes", *ROSS, "--set", "disk.0.outer_diameter=1e300"], "error", "disk.0.outer_diameter"),  # blamed mass
+    (["modes", *ROSS, "--set", "disk.0.width=1e300"], "error", "disk.0.width"),           # "disk.0.diametral"
+    (["modes", *ROSS, "--set", "shaft.diameter=1e-300"], "error", "shaft.diameter"),      # blamed shaft.width
+    (["modes", *ROSS, "--set", "disk.0.x=1e-300"], "error", "disk.0.x"),                  # blamed mesh.elements
+    (["modes", *ROSS, "--set", "unbalance.0.x=1e-300"], "error", "unbalance.0.x"),        # blamed mesh.elements
+    (["campbell", *RUB, "--speeds", "0:10:2", "--set", "disk.0.polar_inertia=1e300"], "error",
+     "disk.0.polar_inertia"),                                                              # was ValueError
+    (["stationary", *RUB, "--set", "disk.0.diametral_inertia=1e300"], "error", "disk.0.diametral_inertia"),
+    (["stationary", *RUB, "--set", "stator.0.radius=1e300"], "error", "stator.0.radius"),  # was LinAlgError
+    (["stationary", *RUB, "--set", "unbalance.0.magnitude=1e300"], "error", "unbalance.0.magnitude"),
+    (["modes", "--set", "delamination.0.start=1e-300"], "error", "delamination.0.start"),  # mesh.elements
+    (["modes", "--set", "delamination.0.start=1e300"], "error", "delamination.0.start"),   # blamed .end
+    (["modes", "--set", "delamination.0.end=1e300"], "error", "delamination.0.end"),       # "delamination.0:"
+    (["run", "--method", "penalty", *TINY_RUN, "--set", "obstacle.0.clearance=0"], "ok",
+     ""),                                    # a stop on a pinned end (never touched): penalty's RuntimeWarning
+]
+
+
+def check_physics_invocation(argv, root):
+    """:func:`check_invocation`, and no Python warning escapes (nsfem words its own)."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code, out, err = check_invocation(argv, root)
+    leaked = [f"{w.category.__name__}: {w.message}" for w in caught
+              if not issubclass(w.category, (DeprecationWarning, PendingDeprecationWarning))]
+    assert not leaked, (argv, leaked)
+    return code, out, err
+
+
+@pytest.mark.parametrize("argv, outcome, text", PHYSICS_CASES, ids=[" ".join(c[0]) for c in PHYSICS_CASES])
+def test_physics_reproductions(argv, outcome, text, tmp_path):
+    code, _, stderr = check_physics_invocation(argv, tmp_path)
+    assert code == (cli.EXIT_ERROR if outcome == "error" else 0), stderr
+    assert text in stderr, stderr
+    if outcome == "error":
+        assert not (tmp_path / "out" / "result.npz").exists()   # refused before any computation
+
+
+def test_penetration_warning_names_the_key():
+    """A penalty run that lets the rotor 1.65 mm into a 0.25 mm ring (the issue's penalty_factor = 1e-300)
+    warns, naming the key; one 1 % of the clearance in (what the default factor gives) does not."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from nsfem.analysis.deflection import penetration_warning
+    from nsfem.stack import Contact
+
+    ring = SimpleNamespace(contacts=(Contact("obstacle", 0.4, ("s",), clearance=2.5e-4, label="stator.0.0"),
+                                     Contact("obstacle", 0.4, ("s",), clearance=2.5e-4, label="stator.0.1")))
+    for method, depth, warned in (("penalty", 1.65e-3, True), ("moreau", 1.65e-3, True), ("penalty", 2.5e-6, False)):
+        gap = np.array([[2.5e-4, -depth, 1e-4], [2.5e-4, 4e-4, 2e-4]])
+        result = SimpleNamespace(gap=gap, info={"contacts": ["stator.0.0", "stator.0.1"]}, method=method)
+        text = penetration_warning(result, ring)
+        assert (text is not None) == warned, text
+        if warned:
+            assert "0.00165 m deep at stator.0.0" in text
+            assert ("penalty_factor" if method == "penalty" else "moreau_step") in text
+
+
+# one property per class: an absurd magnitude (+-1e300) of a component's physical key, under any command,
+# exits 0 (a command the key does not enter: modes ignores damping) or 2 with one line (check_invocation) that
+# names the key set, and leaks no Python warning
+EXTREME_KEYS = [(ROSS, k) for k in ("bearing.0.kyy", "bearing.0.kzz", "bearing.0.kyz", "bearing.0.kzy", "bearing.0.cyy",
+                                    "bearing.0.czz", "bearing.0.cyz", "bearing.0.czy", "bearing.0.kxx", "bearing.0.x",
+                                    "disk.0.outer_diameter", "disk.0.width", "disk.0.x", "unbalance.0.magnitude",
+                                    "unbalance.0.x", "damping.external", "rotation.speed_hz", "shaft.diameter")] + \
+               [(RUB, k) for k in ("stator.0.stiffness", "stator.0.damping", "stator.0.radius", "stator.0.clearance",
+                                   "stator.0.x", "disk.0.mass", "disk.0.polar_inertia", "disk.0.diametral_inertia")] + \
+               [(CRACK, k) for k in ("crack.0.depth", "crack.0.x")]
+COMMANDS = [["modes"], ["stationary"], ["campbell", "--speeds", "0:10:2"], ["run", *TINY_RUN]]
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(EXTREME_KEYS), st.sampled_from(["1e300", "-1e300"]), st.sampled_from(COMMANDS))
+def test_extreme_component_values_name_their_key(case, value, command):
+    scene, key = case
+    with tempfile.TemporaryDirectory() as d:
+        code, _, stderr = check_physics_invocation([command[0], *scene, *command[1:], "--set", f"{key}={value}"],
+                                                   Path(d))
+    assert code == 0 or key in stderr, stderr
+
+
+@settings(max_examples=6, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.floats(min_value=1e-300, max_value=0.5, allow_subnormal=False).map(lambda d: float(f"{d:.3g}")),
+       st.sampled_from(["modes", "stationary"]))
+def test_any_crack_depth_runs(depth, command):
+    """Any depth in (0, 0.5] of the circle's crack gives an answer, without a warning leaking."""
+    with tempfile.TemporaryDirectory() as d:
+        code, _, stderr = check_physics_invocation([command, *CRACK, "--set", f"crack.0.depth={depth!r}"], Path(d))
+    assert code == 0, stderr

@@ -93,11 +93,46 @@ def min_section(stack) -> float:
 
 
 def result_warning(result, model, basis) -> str | None:
-    """:func:`linear_range_warning` of a transient Result (all output times)."""
+    """:func:`linear_range_warning` and :func:`penetration_warning` of a transient Result (all output times)."""
     if result.t.size == 0 or result.q.size == 0:
         return None
     gap = float(result.gap.max()) if result.gap.size else None
-    return linear_range_warning(lateral_deflection(model, basis, result.q), gap, min_section(model.stack))
+    texts = [linear_range_warning(lateral_deflection(model, basis, result.q), gap, min_section(model.stack)),
+             penetration_warning(result, model.stack)]
+    return "; ".join(t for t in texts if t) or None
+
+
+#: Warn when a rigid stop with a clearance (an obstacle, a stator's facet) is penetrated deeper than this
+#: fraction of the smallest clearance: a penalty spring lets 1 / (1 + factor) of the contact-free motion
+#: through (1 % at the default factor 100), moreau's steps O(h) of the approach speed; beyond 10 % the stop
+#: no longer holds the motion it is meant to. (Contacts without a clearance, delamination interfaces and
+#: crack faces, have no such scale: their gaps are the motion itself.)
+PENETRATION_FRACTION = 0.1
+
+
+def penetration_warning(result, stack) -> str | None:
+    """The warning text when a run's rigid stops with a clearance (not elastic rings, which carry force at a
+    negative gap) were penetrated deeper than :data:`PENETRATION_FRACTION` of the smallest clearance, else None."""
+    labels = list(result.info.get("contacts", ()))
+    gap = np.asarray(result.gap)
+    stops = {c.label: c.clearance for c in stack.contacts if c.stiffness == 0.0 and c.clearance > 0.0}
+    if gap.size == 0 or len(labels) != gap.shape[0]:
+        return None
+    rows = [i for i, lab in enumerate(labels) if lab in stops]
+    if not rows:
+        return None
+    depth = max(float(-gap[rows].min()), 0.0)
+    scale = min(stops.values())
+    if not depth > PENETRATION_FRACTION * scale:
+        return None
+    k = int(np.unravel_index(np.argmin(gap[rows]), gap[rows].shape)[0])
+    where = f" at {labels[rows[k]]}"
+    remedy = {"penalty": "the penalty spring is too soft for these contacts: raise simulation.penalty_factor (or "
+                         "simulation.penalty_stiffness)",
+              "moreau": "moreau's step is too coarse for these approach speeds: lower simulation.moreau_step"}
+    return (f"the contacts were penetrated {depth:.3g} m deep{where}, more than {PENETRATION_FRACTION:g} of the "
+            f"clearance {scale:.3g} m: {remedy.get(result.method, 'the contact constraint was not held')}; the motion "
+            "beyond the contact is the model's, not the structure's")
 
 
 def stationary_warning(st, model, basis) -> str | None:

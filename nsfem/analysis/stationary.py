@@ -73,8 +73,9 @@ class Stationary:
         }
 
 
-def existence(Q, frictionless: bool) -> dict:
-    """The paper's existence statement for LCP (28) applied to Q (dense or sparse)."""
+def existence(Q, frictionless: bool, asymmetry: str = "external damping adds the circulatory P") -> dict:
+    """The paper's existence statement for LCP (28) applied to Q (dense or sparse); ``asymmetry`` names what
+    makes Q unsymmetric (:func:`asymmetry_causes`)."""
     Qd = Q
     scale = float(abs(Q).max()) if (sp.issparse(Q) and Q.nnz) or (not sp.issparse(Q) and Q.size) else 1.0
     asym = abs(Q - Q.T).max() if sp.issparse(Q) else np.abs(Q - Q.T).max()
@@ -88,7 +89,7 @@ def existence(Q, frictionless: bool) -> dict:
                 "reason": "no friction and Q positive definite: a solution exists (paper, after eq. 28)"}
     why = []
     if not symmetric:
-        why.append("Q is not symmetric (external damping adds the circulatory P)")
+        why.append(f"Q is not symmetric ({asymmetry})")
     if not pd:
         why.append("Q is not positive definite (the speed lies beyond a divergence speed)")
     if not frictionless:
@@ -115,7 +116,7 @@ def _positive_definite(H) -> bool:
 
 
 def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, compliance: np.ndarray | None = None,
-               **lemke_options) -> Stationary:
+               asymmetry: str = "external damping adds the circulatory P", **lemke_options) -> Stationary:
     """Solve LCP (28) for the stiffness Q, constant load f0 and ``contacts``; ``compliance`` (m x m) adds the
     contacts' own flexibility to the gaps (an elastic ring, :func:`~nsfem.contact.ring.compliance`): a
     gap g + compliance lam >= 0, so a facet of an elastic ring carries its force at a negative gap.
@@ -125,7 +126,7 @@ def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, compliance: np.nd
     """
     t0 = time.perf_counter()
     cs = contacts
-    ex = existence(Q, frictionless=not np.any(cs.r > 0))
+    ex = existence(Q, frictionless=not np.any(cs.r > 0), asymmetry=asymmetry)
     Qf = factorize(Q, "the stiffness Q = K0 + Kc + P",
                    "the structure has rigid-body motion no support restrains, or the speed is a "
                    "divergence speed; a stationary state needs Q to be invertible")
@@ -139,7 +140,7 @@ def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, compliance: np.nd
         rates = {k: cs.slip_rate(k, q, np.zeros(cs.n)) for k in moving}
         # a rate at the round-off of its terms has no direction: that contact's friction is an unknown
         size = {k: float((np.abs(cs.JSq[k]).T @ np.abs(q)).sum() + np.abs(cs.wS[k]).sum()) for k in moving}
-        want = {k: -u / np.linalg.norm(u) for k, u in rates.items() if np.linalg.norm(u) > 1e-12 * size[k]}
+        want = {k: -_direction(u) for k, u in rates.items() if _length(u) > 1e-12 * size[k]}
         if slide is not None and want.keys() == slide.keys() and all(np.allclose(slide[k], d) for k, d in want.items()):
             break   # the last solution's friction opposes its slip velocities
         slide = want
@@ -178,6 +179,18 @@ def stationary(Q, f0: np.ndarray | None, contacts: ContactSet, compliance: np.nd
     return Stationary(q, gap, lamN.copy(), tang, slip, state, ex, res, cs, time.perf_counter() - t0)
 
 
+def _length(u: np.ndarray) -> float:
+    """|u| without overflowing the squares of huge entries (or underflowing tiny ones)."""
+    top = float(np.max(np.abs(u), initial=0.0))
+    return top * float(np.linalg.norm(u / top)) if 0.0 < top < math.inf else top
+
+
+def _direction(u: np.ndarray) -> np.ndarray:
+    """u / |u|, scaled first (:func:`_length`)."""
+    v = u / np.max(np.abs(u))
+    return v / np.linalg.norm(v)
+
+
 def _closing_force(lcp) -> float:
     """A force scale of the problem: what it takes to cancel the largest free gap."""
     m = lcp.normal.size
@@ -186,6 +199,34 @@ def _closing_force(lcp) -> float:
     d = np.diag(lcp.A)[:m]
     d = np.where(d > 0, d, np.inf)
     return float(np.max(np.abs(lcp.b[:m]) / d, initial=1e-300))
+
+
+def asymmetry_causes(stack, rotation: Rotation, damping: Damping) -> str:
+    """What makes the stationary Q of ``nsfem.system.linear_system`` unsymmetric, naming the scene keys: the
+    bearings' cross coupling (kyz != kzy), and at speed in the rotating frame external damping (Omega c_e P1)
+    and bearing damping (Omega C_b J), in the inertial frame internal damping (-Omega D_i J)."""
+    out = [f"{b.label or f'bearing.{i}'}'s cross coupling kyz = {b.K[0][1]:g} != kzy = {b.K[1][0]:g}"
+           for i, b in enumerate(stack.bearings) if b.K[0][1] != b.K[1][0]]
+    if rotation.speed_hz and rotation.frame == "rotating":
+        if damping.external:
+            out.append("damping.external adds the circulatory Omega c_e P")
+        out += [f"{b.label or f'bearing.{i}'}'s damping, fixed in space, is circulatory seen from the rotating frame"
+                for i, b in enumerate(stack.bearings) if any(any(r) for r in b.C)]
+    elif rotation.speed_hz and any(damping.rayleigh):
+        out.append("damping.rayleigh, turning with the shaft, adds the circulatory -Omega D_i J")
+    return "; ".join(out) or "round-off"
+
+
+def _check_damping(ops, damping: Damping, model) -> None:
+    """The damping check of ``nsfem run`` and ``campbell`` (:func:`nsfem.system.check_damping`): damping beyond
+    double precision enters Q too (external damping's circulatory part Omega c_e P1, internal damping's in
+    the inertial frame) and would otherwise be reported as a singular stiffness."""
+    from ..system import check_damping
+    from .campbell import DAMPING_CHECK_MAX_DOF, standstill_frequencies
+
+    if (damping.external or any(damping.rayleigh)) and ops.n <= DAMPING_CHECK_MAX_DOF:
+        check_damping(damping.rayleigh, standstill_frequencies(ops), damping.external,
+                      min(seg.rho * seg.area for seg in model.stack.segments))
 
 
 def scene_stationary(scene: Scene, model=None, reduction=None) -> Stationary:
@@ -208,9 +249,11 @@ def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0:
 
     t0 = time.perf_counter() if t0 is None else t0
     ops = rotor_operators(model, reduction.T)
+    _check_damping(ops, damping, model)
     system = rotor_system(ops, rotation, damping)
     cs = ContactSet.from_model(model, reduction, omega=2.0 * math.pi * rotation.speed_hz, frame=rotation.frame)
-    st = stationary(system.Q, system.f0, cs, compliance(model.stack.contacts))
+    st = stationary(system.Q, system.f0, cs, compliance(model.stack.contacts),
+                    asymmetry=asymmetry_causes(model.stack, rotation, damping))
     inertial = rotation.frame == "inertial"
     unbalanced = any(u.magnitude for u in model.stack.unbalances)
     loads = []

@@ -11,6 +11,7 @@ where the growth rate turns positive (internal damping, cross-coupled bearings).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,7 +20,8 @@ import scipy.sparse as sp
 from ..fem.constraints import dense as _dense
 from ..fem.rotating import RotorOperators
 from ..system import linear_system
-from .campbell import VALID_FRACTION, _omega_max, _pencil, campbell, growth_rate, state_eigenvalues
+from .campbell import (VALID_FRACTION, _omega_max, _oscillating, _pencil, campbell, frequencies_of, growth_rate,
+                       state_eigenvalues)
 
 if TYPE_CHECKING:
     from ..scene import Damping, Rotation
@@ -48,13 +50,22 @@ def whirl_sense(X: np.ndarray, basis, turn: sp.spmatrix) -> np.ndarray:
 
 
 def critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None = None,
-                    forward_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                    forward_only: bool = False, count: int = 12) -> tuple[np.ndarray, np.ndarray]:
     """Inertial frame: (speeds [Hz], whirl) where the undamped rotor whirls synchronously, K0 x =
     Omega^2 (M - i Gp1) x (a Hermitian pencil: Gp1 is real skew), the resonances an unbalance can
     drive. On isotropic bearings (``forward_only``) only forward whirl can be driven (a backward mode
     is orthogonal to every load turning with the shaft); on anisotropic ones the backward crossings
-    are resonances too. Axial modes are left out. A bearing's cross coupling (circulatory) is not in
-    K0: these are the critical speeds of the rotor without it."""
+    are resonances too. Axial modes are left out. A bearing's cross coupling (circulatory, ``ops.Kbc``)
+    makes the pencil non-Hermitian (its roots grow or decay): then :func:`cross_coupled_critical_speeds`
+    (the first ``count`` of them)."""
+    if ops.Kbc.nnz and np.any(ops.Kbc.data):
+        return cross_coupled_critical_speeds(ops, turn, max_hz, forward_only, count)
+    return _hermitian_critical_speeds(ops, turn, max_hz, forward_only)
+
+
+def _hermitian_critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None = None,
+                               forward_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`critical_speeds` of the rotor without circulatory stiffness (K0 only)."""
     nu, X, _ = _pencil(_dense(ops.M) - 1j * _dense(ops.Gp1), _dense(ops.K0))
     f = 1.0 / np.sqrt(nu) / (2 * math.pi)
     w = whirl_sense(X, ops.basis, turn)
@@ -71,6 +82,55 @@ def critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None
         return f[single], np.where(w[single] == 0, 1, w[single])
     order = np.argsort(f[keep])
     return f[keep][order], w[keep][order]
+
+
+#: speeds sampled by :func:`cross_coupled_critical_speeds` before refining each crossing
+CROSSING_SAMPLES = 121
+
+
+def cross_coupled_critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None = None,
+                                  forward_only: bool = False, count: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`critical_speeds` of a rotor whose bearings are cross-coupled: the speeds Omega where a whirl
+    frequency of the undamped rotor (M, Omega Gp1, K0 + Kbc) equals Omega, the crossings of its Campbell
+    curves with the 1x line (an unbalance then drives that mode at its frequency), and their whirl.
+
+    The circulatory Kbc makes the roots grow or decay, so no real Omega solves the synchronous pencil; the
+    j-th lowest whirl frequency f_j(Omega) is still a continuous function of the speed (an order statistic),
+    so each sign change of f_j(Omega) - Omega on :data:`CROSSING_SAMPLES` speeds up to 1.3 times the
+    ``count``-th critical speed without the cross coupling (at most ``max_hz``) is refined by Brent's method
+    to 1e-10 of the speed."""
+    from scipy.optimize import brentq
+
+    base, _ = _hermitian_critical_speeds(replace(ops, Kbc=ops.Kbc * 0.0), turn, max_hz, False)
+    top = 1.3 * float(base[min(count, base.size) - 1]) if base.size else 1.0
+    top = top if max_hz is None else min(top, max_hz)
+    m = count + 2
+
+    def roots(speed):
+        return state_eigenvalues(linear_system(ops, speed, frame="inertial"), m, vectors=True)
+
+    def excess(speed, j):
+        lam, _ = roots(speed)
+        return frequencies_of(lam, m)[j] - speed
+
+    grid = np.linspace(0.0, top, CROSSING_SAMPLES)
+    table = np.array([frequencies_of(roots(s)[0], m) for s in grid]) - grid[:, None]
+    found = []
+    for j in range(count):
+        g = table[:, j]
+        for i in np.flatnonzero(np.isfinite(g[:-1]) & np.isfinite(g[1:]) & (np.sign(g[:-1]) != np.sign(g[1:]))):
+            speed = grid[i] if g[i] == 0.0 else brentq(excess, grid[i], grid[i + 1], args=(j,), xtol=1e-12 * top,
+                                                       rtol=1e-10)
+            lam, X = roots(speed)
+            # the crossing root: the j-th by frequency (two roots of one frequency, a forward and a backward
+            # one growing and decaying, are two crossings, each its own root)
+            k = int(_oscillating(lam, m)[j])
+            found.append((speed, int(whirl_sense(X[:, [k]], ops.basis, turn)[0])))
+    f = np.array([s for s, _ in found])
+    w = np.array([v for _, v in found], dtype=int)
+    keep = (w != AXIAL) & ((w != -1) if forward_only else True)
+    order = np.argsort(f[keep])
+    return f[keep][order], np.where(w[keep][order] == 0, 1, w[keep][order]) if forward_only else w[keep][order]
 
 
 def instability_onsets(ops: RotorOperators, speeds_hz: np.ndarray, growth: np.ndarray, count: int,
@@ -128,7 +188,8 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
     valid = VALID_FRACTION * top if top else math.inf
     turn = lateral_turn(model.spaces, model.n_full)
     isotropic = all(b.isotropic for b in model.stack.bearings)
-    crit = {c: critical_speeds(o, turn, None if math.isinf(valid) else valid, isotropic) for c, o in ops.items()}
+    crit = {c: critical_speeds(o, turn, None if math.isinf(valid) else valid, isotropic, count + 2)
+            for c, o in ops.items()}
     if speeds_hz is None:
         # past the second forward critical speed (the first of the second mode pair)
         c = crit["open"][0][crit["open"][1] == 1]

@@ -38,6 +38,20 @@ MAX_DEPTH = 0.8
 #: solid circles: beyond a = R the strips at the front's ends are cut through (local depth = strip height),
 #: where F diverges and the strip integration has no meaning
 MAX_CIRCLE_DEPTH = 0.5
+#: below this relative depth a circle's compliance is the closed-form shallow limit (its relative error is
+#: O(a / D), under 4e-8 here; the strip quadrature agrees with it to that at 1e-7, tests/test_crack_compliance.py)
+SHALLOW_CIRCLE = 1e-8
+#: The stiffest crack hinge, relative to the bending stiffness E I / l of a shaft element of the mean length l:
+#: a shallower crack's compliance is raised to l / (MAX_HINGE_STIFFNESS E I). Stiffer, the hinge's row in the
+#: stiffness matrix would dwarf the shaft's (a crack of 1e-3 D in the shipped cracked rotor is 5e9 times
+#: stiffer than an element on its other axis: its two first frequencies split by 0.2 % from round-off alone;
+#: at 1e5 times the mechanism check of a 10-element model already fails). The raised compliance adds at most
+#: 1e-4 of one element's bending flexibility: the shipped cracked rotor with a crack of 1e-300 D lies 1.2e-5
+#: (10 elements) and 5.9e-6 (20) below the intact shaft's first frequency, a crack of 0.4 D 4.3 % below.
+MAX_HINGE_STIFFNESS = 1e4
+#: A crack front narrower than this fraction of its distance from the hinge's centre is one face point
+#: (a circle's shallower than 2.5e-5 D; :func:`face_points`)
+NARROW_FRONT = 1e-2
 
 
 def rizos_J(s: float) -> float:
@@ -69,8 +83,12 @@ def _check_depth(depth: float, limit: float = MAX_DEPTH) -> None:
 
 
 def _strip_integral(F, s_max: float) -> float:
-    """int_0^s_max s F(s)^2 ds."""
-    return quad(lambda s: s * F(s) ** 2, 0.0, s_max, limit=200, epsabs=0.0, epsrel=1e-12)[0]
+    """int_0^s_max s F(s)^2 ds, as s_max^2 int_0^1 t F(s_max t)^2 dt: the integrand is of order one for any
+    depth, so the relative tolerance holds down to the shallowest crack (the result underflows to 0 near
+    s_max = 1e-154, where the hinge is far stiffer than :data:`MAX_HINGE_STIFFNESS` allows anyway)."""
+    if not s_max > 0.0:
+        return 0.0
+    return s_max * s_max * quad(lambda t: t * F(s_max * t) ** 2, 0.0, 1.0, limit=200, epsabs=0.0, epsrel=1e-12)[0]
 
 
 def rectangle_compliance(E: float, depth_side: float, front_side: float, depth: float) -> tuple[float, float]:
@@ -107,17 +125,24 @@ def circle_compliance(E: float, diameter: float, depth: float) -> tuple[float, f
     a = depth * diameter
     beta = math.sqrt(a * (2.0 * R - a))
     inertia = math.pi * R ** 4 / 4.0
+    if depth < SHALLOW_CIRCLE:
+        # the closed-form limit: alpha_max = a - y^2 / 2R, h = 2R, F = F(0); relative error O(a / D)
+        scale = math.pi * a * a / (E * inertia ** 2)
+        return (16.0 / 15.0 * scale * tada_bending(0.0) ** 2 * R * R * beta,
+                16.0 / 105.0 * scale * tada_tension(0.0) ** 2 * beta ** 3)
 
-    def inner(F, y):
-        half = math.sqrt(R * R - y * y)
+    def inner(F, u):
+        # strip y = beta u; R - sqrt(R^2 - y^2) = y^2 / (R + sqrt(R^2 - y^2)) keeps alpha_max exact for a << R
+        half = math.sqrt(R * R - (beta * u) ** 2)
         h = 2.0 * half
-        s_max = (a - R + half) / h
+        alpha_max = a * (1.0 - (2.0 * R - a) * u * u / (R + half))
         # int_0^alpha_max pi alpha F(alpha / h)^2 dalpha = pi h^2 int_0^s_max s F(s)^2 ds
-        return math.pi * h * h * _strip_integral(F, s_max) if s_max > 0.0 else 0.0
+        return math.pi * h * h * _strip_integral(F, alpha_max / h)
 
     def outer(F, weight):
-        # the integrand is even in y; its end at the front's edge behaves like (beta - y)^2: smooth enough
-        return 2.0 * quad(lambda y: weight(y) * inner(F, y), 0.0, beta, limit=200, epsabs=0.0, epsrel=1e-10)[0]
+        # even in y, taken over u = y / beta in [0, 1]; it ends like (1 - u)^2 at the front's edge: smooth
+        return 2.0 * beta * quad(lambda u: weight(beta * u) * inner(F, u), 0.0, 1.0, limit=200, epsabs=0.0,
+                                 epsrel=1e-10)[0]
 
     c_open = 2.0 / E / inertia ** 2 * outer(tada_bending, lambda y: R * R - y * y)
     c_other = 2.0 / E / inertia ** 2 * outer(tada_tension, lambda y: y * y)
@@ -135,10 +160,21 @@ def ligament_centroid(section: str, depth_side: float, depth: float) -> float:
     if section != "circle":
         return -a / 2.0
     R = depth_side / 2.0
-    psi = math.acos(1.0 - a / R)
-    area = R * R * (psi - math.sin(psi) * math.cos(psi))
-    dist = 2.0 * R * math.sin(psi) ** 3 / (3.0 * (psi - math.sin(psi) * math.cos(psi)))
-    return -area * dist / (math.pi * R * R - area)
+    # cos psi = 1 - a / R, i.e. sin(psi / 2) = t = sqrt(a / 2R): exact for any a > 0 (acos(1 - a / R) is 0
+    # below a = 1e-16 R); A_s d_s = (2/3) R^3 sin^3 psi needs no quotient of vanishing terms
+    t = math.sqrt(a / (2.0 * R))
+    psi = 2.0 * math.asin(t)
+    sin_psi = 2.0 * t * math.sqrt(1.0 - t * t)
+    area = 0.5 * R * R * _x_minus_sin(2.0 * psi)
+    return -(2.0 / 3.0) * R ** 3 * sin_psi ** 3 / (math.pi * R * R - area)
+
+
+def _x_minus_sin(x: float) -> float:
+    """x - sin x without the cancellation of small x (the series to x^11: relative error below 1e-16 for x < 0.1)."""
+    if x >= 0.1:
+        return x - math.sin(x)
+    x2 = x * x
+    return x * x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0))))
 
 
 def face_points(section: str, width: float, height: float, depth: float, side: str) -> np.ndarray:
@@ -153,8 +189,15 @@ def face_points(section: str, width: float, height: float, depth: float, side: s
     so again the front's ends. Holding these two is holding the whole face: exact for rigid faces, and
     the contact set stays of full rank (the hinge has two rotations).
 
+    A circle's front is only sqrt(a D) wide: below :data:`NARROW_FRONT` of the arm the two ends' gap rows are
+    nearly parallel (the reduction's constraint modes would divide by their difference), and the front's middle
+    is its one point, the cone then a half-plane (an error in the direction of its edges of that relative size,
+    on a hinge at least that shallow crack's stiffness on either axis).
+
     >>> face_points("rectangle", 0.02, 0.01, 0.4, "-z").round(6).tolist()
     [[-0.01, -0.003], [0.01, -0.003]]
+    >>> face_points("circle", 0.02, 0.02, 1e-9, "-z").round(6).tolist()
+    [[0.0, -0.01]]
     """
     dy, dz = SIDE_DIRECTION[side]
     H, B = (width, height) if dy else (height, width)   # depth side, front side
@@ -163,8 +206,18 @@ def face_points(section: str, width: float, height: float, depth: float, side: s
     half = math.sqrt(a * (H - a)) if section == "circle" else B / 2.0   # the front's half-width
     along = np.full(2, H / 2.0 - a - centre)
     front = np.array([-half, half])
+    if half < NARROW_FRONT * abs(along[0]):
+        along, front = along[:1], np.zeros(1)
     # front axis: the depth direction turned by +90 degrees about x, (y, z) -> (-z, y)
     return np.column_stack([along * dy - front * dz, along * dz + front * dy]) + 0.0
+
+
+def hinge_compliance(compliance: tuple[float, float], E: float, I_z: float, I_y: float,
+                     element_length: float) -> tuple[float, float]:
+    """(c_V', c_W') raised to at least l / (:data:`MAX_HINGE_STIFFNESS` E I) of the bending each slope belongs
+    to (V': I_z, W': I_y): a crack too shallow for double precision beside the shaft is a hinge that stiff."""
+    floors = (element_length / (MAX_HINGE_STIFFNESS * E * I_z), element_length / (MAX_HINGE_STIFFNESS * E * I_y))
+    return tuple(max(c, f) for c, f in zip(compliance, floors))
 
 
 def slope_compliance(section: str, E: float, width: float, height: float, depth: float, side: str) -> tuple[float, float]:

@@ -103,7 +103,7 @@ def likely_cause(system) -> str:
         k_rate = math.sqrt(float(np.max(np.abs(Q))) / m_min) if m_min > 0 else math.inf
     if not math.isfinite(c_rate) or c_rate > 1e3 * max(k_rate, 1.0):
         return (f" (damping: |C| / m = {c_rate:.3g} 1/s against sqrt(|Q| / m) = {k_rate:.3g} 1/s; check "
-                "damping.rayleigh and damping.external)")
+                "damping.rayleigh, damping.external and the bearings' and elastic stators' damping)")
     return " (check the stiffness, damping and rotation.speed_hz of the scene)"
 
 

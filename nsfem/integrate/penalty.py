@@ -61,9 +61,12 @@ _NOTE = ("penalty (paper section 5.2): friction neglected (mu ignored); restitut
 
 
 def effective_masses(system: ContactSystem) -> np.ndarray:
-    """m_eff,k = 1 / (J_N,k^T M^-1 J_N,k) of every contact point (m,)."""
+    """m_eff,k = 1 / (J_N,k^T M^-1 J_N,k) of every contact point (m,); inf for a point that cannot move (a stop
+    where a support holds the shaft: J_N,k = 0)."""
     JN = system.contacts.JN
-    return 1.0 / np.einsum("ik,ik->k", JN, np.linalg.solve(system.M, JN))
+    inverse = np.einsum("ik,ik->k", JN, np.linalg.solve(system.M, JN))
+    with np.errstate(divide="ignore"):
+        return np.where(inverse > 0.0, 1.0 / np.where(inverse > 0.0, inverse, 1.0), np.inf)
 
 
 def penalty_stiffness(system: ContactSystem, factor: float = 100.0) -> float:
@@ -77,12 +80,18 @@ def penalty_stiffness(system: ContactSystem, factor: float = 100.0) -> float:
     cs = system.contacts
     if cs.m == 0:
         return 1.0
-    k_mass = (2 * math.pi * F_REF_HZ) ** 2 * effective_masses(system)
+    m_eff = effective_masses(system)
+    if not np.any(np.isfinite(m_eff)):
+        return 1.0          # no contact point can move: the penalty springs never act
+    # a point that cannot move (infinite mass, zero compliance) never penetrates: it sets no stiffness
+    k_mass = np.where(np.isfinite(m_eff), (2 * math.pi * F_REF_HZ) ** 2 * np.where(np.isfinite(m_eff), m_eff, 0.0),
+                      0.0)
     k = k_mass
     Q = system.Q
     if np.any(Q) and 1.0 / np.linalg.cond(Q) > 1e-12:
         comp = np.einsum("ik,ik->k", cs.JN, np.linalg.solve(Q, cs.JN))
         k = np.where(comp > 0, 1.0 / np.where(comp > 0, comp, 1.0), k_mass)
+        k = np.where(np.isfinite(m_eff), k, 0.0)
     return float(factor * np.max(k))
 
 
@@ -174,7 +183,8 @@ class Penalty(Integrator):
         if restitution_rule not in ("cut", "linear"):
             raise NsfemError(f"penalty: restitution_rule must be 'cut' or 'linear', got {restitution_rule!r}")
         if not (isinstance(rtol, numbers.Real) and 1e-13 <= rtol < 1):
-            raise NsfemError(f"penalty: rtol must lie in [1e-13, 1), got {rtol!r}")
+            raise NsfemError(f"simulation.rtol: penalty needs a relative tolerance in [1e-13, 1) (its BDF error "
+                             f"estimate is round-off below), got {rtol!r}")
         positive(atol, "atol")
         if max_step is not None:
             positive(max_step, "max_step")
@@ -187,7 +197,9 @@ class Penalty(Integrator):
                 zeta = np.full(cs.m, nonnegative(damping_ratio, "damping_ratio"))
             else:
                 zeta = np.array([_damping_ratio(e, restitution_rule) for e in cs.eps])
-            d_p = 2.0 * zeta * np.sqrt(c_p * m_eff)
+            # (a point that cannot move needs no dashpot: its gap rate is 0, and 0 * inf would be nan)
+            d_p = np.where(np.isfinite(m_eff), 2.0 * zeta * np.sqrt(c_p * np.where(np.isfinite(m_eff), m_eff, 0.0)),
+                           0.0)
         self.solver, self.rtol, self.atol = solver, float(rtol), float(atol)
         self.max_step = np.inf if max_step is None else float(max_step)
         self.c_p, self.d_p, self.progress = c_p, d_p, progress

@@ -117,12 +117,15 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
             w2 = axial / mass if mass > 0 else np.inf
         # the key to blame: the input farthest from 1 in orders of magnitude among those involved
         span_key = "end" if low else "length"
-        size = {"E": _magnitude(s.E), "rho": _magnitude(s.rho), span_key: _magnitude(float(le)),
-                "width": _magnitude(s.width), "height": _magnitude(s.height)}
-        for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, "width", "height")),
-                              ("axial stiffness E A / l", axial, ("E", span_key, "width", "height")),
-                              ("bending stiffness E I_y / l^3", bend_w, ("E", span_key, "width", "height")),
-                              ("bending stiffness E I_z / l^3", bend_v, ("E", span_key, "width", "height")),
+        size = {"E": _magnitude(s.E), "rho": _magnitude(s.rho), span_key: _magnitude(float(le))}
+        # a circle's section size is its diameter (held in width and height)
+        cut = ("diameter",) if s.section == "circle" else ("width", "height")
+        size.update({"diameter": _magnitude(s.width)} if s.section == "circle" else
+                    {"width": _magnitude(s.width), "height": _magnitude(s.height)})
+        for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, *cut)),
+                              ("axial stiffness E A / l", axial, ("E", span_key, *cut)),
+                              ("bending stiffness E I_y / l^3", bend_w, ("E", span_key, *cut)),
+                              ("bending stiffness E I_z / l^3", bend_v, ("E", span_key, *cut)),
                               ("squared frequency scale E / (rho l^2)", w2, ("E", "rho", span_key))):
             if not lo <= v <= hi:
                 key = max(keys, key=size.get)
@@ -137,17 +140,37 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
 COMPONENT_RANGE = 1e12
 
 
+#: A stator's surface radius may be at most this many rotor lengths (:func:`check_components`)
+MAX_RADIUS = 1e3
+
+
 def check_components(tree: dict, stack: BeamStack) -> None:
-    """Refuse disks and bearings whose mass or stiffness leaves double precision next to the shaft's."""
+    """Refuse disks, bearings, unbalances and stators whose mass, stiffness, damping or size leaves double
+    precision next to the shaft's: a mass or stiffness more than :data:`COMPONENT_RANGE` times a shaft element's;
+    a damping c whose ratio c / (2 sqrt(k m)) on the stiffest element k with the lightest one's mass m exceeds
+    ``nsfem.system.ZETA_MAX`` = 1 / (2 sqrt(eps)), the bound of ``damping.rayleigh`` (the slow and fast decay
+    rates of so overdamped a mode differ by 4 zeta^2, more than double precision holds)."""
     span = max(s.end for s in stack.segments) - min(s.start for s in stack.segments)
     le = span / tree["mesh"]["elements"]
     mass = min(s.rho * s.area * le for s in stack.segments)
     stiff = max(max(s.E * s.area / le, s.E * max(s.I_y, s.I_z) / le**3) for s in stack.segments)
     for d in stack.disks:
+        for name, v in (("polar_inertia", d.polar), ("diametral_inertia", d.diametral)):
+            if v > COMPONENT_RANGE * mass * le * le:
+                given = tree["disk"][int(d.label.split(".")[1])]["mass"] is not None if d.label else True
+                what = name.replace("_", " ")
+                raise SceneError(f"{d.label}.{name if given else 'outer_diameter'}", f"the disk's {what} "
+                                 f"{v:.3g} kg m^2 is more than {COMPONENT_RANGE:g} times a shaft element's rotary "
+                                 f"scale m l^2 ({mass * le * le:.3g} kg m^2): double precision cannot hold both")
         if d.mass > COMPONENT_RANGE * mass:
             given = tree["disk"][int(d.label.split(".")[1])]["mass"] is not None if d.label else True
             raise SceneError(f"{d.label}.{'mass' if given else 'outer_diameter'}", f"{d.mass:.3g} kg is more than {COMPONENT_RANGE:g} times a shaft "
                              f"element's mass ({mass:.3g} kg): double precision cannot hold both")
+    for u in stack.unbalances:
+        if u.magnitude > COMPONENT_RANGE * mass * span:
+            raise SceneError(f"{u.label}.magnitude", f"{u.magnitude:.3g} kg m is more than {COMPONENT_RANGE:g} times a "
+                             f"shaft element's mass times the rotor's length ({mass * span:.3g} kg m): its load leaves "
+                             "double precision beside the shaft's own inertia")
     for b in stack.bearings:
         for name, v in (("kyy", b.K[0][0]), ("kzz", b.K[1][1]), ("kyz", b.K[0][1]), ("kzy", b.K[1][0]),
                         ("kxx", b.kxx)):
@@ -155,6 +178,33 @@ def check_components(tree: dict, stack: BeamStack) -> None:
                 raise SceneError(f"{b.label}.{name}", f"{v:.3g} N/m is more than {COMPONENT_RANGE:g} times the "
                                  f"shaft's stiffest element ({stiff:.3g} N/m): a rigid support is what it models "
                                  "(shaft.supports)")
+    from ..system import ZETA_MAX
+
+    critical = math.sqrt(stiff * mass)
+    c_max = 2.0 * ZETA_MAX * critical
+    for b in stack.bearings:
+        for name, v in (("cyy", b.C[0][0]), ("czz", b.C[1][1]), ("cyz", b.C[0][1]), ("czy", b.C[1][0])):
+            if abs(v) > c_max:
+                raise SceneError(f"{b.label}.{name}", _overdamped(v, critical))
+    for c in stack.contacts:
+        if c.radius > MAX_RADIUS * span:
+            raise SceneError(f"{c.table_key}.radius", f"{c.radius:g} m is more than {MAX_RADIUS:g} times the rotor's "
+                             f"length ({span:g} m): the radius arms the slopes in the friction's slip rows, where it "
+                             "would dwarf every other entry (no rim is that large)")
+        if c.stiffness > COMPONENT_RANGE * stiff:
+            raise SceneError(f"{c.table_key}.stiffness", f"{c.stiffness:.3g} N/m is more than {COMPONENT_RANGE:g} "
+                             f"times the shaft's stiffest element ({stiff:.3g} N/m): a rigid ring (stiffness = 0) "
+                             "is what it models")
+        if c.damping > c_max:
+            raise SceneError(f"{c.table_key}.damping", _overdamped(c.damping, critical))
+
+
+def _overdamped(c: float, critical: float) -> str:
+    from ..system import ZETA_MAX
+
+    return (f"{c:.3g} N s/m gives the shaft's stiffest element, on its lightest mass, a damping ratio c / (2 sqrt(k m)) "
+            f"= {c / (2.0 * critical):.3g}, beyond {ZETA_MAX:.2g}: its slow and fast decay rates differ by 4 zeta^2, "
+            "more than double precision can hold")
 
 
 # --------------------------------------------------------------------------- frame

@@ -7,7 +7,7 @@ import math
 from dataclasses import replace
 
 from ..errors import SceneError
-from ..fem.crack import MAX_CIRCLE_DEPTH, face_points, slope_compliance
+from ..fem.crack import MAX_CIRCLE_DEPTH, face_points, hinge_compliance, slope_compliance
 from ..stack import BeamStack, Contact, Crack, Junction, Segment, Support
 
 
@@ -37,6 +37,7 @@ def crack_stack(tree: dict, stack: BeamStack, mesh_file: bool = False) -> BeamSt
     at = [middle if cr["x"] is None else cr["x"] for cr in tree["crack"]]
     order = sorted(range(len(at)), key=lambda i: at[i] if math.isfinite(at[i]) else math.inf)
     seen: dict[float, int] = {}
+    elements = tree["mesh"]["elements"]
     for i in order:
         cr = tree["crack"][i]
         key = f"crack.{i}"
@@ -72,7 +73,8 @@ def crack_stack(tree: dict, stack: BeamStack, mesh_file: bool = False) -> BeamSt
                              "whose centroid is on the axis")
         right = f"{seg.name}_crack_{i}"
         stack = _split(stack, seg, x, right)
-        compliance = slope_compliance(seg.section, seg.E, seg.width, seg.height, cr["depth"], cr["side"])
+        compliance = hinge_compliance(slope_compliance(seg.section, seg.E, seg.width, seg.height, cr["depth"],
+                                                       cr["side"]), seg.E, seg.I_z, seg.I_y, (hi - lo) / elements)
         crack = Crack(x, (seg.name, right), cr["depth"], cr["side"], compliance, label=key)
         faces = tuple(Contact("crack", x, (seg.name, right), restitution=cr["restitution"], label=f"{key}.{k}",
                               arm=(float(y), float(z)), normal=cr["side"])

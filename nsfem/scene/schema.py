@@ -82,8 +82,33 @@ def _unit(v):
     return None if 0.0 <= v <= 1.0 else f"must lie in [0, 1], got {v}"
 
 
-def _tolerance(v):
-    return None if 0.0 < v < 1.0 else f"must lie in (0, 1), got {v}"
+#: Smallest relative tolerance of rk and penalty: scipy's explicit solvers raise anything below 100 machine
+#: epsilons (2.2e-14) to it, where the error estimate is round-off itself (penalty's BDF needs 1e-13)
+RTOL_FLOOR = 100 * 2.0 ** -52
+#: penalty_factor's range. c_p = factor k, k the stiffest contact point's static stiffness: the structure and
+#: the penalty spring in series let 1 / (1 + factor) of the contact-free deflection through the contact, so
+#: below 1 most of it passes (no contact at all: an elastic stator's stiffness models a soft ring); above
+#: 1e12 the penalty spring outweighs the shaft's stiffest element as a bearing may not (checks.COMPONENT_RANGE)
+PENALTY_FACTOR_RANGE = (1.0, 1e12)
+
+
+def _rtol(v):
+    if not v < 1.0:
+        return f"must be below 1, got {v}"
+    if not v >= RTOL_FLOOR:
+        return (f"{v:g} is below {RTOL_FLOOR:.3g} = 100 machine epsilons, where the solvers' error estimates are "
+                "round-off (scipy would raise it silently)")
+    return None
+
+
+def _penalty_factor(v):
+    lo, hi = PENALTY_FACTOR_RANGE
+    if not lo <= v <= hi:
+        return (f"{v:g} lies outside [{lo:g}, {hi:g}]: the penalty spring in series with the structure lets "
+                f"1 / (1 + factor) of the contact-free deflection through the contact (below {lo:g}, most of it: no "
+                f"contact; an elastic stator's stiffness models a soft ring), and above {hi:g} it outweighs the "
+                "shaft's stiffest element beyond double precision")
+    return None
 
 
 def _theta(v):
@@ -237,7 +262,9 @@ _CRACK = {
     "x": Key("float?", None, "position on the intact shaft [m] (default: the rotor's middle); it splits the shaft "
              "there into two sides joined by a hinge"),
     "depth": Key("float", 0.3, "relative depth a/h (rectangle, h the section's size along side; up to 0.8) or a/D "
-                 "(solid circle; up to 0.5)", check=lambda v: None if 0.0 < v <= 0.8 else
+                 "(solid circle; up to 0.5); any depth above 0: a crack too shallow to hold in double precision is "
+                 "a hinge 1e4 times stiffer than a shaft element, the intact shaft to 1e-4 of an element's flexibility",
+                 check=lambda v: None if 0.0 < v <= 0.8 else
                  f"must lie in (0, 0.8] (the stress-intensity fits of the open crack's compliance end there), got {v}"),
     "side": Key("str", "-z", "the section face the crack starts from, in the rotating frame (-z: the bottom at "
                 "phase 0, in tension under gravity at rest)", CRACK_SIDES),
@@ -299,13 +326,14 @@ SCHEMA: dict[str, Any] = {
         "t_end": Key("float", 1.0, "simulated time [s]", check=_positive),
         "output_dt": Key("float", 1e-3, "output sampling step [s] (at most t_end)", check=_positive),
         "rk_solver": Key("str", "DOP853", "solve_ivp method of rk between events: DOP853 | RK45", RK_SOLVERS),
-        "rtol": Key("float", 1e-8, "relative tolerance of rk and penalty", check=_tolerance),
+        "rtol": Key("float", 1e-8, "relative tolerance of rk and penalty (2.2e-14 to 1; penalty: from 1e-13)",
+                     check=_rtol),
         "atol": Key("float", 1e-12, "absolute tolerance of rk and penalty (reduced coordinates, about m and m/s)",
                     check=_positive),
         "penalty_stiffness": Key("float", 0.0, "penalty contact stiffness c_p [N/m]; 0 = penalty_factor times the "
                                  "largest static stiffness of the structure at a contact", check=_nonneg),
         "penalty_factor": Key("float", 100.0, "c_p as a multiple of the structure's contact stiffness (when "
-                              "penalty_stiffness = 0)", check=_positive),
+                              "penalty_stiffness = 0; 1 to 1e12)", check=_penalty_factor),
         "stiff_solver": Key("str", "BDF", "solve_ivp method of penalty: BDF | Radau | LSODA", STIFF_SOLVERS),
         "moreau_step": Key("float", 0.0, "time step of moreau [s]; 0 = output_dt / 10", check=_nonneg),
         "moreau_theta": Key("float", 0.5, "theta of moreau's theta-method, in [0.5, 1]", check=_theta),

@@ -11,12 +11,24 @@ from .schema import _SECTION, MAX_CONTACT_POINTS, MIN_LAYER, SUPPORT_DOFS_BY_NAM
 
 
 def _node_key(stack: BeamStack, *xs: float) -> str:
-    """The scene key of a contact at one of ``xs`` (else the mesh), for error messages."""
-    for c in stack.contacts:
-        if c.x in xs:
-            if c.label.startswith("delamination"):
-                return c.table_key + ".contact_points"
-            return c.table_key + ".x" if c.table_key else "mesh.elements"
+    """The scene key of a contact or a point component (disk, bearing, unbalance) at one of ``xs`` (else the
+    mesh), for error messages; one away from the segments' ends first (an end cannot be moved)."""
+    ends = {x for s in stack.segments for x in (s.start, s.end)}
+    for inner in (True, False):
+        for c in stack.contacts:
+            if c.x in xs and (c.x not in ends or not inner):
+                if c.label.startswith("delamination"):
+                    return c.table_key + ".contact_points"
+                return c.table_key + ".x" if c.table_key else "mesh.elements"
+        for p in stack.points():
+            if p.x in xs and p.label and (p.x not in ends or not inner):
+                return p.label + ".x"
+    for s in stack.segments:   # a delamination's end (its layers are named delamination_<i>_upper)
+        parts = s.name.split("_")
+        if len(parts) == 3 and parts[0] == "delamination" and parts[2] == "upper":
+            for x, end in ((s.start, "start"), (s.end, "end")):
+                if x in xs and x not in (min(ends), max(ends)):
+                    return f"delamination.{parts[1]}.{end}"
     return "mesh.elements"
 
 
@@ -72,8 +84,11 @@ def high_level_stack(tree: dict) -> BeamStack:
         key = f"delamination.{i}"
         if not 0.0 <= d["start"] < d["end"] <= L:
             if d["start"] >= d["end"]:
+                if d["start"] >= L:   # the start moved past the shaft's end
+                    raise SceneError(f"{key}.start", f"x={d['start']} lies outside the shaft [0, {L}]")
                 raise SceneError(f"{key}.end", f"must exceed start ({d['start']}), got {d['end']}")
-            raise SceneError(key, f"[{d['start']}, {d['end']}] lies outside the shaft [0, {L}]")
+            raise SceneError(f"{key}.start" if not 0.0 <= d["start"] < L else f"{key}.end",
+                             f"[{d['start']}, {d['end']}] lies outside the shaft [0, {L}]")
         if not 0.0 < d["upper_height"] < h:
             raise SceneError(f"{key}.upper_height", f"must lie strictly between 0 and height ({h}), "
                              f"got {d['upper_height']}")
@@ -209,7 +224,14 @@ def disk_inertia(d: dict, key: str) -> tuple[float, float, float]:
         raise SceneError(f"{key}.inner_diameter", f"must be smaller than outer_diameter ({D}), got {di}")
     m = d["rho"] * math.pi / 4.0 * (D * D - di * di) * w
     ip = m * (D * D + di * di) / 8.0
-    return m, ip, ip / 2.0 + m * w * w / 12.0
+    id_ = ip / 2.0 + m * w * w / 12.0
+    if not all(math.isfinite(v) and v > 0.0 for v in (m, ip, id_)):
+        # the geometry key farthest from 1 in orders of magnitude is the one that over- or underflowed
+        sizes = {"outer_diameter": D, "width": w, "rho": d["rho"]}
+        name = max(sizes, key=lambda k: abs(math.log10(sizes[k])))
+        raise SceneError(f"{key}.{name}", f"{sizes[name]:g} gives the disk a mass {m:.3g} kg and inertias {ip:.3g}, "
+                         f"{id_:.3g} kg m^2, beyond double precision")
+    return m, ip, id_
 
 
 def point_components(tree: dict, stack: BeamStack) -> BeamStack:
@@ -252,6 +274,12 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
         seg = stack.carrier(x) if math.isfinite(x) else None
         if seg is None:
             lo, hi = min(g.start for g in stack.segments), max(g.end for g in stack.segments)
+            inside = next(((k, d) for k, d in enumerate(tree["delamination"]) if d["start"] < x < d["end"]), None)
+            if inside is not None:
+                k, d = inside
+                raise SceneError(f"{key}.x", f"x={x} lies inside delamination.{k} [{d['start']}, {d['end']}], whose "
+                                 "two layers have no single shaft surface for the ring to touch; put the stator on "
+                                 "the intact shaft")
             raise SceneError(f"{key}.x", f"x={x} must lie on the intact shaft within [{lo}, {hi}]")
         held = [sp for sp in stack.supports if abs(sp.x - x) <= 1e-12 * max(1.0, abs(x)) and {"V", "W"} <= set(sp.fix)]
         if held:
