@@ -86,6 +86,8 @@ def parser() -> argparse.ArgumentParser:
     p = sub.add_parser("export", help="re-export a saved result")
     p.add_argument("result")
     p.add_argument("--vtu", metavar="DIR", required=True)
+    p.add_argument("--every", type=int, metavar="N", help="every N-th output time (default: the run's "
+                   "output.vtu_every, else 1)")
     p.add_argument("--debug", action="store_true")
 
     p = sub.add_parser("render", help="off-screen picture of a saved result")
@@ -110,10 +112,16 @@ def printable(text: str) -> str:
 
 @contextlib.contextmanager
 def sigterm_as_interrupt():
-    """A scheduler's SIGTERM ends a command like Ctrl-C (what was computed is kept), within the block."""
+    """A scheduler's SIGTERM ends a command like Ctrl-C (what was computed is kept), within the block
+    (in the main thread; elsewhere signal handlers cannot be set)."""
     def terminate(signum, frame):
         raise KeyboardInterrupt
 
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     previous = signal.signal(signal.SIGTERM, terminate)
     try:
         yield
@@ -357,15 +365,42 @@ def cmd_stationary(args) -> int:
 def cmd_run(args) -> int:
     from pathlib import Path
 
-    from .analysis.campbell import supercritical_warning
-    from .fem.constraints import dense
-    from .scene import default_scene_path, load_scene
-    from .simulate import run_scene
+    from .outdir import claim
+    from .scene import load_scene
 
     scene = load_scene(args.scene, args.overrides)
-    method = args.method or scene.simulation.method
     out_dir = Path(args.out or scene.output.dir)
-    _check_run_targets(out_dir, scene.output, scene.sensors, "--out" if args.out else "output.dir")
+    what = "--out" if args.out else "output.dir"
+    _check_run_targets(out_dir, scene.output, scene.sensors, what)
+    with claim(out_dir, "run", _run_files(scene), what):
+        return _run(args, scene, out_dir)
+
+
+def _run_files(scene) -> dict[str, list[str]]:
+    """The names ``nsfem run`` may write for ``scene`` (:func:`nsfem.outdir.claim`)."""
+    from .export.vtu import series_files
+    from .integrate.base import output_times
+
+    out = scene.output
+    run = ["result.npz"] + [f"{n}.png" for n in out.plots if n != "campbell"]
+    if scene.sensors:
+        run += ["sensors.csv", "sensors.png"]
+    sim = scene.simulation
+    series = series_files(output_times(sim.t_end, sim.output_dt).size, out.vtu_every) if out.vtu_every else []
+    return {"run": run, "series": series}
+
+
+def _run(args, scene, out_dir) -> int:
+    """``nsfem run`` in its claimed folder ``out_dir``."""
+    from pathlib import Path
+
+    from .analysis.campbell import supercritical_warning
+    from .atomic import signals_deferred
+    from .fem.constraints import dense
+    from .scene import default_scene_path
+    from .simulate import run_scene
+
+    method = args.method or scene.simulation.method
     t0 = time.perf_counter()
     text_path = Path(scene.path) if scene.path else default_scene_path()
     scene_text = text_path.read_text() if text_path.exists() else ""
@@ -379,11 +414,12 @@ def cmd_run(args) -> int:
 
     try:
         with sigterm_as_interrupt():   # results kept
-            result, system = run_scene(scene, method, progress=True, warn=warn)  # on stderr after 5 s
+            result, system = run_scene(scene, method, progress=True, warn=warn, out_dir=out_dir)  # on stderr after 5 s
     except IntegrationError as exc:  # keep what was computed, then report the error
         res, sysm = exc.result, exc.system
-        path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.model_contacts.x,
-                        scene.record())
+        with signals_deferred():  # the results file is finished, not cut short
+            path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T),
+                            sysm.model_contacts.x, scene.record())
         raise NsfemError(f"{exc} (the run up to t = {res.t_end:g} s is in {path})") from exc
     red = system.info["reduction"]
     top = red.info.get("max_frequency_hz")
@@ -395,29 +431,37 @@ def cmd_run(args) -> int:
         warning = supercritical_warning(scene.rotation.speed_hz, div[div <= 0.5 * top])
         if warning:
             warn(warning)
-    path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.model_contacts.x, scene.record())
-    outputs = [str(path)]
-    if result.completed:
-        from .plot.results import write_plots
+    path = out_dir / "result.npz"
+    outputs, extra = [str(path)], {}
+    try:
+        with signals_deferred():  # the results file is finished, not cut short
+            result.save(path, scene_text, dense(red.T), system.model_contacts.x, scene.record())
+        if result.completed:
+            from .plot.results import write_plots
 
-        outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
-        if scene.output.vtu_every:
-            from .export.vtu import write_series
+            outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
+            if scene.output.vtu_every:
+                from .export.vtu import write_series
 
-            outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
-    extra = {}
-    if scene.sensors:
-        from .sensors import write_csv
-        from .simulate import sensor_signals
+                outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
+        if scene.sensors:
+            from .sensors import write_csv
+            from .simulate import sensor_signals
 
-        values = sensor_signals(result, system)
-        extra["sensors"] = str(write_csv(out_dir / "sensors.csv", result.t, scene.sensors, values))
-        outputs.append(extra["sensors"])
-        if scene.output.plots and result.t.size > 1:
-            from .plot.sensors import sensors_plot
+            values = sensor_signals(result, system)
+            extra["sensors"] = str(write_csv(out_dir / "sensors.csv", result.t, scene.sensors, values))
+            outputs.append(extra["sensors"])
+            if scene.output.plots and result.t.size > 1:
+                from .plot.sensors import sensors_plot
 
-            outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
-                                            scene.rotation.speed_hz, scene.title)))
+                outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
+                                                scene.rotation.speed_hz, scene.title)))
+    except KeyboardInterrupt:
+        pvd = out_dir / "nsfem.pvd"  # the claim removed an older one
+        series = f"; {pvd} indexes the VTU frames written so far" if pvd.is_file() else ""
+        print(printable(f"nsfem: interrupted while writing the outputs: {path} holds the run up to t = "
+                        f"{result.t_end:g} s{series}"), file=sys.stderr)
+        return 130
     summary = result.summary()
     payload = {"title": scene.title, **summary, **extra, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
@@ -433,7 +477,11 @@ def cmd_run(args) -> int:
     if not result.completed:
         lines.append(f"interrupted at t = {result.t_end:g} s: the results file holds the run up to there")
     _emit(args, payload, "\n".join(lines))
-    return 0 if result.completed else 130
+    if not result.completed:
+        print(printable(f"nsfem: interrupted at t = {result.t_end:g} s: {path} holds the run up to there"),
+              file=sys.stderr)
+        return 130
+    return 0
 
 
 def _check_run_targets(out_dir, output, sensors, what: str) -> None:
@@ -533,14 +581,33 @@ def cmd_export(args) -> int:
     """Re-export a saved results file as a VTU/PVD series (ParaView)."""
     from pathlib import Path
 
-    from .export.vtu import write_series
-
     from .atomic import check_folder
+    from .export.vtu import frame_size, series_files, write_series
+    from .outdir import claim
+    from .simulate import FILES_MAX, free_bytes
 
     res, extra, model, scene = _saved(args.result, "export")
-    check_folder(Path(args.vtu), "--vtu")
-    pvd = write_series(res, (model, extra["basis"]), Path(args.vtu), every=scene.output.vtu_every or 1)
-    print(f"wrote {pvd} ({res.t[:: scene.output.vtu_every or 1].size} times)")
+    every = args.every if args.every is not None else scene.output.vtu_every or 1
+    if every < 1:
+        raise NsfemError(f"--every must be a positive integer, got {every}")
+    out = Path(args.vtu)
+    check_folder(out, "--vtu")
+    frames = -(-res.t.size // every)
+    per_frame, frame_bytes = frame_size(model)
+    files, nbytes, free = 1 + frames * per_frame, frames * frame_bytes, free_bytes(out)
+    what = f"{files} files ({frames} of the {res.t.size} output times) and up to {nbytes / 1e9:.3g} GB"
+    if files > FILES_MAX:
+        raise NsfemError(f"--every: {what} exceed the limit of {FILES_MAX} files; raise --every")
+    if free is not None and nbytes > free:
+        raise NsfemError(f"--every: {what} exceed the {free / 1e9:.3g} GB free in {out}; raise --every")
+    with claim(out, "export", {"series": series_files(res.t.size, every)}, "--vtu"):
+        try:
+            pvd = write_series(res, (model, extra["basis"]), out, every=every)
+        except KeyboardInterrupt:
+            print(printable(f"nsfem: interrupted: {out / 'nsfem.pvd'} indexes the VTU frames written so far"),
+                  file=sys.stderr)
+            return 130
+    print(f"wrote {pvd} ({frames} times)")
     return 0
 
 
@@ -553,7 +620,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = "--debug" in argv
     try:
         args = parser().parse_args(argv)
-        return COMMANDS[args.command](args)
+        with sigterm_as_interrupt():  # whatever the command is doing: its outputs stay valid
+            return COMMANDS[args.command](args)
     except NsfemError as exc:
         if debug:
             raise
