@@ -531,3 +531,24 @@ def test_the_size_estimate_bounds_the_files_written(scene, tmp_path):
         frame = list(out.glob(f"nsfem*_{i:05d}.vtu"))
         assert len(frame) == files
         assert sum(p.stat().st_size for p in frame) <= nbytes
+
+
+def test_a_sweeps_resume_removes_the_writes_a_kill_cut_short(tmp_path):
+    """A worker killed while writing leaves ``.result.npz.XXXXXXXX.tmp`` in its run folder; the next
+    sweep into the folder (here a resume with every run done) removes it and keeps the runs."""
+    distributed = pytest.importorskip("distributed")
+    from nsfem.sweep import run_name, run_sweep
+
+    args = ["mesh.elements=20", "simulation.t_end=0.01", "rotation.speed_hz=20:21:2"]
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        first = run_sweep(None, args, tmp_path, client=c, plot=False)
+    runs = [tmp_path / run_name(p) for p in first.points]
+    killed = [runs[0] / ".result.npz.k1ll3d00.tmp", runs[1] / ".record.json.abcdefgh.tmp",
+              tmp_path / ".sweep.csv.12345678.tmp"]
+    for f in killed:
+        f.write_bytes(b"half")
+    again = run_sweep(None, args, tmp_path, plot=False)   # nothing to run: no cluster is started
+    assert again.info["resumed"] == 2 and again.info["executed"] == 0
+    assert not any(f.exists() for f in killed)
+    assert not leftovers(tmp_path), leftovers(tmp_path)
+    assert all((r / "result.npz").is_file() for r in runs)
