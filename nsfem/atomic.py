@@ -28,8 +28,9 @@ TMP_NAME = re.compile(r"^\.(?P<target>.+)\.[A-Za-z0-9_]{8}\.tmp$")
 _LETTERS = string.ascii_lowercase + string.digits + "_"
 #: the probe files of :func:`check_folder`
 PROBE_NAME = re.compile(r"^\.nsfem-probe\.[A-Za-z0-9_]{8}$")
-#: sets that :func:`write_atomic` adds every path it wrote to (see :func:`journal`)
-_JOURNALS: list[set] = []
+#: (set, hook): :func:`write_atomic` calls each hook with a path before writing it and adds the path
+#: to each set once written (see :func:`journal`)
+_JOURNALS: list[tuple[set, Callable[[Path], None] | None]] = []
 
 
 def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
@@ -38,6 +39,9 @@ def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
     interruption the temporary file is removed and ``path`` is left as it was."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    for _, before in list(_JOURNALS):
+        if before is not None:
+            before(path)
     tmp = None
     try:
         while True:  # the name is known before the file exists: an interruption right after
@@ -52,8 +56,8 @@ def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private
         os.replace(tmp, path)
-        for j in _JOURNALS:
-            j.add(path)
+        for written, _ in _JOURNALS:
+            written.add(path)
     except BaseException:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
@@ -62,14 +66,15 @@ def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
 
 
 @contextlib.contextmanager
-def journal() -> Iterator[set]:
-    """Within the block, the set of every path :func:`write_atomic` wrote (this process)."""
-    written: set = set()
-    _JOURNALS.append(written)
+def journal(before: Callable[[Path], None] | None = None) -> Iterator[set]:
+    """Within the block, the set of every path :func:`write_atomic` wrote (this process); ``before(path)``
+    is called before each write."""
+    entry: tuple = (set(), before)
+    _JOURNALS.append(entry)
     try:
-        yield written
+        yield entry[0]
     finally:
-        _JOURNALS.remove(written)
+        del _JOURNALS[next(i for i, e in enumerate(_JOURNALS) if e is entry)]
 
 
 @contextlib.contextmanager

@@ -380,14 +380,17 @@ def _run_files(scene) -> dict[str, list[str]]:
     """The names ``nsfem run`` may write for ``scene`` (:func:`nsfem.outdir.claim`)."""
     from .export.vtu import series_files
     from .integrate.base import output_times
+    from .simulate import FILES_MAX
 
     out = scene.output
     run = ["result.npz"] + [f"{n}.png" for n in out.plots if n != "campbell"]
     if scene.sensors:
         run += ["sensors.csv", "sensors.png"]
     sim = scene.simulation
-    series = series_files(output_times(sim.t_end, sim.output_dt).size, out.vtu_every) if out.vtu_every else []
-    return {"run": run, "series": series}
+    n_times = output_times(sim.t_end, sim.output_dt).size
+    # more than FILES_MAX in 2 files a frame: refused by run_scene's size check before any write
+    few = out.vtu_every and 2 * -(-n_times // out.vtu_every) + 2 <= FILES_MAX
+    return {"run": run, "series": series_files(n_times, out.vtu_every) if few else []}
 
 
 def _run(args, scene, out_dir) -> int:
@@ -572,7 +575,13 @@ def cmd_render(args) -> int:
     res, extra, model, _ = _saved(args.result, "render")  # a folder or a missing file: one line first
     png = Path(args.png) if args.png else Path(args.result).resolve().with_name("render.png")
     check_file(png, "--png")
-    path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
+    if png.resolve().parent == Path(args.result).resolve().parent:  # into the run's folder: one of its files
+        from .outdir import claim
+
+        with claim(png.parent, "render", {"run": [png.name]}, "--png"):
+            path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
+    else:
+        path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
     print(f"wrote {path}")
     return 0
 

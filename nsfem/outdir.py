@@ -8,11 +8,11 @@
 * **leftovers**: the temporary files of a killed earlier write (``.<name>.XXXXXXXX.tmp``, see
   :func:`nsfem.atomic.write_atomic`) are removed.
 * **manifest** (``.nsfem-files.json``): the files nsfem wrote there, by kind (``run``: result.npz,
-  plots, sensors; ``series``: the .pvd and its VTU frames; ``fit``: fit.json, evaluations.csv and
-  its plots). A command replaces its kinds: at the start the files of those kinds that it will
-  not rewrite are removed (and the old .pvd, whose frames are about to be replaced), at the end
-  those it did not rewrite after all (an interrupted run). Only files named in a manifest are
-  ever removed: a user's own files in the folder are left alone.
+  plots, sensors, render.png; ``series``: the .pvd and its VTU frames; ``fit``: fit.json,
+  evaluations.csv and its plots). A command replaces its kinds: when it writes its first file the
+  files of those kinds that it will not rewrite are removed (and the old .pvd, whose frames are
+  about to be replaced), at the end those it did not rewrite after all (an interrupted run). Only
+  files named in a manifest are ever removed: a user's own files in the folder are left alone.
 
 >>> import tempfile, pathlib
 >>> from nsfem.atomic import write_text_atomic
@@ -41,7 +41,7 @@ from .errors import NsfemError
 LOCK = ".nsfem.lock"
 MANIFEST = ".nsfem-files.json"
 #: the kinds of output each command replaces
-REPLACES = {"run": ("run", "series"), "export": ("series",), "fit": ("fit",), "sweep": ()}
+REPLACES = {"run": ("run", "series"), "export": ("series",), "fit": ("fit",), "sweep": (), "render": ()}
 
 
 class FolderBusy(NsfemError):
@@ -116,9 +116,11 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
     """Hold folder ``path`` for ``command`` (a key of :data:`REPLACES`) within the block; yields the
     set of paths written in it so far (:func:`nsfem.atomic.journal`).
 
-    ``expected``: per kind, the names the command may write (what it will not write is removed at
-    the start). ``what`` names the folder in messages (``--out``, ``--vtu``, ``output.dir``). The
-    folder is created if missing and removed again if the command leaves it empty.
+    ``expected``: per kind, the names the command may write. When it writes its first file there,
+    the files of the kinds it replaces that it will not write are removed (a command refused or
+    stopped before writing leaves the folder as it was); at the end those it did not rewrite. ``what``
+    names the folder in messages (``--out``, ``--vtu``, ``output.dir``). The folder is created if
+    missing and removed again if the command leaves it empty.
     """
     path = Path(path)
     created = not path.exists()
@@ -132,27 +134,15 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
         os.ftruncate(fd, 0)
         started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
         os.write(fd, f"pid {os.getpid()}, nsfem {command} started {started}\n".encode())
-        with signals_deferred():  # the folder's bookkeeping is never left half done
+        with signals_deferred():
             remove_leftovers(path)
-            old = _read_manifest(path)
-            kinds = REPLACES[command]
-            expected = {k: set(v) for k, v in (expected or {}).items()}
-            existing = {e.name for e in os.scandir(path)}
-            mine = set().union(*(old.get(k, set()) for k in kinds))
-            # the old .pvd goes in any case: its frames are about to be replaced
-            stale = {n for n in mine if n not in expected.get(_kind(old, n, kinds), set()) or n.endswith(".pvd")}
-            _remove(path, stale)
-            old = {k: (v - stale) & existing for k, v in old.items()}
-            # before writing, the manifest names whatever the command may write (but a user's own
-            # files of those names): a killed command's files are known to the next one
-            ahead = {k: v - (existing - set().union(*old.values(), set())) for k, v in expected.items()}
-            _write_manifest(path, {k: old.get(k, set()) | ahead.get(k, set()) for k in set(old) | set(ahead)})
-        with journal() as written:
+        folder = _Folder(path, REPLACES[command], {k: set(v) for k, v in (expected or {}).items()})
+        with journal(before=folder.before_write) as written:
             try:
                 yield written
             finally:
-                with signals_deferred():
-                    _finish(path, kinds, old, written)
+                with signals_deferred():  # the folder's bookkeeping is never left half done
+                    folder.finish(written)
     finally:
         if fd is not None:
             with contextlib.suppress(FileNotFoundError):
@@ -163,33 +153,46 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
                 path.rmdir()  # only when empty
 
 
-def _kind(old: Mapping[str, set[str]], name: str, kinds: Iterable[str]) -> str:
-    return next((k for k in kinds if name in old.get(k, ())), "")
+class _Folder:
+    """The manifest's side of :func:`claim`: ``kinds`` replaced, ``expected`` names per kind."""
 
+    def __init__(self, path: Path, kinds: tuple[str, ...], expected: dict[str, set[str]]):
+        self.path, self.here, self.kinds, self.expected = path, path.resolve(), kinds, expected
+        self.old: dict[str, set[str]] | None = None   # the manifest once writing started
 
-def _finish(path: Path, kinds: Iterable[str], old: dict[str, set[str]], written: set) -> None:
-    """The manifest after a command: its kinds hold what it wrote; when it wrote anything, the older
-    files of those kinds it did not rewrite are removed (they belong to another run)."""
-    remove_leftovers(path)  # a write cut short in a window write_atomic cannot close
-    here = path.resolve()
-    names = {Path(p).name for p in written if Path(p).parent.resolve() == here} - {MANIFEST, LOCK}
-    if not names:
-        _write_manifest(path, old)
-        return
-    from .export.vtu import SERIES_FRAME
+    def before_write(self, target: Path) -> None:
+        """On the first write into the folder: remove the older files this command will not write
+        (and the old .pvd, whose frames are about to be replaced); list what it may write."""
+        if self.old is not None or Path(target).name in (MANIFEST, LOCK) or Path(target).parent.resolve() != self.here:
+            return
+        with signals_deferred():
+            path, kinds, expected = self.path, self.kinds, self.expected
+            old = _read_manifest(path)
+            existing = {e.name for e in os.scandir(path)}
+            stale = {n for k in kinds for n in old.get(k, set()) if n not in expected.get(k, set()) or n.endswith(".pvd")}
+            _remove(path, stale)
+            self.old = old = {k: (v - stale) & existing for k, v in old.items()}
+            # before writing, the manifest names whatever the command may write (but a user's own
+            # files of those names): a killed command's files are known to the next one
+            users = existing - set().union(set(), *old.values())
+            _write_manifest(path, {k: old.get(k, set()) | (expected.get(k, set()) - users)
+                                   for k in set(old) | set(expected)})
 
-    def kind_of(name: str) -> str:
-        if name.endswith(".pvd") or SERIES_FRAME.match(name):
-            return "series"
-        return "fit" if name in FIT_FILES else "run"
-
-    new = {k: set(v) for k, v in old.items()}
-    for k in kinds:
-        _remove(path, old.get(k, set()) - names)
-        new[k] = {n for n in names if kind_of(n) == k}
-    for k in set(new) - set(kinds):  # a file this command rewrote is no longer another kind's
-        new[k] -= names
-    _write_manifest(path, new)
+    def finish(self, written: set) -> None:
+        """The manifest after the command: the kinds it replaces hold what it wrote, and their older
+        files it did not rewrite are removed (they belong to another run); other kinds gain what
+        it wrote of them."""
+        remove_leftovers(self.path)  # a write cut short in a window write_atomic cannot close
+        if self.old is None:  # nothing written: the folder is as it was
+            return
+        names = {Path(p).name for p in written if Path(p).parent.resolve() == self.here} - {MANIFEST, LOCK}
+        new = {k: set(v) - names for k, v in self.old.items()}
+        for k in self.kinds:
+            _remove(self.path, self.old.get(k, set()) - names)
+            new[k] = set()
+        for k, v in self.expected.items():
+            new[k] = new.get(k, set()) | (names & v)
+        _write_manifest(self.path, new)
 
 
 #: the files of ``nsfem fit`` (:func:`nsfem.fit.result._write`)

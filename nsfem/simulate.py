@@ -177,12 +177,12 @@ FILES_WARN = 10_000
 BYTES_WARN = 2.0**30
 
 
-def output_size(model, system: ContactSystem, t_end: float, output_dt: float, vtu_every: int) -> tuple[int, float]:
+def output_size(model, system: ContactSystem, t_end: float, output_dt: float, vtu_every: int,
+                n_times: int) -> tuple[int, float]:
     """(files, bytes) a run writes into its folder: result.npz (:func:`output_bytes` and its basis)
     and, with ``vtu_every``, its VTU series (every ``vtu_every``-th output time a frame of
-    :func:`nsfem.export.vtu.frame_size`, and the .pvd: 100 bytes a file); the plots are a few
-    files of 100 kB or less and left out."""
-    n_times = output_times(t_end, output_dt).size
+    :func:`nsfem.export.vtu.frame_size`, and the .pvd: 100 bytes a file) of ``n_times`` output times;
+    the plots are a few files of 100 kB or less and left out."""
     nbytes = output_bytes(system, t_end, output_dt) + 8.0 * model.n_full * system.n
     files = 1
     if vtu_every:
@@ -310,9 +310,9 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     system = ContactSystem.from_model(model, red, rot, damp)
     check_outputs(system, sim.t_end, sim.output_dt)
     if out_dir is not None:
-        files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every)
-        text = check_output_size(files, nbytes, free_bytes(out_dir), scene.output.vtu_every,
-                                 output_times(sim.t_end, sim.output_dt).size)
+        n_times = output_times(sim.t_end, sim.output_dt).size
+        files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every, n_times)
+        text = check_output_size(files, nbytes, free_bytes(out_dir), scene.output.vtu_every, n_times)
         if text and warn is not None:
             warn(text)
     w, w_seen = spectra(system) if system.n <= (2 if system.symmetric else 1) * SPECTRUM_MAX_DOF else (None, None)

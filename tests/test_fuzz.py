@@ -552,3 +552,23 @@ def test_a_sweeps_resume_removes_the_writes_a_kill_cut_short(tmp_path):
     assert not any(f.exists() for f in killed)
     assert not leftovers(tmp_path), leftovers(tmp_path)
     assert all((r / "result.npz").is_file() for r in runs)
+
+
+def test_a_refused_run_leaves_the_previous_run_as_it_was(tmp_path):
+    """Refused after taking the folder (its output too large, known once the model is built): the
+    previous run's plots and frames stay; a render next to the result is the run's, replaced by the
+    next run that writes."""
+    out = tmp_path / "out"
+    assert cli.main(["run", *TINY, "--set", "simulation.t_end=0.004", "--set", "output.vtu_every=2",
+                     "--set", "output.plots=[\"gap\"]", "--out", str(out)]) == 0
+    assert cli.main(["render", str(out / "result.npz")]) == 0
+    before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    assert "render.png" in before and "gap.png" in before
+    code, _, stderr = check_invocation(["run", *TINY, "--set", "simulation.t_end=1", "--set",
+                                        "simulation.output_dt=1e-5", "--set", "output.vtu_every=1",
+                                        "--out", "out"], tmp_path)
+    assert code == cli.EXIT_ERROR and "output.vtu_every" in stderr
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
+    assert cli.main(["run", *TINY, "--set", "simulation.t_end=0.004", "--set", "output.vtu_every=0",
+                     "--set", "output.plots=[]", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "result.npz", "sensors.csv"]
