@@ -52,7 +52,10 @@ def _lock(path: Path, what: str) -> int:
     """An exclusive lock on ``path/LOCK`` (its descriptor); FolderBusy when another process holds it."""
     lock = path / LOCK
     while True:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        try:  # never through a link: the file is truncated
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
+        except OSError as exc:
+            raise NsfemError(f"{what}: cannot create the lock file {lock}: {exc.strerror or exc}") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -77,7 +80,8 @@ def _read_manifest(path: Path) -> dict[str, set[str]]:
     try:
         data = json.loads((path / MANIFEST).read_text(encoding="utf-8"))
         kinds = data["files"]
-        return {str(k): {str(n) for n in v if isinstance(n, str) and "/" not in n and n not in (LOCK, MANIFEST)}
+        return {str(k): {n for n in v if isinstance(n, str) and "/" not in n and "\0" not in n
+                         and n not in ("", ".", "..", LOCK, MANIFEST)}
                 for k, v in kinds.items() if isinstance(v, list)}
     except (OSError, ValueError, TypeError, KeyError, AttributeError):
         return {}

@@ -572,3 +572,60 @@ def test_a_refused_run_leaves_the_previous_run_as_it_was(tmp_path):
     assert cli.main(["run", *TINY, "--set", "simulation.t_end=0.004", "--set", "output.vtu_every=0",
                      "--set", "output.plots=[]", "--out", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "result.npz", "sensors.csv"]
+
+
+def test_a_shorter_run_without_plots_leaves_nothing_of_the_longer_one(tmp_path):
+    """The reproduction: a short run without plots into a longer run's folder left its five PNGs
+    and its later VTU frames beside the new result."""
+    out = tmp_path / "out"
+    assert cli.main(["run", *TINY, "--set", "simulation.t_end=0.02", "--set", "output.vtu_every=4",
+                     "--out", str(out)]) == 0
+    assert len(list(out.glob("*.png"))) == 5 and len(list(out.glob("*.vtu"))) == 4 * 11   # outputs 0..40
+    assert cli.main(["run", *TINY, "--set", "simulation.t_end=0.004", "--set", "output.plots=[]",
+                     "--set", "output.vtu_every=4", "--out", str(out)]) == 0
+    names = folder_is_valid(out)
+    assert not [n for n in names if n.endswith(".png")]
+    assert len([n for n in names if n.endswith(".vtu")]) == 4 * 3   # outputs 0, 4, 8
+
+
+@pytest.mark.slow
+def test_a_group_kill_of_a_sweep_leaves_a_resumable_folder(tmp_path):
+    """SIGTERM to the sweep's process group (its workers too) once a run has finished: exit 130 with
+    one line; the folder holds no temporary file and a rerun resumes it to the end."""
+    out = tmp_path / "sweep"
+    argv = ["sweep", "--set", "mesh.elements=20", "--set", "simulation.t_end=0.05", "--set",
+            "rotation.speed_hz=15:25:8", "--workers", "2", "--out", str(out)]
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "MPLBACKEND": "Agg"}
+    p = subprocess.Popen([sys.executable, "-m", "nsfem", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, env=env, start_new_session=True)
+    try:
+        t0 = time.monotonic()
+        while not any(out.glob("*/record.json")) and p.poll() is None:
+            assert time.monotonic() - t0 < 120
+            time.sleep(0.002)
+        os.killpg(p.pid, signal.SIGTERM)
+        _, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+    assert p.returncode == 130 and err.count("\n") == 1 and "run the same command again" in err, err
+    assert not leftovers(out) and not list(out.glob("**/.nsfem*")), leftovers(out)
+    assert cli.main(argv) == 0
+    assert len(list(out.glob("*/result.npz"))) == 8 and not leftovers(out)
+
+
+@pytest.mark.parametrize("manifest", ['{"files": {"run": ["../victim.txt", "..", "", ".", "/etc/x", 3]}}',
+                                      "not json", '{"files": ["result.npz"]}', "[]", '{"files": {"run": "gap.png"}}'])
+def test_a_hostile_manifest_or_lock_removes_nothing_outside_the_folder(manifest, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep")
+    (out / MANIFEST).write_text(manifest)
+    (out / "gap.png").write_text("a user's")
+    (out / LOCK).symlink_to(victim)   # a planted link: never followed, never truncated
+    code, _, stderr = check_invocation(["run", *CHEAP, "--out", "out"], tmp_path)
+    assert code == cli.EXIT_ERROR and "lock file" in stderr
+    (out / LOCK).unlink()
+    assert cli.main(["run", *CHEAP, "--out", str(out)]) == 0
+    assert victim.read_text() == "keep" and (out / "gap.png").read_text() == "a user's"
