@@ -23,8 +23,9 @@ import threading
 from pathlib import Path
 from typing import Callable, Iterator
 
-#: the temporary names :func:`write_atomic` makes: ``.<target name>.<8 random characters>.tmp``
-TMP_NAME = re.compile(r"^\.(?P<target>.+)\.[A-Za-z0-9_]{8}\.tmp$")
+#: the temporary names :func:`write_atomic` makes for nsfem's outputs: ``.<target name>.<8 random
+#: characters>.tmp``, the target one of the kinds of file nsfem writes
+TMP_NAME = re.compile(r"^\.(?P<target>.+\.(npz|vtu|pvd|png|csv|json|txt))\.[A-Za-z0-9_]{8}\.tmp$")
 _LETTERS = string.ascii_lowercase + string.digits + "_"
 #: the probe files of :func:`check_folder`
 PROBE_NAME = re.compile(r"^\.nsfem-probe\.[A-Za-z0-9_]{8}$")

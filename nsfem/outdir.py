@@ -98,7 +98,7 @@ def _write_manifest(path: Path, files: Mapping[str, Iterable[str]]) -> None:
 
 def _remove(path: Path, names: Iterable[str]) -> None:
     for name in names:
-        with contextlib.suppress(FileNotFoundError, IsADirectoryError, PermissionError):
+        with contextlib.suppress(OSError):  # gone already, a folder of that name, read-only
             (path / name).unlink()
 
 
