@@ -372,8 +372,8 @@ def cmd_run(args) -> int:
     out_dir = Path(args.out or scene.output.dir)
     what = "--out" if args.out else "output.dir"
     _check_run_targets(out_dir, scene.output, scene.sensors, what)
-    with claim(out_dir, "run", _run_files(scene), what):
-        return _run(args, scene, out_dir)
+    with claim(out_dir, "run", _run_files(scene), what) as written:
+        return _run(args, scene, out_dir, written)
 
 
 def _run_files(scene) -> dict[str, list[str]]:
@@ -393,8 +393,8 @@ def _run_files(scene) -> dict[str, list[str]]:
     return {"run": run, "series": series_files(n_times, out.vtu_every) if few else []}
 
 
-def _run(args, scene, out_dir) -> int:
-    """``nsfem run`` in its claimed folder ``out_dir``."""
+def _run(args, scene, out_dir, written: set) -> int:
+    """``nsfem run`` in its claimed folder ``out_dir`` (``written``: the files written there so far)."""
     from pathlib import Path
 
     from .analysis.campbell import supercritical_warning
@@ -459,16 +459,22 @@ def _run(args, scene, out_dir) -> int:
 
                 outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
                                                 scene.rotation.speed_hz, scene.title)))
-    except KeyboardInterrupt:
-        pvd = out_dir / "nsfem.pvd"  # the claim removed an older one
-        series = f"; {pvd} indexes the VTU frames written so far" if pvd.is_file() else ""
-        print(printable(f"nsfem: interrupted while writing the outputs: {path} holds the run up to t = "
-                        f"{result.t_end:g} s{series}"), file=sys.stderr)
-        return 130
+    except KeyboardInterrupt:  # what was written stays valid; say so, and still print the JSON
+        from .outdir import MANIFEST
+
+        done = sorted(str(p) for p in written if Path(p).name != MANIFEST and Path(p).suffix != ".vtu")
+        outputs[:] = [str(path)] * (str(path) in done) + [p for p in done if p != str(path)]
+        interrupted = "nsfem: interrupted while writing the outputs; written: " + (", ".join(outputs) or "nothing")
+        if str(out_dir / "nsfem.pvd") in outputs:
+            interrupted += " (nsfem.pvd indexes the VTU frames written)"
+    else:
+        interrupted = ("" if result.completed else
+                       f"nsfem: interrupted at t = {result.t_end:g} s: {path} holds the run up to there")
     summary = result.summary()
     payload = {"title": scene.title, **summary, **extra, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
-               "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings}
+               "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings,
+               "interrupted": bool(interrupted)}
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts",
@@ -479,10 +485,10 @@ def _run(args, scene, out_dir) -> int:
              "wrote " + ", ".join(outputs)]
     if not result.completed:
         lines.append(f"interrupted at t = {result.t_end:g} s: the results file holds the run up to there")
-    _emit(args, payload, "\n".join(lines))
-    if not result.completed:
-        print(printable(f"nsfem: interrupted at t = {result.t_end:g} s: {path} holds the run up to there"),
-              file=sys.stderr)
+    with signals_deferred():  # the report is printed whole
+        _emit(args, payload, "\n".join(lines))
+    if interrupted:
+        print(printable(interrupted), file=sys.stderr)
         return 130
     return 0
 

@@ -629,3 +629,33 @@ def test_a_hostile_manifest_or_lock_removes_nothing_outside_the_folder(manifest,
     (out / LOCK).unlink()
     assert cli.main(["run", *CHEAP, "--out", str(out)]) == 0
     assert victim.read_text() == "keep" and (out / "gap.png").read_text() == "a user's"
+
+
+def test_an_interrupt_while_writing_the_plots_still_prints_the_json(tmp_path, monkeypatch):
+    """Ctrl-C in the middle of the plots (here raised by the second one): exit 130, one line on
+    stderr, and the one JSON object on stdout, listing exactly the files written."""
+    from nsfem.plot import results
+
+    calls = []
+    real = dict(results.PLOT_FUNCTIONS)
+
+    def interrupting(name):
+        def plot(*a, **k):
+            calls.append(name)
+            if len(calls) == 2:
+                raise KeyboardInterrupt
+            return real[name](*a, **k)
+        return plot
+
+    monkeypatch.setattr(results, "PLOT_FUNCTIONS", {n: interrupting(n) for n in real})
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cli.main(["run", *TINY, "--set", "simulation.t_end=0.004", "--set", "output.vtu_every=0",
+                         "--json", "--out", str(tmp_path / "out")])
+    assert code == 130
+    assert [line for line in err.getvalue().splitlines() if line.startswith("nsfem:")] == [
+        err.getvalue().splitlines()[-1]] and "interrupted while writing the outputs" in err.getvalue()
+    payload = json.loads(out.getvalue())
+    assert payload["interrupted"] is True
+    assert sorted(Path(o).name for o in payload["outputs"]) == ["phase.png", "result.npz"]
+    assert sorted(folder_is_valid(tmp_path / "out")) == [MANIFEST, "phase.png", "result.npz"]
