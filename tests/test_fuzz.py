@@ -659,3 +659,25 @@ def test_an_interrupt_while_writing_the_plots_still_prints_the_json(tmp_path, mo
     assert payload["interrupted"] is True
     assert sorted(Path(o).name for o in payload["outputs"]) == ["phase.png", "result.npz"]
     assert sorted(folder_is_valid(tmp_path / "out")) == [MANIFEST, "phase.png", "result.npz"]
+
+
+@pytest.mark.parametrize("every, limit, free, text", [
+    ("1", 10, None, "--every: 23 files (11 of the 11 output times)"),   # 11 frames x 2 files + the pvd
+    ("5", 10, None, None),                                              # 3 frames: 7 files
+    ("1", None, 1e3, "GB free in"),
+    ("0", None, None, "--every must be a positive integer, got 0"),
+    ("x", None, None, "--every"),
+])
+def test_export_size_is_bounded(saved_result, every, limit, free, text, tmp_path, monkeypatch):
+    from nsfem import simulate
+
+    if limit is not None:
+        monkeypatch.setattr(simulate, "FILES_MAX", limit)
+    if free is not None:
+        monkeypatch.setattr(simulate, "free_bytes", lambda folder: free)
+    code, _, stderr = check_invocation(["export", str(saved_result), "--vtu", "v", "--every", every], tmp_path)
+    if text is None:
+        assert code == 0 and len(list((tmp_path / "v").glob("*.vtu"))) == 2 * 3
+    else:
+        assert code == cli.EXIT_ERROR and text in stderr, stderr
+        assert not (tmp_path / "v").exists()
