@@ -608,7 +608,10 @@ def test_a_group_kill_of_a_sweep_leaves_a_resumable_folder(tmp_path):
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
-    assert p.returncode == 130 and err.count("\n") == 1 and "run the same command again" in err, err
+    # (dask may log a scheduler ERROR line about the killed workers' keys besides: its logs, not nsfem's)
+    nsfem_lines = [line for line in err.splitlines() if line.startswith("nsfem:")]
+    assert p.returncode == 130 and len(nsfem_lines) == 1 and "run the same command again" in err, err
+    assert "Traceback" not in err, err
     assert not leftovers(out) and not list(out.glob("**/.nsfem*")), leftovers(out)
     assert cli.main(argv) == 0
     assert len(list(out.glob("*/result.npz"))) == 8 and not leftovers(out)
