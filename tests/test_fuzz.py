@@ -684,3 +684,29 @@ def test_export_size_is_bounded(saved_result, every, limit, free, text, tmp_path
     else:
         assert code == cli.EXIT_ERROR and text in stderr, stderr
         assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.slow
+def test_an_interrupted_fit_into_a_fits_folder_leaves_no_old_plots(tmp_path):
+    """The reproduction: an interrupted fit left the previous fit's PNGs beside its fit.json."""
+    distributed = pytest.importorskip("distributed")
+    from nsfem.fit import FitInterrupted, fit
+    from nsfem.simulate import run_scene, sensor_signals
+    from nsfem.scene import load_scene
+
+    fixed = ["mesh.elements=20", "reduction.modes=6", 'sensor.0.name="a"', "sensor.0.x=0.05",
+             'sensor.0.direction="+z"', "simulation.t_end=0.02"]
+    result, system = run_scene(load_scene(None, fixed))
+    data = (result.t, {"a": sensor_signals(result, system)[:, 0]})
+    vary = {"delamination.0.start": (0.1, 0.4)}
+
+    def stop(line):
+        raise KeyboardInterrupt
+
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        fit(None, data, vary, overrides=fixed, client=c, out_dir=tmp_path, n_global=2, max_nfev=2, refine=False)
+        assert {"fit.png", "landscape.png"} <= {p.name for p in tmp_path.iterdir()}
+        with pytest.raises(FitInterrupted):
+            fit(None, data, vary, overrides=fixed, client=c, out_dir=tmp_path, progress=stop)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [MANIFEST, "evaluations.csv", "fit.json"]
+    assert json.loads((tmp_path / "fit.json").read_text())["interrupted"] is True
