@@ -38,7 +38,8 @@ segment the crack has cut, moving with the left side's section; point data ``dis
 (``stack``, ``contacts``, ``disks``, ``stators``, ``cracks``) and a comment in it says which frame the
 coordinates are in. NNNNN is the index
 of the output time in ``result.t``. Every file is written to a temporary name in the
-output folder and renamed, so a reader never sees a half-written file.
+output folder and renamed, so a reader never sees a half-written file; a series stopped part way
+(Ctrl-C, SIGTERM, an error) still gets its ``.pvd``, indexing exactly the frames complete by then.
 
 A stator ring is fixed in the frame the run was computed in (``result.info["frame"]``, as in the
 model, :func:`nsfem.scene.stator_contacts`): in space for an inertial run; for a rotating-frame run
@@ -533,7 +534,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     (Omega = 2 pi ``result.info["speed_hz"]``; ``phase_deg`` as ``rotation.phase_deg``, the
     frame in which gravity points along -z). A model with disks, stators or cracks gets their parts too
     (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`; the module's docstring lists
-    the parts).
+    the parts). Interrupted (KeyboardInterrupt) or failing part way, it removes the frame it was
+    writing, writes the .pvd of the frames before it and re-raises.
     """
     import meshio
 
