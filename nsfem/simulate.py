@@ -178,13 +178,17 @@ BYTES_WARN = 2.0**30
 
 
 def output_size(model, system: ContactSystem, t_end: float, output_dt: float, vtu_every: int,
-                n_times: int) -> tuple[int, float]:
+                n_times: int, sensors: int = 0) -> tuple[int, float]:
     """(files, bytes) a run writes into its folder: result.npz (:func:`output_bytes` and its basis)
     and, with ``vtu_every``, its VTU series (every ``vtu_every``-th output time a frame of
-    :func:`nsfem.export.vtu.frame_size`, and the .pvd: 100 bytes a file) of ``n_times`` output times;
-    the plots are a few files of 100 kB or less and left out."""
+    :func:`nsfem.export.vtu.frame_size`, and the .pvd: 100 bytes a file) of ``n_times`` output times,
+    and with ``sensors`` sensors.csv (t and each sensor as a float's repr and a separator: 25 bytes
+    at most); the plots are a few files of 100 kB or less and left out."""
     nbytes = output_bytes(system, t_end, output_dt) + 8.0 * model.n_full * system.n
     files = 1
+    if sensors:
+        files += 1
+        nbytes += 25.0 * n_times * (sensors + 1)
     if vtu_every:
         from .export.vtu import frame_size
 
@@ -311,7 +315,8 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     check_outputs(system, sim.t_end, sim.output_dt)
     if out_dir is not None:
         n_times = output_times(sim.t_end, sim.output_dt).size
-        files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every, n_times)
+        files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every, n_times,
+                                    len(scene.sensors))
         text = check_output_size(files, nbytes, free_bytes(out_dir), scene.output.vtu_every, n_times)
         if text and warn is not None:
             warn(text)

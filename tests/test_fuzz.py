@@ -472,7 +472,7 @@ def test_two_runs_at_once_into_one_folder(tmp_path):
 # ---- files without bound: the output's size is estimated before the run
 BOUND_REPRODUCTIONS = [
     (["run", "crack", "--set", "simulation.t_end=1", "--set", "simulation.output_dt=1e-5", "--set",
-      "output.vtu_every=1", "--set", "output.plots=[]"], "output.vtu_every: this run would write 400006 files"),  # 100001 outputs x 4 files + pvd + result
+      "output.vtu_every=1", "--set", "output.plots=[]"], "output.vtu_every: this run would write 400007 files"),  # 100001 outputs x 4 files + pvd, result, sensors
     (["run", "crack", "--set", "simulation.t_end=1", "--set", "simulation.output_dt=1e-5", "--set",
       "output.vtu_every=3", "--set", "output.plots=[]"], "more than the limit of 100000 files"),
 ]
