@@ -129,6 +129,29 @@ def sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
+class _Stderr:
+    """sys.stderr that drops what it cannot write (a reader that went away: ``nsfem run 2>&1 | head``):
+    a warning or a progress line must never cost the run its results file."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self.stream.write(text)
+        except (BrokenPipeError, ValueError):  # a closed pipe, a closed file
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self.stream.flush()
+        except (BrokenPipeError, ValueError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
 def _emit(args, payload: dict, text: str) -> None:
     if args.json:
         json.dump(payload, sys.stdout)
@@ -631,6 +654,15 @@ COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stat
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    stderr = sys.stderr
+    sys.stderr = _Stderr(stderr)
+    try:
+        return _main(argv)
+    finally:
+        sys.stderr = stderr
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     try:

@@ -710,3 +710,17 @@ def test_an_interrupted_fit_into_a_fits_folder_leaves_no_old_plots(tmp_path):
             fit(None, data, vary, overrides=fixed, client=c, out_dir=tmp_path, progress=stop)
     assert sorted(p.name for p in tmp_path.iterdir()) == [MANIFEST, "evaluations.csv", "fit.json"]
     assert json.loads((tmp_path / "fit.json").read_text())["interrupted"] is True
+
+
+def test_a_closed_stderr_costs_the_run_nothing(tmp_path):
+    """`nsfem run ... 2>&1 | head -1`: the reader of stderr goes away before the run's warning; the
+    warning was a BrokenPipeError that lost the results file, with exit 0. Now the run ends as usual."""
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "MPLBACKEND": "Agg"}
+    p = subprocess.Popen([sys.executable, "-m", "nsfem", "run", *CHEAP, "--set", "rotation.gravity=1e6",  # warns
+                          "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    p.stderr.close()
+    stdout, _ = p.communicate(timeout=120)
+    assert p.returncode == 0 and b"wrote" in stdout
+    with np.load(out / "result.npz") as r:
+        assert json.loads(str(r["meta"]))["completed"] is True
