@@ -313,13 +313,6 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     rot, damp = scene.rotation, scene.damping
     system = ContactSystem.from_model(model, red, rot, damp)
     check_outputs(system, sim.t_end, sim.output_dt)
-    if out_dir is not None:
-        n_times = output_times(sim.t_end, sim.output_dt).size
-        files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every, n_times,
-                                    len(scene.sensors))
-        text = check_output_size(files, nbytes, free_bytes(out_dir), scene.output.vtu_every, n_times)
-        if text and warn is not None:
-            warn(text)
     w, w_seen = spectra(system) if system.n <= (2 if system.symmetric else 1) * SPECTRUM_MAX_DOF else (None, None)
     if w is not None:
         check_damping(damp.rayleigh, w, damp.external,
@@ -327,6 +320,13 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     if method in ("exact", "rk"):
         f_max, samples = search_cost(system, sim.t_end, w_seen)
         text = check_search_cost(system, sim.t_end, method, red.info, f_max, samples)
+        if text and warn is not None:
+            warn(text)
+    if out_dir is not None:  # after the refusals above: no warning for a run refused anyway
+        n_times = output_times(sim.t_end, sim.output_dt).size
+        files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every, n_times,
+                                    len(scene.sensors))
+        text = check_output_size(files, nbytes, free_bytes(out_dir), scene.output.vtu_every, n_times)
         if text and warn is not None:
             warn(text)
     q0, v0 = initial_state(scene, model, red, system)
