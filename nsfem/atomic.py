@@ -16,8 +16,8 @@ import contextlib
 import os
 import random
 import re
-import string
 import signal
+import string
 import tempfile
 import threading
 from pathlib import Path
@@ -55,7 +55,7 @@ def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
         write(tmp)
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private
+        os.chmod(tmp, 0o666 & ~umask)  # created private (0600)
         os.replace(tmp, path)
         for written, _ in _JOURNALS:
             written.add(path)

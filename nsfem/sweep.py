@@ -548,9 +548,6 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
     them. ``info``: ``executed``, ``resumed``, ``models_built``, ``workers``, ``wall_s``
     (and ``interrupted``).
     """
-    from .fem.assemble import build_model
-    from .reduce import scene_reduction
-
     if workers is not None and (scheduler or client is not None):
         raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
     if workers is not None and workers < 1:
