@@ -599,7 +599,7 @@ def test_a_terminated_sweep_leaves_a_resumable_folder(tmp_path):
     join of a dask nanny that outlived its SIGTERM: the sweep's cluster handling, not its folder.)"""
     out = tmp_path / "sweep"
     argv = ["sweep", "--set", "mesh.elements=20", "--set", "simulation.t_end=0.05", "--set",
-            "rotation.speed_hz=15:25:8", "--workers", "2", "--out", str(out)]
+            "rotation.speed_hz=15:25:12", "--workers", "2", "--out", str(out)]
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "MPLBACKEND": "Agg"}
     p = subprocess.Popen([sys.executable, "-m", "nsfem", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True, env=env, start_new_session=True)
@@ -617,7 +617,7 @@ def test_a_terminated_sweep_leaves_a_resumable_folder(tmp_path):
     assert "Traceback" not in err, err
     assert not leftovers(out) and not list(out.glob("**/.nsfem*")), leftovers(out)
     assert cli.main(argv) == 0
-    assert len(list(out.glob("*/result.npz"))) == 8 and not leftovers(out)
+    assert len(list(out.glob("*/result.npz"))) == 12 and not leftovers(out)
 
 
 @pytest.mark.parametrize("manifest", ['{"files": {"run": ["../victim.txt", "..", "", ".", "/etc/x", 3]}}',
