@@ -12,10 +12,26 @@ onto it, so a reader (ParaView, a resumed sweep) sees the old file or the new on
 
 from __future__ import annotations
 
+import contextlib
 import os
+import random
+import re
+import signal
+import string
 import tempfile
+import threading
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
+
+#: the temporary names :func:`write_atomic` makes for nsfem's outputs: ``.<target name>.<8 random
+#: characters>.tmp``, the target one of the kinds of file nsfem writes
+TMP_NAME = re.compile(r"^\.(?P<target>.+\.(npz|vtu|pvd|png|csv|json|txt))\.[A-Za-z0-9_]{8}\.tmp$")
+_LETTERS = string.ascii_lowercase + string.digits + "_"
+#: the probe files of :func:`check_folder`
+PROBE_NAME = re.compile(r"^\.nsfem-probe\.[A-Za-z0-9_]{8}$")
+#: (set, hook): :func:`write_atomic` calls each hook with a path before writing it and adds the path
+#: to each set once written (see :func:`journal`)
+_JOURNALS: list[tuple[set, Callable[[Path], None] | None]] = []
 
 
 def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
@@ -24,19 +40,63 @@ def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
     interruption the temporary file is removed and ``path`` is left as it was."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    for _, before in list(_JOURNALS):
+        if before is not None:
+            before(path)
+    tmp = None
     try:
+        while True:  # the name is known before the file exists: an interruption right after
+            tmp = str(path.parent / f".{path.name}.{''.join(random.choices(_LETTERS, k=8))}.tmp")
+            try:  # its creation still finds it to remove
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+                break
+            except FileExistsError:
+                tmp = None
         write(tmp)
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private
+        os.chmod(tmp, 0o666 & ~umask)  # created private (0600)
         os.replace(tmp, path)
+        for written, _ in _JOURNALS:
+            written.add(path)
     except BaseException:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
         raise
     return path
+
+
+@contextlib.contextmanager
+def journal(before: Callable[[Path], None] | None = None) -> Iterator[set]:
+    """Within the block, the set of every path :func:`write_atomic` wrote (this process); ``before(path)``
+    is called before each write."""
+    entry: tuple = (set(), before)
+    _JOURNALS.append(entry)
+    try:
+        yield entry[0]
+    finally:
+        del _JOURNALS[next(i for i, e in enumerate(_JOURNALS) if e is entry)]
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """SIGINT and SIGTERM that arrive within the block are delivered once it is done (to the
+    handlers that were in place: Ctrl-C's KeyboardInterrupt, the command line's SIGTERM as one),
+    so a file being written is finished, not cut short. Outside the main thread (where handlers
+    cannot be set) the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: caught.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(caught):
+            signal.raise_signal(sig)
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:

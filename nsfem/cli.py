@@ -86,6 +86,8 @@ def parser() -> argparse.ArgumentParser:
     p = sub.add_parser("export", help="re-export a saved result")
     p.add_argument("result")
     p.add_argument("--vtu", metavar="DIR", required=True)
+    p.add_argument("--every", type=int, metavar="N", help="every N-th output time (default: the run's "
+                   "output.vtu_every, else 1)")
     p.add_argument("--debug", action="store_true")
 
     p = sub.add_parser("render", help="off-screen picture of a saved result")
@@ -110,15 +112,44 @@ def printable(text: str) -> str:
 
 @contextlib.contextmanager
 def sigterm_as_interrupt():
-    """A scheduler's SIGTERM ends a command like Ctrl-C (what was computed is kept), within the block."""
+    """A scheduler's SIGTERM ends a command like Ctrl-C (what was computed is kept), within the block
+    (in the main thread; elsewhere signal handlers cannot be set)."""
     def terminate(signum, frame):
         raise KeyboardInterrupt
 
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     previous = signal.signal(signal.SIGTERM, terminate)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+class _Stderr:
+    """sys.stderr that drops what it cannot write (a reader that went away: ``nsfem run 2>&1 | head``):
+    a warning or a progress line must never cost the run its results file."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self.stream.write(text)
+        except (BrokenPipeError, ValueError):  # a closed pipe, a closed file
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self.stream.flush()
+        except (BrokenPipeError, ValueError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
 
 
 def _emit(args, payload: dict, text: str) -> None:
@@ -358,15 +389,45 @@ def cmd_stationary(args) -> int:
 def cmd_run(args) -> int:
     from pathlib import Path
 
-    from .analysis.campbell import supercritical_warning
-    from .fem.constraints import dense
-    from .scene import default_scene_path, load_scene
-    from .simulate import run_scene
+    from .outdir import claim
+    from .scene import load_scene
 
     scene = load_scene(args.scene, args.overrides)
-    method = args.method or scene.simulation.method
     out_dir = Path(args.out or scene.output.dir)
-    _check_run_targets(out_dir, scene.output, scene.sensors, "--out" if args.out else "output.dir")
+    what = "--out" if args.out else "output.dir"
+    _check_run_targets(out_dir, scene.output, scene.sensors, what)
+    with claim(out_dir, "run", _run_files(scene), what) as written:
+        return _run(args, scene, out_dir, written)
+
+
+def _run_files(scene) -> dict[str, list[str]]:
+    """The names ``nsfem run`` may write for ``scene`` (:func:`nsfem.outdir.claim`)."""
+    from .export.vtu import series_files
+    from .integrate.base import output_times
+    from .simulate import FILES_MAX
+
+    out = scene.output
+    run = ["result.npz"] + [f"{n}.png" for n in out.plots if n != "campbell"]
+    if scene.sensors:
+        run += ["sensors.csv", "sensors.png"]
+    sim = scene.simulation
+    n_times = output_times(sim.t_end, sim.output_dt).size
+    # more than FILES_MAX in 2 files a frame: refused by run_scene's size check before any write
+    few = out.vtu_every and 2 * -(-n_times // out.vtu_every) + 2 <= FILES_MAX
+    return {"run": run, "series": series_files(n_times, out.vtu_every) if few else []}
+
+
+def _run(args, scene, out_dir, written: set) -> int:
+    """``nsfem run`` in its claimed folder ``out_dir`` (``written``: the files written there so far)."""
+    from pathlib import Path
+
+    from .analysis.campbell import supercritical_warning
+    from .atomic import signals_deferred
+    from .fem.constraints import dense
+    from .scene import default_scene_path
+    from .simulate import run_scene
+
+    method = args.method or scene.simulation.method
     t0 = time.perf_counter()
     text_path = Path(scene.path) if scene.path else default_scene_path()
     scene_text = text_path.read_text() if text_path.exists() else ""
@@ -380,11 +441,12 @@ def cmd_run(args) -> int:
 
     try:
         with sigterm_as_interrupt():   # results kept
-            result, system = run_scene(scene, method, progress=True, warn=warn)  # on stderr after 5 s
+            result, system = run_scene(scene, method, progress=True, warn=warn, out_dir=out_dir)  # on stderr after 5 s
     except IntegrationError as exc:  # keep what was computed, then report the error
         res, sysm = exc.result, exc.system
-        path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T), sysm.model_contacts.x,
-                        scene.record())
+        with signals_deferred():  # the results file is finished, not cut short
+            path = res.save(out_dir / "result.npz", scene_text, dense(sysm.info["reduction"].T),
+                            sysm.model_contacts.x, scene.record())
         raise NsfemError(f"{exc} (the run up to t = {res.t_end:g} s is in {path})") from exc
     red = system.info["reduction"]
     top = red.info.get("max_frequency_hz")
@@ -396,33 +458,47 @@ def cmd_run(args) -> int:
         warning = supercritical_warning(scene.rotation.speed_hz, div[div <= 0.5 * top])
         if warning:
             warn(warning)
-    path = result.save(out_dir / "result.npz", scene_text, dense(red.T), system.model_contacts.x, scene.record())
-    outputs = [str(path)]
-    if result.completed:
-        from .plot.results import write_plots
+    path = out_dir / "result.npz"
+    outputs, extra = [str(path)], {}
+    try:
+        with signals_deferred():  # the results file is finished, not cut short
+            result.save(path, scene_text, dense(red.T), system.model_contacts.x, scene.record())
+        if result.completed:
+            from .plot.results import write_plots
 
-        outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
-        if scene.output.vtu_every:
-            from .export.vtu import write_series
+            outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
+            if scene.output.vtu_every:
+                from .export.vtu import write_series
 
-            outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
-    extra = {}
-    if scene.sensors:
-        from .sensors import write_csv
-        from .simulate import sensor_signals
+                outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
+        if scene.sensors:
+            from .sensors import write_csv
+            from .simulate import sensor_signals
 
-        values = sensor_signals(result, system)
-        extra["sensors"] = str(write_csv(out_dir / "sensors.csv", result.t, scene.sensors, values))
-        outputs.append(extra["sensors"])
-        if scene.output.plots and result.t.size > 1:
-            from .plot.sensors import sensors_plot
+            values = sensor_signals(result, system)
+            extra["sensors"] = str(write_csv(out_dir / "sensors.csv", result.t, scene.sensors, values))
+            outputs.append(extra["sensors"])
+            if scene.output.plots and result.t.size > 1:
+                from .plot.sensors import sensors_plot
 
-            outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
-                                            scene.rotation.speed_hz, scene.title)))
+                outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
+                                                scene.rotation.speed_hz, scene.title)))
+    except KeyboardInterrupt:  # what was written stays valid; say so, and still print the JSON
+        from .outdir import MANIFEST
+
+        done = sorted(str(p) for p in written if Path(p).name != MANIFEST and Path(p).suffix != ".vtu")
+        outputs[:] = [str(path)] * (str(path) in done) + [p for p in done if p != str(path)]
+        interrupted = "nsfem: interrupted while writing the outputs; written: " + (", ".join(outputs) or "nothing")
+        if str(out_dir / "nsfem.pvd") in outputs:
+            interrupted += " (nsfem.pvd indexes the VTU frames written)"
+    else:
+        interrupted = ("" if result.completed else
+                       f"nsfem: interrupted at t = {result.t_end:g} s: {path} holds the run up to there")
     summary = result.summary()
     payload = {"title": scene.title, **summary, **extra, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
-               "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings}
+               "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings,
+               "interrupted": bool(interrupted)}
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts",
@@ -433,8 +509,12 @@ def cmd_run(args) -> int:
              "wrote " + ", ".join(outputs)]
     if not result.completed:
         lines.append(f"interrupted at t = {result.t_end:g} s: the results file holds the run up to there")
-    _emit(args, payload, "\n".join(lines))
-    return 0 if result.completed else 130
+    with signals_deferred():  # the report is printed whole
+        _emit(args, payload, "\n".join(lines))
+    if interrupted:
+        print(printable(interrupted), file=sys.stderr)
+        return 130
+    return 0
 
 
 def _check_run_targets(out_dir, output, sensors, what: str) -> None:
@@ -530,7 +610,13 @@ def cmd_render(args) -> int:
     res, extra, model, _ = _saved(args.result, "render")  # a folder or a missing file: one line first
     png = Path(args.png) if args.png else Path(args.result).resolve().with_name("render.png")
     check_file(png, "--png")
-    path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
+    if png.resolve().parent == Path(args.result).resolve().parent:  # into the run's folder: one of its files
+        from .outdir import claim
+
+        with claim(png.parent, "render", {"run": [png.name]}, "--png"):
+            path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
+    else:
+        path = render(res, model, extra["basis"], png, time=args.time, exaggeration=args.exaggeration)
     print(f"wrote {path}")
     return 0
 
@@ -539,14 +625,33 @@ def cmd_export(args) -> int:
     """Re-export a saved results file as a VTU/PVD series (ParaView)."""
     from pathlib import Path
 
-    from .export.vtu import write_series
-
     from .atomic import check_folder
+    from .export.vtu import frame_size, series_files, write_series
+    from .outdir import claim
+    from .simulate import FILES_MAX, free_bytes
 
     res, extra, model, scene = _saved(args.result, "export")
-    check_folder(Path(args.vtu), "--vtu")
-    pvd = write_series(res, (model, extra["basis"]), Path(args.vtu), every=scene.output.vtu_every or 1)
-    print(f"wrote {pvd} ({res.t[:: scene.output.vtu_every or 1].size} times)")
+    every = args.every if args.every is not None else scene.output.vtu_every or 1
+    if every < 1:
+        raise NsfemError(f"--every must be a positive integer, got {every}")
+    out = Path(args.vtu)
+    check_folder(out, "--vtu")
+    frames = -(-res.t.size // every)
+    per_frame, frame_bytes = frame_size(model)
+    files, nbytes, free = 1 + frames * per_frame, frames * frame_bytes, free_bytes(out)
+    what = f"{files} files ({frames} of the {res.t.size} output times) and up to {nbytes / 1e9:.3g} GB"
+    if files > FILES_MAX:
+        raise NsfemError(f"--every: {what} exceed the limit of {FILES_MAX} files; raise --every")
+    if free is not None and nbytes > free:
+        raise NsfemError(f"--every: {what} exceed the {free / 1e9:.3g} GB free in {out}; raise --every")
+    with claim(out, "export", {"series": series_files(res.t.size, every)}, "--vtu"):
+        try:
+            pvd = write_series(res, (model, extra["basis"]), out, every=every)
+        except KeyboardInterrupt:
+            print(printable(f"nsfem: interrupted: {out / 'nsfem.pvd'} indexes the VTU frames written so far"),
+                  file=sys.stderr)
+            return 130
+    print(f"wrote {pvd} ({frames} times)")
     return 0
 
 
@@ -555,11 +660,21 @@ COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stat
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    stderr = sys.stderr
+    sys.stderr = _Stderr(stderr)
+    try:
+        return _main(argv)
+    finally:
+        sys.stderr = stderr
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     try:
         args = parser().parse_args(argv)
-        return COMMANDS[args.command](args)
+        with sigterm_as_interrupt():  # whatever the command is doing: its outputs stay valid
+            return COMMANDS[args.command](args)
     except NsfemError as exc:
         if debug:
             raise

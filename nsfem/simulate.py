@@ -167,6 +167,69 @@ def check_outputs(system: ContactSystem, t_end: float, output_dt: float, memory:
                          "simulation.t_end")
 
 
+#: files a run may write into its folder. Refused above FILES_MAX: 1e5 files are 2.5e4 to 5e4 VTU frames
+#: (2 to 4 files each), more than a viewer can step through, each written in 1 to 3 ms (minutes of
+#: writing after the run), and past where listing, copying and removing the folder become slow;
+#: warned above FILES_WARN. Bytes (an upper bound, see frame_size) are warned above BYTES_WARN and
+#: refused beyond the free space of the folder's file system.
+FILES_MAX = 100_000
+FILES_WARN = 10_000
+BYTES_WARN = 2.0**30
+
+
+def output_size(model, system: ContactSystem, t_end: float, output_dt: float, vtu_every: int,
+                n_times: int, sensors: int = 0) -> tuple[int, float]:
+    """(files, bytes) a run writes into its folder: result.npz (:func:`output_bytes` and its basis)
+    and, with ``vtu_every``, its VTU series (every ``vtu_every``-th output time a frame of
+    :func:`nsfem.export.vtu.frame_size`, and the .pvd: 100 bytes a file) of ``n_times`` output times,
+    and with ``sensors`` sensors.csv (t and each sensor as a float's repr and a separator: 25 bytes
+    at most); the plots are a few files of 100 kB or less and left out."""
+    nbytes = output_bytes(system, t_end, output_dt) + 8.0 * model.n_full * system.n
+    files = 1
+    if sensors:
+        files += 1
+        nbytes += 25.0 * n_times * (sensors + 1)
+    if vtu_every:
+        from .export.vtu import frame_size
+
+        frames = -(-n_times // vtu_every)
+        per_frame, frame_bytes = frame_size(model)
+        files += 1 + frames * per_frame
+        nbytes += frames * (frame_bytes + 100.0 * per_frame)
+    return files, nbytes
+
+
+def check_output_size(files: int, nbytes: float, free: float | None, vtu_every: int, n_times: int) -> str | None:
+    """The warning text when a run's output is large (None when not); raises SceneError when it
+    exceeds :data:`FILES_MAX` files or ``free`` bytes (the file system's free space, None: unknown)."""
+    what = (f"{files} files (a VTU frame every {vtu_every} of {n_times} output times) and up to "
+            f"{nbytes / 1e9:.3g} GB" if vtu_every else f"a results file of up to {nbytes / 1e9:.3g} GB")
+    key = "output.vtu_every" if vtu_every else "simulation.output_dt"
+    fix = ("raise output.vtu_every or simulation.output_dt, or set output.vtu_every = 0 (nsfem export writes "
+           "the series later)" if vtu_every else "raise simulation.output_dt or shorten simulation.t_end")
+    if files > FILES_MAX:
+        raise SceneError(key, f"this run would write {what}, more than the limit of {FILES_MAX} files; {fix}")
+    if free is not None and nbytes > free:
+        raise SceneError(key, f"this run would write {what}, more than the {free / 1e9:.3g} GB free there; {fix}")
+    if files > FILES_WARN or nbytes > BYTES_WARN:
+        return f"this run writes {what}; {fix} for less"
+    return None
+
+
+def free_bytes(folder) -> float | None:
+    """Free bytes on the file system of ``folder`` (or of its nearest existing parent)."""
+    import shutil
+    from pathlib import Path
+
+    p = Path(folder).absolute()
+    while not p.exists() and p.parent != p:
+        p = p.parent
+    try:
+        return float(shutil.disk_usage(p).free)
+    except OSError:
+        return None
+
+
 def check_search_cost(system: ContactSystem, t_end: float, method: str, reduction: dict, f_max: float,
                       samples: float) -> str | None:
     """The advice text when an event-driven run needs many search samples (None when few); raises
@@ -224,12 +287,14 @@ def growth_rate(system: ContactSystem) -> float:
 
 
 def run_scene(scene: Scene, method: str | None = None, progress: bool | None = False, model=None, reduction=None,
-              warn=None) -> tuple[Result, ContactSystem]:
+              warn=None, out_dir=None) -> tuple[Result, ContactSystem]:
     """Integrate a scene with its (or the given) method; returns the Result and the system.
 
     ``warn(text)`` receives warnings before the integration starts (an unreduced model whose
     fastest mode makes the run long) and after it (deflections beyond the linear model's range,
-    :mod:`nsfem.analysis.deflection`). Bad sample counts and damping raise SceneError first. A run that stops early raises
+    :mod:`nsfem.analysis.deflection`). ``out_dir``: the folder the caller writes the result and the
+    scene's VTU series into; their size is checked (:func:`check_output_size`) before integrating.
+    Bad sample counts and damping raise SceneError first. A run that stops early raises
     :class:`~nsfem.errors.IntegrationError` whose ``result`` holds it up to there."""
     from .fem.assemble import build_model
     from .reduce import scene_reduction
@@ -255,6 +320,13 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     if method in ("exact", "rk"):
         f_max, samples = search_cost(system, sim.t_end, w_seen)
         text = check_search_cost(system, sim.t_end, method, red.info, f_max, samples)
+        if text and warn is not None:
+            warn(text)
+    if out_dir is not None:  # after the refusals above: no warning for a run refused anyway
+        n_times = output_times(sim.t_end, sim.output_dt).size
+        files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every, n_times,
+                                    len(scene.sensors))
+        text = check_output_size(files, nbytes, free_bytes(out_dir), scene.output.vtu_every, n_times)
         if text and warn is not None:
             warn(text)
     q0, v0 = initial_state(scene, model, red, system)

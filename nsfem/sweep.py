@@ -727,9 +727,6 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
     them. ``info``: ``executed``, ``resumed``, ``models_built``, ``workers``, ``wall_s``
     (and ``interrupted``).
     """
-    from .fem.assemble import build_model
-    from .reduce import scene_reduction
-
     if workers is not None and (scheduler or client is not None):
         raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
     check_workers(workers)
@@ -739,6 +736,20 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
     out = (Path(out_dir) if out_dir is not None else default_folder(p)).absolute()
     check_folder(out, "--out")  # tried, then left as it was: root passes permission bits everywhere
     _check_folder(out, p, scene_path)
+    from .outdir import claim, remove_leftovers
+
+    with claim(out, "sweep"):  # one sweep at a time in the folder; files cut short by a kill removed
+        for pt in p.points:
+            remove_leftovers(out / run_name(pt))
+        return _run_sweep(p, out, scene_path, client, workers, scheduler, progress, plot, t0)
+
+
+def _run_sweep(p: _Plan, out: Path, scene_path, client, workers: int | None, scheduler: str | None,
+               progress: Callable[[str], None] | None, plot: bool, t0: float) -> SweepResult:
+    """:func:`run_sweep` in its claimed folder ``out``."""
+    from .fem.assemble import build_model
+    from .reduce import scene_reduction
+
     keys = [a.key for a in p.axes]
     done_rows = [read_record(out / run_name(pt), p.fp) for pt in p.points]
     todo = [i for i, r in enumerate(done_rows) if r is None]

@@ -38,7 +38,8 @@ segment the crack has cut, moving with the left side's section; point data ``dis
 (``stack``, ``contacts``, ``disks``, ``stators``, ``cracks``) and a comment in it says which frame the
 coordinates are in. NNNNN is the index
 of the output time in ``result.t``. Every file is written to a temporary name in the
-output folder and renamed, so a reader never sees a half-written file.
+output folder and renamed, so a reader never sees a half-written file; a series stopped part way
+(Ctrl-C, SIGTERM, an error) still gets its ``.pvd``, indexing exactly the frames complete by then.
 
 A stator ring is fixed in the frame the run was computed in (``result.info["frame"]``, as in the
 model, :func:`nsfem.scene.stator_contacts`): in space for an inertial run; for a rotating-frame run
@@ -56,13 +57,14 @@ facet (gap < 0), the overlap of the drawn shaft and ring is its mount's compress
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import NamedTuple
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from ..atomic import write_atomic
+from ..atomic import signals_deferred, write_atomic
 from ..contact.set import tangent_names
 from ..errors import NsfemError
 
@@ -70,6 +72,10 @@ from ..errors import NsfemError
 #: (so a hexahedron (section i, section i+1) has positive volume in VTK's ordering)
 CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 _AXIS = {"x": 0, "y": 1, "z": 2}
+#: the parts of a series after the stack, in their order in the .pvd (files ``<prefix>_<part>_NNNNN.vtu``)
+PARTS = ("contacts", "disks", "stators", "cracks")
+#: the name of a frame file of a series
+SERIES_FRAME = re.compile(r"^.+?(_(%s))?_\d{5,}\.vtu$" % "|".join(PARTS))
 
 
 def _tangent_vector(contact, name: str) -> np.ndarray:
@@ -477,6 +483,40 @@ def _model_and_T(system_or_model_and_T):
     return info["model"], info["reduction"].T, getattr(system, "model_contacts", getattr(system, "contacts", None))
 
 
+def series_files(n_times: int, every: int, prefix: str = "nsfem", parts=PARTS) -> list[str]:
+    """The names a series of ``n_times`` output times may write: its .pvd and, for every
+    ``every``-th time, the stack's frame and one per part of ``parts``."""
+    names = [f"{prefix}.pvd"]
+    for i in range(0, n_times, every):
+        names += [f"{prefix}_{i:05d}.vtu"] + [f"{prefix}_{p}_{i:05d}.vtu" for p in parts]
+    return names
+
+
+#: bytes of a VTU file besides its arrays (XML header, array descriptions: 1.2 to 1.9 kB measured)
+VTU_OVERHEAD = 2048
+
+
+def frame_size(model) -> tuple[int, float]:
+    """(files, bytes) of one frame of ``model``'s series: the bytes an upper bound (every array in
+    meshio's raw binary, 8 bytes a value, as base64, before its zlib compression, which gains 2x
+    to 5x on these files; plus :data:`VTU_OVERHEAD` a file)."""
+    points, cells, _, _ = stack_geometry(model)
+    dpoints, dcells, _, _ = disk_geometry(model)
+    spoints, scells, _, _ = stator_geometry(model)
+    cpoints, cpolys, _ = crack_geometry(model)
+    m = len(model.stack.contacts)
+    # values per part: coordinates and displacements (6 a point), connectivity, offsets and types,
+    # then the point / cell data of write_series
+    values = [6 * len(points) + cells.size + 3 * len(cells), 15 * m]
+    if len(dcells):
+        values.append(6 * len(dpoints) + dcells.size + 3 * len(dcells))
+    if len(scells):
+        values.append(6 * len(spoints) + scells.size + 10 * len(scells))
+    if len(cpolys):
+        values.append(7 * len(cpoints) + sum(len(p) for p in cpolys) + 6 * len(cpolys))
+    return len(values), float(sum(8 * 4 / 3 * v + VTU_OVERHEAD for v in values))
+
+
 def _write_vtu(path: Path, mesh) -> None:
     import meshio
 
@@ -494,7 +534,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     (Omega = 2 pi ``result.info["speed_hz"]``; ``phase_deg`` as ``rotation.phase_deg``, the
     frame in which gravity points along -z). A model with disks, stators or cracks gets their parts too
     (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`; the module's docstring lists
-    the parts).
+    the parts). Interrupted (KeyboardInterrupt) or failing part way, it removes the frame it was
+    writing, writes the .pvd of the frames before it and re-raises.
     """
     import meshio
 
@@ -524,56 +565,72 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         tangents.append([_tangent_vector(c, name) for name in names[:2]])
     idx = list(range(0, result.t.size, every))
     entries = []
-    for i in idx:
-        q_full = np.asarray(T @ result.q[:, i]).ravel()
-        u = displacements(model, q_full)
-        cpos, cdisp = contact_points(model, q_full)
-        tf = np.zeros((m, 3))
-        for k in range(m):
-            for j, vec in enumerate(tangents[k]):
-                tf[k] += result.tangential_force[k, j, i] * vec
-        du = disk_displacements(model, q_full)
-        ku, kgap = crack_displacements(model, q_full)
-        p, dp, sp_, kp = points, dpoints, spoints, cpoints
-        if frame == "inertial":
-            R = rotation(omega * float(result.t[i]) + phase)
-            p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku = (a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du,
-                                                                            spoints, cpoints, ku))
-        name = f"{prefix}_{i:05d}.vtu"
-        _write_vtu(out / name, meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
-                                           cell_data={"segment": [seg_ids]}))
-        cname = f"{prefix}_contacts_{i:05d}.vtu"
-        vert = np.arange(m, dtype=np.int64).reshape(-1, 1)
-        _write_vtu(out / cname, meshio.Mesh(
-            cpos, [("vertex", vert)],
-            point_data={"displacement": cdisp, "gap": np.asarray(result.gap[:, i], dtype=float),
-                        "normal_force": np.asarray(result.normal_force[:, i], dtype=float),
-                        "tangential_force": tf, "state": np.asarray(result.state[:, i], dtype=np.int32)}))
-        files = [name, cname]
-        if len(dcells):
-            files.append(f"{prefix}_disks_{i:05d}.vtu")
-            _write_vtu(out / files[-1], meshio.Mesh(dp, [("hexahedron", dcells)], point_data={"displacement": du},
-                                                    cell_data={"disk": [disk_ids]}))
-        if len(scells):
-            files.append(f"{prefix}_stators_{i:05d}.vtu")
-            fc = facet_contact
-            _write_vtu(out / files[-1], meshio.Mesh(
-                sp_, [("hexahedron", scells)], point_data={"displacement": np.zeros_like(sp_)},
-                cell_data={"stator": [ring_ids], "contact": [fc],
-                           "gap": [np.asarray(result.gap[fc, i], dtype=float)],
-                           "normal_force": [np.asarray(result.normal_force[fc, i], dtype=float)],
-                           "tangential_force": [tf[fc]], "state": [np.asarray(result.state[fc, i], dtype=np.int32)]}))
-        if faces:
-            files.append(f"{prefix}_cracks_{i:05d}.vtu")
-            data = crack_data(result, faces, i)
-            _write_vtu(out / files[-1], meshio.Mesh(
-                kp, [("polygon", poly[None, :]) for poly in cpolys], point_data={"displacement": ku, "face_gap": kgap},
-                cell_data={"crack": [np.array([j]) for j in range(len(faces))],
-                           **{n: [v[j:j + 1] for j in range(len(faces))] for n, v in data.items()}}))
-        entries.append((float(result.t[i]), files))
     names = (["stack", "contacts"] + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
              + ["cracks"] * bool(faces))
     written = "inertial" if turn else result.info.get("frame", "rotating")
+    pvd = out / f"{prefix}.pvd"
+    files: list[str] = []
+    try:
+        for i in idx:
+            files = []
+            q_full = np.asarray(T @ result.q[:, i]).ravel()
+            u = displacements(model, q_full)
+            cpos, cdisp = contact_points(model, q_full)
+            tf = np.zeros((m, 3))
+            for k in range(m):
+                for j, vec in enumerate(tangents[k]):
+                    tf[k] += result.tangential_force[k, j, i] * vec
+            du = disk_displacements(model, q_full)
+            ku, kgap = crack_displacements(model, q_full)
+            p, dp, sp_, kp = points, dpoints, spoints, cpoints
+            if frame == "inertial":
+                R = rotation(omega * float(result.t[i]) + phase)
+                p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku = (a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du,
+                                                                                spoints, cpoints, ku))
+            name = f"{prefix}_{i:05d}.vtu"
+            files.append(name)
+            _write_vtu(out / name, meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
+                                               cell_data={"segment": [seg_ids]}))
+            cname = f"{prefix}_contacts_{i:05d}.vtu"
+            files.append(cname)
+            vert = np.arange(m, dtype=np.int64).reshape(-1, 1)
+            _write_vtu(out / cname, meshio.Mesh(
+                cpos, [("vertex", vert)],
+                point_data={"displacement": cdisp, "gap": np.asarray(result.gap[:, i], dtype=float),
+                            "normal_force": np.asarray(result.normal_force[:, i], dtype=float),
+                            "tangential_force": tf, "state": np.asarray(result.state[:, i], dtype=np.int32)}))
+            if len(dcells):
+                files.append(f"{prefix}_disks_{i:05d}.vtu")
+                _write_vtu(out / files[-1], meshio.Mesh(dp, [("hexahedron", dcells)], point_data={"displacement": du},
+                                                        cell_data={"disk": [disk_ids]}))
+            if len(scells):
+                files.append(f"{prefix}_stators_{i:05d}.vtu")
+                fc = facet_contact
+                _write_vtu(out / files[-1], meshio.Mesh(
+                    sp_, [("hexahedron", scells)], point_data={"displacement": np.zeros_like(sp_)},
+                    cell_data={"stator": [ring_ids], "contact": [fc],
+                               "gap": [np.asarray(result.gap[fc, i], dtype=float)],
+                               "normal_force": [np.asarray(result.normal_force[fc, i], dtype=float)],
+                               "tangential_force": [tf[fc]], "state": [np.asarray(result.state[fc, i], dtype=np.int32)]}))
+            if faces:
+                files.append(f"{prefix}_cracks_{i:05d}.vtu")
+                data = crack_data(result, faces, i)
+                _write_vtu(out / files[-1], meshio.Mesh(
+                    kp, [("polygon", poly[None, :]) for poly in cpolys], point_data={"displacement": ku, "face_gap": kgap},
+                    cell_data={"crack": [np.array([j]) for j in range(len(faces))],
+                               **{n: [v[j:j + 1] for j in range(len(faces))] for n, v in data.items()}}))
+            entries.append((float(result.t[i]), files))
+    except BaseException:  # interrupted (or failed): the frames written so far stay a valid series
+        with signals_deferred():
+            for f in files if not entries or entries[-1][1] is not files else []:
+                (out / f).unlink(missing_ok=True)  # the frame cut short
+            write_pvd(pvd, entries, names, written, turn)
+        raise
+    return write_pvd(pvd, entries, names, written, turn)
+
+
+def write_pvd(pvd: Path, entries: list, names: list[str], written: str, turn: bool) -> Path:
+    """The ``.pvd`` index of the frames ``entries`` [(t, [file per part])] with parts ``names``."""
     note = (" (it turns with the shaft at Omega; stator rings are fixed in it, as in the model)" if written == "rotating"
             else " (turned from the run's rotating frame by Omega t + phase: its stator rings, fixed in that frame "
             "in the model, turn with it)" if turn else "")
@@ -586,6 +643,5 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         for part, (label, f) in enumerate(zip(names, files)):
             lines.append(f'    <DataSet timestep="{t!r}" group="" part="{part}" name="{label}" file={quoteattr(f)}/>')
     lines += ["  </Collection>", "</VTKFile>", ""]
-    pvd = out / f"{prefix}.pvd"
     write_atomic(pvd, lambda tmp: Path(tmp).write_text("\n".join(lines), encoding="utf-8"))
     return pvd

@@ -96,8 +96,7 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     refined, whose shift of the minimum widens the interval (:mod:`nsfem.fit.discretization`). Ctrl-C
     writes the runs so far and raises :class:`FitInterrupted`.
     """
-    from ..analysis.uncertainty import linearized
-    from ..sweep import _client, _close, _hold_signals, _release_signals, check_workers
+    from ..sweep import check_workers
 
     if workers is not None and (scheduler or client is not None):
         raise NsfemError(("--workers cannot be combined with --scheduler" if scheduler else
@@ -129,6 +128,20 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
             raise NsfemError("start: every value must lie in its key's range")
     out = (Path(out_dir) if out_dir is not None else default_folder(problem)).absolute()
     check_folder(out, "--out")
+    from ..outdir import FIT_FILES, claim
+
+    with claim(out, "fit", {"fit": FIT_FILES}):  # one fit at a time; the files of an earlier one replaced
+        return _estimate(problem, out, u_start, client, workers, scheduler, n_global, max_nfev, seed, misfit,
+                         progress, plot, refine, t0)
+
+
+def _estimate(problem: Problem, out: Path, u_start, client, workers, scheduler, n_global: int, max_nfev: int,
+              seed: int, misfit: str, progress, plot: bool, refine: bool, t0: float) -> FitResult:
+    """:func:`fit` in its claimed folder ``out``."""
+    from ..analysis.uncertainty import linearized
+    from ..sweep import _client, _close, _hold_signals, _release_signals
+
+    params, p = problem.params, len(problem.params)
     say = progress or (lambda line: None)
     cl, closing, runner = None, [], None
     info: dict = {"workers": 0, "seed": seed, "global_samples": 0}

@@ -231,7 +231,15 @@ def evaluations_csv(res: FitResult) -> str:
 
 
 def _write(res: FitResult, plot: bool = True) -> FitResult:
-    """Write evaluations.csv, the PNGs (``plot``) and fit.json (last, listing them) atomically."""
+    """Write evaluations.csv, the PNGs (``plot``) and fit.json (last, listing them) atomically; a
+    Ctrl-C or SIGTERM meanwhile is acted on once fit.json is written (the estimates are kept)."""
+    from ..atomic import signals_deferred
+
+    with signals_deferred():
+        return _write_files(res, plot)
+
+
+def _write_files(res: FitResult, plot: bool) -> FitResult:
     import dataclasses
     from ..jsonio import as_text, dumps
 

@@ -1,0 +1,220 @@
+"""An output folder holds one run: a lock while a command writes it, and a manifest of what it wrote.
+
+:func:`claim` takes a folder for a command (``nsfem run``, ``export``, ``fit``, ``sweep``):
+
+* **lock**: ``fcntl.flock`` on ``.nsfem.lock`` in the folder, held until the command ends; the
+  OS releases it when the process dies, so a killed run leaves no stale lock. A second command
+  that wants the folder meanwhile gets a one-line error naming the folder and the other process.
+* **leftovers**: the temporary files of a killed earlier write (``.<name>.XXXXXXXX.tmp``, see
+  :func:`nsfem.atomic.write_atomic`) are removed.
+* **manifest** (``.nsfem-files.json``): the files nsfem wrote there, by kind (``run``: result.npz,
+  plots, sensors, render.png; ``series``: the .pvd and its VTU frames; ``fit``: fit.json,
+  evaluations.csv and its plots). A command replaces its kinds: when it writes its first file the
+  files of those kinds that it will not rewrite are removed (and the old .pvd, whose frames are
+  about to be replaced), at the end those it did not rewrite after all (an interrupted run). Only
+  files named in a manifest are ever removed: a user's own files in the folder are left alone.
+
+>>> import tempfile, pathlib
+>>> from nsfem.atomic import write_text_atomic
+>>> d = pathlib.Path(tempfile.mkdtemp())
+>>> with claim(d, "run", {"run": ["result.npz", "gap.png"]}, "--out"):
+...     _ = write_text_atomic(d / "result.npz", "1"), write_text_atomic(d / "gap.png", "2")
+>>> with claim(d, "run", {"run": ["result.npz"]}, "--out"):   # a run without plots
+...     _ = write_text_atomic(d / "result.npz", "3")
+>>> sorted(p.name for p in d.iterdir())
+['.nsfem-files.json', 'result.npz']
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import errno
+import json
+import os
+from pathlib import Path
+from typing import Iterable, Iterator, Mapping
+
+from .atomic import PROBE_NAME, TMP_NAME, journal, signals_deferred, write_text_atomic
+from .errors import NsfemError
+
+try:  # POSIX; elsewhere (Windows) folders are not locked
+    import fcntl
+except ImportError:  # pragma: no cover - not on the project's machines
+    fcntl = None
+
+#: flock's answers on a file system that has no locks (some network and parallel file systems): the
+#: folder is then written without one, as on a platform without fcntl
+NO_LOCKS = {errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL}
+
+LOCK = ".nsfem.lock"
+MANIFEST = ".nsfem-files.json"
+#: the kinds of output each command replaces
+REPLACES = {"run": ("run", "series"), "export": ("series",), "fit": ("fit",), "sweep": (), "render": ()}
+
+
+class FolderBusy(NsfemError):
+    """Another nsfem process is writing the folder."""
+
+
+def _lock(path: Path, what: str) -> int | None:
+    """An exclusive lock on ``path/LOCK`` (its descriptor); FolderBusy when another process holds it;
+    None where the platform or the file system has no locks (the folder is then written unlocked)."""
+    if fcntl is None:
+        return None
+    lock = path / LOCK
+    while True:
+        try:  # never through a link: the file is truncated
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
+        except OSError as exc:
+            raise NsfemError(f"{what}: cannot create the lock file {lock}: {exc.strerror or exc}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            try:
+                other = os.read(fd, 4096).decode("utf-8", "replace").strip()
+            finally:
+                os.close(fd)
+            raise FolderBusy(f"{what}: {path} is being written by another nsfem process ({other or 'starting'}); "
+                             "wait for it to end or choose another folder") from None
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno in NO_LOCKS:  # a file system without locks
+                with contextlib.suppress(OSError):
+                    os.unlink(lock)
+                return None
+            raise NsfemError(f"{what}: cannot lock {lock}: {exc.strerror or exc}") from None
+        try:  # the holder before us may have removed the file: then lock the new one
+            if os.stat(lock).st_ino == os.fstat(fd).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def _read_manifest(path: Path) -> dict[str, set[str]]:
+    try:
+        data = json.loads((path / MANIFEST).read_text(encoding="utf-8"))
+        kinds = data["files"]
+        return {str(k): {n for n in v if isinstance(n, str) and "/" not in n and "\0" not in n
+                         and n not in ("", ".", "..", LOCK, MANIFEST)}
+                for k, v in kinds.items() if isinstance(v, list)}
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
+        return {}
+
+
+def _write_manifest(path: Path, files: Mapping[str, Iterable[str]]) -> None:
+    files = {k: sorted(v) for k, v in files.items() if v}
+    if files:
+        write_text_atomic(path / MANIFEST, json.dumps({"files": files}, indent=0) + "\n")
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            (path / MANIFEST).unlink()
+
+
+def _remove(path: Path, names: Iterable[str]) -> None:
+    for name in names:
+        with contextlib.suppress(OSError):  # gone already, a folder of that name, read-only
+            (path / name).unlink()
+
+
+def remove_leftovers(path: Path) -> list[str]:
+    """Remove the temporary files of killed writes (and probes) in folder ``path``; their names."""
+    gone = []
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(path):
+            if entry.is_file(follow_symlinks=False) and (TMP_NAME.match(entry.name) or PROBE_NAME.match(entry.name)):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(entry.path)
+                    gone.append(entry.name)
+    return gone
+
+
+@contextlib.contextmanager
+def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = None,
+          what: str = "--out") -> Iterator[set]:
+    """Hold folder ``path`` for ``command`` (a key of :data:`REPLACES`) within the block; yields the
+    set of paths written in it so far (:func:`nsfem.atomic.journal`).
+
+    ``expected``: per kind, the names the command may write. When it writes its first file there,
+    the files of the kinds it replaces that it will not write are removed (a command refused or
+    stopped before writing leaves the folder as it was); at the end those it did not rewrite. ``what``
+    names the folder in messages (``--out``, ``--vtu``, ``output.dir``). The folder is created if
+    missing and removed again if the command leaves it empty.
+    """
+    path = Path(path)
+    created = not path.exists()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise NsfemError(f"{what}: cannot create {path}: {exc.strerror or exc}") from None
+    fd = None
+    try:
+        fd = _lock(path, what)
+        if fd is not None:
+            os.ftruncate(fd, 0)
+            started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+            os.write(fd, f"pid {os.getpid()}, nsfem {command} started {started}\n".encode())
+        with signals_deferred():
+            remove_leftovers(path)
+        folder = _Folder(path, REPLACES[command], {k: set(v) for k, v in (expected or {}).items()})
+        with journal(before=folder.before_write) as written:
+            try:
+                yield written
+            finally:
+                with signals_deferred():  # the folder's bookkeeping is never left half done
+                    folder.finish(written)
+    finally:
+        if fd is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(path / LOCK)
+            os.close(fd)
+        if created:
+            with contextlib.suppress(OSError):
+                path.rmdir()  # only when empty
+
+
+class _Folder:
+    """The manifest's side of :func:`claim`: ``kinds`` replaced, ``expected`` names per kind."""
+
+    def __init__(self, path: Path, kinds: tuple[str, ...], expected: dict[str, set[str]]):
+        self.path, self.here, self.kinds, self.expected = path, path.resolve(), kinds, expected
+        self.old: dict[str, set[str]] | None = None   # the manifest once writing started
+
+    def before_write(self, target: Path) -> None:
+        """On the first write into the folder: remove the older files this command will not write
+        (and the old .pvd, whose frames are about to be replaced); list what it may write."""
+        if self.old is not None or Path(target).name in (MANIFEST, LOCK) or Path(target).parent.resolve() != self.here:
+            return
+        with signals_deferred():
+            path, kinds, expected = self.path, self.kinds, self.expected
+            old = _read_manifest(path)
+            existing = {e.name for e in os.scandir(path)}
+            stale = {n for k in kinds for n in old.get(k, set()) if n not in expected.get(k, set()) or n.endswith(".pvd")}
+            _remove(path, stale)
+            self.old = old = {k: (v - stale) & existing for k, v in old.items()}
+            # before writing, the manifest names whatever the command may write (but a user's own
+            # files of those names): a killed command's files are known to the next one
+            users = existing - set().union(set(), *old.values())
+            _write_manifest(path, {k: old.get(k, set()) | (expected.get(k, set()) - users)
+                                   for k in set(old) | set(expected)})
+
+    def finish(self, written: set) -> None:
+        """The manifest after the command: the kinds it replaces hold what it wrote, and their older
+        files it did not rewrite are removed (they belong to another run); other kinds gain what
+        it wrote of them."""
+        remove_leftovers(self.path)  # a write cut short in a window write_atomic cannot close
+        if self.old is None:  # nothing written: the folder is as it was
+            return
+        names = {Path(p).name for p in written if Path(p).parent.resolve() == self.here} - {MANIFEST, LOCK}
+        new = {k: set(v) - names for k, v in self.old.items()}
+        for k in self.kinds:
+            _remove(self.path, self.old.get(k, set()) - names)
+            new[k] = set()
+        for k, v in self.expected.items():
+            new[k] = new.get(k, set()) | (names & v)
+        _write_manifest(self.path, new)
+
+
+#: the files of ``nsfem fit`` (:func:`nsfem.fit.result._write`)
+FIT_FILES = frozenset({"fit.json", "evaluations.csv", "fit.png", "landscape.png"})
