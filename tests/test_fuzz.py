@@ -1632,3 +1632,27 @@ def test_a_closed_stderr_costs_the_run_nothing(tmp_path):
     assert p.returncode == 0 and b"wrote" in stdout
     with np.load(out / "result.npz") as r:
         assert json.loads(str(r["meta"]))["completed"] is True
+
+
+def test_a_file_system_without_locks_writes_the_folder_unlocked(tmp_path, monkeypatch):
+    """flock answering ENOLCK (a network file system without locks): the command writes its folder
+    unlocked rather than refusing every run there; any other lock error is one line naming the file."""
+    import errno as _errno
+
+    import nsfem.outdir as outdir
+
+    def no_locks(fd, op):
+        raise OSError(_errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr(outdir.fcntl, "flock", no_locks)
+    with outdir.claim(tmp_path / "a", "run", {}, "--out") as written:
+        assert not (tmp_path / "a" / outdir.LOCK).exists()
+        assert written is not None
+
+    def denied(fd, op):
+        raise OSError(_errno.EACCES, "Permission denied")
+
+    monkeypatch.setattr(outdir.fcntl, "flock", denied)
+    with pytest.raises(NsfemError, match=r"--out: cannot lock .*\.nsfem\.lock"):
+        with outdir.claim(tmp_path / "b", "run", {}, "--out"):
+            pass
