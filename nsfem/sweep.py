@@ -259,10 +259,12 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
         red = system.info["reduction"]
         path = result.save(run_dir / "result.npz", scene_text, dense(red.T), system.model_contacts.x, scene.record())
         summary = result.summary()
-        amplitudes = sensor_amplitudes(result, system) if not error else {}  # a broken-off run has no steady state
+        finite = bool(np.all(np.isfinite(result.q)))
+        # a broken-off run has no steady state, an overflowed one no amplitudes
+        amplitudes = sensor_amplitudes(result, system) if not error and finite else {}
         bad = [k for k, v in {**summary, **amplitudes}.items()
                if isinstance(v, float) and not math.isfinite(v) and k != "energy"]
-        if not error and (bad or not np.all(np.isfinite(result.q))):
+        if not error and (bad or not finite):
             error = (f"the result is not finite ({', '.join(bad) or 'the displacements'}): the motion overflowed "
                      "the floating-point range")
             amplitudes = {}

@@ -528,16 +528,32 @@ def test_issue32_property_json_is_strict(payload):
     assert _same(payload, _strict(dumps(payload)))
 
 
-def test_issue32_overflowed_sweep_run_is_a_failed_row_in_strict_json(tmp_path):
-    """The issue's sweep: unbalance 1e300 overflows: its row fails with the reason, holds no amplitudes,
-    and sweep.json parses strictly (it printed ``"energy": NaN``)."""
+def test_issue32_overflowed_sweep_run_is_a_failed_row_in_strict_json(tmp_path, monkeypatch):
+    """The issue's sweep (unbalance 1e-3:1e300:2, which printed ``"energy": NaN``) is refused at load now
+    (an unbalance beyond 1e12 x an element's mass x the rotor's length); a run whose motion overflows all
+    the same (made so here: its displacements infinite) fails its row with the reason, holds no
+    amplitudes, and sweep.json parses strictly."""
     distributed = pytest.importorskip("distributed")
+    import nsfem.simulate
     from nsfem.sweep import run_sweep
 
+    base = ["simulation.t_end=0.02", "output.plots=[]", "output.vtu_every=0"]
+    code, _, stderr = check_invocation(["sweep", "ross_example", *sum((["--set", o] for o in base), []), "--set",
+                                        "unbalance.0.magnitude=1e-3:1e300:2", "--workers", "1", "--json"], tmp_path)
+    assert code == cli.EXIT_ERROR and "unbalance.0.magnitude" in stderr
+    real = nsfem.simulate.run_scene
+
+    def overflowing(scene, *args, **kwargs):
+        result, system = real(scene, *args, **kwargs)
+        if scene["unbalance"][0]["magnitude"] > 5e-3:
+            result.q[:, 1:] = np.inf
+        return result, system
+
+    monkeypatch.setattr(nsfem.simulate, "run_scene", overflowing)
     with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
-        res = run_sweep("ross_example", ["simulation.t_end=0.02", "output.plots=[]", "output.vtu_every=0",
-                                         "unbalance.0.magnitude=1e-3:1e300:2"], tmp_path, client=c, plot=False)
-    payload = _strict((tmp_path / "sweep.json").read_text())
+        res = run_sweep("ross_example", [*base, "unbalance.0.magnitude=1e-3:1e-2:2"], tmp_path / "s", client=c,
+                        plot=False)
+    payload = _strict((tmp_path / "s" / "sweep.json").read_text())
     ok, bad = payload["runs"]
     assert ok["error"] == "" and ok["amplitude_disk1_y_m"] > 0
     assert "overflowed" in bad["error"] and not any(k.startswith("amplitude_") for k in bad)
