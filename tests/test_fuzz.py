@@ -1096,3 +1096,27 @@ def test_any_crack_depth_runs(depth, command):
     with tempfile.TemporaryDirectory() as d:
         code, _, stderr = check_physics_invocation([command, *CRACK, "--set", f"crack.0.depth={depth!r}"], Path(d))
     assert code == 0, stderr
+
+
+# --- issue 32: review of the physics change (penetration per stop, ...) ---
+
+def test_penetration_is_judged_against_each_stops_own_clearance():
+    """A retainer 10 mm away penetrated 20 um (0.2 % of its clearance: a stop that holds) beside a 0.1 mm
+    stator that is not touched: no warning (the check once measured every stop against the smallest
+    clearance, 20 um > 0.1 x 0.1 mm, and warned). The same 20 um into the 0.1 mm stator (20 %) warns and names
+    it. The margins are factors of 50 and 2 from the 10 % threshold, far beyond the gaps' round-off."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from nsfem.analysis.deflection import penetration_warning
+    from nsfem.stack import Contact
+
+    stops = SimpleNamespace(contacts=(Contact("obstacle", 0.4, ("s",), clearance=1e-4, label="stator.0.0"),
+                                      Contact("obstacle", 0.1, ("s",), clearance=1e-2, label="obstacle.0")))
+    labels = ["stator.0.0", "obstacle.0"]
+    far = SimpleNamespace(gap=np.array([[1e-4, 5e-5], [1e-2, -2e-5]]), info={"contacts": labels}, method="penalty")
+    assert penetration_warning(far, stops) is None
+    near = SimpleNamespace(gap=np.array([[1e-4, -2e-5], [1e-2, 5e-3]]), info={"contacts": labels}, method="penalty")
+    text = penetration_warning(near, stops)
+    assert text is not None and "2e-05 m deep at stator.0.0" in text and "clearance 0.0001 m" in text
