@@ -193,8 +193,13 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
     valid = VALID_FRACTION * top if top else math.inf
     turn = lateral_turn(model.spaces, model.n_full)
     isotropic = all(b.isotropic for b in model.stack.bearings)
-    crit = {c: critical_speeds(o, turn, None if math.isinf(valid) else valid, isotropic, count + 2)
-            for c, o in ops.items()}
+    crit = {}
+    for c, o in ops.items():
+        # a rotor without contacts has one set of operators for both: its speeds once (a cross-coupled
+        # rotor's crossing search costs a few hundred eigen solves)
+        same = [d for d in crit if ops[d] is o]
+        crit[c] = crit[same[0]] if same else critical_speeds(o, turn, None if math.isinf(valid) else valid, isotropic,
+                                                             count + 2)
     if speeds_hz is None:
         # past the second forward critical speed (the first of the second mode pair)
         c = crit["open"][0][crit["open"][1] == 1]
