@@ -1672,3 +1672,27 @@ def test_a_file_system_without_locks_writes_the_folder_unlocked(tmp_path, monkey
     with pytest.raises(NsfemError, match=r"--out: cannot lock .*\.nsfem\.lock"):
         with outdir.claim(tmp_path / "b", "run", {}, "--out"):
             pass
+
+
+# --- issue 32: review of the physics change (penetration per stop, ...) ---
+
+def test_penetration_is_judged_against_each_stops_own_clearance():
+    """A retainer 10 mm away penetrated 20 um (0.2 % of its clearance: a stop that holds) beside a 0.1 mm
+    stator that is not touched: no warning (the check once measured every stop against the smallest
+    clearance, 20 um > 0.1 x 0.1 mm, and warned). The same 20 um into the 0.1 mm stator (20 %) warns and names
+    it. The margins are factors of 50 and 2 from the 10 % threshold, far beyond the gaps' round-off."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from nsfem.analysis.deflection import penetration_warning
+    from nsfem.stack import Contact
+
+    stops = SimpleNamespace(contacts=(Contact("obstacle", 0.4, ("s",), clearance=1e-4, label="stator.0.0"),
+                                      Contact("obstacle", 0.1, ("s",), clearance=1e-2, label="obstacle.0")))
+    labels = ["stator.0.0", "obstacle.0"]
+    far = SimpleNamespace(gap=np.array([[1e-4, 5e-5], [1e-2, -2e-5]]), info={"contacts": labels}, method="penalty")
+    assert penetration_warning(far, stops) is None
+    near = SimpleNamespace(gap=np.array([[1e-4, -2e-5], [1e-2, 5e-3]]), info={"contacts": labels}, method="penalty")
+    text = penetration_warning(near, stops)
+    assert text is not None and "2e-05 m deep at stator.0.0" in text and "clearance 0.0001 m" in text

@@ -103,16 +103,18 @@ def result_warning(result, model, basis) -> str | None:
 
 
 #: Warn when a rigid stop with a clearance (an obstacle, a stator's facet) is penetrated deeper than this
-#: fraction of the smallest clearance: a penalty spring lets 1 / (1 + factor) of the contact-free motion
-#: through (1 % at the default factor 100), moreau's steps O(h) of the approach speed; beyond 10 % the stop
-#: no longer holds the motion it is meant to. (Contacts without a clearance, delamination interfaces and
-#: crack faces, have no such scale: their gaps are the motion itself.)
+#: fraction of its own clearance: a penalty spring lets 1 / (1 + factor) of the contact-free motion through
+#: (1 % at the default factor 100), moreau's steps O(h) of the approach speed; beyond 10 % the stop no longer
+#: holds the motion it is meant to. (Contacts without a clearance, delamination interfaces and crack faces,
+#: have no such scale: their gaps are the motion itself.)
 PENETRATION_FRACTION = 0.1
 
 
 def penetration_warning(result, stack) -> str | None:
-    """The warning text when a run's rigid stops with a clearance (not elastic rings, which carry force at a
-    negative gap) were penetrated deeper than :data:`PENETRATION_FRACTION` of the smallest clearance, else None."""
+    """The warning text when one of a run's rigid stops with a clearance (not elastic rings, which carry force
+    at a negative gap) was penetrated deeper than :data:`PENETRATION_FRACTION` of its own clearance (a stop
+    far from the shaft is not judged by a near one's), else None; it names the stop penetrated deepest
+    relative to its clearance."""
     labels = list(result.info.get("contacts", ()))
     gap = np.asarray(result.gap)
     stops = {c.label: c.clearance for c in stack.contacts if c.stiffness == 0.0 and c.clearance > 0.0}
@@ -121,18 +123,18 @@ def penetration_warning(result, stack) -> str | None:
     rows = [i for i, lab in enumerate(labels) if lab in stops]
     if not rows:
         return None
-    depth = max(float(-gap[rows].min()), 0.0)
-    scale = min(stops.values())
-    if not depth > PENETRATION_FRACTION * scale:
+    clearance = np.array([stops[labels[i]] for i in rows])
+    depth = np.maximum(-gap[rows].min(axis=1), 0.0)
+    k = int(np.argmax(depth / clearance))
+    if not depth[k] > PENETRATION_FRACTION * clearance[k]:
         return None
-    k = int(np.unravel_index(np.argmin(gap[rows]), gap[rows].shape)[0])
-    where = f" at {labels[rows[k]]}"
     remedy = {"penalty": "the penalty spring is too soft for these contacts: raise simulation.penalty_factor (or "
                          "simulation.penalty_stiffness)",
               "moreau": "moreau's step is too coarse for these approach speeds: lower simulation.moreau_step"}
-    return (f"the contacts were penetrated {depth:.3g} m deep{where}, more than {PENETRATION_FRACTION:g} of the "
-            f"clearance {scale:.3g} m: {remedy.get(result.method, 'the contact constraint was not held')}; the motion "
-            "beyond the contact is the model's, not the structure's")
+    return (f"the contacts were penetrated {depth[k]:.3g} m deep at {labels[rows[k]]}, more than "
+            f"{PENETRATION_FRACTION:g} of its clearance {clearance[k]:.3g} m: "
+            f"{remedy.get(result.method, 'the contact constraint was not held')}; the motion beyond the contact is "
+            "the model's, not the structure's")
 
 
 def stationary_warning(st, model, basis) -> str | None:

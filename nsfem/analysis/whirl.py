@@ -91,16 +91,20 @@ CROSSING_SAMPLES = 121
 def cross_coupled_critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz: float | None = None,
                                   forward_only: bool = False, count: int = 12) -> tuple[np.ndarray, np.ndarray]:
     """:func:`critical_speeds` of a rotor whose bearings are cross-coupled: the speeds Omega where a whirl
-    frequency of the undamped rotor (M, Omega Gp1, K0 + Kbc) equals Omega, the crossings of its Campbell
+    frequency of the undamped rotor (M, Omega Gp1, K0 + Kbc; no bearing damping) equals Omega (ROSS's ``wd``
+    crossing), the crossings of its Campbell
     curves with the 1x line (an unbalance then drives that mode at its frequency), and their whirl.
 
     The circulatory Kbc makes the roots grow or decay, so no real Omega solves the synchronous pencil; the
     j-th lowest whirl frequency f_j(Omega) is still a continuous function of the speed (an order statistic),
-    so each sign change of f_j(Omega) - Omega on :data:`CROSSING_SAMPLES` speeds up to 1.3 times the
-    ``count``-th critical speed without the cross coupling (at most ``max_hz``) is refined by Brent's method
-    to 1e-10 of the speed."""
+    so each sign change of f_j(Omega) - Omega (j over all count + 2 roots computed) on
+    :data:`CROSSING_SAMPLES` speeds up to 1.3 times the ``count``-th critical speed without the cross coupling
+    (at most ``max_hz``) is refined by Brent's method to 1e-10 of the speed."""
     from scipy.optimize import brentq
 
+    # undamped: the bearings' damping leaves (linear_system adds C_b whenever it has entries), as in
+    # _hermitian_critical_speeds, so that a vanishing cross coupling gives the same speeds
+    ops = replace(ops, Cb=sp.csr_matrix(ops.Cb.shape))
     base, _ = _hermitian_critical_speeds(replace(ops, Kbc=ops.Kbc * 0.0), turn, max_hz, False)
     top = 1.3 * float(base[min(count, base.size) - 1]) if base.size else 1.0
     top = top if max_hz is None else min(top, max_hz)
@@ -116,7 +120,8 @@ def cross_coupled_critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz
     grid = np.linspace(0.0, top, CROSSING_SAMPLES)
     table = np.array([frequencies_of(roots(s)[0], m) for s in grid]) - grid[:, None]
     found = []
-    for j in range(count):
+    # every computed root, not the first count: an axial root (a thrust bearing's) takes a place among them
+    for j in range(m):
         g = table[:, j]
         for i in np.flatnonzero(np.isfinite(g[:-1]) & np.isfinite(g[1:]) & (np.sign(g[:-1]) != np.sign(g[1:]))):
             speed = grid[i] if g[i] == 0.0 else brentq(excess, grid[i], grid[i + 1], args=(j,), xtol=1e-12 * top,
@@ -188,8 +193,13 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
     valid = VALID_FRACTION * top if top else math.inf
     turn = lateral_turn(model.spaces, model.n_full)
     isotropic = all(b.isotropic for b in model.stack.bearings)
-    crit = {c: critical_speeds(o, turn, None if math.isinf(valid) else valid, isotropic, count + 2)
-            for c, o in ops.items()}
+    crit = {}
+    for c, o in ops.items():
+        # a rotor without contacts has one set of operators for both: its speeds once (a cross-coupled
+        # rotor's crossing search costs a few hundred eigen solves)
+        same = [d for d in crit if ops[d] is o]
+        crit[c] = crit[same[0]] if same else critical_speeds(o, turn, None if math.isinf(valid) else valid, isotropic,
+                                                             count + 2)
     if speeds_hz is None:
         # past the second forward critical speed (the first of the second mode pair)
         c = crit["open"][0][crit["open"][1] == 1]
