@@ -13,6 +13,10 @@
   files of those kinds that it will not rewrite are removed (and the old .pvd, whose frames are
   about to be replaced), at the end those it did not rewrite after all (an interrupted run). Only
   files named in a manifest are ever removed: a user's own files in the folder are left alone.
+* **planned** names: while a command writes, the manifest also lists what it may still write, and
+  the lock file logs each file once written. A command killed outright (SIGKILL, power loss) leaves
+  both; the next one counts as nsfem's only the planned names the log confirms, so a file the user
+  later gives a planned name is never taken for the killed command's.
 
 >>> import tempfile, pathlib
 >>> from nsfem.atomic import write_text_atomic
@@ -75,6 +79,7 @@ def _lock(path: Path, what: str) -> int | None:
                 other = os.read(fd, 4096).decode("utf-8", "replace").strip()
             finally:
                 os.close(fd)
+            other = other.splitlines()[0] if other else ""  # its first line: who; then the files it wrote
             raise FolderBusy(f"{what}: {path} is being written by another nsfem process ({other or 'starting'}); "
                              "wait for it to end or choose another folder") from None
         except OSError as exc:
@@ -92,24 +97,52 @@ def _lock(path: Path, what: str) -> int | None:
         os.close(fd)
 
 
-def _read_manifest(path: Path) -> dict[str, set[str]]:
+def _names(name: object) -> bool:
+    """A plain file name of the folder (no path, not the bookkeeping files)."""
+    return isinstance(name, str) and "/" not in name and "\0" not in name and name not in ("", ".", "..", LOCK, MANIFEST)
+
+
+def _read_manifest(path: Path, entry: str = "files") -> dict[str, set[str]]:
+    """The manifest's ``files`` (written by nsfem) or ``planned`` (that a command still writing may write), by kind."""
     try:
         data = json.loads((path / MANIFEST).read_text(encoding="utf-8"))
-        kinds = data["files"]
-        return {str(k): {n for n in v if isinstance(n, str) and "/" not in n and "\0" not in n
-                         and n not in ("", ".", "..", LOCK, MANIFEST)}
-                for k, v in kinds.items() if isinstance(v, list)}
+        kinds = data.get(entry, {}) if entry != "files" else data["files"]
+        return {str(k): {n for n in v if _names(n)} for k, v in kinds.items() if isinstance(v, list)}
     except (OSError, ValueError, TypeError, KeyError, AttributeError):
         return {}
 
 
-def _write_manifest(path: Path, files: Mapping[str, Iterable[str]]) -> None:
+def _write_manifest(path: Path, files: Mapping[str, Iterable[str]],
+                    planned: Mapping[str, Iterable[str]] | None = None) -> None:
     files = {k: sorted(v) for k, v in files.items() if v}
-    if files:
-        write_text_atomic(path / MANIFEST, json.dumps({"files": files}, indent=0) + "\n")
+    planned = {k: sorted(v) for k, v in (planned or {}).items() if v}
+    if files or planned:
+        data = {"files": files, **({"planned": planned} if planned else {})}
+        write_text_atomic(path / MANIFEST, json.dumps(data, indent=0) + "\n")
     else:
         with contextlib.suppress(FileNotFoundError):
             (path / MANIFEST).unlink()
+
+
+def _logged(fd: int) -> set[str]:
+    """The files a killed earlier command logged in the lock file ``fd`` as written (``wrote <name>`` lines)."""
+    chunks = []
+    os.lseek(fd, 0, os.SEEK_SET)
+    while chunk := os.read(fd, 1 << 20):
+        chunks.append(chunk)
+    lines = b"".join(chunks).decode("utf-8", "surrogateescape").split("\n")
+    return {line[6:] for line in lines if line.startswith("wrote ") and _names(line[6:])}
+
+
+def _settle(path: Path, logged: set[str]) -> None:
+    """A manifest left by a command killed while writing: its planned names that the lock file's log
+    confirms join its files; the others are no file of nsfem's (never written, or the user's since)."""
+    planned = _read_manifest(path, "planned")
+    if not planned:
+        return
+    files = _read_manifest(path)
+    _write_manifest(path, {k: files.get(k, set()) | (planned.get(k, set()) & logged)
+                           for k in set(files) | set(planned)})
 
 
 def _remove(path: Path, names: Iterable[str]) -> None:
@@ -151,14 +184,18 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
     fd = None
     try:
         fd = _lock(path, what)
+        logged = _logged(fd) if fd is not None else set()
+        with signals_deferred():
+            _settle(path, logged)
         if fd is not None:
             os.ftruncate(fd, 0)
+            os.lseek(fd, 0, os.SEEK_SET)
             started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
             os.write(fd, f"pid {os.getpid()}, nsfem {command} started {started}\n".encode())
         with signals_deferred():
             remove_leftovers(path)
-        folder = _Folder(path, REPLACES[command], {k: set(v) for k, v in (expected or {}).items()})
-        with journal(before=folder.before_write) as written:
+        folder = _Folder(path, REPLACES[command], {k: set(v) for k, v in (expected or {}).items()}, fd)
+        with journal(before=folder.before_write, after=folder.log) as written:
             try:
                 yield written
             finally:
@@ -175,11 +212,19 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
 
 
 class _Folder:
-    """The manifest's side of :func:`claim`: ``kinds`` replaced, ``expected`` names per kind."""
+    """The manifest's side of :func:`claim`: ``kinds`` replaced, ``expected`` names per kind, ``fd``
+    the lock file (None: unlocked), where each file written is logged."""
 
-    def __init__(self, path: Path, kinds: tuple[str, ...], expected: dict[str, set[str]]):
-        self.path, self.here, self.kinds, self.expected = path, path.resolve(), kinds, expected
+    def __init__(self, path: Path, kinds: tuple[str, ...], expected: dict[str, set[str]], fd: int | None = None):
+        self.path, self.here, self.kinds, self.expected, self.fd = path, path.resolve(), kinds, expected, fd
         self.old: dict[str, set[str]] | None = None   # the manifest once writing started
+
+    def log(self, target: Path) -> None:
+        """Log a file just written into the folder in the lock file (read back if this process is killed)."""
+        name = Path(target).name
+        if self.fd is not None and _names(name) and Path(target).parent.resolve() == self.here:
+            with contextlib.suppress(OSError):
+                os.write(self.fd, f"wrote {name}\n".encode("utf-8", "surrogateescape"))
 
     def before_write(self, target: Path) -> None:
         """On the first write into the folder: remove the older files this command will not write
@@ -193,11 +238,10 @@ class _Folder:
             stale = {n for k in kinds for n in old.get(k, set()) if n not in expected.get(k, set()) or n.endswith(".pvd")}
             _remove(path, stale)
             self.old = old = {k: (v - stale) & existing for k, v in old.items()}
-            # before writing, the manifest names whatever the command may write (but a user's own
-            # files of those names): a killed command's files are known to the next one
+            # before writing, the manifest plans whatever the command may write (but a user's own
+            # files of those names): a killed command's files, confirmed by its log, are known to the next one
             users = existing - set().union(set(), *old.values())
-            _write_manifest(path, {k: old.get(k, set()) | (expected.get(k, set()) - users)
-                                   for k in set(old) | set(expected)})
+            _write_manifest(path, old, {k: expected.get(k, set()) - users - old.get(k, set()) for k in expected})
 
     def finish(self, written: set) -> None:
         """The manifest after the command: the kinds it replaces hold what it wrote, and their older

@@ -1656,3 +1656,64 @@ def test_a_file_system_without_locks_writes_the_folder_unlocked(tmp_path, monkey
     with pytest.raises(NsfemError, match=r"--out: cannot lock .*\.nsfem\.lock"):
         with outdir.claim(tmp_path / "b", "run", {}, "--out"):
             pass
+
+
+# --- issue 32: review of the outputs change (files of a killed command, ...) ---
+#: names a run may write (kind run), in the order it writes them
+RUN_NAMES = ["result.npz", "gap.png", "sensors.csv", "sensors.png", "render.png"]
+
+
+def killed_claim(out: Path, planned: list[str], written: list[str]) -> None:
+    """A command that plans ``planned`` in ``out``, writes ``written`` and is killed outright
+    (SIGKILL, power loss: no finally runs), in a forked child."""
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child
+        try:
+            with claim(out, "run", {"run": planned}):
+                for name in written:
+                    write_text_atomic(out / name, f"killed run's {name}")
+                os._exit(9)
+        finally:
+            os._exit(1)
+    _, status = os.waitpid(pid, 0)
+    assert os.WEXITSTATUS(status) == 9
+
+
+def a_killed_commands_planned_names_spare_the_users_files(planned, n_written, users, rewrite):
+    written = planned[:n_written]
+    users = [n for n in users if n not in written]
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        killed_claim(out, planned, written)
+        for name in users:  # the user's own files, made after the kill, under names the killed run planned
+            (out / name).write_text(f"user's {name}")
+        with claim(out, "run", {"run": rewrite}):
+            for name in rewrite:
+                write_text_atomic(out / name, f"new {name}")
+        names = {p.name for p in out.iterdir()} - {MANIFEST}
+        # exactly: the new run's files, the user's files it did not overwrite; none of the killed run's
+        assert names == set(rewrite) | set(users), (planned, written, users, rewrite, sorted(names))
+        for name in set(users) - set(rewrite):
+            assert (out / name).read_text() == f"user's {name}"
+        assert json.loads((out / MANIFEST).read_text()) == {"files": {"run": sorted(rewrite)}}
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(planned=st.permutations(RUN_NAMES), n_written=st.integers(0, 5),
+       users=st.lists(st.sampled_from(RUN_NAMES), unique=True),
+       rewrite=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1))
+def test_a_killed_commands_planned_names_spare_the_users_files(planned, n_written, users, rewrite):
+    """The class: a command killed outright left its manifest planning names it never wrote; the next
+    command removed any file of such a name, also one the user made since. Now only the files the
+    killed command's log confirms are nsfem's."""
+    a_killed_commands_planned_names_spare_the_users_files(planned, n_written, users, rewrite)
+
+
+def test_a_killed_run_does_not_cost_the_user_a_file_named_like_its_outputs(tmp_path):
+    """The reproduction: a run with sensors killed (SIGKILL) after result.npz; the user then copies
+    measured data in as sensors.csv; the next run, without sensors, removed it."""
+    killed_claim(tmp_path, ["result.npz", "sensors.csv"], ["result.npz"])
+    (tmp_path / "sensors.csv").write_text("t,probe\n0,1\n")
+    with claim(tmp_path, "run", {"run": ["result.npz"]}):
+        write_text_atomic(tmp_path / "result.npz", "new")
+    assert (tmp_path / "sensors.csv").read_text() == "t,probe\n0,1\n"
