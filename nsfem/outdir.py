@@ -165,15 +165,16 @@ def remove_leftovers(path: Path) -> list[str]:
 
 @contextlib.contextmanager
 def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = None,
-          what: str = "--out") -> Iterator[set]:
+          what: str = "--out", inputs: Iterable = ()) -> Iterator[set]:
     """Hold folder ``path`` for ``command`` (a key of :data:`REPLACES`) within the block; yields the
     set of paths written in it so far (:func:`nsfem.atomic.journal`).
 
     ``expected``: per kind, the names the command may write. When it writes its first file there,
     the files of the kinds it replaces that it will not write are removed (a command refused or
     stopped before writing leaves the folder as it was); at the end those it did not rewrite. ``what``
-    names the folder in messages (``--out``, ``--vtu``, ``output.dir``). The folder is created if
-    missing and removed again if the command leaves it empty.
+    names the folder in messages (``--out``, ``--vtu``, ``output.dir``). ``inputs``: the files the
+    command reads (fit's data); one in the folder is the user's from then on, never removed as an
+    earlier run's file. The folder is created if missing and removed again if the command leaves it empty.
     """
     path = Path(path)
     created = not path.exists()
@@ -187,6 +188,7 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
         logged = _logged(fd) if fd is not None else set()
         with signals_deferred():
             _settle(path, logged)
+            _adopt(path, inputs)
         if fd is not None:
             os.ftruncate(fd, 0)
             os.lseek(fd, 0, os.SEEK_SET)
@@ -209,6 +211,15 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
         if created:
             with contextlib.suppress(OSError):
                 path.rmdir()  # only when empty
+
+
+def _adopt(path: Path, inputs: Iterable) -> None:
+    """Drop from the manifest the files of folder ``path`` among ``inputs``: read by the command, they are the user's."""
+    here = path.resolve()
+    names = {Path(p).name for p in inputs if Path(p).resolve().parent == here}
+    files = _read_manifest(path)
+    if names & set().union(set(), *files.values()):
+        _write_manifest(path, {k: v - names for k, v in files.items()})
 
 
 class _Folder:

@@ -1717,3 +1717,50 @@ def test_a_killed_run_does_not_cost_the_user_a_file_named_like_its_outputs(tmp_p
     with claim(tmp_path, "run", {"run": ["result.npz"]}):
         write_text_atomic(tmp_path / "result.npz", "new")
     assert (tmp_path / "sensors.csv").read_text() == "t,probe\n0,1\n"
+
+
+def test_a_fits_data_in_the_folder_is_kept_by_the_next_run(tmp_path, monkeypatch):
+    """The reproduction: `nsfem run` with sensors into a folder, `nsfem fit --data <folder>/sensors.csv
+    --out <folder>` (the run's signals as the data), then a run without sensors there: the run's
+    sensors.csv, now the fit's data, was removed as the earlier run's file. Read by the fit, it is the
+    user's from then on (the fit's search itself is left out: the folder's bookkeeping is what is tested)."""
+    import nsfem.fit as fitting
+
+    fixed = ["mesh.elements=20", "reduction.modes=6", 'sensor.0.name="a"', "sensor.0.x=0.05",
+             'sensor.0.direction="+z"', "simulation.t_end=0.01", "output.vtu_every=0", "output.plots=[]"]
+    out = tmp_path / "study"
+    assert cli.main(["run", *[a for f in fixed for a in ("--set", f)], "--out", str(out)]) == 0
+    data = out / "sensors.csv"
+    measured = data.read_text()
+
+    def estimate(problem, folder, *args):
+        write_text_atomic(folder / "fit.json", "{}")
+
+    monkeypatch.setattr(fitting, "_estimate", estimate)
+    fitting.fit(None, data, {"delamination.0.start": (0.1, 0.4)}, overrides=fixed, out_dir=out)
+    assert cli.main(["run", *CHEAP, "--out", str(out)]) == 0  # no sensors
+    assert data.read_text() == measured
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "fit.json", "result.npz", "sensors.csv"]
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(earlier=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1), read=st.data(),
+       rewrite=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1))
+def test_property_a_commands_inputs_in_its_folder_are_never_removed(earlier, read, rewrite):
+    """The class: a file of an earlier run that a command in the folder reads (its input) is the
+    user's from then on: a later run that does not write that name leaves it as it is."""
+    inputs = read.draw(st.lists(st.sampled_from(earlier), unique=True))
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        with claim(out, "run", {"run": earlier}):
+            for name in earlier:
+                write_text_atomic(out / name, f"earlier {name}")
+        with claim(out, "fit", {"fit": FIT_FILES}, inputs=[out / n for n in inputs]):
+            write_text_atomic(out / "fit.json", "{}")
+        with claim(out, "run", {"run": rewrite}):
+            for name in rewrite:
+                write_text_atomic(out / name, f"new {name}")
+        names = {p.name for p in out.iterdir()} - {MANIFEST}
+        assert names == set(rewrite) | set(inputs) | {"fit.json"}, (earlier, inputs, rewrite, sorted(names))
+        for name in set(inputs) - set(rewrite):
+            assert (out / name).read_text() == f"earlier {name}"
