@@ -9,7 +9,7 @@
   :func:`nsfem.atomic.write_atomic`) are removed.
 * **manifest** (``.nsfem-files.json``): the files nsfem wrote there, by kind (``run``: result.npz,
   plots, sensors, render.png; ``series``: the .pvd and its VTU frames; ``fit``: fit.json,
-  evaluations.csv and its plots). A command replaces its kinds: when it writes its first file the
+  evaluations.csv and its plots). A command replaces its kinds: once its first file is written the
   files of those kinds that it will not rewrite are removed (and the old .pvd, whose frames are
   about to be replaced), at the end those it did not rewrite after all (an interrupted run). Only
   files named in a manifest are ever removed: a user's own files in the folder are left alone.
@@ -169,9 +169,9 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
     """Hold folder ``path`` for ``command`` (a key of :data:`REPLACES`) within the block; yields the
     set of paths written in it so far (:func:`nsfem.atomic.journal`).
 
-    ``expected``: per kind, the names the command may write. When it writes its first file there,
-    the files of the kinds it replaces that it will not write are removed (a command refused or
-    stopped before writing leaves the folder as it was); at the end those it did not rewrite. ``what``
+    ``expected``: per kind, the names the command may write. Once its first file there is written,
+    the files of the kinds it replaces that it will not write are removed (a command refused,
+    failing or stopped before that leaves the folder as it was); at the end those it did not rewrite. ``what``
     names the folder in messages (``--out``, ``--vtu``, ``output.dir``). ``inputs``: the files the
     command reads (fit's data); one in the folder is the user's from then on, never removed as an
     earlier run's file. The folder is created if missing and removed again if the command leaves it empty.
@@ -228,40 +228,59 @@ class _Folder:
 
     def __init__(self, path: Path, kinds: tuple[str, ...], expected: dict[str, set[str]], fd: int | None = None):
         self.path, self.here, self.kinds, self.expected, self.fd = path, path.resolve(), kinds, expected, fd
-        self.old: dict[str, set[str]] | None = None   # the manifest once writing started
+        self.old: dict[str, set[str]] | None = None   # the manifest once writing was tried
+        self.planned: dict[str, set[str]] = {}
+        self.replaced = False   # the older files replaced: a file was written
 
-    def log(self, target: Path) -> None:
-        """Log a file just written into the folder in the lock file (read back if this process is killed)."""
-        name = Path(target).name
-        if self.fd is not None and _names(name) and Path(target).parent.resolve() == self.here:
-            with contextlib.suppress(OSError):
-                os.write(self.fd, f"wrote {name}\n".encode("utf-8", "surrogateescape"))
+    def _ours(self, target: Path) -> bool:
+        return _names(Path(target).name) and Path(target).parent.resolve() == self.here
 
     def before_write(self, target: Path) -> None:
-        """On the first write into the folder: remove the older files this command will not write
-        (and the old .pvd, whose frames are about to be replaced); list what it may write."""
-        if self.old is not None or Path(target).name in (MANIFEST, LOCK) or Path(target).parent.resolve() != self.here:
+        """Before the first write into the folder: the manifest plans what the command may write (not
+        a user's own files of those names), so a killed command's files, its log confirming them,
+        are known to the next one. Nothing is removed yet."""
+        if self.old is not None or not self._ours(target):
             return
         with signals_deferred():
-            path, kinds, expected = self.path, self.kinds, self.expected
-            old = _read_manifest(path)
-            existing = {e.name for e in os.scandir(path)}
-            stale = {n for k in kinds for n in old.get(k, set()) if n not in expected.get(k, set()) or n.endswith(".pvd")}
-            _remove(path, stale)
-            self.old = old = {k: (v - stale) & existing for k, v in old.items()}
-            # before writing, the manifest plans whatever the command may write (but a user's own
-            # files of those names): a killed command's files, confirmed by its log, are known to the next one
+            old = _read_manifest(self.path)
+            existing = {e.name for e in os.scandir(self.path)}
+            self.old = old = {k: v & existing for k, v in old.items()}
             users = existing - set().union(set(), *old.values())
-            _write_manifest(path, old, {k: expected.get(k, set()) - users - old.get(k, set()) for k in expected})
+            self.planned = {k: v - users - old.get(k, set()) for k, v in self.expected.items()}
+            _write_manifest(self.path, old, self.planned)
+
+    def log(self, target: Path) -> None:
+        """A file just written into the folder: logged in the lock file (read back if this process is
+        killed); after the first, the older files this command will not write are removed (and the
+        old .pvd, whose frames are about to be replaced): a command that fails or is stopped
+        before it has written a file leaves the earlier one's as they were."""
+        if not self._ours(target):
+            return
+        if self.fd is not None:
+            with contextlib.suppress(OSError):
+                os.write(self.fd, f"wrote {Path(target).name}\n".encode("utf-8", "surrogateescape"))
+        if self.replaced or self.old is None:
+            return
+        with signals_deferred():
+            self.replaced = True
+            stale = {n for k in self.kinds for n in self.old.get(k, set())
+                     if n not in self.expected.get(k, set()) or n.endswith(".pvd")} - {Path(target).name}
+            _remove(self.path, stale)
+            self.old = {k: v - stale for k, v in self.old.items()}
+            if stale:
+                _write_manifest(self.path, self.old, self.planned)
 
     def finish(self, written: set) -> None:
         """The manifest after the command: the kinds it replaces hold what it wrote, and their older
         files it did not rewrite are removed (they belong to another run); other kinds gain what
-        it wrote of them."""
+        it wrote of them. A command that wrote nothing leaves the manifest as it was."""
         remove_leftovers(self.path)  # a write cut short in a window write_atomic cannot close
-        if self.old is None:  # nothing written: the folder is as it was
+        if self.old is None:  # nothing tried
             return
-        names = {Path(p).name for p in written if Path(p).parent.resolve() == self.here} - {MANIFEST, LOCK}
+        names = {Path(p).name for p in written if self._ours(Path(p))}
+        if not self.replaced:  # every write failed: the folder is as it was
+            _write_manifest(self.path, self.old)
+            return
         new = {k: set(v) - names for k, v in self.old.items()}
         for k in self.kinds:
             _remove(self.path, self.old.get(k, set()) - names)

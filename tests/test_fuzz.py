@@ -1764,3 +1764,52 @@ def test_property_a_commands_inputs_in_its_folder_are_never_removed(earlier, rea
         assert names == set(rewrite) | set(inputs) | {"fit.json"}, (earlier, inputs, rewrite, sorted(names))
         for name in set(inputs) - set(rewrite):
             assert (out / name).read_text() == f"earlier {name}"
+
+
+def disk_full(tmp):
+    import errno as _errno
+
+    raise OSError(_errno.ENOSPC, "No space left on device", tmp)
+
+
+def test_a_run_that_cannot_write_its_results_leaves_the_previous_run(tmp_path, monkeypatch):
+    """The reproduction: a run whose result.npz could not be written (disk full) removed, before that
+    first write, the previous run's plots and old .pvd, and at its end all the previous run's files,
+    its result.npz too. Now nothing is removed before the command's first file is in place."""
+    import nsfem.result as result_module
+
+    out = tmp_path / "out"
+    assert cli.main(["run", *CHEAP[:-2], "--set", "output.plots=[\"gap\"]", "--set", "output.vtu_every=5",
+                     "--out", str(out)]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert {"result.npz", "gap.png", "nsfem.pvd", MANIFEST} <= set(before)
+    monkeypatch.setattr(result_module, "np", type("np", (), {**vars(np), "savez_compressed": staticmethod(
+        lambda fh, **arrays: disk_full(fh))}))
+    code, _, stderr = check_invocation(["run", *CHEAP, "--out", "out"], tmp_path)  # no plots, no series
+    assert code == cli.EXIT_ERROR and "No space left on device" in stderr, stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(earlier=st.lists(st.sampled_from(RUN_NAMES + ["nsfem.pvd", "nsfem_00000.vtu"]), unique=True, min_size=1),
+       rewrite=st.lists(st.sampled_from(RUN_NAMES + ["nsfem.pvd"]), unique=True, min_size=1),
+       command=st.sampled_from(["run", "export"]))
+def test_property_a_command_whose_writes_fail_leaves_the_folder_as_it_was(earlier, rewrite, command):
+    """The class: a command that fails (or stops) before any of its files is in place removes nothing."""
+    kind = {n: "series" if n.endswith((".pvd", ".vtu")) else "run" for n in RUN_NAMES + ["nsfem.pvd", "nsfem_00000.vtu"]}
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        plan = {}
+        for n in earlier:
+            plan.setdefault(kind[n], []).append(n)
+        with claim(out, "run", plan):
+            for name in earlier:
+                write_text_atomic(out / name, f"earlier {name}")
+        before = {p.name: p.read_bytes() for p in out.iterdir()}
+        with pytest.raises(OSError):
+            with claim(out, command, {kind[rewrite[0]]: rewrite}):
+                for name in rewrite:
+                    from nsfem.atomic import write_atomic
+
+                    write_atomic(out / name, disk_full)
+        assert {p.name: p.read_bytes() for p in out.iterdir()} == before
