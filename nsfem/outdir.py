@@ -184,7 +184,8 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
         raise NsfemError(f"{what}: cannot create {path}: {exc.strerror or exc}") from None
     fd = None
     try:
-        fd = _lock(path, what)
+        with signals_deferred():  # an interrupt while locking leaves no lock file behind
+            fd = _lock(path, what)
         logged = _logged(fd) if fd is not None else set()
         with signals_deferred():
             _settle(path, logged)

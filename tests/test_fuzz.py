@@ -1813,3 +1813,21 @@ def test_property_a_command_whose_writes_fail_leaves_the_folder_as_it_was(earlie
 
                     write_atomic(out / name, disk_full)
         assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_an_interrupt_while_the_folder_is_locked_leaves_no_lock_file(tmp_path, monkeypatch):
+    """A Ctrl-C between the lock file's creation and its flock left `.nsfem.lock` in a folder the
+    command had created (so the folder too): the lock is taken with signals deferred."""
+    import nsfem.outdir as outdir
+
+    flock = outdir.fcntl.flock
+
+    def interrupted(fd, op):
+        signal.raise_signal(signal.SIGINT)
+        return flock(fd, op)
+
+    monkeypatch.setattr(outdir.fcntl, "flock", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        with claim(tmp_path / "new", "run", {"run": ["result.npz"]}):
+            pass
+    assert not (tmp_path / "new").exists()
