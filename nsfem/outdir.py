@@ -39,7 +39,7 @@ import os
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping
 
-from .atomic import PROBE_NAME, TMP_NAME, journal, signals_deferred, write_text_atomic
+from .atomic import OUTPUT_SUFFIXES, PROBE_NAME, TMP_NAME, journal, signals_deferred, write_text_atomic
 from .errors import NsfemError
 
 try:  # POSIX; elsewhere (Windows) folders are not locked
@@ -98,8 +98,10 @@ def _lock(path: Path, what: str) -> int | None:
 
 
 def _names(name: object) -> bool:
-    """A plain file name of the folder (no path, not the bookkeeping files)."""
-    return isinstance(name, str) and "/" not in name and "\0" not in name and name not in ("", ".", "..", LOCK, MANIFEST)
+    """A plain file name of the folder of a kind nsfem writes (no path, not the bookkeeping files): a
+    manifest edited by hand never costs a scene, a mesh or notes."""
+    return (isinstance(name, str) and "/" not in name and "\0" not in name and name not in ("", ".", "..", LOCK, MANIFEST)
+            and name.endswith(OUTPUT_SUFFIXES))
 
 
 def _read_manifest(path: Path, entry: str = "files") -> dict[str, set[str]]:

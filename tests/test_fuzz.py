@@ -1831,3 +1831,24 @@ def test_an_interrupt_while_the_folder_is_locked_leaves_no_lock_file(tmp_path, m
         with claim(tmp_path / "new", "run", {"run": ["result.npz"]}):
             pass
     assert not (tmp_path / "new").exists()
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(stem=st.text(st.characters(blacklist_categories=("Cs", "Cc"), blacklist_characters="/\\"), min_size=1,
+                    max_size=12),
+       suffix=st.sampled_from([".toml", ".msh", ".md", ".py", "", ".csv", ".png", ".npz"]))
+def test_property_a_manifest_names_only_outputs_to_remove(stem, suffix):
+    """A manifest edited by hand (or copied with a folder) that names a user's scene, mesh or notes
+    (unicode and spaces too) removes none of them: only files of the kinds nsfem writes are ever removed."""
+    from hypothesis import assume
+
+    name = stem + suffix
+    assume(name not in (".", "..", LOCK, MANIFEST, "result.npz") and not name.startswith("."))
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        (out / name).write_text("the user's")
+        (out / MANIFEST).write_text(json.dumps({"files": {"run": [name, "result.npz"]}}))
+        with claim(out, "run", {"run": ["result.npz"]}):
+            write_text_atomic(out / "result.npz", "new")
+        kept = (out / name).exists()
+        assert kept == (not name.endswith((".csv", ".png", ".npz"))), (name, kept)
