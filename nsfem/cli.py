@@ -627,7 +627,7 @@ def cmd_export(args) -> int:
 
     from .atomic import check_folder
     from .export.vtu import frame_size, series_files, write_series
-    from .outdir import claim
+    from .outdir import claim, replaced_bytes
     from .simulate import FILES_MAX, free_bytes
 
     res, extra, model, scene = _saved(args.result, "export")
@@ -639,11 +639,13 @@ def cmd_export(args) -> int:
     frames = -(-res.t.size // every)
     per_frame, frame_bytes = frame_size(model)
     files, nbytes, free = 1 + frames * per_frame, frames * frame_bytes, free_bytes(out)
+    free = free + replaced_bytes(out, "export") if free is not None else None  # the series it replaces too
     what = f"{files} files ({frames} of the {res.t.size} output times) and up to {nbytes / 1e9:.3g} GB"
     if files > FILES_MAX:
         raise NsfemError(f"--every: {what} exceed the limit of {FILES_MAX} files; raise --every")
     if free is not None and nbytes > free:
-        raise NsfemError(f"--every: {what} exceed the {free / 1e9:.3g} GB free in {out}; raise --every")
+        raise NsfemError(f"--every: {what} exceed the {free / 1e9:.3g} GB free in {out} (with the series it "
+                         "replaces); raise --every")
     with claim(out, "export", {"series": series_files(res.t.size, every)}, "--vtu"):
         try:
             pvd = write_series(res, (model, extra["basis"]), out, every=every)

@@ -36,6 +36,7 @@ import datetime
 import errno
 import json
 import os
+import stat
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping
 
@@ -151,6 +152,20 @@ def _remove(path: Path, names: Iterable[str]) -> None:
     for name in names:
         with contextlib.suppress(OSError):  # gone already, a folder of that name, read-only
             (path / name).unlink()
+
+
+def replaced_bytes(path, command: str) -> float:
+    """Bytes of the files in folder ``path`` that ``command`` replaces (its kinds in the manifest): the
+    room a run re-run into its own folder gets back, besides the file system's free space."""
+    path = Path(path)
+    files = _read_manifest(path)
+    total = 0.0
+    for name in set().union(set(), *(files.get(k, set()) for k in REPLACES[command])):
+        with contextlib.suppress(OSError):
+            st = os.lstat(path / name)
+            if stat.S_ISREG(st.st_mode):
+                total += st.st_size
+    return total
 
 
 def remove_leftovers(path: Path) -> list[str]:

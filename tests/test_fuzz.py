@@ -1852,3 +1852,48 @@ def test_property_a_manifest_names_only_outputs_to_remove(stem, suffix):
             write_text_atomic(out / "result.npz", "new")
         kept = (out / name).exists()
         assert kept == (not name.endswith((".csv", ".png", ".npz"))), (name, kept)
+
+
+def test_a_run_re_run_into_its_own_folder_counts_the_room_of_the_files_it_replaces(tmp_path, monkeypatch):
+    """The reproduction: a run re-run into its folder on a nearly full disk was refused for more bytes
+    than the free space, although the earlier run's files it replaces (here a 1 GB result.npz, sparse)
+    give their room back. A user's file of that size gives none."""
+    from nsfem import simulate
+
+    out = tmp_path / "out"
+    out.mkdir()
+    argv = ["run", *TINY, "--set", "simulation.t_end=0.01", "--set", "output.vtu_every=1", "--set",
+            "output.plots=[]", "--out", "out"]
+    monkeypatch.setattr(simulate, "free_bytes", lambda folder: 1e5)   # 100 kB free: less than the run's ~1 MB
+    with open(out / "result.npz", "wb") as fh:   # the user's: no room of the run's
+        fh.truncate(10**9)
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == cli.EXIT_ERROR and "GB free there" in stderr, stderr
+    (out / "result.npz").unlink()
+    with claim(out, "run", {"run": ["result.npz"]}):   # the earlier run's: its room comes back
+        write_text_atomic(out / "result.npz", "")
+        os.truncate(out / "result.npz", 10**9)
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == 0, stderr
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(files=st.lists(st.tuples(st.sampled_from(["run", "series", "fit"]), st.integers(0, 10**6)), max_size=5),
+       user=st.integers(0, 10**6), command=st.sampled_from(["run", "export", "fit", "render", "sweep"]))
+def test_property_the_room_a_command_gets_back_is_its_kinds_files_only(files, user, command):
+    from nsfem.outdir import REPLACES, replaced_bytes
+
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        listed = {}
+        for i, (kind, size) in enumerate(files):
+            name = f"f{i}.npz"
+            with open(out / name, "wb") as fh:
+                fh.truncate(size)
+            listed.setdefault(kind, []).append(name)
+        with open(out / "mine.npz", "wb") as fh:   # the user's: never counted
+            fh.truncate(user)
+        (out / "link.npz").symlink_to(out / "mine.npz")   # a link: no room of its own
+        listed.setdefault("run", []).append("link.npz")
+        (out / MANIFEST).write_text(json.dumps({"files": listed}))
+        assert replaced_bytes(out, command) == sum(s for k, s in files if k in REPLACES[command])
