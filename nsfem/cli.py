@@ -298,6 +298,7 @@ def cmd_campbell(args) -> int:
     if args.count < 1:
         raise NsfemError(f"--count must be a positive integer, got {args.count}")
     speeds = parse_speeds(args.speeds) if args.speeds else None
+    _check_png(args.png)
     scene = load_scene(args.scene, args.overrides)
     from .atomic import check_file
 
@@ -517,6 +518,16 @@ def _run(args, scene, out_dir, written: set) -> int:
     return 0
 
 
+def _check_png(png: str | None) -> None:
+    """``--png`` names a PNG picture: any other name (the results file, a scene, data) is a slip
+    that would overwrite that file with a picture."""
+    from pathlib import Path
+
+    if png is not None and Path(png).suffix.lower() != ".png" and not Path(png).is_dir():  # a folder: its own line
+        raise NsfemError(f"--png: {png} does not end in .png; give the picture a name ending in .png (a results "
+                         "file, scene or data named there would be replaced by it)")
+
+
 def _check_run_targets(out_dir, output, sensors, what: str) -> None:
     """Refuse, before the run, an output folder or file that cannot be written (``output``: the
     scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors)."""
@@ -607,6 +618,7 @@ def cmd_render(args) -> int:
         raise NsfemError(f"nsfem render: --exaggeration must be a finite positive number, got {args.exaggeration}")
     from .atomic import check_file
 
+    _check_png(args.png)
     res, extra, model, _ = _saved(args.result, "render")  # a folder or a missing file: one line first
     png = Path(args.png) if args.png else Path(args.result).resolve().with_name("render.png")
     check_file(png, "--png")

@@ -1675,8 +1675,14 @@ def killed_claim(out: Path, planned: list[str], written: list[str]) -> None:
                 os._exit(9)
         finally:
             os._exit(1)
-    _, status = os.waitpid(pid, 0)
-    assert os.WEXITSTATUS(status) == 9
+    t0 = time.monotonic()   # a guard only (a fork of a threaded process could hang): not a timing assertion
+    while (done := os.waitpid(pid, os.WNOHANG))[0] == 0:
+        if time.monotonic() - t0 > 120:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            pytest.fail("the forked command hung")
+        time.sleep(0.005)
+    assert os.WIFEXITED(done[1]) and os.WEXITSTATUS(done[1]) == 9
 
 
 def a_killed_commands_planned_names_spare_the_users_files(planned, n_written, users, rewrite):
@@ -1897,3 +1903,34 @@ def test_property_the_room_a_command_gets_back_is_its_kinds_files_only(files, us
         listed.setdefault("run", []).append("link.npz")
         (out / MANIFEST).write_text(json.dumps({"files": listed}))
         assert replaced_bytes(out, command) == sum(s for k, s in files if k in REPLACES[command])
+
+
+def test_render_onto_its_own_results_file_is_refused(saved_result, tmp_path):
+    """The reproduction: `nsfem render out/result.npz --png out/result.npz` (a slip) replaced the
+    results file with a picture, exit 0; a scene or the data named as --png likewise."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "result.npz").write_bytes(saved_result.read_bytes())
+    (out / "scene.toml").write_text('title = "mine"\n')
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    for png in ["out/result.npz", "out/scene.toml", "out/picture"]:
+        code, _, stderr = check_invocation(["render", "out/result.npz", "--png", png], tmp_path)
+        assert code == cli.EXIT_ERROR and f"--png: {png} does not end in .png" in stderr, stderr
+    code, _, stderr = check_invocation(["campbell", "--png", "out/scene.toml"], tmp_path)
+    assert code == cli.EXIT_ERROR and "does not end in .png" in stderr, stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(stem=st.text(st.characters(blacklist_categories=("Cs", "Cc"), blacklist_characters="/\\\0"), min_size=1,
+                    max_size=12),
+       suffix=st.sampled_from([".png", ".PNG", ".npz", ".toml", ".csv", "", ".png.bak", ".pngx"]))
+def test_property_png_targets_end_in_png(stem, suffix, tmp_path_factory):
+    """Any --png name not ending in .png is refused in one line naming it, before the result is read
+    (here missing: a name ending in .png gets that error instead)."""
+    root = tmp_path_factory.mktemp("png")
+    png = stem + suffix
+    code, _, stderr = check_invocation(["render", "missing.npz", f"--png={png}"], root)
+    assert code == cli.EXIT_ERROR
+    refused = "does not end in .png" in stderr
+    assert refused == (Path(png).suffix.lower() != ".png" and not (root / png).is_dir()), (png, stderr)
