@@ -207,6 +207,7 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
         with signals_deferred():
             _settle(path, logged)
             _adopt(path, inputs)
+        _refuse_users_files(path, expected or {}, what)
         if fd is not None:
             os.ftruncate(fd, 0)
             os.lseek(fd, 0, os.SEEK_SET)
@@ -238,6 +239,21 @@ def _adopt(path: Path, inputs: Iterable) -> None:
     files = _read_manifest(path)
     if names & set().union(set(), *files.values()):
         _write_manifest(path, {k: v - names for k, v in files.items()})
+
+
+def _refuse_users_files(path: Path, expected: Mapping[str, Iterable[str]], what: str) -> None:
+    """A folder nsfem keeps a manifest of, holding a file the command would overwrite that nsfem did
+    not write there (the user's data named sensors.csv, a fit's data): refused, saying so. (A folder
+    without a manifest, written by an older nsfem, cannot tell: its files are taken as a run's.)"""
+    if not (path / MANIFEST).exists():
+        return
+    ours = set().union(set(), *_read_manifest(path).values())
+    names = set().union(set(), *(set(v) for v in expected.values()))
+    clash = sorted(e.name for e in os.scandir(path) if e.name in names and e.name not in ours)
+    if clash:
+        more = f" (and {len(clash) - 1} more)" if len(clash) > 1 else ""
+        raise NsfemError(f"{what}: {path} holds {clash[0]}{more}, which nsfem did not write there and this command "
+                         "would overwrite; move it away or choose another folder")
 
 
 class _Folder:

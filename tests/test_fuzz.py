@@ -1693,6 +1693,17 @@ def a_killed_commands_planned_names_spare_the_users_files(planned, n_written, us
         killed_claim(out, planned, written)
         for name in users:  # the user's own files, made after the kill, under names the killed run planned
             (out / name).write_text(f"user's {name}")
+        if written and set(users) & set(rewrite):  # a file nsfem did not write, to be overwritten, in a
+            # folder it keeps (its first write made the manifest): refused, no file touched
+            def files():
+                return {p.name: p.read_bytes() for p in out.iterdir() if p.name not in (MANIFEST, LOCK)}
+
+            before = files()
+            with pytest.raises(NsfemError, match="which nsfem did not write"):
+                with claim(out, "run", {"run": rewrite}):
+                    pass
+            assert files() == before
+            return
         with claim(out, "run", {"run": rewrite}):
             for name in rewrite:
                 write_text_atomic(out / name, f"new {name}")
@@ -1763,6 +1774,11 @@ def test_property_a_commands_inputs_in_its_folder_are_never_removed(earlier, rea
                 write_text_atomic(out / name, f"earlier {name}")
         with claim(out, "fit", {"fit": FIT_FILES}, inputs=[out / n for n in inputs]):
             write_text_atomic(out / "fit.json", "{}")
+        if set(inputs) & set(rewrite):  # the data would be overwritten: refused
+            with pytest.raises(NsfemError, match="which nsfem did not write"):
+                with claim(out, "run", {"run": rewrite}):
+                    pass
+            return
         with claim(out, "run", {"run": rewrite}):
             for name in rewrite:
                 write_text_atomic(out / name, f"new {name}")
@@ -1934,3 +1950,49 @@ def test_property_png_targets_end_in_png(stem, suffix, tmp_path_factory):
     assert code == cli.EXIT_ERROR
     refused = "does not end in .png" in stderr
     assert refused == (Path(png).suffix.lower() != ".png" and not (root / png).is_dir()), (png, stderr)
+
+
+def test_a_run_refuses_to_overwrite_the_users_data_named_like_its_output(tmp_path):
+    """The reproduction: the user's measured sensors.csv in the run's folder (`--out .` beside the
+    scene and the data) was replaced by the run's sensors.csv. In a folder nsfem keeps, such a file is
+    refused in one line, before the run; the fit's data (read by a fit there) likewise."""
+    sensors = ["--set", 'sensor.0.name="a"', "--set", "sensor.0.x=0.05", "--set", 'sensor.0.direction="+z"']
+    argv = ["run", *CHEAP, *sensors, "--out", "out"]
+    assert check_invocation(["run", *CHEAP, "--out", "out"], tmp_path)[0] == 0   # a folder nsfem keeps
+    out = tmp_path / "out"
+    (out / "sensors.csv").write_text("t,a\n0,1\n")   # the user's measurement, put there since
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == cli.EXIT_ERROR and "holds sensors.csv, which nsfem did not write" in stderr, stderr
+    assert (out / "sensors.csv").read_text() == "t,a\n0,1\n"
+    assert check_invocation(["run", *CHEAP, "--out", "out"], tmp_path)[0] == 0   # a run that writes no sensors.csv
+    assert (out / "sensors.csv").read_text() == "t,a\n0,1\n"
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(earlier=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1),
+       users=st.lists(st.sampled_from(RUN_NAMES + ["notes.txt"]), unique=True),
+       rewrite=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1))
+def test_property_a_file_nsfem_did_not_write_is_never_overwritten(earlier, users, rewrite):
+    """The class: in a folder nsfem keeps, a command that would overwrite a file it did not write there
+    is refused (one line naming the file) and leaves the folder as it was; otherwise it runs."""
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        with claim(out, "run", {"run": earlier}):
+            for name in earlier:
+                write_text_atomic(out / name, f"earlier {name}")
+        users = [n for n in users if n not in earlier]   # (a file nsfem wrote, replaced by the user, is not told apart)
+        for name in users:
+            (out / name).write_text(f"user's {name}")
+        before = {p.name: p.read_bytes() for p in out.iterdir()}
+        clash = sorted(set(users) & set(rewrite))
+        try:
+            with claim(out, "run", {"run": rewrite}):
+                for name in rewrite:
+                    write_text_atomic(out / name, f"new {name}")
+        except NsfemError as exc:
+            assert clash and f"holds {clash[0]}" in str(exc) and "\n" not in str(exc)
+            assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+        else:
+            assert not clash
+        for name in set(users) - set(rewrite):
+            assert (out / name).read_text() == f"user's {name}"
