@@ -63,8 +63,9 @@ class FolderBusy(NsfemError):
 
 
 def _lock(path: Path, what: str) -> int | None:
-    """An exclusive lock on ``path/LOCK`` (its descriptor); FolderBusy when another process holds it;
-    None where the platform or the file system has no locks (the folder is then written unlocked)."""
+    """An exclusive lock on ``path/LOCK`` (its descriptor); FolderBusy when another process holds it.
+    Where the file system has no locks the folder is written unlocked (the file, still opened, logs
+    the files written); None where the platform has none (no log either)."""
     if fcntl is None:
         return None
     lock = path / LOCK
@@ -84,11 +85,9 @@ def _lock(path: Path, what: str) -> int | None:
             raise FolderBusy(f"{what}: {path} is being written by another nsfem process ({other or 'starting'}); "
                              "wait for it to end or choose another folder") from None
         except OSError as exc:
+            if exc.errno in NO_LOCKS:  # a file system without locks: written unlocked, the file still
+                return fd                # logs the files written (a killed command's, for the next one)
             os.close(fd)
-            if exc.errno in NO_LOCKS:  # a file system without locks
-                with contextlib.suppress(OSError):
-                    os.unlink(lock)
-                return None
             raise NsfemError(f"{what}: cannot lock {lock}: {exc.strerror or exc}") from None
         try:  # the holder before us may have removed the file: then lock the new one
             if os.stat(lock).st_ino == os.fstat(fd).st_ino:
