@@ -27,7 +27,7 @@ from typing import Callable, Iterator
 #: characters>.tmp``, the target one of the kinds of file nsfem writes
 #: the suffixes of the files nsfem writes
 OUTPUT_SUFFIXES = (".npz", ".vtu", ".pvd", ".png", ".csv", ".json", ".txt")
-TMP_NAME = re.compile(r"^\.(?P<target>.+(" + "|".join(re.escape(x) for x in OUTPUT_SUFFIXES) + r"))\.[A-Za-z0-9_]{8}\.tmp$")
+TMP_NAME = re.compile(r"^\.(?P<target>.+(" + "|".join(map(re.escape, OUTPUT_SUFFIXES)) + r"))\.[A-Za-z0-9_]{8}\.tmp$")
 _LETTERS = string.ascii_lowercase + string.digits + "_"
 #: the probe files of :func:`check_folder`
 PROBE_NAME = re.compile(r"^\.nsfem-probe\.[A-Za-z0-9_]{8}$")

@@ -100,8 +100,8 @@ def _lock(path: Path, what: str) -> int | None:
 def _names(name: object) -> bool:
     """A plain file name of the folder of a kind nsfem writes (no path, not the bookkeeping files): a
     manifest edited by hand never costs a scene, a mesh or notes."""
-    return (isinstance(name, str) and "/" not in name and "\0" not in name and name not in ("", ".", "..", LOCK, MANIFEST)
-            and name.endswith(OUTPUT_SUFFIXES))
+    return (isinstance(name, str) and "/" not in name and "\0" not in name
+            and name not in ("", ".", "..", LOCK, MANIFEST) and name.endswith(OUTPUT_SUFFIXES))
 
 
 def _read_manifest(path: Path, entry: str = "files") -> dict[str, set[str]]:
