@@ -25,13 +25,15 @@ from typing import Callable, Iterator
 
 #: the temporary names :func:`write_atomic` makes for nsfem's outputs: ``.<target name>.<8 random
 #: characters>.tmp``, the target one of the kinds of file nsfem writes
-TMP_NAME = re.compile(r"^\.(?P<target>.+\.(npz|vtu|pvd|png|csv|json|txt))\.[A-Za-z0-9_]{8}\.tmp$")
+#: the suffixes of the files nsfem writes
+OUTPUT_SUFFIXES = (".npz", ".vtu", ".pvd", ".png", ".csv", ".json", ".txt")
+TMP_NAME = re.compile(r"^\.(?P<target>.+(" + "|".join(map(re.escape, OUTPUT_SUFFIXES)) + r"))\.[A-Za-z0-9_]{8}\.tmp$")
 _LETTERS = string.ascii_lowercase + string.digits + "_"
 #: the probe files of :func:`check_folder`
 PROBE_NAME = re.compile(r"^\.nsfem-probe\.[A-Za-z0-9_]{8}$")
-#: (set, hook): :func:`write_atomic` calls each hook with a path before writing it and adds the path
-#: to each set once written (see :func:`journal`)
-_JOURNALS: list[tuple[set, Callable[[Path], None] | None]] = []
+#: (set, before, after): :func:`write_atomic` calls each ``before`` with a path before writing it, and
+#: once written adds the path to each set and calls each ``after`` with it (see :func:`journal`)
+_JOURNALS: list[tuple[set, Callable[[Path], None] | None, Callable[[Path], None] | None]] = []
 
 
 def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
@@ -40,7 +42,7 @@ def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
     interruption the temporary file is removed and ``path`` is left as it was."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    for _, before in list(_JOURNALS):
+    for _, before, _ in list(_JOURNALS):
         if before is not None:
             before(path)
     tmp = None
@@ -57,8 +59,10 @@ def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # created private (0600)
         os.replace(tmp, path)
-        for written, _ in _JOURNALS:
+        for written, _, after in list(_JOURNALS):
             written.add(path)
+            if after is not None:
+                after(path)
     except BaseException:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
@@ -67,10 +71,11 @@ def write_atomic(path: str | Path, write: Callable[[str], object]) -> Path:
 
 
 @contextlib.contextmanager
-def journal(before: Callable[[Path], None] | None = None) -> Iterator[set]:
+def journal(before: Callable[[Path], None] | None = None,
+            after: Callable[[Path], None] | None = None) -> Iterator[set]:
     """Within the block, the set of every path :func:`write_atomic` wrote (this process); ``before(path)``
-    is called before each write."""
-    entry: tuple = (set(), before)
+    is called before each write, ``after(path)`` once the file is in place."""
+    entry: tuple = (set(), before, after)
     _JOURNALS.append(entry)
     try:
         yield entry[0]

@@ -298,6 +298,7 @@ def cmd_campbell(args) -> int:
     if args.count < 1:
         raise NsfemError(f"--count must be a positive integer, got {args.count}")
     speeds = parse_speeds(args.speeds) if args.speeds else None
+    _check_png(args.png)
     scene = load_scene(args.scene, args.overrides)
     from .atomic import check_file
 
@@ -517,6 +518,16 @@ def _run(args, scene, out_dir, written: set) -> int:
     return 0
 
 
+def _check_png(png: str | None) -> None:
+    """``--png`` names a PNG picture: any other name (the results file, a scene, data) is a slip
+    that would overwrite that file with a picture."""
+    from pathlib import Path
+
+    if png is not None and Path(png).suffix.lower() != ".png" and not Path(png).is_dir():  # a folder: its own line
+        raise NsfemError(f"--png: {png} does not end in .png; give the picture a name ending in .png (a results "
+                         "file, scene or data named there would be replaced by it)")
+
+
 def _check_run_targets(out_dir, output, sensors, what: str) -> None:
     """Refuse, before the run, an output folder or file that cannot be written (``output``: the
     scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors)."""
@@ -607,6 +618,7 @@ def cmd_render(args) -> int:
         raise NsfemError(f"nsfem render: --exaggeration must be a finite positive number, got {args.exaggeration}")
     from .atomic import check_file
 
+    _check_png(args.png)
     res, extra, model, _ = _saved(args.result, "render")  # a folder or a missing file: one line first
     png = Path(args.png) if args.png else Path(args.result).resolve().with_name("render.png")
     check_file(png, "--png")
@@ -627,7 +639,7 @@ def cmd_export(args) -> int:
 
     from .atomic import check_folder
     from .export.vtu import frame_size, series_files, write_series
-    from .outdir import claim
+    from .outdir import claim, replaced_bytes
     from .simulate import FILES_MAX, free_bytes
 
     res, extra, model, scene = _saved(args.result, "export")
@@ -639,11 +651,13 @@ def cmd_export(args) -> int:
     frames = -(-res.t.size // every)
     per_frame, frame_bytes = frame_size(model)
     files, nbytes, free = 1 + frames * per_frame, frames * frame_bytes, free_bytes(out)
+    free = free + replaced_bytes(out, "export") if free is not None else None  # the series it replaces too
     what = f"{files} files ({frames} of the {res.t.size} output times) and up to {nbytes / 1e9:.3g} GB"
     if files > FILES_MAX:
         raise NsfemError(f"--every: {what} exceed the limit of {FILES_MAX} files; raise --every")
     if free is not None and nbytes > free:
-        raise NsfemError(f"--every: {what} exceed the {free / 1e9:.3g} GB free in {out}; raise --every")
+        raise NsfemError(f"--every: {what} exceed the {free / 1e9:.3g} GB free in {out} (with the series it "
+                         "replaces); raise --every")
     with claim(out, "export", {"series": series_files(res.t.size, every)}, "--vtu"):
         try:
             pvd = write_series(res, (model, extra["basis"]), out, every=every)

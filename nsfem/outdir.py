@@ -9,10 +9,14 @@
   :func:`nsfem.atomic.write_atomic`) are removed.
 * **manifest** (``.nsfem-files.json``): the files nsfem wrote there, by kind (``run``: result.npz,
   plots, sensors, render.png; ``series``: the .pvd and its VTU frames; ``fit``: fit.json,
-  evaluations.csv and its plots). A command replaces its kinds: when it writes its first file the
+  evaluations.csv and its plots). A command replaces its kinds: once its first file is written the
   files of those kinds that it will not rewrite are removed (and the old .pvd, whose frames are
   about to be replaced), at the end those it did not rewrite after all (an interrupted run). Only
   files named in a manifest are ever removed: a user's own files in the folder are left alone.
+* **planned** names: while a command writes, the manifest also lists what it may still write, and
+  the lock file logs each file once written. A command killed outright (SIGKILL, power loss) leaves
+  both; the next one counts as nsfem's only the planned names the log confirms, so a file the user
+  later gives a planned name is never taken for the killed command's.
 
 >>> import tempfile, pathlib
 >>> from nsfem.atomic import write_text_atomic
@@ -32,10 +36,11 @@ import datetime
 import errno
 import json
 import os
+import stat
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping
 
-from .atomic import PROBE_NAME, TMP_NAME, journal, signals_deferred, write_text_atomic
+from .atomic import OUTPUT_SUFFIXES, PROBE_NAME, TMP_NAME, journal, signals_deferred, write_text_atomic
 from .errors import NsfemError
 
 try:  # POSIX; elsewhere (Windows) folders are not locked
@@ -58,8 +63,9 @@ class FolderBusy(NsfemError):
 
 
 def _lock(path: Path, what: str) -> int | None:
-    """An exclusive lock on ``path/LOCK`` (its descriptor); FolderBusy when another process holds it;
-    None where the platform or the file system has no locks (the folder is then written unlocked)."""
+    """An exclusive lock on ``path/LOCK`` (its descriptor); FolderBusy when another process holds it.
+    Where the file system has no locks the folder is written unlocked (the file, still opened, logs
+    the files written); None where the platform has none (no log either)."""
     if fcntl is None:
         return None
     lock = path / LOCK
@@ -75,14 +81,13 @@ def _lock(path: Path, what: str) -> int | None:
                 other = os.read(fd, 4096).decode("utf-8", "replace").strip()
             finally:
                 os.close(fd)
+            other = other.splitlines()[0] if other else ""  # its first line: who; then the files it wrote
             raise FolderBusy(f"{what}: {path} is being written by another nsfem process ({other or 'starting'}); "
                              "wait for it to end or choose another folder") from None
         except OSError as exc:
+            if exc.errno in NO_LOCKS:  # a file system without locks: written unlocked, the file still
+                return fd                # logs the files written (a killed command's, for the next one)
             os.close(fd)
-            if exc.errno in NO_LOCKS:  # a file system without locks
-                with contextlib.suppress(OSError):
-                    os.unlink(lock)
-                return None
             raise NsfemError(f"{what}: cannot lock {lock}: {exc.strerror or exc}") from None
         try:  # the holder before us may have removed the file: then lock the new one
             if os.stat(lock).st_ino == os.fstat(fd).st_ino:
@@ -92,30 +97,74 @@ def _lock(path: Path, what: str) -> int | None:
         os.close(fd)
 
 
-def _read_manifest(path: Path) -> dict[str, set[str]]:
+def _names(name: object) -> bool:
+    """A plain file name of the folder of a kind nsfem writes (no path, not the bookkeeping files): a
+    manifest edited by hand never costs a scene, a mesh or notes."""
+    return (isinstance(name, str) and "/" not in name and "\0" not in name
+            and name not in ("", ".", "..", LOCK, MANIFEST) and name.endswith(OUTPUT_SUFFIXES))
+
+
+def _read_manifest(path: Path, entry: str = "files") -> dict[str, set[str]]:
+    """The manifest's ``files`` (written by nsfem) or ``planned`` (that a command still writing may write), by kind."""
     try:
         data = json.loads((path / MANIFEST).read_text(encoding="utf-8"))
-        kinds = data["files"]
-        return {str(k): {n for n in v if isinstance(n, str) and "/" not in n and "\0" not in n
-                         and n not in ("", ".", "..", LOCK, MANIFEST)}
-                for k, v in kinds.items() if isinstance(v, list)}
+        kinds = data.get(entry, {}) if entry != "files" else data["files"]
+        return {str(k): {n for n in v if _names(n)} for k, v in kinds.items() if isinstance(v, list)}
     except (OSError, ValueError, TypeError, KeyError, AttributeError):
         return {}
 
 
-def _write_manifest(path: Path, files: Mapping[str, Iterable[str]]) -> None:
+def _write_manifest(path: Path, files: Mapping[str, Iterable[str]],
+                    planned: Mapping[str, Iterable[str]] | None = None) -> None:
     files = {k: sorted(v) for k, v in files.items() if v}
-    if files:
-        write_text_atomic(path / MANIFEST, json.dumps({"files": files}, indent=0) + "\n")
+    planned = {k: sorted(v) for k, v in (planned or {}).items() if v}
+    if files or planned:
+        data = {"files": files, **({"planned": planned} if planned else {})}
+        write_text_atomic(path / MANIFEST, json.dumps(data, indent=0) + "\n")
     else:
         with contextlib.suppress(FileNotFoundError):
             (path / MANIFEST).unlink()
+
+
+def _logged(fd: int) -> set[str]:
+    """The files a killed earlier command logged in the lock file ``fd`` as written (``wrote <name>`` lines)."""
+    chunks = []
+    os.lseek(fd, 0, os.SEEK_SET)
+    while chunk := os.read(fd, 1 << 20):
+        chunks.append(chunk)
+    lines = b"".join(chunks).decode("utf-8", "surrogateescape").split("\n")
+    return {line[6:] for line in lines if line.startswith("wrote ") and _names(line[6:])}
+
+
+def _settle(path: Path, logged: set[str]) -> None:
+    """A manifest left by a command killed while writing: its planned names that the lock file's log
+    confirms join its files; the others are no file of nsfem's (never written, or the user's since)."""
+    planned = _read_manifest(path, "planned")
+    if not planned:
+        return
+    files = _read_manifest(path)
+    _write_manifest(path, {k: files.get(k, set()) | (planned.get(k, set()) & logged)
+                           for k in set(files) | set(planned)})
 
 
 def _remove(path: Path, names: Iterable[str]) -> None:
     for name in names:
         with contextlib.suppress(OSError):  # gone already, a folder of that name, read-only
             (path / name).unlink()
+
+
+def replaced_bytes(path, command: str) -> float:
+    """Bytes of the files in folder ``path`` that ``command`` replaces (its kinds in the manifest): the
+    room a run re-run into its own folder gets back, besides the file system's free space."""
+    path = Path(path)
+    files = _read_manifest(path)
+    total = 0.0
+    for name in set().union(set(), *(files.get(k, set()) for k in REPLACES[command])):
+        with contextlib.suppress(OSError):
+            st = os.lstat(path / name)
+            if stat.S_ISREG(st.st_mode):
+                total += st.st_size
+    return total
 
 
 def remove_leftovers(path: Path) -> list[str]:
@@ -132,15 +181,16 @@ def remove_leftovers(path: Path) -> list[str]:
 
 @contextlib.contextmanager
 def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = None,
-          what: str = "--out") -> Iterator[set]:
+          what: str = "--out", inputs: Iterable = ()) -> Iterator[set]:
     """Hold folder ``path`` for ``command`` (a key of :data:`REPLACES`) within the block; yields the
     set of paths written in it so far (:func:`nsfem.atomic.journal`).
 
-    ``expected``: per kind, the names the command may write. When it writes its first file there,
-    the files of the kinds it replaces that it will not write are removed (a command refused or
-    stopped before writing leaves the folder as it was); at the end those it did not rewrite. ``what``
-    names the folder in messages (``--out``, ``--vtu``, ``output.dir``). The folder is created if
-    missing and removed again if the command leaves it empty.
+    ``expected``: per kind, the names the command may write. Once its first file there is written,
+    the files of the kinds it replaces that it will not write are removed (a command refused,
+    failing or stopped before that leaves the folder as it was); at the end those it did not rewrite. ``what``
+    names the folder in messages (``--out``, ``--vtu``, ``output.dir``). ``inputs``: the files the
+    command reads (fit's data); one in the folder is the user's from then on, never removed as an
+    earlier run's file. The folder is created if missing and removed again if the command leaves it empty.
     """
     path = Path(path)
     created = not path.exists()
@@ -150,15 +200,22 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
         raise NsfemError(f"{what}: cannot create {path}: {exc.strerror or exc}") from None
     fd = None
     try:
-        fd = _lock(path, what)
+        with signals_deferred():  # an interrupt while locking leaves no lock file behind
+            fd = _lock(path, what)
+        logged = _logged(fd) if fd is not None else set()
+        with signals_deferred():
+            _settle(path, logged)
+            _adopt(path, inputs)
+        _refuse_users_files(path, expected or {}, what)
         if fd is not None:
             os.ftruncate(fd, 0)
+            os.lseek(fd, 0, os.SEEK_SET)
             started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
             os.write(fd, f"pid {os.getpid()}, nsfem {command} started {started}\n".encode())
         with signals_deferred():
             remove_leftovers(path)
-        folder = _Folder(path, REPLACES[command], {k: set(v) for k, v in (expected or {}).items()})
-        with journal(before=folder.before_write) as written:
+        folder = _Folder(path, REPLACES[command], {k: set(v) for k, v in (expected or {}).items()}, fd)
+        with journal(before=folder.before_write, after=folder.log) as written:
             try:
                 yield written
             finally:
@@ -174,39 +231,89 @@ def claim(path, command: str, expected: Mapping[str, Iterable[str]] | None = Non
                 path.rmdir()  # only when empty
 
 
-class _Folder:
-    """The manifest's side of :func:`claim`: ``kinds`` replaced, ``expected`` names per kind."""
+def _adopt(path: Path, inputs: Iterable) -> None:
+    """Drop from the manifest the files of folder ``path`` among ``inputs``: read by the command, they are the user's."""
+    here = path.resolve()
+    names = {Path(p).name for p in inputs if Path(p).resolve().parent == here}
+    files = _read_manifest(path)
+    if names & set().union(set(), *files.values()):
+        _write_manifest(path, {k: v - names for k, v in files.items()})
 
-    def __init__(self, path: Path, kinds: tuple[str, ...], expected: dict[str, set[str]]):
-        self.path, self.here, self.kinds, self.expected = path, path.resolve(), kinds, expected
-        self.old: dict[str, set[str]] | None = None   # the manifest once writing started
+
+def _refuse_users_files(path: Path, expected: Mapping[str, Iterable[str]], what: str) -> None:
+    """A folder nsfem keeps a manifest of, holding a file the command would overwrite that nsfem did
+    not write there (the user's data named sensors.csv, a fit's data): refused, saying so. (A folder
+    without a manifest, written by an older nsfem, cannot tell: its files are taken as a run's.)"""
+    if not (path / MANIFEST).exists():
+        return
+    ours = set().union(set(), *_read_manifest(path).values())
+    names = set().union(set(), *(set(v) for v in expected.values()))
+    clash = sorted(e.name for e in os.scandir(path) if e.name in names and e.name not in ours)
+    if clash:
+        more = f" (and {len(clash) - 1} more)" if len(clash) > 1 else ""
+        raise NsfemError(f"{what}: {path} holds {clash[0]}{more}, which nsfem did not write there and this command "
+                         "would overwrite; move it away or choose another folder")
+
+
+class _Folder:
+    """The manifest's side of :func:`claim`: ``kinds`` replaced, ``expected`` names per kind, ``fd``
+    the lock file (None: unlocked), where each file written is logged."""
+
+    def __init__(self, path: Path, kinds: tuple[str, ...], expected: dict[str, set[str]], fd: int | None = None):
+        self.path, self.here, self.kinds, self.expected, self.fd = path, path.resolve(), kinds, expected, fd
+        self.old: dict[str, set[str]] | None = None   # the manifest once writing was tried
+        self.planned: dict[str, set[str]] = {}
+        self.replaced = False   # the older files replaced: a file was written
+
+    def _ours(self, target: Path) -> bool:
+        return _names(Path(target).name) and Path(target).parent.resolve() == self.here
 
     def before_write(self, target: Path) -> None:
-        """On the first write into the folder: remove the older files this command will not write
-        (and the old .pvd, whose frames are about to be replaced); list what it may write."""
-        if self.old is not None or Path(target).name in (MANIFEST, LOCK) or Path(target).parent.resolve() != self.here:
+        """Before the first write into the folder: the manifest plans what the command may write (not
+        a user's own files of those names), so a killed command's files, its log confirming them,
+        are known to the next one. Nothing is removed yet."""
+        if self.old is not None or not self._ours(target):
             return
         with signals_deferred():
-            path, kinds, expected = self.path, self.kinds, self.expected
-            old = _read_manifest(path)
-            existing = {e.name for e in os.scandir(path)}
-            stale = {n for k in kinds for n in old.get(k, set()) if n not in expected.get(k, set()) or n.endswith(".pvd")}
-            _remove(path, stale)
-            self.old = old = {k: (v - stale) & existing for k, v in old.items()}
-            # before writing, the manifest names whatever the command may write (but a user's own
-            # files of those names): a killed command's files are known to the next one
+            old = _read_manifest(self.path)
+            existing = {e.name for e in os.scandir(self.path)}
+            self.old = old = {k: v & existing for k, v in old.items()}
             users = existing - set().union(set(), *old.values())
-            _write_manifest(path, {k: old.get(k, set()) | (expected.get(k, set()) - users)
-                                   for k in set(old) | set(expected)})
+            self.planned = {k: v - users - old.get(k, set()) for k, v in self.expected.items()}
+            _write_manifest(self.path, old, self.planned)
+
+    def log(self, target: Path) -> None:
+        """A file just written into the folder: logged in the lock file (read back if this process is
+        killed); after the first, the older files this command will not write are removed (and the
+        old .pvd, whose frames are about to be replaced): a command that fails or is stopped
+        before it has written a file leaves the earlier one's as they were."""
+        if not self._ours(target):
+            return
+        if self.fd is not None:
+            with contextlib.suppress(OSError):
+                os.write(self.fd, f"wrote {Path(target).name}\n".encode("utf-8", "surrogateescape"))
+        if self.replaced or self.old is None:
+            return
+        with signals_deferred():
+            self.replaced = True
+            stale = {n for k in self.kinds for n in self.old.get(k, set())
+                     if n not in self.expected.get(k, set()) or n.endswith(".pvd")} - {Path(target).name}
+            _remove(self.path, stale)
+            self.old = {k: v - stale for k, v in self.old.items()}
+            if stale:
+                _write_manifest(self.path, self.old, self.planned)
 
     def finish(self, written: set) -> None:
         """The manifest after the command: the kinds it replaces hold what it wrote, and their older
         files it did not rewrite are removed (they belong to another run); other kinds gain what
-        it wrote of them."""
+        it wrote of them. A command that wrote nothing leaves the manifest as it was."""
         remove_leftovers(self.path)  # a write cut short in a window write_atomic cannot close
-        if self.old is None:  # nothing written: the folder is as it was
+        if self.old is None:  # nothing tried
             return
-        names = {Path(p).name for p in written if Path(p).parent.resolve() == self.here} - {MANIFEST, LOCK}
+        names = {Path(p).name for p in written if self._ours(Path(p))}
+        if not self.replaced:  # every write failed: the folder is as it was
+            _write_manifest(self.path, self.old)
+            return
         new = {k: set(v) - names for k, v in self.old.items()}
         for k in self.kinds:
             _remove(self.path, self.old.get(k, set()) - names)

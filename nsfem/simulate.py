@@ -210,7 +210,8 @@ def check_output_size(files: int, nbytes: float, free: float | None, vtu_every: 
     if files > FILES_MAX:
         raise SceneError(key, f"this run would write {what}, more than the limit of {FILES_MAX} files; {fix}")
     if free is not None and nbytes > free:
-        raise SceneError(key, f"this run would write {what}, more than the {free / 1e9:.3g} GB free there; {fix}")
+        raise SceneError(key, f"this run would write {what}, more than the {free / 1e9:.3g} GB free there "
+                         f"(with the earlier run's files it replaces); {fix}")
     if files > FILES_WARN or nbytes > BYTES_WARN:
         return f"this run writes {what}; {fix} for less"
     return None
@@ -326,7 +327,11 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
         n_times = output_times(sim.t_end, sim.output_dt).size
         files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every, n_times,
                                     len(scene.sensors))
-        text = check_output_size(files, nbytes, free_bytes(out_dir), scene.output.vtu_every, n_times)
+        from .outdir import replaced_bytes
+
+        free = free_bytes(out_dir)  # and the room of the earlier run's files this one replaces
+        free = free + replaced_bytes(out_dir, "run") if free is not None else None
+        text = check_output_size(files, nbytes, free, scene.output.vtu_every, n_times)
         if text and warn is not None:
             warn(text)
     q0, v0 = initial_state(scene, model, red, system)

@@ -1662,8 +1662,8 @@ def test_a_file_system_without_locks_writes_the_folder_unlocked(tmp_path, monkey
 
     monkeypatch.setattr(outdir.fcntl, "flock", no_locks)
     with outdir.claim(tmp_path / "a", "run", {}, "--out") as written:
-        assert not (tmp_path / "a" / outdir.LOCK).exists()
-        assert written is not None
+        assert written is not None   # (the lock file, unlocked, logs the files written: see the review's block)
+    assert not (tmp_path / "a").exists()   # nothing left
 
     def denied(fd, op):
         raise OSError(_errno.EACCES, "Permission denied")
@@ -1696,3 +1696,361 @@ def test_penetration_is_judged_against_each_stops_own_clearance():
     near = SimpleNamespace(gap=np.array([[1e-4, -2e-5], [1e-2, 5e-3]]), info={"contacts": labels}, method="penalty")
     text = penetration_warning(near, stops)
     assert text is not None and "2e-05 m deep at stator.0.0" in text and "clearance 0.0001 m" in text
+
+
+# --- issue 32: review of the outputs change (files of a killed command, ...) ---
+#: names a run may write (kind run), in the order it writes them
+RUN_NAMES = ["result.npz", "gap.png", "sensors.csv", "sensors.png", "render.png"]
+
+
+def killed_claim(out: Path, planned: list[str], written: list[str]) -> None:
+    """A command that plans ``planned`` in ``out``, writes ``written`` and is killed outright
+    (SIGKILL, power loss: no finally runs), in a forked child."""
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child
+        try:
+            with claim(out, "run", {"run": planned}):
+                for name in written:
+                    write_text_atomic(out / name, f"killed run's {name}")
+                os._exit(9)
+        finally:
+            os._exit(1)
+    t0 = time.monotonic()   # a guard only (a fork of a threaded process could hang): not a timing assertion
+    while (done := os.waitpid(pid, os.WNOHANG))[0] == 0:
+        if time.monotonic() - t0 > 120:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            pytest.fail("the forked command hung")
+        time.sleep(0.005)
+    assert os.WIFEXITED(done[1]) and os.WEXITSTATUS(done[1]) == 9
+
+
+def a_killed_commands_planned_names_spare_the_users_files(planned, n_written, users, rewrite):
+    written = planned[:n_written]
+    users = [n for n in users if n not in written]
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        killed_claim(out, planned, written)
+        for name in users:  # the user's own files, made after the kill, under names the killed run planned
+            (out / name).write_text(f"user's {name}")
+        if written and set(users) & set(rewrite):  # a file nsfem did not write, to be overwritten, in a
+            # folder it keeps (its first write made the manifest): refused, no file touched
+            def files():
+                return {p.name: p.read_bytes() for p in out.iterdir() if p.name not in (MANIFEST, LOCK)}
+
+            before = files()
+            with pytest.raises(NsfemError, match="which nsfem did not write"):
+                with claim(out, "run", {"run": rewrite}):
+                    pass
+            assert files() == before
+            return
+        with claim(out, "run", {"run": rewrite}):
+            for name in rewrite:
+                write_text_atomic(out / name, f"new {name}")
+        names = {p.name for p in out.iterdir()} - {MANIFEST}
+        # exactly: the new run's files, the user's files it did not overwrite; none of the killed run's
+        assert names == set(rewrite) | set(users), (planned, written, users, rewrite, sorted(names))
+        for name in set(users) - set(rewrite):
+            assert (out / name).read_text() == f"user's {name}"
+        assert json.loads((out / MANIFEST).read_text()) == {"files": {"run": sorted(rewrite)}}
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(planned=st.permutations(RUN_NAMES), n_written=st.integers(0, 5),
+       users=st.lists(st.sampled_from(RUN_NAMES), unique=True),
+       rewrite=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1))
+def test_a_killed_commands_planned_names_spare_the_users_files(planned, n_written, users, rewrite):
+    """The class: a command killed outright left its manifest planning names it never wrote; the next
+    command removed any file of such a name, also one the user made since. Now only the files the
+    killed command's log confirms are nsfem's."""
+    a_killed_commands_planned_names_spare_the_users_files(planned, n_written, users, rewrite)
+
+
+def test_a_killed_run_does_not_cost_the_user_a_file_named_like_its_outputs(tmp_path):
+    """The reproduction: a run with sensors killed (SIGKILL) after result.npz; the user then copies
+    measured data in as sensors.csv; the next run, without sensors, removed it."""
+    killed_claim(tmp_path, ["result.npz", "sensors.csv"], ["result.npz"])
+    (tmp_path / "sensors.csv").write_text("t,probe\n0,1\n")
+    with claim(tmp_path, "run", {"run": ["result.npz"]}):
+        write_text_atomic(tmp_path / "result.npz", "new")
+    assert (tmp_path / "sensors.csv").read_text() == "t,probe\n0,1\n"
+
+
+def test_a_fits_data_in_the_folder_is_kept_by_the_next_run(tmp_path, monkeypatch):
+    """The reproduction: `nsfem run` with sensors into a folder, `nsfem fit --data <folder>/sensors.csv
+    --out <folder>` (the run's signals as the data), then a run without sensors there: the run's
+    sensors.csv, now the fit's data, was removed as the earlier run's file. Read by the fit, it is the
+    user's from then on (the fit's search itself is left out: the folder's bookkeeping is what is tested)."""
+    import nsfem.fit as fitting
+
+    fixed = ["mesh.elements=20", "reduction.modes=6", 'sensor.0.name="a"', "sensor.0.x=0.05",
+             'sensor.0.direction="+z"', "simulation.t_end=0.01", "output.vtu_every=0", "output.plots=[]"]
+    out = tmp_path / "study"
+    assert cli.main(["run", *[a for f in fixed for a in ("--set", f)], "--out", str(out)]) == 0
+    data = out / "sensors.csv"
+    measured = data.read_text()
+
+    def estimate(problem, folder, *args):
+        write_text_atomic(folder / "fit.json", "{}")
+
+    monkeypatch.setattr(fitting, "_estimate", estimate)
+    fitting.fit(None, data, {"delamination.0.start": (0.1, 0.4)}, overrides=fixed, out_dir=out)
+    assert cli.main(["run", *CHEAP, "--out", str(out)]) == 0  # no sensors
+    assert data.read_text() == measured
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "fit.json", "result.npz", "sensors.csv"]
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(earlier=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1), read=st.data(),
+       rewrite=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1))
+def test_property_a_commands_inputs_in_its_folder_are_never_removed(earlier, read, rewrite):
+    """The class: a file of an earlier run that a command in the folder reads (its input) is the
+    user's from then on: a later run that does not write that name leaves it as it is."""
+    inputs = read.draw(st.lists(st.sampled_from(earlier), unique=True))
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        with claim(out, "run", {"run": earlier}):
+            for name in earlier:
+                write_text_atomic(out / name, f"earlier {name}")
+        with claim(out, "fit", {"fit": FIT_FILES}, inputs=[out / n for n in inputs]):
+            write_text_atomic(out / "fit.json", "{}")
+        if set(inputs) & set(rewrite):  # the data would be overwritten: refused
+            with pytest.raises(NsfemError, match="which nsfem did not write"):
+                with claim(out, "run", {"run": rewrite}):
+                    pass
+            return
+        with claim(out, "run", {"run": rewrite}):
+            for name in rewrite:
+                write_text_atomic(out / name, f"new {name}")
+        names = {p.name for p in out.iterdir()} - {MANIFEST}
+        assert names == set(rewrite) | set(inputs) | {"fit.json"}, (earlier, inputs, rewrite, sorted(names))
+        for name in set(inputs) - set(rewrite):
+            assert (out / name).read_text() == f"earlier {name}"
+
+
+def disk_full(tmp):
+    import errno as _errno
+
+    raise OSError(_errno.ENOSPC, "No space left on device", tmp)
+
+
+def test_a_run_that_cannot_write_its_results_leaves_the_previous_run(tmp_path, monkeypatch):
+    """The reproduction: a run whose result.npz could not be written (disk full) removed, before that
+    first write, the previous run's plots and old .pvd, and at its end all the previous run's files,
+    its result.npz too. Now nothing is removed before the command's first file is in place."""
+    import nsfem.result as result_module
+
+    out = tmp_path / "out"
+    assert cli.main(["run", *CHEAP[:-2], "--set", "output.plots=[\"gap\"]", "--set", "output.vtu_every=5",
+                     "--out", str(out)]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert {"result.npz", "gap.png", "nsfem.pvd", MANIFEST} <= set(before)
+    monkeypatch.setattr(result_module, "np", type("np", (), {**vars(np), "savez_compressed": staticmethod(
+        lambda fh, **arrays: disk_full(fh))}))
+    code, _, stderr = check_invocation(["run", *CHEAP, "--out", "out"], tmp_path)  # no plots, no series
+    assert code == cli.EXIT_ERROR and "No space left on device" in stderr, stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(earlier=st.lists(st.sampled_from(RUN_NAMES + ["nsfem.pvd", "nsfem_00000.vtu"]), unique=True, min_size=1),
+       rewrite=st.lists(st.sampled_from(RUN_NAMES + ["nsfem.pvd"]), unique=True, min_size=1),
+       command=st.sampled_from(["run", "export"]))
+def test_property_a_command_whose_writes_fail_leaves_the_folder_as_it_was(earlier, rewrite, command):
+    """The class: a command that fails (or stops) before any of its files is in place removes nothing."""
+    kind = {n: "series" if n.endswith((".pvd", ".vtu")) else "run" for n in RUN_NAMES + ["nsfem.pvd", "nsfem_00000.vtu"]}
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        plan = {}
+        for n in earlier:
+            plan.setdefault(kind[n], []).append(n)
+        with claim(out, "run", plan):
+            for name in earlier:
+                write_text_atomic(out / name, f"earlier {name}")
+        before = {p.name: p.read_bytes() for p in out.iterdir()}
+        with pytest.raises(OSError):
+            with claim(out, command, {kind[rewrite[0]]: rewrite}):
+                for name in rewrite:
+                    from nsfem.atomic import write_atomic
+
+                    write_atomic(out / name, disk_full)
+        assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_an_interrupt_while_the_folder_is_locked_leaves_no_lock_file(tmp_path, monkeypatch):
+    """A Ctrl-C between the lock file's creation and its flock left `.nsfem.lock` in a folder the
+    command had created (so the folder too): the lock is taken with signals deferred."""
+    import nsfem.outdir as outdir
+
+    flock = outdir.fcntl.flock
+
+    def interrupted(fd, op):
+        signal.raise_signal(signal.SIGINT)
+        return flock(fd, op)
+
+    monkeypatch.setattr(outdir.fcntl, "flock", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        with claim(tmp_path / "new", "run", {"run": ["result.npz"]}):
+            pass
+    assert not (tmp_path / "new").exists()
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(stem=st.text(st.characters(blacklist_categories=("Cs", "Cc"), blacklist_characters="/\\"), min_size=1,
+                    max_size=12),
+       suffix=st.sampled_from([".toml", ".msh", ".md", ".py", "", ".csv", ".png", ".npz"]))
+def test_property_a_manifest_names_only_outputs_to_remove(stem, suffix):
+    """A manifest edited by hand (or copied with a folder) that names a user's scene, mesh or notes
+    (unicode and spaces too) removes none of them: only files of the kinds nsfem writes are ever removed."""
+    from hypothesis import assume
+
+    name = stem + suffix
+    assume(name not in (".", "..", LOCK, MANIFEST, "result.npz") and not name.startswith("."))
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        (out / name).write_text("the user's")
+        (out / MANIFEST).write_text(json.dumps({"files": {"run": [name, "result.npz"]}}))
+        with claim(out, "run", {"run": ["result.npz"]}):
+            write_text_atomic(out / "result.npz", "new")
+        kept = (out / name).exists()
+        assert kept == (not name.endswith((".csv", ".png", ".npz"))), (name, kept)
+
+
+def test_a_run_re_run_into_its_own_folder_counts_the_room_of_the_files_it_replaces(tmp_path, monkeypatch):
+    """The reproduction: a run re-run into its folder on a nearly full disk was refused for more bytes
+    than the free space, although the earlier run's files it replaces (here a 1 GB result.npz, sparse)
+    give their room back. A user's file of that size gives none."""
+    from nsfem import simulate
+
+    out = tmp_path / "out"
+    out.mkdir()
+    argv = ["run", *TINY, "--set", "simulation.t_end=0.01", "--set", "output.vtu_every=1", "--set",
+            "output.plots=[]", "--out", "out"]
+    monkeypatch.setattr(simulate, "free_bytes", lambda folder: 1e5)   # 100 kB free: less than the run's ~1 MB
+    with open(out / "result.npz", "wb") as fh:   # the user's: no room of the run's
+        fh.truncate(10**9)
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == cli.EXIT_ERROR and "GB free there" in stderr, stderr
+    (out / "result.npz").unlink()
+    with claim(out, "run", {"run": ["result.npz"]}):   # the earlier run's: its room comes back
+        write_text_atomic(out / "result.npz", "")
+        os.truncate(out / "result.npz", 10**9)
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == 0, stderr
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(files=st.lists(st.tuples(st.sampled_from(["run", "series", "fit"]), st.integers(0, 10**6)), max_size=5),
+       user=st.integers(0, 10**6), command=st.sampled_from(["run", "export", "fit", "render", "sweep"]))
+def test_property_the_room_a_command_gets_back_is_its_kinds_files_only(files, user, command):
+    from nsfem.outdir import REPLACES, replaced_bytes
+
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        listed = {}
+        for i, (kind, size) in enumerate(files):
+            name = f"f{i}.npz"
+            with open(out / name, "wb") as fh:
+                fh.truncate(size)
+            listed.setdefault(kind, []).append(name)
+        with open(out / "mine.npz", "wb") as fh:   # the user's: never counted
+            fh.truncate(user)
+        (out / "link.npz").symlink_to(out / "mine.npz")   # a link: no room of its own
+        listed.setdefault("run", []).append("link.npz")
+        (out / MANIFEST).write_text(json.dumps({"files": listed}))
+        assert replaced_bytes(out, command) == sum(s for k, s in files if k in REPLACES[command])
+
+
+def test_render_onto_its_own_results_file_is_refused(saved_result, tmp_path):
+    """The reproduction: `nsfem render out/result.npz --png out/result.npz` (a slip) replaced the
+    results file with a picture, exit 0; a scene or the data named as --png likewise."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "result.npz").write_bytes(saved_result.read_bytes())
+    (out / "scene.toml").write_text('title = "mine"\n')
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    for png in ["out/result.npz", "out/scene.toml", "out/picture"]:
+        code, _, stderr = check_invocation(["render", "out/result.npz", "--png", png], tmp_path)
+        assert code == cli.EXIT_ERROR and f"--png: {png} does not end in .png" in stderr, stderr
+    code, _, stderr = check_invocation(["campbell", "--png", "out/scene.toml"], tmp_path)
+    assert code == cli.EXIT_ERROR and "does not end in .png" in stderr, stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(stem=st.text(st.characters(blacklist_categories=("Cs", "Cc"), blacklist_characters="/\\\0"), min_size=1,
+                    max_size=12),
+       suffix=st.sampled_from([".png", ".PNG", ".npz", ".toml", ".csv", "", ".png.bak", ".pngx"]))
+def test_property_png_targets_end_in_png(stem, suffix, tmp_path_factory):
+    """Any --png name not ending in .png is refused in one line naming it, before the result is read
+    (here missing: a name ending in .png gets that error instead)."""
+    root = tmp_path_factory.mktemp("png")
+    png = stem + suffix
+    code, _, stderr = check_invocation(["render", "missing.npz", f"--png={png}"], root)
+    assert code == cli.EXIT_ERROR
+    refused = "does not end in .png" in stderr
+    assert refused == (Path(png).suffix.lower() != ".png" and not (root / png).is_dir()), (png, stderr)
+
+
+def test_a_run_refuses_to_overwrite_the_users_data_named_like_its_output(tmp_path):
+    """The reproduction: the user's measured sensors.csv in the run's folder (`--out .` beside the
+    scene and the data) was replaced by the run's sensors.csv. In a folder nsfem keeps, such a file is
+    refused in one line, before the run; the fit's data (read by a fit there) likewise."""
+    sensors = ["--set", 'sensor.0.name="a"', "--set", "sensor.0.x=0.05", "--set", 'sensor.0.direction="+z"']
+    argv = ["run", *CHEAP, *sensors, "--out", "out"]
+    assert check_invocation(["run", *CHEAP, "--out", "out"], tmp_path)[0] == 0   # a folder nsfem keeps
+    out = tmp_path / "out"
+    (out / "sensors.csv").write_text("t,a\n0,1\n")   # the user's measurement, put there since
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == cli.EXIT_ERROR and "holds sensors.csv, which nsfem did not write" in stderr, stderr
+    assert (out / "sensors.csv").read_text() == "t,a\n0,1\n"
+    assert check_invocation(["run", *CHEAP, "--out", "out"], tmp_path)[0] == 0   # a run that writes no sensors.csv
+    assert (out / "sensors.csv").read_text() == "t,a\n0,1\n"
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(earlier=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1),
+       users=st.lists(st.sampled_from(RUN_NAMES + ["notes.txt"]), unique=True),
+       rewrite=st.lists(st.sampled_from(RUN_NAMES), unique=True, min_size=1))
+def test_property_a_file_nsfem_did_not_write_is_never_overwritten(earlier, users, rewrite):
+    """The class: in a folder nsfem keeps, a command that would overwrite a file it did not write there
+    is refused (one line naming the file) and leaves the folder as it was; otherwise it runs."""
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        with claim(out, "run", {"run": earlier}):
+            for name in earlier:
+                write_text_atomic(out / name, f"earlier {name}")
+        users = [n for n in users if n not in earlier]   # (a file nsfem wrote, replaced by the user, is not told apart)
+        for name in users:
+            (out / name).write_text(f"user's {name}")
+        before = {p.name: p.read_bytes() for p in out.iterdir()}
+        clash = sorted(set(users) & set(rewrite))
+        try:
+            with claim(out, "run", {"run": rewrite}):
+                for name in rewrite:
+                    write_text_atomic(out / name, f"new {name}")
+        except NsfemError as exc:
+            assert clash and f"holds {clash[0]}" in str(exc) and "\n" not in str(exc)
+            assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+        else:
+            assert not clash
+        for name in set(users) - set(rewrite):
+            assert (out / name).read_text() == f"user's {name}"
+
+
+def test_on_a_file_system_without_locks_a_killed_commands_files_are_still_known(tmp_path, monkeypatch):
+    """Without flock (ENOLCK: a network or parallel file system; a batch job SIGKILLed at its time
+    limit), the files a killed run wrote were unknown to the next one, which then refused them as
+    files nsfem did not write. The lock file, unlocked there, still logs them."""
+    import errno as _errno
+
+    import nsfem.outdir as outdir
+
+    def no_locks(fd, op):
+        raise OSError(_errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr(outdir.fcntl, "flock", no_locks)
+    killed_claim(tmp_path, ["result.npz", "gap.png"], ["result.npz", "gap.png"])
+    with claim(tmp_path, "run", {"run": ["result.npz"]}):
+        write_text_atomic(tmp_path / "result.npz", "new")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [MANIFEST, "result.npz"]

@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 import time
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
@@ -130,7 +131,8 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
     check_folder(out, "--out")
     from ..outdir import FIT_FILES, claim
 
-    with claim(out, "fit", {"fit": FIT_FILES}):  # one fit at a time; the files of an earlier one replaced
+    data_files = [data] if isinstance(data, (str, os.PathLike)) else []  # in the folder: kept by later runs
+    with claim(out, "fit", {"fit": FIT_FILES}, inputs=data_files):  # one fit at a time; an earlier one's files replaced
         return _estimate(problem, out, u_start, client, workers, scheduler, n_global, max_nfev, seed, misfit,
                          progress, plot, refine, t0)
 
