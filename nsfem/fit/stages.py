@@ -90,9 +90,9 @@ class _Runner:
         self.pending = []
         return [self.cache[np.asarray(u, float).tobytes()] for u in us]
 
-    def run_refined(self, us: Sequence[np.ndarray], overrides: Sequence[str]) -> list[Evaluation]:
+    def run_refined(self, us: Sequence[np.ndarray], overrides: Sequence[str], stage: str = "refined") -> list[Evaluation]:
         """The runs at ``us`` (submitted together) with the extra ``overrides`` (a refined model: built
-        on the worker, never the shared one, and not cached by point), kept as stage ``refined``."""
+        on the worker, never the shared one, and not cached by point), kept as ``stage``."""
         from distributed import as_completed
 
         evs: dict[int, Evaluation] = {}
@@ -101,7 +101,7 @@ class _Runner:
             try:
                 scene = self.problem.scene(u, overrides)
             except NsfemError as exc:
-                evs[i] = Evaluation(np.array(u, float), "refined", math.inf, error=str(exc))
+                evs[i] = Evaluation(np.array(u, float), stage, math.inf, error=str(exc))
                 self.evaluations.append(evs[i])
                 continue
             fut = self._submit(scene, None)
@@ -109,7 +109,7 @@ class _Runner:
             self.pending.append(fut)
         for fut in as_completed(list(futures), loop=self.cl.loop):
             i = futures[fut]
-            evs[i] = self._evaluation(fut, np.array(us[i], float), "refined")
+            evs[i] = self._evaluation(fut, np.array(us[i], float), stage)
             self.evaluations.append(evs[i])      # kept as it arrives: Ctrl-C loses no finished run
         self.pending = []
         return [evs[i] for i in range(len(us))]
@@ -172,10 +172,10 @@ def _residual_vector(ev: Evaluation, n: int) -> np.ndarray:
     return ev.residuals if ev.residuals is not None else np.full(n, FAILED_RESIDUAL)
 
 
-def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int,
-                stage: str = "local") -> tuple[np.ndarray, np.ndarray, np.ndarray, object]:
+def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int, stage: str = "local",
+                xtol: float = 1e-10, ftol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, np.ndarray, object]:
     """least_squares from ``u0`` in the unit box; (u, residuals, Jacobian at u, scipy's result); its
-    runs are labelled ``stage``."""
+    runs are labelled ``stage``; ``xtol`` and ``ftol`` as scipy's."""
     from scipy.optimize import least_squares
 
     n = runner.n
@@ -192,7 +192,7 @@ def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int,
         r0 = _residual_vector(runner.run([u], stage)[0], n)
         return jacobian(r0, runner.run(_perturbed(u), stage), u, n)
 
-    sol = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0, xtol=1e-10, ftol=1e-10,
+    sol = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0, xtol=xtol, ftol=ftol,
                         gtol=1e-10, max_nfev=max_nfev)
     u = np.clip(sol.x, 0.0, 1.0)
     return u, _residual_vector(runner.run([u], stage)[0], n), jac(u), sol
@@ -306,3 +306,18 @@ def residual_check(r: np.ndarray, names: Sequence[str], kind: str, misfit: float
                    f"{w.bound:.3g}, the bound for white noise; misfit {100 * misfit:.3g} %): the estimate may be a "
                    "local minimum or the model cannot explain the data (try more global samples, other starts or "
                    "ranges, or check the scene)")
+
+
+def noise_statistics(unc, J: np.ndarray, r: np.ndarray, u: np.ndarray, names: Sequence[str], kind: str,
+                     misfit: float) -> tuple[object, np.ndarray]:
+    """The linearized statistics ``unc`` at ``u`` with the autocorrelation of structured residuals
+    taken in (:func:`nsfem.analysis.uncertainty.correlated`: a smooth residual carries fewer independent
+    samples than it has, and the white-noise interval would claim them all), and each sensor's
+    autocorrelation time (1 for white ones). As :func:`residual_check`: time misfit only, and only
+    above :data:`RESOLUTION` (a fit to round-off is floored there instead)."""
+    from ..analysis.uncertainty import correlated, whiteness
+
+    ones = np.ones(len(names))
+    if kind != "time" or r is None or not misfit > RESOLUTION:
+        return unc, ones
+    return correlated(unc, J, r, u, len(names), whiteness(r, len(names), WHITE_LEVEL).structured)
