@@ -163,7 +163,7 @@ def fit(scene_path, data, vary, misfit: str = "time", client=None, workers: int 
         unc, tau = noise_statistics(unc, J, r, u, problem.data.names, misfit, relative_rms(r))
         disc = _refined(runner, problem, u, unc, say) if refine else None
         if disc is not None:
-            disc = refit.check(runner, problem, u, r, unc, disc, speculate, say)
+            disc = refit.check(runner, problem, u, r, unc, disc, say)
         interval = discretization.reported(unc.interval, disc)
         alternatives = []
         for u2, r2, _ in minima:

@@ -34,17 +34,17 @@ import numpy as np
 
 from ..measurement import relative_rms
 from .discretization import Discretization
-from .problem import Evaluation, Problem
-from .stages import _Runner, local_stage, residual_check
+from .problem import Problem
+from .stages import _Runner, residual_check
 
 #: a linear step whose actual reduction of the refined sum of squares differs from the predicted one by
 #: more than this fraction is not trusted (trust-region methods expand their region above 0.75)
 TRUST = 0.25
-#: the most residual evaluations of the refined model's own local stage (each with p more runs for its
-#: Jacobian: about 3 (p + 1) of them when it converges in three steps)
-REFIT_NFEV = 12
-#: the refit's step tolerance as a fraction of the smallest noise standard deviation (unit box)
-STEP_TOLERANCE = 0.1
+#: the most runs of the refined model's own minimization (one per step)
+REFIT_RUNS = 16
+#: its steps end (converged) when the next one moves every key by less than this fraction of its noise
+#: standard deviation: the interval's margins (1.96 of them about each minimum) hold what is left
+STEP_TOLERANCE = 0.5
 #: a refined minimum within this fraction of a range of an end sits on it (as the fit's AT_BOUND)
 AT_END = 1e-3
 
@@ -66,29 +66,58 @@ def reduction_ratio(J: np.ndarray, r: np.ndarray, du: np.ndarray, r_new: np.ndar
     return actual / predicted if predicted > 0 else math.nan
 
 
-class _RefinedRunner:
-    """The refined model's runs, cached by point, in :func:`local_stage`'s runner interface."""
+def broyden(J: np.ndarray, du: np.ndarray, dr: np.ndarray) -> np.ndarray:
+    """``J`` corrected along the step ``du`` to the change ``dr`` it made (Broyden's rank-one update):
+    a secant over the whole step, blind to the misfit's ruggedness below it.
 
-    def __init__(self, runner: _Runner, overrides, stage: str):
-        self.base, self.overrides, self.stage = runner, list(overrides), stage
-        self.problem, self.n, self.say = runner.problem, runner.n, runner.say
-        self.cache: dict[bytes, Evaluation] = {}
+    >>> broyden(np.array([[1.0, 0.0]]), np.array([1.0, 0.0]), np.array([3.0])).tolist()
+    [[3.0, 0.0]]
+    """
+    dd = float(du @ du)
+    return J + np.outer(dr - J @ du, du) / dd if dd > 0 else J
 
-    @property
-    def evaluations(self) -> list[Evaluation]:
-        return self.base.evaluations
 
-    def run(self, us, stage: str, report: bool = False) -> list[Evaluation]:
-        todo = list({np.asarray(u, float).tobytes(): np.asarray(u, float) for u in us
-                     if np.asarray(u, float).tobytes() not in self.cache}.values())
-        if todo:
-            for u, ev in zip(todo, self.base.run_refined(todo, self.overrides, self.stage)):
-                self.cache[u.tobytes()] = ev
-        return [self.cache[np.asarray(u, float).tobytes()] for u in us]
+def secant_minimum(run, J: np.ndarray, u: np.ndarray, r: np.ndarray, tol: np.ndarray, tried=None,
+                   max_runs: int = REFIT_RUNS) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """The minimum of a model's residuals near ``u`` (residuals ``r``, Jacobian ``J`` there), by
+    Gauss-Newton steps in the unit box on a Jacobian updated by :func:`broyden` after every run
+    (``run(u)`` -> residuals, None when the run failed): a forward difference of 1e-4 of a range sees
+    the local slope of a rugged misfit, the secant over a step the slope the step met. ``tried``: a
+    point already run (u, residuals). A step that does not lower the sum of squares halves the next
+    one. It ends when the next step moves every key with a finite ``tol`` by less than it (keys with
+    an infinite one are not stepped), after ``max_runs`` runs, or at a failed run; (u, residuals,
+    the next step, why it did not converge ("" when it did))."""
+    from .discretization import shift
+
+    moving = np.isfinite(tol)
+    radius = np.inf
+    if tried is not None:
+        J = broyden(J, tried[0] - u, tried[1] - r)
+        if tried[1] @ tried[1] < r @ r:
+            u, r = tried
+    for _ in range(max_runs + 1):
+        step = np.nan_to_num(shift(J, r, u, moving))
+        if np.all(np.abs(step[moving]) <= tol[moving]):
+            return u, r, step, ""
+        if _ == max_runs:
+            break
+        big = float(np.max(np.abs(step)))
+        if big > radius:
+            step = step * radius / big
+        un = np.clip(u + step, 0.0, 1.0)
+        rn = run(un)
+        if rn is None:
+            return u, r, step, "its run at a step failed"
+        J = broyden(J, un - u, rn - r)
+        if rn @ rn < r @ r:
+            u, r, radius = un, rn, np.inf
+        else:
+            radius = big / 2
+    return u, r, step, f"its steps did not settle in {max_runs} runs"
 
 
 def check(runner: _Runner, problem: Problem, u: np.ndarray, r: np.ndarray, unc, d: Discretization,
-          speculate: bool, say) -> Discretization:
+          say) -> Discretization:
     """``d`` (the linear step of the refined model at the estimate ``u``, the fitted model's residuals
     ``r`` there and its statistics ``unc``) checked, and replaced by the refined model's own minimum
     when it cannot be trusted (see the module's text). The result records the ``ratio``, the linear
@@ -114,40 +143,41 @@ def check(runner: _Runner, problem: Problem, u: np.ndarray, r: np.ndarray, unc, 
     if not why:
         return d
     reason = " and ".join(why)
-    start = u if start_ev is None or not start_ev.misfit < d.misfit else np.clip(u + step, 0.0, 1.0)
-    say(f"refined local stage ({reason}): the refined model's own minimum, from its run "
-        + ("at the estimate" if start is u else "one linear step from it"))
-    sigma = unc.sigma[np.isfinite(unc.sigma) & (unc.sigma > 0)]
-    xtol = STEP_TOLERANCE * float(np.min(sigma)) / max(float(np.linalg.norm(start)), 1e-3) if sigma.size else 1e-8
-    sub = _RefinedRunner(runner, d.overrides, "refined-local")
-    ur, rr, _, sol = local_stage(sub, np.array(start, float), speculate, REFIT_NFEV, "refined-local",
-                                 xtol=max(xtol, 1e-12), ftol=1e-8)
-    end = sub.run([ur], "refined-local")[0]
-    refit = {"why": reason, "start": _values(problem, start), "end": _values(problem, ur),
-             "misfit": float(end.misfit) if math.isfinite(end.misfit) else None, "nfev": int(sol.nfev),
-             "status": int(sol.status), "message": str(sol.message), "runs": len(sub.cache)}
+    say(f"refined minimum ({reason}): Gauss-Newton steps of the refined model with secant updates")
+    tol = STEP_TOLERANCE * np.where(np.isfinite(d.shift) & np.isfinite(unc.sigma), unc.sigma, np.inf)
+    runs = []
+
+    def run(v: np.ndarray):
+        ev = runner.run_refined([v], d.overrides, "refined-local")[0]
+        runs.append(ev)
+        return ev.residuals if not ev.error else None
+
+    tried = None
+    if start_ev is not None and not start_ev.error:
+        tried = (np.clip(u + step, 0.0, 1.0), start_ev.residuals)
+    ur, rr, last, failed = secant_minimum(run, d.jacobian, u, d.residuals, tol, tried, REFIT_RUNS)
+    refit = {"why": reason, "end": _values(problem, ur), "misfit": relative_rms(rr), "runs": len(runs),
+             "converged": not failed, "message": failed or "the next step is below half a noise standard deviation",
+             "next_step": _values(problem, last, offset=False)}
     shift = np.where(np.isfinite(d.shift), ur - u, np.nan) + 0.0
     lost = np.zeros(p, dtype=bool)
-    lost_why = ""
-    if end.error:
-        lost[:], lost_why = True, f"the refined model's run at its own minimum failed ({end.error})"
-    elif sol.status <= 0:
-        lost[:], lost_why = True, (f"the refined model's own least squares did not converge in {sol.nfev} "
-                                   f"evaluations ({sol.message})")
-    else:
-        for i in range(p):
-            for end_u in (0.0, 1.0):
-                if abs(ur[i] - end_u) <= AT_END and abs(u[i] - end_u) > AT_END:
-                    lost[i] = True
-        if lost.any():
-            lost_why = "the refined model's own minimum lies on a range end the estimate is not on"
+    lost_why = []
+    if failed:
+        lost = np.abs(last) > np.nan_to_num(tol, posinf=np.inf)
+        lost_why.append(f"the refined model's own minimization failed: {failed}, its next step too long")
+    for i in range(p):
+        for end_u in (0.0, 1.0):
+            if abs(ur[i] - end_u) <= AT_END and abs(u[i] - end_u) > AT_END and not lost[i]:
+                lost[i] = True
+                lost_why.append(f"the refined model's own minimum lies on the {'lower' if end_u == 0 else 'upper'} "
+                                f"end of {problem.params[i].key}'s range, the estimate does not")
     lost &= np.isfinite(d.shift)
     say("refined minimum at " + ", ".join(f"{q.key}={q.value(x):.6g}" for q, x in zip(problem.params, ur))
-        + f" (misfit {100 * end.misfit:.4g} %): shift " + ", ".join(
+        + f" (misfit {100 * relative_rms(rr):.4g} %, {len(runs)} runs): shift " + ", ".join(
             f"{q.key} {s * (q.high - q.low):+.3g}" for q, s in zip(problem.params, shift)))
     return replace(d, shift=shift, linear_shift=d.shift, refit=refit, no_interval=lost,
-                   no_interval_reason=lost_why if lost.any() else "")
+                   no_interval_reason="; ".join(lost_why) if lost.any() else "")
 
 
-def _values(problem: Problem, u: np.ndarray) -> dict:
-    return {q.key: float(q.value(x)) for q, x in zip(problem.params, u)}
+def _values(problem: Problem, u: np.ndarray, offset: bool = True) -> dict:
+    return {q.key: float(q.low * offset + x * (q.high - q.low)) for q, x in zip(problem.params, u)}

@@ -172,10 +172,10 @@ def _residual_vector(ev: Evaluation, n: int) -> np.ndarray:
     return ev.residuals if ev.residuals is not None else np.full(n, FAILED_RESIDUAL)
 
 
-def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int, stage: str = "local",
-                xtol: float = 1e-10, ftol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, np.ndarray, object]:
+def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int,
+                stage: str = "local") -> tuple[np.ndarray, np.ndarray, np.ndarray, object]:
     """least_squares from ``u0`` in the unit box; (u, residuals, Jacobian at u, scipy's result); its
-    runs are labelled ``stage``; ``xtol`` and ``ftol`` as scipy's."""
+    runs are labelled ``stage``."""
     from scipy.optimize import least_squares
 
     n = runner.n
@@ -192,7 +192,7 @@ def local_stage(runner: _Runner, u0: np.ndarray, speculate: bool, max_nfev: int,
         r0 = _residual_vector(runner.run([u], stage)[0], n)
         return jacobian(r0, runner.run(_perturbed(u), stage), u, n)
 
-    sol = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0, xtol=xtol, ftol=ftol,
+    sol = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0, xtol=1e-10, ftol=1e-10,
                         gtol=1e-10, max_nfev=max_nfev)
     u = np.clip(sol.x, 0.0, 1.0)
     return u, _residual_vector(runner.run([u], stage)[0], n), jac(u), sol
