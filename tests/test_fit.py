@@ -623,3 +623,34 @@ def test_an_untrusted_linear_step_is_replaced_by_the_refined_minimum(inprocess, 
     payload = json.loads((tmp_path / "lost" / "fit.json").read_text())
     assert payload["parameters"][KEY]["identified"] is False and payload["discretization"]["no_interval"] == [KEY]
     assert "no interval for" in payload["identifiable_reason"]
+
+
+def test_the_secant_minimization_reaches_a_minimum_a_short_step_misses():
+    # residuals of two keys with a cubic term (a misfit far from quadratic, as a delamination's ends from rest) and
+    # a starting Jacobian 1 / 0.15 times too steep (a rugged misfit's local slope): one Gauss-Newton step goes
+    # 15 % of the way. The minimization must end where its stopping rule says (the next step below the tolerance
+    # per key), lower than it started, and at the unique minimum u* = (0.6, 0.3) to within the tolerance (the
+    # residuals vanish there, so the Gauss-Newton step from the exact Jacobian is at most the distance to it,
+    # up to the cubic's second-order error)
+    from nsfem.fit.discretization import shift
+    from nsfem.fit.refit import secant_minimum
+
+    target = np.array([0.6, 0.3])
+    A = np.array([[1.0, 0.4], [0.2, 1.0], [0.5, -0.3]])
+
+    def residual(u):
+        e = u - target
+        return A @ e + 40.0 * (A @ e) ** 3
+
+    u0 = np.array([0.5, 0.45])
+    J0 = (A * (1 + 120 * ((A @ (u0 - target)) ** 2))[:, None]) / 0.15
+    assert np.max(np.abs(np.nan_to_num(shift(J0, residual(u0), u0, np.array([True, True]))))) < 0.05  # short
+    tol = np.array([1e-4, 1e-4])
+    runs = []
+    u, r, last, failed = secant_minimum(lambda vs: runs.extend(vs) or [residual(v) for v in vs], J0, u0,
+                                        residual(u0), tol)
+    assert not failed and np.all(np.abs(last) <= tol) and r @ r < residual(u0) @ residual(u0)
+    assert np.all(np.abs(u - target) <= 2 * tol) and len(runs) <= 20
+    # a failed run ends it with the reason, at the best point so far
+    u, r, last, failed = secant_minimum(lambda vs: [None] * len(vs), J0, u0, residual(u0), tol)
+    assert failed == "its run at a step failed" and u.tolist() == u0.tolist()
