@@ -654,3 +654,37 @@ def test_the_secant_minimization_reaches_a_minimum_a_short_step_misses():
     # a failed run ends it with the reason, at the best point so far
     u, r, last, failed = secant_minimum(lambda vs: [None] * len(vs), J0, u0, residual(u0), tol)
     assert failed == "its run at a step failed" and u.tolist() == u0.tolist()
+
+
+@pytest.mark.slow
+def test_the_issue_32_delamination_from_rest_keeps_its_promise(tmp_path):
+    # the issue's case: an asymmetric delamination (0.22-0.71 m) falling from rest at 15 Hz for 0.5 s, four
+    # rotating-frame probes next to the supports, data from 80 elements and 32 modes (the fit's refined settings)
+    # with 1 % noise, fitted with the shipped 40 and 16 over 0.1-0.4 and 0.55-0.9 (~400 runs, 2-5 min on 2
+    # cores). One refined Gauss-Newton step found 0.22 of a 1.5 mm offset and the interval missed the truth by
+    # 1.2 mm. A fit must now hold the truth in each key's interval, or say it has none (the whole range, not
+    # identified, a warning naming the key)
+    distributed = pytest.importorskip("distributed")
+    probes = [o for i, (x, d) in enumerate([(0.05, "+y"), (0.05, "+z"), (0.95, "+y"), (0.95, "+z")])
+              for o in (f'sensor.{i}.name="s{i}"', f"sensor.{i}.x={x}", f'sensor.{i}.direction="{d}"',
+                        f'sensor.{i}.frame="rotating"')]
+    setup = [*probes, "rotation.speed_hz=15.0", 'initial.state="rest"', "simulation.t_end=0.5"]
+    truth = {"delamination.0.start": 0.22, "delamination.0.end": 0.71}
+    scene = load_scene(None, [*setup, "mesh.elements=80", "reduction.modes=32", *(f"{k}={v}" for k, v in truth.items())])
+    result, system = run_scene(scene)
+    v = sensor_signals(result, system)
+    v = v + 0.01 * np.sqrt(np.mean(v**2, axis=0)) * np.random.default_rng(1).standard_normal(v.shape)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cl, \
+            distributed.Client(cl) as client:
+        res = fit(None, (result.t, {f"s{i}": v[:, i] for i in range(4)}),
+                  {"delamination.0.start": (0.1, 0.4), "delamination.0.end": (0.55, 0.9)}, client=client,
+                  overrides=setup, out_dir=tmp_path, plot=False)
+    lost = res.discretization.no_interval if res.discretization.no_interval is not None else np.zeros(2, bool)
+    for i, key in enumerate(res.keys):
+        lo, hi = res.interval[i]
+        if not lost[i]:
+            assert lo <= truth[key] <= hi, (key, truth[key], lo, hi)
+        else:
+            assert [lo, hi] == [res.params[i].low, res.params[i].high]
+            assert any(w.startswith("no interval for") and key in w for w in res.warnings)
+        assert lo <= res.noise_interval[i, 0] and hi >= res.noise_interval[i, 1]    # never narrower

@@ -11,7 +11,9 @@ and the statistics. Two stages minimize the relative residuals of :mod:`nsfem.me
 
 The uncertainty at the optimum is linearized (:mod:`nsfem.analysis.uncertainty`) and widened by
 the fitted model's discretization error, measured by refined runs at the estimate
-(:mod:`nsfem.fit.discretization`). Further local stages look past the first basin
+(:mod:`nsfem.fit.discretization`; the refined model's own minimum where one step of it cannot be
+trusted, :mod:`nsfem.fit.refit`); structured residuals' autocorrelation widens the noise interval
+(:func:`~nsfem.fit.stages.noise_statistics`). Further local stages look past the first basin
 (:func:`_further_minima`):
 
 * the mirror image of the estimate about the shaft's middle (:func:`~nsfem.fit.stages.mirror_point`),

@@ -12,7 +12,9 @@ measures the shift instead of assuming it away:
   rk's and penalty's tolerances, half moreau's step);
 * one Gauss-Newton step of the refined model from the estimate, on the refined model's own
   Jacobian J_r and residuals r_r, gives the shift of the minimum, du = -J_r^+ r_r (:func:`shift`):
-  where a fit with the refined settings would go. Measured on the delaminated shaft (20 elements
+  where a fit with the refined settings would go, if the refined model is nearly linear between the
+  two minima; :mod:`nsfem.fit.refit` checks that with one more run and, where it fails, replaces the
+  step by the refined model's own minimum. Measured on the delaminated shaft (20 elements
   and 6 modes refined to 40 and 12, noise-free data from 40 and 12): 97.4-100.4 % of the
   estimate's offset from the truth, from 5e-6 to 2e-3 m. The fitted model's Jacobian in the
   refined one's place got the sign wrong where the two models differ by a misfit of 2 %. The step
