@@ -151,7 +151,9 @@ class FitResult:
             return None
         why = []
         d = self.discretization
-        lost = d.no_interval if d is not None and not d.error and d.no_interval is not None else np.zeros(len(self.params), bool)
+        lost = np.zeros(len(self.params), bool)
+        if d is not None and not d.error and d.no_interval is not None:
+            lost = d.no_interval
         if lost.any():
             why.append(f"no interval for {', '.join(p.key for p, x in zip(self.params, lost) if x)} "
                        f"({d.no_interval_reason})")
