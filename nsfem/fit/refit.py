@@ -21,8 +21,10 @@ ranges) gave as short a step, so the misfit, not its ruggedness, is far from qua
 * where that cannot be trusted either, the fit has no interval to promise: the minimization did not
   settle in :data:`REFIT_RUNS` runs (the keys its next step would still move), a run failed (every
   key), or its minimum lies on a range end the estimate is not on (that key: the refined model's
-  minimum may lie beyond the range). Those keys get their whole range, are not identified, and a
-  warning names them and the reason.
+  minimum may lie beyond the range); or the refined model explains the data no better than the fitted
+  one (structured residuals at both minima, refinement explaining less than :data:`EXPLAINED` of the
+  sum of squares: a local minimum, or a model error that no refinement reduces; every key). Those keys
+  get their whole range, are not identified, and a warning names them and the reason.
 """
 
 from __future__ import annotations
@@ -46,6 +48,10 @@ REFIT_RUNS = 24
 #: its steps end (converged) when the next one moves every key by less than this fraction of its noise
 #: standard deviation: the interval's margins (1.96 of them about each minimum) hold what is left
 STEP_TOLERANCE = 0.5
+#: structured residuals at the fitted and at the refined minimum, the refined explaining less than this
+#: share of the fitted sum of squares: the misfit is not the discretization's (a local minimum, a wrong
+#: model), and no interval is promised
+EXPLAINED = 0.5
 #: the forward-difference step of the Jacobian that confirms the end, in tolerances (2 noise sigmas): wide
 #: enough to step over a rugged misfit's small jumps
 PROBE = 4.0
@@ -180,10 +186,11 @@ def check(runner: _Runner, problem: Problem, u: np.ndarray, r: np.ndarray, unc, 
         if start_ev.residuals is not None:
             ratio = reduction_ratio(d.jacobian, d.residuals, step, start_ev.residuals)
     why = []
+    structured = r is not None and residual_check(r, problem.data.names, problem.kind, relative_rms(r))[1] is not None
     if np.any(step != 0.0) and not abs(ratio - 1.0) <= TRUST:
         why.append("the refined run at the shifted point failed" if start_ev is None or start_ev.error else
                    f"the refined model's sum of squares fell by {ratio:.3g} times what its linear step predicts")
-    if r is not None and residual_check(r, problem.data.names, problem.kind, relative_rms(r))[1] is not None:
+    if structured:
         why.append("the fitted model's residuals are structured")
     d = replace(d, ratio=ratio)
     if not why:
@@ -213,6 +220,15 @@ def check(runner: _Runner, problem: Problem, u: np.ndarray, r: np.ndarray, unc, 
         if not lost.any():                 # its last small step was never confirmed: none is promised
             lost = np.isfinite(tol)
         lost_why.append(f"the refined model's own minimization failed: {failed}")
+    explained = 1.0 - (relative_rms(rr) / relative_rms(r)) ** 2
+    refit["explained"] = explained
+    if (structured and not lost.all() and explained < EXPLAINED
+            and residual_check(rr, problem.data.names, problem.kind, relative_rms(rr))[1] is not None):
+        lost[:] = True
+        lost_why.append(f"neither the fitted nor the refined model explains the data (structured residuals at both "
+                        f"minima, misfit {100 * relative_rms(r):.3g} % and {100 * relative_rms(rr):.3g} %: refining "
+                        f"explains {100 * max(explained, 0.0):.2g} % of the sum of squares); a local minimum, or a "
+                        "model error that refinement does not reduce")
     for i in range(p):
         for end_u in (0.0, 1.0):
             if abs(ur[i] - end_u) <= AT_END and abs(u[i] - end_u) > AT_END and not lost[i]:
