@@ -692,3 +692,33 @@ def test_the_issue_32_delamination_from_rest_keeps_its_promise(tmp_path):
             assert [lo, hi] == [res.params[i].low, res.params[i].high]
             assert any(w.startswith("no interval for") and key in w for w in res.warnings)
         assert lo <= res.noise_interval[i, 0] and hi >= res.noise_interval[i, 1]    # never narrower
+
+
+def test_the_correlated_statistics_never_narrow_an_interval_nor_break():
+    # any residuals (smooth, white, zero, constant) and Jacobians (a column of zeros: an unseen key) the fit may
+    # meet: the intervals stay in the box, hold the white ones, are finite where those are, and the
+    # autocorrelation times are at least 1
+    from hypothesis import given, settings, strategies as st
+
+    from nsfem.analysis.uncertainty import correlated, linearized
+
+    @settings(max_examples=60, deadline=None, derandomize=True, database=None)
+    @given(st.integers(1, 3), st.integers(1, 3), st.integers(4, 60), st.integers(0, 2**32 - 1),
+           st.sampled_from(["white", "smooth", "zero", "constant"]), st.booleans())
+    def holds(sensors, p, k, seed, kind, unseen):
+        rng = np.random.default_rng(seed)
+        n = sensors * k
+        J = rng.standard_normal((n, p)).cumsum(axis=0) / np.sqrt(n)
+        if unseen:
+            J[:, -1] = 0.0
+        r = {"white": rng.standard_normal(n), "smooth": np.sin(np.linspace(0, 3, n)), "zero": np.zeros(n),
+             "constant": np.ones(n)}[kind] * 0.01
+        u = rng.uniform(0, 1, p)
+        white = linearized(J, r, u, floor=1e-3)
+        wide, tau = correlated(white, J, r, u, sensors, rng.uniform(size=sensors) < 0.7)
+        iv, w = wide.interval, white.interval
+        assert np.all((0.0 <= iv) & (iv <= 1.0)) and np.all(iv[:, 0] <= w[:, 0]) and np.all(iv[:, 1] >= w[:, 1])
+        assert np.all(tau >= 1.0) and np.all(np.isfinite(tau))
+        assert not np.any(np.isnan(iv)) and wide.dof >= 1
+
+    holds()
