@@ -442,7 +442,7 @@ def main(argv=None) -> dict:
 
     say(f"\n95 % intervals over {n_draws} noise draws of {100 * NOISE:g} %, finer data (noise-free fit: discretization bias):")
     say(f"{'case':>24} {'key':>21} {'truth':>9} {'cover':>6} {'basin':>6} {'noise':>6} {'width':>10} {'w basin':>10} {'w/range':>8} {'bias':>10} {'std':>10} "
-        f"{'discr.bias':>10} {'shift(0)':>10} {'shift':>10} {'misfit':>7} {'clean':>7} {'corr':>6} {'ident':>5} {'warn':>4} {'more':>4}")
+        f"{'discr.bias':>10} {'shift(0)':>10} {'shift':>10} {'misfit':>7} {'clean':>7} {'corr':>6} {'ident':>5} {'warn':>4} {'more':>4} {'noiv':>4} {'refit':>5}")
     for s in summary:
         f = lambda v, fmt: "-" if v is None else format(v, fmt)  # noqa: E731
         say(f"{s['case']:>24} {s['key']:>21} {s['truth']:9.4g} {s['inside']:>2}/{s['draws']:<3} {s['inside_in_basin']:>2}/{s['in_basin']:<3} "
@@ -450,7 +450,8 @@ def main(argv=None) -> dict:
             f"{f(s['mean_width_in_basin'], '10.3e')} {s['mean_width_over_range']:8.1e} {f(s['bias'], '10.2e')} {f(s['std'], '10.2e')} {f(s['discretization_bias'], '10.2e')} "
             f"{f(s['clean_shift'], '10.2e')} {f(s['mean_shift'], '10.2e')} "
             f"{f(s['mean_misfit'] and 100 * s['mean_misfit'], '6.3f')}% {f(s['clean_misfit'] and 100 * s['clean_misfit'], '6.3f')}% "
-            f"{f(s['mean_correlation'], '6.2f')} {s['identified']:>2}/{s['draws']} {s['warned']:>4} {s['further_stages']:>4}")
+            f"{f(s['mean_correlation'], '6.2f')} {s['identified']:>2}/{s['draws']} {s['warned']:>4} {s['further_stages']:>4} "
+            f"{s['no_interval']:>4} {s['refits']:>5}")
     fig = plot(out, rows, summary)
     docs_fig = ROOT / "docs" / "figures" / fig.name
     if (not q and args.case is None) or not docs_fig.exists():
