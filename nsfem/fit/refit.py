@@ -12,7 +12,8 @@ ranges) gave as short a step, so the misfit, not its ruggedness, is far from qua
   the actual reduction of the refined residuals' sum of squares against the one the linear model
   predicts, |r_r|^2 - |r_r + J_r du|^2 (:func:`reduction_ratio`); within :data:`TRUST` of 1 the step
   is trusted;
-* otherwise, or when the fitted model's residuals at the estimate are structured (it cannot explain
+* otherwise, or when the fitted model's residuals at the estimate are structured (the lag-1 test, or
+  mostly a coherent signal at some lag up to :data:`LAGS`, :func:`coherent_share`: it cannot explain
   the data, and how far its minimum lies from the refined one is no local question), the refined
   model's own minimum is found (:func:`secant_minimum`: Gauss-Newton steps, one refined run each, on a
   Jacobian updated along every step taken; a step that does better than predicted is doubled). The
@@ -38,7 +39,7 @@ import numpy as np
 from ..measurement import relative_rms
 from .discretization import Discretization
 from .problem import Problem
-from .stages import _Runner, residual_check
+from .stages import RESOLUTION, _Runner, residual_check
 
 #: a linear step whose actual reduction of the refined sum of squares differs from the predicted one by
 #: more than this fraction is not trusted (trust-region methods expand their region above 0.75)
@@ -53,11 +54,49 @@ STEP_TOLERANCE = 0.5
 #: share of the fitted sum of squares: the misfit is not the discretization's (a local minimum, a wrong
 #: model), and no interval is promised
 EXPLAINED = 0.5
+#: a residual whose largest autocorrelation over lags 1..:data:`LAGS` (any sign) exceeds this in some sensor
+#: is mostly a coherent signal, not noise (noise plus a signal of a share f of its variance correlates up to
+#: about f): the lag-1 test misses one of high frequency (a wrong basin of the delamination from rest: lag 1
+#: 0.07-0.11 against a bound of 0.125, lag 2 -0.76; a fit in the truth's basin: at most 0.08)
+COHERENT = 0.5
+LAGS = 20
 #: the forward-difference step of the Jacobian that confirms the end, in tolerances (2 noise sigmas): wide
 #: enough to step over a rugged misfit's small jumps
 PROBE = 4.0
 #: a refined minimum within this fraction of a range of an end sits on it (as the fit's AT_BOUND)
 AT_END = 1e-3
+
+
+def coherent_share(r: np.ndarray, sensors: int) -> float:
+    """The largest |autocorrelation| of the residuals ``r`` (sample-major, ``sensors`` columns) over lags
+    1..:data:`LAGS` (at most a quarter of the record), over the sensors: about the share of their variance
+    that is a coherent signal (0 for too short a record).
+
+    >>> t = np.arange(400)
+    >>> bool(coherent_share(np.cos(np.pi * t / 2), 1) > 0.99)     # a period of 4 samples: rho(2) = -1
+    True
+    >>> bool(coherent_share(np.random.default_rng(0).standard_normal(2000), 2) < 0.1)   # white: ~3 / sqrt(k)
+    True
+    """
+    R = np.asarray(r, float).reshape(-1, sensors)
+    R = R - R.mean(axis=0)
+    k = R.shape[0]
+    lags = min(LAGS, k // 4)
+    c0 = np.sum(R**2, axis=0)
+    if lags < 1 or not np.all(c0 > 0):
+        return 0.0
+    rho = np.array([np.sum(R[:-lag] * R[lag:], axis=0) / c0 for lag in range(1, lags + 1)])
+    return float(np.max(np.abs(rho)))
+
+
+def _unexplained(r: np.ndarray, problem: Problem) -> bool:
+    """Whether the residuals ``r`` are not noise: structured by the lag-1 test
+    (:func:`~nsfem.fit.stages.residual_check`) or mostly coherent (:func:`coherent_share` above
+    :data:`COHERENT`, time misfit above the resolution)."""
+    misfit = relative_rms(r)
+    if residual_check(r, problem.data.names, problem.kind, misfit)[1] is not None:
+        return True
+    return problem.kind == "time" and misfit > RESOLUTION and coherent_share(r, len(problem.data.names)) > COHERENT
 
 
 def reduction_ratio(J: np.ndarray, r: np.ndarray, du: np.ndarray, r_new: np.ndarray) -> float:
@@ -187,12 +226,12 @@ def check(runner: _Runner, problem: Problem, u: np.ndarray, r: np.ndarray, unc, 
         if start_ev.residuals is not None:
             ratio = reduction_ratio(d.jacobian, d.residuals, step, start_ev.residuals)
     why = []
-    structured = r is not None and residual_check(r, problem.data.names, problem.kind, relative_rms(r))[1] is not None
+    structured = r is not None and _unexplained(r, problem)
     if np.any(step != 0.0) and not abs(ratio - 1.0) <= TRUST:
         why.append("the refined run at the shifted point failed" if start_ev is None or start_ev.error else
                    f"the refined model's sum of squares fell by {ratio:.3g} times what its linear step predicts")
     if structured:
-        why.append("the fitted model's residuals are structured")
+        why.append("the fitted model's residuals are structured (not noise)")
     d = replace(d, ratio=ratio)
     if not why:
         return d
@@ -224,8 +263,7 @@ def check(runner: _Runner, problem: Problem, u: np.ndarray, r: np.ndarray, unc, 
     explained = 1.0 - (relative_rms(rr) / relative_rms(r)) ** 2
     refit["explained"] = explained
     on_end = bool(np.any((u <= AT_END) | (u >= 1.0 - AT_END)))   # at_bound says it: the minimum may lie beyond
-    if (structured and not lost.all() and not on_end and explained < EXPLAINED
-            and residual_check(rr, problem.data.names, problem.kind, relative_rms(rr))[1] is not None):
+    if structured and not lost.all() and not on_end and explained < EXPLAINED and _unexplained(rr, problem):
         lost[:] = True
         lost_why.append(f"neither the fitted nor the refined model explains the data (structured residuals at both "
                         f"minima, misfit {100 * relative_rms(r):.3g} % and {100 * relative_rms(rr):.3g} %: refining "
