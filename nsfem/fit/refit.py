@@ -57,7 +57,7 @@ EXPLAINED = 0.5
 #: a residual whose largest autocorrelation over lags 1..:data:`LAGS` (any sign) exceeds this in some sensor
 #: is mostly a coherent signal, not noise (noise plus a signal of a share f of its variance correlates up to
 #: about f): the lag-1 test misses one of high frequency (a wrong basin of the delamination from rest: lag 1
-#: 0.07-0.11 against a bound of 0.125, lag 2 -0.76; a fit in the truth's basin: at most 0.08)
+#: 0.07-0.11 against a bound of 0.125, lag 2 -0.76, share 0.85; in the truth's basin 0.16 and refined 0.10)
 COHERENT = 0.5
 LAGS = 20
 #: the forward-difference step of the Jacobian that confirms the end, in tolerances (2 noise sigmas): wide
