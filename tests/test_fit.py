@@ -206,18 +206,22 @@ def test_a_mirrored_delamination_is_not_identifiable(inprocess, tmp_path, monkey
 
 def test_a_wrong_local_minimum_is_warned_about(inprocess, clean, tmp_path):
     # the local stage started at 0.3 m on noise-free data of 0.23 m, without a global stage: it ends in a
-    # local minimum near 0.303 m with a misfit of 79 % and a narrow interval that excludes the truth; its
-    # residuals are smooth (lag-1 autocorrelation 0.73 and 0.71 against the bound 0.26 of white noise)
+    # local minimum near 0.303 m with a misfit of 79 % and a narrow noise interval that excludes the truth; its
+    # residuals are smooth (lag-1 autocorrelation 0.73 and 0.71 against the bound 0.26 of white noise). The
+    # refined model has its minimum there too, as structured: the misfit is no discretization
+    # error, and the fit promises no interval (the whole range, not identified)
     lines = []
     res = fit(None, clean, {KEY: RANGE}, overrides=FIXED, client=inprocess, out_dir=tmp_path, n_global=0,
               start={KEY: 0.3}, plot=False, progress=lines.append)
-    assert res.misfit > 0.1 and not res.interval[0, 0] <= TRUTH <= res.interval[0, 1]
-    [warning] = res.warnings
+    assert res.misfit > 0.1 and not res.noise_interval[0, 0] <= TRUTH <= res.noise_interval[0, 1]
+    assert res.interval[0].tolist() == list(RANGE) and not res.identifiable
+    warning, lost = res.warnings
+    assert lost.startswith(f"no interval for {KEY}: neither the fitted nor the refined model explains the data")
     assert "residuals are structured" in warning and "local minimum" in warning
     stats = res.info["residuals"]
     assert stats["structured"] == ["a", "b"] and min(stats["lag1_autocorrelation"].values()) > 0.5
-    assert [line for line in lines if line.startswith("warning:")] == [f"warning: {warning}"]
-    assert res.to_json()["warnings"] == [warning]
+    assert [line for line in lines if line.startswith("warning:")] == [f"warning: {warning}", f"warning: {lost}"]
+    assert res.to_json()["warnings"] == [warning, lost]
 
 
 def test_a_start_in_a_wrong_basin_is_left_for_the_truth(inprocess, clean, tmp_path):
@@ -368,7 +372,10 @@ def test_the_refined_runs_find_the_discretization_shift(inprocess, tmp_path):
     lo, hi = res.interval[0]
     assert lo <= TRUTH <= hi and res.identified[0]
     assert res.discretization.overrides == ("mesh.elements=40", "reduction.modes=12")
-    assert sum(e.stage == "refined" for e in res.evaluations) == 2     # at the estimate and one step away
+    # at the estimate, one step away and at the shifted point (the check of the linear step); the model error
+    # leaves structured residuals, so the refined model was fitted itself too (its runs: "refined-local")
+    assert sum(e.stage == "refined" for e in res.evaluations) == 3
+    assert res.discretization.refit is not None and any(e.stage == "refined-local" for e in res.evaluations)
     # the whole shift (4/3 of it) beyond the noise half-width is warned about, else not
     half = np.max(np.abs(res.noise_interval[0] - res.estimate[0]))
     assert any("discretization limits the estimate" in w and KEY in w for w in res.warnings) == (
@@ -536,3 +543,232 @@ def test_data_off_the_output_grid_are_not_interpolated_coarsely(inprocess, tmp_p
               out_dir=tmp_path, n_global=0, start={KEY: 0.232}, plot=False, refine=False)
     assert 0.008 < res.misfit < 0.012 and not res.warnings
     assert res.interval[0, 0] <= TRUTH <= res.interval[0, 1]
+
+
+# --- issue 32: fit intervals that keep their promise ---
+def _ar1(a: float, n: int, rng) -> np.ndarray:
+    """A stationary AR(1) series of unit variance: x_i = a x_(i-1) + sqrt(1 - a^2) e_i."""
+    from scipy.signal import lfilter
+
+    e = rng.standard_normal(n) * np.sqrt(1 - a * a)
+    e[0] = rng.standard_normal()
+    return lfilter([1.0], [1.0, -a], e)
+
+
+def test_correlated_residuals_widen_the_noise_interval_to_its_coverage():
+    # a fit of two smooth regressors to data with AR(1) noise, a = 0.8 (autocorrelation time 9): the white-noise
+    # interval assumes N independent samples where there are about N / 9, and covers the truth about half the
+    # time; the interval with the residuals' autocorrelation must cover it at the nominal rate. 300 draws of 2000
+    # samples, two keys: the binomial spread of a 95 % coverage over 600 checks is 0.9 % (1.3 % counting the
+    # keys as one), so >= 0.91 is 3 spreads below; the autocorrelation estimate is biased low for records only a
+    # few correlation times long (measured: 0.91 with 600 samples, 0.945 with 2000), hence the long record
+    from nsfem.analysis.uncertainty import correlated, linearized
+
+    rng = np.random.default_rng(7)
+    n, truth = 2000, np.array([0.4, 0.6])
+    x = np.linspace(0.0, 1.0, n)
+    J = np.column_stack([np.ones(n), np.sin(7 * x)]) * 0.05
+    hit_white = hit = 0
+    draws = 300
+    for _ in range(draws):
+        r_data = J @ truth + 0.01 * _ar1(0.8, n, rng)
+        u = np.linalg.lstsq(J, r_data, rcond=None)[0]
+        r = J @ u - r_data
+        white = linearized(J, r, u)
+        wide, tau = correlated(white, J, r, u, 1, np.array([True]))
+        # never narrower than the white interval
+        assert np.all(wide.interval[:, 0] <= white.interval[:, 0]) and np.all(wide.interval[:, 1] >= white.interval[:, 1])
+        hit_white += np.sum((white.interval[:, 0] <= truth) & (truth <= white.interval[:, 1]))
+        hit += np.sum((wide.interval[:, 0] <= truth) & (truth <= wide.interval[:, 1]))
+        assert 1.0 <= tau[0]
+    assert hit_white / (2 * draws) < 0.8 and hit / (2 * draws) >= 0.91
+    # white residuals, said to be white: the statistics are untouched
+    r = 0.01 * rng.standard_normal(n)
+    white = linearized(J, r, np.array([0.5, 0.5]))
+    same, tau = correlated(white, J, r, np.array([0.5, 0.5]), 1, np.array([False]))
+    assert same is white and tau.tolist() == [1.0]
+
+
+def test_a_reported_interval_holds_the_noise_interval_and_both_minima():
+    # the reported interval is the hull of the noise interval about the estimate and about the estimate moved by
+    # the whole shift (4/3 of it), in the box; a key without an interval gets its whole range
+    from hypothesis import given, settings, strategies as st
+
+    from nsfem.fit.discretization import Discretization, reported
+
+    unit = st.floats(0.0, 1.0)
+
+    @settings(max_examples=60, deadline=None)
+    @given(unit, st.floats(0.0, 0.3), st.floats(-1.0, 1.0), st.booleans())
+    def holds(u, half, du, lost):
+        iv = np.array([[max(u - half, 0.0), min(u + half, 1.0)]])
+        d = Discretization((), (), 0.0, np.array([du]), no_interval=np.array([lost]))
+        out = reported(iv, d)
+        assert out[0, 0] <= iv[0, 0] and out[0, 1] >= iv[0, 1]                  # never narrower
+        moved = np.clip(u + 4 / 3 * du, 0.0, 1.0)
+        assert out[0, 0] - 1e-12 <= moved <= out[0, 1] + 1e-12                # the extrapolated minimum inside
+        assert 0.0 <= out[0, 0] <= out[0, 1] <= 1.0
+        assert (out[0].tolist() == [0.0, 1.0]) or not lost
+
+    holds()
+
+
+def test_an_untrusted_linear_step_is_replaced_by_the_refined_minimum(inprocess, tmp_path, monkeypatch):
+    # a coarse model (12 elements, 4 modes) fitted to data from its refined settings (24 and 8) with 1 % noise,
+    # 0.1 s from rest: a model bias of several noise half-widths. The refined model's Jacobian is made 1 / 0.15
+    # times too steep, so its Gauss-Newton step finds only 15 % of the shift (as in the issue's delamination
+    # from rest: 0.22 of 1.5 mm, the local slope of a rugged misfit): the interval built on that step misses the
+    # truth. The refined run at the shifted point falls by more than the linear model predicts (1.85 times on a
+    # quadratic misfit), outside the trust ratio, and the refined model's own minimization must end at its
+    # minimum for these data, which lies within the noise interval of the truth (the data are that model's)
+    # plus the minimization's tolerance (half a noise sigma): the interval then holds the truth
+    import nsfem.fit
+    from nsfem.fit import refit, stages
+    from nsfem.fit.discretization import widen
+
+    monkeypatch.setattr(nsfem.fit, "jacobian", lambda *a: stages.jacobian(*a) / 0.15)   # the refined runs' only
+    coarse = [*FIXED, "mesh.elements=12", "reduction.modes=4"]
+    data = measure(extra=["mesh.elements=24", "reduction.modes=8"], noise=0.01)
+    res = fit(None, data, {KEY: RANGE}, overrides=coarse, client=inprocess, out_dir=tmp_path, n_global=0,
+              start={KEY: 0.2305}, plot=False)
+    d, width = res.discretization, RANGE[1] - RANGE[0]
+    half = np.diff(res.noise_interval[0])[0] / 2
+    assert abs(TRUTH - res.estimate[0]) > 2 * half                       # the bias this test is about
+    linear = RANGE[0] + width * widen(res.uncertainty.interval, d.linear_shift)[0]
+    assert not linear[0] <= TRUTH <= linear[1]                           # what the linear step alone promised
+    assert not abs(d.ratio - 1) <= refit.TRUST and "linear step predicts" in d.refit["why"]
+    assert d.refit["converged"] and not d.no_interval.any()
+    sigma = res.uncertainty.sigma[0] * width
+    assert abs(res.estimate[0] + res.discretization_shift[0] - TRUTH) <= half + refit.STEP_TOLERANCE * sigma
+    assert res.interval[0, 0] <= TRUTH <= res.interval[0, 1] and res.identified[0]
+    # the hull of both minima: never narrower than the noise interval
+    assert res.interval[0, 0] <= res.noise_interval[0, 0] and res.interval[0, 1] >= res.noise_interval[0, 1]
+    payload = json.loads((tmp_path / "fit.json").read_text())["discretization"]
+    assert payload["refit"]["why"] == d.refit["why"] and payload["reduction_ratio"] == pytest.approx(d.ratio)
+    assert payload["linear_shift"][KEY] == pytest.approx(d.linear_shift[0] * (RANGE[1] - RANGE[0]))
+    # a refined minimization that cannot settle (no step allowed, any step too long) leaves no interval to promise
+    monkeypatch.setattr(refit, "REFIT_RUNS", 0)
+    monkeypatch.setattr(refit, "STEP_TOLERANCE", 0.0)
+    res = fit(None, data, {KEY: RANGE}, overrides=coarse, client=inprocess, out_dir=tmp_path / "lost", n_global=0,
+              start={KEY: 0.2305}, plot=False)
+    assert res.interval[0].tolist() == list(RANGE) and not res.identified[0] and not res.identifiable
+    assert any(w.startswith(f"no interval for {KEY}: the refined model's own minimization failed: its steps did "
+                            "not settle in 0 runs")
+               for w in res.warnings)
+    payload = json.loads((tmp_path / "lost" / "fit.json").read_text())
+    assert payload["parameters"][KEY]["identified"] is False and payload["discretization"]["no_interval"] == [KEY]
+    assert "no interval for" in payload["identifiable_reason"]
+
+
+def test_the_secant_minimization_reaches_a_minimum_a_short_step_misses():
+    # residuals of two keys with a cubic term (a misfit far from quadratic, as a delamination's ends from rest) and
+    # a starting Jacobian 1 / 0.15 times too steep (a rugged misfit's local slope): one Gauss-Newton step goes
+    # 15 % of the way. The minimization must end where its stopping rule says (the next step below the tolerance
+    # per key), lower than it started, and at the unique minimum u* = (0.6, 0.3) to within the tolerance (the
+    # residuals vanish there, so the Gauss-Newton step from the exact Jacobian is at most the distance to it,
+    # up to the cubic's second-order error)
+    from nsfem.fit.discretization import shift
+    from nsfem.fit.refit import secant_minimum
+
+    target = np.array([0.6, 0.3])
+    A = np.array([[1.0, 0.4], [0.2, 1.0], [0.5, -0.3]])
+
+    def residual(u):
+        e = u - target
+        return A @ e + 40.0 * (A @ e) ** 3
+
+    u0 = np.array([0.5, 0.45])
+    J0 = (A * (1 + 120 * ((A @ (u0 - target)) ** 2))[:, None]) / 0.15
+    assert np.max(np.abs(np.nan_to_num(shift(J0, residual(u0), u0, np.array([True, True]))))) < 0.05  # short
+    tol = np.array([1e-4, 1e-4])
+    runs = []
+    u, r, last, failed = secant_minimum(lambda vs: runs.extend(vs) or [residual(v) for v in vs], J0, u0,
+                                        residual(u0), tol)
+    assert not failed and np.all(np.abs(last) <= tol) and r @ r < residual(u0) @ residual(u0)
+    assert np.all(np.abs(u - target) <= 2 * tol) and len(runs) <= 20
+    # a failed run ends it with the reason, at the best point so far
+    u, r, last, failed = secant_minimum(lambda vs: [None] * len(vs), J0, u0, residual(u0), tol)
+    assert failed == "its run at a step failed" and u.tolist() == u0.tolist()
+
+
+@pytest.mark.slow
+def test_the_issue_32_delamination_from_rest_keeps_its_promise(tmp_path):
+    # the issue's case: an asymmetric delamination (0.22-0.71 m) falling from rest at 15 Hz for 0.5 s, four
+    # rotating-frame probes next to the supports, data from 80 elements and 32 modes (the fit's refined settings)
+    # with 1 % noise, fitted with the shipped 40 and 16 over 0.1-0.4 and 0.55-0.9 (~400 runs, 2-5 min on 2
+    # cores). One refined Gauss-Newton step found 0.22 of a 1.5 mm offset and the interval missed the truth by
+    # 1.2 mm. A fit must now hold the truth in each key's interval, or say it has none (the whole range, not
+    # identified, a warning naming the key)
+    distributed = pytest.importorskip("distributed")
+    probes = [o for i, (x, d) in enumerate([(0.05, "+y"), (0.05, "+z"), (0.95, "+y"), (0.95, "+z")])
+              for o in (f'sensor.{i}.name="s{i}"', f"sensor.{i}.x={x}", f'sensor.{i}.direction="{d}"',
+                        f'sensor.{i}.frame="rotating"')]
+    setup = [*probes, "rotation.speed_hz=15.0", 'initial.state="rest"', "simulation.t_end=0.5"]
+    truth = {"delamination.0.start": 0.22, "delamination.0.end": 0.71}
+    scene = load_scene(None, [*setup, "mesh.elements=80", "reduction.modes=32", *(f"{k}={v}" for k, v in truth.items())])
+    result, system = run_scene(scene)
+    v = sensor_signals(result, system)
+    v = v + 0.01 * np.sqrt(np.mean(v**2, axis=0)) * np.random.default_rng(1).standard_normal(v.shape)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cl, \
+            distributed.Client(cl) as client:
+        res = fit(None, (result.t, {f"s{i}": v[:, i] for i in range(4)}),
+                  {"delamination.0.start": (0.1, 0.4), "delamination.0.end": (0.55, 0.9)}, client=client,
+                  overrides=setup, out_dir=tmp_path, plot=False)
+    lost = res.discretization.no_interval if res.discretization.no_interval is not None else np.zeros(2, bool)
+    for i, key in enumerate(res.keys):
+        lo, hi = res.interval[i]
+        if not lost[i]:
+            assert lo <= truth[key] <= hi, (key, truth[key], lo, hi)
+        else:
+            assert [lo, hi] == [res.params[i].low, res.params[i].high]
+            assert any(w.startswith("no interval for") and key in w for w in res.warnings)
+        assert lo <= res.noise_interval[i, 0] and hi >= res.noise_interval[i, 1]    # never narrower
+
+
+def test_the_correlated_statistics_never_narrow_an_interval_nor_break():
+    # any residuals (smooth, white, zero, constant) and Jacobians (a column of zeros: an unseen key) the fit may
+    # meet: the intervals stay in the box, hold the white ones, are finite where those are, and the
+    # autocorrelation times are at least 1
+    from hypothesis import given, settings, strategies as st
+
+    from nsfem.analysis.uncertainty import correlated, linearized
+
+    @settings(max_examples=60, deadline=None, derandomize=True, database=None)
+    @given(st.integers(1, 3), st.integers(1, 3), st.integers(4, 60), st.integers(0, 2**32 - 1),
+           st.sampled_from(["white", "smooth", "zero", "constant"]), st.booleans())
+    def holds(sensors, p, k, seed, kind, unseen):
+        rng = np.random.default_rng(seed)
+        n = sensors * k
+        J = rng.standard_normal((n, p)).cumsum(axis=0) / np.sqrt(n)
+        if unseen:
+            J[:, -1] = 0.0
+        r = {"white": rng.standard_normal(n), "smooth": np.sin(np.linspace(0, 3, n)), "zero": np.zeros(n),
+             "constant": np.ones(n)}[kind] * 0.01
+        u = rng.uniform(0, 1, p)
+        white = linearized(J, r, u, floor=1e-3)
+        wide, tau = correlated(white, J, r, u, sensors, rng.uniform(size=sensors) < 0.7)
+        iv, w = wide.interval, white.interval
+        assert np.all((0.0 <= iv) & (iv <= 1.0)) and np.all(iv[:, 0] <= w[:, 0]) and np.all(iv[:, 1] >= w[:, 1])
+        assert np.all(tau >= 1.0) and np.all(np.isfinite(tau))
+        assert not np.any(np.isnan(iv)) and wide.dof >= 1
+
+    holds()
+
+
+def test_an_equally_good_minimum_outside_an_interval_makes_the_key_ambiguous():
+    # the quick study's asymmetric delamination, draw 3: a second minimum the data cannot tell from the estimate
+    # (F-test p = 0.35) moved the end by 7 mm and the start by 2.8 mm, under the 1 % of its range that makes two
+    # minima distinct but outside its interval 0.6 mm wide: both keys are ambiguous (the interval would promise
+    # a start the data do not pin); a worse second minimum (p ~ 0) leaves the near key alone
+    from nsfem.fit.problem import Parameter
+    from nsfem.fit.stages import alternative
+
+    params = (Parameter("delamination.0.start", 0.1, 0.4), Parameter("delamination.0.end", 0.55, 0.9))
+    u = np.array([(0.21225 - 0.1) / 0.3, (0.56871 - 0.55) / 0.35])
+    u2 = np.array([(0.21503 - 0.1) / 0.3, (0.57591 - 0.55) / 0.35])
+    iv = np.array([[(0.21174 - 0.1) / 0.3, (0.21297 - 0.1) / 0.3], [(0.56832 - 0.55) / 0.35, (0.56930 - 0.55) / 0.35]])
+    r = 0.045 * np.random.default_rng(3).standard_normal(800)
+    same = alternative(params, u, r, iv, u2, r * 1.001)
+    assert same.indistinguishable and same.differs.tolist() == [True, True]
+    worse = alternative(params, u, r, iv, u2, r * 1.5)
+    assert not worse.indistinguishable and worse.differs.tolist() == [False, True]

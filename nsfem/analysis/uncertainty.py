@@ -163,3 +163,78 @@ def whiteness(r: np.ndarray, sensors: int, level: float = 0.01) -> Whiteness:
     rho = np.where(np.isfinite(rho), rho, 0.0)
     bound = float(norm.ppf(1.0 - level / sensors) / math.sqrt(max(k, 1)))
     return Whiteness(rho, bound, rho > bound)
+
+
+def autocorrelation_time(x: np.ndarray) -> tuple[float, np.ndarray]:
+    """(tau, rho) of the series ``x``: its autocorrelation rho(l) over the lags of Geyer's initial
+    positive sequence (pairs rho(2m) + rho(2m + 1) summed while positive: beyond them the estimate is
+    noise) and the integrated autocorrelation time tau = 1 + 2 sum_{l >= 1} rho(l), at least 1: k
+    correlated samples inform a mean as k / tau white ones would. White noise has tau near 1, an AR(1)
+    series (1 + a) / (1 - a).
+
+    >>> a, e = 0.9, np.random.default_rng(0).standard_normal(20000)
+    >>> x = np.zeros_like(e)
+    >>> for i in range(1, e.size): x[i] = a * x[i - 1] + e[i]
+    >>> tau, rho = autocorrelation_time(x)
+    >>> bool(abs(tau / ((1 + a) / (1 - a)) - 1) < 0.2), round(float(rho[1]), 2)
+    (True, 0.9)
+    """
+    x = np.asarray(x, float) - np.mean(x)
+    k = x.size
+    f = np.fft.rfft(x, 2 * k)
+    acov = np.fft.irfft(f * np.conj(f))[:k]
+    if not acov[0] > 0:
+        return 1.0, np.ones(1)
+    rho = acov / acov[0]
+    m = 0
+    while 2 * m + 1 < k and rho[2 * m] + rho[2 * m + 1] > 0:
+        m += 1
+    rho = rho[:max(2 * m, 1)]
+    return max(1.0, float(2.0 * np.sum(rho) - 1.0)), rho
+
+
+def correlated(unc: Uncertainty, J: np.ndarray, r: np.ndarray, u: np.ndarray, sensors: int,
+               structured: np.ndarray, level: float = 0.95) -> tuple[Uncertainty, np.ndarray]:
+    """``unc`` (from :func:`linearized`) with the ``structured`` sensors' residual autocorrelation
+    taken into the covariance, and their autocorrelation times (1 for the others). ``J`` (N, p) and
+    ``r`` (N,) are sample-major with ``sensors`` columns. Per structured sensor the residuals'
+    autocorrelation rho(l) (:func:`autocorrelation_time`) enters the sandwich covariance
+    H^+ Omega H^+, H = J^T J, Omega = s^2 sum_s [A_s(0) + sum_l rho_s(l) (A_s(l) + A_s(l)^T)] with
+    A_s(l) = sum_t J_ts^T J_(t+l)s (white residuals: Omega = s^2 H, the linearized covariance); the
+    Student quantile takes N / mean(tau) - p degrees of freedom. A key's half-width is never below the
+    white one (a correlation estimate that cancels is no information). Correlations between sensors are
+    not modelled."""
+    from dataclasses import replace
+
+    from scipy.stats import t as student
+
+    J, r = np.asarray(J, float), np.asarray(r, float)
+    n, p = J.shape
+    tau = np.ones(sensors)
+    if not np.any(structured) or not math.isfinite(unc.s2) or n % sensors:
+        return unc, tau
+    k = n // sensors
+    R, Js = r.reshape(k, sensors), J.reshape(k, sensors, p)
+    omega = J.T @ J
+    for s in np.flatnonzero(structured):
+        tau[s], rho = autocorrelation_time(R[:, s])
+        for lag in range(1, rho.size):
+            A = Js[:-lag, s].T @ Js[lag:, s]
+            omega += rho[lag] * (A + A.T)
+    _, S, Vt = np.linalg.svd(J, full_matrices=False)
+    seen = Vt.T[:, :unc.rank]
+    hinv = (seen / S[:unc.rank] ** 2) @ seen.T
+    cov = hinv @ omega @ hinv * unc.s2
+    determined = np.isfinite(unc.sigma)
+    sigma = np.where(determined, np.maximum(unc.sigma, np.sqrt(np.maximum(np.diag(cov), 0.0))), np.inf)
+    dof = max(int(n / float(np.mean(tau))) - p, 1)
+    tq = max(float(student.ppf(0.5 + level / 2, dof)), unc.t)
+    half_white = np.maximum(u - unc.interval[:, 0], unc.interval[:, 1] - u)
+    half = np.where(determined, np.maximum(tq * sigma, half_white), np.inf)
+    interval = np.column_stack([np.clip(u - half, 0.0, 1.0), np.clip(u + half, 0.0, 1.0)])
+    corr = unc.correlation.copy()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = cov / np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
+    ok = np.outer(determined, determined) & np.isfinite(c)
+    corr[ok] = np.clip(c[ok], -1.0, 1.0)
+    return replace(unc, interval=interval, sigma=sigma, correlation=corr, dof=dof, t=tq), tau

@@ -11,7 +11,9 @@ and the statistics. Two stages minimize the relative residuals of :mod:`nsfem.me
 
 The uncertainty at the optimum is linearized (:mod:`nsfem.analysis.uncertainty`) and widened by
 the fitted model's discretization error, measured by refined runs at the estimate
-(:mod:`nsfem.fit.discretization`). Further local stages look past the first basin
+(:mod:`nsfem.fit.discretization`; the refined model's own minimum where one step of it cannot be
+trusted, :mod:`nsfem.fit.refit`); structured residuals' autocorrelation widens the noise interval
+(:func:`~nsfem.fit.stages.noise_statistics`). Further local stages look past the first basin
 (:func:`_further_minima`):
 
 * the mirror image of the estimate about the shaft's middle (:func:`~nsfem.fit.stages.mirror_point`),
@@ -65,11 +67,12 @@ from ..errors import NsfemError
 from ..measurement import relative_rms
 from .problem import FIT_KEYS, Evaluation, Parameter, Problem, overrides_at, parse_vary, prepare, run_signals
 from .result import AT_BOUND, SAME_FIT, Alternative, FitInterrupted, FitResult, _write, evaluations_csv
-from . import discretization
+from . import discretization, refit
 from .discretization import Discretization
 from .stages import (CANDIDATE_FACTOR, DISTINCT, FAILED_RESIDUAL, RESOLUTION, RESTARTS, SEPARATION, STEP, WHITE_LEVEL, ZOOM,
                      ZOOM_SAMPLES,
-                     _point, _perturbed, _Runner, alternative, jacobian, local_stage, mirror_point, residual_check, second_start, sobol, zoomed)
+                     _point, _perturbed, _Runner, alternative, jacobian, local_stage, mirror_point, noise_statistics, residual_check,
+                     second_start, sobol, zoomed)
 
 __all__ = ["fit", "FitResult", "FitInterrupted", "Alternative", "Evaluation", "Parameter", "Problem", "parse_vary",
            "prepare", "overrides_at", "run_signals", "evaluations_csv", "alternative", "local_stage", "residual_check",
@@ -179,10 +182,11 @@ def _estimate(problem: Problem, out: Path, u_start, client, workers, scheduler, 
         unc = linearized(J, r, u, floor=RESOLUTION)
         unc, failed = _without_failed_steps(runner, params, u, unc)
         ev = runner.run([u], "local")[0]
+        unc, tau = noise_statistics(unc, J, r, u, problem.data.names, misfit, relative_rms(r))
         disc = _refined(runner, problem, u, unc, say) if refine else None
-        interval = unc.interval
-        if disc is not None and not disc.error:
-            interval = discretization.widen(interval, disc.shift, disc.factor)
+        if disc is not None:
+            disc = refit.check(runner, problem, u, r, unc, disc, say)
+        interval = discretization.reported(unc.interval, disc)
         alternatives = []
         for u2, r2, _ in minima:
             alt = alternative(params, u, r, interval, u2, r2) if u2 is not u else None
@@ -208,7 +212,7 @@ def _estimate(problem: Problem, out: Path, u_start, client, workers, scheduler, 
     est = np.array([q.value(x) for q, x in zip(params, u)])
     stats, warning = residual_check(ev.residuals, problem.data.names, misfit, ev.misfit)
     if stats is not None:
-        info["residuals"] = stats
+        info["residuals"] = {**stats, "autocorrelation_time": {n: float(x) for n, x in zip(problem.data.names, tau)}}
     warnings = [failed] if failed else []
     if warning:
         warnings.append(warning)
@@ -216,8 +220,8 @@ def _estimate(problem: Problem, out: Path, u_start, client, workers, scheduler, 
         warnings.append(f"{disc.error}: the interval leaves out the model's discretization error")
     elif disc is not None:
         big = discretization.warning(params, disc, unc.interval, u)
-        if big:
-            warnings.append(big)
+        lost = discretization.unpromised(params, disc)
+        warnings += [w for w in (big, lost) if w]
     for w in warnings:
         say(f"warning: {w}")
     info["wall_s"] = time.perf_counter() - t0
@@ -327,7 +331,8 @@ def _refined(runner: _Runner, problem: Problem, u: np.ndarray, unc, say: Callabl
     Jr = jacobian(evs[0].residuals, evs[1:], u, runner.n)
     du = discretization.shift(Jr, evs[0].residuals, u, np.isfinite(unc.sigma) & stepped)
     say("discretization shift: " + ", ".join(f"{k.key} {d * (k.high - k.low):+.3g}" for k, d in zip(problem.params, du)))
-    return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, du, q)
+    return discretization.Discretization(tuple(sets), tuple(kept), evs[0].misfit, du, q, jacobian=Jr,
+                                         residuals=evs[0].residuals)
 
 
 def _without_failed_steps(runner: _Runner, params, u: np.ndarray, unc) -> tuple[object, str | None]:
@@ -355,7 +360,7 @@ def _without_failed_steps(runner: _Runner, params, u: np.ndarray, unc) -> tuple[
 def _partial(problem: Problem, runner: _Runner | None, out: Path, info: dict, t0: float) -> FitResult:
     """The best run so far as a result without statistics."""
     evs = tuple(runner.evaluations) if runner is not None else ()
-    ok = [e for e in evs if math.isfinite(e.misfit) and e.stage != "refined"]   # refined: another model's signals
+    ok = [e for e in evs if math.isfinite(e.misfit) and not e.stage.startswith("refined")]   # refined: another model's signals
     best = min(ok, key=lambda e: e.misfit) if ok else None
     u = best.u if best is not None else np.full(len(problem.params), np.nan)
     est = np.array([q.low + x * (q.high - q.low) for q, x in zip(problem.params, u)])

@@ -12,7 +12,9 @@ measures the shift instead of assuming it away:
   rk's and penalty's tolerances, half moreau's step);
 * one Gauss-Newton step of the refined model from the estimate, on the refined model's own
   Jacobian J_r and residuals r_r, gives the shift of the minimum, du = -J_r^+ r_r (:func:`shift`):
-  where a fit with the refined settings would go. Measured on the delaminated shaft (20 elements
+  where a fit with the refined settings would go, if the refined model is nearly linear between the
+  two minima; :mod:`nsfem.fit.refit` checks that with one more run and, where it fails, replaces the
+  step by the refined model's own minimum. Measured on the delaminated shaft (20 elements
   and 6 modes refined to 40 and 12, noise-free data from 40 and 12): 97.4-100.4 % of the
   estimate's offset from the truth, from 5e-6 to 2e-3 m. The fitted model's Jacobian in the
   refined one's place got the sign wrong where the two models differ by a misfit of 2 %. The step
@@ -49,7 +51,7 @@ fitting with the refined settings would sharpen it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -84,7 +86,10 @@ class Discretization:
     the relative RMS ``misfit`` at the estimate, the ``shift`` du of the minimum in the unit box (NaN
     per key whose Jacobian column is undetermined, all NaN without refined runs), the assumed
     convergence ``order`` and ``error`` (the refined runs failed, or there was nothing to refine:
-    no shift)."""
+    no shift). The check of :mod:`nsfem.fit.refit` adds the ``ratio`` of the actual to the predicted
+    reduction of the linear step, and when the refined model was fitted itself its ``refit`` (how it
+    went), the ``linear_shift`` it replaced and the keys with ``no_interval`` (their interval is the
+    whole range) with the reason. ``jacobian`` and ``residuals``: the refined model's at the estimate."""
 
     overrides: tuple[str, ...]
     kept: tuple[str, ...]
@@ -92,6 +97,13 @@ class Discretization:
     shift: np.ndarray
     order: int = ORDER
     error: str = ""
+    ratio: float = math.nan
+    linear_shift: np.ndarray | None = None
+    refit: dict | None = None
+    no_interval: np.ndarray | None = None
+    no_interval_reason: str = ""
+    jacobian: np.ndarray | None = field(default=None, repr=False, compare=False)
+    residuals: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def factor(self) -> float:
@@ -177,6 +189,28 @@ def widen(interval: np.ndarray, du: np.ndarray, whole: float = FACTOR) -> np.nda
     low = np.minimum(interval[:, 0], interval[:, 0] + move)
     high = np.maximum(interval[:, 1], interval[:, 1] + move)
     return np.column_stack([np.clip(low, 0.0, 1.0), np.clip(high, 0.0, 1.0)])
+
+
+def reported(interval: np.ndarray, d: Discretization | None) -> np.ndarray:
+    """The reported (p, 2) intervals in the unit box: the noise ``interval`` widened by ``d``'s shift
+    (:func:`widen`; as it is without refined runs or when they failed), the whole range for the keys
+    ``d`` has no interval for."""
+    if d is None or d.error:
+        return interval
+    out = widen(interval, d.shift, d.factor)
+    if d.no_interval is not None:
+        out[d.no_interval] = [0.0, 1.0]
+    return out
+
+
+def unpromised(params, d: Discretization | None) -> str | None:
+    """The warning naming the keys without an interval and why (None when there are none)."""
+    if d is None or d.no_interval is None or not d.no_interval.any():
+        return None
+    keys = ", ".join(q.key for q, lost in zip(params, d.no_interval) if lost)
+    return (f"no interval for {keys}: {d.no_interval_reason}, so the model's discretization error cannot be "
+            f"bounded; the interval of {keys} is its whole range (not identified). Fit with finer settings "
+            "(mesh.elements, reduction.modes) or narrower ranges")
 
 
 def warning(params, d: Discretization, interval: np.ndarray, u: np.ndarray) -> str | None:

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..atomic import write_text_atomic
 from ..measurement import Measurement
-from .discretization import Discretization, widen
+from .discretization import Discretization, reported
 from .problem import Evaluation, Parameter
 
 #: an estimate within this fraction of its range's width from an end sits on the bound
@@ -76,15 +76,12 @@ class FitResult:
 
     @property
     def unit_interval(self) -> np.ndarray:
-        """(p, 2) 95 % intervals in the unit box: the noise interval widened by the discretization shift
-        (:func:`nsfem.fit.discretization.widen`; NaN without statistics)."""
+        """(p, 2) 95 % intervals in the unit box: the noise interval widened by the discretization shift,
+        the whole range where the fit has no interval to promise (:func:`nsfem.fit.discretization.reported`;
+        NaN without statistics)."""
         if self.uncertainty is None:
             return np.full((len(self.params), 2), np.nan)
-        iv = self.uncertainty.interval
-        d = self.discretization
-        if d is None or d.error:
-            return iv
-        return widen(iv, d.shift, d.factor)
+        return reported(self.uncertainty.interval, self.discretization)
 
     @property
     def interval(self) -> np.ndarray:
@@ -94,7 +91,8 @@ class FitResult:
 
     @property
     def noise_interval(self) -> np.ndarray:
-        """(p, 2) 95 % intervals from the noise alone (the linearized statistics), in the keys' units."""
+        """(p, 2) 95 % intervals from the noise alone (the linearized statistics, structured residuals'
+        autocorrelation included), in the keys' units."""
         if self.uncertainty is None:
             return np.full((len(self.params), 2), np.nan)
         return self._physical(self.uncertainty.interval)
@@ -152,7 +150,14 @@ class FitResult:
         if self.uncertainty is None:
             return None
         why = []
-        unseen = [p.key for p, s in zip(self.params, self._spans_range) if s]
+        d = self.discretization
+        lost = np.zeros(len(self.params), bool)
+        if d is not None and not d.error and d.no_interval is not None:
+            lost = d.no_interval
+        if lost.any():
+            why.append(f"no interval for {', '.join(p.key for p, x in zip(self.params, lost) if x)} "
+                       f"({d.no_interval_reason})")
+        unseen = [p.key for p, s, x in zip(self.params, self._spans_range, lost) if s and not x]
         if unseen:
             why.append(f"the data do not determine {', '.join(unseen)} (interval spans the range)")
         for alt in self.alternatives:
@@ -191,7 +196,13 @@ class FitResult:
             "warnings": list(self.warnings),
             "discretization": None if disc is None else {
                 "refined": list(disc.overrides), "kept": list(disc.kept), "misfit": _finite(disc.misfit),
-                "error": disc.error or None, "order": disc.order, "factor": disc.factor},
+                "error": disc.error or None, "order": disc.order, "factor": disc.factor,
+                "reduction_ratio": _finite(disc.ratio), "refit": disc.refit,
+                "linear_shift": None if disc.linear_shift is None else {
+                    p.key: _finite(x * (p.high - p.low)) for p, x in zip(self.params, disc.linear_shift)},
+                "no_interval": [] if disc.no_interval is None else [
+                    p.key for p, x in zip(self.params, disc.no_interval) if x],
+                "no_interval_reason": disc.no_interval_reason or None},
             "correlation": None, "identifiability": None,
             "global_stage": {"keys": keys, "samples": [[p.value(x) for p, x in zip(self.params, e.u)] for e in glob],
                              "misfit": [_finite(e.misfit) for e in glob]},
