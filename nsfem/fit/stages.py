@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import NsfemError
 from ..measurement import relative_rms, residuals, scales
 from .problem import Evaluation, Parameter, Problem, run_signals
-from .result import SAME_FIT, Alternative, _values
+from .result import SAME_FIT, Alternative
 
 #: finite-difference step of the Jacobian in the unit box (1e-4 of a range)
 STEP = 1e-4
