@@ -610,19 +610,16 @@ def _running(pid: int) -> bool:
         return False
 
 
-@pytest.mark.slow   # 11-14 s (a cluster of two processes started, runs, torn down); the fast in-process
-# check of the teardown is test_issue32_a_signal_while_the_cluster_starts_closes_it
-def test_issue32_sigterm_during_a_sweep_leaves_no_process(tmp_path):
-    """SIGTERM to ``nsfem sweep --workers 2`` once runs are under way: exit 130 with the finished rows,
-    no traceback, and none of its processes (scheduler, nannies, workers) alive a few seconds later."""
+def _terminate_with_workers(argv: list[str], cwd: Path, started: str) -> None:
+    """Start ``argv`` (a command with two local workers), wait for a stderr line starting with ``started``
+    (its cluster is up), send SIGTERM: exit 130, one 'interrupted' line, no traceback, and none of its
+    processes (scheduler, nannies, workers) alive within 30 s (their own exit, on a loaded machine)."""
     if not Path("/proc/self/stat").is_file():
         pytest.skip("needs /proc")
-    argv = [sys.executable, "-m", "nsfem", "sweep", *CHEAP, "--set", "rotation.speed_hz=10:30:12", "--workers", "2",
-            "--out", str(tmp_path / "s")]
-    proc = subprocess.Popen(argv, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, cwd=tmp_path)
+    proc = subprocess.Popen(argv, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, cwd=cwd)
     try:
         lines = []
-        while not (lines and lines[-1].startswith("[")):   # a finished run: the cluster is up
+        while not (lines and lines[-1].startswith(started)):
             line = proc.stderr.readline()
             assert line, "".join(lines)
             lines.append(line)
@@ -635,10 +632,20 @@ def test_issue32_sigterm_during_a_sweep_leaves_no_process(tmp_path):
         if proc.poll() is None:
             proc.kill()
     assert code == 130 and "Traceback" not in err and "nsfem: interrupted" in err, err
-    deadline = time.monotonic() + 30                       # the workers' own exit, on a loaded machine
+    deadline = time.monotonic() + 30
     while any(map(_running, family)) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not [p for p in family if _running(p)]
+
+
+@pytest.mark.slow   # 11-14 s (a cluster of two processes started, runs, torn down); the fast in-process
+# check of the teardown is test_issue32_a_signal_while_the_cluster_starts_closes_it
+def test_issue32_sigterm_during_a_sweep_leaves_no_process(tmp_path):
+    """SIGTERM to ``nsfem sweep --workers 2`` once runs are under way: exit 130 with the finished rows,
+    no traceback, and none of its processes (scheduler, nannies, workers) alive a few seconds later."""
+    argv = [sys.executable, "-m", "nsfem", "sweep", *CHEAP, "--set", "rotation.speed_hz=10:30:12", "--workers", "2",
+            "--out", str(tmp_path / "s")]
+    _terminate_with_workers(argv, tmp_path, "[")           # "[" : a finished run
 
 
 def test_issue32_signals_while_the_cluster_starts_are_held():
@@ -713,31 +720,10 @@ def test_issue32_a_lazily_loaded_scene_the_scene_refuses_fails_its_row_only(tmp_
 def test_issue32_sigterm_during_a_fit_leaves_no_process(tmp_path):
     """As for the sweep: SIGTERM to ``nsfem fit --workers 2`` in its global stage exits 130 with the
     runs so far, no traceback, and no process of it alive afterwards."""
-    if not Path("/proc/self/stat").is_file():
-        pytest.skip("needs /proc")
     data = _data(tmp_path, T, A)
     argv = [sys.executable, "-m", "nsfem", *_fit_argv(data, "--workers", "2", "--set", "mesh.elements=20",
                                                       "--no-refine")]
-    proc = subprocess.Popen(argv, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, cwd=tmp_path)
-    try:
-        lines = []
-        while not (lines and lines[-1].startswith("[global")):
-            line = proc.stderr.readline()
-            assert line, "".join(lines)
-            lines.append(line)
-        family = _descendants(proc.pid)
-        assert len(family) >= 2, family
-        proc.send_signal(signal.SIGTERM)
-        err = proc.stderr.read()
-        code = proc.wait(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert code == 130 and "Traceback" not in err and "nsfem: interrupted" in err, err
-    deadline = time.monotonic() + 30
-    while any(map(_running, family)) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert not [p for p in family if _running(p)]
+    _terminate_with_workers(argv, tmp_path, "[global")
     assert (tmp_path / "f" / "fit.json").is_file()
 
 
