@@ -1,15 +1,19 @@
 """Accumulations of impacts over a set of contacts (issue 32, section 3): each impact drives another
-touching contact into approach, that one's impact drives the first back, ... The sequence is resolved as
-one plastic impact over the set (nsfem.integrate.transitions, docs/theory.md "Impact accumulation over a
-set of contacts").
+touching contact into approach, that one's impact drives the first back, ... The sequence is resolved
+within the event (nsfem.integrate.transitions, docs/theory.md "Impact accumulation over a set of
+contacts"): impact LCPs over the touching contacts that do not separate, each with its restitution,
+until none approaches; after SET_STAGES, a plastic closure of the set.
 
-Why that is the limit. A plastic (eps = 0) impact at contact k alone is the M-orthogonal projection of q'
-onto {j_k^T q' = 0}. Two touching contacts whose Delassus coupling W_AB = j_A^T M^-1 j_B is negative
-(an impulse that opens one closes the other) take turns: the projections alternate, each leaves the other
-contact approaching with kappa^2 = W_AB^2 / (W_AA W_BB) of the speed, and by von Neumann's theorem the
-iterates converge to the projection onto the intersection: the plastic impact LCP over both. The flights
-in between last gap / speed, with gaps inside the zero band of the gap (below the structure's position
-resolution on the cracked shaft): no time passes in the limit that the model resolves.
+Why plastic faces close at once. A plastic (eps = 0) impact at contact k alone is the M-orthogonal
+projection of q' onto {j_k^T q' = 0}. Two touching contacts whose Delassus coupling W_AB = j_A^T M^-1 j_B
+is negative (an impulse that opens one closes the other) take turns: the projections alternate, each
+leaves the other contact approaching with kappa^2 = W_AB^2 / (W_AA W_BB) of the speed, and by von
+Neumann's theorem (two hyperplanes; the multipliers stay positive since W_AB < 0) the iterates converge
+to the projection onto both: the plastic impact LCP over the two, which the second stage solves (the
+first contact, at g' = 0, takes part). Over three or more contacts alternating projections onto
+half-spaces need not converge to the projection. The flights in between last gap / speed, with gaps
+inside the zero band of the gap (below the structure's position resolution on the cracked shaft): no
+time passes in the limit that the model resolves.
 
 Tolerances are stated where used; the closed-form system is in exact arithmetic but for round-off.
 """
@@ -331,3 +335,39 @@ def test_impacts_within_a_set_follow_the_sequence(seed, m, eps):
     scale = float((np.abs(J).T @ np.abs(v)).max())
     np.testing.assert_allclose(J.T @ v_after, J.T @ ref, rtol=0, atol=1e-9 * scale)
     assert v_after @ M @ v_after <= v @ M @ v * (1.0 + 1e-12)
+
+
+def _frictional_body(seed: int):
+    """A random 4-dof body, two touching contacts with mu = 1 (8-sided pyramids), eps = 0.9, fixed surfaces."""
+    rng = np.random.default_rng(seed)
+    L = rng.normal(size=(4, 4))
+    M = L @ L.T + 4 * np.eye(4)
+    J = rng.normal(size=(4, 2))
+    JS = [rng.normal(size=(4, 2)) for _ in range(2)]
+    v = rng.normal(size=4)
+    if np.all(J.T @ v > 0.0):   # (an impact: one contact at least approaching)
+        v = -v
+    cs = ContactSet.from_arrays(J, np.zeros(2), mu=1.0, eps=0.9, JS=JS, r=8)
+    return ContactSystem.from_arrays(M=M, Q=np.eye(4), contacts=cs), M, J, v
+
+
+@pytest.mark.parametrize("seed", [170, 351] + list(range(10)))
+def test_impacts_within_a_set_add_no_energy_with_friction(seed):
+    """Newton's restitution with Coulomb friction can add kinetic energy in one impact LCP (Kane's example;
+    the paper's law 30-33, not changed here). Repeated within a set
+    such gains compounded: seeds 170 and 351 ended with 1.7e4 and 2.3e5 times the kinetic energy after 100
+    stages. A stage that would add energy now ends the sequence with the plastic closure, so the impact
+    ends with no more energy than its first LCP left (1e-12: round-off of the energies)."""
+    from nsfem.lcp.builders import impact_lcp
+    sysm, M, J, v = _frictional_body(seed)
+    Mf = factorize(M, "M")
+    first = [k for k in range(2) if J[:, k] @ v <= 0.0]
+    lcp = impact_lcp(sysm.contacts, Mf, v, first, eps=np.full(2, 0.9), q=np.zeros(4))
+    res = lcp.solve()
+    if not res.success:          # (Lemke has no solution for some random frictional bodies: not this test's subject)
+        pytest.skip("first impact LCP without solution")
+    v1 = lcp.motion(res.x)
+    memory = Memory(np.zeros(2), np.zeros(2, dtype=int))
+    _, v_after, imp = resolve(sysm, Mf, 0.0, np.zeros(4), v, Mode(), memory)
+    bound = max(float(v @ M @ v), float(v1 @ M @ v1))
+    assert float(v_after @ M @ v_after) <= bound * (1.0 + 1e-12)

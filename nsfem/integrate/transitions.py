@@ -17,12 +17,16 @@ that follows and the velocity after any impact:
    first non-zero higher derivative of its gap in the new configuration: if negative, the
    contact would penetrate at once, so it stays closed (:func:`hold_degenerate`).
 
-Accumulation over a set: an impact whose impulses drive a touching contact outside its LCP (one
-that was separating) into approach would be followed at once by that contact's impact, whose impulse
-drives the first back (crack-front ends, W_AB < 0): the alternating sequence converges to the plastic
-impact over the set, which is taken instead: the velocity after the impact LCP is projected onto the
-admissible cone of all touching contacts (LCP 30-32 with eps = 0 over them, no energy added); the
-impact record names them (``set_closure``). docs/theory.md, "Impact accumulation over a set".
+Impacts within a set: an impact whose impulses drive a touching contact outside its LCP (one that was
+separating) into approach would be followed at once by that contact's impact, whose impulse may drive
+the first back (crack-front ends, W_AB < 0). That sequence is resolved within the event: impact LCPs
+(30-32) over the touching contacts that do not separate, each with its restitution, until none
+approaches (plastic faces: one more stage closes the set). After ``SET_STAGES`` it is an accumulation:
+the velocity is projected onto the admissible cone of all touching contacts (eps = 0; the limit of the
+plastic alternation for two contacts, a plastic closure of the set for more). No stage adds energy
+without friction; a stage with restitution and friction that would (Kane) ends the sequence plastically. The impact record names the contacts drawn in
+(``set_closure``), the stages (``set_stages``), ``set_limit`` when closed at the limit.
+docs/theory.md, "Impact accumulation over a set".
 
 Rebounds below resolution: a contact that was touching and is lifted by another contact's
 impact so slowly that its flight g'^2 / (2 |g''|) stays inside its gap's zero band stays
@@ -279,9 +283,17 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
             if not res.success:
                 raise NsfemError(f"impact LCP (30-32) over the touching contacts {part} at t = {t:.9g} s: "
                                  f"{res.message}")
-            v_new = lcp.motion(res.x)
-            lamN[part] += lcp.split(res.x)[0]
+            v_next = lcp.motion(res.x)
             more = _spin_work(cs, lcp, res.x, q)
+            if stages <= SET_STAGES and np.any(e_part[part] > 0.0) and np.any(cs.r[part] > 0):
+                # Newton's restitution with Coulomb friction is not energy-consistent (Kane's example): a stage
+                # that would add kinetic energy beyond the spin's work ends the sequence, closed plastically
+                t0, t1 = float(v_new @ system.M @ v_new), float(v_next @ system.M @ v_next)
+                if 0.5 * (t1 - t0) > max(more or 0.0, 0.0) + 1e-12 * t0:
+                    stages = SET_STAGES
+                    continue
+            v_new = v_next
+            lamN[part] += lcp.split(res.x)[0]
             if more is not None:
                 spin = more if spin is None else spin + more
             active = sorted(set(active) | set(part))
