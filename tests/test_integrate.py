@@ -1361,7 +1361,8 @@ def test_high_friction_contact_stops_on_a_facet_and_sticks():
     """mu = 1.5 on the interface, the shaft thrown at 0.1 m/s onto a stop (extremes case
     throw-mu1.5): at 9.272 us contact 4's slip, on the normal of a facet of its friction pyramid,
     stops (9.262 us before the impact at t = 0 closed the touching set at once, issue 32: it left
-    contacts 0 and 8 approaching at zero gap, and five more impacts of that set followed within 1e-9 s). The stop row located it within its zero band (7.5e-15 m/s) while the stick test read
+    contacts 0 and 8 approaching at zero gap, and five more impacts of that set followed within
+    1e-9 s). The stop row located it within its zero band (7.5e-15 m/s) while the stick test read
     the slip against the contact's own round-off (3.2e-16 m/s): the slip was taken as reversing
     onto the opposite facet, and back, every 5e-16 s ('no progress'). A stop event now sends the
     contact to the stick test (LCP 29 decides stick or slip): it sticks, and exact and rk agree

@@ -17,12 +17,16 @@ that follows and the velocity after any impact:
    first non-zero higher derivative of its gap in the new configuration: if negative, the
    contact would penetrate at once, so it stays closed (:func:`hold_degenerate`).
 
-Accumulation over a set: an impact whose impulses drive a touching contact outside its LCP (one
-that was separating) into approach would be followed at once by that contact's impact, whose impulse
-drives the first back (crack-front ends, W_AB < 0): the alternating sequence converges to the plastic
-impact over the set, which is taken instead: the velocity after the impact LCP is projected onto the
-admissible cone of all touching contacts (LCP 30-32 with eps = 0 over them, no energy added); the
-impact record names them (``set_closure``). docs/theory.md, "Impact accumulation over a set".
+Impacts within a set: an impact whose impulses drive a touching contact outside its LCP (one that was
+separating) into approach would be followed at once by that contact's impact, whose impulse may drive
+the first back (crack-front ends, W_AB < 0). That sequence is resolved within the event: impact LCPs
+(30-32) over the touching contacts that do not separate, each with its restitution, until none
+approaches (plastic faces: one more stage closes the set). After ``SET_STAGES`` it is an accumulation:
+the velocity is projected onto the admissible cone of all touching contacts (eps = 0; the limit of the
+plastic alternation for two contacts, a plastic closure of the set for more). No stage adds energy
+without friction; a stage with restitution and friction that would (Kane) ends the sequence plastically. The impact record names the contacts drawn in
+(``set_closure``), the stages (``set_stages``), ``set_limit`` when closed at the limit.
+docs/theory.md, "Impact accumulation over a set".
 
 Rebounds below resolution: a contact that was touching and is lifted by another contact's
 impact so slowly that its flight g'^2 / (2 |g''|) stays inside its gap's zero band stays
@@ -60,6 +64,10 @@ from .problem import ContactSystem
 ZERO = 1e-10
 #: approach speeds below this fraction of the contact velocities at an event are settled, not impacts
 CREEP = 1e-7
+#: impact stages within a set at one event (impacts driving touching contacts into approach) after which the
+#: sequence is taken as an accumulation and closed plastically; finite sequences on random 2-3 contact bodies
+#: (eps 0.05-1, 2927 of 3000) have a median of 1 impact, 99 % end within 8
+SET_STAGES = 100
 
 
 @dataclass
@@ -239,32 +247,66 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         lamN = np.zeros(cs.m)
         lamN[active] = lcp.split(res.x)[0]
         spin = _spin_work(cs, lcp, res.x, q)
-        # set closure: a touching contact that was separating (so outside the LCP) but that the impulses
-        # drive into approach would hit at once within its zero band, its impulse drive the first back,
-        # and so on: an accumulation over the set whose limit (alternating plastic impacts: projections in
-        # the kinetic metric, von Neumann) is the plastic impact over the whole set. That limit is taken:
-        # the velocity after the impacts is projected onto the cone of admissible velocities of all the
-        # touching contacts (LCP 30-32 with eps = 0 over them), which never adds kinetic energy
-        joined = _pushed(cs.JN, v_new, cand, active, tv, aJ)
-        if joined:
-            lcp = impact_lcp(cs, Mf, v_new, cand, memory.lcp_cache, (id(system), id(Mf), "impact", tuple(cand)),
-                             eps=np.zeros(cs.m), q=q)
+        # impacts within the set: a touching contact outside the LCP (separating) that the impulses drive into
+        # approach would land at once (its flight is a gap inside the zero band) and its impulse may drive
+        # another back: the impacts the event search would otherwise locate one by one, 1e-9 s apart, are
+        # resolved here, each an impact LCP over the touching contacts that do not separate, with their own
+        # restitution (none adds energy, see impact_lcp). Plastic faces end after one such stage (the first
+        # contact, at g' = 0, takes part). A sequence still going after SET_STAGES is an accumulation: its
+        # limit is taken, the velocity projected onto the admissible cone of all the touching contacts
+        # (LCP 30-32 with eps = 0 over them, no energy added)
+        joined, stages = [], 0
+        pushed = _pushed(cs.JN, v_new, cand, active, tv, aJ)
+        while pushed:
+            joined += [k for k in pushed if k not in joined]
+            gn = cs.JN.T @ v_new
+            tn = np.maximum(tv, _tol(cs.JN, v_new, absJ=aJ))
+            if stages == SET_STAGES:
+                part, e_part = cand, np.zeros(cs.m)
+            else:
+                part = [k for k in cand if gn[k] <= tn[k]]
+                e_part = cs.eps.copy()
+                for k in part:
+                    speed = -float(gn[k])
+                    if speed <= tn[k]:
+                        continue
+                    if k in settled or k in plastic or (memory.impacts[k] and speed < memory.zeno * memory.max_approach[k]):
+                        e_part[k] = 0.0
+                        if k not in plastic:
+                            plastic.append(k)
+                    memory.max_approach[k] = max(memory.max_approach[k], speed)
+                    memory.impacts[k] += 1
+            stages += 1
+            lcp = impact_lcp(cs, Mf, v_new, part, memory.lcp_cache, (id(system), id(Mf), "impact", tuple(part)),
+                             eps=e_part, q=q)
             res = lcp.solve()
             if not res.success:
-                raise NsfemError(f"impact LCP (30-32) over the touching contacts {cand} at t = {t:.9g} s: "
+                raise NsfemError(f"impact LCP (30-32) over the touching contacts {part} at t = {t:.9g} s: "
                                  f"{res.message}")
-            v_new = lcp.motion(res.x)
-            lamN[cand] += lcp.split(res.x)[0]
+            v_next = lcp.motion(res.x)
             more = _spin_work(cs, lcp, res.x, q)
+            if stages <= SET_STAGES and np.any(e_part[part] > 0.0) and np.any(cs.r[part] > 0):
+                # Newton's restitution with Coulomb friction is not energy-consistent (Kane's example): a stage
+                # that would add kinetic energy beyond the spin's work ends the sequence, closed plastically
+                t0, t1 = float(v_new @ system.M @ v_new), float(v_next @ system.M @ v_next)
+                if 0.5 * (t1 - t0) > max(more or 0.0, 0.0) + 1e-12 * t0:
+                    stages = SET_STAGES
+                    continue
+            v_new = v_next
+            lamN[part] += lcp.split(res.x)[0]
             if more is not None:
                 spin = more if spin is None else spin + more
-            active = cand
+            active = sorted(set(active) | set(part))
+            pushed = [] if stages > SET_STAGES else _pushed(cs.JN, v_new, cand, part, tv, aJ)
         ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
         impact = {"t": t, "contacts": list(active), "impulse_Ns": lamN[active].tolist(),
                   "approach_m_s": [-gvl[k] for k in active], "plastic": plastic,
                   "kinetic_before_J": ke[0], "kinetic_after_J": ke[1]}
         if joined:
             impact["set_closure"] = [int(k) for k in joined]
+            impact["set_stages"] = stages
+            if stages > SET_STAGES:
+                impact["set_limit"] = True   # an accumulation, closed plastically
         if spin is not None:
             # the frictional impulse against a moving surface: its work -Lambda_T . (Sq^T q + w) is the spin's
             # (the kinetic energy may grow in the impact), the rest of the change is lost
