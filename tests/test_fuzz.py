@@ -1161,7 +1161,14 @@ def signalled(argv: list[str], out: Path, trigger, sig: int, timeout: float = 12
 
 
 def appears(out: Path, pattern: str):
-    return lambda p: any(out.glob(pattern))
+    """A trigger: a file matching ``pattern`` exists in ``out`` (which the command may not have made yet, or
+    may remove again while it is empty: scanning it then raises on Python 3.11)."""
+    def trigger(p) -> bool:
+        try:
+            return any(out.glob(pattern))
+        except OSError:
+            return False
+    return trigger
 
 
 def integrating(out: Path, cpu: float = 0.5):
