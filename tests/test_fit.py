@@ -813,3 +813,40 @@ def test_a_key_on_a_range_end_does_not_keep_the_other_keys_interval():
     assert one_end.refit["converged"] and one_end.no_interval.tolist() == [False, True]
     both_ends = _model_error_check(np.array([0.0, 1.0]))
     assert both_ends.no_interval.tolist() == [False, False]
+
+
+def test_a_refit_after_a_fit_to_round_off_does_not_break():
+    # noise-free data of the fitted model, started at the truth: the fitted residuals vanish exactly. A refined
+    # model far from linear (its linear step reaches 0.64 of the predicted reduction, outside the trust ratio)
+    # is fitted itself; the share of the sum of squares it explains is then undefined (0 / 0, a
+    # ZeroDivisionError before) and must neither break the fit nor its JSON. The refined residuals
+    # c + J (d - 300 d^2), c = 0.002 J, vanish at d* = (1 - sqrt(3.4)) / 600: the minimization ends where its
+    # next step is below the tolerance, and near a simple root Gauss-Newton's step is the remaining distance
+    # to second order, so within 2 tolerances of d*
+    from types import SimpleNamespace
+
+    from nsfem.fit import refit
+    from nsfem.fit.discretization import Discretization, shift
+    from nsfem.fit.problem import Evaluation, Parameter
+    from nsfem.jsonio import as_text, dumps
+
+    J = np.random.default_rng(0).standard_normal((200, 1)) * 0.1
+    u = np.array([0.5])
+
+    def refined(v):
+        d = float(np.asarray(v)[0] - u[0])
+        return J[:, 0] * (0.002 + d - 300 * d**2)
+
+    class Runner:
+        def run_refined(self, vs, overrides, stage="refined"):
+            return [Evaluation(np.array(v, float), stage, 0.0, residuals=refined(v)) for v in vs]
+
+    problem = SimpleNamespace(params=(Parameter("a", 0.0, 1.0),), data=SimpleNamespace(names=("s0", "s1")),
+                              kind="time")
+    d = Discretization(("mesh.elements=2",), (), 0.01, shift(J, refined(u), u, np.array([True])), jacobian=J,
+                       residuals=refined(u))
+    unc = SimpleNamespace(sigma=np.array([1e-4]))
+    out = refit.check(Runner(), problem, u, np.zeros(200), unc, d, lambda line: None)
+    assert not abs(out.ratio - 1) <= refit.TRUST and out.refit["converged"] and not out.no_interval.any()
+    assert np.isnan(out.refit["explained"]) and json.loads(dumps(out.refit, as_text))["explained"] is None
+    assert abs(out.shift[0] - (1 - np.sqrt(3.4)) / 600) <= 2 * refit.STEP_TOLERANCE * unc.sigma[0]

@@ -260,7 +260,9 @@ def check(runner: _Runner, problem: Problem, u: np.ndarray, r: np.ndarray, unc, 
         if not lost.any():                 # its last small step was never confirmed: none is promised
             lost = np.isfinite(tol)
         lost_why.append(f"the refined model's own minimization failed: {failed}")
-    explained = 1.0 - (relative_rms(rr) / relative_rms(r)) ** 2
+    # the share of the fitted sum of squares the refined minimum explains (undefined, NaN, for fitted residuals
+    # that vanish: noise-free data of the fitted model, started at the truth)
+    explained = 1.0 - (relative_rms(rr) / relative_rms(r)) ** 2 if relative_rms(r) > 0 else math.nan
     refit["explained"] = explained
     # a key on a range end keeps its interval (at_bound says its minimum may lie beyond); the others are
     # estimated in a model that explains the data no better refined, whatever that key does
