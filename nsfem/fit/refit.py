@@ -24,8 +24,8 @@ ranges) gave as short a step, so the misfit, not its ruggedness, is far from qua
   key), or its minimum lies on a range end the estimate is not on (that key: the refined model's
   minimum may lie beyond the range); or the refined model explains the data no better than the fitted
   one (structured residuals at both minima, refinement explaining less than :data:`EXPLAINED` of the
-  sum of squares: a local minimum, or a model error that no refinement reduces; every key, unless the
-  estimate sits on a range end, which the result reports as such). Those keys
+  sum of squares: a local minimum, or a model error that no refinement reduces; every key but those
+  whose estimate sits on a range end, which the result reports as such). Those keys
   get their whole range, are not identified, and a warning names them and the reason.
 """
 
@@ -260,11 +260,15 @@ def check(runner: _Runner, problem: Problem, u: np.ndarray, r: np.ndarray, unc, 
         if not lost.any():                 # its last small step was never confirmed: none is promised
             lost = np.isfinite(tol)
         lost_why.append(f"the refined model's own minimization failed: {failed}")
-    explained = 1.0 - (relative_rms(rr) / relative_rms(r)) ** 2
+    # the share of the fitted sum of squares the refined minimum explains (undefined, NaN, for fitted residuals
+    # that vanish: noise-free data of the fitted model, started at the truth)
+    explained = 1.0 - (relative_rms(rr) / relative_rms(r)) ** 2 if relative_rms(r) > 0 else math.nan
     refit["explained"] = explained
-    on_end = bool(np.any((u <= AT_END) | (u >= 1.0 - AT_END)))   # at_bound says it: the minimum may lie beyond
-    if structured and not lost.all() and not on_end and explained < EXPLAINED and _unexplained(rr, problem):
-        lost[:] = True
+    # a key on a range end keeps its interval (at_bound says its minimum may lie beyond); the others are
+    # estimated in a model that explains the data no better refined, whatever that key does
+    on_end = (u <= AT_END) | (u >= 1.0 - AT_END)
+    if structured and not (lost | on_end).all() and explained < EXPLAINED and _unexplained(rr, problem):
+        lost |= ~on_end
         lost_why.append(f"neither the fitted nor the refined model explains the data (structured residuals at both "
                         f"minima, misfit {100 * relative_rms(r):.3g} % and {100 * relative_rms(rr):.3g} %: refining "
                         f"explains {100 * max(explained, 0.0):.2g} % of the sum of squares); a local minimum, or a "
