@@ -84,6 +84,20 @@ def journal(before: Callable[[Path], None] | None = None,
 
 
 @contextlib.contextmanager
+def _blocked(sigs) -> Iterator[None]:
+    """``sigs`` held pending by the operating system within the block (where it can: POSIX)."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None:
+        yield
+        return
+    before = mask(signal.SIG_BLOCK, sigs)
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, before)
+
+
+@contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
     """SIGINT and SIGTERM that arrive within the block are delivered once it is done (to the
     handlers that were in place: Ctrl-C's KeyboardInterrupt, the command line's SIGTERM as one),
@@ -93,13 +107,17 @@ def signals_deferred() -> Iterator[None]:
         yield
         return
     caught: list[int] = []
-    previous = {sig: signal.signal(sig, lambda signum, frame: caught.append(signum))
-                for sig in (signal.SIGINT, signal.SIGTERM)}
+    sigs = (signal.SIGINT, signal.SIGTERM)
+    # the handlers are swapped with both signals blocked: one arriving between the two swaps would run
+    # the old SIGTERM handler (a KeyboardInterrupt) with the new SIGINT one left in place for good
+    with _blocked(sigs):
+        previous = {sig: signal.signal(sig, lambda signum, frame: caught.append(signum)) for sig in sigs}
     try:
         yield
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        with _blocked(sigs):
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
         for sig in dict.fromkeys(caught):
             signal.raise_signal(sig)
 

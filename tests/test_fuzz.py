@@ -631,7 +631,7 @@ def _terminate_with_workers(argv: list[str], cwd: Path, started: str) -> None:
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert code == 130 and "Traceback" not in err and "nsfem: interrupted" in err, err
+    assert code in (130, -signal.SIGINT) and "Traceback" not in err and "nsfem: interrupted" in err, err
     deadline = time.monotonic() + 30
     while any(map(_running, family)) and time.monotonic() < deadline:
         time.sleep(0.2)
@@ -1184,10 +1184,17 @@ def integrating(out: Path, cpu: float = 0.5):
     return ready
 
 
+#: the exit of an interrupted command as its parent sees it: 130, the project's Ctrl-C status (SIGTERM too),
+#: or death by SIGINT, which a shell shows as the same 130 (CPython ends that way when an interrupt reaches
+#: its top level as it shuts down: 1 to 2 in 40 SIGTERMs sent right after the folder is locked, after the
+#: command had printed its line and returned 130)
+INTERRUPTED = (130, -signal.SIGINT)
+
+
 def check_interrupted(code: int, err: str, out: Path) -> list[str]:
     """Exit 130 (the project's Ctrl-C status, SIGTERM too) with one line, no traceback; a valid folder.
     (Every trigger comes well before the command's end: a run that ended first fails the test.)"""
-    assert code == 130, err
+    assert code in INTERRUPTED, err
     assert "Traceback" not in err, err
     assert len([line for line in err.splitlines() if line.startswith("nsfem: interrupted")]) == 1, err
     return folder_is_valid(out)
@@ -1222,7 +1229,7 @@ def _signal_case(extra, trigger, sig, tmp_path):
     code, err = signalled(["run", *TINY, "--out", str(out), *extra], out, when, sig)
     names = check_interrupted(code, err, out)
     if trigger == "integrating":  # the run up to the interrupt, saved
-        assert code == 130 and "result.npz" in names
+        assert code in INTERRUPTED and "result.npz" in names
         with np.load(out / "result.npz") as r:
             meta = json.loads(str(r["meta"]))
         assert meta["completed"] is False and 0 < meta["t_end"] < 20
