@@ -91,6 +91,12 @@ def test_rocker_closes_both_contacts_in_one_impact():
     assert np.max(np.abs(res.gap[:, after])) <= 2e-10
 
 
+def random_body(rng: np.random.Generator, n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """A random n-dof body's mass matrix (symmetric, eigenvalues >= n) and m contacts' normals (n, m)."""
+    L = rng.normal(size=(n, n))
+    return L @ L.T + n * np.eye(n), rng.normal(size=(n, m))
+
+
 def alternating_limit(M: np.ndarray, J: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The independent reference: plastic impacts one contact at a time, always at the most approaching
     touching contact, until none approaches (each a projection in the kinetic metric; von Neumann)."""
@@ -111,9 +117,7 @@ def test_set_closure_is_the_limit_of_alternating_plastic_impacts(seed):
     separating slower than A's impulse drives it back: resolve() gives the limit of the alternation."""
     rng = np.random.default_rng(seed)
     n = 3
-    L = rng.normal(size=(n, n))
-    M = L @ L.T + n * np.eye(n)
-    J = rng.normal(size=(n, 2))
+    M, J = random_body(rng, n, 2)
     W = J.T @ np.linalg.solve(M, J)
     if W[0, 1] > 0:            # make the coupling negative: an impulse opening A closes B
         J[:, 1] *= -1.0
@@ -144,9 +148,7 @@ def test_no_touching_contact_approaches_after_an_impact(seed, m, eps):
     approaching contacts (g'+ = -eps g'-), that of the set's projection onto a cone containing 0 is <= 0."""
     rng = np.random.default_rng(seed)
     n = m + 2
-    L = rng.normal(size=(n, n))
-    M = L @ L.T + n * np.eye(n)
-    J = rng.normal(size=(n, m))
+    M, J = random_body(rng, n, m)
     v = rng.normal(size=n)
     sysm = ContactSystem.from_arrays(M=M, Q=np.eye(n), contacts=ContactSet.from_arrays(J, np.zeros(m), eps=eps))
     Mf = factorize(M, "M")
@@ -320,9 +322,7 @@ def test_impacts_within_a_set_follow_the_sequence(seed, m, eps):
     SET_STAGES; kinetic energy never grows."""
     rng = np.random.default_rng(seed)
     n = m + 1
-    L = rng.normal(size=(n, n))
-    M = L @ L.T + n * np.eye(n)
-    J = rng.normal(size=(n, m))
+    M, J = random_body(rng, n, m)
     v = rng.normal(size=n)
     assume(np.any(J.T @ v < 0))
     ref, count = sequential_impacts(M, J, v, np.full(m, eps), 50)
@@ -340,9 +340,7 @@ def test_impacts_within_a_set_follow_the_sequence(seed, m, eps):
 def _frictional_body(seed: int):
     """A random 4-dof body, two touching contacts with mu = 1 (8-sided pyramids), eps = 0.9, fixed surfaces."""
     rng = np.random.default_rng(seed)
-    L = rng.normal(size=(4, 4))
-    M = L @ L.T + 4 * np.eye(4)
-    J = rng.normal(size=(4, 2))
+    M, J = random_body(rng, 4, 2)
     JS = [rng.normal(size=(4, 2)) for _ in range(2)]
     v = rng.normal(size=4)
     if np.all(J.T @ v > 0.0):   # (an impact: one contact at least approaching)
