@@ -425,6 +425,7 @@ def _run(args, scene, out_dir, written: set) -> int:
     from .analysis.campbell import supercritical_warning
     from .atomic import signals_deferred
     from .fem.constraints import dense
+    from .integrate import core as event_core
     from .scene import default_scene_path
     from .simulate import run_scene
 
@@ -499,10 +500,10 @@ def _run(args, scene, out_dir, written: set) -> int:
     payload = {"title": scene.title, **summary, **extra, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
                "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings,
-               "interrupted": bool(interrupted)}
+               "interrupted": bool(interrupted), "core": event_core.name()}
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
-             f"{summary['impacts']} impacts",
+             f"{summary['impacts']} impacts; event core: {event_core.name()}",
              f"gap {summary['min_gap_m']:.4e} .. {summary['max_gap_m']:.4e} m, closed "
              f"{100 * summary['closed_fraction']:.2f} % of the time, max normal force "
              f"{summary['max_normal_force_N']:.4g} N, energy residual "

@@ -450,7 +450,8 @@ def _envelope_min(f0, f1, d0, d1, dt, bound4, s_hi=1.0):
     a3, a2, a1 = -4.0 * e, 3.0 * c3 + 6.0 * e, 2.0 * c2 - 2.0 * e    # p' = c1 + a1 s + a2 s^2 + a3 s^3
 
     def p(s):
-        return c0 + s * (c1 + s * (c2 + s * c3)) - e * (s * (1.0 - s)) ** 2
+        w = s * (1.0 - s)   # (w * w, not w ** 2: Python's pow rounds differently from C's product)
+        return c0 + s * (c1 + s * (c2 + s * c3)) - e * (w * w)
 
     def dp(s):
         return c1 + s * (a1 + s * (a2 + s * a3))
