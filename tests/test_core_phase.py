@@ -20,6 +20,7 @@ import pytest
 
 from nsfem import load_scene
 from nsfem.integrate import core
+from nsfem.integrate.closed_form import divided_exp
 from nsfem.integrate.configuration import Configuration, Mode, Phase
 from nsfem.integrate.event_driven import _exp_integrals
 
@@ -243,3 +244,33 @@ def test_end_energy_kernel_matches_the_reference():
     X = np.ones((2, 4))
     X[1, 0] = np.nan
     assert np.isnan(kernel.end_energy(np.eye(4), X))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_state_at_one_time_matches_the_reference(kind):
+    """Phase._xi_at (the root refinement's evaluation) compiled against the reference on random phases,
+    at random times over 40 periods of the fastest mode: the same U (the reference phase's), so each row
+    differs only by the order of its sum of 2 p rounded terms and the exponentials' last bits
+    (numpy's exp may run its own SIMD loop): 4 (2 p + 4) eps |U| |e^{nu tau}|."""
+    for seed in range(30):
+        rng = np.random.default_rng([34, KINDS.index(kind), seed])
+        path = "expm" if rng.random() < 1 / 3 else "modal"
+        with core.reference():
+            phase, *_ = _phase(rng, kind, path)
+        if phase._modal is None:
+            continue
+        mot = phase._modal
+        fast = float(np.max(np.abs(mot.nu), initial=1.0))
+        for t in phase.t0 + rng.uniform(0.0, 40 * 2 * np.pi / fast, 5):
+            tau = t - phase.t0
+            ref = phase._xi_at(float(t))
+            got = np.empty(phase.dim)
+            kernel.xi_at(_cv(mot.U), _cv(mot.nu), tau, phase.w, float(t), got)
+            d = mot.U.shape[0]
+            for nodes, D in mot.groups:     # (the divided differences stay the reference's code)
+                got[:d] += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
+            bound = 4 * (2 * mot.nu.size + 4) * EPS * (np.abs(mot.U) @ np.abs(np.exp(mot.nu * tau)))
+            if mot.groups:
+                bound = bound + 4 * EPS * np.abs(ref[:d])
+            assert np.all(np.abs(got[:d] - ref[:d]) <= bound)
+            assert np.array_equal(got[d:], ref[d:])

@@ -393,8 +393,11 @@ class Phase:
         self.A_aug = config.A_aug_base.copy()
         self.A_aug[: 2 * r, 2 * r] = Bf0
         self._modal = self.amplitudes = None
+        self._xi_kernel = None
         if config.plan is not None:
             self._modal = self._motion(Bf0, kernel)
+            if kernel is not None:   # _xi_at's modal sum compiled: the kernel and its arrays' float views
+                self._xi_kernel = (kernel.xi_at, self._modal.U.view(float), self._modal.nu.view(float))
         if self._modal is None:
             self._xi0 = np.concatenate([self.x0, self._harmonics(self.t0)])
 
@@ -450,6 +453,13 @@ class Phase:
         """xi at one time on the modal path (root refinement reads rows from it many times per
         event): the same sums as :meth:`xi`, without its array set-up."""
         mot, tau = self._modal, t - self.t0
+        if self._xi_kernel is not None:
+            xi_at, Uv, nuv = self._xi_kernel
+            out = np.empty(self.dim)
+            xi_at(Uv, nuv, tau, self.w, t, out)
+            for nodes, D in mot.groups:
+                out[: mot.U.shape[0]] += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
+            return out
         x = (mot.U @ np.exp(mot.nu * tau)).real
         for nodes, D in mot.groups:
             x += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
