@@ -1,12 +1,14 @@
 """The compiled phase set-up and closed-form energy (core part "phase", issue 33) against the Python reference.
 
-Side by side in one process, both paths through ``core.reference()``, best of ``--repeat`` runs:
+Side by side in one process, both paths through ``core.reference()``, best of ``--repeat`` runs in CPU
+time of the process (the machine is shared), OPENBLAS_NUM_THREADS=1:
 
 - the kernels alone: every phase set-up (``Phase(...)``) and every energy call (``EventDriven._energy``)
-  of a run, replayed on the inputs captured from it;
+  of a run, replayed on the inputs captured from it, and the state at one time (``Phase._xi_at``, the
+  root refinement's evaluation) at four times per phase;
 - end to end: the stop scene (the shipped shaft with a stop 0.2 mm under midspan, restitution 0.5,
   0.05 s: 282 events) and the shipped scene over 1 s, ms per event both ways;
-- where the compiled run's time per event goes: cProfile of the stop scene, by function (tottime).
+- where the compiled run's time per event goes: cProfile of the stop scene (CPU time), by function (tottime).
 
     OPENBLAS_NUM_THREADS=1 python studies/core_phase.py [--quick] [--json] [--out DIR]
 
@@ -35,11 +37,13 @@ STOP = ["obstacle=[{x=0.5, normal=\"-z\", clearance=2e-4, restitution=0.5}]", "s
 
 
 def best(fn, repeat: int) -> float:
+    """The shortest of ``repeat`` runs of fn, in CPU seconds of this process (time.process_time: on a
+    shared machine the wall clock also counts the other processes' turns; one BLAS thread)."""
     times = []
     for _ in range(repeat):
-        t = time.perf_counter()
+        t = time.process_time()
         fn()
-        times.append(time.perf_counter() - t)
+        times.append(time.process_time() - t)
     return min(times)
 
 
@@ -76,8 +80,18 @@ def kernels(scene, repeat: int) -> dict:
         for e in energies:
             e[0]._energy(*e[1:9], dict(e[9]), e[10])
 
+    with core.reference():
+        ref_phases = [cfg_mod.Phase(*args) for args in phases]
+    comp_phases = [cfg_mod.Phase(*args) for args in phases]
+    times = [(p.t0 + 1e-5 * (k + 1)) for p in ref_phases for k in range(4)]
+
+    def states():   # the root refinement's evaluations: four times per phase, each on its own path's phase
+        for i, t in enumerate(times):
+            (ref_phases if core.compiled("phase") is None else comp_phases)[i // 4]._xi_at(t)
+
     out = {}
-    for label, fn, n in (("setup", setups, len(phases)), ("energy", energy_calls, len(energies))):
+    for label, fn, n in (("setup", setups, len(phases)), ("energy", energy_calls, len(energies)),
+                         ("xi_at", states, len(times))):
         with core.reference():
             ref = best(fn, repeat)
         comp = best(fn, repeat)
@@ -99,7 +113,7 @@ def end_to_end(scene, repeat: int) -> dict:
 def profile(scene, top: int = 25) -> list[dict]:
     """The compiled run's functions by own time (ms per event)."""
     n = max(len(run_scene(scene, "exact")[0].events), 1)
-    prof = cProfile.Profile()
+    prof = cProfile.Profile(time.process_time)
     prof.enable()
     run_scene(scene, "exact")
     prof.disable()

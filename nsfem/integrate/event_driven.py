@@ -491,7 +491,8 @@ class EventDriven(Integrator):
             Uc = U[cols]
             J = np.flatnonzero(np.any(Uc != 0.0, axis=0))
             Uc = Uc[:, J]
-        phi = _exp_integrals(mu, mu[J], T)
+        kernel = core.compiled("phase")
+        phi = _exp_integrals(mu, mu[J], T) if kernel is None else _compiled_exp_integrals(kernel, mu, mu[J], T)
         G = U @ (phi @ Uc.T)      # G[:, c] = sum_jk U_j phi_jk U_ck over the columns c formed
         if full:
             energy["work_external_J"] += float(np.real(np.sum(ext * G[:, cols])))
@@ -563,6 +564,14 @@ def _compiled_energy_modal(kernel, cfg, hit: tuple, c: np.ndarray, g: np.ndarray
                                                      np.ascontiguousarray(g).view(float), T, t0, E.view(float),
                                                      S.view(float), vals, PZ.view(float))
     return vals, PZ
+
+
+def _compiled_exp_integrals(kernel, a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
+    """:func:`_exp_integrals` by the compiled kernel ``exp_integrals``."""
+    phi = np.empty((a.size, b.size), dtype=complex)
+    kernel.exp_integrals(np.ascontiguousarray(a, dtype=complex).view(float),
+                         np.ascontiguousarray(b, dtype=complex).view(float), T, phi.view(float))
+    return phi
 
 
 def _exp_integrals(a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:

@@ -205,11 +205,15 @@ cdef inline void exp_integral(double sr, double si, double ar, double ai, double
                               double T2, double T3, double* out) noexcept nogil:
     """One entry of _exp_integrals: int_0^T e^{s t} dt for s = a + b (sr + i si), from e^{a T} e^{b T}
     (ar + i ai, br + i bi). T2 = T * T / 2, T3 = T * T * T / 6."""
-    cdef double pr, pi_, xr, xi
+    cdef double pr, pi_, xr, xi, h
     cdef double e[2]
     # |s| T < 1/2 needs hypot only where both parts are small (|s| >= either part, rounded alike)
-    if fabs(sr) * T < 0.5 and fabs(si) * T < 0.5 and hypot(sr, si) * T < 0.5:
-        if hypot(sr, si) < 1e-8 / T:
+    if fabs(sr) * T < 0.5 and fabs(si) * T < 0.5:
+        h = hypot(sr, si)
+    else:
+        h = 1.0 / T
+    if h * T < 0.5:
+        if h < 1e-8 / T:
             # T + x (T^2 / 2 + x T^3 / 6)
             pr = T2 + (sr * T3)
             pi_ = si * T3
