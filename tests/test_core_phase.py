@@ -15,6 +15,8 @@ Skipped where the compiled core is not installed (no C compiler at install time)
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -89,10 +91,34 @@ def _check_phase(ref: Phase, got: Phase, q0: np.ndarray, v0: np.ndarray) -> None
     if c_abs is not None:
         assert np.all(np.abs(got.amplitudes[0] - ref.amplitudes[0]) <= b_c)
         assert np.all(np.abs(got.amplitudes[1] - ref.amplitudes[1]) <= b_g)
-    # rigid rows and divided differences are the reference's own code on these coefficients
+    # rigid rows and divided differences are the reference's own code (ModalPlan.complete) on these
+    # coefficients: linear in (z0, beta), so they differ by at most that map on absolute values applied to
+    # the coefficients' bounds, plus the map's own rounding (a few terms per entry: 16 eps of its
+    # absolute value)
     assert len(got._modal.groups) == len(ref._modal.groups)
-    for (na, Da), (nb, Db) in zip(got._modal.groups, ref._modal.groups):
-        assert np.array_equal(na, nb) and Da.shape == Db.shape
+    if k or ref._modal.groups:
+        C_abs = np.vstack([np.abs(cfg.eig[2] @ ref.x0[k:]), beta])
+        b_C = np.vstack([b_z0, b_beta])
+        (Ub, Dbs), (Ua, Das) = _complete_abs(plan, b_C, np.zeros(k)), _complete_abs(plan, C_abs, np.abs(ref.x0[:k]))
+        assert np.all(np.abs(U_got[:k] - U_ref[:k]) <= Ub[:k] + 16 * EPS * Ua[:k])
+        for (na, Da), (nb, Db), Db_, Da_ in zip(got._modal.groups, ref._modal.groups, Dbs, Das):
+            assert np.array_equal(na, nb) and Da.shape == Db.shape
+            assert np.all(np.abs(Da - Db) <= Db_ + 16 * EPS * Da_)
+
+
+def _complete_abs(plan, C_abs: np.ndarray, a0_abs: np.ndarray):
+    """(U, [D per group]) of ModalPlan.complete with every factor and coefficient by its absolute value (a
+    bound of the map's values, or of their differences when C_abs bounds the coefficients')."""
+    k = plan.k
+    pa = copy.copy(plan)
+    pa.V, pa.SV = np.abs(plan.V), np.abs(plan.SV)
+    if k:
+        pa.Fa, pa.Fx = np.abs(plan.Fa), np.abs(plan.Fx)
+    pa.groups = [(nodes, None if Fw is None else np.abs(Fw), None if Fr is None else np.abs(Fr), source,
+                  np.ones_like(always)) for nodes, Fw, Fr, source, always in plan.groups]
+    U = np.zeros((k + plan.V.shape[0], plan.nu.size), dtype=complex)
+    mot = pa.complete(U, C_abs[0].astype(complex), C_abs[1:].astype(complex), a0_abs)
+    return np.abs(mot.U), [np.abs(D) for _, D in mot.groups]
 
 
 @pytest.mark.parametrize("kind", KINDS)
