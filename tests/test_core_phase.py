@@ -19,6 +19,8 @@ import copy
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from nsfem import load_scene
 from nsfem.integrate import core
@@ -197,6 +199,31 @@ def test_exp_integrals_kernel_matches_the_reference():
         assert np.all(np.abs(got[fin] - ref[fin]) <= bound[fin])
         seen |= {("near" if x * T < 0.5 else "far") for x in s.ravel()}
     assert seen == {"near", "far"}
+
+
+_part = st.one_of(st.just(0.0), st.floats(-1e6, 1e6, allow_nan=False), st.floats(-1e-9, 1e-9, allow_nan=False))
+_exponents = st.lists(st.tuples(_part, _part).map(lambda z: complex(*z)), max_size=5)
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@given(a=_exponents, b=_exponents, T=st.floats(1e-12, 1e2), conjugate=st.booleans())
+def test_exp_integrals_kernel_property(a, b, T, conjugate):
+    """Any exponents (zeros, tiny and huge parts, equal and, with ``conjugate``, cancelling pairs) and
+    horizons: the kernel's entries are finite where the reference's are and within the same bound as
+    test_exp_integrals_kernel_matches_the_reference."""
+    a = np.array(a, dtype=complex)
+    b = np.concatenate([-np.conj(a), np.array(b, dtype=complex)]) if conjugate else np.array(b, dtype=complex)
+    with np.errstate(all="ignore"):
+        ref = _exp_integrals(a, b, T)
+        s = np.abs(np.add.outer(a, b))
+        near = s * T < 0.5
+        big = np.multiply.outer(np.abs(np.exp(a * T)), np.abs(np.exp(b * T)))
+        bound = 8 * EPS * np.where(near, 8.0 * T, (big + 2.0) / np.where(near, 1, s))
+    got = np.empty((a.size, b.size), dtype=complex)
+    kernel.exp_integrals(_cv(a), _cv(b), T, got.view(float))
+    fin = np.isfinite(ref)
+    assert np.array_equal(fin, np.isfinite(got))
+    assert np.all(np.abs(got[fin] - ref[fin]) <= bound[fin])
 
 
 def _random_modal(rng, m: int, nmu: int, nf: int):
