@@ -346,11 +346,10 @@ class Configuration:
             Vi, V, den = self.eig[2], self.plan.V, self.plan.den
             # the harmonic load's modal terms but for the phase e^{i w t0} (kernel phase_modal): Vi conj(hb),
             # Vi hb, those over den_1, den_2, and V times these
-            harmonic = np.zeros((6, Vi.shape[0]), dtype=complex)
+            harmonic = np.zeros((6, max(Vi.shape[0], V.shape[0])), dtype=complex)
             if self.harmonic_b is not None:
                 beta = np.array([Vi @ np.conj(self.harmonic_b), Vi @ self.harmonic_b])
                 g = beta / den[1:]
-                harmonic = np.zeros((6, max(Vi.shape[0], V.shape[0])), dtype=complex)
                 harmonic[:2, : Vi.shape[0]], harmonic[2:4, : Vi.shape[0]] = beta, g
                 harmonic[4:, : V.shape[0]] = g @ V.T
             out.update({key: np.ascontiguousarray(a, dtype=complex).view(float)
@@ -664,7 +663,6 @@ class Phase:
         rate = max(self.config.fastest_rate() if rate is None else rate, self.w)
         h = math.pi / (4.0 * rate) if rate > 0 else math.inf
         return min(h, horizon / 8.0) if horizon > 0 else h
-
 
 
 def _compiled_start(kernel, config: Configuration, g0: np.ndarray, q0: np.ndarray, v0: np.ndarray):

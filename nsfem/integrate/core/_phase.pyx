@@ -1,12 +1,15 @@
 # cython: language_level=3
-"""Compiled kernels of a phase's set-up and of its closed-form energy (issue 33, part "phase").
+"""Compiled kernels of a phase's set-up, its state at one time and its closed-form energy (issue 33,
+part "phase").
 
-Each mirrors a Python reference, named in its docstring: configuration.Phase.__init__ and
-Phase._motion, closed_form.ModalPlan.modes, event_driven._exp_integrals, EventDriven._energy_modal
-and EventDriven._end_energy. Complex arrays come in as float64 views of their interleaved
-(real, imaginary) pairs (``a.view(np.float64)``), so every complex product and quotient is written
-out here as numpy forms it (elementwise operations agree bitwise with numpy; the matrix products
-are plain loops and round differently from BLAS: tests/test_core_phase.py says by how much).
+Each mirrors a Python reference, named in its docstring: configuration.Phase.__init__, Phase._motion
+and Phase._xi_at, closed_form.ModalPlan.modes, event_driven._exp_integrals, EventDriven._energy_modal
+and EventDriven._end_energy. Complex arrays come in as float64 views of their interleaved (real,
+imaginary) pairs (``a.view(np.float64)``), and each complex product, quotient, exp and expm1 is
+written out here with numpy's formula. Where numpy's SIMD loops fuse a multiply-add, the two differ in
+the last bit. The matrix products are plain loops, one sum per output entry in the order of its
+terms, and round differently from BLAS. The harmonic load's terms of the set-up are reassociated
+(phase_modal). tests/test_core_phase.py gives the bounds.
 """
 
 from libc.math cimport fabs, hypot, sin, cos, exp, expm1, NAN
@@ -26,7 +29,7 @@ cdef extern from *:
 
 
 cdef inline void cdiv(double ar, double ai, double br, double bi, double* out) noexcept nogil:
-    """(ar + i ai) / (br + i bi) as numpy divides complex numbers (Smith's method), bitwise."""
+    """(ar + i ai) / (br + i bi) as numpy divides complex numbers (Smith's method)."""
     cdef double rat, scl
     cdef double abr = fabs(br), abi = fabs(bi)
     if abr >= abi:
@@ -46,7 +49,7 @@ cdef inline void cdiv(double ar, double ai, double br, double bi, double* out) n
 
 
 cdef inline void cexpm1(double x, double y, double* out) noexcept nogil:
-    """e^(x + iy) - 1 as numpy's expm1 of a complex number forms it, bitwise."""
+    """e^(x + iy) - 1 as numpy's expm1 of a complex number forms it."""
     cdef double a = sin(y / 2.0)
     out[0] = expm1(x) * cos(y) - 2.0 * a * a
     out[1] = exp(x) * sin(y)
