@@ -353,7 +353,7 @@ class Configuration:
                 harmonic[:2, : Vi.shape[0]], harmonic[2:4, : Vi.shape[0]] = beta, g
                 harmonic[4:, : V.shape[0]] = g @ V.T
             out.update({key: np.ascontiguousarray(a, dtype=complex).view(float)
-                        for key, a in (("ViT", Vi.T), ("VT", V.T), ("den", den), ("harmonic", harmonic))})
+                        for key, a in (("ViT", Vi.T), ("V", V), ("den", den), ("harmonic", harmonic))})
         return out
 
     # ------------------------------------------------------------------------------
@@ -683,6 +683,6 @@ def _compiled_modes(kernel, config: Configuration, Bf0: np.ndarray, x0: np.ndarr
     beta, g = np.empty((nmu, m), dtype=complex), np.empty((nmu, m), dtype=complex)
     U = np.empty((k + plan.V.shape[0], plan.nu.size), dtype=complex)
     ph = complex(np.exp(1j * w * t0)) if w else 0j     # as the reference forms e^{i w t0}
-    kernel.phase_modal(a["ViT"], Bf0, x0, a["harmonic"], ph.real, ph.imag, k, a["VT"], a["den"], z0.view(float),
+    kernel.phase_modal(a["ViT"], Bf0, x0, a["harmonic"], ph.real, ph.imag, k, a["V"], a["den"], z0.view(float),
                        beta.view(float), c.view(float), g.view(float), U.view(float))
     return z0, beta, U, c, g

@@ -122,11 +122,11 @@ cdef inline void cmul(double ar, double ai, double br, double bi, double* out) n
 
 cpdef void phase_modal(const double[:, ::1] ViT, const double[::1] Bf0, const double[::1] x0,
                        const double[:, ::1] harmonic, double ph_re, double ph_im, Py_ssize_t k,
-                       const double[:, ::1] VT, const double[:, ::1] den, double[::1] z0,
+                       const double[:, ::1] V, const double[:, ::1] den, double[::1] z0,
                        double[:, ::1] beta, double[::1] c, double[:, ::1] g, double[:, ::1] U) noexcept:
     """Phase._motion's modal coefficients and ModalPlan.modes: z0 = Vi x0[k:], beta_0 = Vi (B f0)[k:],
-    g_0 = beta_0 / den_0, c = z0 - g_0 - g_1 - ..., U[k:, :m] = V diag(c), U[k:, m] = V g_0 (Vi and V
-    come transposed: ViT, VT, contiguous columns; the rigid rows U[:k] are left as they are).
+    g_0 = beta_0 / den_0, c = z0 - g_0 - g_1 - ..., U[k:, :m] = V diag(c), U[k:, m] = V g_0 (Vi comes
+    transposed, ViT: contiguous columns; the rigid rows U[:k] are left as they are).
 
     The harmonic load's terms (Configuration.harmonic_b = hb, e^{i w t0} = ph) are the reference's
     beta_1 = Vi conj(hb ph), beta_2 = Vi (hb ph), g = beta / den, U[k:, m + i] = V g_i reassociated:
@@ -134,18 +134,18 @@ cpdef void phase_modal(const double[:, ::1] ViT, const double[::1] Bf0, const do
     kernel_arrays: rows Vi conj(hb), Vi hb, those over den_1, den_2, and V times these), the same
     values to a few eps of each term (tests/test_core_phase.py) at O(m) instead of O(m^2) per phase.
     Complex pairs interleaved."""
-    cdef Py_ssize_t m = ViT.shape[1] // 2, ncol = ViT.shape[0], nmu = beta.shape[0], d = VT.shape[1] // 2
+    cdef Py_ssize_t m = ViT.shape[1] // 2, ncol = ViT.shape[0], nmu = beta.shape[0], d = V.shape[0]
     cdef Py_ssize_t p = U.shape[1] // 2, i, j, l, a
     cdef double x, y, vr, vi_, gr, gi, cr, ci, sr, si
     cdef double q[2]
     if m == 0:
         return
-    cdef double* acc = <double*> malloc(2 * d * sizeof(double))
     cdef double* pz = &z0[0]
     cdef double* pbeta = &beta[0, 0]
     cdef double* pg = &g[0, 0]
     cdef double* pc = &c[0]
     cdef double* pU = &U[0, 0]
+    cdef double* out
     cdef const double* row
     cdef const double* h
     with nogil:
@@ -156,8 +156,9 @@ cpdef void phase_modal(const double[:, ::1] ViT, const double[::1] Bf0, const do
             x = Bf0[k + l]
             y = x0[k + l]
             row = &ViT[l, 0]
-            for j in range(2 * m):
-                pbeta[j] = pbeta[j] + row[j] * x
+            if x != 0.0:    # (B f0's displacement rows are zeros: their terms add nothing)
+                for j in range(2 * m):
+                    pbeta[j] = pbeta[j] + row[j] * x
             for j in range(2 * m):
                 pz[j] = pz[j] + row[j] * y
         for j in range(m):
@@ -181,25 +182,21 @@ cpdef void phase_modal(const double[:, ::1] ViT, const double[::1] Bf0, const do
             h = &harmonic[3 + i, 0]                 # V times those
             for a in range(d):
                 cmul(h[2 * a], h[2 * a + 1], sr, si, &pU[2 * ((k + a) * p + m + i)])
-        for a in range(2 * d):
-            acc[a] = 0.0
-        for j in range(m):
-            row = &VT[j, 0]
-            cr = pc[2 * j]
-            ci = pc[2 * j + 1]
-            gr = pg[2 * j]
-            gi = pg[2 * j + 1]
-            for a in range(d):
-                vr = row[2 * a]
-                vi_ = row[2 * a + 1]
-                pU[2 * ((k + a) * p + j)] = vr * cr - vi_ * ci
-                pU[2 * ((k + a) * p + j) + 1] = vr * ci + vi_ * cr
-                acc[2 * a] = acc[2 * a] + (vr * gr - vi_ * gi)
-                acc[2 * a + 1] = acc[2 * a + 1] + (vr * gi + vi_ * gr)
         for a in range(d):
-            pU[2 * ((k + a) * p + m)] = acc[2 * a]
-            pU[2 * ((k + a) * p + m) + 1] = acc[2 * a + 1]
-    free(acc)
+            # row a of U: V[a] diag(c), then the particular solution V[a] . g_0 (one sum in order of j)
+            row = &V[a, 0]
+            out = pU + 2 * (k + a) * p
+            sr = 0.0
+            si = 0.0
+            for j in range(m):
+                vr = row[2 * j]
+                vi_ = row[2 * j + 1]
+                out[2 * j] = vr * pc[2 * j] - vi_ * pc[2 * j + 1]
+                out[2 * j + 1] = vr * pc[2 * j + 1] + vi_ * pc[2 * j]
+                sr = sr + (vr * pg[2 * j] - vi_ * pg[2 * j + 1])
+                si = si + (vr * pg[2 * j + 1] + vi_ * pg[2 * j])
+            out[2 * m] = sr
+            out[2 * m + 1] = si
 
 
 # -- the closed-form energy -----------------------------------------------------------------------
