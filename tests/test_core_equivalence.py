@@ -8,6 +8,19 @@ one more Newton step on a last-bit difference of a BLAS product) and gaps at the
 difference moves it by at most 1e-12 of its range per unit of the fastest rate's period over the
 step, far inside 1e-10).
 
+Where a compiled kernel replaces a BLAS product by a loop (core part "phase": the phase's set-up
+products) the two paths differ in the last bits of the state, and a run's events are only as determined
+as that. The reference path itself, run under OpenBLAS's Haswell and Sandybridge kernels (the CI's two
+BLAS passes: the same last-bit differences), moves the stop scene's event times by up to 3.3e-11 s, its
+gaps by 1.1e-9 of their range and its energy terms by 1.1e-9 of the energy turnover, and the
+accumulating impacts of retainer_drop (approach speeds down to 1e-18 m/s) by 4.7e-10 s: those two cases
+are compared to about three times that (:data:`SENSITIVE`; retainer_drop's gaps and energy terms are
+kept tighter than its own spread, 8e-6 and 5e-8, as long as the kernels meet that: 4e-13 and 7e-10
+measured on three BLAS settings). The energy terms (the closed-form work integrals) are otherwise
+compared to 1e-10 of the run's energy turnover (the sum of the terms' sizes: each phase's integrals
+round at ~1e-13 of its terms, summed over a few hundred phases), and the compiled run's energy residual
+must be the reference's to 1e-12 of the largest energy.
+
 Skipped where the compiled core is not installed (``CC=false pip install .``); .ci/run checks that
 it is built there, and runs the whole suite once more on the reference path (NSFEM_PURE_PYTHON=1).
 """
@@ -21,8 +34,9 @@ from nsfem import load_scene
 from nsfem.integrate import core
 from nsfem.simulate import run_scene
 
-pytestmark = pytest.mark.skipif(not all(core.built().values()),
-                                reason="the compiled event core is not installed (no C compiler at install time)")
+pytestmark = pytest.mark.skipif(any(core.compiled(part) is None for part in core.PARTS),
+                                reason="the compiled event core is not installed (no C compiler at install time) "
+                                       "or not active (NSFEM_PURE_PYTHON=1)")
 
 #: (scene, overrides): every shipped scene over a window with events, and the stop scene of
 #: studies/work_precision.py (Zeno-like impact sequences)
@@ -37,6 +51,15 @@ CASES = {
 }
 
 
+#: (event times relative to max(1, t), gaps of their range, energy terms of the turnover): the module's
+#: defaults, and those of the cases whose events the last bits of a product move (the module's docstring)
+DEFAULT_TOL = (1e-12, 1e-10, 1e-10)
+SENSITIVE = {"stop": (1e-10, 3e-9, 3e-9), "retainer_drop": (1e-9, 1e-10, 1e-8)}
+#: the energy dict's entries that are terms of the balance (not derived from them)
+TERMS = ("initial_J", "work_external_J", "dissipated_damping_J", "work_circulatory_J", "dissipated_friction_J",
+         "work_spin_J", "lost_in_impacts_J", "final_J")
+
+
 def _run(name: str, overrides: list, reference: bool):
     scene = load_scene(name, overrides)
     if reference:
@@ -45,17 +68,21 @@ def _run(name: str, overrides: list, reference: bool):
     return run_scene(scene, "exact")[0]
 
 
-def assert_same_run(a, b) -> None:
+def assert_same_run(a, b, t_tol: float = 1e-12, gap_tol: float = 1e-10, e_tol: float = 1e-10) -> None:
     """Two runs of one scene are the same run (the module's tolerances)."""
     assert len(a.events) == len(b.events)
     for ea, eb in zip(a.events, b.events):
         assert {k: v for k, v in ea.items() if k != "t"} == {k: v for k, v in eb.items() if k != "t"}
-        assert abs(ea["t"] - eb["t"]) <= 1e-12 * max(1.0, abs(ea["t"]))
+        assert abs(ea["t"] - eb["t"]) <= t_tol * max(1.0, abs(ea["t"]))
+    turnover = sum(abs(b.energy[k]) for k in TERMS)
+    for k in TERMS:
+        assert abs(a.energy[k] - b.energy[k]) <= e_tol * turnover, k
+    assert a.energy["relative_residual"] <= b.energy["relative_residual"] + 1e-12
     assert len(a.impacts) == len(b.impacts)
     assert a.t.shape == b.t.shape and a.gap.shape == b.gap.shape
     if a.gap.size:
         span = float(np.ptp(a.gap)) or 1.0
-        assert np.max(np.abs(a.gap - b.gap)) <= 1e-10 * span
+        assert np.max(np.abs(a.gap - b.gap)) <= gap_tol * span
         assert np.array_equal(a.state, b.state)
 
 
@@ -64,7 +91,7 @@ def test_compiled_core_runs_as_the_reference(case):
     name, overrides = CASES[case]
     compiled = _run(name, overrides, reference=False)
     python = _run(name, overrides, reference=True)
-    assert_same_run(compiled, python)
+    assert_same_run(compiled, python, *SENSITIVE.get(case, DEFAULT_TOL))
 
 
 def test_switch_names_the_core():

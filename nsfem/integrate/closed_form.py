@@ -236,6 +236,12 @@ class ModalPlan:
     def motion(self, z0: np.ndarray, beta: np.ndarray, a0: np.ndarray) -> tuple[Motion, tuple]:
         """(Motion, (c, g)) from z0 = V^-1 w0, beta (len(mus), m) = V^-1 b_mu (e^{mu t0} folded in) and a0:
         w(tau) = V (c e^{lam tau} + sum_mu g_mu e^{mu tau}) plus the divided differences."""
+        U, c, g = self.modes(z0, beta)
+        return self.complete(U, z0, beta, a0), (c, g)
+
+    def modes(self, z0: np.ndarray, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(U, c, g): the modes' and particular solutions' part of the motion, U[k:] = V [diag(c), g^T]
+        (U[:k], the rigid rows, left to :meth:`complete`)."""
         k, V, m = self.k, self.V, z0.size
         g = beta / self.den                     # the particular solutions, modal
         c = z0
@@ -244,6 +250,11 @@ class ModalPlan:
             c = c - gi
             U[k:, m + i] = V @ gi
         U[k:, :m] = V * c[None, :]
+        return U, c, g
+
+    def complete(self, U: np.ndarray, z0: np.ndarray, beta: np.ndarray, a0: np.ndarray) -> Motion:
+        """The Motion of U (from :meth:`modes`) with its rigid rows and divided differences."""
+        k, V, m = self.k, self.V, z0.size
         C = np.vstack([z0, beta]) if k or self.groups else None     # the coefficients by source
         if k:
             U[:k, :m] = self.SV * np.einsum("im,im->m", self.Fa, C)
@@ -262,7 +273,7 @@ class ModalPlan:
             kept = always | (source.T @ (C != 0).ravel() > 0)
             if kept.any():
                 groups.append((nodes, D) if kept.all() else (nodes[:, kept], D[:, kept]))
-        return Motion(self.nu, U, groups), (c, g)
+        return Motion(self.nu, U, groups)
 
 
 def _divide(vec: np.ndarray, div: tuple) -> np.ndarray:

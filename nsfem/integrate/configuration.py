@@ -25,11 +25,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 import scipy.linalg as sla
 
 from ..errors import NsfemError
+from . import core
 from .closed_form import ModalPlan, Motion, divided_exp
 from .problem import ContactSystem
 
@@ -334,6 +336,26 @@ class Configuration:
         floor = 1e-9 * max(float(np.max(np.abs(lam), initial=0.0)), self.w)
         self.plan = ModalPlan(lam, V, mus, k, S, floor)
 
+    @cached_property
+    def kernel_arrays(self) -> dict:
+        """The arrays the compiled phase set-up reads (core part "phase"), C-ordered, the complex ones as
+        float64 views of their (real, imaginary) pairs; formed on the first compiled phase."""
+        out = {"GpinvT": self.Gpinv.T, "QT": self.Q.T, "f0": self.f0, "BT": self.B.T, "N": self.N}
+        out = {key: np.ascontiguousarray(a, dtype=float) for key, a in out.items()}
+        if self.plan is not None:
+            Vi, V, den = self.eig[2], self.plan.V, self.plan.den
+            # the harmonic load's modal terms but for the phase e^{i w t0} (kernel phase_modal): Vi conj(hb),
+            # Vi hb, those over den_1, den_2, and V times these
+            harmonic = np.zeros((6, max(Vi.shape[0], V.shape[0])), dtype=complex)
+            if self.harmonic_b is not None:
+                beta = np.array([Vi @ np.conj(self.harmonic_b), Vi @ self.harmonic_b])
+                g = beta / den[1:]
+                harmonic[:2, : Vi.shape[0]], harmonic[2:4, : Vi.shape[0]] = beta, g
+                harmonic[4:, : V.shape[0]] = g @ V.T
+            out.update({key: np.ascontiguousarray(a, dtype=complex).view(float)
+                        for key, a in (("ViT", Vi.T), ("V", V), ("den", den), ("harmonic", harmonic))})
+        return out
+
     # ------------------------------------------------------------------------------
     def particular(self, g0: np.ndarray) -> np.ndarray:
         """q_p with G^T q_p + g0 = 0 (least norm)."""
@@ -351,23 +373,30 @@ class Phase:
     and particular solutions only (no rigid coordinates, no divided differences); None otherwise."""
 
     def __init__(self, config: Configuration, t0: float, q0: np.ndarray, v0: np.ndarray, g0: np.ndarray):
-        sysm = config.system
         self.config, self.t0 = config, float(t0)
         self.g0 = np.asarray(g0, dtype=float)
-        self.qp = config.particular(self.g0)
         N, r = config.N, config.r
         self.w = config.w
-        # forcing phi(t) = (f0 - Q q_p) + fc cos + fs sin as extra state components
-        f0 = config.f0 - config.Q @ self.qp
+        kernel = core.compiled("phase")
+        if kernel is None:
+            self.qp = config.particular(self.g0)
+            # forcing phi(t) = (f0 - Q q_p) + fc cos + fs sin as extra state components
+            f0 = config.f0 - config.Q @ self.qp
+            self.x0 = np.concatenate([N.T @ (q0 - self.qp), N.T @ v0])
+            Bf0 = config.B @ f0
+        else:
+            self.qp, f0, self.x0, Bf0 = _compiled_start(kernel, config, self.g0, q0, v0)
         self.forcing = [f0] + config.loads
         self.dim = 2 * r + len(self.forcing)
-        self.x0 = np.concatenate([N.T @ (q0 - self.qp), N.T @ v0])
         # augmented matrix (order: x, 1, cos, sin): the configuration's, with this phase's constant load
         self.A_aug = config.A_aug_base.copy()
-        self.A_aug[: 2 * r, 2 * r] = Bf0 = config.B @ f0
+        self.A_aug[: 2 * r, 2 * r] = Bf0
         self._modal = self.amplitudes = None
+        self._xi_kernel = None
         if config.plan is not None:
-            self._modal = self._motion(Bf0)
+            self._modal = self._motion(Bf0, kernel)
+            if kernel is not None:   # _xi_at's modal sum compiled: the kernel and its arrays' float views
+                self._xi_kernel = (kernel.xi_at, self._modal.U.view(float), self._modal.nu.view(float))
         if self._modal is None:
             self._xi0 = np.concatenate([self.x0, self._harmonics(self.t0)])
 
@@ -379,21 +408,27 @@ class Phase:
             parts += [np.cos(self.w * t), np.sin(self.w * t)]
         return np.array(parts)
 
-    def _motion(self, Bf0: np.ndarray) -> Motion:
+    def _motion(self, Bf0: np.ndarray, kernel=None) -> Motion:
         """x(t - t0) in closed form (:class:`.closed_form.ModalPlan`): modes, particular solutions, and
         divided differences where the forcing is resonant or a rigid-body coordinate integrates a load.
-        Without those (modes and particular solutions only) ``amplitudes`` keeps its modal coefficients."""
+        Without those (modes and particular solutions only) ``amplitudes`` keeps its modal coefficients.
+        ``kernel``: the compiled module of core part "phase" (None: this reference)."""
         cfg, k = self.config, self.config.k
-        Vi = cfg.eig[2]
-        beta = np.empty((len(cfg.plan.mus), Vi.shape[0]), dtype=complex)     # mus: 0, -iw, iw
-        beta[0] = Vi @ Bf0[k:]
-        if self.w:
-            b = cfg.harmonic_b * np.exp(1j * self.w * self.t0)
-            beta[1] = Vi @ np.conj(b)
-            beta[2] = Vi @ b
-        mot, amplitudes = cfg.plan.motion(Vi @ self.x0[k:], beta, self.x0[:k])
+        if kernel is None:
+            Vi = cfg.eig[2]
+            beta = np.empty((len(cfg.plan.mus), Vi.shape[0]), dtype=complex)     # mus: 0, -iw, iw
+            beta[0] = Vi @ Bf0[k:]
+            if self.w:
+                b = cfg.harmonic_b * np.exp(1j * self.w * self.t0)
+                beta[1] = Vi @ np.conj(b)
+                beta[2] = Vi @ b
+            z0 = Vi @ self.x0[k:]
+            U, c, g = cfg.plan.modes(z0, beta)
+        else:
+            z0, beta, U, c, g = _compiled_modes(kernel, cfg, Bf0, self.x0, self.w, self.t0)
+        mot = cfg.plan.complete(U, z0, beta, self.x0[:k])
         if not k and not mot.groups:
-            self.amplitudes = amplitudes
+            self.amplitudes = (c, g)
         return mot
 
     def xi(self, t) -> np.ndarray:
@@ -417,6 +452,13 @@ class Phase:
         """xi at one time on the modal path (root refinement reads rows from it many times per
         event): the same sums as :meth:`xi`, without its array set-up."""
         mot, tau = self._modal, t - self.t0
+        if self._xi_kernel is not None:
+            xi_at, Uv, nuv = self._xi_kernel
+            out = np.empty(self.dim)
+            xi_at(Uv, nuv, tau, self.w, t, out)
+            for nodes, D in mot.groups:
+                out[: mot.U.shape[0]] += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
+            return out
         x = (mot.U @ np.exp(mot.nu * tau)).real
         for nodes, D in mot.groups:
             x += (D @ divided_exp(nodes, np.array([tau]))[:, 0]).real
@@ -622,3 +664,25 @@ class Phase:
         h = math.pi / (4.0 * rate) if rate > 0 else math.inf
         return min(h, horizon / 8.0) if horizon > 0 else h
 
+
+def _compiled_start(kernel, config: Configuration, g0: np.ndarray, q0: np.ndarray, v0: np.ndarray):
+    """(q_p, f0, x0, B f0) of :meth:`Phase.__init__` by the compiled kernel ``phase_start``."""
+    a, n, r2 = config.kernel_arrays, config.system.n, 2 * config.r
+    qp, f0, x0, Bf0 = np.empty(n), np.empty(n), np.empty(r2), np.empty(r2)
+    kernel.phase_start(a["GpinvT"], np.ascontiguousarray(g0, dtype=float), a["QT"], a["f0"], a["BT"], a["N"],
+                       np.ascontiguousarray(q0, dtype=float), np.ascontiguousarray(v0, dtype=float), qp, f0, Bf0, x0)
+    return qp, f0, x0, Bf0
+
+
+def _compiled_modes(kernel, config: Configuration, Bf0: np.ndarray, x0: np.ndarray, w: float, t0: float):
+    """(z0, beta, U, c, g) of :meth:`Phase._motion` and :meth:`.closed_form.ModalPlan.modes` by the compiled
+    kernel ``phase_modal`` (U's rigid rows left to :meth:`.closed_form.ModalPlan.complete`)."""
+    a, plan, k = config.kernel_arrays, config.plan, config.k
+    m, nmu = config.eig[2].shape[0], len(plan.mus)
+    z0, c = np.empty(m, dtype=complex), np.empty(m, dtype=complex)
+    beta, g = np.empty((nmu, m), dtype=complex), np.empty((nmu, m), dtype=complex)
+    U = np.empty((k + plan.V.shape[0], plan.nu.size), dtype=complex)
+    ph = complex(np.exp(1j * w * t0)) if w else 0j     # as the reference forms e^{i w t0}
+    kernel.phase_modal(a["ViT"], Bf0, x0, a["harmonic"], ph.real, ph.imag, k, a["V"], a["den"], z0.view(float),
+                       beta.view(float), c.view(float), g.view(float), U.view(float))
+    return z0, beta, U, c, g

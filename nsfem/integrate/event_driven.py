@@ -32,6 +32,7 @@ from ..errors import IntegrationError, NsfemError
 from ..linalg import factorize
 from ..contact.ring import ROT, generalized_force, potential, unheld
 from ..result import Result
+from . import core
 from .base import Integrator, Progress, close_energy, initial_state, output_times
 from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
@@ -400,6 +401,9 @@ class EventDriven(Integrator):
             X = np.vstack([phase.q_map() @ xi, phase.v_map() @ xi]).T
         else:
             X = np.array(ends).reshape(2, -1)      # (q, q') at t0, then at t1
+        kernel = core.compiled("phase")
+        if kernel is not None:
+            return kernel.end_energy(forms[5], np.ascontiguousarray(X, dtype=float)), X
         E = np.einsum("ti,ti->t", X @ forms[5], X)
         return float(np.abs(E).max()), X
 
@@ -487,7 +491,8 @@ class EventDriven(Integrator):
             Uc = U[cols]
             J = np.flatnonzero(np.any(Uc != 0.0, axis=0))
             Uc = Uc[:, J]
-        phi = _exp_integrals(mu, mu[J], T)
+        kernel = core.compiled("phase")
+        phi = _exp_integrals(mu, mu[J], T) if kernel is None else _compiled_exp_integrals(kernel, mu, mu[J], T)
         G = U @ (phi @ Uc.T)      # G[:, c] = sum_jk U_j phi_jk U_ck over the columns c formed
         if full:
             energy["work_external_J"] += float(np.real(np.sum(ext * G[:, cols])))
@@ -520,24 +525,53 @@ class EventDriven(Integrator):
             if circulatory:
                 keys.append("work_circulatory_J")
                 S.append(Vv.T @ P @ Vq)
-            hit = forms_cache[cfg] = (forms, np.array(loads) @ Vv, keys, np.array(S), Vv, cfg.plan.nu[m:])
+            # (C-ordered complex: the compiled kernel reads them as float views)
+            S = np.ascontiguousarray(np.array(S, dtype=complex).reshape(len(keys), m, m))
+            hit = forms_cache[cfg] = (forms, np.ascontiguousarray(np.array(loads) @ Vv, dtype=complex), keys, S, Vv,
+                                      cfg.plan.nu[m:])
         _, E, keys, S, Vv, mus = hit
         nu = cfg.plan.nu
-        # Phi over the rows the forms need: the load's exponents, or all of z's (Phi is symmetric)
-        Phi = _exp_integrals(nu if keys else mus, nu, t1 - phase.t0)
-        if keys:
-            ZP = c[:, None] * Phi[:m] + g.T @ Phi[m:]          # Z Phi
-            PZ = ZP[:, m:].T                                    # rows mus of Phi Z^T
+        kernel = core.compiled("phase")
+        if kernel is not None:
+            vals, PZ = _compiled_energy_modal(kernel, cfg, hit, c, g, t1 - phase.t0, phase.t0, energy)
         else:
-            PZ = Phi[:, :m] * c + Phi[:, m:] @ g
-        energy["work_external_J"] += float(np.einsum("i,ij,ij->", np.exp(mus * phase.t0), E, PZ).real)
+            # Phi over the rows the forms need: the load's exponents, or all of z's (Phi is symmetric)
+            Phi = _exp_integrals(nu if keys else mus, nu, t1 - phase.t0)
+            if keys:
+                ZP = c[:, None] * Phi[:m] + g.T @ Phi[m:]          # Z Phi
+                PZ = ZP[:, m:].T                                    # rows mus of Phi Z^T
+            else:
+                PZ = Phi[:, :m] * c + Phi[:, m:] @ g
+            energy["work_external_J"] += float(np.einsum("i,ij,ij->", np.exp(mus * phase.t0), E, PZ).real)
+            if keys:
+                vals = np.einsum("fjk,jk->f", S, ZP[:, :m] * c + ZP[:, m:] @ g)     # S * (Z Phi Z^T)
         if not keys:
             return
-        vals = np.einsum("fjk,jk->f", S, ZP[:, :m] * c + ZP[:, m:] @ g)     # S * (Z Phi Z^T)
         if circulatory and phase.g0.size:   # v^T P q_p: the constant q_p (mu = 0) against every term of q'
-            vals[keys.index("work_circulatory_J")] += PZ[0] @ (Vv.T @ (P @ phase.qp))
+            vals[keys.index("work_circulatory_J")] += (PZ[0] @ (Vv.T @ (P @ phase.qp))).real
         for key, val in zip(keys, vals):
             energy[key] += float(val.real)
+
+
+def _compiled_energy_modal(kernel, cfg, hit: tuple, c: np.ndarray, g: np.ndarray, T: float, t0: float,
+                           energy: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The compiled kernel ``energy_modal`` for :meth:`EventDriven._energy_modal` (its configuration's cached
+    forms ``hit``): books the external work, returns (the forms' values, PZ)."""
+    _, E, keys, S = hit[:4]
+    m, nmu = c.size, len(cfg.plan.mus)
+    vals, PZ = np.empty(len(keys)), np.empty((nmu, m), dtype=complex)
+    energy["work_external_J"] += kernel.energy_modal(cfg.plan.nu.view(float), np.ascontiguousarray(c).view(float),
+                                                     np.ascontiguousarray(g).view(float), T, t0, E.view(float),
+                                                     S.view(float), vals, PZ.view(float))
+    return vals, PZ
+
+
+def _compiled_exp_integrals(kernel, a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
+    """:func:`_exp_integrals` by the compiled kernel ``exp_integrals``."""
+    phi = np.empty((a.size, b.size), dtype=complex)
+    kernel.exp_integrals(np.ascontiguousarray(a, dtype=complex).view(float),
+                         np.ascontiguousarray(b, dtype=complex).view(float), T, phi.view(float))
+    return phi
 
 
 def _exp_integrals(a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
@@ -551,7 +585,7 @@ def _exp_integrals(a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
     phi = (np.multiply.outer(np.exp(a * T), np.exp(b * T)) - 1.0) / np.where(near, 1.0, s)
     x = s[near]
     small = np.abs(x) < 1e-8 / T
-    phi[near] = np.where(small, T + x * (T * T / 2.0 + x * (T ** 3 / 6.0)),
+    phi[near] = np.where(small, T + x * (T * T / 2.0 + x * (T * T * T / 6.0)),
                          np.expm1(x * T) / np.where(small, 1.0, x))
     return phi
 

@@ -1,0 +1,418 @@
+# cython: language_level=3
+"""Compiled kernels of a phase's set-up, its state at one time and its closed-form energy (issue 33,
+part "phase").
+
+Each mirrors a Python reference, named in its docstring: configuration.Phase.__init__, Phase._motion
+and Phase._xi_at, closed_form.ModalPlan.modes, event_driven._exp_integrals, EventDriven._energy_modal
+and EventDriven._end_energy. Complex arrays come in as float64 views of their interleaved (real,
+imaginary) pairs (``a.view(np.float64)``), and each complex product, quotient, exp and expm1 is
+written out here with numpy's formula. Where numpy's SIMD loops fuse a multiply-add, the two differ in
+the last bit. The matrix products are plain loops, one sum per output entry in the order of its
+terms, and round differently from BLAS. The harmonic load's terms of the set-up are reassociated
+(phase_modal). tests/test_core_phase.py gives the bounds.
+"""
+
+from libc.math cimport fabs, hypot, sin, cos, exp, expm1, NAN
+from libc.stdlib cimport malloc, free
+
+cdef extern from *:
+    """
+    #include <complex.h>
+    /* e^(x + iy) by the C library's cexp, the function numpy's exp of a complex number calls */
+    static inline void nsfem_cexp(double x, double y, double *re, double *im) {
+        double _Complex z = cexp(CMPLX(x, y));
+        *re = creal(z);
+        *im = cimag(z);
+    }
+    """
+    void nsfem_cexp(double x, double y, double* re, double* im) noexcept nogil
+
+
+cdef inline void cdiv(double ar, double ai, double br, double bi, double* out) noexcept nogil:
+    """(ar + i ai) / (br + i bi) as numpy divides complex numbers (Smith's method)."""
+    cdef double rat, scl
+    cdef double abr = fabs(br), abi = fabs(bi)
+    if abr >= abi:
+        if abr == 0.0 and abi == 0.0:
+            out[0] = ar / abr
+            out[1] = ai / abr
+            return
+        rat = bi / br
+        scl = 1.0 / (br + bi * rat)
+        out[0] = (ar + ai * rat) * scl
+        out[1] = (ai - ar * rat) * scl
+    else:
+        rat = br / bi
+        scl = 1.0 / (bi + br * rat)
+        out[0] = (ar * rat + ai) * scl
+        out[1] = (ai * rat - ar) * scl
+
+
+cdef inline void cexpm1(double x, double y, double* out) noexcept nogil:
+    """e^(x + iy) - 1 as numpy's expm1 of a complex number forms it."""
+    cdef double a = sin(y / 2.0)
+    out[0] = expm1(x) * cos(y) - 2.0 * a * a
+    out[1] = exp(x) * sin(y)
+
+
+# -- the phase's set-up ---------------------------------------------------------------------------
+
+cpdef void phase_start(const double[:, ::1] GpinvT, const double[::1] g0, const double[:, ::1] QT,
+                       const double[::1] f0_config, const double[:, ::1] BT, const double[:, ::1] N,
+                       const double[::1] q0, const double[::1] v0, double[::1] qp, double[::1] f0,
+                       double[::1] Bf0, double[::1] x0) noexcept:
+    """Phase.__init__'s products: q_p = -Gpinv g0 (Configuration.particular), the phase's constant load
+    f0 = f0_config - Q q_p, B f0, and x0 = (N^T (q0 - q_p), N^T v0). The matrices come transposed
+    (GpinvT, QT, BT; N for N^T) so that each product runs along contiguous rows, one independent sum
+    per output entry (each summed in the order of its terms)."""
+    cdef Py_ssize_t n = QT.shape[0], nc = g0.shape[0], r = N.shape[1], rows = BT.shape[1]
+    cdef Py_ssize_t i, j
+    cdef double x, y
+    if n == 0:
+        return
+    cdef double* pq = &qp[0]
+    cdef double* pf = &f0[0]
+    cdef double* pb = &Bf0[0] if rows else NULL
+    cdef double* px = &x0[0] if r else NULL
+    cdef const double* row
+    with nogil:
+        for i in range(n):
+            pq[i] = 0.0
+            pf[i] = 0.0
+        for i in range(rows):
+            pb[i] = 0.0
+        for i in range(2 * r):
+            px[i] = 0.0
+        for j in range(nc):
+            x = g0[j]
+            row = &GpinvT[j, 0]
+            for i in range(n):
+                pq[i] = pq[i] + (-row[i]) * x
+        for j in range(n):                      # f0 holds Q q_p first
+            x = pq[j]
+            row = &QT[j, 0]
+            for i in range(n):
+                pf[i] = pf[i] + row[i] * x
+        for i in range(n):
+            pf[i] = f0_config[i] - pf[i]
+        for j in range(n):
+            if rows == 0:
+                break
+            x = pf[j]
+            row = &BT[j, 0]
+            for i in range(rows):
+                pb[i] = pb[i] + row[i] * x
+        for j in range(n):
+            if r == 0:
+                break
+            x = q0[j] - pq[j]
+            y = v0[j]
+            row = &N[j, 0]
+            for i in range(r):
+                px[i] = px[i] + row[i] * x
+            for i in range(r):
+                px[r + i] = px[r + i] + row[i] * y
+
+
+cdef inline void cmul(double ar, double ai, double br, double bi, double* out) noexcept nogil:
+    """(ar + i ai) (br + i bi), each part one difference (sum) of two rounded products."""
+    out[0] = ar * br - ai * bi
+    out[1] = ar * bi + ai * br
+
+
+cpdef void phase_modal(const double[:, ::1] ViT, const double[::1] Bf0, const double[::1] x0,
+                       const double[:, ::1] harmonic, double ph_re, double ph_im, Py_ssize_t k,
+                       const double[:, ::1] V, const double[:, ::1] den, double[::1] z0,
+                       double[:, ::1] beta, double[::1] c, double[:, ::1] g, double[:, ::1] U) noexcept:
+    """Phase._motion's modal coefficients and ModalPlan.modes: z0 = Vi x0[k:], beta_0 = Vi (B f0)[k:],
+    g_0 = beta_0 / den_0, c = z0 - g_0 - g_1 - ..., U[k:, :m] = V diag(c), U[k:, m] = V g_0 (Vi comes
+    transposed, ViT: contiguous columns; the rigid rows U[:k] are left as they are).
+
+    The harmonic load's terms (Configuration.harmonic_b = hb, e^{i w t0} = ph) are the reference's
+    beta_1 = Vi conj(hb ph), beta_2 = Vi (hb ph), g = beta / den, U[k:, m + i] = V g_i reassociated:
+    ph (or its conjugate) times the configuration's constant vectors ``harmonic`` (Configuration's
+    kernel_arrays: rows Vi conj(hb), Vi hb, those over den_1, den_2, and V times these), the same
+    values to a few eps of each term (tests/test_core_phase.py) at O(m) instead of O(m^2) per phase.
+    Complex pairs interleaved."""
+    cdef Py_ssize_t m = ViT.shape[1] // 2, ncol = ViT.shape[0], nmu = beta.shape[0], d = V.shape[0]
+    cdef Py_ssize_t p = U.shape[1] // 2, i, j, l, a
+    cdef double x, y, vr, vi_, gr, gi, cr, ci, sr, si
+    cdef double q[2]
+    if m == 0:
+        return
+    cdef double* pz = &z0[0]
+    cdef double* pbeta = &beta[0, 0]
+    cdef double* pg = &g[0, 0]
+    cdef double* pc = &c[0]
+    cdef double* pU = &U[0, 0]
+    cdef double* out
+    cdef const double* row
+    cdef const double* h
+    with nogil:
+        for j in range(2 * m):
+            pz[j] = 0.0
+            pbeta[j] = 0.0
+        for l in range(ncol):
+            x = Bf0[k + l]
+            y = x0[k + l]
+            row = &ViT[l, 0]
+            if x != 0.0:    # (B f0's displacement rows are zeros: their terms add nothing)
+                for j in range(2 * m):
+                    pbeta[j] = pbeta[j] + row[j] * x
+            for j in range(2 * m):
+                pz[j] = pz[j] + row[j] * y
+        for j in range(m):
+            cdiv(pbeta[2 * j], pbeta[2 * j + 1], den[0, 2 * j], den[0, 2 * j + 1], q)
+            pg[2 * j] = q[0]
+            pg[2 * j + 1] = q[1]
+            pc[2 * j] = pz[2 * j] - q[0]
+            pc[2 * j + 1] = pz[2 * j + 1] - q[1]
+        for i in range(1, nmu):
+            # mus[1] = -i w: the conjugate phase; mus[2] = i w
+            sr = ph_re
+            si = -ph_im if i == 1 else ph_im
+            h = &harmonic[i - 1, 0]                 # Vi conj(hb), Vi hb
+            for j in range(m):
+                cmul(h[2 * j], h[2 * j + 1], sr, si, &pbeta[2 * (i * m + j)])
+            h = &harmonic[1 + i, 0]                 # those over den_i
+            for j in range(m):
+                cmul(h[2 * j], h[2 * j + 1], sr, si, &pg[2 * (i * m + j)])
+                pc[2 * j] = pc[2 * j] - pg[2 * (i * m + j)]
+                pc[2 * j + 1] = pc[2 * j + 1] - pg[2 * (i * m + j) + 1]
+            h = &harmonic[3 + i, 0]                 # V times those
+            for a in range(d):
+                cmul(h[2 * a], h[2 * a + 1], sr, si, &pU[2 * ((k + a) * p + m + i)])
+        for a in range(d):
+            # row a of U: V[a] diag(c), then the particular solution V[a] . g_0 (one sum in order of j)
+            row = &V[a, 0]
+            out = pU + 2 * (k + a) * p
+            sr = 0.0
+            si = 0.0
+            for j in range(m):
+                vr = row[2 * j]
+                vi_ = row[2 * j + 1]
+                out[2 * j] = vr * pc[2 * j] - vi_ * pc[2 * j + 1]
+                out[2 * j + 1] = vr * pc[2 * j + 1] + vi_ * pc[2 * j]
+                sr = sr + (vr * pg[2 * j] - vi_ * pg[2 * j + 1])
+                si = si + (vr * pg[2 * j + 1] + vi_ * pg[2 * j])
+            out[2 * m] = sr
+            out[2 * m + 1] = si
+
+
+# -- the closed-form energy -----------------------------------------------------------------------
+
+cdef inline void exp_integral(double sr, double si, double ar, double ai, double br, double bi, double T,
+                              double T2, double T3, double* out) noexcept nogil:
+    """One entry of _exp_integrals: int_0^T e^{s t} dt for s = a + b (sr + i si), from e^{a T} e^{b T}
+    (ar + i ai, br + i bi). T2 = T * T / 2, T3 = T * T * T / 6."""
+    cdef double pr, pi_, xr, xi, h
+    cdef double e[2]
+    # |s| T < 1/2 needs hypot only where both parts are small (|s| >= either part, rounded alike)
+    if fabs(sr) * T < 0.5 and fabs(si) * T < 0.5:
+        h = hypot(sr, si)
+    else:
+        h = 1.0 / T
+    if h * T < 0.5:
+        if h < 1e-8 / T:
+            # T + x (T^2 / 2 + x T^3 / 6)
+            pr = T2 + (sr * T3)
+            pi_ = si * T3
+            xr = sr * pr - si * pi_
+            xi = sr * pi_ + si * pr
+            out[0] = T + xr
+            out[1] = xi
+        else:
+            cexpm1(sr * T, si * T, e)
+            cdiv(e[0], e[1], sr, si, out)
+        return
+    pr = ar * br - ai * bi - 1.0
+    pi_ = ar * bi + ai * br
+    cdiv(pr, pi_, sr, si, out)
+
+
+cpdef void exp_integrals(const double[::1] a, const double[::1] b, double T, double[:, ::1] phi) noexcept:
+    """event_driven._exp_integrals(a, b, T) into phi (len(a) x len(b) complex, interleaved)."""
+    cdef Py_ssize_t na = a.shape[0] // 2, nb = b.shape[0] // 2, j, l
+    cdef double T2 = T * T / 2.0, T3 = T * T * T / 6.0
+    cdef double* ea = <double*> malloc(2 * (na + nb) * sizeof(double))
+    cdef double* eb = ea + 2 * na
+    with nogil:
+        for j in range(na):
+            nsfem_cexp(a[2 * j] * T, a[2 * j + 1] * T, &ea[2 * j], &ea[2 * j + 1])
+        for l in range(nb):
+            nsfem_cexp(b[2 * l] * T, b[2 * l + 1] * T, &eb[2 * l], &eb[2 * l + 1])
+        for j in range(na):
+            for l in range(nb):
+                exp_integral(a[2 * j] + b[2 * l], a[2 * j + 1] + b[2 * l + 1], ea[2 * j], ea[2 * j + 1],
+                             eb[2 * l], eb[2 * l + 1], T, T2, T3, &phi[j, 2 * l])
+    free(ea)
+
+
+cpdef double energy_modal(const double[::1] nu, const double[::1] c, const double[:, ::1] g, double T,
+                          double t0, const double[:, ::1] E, const double[:, :, ::1] S, double[::1] vals,
+                          double[:, ::1] PZ) noexcept:
+    """EventDriven._energy_modal's integrals for z(s) = Z e^{nu s}, Z = [diag(c), g^T] (m modes, then the
+    forcing exponents mus = nu[m:]): returns the external work Re sum_i e^{mu_i t0} E_i . PZ_i and writes
+    PZ (the rows mus of Phi Z^T) and vals[f] = Re sum S_f * (Z Phi Z^T), Phi = _exp_integrals(nu, nu, T)
+    (only its rows mus without forms)."""
+    cdef Py_ssize_t p = nu.shape[0] // 2, m = c.shape[0] // 2, nmu = p - m, nf = S.shape[0]
+    cdef Py_ssize_t i, j, l, kk, f, rows
+    cdef double T2 = T * T / 2.0, T3 = T * T * T / 6.0
+    cdef double re, im, zr, zi, yr, yi, sr, si, work, er, ei
+    cdef double* en = <double*> malloc(2 * p * sizeof(double))
+    cdef double* phi
+    cdef double* zp
+    cdef Py_ssize_t first
+    rows = p if nf else nmu       # Phi's rows formed: all of nu's, or the mus' only
+    first = 0 if nf else m
+    phi = <double*> malloc(2 * rows * p * sizeof(double))
+    zp = <double*> malloc(2 * (m * p if nf else 1) * sizeof(double))
+    with nogil:
+        for j in range(p):
+            nsfem_cexp(nu[2 * j] * T, nu[2 * j + 1] * T, &en[2 * j], &en[2 * j + 1])
+        # Phi[first + j, l] (exactly symmetric: each entry is formed from a sum and a product, which
+        # commute; the full square forms its upper triangle and copies it)
+        for j in range(rows):
+            for l in range(j if nf else 0, p):
+                exp_integral(nu[2 * (first + j)] + nu[2 * l], nu[2 * (first + j) + 1] + nu[2 * l + 1],
+                             en[2 * (first + j)], en[2 * (first + j) + 1], en[2 * l], en[2 * l + 1], T, T2, T3,
+                             &phi[2 * (j * p + l)])
+                if nf and l != j:
+                    phi[2 * (l * p + j)] = phi[2 * (j * p + l)]
+                    phi[2 * (l * p + j) + 1] = phi[2 * (j * p + l) + 1]
+        if nf:
+            # ZP = Z Phi (m x p): c_j Phi[j, :] + sum_i g[i, j] Phi[m + i, :]
+            for j in range(m):
+                for l in range(p):
+                    re = c[2 * j] * phi[2 * (j * p + l)] - c[2 * j + 1] * phi[2 * (j * p + l) + 1]
+                    im = c[2 * j] * phi[2 * (j * p + l) + 1] + c[2 * j + 1] * phi[2 * (j * p + l)]
+                    for i in range(nmu):
+                        zr = g[i, 2 * j]
+                        zi = g[i, 2 * j + 1]
+                        re = re + (zr * phi[2 * ((m + i) * p + l)] - zi * phi[2 * ((m + i) * p + l) + 1])
+                        im = im + (zr * phi[2 * ((m + i) * p + l) + 1] + zi * phi[2 * ((m + i) * p + l)])
+                    zp[2 * (j * p + l)] = re
+                    zp[2 * (j * p + l) + 1] = im
+            for i in range(nmu):
+                for j in range(m):
+                    PZ[i, 2 * j] = zp[2 * (j * p + m + i)]
+                    PZ[i, 2 * j + 1] = zp[2 * (j * p + m + i) + 1]
+            for f in range(nf):
+                vals[f] = 0.0
+            # Y = ZP Z^T: Y[j, kk] = ZP[j, kk] c_kk + sum_i ZP[j, m + i] g[i, kk]; vals_f = Re sum S_f * Y
+            for j in range(m):
+                for kk in range(m):
+                    yr = zp[2 * (j * p + kk)] * c[2 * kk] - zp[2 * (j * p + kk) + 1] * c[2 * kk + 1]
+                    yi = zp[2 * (j * p + kk)] * c[2 * kk + 1] + zp[2 * (j * p + kk) + 1] * c[2 * kk]
+                    for i in range(nmu):
+                        zr = zp[2 * (j * p + m + i)]
+                        zi = zp[2 * (j * p + m + i) + 1]
+                        yr = yr + (zr * g[i, 2 * kk] - zi * g[i, 2 * kk + 1])
+                        yi = yi + (zr * g[i, 2 * kk + 1] + zi * g[i, 2 * kk])
+                    for f in range(nf):
+                        sr = S[f, j, 2 * kk]
+                        si = S[f, j, 2 * kk + 1]
+                        vals[f] = vals[f] + (sr * yr - si * yi)
+        else:
+            # PZ = Phi[mus, :m] diag(c) + Phi[mus, m:] g
+            for i in range(nmu):
+                for j in range(m):
+                    re = phi[2 * (i * p + j)] * c[2 * j] - phi[2 * (i * p + j) + 1] * c[2 * j + 1]
+                    im = phi[2 * (i * p + j)] * c[2 * j + 1] + phi[2 * (i * p + j) + 1] * c[2 * j]
+                    for l in range(nmu):
+                        zr = phi[2 * (i * p + m + l)]
+                        zi = phi[2 * (i * p + m + l) + 1]
+                        re = re + (zr * g[l, 2 * j] - zi * g[l, 2 * j + 1])
+                        im = im + (zr * g[l, 2 * j + 1] + zi * g[l, 2 * j])
+                    PZ[i, 2 * j] = re
+                    PZ[i, 2 * j + 1] = im
+        # the load's work: Re sum_i e^{mu_i t0} sum_j E[i, j] PZ[i, j]
+        work = 0.0
+        for i in range(nmu):
+            nsfem_cexp(nu[2 * (m + i)] * t0, nu[2 * (m + i) + 1] * t0, &er, &ei)
+            for j in range(m):
+                zr = er * E[i, 2 * j] - ei * E[i, 2 * j + 1]
+                zi = er * E[i, 2 * j + 1] + ei * E[i, 2 * j]
+                work = work + (zr * PZ[i, 2 * j] - zi * PZ[i, 2 * j + 1])
+    free(en)
+    free(phi)
+    free(zp)
+    return work
+
+
+cpdef double end_energy(const double[:, ::1] H, const double[:, ::1] X) noexcept:
+    """EventDriven._end_energy's max_t |X_t^T H X_t| over the rows X_t of X (the states (q, q') at t0 and
+    t1; H = diag(K, M) / 2): (X_t H) X_t, the row X_t H formed along H's contiguous rows."""
+    cdef Py_ssize_t nt = X.shape[0], n = X.shape[1], t, i, j
+    cdef double acc, x, best = 0.0
+    cdef bint nan = False
+    if n == 0:
+        return 0.0
+    cdef double* row = <double*> malloc(n * sizeof(double))
+    cdef const double* h
+    with nogil:
+        for t in range(nt):
+            for i in range(n):
+                row[i] = 0.0
+            for j in range(n):
+                x = X[t, j]
+                h = &H[j, 0]
+                for i in range(n):
+                    row[i] = row[i] + x * h[i]
+            acc = 0.0
+            for i in range(n):
+                acc = acc + row[i] * X[t, i]
+            if fabs(acc) > best:
+                best = fabs(acc)
+            nan = nan or acc != acc
+    free(row)
+    return NAN if nan else best
+
+
+# -- the phase's state at one time ----------------------------------------------------------------
+
+cpdef void xi_at(const double[:, ::1] U, const double[::1] nu, double tau, double w, double t,
+                 double[::1] out) noexcept:
+    """Phase._xi_at: out[:d] = Re(U e^{nu tau}) (U: d x p complex, interleaved), each row one sum over the
+    terms in order, four rows at a time (independent sums, the same order in each); then the harmonic
+    components 1 (and cos w t, sin w t when w != 0)."""
+    cdef Py_ssize_t d = U.shape[0], p = nu.shape[0] // 2, i, j, r
+    cdef double er, ei
+    cdef double a0, a1, a2, a3
+    cdef const double* u
+    cdef Py_ssize_t ld = 2 * p
+    out[d] = 1.0
+    if w != 0.0:
+        out[d + 1] = cos(w * t)
+        out[d + 2] = sin(w * t)
+    if d == 0:
+        return
+    cdef double* e = <double*> malloc((2 * p + 1) * sizeof(double))
+    u = &U[0, 0]
+    with nogil:
+        for j in range(p):
+            nsfem_cexp(nu[2 * j] * tau, nu[2 * j + 1] * tau, &e[2 * j], &e[2 * j + 1])
+        i = 0
+        while i + 4 <= d:
+            a0 = 0.0
+            a1 = 0.0
+            a2 = 0.0
+            a3 = 0.0
+            for j in range(p):
+                er = e[2 * j]
+                ei = e[2 * j + 1]
+                a0 = a0 + (u[i * ld + 2 * j] * er - u[i * ld + 2 * j + 1] * ei)
+                a1 = a1 + (u[(i + 1) * ld + 2 * j] * er - u[(i + 1) * ld + 2 * j + 1] * ei)
+                a2 = a2 + (u[(i + 2) * ld + 2 * j] * er - u[(i + 2) * ld + 2 * j + 1] * ei)
+                a3 = a3 + (u[(i + 3) * ld + 2 * j] * er - u[(i + 3) * ld + 2 * j + 1] * ei)
+            out[i] = a0
+            out[i + 1] = a1
+            out[i + 2] = a2
+            out[i + 3] = a3
+            i = i + 4
+        for r in range(i, d):
+            a0 = 0.0
+            for j in range(p):
+                a0 = a0 + (u[r * ld + 2 * j] * e[2 * j] - u[r * ld + 2 * j + 1] * e[2 * j + 1])
+            out[r] = a0
+    free(e)
