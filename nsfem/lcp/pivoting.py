@@ -200,19 +200,17 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     caller has them (an LCP matrix solved many times with new right-hand sides); used when
     ``scale`` is true. The result is returned, never raised: check ``result.success`` or call
     ``result.check()``.
+
+    Runs on the compiled kernels (:mod:`nsfem.lcp.compiled`) when the event core's part "lcp" is
+    built and active (:func:`nsfem.integrate.core.compiled`); this function is their reference.
     """
-    A = np.asarray(A, dtype=float)
-    b = np.asarray(b, dtype=float).ravel()
+    lib = _kernels()
+    if lib is not None:
+        return compiled.lemke(lib, A, b, d=d, max_pivots=max_pivots, scale=scale, refactor=refactor,
+                              pivot_tol=pivot_tol, groups=groups, scales=scales)
+    A, b, d = _validated(A, b, d, lambda A, b: bool(np.isfinite(A).all()) and all(map(math.isfinite, b.tolist())))
     n = b.size
-    if A.shape != (n, n):
-        raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
     bl = b.tolist()
-    if not (np.isfinite(A).all() and all(map(math.isfinite, bl))):
-        raise NsfemError("lemke: A and b must be finite (found nan or inf)")
-    if d is not None:
-        d = np.array(d, dtype=float).ravel()
-        if d.shape != (n,) or not np.all(d > 0) or not np.all(np.isfinite(d)):
-            raise NsfemError("lemke: the covering vector d must be finite and strictly positive, one entry per row")
     max_pivots = 50 * n + 1000 if max_pivots is None else int(max_pivots)
     refactor = max(50, n // 4) if refactor is None else int(refactor)
 
@@ -245,16 +243,6 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     eq = (As, bs, r_s, c_s)
 
     z0 = 2 * n  # variables: w_0..w_{n-1}, x_0..x_{n-1}, z0
-
-    def column(v: int) -> np.ndarray:
-        if v < n:
-            e = np.zeros(n)
-            e[v] = 1.0
-            return e
-        if v < 2 * n:
-            return -As[:, v - n]
-        return -dv
-
     basis = list(range(n))
     Binv = np.eye(n, order="F")  # Fortran order: BLAS dger updates it in place
     xB = bs.copy()
@@ -272,45 +260,16 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     since_refactor = 0
     while True:
         # z0 enters only first, against B = I: its column -B^-1 d is -d exactly
-        c = Binv @ column(entering) if entering != z0 else -dv
+        c = Binv @ _column(As, dv, entering) if entering != z0 else -dv
         if pivots > 0:
             tol, pos, theta, ties = _ratio_test(c, xB, pivot_tol)
             if not pos:
-                # a secondary ray; its start may still solve the LCP when z0 is ~0 in round-off.
-                # The variable that just left (the complement of the entering one) may then have
-                # tied with z0 in exact arithmetic: the complementary basis with it in place of z0
-                # is tried as well (measured: a stiff friction LCP whose x_7 left at 3.5e-12
-                # instead of z0 certifies to 1e-16 that way, to 8e-8 without it)
-                zrow = basis.index(z0)
-                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, eq, groups)
-                if entering < n:
-                    tied = basis.copy()
-                    tied[zrow] = entering + n
-                    x = _polish(A, b, x, tied, n, eq, groups)
-                w, cert = _certify(A, b, x, (r_s, c_s), groups)
-                z0_gone = float(xB[zrow]) <= 1e-14 * max(float(np.max(np.abs(bs))), 1e-300)
-                if cert["relative"] <= ACCEPT:
-                    return LCPResult(x, w, "solved", pivots, cert["relative"],
-                                     f"solved in {pivots} pivots (z0 vanished to round-off)", cert)
-                if z0_gone and cert["relative"] <= INACCURATE:
-                    return LCPResult(x, w, "inaccurate", pivots, cert["relative"],
-                                     f"Lemke ended on a ray where z0 vanished to round-off after {pivots} pivots, "
-                                     f"but the point certifies only to {cert['relative']:.1e}: A is too "
-                                     "ill-conditioned for this LCP", cert)
-                return LCPResult(x, w, "ray", pivots, cert["relative"],
-                                 _ray_message(pivots, xB[zrow:zrow + 1], _psd_hint(A)), cert)
+                return _ray_end(A, b, basis, xB, entering, pivots, eq, groups)
             zrow = basis.index(z0)
             if c[zrow] > tol and xB[zrow] / c[zrow] <= theta * (1.0 + NEAR_TIE):
-                # z0 ties for leaving (possibly only up to round-off in the data): try the
-                # complementary basis it leaves behind, accept it if it solves the LCP
-                trial = basis.copy()
-                trial[zrow] = entering
-                x = _polish(A, b, None, trial, n, eq, groups)
-                if x is not None:
-                    w, cert = _certify(A, b, x, (r_s, c_s), groups)
-                    if cert["relative"] <= ACCEPT:
-                        return LCPResult(x, w, "solved", pivots + 1, cert["relative"],
-                                         f"solved in {pivots + 1} pivots", cert)
+                tied = _z0_tie(A, b, basis, entering, pivots, eq, groups)
+                if tied is not None:
+                    return tied
             if len(ties) == 1:
                 r = ties[0]
             else:
@@ -336,26 +295,118 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
             return result(x, "max_pivots", pivots,
                           f"Lemke stopped after the limit of {max_pivots} pivots without a solution")
         if since_refactor >= refactor:
-            B = np.column_stack([column(v) for v in basis])
-            try:
-                lu = sla.lu_factor(B, check_finite=False)
-                Binv = np.asfortranarray(sla.lu_solve(lu, np.eye(n), check_finite=False))
-                xB = np.maximum(sla.lu_solve(lu, bs, check_finite=False), 0.0)
-            except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - keep the updated inverse
-                pass
+            fresh = _refactored(As, bs, dv, basis)
+            if fresh is not None:
+                Binv, xB = fresh
             since_refactor = 0
         entering = leaving + n if leaving < n else leaving - n
 
     x = _basic_x(basis, xB, n) * c_s
     x, cert = _polish_certified(A, b, x, basis, n, eq, groups)
-    res = result(x, "solved", pivots, f"solved in {pivots} pivots", cert)
-    # a complementary basis is a solution only when its point certifies (componentwise backward
-    # error ACCEPT); on bases of condition ~1e13 the refined solve can leave rows violated by
-    # 1e-7..1e-1 of their terms (measured: stiff friction LCPs, tests/test_lemke.py): not 'solved'
+    return _complementary(result(x, "solved", pivots, f"solved in {pivots} pivots", cert))
+
+
+def _kernels():
+    """The compiled module of the event core's part "lcp", or None (the reference runs)."""
+    from ..integrate import core   # here: nsfem.integrate imports this module through the builders
+
+    return core.compiled("lcp")
+
+
+def _validated(A, b, d, all_finite) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(A, b, d) of :func:`lemke` as float arrays (A C-contiguous), or NsfemError naming what is wrong;
+    ``all_finite(A, b)`` tells whether every entry is finite."""
+    A = np.asarray(A, dtype=float)
+    b = np.asarray(b, dtype=float).ravel()
+    n = b.size
+    if A.shape != (n, n):
+        raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
+    A = np.ascontiguousarray(A)
+    if not all_finite(A, b):
+        raise NsfemError("lemke: A and b must be finite (found nan or inf)")
+    if d is not None:
+        d = np.array(d, dtype=float).ravel()
+        if d.shape != (n,) or not np.all(d > 0) or not np.all(np.isfinite(d)):
+            raise NsfemError("lemke: the covering vector d must be finite and strictly positive, one entry per row")
+    return A, b, d
+
+
+def _column(As: np.ndarray, dv: np.ndarray, v: int) -> np.ndarray:
+    """The column of variable v in [I, -As, -d] (w_0..w_{n-1}, x_0..x_{n-1}, z0)."""
+    n = dv.size
+    if v < n:
+        e = np.zeros(n)
+        e[v] = 1.0
+        return e
+    if v < 2 * n:
+        return -As[:, v - n]
+    return -dv
+
+
+def _refactored(As: np.ndarray, bs: np.ndarray, dv: np.ndarray, basis) -> tuple[np.ndarray, np.ndarray] | None:
+    """(B^-1, x_B) of the basis recomputed by LU, or None where the factorization fails (keep the updates)."""
+    B = np.column_stack([_column(As, dv, v) for v in basis])
+    try:
+        lu = sla.lu_factor(B, check_finite=False)
+        Binv = np.asfortranarray(sla.lu_solve(lu, np.eye(dv.size), check_finite=False))
+        return Binv, np.maximum(sla.lu_solve(lu, bs, check_finite=False), 0.0)
+    except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - keep the updated inverse
+        return None
+
+
+def _ray_end(A, b, basis: list, xB: np.ndarray, entering: int, pivots: int, eq: tuple, groups) -> LCPResult:
+    """The result where the entering column has no positive entry (a secondary ray).
+
+    Its start may still solve the LCP when z0 is ~0 in round-off. The variable that just left (the
+    complement of the entering one) may then have tied with z0 in exact arithmetic: the complementary
+    basis with it in place of z0 is tried as well (measured: a stiff friction LCP whose x_7 left at
+    3.5e-12 instead of z0 certifies to 1e-16 that way, to 8e-8 without it)."""
+    As, bs, r_s, c_s = eq
+    n = bs.size
+    zrow = basis.index(2 * n)
+    x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, eq, groups)
+    if entering < n:
+        tied = list(basis)
+        tied[zrow] = entering + n
+        x = _polish(A, b, x, tied, n, eq, groups)
+    w, cert = _certify(A, b, x, (r_s, c_s), groups)
+    z0_gone = float(xB[zrow]) <= 1e-14 * max(float(np.max(np.abs(bs))), 1e-300)
+    if cert["relative"] <= ACCEPT:
+        return LCPResult(x, w, "solved", pivots, cert["relative"],
+                         f"solved in {pivots} pivots (z0 vanished to round-off)", cert)
+    if z0_gone and cert["relative"] <= INACCURATE:
+        return LCPResult(x, w, "inaccurate", pivots, cert["relative"],
+                         f"Lemke ended on a ray where z0 vanished to round-off after {pivots} pivots, "
+                         f"but the point certifies only to {cert['relative']:.1e}: A is too "
+                         "ill-conditioned for this LCP", cert)
+    return LCPResult(x, w, "ray", pivots, cert["relative"],
+                     _ray_message(pivots, xB[zrow:zrow + 1], _psd_hint(A)), cert)
+
+
+def _z0_tie(A, b, basis: list, entering: int, pivots: int, eq: tuple, groups) -> LCPResult | None:
+    """z0 ties for leaving (possibly only up to round-off in the data): the complementary basis it
+    leaves behind, solved, when its point certifies (else None: the pivoting goes on)."""
+    n = eq[1].size
+    trial = list(basis)
+    trial[trial.index(2 * n)] = entering
+    x = _polish(A, b, None, trial, n, eq, groups)
+    if x is not None:
+        w, cert = _certify(A, b, x, eq[2:], groups)
+        if cert["relative"] <= ACCEPT:
+            return LCPResult(x, w, "solved", pivots + 1, cert["relative"], f"solved in {pivots + 1} pivots", cert)
+    return None
+
+
+def _complementary(res: LCPResult) -> LCPResult:
+    """The result of a complementary basis: ``solved`` only when its point certifies.
+
+    A complementary basis is a solution only when its point certifies (componentwise backward error
+    ACCEPT); on bases of condition ~1e13 the refined solve can leave rows violated by 1e-7..1e-1 of
+    their terms (measured: stiff friction LCPs, tests/test_lemke.py): not 'solved'."""
     if res.residual > ACCEPT:
-        return LCPResult(res.x, res.w, "inaccurate", pivots, res.residual,
-                         f"Lemke reached a complementary basis after {pivots} pivots but the solution is inaccurate "
-                         f"(relative residual {res.residual:.1e}): A is too ill-conditioned for this LCP",
+        return LCPResult(res.x, res.w, "inaccurate", res.pivots, res.residual,
+                         f"Lemke reached a complementary basis after {res.pivots} pivots but the solution is "
+                         f"inaccurate (relative residual {res.residual:.1e}): A is too ill-conditioned for this LCP",
                          res.certificate)
     return res
 
@@ -576,3 +627,6 @@ def _ray_message(pivots: int, z0_value, eig: float | None) -> str:
         return head + ": A is positive semi-definite, so this proves the LCP has no solution"
     return (head + ": no solution exists if A is copositive-plus; A is not positive semi-definite here, "
             "so a solution may exist that Lemke's method cannot reach")
+
+
+from . import compiled  # noqa: E402  (the compiled path drives this module's helpers)
