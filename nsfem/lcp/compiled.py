@@ -15,10 +15,12 @@ import math
 
 import numpy as np
 
-from .pivoting import (LCPResult, _basic_x, _complementary, _finite, _polish_certified, _ray_end, _refactored,
+from .pivoting import (ACCEPT, LCPResult, _basic_x, _complementary, _finite, _polish_certified, _ray_end, _refactored,
                        _validated, _z0_tie)
 
 _TRIVIAL = "trivial solution x = 0 (b >= 0)"
+#: the certificate's keys, in the order of the kernel's numbers
+_CERTIFICATE = ("x_min", "w_min", "complementarity", "relative")
 
 
 def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivot_tol=1e-11, groups=None,
@@ -49,9 +51,14 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
                                      _TRIVIAL if pivots == 0 else "solved in 2 pivots", cert))
 
     gid = _group_ids(groups, n)
+
+    def result(x, status, pivots, message):
+        w = A @ x + b   # numpy's product, as the reference's result (its certificate is the kernel's)
+        cert = dict(zip(_CERTIFICATE, lib.certificate(A, b, x, w, r_s, c_s, gid)))
+        return _finite(LCPResult(x, w, status, pivots, cert["relative"], message, cert))
+
     if min(b.tolist(), default=0.0) >= 0:
-        x, w = np.zeros(n), np.empty(n)
-        return _finite(_result(x, w, lib.certificate(A, b, x, r_s, c_s, gid, w), "solved", 0, _TRIVIAL))
+        return result(np.zeros(n), "solved", 0, _TRIVIAL)
 
     As, bs = np.empty((n, n)), np.empty(n)
     lib.scale(A, b, r_s, c_s, As, bs)
@@ -70,31 +77,27 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
                 Binv[:], xB[:] = fresh
             state[2] = 0
         elif code == lib.MAX_PIVOTS:
-            x, w = _basic_x(basis.tolist(), xB, n) * c_s, np.empty(n)
-            return _finite(_result(x, w, lib.certificate(A, b, x, r_s, c_s, gid, w), "max_pivots", pivots,
-                                   f"Lemke stopped after the limit of {max_pivots} pivots without a solution"))
+            return result(_basic_x(basis.tolist(), xB, n) * c_s, "max_pivots", pivots,
+                          f"Lemke stopped after the limit of {max_pivots} pivots without a solution")
         elif code == lib.RAY:
             return _ray_end(A, b, basis.tolist(), xB, entering, pivots, eq, groups)
-        else:   # Z0_TIE: z0 may leave; else the pivoting goes on past the test
-            tied = _z0_tie(A, b, basis.tolist(), entering, pivots, eq, groups)
-            if tied is not None:
-                return tied
+        else:   # Z0_TIE: the basis z0 leaves behind, when it certifies; else the pivoting goes on past the test
+            x = np.empty(n)
+            code = lib.polished(A, b, As, bs, r_s, c_s, basis, None, entering, gid, x)
+            if code == lib.NEEDS_SVD:
+                tied = _z0_tie(A, b, basis.tolist(), entering, pivots, eq, groups)
+                if tied is not None:
+                    return tied
+            elif code == lib.FINISHED:
+                res = result(x, "solved", pivots + 1, f"solved in {pivots + 1} pivots")
+                if res.residual <= ACCEPT:
+                    return res
             state[3] = 1
 
-    x, w = np.empty(n), np.empty(n)
-    code, *cert = lib.finish(A, b, As, bs, r_s, c_s, basis, xB, gid, x, w)
-    if code == lib.NEEDS_SVD:   # the reference's polish (its SVD path) and certificate
-        x, c = _polish_certified(A, b, _basic_x(basis.tolist(), xB, n) * c_s, basis.tolist(), n, eq, groups)
-        w = A @ x + b
-        cert = lib.certificate(A, b, x, r_s, c_s, gid, w) if c is None else c
-    return _complementary(_finite(_result(x, w, cert, "solved", pivots, f"solved in {pivots} pivots")))
-
-
-def _result(x: np.ndarray, w: np.ndarray, cert, status: str, pivots: int, message: str) -> LCPResult:
-    """The :class:`LCPResult` of x with w = A x + b and its certificate (a dict, or the kernel's 4 numbers)."""
-    if not isinstance(cert, dict):
-        cert = dict(zip(("x_min", "w_min", "complementarity", "relative"), cert))
-    return LCPResult(x, w, status, pivots, cert["relative"], message, cert)
+    x = np.empty(n)
+    if lib.polished(A, b, As, bs, r_s, c_s, basis, xB, -1, gid, x) == lib.NEEDS_SVD:   # the reference's polish
+        x = _polish_certified(A, b, _basic_x(basis.tolist(), xB, n) * c_s, basis.tolist(), n, eq, groups)[0]
+    return _complementary(result(x, "solved", pivots, f"solved in {pivots} pivots"))
 
 
 def _group_ids(groups, n: int) -> np.ndarray:

@@ -29,10 +29,10 @@ cdef enum:
     C_Z0_TIE = 2        # z0 ties for leaving: the caller tries the complementary basis it leaves behind
     C_MAX_PIVOTS = 3    # the pivot limit
     C_REFACTOR = 4      # the basis inverse is due to be recomputed (the caller does it, as the reference)
-    C_FINISHED = 0      # (finish) polished or kept, and certified
-    C_NEEDS_SVD = 1     # (finish) the basis matrix is singular to working precision: the reference's SVD path
+    C_FINISHED = 0      # (polished) a point, polished or kept
+    C_NEEDS_SVD = 1     # (polished) the basis matrix is singular to working precision: the reference's SVD path
 
-#: what :func:`pivot` stopped on, and what :func:`finish` did (the codes above)
+#: what :func:`pivot` stopped on, and what :func:`polished` did (the codes above)
 DONE, RAY, Z0_TIE, MAX_PIVOTS, REFACTOR = C_DONE, C_RAY, C_Z0_TIE, C_MAX_PIVOTS, C_REFACTOR
 FINISHED, NEEDS_SVD = C_FINISHED, C_NEEDS_SVD
 
@@ -221,10 +221,10 @@ cdef void certify(const double* A, const double* b, const double* x, const doubl
     out[0], out[1], out[2], out[3] = xmin, wmin, comp, rel
 
 
-def certificate(const double[:, ::1] A, const double[::1] b, const double[::1] x, const double[::1] r,
-                const double[::1] c, const i64[::1] gid, double[::1] w):
-    """pivoting._certify: w = A x + b written to w, and the certificate's (x_min, w_min, complementarity,
-    relative); ``gid`` holds one integer label per row, or is empty (row by row)."""
+def certificate(const double[:, ::1] A, const double[::1] b, const double[::1] x, const double[::1] w,
+                const double[::1] r, const double[::1] c, const i64[::1] gid):
+    """pivoting._certificate of x with w = A x + b given: (x_min, w_min, complementarity, relative);
+    ``gid`` holds one integer label per row, or is empty (row by row)."""
     cdef Py_ssize_t n = b.shape[0]
     cdef double out[4]
     cdef double* sw
@@ -233,7 +233,6 @@ def certificate(const double[:, ::1] A, const double[::1] b, const double[::1] x
     sw = <double*> malloc(n * sizeof(double))
     if sw == NULL:
         raise MemoryError()
-    residual(&A[0, 0], &b[0], &x[0], &w[0], n)
     certify(&A[0, 0], &b[0], &x[0], &w[0], &r[0], &c[0], &gid[0] if gid.shape[0] else NULL, n, sw, out)
     free(sw)
     return out[0], out[1], out[2], out[3]
@@ -294,10 +293,11 @@ cdef void lu_solve(const double* LU, const Py_ssize_t* piv, Py_ssize_t m, double
         v[i] = t / LU[i * m + i]
 
 
-cdef int refined_solve(const double* B, const double* rhs, double* x, Py_ssize_t m, double* work,
+cdef int refined_solve(const double* B, const double* rhs, double* x, bint start, Py_ssize_t m, double* work,
                        Py_ssize_t* piv) noexcept nogil:
-    """pivoting._refined_solve from the start x (in place): C_FINISHED, C_NEEDS_SVD (B singular to working
-    precision) or -1 (x not finite: no solution). ``work``: 2 m^2 + 2 m doubles."""
+    """pivoting._refined_solve, in place from the start x when ``start``, else from the LU solve: C_FINISHED,
+    C_NEEDS_SVD (B singular to working precision) or -1 (x not finite: no solution). ``work``: 2 m^2 + 2 m
+    doubles."""
     cdef double* LU = work
     cdef double* r = work + m * m
     cdef double* dx = r + m
@@ -308,6 +308,10 @@ cdef int refined_solve(const double* B, const double* rhs, double* x, Py_ssize_t
         LU[i] = B[i]
     if not lu(LU, m, piv):
         return C_NEEDS_SVD
+    if not start:
+        for i in range(m):
+            x[i] = rhs[i]
+        lu_solve(LU, piv, m, x)
     for i in range(m):
         if not isfinite(x[i]):
             return -1
@@ -343,25 +347,19 @@ cdef int refined_solve(const double* B, const double* rhs, double* x, Py_ssize_t
     return C_FINISHED
 
 
-def finish(const double[:, ::1] A, const double[::1] b, const double[:, ::1] As, const double[::1] bs,
-           const double[::1] r, const double[::1] c, const i64[::1] basis, const double[::1] xB,
-           const i64[::1] gid, double[::1] x, double[::1] w):
-    """pivoting._polish_certified of a complementary basis and its certificate: the kept point in x,
-    A x + b in w; returns (C_FINISHED, x_min, w_min, complementarity, relative), or (C_NEEDS_SVD, ...) where
-    the basis matrix is singular to working precision (the caller then runs the reference's polish)."""
-    cdef Py_ssize_t n = b.shape[0], m = 0, i, j, v
-    cdef double cx[4]
+cdef int polish(const double* A, const double* b, const double* As, const double* bs, const double* r,
+                const double* c, const i64* basis, const double* xB, const i64* gid, Py_ssize_t n, double* x,
+                double* w, double* cert, double* mem, Py_ssize_t* S) noexcept nogil:
+    """pivoting._polish_certified of the complementary ``basis``: A_SS x_S = -b_S solved (equilibrated) and
+    refined, from the pivoting's x_B when given (then the better certified of the two points is kept), else
+    from the LU solve; the point in x, A x + b in w, its certificate in cert. Returns C_FINISHED, C_NEEDS_SVD
+    (the reference's SVD path decides) or -1 (no finite point from the solve alone: the reference's None).
+    ``mem``: 2 n^2 + 8 n doubles, ``S``: 2 n."""
+    cdef Py_ssize_t m = 0, i, j, v
     cdef double cy[4]
     cdef int code = C_FINISHED
     cdef bint finite = True
-    cdef const i64* g = &gid[0] if gid.shape[0] else NULL
-    cdef double* mem = <double*> malloc((2 * n * n + 8 * n + 1) * sizeof(double))
-    cdef Py_ssize_t* S = <Py_ssize_t*> malloc((2 * n + 1) * sizeof(Py_ssize_t))
-    if mem == NULL or S == NULL:
-        free(mem)
-        free(S)
-        raise MemoryError()
-    cdef double* B = mem                      # A_SS, equilibrated (m^2)
+    cdef double* B = mem                      # A_SS, equilibrated
     cdef double* rhs = B + n * n              # -bs_S
     cdef double* xs = rhs + n                 # x_S / c_S, refined
     cdef double* y = xs + n                   # the polished point
@@ -369,51 +367,95 @@ def finish(const double[:, ::1] A, const double[::1] b, const double[:, ::1] As,
     cdef double* sw = wy + n
     cdef double* work = sw + n                # 2 m^2 + 2 m
     cdef Py_ssize_t* piv = S + n
-    with nogil:
-        for i in range(n):
-            x[i] = 0.0
-            y[i] = 0.0
-            S[i] = 0
-        for i in range(n):
-            v = basis[i]
-            if n <= v < 2 * n:
+    for i in range(n):
+        x[i] = 0.0
+        y[i] = 0.0
+        S[i] = 0
+    for i in range(n):
+        v = basis[i]
+        if n <= v < 2 * n:
+            if xB != NULL:
                 x[v - n] = xB[i]
-                S[v - n] = 1
-        for j in range(n):
-            x[j] = x[j] * c[j]
-            if S[j]:
-                S[m] = j      # ascending: sorted(...)
-                m += 1
-        if m:
-            for i in range(m):
-                for j in range(m):
-                    B[i * m + j] = As[S[i], S[j]]
-                rhs[i] = -bs[S[i]]
-                xs[i] = x[S[i]] / c[S[i]]
-            code = refined_solve(B, rhs, xs, m, work, piv)
-            if code == C_FINISHED:
-                for i in range(m):
-                    y[S[i]] = c[S[i]] * xs[i]
+            S[v - n] = 1
+    for j in range(n):
+        x[j] = x[j] * c[j]
+        if S[j]:
+            S[m] = j      # ascending: sorted(...)
+            m += 1
+    if m:
+        for i in range(m):
+            for j in range(m):
+                B[i * m + j] = As[S[i] * n + S[j]]
+            rhs[i] = -bs[S[i]]
+            xs[i] = x[S[i]] / c[S[i]]
+        code = refined_solve(B, rhs, xs, xB != NULL, m, work, piv)
         if code == C_FINISHED:
+            for i in range(m):
+                y[S[i]] = c[S[i]] * xs[i]
+    if code == C_FINISHED:
+        for i in range(n):
+            if not isfinite(y[i]):
+                finite = False
+    if xB == NULL and (code != C_FINISHED or not finite):
+        return code if code == C_NEEDS_SVD else -1
+    if xB != NULL:
+        residual(A, b, x, w, n)
+        certify(A, b, x, w, r, c, gid, n, sw, cert)
+        if code == C_NEEDS_SVD:
+            return code
+    if code == C_FINISHED and finite:
+        for i in range(n):
+            y[i] = y[i] if y[i] > 0.0 else 0.0
+        residual(A, b, y, wy, n)
+        certify(A, b, y, wy, r, c, gid, n, sw, cy)
+        if xB == NULL or cy[3] <= cert[3]:
             for i in range(n):
-                if not isfinite(y[i]):
-                    finite = False
-        residual(&A[0, 0], &b[0], &x[0], &w[0], n)
-        certify(&A[0, 0], &b[0], &x[0], &w[0], &r[0], &c[0], g, n, sw, cx)
-        if code == C_FINISHED and finite:
-            for i in range(n):
-                y[i] = y[i] if y[i] > 0.0 else 0.0
-            residual(&A[0, 0], &b[0], y, wy, n)
-            certify(&A[0, 0], &b[0], y, wy, &r[0], &c[0], g, n, sw, cy)
-            if cy[3] <= cx[3]:
-                for i in range(n):
-                    x[i] = y[i]
-                    w[i] = wy[i]
-                for i in range(4):
-                    cx[i] = cy[i]
+                x[i] = y[i]
+                w[i] = wy[i]
+            for i in range(4):
+                cert[i] = cy[i]
+    return C_FINISHED
+
+
+def polished(const double[:, ::1] A, const double[::1] b, const double[:, ::1] As, const double[::1] bs,
+             const double[::1] r, const double[::1] c, i64[::1] basis, xB, i64 entering,
+             const i64[::1] gid, double[::1] x):
+    """The point of a complementary basis written to x (see :func:`polish`): the basis at the end of the
+    pivoting (``xB`` its values, the point kept then the better certified of x_B and its polish), or, with
+    ``xB`` None, the basis with ``entering`` in place of z0 (pivoting._z0_tie's trial, solved afresh).
+    Returns FINISHED, NEEDS_SVD (the reference's polish decides) or -1 (the trial has no finite point)."""
+    cdef Py_ssize_t n = b.shape[0], i, zrow = 0
+    cdef double cert[4]
+    cdef double* w = <double*> malloc((n + 1) * sizeof(double))
+    cdef const double[::1] xv
+    cdef int code
+    cdef const i64* g = &gid[0] if gid.shape[0] else NULL
+    cdef const double* xp = NULL
+    cdef i64 saved = 0
+    cdef double* mem = <double*> malloc((2 * n * n + 8 * n + 1) * sizeof(double))
+    cdef Py_ssize_t* S = <Py_ssize_t*> malloc((2 * n + 1) * sizeof(Py_ssize_t))
+    if mem == NULL or S == NULL or w == NULL:
+        free(mem)
+        free(S)
+        free(w)
+        raise MemoryError()
+    if xB is not None:
+        xv = xB
+        xp = &xv[0]
+    else:
+        while basis[zrow] != 2 * n:
+            zrow += 1
+        saved = basis[zrow]
+        basis[zrow] = entering
+    with nogil:
+        code = polish(&A[0, 0], &b[0], &As[0, 0], &bs[0], &r[0], &c[0], &basis[0], xp, g, n, &x[0], w, cert,
+                      mem, S)
+    if xB is None:
+        basis[zrow] = saved
     free(mem)
     free(S)
-    return (C_NEEDS_SVD if code == C_NEEDS_SVD else C_FINISHED), cx[0], cx[1], cx[2], cx[3]
+    free(w)
+    return code
 
 
 # ----------------------------------------------------------------------------------------------------------
