@@ -1,12 +1,13 @@
 """The compiled Lemke (event core part "lcp", issue 33) against its Python reference, side by side.
 
-In one process, both paths (the reference through ``core.reference()``), best of ``--repeat``:
+In one process, both paths (the reference through ``core.reference()``), best of ``--repeat``, alternating:
 
 - ``kernel``: :func:`nsfem.lcp.lemke` alone on the LCPs an exact run of the stop scene solves
   (recorded with their keywords: cached scalings, groups), and on random frictional contact LCPs of
   1 to 4 contacts (r = 4 generators: 6 unknowns per contact);
 - ``end_to_end``: ``run_scene(scene, "exact")`` on the stop scene (the shipped shaft over a stop 0.2 mm
-  under midspan, restitution 0.5, 0.05 s) and on the shipped scene over 1 s, in ms per event;
+  under midspan, restitution 0.5, 0.05 s), on the same with friction on the stop (mu 0.3, 0.03 s) and on
+  the shipped scene over 1 s, in ms per event;
 - ``profile``: the compiled run of the stop scene under cProfile, per-event time by function (the
   functions that take the most of it, own time).
 
@@ -30,22 +31,23 @@ from nsfem.lcp import lemke
 from nsfem.simulate import run_scene
 
 STOP = ['obstacle=[{x=0.5, normal="-z", clearance=2e-4, restitution=0.5}]', "simulation.t_end=0.05"]
-
-
-def best_of(fn, repeat: int) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+#: the stop with friction (mu 0.3, 4 generators): frictional impact LCPs of 6 unknowns at most events
+STOP_FRICTION = ['obstacle=[{x=0.5, normal="-z", clearance=2e-4, restitution=0.5, friction=0.3}]',
+                 "simulation.t_end=0.03"]
 
 
 def both(fn, repeat: int) -> dict:
-    """Seconds of fn on the compiled path and on the reference, and their ratio."""
-    fast = best_of(fn, repeat)
-    with core.reference():
-        ref = best_of(fn, repeat)
+    """Seconds of fn on the compiled path and on the reference (best of ``repeat``, the two alternating, so
+    that a change of the machine's load hits both), and their ratio."""
+    fast = ref = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        fast = min(fast, time.perf_counter() - t0)
+        with core.reference():
+            t0 = time.perf_counter()
+            fn()
+            ref = min(ref, time.perf_counter() - t0)
     return {"compiled_s": fast, "reference_s": ref, "speedup": ref / fast}
 
 
@@ -117,7 +119,8 @@ def main(argv=None) -> dict:
         out["kernel"][f"friction_{m}_contacts"] = {"unknowns": 6 * m, **row,
                                                    "compiled_us_per_lcp": 1e6 * row["compiled_s"] / len(batch),
                                                    "reference_us_per_lcp": 1e6 * row["reference_s"] / len(batch)}
-    for name, scene in (("stop", stop), ("shipped_1s", load_scene("default", ["simulation.t_end=1"]))):
+    for name, scene in (("stop", stop), ("stop_friction", load_scene("default", STOP_FRICTION)),
+                        ("shipped_1s", load_scene("default", ["simulation.t_end=1"]))):
         events = len(run_scene(scene, "exact")[0].events)
         row = both(lambda: run_scene(scene, "exact"), args.repeat)
         out["end_to_end"][name] = {"events": events, **row, "compiled_ms_per_event": 1e3 * row["compiled_s"] / events,
