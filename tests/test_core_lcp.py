@@ -354,7 +354,11 @@ def test_inputs_of_any_layout_and_errors_alike():
     assert lemke(frozen, b, scales=scales).x.tobytes() == ref.x.tobytes()   # cached, read-only parts
     for bad_A, bad_b, kw in ((np.eye(2), np.ones(3), {}), (np.array([[1.0, np.nan], [0.0, 1.0]]), -np.ones(2), {}),
                              (np.eye(2), np.array([-1.0, np.inf]), {}), (np.eye(2), -np.ones(2), {"d": [1.0, 0.0]}),
-                             (np.eye(2)[None], -np.ones(2), {})):
+                             (np.eye(2)[None], -np.ones(2), {}),
+                             # labels and scalings of another size (the kernels would read past them)
+                             (np.eye(2), -np.ones(2), {"groups": [0, 1, 1]}), (np.eye(2), -np.ones(2), {"groups": [0]}),
+                             (np.eye(2), -np.ones(2), {"scales": (np.ones(3), np.ones(2))}),
+                             (np.eye(2), -np.ones(2), {"scales": (np.ones(2),)})):
         with pytest.raises(NsfemError) as fast:
             lemke(bad_A, bad_b, **kw)
         with core.reference(), pytest.raises(NsfemError) as slow:

@@ -26,7 +26,7 @@ _CERTIFICATE = ("x_min", "w_min", "complementarity", "relative")
 def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivot_tol=1e-11, groups=None,
           scales=None) -> LCPResult:
     """:func:`nsfem.lcp.pivoting.lemke` (same arguments and result) on the kernels ``lib``."""
-    A, b, d = _validated(A, b, d, lib.all_finite)
+    A, b, d = _validated(A, b, d, lib.all_finite, groups, scales)
     n = b.size
     max_pivots = 50 * n + 1000 if max_pivots is None else int(max_pivots)
     refactor = max(50, n // 4) if refactor is None else int(refactor)

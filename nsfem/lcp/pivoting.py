@@ -208,7 +208,8 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     if lib is not None:
         return compiled.lemke(lib, A, b, d=d, max_pivots=max_pivots, scale=scale, refactor=refactor,
                               pivot_tol=pivot_tol, groups=groups, scales=scales)
-    A, b, d = _validated(A, b, d, lambda A, b: bool(np.isfinite(A).all()) and all(map(math.isfinite, b.tolist())))
+    A, b, d = _validated(A, b, d, lambda A, b: bool(np.isfinite(A).all()) and all(map(math.isfinite, b.tolist())),
+                         groups, scales)
     n = b.size
     bl = b.tolist()
     max_pivots = 50 * n + 1000 if max_pivots is None else int(max_pivots)
@@ -313,9 +314,10 @@ def _kernels():
     return core.compiled("lcp")
 
 
-def _validated(A, b, d, all_finite) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """(A, b, d) of :func:`lemke` as float arrays (A C-contiguous), or NsfemError naming what is wrong;
-    ``all_finite(A, b)`` tells whether every entry is finite."""
+def _validated(A, b, d, all_finite, groups=None, scales=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(A, b, d) of :func:`lemke` as float arrays (A C-contiguous), or NsfemError naming what is wrong (also
+    of ``groups`` and ``scales``: one label and one scaling per row); ``all_finite(A, b)`` tells whether
+    every entry is finite."""
     A = np.asarray(A, dtype=float)
     b = np.asarray(b, dtype=float).ravel()
     n = b.size
@@ -328,6 +330,10 @@ def _validated(A, b, d, all_finite) -> tuple[np.ndarray, np.ndarray, np.ndarray 
         d = np.array(d, dtype=float).ravel()
         if d.shape != (n,) or not np.all(d > 0) or not np.all(np.isfinite(d)):
             raise NsfemError("lemke: the covering vector d must be finite and strictly positive, one entry per row")
+    if groups is not None and np.size(groups) != n:
+        raise NsfemError(f"lemke: groups must label each of the {n} rows, got {np.size(groups)} labels")
+    if scales is not None and (len(scales) != 2 or any(np.shape(s) != (n,) for s in scales)):
+        raise NsfemError(f"lemke: scales must be the row and column scalings of equilibrate(A), {n} entries each")
     return A, b, d
 
 
