@@ -171,10 +171,10 @@ def _reference_row(c, xB, Binv, pivot_tol):
 
 def test_one_pivot_leaves_the_reference_row():
     """The kernel's ratio test and tie-breaking against the reference's (_ratio_test, _lexmin) on states made
-    of small integers and halves, some a few ulps off (ties in the ratios and in the rows of B^-1, exact and up
-    to round-off: the lexicographic rule decides), one pivot each: the same leaving row (or the same ray), and the same updated B^-1 and x_B up
-    to the rounding of the update (numpy's rank-one update may fuse its products: 2 eps of the entries'
-    terms, which are <= 16 here: 1e-13 absolute is a margin of 14)."""
+    of small integers and halves, some a few ulps off (ties in the ratios and in the rows of B^-1, exact and
+    up to round-off: the lexicographic rule decides), one pivot each: the same leaving row (or the same ray),
+    and the same updated B^-1 and x_B up to the rounding of the update (numpy's may fuse its products: 2 eps
+    of the entries' terms, which are <= 16 here: 1e-13 absolute is a margin of 14)."""
     rng = np.random.default_rng(12)
     decided, rays = 0, 0
     for _ in range(3000):

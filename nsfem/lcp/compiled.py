@@ -2,11 +2,12 @@
 
 The same algorithm as :func:`nsfem.lcp.pivoting.lemke`, its reference: the same input checks, scalings,
 pivoting rules and tie-breaking, polish and certificate, so the same basis, status and certificate
-verdicts. The kernels run the pivoting loop, the one-unknown path, the polish (LU with partial pivoting and
-the reference's refinement) and the certificate in C; the rare branches (a secondary ray, z0 tying for
-leaving, the refactorization every ``refactor`` pivots, the pivot limit, a basis singular to working
-precision) call the reference's own Python helpers. The loops sum left to right where the reference calls
-BLAS, so values agree to round-off, not bitwise (tests/test_core_lcp.py).
+verdicts. The kernels run the pivoting loop, the one-unknown path, the equilibration, the polish (LU with
+partial pivoting and the reference's refinement) of the basis z0 leaves behind when it ties for leaving
+(how nearly every LCP ends) or of the final one, and the certificate in C; the rare branches (a secondary
+ray, the refactorization every ``refactor`` pivots, the pivot limit, a basis singular to working precision)
+call the reference's own Python helpers. The loops sum left to right where the reference calls BLAS, so
+values agree to round-off, not bitwise (tests/test_core_lcp.py); w is numpy's A x + b, as the reference's.
 """
 
 from __future__ import annotations
