@@ -48,8 +48,9 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
         if one is not None:
             pivots, x, w, x_min, w_min, comp, rel = one
             cert = {"x_min": x_min, "w_min": w_min, "complementarity": comp, "relative": rel}
-            return _finite(LCPResult(np.array([x]), np.array([w]), "solved", pivots, rel,
-                                     _TRIVIAL if pivots == 0 else "solved in 2 pivots", cert))
+            # (x is finite: the kernel declines where c x is not, so _finite has nothing to say)
+            return LCPResult(np.array([x]), np.array([w]), "solved", pivots, rel,
+                             _TRIVIAL if pivots == 0 else "solved in 2 pivots", cert)
 
     gid = _group_ids(groups, n)
 

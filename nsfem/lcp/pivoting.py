@@ -307,11 +307,16 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     return _complementary(result(x, "solved", pivots, f"solved in {pivots} pivots", cert))
 
 
+_core = None   # nsfem.integrate.core, once imported (nsfem.integrate imports this module through the builders)
+
+
 def _kernels():
     """The compiled module of the event core's part "lcp", or None (the reference runs)."""
-    from ..integrate import core   # here: nsfem.integrate imports this module through the builders
-
-    return core.compiled("lcp")
+    global _core
+    if _core is None:
+        from ..integrate import core
+        _core = core
+    return _core.compiled("lcp")
 
 
 def _validated(A, b, d, all_finite, groups=None, scales=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
