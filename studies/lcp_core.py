@@ -2,9 +2,10 @@
 
 In one process, both paths (the reference through ``core.reference()``), best of ``--repeat``, alternating:
 
-- ``kernel``: :func:`nsfem.lcp.lemke` alone on the LCPs an exact run of the stop scene solves
-  (recorded with their keywords: cached scalings, groups), and on random frictional contact LCPs of
-  1 to 4 contacts (r = 4 generators: 6 unknowns per contact);
+- ``kernel``: :func:`nsfem.lcp.lemke` alone on the LCPs an exact run of the stop scene (and of the stop
+  scene with friction) solves (recorded with their keywords: cached scalings, groups), per LCP and per
+  event of the run, and on random frictional contact LCPs of 1 to 4 contacts (r = 4 generators: 6
+  unknowns per contact);
 - ``end_to_end``: ``run_scene(scene, "exact")`` on the stop scene (the shipped shaft over a stop 0.2 mm
   under midspan, restitution 0.5, 0.05 s), on the same with friction on the stop (mu 0.3, 0.03 s) and on
   the shipped scene over 1 s, in ms per event;
@@ -104,14 +105,19 @@ def main(argv=None) -> dict:
         raise SystemExit("the compiled event core's part 'lcp' is not built (python setup.py build_ext --inplace)")
     out = {"core": core.name(), "kernel": {}, "end_to_end": {}}
     stop = load_scene("default", STOP)
-    lcps = recorded_lcps(stop)
-    sizes = {}
-    for A, b, _ in lcps:
-        sizes[b.size] = sizes.get(b.size, 0) + 1
-    row = both(lambda: [lemke(A, b, **kw) for A, b, kw in lcps], args.repeat)
-    out["kernel"]["stop_scene_lcps"] = {"count": len(lcps), "sizes": sizes, **row,
-                                        "compiled_us_per_lcp": 1e6 * row["compiled_s"] / len(lcps),
-                                        "reference_us_per_lcp": 1e6 * row["reference_s"] / len(lcps)}
+    for name, scene in (("stop", stop), ("stop_friction", load_scene("default", STOP_FRICTION))):
+        lcps = recorded_lcps(scene)
+        events = len(run_scene(scene, "exact")[0].events)
+        sizes = {}
+        for A, b, _ in lcps:
+            sizes[b.size] = sizes.get(b.size, 0) + 1
+        row = both(lambda: [lemke(A, b, **kw) for A, b, kw in lcps], args.repeat)
+        out["kernel"][f"{name}_scene_lcps"] = {
+            "count": len(lcps), "sizes": sizes, **row,
+            "compiled_us_per_lcp": 1e6 * row["compiled_s"] / len(lcps),
+            "reference_us_per_lcp": 1e6 * row["reference_s"] / len(lcps),
+            "compiled_us_per_event": 1e6 * row["compiled_s"] / events,
+            "reference_us_per_event": 1e6 * row["reference_s"] / events}
     rng = np.random.default_rng(0)
     for m in (1, 2, 3, 4):
         batch = [friction_lcp(rng, m) for _ in range(50)]
