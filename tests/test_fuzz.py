@@ -2139,3 +2139,27 @@ def test_compiled_lemke_extreme_scales_as_the_reference(A, b, status):
     assert fast[0] == ref[0] == "result"
     assert (fast[1].status, fast[1].pivots) == (ref[1].status, ref[1].pivots)
     assert status is None or fast[1].status == status
+
+
+@pytest.mark.parametrize("A, b, kw, expect", [
+    # found by the property above: R d underflowed to 0 (d_0 = 1e-300 against a row scaled by 2.5e-24), and
+    # the lexicographic rule's 0/0 and -inf + inf left no candidate (ValueError from numpy's min)
+    ([[0.0, 0.0, 1.63866689e47], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]], [0.0, 0.0, -1.0], {"d": [1e-300, 1.0, 1.0]},
+     "covering vector d leaves the floating-point range"),
+    # ratios b / d overflow to -inf on every row (d finite and positive): they tie, the next column decides;
+    # z0 = 1e310 then overflows the pivoting (-inf + inf: nan ratios, no tie at all: the first row is taken);
+    # the reference's BLAS products of inf and 0 end in nan (overflow), the kernels' polish may still find
+    # and certify x = (5e299, 0) on the second
+    ([[1.0, 0.0], [0.0, 1.0]], [-1e300, -1e300], {"d": [1e-10, 1e-10], "scale": False}, "overflow"),
+    ([[2.0, 1.0], [1.0, 2.0]], [-1e300, -1.0], {"d": [1e-10, 1.0], "scale": False}, "overflow"),
+])
+def test_lemke_overflowed_covering_ratios(A, b, kw, expect):
+    """On whichever path runs (compiled, or the reference under NSFEM_PURE_PYTHON=1): a covering vector that
+    the scaling takes out of range is a one-line error; ratios that overflow end the pivoting with a status
+    (not numpy's ValueError from an empty tie set), never 'solved' without a certified x."""
+    kind, out = _outcome(A, b, kw)
+    if kind == "error":
+        assert expect in out and "\n" not in out
+    else:
+        assert out.status in (expect, "solved", "ray", "inaccurate"), out.message
+        assert not out.success or (out.residual <= 1e-8 and np.isfinite(out.x).all())

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .pivoting import (ACCEPT, LCPResult, _basic_x, _complementary, _finite, _polish_certified, _ray_end, _refactored,
+from .pivoting import (ACCEPT, LCPResult, _basic_x, _complementary, _covering, _finite, _polish_certified, _ray_end, _refactored,
                        _validated, _z0_tie)
 
 _TRIVIAL = "trivial solution x = 0 (b >= 0)"
@@ -64,7 +64,7 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
 
     As, bs = np.empty((n, n)), np.empty(n)
     lib.scale(A, b, r_s, c_s, As, bs)
-    dv = np.ones(n) if d is None else r_s * d
+    dv = _covering(r_s, d)
     eq = (As, bs, r_s, c_s)
     Binv, xB, basis, c = np.eye(n), bs.copy(), np.arange(n, dtype=np.int64), np.empty(n)
     state = np.array([2 * n, 0, 0, 0], dtype=np.int64)   # entering (z0 first), pivots, since refactor, skip tie

@@ -177,15 +177,33 @@ def _equilibrate(A: np.ndarray, sweeps: int = 8) -> tuple[np.ndarray, np.ndarray
 
 
 def _lexmin(rows: np.ndarray, idx: np.ndarray) -> int:
-    """Index (into idx) of the lexicographically smallest row, columns compared in turn."""
+    """Index (into idx) of the lexicographically smallest row, columns compared in turn.
+
+    Entries equal to the column's least, or finite and within round-off of it, tie; an infinite entry
+    ties only when equal (an overflowed ratio's tolerance is inf); a column holding a nan (overflowed
+    data) keeps the first candidate."""
     cand = np.arange(len(idx))
     for k in range(rows.shape[1]):
         col = rows[cand, k]
         lo = col.min()
-        cand = cand[col <= lo + 16 * TIE * np.maximum(np.abs(col), abs(lo))]  # equal up to round-off
+        with np.errstate(invalid="ignore"):   # (-inf + inf: no tie but the equal ones)
+            tied = (col == lo) | (np.isfinite(col) & (col <= lo + 16 * TIE * np.maximum(np.abs(col), abs(lo))))
+        cand = cand[tied] if tied.any() else cand[:1]
         if len(cand) == 1:
             break
     return int(cand[0])
+
+
+def _covering(r_s: np.ndarray, d: np.ndarray | None) -> np.ndarray:
+    """The covering vector of the equilibrated problem, R d (ones without d), or NsfemError where the
+    scaling takes it out of the floating-point range (an entry of 0 or inf makes no covering vector)."""
+    if d is None:
+        return np.ones(r_s.size)
+    dv = r_s * d
+    if not (np.all(dv > 0) and np.all(np.isfinite(dv))):
+        raise NsfemError("lemke: the covering vector d leaves the floating-point range once the problem is "
+                         "scaled (R d underflows to 0 or overflows): give d of order one, or scale=False")
+    return dv
 
 
 def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, refactor: int | None = None,
@@ -240,7 +258,7 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
 
     As = r_s[:, None] * A * c_s[None, :]
     bs = r_s * b
-    dv = np.ones(n) if d is None else r_s * d
+    dv = _covering(r_s, d)
     eq = (As, bs, r_s, c_s)
 
     z0 = 2 * n  # variables: w_0..w_{n-1}, x_0..x_{n-1}, z0
@@ -264,10 +282,12 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
         c = Binv @ _column(As, dv, entering) if entering != z0 else -dv
         if pivots > 0:
             tol, pos, theta, ties = _ratio_test(c, xB, pivot_tol)
-            if not pos:
+            if not pos:   # a secondary ray (its start may still solve the LCP when z0 is ~0 in round-off)
                 return _ray_end(A, b, basis, xB, entering, pivots, eq, groups)
             zrow = basis.index(z0)
             if c[zrow] > tol and xB[zrow] / c[zrow] <= theta * (1.0 + NEAR_TIE):
+                # z0 ties for leaving (possibly only up to round-off in the data): the complementary
+                # basis it leaves behind, accepted if it solves the LCP
                 tied = _z0_tie(A, b, basis, entering, pivots, eq, groups)
                 if tied is not None:
                     return tied
@@ -430,7 +450,8 @@ SMALL = 24
 def _ratio_test(c: np.ndarray, xB: np.ndarray, pivot_tol: float) -> tuple[float, list, float | None, list]:
     """(tol, pos, theta, ties): the rows where c_i > tol = pivot_tol max|c| (a nan in c makes tol
     nan: no row, the ray, as np.max would), the least ratio xB_i / c_i over them and the rows
-    within TIE of it (exact ties and round-off). The same values on lists and arrays."""
+    equal to it or within TIE of it (exact ties and round-off; the first row where a nan ratio leaves
+    none). The same values on lists and arrays (but for a nan ratio: numpy's min returns it)."""
     n = c.size
     if n <= SMALL:
         cl, xl = c.tolist(), xB.tolist()
@@ -441,14 +462,17 @@ def _ratio_test(c: np.ndarray, xB: np.ndarray, pivot_tol: float) -> tuple[float,
             return tol, pos, None, []
         ratios = [xl[i] / cl[i] for i in pos]
         theta = min(ratios)
-        return tol, pos, theta, [i for i, q in zip(pos, ratios) if q <= theta + TIE * abs(theta)]
+        ties = [i for i, q in zip(pos, ratios) if q == theta or q <= theta + TIE * abs(theta)]
+        return tol, pos, theta, ties or pos[:1]   # (none: a nan ratio, overflowed data: the first)
     tol = pivot_tol * max(np.abs(c).max(), 1e-300)
     pos = np.flatnonzero(c > tol)
     if pos.size == 0:
         return tol, [], None, []
     ratios = xB[pos] / c[pos]
     theta = ratios.min()
-    return tol, pos.tolist(), theta, pos[ratios <= theta + TIE * abs(theta)].tolist()
+    with np.errstate(invalid="ignore"):
+        ties = pos[(ratios == theta) | (ratios <= theta + TIE * abs(theta))].tolist()
+    return tol, pos.tolist(), theta, ties or pos[:1].tolist()
 
 
 def _lemke_one(A: np.ndarray, b: np.ndarray, r_s: np.ndarray, c_s: np.ndarray, dv: float,
@@ -626,9 +650,13 @@ def _psd_hint(A: np.ndarray) -> float | None:
     """Smallest eigenvalue of the symmetric part (relative), or None when too large to check."""
     if A.shape[0] > 2000:
         return None
-    H = 0.5 * (A + A.T)
-    scale = max(float(np.max(np.abs(H))), 1e-300)
-    return float(np.linalg.eigvalsh(H / scale)[0])
+    with np.errstate(over="ignore", invalid="ignore"):   # (entries near 1e308: no hint)
+        H = 0.5 * (A + A.T)
+        scale = max(float(np.max(np.abs(H))), 1e-300)
+        try:
+            return float(np.linalg.eigvalsh(H / scale)[0])
+        except np.linalg.LinAlgError:   # not finite (an overflowed sum), or LAPACK did not converge
+            return None
 
 
 def _ray_message(pivots: int, z0_value, eig: float | None) -> str:

@@ -443,8 +443,13 @@ def polished(const double[:, ::1] A, const double[::1] b, const double[:, ::1] A
         xv = xB
         xp = &xv[0]
     else:
-        while basis[zrow] != 2 * n:
+        while zrow < n and basis[zrow] != 2 * n:
             zrow += 1
+        if zrow == n:   # no z0 in the basis: no trial
+            free(mem)
+            free(S)
+            free(w)
+            return -1
         saved = basis[zrow]
         basis[zrow] = entering
     with nogil:
@@ -463,8 +468,9 @@ def polished(const double[:, ::1] A, const double[::1] b, const double[:, ::1] A
 
 cdef Py_ssize_t lexmin(const double* xB, const double* Binv, const double* div, Py_ssize_t* cand,
                        Py_ssize_t nc, Py_ssize_t n) noexcept nogil:
-    """pivoting._lexmin over the rows [xB_t, Binv_t] / div_t of the candidates t (overwritten):
-    the lexicographically smallest, columns compared in turn, equal up to 16 TIE."""
+    """pivoting._lexmin over the rows [xB_t, Binv_t] / div_t of the candidates t (overwritten): the
+    lexicographically smallest, columns compared in turn; equal to the least, or finite and within 16 TIE of
+    it, ties; a column holding a nan keeps the first candidate."""
     cdef Py_ssize_t k, i, t, keep
     cdef double lo, val, a
     for k in range(n + 1):
@@ -472,6 +478,9 @@ cdef Py_ssize_t lexmin(const double* xB, const double* Binv, const double* div, 
         for i in range(nc):
             t = cand[i]
             val = (xB[t] if k == 0 else Binv[t * n + k - 1]) / div[t]
+            if isnan(val):
+                lo = NAN   # as numpy's min
+                break
             if val < lo or i == 0:
                 lo = val
         keep = 0
@@ -479,10 +488,10 @@ cdef Py_ssize_t lexmin(const double* xB, const double* Binv, const double* div, 
             t = cand[i]
             val = (xB[t] if k == 0 else Binv[t * n + k - 1]) / div[t]
             a = fabs(val)
-            if val <= lo + 16 * TIE * (a if a > fabs(lo) else fabs(lo)):
+            if val == lo or (isfinite(val) and val <= lo + 16 * TIE * (a if a > fabs(lo) else fabs(lo))):
                 cand[keep] = t
                 keep += 1
-        nc = keep
+        nc = keep if keep else 1   # (none kept: the first candidate, still in cand[0])
         if nc == 1:
             break
     return cand[0]
@@ -549,18 +558,27 @@ def pivot(const double[:, ::1] As, const double[::1] dv, double[:, ::1] Binv, do
                 if nt == 0:
                     code = C_RAY
                     break
-                zrow = 0
-                while basis[zrow] != z0:
-                    zrow += 1
-                if not skip and c[zrow] > tol and xB[zrow] / c[zrow] <= theta * (1.0 + NEAR_TIE):
-                    code = C_Z0_TIE
-                    break
+                if not skip:   # (z0 is basic until it leaves; the bound guards a caller's state)
+                    zrow = 0
+                    while zrow < n and basis[zrow] != z0:
+                        zrow += 1
+                    if zrow < n and c[zrow] > tol and xB[zrow] / c[zrow] <= theta * (1.0 + NEAR_TIE):
+                        code = C_Z0_TIE
+                        break
                 skip = False
                 nt = 0
                 for i in range(n):
-                    if c[i] > tol and xB[i] / c[i] <= theta + TIE * fabs(theta):
-                        ties[nt] = i
-                        nt += 1
+                    if c[i] > tol:
+                        q = xB[i] / c[i]
+                        if q == theta or q <= theta + TIE * fabs(theta):
+                            ties[nt] = i
+                            nt += 1
+                if nt == 0:   # a nan ratio (overflowed data): the first row
+                    i = 0
+                    while i < n - 1 and not c[i] > tol:
+                        i += 1
+                    ties[0] = i
+                    nt = 1
                 r = ties[0] if nt == 1 else lexmin(&xB[0], B, &c[0], ties, nt, n)
             elif uniform:
                 # the rows [b_i, e_i] tied on b_i are told apart by e_i: the last of them is the smallest
