@@ -2152,6 +2152,10 @@ def test_compiled_lemke_extreme_scales_as_the_reference(A, b, status):
     # and certify x = (5e299, 0) on the second
     ([[1.0, 0.0], [0.0, 1.0]], [-1e300, -1e300], {"d": [1e-10, 1e-10], "scale": False}, "overflow"),
     ([[2.0, 1.0], [1.0, 2.0]], [-1e300, -1.0], {"d": [1e-10, 1.0], "scale": False}, "overflow"),
+    # one unknown, R d = 0.5 * 5e-324 rounds to 0 (the reference divided by it: ZeroDivisionError)
+    ([[4.0]], [-1.0], {"d": [5e-324]}, "covering vector d leaves the floating-point range"),
+    # x = (1.2e244, 2e231) is finite but A x is not (1.8e308 - 1.8e308): no certificate (nan), was 'solved'
+    ([[1.45687514e64, -9.20312771e76], [1e-13, 0.0]], [0.0, -1.23393769e231], {"scale": False}, "overflow"),
 ])
 def test_lemke_overflowed_covering_ratios(A, b, kw, expect):
     """On whichever path runs (compiled, or the reference under NSFEM_PURE_PYTHON=1): a covering vector that

@@ -42,9 +42,9 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
     else:
         r_s, c_s = np.ones(n), np.ones(n)
 
-    if n == 1 and max_pivots >= 2 and refactor >= 2:
-        one = lib.lemke_one(float(A[0, 0]), float(b[0]), float(r_s[0]), float(c_s[0]),
-                            1.0 if d is None else float(r_s[0] * d[0]), pivot_tol)
+    dv1 = 1.0 if d is None or n != 1 else float(r_s[0] * d[0])
+    if n == 1 and max_pivots >= 2 and refactor >= 2 and 0.0 < dv1 < math.inf:   # (else: _covering's error)
+        one = lib.lemke_one(float(A[0, 0]), float(b[0]), float(r_s[0]), float(c_s[0]), dv1, pivot_tol)
         if one is not None:
             pivots, x, w, x_min, w_min, comp, rel = one
             cert = {"x_min": x_min, "w_min": w_min, "complementarity": comp, "relative": rel}

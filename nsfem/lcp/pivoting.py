@@ -242,8 +242,9 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     else:
         r_s, c_s = np.ones(n), np.ones(n)
 
-    if n == 1 and max_pivots >= 2 and refactor >= 2:
-        one = _lemke_one(A, b, r_s, c_s, 1.0 if d is None else float(r_s[0] * d[0]), pivot_tol)
+    dv1 = 1.0 if d is None or n != 1 else float(r_s[0] * d[0])
+    if n == 1 and max_pivots >= 2 and refactor >= 2 and 0.0 < dv1 < math.inf:   # (else: _covering's error)
+        one = _lemke_one(A, b, r_s, c_s, dv1, pivot_tol)
         if one is not None:
             return _finite(one)
 
@@ -434,7 +435,7 @@ def _complementary(res: LCPResult) -> LCPResult:
     A complementary basis is a solution only when its point certifies (componentwise backward error
     ACCEPT); on bases of condition ~1e13 the refined solve can leave rows violated by 1e-7..1e-1 of
     their terms (measured: stiff friction LCPs, tests/test_lemke.py): not 'solved'."""
-    if res.residual > ACCEPT:
+    if res.success and not res.residual <= ACCEPT:   # (a nan certificate: an overflowed A x is no solution)
         return LCPResult(res.x, res.w, "inaccurate", res.pivots, res.residual,
                          f"Lemke reached a complementary basis after {res.pivots} pivots but the solution is "
                          f"inaccurate (relative residual {res.residual:.1e}): A is too ill-conditioned for this LCP",
@@ -524,9 +525,10 @@ def _solve_one(B: float, rhs: float, x0: float | None = None) -> float | None:
 
 
 def _finite(res: LCPResult) -> LCPResult:
-    """``res``, or its ``overflow`` verdict when its solution is not finite."""
-    if res.success and not all(map(math.isfinite, res.x.tolist())):
-        return replace(res, status="overflow", message="the solution is beyond the floating-point range (overflow)")
+    """``res``, or its ``overflow`` verdict when its solution, or A x + b, is not finite."""
+    if res.success and not (all(map(math.isfinite, res.x.tolist())) and all(map(math.isfinite, res.w.tolist()))):
+        return replace(res, status="overflow",
+                       message="the solution, or A x + b, is beyond the floating-point range (overflow)")
     return res
 
 
