@@ -15,6 +15,7 @@ suite then exercises the reference.
 from __future__ import annotations
 
 import re
+from contextlib import nullcontext
 
 import numpy as np
 import pytest
@@ -405,3 +406,39 @@ def test_frictional_stop_scene_runs_alike():
         assert abs(a["t"] - b["t"]) <= 1e-7
     assert np.array_equal(fast.state, ref.state)
     assert np.max(np.abs(fast.gap - ref.gap)) <= 3e-7 * float(np.ptp(ref.gap))
+
+
+def test_wildly_scaled_lcps_end_alike_but_for_rounding_at_thresholds():
+    """Random LCPs (n <= 10) whose entries spread over 1e-150..1e150 within one matrix, with and without
+    scaling, covering vectors and labels. Measured on 20 000 of them: the same status and pivots on all with
+    OpenBLAS's Sandybridge kernel, all but 1 with Haswell's, all but 93 (0.47 %) with SkylakeX's, whose
+    products round differently at a tie or threshold (z0 at 1e-14 of b, a ratio at 1e-15 of another). So
+    at most 2 % of 1000 may differ; every result either path calls solved is certified (finite x, residual
+    <= ACCEPT), and errors are the same."""
+    rng = np.random.default_rng(99)
+    differ = 0
+    for _ in range(1000):
+        n = int(rng.integers(0, 11))
+        A = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-150, 150, (n, n)) * (rng.random((n, n)) < 0.7)
+        b = rng.standard_normal(n) * 10.0 ** rng.integers(-150, 150, n) * (rng.random(n) < 0.8)
+        kw = {}
+        if rng.random() < 0.3:
+            kw["d"] = 10.0 ** rng.uniform(-5, 5, n)
+        if rng.random() < 0.3:
+            kw["scale"] = False
+        if rng.random() < 0.3:
+            kw["groups"] = rng.integers(0, 2, n)
+        outcomes = []
+        for reference in (False, True):
+            with np.errstate(all="ignore"), (core.reference() if reference else nullcontext()):
+                try:
+                    res = lemke(A, b, **kw)
+                except NsfemError as exc:
+                    outcomes.append(("error", str(exc)))
+                    continue
+            assert not res.success or (res.residual <= ACCEPT and np.isfinite(res.x).all()), res.message
+            outcomes.append((res.status, res.pivots))
+        differ += outcomes[0] != outcomes[1]
+        if outcomes[0][0] == "error" or outcomes[1][0] == "error":
+            assert outcomes[0] == outcomes[1]
+    assert differ <= 20, differ
