@@ -2054,3 +2054,116 @@ def test_on_a_file_system_without_locks_a_killed_commands_files_are_still_known(
     with claim(tmp_path, "run", {"run": ["result.npz"]}):
         write_text_atomic(tmp_path / "result.npz", "new")
     assert sorted(p.name for p in tmp_path.iterdir()) == [MANIFEST, "result.npz"]
+
+
+# --- issue 33: compiled Lemke (event core part "lcp") ---
+
+_HOSTILE = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                     st.sampled_from([0.0, -0.0, 1e-300, -1e-300, 5e-324, 1e300, -1e300, 1.0, -1.0]))
+
+
+@st.composite
+def _hostile_lcp(draw):
+    """LCP data a caller might pass: any floats (nan, inf, subnormal, huge), shapes that do not match, a
+    covering vector of any sign, row labels of any kind."""
+    import numpy as np
+
+    n = draw(st.integers(0, 4))
+    m = n if draw(st.integers(0, 5)) else draw(st.integers(0, 4))
+    A = np.array(draw(st.lists(_HOSTILE, min_size=n * m, max_size=n * m)), dtype=float).reshape(n, m)
+    b = np.array(draw(st.lists(_HOSTILE, min_size=n, max_size=n)), dtype=float)
+    kw = {}
+    if draw(st.booleans()):
+        kw["d"] = draw(st.lists(_HOSTILE, min_size=n, max_size=n + draw(st.integers(0, 1))))
+    if draw(st.booleans()):
+        kw["groups"] = draw(st.lists(st.sampled_from([0, 1, "gap", "limit"]), min_size=n, max_size=n))
+    kw["scale"] = draw(st.booleans())
+    return A, b, kw
+
+
+def _outcome(A, b, kw):
+    """('error', message) or ('result', LCPResult) of lemke."""
+    import warnings
+
+    from nsfem.errors import NsfemError
+    from nsfem.lcp import lemke
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)   # overflowing products of 1e300 entries
+        try:
+            return "result", lemke(A, b, **kw)
+        except NsfemError as exc:
+            return "error", str(exc)
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(_hostile_lcp())
+def test_compiled_lemke_rejects_and_certifies_as_the_reference(problem):
+    """Property: on any input the compiled Lemke raises the reference's one-line error (same message), or
+    returns, as the reference does, a result that claims success only with a finite, certified x."""
+    from nsfem.integrate import core
+    from nsfem.lcp.pivoting import ACCEPT
+
+    if core.compiled("lcp") is None:
+        pytest.skip("the compiled event core's part 'lcp' is not built or is switched off")
+    A, b, kw = problem
+    fast = _outcome(A, b, kw)
+    with core.reference():
+        ref = _outcome(A, b, kw)
+    assert fast[0] == ref[0], (fast, ref)
+    if fast[0] == "error":
+        assert fast[1] == ref[1] and "\n" not in fast[1]
+        return
+    for res in (fast[1], ref[1]):
+        if res.success:
+            import math
+            assert res.residual <= ACCEPT and all(map(math.isfinite, res.x.tolist()))
+
+
+@pytest.mark.parametrize("A, b, status", [
+    ([[1e-300]], [-1e300], "overflow"),                             # x = 1e600: beyond the floating-point range
+    ([[1e-300, 0.0], [0.0, 1.0]], [-1e300, -1.0], "overflow"),
+    ([[5e-324, 0.0], [0.0, 1.0]], [-1.0, -1.0], None),              # a subnormal pivot
+    ([[1e300, 1e300], [1e300, 1e300]], [-1e300, -1e300], None),     # products overflow in the certificate
+    ([[0.0, 0.0], [0.0, 0.0]], [-1.0, 0.0], "ray"),                 # A = 0, b < 0: infeasible
+])
+def test_compiled_lemke_extreme_scales_as_the_reference(A, b, status):
+    from nsfem.integrate import core
+
+    if core.compiled("lcp") is None:
+        pytest.skip("the compiled event core's part 'lcp' is not built or is switched off")
+    fast = _outcome(A, b, {})
+    with core.reference():
+        ref = _outcome(A, b, {})
+    assert fast[0] == ref[0] == "result"
+    assert (fast[1].status, fast[1].pivots) == (ref[1].status, ref[1].pivots)
+    assert status is None or fast[1].status == status
+
+
+@pytest.mark.parametrize("A, b, kw, expect", [
+    # found by the property above: R d underflowed to 0 (d_0 = 1e-300 against a row scaled by 2.5e-24), and
+    # the lexicographic rule's 0/0 and -inf + inf left no candidate (ValueError from numpy's min)
+    ([[0.0, 0.0, 1.63866689e47], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]], [0.0, 0.0, -1.0], {"d": [1e-300, 1.0, 1.0]},
+     "covering vector d leaves the floating-point range"),
+    # ratios b / d overflow to -inf on every row (d finite and positive): they tie, the next column decides;
+    # z0 = 1e310 then overflows the pivoting (-inf + inf: nan ratios, no tie at all: the first row is taken);
+    # the reference's BLAS products of inf and 0 end in nan (overflow), the kernels' polish may still find
+    # and certify x = (5e299, 0) on the second
+    ([[1.0, 0.0], [0.0, 1.0]], [-1e300, -1e300], {"d": [1e-10, 1e-10], "scale": False}, "overflow"),
+    ([[2.0, 1.0], [1.0, 2.0]], [-1e300, -1.0], {"d": [1e-10, 1.0], "scale": False}, "overflow"),
+    # one unknown, R d = 0.5 * 5e-324 rounds to 0 (the reference divided by it: ZeroDivisionError)
+    ([[4.0]], [-1.0], {"d": [5e-324]}, "covering vector d leaves the floating-point range"),
+    # x = (1.2e244, 2e231) is finite but A x is not (1.8e308 - 1.8e308): no certificate (nan), was 'solved'
+    ([[1.45687514e64, -9.20312771e76], [1e-13, 0.0]], [0.0, -1.23393769e231], {"scale": False}, "overflow"),
+])
+def test_lemke_overflowed_covering_ratios(A, b, kw, expect):
+    """On whichever path runs (compiled, or the reference under NSFEM_PURE_PYTHON=1): a covering vector that
+    the scaling takes out of range is a one-line error; ratios that overflow end the pivoting with a status
+    (not numpy's ValueError from an empty tie set), never 'solved' without a certified x."""
+    kind, out = _outcome(A, b, kw)
+    if kind == "error":
+        assert expect in out and "\n" not in out
+    else:
+        assert out.status in (expect, "solved", "ray", "inaccurate"), out.message
+        assert not out.success or (out.residual <= 1e-8 and np.isfinite(out.x).all())

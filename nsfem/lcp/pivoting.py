@@ -177,15 +177,33 @@ def _equilibrate(A: np.ndarray, sweeps: int = 8) -> tuple[np.ndarray, np.ndarray
 
 
 def _lexmin(rows: np.ndarray, idx: np.ndarray) -> int:
-    """Index (into idx) of the lexicographically smallest row, columns compared in turn."""
+    """Index (into idx) of the lexicographically smallest row, columns compared in turn.
+
+    Entries equal to the column's least, or finite and within round-off of it, tie; an infinite entry
+    ties only when equal (an overflowed ratio's tolerance is inf); a column holding a nan (overflowed
+    data) keeps the first candidate."""
     cand = np.arange(len(idx))
     for k in range(rows.shape[1]):
         col = rows[cand, k]
         lo = col.min()
-        cand = cand[col <= lo + 16 * TIE * np.maximum(np.abs(col), abs(lo))]  # equal up to round-off
+        with np.errstate(invalid="ignore"):   # (-inf + inf: no tie but the equal ones)
+            tied = (col == lo) | (np.isfinite(col) & (col <= lo + 16 * TIE * np.maximum(np.abs(col), abs(lo))))
+        cand = cand[tied] if tied.any() else cand[:1]
         if len(cand) == 1:
             break
     return int(cand[0])
+
+
+def _covering(r_s: np.ndarray, d: np.ndarray | None) -> np.ndarray:
+    """The covering vector of the equilibrated problem, R d (ones without d), or NsfemError where the
+    scaling takes it out of the floating-point range (an entry of 0 or inf makes no covering vector)."""
+    if d is None:
+        return np.ones(r_s.size)
+    dv = r_s * d
+    if not (np.all(dv > 0) and np.all(np.isfinite(dv))):
+        raise NsfemError("lemke: the covering vector d leaves the floating-point range once the problem is "
+                         "scaled (R d underflows to 0 or overflows): give d of order one, or scale=False")
+    return dv
 
 
 def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, refactor: int | None = None,
@@ -200,19 +218,18 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     caller has them (an LCP matrix solved many times with new right-hand sides); used when
     ``scale`` is true. The result is returned, never raised: check ``result.success`` or call
     ``result.check()``.
+
+    Runs on the compiled kernels (:mod:`nsfem.lcp.compiled`) when the event core's part "lcp" is
+    built and active (:func:`nsfem.integrate.core.compiled`); this function is their reference.
     """
-    A = np.asarray(A, dtype=float)
-    b = np.asarray(b, dtype=float).ravel()
+    lib = _kernels()
+    if lib is not None:
+        return compiled.lemke(lib, A, b, d=d, max_pivots=max_pivots, scale=scale, refactor=refactor,
+                              pivot_tol=pivot_tol, groups=groups, scales=scales)
+    A, b, d = _validated(A, b, d, lambda A, b: bool(np.isfinite(A).all()) and all(map(math.isfinite, b.tolist())),
+                         groups, scales)
     n = b.size
-    if A.shape != (n, n):
-        raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
     bl = b.tolist()
-    if not (np.isfinite(A).all() and all(map(math.isfinite, bl))):
-        raise NsfemError("lemke: A and b must be finite (found nan or inf)")
-    if d is not None:
-        d = np.array(d, dtype=float).ravel()
-        if d.shape != (n,) or not np.all(d > 0) or not np.all(np.isfinite(d)):
-            raise NsfemError("lemke: the covering vector d must be finite and strictly positive, one entry per row")
     max_pivots = 50 * n + 1000 if max_pivots is None else int(max_pivots)
     refactor = max(50, n // 4) if refactor is None else int(refactor)
 
@@ -225,8 +242,9 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     else:
         r_s, c_s = np.ones(n), np.ones(n)
 
-    if n == 1 and max_pivots >= 2 and refactor >= 2:
-        one = _lemke_one(A, b, r_s, c_s, 1.0 if d is None else float(r_s[0] * d[0]), pivot_tol)
+    dv1 = 1.0 if d is None or n != 1 else float(r_s[0] * d[0])
+    if n == 1 and max_pivots >= 2 and refactor >= 2 and 0.0 < dv1 < math.inf:   # (else: _covering's error)
+        one = _lemke_one(A, b, r_s, c_s, dv1, pivot_tol)
         if one is not None:
             return _finite(one)
 
@@ -241,20 +259,10 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
 
     As = r_s[:, None] * A * c_s[None, :]
     bs = r_s * b
-    dv = np.ones(n) if d is None else r_s * d
+    dv = _covering(r_s, d)
     eq = (As, bs, r_s, c_s)
 
     z0 = 2 * n  # variables: w_0..w_{n-1}, x_0..x_{n-1}, z0
-
-    def column(v: int) -> np.ndarray:
-        if v < n:
-            e = np.zeros(n)
-            e[v] = 1.0
-            return e
-        if v < 2 * n:
-            return -As[:, v - n]
-        return -dv
-
     basis = list(range(n))
     Binv = np.eye(n, order="F")  # Fortran order: BLAS dger updates it in place
     xB = bs.copy()
@@ -272,45 +280,18 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
     since_refactor = 0
     while True:
         # z0 enters only first, against B = I: its column -B^-1 d is -d exactly
-        c = Binv @ column(entering) if entering != z0 else -dv
+        c = Binv @ _column(As, dv, entering) if entering != z0 else -dv
         if pivots > 0:
             tol, pos, theta, ties = _ratio_test(c, xB, pivot_tol)
-            if not pos:
-                # a secondary ray; its start may still solve the LCP when z0 is ~0 in round-off.
-                # The variable that just left (the complement of the entering one) may then have
-                # tied with z0 in exact arithmetic: the complementary basis with it in place of z0
-                # is tried as well (measured: a stiff friction LCP whose x_7 left at 3.5e-12
-                # instead of z0 certifies to 1e-16 that way, to 8e-8 without it)
-                zrow = basis.index(z0)
-                x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, eq, groups)
-                if entering < n:
-                    tied = basis.copy()
-                    tied[zrow] = entering + n
-                    x = _polish(A, b, x, tied, n, eq, groups)
-                w, cert = _certify(A, b, x, (r_s, c_s), groups)
-                z0_gone = float(xB[zrow]) <= 1e-14 * max(float(np.max(np.abs(bs))), 1e-300)
-                if cert["relative"] <= ACCEPT:
-                    return LCPResult(x, w, "solved", pivots, cert["relative"],
-                                     f"solved in {pivots} pivots (z0 vanished to round-off)", cert)
-                if z0_gone and cert["relative"] <= INACCURATE:
-                    return LCPResult(x, w, "inaccurate", pivots, cert["relative"],
-                                     f"Lemke ended on a ray where z0 vanished to round-off after {pivots} pivots, "
-                                     f"but the point certifies only to {cert['relative']:.1e}: A is too "
-                                     "ill-conditioned for this LCP", cert)
-                return LCPResult(x, w, "ray", pivots, cert["relative"],
-                                 _ray_message(pivots, xB[zrow:zrow + 1], _psd_hint(A)), cert)
+            if not pos:   # a secondary ray (its start may still solve the LCP when z0 is ~0 in round-off)
+                return _ray_end(A, b, basis, xB, entering, pivots, eq, groups)
             zrow = basis.index(z0)
             if c[zrow] > tol and xB[zrow] / c[zrow] <= theta * (1.0 + NEAR_TIE):
-                # z0 ties for leaving (possibly only up to round-off in the data): try the
-                # complementary basis it leaves behind, accept it if it solves the LCP
-                trial = basis.copy()
-                trial[zrow] = entering
-                x = _polish(A, b, None, trial, n, eq, groups)
-                if x is not None:
-                    w, cert = _certify(A, b, x, (r_s, c_s), groups)
-                    if cert["relative"] <= ACCEPT:
-                        return LCPResult(x, w, "solved", pivots + 1, cert["relative"],
-                                         f"solved in {pivots + 1} pivots", cert)
+                # z0 ties for leaving (possibly only up to round-off in the data): the complementary
+                # basis it leaves behind, accepted if it solves the LCP
+                tied = _z0_tie(A, b, basis, entering, pivots, eq, groups)
+                if tied is not None:
+                    return tied
             if len(ties) == 1:
                 r = ties[0]
             else:
@@ -336,26 +317,128 @@ def lemke(A, b, *, d=None, max_pivots: int | None = None, scale: bool = True, re
             return result(x, "max_pivots", pivots,
                           f"Lemke stopped after the limit of {max_pivots} pivots without a solution")
         if since_refactor >= refactor:
-            B = np.column_stack([column(v) for v in basis])
-            try:
-                lu = sla.lu_factor(B, check_finite=False)
-                Binv = np.asfortranarray(sla.lu_solve(lu, np.eye(n), check_finite=False))
-                xB = np.maximum(sla.lu_solve(lu, bs, check_finite=False), 0.0)
-            except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - keep the updated inverse
-                pass
+            fresh = _refactored(As, bs, dv, basis)
+            if fresh is not None:
+                Binv, xB = fresh
             since_refactor = 0
         entering = leaving + n if leaving < n else leaving - n
 
     x = _basic_x(basis, xB, n) * c_s
     x, cert = _polish_certified(A, b, x, basis, n, eq, groups)
-    res = result(x, "solved", pivots, f"solved in {pivots} pivots", cert)
-    # a complementary basis is a solution only when its point certifies (componentwise backward
-    # error ACCEPT); on bases of condition ~1e13 the refined solve can leave rows violated by
-    # 1e-7..1e-1 of their terms (measured: stiff friction LCPs, tests/test_lemke.py): not 'solved'
-    if res.residual > ACCEPT:
-        return LCPResult(res.x, res.w, "inaccurate", pivots, res.residual,
-                         f"Lemke reached a complementary basis after {pivots} pivots but the solution is inaccurate "
-                         f"(relative residual {res.residual:.1e}): A is too ill-conditioned for this LCP",
+    return _complementary(result(x, "solved", pivots, f"solved in {pivots} pivots", cert))
+
+
+_core = None   # nsfem.integrate.core, once imported (nsfem.integrate imports this module through the builders)
+
+
+def _kernels():
+    """The compiled module of the event core's part "lcp", or None (the reference runs)."""
+    global _core
+    if _core is None:
+        from ..integrate import core
+        _core = core
+    return _core.compiled("lcp")
+
+
+def _validated(A, b, d, all_finite, groups=None, scales=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(A, b, d) of :func:`lemke` as float arrays (A C-contiguous), or NsfemError naming what is wrong (also
+    of ``groups`` and ``scales``: one label and one scaling per row); ``all_finite(A, b)`` tells whether
+    every entry is finite."""
+    A = np.asarray(A, dtype=float)
+    b = np.asarray(b, dtype=float).ravel()
+    n = b.size
+    if A.shape != (n, n):
+        raise NsfemError(f"lemke: A must be {n} x {n} to match b, got shape {A.shape}")
+    A = np.ascontiguousarray(A)
+    if not all_finite(A, b):
+        raise NsfemError("lemke: A and b must be finite (found nan or inf)")
+    if d is not None:
+        d = np.array(d, dtype=float).ravel()
+        if d.shape != (n,) or not np.all(d > 0) or not np.all(np.isfinite(d)):
+            raise NsfemError("lemke: the covering vector d must be finite and strictly positive, one entry per row")
+    if groups is not None and np.size(groups) != n:
+        raise NsfemError(f"lemke: groups must label each of the {n} rows, got {np.size(groups)} labels")
+    if scales is not None and (len(scales) != 2 or any(np.shape(s) != (n,) for s in scales)):
+        raise NsfemError(f"lemke: scales must be the row and column scalings of equilibrate(A), {n} entries each")
+    return A, b, d
+
+
+def _column(As: np.ndarray, dv: np.ndarray, v: int) -> np.ndarray:
+    """The column of variable v in [I, -As, -d] (w_0..w_{n-1}, x_0..x_{n-1}, z0)."""
+    n = dv.size
+    if v < n:
+        e = np.zeros(n)
+        e[v] = 1.0
+        return e
+    if v < 2 * n:
+        return -As[:, v - n]
+    return -dv
+
+
+def _refactored(As: np.ndarray, bs: np.ndarray, dv: np.ndarray, basis) -> tuple[np.ndarray, np.ndarray] | None:
+    """(B^-1, x_B) of the basis recomputed by LU, or None where the factorization fails (keep the updates)."""
+    B = np.column_stack([_column(As, dv, v) for v in basis])
+    try:
+        lu = sla.lu_factor(B, check_finite=False)
+        Binv = np.asfortranarray(sla.lu_solve(lu, np.eye(dv.size), check_finite=False))
+        return Binv, np.maximum(sla.lu_solve(lu, bs, check_finite=False), 0.0)
+    except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - keep the updated inverse
+        return None
+
+
+def _ray_end(A, b, basis: list, xB: np.ndarray, entering: int, pivots: int, eq: tuple, groups) -> LCPResult:
+    """The result where the entering column has no positive entry (a secondary ray).
+
+    Its start may still solve the LCP when z0 is ~0 in round-off. The variable that just left (the
+    complement of the entering one) may then have tied with z0 in exact arithmetic: the complementary
+    basis with it in place of z0 is tried as well (measured: a stiff friction LCP whose x_7 left at
+    3.5e-12 instead of z0 certifies to 1e-16 that way, to 8e-8 without it)."""
+    As, bs, r_s, c_s = eq
+    n = bs.size
+    zrow = basis.index(2 * n)
+    x = _polish(A, b, _basic_x(basis, xB, n) * c_s, basis, n, eq, groups)
+    if entering < n:
+        tied = list(basis)
+        tied[zrow] = entering + n
+        x = _polish(A, b, x, tied, n, eq, groups)
+    w, cert = _certify(A, b, x, (r_s, c_s), groups)
+    z0_gone = float(xB[zrow]) <= 1e-14 * max(float(np.max(np.abs(bs))), 1e-300)
+    if cert["relative"] <= ACCEPT:
+        return LCPResult(x, w, "solved", pivots, cert["relative"],
+                         f"solved in {pivots} pivots (z0 vanished to round-off)", cert)
+    if z0_gone and cert["relative"] <= INACCURATE:
+        return LCPResult(x, w, "inaccurate", pivots, cert["relative"],
+                         f"Lemke ended on a ray where z0 vanished to round-off after {pivots} pivots, "
+                         f"but the point certifies only to {cert['relative']:.1e}: A is too "
+                         "ill-conditioned for this LCP", cert)
+    return LCPResult(x, w, "ray", pivots, cert["relative"],
+                     _ray_message(pivots, xB[zrow:zrow + 1], _psd_hint(A)), cert)
+
+
+def _z0_tie(A, b, basis: list, entering: int, pivots: int, eq: tuple, groups) -> LCPResult | None:
+    """z0 ties for leaving (possibly only up to round-off in the data): the complementary basis it
+    leaves behind, solved, when its point certifies (else None: the pivoting goes on)."""
+    n = eq[1].size
+    trial = list(basis)
+    trial[trial.index(2 * n)] = entering
+    x = _polish(A, b, None, trial, n, eq, groups)
+    if x is not None:
+        w, cert = _certify(A, b, x, eq[2:], groups)
+        if cert["relative"] <= ACCEPT:
+            return LCPResult(x, w, "solved", pivots + 1, cert["relative"], f"solved in {pivots + 1} pivots", cert)
+    return None
+
+
+def _complementary(res: LCPResult) -> LCPResult:
+    """The result of a complementary basis: ``solved`` only when its point certifies.
+
+    A complementary basis is a solution only when its point certifies (componentwise backward error
+    ACCEPT); on bases of condition ~1e13 the refined solve can leave rows violated by 1e-7..1e-1 of
+    their terms (measured: stiff friction LCPs, tests/test_lemke.py): not 'solved'."""
+    if res.success and not res.residual <= ACCEPT:   # (a nan certificate: an overflowed A x is no solution)
+        return LCPResult(res.x, res.w, "inaccurate", res.pivots, res.residual,
+                         f"Lemke reached a complementary basis after {res.pivots} pivots but the solution is "
+                         f"inaccurate (relative residual {res.residual:.1e}): A is too ill-conditioned for this LCP",
                          res.certificate)
     return res
 
@@ -368,7 +451,8 @@ SMALL = 24
 def _ratio_test(c: np.ndarray, xB: np.ndarray, pivot_tol: float) -> tuple[float, list, float | None, list]:
     """(tol, pos, theta, ties): the rows where c_i > tol = pivot_tol max|c| (a nan in c makes tol
     nan: no row, the ray, as np.max would), the least ratio xB_i / c_i over them and the rows
-    within TIE of it (exact ties and round-off). The same values on lists and arrays."""
+    equal to it or within TIE of it (exact ties and round-off; the first row where a nan ratio leaves
+    none). The same values on lists and arrays (but for a nan ratio: numpy's min returns it)."""
     n = c.size
     if n <= SMALL:
         cl, xl = c.tolist(), xB.tolist()
@@ -379,14 +463,17 @@ def _ratio_test(c: np.ndarray, xB: np.ndarray, pivot_tol: float) -> tuple[float,
             return tol, pos, None, []
         ratios = [xl[i] / cl[i] for i in pos]
         theta = min(ratios)
-        return tol, pos, theta, [i for i, q in zip(pos, ratios) if q <= theta + TIE * abs(theta)]
+        ties = [i for i, q in zip(pos, ratios) if q == theta or q <= theta + TIE * abs(theta)]
+        return tol, pos, theta, ties or pos[:1]   # (none: a nan ratio, overflowed data: the first)
     tol = pivot_tol * max(np.abs(c).max(), 1e-300)
     pos = np.flatnonzero(c > tol)
     if pos.size == 0:
         return tol, [], None, []
     ratios = xB[pos] / c[pos]
     theta = ratios.min()
-    return tol, pos.tolist(), theta, pos[ratios <= theta + TIE * abs(theta)].tolist()
+    with np.errstate(invalid="ignore"):
+        ties = pos[(ratios == theta) | (ratios <= theta + TIE * abs(theta))].tolist()
+    return tol, pos.tolist(), theta, ties or pos[:1].tolist()
 
 
 def _lemke_one(A: np.ndarray, b: np.ndarray, r_s: np.ndarray, c_s: np.ndarray, dv: float,
@@ -438,9 +525,10 @@ def _solve_one(B: float, rhs: float, x0: float | None = None) -> float | None:
 
 
 def _finite(res: LCPResult) -> LCPResult:
-    """``res``, or its ``overflow`` verdict when its solution is not finite."""
-    if res.success and not all(map(math.isfinite, res.x.tolist())):
-        return replace(res, status="overflow", message="the solution is beyond the floating-point range (overflow)")
+    """``res``, or its ``overflow`` verdict when its solution, or A x + b, is not finite."""
+    if res.success and not (all(map(math.isfinite, res.x.tolist())) and all(map(math.isfinite, res.w.tolist()))):
+        return replace(res, status="overflow",
+                       message="the solution, or A x + b, is beyond the floating-point range (overflow)")
     return res
 
 
@@ -564,9 +652,13 @@ def _psd_hint(A: np.ndarray) -> float | None:
     """Smallest eigenvalue of the symmetric part (relative), or None when too large to check."""
     if A.shape[0] > 2000:
         return None
-    H = 0.5 * (A + A.T)
-    scale = max(float(np.max(np.abs(H))), 1e-300)
-    return float(np.linalg.eigvalsh(H / scale)[0])
+    with np.errstate(over="ignore", invalid="ignore"):   # (entries near 1e308: no hint)
+        H = 0.5 * (A + A.T)
+        scale = max(float(np.max(np.abs(H))), 1e-300)
+        try:
+            return float(np.linalg.eigvalsh(H / scale)[0])
+        except np.linalg.LinAlgError:   # not finite (an overflowed sum), or LAPACK did not converge
+            return None
 
 
 def _ray_message(pivots: int, z0_value, eig: float | None) -> str:
@@ -576,3 +668,6 @@ def _ray_message(pivots: int, z0_value, eig: float | None) -> str:
         return head + ": A is positive semi-definite, so this proves the LCP has no solution"
     return (head + ": no solution exists if A is copositive-plus; A is not positive semi-definite here, "
             "so a solution may exist that Lemke's method cannot reach")
+
+
+from . import compiled  # noqa: E402  (the compiled path drives this module's helpers)
