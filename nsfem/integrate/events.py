@@ -53,6 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import core
 from .configuration import Mode, Phase
 from .rings import ring_rows
 
@@ -171,6 +172,10 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     h_step = phase.max_step(t_stop - t_start, rate)
     # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
     bound4 = bound_of(4)[: rows.size] * h_step ** 4 / 384.0
+    search = core.compiled("search")
+    if search is not None and _compilable(phase, rows_at, band, bound4):
+        return _compiled_search(search, phase, H, Hd, tol, band, rate, rows_at, bound4, h_step, t_start, t_stop,
+                                report)
     coarse, tried = None, False
     armed = None
     thr = None
@@ -257,6 +262,48 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         if report is not None:
             report(t_a)
     return None
+
+
+def _compilable(phase: Phase, rows_at, band: np.ndarray, bound4: np.ndarray) -> bool:
+    """Whether the compiled search (nsfem/integrate/core/_search.pyx) runs this phase: the modal path
+    without divided-difference groups, every row's bound fine enough to screen (no local bound)."""
+    mot = phase._modal
+    return (mot is not None and not mot.groups and getattr(rows_at, "terms", None) is not None
+            and not rows_at.terms.groups and bool(np.all(bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH))))
+
+
+def _compiled_search(search, phase: Phase, H, Hd, tol, band, rate, rows_at, bound4, h_step, t_start, t_stop,
+                     report) -> Event | None:
+    """The loop of :func:`first_event` after its set-up, as one compiled call (``search.Search.run``: the
+    same chunks, screens, scans, arming, coarse pass and roots); the coarse pass is set up here when the
+    loop asks for it, and ``report`` and ``phase.searched_until`` follow its progress."""
+    mot, kept = phase._modal, rows_at.terms
+    k = H.shape[0]
+
+    def coarse_of(t_a):
+        c = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop)
+        if c is None:
+            return None
+        terms = c.rows_at.terms
+        return (np.ascontiguousarray(terms.nu, dtype=complex), np.ascontiguousarray(terms.U, dtype=complex),
+                np.ascontiguousarray(c.margin, dtype=float), np.ascontiguousarray(c.b4, dtype=float), float(c.step))
+
+    def progress(t):
+        phase.searched_until = t
+        if report is not None:
+            report(t)
+
+    run = search.Search(np.ascontiguousarray(mot.nu, dtype=complex), np.ascontiguousarray(mot.U, dtype=complex),
+                        np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(Hd, dtype=float),
+                        np.ascontiguousarray(phase.A_aug, dtype=float), phase.t0, float(phase.w),
+                        np.ascontiguousarray(kept.nu, dtype=complex), np.ascontiguousarray(kept.U, dtype=complex),
+                        np.ascontiguousarray(band, dtype=float), np.ascontiguousarray(bound4, dtype=float),
+                        float(h_step), float(t_start), float(t_stop), coarse_of)
+    found = run.run(progress)
+    if found is None:
+        return None
+    t_e, idx, graze, in_band = found
+    return Event(t_e, idx, graze, tol, in_band)
 
 
 #: the coarse pass leaves out the fastest terms up to COARSE of each row's size; it is used when that

@@ -2,7 +2,7 @@
 """Compiled kernels of the event search (nsfem/integrate/events.py holds the Python reference of
 each, under the same name with a leading underscore; tests/test_core_equivalence.py compares them)."""
 
-from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, INFINITY
+from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, cos, sin, pow, ceil, isfinite, INFINITY
 
 cdef int MAXITER = 200
 cdef double SAFE_HI = 2.0 ** 400
@@ -42,6 +42,12 @@ cdef int roots2(double a, double b, double c, double* out) noexcept nogil:
 
 cpdef double envelope_min(double f0, double f1, double d0, double d1, double dt, double bound4,
                           double s_hi=1.0):
+    """events._envelope_min (the kernel :func:`envelope` for Python callers)."""
+    return envelope(f0, f1, d0, d1, dt, bound4, s_hi)
+
+
+cdef double envelope(double f0, double f1, double d0, double d1, double dt, double bound4,
+                     double s_hi) noexcept nogil:
     """events._envelope_min: the lowest the row can be on [0, s_hi] of the interval, the Hermite cubic
     less its pointwise error bound 16 bound4 s^2 (1 - s)^2 (a quartic p), at the ends or at the minimum
     of each piece where p' goes from - to + (Newton's method kept inside the piece)."""
@@ -103,3 +109,820 @@ cpdef double envelope_min(double f0, double f1, double d0, double d1, double dt,
         if val < low:
             low = val
     return low
+
+
+# ---------------------------------------------------------------------------------------------
+# The search of one phase on the modal path (events.first_event's loop after its set-up)
+# ---------------------------------------------------------------------------------------------
+
+from libc.stdlib cimport malloc, free, realloc
+
+import numpy as np
+
+#: as events.SUBDIVIDE, DEPTH, FIRST_CHUNK, CHUNK
+cdef int SUBDIVIDE = 16, DEPTH = 3, FIRST_CHUNK = 4, CHUNK = 256
+#: as events.SLOPE (Birkhoff and Priver's slope bound in units of bound4)
+cdef double SLOPE = 384.0 * sqrt(3.0) / 216.0
+#: as first_event: at most this many arming candidates per row and chunk
+cdef int ARM_CANDIDATES = 64
+#: remembered (t, h, h', h'') per row (events._Row._memo)
+cdef int MEMO = 8
+
+
+cdef inline void cubic(double f0, double f1, double d0, double d1, double dt, double* c) noexcept nogil:
+    """events._cubic: the Hermite cubic's coefficients in s = (t - a) / dt."""
+    cdef double m0 = dt * d0, m1 = dt * d1, df = f1 - f0
+    c[0] = f0
+    c[1] = m0
+    c[2] = 3.0 * df - 2.0 * m0 - m1
+    c[3] = m0 + m1 - 2.0 * df
+
+
+cdef inline double cubic_at(const double* c, double s) noexcept nogil:
+    return c[0] + s * (c[1] + s * (c[2] + s * c[3]))
+
+
+cdef double hermite_min(double f0, double f1, double d0, double d1, double dt) noexcept nogil:
+    """events._hermite_min for one interval: the cubic's minimum, at an end or a root of its slope."""
+    cdef double c[4]
+    cdef double r[2]
+    cdef double out = f0 if f0 <= f1 else f1, v
+    cdef int nr, j
+    cubic(f0, f1, d0, d1, dt, c)
+    nr = roots2(3.0 * c[3], 2.0 * c[2], c[1], r)
+    for j in range(nr):
+        if 0.0 < r[j] < 1.0:
+            v = cubic_at(c, r[j])
+            if v < out:
+                out = v
+    return out
+
+
+cdef double cubic_argmax(const double* c) noexcept nogil:
+    """events._cubic_argmax: where on [0, 1] the cubic is largest (the first of equal values)."""
+    cdef double ss[4]
+    cdef double r[2]
+    cdef int n = 2, nr, j
+    cdef double best = 0.0, vbest = 0.0, v
+    cdef bint have = False
+    ss[0] = 0.0
+    ss[1] = 1.0
+    nr = roots2(3.0 * c[3], 2.0 * c[2], c[1], r)
+    for j in range(nr):
+        ss[n] = r[j]
+        n += 1
+    for j in range(n):
+        if 0.0 <= ss[j] <= 1.0:
+            v = cubic_at(c, ss[j])
+            if not have or v > vbest:
+                best, vbest, have = ss[j], v, True
+    return best
+
+
+cdef bint convex(double f0, double f1, double d0, double d1, double dt, double bound4) noexcept nogil:
+    """events._convex: the cubic's curvature less its error bound positive at both ends."""
+    cdef double c[4]
+    cubic(f0, f1, d0, d1, dt, c)
+    return min(2.0 * c[2], 2.0 * c[2] + 6.0 * c[3]) > 32.0 * bound4
+
+
+cdef bint first_root(double f0, double f1, double d0, double d1, double dt, double s_r, double bound4,
+                     double tol) noexcept nogil:
+    """events._first_root: no earlier point of the interval than s_r can be below -tol."""
+    cdef double c[4]
+    cdef double r[2]
+    cdef double e1 = SLOPE * bound4, s_x = 0.0
+    cdef int nr, j
+    cdef bint have = False
+    cubic(f0, f1, d0, d1, dt, c)
+    if not c[1] + e1 + s_r * (2.0 * c[2] + 3.0 * c[3] * s_r) < 0.0:
+        return False
+    nr = roots2(3.0 * c[3], 2.0 * c[2], c[1] + e1, r)
+    for j in range(nr):
+        if 0.0 < r[j] < s_r and (not have or r[j] > s_x):
+            s_x, have = r[j], True
+    return s_x == 0.0 or envelope(f0, f1, d0, d1, dt, bound4, s_x) >= -tol
+
+
+cdef double cubic_root(double c0, double c1, double c2, double c3) noexcept nogil:
+    """events._cubic_root: a root in [0, 1] of the cubic (Newton's method kept in the bracket)."""
+    cdef double lo = 0.0, hi = 1.0, f_lo = c0
+    cdef double f1 = c0 + c1 + c2 + c3
+    cdef double s = c0 / (c0 - f1), f, d, s_new
+    cdef int it
+    for it in range(8):
+        f = c0 + s * (c1 + s * (c2 + s * c3))
+        if (f > 0) == (f_lo > 0):
+            lo, f_lo = s, f
+        else:
+            hi = s
+        d = c1 + s * (2.0 * c2 + 3.0 * s * c3)
+        s_new = s - f / d if d != 0.0 else -1.0
+        if not (lo < s_new < hi):
+            s_new = 0.5 * (lo + hi)
+        if fabs(s_new - s) <= 1e-12:
+            return s_new
+        s = s_new
+    return s
+
+
+cdef void screen_row(const double* dt, const double* f, const double* hd, int n, double tol, const double* b4,
+                     const char* subdivide, char* cross, char* turn, char* near) noexcept nogil:
+    """events._screen_row (and events._screen, the same rule on arrays): per interval of one row, a
+    crossing of -tol, a turn of h' from - to +, and whether the interval is near (its cubic less the
+    error bound comes within the band)."""
+    cdef int k
+    cdef double f0, f1, d0, d1, lo
+    cdef bint a0, a1, hit
+    for k in range(n):
+        f0, f1, d0, d1 = f[k], f[k + 1], hd[k], hd[k + 1]
+        a0 = f0 >= -tol
+        a1 = f1 >= -tol
+        cross[k] = a0 and not a1
+        turn[k] = d0 < 0 and d1 >= 0
+        near[k] = False
+        if not (a0 and a1 and (turn[k] or subdivide[k])):
+            continue
+        if not min(f0, f1) - 4.0 / 27.0 * dt[k] * (fabs(d0) + fabs(d1)) - b4[k] <= tol:
+            continue
+        lo = hermite_min(f0, f1, d0, d1, dt[k]) - b4[k]
+        hit = lo <= tol if turn[k] else lo < -tol
+        if hit and isfinite(b4[k]):
+            lo = envelope(f0, f1, d0, d1, dt[k], b4[k], 1.0)
+            hit = lo <= tol if turn[k] else lo < -tol
+        near[k] = hit
+
+
+cdef inline void pick(const double* v, int which, double thr, double* f, double* d) noexcept nogil:
+    """The function and slope a root is sought of: which 0, (h - thr, h'); 1, (h', h'')."""
+    if which == 0:
+        f[0], d[0] = v[0] - thr, v[1]
+    else:
+        f[0], d[0] = v[1], v[2]
+
+
+cdef void linspace(double a, double b, int num, double* out) noexcept nogil:
+    """numpy.linspace(a, b, num) bit for bit (j step + a, the last b)."""
+    cdef int div = num - 1, j
+    cdef double delta = b - a, step
+    if div <= 0:
+        out[0] = a
+        return
+    step = delta / div
+    for j in range(num):
+        if step == 0.0:
+            out[j] = (<double>j / div) * delta + a
+        else:
+            out[j] = <double>j * step + a
+    out[num - 1] = b
+
+
+cdef class _Terms:
+    """Rows t -> Re(C e^{nu (t - t0)}) + their harmonic part (events' rows_at, _Row.samples: the
+    closed form's Motion.evaluate with Phase._harmonics), C's rows j < k those of H, the others Hd's."""
+    cdef const double complex[::1] nu
+    cdef double complex[:, ::1] C
+    cdef int p
+
+    def __init__(self, nu, C):
+        self.nu = nu
+        self.C = C
+        self.p = self.nu.shape[0]
+
+
+cdef class Search:
+    """One phase's search (events.first_event after its set-up, on the modal path without divided
+    differences): the state of the loop, the rows read from the state, the coarse pass."""
+    cdef int k, r2, dim, nh, p
+    cdef double t0, w
+    cdef const double complex[::1] nu      # the phase's exponents (all terms)
+    cdef const double complex[:, ::1] U    # xi's modal part: Re(U e^{nu tau})
+    cdef const double[:, ::1] H, Hd, A
+    cdef _Terms kept, full, coarse
+    cdef unsigned char[::1] full_ok, hdd_ok
+    cdef double[:, ::1] Hdd
+    cdef double[:, ::1] memo               # per row MEMO x (t, h, h', h'')
+    cdef int[::1] nmemo
+    cdef const double[::1] band, bound4
+    cdef double[::1] er, ei, sr, si, xi
+    cdef double h_step, t_start, t_stop
+    # the coarse pass (events._Coarse)
+    cdef object coarse_of
+    cdef const double[::1] margin, b4c
+    cdef double step_c, start_c
+    cdef double* cts
+    cdef char* cclear
+    cdef int cn, ccap
+
+    def __cinit__(self):
+        self.cts = NULL
+        self.cclear = NULL
+        self.cn = self.ccap = 0
+
+    def __dealloc__(self):
+        free(self.cts)
+        free(self.cclear)
+
+    def __init__(self, nu, U, H, Hd, A, double t0, double w, nu_kept, C_kept, band, bound4, double h_step,
+                 double t_start, double t_stop, coarse_of):
+        self.nu, self.U, self.H, self.Hd, self.A = nu, U, H, Hd, A
+        self.k, self.dim = self.H.shape[0], self.H.shape[1]
+        self.r2 = self.U.shape[0]
+        self.nh = self.dim - self.r2
+        self.p = self.nu.shape[0]
+        self.t0, self.w = t0, w
+        self.kept = _Terms(nu_kept, C_kept)
+        self.full = _Terms(nu, np.empty((2 * self.k, self.p), dtype=complex))
+        self.full_ok = np.zeros(self.k, dtype=np.uint8)
+        self.hdd_ok = np.zeros(self.k, dtype=np.uint8)
+        self.Hdd = np.empty((self.k, self.dim))
+        self.memo = np.empty((self.k, 4 * MEMO))
+        self.nmemo = np.zeros(self.k, dtype=np.intc)
+        self.band, self.bound4 = band, bound4
+        self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
+        self.coarse_of = coarse_of
+        self.coarse = None
+        cdef int m = max(self.p, self.kept.p)
+        self.er, self.ei, self.sr, self.si = (np.empty(m + 1) for _ in range(4))
+        self.xi = np.empty(self.dim)
+
+    # -- the rows ---------------------------------------------------------------------------
+    cdef void _sample(self, _Terms T, int j0, int nj, int jstep, const double* ts, int n, double* out):
+        """Rows j0, j0 + jstep, ... (nj of them) of T at the times ts (n), into out (nj x n):
+        Motion.evaluate (e^{nu tau} by repeated products on a uniform grid of more than 8 times, as
+        closed_form.exponentials) plus the rows' harmonic part (Phase._harmonics)."""
+        cdef int p = T.p, j, m, q, row, l
+        cdef double tau, d0, e, x, y, s, c, sn
+        cdef bint uniform = False
+        cdef double* er = &self.er[0]
+        cdef double* ei = &self.ei[0]
+        cdef double* sr = &self.sr[0]
+        cdef double* si = &self.si[0]
+        cdef const double* hrow
+        if n > 8:
+            d0 = (ts[1] - self.t0) - (ts[0] - self.t0)
+            uniform = True
+            for j in range(1, n):
+                if not fabs(((ts[j] - self.t0) - (ts[j - 1] - self.t0)) - d0) <= 1e-12 * fabs(d0):
+                    uniform = False
+                    break
+            if uniform:
+                for m in range(p):
+                    e = exp(T.nu[m].real * d0)
+                    sr[m] = e * cos(T.nu[m].imag * d0)
+                    si[m] = e * sin(T.nu[m].imag * d0)
+        for j in range(n):
+            tau = ts[j] - self.t0
+            if uniform and j > 0:
+                for m in range(p):
+                    x = er[m] * sr[m] - ei[m] * si[m]
+                    y = er[m] * si[m] + ei[m] * sr[m]
+                    er[m], ei[m] = x, y
+            else:
+                for m in range(p):
+                    e = exp(T.nu[m].real * tau)
+                    er[m] = e * cos(T.nu[m].imag * tau)
+                    ei[m] = e * sin(T.nu[m].imag * tau)
+            c = cos(self.w * ts[j]) if self.nh == 3 else 0.0
+            sn = sin(self.w * ts[j]) if self.nh == 3 else 0.0
+            for q in range(nj):
+                row = j0 + q * jstep
+                s = 0.0
+                for m in range(p):
+                    s += T.C[row, m].real * er[m] - T.C[row, m].imag * ei[m]
+                hrow = &self.H[row, self.r2] if row < self.k else &self.Hd[row - self.k, self.r2]
+                if self.nh == 3:
+                    s += hrow[0] + hrow[1] * c + hrow[2] * sn
+                else:
+                    s += hrow[0]
+                out[q * n + j] = s
+
+    cdef void samples(self, int i, const double* ts, int n, double* out):
+        """events._Row.samples: (h, h') of row i at the times ts (2 x n), from all its terms."""
+        cdef int m, l
+        cdef double complex s
+        if not self.full_ok[i]:
+            for m in range(self.p):
+                s = 0
+                for l in range(self.r2):
+                    s = s + self.H[i, l] * self.U[l, m]
+                self.full.C[i, m] = s
+                s = 0
+                for l in range(self.r2):
+                    s = s + self.Hd[i, l] * self.U[l, m]
+                self.full.C[self.k + i, m] = s
+            self.full_ok[i] = True
+        self._sample(self.full, i, 2, self.k, ts, n, out)
+
+    cdef const double* at(self, int i, double t):
+        """events._Row._eval: (h, h', h'') of row i at t, read from the state xi(t) (Phase._xi_at);
+        the last MEMO times remembered."""
+        cdef double* mem = &self.memo[i, 0]
+        cdef int j, m, l
+        cdef double tau = t - self.t0, e, s, a, b, c
+        cdef double* xi = &self.xi[0]
+        for j in range(self.nmemo[i]):
+            if mem[4 * j] == t:
+                return &mem[4 * j + 1]
+        if not self.hdd_ok[i]:
+            for j in range(self.dim):
+                s = 0.0
+                for l in range(self.dim):
+                    s += self.Hd[i, l] * self.A[l, j]
+                self.Hdd[i, j] = s
+            self.hdd_ok[i] = True
+        for m in range(self.p):
+            e = exp(self.nu[m].real * tau)
+            self.er[m] = e * cos(self.nu[m].imag * tau)
+            self.ei[m] = e * sin(self.nu[m].imag * tau)
+        for l in range(self.r2):
+            s = 0.0
+            for m in range(self.p):
+                s += self.U[l, m].real * self.er[m] - self.U[l, m].imag * self.ei[m]
+            xi[l] = s
+        xi[self.r2] = 1.0
+        if self.nh == 3:
+            xi[self.r2 + 1] = cos(self.w * t)
+            xi[self.r2 + 2] = sin(self.w * t)
+        a = b = c = 0.0
+        for l in range(self.dim):
+            a += self.H[i, l] * xi[l]
+            b += self.Hd[i, l] * xi[l]
+            c += self.Hdd[i, l] * xi[l]
+        if self.nmemo[i] >= MEMO:
+            self.nmemo[i] = 0
+        j = self.nmemo[i]
+        mem[4 * j], mem[4 * j + 1], mem[4 * j + 2], mem[4 * j + 3] = t, a, b, c
+        self.nmemo[i] = j + 1
+        return &mem[4 * j + 1]
+
+    # -- roots ------------------------------------------------------------------------------
+    cdef bint root(self, int i, int which, double thr, double a, double b, double* out):
+        """events._root on row i: which 0, a root of h - thr (with h'); 1, of h' (with h''). False
+        when the re-evaluated ends show no sign change."""
+        cdef const double* v
+        cdef double fa, da, fb, db, xtol, x, prev, fx, dx, step, tol, x_new
+        cdef double c[4]
+        cdef bint overshot = False
+        cdef int it
+        pick(self.at(i, a), which, thr, &fa, &da)
+        pick(self.at(i, b), which, thr, &fb, &db)
+        if fa == 0.0:
+            out[0] = a
+            return True
+        if fb == 0.0:
+            out[0] = b
+            return True
+        if (fa > 0) == (fb > 0):
+            return False
+        xtol = 4e-16 * max(1.0, fabs(b))
+        cubic(fa, fb, da, db, b - a, c)
+        x = a + (b - a) * cubic_root(c[0], c[1], c[2], c[3])
+        prev = b - a
+        for it in range(MAXITER):
+            pick(self.at(i, x), which, thr, &fx, &dx)
+            if fx == 0.0:
+                out[0] = x
+                return True
+            if (fx > 0) == (fa > 0):
+                a, fa = x, fx
+            else:
+                b = x
+            step = fx / dx if dx != 0.0 else INFINITY
+            tol = xtol + 8.9e-16 * fabs(x)
+            if fabs(step) <= tol:
+                out[0] = min(max(x - step, a), b)
+                return True
+            if b - a <= 2.0 * tol:
+                out[0] = 0.5 * (a + b)
+                return True
+            x_new = x - step
+            if a < x_new < b and fabs(step) <= 0.5 * prev:
+                overshot = False
+            elif not overshot and a < x - 2.0 * step < b:
+                x_new, step, overshot = x - 2.0 * step, 2.0 * step, True
+            else:
+                x_new = 0.5 * (a + b)
+                step, overshot = x - x_new, False
+            prev, x = fabs(step), x_new
+        out[0] = x
+        return True
+
+    # -- scans ------------------------------------------------------------------------------
+    cdef bint finer(self, int i, double a, double b, double thr, double tol, double b4, double limit, int depth,
+                    double* t_out, bint* graze):
+        """_scan's finer(k): the interval [a, b] on SUBDIVIDE finer intervals, scanned again."""
+        cdef double sub[17]
+        cdef double hh[34]
+        cdef double bs[16]
+        cdef int j
+        linspace(a, b, SUBDIVIDE + 1, sub)
+        self.samples(i, sub, SUBDIVIDE + 1, hh)
+        for j in range(SUBDIVIDE):
+            bs[j] = b4 / 65536.0
+        return self.scan(i, sub, hh, &hh[SUBDIVIDE + 1], SUBDIVIDE + 1, thr, tol, bs, limit, depth + 1, NULL, NULL,
+                         NULL, t_out, graze)
+
+    cdef bint scan(self, int i, const double* ts, const double* h, const double* hd, int n, double thr, double tol,
+                   const double* b4, double limit, int depth, const char* cross_in, const char* turn_in,
+                   const char* near_in, double* t_out, bint* graze):
+        """events._scan on row i: the first root of h - thr on the samples (crossing or dip), refined:
+        True with (t_out, graze), or False. b4 per interval; cross_in/turn_in/near_in: the screen of
+        these samples when the caller has formed it (else NULL)."""
+        if n < 2:
+            return False
+        cdef int ni = n - 1, k, kk, k_c = -1, j
+        cdef double reach = tol * pow(<double>SUBDIVIDE, <double>(4 * (DEPTH - depth)))
+        cdef char* buf = <char*>malloc(4 * ni)
+        cdef double* dbuf = <double*>malloc((n + ni) * sizeof(double))
+        cdef char* sub = buf
+        cdef char* cross
+        cdef char* turn
+        cdef char* near
+        cdef double* f = dbuf
+        cdef double* dt = &dbuf[n]
+        cdef double a, b, t_r, u, tm, fm
+        cdef const double* v
+        cdef bint found = False, ok
+        for k in range(n):
+            f[k] = h[k] - thr
+        for k in range(ni):
+            sub[k] = (b4[k] <= reach) if depth < DEPTH else False
+            dt[k] = ts[k + 1] - ts[k]
+        if cross_in != NULL:
+            cross, turn, near = <char*>cross_in, <char*>turn_in, <char*>near_in
+        else:
+            cross, turn, near = &buf[ni], &buf[2 * ni], &buf[3 * ni]
+            screen_row(dt, f, hd, ni, tol, b4, sub, cross, turn, near)
+        for k in range(ni):
+            if cross[k]:
+                k_c = k
+                break
+        # the candidates: near intervals before the first crossing, then the crossing
+        for kk in range(ni if k_c < 0 else k_c + 1):
+            k = kk
+            if k == k_c:
+                pass
+            elif not near[k]:
+                continue
+            a, b = ts[k], ts[k + 1]
+            if a > limit:
+                break
+            if sub[k] and k != k_c and not turn[k]:
+                if self.finer(i, a, b, thr, tol, b4[k], limit, depth, t_out, graze):
+                    found = True
+                    break
+                continue
+            if k == k_c:
+                if self.at(i, a)[0] - thr < 0:   # the sample before is itself (round-off) below
+                    t_out[0], graze[0], found = a, False, True
+                    break
+                if not self.root(i, 0, thr, a, b, &t_r):
+                    t_r = b
+                # first(k, t_r): t_r unless an earlier root may hide before it
+                graze[0], found = False, True
+                t_out[0] = t_r
+                if not sub[k] or first_root(f[k], f[k + 1], hd[k], hd[k + 1], dt[k], (t_r - ts[k]) / dt[k], b4[k],
+                                            tol):
+                    break
+                u = (t_r - ts[k]) / dt[k]
+                if u > 0.0:
+                    v = self.at(i, t_r)
+                    if envelope(f[k], v[0] - thr, hd[k], v[1], t_r - ts[k], b4[k] * pow(u, 4.0), 1.0) >= -tol:
+                        break
+                if not self.finer(i, a, b, thr, tol, b4[k], limit, depth, t_out, graze):
+                    t_out[0], graze[0] = t_r, False
+                break
+            if not turn[k]:
+                continue
+            if sub[k] and not convex(f[k], f[k + 1], hd[k], hd[k + 1], dt[k], b4[k]):
+                # two minima may hide in the interval: scanned again on finer samples
+                if self.finer(i, a, b, thr, tol, b4[k], limit, depth, t_out, graze):
+                    found = True
+                    break
+                continue
+            # dip: the minimum inside [a, b]
+            if not self.root(i, 1, 0.0, a, b, &tm):
+                tm = a if f[k] <= f[k + 1] else b
+            fm = self.at(i, tm)[0] - thr
+            if fm < -tol:
+                if not self.root(i, 0, thr, a, tm, &t_r):
+                    t_r = tm
+                t_out[0], graze[0], found = t_r, False, True
+                break
+            if fm <= tol and thr == 0.0:
+                t_out[0], graze[0], found = tm, True, True
+                break
+        free(buf)
+        free(dbuf)
+        return found
+
+    cdef int arm(self, int i, const double* ts, const double* h, const double* hd, int n, double tol, double bound4,
+                 double* t_arm):
+        """events._arm: the interval k where a row that starts in its zero band first rises above it
+        (t_arm: at a sample or a maximum between samples), or -1."""
+        cdef int k, j, cnt = 0, best
+        cdef double a, b, hmax, tc, hm, tm
+        cdef double c[4]
+        cdef double grid[33]
+        cdef double vals[66]
+        if n < 2:
+            return -1
+        for k in range(n - 1):
+            a, b = ts[k], ts[k + 1]
+            hmax = -hermite_min(-h[k], -h[k + 1], -hd[k], -hd[k + 1], b - a)
+            if not (h[k + 1] > tol or hmax + bound4 > tol):
+                continue
+            cnt += 1
+            if cnt > ARM_CANDIDATES:
+                break
+            if hmax - bound4 > tol:
+                cubic(h[k], h[k + 1], hd[k], hd[k + 1], b - a, c)
+                tc = a + (b - a) * cubic_argmax(c)
+                if self.at(i, tc)[0] > tol:
+                    t_arm[0] = tc
+                    return k
+            if not (hd[k] > 0 >= hd[k + 1] and self.root(i, 1, 0.0, a, b, &tm)):
+                # no sign change of h' (left): the maximum on a fine grid
+                linspace(a, b, 33, grid)
+                self.samples(i, grid, 33, vals)
+                best = 0
+                for j in range(1, 33):
+                    if vals[j] > vals[best]:
+                        best = j
+                tm, hm = grid[best], vals[best]
+            else:
+                hm = self.at(i, tm)[0]
+            if hm > tol:
+                t_arm[0] = tm
+                return k
+            if h[k + 1] > tol:
+                t_arm[0] = b
+                return k
+        return -1
+
+    # -- the coarse pass --------------------------------------------------------------------
+    cdef void extend(self):
+        """events._Coarse._extend: the next CHUNK coarse intervals sampled and judged."""
+        cdef double t0c = self.cts[self.cn] if self.cn > 0 else self.start_c
+        cdef double nd = ceil((self.t_stop - t0c) / self.step_c), lo, s0, s1, d0, d1, dt, mn
+        cdef int n = 1 if nd < 1 else (CHUNK if nd > CHUNK else <int>nd), j, q, off
+        cdef int k = self.k
+        cdef double* ts = <double*>malloc((n + 1) * sizeof(double))
+        cdef double* ss = <double*>malloc(2 * k * (n + 1) * sizeof(double))
+        cdef bint clear
+        linspace(t0c, min(self.t_stop, t0c + n * self.step_c), n + 1, ts)
+        self._sample(self.coarse, 0, 2 * k, 1, ts, n + 1, ss)
+        for q in range(k):
+            for j in range(n + 1):
+                ss[q * (n + 1) + j] -= self.margin[q]
+        off = 0 if self.cn == 0 else 1
+        if self.cn + n + 2 > self.ccap:
+            self.ccap = 2 * (self.cn + n + 2)
+            self.cts = <double*>realloc(self.cts, self.ccap * sizeof(double))
+            self.cclear = <char*>realloc(self.cclear, self.ccap)
+        if self.cn == 0:
+            self.cts[0] = ts[0]
+        for j in range(n):
+            dt = ts[j + 1] - ts[j]
+            clear = True
+            for q in range(k):
+                s0, s1 = ss[q * (n + 1) + j], ss[q * (n + 1) + j + 1]
+                d0, d1 = ss[(k + q) * (n + 1) + j], ss[(k + q) * (n + 1) + j + 1]
+                mn = s0 if s0 <= s1 else s1
+                lo = mn - 4.0 / 27.0 * dt * (fabs(d0) + fabs(d1))
+                lo -= self.b4c[q]
+                if lo <= 0.0:
+                    lo = hermite_min(s0, s1, d0, d1, dt) - self.b4c[q]
+                if not lo > 0.0:
+                    clear = False
+                    break
+            self.cclear[self.cn + j] = clear
+            self.cts[self.cn + j + 1] = ts[j + 1]
+        self.cn += n
+        free(ts)
+        free(ss)
+
+    cdef double unclear(self, double t, double* t_b):
+        """events._Coarse.unclear: (a, b), the first stretch at or after t not certified clear."""
+        cdef int lo = 0, hi = self.cn + 1 if self.cn > 0 else 0, mid, j
+        cdef double a
+        while lo < hi:   # searchsorted(ts, t, side="right")
+            mid = (lo + hi) // 2
+            if self.cts[mid] <= t:
+                lo = mid + 1
+            else:
+                hi = mid
+        j = lo - 1 if lo > 0 else 0
+        while True:
+            while j >= self.cn:
+                if self.cn > 0 and self.cts[self.cn] >= self.t_stop:
+                    t_b[0] = self.t_stop
+                    return self.t_stop
+                self.extend()
+            if not self.cclear[j]:
+                break
+            j += 1
+        a = max(t, self.cts[j])
+        while True:
+            if j >= self.cn:
+                if self.cts[self.cn] >= self.t_stop:
+                    t_b[0] = self.t_stop
+                    return a
+                self.extend()
+                continue
+            if self.cclear[j]:
+                t_b[0] = self.cts[j]
+                return a
+            j += 1
+
+    # -- the loop ---------------------------------------------------------------------------
+    def run(self, progress):
+        """events.first_event's loop: (t, rows, graze, in_band) of the earliest event, or None.
+        ``progress(t)`` is called after each chunk and each coarse skip (no event before t)."""
+        cdef int k = self.k, n, ns, i, j, q, ka, cnt, nfound = 0
+        cdef int cap = CHUNK + 2
+        cdef double t_a = self.t_start, t_b, t_skip, nd, limit, t_arm, t_e, rt, step
+        cdef int chunk = FIRST_CHUNK
+        cdef bint tried = False, started = False, all_armed, ok, g, in_band
+        cdef double* ts = <double*>malloc(cap * sizeof(double))
+        cdef double* hh = <double*>malloc(2 * k * cap * sizeof(double))
+        cdef double* f = <double*>malloc(k * cap * sizeof(double))
+        cdef double* dt = <double*>malloc(cap * sizeof(double))
+        cdef double* b4 = <double*>malloc(cap * sizeof(double))
+        cdef double* cut = <double*>malloc(6 * cap * sizeof(double))
+        cdef char* flags = <char*>malloc(4 * k * cap)
+        cdef char* sub = <char*>malloc(cap)
+        cdef char* armed = <char*>malloc(k)
+        cdef char* maybe = <char*>malloc(k)
+        cdef double* thr = <double*>malloc(k * sizeof(double))
+        cdef int* first = <int*>malloc(k * sizeof(int))
+        cdef int* order = <int*>malloc(k * sizeof(int))
+        cdef double* ft = <double*>malloc(k * sizeof(double))
+        cdef int* fi = <int*>malloc(k * sizeof(int))
+        cdef char* fg = <char*>malloc(k)
+        cdef char* fb = <char*>malloc(k)
+        cdef char* cross
+        cdef char* turn
+        cdef char* near
+        cdef double* h
+        cdef double* hd
+        cdef double* ts1
+        cdef double* h1
+        cdef double* hd1
+        cdef double* ts2
+        cdef double* h2
+        cdef double* hd2
+        cdef double band, bnd4
+        cdef const double* v
+        cdef int n1, n2
+        result = None
+        try:
+            while t_a < self.t_stop:
+                t_b = self.t_stop
+                if not tried and started:
+                    all_armed = True
+                    for i in range(k):
+                        if not armed[i]:
+                            all_armed = False
+                            break
+                    if all_armed:
+                        # formed once a first chunk has found nothing
+                        tried = True
+                        c = self.coarse_of(t_a)
+                        if c is not None:
+                            nu_c, C_c, margin, b4c, step_c = c
+                            self.coarse = _Terms(nu_c, C_c)
+                            self.margin, self.b4c, self.step_c, self.start_c = margin, b4c, step_c, t_a
+                if self.coarse is not None:
+                    # every row armed at 0: skip what the coarse pass certifies, search the rest finely
+                    t_skip = self.unclear(t_a, &t_b)
+                    if t_skip > t_a:
+                        t_a = t_skip
+                        chunk = FIRST_CHUNK
+                        progress(t_a)
+                        if t_a >= self.t_stop:
+                            break
+                nd = ceil((t_b - t_a) / self.h_step)
+                n = chunk if nd > chunk else <int>nd
+                if n < 1:
+                    n = 1
+                chunk = min(CHUNK, 4 * chunk)
+                ns = n + 1
+                linspace(t_a, min(t_b, t_a + n * self.h_step), ns, ts)
+                self._sample(self.kept, 0, 2 * k, 1, ts, ns, hh)
+                if not started:
+                    # a row that starts inside its zero band is armed once it has left it upwards; unarmed
+                    # rows fire by going down by the band from where they start
+                    started = True
+                    for i in range(k):
+                        armed[i] = hh[i * ns] > self.band[i]
+                        thr[i] = 0.0 if armed[i] else min(-self.band[i], hh[i * ns] - self.band[i])
+                for j in range(n):
+                    dt[j] = ts[j + 1] - ts[j]
+                    sub[j] = True
+                # all rows screened at once (first_event's _screened: every row's bound screens here)
+                for i in range(k):
+                    h = &hh[i * ns]
+                    hd = &hh[(k + i) * ns]
+                    for j in range(ns):
+                        f[i * ns + j] = h[j] - thr[i]
+                    for j in range(n):
+                        b4[j] = self.bound4[i]
+                    cross, turn, near = &flags[3 * i * ns], &flags[(3 * i + 1) * ns], &flags[(3 * i + 2) * ns]
+                    screen_row(dt, &f[i * ns], hd, n, self.band[i], b4, sub, cross, turn, near)
+                    maybe[i] = not armed[i]
+                    for j in range(n):
+                        if cross[j] or near[j]:
+                            maybe[i] = True
+                            break
+                    # the first sample below threshold (rows are refined in that order)
+                    first[i] = ns
+                    for j in range(ns):
+                        if f[i * ns + j] < -self.band[i]:
+                            first[i] = j
+                            break
+                    # stable insertion into the order
+                    q = i
+                    while q > 0 and first[order[q - 1]] > first[i]:
+                        order[q] = order[q - 1]
+                        q -= 1
+                    order[q] = i
+                nfound = 0
+                limit = INFINITY
+                step = ts[1] - ts[0]
+                for q in range(k):
+                    i = order[q]
+                    if not maybe[i]:
+                        continue
+                    h = &hh[i * ns]
+                    hd = &hh[(k + i) * ns]
+                    band, bnd4 = self.band[i], self.bound4[i]
+                    ok = False
+                    in_band = False
+                    if not armed[i]:
+                        # the row starts in its zero band: it fires from there only by leaving it downwards
+                        # (root at -tol, flagged); once it has left the band upwards it is armed at 0
+                        ka = self.arm(i, ts, h, hd, ns, band, bnd4, &t_arm)
+                        if ka < 0:
+                            for j in range(n):
+                                b4[j] = bnd4
+                            ok = self.scan(i, ts, h, hd, ns, thr[i], band, b4, limit, 0, NULL, NULL, NULL, &rt, &g)
+                        else:
+                            # _cut: the samples up to the arming point and from it on
+                            ts1, h1, hd1 = cut, &cut[cap], &cut[2 * cap]
+                            ts2, h2, hd2 = &cut[3 * cap], &cut[4 * cap], &cut[5 * cap]
+                            v = self.at(i, t_arm)
+                            for j in range(ka + 1):
+                                ts1[j], h1[j], hd1[j] = ts[j], h[j], hd[j]
+                            n1 = ka + 1
+                            if not t_arm <= ts[ka]:
+                                ts1[n1], h1[n1], hd1[n1] = t_arm, v[0], v[1]
+                                n1 += 1
+                            ts2[0], h2[0], hd2[0] = t_arm, v[0], v[1]
+                            n2 = 1
+                            for j in range(ka + 1, ns):
+                                ts2[n2], h2[n2], hd2[n2] = ts[j], h[j], hd[j]
+                                n2 += 1
+                            for j in range(n1 - 1):   # _shorter
+                                b4[j] = bnd4 * pow(min((ts1[j + 1] - ts1[j]) / step, 1.0), 4.0)
+                            ok = self.scan(i, ts1, h1, hd1, n1, thr[i], band, b4, limit, 0, NULL, NULL, NULL, &rt, &g)
+                        if ok and ka >= 0 and rt <= t_arm and (rt <= ts[0] or self.at(i, rt)[1] > 0.0):
+                            # round-off of evaluating the row near its start, not a descent by tol
+                            ok = False
+                        if ok and (ka < 0 or rt <= t_arm):
+                            in_band = True
+                        elif ka >= 0:
+                            armed[i], thr[i] = True, 0.0
+                            for j in range(n2 - 1):
+                                b4[j] = bnd4 * pow(min((ts2[j + 1] - ts2[j]) / step, 1.0), 4.0)
+                            ok = self.scan(i, ts2, h2, hd2, n2, 0.0, band, b4, limit, 0, NULL, NULL, NULL, &rt, &g)
+                    else:
+                        for j in range(n):
+                            b4[j] = bnd4
+                        ok = self.scan(i, ts, h, hd, ns, thr[i], band, b4, limit, 0, &flags[3 * i * ns],
+                                       &flags[(3 * i + 1) * ns], &flags[(3 * i + 2) * ns], &rt, &g)
+                    if ok:
+                        ft[nfound], fi[nfound], fg[nfound], fb[nfound] = rt, i, g, in_band
+                        nfound += 1
+                        limit = min(limit, rt + 1e-12 * max(1.0, fabs(rt)))
+                if nfound:
+                    t_e = ft[0]
+                    for j in range(1, nfound):
+                        if ft[j] < t_e:
+                            t_e = ft[j]
+                    rows, graze, inb = [], [], []
+                    for i in range(k):   # the rows within 1e-12 of the earliest, by index
+                        for j in range(nfound):
+                            if fi[j] == i and ft[j] <= t_e + 1e-12 * max(1.0, fabs(t_e)):
+                                rows.append(i)
+                                graze.append(bool(fg[j]))
+                                inb.append(bool(fb[j]))
+                    result = (t_e, rows, graze, inb)
+                    break
+                t_a = ts[n]
+                progress(t_a)   # no event before this time (an interrupted run keeps it)
+        finally:
+            free(ts); free(hh); free(f); free(dt); free(b4); free(cut); free(flags); free(sub)
+            free(armed); free(maybe); free(thr); free(first); free(order); free(ft); free(fi); free(fg); free(fb)
+        return result
