@@ -6,7 +6,8 @@ the reference does, so they agree bitwise; 1e-12 leaves room for a root refined 
 one more Newton step on a last-bit difference of a BLAS product) and gaps at the output times within
 1e-10 of their range (a gap is a product of the state with O(1) weights: a 1e-12 relative time
 difference moves it by at most 1e-12 of its range per unit of the fastest rate's period over the
-step, far inside 1e-10).
+step, far inside 1e-10). A long impact sequence amplifies a last-bit difference past these: such a
+case is held to the reference's own spread between BLAS kernels (:data:`AMPLIFIED`).
 
 Skipped where the compiled core is not installed (``CC=false pip install .``); .ci/run checks that
 it is built there, and runs the whole suite once more on the reference path (NSFEM_PURE_PYTHON=1).
@@ -37,6 +38,15 @@ CASES = {
 }
 
 
+#: (times, gaps) tolerances of a case whose impact sequence amplifies last-bit differences (absolute s,
+#: of the gaps' range). The stop scene's 282 events (267 impacts, restitution 0.5) carry a difference of
+#: 1e-19 s at the first event to 1e-12 s at the 250th: any two evaluations that round differently give
+#: that, and the reference itself differs from itself by up to 3.6e-11 s and 1.3e-9 of the gaps' range
+#: between two OpenBLAS kernels (Haswell, Sandybridge, the machine's own: measured). A compiled part
+#: whose sums are not BLAS's (the search's samples and rows) is held to that spread, with a factor 3.
+AMPLIFIED = {"stop": (1e-10, 4e-9)}
+
+
 def _run(name: str, overrides: list, reference: bool):
     scene = load_scene(name, overrides)
     if reference:
@@ -45,17 +55,18 @@ def _run(name: str, overrides: list, reference: bool):
     return run_scene(scene, "exact")[0]
 
 
-def assert_same_run(a, b) -> None:
-    """Two runs of one scene are the same run (the module's tolerances)."""
+def assert_same_run(a, b, tol_t: float = 1e-12, tol_gap: float = 1e-10) -> None:
+    """Two runs of one scene are the same run (the module's tolerances: times within tol_t relative
+    (absolute below 1 s), gaps within tol_gap of their range)."""
     assert len(a.events) == len(b.events)
     for ea, eb in zip(a.events, b.events):
         assert {k: v for k, v in ea.items() if k != "t"} == {k: v for k, v in eb.items() if k != "t"}
-        assert abs(ea["t"] - eb["t"]) <= 1e-12 * max(1.0, abs(ea["t"]))
+        assert abs(ea["t"] - eb["t"]) <= tol_t * max(1.0, abs(ea["t"]))
     assert len(a.impacts) == len(b.impacts)
     assert a.t.shape == b.t.shape and a.gap.shape == b.gap.shape
     if a.gap.size:
         span = float(np.ptp(a.gap)) or 1.0
-        assert np.max(np.abs(a.gap - b.gap)) <= 1e-10 * span
+        assert np.max(np.abs(a.gap - b.gap)) <= tol_gap * span
         assert np.array_equal(a.state, b.state)
 
 
@@ -64,7 +75,7 @@ def test_compiled_core_runs_as_the_reference(case):
     name, overrides = CASES[case]
     compiled = _run(name, overrides, reference=False)
     python = _run(name, overrides, reference=True)
-    assert_same_run(compiled, python)
+    assert_same_run(compiled, python, *AMPLIFIED.get(case, (1e-12, 1e-10)))
 
 
 def test_switch_names_the_core():

@@ -261,6 +261,22 @@ cdef inline void pick(const double* v, int which, double thr, double* f, double*
         f[0], d[0] = v[1], v[2]
 
 
+def screen(dt, f, hd, double tol, b4, subdivide):
+    """:func:`screen_row` for Python callers (tests: against events._screen_row): lists of bools
+    (cross, turn, near) per interval."""
+    cdef int n = len(dt), k
+    cdef double[::1] dtv = np.ascontiguousarray(dt, dtype=float), fv = np.ascontiguousarray(f, dtype=float)
+    cdef double[::1] hdv = np.ascontiguousarray(hd, dtype=float), b4v = np.ascontiguousarray(b4, dtype=float)
+    cdef char[::1] sub = np.ascontiguousarray(subdivide, dtype=np.int8)
+    cdef char[::1] out = np.zeros(3 * n + 1, dtype=np.int8)
+    if len(f) != n + 1 or len(hd) != n + 1 or len(b4) != n or len(subdivide) != n:
+        raise ValueError("screen: f and hd need one sample more than dt, b4 and subdivide")
+    if n:
+        screen_row(&dtv[0], &fv[0], &hdv[0], n, tol, &b4v[0], &sub[0], &out[0], &out[n], &out[2 * n])
+    return ([bool(out[k]) for k in range(n)], [bool(out[n + k]) for k in range(n)],
+            [bool(out[2 * n + k]) for k in range(n)])
+
+
 cdef void linspace(double a, double b, int num, double* out) noexcept nogil:
     """numpy.linspace(a, b, num) bit for bit (j step + a, the last b)."""
     cdef int div = num - 1, j
