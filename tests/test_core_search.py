@@ -122,9 +122,9 @@ def test_progress_is_reported_as_the_reference_does():
     """report(t) gets the same times on both paths (chunk ends and coarse skips, computed alike), and
     ``phase.searched_until`` is the last of them; an interrupt raised by report stops the compiled loop
     and leaves searched_until where it was reported (an interrupted run keeps what was searched)."""
-    got = {}
-    for seed in range(6):
-        case = make_case(seed, "stiff")
+    got, lengths = {}, []
+    for kind, seed in [(kind, seed) for kind in ("generic", "stiff") for seed in range(3)]:
+        case = make_case(seed, kind)   # (stiff: the coarse pass skips; generic: chunk after chunk)
         H = case.H.copy()
         H[:, case.ref.const] += 10.0 * np.abs(H).sum(axis=1)   # lifted far: no event, the whole horizon searched
         for reference in (False, True):
@@ -133,6 +133,7 @@ def test_progress_is_reported_as_the_reference_does():
             assert case.phase.searched_until == seen[-1] == case.t1
             got[reference] = seen
         assert len(got[False]) == len(got[True]) > 1
+        lengths.append(len(seen))
         assert np.allclose(got[False], got[True], rtol=1e-15, atol=0.0)   # the same linspace, bit for bit
         stop = got[False][len(got[False]) // 2]
 
@@ -142,6 +143,7 @@ def test_progress_is_reported_as_the_reference_does():
         with pytest.raises(KeyboardInterrupt):
             _search(case.phase, H, case.t0, case.t1, False, interrupt)
         assert case.phase.searched_until == stop
+    assert max(lengths) >= 4   # searches of several chunks among them (interrupted after the second)
 
 
 def test_screen_kernel_is_the_reference_bit_for_bit():

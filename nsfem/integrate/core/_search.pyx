@@ -117,6 +117,9 @@ cdef double envelope(double f0, double f1, double d0, double d1, double dt, doub
 
 from libc.stdlib cimport malloc, free, realloc
 
+cdef extern from "math.h" nogil:
+    void sincos(double x, double* s, double* c)   # glibc (Python.h asks for _GNU_SOURCE): sin(x), cos(x) at once
+
 import numpy as np
 
 #: as events.SUBDIVIDE, DEPTH, FIRST_CHUNK, CHUNK
@@ -295,15 +298,32 @@ cdef void linspace(double a, double b, int num, double* out) noexcept nogil:
 
 cdef class _Terms:
     """Rows t -> Re(C e^{nu (t - t0)}) + their harmonic part (events' rows_at, _Row.samples: the
-    closed form's Motion.evaluate with Phase._harmonics), C's rows j < k those of H, the others Hd's."""
+    closed form's Motion.evaluate with Phase._harmonics), C's rows j < k those of H, the others Hd's.
+    C (rows x p, complex) is read in place as interleaved doubles; without one given it is allocated
+    here (the full rows, formed per row when first sampled)."""
+    cdef const double complex[:, ::1] given
     cdef const double complex[::1] nu
-    cdef double complex[:, ::1] C
-    cdef int p
+    cdef double* C
+    cdef double* own
+    cdef int p, R
 
-    def __init__(self, nu, C):
+    def __cinit__(self):
+        self.own = NULL
+
+    def __dealloc__(self):
+        free(self.own)
+
+    def __init__(self, nu, C, int R):
         self.nu = nu
-        self.C = C
         self.p = self.nu.shape[0]
+        self.R = R
+        if C is not None:
+            self.given = C
+            self.C = <double*>&self.given[0, 0] if self.p * R else NULL
+        else:
+            self.own = self.C = <double*>malloc(max(2 * self.p * R, 1) * sizeof(double))
+            if self.own == NULL:
+                raise MemoryError
 
 
 cdef class Search:
@@ -315,12 +335,19 @@ cdef class Search:
     cdef const double complex[:, ::1] U    # xi's modal part: Re(U e^{nu tau})
     cdef const double[:, ::1] H, Hd, A
     cdef _Terms kept, full, coarse
-    cdef unsigned char[::1] full_ok, hdd_ok
-    cdef double[:, ::1] Hdd
-    cdef double[:, ::1] memo               # per row MEMO x (t, h, h', h'')
-    cdef int[::1] nmemo
+    cdef char* full_ok                     # per row: its H_i U, Hd_i U formed (in full)
+    cdef char* hdd_ok                      # per row: its Hd_i A_aug formed (in Hdd)
+    cdef int* nmemo
+    cdef double* Hdd                       # k x dim
+    cdef double* memo                      # per row MEMO x (t, h, h', h'')
+    cdef double* er
+    cdef double* ei
+    cdef double* sr
+    cdef double* si
+    cdef double* acc
+    cdef double* xi
+    cdef double* work
     cdef const double[::1] band, bound4
-    cdef double[::1] er, ei, sr, si, xi
     cdef double h_step, t_start, t_stop
     # the coarse pass (events._Coarse)
     cdef object coarse_of
@@ -331,13 +358,17 @@ cdef class Search:
     cdef int cn, ccap
 
     def __cinit__(self):
-        self.cts = NULL
-        self.cclear = NULL
+        self.cts = self.work = NULL
+        self.cclear = self.full_ok = NULL
+        self.nmemo = NULL
         self.cn = self.ccap = 0
 
     def __dealloc__(self):
         free(self.cts)
         free(self.cclear)
+        free(self.work)
+        free(self.full_ok)
+        free(self.nmemo)
 
     def __init__(self, nu, U, H, Hd, A, double t0, double w, nu_kept, C_kept, band, bound4, double h_step,
                  double t_start, double t_stop, coarse_of):
@@ -347,33 +378,47 @@ cdef class Search:
         self.nh = self.dim - self.r2
         self.p = self.nu.shape[0]
         self.t0, self.w = t0, w
-        self.kept = _Terms(nu_kept, C_kept)
-        self.full = _Terms(nu, np.empty((2 * self.k, self.p), dtype=complex))
-        self.full_ok = np.zeros(self.k, dtype=np.uint8)
-        self.hdd_ok = np.zeros(self.k, dtype=np.uint8)
-        self.Hdd = np.empty((self.k, self.dim))
-        self.memo = np.empty((self.k, 4 * MEMO))
-        self.nmemo = np.zeros(self.k, dtype=np.intc)
+        self.kept = _Terms(nu_kept, C_kept, 2 * self.k)
+        self.full = _Terms(nu, None, 2 * self.k)
         self.band, self.bound4 = band, bound4
         self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
         self.coarse_of = coarse_of
         self.coarse = None
-        cdef int m = max(self.p, self.kept.p)
-        self.er, self.ei, self.sr, self.si = (np.empty(m + 1) for _ in range(4))
-        self.xi = np.empty(self.dim)
+        cdef int m = max(self.p, self.kept.p) + 1, k = self.k, j
+        # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi
+        self.work = <double*>malloc((k * self.dim + 4 * MEMO * k + 4 * m + 2 * k + self.dim) * sizeof(double))
+        self.full_ok = <char*>malloc(2 * k)
+        self.nmemo = <int*>malloc(k * sizeof(int))
+        if self.work == NULL or self.full_ok == NULL or self.nmemo == NULL:
+            raise MemoryError
+        self.hdd_ok = &self.full_ok[k]
+        for j in range(k):
+            self.full_ok[j] = self.hdd_ok[j] = False
+            self.nmemo[j] = 0
+        self.Hdd = self.work
+        self.memo = &self.Hdd[k * self.dim]
+        self.er = &self.memo[4 * MEMO * k]
+        self.ei, self.sr, self.si = &self.er[m], &self.er[2 * m], &self.er[3 * m]
+        self.acc = &self.er[4 * m]
+        self.xi = &self.acc[2 * k]
 
     # -- the rows ---------------------------------------------------------------------------
     cdef void _sample(self, _Terms T, int j0, int nj, int jstep, const double* ts, int n, double* out):
         """Rows j0, j0 + jstep, ... (nj of them) of T at the times ts (n), into out (nj x n):
         Motion.evaluate (e^{nu tau} by repeated products on a uniform grid of more than 8 times, as
         closed_form.exponentials) plus the rows' harmonic part (Phase._harmonics)."""
-        cdef int p = T.p, j, m, q, row, l
-        cdef double tau, d0, e, x, y, s, c, sn
+        cdef int p = T.p, R = T.R, j, m, q, row
+        cdef double tau, d0, e, x, y, a, b, c = 0.0, sn = 0.0, s0, s1, s2, s3
+        cdef const double* c0
+        cdef const double* c1
+        cdef const double* c2
+        cdef const double* c3
         cdef bint uniform = False
-        cdef double* er = &self.er[0]
-        cdef double* ei = &self.ei[0]
-        cdef double* sr = &self.sr[0]
-        cdef double* si = &self.si[0]
+        cdef double* er = self.er
+        cdef double* ei = self.ei
+        cdef double* sr = self.sr
+        cdef double* si = self.si
+        cdef double* acc = self.acc
         cdef const double* hrow
         if n > 8:
             d0 = (ts[1] - self.t0) - (ts[0] - self.t0)
@@ -385,8 +430,8 @@ cdef class Search:
             if uniform:
                 for m in range(p):
                     e = exp(T.nu[m].real * d0)
-                    sr[m] = e * cos(T.nu[m].imag * d0)
-                    si[m] = e * sin(T.nu[m].imag * d0)
+                    sincos(T.nu[m].imag * d0, &b, &a)
+                    sr[m], si[m] = e * a, e * b
         for j in range(n):
             tau = ts[j] - self.t0
             if uniform and j > 0:
@@ -397,74 +442,109 @@ cdef class Search:
             else:
                 for m in range(p):
                     e = exp(T.nu[m].real * tau)
-                    er[m] = e * cos(T.nu[m].imag * tau)
-                    ei[m] = e * sin(T.nu[m].imag * tau)
-            c = cos(self.w * ts[j]) if self.nh == 3 else 0.0
-            sn = sin(self.w * ts[j]) if self.nh == 3 else 0.0
+                    sincos(T.nu[m].imag * tau, &b, &a)
+                    er[m], ei[m] = e * a, e * b
+            # the rows' sums over the terms, each in order, four rows at a time (independent sums)
+            q = 0
+            while q + 4 <= nj:
+                c0 = &T.C[2 * p * (j0 + q * jstep)]
+                c1 = &T.C[2 * p * (j0 + (q + 1) * jstep)]
+                c2 = &T.C[2 * p * (j0 + (q + 2) * jstep)]
+                c3 = &T.C[2 * p * (j0 + (q + 3) * jstep)]
+                s0 = s1 = s2 = s3 = 0.0
+                for m in range(p):
+                    a, b = er[m], ei[m]
+                    s0 += c0[2 * m] * a - c0[2 * m + 1] * b
+                    s1 += c1[2 * m] * a - c1[2 * m + 1] * b
+                    s2 += c2[2 * m] * a - c2[2 * m + 1] * b
+                    s3 += c3[2 * m] * a - c3[2 * m + 1] * b
+                acc[q], acc[q + 1], acc[q + 2], acc[q + 3] = s0, s1, s2, s3
+                q += 4
+            while q < nj:
+                c0 = &T.C[2 * p * (j0 + q * jstep)]
+                s0 = 0.0
+                for m in range(p):
+                    s0 += c0[2 * m] * er[m] - c0[2 * m + 1] * ei[m]
+                acc[q] = s0
+                q += 1
+            if self.nh == 3:
+                sincos(self.w * ts[j], &sn, &c)
             for q in range(nj):
                 row = j0 + q * jstep
-                s = 0.0
-                for m in range(p):
-                    s += T.C[row, m].real * er[m] - T.C[row, m].imag * ei[m]
                 hrow = &self.H[row, self.r2] if row < self.k else &self.Hd[row - self.k, self.r2]
                 if self.nh == 3:
-                    s += hrow[0] + hrow[1] * c + hrow[2] * sn
+                    out[q * n + j] = acc[q] + (hrow[0] + hrow[1] * c + hrow[2] * sn)
                 else:
-                    s += hrow[0]
-                out[q * n + j] = s
+                    out[q * n + j] = acc[q] + hrow[0]
 
     cdef void samples(self, int i, const double* ts, int n, double* out):
         """events._Row.samples: (h, h') of row i at the times ts (2 x n), from all its terms."""
         cdef int m, l
-        cdef double complex s
-        if not self.full_ok[i]:
+        cdef double sr, si, tr, ti
+        cdef int R = 2 * self.k
+        if not self.full_ok[i]:   # H_i U and Hd_i U
             for m in range(self.p):
-                s = 0
+                sr = si = tr = ti = 0.0
                 for l in range(self.r2):
-                    s = s + self.H[i, l] * self.U[l, m]
-                self.full.C[i, m] = s
-                s = 0
-                for l in range(self.r2):
-                    s = s + self.Hd[i, l] * self.U[l, m]
-                self.full.C[self.k + i, m] = s
+                    sr += self.H[i, l] * self.U[l, m].real
+                    si += self.H[i, l] * self.U[l, m].imag
+                    tr += self.Hd[i, l] * self.U[l, m].real
+                    ti += self.Hd[i, l] * self.U[l, m].imag
+                self.full.C[2 * (i * self.p + m)], self.full.C[2 * (i * self.p + m) + 1] = sr, si
+                self.full.C[2 * ((self.k + i) * self.p + m)], self.full.C[2 * ((self.k + i) * self.p + m) + 1] = tr, ti
             self.full_ok[i] = True
         self._sample(self.full, i, 2, self.k, ts, n, out)
 
     cdef const double* at(self, int i, double t):
         """events._Row._eval: (h, h', h'') of row i at t, read from the state xi(t) (Phase._xi_at);
         the last MEMO times remembered."""
-        cdef double* mem = &self.memo[i, 0]
+        cdef double* mem = &self.memo[4 * MEMO * i]
         cdef int j, m, l
-        cdef double tau = t - self.t0, e, s, a, b, c
-        cdef double* xi = &self.xi[0]
+        cdef double tau = t - self.t0, e, s, a, b, c, s0, s1, s2, s3
+        cdef double* xi = self.xi
+        cdef double* hdd = &self.Hdd[i * self.dim]
         for j in range(self.nmemo[i]):
             if mem[4 * j] == t:
                 return &mem[4 * j + 1]
-        if not self.hdd_ok[i]:
+        if not self.hdd_ok[i]:   # Hd_i A_aug (each entry summed in the order of l)
             for j in range(self.dim):
-                s = 0.0
-                for l in range(self.dim):
-                    s += self.Hd[i, l] * self.A[l, j]
-                self.Hdd[i, j] = s
+                hdd[j] = 0.0
+            for l in range(self.dim):
+                e = self.Hd[i, l]
+                for j in range(self.dim):
+                    hdd[j] += e * self.A[l, j]
             self.hdd_ok[i] = True
         for m in range(self.p):
             e = exp(self.nu[m].real * tau)
-            self.er[m] = e * cos(self.nu[m].imag * tau)
-            self.ei[m] = e * sin(self.nu[m].imag * tau)
-        for l in range(self.r2):
-            s = 0.0
+            sincos(self.nu[m].imag * tau, &b, &a)
+            self.er[m], self.ei[m] = e * a, e * b
+        # xi's modal part, Re(U e^{nu tau}): each component summed over the terms in order, four
+        # components at a time (independent sums: they overlap)
+        l = 0
+        while l + 4 <= self.r2:
+            s0 = s1 = s2 = s3 = 0.0
             for m in range(self.p):
-                s += self.U[l, m].real * self.er[m] - self.U[l, m].imag * self.ei[m]
-            xi[l] = s
+                e, s = self.er[m], self.ei[m]
+                s0 += self.U[l, m].real * e - self.U[l, m].imag * s
+                s1 += self.U[l + 1, m].real * e - self.U[l + 1, m].imag * s
+                s2 += self.U[l + 2, m].real * e - self.U[l + 2, m].imag * s
+                s3 += self.U[l + 3, m].real * e - self.U[l + 3, m].imag * s
+            xi[l], xi[l + 1], xi[l + 2], xi[l + 3] = s0, s1, s2, s3
+            l += 4
+        while l < self.r2:
+            s0 = 0.0
+            for m in range(self.p):
+                s0 += self.U[l, m].real * self.er[m] - self.U[l, m].imag * self.ei[m]
+            xi[l] = s0
+            l += 1
         xi[self.r2] = 1.0
         if self.nh == 3:
-            xi[self.r2 + 1] = cos(self.w * t)
-            xi[self.r2 + 2] = sin(self.w * t)
+            sincos(self.w * t, &xi[self.r2 + 2], &xi[self.r2 + 1])
         a = b = c = 0.0
         for l in range(self.dim):
             a += self.H[i, l] * xi[l]
             b += self.Hd[i, l] * xi[l]
-            c += self.Hdd[i, l] * xi[l]
+            c += hdd[l] * xi[l]
         if self.nmemo[i] >= MEMO:
             self.nmemo[i] = 0
         j = self.nmemo[i]
@@ -808,7 +888,7 @@ cdef class Search:
                         c = self.coarse_of(t_a)
                         if c is not None:
                             nu_c, C_c, margin, b4c, step_c = c
-                            self.coarse = _Terms(nu_c, C_c)
+                            self.coarse = _Terms(nu_c, C_c, 2 * k)
                             self.margin, self.b4c, self.step_c, self.start_c = margin, b4c, step_c, t_a
                 if self.coarse is not None:
                     # every row armed at 0: skip what the coarse pass certifies, search the rest finely
