@@ -266,10 +266,21 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
 
 def _compilable(phase: Phase, rows_at, band: np.ndarray, bound4: np.ndarray) -> bool:
     """Whether the compiled search (nsfem/integrate/core/_search.pyx) runs this phase: the modal path
-    without divided-difference groups, every row's bound fine enough to screen (no local bound)."""
-    mot = phase._modal
-    return (mot is not None and not mot.groups and getattr(rows_at, "terms", None) is not None
-            and not rows_at.terms.groups and bool(np.all(bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH))))
+    (divided differences included), every row's bound fine enough to screen (no local bound)."""
+    return (phase._modal is not None and getattr(rows_at, "terms", None) is not None
+            and bool(np.all(bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH))))
+
+
+def _terms(mot) -> tuple:
+    """A closed form's terms as the compiled search reads them: (exponents, nodes of the divided
+    differences (K x 3, unused nodes 0), their number of nodes (2 or 3), coefficients (rows x
+    (exponents + K)))."""
+    nodes = [np.vstack([n, np.zeros((3 - n.shape[0], n.shape[1]))]) for n, _ in mot.groups]
+    gnodes = np.concatenate(nodes, axis=1).T if nodes else np.zeros((0, 3))
+    gm = np.concatenate([np.full(n.shape[1], n.shape[0]) for n, _ in mot.groups]) if nodes else np.zeros(0)
+    C = np.hstack([mot.U] + [D for _, D in mot.groups]) if nodes else mot.U
+    return (np.ascontiguousarray(mot.nu, dtype=complex), np.ascontiguousarray(gnodes, dtype=complex),
+            np.ascontiguousarray(gm, dtype=np.intc), np.ascontiguousarray(C, dtype=complex))
 
 
 def _compiled_search(search, phase: Phase, H, Hd, tol, band, rate, rows_at, bound4, h_step, t_start, t_stop,
@@ -277,26 +288,22 @@ def _compiled_search(search, phase: Phase, H, Hd, tol, band, rate, rows_at, boun
     """The loop of :func:`first_event` after its set-up, as one compiled call (``search.Search.run``: the
     same chunks, screens, scans, arming, coarse pass and roots); the coarse pass is set up here when the
     loop asks for it, and ``report`` and ``phase.searched_until`` follow its progress."""
-    mot, kept = phase._modal, rows_at.terms
-    k = H.shape[0]
 
     def coarse_of(t_a):
         c = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop)
         if c is None:
             return None
-        terms = c.rows_at.terms
-        return (np.ascontiguousarray(terms.nu, dtype=complex), np.ascontiguousarray(terms.U, dtype=complex),
-                np.ascontiguousarray(c.margin, dtype=float), np.ascontiguousarray(c.b4, dtype=float), float(c.step))
+        return (_terms(c.rows_at.terms), np.ascontiguousarray(c.margin, dtype=float),
+                np.ascontiguousarray(c.b4, dtype=float), float(c.step))
 
     def progress(t):
         phase.searched_until = t
         if report is not None:
             report(t)
 
-    run = search.Search(np.ascontiguousarray(mot.nu, dtype=complex), np.ascontiguousarray(mot.U, dtype=complex),
-                        np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(Hd, dtype=float),
-                        np.ascontiguousarray(phase.A_aug, dtype=float), phase.t0, float(phase.w),
-                        np.ascontiguousarray(kept.nu, dtype=complex), np.ascontiguousarray(kept.U, dtype=complex),
+    nu, gnodes, gm, U = _terms(phase._modal)
+    run = search.Search(nu, gnodes, gm, U, np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(Hd, dtype=float),
+                        np.ascontiguousarray(phase.A_aug, dtype=float), phase.t0, float(phase.w), _terms(rows_at.terms),
                         np.ascontiguousarray(band, dtype=float), np.ascontiguousarray(bound4, dtype=float),
                         float(h_step), float(t_start), float(t_stop), coarse_of)
     found = run.run(progress)

@@ -2,7 +2,7 @@
 """Compiled kernels of the event search (nsfem/integrate/events.py holds the Python reference of
 each, under the same name with a leading underscore; tests/test_core_equivalence.py compares them)."""
 
-from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, cos, sin, pow, ceil, isfinite, INFINITY
+from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, expm1, cos, sin, pow, ceil, hypot, isfinite, INFINITY
 
 cdef int MAXITER = 200
 cdef double SAFE_HI = 2.0 ** 400
@@ -280,6 +280,103 @@ def screen(dt, f, hd, double tol, b4, subdivide):
             [bool(out[2 * n + k]) for k in range(n)])
 
 
+# -- divided differences of x -> e^{x tau} (closed_form.divided_exp, one column at one time) --------
+
+cdef inline void cmul(double ar, double ai, double br, double bi, double* r, double* i) noexcept nogil:
+    r[0] = ar * br - ai * bi
+    i[0] = ar * bi + ai * br
+
+
+cdef inline void cdiv(double ar, double ai, double br, double bi, double* r, double* i) noexcept nogil:
+    """a / b as NumPy divides complex numbers (Smith's method)."""
+    cdef double rat, scl
+    if fabs(br) >= fabs(bi):
+        if br == 0.0 and bi == 0.0:
+            r[0], i[0] = ar / fabs(br), ai / fabs(br)
+            return
+        rat = bi / br
+        scl = 1.0 / (br + bi * rat)
+        r[0], i[0] = (ar + ai * rat) * scl, (ai - ar * rat) * scl
+    else:
+        rat = br / bi
+        scl = 1.0 / (bi + br * rat)
+        r[0], i[0] = (ar * rat + ai) * scl, (ai * rat - ar) * scl
+
+
+cdef inline void cexp_(double x, double y, double* r, double* i) noexcept nogil:
+    """e^(x + iy) (as NumPy's complex exp)."""
+    cdef double e = exp(x), c, s
+    sincos(y, &s, &c)
+    r[0], i[0] = e * c, e * s
+
+
+cdef void phi1(double x, double y, double* r, double* i) noexcept nogil:
+    """closed_form._phi1: (e^z - 1) / z, 1 at z = 0 (NumPy's complex expm1, then its division)."""
+    cdef double a, er, ei
+    if x == 0.0 and y == 0.0:
+        r[0], i[0] = 1.0, 0.0
+        return
+    a = sin(y / 2.0)
+    er = expm1(x) * cos(y) - 2.0 * a * a
+    ei = exp(x) * sin(y)
+    cdiv(er, ei, x, y, r, i)
+
+
+cdef void dexp(const double complex* nodes, int m, double tau, double* r, double* i) noexcept nogil:
+    """closed_form.divided_exp for one column (m = 2 or 3 nodes) at one tau >= 0."""
+    cdef double x0r = nodes[0].real, x0i = nodes[0].imag
+    cdef double br, bi, pr, pi_, d1r, d1i, d2r, d2i, size, hr, hi, p2r, p2i, term, ar, ai, tr, ti
+    cdef double g1r, g1i, g2r, g2i, fr, fi, vr, vi, ur, ui
+    cdef int k
+    cexp_(x0r * tau, x0i * tau, &br, &bi)
+    if m == 2:
+        d1r, d1i = nodes[1].real - x0r, nodes[1].imag - x0i
+        phi1(d1r * tau, d1i * tau, &pr, &pi_)
+        cmul(br * tau, bi * tau, pr, pi_, r, i)
+        return
+    d1r, d1i = nodes[1].real - x0r, nodes[1].imag - x0i
+    d2r, d2i = nodes[2].real - x0r, nodes[2].imag - x0i
+    size = max(max(hypot(d1r, d1i), hypot(d2r, d2i)), hypot(d2r - d1r, d2i - d1i)) * tau
+    if size <= 1.0:
+        # F[0, d1, d2](tau) = sum_k tau^(k+2) / (k+2)! h_k(0, d1, d2), h_k = sum_{i<=k} d1^i d2^(k-i)
+        hr, hi, p2r, p2i = 1.0, 0.0, 1.0, 0.0
+        term = tau * tau / 2.0
+        ar, ai = term * hr, term * hi
+        for k in range(1, 30):
+            cmul(p2r, p2i, d2r, d2i, &p2r, &p2i)
+            cmul(hr, hi, d1r, d1i, &tr, &ti)
+            hr, hi = tr + p2r, ti + p2i
+            term = term * tau / (k + 2)
+            ar, ai = ar + term * hr, ai + term * hi
+        vr, vi = ar, ai
+    else:
+        phi1(d1r * tau, d1i * tau, &pr, &pi_)
+        g1r, g1i = tau * pr, tau * pi_
+        phi1(d2r * tau, d2i * tau, &pr, &pi_)
+        g2r, g2i = tau * pr, tau * pi_
+        if hypot(d2r - d1r, d2i - d1i) >= max(hypot(d1r, d1i), hypot(d2r, d2i)) * 0.5:
+            cdiv(g2r - g1r, g2i - g1i, d2r - d1r, d2i - d1i, &vr, &vi)
+        else:
+            cexp_(d1r * tau, d1i * tau, &ur, &ui)
+            phi1((d2r - d1r) * tau, (d2i - d1i) * tau, &pr, &pi_)
+            cmul(ur * tau, ui * tau, pr, pi_, &fr, &fi)
+            cdiv(fr - g1r, fi - g1i, d2r, d2i, &vr, &vi)
+    cmul(br, bi, vr, vi, r, i)
+
+
+def divided_exp(nodes, double tau):
+    """:func:`dexp` for Python callers (tests: against closed_form.divided_exp): per column of nodes
+    (m x K complex, m = 2 or 3), F[nodes](tau)."""
+    cdef const double complex[:, ::1] nv = np.ascontiguousarray(np.asarray(nodes, dtype=complex).T)
+    cdef int K = nv.shape[0], m = nv.shape[1] if K else 0, j
+    out = np.empty(K, dtype=complex)
+    cdef double r, i
+    for j in range(K):
+        dexp(&nv[j, 0], m, tau, &r, &i)
+        out[j] = complex(r, i)
+    return out
+
+
 cdef void linspace(double a, double b, int num, double* out) noexcept nogil:
     """numpy.linspace(a, b, num) bit for bit (j step + a, the last b)."""
     cdef int div = num - 1, j
@@ -302,10 +399,12 @@ cdef class _Terms:
     C (rows x p, complex) is read in place as interleaved doubles; without one given it is allocated
     here (the full rows, formed per row when first sampled)."""
     cdef const double complex[:, ::1] given
-    cdef const double complex[::1] nu
+    cdef const double complex[::1] nu      # the exponents (pe of them)
+    cdef const double complex[:, ::1] gnodes   # then K divided differences: their nodes (K x 3)
+    cdef const int[::1] gm                 # and how many of the 3 each has (2 or 3)
     cdef double* C
     cdef double* own
-    cdef int p, R
+    cdef int pe, K, p, R
 
     def __cinit__(self):
         self.own = NULL
@@ -313,9 +412,10 @@ cdef class _Terms:
     def __dealloc__(self):
         free(self.own)
 
-    def __init__(self, nu, C, int R):
-        self.nu = nu
-        self.p = self.nu.shape[0]
+    def __init__(self, nu, gnodes, gm, C, int R):
+        self.nu, self.gnodes, self.gm = nu, gnodes, gm
+        self.pe, self.K = self.nu.shape[0], self.gm.shape[0]
+        self.p = self.pe + self.K
         self.R = R
         if C is not None:
             self.given = C
@@ -324,6 +424,19 @@ cdef class _Terms:
             self.own = self.C = <double*>malloc(max(2 * self.p * R, 1) * sizeof(double))
             if self.own == NULL:
                 raise MemoryError
+
+
+cdef void terms_at(_Terms T, double tau, double* er, double* ei):
+    """The terms' time functions at tau: e^{nu tau} (Motion.evaluate's exponentials, taken one at a
+    time), then the divided differences F[nodes](tau)."""
+    cdef int m
+    cdef double e, a, b
+    for m in range(T.pe):
+        e = exp(T.nu[m].real * tau)
+        sincos(T.nu[m].imag * tau, &b, &a)
+        er[m], ei[m] = e * a, e * b
+    for m in range(T.K):
+        dexp(&T.gnodes[m, 0], T.gm[m], tau, &er[T.pe + m], &ei[T.pe + m])
 
 
 cdef class Search:
@@ -370,16 +483,18 @@ cdef class Search:
         free(self.full_ok)
         free(self.nmemo)
 
-    def __init__(self, nu, U, H, Hd, A, double t0, double w, nu_kept, C_kept, band, bound4, double h_step,
+    def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, kept, band, bound4, double h_step,
                  double t_start, double t_stop, coarse_of):
-        self.nu, self.U, self.H, self.Hd, self.A = nu, U, H, Hd, A
+        self.U, self.H, self.Hd, self.A = U, H, Hd, A
         self.k, self.dim = self.H.shape[0], self.H.shape[1]
         self.r2 = self.U.shape[0]
         self.nh = self.dim - self.r2
-        self.p = self.nu.shape[0]
         self.t0, self.w = t0, w
-        self.kept = _Terms(nu_kept, C_kept, 2 * self.k)
-        self.full = _Terms(nu, None, 2 * self.k)
+        self.kept = _Terms(*kept, 2 * self.k)
+        self.full = _Terms(nu, gnodes, gm, None, 2 * self.k)
+        self.p = self.full.p
+        if self.U.shape[1] != self.p:
+            raise ValueError("Search: U needs a column per exponent and divided difference")
         self.band, self.bound4 = band, bound4
         self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
         self.coarse_of = coarse_of
@@ -407,7 +522,7 @@ cdef class Search:
         """Rows j0, j0 + jstep, ... (nj of them) of T at the times ts (n), into out (nj x n):
         Motion.evaluate (e^{nu tau} by repeated products on a uniform grid of more than 8 times, as
         closed_form.exponentials) plus the rows' harmonic part (Phase._harmonics)."""
-        cdef int p = T.p, R = T.R, j, m, q, row
+        cdef int p = T.p, pe = T.pe, R = T.R, j, m, q, row
         cdef double tau, d0, e, x, y, a, b, c = 0.0, sn = 0.0, s0, s1, s2, s3
         cdef const double* c0
         cdef const double* c1
@@ -428,22 +543,21 @@ cdef class Search:
                     uniform = False
                     break
             if uniform:
-                for m in range(p):
+                for m in range(pe):
                     e = exp(T.nu[m].real * d0)
                     sincos(T.nu[m].imag * d0, &b, &a)
                     sr[m], si[m] = e * a, e * b
         for j in range(n):
             tau = ts[j] - self.t0
             if uniform and j > 0:
-                for m in range(p):
+                for m in range(pe):
                     x = er[m] * sr[m] - ei[m] * si[m]
                     y = er[m] * si[m] + ei[m] * sr[m]
                     er[m], ei[m] = x, y
+                for m in range(T.K):
+                    dexp(&T.gnodes[m, 0], T.gm[m], tau, &er[pe + m], &ei[pe + m])
             else:
-                for m in range(p):
-                    e = exp(T.nu[m].real * tau)
-                    sincos(T.nu[m].imag * tau, &b, &a)
-                    er[m], ei[m] = e * a, e * b
+                terms_at(T, tau, er, ei)
             # the rows' sums over the terms, each in order, four rows at a time (independent sums)
             q = 0
             while q + 4 <= nj:
@@ -514,10 +628,7 @@ cdef class Search:
                 for j in range(self.dim):
                     hdd[j] += e * self.A[l, j]
             self.hdd_ok[i] = True
-        for m in range(self.p):
-            e = exp(self.nu[m].real * tau)
-            sincos(self.nu[m].imag * tau, &b, &a)
-            self.er[m], self.ei[m] = e * a, e * b
+        terms_at(self.full, tau, self.er, self.ei)
         # xi's modal part, Re(U e^{nu tau}): each component summed over the terms in order, four
         # components at a time (independent sums: they overlap)
         l = 0
@@ -887,8 +998,8 @@ cdef class Search:
                         tried = True
                         c = self.coarse_of(t_a)
                         if c is not None:
-                            nu_c, C_c, margin, b4c, step_c = c
-                            self.coarse = _Terms(nu_c, C_c, 2 * k)
+                            terms, margin, b4c, step_c = c
+                            self.coarse = _Terms(*terms, 2 * k)
                             self.margin, self.b4c, self.step_c, self.start_c = margin, b4c, step_c, t_a
                 if self.coarse is not None:
                     # every row armed at 0: skip what the coarse pass certifies, search the rest finely
