@@ -4,7 +4,8 @@ Side by side in one process (both paths through ``core.reference()``, best of ``
 of the process: the machines these run on are shared): the search (the time spent in
 ``events.first_event``, per event), its loop alone (the compiled call; for the reference, its search
 less the set-up both paths share) and whole runs of the stop scene
-(studies/work_precision.py's: 282 events) and the shipped scene (1 s), in ms per event; which
+(studies/work_precision.py's: 282 events), the shipped scene (1 s) and retainer_drop's first 20 ms
+(65 events on the divided-difference path: a rigid drop), in ms per event; which
 fraction of the searches runs compiled and why the others fall back to Python; and where the
 compiled run's time per event goes (cProfile, by function). Run it with OPENBLAS_NUM_THREADS=1.
 
@@ -33,6 +34,7 @@ from nsfem.simulate import run_scene
 SCENES = {
     "stop": ("default", ['obstacle=[{x=0.5, normal="-z", clearance=2e-4, restitution=0.5}]', "simulation.t_end=0.05"]),
     "shipped": ("default", []),
+    "retainer_drop": ("retainer_drop", ["simulation.t_end=0.02"]),
 }
 
 
@@ -169,7 +171,7 @@ def main(argv=None) -> dict:
     if core.compiled("search") is None:
         raise SystemExit("core_search: the compiled search is not built (python setup.py build_ext --inplace)")
     repeat = args.repeat or (2 if args.quick else 3)
-    names = ["stop"] if args.quick else ["stop", "shipped"]
+    names = ["stop"] if args.quick else list(SCENES)
     rows = [measure(name, repeat) for name in names]
     payload = {"machine": machine(), "core": core.name(), "cases": rows, "profile_stop": profile("stop"),
                "fallbacks": [] if args.quick else fallbacks()}
