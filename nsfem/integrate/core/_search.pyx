@@ -115,7 +115,7 @@ cdef double envelope(double f0, double f1, double d0, double d1, double dt, doub
 # The search of one phase on the modal path (events.first_event's loop after its set-up)
 # ---------------------------------------------------------------------------------------------
 
-from libc.stdlib cimport malloc, free, realloc
+from libc.stdlib cimport malloc, calloc, free, realloc
 
 cdef extern from "math.h" nogil:
     void sincos(double x, double* s, double* c)   # glibc (Python.h asks for _GNU_SOURCE): sin(x), cos(x) at once
@@ -395,48 +395,104 @@ cdef void linspace(double a, double b, int num, double* out) noexcept nogil:
 
 cdef class _Terms:
     """Rows t -> Re(C e^{nu (t - t0)}) + their harmonic part (events' rows_at, _Row.samples: the
-    closed form's Motion.evaluate with Phase._harmonics), C's rows j < k those of H, the others Hd's.
-    C (rows x p, complex) is read in place as interleaved doubles; without one given it is allocated
-    here (the full rows, formed per row when first sampled)."""
-    cdef const double complex[:, ::1] given
+    closed form's Motion.evaluate with Phase._harmonics), C's rows j < k those of H, the others Hd's
+    (or xi's modal part: then C is U). The exponents come first, then the divided differences.
+
+    A conjugate pair of exponents (an underdamped mode's two roots, the forcing's e^{+-iwt}; equal but
+    for the sign of the imaginary part, bit for bit) is summed once: Re(c e^{nu tau}) + Re(c' e^{nu*
+    tau}) = Re((c + conj(c')) e^{nu tau}), exactly in exact arithmetic whatever c and c' (the real
+    part of a conjugate is the same); only where the sum rounds changes. ``C`` keeps the columns
+    summed (R x nact, interleaved complex; a pair's combined); without coefficients given, the
+    pairs are ``like``'s and C is formed by the owner (the full rows, per row when first sampled)."""
     cdef const double complex[::1] nu      # the exponents (pe of them)
-    cdef const double complex[:, ::1] gnodes   # then K divided differences: their nodes (K x 3)
+    cdef const double complex[:, ::1] gnodes   # the K divided differences: their nodes (K x 3)
     cdef const int[::1] gm                 # and how many of the 3 each has (2 or 3)
     cdef double* C
-    cdef double* own
-    cdef int pe, K, p, R
+    cdef int* act                          # the terms summed (indices into exponents, then K)
+    cdef int* partner                      # per term summed: its conjugate's index, or -1
+    cdef int pe, K, p, R, nact
 
     def __cinit__(self):
-        self.own = NULL
+        self.C = NULL
+        self.act = NULL
+        self.partner = NULL
 
     def __dealloc__(self):
-        free(self.own)
+        free(self.C)
+        free(self.act)
+        free(self.partner)
 
-    def __init__(self, nu, gnodes, gm, C, int R):
+    def __init__(self, nu, gnodes, gm, C, int R, _Terms like=None):
+        cdef const double complex[:, ::1] Cv
+        cdef int idx, r, m, j
         self.nu, self.gnodes, self.gm = nu, gnodes, gm
         self.pe, self.K = self.nu.shape[0], self.gm.shape[0]
         self.p = self.pe + self.K
         self.R = R
+        self.act = <int*>malloc(max(self.p, 1) * sizeof(int))
+        self.partner = <int*>malloc(max(self.p, 1) * sizeof(int))
+        if self.act == NULL or self.partner == NULL:
+            raise MemoryError
         if C is not None:
-            self.given = C
-            self.C = <double*>&self.given[0, 0] if self.p * R else NULL
+            Cv = C
+            if Cv.shape[0] != R or Cv.shape[1] != self.p:
+                raise ValueError("Search: the coefficients need a row per row and a column per term")
+            self._pair()
         else:
-            self.own = self.C = <double*>malloc(max(2 * self.p * R, 1) * sizeof(double))
-            if self.own == NULL:
-                raise MemoryError
+            self.nact = like.nact
+            for idx in range(self.nact):
+                self.act[idx], self.partner[idx] = like.act[idx], like.partner[idx]
+        self.C = <double*>malloc(max(2 * R * self.nact, 1) * sizeof(double))
+        if self.C == NULL:
+            raise MemoryError
+        if C is not None:
+            for r in range(R):
+                for idx in range(self.nact):
+                    m, j = self.act[idx], self.partner[idx]
+                    if j < 0:
+                        self.C[2 * (r * self.nact + idx)] = Cv[r, m].real
+                        self.C[2 * (r * self.nact + idx) + 1] = Cv[r, m].imag
+                    else:   # c + conj(c')
+                        self.C[2 * (r * self.nact + idx)] = Cv[r, m].real + Cv[r, j].real
+                        self.C[2 * (r * self.nact + idx) + 1] = Cv[r, m].imag - Cv[r, j].imag
+
+    cdef void _pair(self):
+        """act, partner, nact: the exponents summed, each with its conjugate's index (or -1)."""
+        cdef int m, j, n = 0, partner
+        cdef char* used = <char*>calloc(max(self.pe, 1), 1)
+        for m in range(self.pe):
+            if used[m]:
+                continue
+            partner = -1
+            if self.nu[m].imag != 0.0:
+                for j in range(m + 1, self.pe):
+                    if not used[j] and self.nu[j].real == self.nu[m].real and self.nu[j].imag == -self.nu[m].imag:
+                        partner = j
+                        used[j] = True
+                        break
+            self.act[n], self.partner[n] = m, partner
+            n += 1
+        for m in range(self.K):
+            self.act[n], self.partner[n] = self.pe + m, -1
+            n += 1
+        self.nact = n
+        free(used)
 
 
 cdef void terms_at(_Terms T, double tau, double* er, double* ei):
-    """The terms' time functions at tau: e^{nu tau} (Motion.evaluate's exponentials, taken one at a
-    time), then the divided differences F[nodes](tau)."""
-    cdef int m
-    cdef double e, a, b
-    for m in range(T.pe):
-        e = exp(T.nu[m].real * tau)
-        sincos(T.nu[m].imag * tau, &b, &a)
-        er[m], ei[m] = e * a, e * b
-    for m in range(T.K):
-        dexp(&T.gnodes[m, 0], T.gm[m], tau, &er[T.pe + m], &ei[T.pe + m])
+    """The summed terms' time functions at tau: e^{nu tau} (Motion.evaluate's exponentials, one at a
+    time), the divided differences F[nodes](tau)."""
+    cdef int idx, m
+    cdef double e, a, b, x, y
+    for idx in range(T.nact):
+        m = T.act[idx]
+        if m < T.pe:
+            e = exp(T.nu[m].real * tau)
+            sincos(T.nu[m].imag * tau, &b, &a)
+            x, y = e * a, e * b
+        else:
+            dexp(&T.gnodes[m - T.pe, 0], T.gm[m - T.pe], tau, &x, &y)
+        er[idx], ei[idx] = x, y
 
 
 cdef class Search:
@@ -444,10 +500,8 @@ cdef class Search:
     differences): the state of the loop, the rows read from the state, the coarse pass."""
     cdef int k, r2, dim, nh, p
     cdef double t0, w
-    cdef const double complex[::1] nu      # the phase's exponents (all terms)
-    cdef const double complex[:, ::1] U    # xi's modal part: Re(U e^{nu tau})
     cdef const double[:, ::1] H, Hd, A
-    cdef _Terms kept, full, coarse
+    cdef _Terms state, kept, full, coarse  # xi's modal part (C: U), the kept rows, all rows, coarse
     cdef char* full_ok                     # per row: its H_i U, Hd_i U formed (in full)
     cdef char* hdd_ok                      # per row: its Hd_i A_aug formed (in Hdd)
     cdef int* nmemo
@@ -485,16 +539,15 @@ cdef class Search:
 
     def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, kept, band, bound4, double h_step,
                  double t_start, double t_stop, coarse_of):
-        self.U, self.H, self.Hd, self.A = U, H, Hd, A
+        self.H, self.Hd, self.A = H, Hd, A
         self.k, self.dim = self.H.shape[0], self.H.shape[1]
-        self.r2 = self.U.shape[0]
+        self.r2 = U.shape[0]
         self.nh = self.dim - self.r2
         self.t0, self.w = t0, w
+        self.state = _Terms(nu, gnodes, gm, U, self.r2)
         self.kept = _Terms(*kept, 2 * self.k)
-        self.full = _Terms(nu, gnodes, gm, None, 2 * self.k)
-        self.p = self.full.p
-        if self.U.shape[1] != self.p:
-            raise ValueError("Search: U needs a column per exponent and divided difference")
+        self.full = _Terms(nu, gnodes, gm, None, 2 * self.k, self.state)
+        self.p = self.state.nact
         self.band, self.bound4 = band, bound4
         self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
         self.coarse_of = coarse_of
@@ -517,12 +570,17 @@ cdef class Search:
         self.acc = &self.er[4 * m]
         self.xi = &self.acc[2 * k]
 
+    def terms(self):
+        """(terms, terms summed) of the state's closed form and of the kept rows (a conjugate pair summed
+        once)."""
+        return (self.state.p, self.state.nact), (self.kept.p, self.kept.nact)
+
     # -- the rows ---------------------------------------------------------------------------
     cdef void _sample(self, _Terms T, int j0, int nj, int jstep, const double* ts, int n, double* out):
         """Rows j0, j0 + jstep, ... (nj of them) of T at the times ts (n), into out (nj x n):
         Motion.evaluate (e^{nu tau} by repeated products on a uniform grid of more than 8 times, as
         closed_form.exponentials) plus the rows' harmonic part (Phase._harmonics)."""
-        cdef int p = T.p, pe = T.pe, R = T.R, j, m, q, row
+        cdef int p = T.nact, R = T.R, j, m, q, row, idx
         cdef double tau, d0, e, x, y, a, b, c = 0.0, sn = 0.0, s0, s1, s2, s3
         cdef const double* c0
         cdef const double* c1
@@ -542,20 +600,24 @@ cdef class Search:
                 if not fabs(((ts[j] - self.t0) - (ts[j - 1] - self.t0)) - d0) <= 1e-12 * fabs(d0):
                     uniform = False
                     break
-            if uniform:
-                for m in range(pe):
-                    e = exp(T.nu[m].real * d0)
-                    sincos(T.nu[m].imag * d0, &b, &a)
-                    sr[m], si[m] = e * a, e * b
+            if uniform:   # (the steps of the exponents; sr, si of a divided difference unused)
+                for idx in range(p):
+                    m = T.act[idx]
+                    if m < T.pe:
+                        e = exp(T.nu[m].real * d0)
+                        sincos(T.nu[m].imag * d0, &b, &a)
+                        sr[idx], si[idx] = e * a, e * b
         for j in range(n):
             tau = ts[j] - self.t0
             if uniform and j > 0:
-                for m in range(pe):
-                    x = er[m] * sr[m] - ei[m] * si[m]
-                    y = er[m] * si[m] + ei[m] * sr[m]
-                    er[m], ei[m] = x, y
-                for m in range(T.K):
-                    dexp(&T.gnodes[m, 0], T.gm[m], tau, &er[pe + m], &ei[pe + m])
+                for idx in range(p):
+                    m = T.act[idx]
+                    if m < T.pe:
+                        x = er[idx] * sr[idx] - ei[idx] * si[idx]
+                        y = er[idx] * si[idx] + ei[idx] * sr[idx]
+                        er[idx], ei[idx] = x, y
+                    else:
+                        dexp(&T.gnodes[m - T.pe, 0], T.gm[m - T.pe], tau, &er[idx], &ei[idx])
             else:
                 terms_at(T, tau, er, ei)
             # the rows' sums over the terms, each in order, four rows at a time (independent sums)
@@ -596,14 +658,15 @@ cdef class Search:
         cdef int m, l
         cdef double sr, si, tr, ti
         cdef int R = 2 * self.k
-        if not self.full_ok[i]:   # H_i U and Hd_i U
+        cdef const double* U = self.state.C
+        if not self.full_ok[i]:   # H_i U and Hd_i U (the columns summed)
             for m in range(self.p):
                 sr = si = tr = ti = 0.0
                 for l in range(self.r2):
-                    sr += self.H[i, l] * self.U[l, m].real
-                    si += self.H[i, l] * self.U[l, m].imag
-                    tr += self.Hd[i, l] * self.U[l, m].real
-                    ti += self.Hd[i, l] * self.U[l, m].imag
+                    sr += self.H[i, l] * U[2 * (l * self.p + m)]
+                    si += self.H[i, l] * U[2 * (l * self.p + m) + 1]
+                    tr += self.Hd[i, l] * U[2 * (l * self.p + m)]
+                    ti += self.Hd[i, l] * U[2 * (l * self.p + m) + 1]
                 self.full.C[2 * (i * self.p + m)], self.full.C[2 * (i * self.p + m) + 1] = sr, si
                 self.full.C[2 * ((self.k + i) * self.p + m)], self.full.C[2 * ((self.k + i) * self.p + m) + 1] = tr, ti
             self.full_ok[i] = True
@@ -615,6 +678,11 @@ cdef class Search:
         cdef double* mem = &self.memo[4 * MEMO * i]
         cdef int j, m, l
         cdef double tau = t - self.t0, e, s, a, b, c, s0, s1, s2, s3
+        cdef const double* U = self.state.C
+        cdef const double* u0
+        cdef const double* u1
+        cdef const double* u2
+        cdef const double* u3
         cdef double* xi = self.xi
         cdef double* hdd = &self.Hdd[i * self.dim]
         for j in range(self.nmemo[i]):
@@ -628,24 +696,27 @@ cdef class Search:
                 for j in range(self.dim):
                     hdd[j] += e * self.A[l, j]
             self.hdd_ok[i] = True
-        terms_at(self.full, tau, self.er, self.ei)
+        terms_at(self.state, tau, self.er, self.ei)
         # xi's modal part, Re(U e^{nu tau}): each component summed over the terms in order, four
         # components at a time (independent sums: they overlap)
         l = 0
         while l + 4 <= self.r2:
+            u0, u1 = &U[2 * self.p * l], &U[2 * self.p * (l + 1)]
+            u2, u3 = &U[2 * self.p * (l + 2)], &U[2 * self.p * (l + 3)]
             s0 = s1 = s2 = s3 = 0.0
             for m in range(self.p):
                 e, s = self.er[m], self.ei[m]
-                s0 += self.U[l, m].real * e - self.U[l, m].imag * s
-                s1 += self.U[l + 1, m].real * e - self.U[l + 1, m].imag * s
-                s2 += self.U[l + 2, m].real * e - self.U[l + 2, m].imag * s
-                s3 += self.U[l + 3, m].real * e - self.U[l + 3, m].imag * s
+                s0 += u0[2 * m] * e - u0[2 * m + 1] * s
+                s1 += u1[2 * m] * e - u1[2 * m + 1] * s
+                s2 += u2[2 * m] * e - u2[2 * m + 1] * s
+                s3 += u3[2 * m] * e - u3[2 * m + 1] * s
             xi[l], xi[l + 1], xi[l + 2], xi[l + 3] = s0, s1, s2, s3
             l += 4
         while l < self.r2:
+            u0 = &U[2 * self.p * l]
             s0 = 0.0
             for m in range(self.p):
-                s0 += self.U[l, m].real * self.er[m] - self.U[l, m].imag * self.ei[m]
+                s0 += u0[2 * m] * self.er[m] - u0[2 * m + 1] * self.ei[m]
             xi[l] = s0
             l += 1
         xi[self.r2] = 1.0
