@@ -445,16 +445,18 @@ cdef class _Terms:
         self.C = <double*>malloc(max(2 * R * self.nact, 1) * sizeof(double))
         if self.C == NULL:
             raise MemoryError
-        if C is not None:
+        cdef const double* src
+        cdef double* dst
+        cdef int p = self.p, n = self.nact
+        if C is not None and R * p:
             for r in range(R):
-                for idx in range(self.nact):
+                src, dst = <const double*>&Cv[r, 0], &self.C[2 * r * n]
+                for idx in range(n):
                     m, j = self.act[idx], self.partner[idx]
                     if j < 0:
-                        self.C[2 * (r * self.nact + idx)] = Cv[r, m].real
-                        self.C[2 * (r * self.nact + idx) + 1] = Cv[r, m].imag
+                        dst[2 * idx], dst[2 * idx + 1] = src[2 * m], src[2 * m + 1]
                     else:   # c + conj(c')
-                        self.C[2 * (r * self.nact + idx)] = Cv[r, m].real + Cv[r, j].real
-                        self.C[2 * (r * self.nact + idx) + 1] = Cv[r, m].imag - Cv[r, j].imag
+                        dst[2 * idx], dst[2 * idx + 1] = src[2 * m] + src[2 * j], src[2 * m + 1] - src[2 * j + 1]
 
     cdef void _pair(self):
         """act, partner, nact: the exponents summed, each with its conjugate's index (or -1)."""
