@@ -15,6 +15,13 @@ tol, but up to 40 tol for a nearly defective mode's closed form, cond(V) eps). T
 moves such roots as much between two OpenBLAS kernels (measured: up to 1e-5 relative on the graze
 kinds, whose cases it draws differently there).
 
+Where a row's band lies below its own round-off (eps times the sum of the magnitudes of its terms,
+read from its modal coefficients or from the state, reaches the band: terms that nearly cancel,
+1e2 bands of noise and more), two evaluations that round differently may decide either way whether
+it crossed, grazed or armed; such a disagreement is accepted as marginal (4 of the 7500 searches of
+the slow run, none of the default ones; the largest round-off among the others is 0.7 band) and
+must stay rare.
+
 Rows that start inside their band (a gap just after an impact) take the arming path: each case is
 also searched with its first row shifted to start at zero, as it is and negated (on the 40 default
 cases: 40 in_band events, a row leaving its band downwards, and 24 events of a row armed on its way
@@ -72,6 +79,26 @@ def _same_event(case, H, a, b) -> str | None:
     return None
 
 
+def _round_off(phase, Hi, t: float) -> float:
+    """eps times the sum of the magnitudes of row Hi's terms at t, read from its modal coefficients or
+    from the state (whichever is larger): what two evaluations that round differently may differ by."""
+    mot, r2 = phase._modal, 2 * phase.config.r
+    tau = np.array([t - phase.t0])
+    E = np.abs(np.exp(mot.nu * tau[0]))
+    rows, state = np.abs(Hi[:r2] @ mot.U) @ E, np.abs(Hi[:r2]) @ (np.abs(mot.U) @ E)
+    for nodes, D in mot.groups:
+        F = np.abs(divided_exp(nodes, tau)[:, 0])
+        rows, state = rows + np.abs(Hi[:r2] @ D) @ F, state + np.abs(Hi[:r2]) @ (np.abs(D) @ F)
+    return float(np.finfo(float).eps * (max(rows, state) + np.abs(Hi[r2:]).sum()))
+
+
+def _marginal(case, H, a, b) -> bool:
+    """True when a row of either event has its band below its own round-off at either event's time."""
+    events_ = [e for e in (a, b) if e is not None]
+    return any(_round_off(case.phase, H[i], e.t) >= ev.tol[i]
+               for ev in events_ for i in ev.rows for e in events_)
+
+
 def _in_band(case, sign: float) -> np.ndarray:
     """The case's rows with the first one (times ``sign``) shifted to start at zero: inside its band."""
     H = case.H.copy()
@@ -84,7 +111,7 @@ def _in_band(case, sign: float) -> np.ndarray:
 def _check(kind: str, seeds) -> None:
     spied, calls = events._compiled_search, []
     events._compiled_search = lambda *a, **k: (calls.append(1), spied(*a, **k))[1]
-    failures, searches, exact = [], 0, 0
+    failures, searches, exact, marginal = [], 0, 0, 0
     try:
         for seed in seeds:
             case = make_case(seed, kind)
@@ -96,7 +123,9 @@ def _check(kind: str, seeds) -> None:
                 b = _search(case.phase, H, case.t0, case.t1, reference=True)
                 searches += 1
                 bad = _same_event(case, H, a, b)
-                if bad:
+                if bad and _marginal(case, H, a, b):
+                    marginal += 1
+                elif bad:
                     failures.append(f"{kind} seed {seed}: {bad}")
                 elif a is None or a.t == b.t or abs(a.t - b.t) <= 1e-12 * max(1.0, abs(b.t)):
                     exact += 1
@@ -106,6 +135,7 @@ def _check(kind: str, seeds) -> None:
     # the compiled path ran on the modal cases (two thirds of the seeds), and near-tangent roots are the exception
     assert searches >= len(seeds)
     assert exact >= 0.75 * searches, (exact, searches)
+    assert marginal <= 0.01 * searches, (marginal, searches)
 
 
 @pytest.mark.parametrize("kind", KINDS)
