@@ -462,6 +462,10 @@ cdef class Search:
         cdef double reach = tol * pow(<double>SUBDIVIDE, <double>(4 * (DEPTH - depth)))
         cdef char* buf = <char*>malloc(4 * ni)
         cdef double* dbuf = <double*>malloc((n + ni) * sizeof(double))
+        if buf == NULL or dbuf == NULL:
+            free(buf)
+            free(dbuf)
+            raise MemoryError
         cdef char* sub = buf
         cdef char* cross
         cdef char* turn
@@ -598,6 +602,12 @@ cdef class Search:
         cdef double* ts = <double*>malloc((n + 1) * sizeof(double))
         cdef double* ss = <double*>malloc(2 * k * (n + 1) * sizeof(double))
         cdef bint clear
+        cdef double* grown_ts
+        cdef char* grown_clear
+        if ts == NULL or ss == NULL:
+            free(ts)
+            free(ss)
+            raise MemoryError
         linspace(t0c, min(self.t_stop, t0c + n * self.step_c), n + 1, ts)
         self._sample(self.coarse, 0, 2 * k, 1, ts, n + 1, ss)
         for q in range(k):
@@ -605,9 +615,17 @@ cdef class Search:
                 ss[q * (n + 1) + j] -= self.margin[q]
         off = 0 if self.cn == 0 else 1
         if self.cn + n + 2 > self.ccap:
+            grown_ts = <double*>realloc(self.cts, 2 * (self.cn + n + 2) * sizeof(double))
+            if grown_ts != NULL:
+                self.cts = grown_ts
+            grown_clear = <char*>realloc(self.cclear, 2 * (self.cn + n + 2))
+            if grown_clear != NULL:
+                self.cclear = grown_clear
+            if grown_ts == NULL or grown_clear == NULL:
+                free(ts)
+                free(ss)
+                raise MemoryError
             self.ccap = 2 * (self.cn + n + 2)
-            self.cts = <double*>realloc(self.cts, self.ccap * sizeof(double))
-            self.cclear = <char*>realloc(self.cclear, self.ccap)
         if self.cn == 0:
             self.cts[0] = ts[0]
         for j in range(n):
@@ -672,23 +690,32 @@ cdef class Search:
         cdef double t_a = self.t_start, t_b, t_skip, nd, limit, t_arm, t_e, rt, step
         cdef int chunk = FIRST_CHUNK
         cdef bint tried = False, started = False, all_armed, ok, g, in_band
-        cdef double* ts = <double*>malloc(cap * sizeof(double))
-        cdef double* hh = <double*>malloc(2 * k * cap * sizeof(double))
-        cdef double* f = <double*>malloc(k * cap * sizeof(double))
-        cdef double* dt = <double*>malloc(cap * sizeof(double))
-        cdef double* b4 = <double*>malloc(cap * sizeof(double))
-        cdef double* cut = <double*>malloc(6 * cap * sizeof(double))
-        cdef char* flags = <char*>malloc(4 * k * cap)
-        cdef char* sub = <char*>malloc(cap)
-        cdef char* armed = <char*>malloc(k)
-        cdef char* maybe = <char*>malloc(k)
-        cdef double* thr = <double*>malloc(k * sizeof(double))
-        cdef int* first = <int*>malloc(k * sizeof(int))
-        cdef int* order = <int*>malloc(k * sizeof(int))
-        cdef double* ft = <double*>malloc(k * sizeof(double))
-        cdef int* fi = <int*>malloc(k * sizeof(int))
-        cdef char* fg = <char*>malloc(k)
-        cdef char* fb = <char*>malloc(k)
+        # work space in three blocks: doubles, flags, indices
+        cdef double* dwork = <double*>malloc((cap * (11 + 3 * k) + 2 * k) * sizeof(double))
+        cdef char* cwork = <char*>malloc(cap * (1 + 4 * k) + 4 * k)
+        cdef int* iwork = <int*>malloc(3 * k * sizeof(int))
+        if dwork == NULL or cwork == NULL or iwork == NULL:
+            free(dwork)
+            free(cwork)
+            free(iwork)
+            raise MemoryError
+        cdef double* ts = dwork
+        cdef double* hh = &dwork[cap]                    # 2k x cap
+        cdef double* f = &hh[2 * k * cap]                # k x cap
+        cdef double* dt = &f[k * cap]
+        cdef double* b4 = &dt[cap]
+        cdef double* cut = &b4[cap]                      # 6 x cap
+        cdef double* thr = &cut[6 * cap]
+        cdef double* ft = &thr[k]
+        cdef char* flags = cwork                         # 4k x cap
+        cdef char* sub = &flags[4 * k * cap]
+        cdef char* armed = &sub[cap]
+        cdef char* maybe = &armed[k]
+        cdef char* fg = &maybe[k]
+        cdef char* fb = &fg[k]
+        cdef int* first = iwork
+        cdef int* order = &iwork[k]
+        cdef int* fi = &iwork[2 * k]
         cdef char* cross
         cdef char* turn
         cdef char* near
@@ -850,6 +877,7 @@ cdef class Search:
                 t_a = ts[n]
                 progress(t_a)   # no event before this time (an interrupted run keeps it)
         finally:
-            free(ts); free(hh); free(f); free(dt); free(b4); free(cut); free(flags); free(sub)
-            free(armed); free(maybe); free(thr); free(first); free(order); free(ft); free(fi); free(fg); free(fb)
+            free(dwork)
+            free(cwork)
+            free(iwork)
         return result
