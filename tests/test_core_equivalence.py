@@ -15,6 +15,8 @@ it is built there, and runs the whole suite once more on the reference path (NSF
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -82,8 +84,10 @@ def test_compiled_core_runs_as_the_reference(case):
 
 
 def test_switch_names_the_core():
-    assert core.name() == "compiled"
+    # (the CI's third pass sets NSFEM_PURE_PYTHON=1 for the whole process: the reference runs throughout)
+    forced = os.environ.get(core.SWITCH, "").strip() not in ("", "0")
+    assert core.name() == "compiled" if not forced else core.name() == f"pure Python ({core.SWITCH}=1)"
     with core.reference():
         assert core.name().startswith("pure Python")
         assert all(core.compiled(p) is None for p in core.PARTS)
-    assert all(core.compiled(p) is not None for p in core.PARTS)
+    assert all((core.compiled(p) is None) == forced for p in core.PARTS)
