@@ -201,7 +201,7 @@ cdef class Search:
         self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
         self.coarse_of = coarse_of
         self.coarse = None
-        cdef int m = max(self.p, self.kept.p) + 1, k = self.k, j
+        cdef int m = max(self.state.p, self.kept.p) + 1, k = self.k, j   # (the coarse terms are fewer)
         # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi
         self.work = <double*>malloc((k * self.dim + 4 * MEMO * k + 4 * m + 2 * k + self.dim) * sizeof(double))
         self.full_ok = <char*>malloc(2 * k)
