@@ -6,13 +6,14 @@ the reference does, so they agree bitwise; 1e-12 leaves room for a root refined 
 one more Newton step on a last-bit difference of a BLAS product) and gaps at the output times within
 1e-10 of their range (a gap is a product of the state with O(1) weights: a 1e-12 relative time
 difference moves it by at most 1e-12 of its range per unit of the fastest rate's period over the
-step, far inside 1e-10).
+step, far inside 1e-10). A long impact sequence amplifies a last-bit difference past these: such a
+case is held to the reference's own spread between BLAS kernels (:data:`SENSITIVE`).
 
 Where a compiled kernel replaces a BLAS product by a loop (core part "phase": the phase's set-up
-products) the two paths differ in the last bits of the state, and a run's events are only as determined
+products; part "search": the samples and the rows read from the state, conjugate pairs summed once) the two paths differ in the last bits of the state, and a run's events are only as determined
 as that. The reference path itself, run under OpenBLAS's Haswell and Sandybridge kernels (the CI's two
 BLAS passes: the same last-bit differences), moves the stop scene's event times by up to 3.3e-11 s, its
-gaps by 1.1e-9 of their range and its energy terms by 1.1e-9 of the energy turnover, and the
+gaps by 1.1e-9 (1.3e-9 in another measurement) of their range and its energy terms by 1.1e-9 of the energy turnover, and the
 accumulating impacts of retainer_drop (approach speeds down to 1e-18 m/s) by 4.7e-10 s: those two cases
 are compared to about three times that (:data:`SENSITIVE`; retainer_drop's gaps and energy terms are
 kept tighter than its own spread, 8e-6 and 5e-8, as long as the kernels meet that: 4e-13 and 7e-10
@@ -26,6 +27,8 @@ it is built there, and runs the whole suite once more on the reference path (NSF
 """
 
 from __future__ import annotations
+
+import os
 
 import numpy as np
 import pytest
@@ -54,7 +57,7 @@ CASES = {
 #: (event times relative to max(1, t), gaps of their range, energy terms of the turnover): the module's
 #: defaults, and those of the cases whose events the last bits of a product move (the module's docstring)
 DEFAULT_TOL = (1e-12, 1e-10, 1e-10)
-SENSITIVE = {"stop": (1e-10, 3e-9, 3e-9), "retainer_drop": (1e-9, 1e-10, 1e-8)}
+SENSITIVE = {"stop": (1e-10, 4e-9, 3e-9), "retainer_drop": (1e-9, 1e-10, 1e-8)}
 #: the energy dict's entries that are terms of the balance (not derived from them)
 TERMS = ("initial_J", "work_external_J", "dissipated_damping_J", "work_circulatory_J", "dissipated_friction_J",
          "work_spin_J", "lost_in_impacts_J", "final_J")
@@ -95,8 +98,10 @@ def test_compiled_core_runs_as_the_reference(case):
 
 
 def test_switch_names_the_core():
-    assert core.name() == "compiled"
+    # (the CI's third pass sets NSFEM_PURE_PYTHON=1 for the whole process: the reference runs throughout)
+    forced = os.environ.get(core.SWITCH, "").strip() not in ("", "0")
+    assert core.name() == "compiled" if not forced else core.name() == f"pure Python ({core.SWITCH}=1)"
     with core.reference():
         assert core.name().startswith("pure Python")
         assert all(core.compiled(p) is None for p in core.PARTS)
-    assert all(core.compiled(p) is not None for p in core.PARTS)
+    assert all((core.compiled(p) is None) == forced for p in core.PARTS)

@@ -72,7 +72,7 @@ from scipy.optimize import brentq
 from nsfem.contact.set import ContactSet
 from nsfem.integrate import ContactSystem
 from nsfem.integrate.configuration import Configuration, Mode, Phase
-from nsfem.integrate import events
+from nsfem.integrate import core, events
 from nsfem.integrate.events import Rows, _hermite_min, first_event
 
 #: brute-force points per phase (and on the coarser grid that shapes the rows)
@@ -525,6 +525,13 @@ def check_case(case: Case) -> tuple[str | None, dict]:
 
 
 def _run(kind: str, seeds) -> None:
+    # the reference search (its coarse pass is watched here); tests/test_core_search.py holds the compiled
+    # one to it on these cases
+    with core.reference():
+        _run_reference(kind, seeds)
+
+
+def _run_reference(kind: str, seeds) -> None:
     failures, paths, spans, skipped = [], {"modal": 0, "divided": 0, "expm": 0}, [], []
     coarse_of = events._Coarse.of
 

@@ -497,6 +497,7 @@ class Phase:
             tt = np.atleast_1d(np.asarray(t, dtype=float))
             return Hm.evaluate(tt - self.t0) + Hh @ self._harmonics(tt)
 
+        rows.terms = Hm    # what the compiled search samples (events._compiled_search)
         return rows
 
     def search_map(self, H: np.ndarray, budget: np.ndarray, horizon: float):

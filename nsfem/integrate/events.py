@@ -53,6 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import core
 from .configuration import Mode, Phase
 from .rings import ring_rows
 
@@ -144,7 +145,10 @@ class Event:
 
 def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=None) -> Event | None:
     """The earliest root of any row in (t_start, t_stop], or None. ``report(t)`` (optional) is
-    told how far the search has come after each chunk of samples (progress of long phases)."""
+    told how far the search has come after each chunk of samples (progress of long phases).
+
+    After the set-up, the loop below runs as one compiled call where the compiled event core is built
+    and the phase is on the modal path (:func:`_compiled_search`); this code is its reference."""
     if rows.size == 0:
         return None
     H = rows.H
@@ -171,6 +175,10 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     h_step = phase.max_step(t_stop - t_start, rate)
     # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
     bound4 = bound_of(4)[: rows.size] * h_step ** 4 / 384.0
+    search = core.compiled("search")
+    if search is not None and _compilable(phase, rows_at, band, bound4):
+        return _compiled_search(search, phase, H, Hd, tol, band, rate, rows_at, bound4, h_step, t_start, t_stop,
+                                report)
     coarse, tried = None, False
     armed = None
     thr = None
@@ -257,6 +265,55 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         if report is not None:
             report(t_a)
     return None
+
+
+def _compilable(phase: Phase, rows_at, band: np.ndarray, bound4: np.ndarray) -> bool:
+    """Whether the compiled search (nsfem/integrate/core/_search.pyx) runs this phase: the modal path
+    (divided differences included), every row's bound fine enough to screen (no local bound)."""
+    return (phase._modal is not None and getattr(rows_at, "terms", None) is not None
+            and bool(np.all(bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH))))
+
+
+def _terms(mot) -> tuple:
+    """A closed form's terms as the compiled search reads them: (exponents, nodes of the divided
+    differences (K x 3, unused nodes 0), their number of nodes (2 or 3), coefficients (rows x
+    (exponents + K)))."""
+    nodes = [np.vstack([n, np.zeros((3 - n.shape[0], n.shape[1]))]) for n, _ in mot.groups]
+    gnodes = np.concatenate(nodes, axis=1).T if nodes else np.zeros((0, 3))
+    gm = np.concatenate([np.full(n.shape[1], n.shape[0]) for n, _ in mot.groups]) if nodes else np.zeros(0)
+    C = np.hstack([mot.U] + [D for _, D in mot.groups]) if nodes else mot.U
+    return (np.ascontiguousarray(mot.nu, dtype=complex), np.ascontiguousarray(gnodes, dtype=complex),
+            np.ascontiguousarray(gm, dtype=np.intc), np.ascontiguousarray(C, dtype=complex))
+
+
+def _compiled_search(search, phase: Phase, H, Hd, tol, band, rate, rows_at, bound4, h_step, t_start, t_stop,
+                     report) -> Event | None:
+    """The loop of :func:`first_event` after its set-up, as one compiled call (``search.Search.run``: the
+    same chunks, screens, scans, arming, coarse pass and roots); the coarse pass is set up here when the
+    loop asks for it, and ``report`` and ``phase.searched_until`` follow its progress."""
+
+    def coarse_of(t_a):
+        c = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop)
+        if c is None:
+            return None
+        return (_terms(c.rows_at.terms), np.ascontiguousarray(c.margin, dtype=float),
+                np.ascontiguousarray(c.b4, dtype=float), float(c.step))
+
+    def progress(t):
+        phase.searched_until = t
+        if report is not None:
+            report(t)
+
+    nu, gnodes, gm, U = _terms(phase._modal)
+    run = search.Search(nu, gnodes, gm, U, np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(Hd, dtype=float),
+                        np.ascontiguousarray(phase.A_aug, dtype=float), phase.t0, float(phase.w), _terms(rows_at.terms),
+                        np.ascontiguousarray(band, dtype=float), np.ascontiguousarray(bound4, dtype=float),
+                        float(h_step), float(t_start), float(t_stop), coarse_of)
+    found = run.run(progress)
+    if found is None:
+        return None
+    t_e, idx, graze, in_band = found
+    return Event(t_e, idx, graze, tol, in_band)
 
 
 #: the coarse pass leaves out the fastest terms up to COARSE of each row's size; it is used when that

@@ -1,105 +1,883 @@
 # cython: language_level=3
-"""Compiled kernels of the event search (nsfem/integrate/events.py holds the Python reference of
-each, under the same name with a leading underscore; tests/test_core_equivalence.py compares them)."""
+"""The event search of one phase, compiled (issue 33): :class:`Search` runs events.first_event's loop
+after its set-up on the modal path (divided differences included), with the kernels it is made of
+(the screen, the Hermite cubic's minimum and envelope, the roots, the divided differences). The
+Python functions in nsfem/integrate/events.py and closed_form.py are the reference of each, under
+the name given in its docstring; tests/test_core_search.py and tests/test_core_equivalence.py
+compare the two paths."""
 
-from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, INFINITY
+from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, expm1, cos, sin, pow, ceil, hypot, isfinite, INFINITY
+from libc.stdlib cimport malloc, calloc, free, realloc
 
+cdef extern from *:
+    """
+    #if defined(__GLIBC__)
+    #define nsfem_sincos sincos   /* glibc's: sin(x) and cos(x) at once, the same values */
+    #else
+    static void nsfem_sincos(double x, double* s, double* c) { *s = sin(x); *c = cos(x); }
+    #endif
+    """
+    void sincos "nsfem_sincos" (double x, double* s, double* c) nogil
+
+import numpy as np
+
+#: as events.SUBDIVIDE, DEPTH, FIRST_CHUNK, CHUNK
+cdef int SUBDIVIDE = 16, DEPTH = 3, FIRST_CHUNK = 4, CHUNK = 256
+#: as events.SLOPE (Birkhoff and Priver's slope bound in units of bound4)
+cdef double SLOPE = 384.0 * sqrt(3.0) / 216.0
+#: as first_event: at most this many arming candidates per row and chunk
+cdef int ARM_CANDIDATES = 64
+#: remembered (t, h, h', h'') per row (events._Row._memo)
+cdef int MEMO = 8
+#: as events.MAXITER (Newton steps of a root), events.SAFE (the quadratic's scaling range)
 cdef int MAXITER = 200
 cdef double SAFE_HI = 2.0 ** 400
 cdef double SAFE_LO = 2.0 ** -400
 
 
-cdef int roots2(double a, double b, double c, double* out) noexcept nogil:
-    """The real roots of a s^2 + b s + c (as events._roots2): their number, written to out[0:2]."""
-    cdef double m = fabs(a)
-    cdef int k
-    cdef double disc, q
-    if fabs(b) > m:
-        m = fabs(b)
-    if fabs(c) > m:
-        m = fabs(c)
-    if 0.0 < m < INFINITY and not (SAFE_LO <= m <= SAFE_HI):
-        frexp(m, &k)
-        a = ldexp(a, -k)
-        b = ldexp(b, -k)
-        c = ldexp(c, -k)
-    if a == 0.0:
-        if b != 0.0:
-            out[0] = -c / b
-            return 1
-        return 0
-    disc = b * b - 4.0 * a * c
-    if not disc >= 0.0:
-        return 0
-    q = -0.5 * (b + copysign(sqrt(disc), b))
-    if q != 0.0:
-        out[0] = q / a
-        out[1] = c / q
-        return 2
-    out[0] = 0.0
-    return 1
+include "_search_kernels.pxi"
+include "_search_divided.pxi"
 
 
-cpdef double envelope_min(double f0, double f1, double d0, double d1, double dt, double bound4,
-                          double s_hi=1.0):
-    """events._envelope_min: the lowest the row can be on [0, s_hi] of the interval, the Hermite cubic
-    less its pointwise error bound 16 bound4 s^2 (1 - s)^2 (a quartic p), at the ends or at the minimum
-    of each piece where p' goes from - to + (Newton's method kept inside the piece)."""
-    cdef double m0 = dt * d0, m1 = dt * d1, df = f1 - f0
-    cdef double c0 = f0, c1 = m0, c2 = 3.0 * df - 2.0 * m0 - m1, c3 = m0 + m1 - 2.0 * df
-    cdef double e = 16.0 * bound4
-    cdef double a3 = -4.0 * e, a2 = 3.0 * c3 + 6.0 * e, a1 = 2.0 * c2 - 2.0 * e
-    cdef double r[2]
-    cdef double knots[4]
-    cdef int nk = 0, nr, i, j, it
-    cdef double low, val, s, u, v, fu, fv, x, fx, d2, x_new, tmp, w
-    nr = roots2(3.0 * a3, 2.0 * a2, a1, r)
-    knots[nk] = 0.0
-    nk += 1
-    # the inner roots in increasing order (as sorted() does)
-    if nr == 2 and r[1] < r[0]:
-        tmp = r[0]
-        r[0] = r[1]
-        r[1] = tmp
-    for i in range(nr):
-        if 0.0 < r[i] < s_hi:
-            knots[nk] = r[i]
-            nk += 1
-    knots[nk] = s_hi
-    nk += 1
-    low = INFINITY
-    for i in range(nk):
-        s = knots[i]
-        w = s * (1.0 - s)
-        val = c0 + s * (c1 + s * (c2 + s * c3)) - e * (w * w)
-        if val < low or i == 0:
-            low = val
-    for i in range(nk - 1):
-        u = knots[i]
-        v = knots[i + 1]
-        fu = c1 + u * (a1 + u * (a2 + u * a3))
-        fv = c1 + v * (a1 + v * (a2 + v * a3))
-        if not (fu < 0.0 < fv):
-            continue
-        x = u - fu * (v - u) / (fv - fu)
-        for it in range(MAXITER):
-            fx = c1 + x * (a1 + x * (a2 + x * a3))
-            if fx == 0.0:
-                break
-            if fx < 0.0:
-                u = x
+cdef class _Terms:
+    """Rows t -> Re(C e^{nu (t - t0)}) + their harmonic part (events' rows_at, _Row.samples: the
+    closed form's Motion.evaluate with Phase._harmonics), C's rows j < k those of H, the others Hd's
+    (or xi's modal part: then C is U). The exponents come first, then the divided differences.
+
+    A conjugate pair of exponents (an underdamped mode's two roots, the forcing's e^{+-iwt}; equal but
+    for the sign of the imaginary part, bit for bit) is summed once: Re(c e^{nu tau}) + Re(c' e^{nu*
+    tau}) = Re((c + conj(c')) e^{nu tau}), exactly in exact arithmetic whatever c and c' (the real
+    part of a conjugate is the same); only where the sum rounds changes. ``C`` keeps the columns
+    summed (R x nact, interleaved complex; a pair's combined); without coefficients given, the
+    pairs are ``like``'s and C is formed by the owner (the full rows, per row when first sampled)."""
+    cdef const double complex[::1] nu      # the exponents (pe of them)
+    cdef const double complex[:, ::1] gnodes   # the K divided differences: their nodes (K x 3)
+    cdef const int[::1] gm                 # and how many of the 3 each has (2 or 3)
+    cdef double* C
+    cdef int* act                          # the terms summed (indices into exponents, then K)
+    cdef int* partner                      # per term summed: its conjugate's index, or -1
+    cdef int pe, K, p, R, nact
+
+    def __cinit__(self):
+        self.C = NULL
+        self.act = NULL
+        self.partner = NULL
+
+    def __dealloc__(self):
+        free(self.C)
+        free(self.act)
+        free(self.partner)
+
+    def __init__(self, nu, gnodes, gm, C, int R, _Terms like=None):
+        cdef const double complex[:, ::1] Cv
+        cdef int idx, r, m, j
+        self.nu, self.gnodes, self.gm = nu, gnodes, gm
+        self.pe, self.K = self.nu.shape[0], self.gm.shape[0]
+        self.p = self.pe + self.K
+        self.R = R
+        self.act = <int*>malloc(max(self.p, 1) * sizeof(int))
+        self.partner = <int*>malloc(max(self.p, 1) * sizeof(int))
+        if self.act == NULL or self.partner == NULL:
+            raise MemoryError
+        if C is not None:
+            Cv = C
+            if Cv.shape[0] != R or Cv.shape[1] != self.p:
+                raise ValueError("Search: the coefficients need a row per row and a column per term")
+            self._pair()
+        else:
+            self.nact = like.nact
+            for idx in range(self.nact):
+                self.act[idx], self.partner[idx] = like.act[idx], like.partner[idx]
+        self.C = <double*>malloc(max(2 * R * self.nact, 1) * sizeof(double))
+        if self.C == NULL:
+            raise MemoryError
+        cdef const double* src
+        cdef double* dst
+        cdef int p = self.p, n = self.nact
+        if C is not None and R * p:
+            for r in range(R):
+                src, dst = <const double*>&Cv[r, 0], &self.C[2 * r * n]
+                for idx in range(n):
+                    m, j = self.act[idx], self.partner[idx]
+                    if j < 0:
+                        dst[2 * idx], dst[2 * idx + 1] = src[2 * m], src[2 * m + 1]
+                    else:   # c + conj(c')
+                        dst[2 * idx], dst[2 * idx + 1] = src[2 * m] + src[2 * j], src[2 * m + 1] - src[2 * j + 1]
+
+    cdef void _pair(self):
+        """act, partner, nact: the exponents summed, each with its conjugate's index (or -1)."""
+        cdef int m, j, n = 0, partner
+        cdef char* used = <char*>calloc(max(self.pe, 1), 1)
+        for m in range(self.pe):
+            if used[m]:
+                continue
+            partner = -1
+            if self.nu[m].imag != 0.0:
+                for j in range(m + 1, self.pe):
+                    if not used[j] and self.nu[j].real == self.nu[m].real and self.nu[j].imag == -self.nu[m].imag:
+                        partner = j
+                        used[j] = True
+                        break
+            self.act[n], self.partner[n] = m, partner
+            n += 1
+        for m in range(self.K):
+            self.act[n], self.partner[n] = self.pe + m, -1
+            n += 1
+        self.nact = n
+        free(used)
+
+
+cdef void terms_at(_Terms T, double tau, double* er, double* ei):
+    """The summed terms' time functions at tau: e^{nu tau} (Motion.evaluate's exponentials, one at a
+    time), the divided differences F[nodes](tau)."""
+    cdef int idx, m
+    cdef double e, a, b, x, y
+    for idx in range(T.nact):
+        m = T.act[idx]
+        if m < T.pe:
+            e = exp(T.nu[m].real * tau)
+            sincos(T.nu[m].imag * tau, &b, &a)
+            x, y = e * a, e * b
+        else:
+            dexp(&T.gnodes[m - T.pe, 0], T.gm[m - T.pe], tau, &x, &y)
+        er[idx], ei[idx] = x, y
+
+
+cdef class Search:
+    """One phase's search (events.first_event after its set-up, on the modal path): the state of the
+    loop, the rows read from the state, the coarse pass. Arrays in (the closed form's terms, the rows
+    H and Hd = H A_aug, A_aug, the bands and bounds), the event out (:meth:`run`)."""
+    cdef int k, r2, dim, nh, p
+    cdef double t0, w
+    cdef const double[:, ::1] H, Hd, A
+    cdef _Terms state, kept, full, coarse  # xi's modal part (C: U), the kept rows, all rows, coarse
+    cdef char* full_ok                     # per row: its H_i U, Hd_i U formed (in full)
+    cdef char* hdd_ok                      # per row: its Hd_i A_aug formed (in Hdd)
+    cdef int* nmemo
+    cdef double* Hdd                       # k x dim
+    cdef double* memo                      # per row MEMO x (t, h, h', h'')
+    cdef double* er
+    cdef double* ei
+    cdef double* sr
+    cdef double* si
+    cdef double* acc
+    cdef double* xi
+    cdef double* work
+    cdef const double[::1] band, bound4
+    cdef double h_step, t_start, t_stop
+    # the coarse pass (events._Coarse)
+    cdef object coarse_of
+    cdef const double[::1] margin, b4c
+    cdef double step_c, start_c
+    cdef double* cts
+    cdef char* cclear
+    cdef int cn, ccap
+
+    def __cinit__(self):
+        self.cts = self.work = NULL
+        self.cclear = self.full_ok = NULL
+        self.nmemo = NULL
+        self.cn = self.ccap = 0
+
+    def __dealloc__(self):
+        free(self.cts)
+        free(self.cclear)
+        free(self.work)
+        free(self.full_ok)
+        free(self.nmemo)
+
+    def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, kept, band, bound4, double h_step,
+                 double t_start, double t_stop, coarse_of):
+        self.H, self.Hd, self.A = H, Hd, A
+        self.k, self.dim = self.H.shape[0], self.H.shape[1]
+        self.r2 = U.shape[0]
+        self.nh = self.dim - self.r2
+        self.t0, self.w = t0, w
+        self.state = _Terms(nu, gnodes, gm, U, self.r2)
+        self.kept = _Terms(*kept, 2 * self.k)
+        self.full = _Terms(nu, gnodes, gm, None, 2 * self.k, self.state)
+        self.p = self.state.nact
+        self.band, self.bound4 = band, bound4
+        self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
+        self.coarse_of = coarse_of
+        self.coarse = None
+        cdef int m = max(self.state.p, self.kept.p) + 1, k = self.k, j   # (the coarse terms are fewer)
+        # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi
+        self.work = <double*>malloc((k * self.dim + 4 * MEMO * k + 4 * m + 2 * k + self.dim) * sizeof(double))
+        self.full_ok = <char*>malloc(2 * k)
+        self.nmemo = <int*>malloc(k * sizeof(int))
+        if self.work == NULL or self.full_ok == NULL or self.nmemo == NULL:
+            raise MemoryError
+        self.hdd_ok = &self.full_ok[k]
+        for j in range(k):
+            self.full_ok[j] = self.hdd_ok[j] = False
+            self.nmemo[j] = 0
+        self.Hdd = self.work
+        self.memo = &self.Hdd[k * self.dim]
+        self.er = &self.memo[4 * MEMO * k]
+        self.ei, self.sr, self.si = &self.er[m], &self.er[2 * m], &self.er[3 * m]
+        self.acc = &self.er[4 * m]
+        self.xi = &self.acc[2 * k]
+
+    def terms(self):
+        """(terms, terms summed) of the state's closed form and of the kept rows (a conjugate pair summed
+        once)."""
+        return (self.state.p, self.state.nact), (self.kept.p, self.kept.nact)
+
+    # -- the rows ---------------------------------------------------------------------------
+    cdef void _sample(self, _Terms T, int j0, int nj, int jstep, const double* ts, int n, double* out):
+        """Rows j0, j0 + jstep, ... (nj of them) of T at the times ts (n), into out (nj x n):
+        Motion.evaluate (e^{nu tau} by repeated products on a uniform grid of more than 8 times, as
+        closed_form.exponentials) plus the rows' harmonic part (Phase._harmonics)."""
+        cdef int p = T.nact, R = T.R, j, m, q, row, idx
+        cdef double tau, d0, e, x, y, a, b, c = 0.0, sn = 0.0, s0, s1, s2, s3
+        cdef const double* c0
+        cdef const double* c1
+        cdef const double* c2
+        cdef const double* c3
+        cdef bint uniform = False
+        cdef double* er = self.er
+        cdef double* ei = self.ei
+        cdef double* sr = self.sr
+        cdef double* si = self.si
+        cdef double* acc = self.acc
+        cdef const double* hrow
+        if n > 8:
+            d0 = (ts[1] - self.t0) - (ts[0] - self.t0)
+            uniform = True
+            for j in range(1, n):
+                if not fabs(((ts[j] - self.t0) - (ts[j - 1] - self.t0)) - d0) <= 1e-12 * fabs(d0):
+                    uniform = False
+                    break
+            if uniform:   # (the steps of the exponents; sr, si of a divided difference unused)
+                for idx in range(p):
+                    m = T.act[idx]
+                    if m < T.pe:
+                        e = exp(T.nu[m].real * d0)
+                        sincos(T.nu[m].imag * d0, &b, &a)
+                        sr[idx], si[idx] = e * a, e * b
+        for j in range(n):
+            tau = ts[j] - self.t0
+            if uniform and j > 0:
+                for idx in range(p):
+                    m = T.act[idx]
+                    if m < T.pe:
+                        x = er[idx] * sr[idx] - ei[idx] * si[idx]
+                        y = er[idx] * si[idx] + ei[idx] * sr[idx]
+                        er[idx], ei[idx] = x, y
+                    else:
+                        dexp(&T.gnodes[m - T.pe, 0], T.gm[m - T.pe], tau, &er[idx], &ei[idx])
             else:
-                v = x
-            d2 = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
-            x_new = x - fx / d2 if d2 > 0.0 else 0.5 * (u + v)
-            if not (u < x_new < v):
-                x_new = 0.5 * (u + v)
-            if fabs(x_new - x) <= 4e-16 * max(1.0, fabs(x)) or v - u <= 4e-16 * max(1.0, fabs(v)):
-                x = x_new
+                terms_at(T, tau, er, ei)
+            # the rows' sums over the terms, each in order, four rows at a time (independent sums)
+            q = 0
+            while q + 4 <= nj:
+                c0 = &T.C[2 * p * (j0 + q * jstep)]
+                c1 = &T.C[2 * p * (j0 + (q + 1) * jstep)]
+                c2 = &T.C[2 * p * (j0 + (q + 2) * jstep)]
+                c3 = &T.C[2 * p * (j0 + (q + 3) * jstep)]
+                s0 = s1 = s2 = s3 = 0.0
+                for m in range(p):
+                    a, b = er[m], ei[m]
+                    s0 += c0[2 * m] * a - c0[2 * m + 1] * b
+                    s1 += c1[2 * m] * a - c1[2 * m + 1] * b
+                    s2 += c2[2 * m] * a - c2[2 * m + 1] * b
+                    s3 += c3[2 * m] * a - c3[2 * m + 1] * b
+                acc[q], acc[q + 1], acc[q + 2], acc[q + 3] = s0, s1, s2, s3
+                q += 4
+            while q < nj:
+                c0 = &T.C[2 * p * (j0 + q * jstep)]
+                s0 = 0.0
+                for m in range(p):
+                    s0 += c0[2 * m] * er[m] - c0[2 * m + 1] * ei[m]
+                acc[q] = s0
+                q += 1
+            if self.nh == 3:
+                sincos(self.w * ts[j], &sn, &c)
+            for q in range(nj):
+                row = j0 + q * jstep
+                hrow = &self.H[row, self.r2] if row < self.k else &self.Hd[row - self.k, self.r2]
+                if self.nh == 3:
+                    out[q * n + j] = acc[q] + (hrow[0] + hrow[1] * c + hrow[2] * sn)
+                else:
+                    out[q * n + j] = acc[q] + hrow[0]
+
+    cdef void samples(self, int i, const double* ts, int n, double* out):
+        """events._Row.samples: (h, h') of row i at the times ts (2 x n), from all its terms."""
+        cdef int m, l
+        cdef double sr, si, tr, ti
+        cdef int R = 2 * self.k
+        cdef const double* U = self.state.C
+        if not self.full_ok[i]:   # H_i U and Hd_i U (the columns summed)
+            for m in range(self.p):
+                sr = si = tr = ti = 0.0
+                for l in range(self.r2):
+                    sr += self.H[i, l] * U[2 * (l * self.p + m)]
+                    si += self.H[i, l] * U[2 * (l * self.p + m) + 1]
+                    tr += self.Hd[i, l] * U[2 * (l * self.p + m)]
+                    ti += self.Hd[i, l] * U[2 * (l * self.p + m) + 1]
+                self.full.C[2 * (i * self.p + m)], self.full.C[2 * (i * self.p + m) + 1] = sr, si
+                self.full.C[2 * ((self.k + i) * self.p + m)], self.full.C[2 * ((self.k + i) * self.p + m) + 1] = tr, ti
+            self.full_ok[i] = True
+        self._sample(self.full, i, 2, self.k, ts, n, out)
+
+    cdef const double* at(self, int i, double t):
+        """events._Row._eval: (h, h', h'') of row i at t, read from the state xi(t) (Phase._xi_at);
+        the last MEMO times remembered."""
+        cdef double* mem = &self.memo[4 * MEMO * i]
+        cdef int j, m, l
+        cdef double tau = t - self.t0, e, s, a, b, c, s0, s1, s2, s3
+        cdef const double* U = self.state.C
+        cdef const double* u0
+        cdef const double* u1
+        cdef const double* u2
+        cdef const double* u3
+        cdef double* xi = self.xi
+        cdef double* hdd = &self.Hdd[i * self.dim]
+        for j in range(self.nmemo[i]):
+            if mem[4 * j] == t:
+                return &mem[4 * j + 1]
+        if not self.hdd_ok[i]:   # Hd_i A_aug (each entry summed in the order of l)
+            for j in range(self.dim):
+                hdd[j] = 0.0
+            for l in range(self.dim):
+                e = self.Hd[i, l]
+                for j in range(self.dim):
+                    hdd[j] += e * self.A[l, j]
+            self.hdd_ok[i] = True
+        terms_at(self.state, tau, self.er, self.ei)
+        # xi's modal part, Re(U e^{nu tau}): each component summed over the terms in order, four
+        # components at a time (independent sums: they overlap)
+        l = 0
+        while l + 4 <= self.r2:
+            u0, u1 = &U[2 * self.p * l], &U[2 * self.p * (l + 1)]
+            u2, u3 = &U[2 * self.p * (l + 2)], &U[2 * self.p * (l + 3)]
+            s0 = s1 = s2 = s3 = 0.0
+            for m in range(self.p):
+                e, s = self.er[m], self.ei[m]
+                s0 += u0[2 * m] * e - u0[2 * m + 1] * s
+                s1 += u1[2 * m] * e - u1[2 * m + 1] * s
+                s2 += u2[2 * m] * e - u2[2 * m + 1] * s
+                s3 += u3[2 * m] * e - u3[2 * m + 1] * s
+            xi[l], xi[l + 1], xi[l + 2], xi[l + 3] = s0, s1, s2, s3
+            l += 4
+        while l < self.r2:
+            u0 = &U[2 * self.p * l]
+            s0 = 0.0
+            for m in range(self.p):
+                s0 += u0[2 * m] * self.er[m] - u0[2 * m + 1] * self.ei[m]
+            xi[l] = s0
+            l += 1
+        xi[self.r2] = 1.0
+        if self.nh == 3:
+            sincos(self.w * t, &xi[self.r2 + 2], &xi[self.r2 + 1])
+        a = b = c = 0.0
+        for l in range(self.dim):
+            a += self.H[i, l] * xi[l]
+            b += self.Hd[i, l] * xi[l]
+            c += hdd[l] * xi[l]
+        if self.nmemo[i] >= MEMO:
+            self.nmemo[i] = 0
+        j = self.nmemo[i]
+        mem[4 * j], mem[4 * j + 1], mem[4 * j + 2], mem[4 * j + 3] = t, a, b, c
+        self.nmemo[i] = j + 1
+        return &mem[4 * j + 1]
+
+    # -- roots ------------------------------------------------------------------------------
+    cdef bint root(self, int i, int which, double thr, double a, double b, double* out):
+        """events._root on row i: which 0, a root of h - thr (with h'); 1, of h' (with h''). False
+        when the re-evaluated ends show no sign change."""
+        cdef const double* v
+        cdef double fa, da, fb, db, xtol, x, prev, fx, dx, step, tol, x_new
+        cdef double c[4]
+        cdef bint overshot = False
+        cdef int it
+        pick(self.at(i, a), which, thr, &fa, &da)
+        pick(self.at(i, b), which, thr, &fb, &db)
+        if fa == 0.0:
+            out[0] = a
+            return True
+        if fb == 0.0:
+            out[0] = b
+            return True
+        if (fa > 0) == (fb > 0):
+            return False
+        xtol = 4e-16 * max(1.0, fabs(b))
+        cubic(fa, fb, da, db, b - a, c)
+        x = a + (b - a) * cubic_root(c[0], c[1], c[2], c[3])
+        prev = b - a
+        for it in range(MAXITER):
+            pick(self.at(i, x), which, thr, &fx, &dx)
+            if fx == 0.0:
+                out[0] = x
+                return True
+            if (fx > 0) == (fa > 0):
+                a, fa = x, fx
+            else:
+                b = x
+            step = fx / dx if dx != 0.0 else INFINITY
+            tol = xtol + 8.9e-16 * fabs(x)
+            if fabs(step) <= tol:
+                out[0] = min(max(x - step, a), b)
+                return True
+            if b - a <= 2.0 * tol:
+                out[0] = 0.5 * (a + b)
+                return True
+            x_new = x - step
+            if a < x_new < b and fabs(step) <= 0.5 * prev:
+                overshot = False
+            elif not overshot and a < x - 2.0 * step < b:
+                x_new, step, overshot = x - 2.0 * step, 2.0 * step, True
+            else:
+                x_new = 0.5 * (a + b)
+                step, overshot = x - x_new, False
+            prev, x = fabs(step), x_new
+        out[0] = x
+        return True
+
+    # -- scans ------------------------------------------------------------------------------
+    cdef bint finer(self, int i, double a, double b, double thr, double tol, double b4, double limit, int depth,
+                    double* t_out, bint* graze):
+        """_scan's finer(k): the interval [a, b] on SUBDIVIDE finer intervals, scanned again."""
+        cdef double sub[17]
+        cdef double hh[34]
+        cdef double bs[16]
+        cdef int j
+        linspace(a, b, SUBDIVIDE + 1, sub)
+        self.samples(i, sub, SUBDIVIDE + 1, hh)
+        for j in range(SUBDIVIDE):
+            bs[j] = b4 / 65536.0
+        return self.scan(i, sub, hh, &hh[SUBDIVIDE + 1], SUBDIVIDE + 1, thr, tol, bs, limit, depth + 1, NULL, NULL,
+                         NULL, t_out, graze)
+
+    cdef bint scan(self, int i, const double* ts, const double* h, const double* hd, int n, double thr, double tol,
+                   const double* b4, double limit, int depth, const char* cross_in, const char* turn_in,
+                   const char* near_in, double* t_out, bint* graze):
+        """events._scan on row i: the first root of h - thr on the samples (crossing or dip), refined:
+        True with (t_out, graze), or False. b4 per interval; cross_in/turn_in/near_in: the screen of
+        these samples when the caller has formed it (else NULL)."""
+        if n < 2:
+            return False
+        cdef int ni = n - 1, k, kk, k_c = -1, j
+        cdef double reach = tol * pow(<double>SUBDIVIDE, <double>(4 * (DEPTH - depth)))
+        cdef char* buf = <char*>malloc(4 * ni)
+        cdef double* dbuf = <double*>malloc((n + ni) * sizeof(double))
+        if buf == NULL or dbuf == NULL:
+            free(buf)
+            free(dbuf)
+            raise MemoryError
+        cdef char* sub = buf
+        cdef char* cross
+        cdef char* turn
+        cdef char* near
+        cdef double* f = dbuf
+        cdef double* dt = &dbuf[n]
+        cdef double a, b, t_r, u, tm, fm
+        cdef const double* v
+        cdef bint found = False, ok
+        for k in range(n):
+            f[k] = h[k] - thr
+        for k in range(ni):
+            sub[k] = (b4[k] <= reach) if depth < DEPTH else False
+            dt[k] = ts[k + 1] - ts[k]
+        if cross_in != NULL:
+            cross, turn, near = <char*>cross_in, <char*>turn_in, <char*>near_in
+        else:
+            cross, turn, near = &buf[ni], &buf[2 * ni], &buf[3 * ni]
+            screen_row(dt, f, hd, ni, tol, b4, sub, cross, turn, near)
+        for k in range(ni):
+            if cross[k]:
+                k_c = k
                 break
-            x = x_new
-        w = x * (1.0 - x)
-        val = c0 + x * (c1 + x * (c2 + x * c3)) - e * (w * w)
-        if val < low:
-            low = val
-    return low
+        # the candidates: near intervals before the first crossing, then the crossing
+        for kk in range(ni if k_c < 0 else k_c + 1):
+            k = kk
+            if k == k_c:
+                pass
+            elif not near[k]:
+                continue
+            a, b = ts[k], ts[k + 1]
+            if a > limit:
+                break
+            if sub[k] and k != k_c and not turn[k]:
+                if self.finer(i, a, b, thr, tol, b4[k], limit, depth, t_out, graze):
+                    found = True
+                    break
+                continue
+            if k == k_c:
+                if self.at(i, a)[0] - thr < 0:   # the sample before is itself (round-off) below
+                    t_out[0], graze[0], found = a, False, True
+                    break
+                if not self.root(i, 0, thr, a, b, &t_r):
+                    t_r = b
+                # first(k, t_r): t_r unless an earlier root may hide before it
+                graze[0], found = False, True
+                t_out[0] = t_r
+                if not sub[k] or first_root(f[k], f[k + 1], hd[k], hd[k + 1], dt[k], (t_r - ts[k]) / dt[k], b4[k],
+                                            tol):
+                    break
+                u = (t_r - ts[k]) / dt[k]
+                if u > 0.0:
+                    v = self.at(i, t_r)
+                    if envelope(f[k], v[0] - thr, hd[k], v[1], t_r - ts[k], b4[k] * pow(u, 4.0), 1.0) >= -tol:
+                        break
+                if not self.finer(i, a, b, thr, tol, b4[k], limit, depth, t_out, graze):
+                    t_out[0], graze[0] = t_r, False
+                break
+            if not turn[k]:
+                continue
+            if sub[k] and not convex(f[k], f[k + 1], hd[k], hd[k + 1], dt[k], b4[k]):
+                # two minima may hide in the interval: scanned again on finer samples
+                if self.finer(i, a, b, thr, tol, b4[k], limit, depth, t_out, graze):
+                    found = True
+                    break
+                continue
+            # dip: the minimum inside [a, b]
+            if not self.root(i, 1, 0.0, a, b, &tm):
+                tm = a if f[k] <= f[k + 1] else b
+            fm = self.at(i, tm)[0] - thr
+            if fm < -tol:
+                if not self.root(i, 0, thr, a, tm, &t_r):
+                    t_r = tm
+                t_out[0], graze[0], found = t_r, False, True
+                break
+            if fm <= tol and thr == 0.0:
+                t_out[0], graze[0], found = tm, True, True
+                break
+        free(buf)
+        free(dbuf)
+        return found
+
+    cdef int arm(self, int i, const double* ts, const double* h, const double* hd, int n, double tol, double bound4,
+                 double* t_arm):
+        """events._arm: the interval k where a row that starts in its zero band first rises above it
+        (t_arm: at a sample or a maximum between samples), or -1."""
+        cdef int k, j, cnt = 0, best
+        cdef double a, b, hmax, tc, hm, tm
+        cdef double c[4]
+        cdef double grid[33]
+        cdef double vals[66]
+        if n < 2:
+            return -1
+        for k in range(n - 1):
+            a, b = ts[k], ts[k + 1]
+            hmax = -hermite_min(-h[k], -h[k + 1], -hd[k], -hd[k + 1], b - a)
+            if not (h[k + 1] > tol or hmax + bound4 > tol):
+                continue
+            cnt += 1
+            if cnt > ARM_CANDIDATES:
+                break
+            if hmax - bound4 > tol:
+                cubic(h[k], h[k + 1], hd[k], hd[k + 1], b - a, c)
+                tc = a + (b - a) * cubic_argmax(c)
+                if self.at(i, tc)[0] > tol:
+                    t_arm[0] = tc
+                    return k
+            if not (hd[k] > 0 >= hd[k + 1] and self.root(i, 1, 0.0, a, b, &tm)):
+                # no sign change of h' (left): the maximum on a fine grid
+                linspace(a, b, 33, grid)
+                self.samples(i, grid, 33, vals)
+                best = 0
+                for j in range(1, 33):
+                    if vals[j] > vals[best]:
+                        best = j
+                tm, hm = grid[best], vals[best]
+            else:
+                hm = self.at(i, tm)[0]
+            if hm > tol:
+                t_arm[0] = tm
+                return k
+            if h[k + 1] > tol:
+                t_arm[0] = b
+                return k
+        return -1
+
+    # -- the coarse pass --------------------------------------------------------------------
+    cdef void extend(self):
+        """events._Coarse._extend: the next CHUNK coarse intervals sampled and judged."""
+        cdef double t0c = self.cts[self.cn] if self.cn > 0 else self.start_c
+        cdef double nd = ceil((self.t_stop - t0c) / self.step_c), lo, s0, s1, d0, d1, dt, mn
+        cdef int n = 1 if nd < 1 else (CHUNK if nd > CHUNK else <int>nd), j, q, off
+        cdef int k = self.k
+        cdef double* ts = <double*>malloc((n + 1) * sizeof(double))
+        cdef double* ss = <double*>malloc(2 * k * (n + 1) * sizeof(double))
+        cdef bint clear
+        cdef double* grown_ts
+        cdef char* grown_clear
+        if ts == NULL or ss == NULL:
+            free(ts)
+            free(ss)
+            raise MemoryError
+        linspace(t0c, min(self.t_stop, t0c + n * self.step_c), n + 1, ts)
+        self._sample(self.coarse, 0, 2 * k, 1, ts, n + 1, ss)
+        for q in range(k):
+            for j in range(n + 1):
+                ss[q * (n + 1) + j] -= self.margin[q]
+        off = 0 if self.cn == 0 else 1
+        if self.cn + n + 2 > self.ccap:
+            grown_ts = <double*>realloc(self.cts, 2 * (self.cn + n + 2) * sizeof(double))
+            if grown_ts != NULL:
+                self.cts = grown_ts
+            grown_clear = <char*>realloc(self.cclear, 2 * (self.cn + n + 2))
+            if grown_clear != NULL:
+                self.cclear = grown_clear
+            if grown_ts == NULL or grown_clear == NULL:
+                free(ts)
+                free(ss)
+                raise MemoryError
+            self.ccap = 2 * (self.cn + n + 2)
+        if self.cn == 0:
+            self.cts[0] = ts[0]
+        for j in range(n):
+            dt = ts[j + 1] - ts[j]
+            clear = True
+            for q in range(k):
+                s0, s1 = ss[q * (n + 1) + j], ss[q * (n + 1) + j + 1]
+                d0, d1 = ss[(k + q) * (n + 1) + j], ss[(k + q) * (n + 1) + j + 1]
+                mn = s0 if s0 <= s1 else s1
+                lo = mn - 4.0 / 27.0 * dt * (fabs(d0) + fabs(d1))
+                lo -= self.b4c[q]
+                if lo <= 0.0:
+                    lo = hermite_min(s0, s1, d0, d1, dt) - self.b4c[q]
+                if not lo > 0.0:
+                    clear = False
+                    break
+            self.cclear[self.cn + j] = clear
+            self.cts[self.cn + j + 1] = ts[j + 1]
+        self.cn += n
+        free(ts)
+        free(ss)
+
+    cdef double unclear(self, double t, double* t_b):
+        """events._Coarse.unclear: (a, b), the first stretch at or after t not certified clear."""
+        cdef int lo = 0, hi = self.cn + 1 if self.cn > 0 else 0, mid, j
+        cdef double a
+        while lo < hi:   # searchsorted(ts, t, side="right")
+            mid = (lo + hi) // 2
+            if self.cts[mid] <= t:
+                lo = mid + 1
+            else:
+                hi = mid
+        j = lo - 1 if lo > 0 else 0
+        while True:
+            while j >= self.cn:
+                if self.cn > 0 and self.cts[self.cn] >= self.t_stop:
+                    t_b[0] = self.t_stop
+                    return self.t_stop
+                self.extend()
+            if not self.cclear[j]:
+                break
+            j += 1
+        a = max(t, self.cts[j])
+        while True:
+            if j >= self.cn:
+                if self.cts[self.cn] >= self.t_stop:
+                    t_b[0] = self.t_stop
+                    return a
+                self.extend()
+                continue
+            if self.cclear[j]:
+                t_b[0] = self.cts[j]
+                return a
+            j += 1
+
+    # -- the loop ---------------------------------------------------------------------------
+    def run(self, progress):
+        """events.first_event's loop: (t, rows, graze, in_band) of the earliest event, or None.
+        ``progress(t)`` is called after each chunk and each coarse skip (no event before t)."""
+        cdef int k = self.k, n, ns, i, j, q, ka, cnt, nfound = 0
+        cdef int cap = CHUNK + 2
+        cdef double t_a = self.t_start, t_b, t_skip, nd, limit, t_arm, t_e, rt, step
+        cdef int chunk = FIRST_CHUNK
+        cdef bint tried = False, started = False, all_armed, ok, g, in_band
+        # work space in three blocks: doubles, flags, indices
+        cdef double* dwork = <double*>malloc((cap * (11 + 3 * k) + 2 * k) * sizeof(double))
+        cdef char* cwork = <char*>malloc(cap * (1 + 4 * k) + 4 * k)
+        cdef int* iwork = <int*>malloc(3 * k * sizeof(int))
+        if dwork == NULL or cwork == NULL or iwork == NULL:
+            free(dwork)
+            free(cwork)
+            free(iwork)
+            raise MemoryError
+        cdef double* ts = dwork
+        cdef double* hh = &dwork[cap]                    # 2k x cap
+        cdef double* f = &hh[2 * k * cap]                # k x cap
+        cdef double* dt = &f[k * cap]
+        cdef double* b4 = &dt[cap]
+        cdef double* cut = &b4[cap]                      # 6 x cap
+        cdef double* thr = &cut[6 * cap]
+        cdef double* ft = &thr[k]
+        cdef char* flags = cwork                         # 4k x cap
+        cdef char* sub = &flags[4 * k * cap]
+        cdef char* armed = &sub[cap]
+        cdef char* maybe = &armed[k]
+        cdef char* fg = &maybe[k]
+        cdef char* fb = &fg[k]
+        cdef int* first = iwork
+        cdef int* order = &iwork[k]
+        cdef int* fi = &iwork[2 * k]
+        cdef char* cross
+        cdef char* turn
+        cdef char* near
+        cdef double* h
+        cdef double* hd
+        cdef double* ts1
+        cdef double* h1
+        cdef double* hd1
+        cdef double* ts2
+        cdef double* h2
+        cdef double* hd2
+        cdef double band, bnd4
+        cdef const double* v
+        cdef int n1, n2
+        result = None
+        try:
+            while t_a < self.t_stop:
+                t_b = self.t_stop
+                if not tried and started:
+                    all_armed = True
+                    for i in range(k):
+                        if not armed[i]:
+                            all_armed = False
+                            break
+                    if all_armed:
+                        # formed once a first chunk has found nothing
+                        tried = True
+                        c = self.coarse_of(t_a)
+                        if c is not None:
+                            terms, margin, b4c, step_c = c
+                            self.coarse = _Terms(*terms, 2 * k)
+                            self.margin, self.b4c, self.step_c, self.start_c = margin, b4c, step_c, t_a
+                if self.coarse is not None:
+                    # every row armed at 0: skip what the coarse pass certifies, search the rest finely
+                    t_skip = self.unclear(t_a, &t_b)
+                    if t_skip > t_a:
+                        t_a = t_skip
+                        chunk = FIRST_CHUNK
+                        progress(t_a)
+                        if t_a >= self.t_stop:
+                            break
+                nd = ceil((t_b - t_a) / self.h_step)
+                n = chunk if nd > chunk else <int>nd
+                if n < 1:
+                    n = 1
+                chunk = min(CHUNK, 4 * chunk)
+                ns = n + 1
+                linspace(t_a, min(t_b, t_a + n * self.h_step), ns, ts)
+                self._sample(self.kept, 0, 2 * k, 1, ts, ns, hh)
+                if not started:
+                    # a row that starts inside its zero band is armed once it has left it upwards; unarmed
+                    # rows fire by going down by the band from where they start
+                    started = True
+                    for i in range(k):
+                        armed[i] = hh[i * ns] > self.band[i]
+                        thr[i] = 0.0 if armed[i] else min(-self.band[i], hh[i * ns] - self.band[i])
+                for j in range(n):
+                    dt[j] = ts[j + 1] - ts[j]
+                    sub[j] = True
+                # all rows screened at once (first_event's _screened: every row's bound screens here)
+                for i in range(k):
+                    h = &hh[i * ns]
+                    hd = &hh[(k + i) * ns]
+                    for j in range(ns):
+                        f[i * ns + j] = h[j] - thr[i]
+                    for j in range(n):
+                        b4[j] = self.bound4[i]
+                    cross, turn, near = &flags[3 * i * ns], &flags[(3 * i + 1) * ns], &flags[(3 * i + 2) * ns]
+                    screen_row(dt, &f[i * ns], hd, n, self.band[i], b4, sub, cross, turn, near)
+                    maybe[i] = not armed[i]
+                    for j in range(n):
+                        if cross[j] or near[j]:
+                            maybe[i] = True
+                            break
+                    # the first sample below threshold (rows are refined in that order)
+                    first[i] = ns
+                    for j in range(ns):
+                        if f[i * ns + j] < -self.band[i]:
+                            first[i] = j
+                            break
+                    # stable insertion into the order
+                    q = i
+                    while q > 0 and first[order[q - 1]] > first[i]:
+                        order[q] = order[q - 1]
+                        q -= 1
+                    order[q] = i
+                nfound = 0
+                limit = INFINITY
+                step = ts[1] - ts[0]
+                for q in range(k):
+                    i = order[q]
+                    if not maybe[i]:
+                        continue
+                    h = &hh[i * ns]
+                    hd = &hh[(k + i) * ns]
+                    band, bnd4 = self.band[i], self.bound4[i]
+                    ok = False
+                    in_band = False
+                    if not armed[i]:
+                        # the row starts in its zero band: it fires from there only by leaving it downwards
+                        # (root at -tol, flagged); once it has left the band upwards it is armed at 0
+                        ka = self.arm(i, ts, h, hd, ns, band, bnd4, &t_arm)
+                        if ka < 0:
+                            for j in range(n):
+                                b4[j] = bnd4
+                            ok = self.scan(i, ts, h, hd, ns, thr[i], band, b4, limit, 0, NULL, NULL, NULL, &rt, &g)
+                        else:
+                            # _cut: the samples up to the arming point and from it on
+                            ts1, h1, hd1 = cut, &cut[cap], &cut[2 * cap]
+                            ts2, h2, hd2 = &cut[3 * cap], &cut[4 * cap], &cut[5 * cap]
+                            v = self.at(i, t_arm)
+                            for j in range(ka + 1):
+                                ts1[j], h1[j], hd1[j] = ts[j], h[j], hd[j]
+                            n1 = ka + 1
+                            if not t_arm <= ts[ka]:
+                                ts1[n1], h1[n1], hd1[n1] = t_arm, v[0], v[1]
+                                n1 += 1
+                            ts2[0], h2[0], hd2[0] = t_arm, v[0], v[1]
+                            n2 = 1
+                            for j in range(ka + 1, ns):
+                                ts2[n2], h2[n2], hd2[n2] = ts[j], h[j], hd[j]
+                                n2 += 1
+                            for j in range(n1 - 1):   # _shorter
+                                b4[j] = bnd4 * pow(min((ts1[j + 1] - ts1[j]) / step, 1.0), 4.0)
+                            ok = self.scan(i, ts1, h1, hd1, n1, thr[i], band, b4, limit, 0, NULL, NULL, NULL, &rt, &g)
+                        if ok and ka >= 0 and rt <= t_arm and (rt <= ts[0] or self.at(i, rt)[1] > 0.0):
+                            # round-off of evaluating the row near its start, not a descent by tol
+                            ok = False
+                        if ok and (ka < 0 or rt <= t_arm):
+                            in_band = True
+                        elif ka >= 0:
+                            armed[i], thr[i] = True, 0.0
+                            for j in range(n2 - 1):
+                                b4[j] = bnd4 * pow(min((ts2[j + 1] - ts2[j]) / step, 1.0), 4.0)
+                            ok = self.scan(i, ts2, h2, hd2, n2, 0.0, band, b4, limit, 0, NULL, NULL, NULL, &rt, &g)
+                    else:
+                        for j in range(n):
+                            b4[j] = bnd4
+                        ok = self.scan(i, ts, h, hd, ns, thr[i], band, b4, limit, 0, &flags[3 * i * ns],
+                                       &flags[(3 * i + 1) * ns], &flags[(3 * i + 2) * ns], &rt, &g)
+                    if ok:
+                        ft[nfound], fi[nfound], fg[nfound], fb[nfound] = rt, i, g, in_band
+                        nfound += 1
+                        limit = min(limit, rt + 1e-12 * max(1.0, fabs(rt)))
+                if nfound:
+                    t_e = ft[0]
+                    for j in range(1, nfound):
+                        if ft[j] < t_e:
+                            t_e = ft[j]
+                    rows, graze, inb = [], [], []
+                    for i in range(k):   # the rows within 1e-12 of the earliest, by index
+                        for j in range(nfound):
+                            if fi[j] == i and ft[j] <= t_e + 1e-12 * max(1.0, fabs(t_e)):
+                                rows.append(i)
+                                graze.append(bool(fg[j]))
+                                inb.append(bool(fb[j]))
+                    result = (t_e, rows, graze, inb)
+                    break
+                t_a = ts[n]
+                progress(t_a)   # no event before this time (an interrupted run keeps it)
+        finally:
+            free(dwork)
+            free(cwork)
+            free(iwork)
+        return result
