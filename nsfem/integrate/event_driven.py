@@ -119,7 +119,8 @@ class EventDriven(Integrator):
 
     def run(self, t_end: float, output_dt: float, q0=None, v0=None) -> Result:
         self.system = self._polygon
-        self._rings = round_rings(self.system.contacts) if self.round_rings else ()
+        self._rings = round_rings(self.system.contacts, self.system.info.get("round_rings", ())) \
+            if self.round_rings else ()
         self._cache = {}
         sysm = self.system
         cs = sysm.contacts

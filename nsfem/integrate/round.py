@@ -87,13 +87,14 @@ class RoundRing:
         return (self.alpha, self.distance)
 
 
-def round_rings(cs: ContactSet, delta: float = DELTA) -> tuple[RoundRing, ...]:
-    """The rigid stator rings of a contact set (contacts labelled ``stator.<i>.<k>``, tangents
-    circumferential or frictionless), with their facets' geometry recovered from J_N: J_N[:, k] = -P^T n_k."""
+def round_rings(cs: ContactSet, labels=(), delta: float = DELTA) -> tuple[RoundRing, ...]:
+    """The rigid stator rings named in ``labels`` (``stator.<i>``) of a contact set (contacts labelled
+    ``stator.<i>.<k>``, k = 0 .. F - 1, tangents circumferential or frictionless), with their facets' geometry
+    recovered from J_N: J_N[:, k] = -P^T n_k."""
     groups: dict[str, list[tuple[int, int]]] = {}
     for j, label in enumerate(cs.labels or ()):
         parts = label.split(".")
-        if len(parts) == 3 and parts[0] == "stator" and parts[2].isdigit() \
+        if len(parts) == 3 and parts[0] == "stator" and parts[2].isdigit() and ".".join(parts[:2]) in labels \
                 and (not cs.tangents[j] or cs.tangents[j][0] == "circumferential"):
             groups.setdefault(".".join(parts[:2]), []).append((int(parts[2]), j))
     out = []

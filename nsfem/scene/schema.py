@@ -257,6 +257,9 @@ _STATOR = {
     "radius": Key("float", 0.0, "radius [m] of the surface the ring touches, for its speed Omega radius (0: "
                   "half the section's depth, a rectangle's height; a ring around a disk's rim: the rim's radius)",
                   check=_nonneg),
+    "shape": Key("str", "round", "a rigid ring in the exact method: round (the polygon turns with the contact point "
+                 "so that the touched facet stays tangent to the circle, docs/theory.md) or polygon (the `facets` "
+                 "fixed in space); rk, moreau, penalty and elastic rings use the polygon", ("round", "polygon")),
 }
 _CRACK = {
     "x": Key("float?", None, "position on the intact shaft [m] (default: the rotor's middle); it splits the shaft "
