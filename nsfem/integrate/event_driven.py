@@ -38,7 +38,7 @@ from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
 from .rings import after_event, after_impact, initial_rings, with_rings
-from .round import DELTA, close, relax, round_rings, turn, turned, wedge_rows
+from .round import DELTA, close, conform, joint_impact, relax, round_rings, turn, turned, wedge_rows
 from .transitions import Memory, hold_degenerate, resolve
 
 #: Gauss-Legendre nodes and weights on [0, 1]
@@ -157,6 +157,8 @@ class EventDriven(Integrator):
                                    extra_load=None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))
             mode = with_rings(mode, *initial_rings(rings, q, v))
             mode = hold_degenerate(mode, lambda md, q_=q, v_=v: self._phase(md, 0.0, q_, v_), memory, cs, v)
+            if self._rings:
+                conform(self._rings, mode.closed, q)
             if imp:
                 impacts.append(imp)
                 _impact_energy(energy, imp)
@@ -240,8 +242,12 @@ class EventDriven(Integrator):
                 if self._rings:
                     fired = {rows.detail[i][0]: (rows.contacts[i], rows.detail[i][1]) for i in ev.rows
                              if rows.kinds[i] == "round_turn"}
+                    held = []
                     for i_r, (k, d) in fired.items():   # the facet turns with the contact point: a plastic impact
-                        turn(self._rings[i_r], self._rings[i_r].facets.index(k), q, d)
+                        ring = self._rings[i_r]
+                        if turn(ring, ring.facets.index(k), q, d):
+                            held.append(tuple(ring.facets[j] for j in ring.pair))
+                            touching |= set(held[-1])
                         settled.add(k)
                     for i_r, ring in enumerate(self._rings):   # a closure on one facet: the circle's tangent
                         on = [k for k in ring.facets if k in touching or k in before.closed]
@@ -252,6 +258,11 @@ class EventDriven(Integrator):
                         self._turn()
                         sysm, cs = self.system, self.system.contacts
                         memory.lcp_cache = type(memory.lcp_cache)()
+                    if held:   # a held corner: the plastic impact on both of its facets at once
+                        v, held_imp = joint_impact(sysm, Mf, t_next, v, [j for pair in held for j in pair])
+                        if held_imp:
+                            impacts.append(held_imp)
+                            _impact_energy(energy, held_imp)
                 mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping,
                                        settled, facets, stopped,
                                        None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))
@@ -263,6 +274,8 @@ class EventDriven(Integrator):
                     mode = with_rings(mode, *state)
                 mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
                                        memory, cs, v)
+                if self._rings:
+                    conform(self._rings, mode.closed, q)
                 if imp:
                     impacts.append(imp)
                     _impact_energy(energy, imp)

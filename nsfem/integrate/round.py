@@ -46,8 +46,10 @@ from ..contact.set import ContactSet
 DELTA = 2e-2
 #: mirrors in one direction after which the wedge widens again (a slide on, not a settling)
 WIDEN = 4
-#: the smallest delta after halvings [rad] (below, a return re-centres without halving)
+#: the smallest delta after halvings [rad]
 DELTA_MIN = DELTA / 1024
+#: a return with delta at or below this holds the corner (:func:`hold`): the point has settled
+HOLD = DELTA / 64
 
 
 @dataclass
@@ -70,7 +72,12 @@ class RoundRing:
     run: int = 0
     lo: float = -DELTA
     hi: float = DELTA
-    history: dict = field(default_factory=lambda: {"mirrors": 0, "returns": 0, "radius_error_max_m": 0.0})
+    #: the facet (index into ``facets``) the wedge [lo, hi] is about
+    k: int | None = None
+    #: a held corner: two facets (indices into ``facets``) -> (tangent angle, distance), off the polygon
+    pair: dict = field(default_factory=dict)
+    history: dict = field(default_factory=lambda: {"closures": 0, "mirrors": 0, "returns": 0,
+                                                   "radius_error_max_m": 0.0, "open_radius_error_max_m": 0.0})
 
     def __post_init__(self):
         if not self.distance:
@@ -78,13 +85,20 @@ class RoundRing:
 
     def phi(self, k: int) -> float:
         """The tangent angle of facet ``k`` (an index into :attr:`facets`) now."""
-        return float(self.angles[k]) + self.alpha
+        return self.pair[k][0] if k in self.pair else float(self.angles[k]) + self.alpha
+
+    def geometry(self) -> tuple[np.ndarray, np.ndarray]:
+        """(tangent angles, distances) of the facets now."""
+        a, dist = self.angles + self.alpha, np.full(len(self.facets), self.distance)
+        for k, (ak, dk) in self.pair.items():
+            a[k], dist[k] = ak, dk
+        return a, dist
 
     def centre(self, q: np.ndarray) -> np.ndarray:
         return self.P @ q
 
-    def signature(self) -> tuple[float, float]:
-        return (self.alpha, self.distance)
+    def signature(self) -> tuple:
+        return (self.alpha, self.distance, tuple(sorted(self.pair.items())))
 
 
 def round_rings(cs: ContactSet, labels=(), delta: float = DELTA) -> tuple[RoundRing, ...]:
@@ -123,16 +137,16 @@ def round_rings(cs: ContactSet, labels=(), delta: float = DELTA) -> tuple[RoundR
 
 def turned(cs: ContactSet, rings) -> ContactSet:
     """``cs`` with each ring's facets turned by its alpha at its distance c'."""
-    if not any(r.alpha or r.distance != r.clearance for r in rings):
+    if not any(r.alpha or r.distance != r.clearance or r.pair for r in rings):
         return cs
     JN, jN = cs.JN.copy(), cs.jN.copy()
     JS, JSq = list(cs.JS), list(cs.JSq)
     for r in rings:
-        a = r.angles + r.alpha
+        a, dist = r.geometry()
         idx = list(r.facets)
         cols = -(r.P.T @ np.vstack([np.cos(a), np.sin(a)]))          # -P^T n_k
         JN[:, idx] = cols
-        jN[idx] = r.distance
+        jN[idx] = dist
         if r.slip_scale:
             slips = r.slip_scale * (r.P.T @ np.vstack([-np.sin(a), np.cos(a)]))   # a P^T t_k
             for k, j in enumerate(idx):
@@ -175,38 +189,90 @@ def _tangent(ring: RoundRing, k: int, u: np.ndarray, d: int, keep: float | None 
     if keep is not None:
         beta = min(beta, abs(keep) + ring.delta)
     ring.distance = max(r * math.cos(beta), ring.clearance)
+    ring.pair = {}
     ring.alpha = math.remainder(psi + d * beta - float(ring.angles[k]), 2.0 * math.pi)
     trail = max(beta, ring.delta)
     ring.lo, ring.hi = (-trail, ring.delta) if d > 0 else (-ring.delta, trail)
+    ring.k = k
     _record(ring)
 
 
 def _record(ring: RoundRing) -> None:
+    """Book the largest distance from the circle of radius c that the ring's model allows now: closed, the
+    wedge's c' / cos(w) - c; open, the turned polygon's c' / cos(pi / F) - c."""
     err = ring.distance / math.cos(max(-ring.lo, ring.hi)) - ring.clearance
     ring.history["radius_error_max_m"] = max(ring.history["radius_error_max_m"], err)
+    err = ring.distance / math.cos(math.pi / len(ring.facets)) - ring.clearance
+    ring.history["open_radius_error_max_m"] = max(ring.history.get("open_radius_error_max_m", 0.0), err)
 
 
-def turn(ring: RoundRing, k: int, q: np.ndarray, d: int) -> None:
+def conform(rings, closed, q: np.ndarray) -> None:
+    """After an event: a ring with one closed facet whose wedge is not about it, or does not hold the contact
+    point (the facet left closed after a corner of the polygon), gets the wedge from its tangent point to the
+    point (at least +-delta)."""
+    closed = set(closed)
+    for r in rings:
+        on = [k for k, j in enumerate(r.facets) if j in closed]
+        if len(on) != 1:
+            continue
+        k = on[0]
+        u = r.P @ q
+        rel = math.remainder(math.atan2(u[1], u[0]) - r.phi(k), 2.0 * math.pi)
+        slack = 1e-9 * max(r.hi - r.lo, r.delta)   # the turn's own round-off puts u on its wedge's edge
+        if r.k == k and r.lo - slack <= rel <= r.hi + slack:
+            continue
+        if r.k != k:
+            r.k, r.last, r.run = k, 0, 0
+        r.lo, r.hi = min(r.lo if r.k == k else -r.delta, rel), max(r.hi if r.k == k else r.delta, rel)
+        _record(r)
+
+
+def turn(ring: RoundRing, k: int, q: np.ndarray, d: int) -> bool:
     """Turn ``ring`` at a ``round_turn`` event of its closed facet ``k`` (index into its facets) at q, the
-    contact point at the wedge's edge d (+1: ahead): on to the next tangent, or re-centre on a return
-    (module docstring)."""
+    contact point at the wedge's edge d (+1: ahead): on to the next tangent, or re-centre on a return, or
+    hold the corner once settled (module docstring). True when it holds (two facets touch at u)."""
     u = ring.P @ q
+    if d == -ring.last and ring.delta <= HOLD:   # settled to a corner: hold it with two facets
+        hold(ring, k, u)
+        return True
     if d == -ring.last:   # back through the edge just crossed: tangent at the point, through it
+        ring.pair = {}
         psi = math.atan2(u[1], u[0])
         ring.alpha = math.remainder(psi - float(ring.angles[k]), 2.0 * math.pi)
         ring.distance = max(float(math.hypot(u[0], u[1])), ring.clearance)
         ring.delta = max(ring.delta / 2.0, DELTA_MIN)
         ring.lo, ring.hi = -ring.delta, ring.delta
         ring.last = ring.run = 0
+        ring.k = k
         ring.history["returns"] += 1
         _record(ring)
-        return
+        return False
     ring.run = ring.run + 1 if d == ring.last else 1
     if ring.run > WIDEN:   # a slide on through several wedges: the wedge widens again
         ring.delta = min(2.0 * ring.delta, _width(ring))
     ring.last = d
     ring.history["mirrors"] += 1
     _tangent(ring, k, u, d, ring.hi if d > 0 else ring.lo)
+    return False
+
+
+def hold(ring: RoundRing, k: int, u: np.ndarray) -> None:
+    """Hold the contact point u where it settles: facet ``k`` and its neighbour on the side the point lies
+    become the two tangents through u at +-delta_0 from it (to the circle of radius |u| cos(delta_0)), a
+    corner of the ring's model that holds any force within delta_0 of the radial direction."""
+    psi = math.atan2(u[1], u[0])
+    side = 1 if math.remainder(psi - ring.phi(k), 2.0 * math.pi) >= 0.0 else -1
+    j = (k + side) % len(ring.facets)
+    rho = float(math.hypot(u[0], u[1])) * math.cos(DELTA)   # through u: at most c (1 - cos(delta_0)) inside
+    ring.alpha = math.remainder(psi - side * DELTA - float(ring.angles[k]), 2.0 * math.pi)
+    ring.distance = rho
+    ring.pair = {k: (psi - side * DELTA, rho), j: (psi + side * DELTA, rho)}
+    ring.last = ring.run = 0
+    ring.k = None
+    ring.history["holds"] = ring.history.get("holds", 0) + 1
+    err = rho / math.cos(DELTA) - ring.clearance
+    ring.history["radius_error_max_m"] = max(ring.history["radius_error_max_m"], err)
+    ring.history["inner_error_max_m"] = max(ring.history.get("inner_error_max_m", 0.0), ring.clearance - rho)
 
 
 def close(ring: RoundRing, k: int, q: np.ndarray, v: np.ndarray) -> None:
@@ -216,23 +282,44 @@ def close(ring: RoundRing, k: int, q: np.ndarray, v: np.ndarray) -> None:
     u, du = ring.P @ q, ring.P @ v
     d = 1 if u[0] * du[1] - u[1] * du[0] >= 0.0 else -1
     ring.delta, ring.run, ring.last = _width(ring), 0, d
-    ring.history["closures"] = ring.history.get("closures", 0) + 1
+    ring.history["closures"] += 1
     _tangent(ring, k, u, d)
 
 
 def relax(rings, closed, q: np.ndarray) -> bool:
-    """Return an open ring's distance to its clearance where the rotor is at least the difference inside
-    (every facet's gap at c' at least c' - c). True when some ring changed."""
+    """Return an open ring to the polygon of radius c (turned by its alpha) where the rotor is inside it by at
+    least the distance the ring had beyond c. True when some ring changed."""
     changed = False
     closed = set(closed)
     for r in rings:
-        if r.distance == r.clearance or any(j in closed for j in r.facets):
+        if (r.distance == r.clearance and not r.pair) or any(j in closed for j in r.facets):
             continue
         u = r.P @ q
         a = r.angles + r.alpha
-        reach = float(np.max(np.cos(a) * u[0] + np.sin(a) * u[1]))
-        if reach <= 2.0 * r.clearance - r.distance:
+        reach = float(np.max(np.cos(a) * u[0] + np.sin(a) * u[1]))      # on the polygon of radius c
+        far = max([r.distance] + [dk for _, dk in r.pair.values()])
+        if reach <= 2.0 * r.clearance - far:
             r.distance, r.delta, r.last, r.run = r.clearance, _width(r), 0, 0
-            r.lo, r.hi = -r.delta, r.delta
+            r.lo, r.hi, r.k, r.pair = -r.delta, r.delta, None, {}
             changed = True
     return changed
+
+
+def joint_impact(system, Mf, t: float, v: np.ndarray, contacts) -> tuple[np.ndarray, dict | None]:
+    """The plastic impact of a held corner: the velocity after, v - M^-1 J (J^T M^-1 J)^-1 J^T v with J the
+    corner's two gap columns (both gap rates zero: the centre stops on the ring; the limit of the impacts
+    alternating between the two facets, whose tangential kinetic energy they lose), and its record (None
+    when nothing approaches)."""
+    J = system.contacts.JN[:, list(contacts)]
+    rates = J.T @ v
+    if not np.any(rates < 0.0):
+        return v, None
+    MJ = Mf.solve(J)
+    P = np.linalg.solve(J.T @ MJ, -rates)
+    if np.any(P < 0.0):   # one facet would pull: not a corner that holds (the impact LCP decides)
+        return v, None
+    v_new = v + MJ @ P
+    ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
+    return v_new, {"t": t, "contacts": [int(k) for k in contacts], "impulse_Ns": P.tolist(),
+                   "approach_m_s": [float(max(-g, 0.0)) for g in rates], "plastic": [int(k) for k in contacts],
+                   "kinetic_before_J": ke[0], "kinetic_after_J": ke[1], "held_corner": True}
