@@ -38,7 +38,7 @@ from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
 from .rings import after_event, after_impact, initial_rings, with_rings
-from .round import DELTA, close, conform, joint_impact, relax, round_rings, turn, turned, wedge_rows
+from .round import DELTA, conform, joint_impact, relax, round_rings, turn, turned, wedge_rows
 from .transitions import Memory, hold_degenerate, resolve
 
 #: Gauss-Legendre nodes and weights on [0, 1]
@@ -249,12 +249,7 @@ class EventDriven(Integrator):
                             held.append(tuple(ring.facets[j] for j in ring.pair))
                             touching |= set(held[-1])
                         settled.add(k)
-                    for i_r, ring in enumerate(self._rings):   # a closure on one facet: the circle's tangent
-                        on = [k for k in ring.facets if k in touching or k in before.closed]
-                        if len(on) == 1 and on[0] in touching and i_r not in fired:
-                            close(ring, ring.facets.index(on[0]), q, v)
-                            fired[i_r] = on[0]
-                    if relax(self._rings, before.closed, q) or fired:
+                    if relax(self._rings, before.closed, touching, q) or fired:
                         self._turn()
                         sysm, cs = self.system, self.system.contacts
                         memory.lcp_cache = type(memory.lcp_cache)()

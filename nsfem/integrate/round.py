@@ -286,20 +286,22 @@ def close(ring: RoundRing, k: int, q: np.ndarray, v: np.ndarray) -> None:
     _tangent(ring, k, u, d)
 
 
-def relax(rings, closed, q: np.ndarray) -> bool:
-    """Return an open ring to the polygon of radius c (turned by its alpha) where the rotor is inside it by at
-    least the distance the ring had beyond c. True when some ring changed."""
+def relax(rings, closed, touching, q: np.ndarray) -> bool:
+    """Return an open ring to the scene's polygon where the rotor is inside it by at least the distance the
+    ring had beyond c and the polygon's own distance from the circle (its configurations are met again; not
+    at an event where one of its facets closes or is closed). True when some ring changed."""
     changed = False
     closed = set(closed)
     for r in rings:
-        if (r.distance == r.clearance and not r.pair) or any(j in closed for j in r.facets):
+        if (r.distance == r.clearance and not r.pair and not r.alpha) or any(j in closed for j in r.facets) \
+                or any(j in touching for j in r.facets):
             continue
         u = r.P @ q
-        a = r.angles + r.alpha
-        reach = float(np.max(np.cos(a) * u[0] + np.sin(a) * u[1]))      # on the polygon of radius c
+        reach = float(np.max(np.cos(r.angles) * u[0] + np.sin(r.angles) * u[1]))   # on the scene's polygon
         far = max([r.distance] + [dk for _, dk in r.pair.values()])
-        if reach <= 2.0 * r.clearance - far:
-            r.distance, r.delta, r.last, r.run = r.clearance, _width(r), 0, 0
+        margin = max(far - r.clearance, r.clearance * (1.0 / math.cos(math.pi / len(r.facets)) - 1.0))
+        if reach <= r.clearance - margin:
+            r.alpha, r.distance, r.delta, r.last, r.run = 0.0, r.clearance, _width(r), 0, 0
             r.lo, r.hi, r.k, r.pair = -r.delta, r.delta, None, {}
             changed = True
     return changed
