@@ -41,29 +41,32 @@ def test_a_round_ring_settles_to_a_steady_full_annular_rub():
     st, n_st, res = near_stationary("round", 0.6)
     late = res.t >= 0.4
     load = ring_load(res.normal_force[:, late])
-    # the model's distance from LCP 28 on the 64-gon: the ring's radius within 2.4e-7 m (k - m w^2 = 5.6e4 N/m:
-    # 0.013 N) and the held corner within its last wedge (3e-4 rad) of the facet's equilibrium, at
-    # (k - m w^2) c + N = 22 N per radian (7e-3 N); the 64-gon itself is 5.6e-4 from the circle (1024-gon):
-    # 2e-3 of 16 N in all, inside the issue's 1 % (measured 7e-4)
+    # the model's distance from LCP 28 on the 64-gon: the ring's radius within 1.3e-7 m (stated by the run;
+    # k - m w^2 = 5.6e4 N/m: 7e-3 N) and the contact point within the last wedge (2e-5 rad) of the facet's
+    # equilibrium, at (k - m w^2) c + N = 22 N per radian (4e-4 N); the 64-gon itself is 5.6e-4 from the
+    # circle (its 1024-gon: 16.0337 N): 1e-3 of 16 N in all, inside the issue's 1 % (measured 3.6e-4)
     assert np.max(np.abs(load / n_st - 1.0)) < 1e-2
-    # steady: what is left is the shaft's modes decaying at the held corner (2.6e-6 of the force measured);
-    # the bouncing limit cycle beside it swings the force from 0 to 35 N
-    assert np.ptp(load) < 1e-4 * n_st
-    assert not [e for e in res.events if e["t"] >= 0.4]
-    assert abs(res.energy["relative_residual"]) < 1e-10    # measured 3e-13
-    info = res.info["round_rings"]["stator.0"]
-    assert info["holds"] >= 1
+    # steady: the wedge keeps turning about the rest point (events below), the force with it by about its
+    # 2e-5 rad times 22 N/rad, and the shaft's modes decay (measured 1.2e-4 of the force from peak to
+    # peak); the bouncing limit cycle beside this state swings the force from 0 to 35 N
+    assert np.ptp(load) < 1e-3 * n_st
+    revolutions = 0.2 * 22.4
+    late_events = [e for e in res.events if e["t"] >= 0.4]
+    assert len(late_events) <= 16 * revolutions           # measured 37 in 4.5 turns: 8 per revolution
+    assert abs(res.energy["relative_residual"]) < 1e-10    # measured 1.3e-12
 
 
 def test_no_zeno_at_a_corner():
-    """Settling at the corner of facets 62 and 63, where the fixed polygon's stationary state lies: the round
-    ring holds the point where it settles (two facets through it, one plastic impact on both) after a
-    bounded number of events, without an accumulation (intervals shrinking geometrically to a point)."""
-    _, _, res = near_stationary("round", 0.3)
+    """Settling at the corner of facets 62 and 63, where the fixed polygon's stationary state lies: each
+    return of the contact point through the edge it has just crossed re-centres the facet on it and halves
+    the wedge, so the turns come at the pace of the rotor's motion along the ring, not in an accumulation
+    (intervals shrinking geometrically to a point)."""
+    _, _, res = near_stationary("round", 0.6)
     dt = np.diff([e["t"] for e in res.events])
-    assert len(res.events) < 400                   # measured 263 (the polygon: 108 impacts into its corner)
-    assert np.count_nonzero(dt < 1e-6) <= 5        # measured 1: a hold and the release right after it
-    assert not [e for e in res.events if e["t"] >= 0.25]
+    assert len(res.events) < 300                   # measured 144 (the polygon: 108 impacts into its corner)
+    assert np.count_nonzero(dt < 1e-6) <= 5        # measured 1: a closure and the turn at the same instant
+    assert np.median(dt) > 1e-3                    # measured 3.3e-3 s
+    assert res.info["round_rings"]["stator.0"]["returns"] >= 1
 
 
 @pytest.fixture(scope="module")

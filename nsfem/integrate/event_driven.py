@@ -38,7 +38,7 @@ from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
 from .rings import after_event, after_impact, initial_rings, with_rings
-from .round import DELTA, conform, joint_impact, relax, round_rings, turn, turned, wedge_rows
+from .round import DELTA, conform, relax, round_rings, turn, turned, wedge_rows
 from .transitions import Memory, hold_degenerate, resolve
 
 #: Gauss-Legendre nodes and weights on [0, 1]
@@ -242,22 +242,13 @@ class EventDriven(Integrator):
                 if self._rings:
                     fired = {rows.detail[i][0]: (rows.contacts[i], rows.detail[i][1]) for i in ev.rows
                              if rows.kinds[i] == "round_turn"}
-                    held = []
                     for i_r, (k, d) in fired.items():   # the facet turns with the contact point: a plastic impact
-                        ring = self._rings[i_r]
-                        if turn(ring, ring.facets.index(k), q, d):
-                            held.append(tuple(ring.facets[j] for j in ring.pair))
-                            touching |= set(held[-1])
+                        turn(self._rings[i_r], self._rings[i_r].facets.index(k), q, d)
                         settled.add(k)
                     if relax(self._rings, before.closed, touching, q) or fired:
                         self._turn()
                         sysm, cs = self.system, self.system.contacts
                         memory.lcp_cache = type(memory.lcp_cache)()
-                    if held:   # a held corner: the plastic impact on both of its facets at once
-                        v, held_imp = joint_impact(sysm, Mf, t_next, v, [j for pair in held for j in pair])
-                        if held_imp:
-                            impacts.append(held_imp)
-                            _impact_energy(energy, held_imp)
                 mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping,
                                        settled, facets, stopped,
                                        None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))

@@ -48,8 +48,6 @@ DELTA = 2e-2
 WIDEN = 4
 #: the smallest delta after halvings [rad]
 DELTA_MIN = DELTA / 1024
-#: a return with delta at or below this holds the corner (:func:`hold`): the point has settled
-HOLD = DELTA / 64
 
 
 @dataclass
@@ -74,8 +72,6 @@ class RoundRing:
     hi: float = DELTA
     #: the facet (index into ``facets``) the wedge [lo, hi] is about
     k: int | None = None
-    #: a held corner: two facets (indices into ``facets``) -> (tangent angle, distance), off the polygon
-    pair: dict = field(default_factory=dict)
     history: dict = field(default_factory=lambda: {"closures": 0, "mirrors": 0, "returns": 0,
                                                    "radius_error_max_m": 0.0, "open_radius_error_max_m": 0.0})
 
@@ -85,20 +81,14 @@ class RoundRing:
 
     def phi(self, k: int) -> float:
         """The tangent angle of facet ``k`` (an index into :attr:`facets`) now."""
-        return self.pair[k][0] if k in self.pair else float(self.angles[k]) + self.alpha
+        return float(self.angles[k]) + self.alpha
 
-    def geometry(self) -> tuple[np.ndarray, np.ndarray]:
-        """(tangent angles, distances) of the facets now."""
-        a, dist = self.angles + self.alpha, np.full(len(self.facets), self.distance)
-        for k, (ak, dk) in self.pair.items():
-            a[k], dist[k] = ak, dk
-        return a, dist
 
     def centre(self, q: np.ndarray) -> np.ndarray:
         return self.P @ q
 
-    def signature(self) -> tuple:
-        return (self.alpha, self.distance, tuple(sorted(self.pair.items())))
+    def signature(self) -> tuple[float, float]:
+        return (self.alpha, self.distance)
 
 
 def round_rings(cs: ContactSet, labels=(), delta: float = DELTA) -> tuple[RoundRing, ...]:
@@ -137,16 +127,16 @@ def round_rings(cs: ContactSet, labels=(), delta: float = DELTA) -> tuple[RoundR
 
 def turned(cs: ContactSet, rings) -> ContactSet:
     """``cs`` with each ring's facets turned by its alpha at its distance c'."""
-    if not any(r.alpha or r.distance != r.clearance or r.pair for r in rings):
+    if not any(r.alpha or r.distance != r.clearance for r in rings):
         return cs
     JN, jN = cs.JN.copy(), cs.jN.copy()
     JS, JSq = list(cs.JS), list(cs.JSq)
     for r in rings:
-        a, dist = r.geometry()
+        a = r.angles + r.alpha
         idx = list(r.facets)
         cols = -(r.P.T @ np.vstack([np.cos(a), np.sin(a)]))          # -P^T n_k
         JN[:, idx] = cols
-        jN[idx] = dist
+        jN[idx] = r.distance
         if r.slip_scale:
             slips = r.slip_scale * (r.P.T @ np.vstack([-np.sin(a), np.cos(a)]))   # a P^T t_k
             for k, j in enumerate(idx):
@@ -189,7 +179,6 @@ def _tangent(ring: RoundRing, k: int, u: np.ndarray, d: int, keep: float | None 
     if keep is not None:
         beta = min(beta, abs(keep) + ring.delta)
     ring.distance = max(r * math.cos(beta), ring.clearance)
-    ring.pair = {}
     ring.alpha = math.remainder(psi + d * beta - float(ring.angles[k]), 2.0 * math.pi)
     trail = max(beta, ring.delta)
     ring.lo, ring.hi = (-trail, ring.delta) if d > 0 else (-ring.delta, trail)
@@ -227,16 +216,12 @@ def conform(rings, closed, q: np.ndarray) -> None:
         _record(r)
 
 
-def turn(ring: RoundRing, k: int, q: np.ndarray, d: int) -> bool:
+def turn(ring: RoundRing, k: int, q: np.ndarray, d: int) -> None:
     """Turn ``ring`` at a ``round_turn`` event of its closed facet ``k`` (index into its facets) at q, the
-    contact point at the wedge's edge d (+1: ahead): on to the next tangent, or re-centre on a return, or
-    hold the corner once settled (module docstring). True when it holds (two facets touch at u)."""
+    contact point at the wedge's edge d (+1: ahead): on to the next tangent, or re-centre on a return
+    (module docstring)."""
     u = ring.P @ q
-    if d == -ring.last and ring.delta <= HOLD:   # settled to a corner: hold it with two facets
-        hold(ring, k, u)
-        return True
     if d == -ring.last:   # back through the edge just crossed: tangent at the point, through it
-        ring.pair = {}
         psi = math.atan2(u[1], u[0])
         ring.alpha = math.remainder(psi - float(ring.angles[k]), 2.0 * math.pi)
         ring.distance = max(float(math.hypot(u[0], u[1])), ring.clearance)
@@ -246,33 +231,13 @@ def turn(ring: RoundRing, k: int, q: np.ndarray, d: int) -> bool:
         ring.k = k
         ring.history["returns"] += 1
         _record(ring)
-        return False
+        return
     ring.run = ring.run + 1 if d == ring.last else 1
     if ring.run > WIDEN:   # a slide on through several wedges: the wedge widens again
         ring.delta = min(2.0 * ring.delta, _width(ring))
     ring.last = d
     ring.history["mirrors"] += 1
     _tangent(ring, k, u, d, ring.hi if d > 0 else ring.lo)
-    return False
-
-
-def hold(ring: RoundRing, k: int, u: np.ndarray) -> None:
-    """Hold the contact point u where it settles: facet ``k`` and its neighbour on the side the point lies
-    become the two tangents through u at +-delta_0 from it (to the circle of radius |u| cos(delta_0)), a
-    corner of the ring's model that holds any force within delta_0 of the radial direction."""
-    psi = math.atan2(u[1], u[0])
-    side = 1 if math.remainder(psi - ring.phi(k), 2.0 * math.pi) >= 0.0 else -1
-    j = (k + side) % len(ring.facets)
-    rho = float(math.hypot(u[0], u[1])) * math.cos(DELTA)   # through u: at most c (1 - cos(delta_0)) inside
-    ring.alpha = math.remainder(psi - side * DELTA - float(ring.angles[k]), 2.0 * math.pi)
-    ring.distance = rho
-    ring.pair = {k: (psi - side * DELTA, rho), j: (psi + side * DELTA, rho)}
-    ring.last = ring.run = 0
-    ring.k = None
-    ring.history["holds"] = ring.history.get("holds", 0) + 1
-    err = rho / math.cos(DELTA) - ring.clearance
-    ring.history["radius_error_max_m"] = max(ring.history["radius_error_max_m"], err)
-    ring.history["inner_error_max_m"] = max(ring.history.get("inner_error_max_m", 0.0), ring.clearance - rho)
 
 
 def close(ring: RoundRing, k: int, q: np.ndarray, v: np.ndarray) -> None:
@@ -293,35 +258,15 @@ def relax(rings, closed, touching, q: np.ndarray) -> bool:
     changed = False
     closed = set(closed)
     for r in rings:
-        if (r.distance == r.clearance and not r.pair and not r.alpha) or any(j in closed for j in r.facets) \
+        if (r.distance == r.clearance and not r.alpha) or any(j in closed for j in r.facets) \
                 or any(j in touching for j in r.facets):
             continue
         u = r.P @ q
         reach = float(np.max(np.cos(r.angles) * u[0] + np.sin(r.angles) * u[1]))   # on the scene's polygon
-        far = max([r.distance] + [dk for _, dk in r.pair.values()])
-        margin = max(far - r.clearance, r.clearance * (1.0 / math.cos(math.pi / len(r.facets)) - 1.0))
+        margin = max(r.distance - r.clearance, r.clearance * (1.0 / math.cos(math.pi / len(r.facets)) - 1.0))
         if reach <= r.clearance - margin:
             r.alpha, r.distance, r.delta, r.last, r.run = 0.0, r.clearance, _width(r), 0, 0
-            r.lo, r.hi, r.k, r.pair = -r.delta, r.delta, None, {}
+            r.lo, r.hi, r.k = -r.delta, r.delta, None
             changed = True
     return changed
 
-
-def joint_impact(system, Mf, t: float, v: np.ndarray, contacts) -> tuple[np.ndarray, dict | None]:
-    """The plastic impact of a held corner: the velocity after, v - M^-1 J (J^T M^-1 J)^-1 J^T v with J the
-    corner's two gap columns (both gap rates zero: the centre stops on the ring; the limit of the impacts
-    alternating between the two facets, whose tangential kinetic energy they lose), and its record (None
-    when nothing approaches)."""
-    J = system.contacts.JN[:, list(contacts)]
-    rates = J.T @ v
-    if not np.any(rates < 0.0):
-        return v, None
-    MJ = Mf.solve(J)
-    P = np.linalg.solve(J.T @ MJ, -rates)
-    if np.any(P < 0.0):   # one facet would pull: not a corner that holds (the impact LCP decides)
-        return v, None
-    v_new = v + MJ @ P
-    ke = 0.5 * float(v @ system.M @ v), 0.5 * float(v_new @ system.M @ v_new)
-    return v_new, {"t": t, "contacts": [int(k) for k in contacts], "impulse_Ns": P.tolist(),
-                   "approach_m_s": [float(max(-g, 0.0)) for g in rates], "plastic": [int(k) for k in contacts],
-                   "kinetic_before_J": ke[0], "kinetic_after_J": ke[1], "held_corner": True}
