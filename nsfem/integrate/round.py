@@ -1,35 +1,28 @@
-"""Round rigid stator rings in the exact method: a facet that turns with the contact point.
+"""Round rigid stator rings in the exact method: a polygon that turns with the contact point.
 
 A rigid ``[[stator]]`` is the polygon of F facets tangent to the clearance circle (radius c): facet k
 has the normal n_k = (cos, sin)(theta_k) and the gap c - n_k . u, u = P q the shaft's centre at the
-ring. On a fixed polygon a rotor sliding round the ring meets a corner every 2 pi / F; under load the
-corners are where it comes to rest, reached by an accumulation of impacts on the two facets (each
-impact on one lifts the other).
+ring. On a fixed polygon a rotor sliding round the ring meets a corner every 2 pi / F, and under load
+comes to rest at one. With ``shape = "round"`` the whole polygon turns by an angle alpha, chosen at
+events, so that the facet the rotor slides on stays tangent to the circle near the contact point:
 
-Here the whole polygon turns by an angle alpha (theta_k + alpha), chosen at events, so that the facet
-the rotor slides on stays tangent to the circle near the contact point:
+- while facet k alone is closed (tangent at phi), two event rows keep the contact point's angle psi in
+  a wedge [phi + lo, phi + hi] (:func:`wedge_rows`); the ring's other gap rows are left out meanwhile
+  (the wedge stays narrower than pi / F: none of them can close first);
+- at an edge (``round_turn``), the polygon turns to put facet k on a tangent through u to a circle of
+  radius between c and its distance c', ahead of u (``mirror``: the gap stays 0, c' returns towards c);
+  the velocity's normal part into the new facet, about 2 delta times the sliding speed, goes in a
+  plastic impact (what curving a path costs on a polygon of pi / delta facets);
+- when the point comes back through the edge it has just crossed, the facet is put tangent at the
+  point, through it (distance |u|), and delta is halved (``return``): a rotor settling on the ring
+  ends turning a wedge of delta_0 / 1024 about its rest point, a few events per revolution;
+- a closure is on the polygon's facet as before (the wedge conformed to the point, :func:`conform`);
+  an open ring returns to the scene's polygon once the rotor is inside it by a margin (:func:`relax`).
 
-- while facet k alone is closed, two event rows keep the contact point's angle psi within +-delta of
-  the facet's tangent point phi: tan(delta) n . u -+ t . u >= 0 (t = R n);
-- when one fires (psi = phi +- delta), the polygon turns to put facet k at phi' = 2 psi - phi: the
-  other tangent to the circle through u, so that the gap stays 0 and the ring stays the circle of
-  radius c (``mirror``). The velocity then has a normal part of about 2 delta times the sliding
-  speed into the new facet: a plastic impact removes it (what curving the path costs on a polygon of
-  pi / delta facets: about 2 pi delta of the sliding kinetic energy per turn, booked as lost in
-  impacts);
-- when the contact point comes back through the edge it has just crossed (the corner between the two
-  last tangents, where a loaded rotor would rest on a polygon), the facet is put tangent at the point
-  itself, through it (clearance |u|), and delta is halved (``recentre``): each return halves the
-  wedge, so a rotor settling on the ring comes to rest inside one (bounded events, a steady state).
-  delta doubles again (up to delta_0) at each mirror;
-- an open ring keeps the turned polygon as its gap rows; its radius returns to c at an event where the
-  rotor is at least the difference inside.
-
-The roundness error: a point inside the wedge of a facet at distance c' lies between the circles of
-radii c' and c' / cos(delta); c' = c except after returns, each of which multiplies it by at most
-1 / cos(delta) (halving delta: at most exp(2 delta_0^2 / 3) over one settling). The run reports the
-largest c' / cos(delta) - c it used (``round_rings.radius_error_max_m``); a neighbouring facet stays
-open as long as delta < pi / F.
+Roundness error: a closed point lies within c' / cos(w) of the axis (w the wedge's half-width), an open
+one within c' / cos(pi / F); the run books the largest of each (``radius_error_max_m``,
+``open_radius_error_max_m``). c' grows only at returns, by 1 / cos of a halving wedge: over one settling
+c' <= c exp(2 w_0^2 / 3), w_0 = pi / F (docs/theory.md).
 """
 
 from __future__ import annotations
