@@ -8,7 +8,7 @@ sliding past the ring at Omega r). For each case, side by side:
 - the closed form of the synchronous full annular rub, ((k - m W^2) r + N)^2 + (c W r + mu N)^2 =
   (m e W^2)^2, with the disk's mass plus 17/35 of the shaft's (no root N > 0: no synchronous rub);
 - ``stationary`` (LCP 28, rotating frame, sliding friction of known direction): the ring force;
-- a transient from rest (``exact``, rotating frame): the contact's closed fraction and the ring force
+- a transient from rest (``exact`` on the same polygon, rotating frame): the contact's closed fraction and the ring force
   over the last half, the friction's dissipation and the spin's work over the run, the disk's orbit
   (inertial probes) and its whirl sense, and whether it ended in the stationary state.
 
@@ -81,8 +81,9 @@ def ring_load(forces: np.ndarray, facets: int) -> np.ndarray:
 
 def one_case(ratio: float, mu: float, t_end: float, j: dict) -> dict:
     speed_hz = ratio * j["w_n"] / (2 * math.pi)
+    # the fixed polygon: the model LCP 28 solves (the round ring: round_vs_baseline)
     scene = load_scene("rub", [f"rotation.speed_hz={speed_hz:.9g}", f"stator.0.friction={mu:g}",
-                               f"simulation.t_end={t_end:g}", "simulation.output_dt=2e-4"])
+                               f"simulation.t_end={t_end:g}", "simulation.output_dt=2e-4", "stator.0.shape=polygon"])
     facets = scene["stator"][0]["facets"]
     w = 2 * math.pi * speed_hz
     n_cf = closed_form(j, w, mu)

@@ -38,7 +38,7 @@ from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
 from .rings import after_event, after_impact, initial_rings, with_rings
-from .round import DELTA, conform, relax, round_rings, turn, turned, wedge_rows
+from .round import DELTA, conform, polygon_outputs, relax, round_rings, turn, turned, wedge_rows
 from .transitions import Memory, hold_degenerate, resolve
 
 #: Gauss-Legendre nodes and weights on [0, 1]
@@ -321,6 +321,18 @@ class EventDriven(Integrator):
         q, v = phase.q_map() @ xi, phase.v_map() @ xi
         out["q"][:, sel], out["v"][:, sel] = q, v
         out["gap"][:, sel] = cs.gaps(q)
+        if self._rings and self.system is not self._polygon:   # turned rings: on the scene's polygon
+            self._contact_outputs(phase, mode, xi, sel, out)
+            parts = [out[key][..., sel] for key in ("gap", "normal_force", "tangential_force", "state")]
+            polygon_outputs(self._rings, self._polygon.contacts, q, *parts)
+            for key, part in zip(("gap", "normal_force", "tangential_force", "state"), parts):
+                out[key][..., sel] = part
+            return
+        self._contact_outputs(phase, mode, xi, sel, out)
+
+    def _contact_outputs(self, phase: Phase, mode: Mode, xi: np.ndarray, sel: np.ndarray, out: dict) -> None:
+        """The closed contacts' gaps (0), forces and states at the columns ``sel``."""
+        cs = self.system.contacts
         if not mode.closed:
             return
         lam = phase.force_map() @ xi

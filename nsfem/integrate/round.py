@@ -263,3 +263,32 @@ def relax(rings, closed, touching, q: np.ndarray) -> bool:
             changed = True
     return changed
 
+
+
+def polygon_outputs(rings, polygon: ContactSet, q: np.ndarray, gap: np.ndarray, normal: np.ndarray,
+                    tangential: np.ndarray, state: np.ndarray) -> None:
+    """A round ring's outputs on the scene's polygon, in place (columns of states q (n, t)): each facet's gap
+    from that polygon, and the ring's normal force N = sum_k lam_k n(phi_k) and friction sum_k f_k t(phi_k)
+    split onto the two facets i, i + 1 around N's direction (N = a n_i + b n_i+1 with a, b >= 0; the friction
+    R N-like, f t(phi) = R (f n(phi)), splits with the same coordinates), so that their resultant is the
+    ring's and every facet keeps its angle 2 pi k / F."""
+    for r in rings:
+        idx = list(r.facets)
+        F = len(idx)
+        gap[idx] = polygon.gaps(q)[idx]
+        a = r.angles + r.alpha
+        n = np.vstack([np.cos(a), np.sin(a)])                       # 2 x F, the turned facets' normals
+        N = n @ normal[idx]                                         # 2 x t
+        f = n @ tangential[idx, 0]                                  # R^T of the friction vector
+        st = state[idx].max(axis=0)
+        normal[idx], tangential[idx], state[idx] = 0.0, 0.0, 0
+        for j in np.flatnonzero(np.any(N != 0.0, axis=0) | np.any(f != 0.0, axis=0)):
+            w = N[:, j] if np.any(N[:, j]) else f[:, j]
+            i = int(math.floor(math.atan2(w[1], w[0]) / (2.0 * math.pi / F))) % F
+            pair = [i, (i + 1) % F]
+            G = np.column_stack([np.cos(r.angles[pair]), np.sin(r.angles[pair])]).T
+            lam, fr = np.linalg.solve(G, N[:, j]), np.linalg.solve(G, f[:, j])
+            for kk, lm, fk in zip(pair, lam, fr):
+                c = idx[kk]
+                normal[c, j], tangential[c, 0, j] = lm, fk
+                state[c, j] = st[j] if (lm or fk) else 0
