@@ -87,7 +87,7 @@ class EventDriven(Integrator):
             closed = set(mode.closed)
             key = (mode, tuple(r.signature() for r in self._rings if any(j in closed for j in r.facets)))
         if key not in self._cache:
-            if len(self._cache) >= 512:   # turned configurations are met once or twice: keep the recent ones
+            if self._rings and len(self._cache) >= 512:   # turned ones are met once or twice: keep the recent
                 for old in list(self._cache)[:256]:
                     del self._cache[old]
             self._cache[key] = Configuration(self.system, mode)
