@@ -208,6 +208,9 @@ class Contact:
     damping: float = 0.0
     #: a crack face's point: (y, z) from the hinge's rotation centre [m]
     arm: tuple[float, float] | None = None
+    #: a rigid stator's facet: its ring is round in the exact method (``[[stator]] shape``,
+    #: :mod:`nsfem.integrate.round`), else a polygon fixed in space
+    round: bool = False
 
     @property
     def table_key(self) -> str:

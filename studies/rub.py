@@ -8,7 +8,7 @@ sliding past the ring at Omega r). For each case, side by side:
 - the closed form of the synchronous full annular rub, ((k - m W^2) r + N)^2 + (c W r + mu N)^2 =
   (m e W^2)^2, with the disk's mass plus 17/35 of the shaft's (no root N > 0: no synchronous rub);
 - ``stationary`` (LCP 28, rotating frame, sliding friction of known direction): the ring force;
-- a transient from rest (``exact``, rotating frame): the contact's closed fraction and the ring force
+- a transient from rest (``exact`` on the same polygon, rotating frame): the contact's closed fraction and the ring force
   over the last half, the friction's dissipation and the spin's work over the run, the disk's orbit
   (inertial probes) and its whirl sense, and whether it ended in the stationary state.
 
@@ -16,7 +16,13 @@ Then the shipped scene itself (mu = 0.1) with ``exact`` and ``moreau`` side by s
 what each finds over the last half (with friction the run from rest ends on a bouncing limit cycle
 beside the stable sliding state; both methods find it).
 
-    python studies/rub.py [--quick] [--json] [--t-end T] [--out DIR]
+Last, the round rings (``[[stator]] shape = "round"``, :mod:`nsfem.integrate.round`) side by side with the
+commit before them (1b69cae, a fixed polygon), each in a subprocess on its own source tree (``git archive``
+into a temporary folder), one after the other in this run: the shipped ``rub`` and ``retainer_drop`` and the
+rub with beta = 1e-5 (its sliding state stable), each with the integration's wall time, its events and
+events per revolution over the last half, and the ring force over the last half against ``stationary``'s.
+
+    python studies/rub.py [--quick] [--json] [--t-end T] [--out DIR] [--no-baseline]
 
 Writes rub.csv/.json and rub.png into studies/out/rub and copies the figure to docs/figures/rub.png.
 --quick: 6 speeds, mu 0 and 0.2, t_end 1 s (about 3 minutes; the full study about 36).
@@ -28,8 +34,11 @@ import argparse
 import functools
 import json
 import math
+import os
 import shutil
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -72,8 +81,9 @@ def ring_load(forces: np.ndarray, facets: int) -> np.ndarray:
 
 def one_case(ratio: float, mu: float, t_end: float, j: dict) -> dict:
     speed_hz = ratio * j["w_n"] / (2 * math.pi)
+    # the fixed polygon: the model LCP 28 solves (the round ring: round_vs_baseline)
     scene = load_scene("rub", [f"rotation.speed_hz={speed_hz:.9g}", f"stator.0.friction={mu:g}",
-                               f"simulation.t_end={t_end:g}", "simulation.output_dt=2e-4"])
+                               f"simulation.t_end={t_end:g}", "simulation.output_dt=2e-4", "stator.0.shape=polygon"])
     facets = scene["stator"][0]["facets"]
     w = 2 * math.pi * speed_hz
     n_cf = closed_form(j, w, mu)
@@ -147,6 +157,62 @@ def methods_side_by_side(t_end: float) -> list[dict]:
     return out
 
 
+#: the commit the round rings start from (a fixed polygon)
+BASELINE = "1b69cae"
+
+#: run in a subprocess with PYTHONPATH on one source tree: integrate a scene, print its figures as JSON
+_TIMING = r"""
+import json, math, sys
+import numpy as np
+from nsfem import load_scene
+from nsfem.simulate import run_scene
+scene = load_scene(sys.argv[1], sys.argv[2:])
+res, system = run_scene(scene, "exact")
+F = scene["stator"][0]["facets"]
+load = np.abs(np.exp(2j * math.pi * np.arange(F) / F) @ res.normal_force[:F])
+T = float(res.t[-1])
+late = res.t >= T / 2
+out = {"wall_s": res.wall_s, "events": len(res.events), "impacts": len(res.impacts),
+       "events_per_rev_last_half": sum(e["t"] >= T / 2 for e in res.events) / (scene["rotation"]["speed_hz"] * T / 2),
+       "ring_N_mean_last_half": float(load[late].mean()), "ring_N_min_last_half": float(load[late].min()),
+       "ring_N_max_last_half": float(load[late].max()), "energy_relative_residual": res.energy["relative_residual"],
+       "round_rings": res.info.get("round_rings")}
+if scene["rotation"]["frame"] == "rotating":
+    from nsfem.analysis.stationary import scene_stationary
+    st = scene_stationary(scene)
+    out["stationary_N"] = float(abs(np.exp(2j * math.pi * np.arange(F) / F) @ st.normal_force[:F]))
+print(json.dumps(out))
+"""
+
+
+def round_vs_baseline(quick: bool) -> list[dict]:
+    """The round rings against the fixed polygon of :data:`BASELINE`, each scene on both source trees in turn
+    (module docstring)."""
+    rub_t = 1.0 if quick else 2.0
+    cases = [("rub", [f"simulation.t_end={rub_t:g}"], ["stator.0.shape=round"]),
+             ("rub", [f"simulation.t_end={rub_t:g}", "damping.rayleigh=[0.0, 1e-5]"], ["stator.0.shape=round"]),
+             ("retainer_drop", ["simulation.t_end=0.1"] if quick else [], [])]   # round in the scene
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", BASELINE], capture_output=True, check=True)
+        subprocess.run(["tar", "-x", "-C", tmp], input=archive.stdout, check=True)
+        for name, overrides, rounds in cases:
+            row = {"scene": name, "overrides": " ".join(overrides)}
+            for label, tree, more in (("baseline", tmp, []), ("round", str(ROOT), rounds)):
+                env = {**os.environ, "PYTHONPATH": tree, "MPLBACKEND": "Agg"}
+                run = subprocess.run([sys.executable, "-c", _TIMING, name, *overrides, *more], env=env, cwd=tree,
+                                     capture_output=True, text=True)
+                if run.returncode:
+                    row[f"{label}_error"] = (run.stderr.strip().splitlines() or ["?"])[-1]
+                    continue
+                for key, val in json.loads(run.stdout.strip().splitlines()[-1]).items():
+                    row[f"{label}_{key}"] = val
+            if "baseline_wall_s" in row and "round_wall_s" in row:
+                row["speedup"] = row["baseline_wall_s"] / row["round_wall_s"]
+            rows.append(row)
+    return rows
+
+
 def plot(path: Path, rows: list[dict], orbits: dict, j: dict, mus: list[float]) -> Path:
     import matplotlib
 
@@ -192,6 +258,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--json", action="store_true", help="print the JSON object")
     ap.add_argument("--t-end", type=float, help="simulated time per run [s] (default 3, --quick 1)")
     ap.add_argument("--out", default="studies/out/rub")
+    ap.add_argument("--no-baseline", action="store_true", help=f"skip the round rings against {BASELINE}")
     args = ap.parse_args(argv)
     say = functools.partial(print, file=sys.stderr) if args.json else print
     out = Path(args.out)
@@ -221,6 +288,16 @@ def main(argv=None) -> dict:
         say(f"shipped rub, {mm['method']}: {mm['wall_s']:.2f} s for {t_end:g} s; last half: closed "
             f"{100 * mm['closed_fraction_last_half']:.1f} %, {mm['peak_hz']:.1f} Hz, {mm['impacts']} impacts")
     say(f"exact is {methods[1]['wall_s'] / methods[0]['wall_s']:.1f}x faster than moreau (side by side)")
+    rounds = [] if args.no_baseline else round_vs_baseline(args.quick)
+    for r in rounds:
+        say(f"{r['scene']} {r['overrides']}: integration {r.get('baseline_wall_s', float('nan')):.2f} s at "
+            f"{BASELINE}, {r.get('round_wall_s', float('nan')):.2f} s round ({r.get('speedup', float('nan')):.2f}x); "
+            f"events {r.get('baseline_events')} / {r.get('round_events')}, per revolution over the last half "
+            f"{r.get('baseline_events_per_rev_last_half', float('nan')):.1f} / "
+            f"{r.get('round_events_per_rev_last_half', float('nan')):.1f}; ring force over the last half "
+            f"{r.get('baseline_ring_N_min_last_half', float('nan')):.3f}-{r.get('baseline_ring_N_max_last_half', float('nan')):.3f}"
+            f" / {r.get('round_ring_N_min_last_half', float('nan')):.3f}-{r.get('round_ring_N_max_last_half', float('nan')):.3f} N"
+            + (f" (stationary {r['round_stationary_N']:.4f} N)" if "round_stationary_N" in r else ""), flush=True)
     out.mkdir(parents=True, exist_ok=True)
     fig = plot(out / "rub.png", rows, orbits, j, mus)
     docs_fig = ROOT / "docs" / "figures" / "rub.png"
@@ -236,7 +313,8 @@ def main(argv=None) -> dict:
                                                   if r["dissipated_friction_J"] < 0]}
     payload = {"quick": args.quick, "t_end": t_end, "ratios": ratios, "mus": mus, "runs": len(rows),
                "wall_s": wall, "findings": findings, "methods": methods,
-               "moreau_over_exact_wall": methods[1]["wall_s"] / methods[0]["wall_s"], "machine": machine()}
+               "moreau_over_exact_wall": methods[1]["wall_s"] / methods[0]["wall_s"], "machine": machine(),
+               "round_vs_baseline": rounds, "baseline_commit": BASELINE}
     write_outputs(out, "rub", rows, payload)
     say(f"{len(rows)} runs in {wall:.1f} s; stationary against the closed form: "
         + ("-" if dev is None else f"{dev:.2e}") + f"; {findings['ended_in_stationary']} transients ended in the "

@@ -2167,3 +2167,24 @@ def test_lemke_overflowed_covering_ratios(A, b, kw, expect):
     else:
         assert out.status in (expect, "solved", "ray", "inaccurate"), out.message
         assert not out.success or (out.residual <= 1e-8 and np.isfinite(out.x).all())
+
+
+# --- issue 33: round stator rings ---
+@settings(max_examples=12, deadline=None, derandomize=True, database=None)
+@given(st.text(min_size=0, max_size=12))
+def test_a_stator_shape_other_than_polygon_or_round_is_refused_naming_it(tmp_path_factory, shape):
+    """Any text for ``[[stator]] shape`` but polygon or round: exit 2, one line naming the key and the values
+    allowed, before anything is computed."""
+    if shape in ("polygon", "round"):
+        return
+    root = tmp_path_factory.mktemp("shape")
+    code, _, err = check_invocation(["stationary", "rub", "--set", f"stator.0.shape={json.dumps(shape)}"], root)
+    assert code == cli.EXIT_ERROR and "stator.0.shape" in err and "polygon | round" in err
+
+
+def test_the_stator_shape_reproductions(tmp_path):
+    for value in ("oval", "ROUND", "1"):
+        code, _, err = check_invocation(["stationary", "rub", "--set", f"stator.0.shape={value}"], tmp_path)
+        assert code == cli.EXIT_ERROR and "stator.0.shape" in err
+    code, out, err = check_invocation(["stationary", "rub", "--set", "stator.0.shape=round", "--json"], tmp_path)
+    assert code == 0, err   # stationary's LCP holds the polygon: the key only changes the exact method's run

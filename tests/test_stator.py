@@ -21,12 +21,14 @@ WN = math.sqrt(K / M)
 
 
 def rub_tree(facets, frame="rotating", speed_ratio=0.8, restitution=0.0, damper=C_E, beta=0.0, friction=0.0,
-             **extra):
+             shape="polygon", **extra):
+    """The Jeffcott rub scene; ``shape`` polygon by default: these tests hold the polygon's closed forms
+    (the round ring's: tests/test_round_ring.py)."""
     tree = rotor_tree(10, D, rho=1.0, length=L, disk=[{"x": L / 2, "mass": M}],
                       bearing=[{"x": L / 2, "cyy": damper, "czz": damper}] if damper else [],
                       unbalance=[{"x": L / 2, "magnitude": ME}],
                       stator=[{"x": L / 2, "clearance": CLEARANCE, "facets": facets, "restitution": restitution,
-                               "friction": friction}],
+                               "friction": friction, "shape": shape}],
                       rotation={"speed_hz": speed_ratio * WN / (2 * math.pi), "gravity": 0.0, "frame": frame},
                       damping={"rayleigh": [0.0, beta]}, reduction={"method": "craig-bampton", "modes": 4})
     tree.update(extra)

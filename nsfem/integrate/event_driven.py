@@ -22,6 +22,7 @@ residual |E(T) - E(0) - W_ext + W_diss| / max E measures the integration error.
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 
@@ -38,6 +39,7 @@ from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
 from .rings import after_event, after_impact, initial_rings, with_rings
+from .round import DELTA, conform, polygon_outputs, relax, round_rings, turn, turned, wedge_rows
 from .transitions import Memory, hold_degenerate, resolve
 
 #: Gauss-Legendre nodes and weights on [0, 1]
@@ -66,6 +68,8 @@ class EventDriven(Integrator):
     """The event-driven loop; subclasses implement :meth:`_advance`."""
 
     name = "event-driven"
+    #: rigid stator rings as a facet that turns with the contact point (:mod:`.round`); else the fixed polygon
+    round_rings = False
 
     def __init__(self, system, zeno: float = 1e-8, max_events: int = 10_000_000, progress: bool | None = None,
                  **options):
@@ -74,12 +78,33 @@ class EventDriven(Integrator):
             raise NsfemError(f"zeno must lie in (0, 1), got {zeno}")
         self.zeno, self.max_events, self.progress = zeno, int(max_events), progress
         self._cache: dict = {}
+        #: the round rings (:mod:`.round`) and the system of the fixed polygon they turn
+        self._rings, self._polygon = (), system
 
     def configuration(self, mode: Mode) -> Configuration:
         mode = mode.dynamics
-        if mode not in self._cache:
-            self._cache[mode] = Configuration(self.system, mode)
-        return self._cache[mode]
+        key = mode
+        if self._rings:   # a closed facet of a turned ring: the configuration of its turn
+            closed = set(mode.closed)
+            key = (mode, tuple(r.signature() for r in self._rings if any(j in closed for j in r.facets)))
+        if key not in self._cache:
+            if self._rings and len(self._cache) >= 512:   # turned ones are met once or twice: keep the recent
+                for old in list(self._cache)[:256]:
+                    del self._cache[old]
+            self._cache[key] = Configuration(self.system, mode)
+        cfg = self._cache[key]
+        if cfg.system is not self.system:
+            # no closed facet of a turned ring: the same equations; its rows read the turned facets' gaps
+            cfg = copy.copy(cfg)
+            cfg.system = self.system
+            self._cache[key] = cfg
+        return cfg
+
+    def _turn(self) -> None:
+        """The system of the round rings' turns now."""
+        from dataclasses import replace
+
+        self.system = replace(self._polygon, contacts=turned(self._polygon.contacts, self._rings))
 
     def _phase(self, mode: Mode, t: float, q: np.ndarray, v: np.ndarray) -> Phase:
         """The phase of configuration ``mode`` from (t, q, v); sticking slips held at their value."""
@@ -94,6 +119,10 @@ class EventDriven(Integrator):
         raise NotImplementedError
 
     def run(self, t_end: float, output_dt: float, q0=None, v0=None) -> Result:
+        self.system = self._polygon
+        self._rings = round_rings(self.system.contacts, self.system.info.get("round_rings", ())) \
+            if self.round_rings else ()
+        self._cache = {}
         sysm = self.system
         cs = sysm.contacts
         n, m = sysm.n, cs.m
@@ -129,6 +158,8 @@ class EventDriven(Integrator):
                                    extra_load=None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))
             mode = with_rings(mode, *initial_rings(rings, q, v))
             mode = hold_degenerate(mode, lambda md, q_=q, v_=v: self._phase(md, 0.0, q_, v_), memory, cs, v)
+            if self._rings:
+                conform(self._rings, mode.closed, q)
             if imp:
                 impacts.append(imp)
                 _impact_energy(energy, imp)
@@ -137,6 +168,8 @@ class EventDriven(Integrator):
                 phase_integrated = False
                 check_phase(phase, t, t_end, mode)
                 rows = event_rows(phase, mode)
+                if self._rings:
+                    rows = _with_wedges(rows, self._rings, mode, phase)
                 ev, xi_fun = self._advance(phase, rows, t, t_end)
                 t_next = t_end if ev is None else ev.t
                 # outputs in [t, t_next) (and t_end at the end)
@@ -207,6 +240,16 @@ class EventDriven(Integrator):
                 # below resolution, the impact sequence has accumulated (plastic impact)
                 settled = {rows.contacts[i] for j, i in enumerate(ev.rows)
                            if rows.kinds[i] == "close" and ev.in_band is not None and ev.in_band[j]}
+                if self._rings:
+                    fired = {rows.detail[i][0]: (rows.contacts[i], rows.detail[i][1]) for i in ev.rows
+                             if rows.kinds[i] == "round_turn"}
+                    for i_r, (k, d) in fired.items():   # the facet turns with the contact point: a plastic impact
+                        turn(self._rings[i_r], self._rings[i_r].facets.index(k), q, d)
+                        settled.add(k)
+                    if relax(self._rings, before.closed, touching, q) or fired:
+                        self._turn()
+                        sysm, cs = self.system, self.system.contacts
+                        memory.lcp_cache = type(memory.lcp_cache)()
                 mode, v, imp = resolve(sysm, Mf, t_next, q, v, before, memory, touching, gap_tol, slipping,
                                        settled, facets, stopped,
                                        None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))
@@ -218,6 +261,8 @@ class EventDriven(Integrator):
                     mode = with_rings(mode, *state)
                 mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
                                        memory, cs, v)
+                if self._rings:
+                    conform(self._rings, mode.closed, q)
                 if imp:
                     impacts.append(imp)
                     _impact_energy(energy, imp)
@@ -255,6 +300,8 @@ class EventDriven(Integrator):
             progress.close()
         close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q) + potential(rings, q), e_max)
         k = filled if not completed else K_out
+        if self._rings:
+            self.system = self._polygon
         res = Result(self.name, t_out[:k], out["q"][:, :k], out["v"][:, :k], out["gap"][:, :k],
                      out["normal_force"][:, :k], out["tangential_force"][:, :, :k], out["state"][:, :k],
                      events, impacts, energy, time.perf_counter() - wall0, float(t_out[k - 1]) if k else 0.0,
@@ -262,6 +309,8 @@ class EventDriven(Integrator):
                                  "configurations": len(self._cache),
                                  # exact in time (between events), not sampled at the outputs
                                  "closed_fraction": closed_time / covered if covered > 0.0 else 0.0})
+        if self._rings:
+            res.info["round_rings"] = {r.label: {"delta_rad": min(r.delta, DELTA), **r.history} for r in self._rings}
         if failure is not None:
             res.info["error"] = str(failure)
             raise IntegrationError(str(failure), res) from failure
@@ -273,6 +322,18 @@ class EventDriven(Integrator):
         q, v = phase.q_map() @ xi, phase.v_map() @ xi
         out["q"][:, sel], out["v"][:, sel] = q, v
         out["gap"][:, sel] = cs.gaps(q)
+        if self._rings and self.system is not self._polygon:   # turned rings: on the scene's polygon
+            self._contact_outputs(phase, mode, xi, sel, out)
+            parts = [out[key][..., sel] for key in ("gap", "normal_force", "tangential_force", "state")]
+            polygon_outputs(self._rings, self._polygon.contacts, q, *parts)
+            for key, part in zip(("gap", "normal_force", "tangential_force", "state"), parts):
+                out[key][..., sel] = part
+            return
+        self._contact_outputs(phase, mode, xi, sel, out)
+
+    def _contact_outputs(self, phase: Phase, mode: Mode, xi: np.ndarray, sel: np.ndarray, out: dict) -> None:
+        """The closed contacts' gaps (0), forces and states at the columns ``sel``."""
+        cs = self.system.contacts
         if not mode.closed:
             return
         lam = phase.force_map() @ xi
@@ -620,6 +681,31 @@ def _ring_forms(rings, mode: Mode, Pq: np.ndarray, Pv: np.ndarray, r2: int) -> l
     return out
 
 
+def _with_wedges(rows: Rows, rings, mode: Mode, phase: Phase) -> Rows:
+    """``rows`` and the round rings' wedge rows (:func:`.round.wedge_rows`), without the gap rows of a ring
+    whose one facet is closed: within its wedge (delta < pi / F) no other facet can close before it opens."""
+    closed = set(mode.closed)
+    hidden = set()
+    for r in rings:
+        on = [j for j in r.facets if j in closed]
+        if len(on) == 1:
+            hidden.update(j for j in r.facets if j != on[0])
+    keep = [i for i, (kind, k) in enumerate(zip(rows.kinds, rows.contacts)) if not (kind == "close" and k in hidden)]
+    if len(keep) < rows.size:
+        rows = Rows(rows.H[keep], [rows.kinds[i] for i in keep], [rows.contacts[i] for i in keep],
+                    [rows.detail[i] for i in keep])
+    H, kinds, contacts, detail = [rows.H], list(rows.kinds), list(rows.contacts), list(rows.detail)
+
+    def add(row, kind, k, det=None):
+        H.append(row[None, :])
+        kinds.append(kind)
+        contacts.append(k)
+        detail.append(det)
+
+    wedge_rows(rings, mode, phase.q_map(), add)
+    return rows if len(kinds) == rows.size else Rows(np.vstack(H), kinds, contacts, detail)
+
+
 def _finite_prefix(xi: np.ndarray) -> int:
     """The number of leading columns of xi that are finite (all of them unless the state overflows)."""
     bad = ~np.all(np.isfinite(xi), axis=0)
@@ -640,6 +726,7 @@ class Exact(EventDriven):
     """Closed-form propagation between events (design section 6, method ``exact``)."""
 
     name = "exact"
+    round_rings = True
 
     def _advance(self, phase, rows, t0, t1):
         return first_event(phase, rows, t0, t1, getattr(self, "_report", None)), phase.xi

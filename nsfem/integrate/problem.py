@@ -150,6 +150,8 @@ class ContactSystem:
                 "omega2_ref": omega2_ref(model.K, model.M)}
         if rings:
             info.update(contact_index=rigid, all_contacts=full)
+        # the rigid stators that the exact method makes round (:mod:`..integrate.round`)
+        info["round_rings"] = tuple(sorted({c.table_key for c in model.stack.contacts if c.round}))
         return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega, full.subset(rigid) if rings
                                else full, info, rings)
 

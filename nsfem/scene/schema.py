@@ -257,6 +257,10 @@ _STATOR = {
     "radius": Key("float", 0.0, "radius [m] of the surface the ring touches, for its speed Omega radius (0: "
                   "half the section's depth, a rectangle's height; a ring around a disk's rim: the rim's radius)",
                   check=_nonneg),
+    "shape": Key("str", "polygon", "a rigid ring in the exact method: polygon (the `facets` fixed) or round (the "
+                 "polygon turns with the contact point so that the touched facet stays tangent to the circle and a "
+                 "settled point is held, docs/theory.md); rk, moreau, penalty and elastic rings use the polygon",
+                 ("polygon", "round")),
 }
 _CRACK = {
     "x": Key("float?", None, "position on the intact shaft [m] (default: the rotor's middle); it splits the shaft "

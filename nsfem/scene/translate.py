@@ -294,5 +294,6 @@ def stator_contacts(tree: dict, stack: BeamStack, middle: float) -> tuple[Contac
             # friction along the circumference only (r = 2 on the first tangent, slip_rows' order)
             out.append(Contact("obstacle", x, (seg,), "dirac", None, axis, st["clearance"], st["friction"], 2,
                                st["restitution"], label=f"{key}.{k}", angle=angle, radius=radius,
-                               stiffness=st["stiffness"], damping=st["damping"]))
+                               stiffness=st["stiffness"], damping=st["damping"],
+                               round=st["shape"] == "round" and st["stiffness"] == 0.0))
     return tuple(out)
