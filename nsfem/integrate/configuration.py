@@ -30,7 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import NsfemError
-from .closed_form import ModalPlan, Motion, divided_exp
+from .closed_form import ModalPlan, Motion, decay_factors, divided_exp
 from .problem import ContactSystem
 
 #: relative singular value below which a constraint direction is redundant
@@ -344,6 +344,45 @@ class Configuration:
         return float(np.max(np.abs(self.eigenvalues), initial=0.0))
 
 
+@dataclass
+class SearchPlan:
+    """What :meth:`Phase.search_plan` gives a search: ``rows(t)`` (the rows without the terms left
+    out), the fastest ``rate`` kept, ``e`` the left-out terms' bound per row, ``bound(order)`` the kept
+    part's derivative bound per row (None for xi itself), ``renew`` (from the phase's start) the time
+    from which a new plan leaves out more."""
+
+    rows: object
+    rate: float
+    e: np.ndarray
+    bound: object
+    renew: float = math.inf
+
+
+def _renewal(nu, size, order, n_drop, cum, budget, since) -> float:
+    """The tau (>= since) from which the fastest terms kept (those of order[n_drop]'s speed), if they
+    decay, fit the budget next to those already left out: sizes at since times e^{Re(nu) (tau - since)}
+    (the left-out ones decay or stay: their sum at since bounds it later too); inf if they do not decay
+    or no term is left to leave out."""
+    if n_drop >= order.size:
+        return math.inf
+    speed = np.abs(nu[order])
+    group = order[n_drop:][speed[n_drop:] == speed[n_drop]]
+    rate = float(np.max(nu[group].real))
+    if not rate < 0.0:
+        return math.inf
+    s = size[:, group].sum(axis=1)
+    room = budget - (cum[:, n_drop - 1] if n_drop else 0.0)
+    need = s > 0.0
+    if not np.any(need):
+        return math.inf
+    if np.any(room[need] <= 0.0):
+        return math.inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(need, s / np.where(need, room, 1.0), 0.0)
+    wait = float(np.log(ratio.max())) / -rate
+    return since + wait if wait > 0.0 else math.inf   # (it would fit already: nothing to wait for)
+
+
 class Phase:
     """Exact motion of one configuration from (t0, q0, v0); all outputs are maps of xi(t).
 
@@ -458,22 +497,28 @@ class Phase:
         return rows
 
     def search_map(self, H: np.ndarray, budget: np.ndarray, horizon: float):
-        """(rows, rate, e, bound): ``rows(t)`` = H xi(t) without the fastest exponential terms whose
-        contributions to row i sum to at most budget[i] over the horizon (e[i] that sum), ``rate``
-        the fastest rate left (it sets the sampling step), ``bound(order)`` per row of H the bound of
-        the order-th derivative of what is left over the horizon. Without a modal form: the full rows.
-        H None: xi itself (budget per component of its modal part; for quadratures)."""
+        """(rows, rate, e, bound) of :meth:`search_plan` over the whole horizon."""
+        plan = self.search_plan(H, budget, horizon)
+        return plan.rows, plan.rate, plan.e, plan.bound
+
+    def search_plan(self, H: np.ndarray | None, budget: np.ndarray, horizon: float, since: float = 0.0) -> SearchPlan:
+        """The rows H xi(t) a search follows over tau = t - t0 in [since, horizon]: without the fastest
+        exponential terms whose contributions to row i sum to at most budget[i] there (e[i] that sum; a
+        decaying term counts at its size at ``since``, a growing one at the horizon), ``rate`` the fastest
+        rate left (it sets the sampling step), ``bound(order)`` per row of H the bound of the order-th
+        derivative of what is left on [since, horizon], ``renew`` the tau from which the fastest term
+        kept, if it decays, has decayed into the budget (a plan from there leaves it out; inf if never).
+        Without a modal form: the full rows. H None: xi itself (budget per component of its modal part;
+        for quadratures)."""
         r2 = 2 * self.config.r
         if H is None and (not r2 or self._modal is None):
-            return self.xi, self.config.fastest_rate(), np.zeros(self.dim), None
+            return SearchPlan(self.xi, self.config.fastest_rate(), np.zeros(self.dim), None)
         if not r2 or self._modal is None:
-            return (self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]),
-                    lambda order: self.derivative_bound(H, order, horizon))
+            return SearchPlan(self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]),
+                              lambda order: self.derivative_bound(H, order, horizon))
         mot = self._modal
         HU = mot.U if H is None else H[:, :r2] @ mot.U   # formed once: for the sizes, the rows and their bound
-        with np.errstate(over="ignore"):
-            grow = np.exp(np.maximum(mot.nu.real, 0.0) * horizon)
-        size = np.abs(HU) * grow[None, :]
+        size = np.abs(HU) * decay_factors(mot.nu, horizon, since)[None, :]
         speed = np.abs(mot.nu)
         # only modes are left out, never the forcing's particular solutions (the last columns, after the
         # modes'): the rows' direct harmonic terms stay, and without their particular solutions the kept
@@ -495,17 +540,18 @@ class Phase:
             rate = float(np.max(speed[keep], initial=0.0))
             for nodes, _ in mot.groups:
                 rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
+        renew = _renewal(mot.nu, size, order, n_drop, cum, budget, since)
 
         if H is None:
-            return self._states_of(kept), rate, e, None
+            return SearchPlan(self._states_of(kept), rate, e, None, renew)
 
         def bound(order_):
-            b = kept.bound(None, order_, horizon)
+            b = kept.bound(None, order_, horizon, since)
             if self.w:
                 b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * self.w ** order_
             return b
 
-        return self._rows_of(kept, H[:, r2:]), rate, e, bound
+        return SearchPlan(self._rows_of(kept, H[:, r2:]), rate, e, bound, renew)
 
     def pruned_xi(self, rel: float, horizon: float):
         """(xi_fun, rate): xi(t) without the fastest terms whose sum stays below ``rel`` of the

@@ -161,29 +161,47 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     # starting at ~0 (a gap of 1e-19 m read to +-1e-18 m) must not fire by that noise
     tol = np.maximum(ZERO * scale, round_off(H, xis, 2 * phase.config.r))
     # the search follows the rows without the fastest terms whose sum stays below a quarter of each
-    # row's band over the horizon (round-off amplitudes of stiff modes, modes a row does not see):
-    # they no longer set the step. A row then crosses -tol no earlier than its search version
-    # crosses -(tol - e), e the left-out terms' bound: the search uses that band
-    rows_at, rate, e, bound_of = phase.search_map(np.vstack([H, Hd]), np.concatenate([tol / 4.0, np.full(
-        H.shape[0], np.inf)]), t_stop - t_start)
-    e = e[: rows.size]
-    band = tol - e
-    h_step = phase.max_step(t_stop - t_start, rate)
-    # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
-    bound4 = bound_of(4)[: rows.size] * h_step ** 4 / 384.0
+    # row's band over the horizon (round-off amplitudes of stiff modes, modes a row does not see, modes
+    # that have decayed): they no longer set the step. A row then crosses -tol no earlier than its
+    # search version crosses -(tol - e), e the left-out terms' bound: the search uses that band
+    HH, budget = np.vstack([H, Hd]), np.concatenate([tol / 4.0, np.full(H.shape[0], np.inf)])
+    k = rows.size
+
+    def plan_from(t):
+        """The search's rows, band, step and interpolation bound from t on (the left-out terms bounded
+        on [t, t_stop]: a decaying one by its size at t)."""
+        plan = phase.search_plan(HH, budget, t_stop - phase.t0, t - phase.t0)
+        band = tol - plan.e[:k]
+        step = phase.max_step(t_stop - phase.t0, plan.rate)
+        # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
+        return plan, band, step, plan.bound(4)[:k] * step ** 4 / 384.0
+
+    plan, band, h_step, bound4 = plan_from(t_start)
+    rows_at = plan.rows
+    # (a renewal that rounds to where the plan starts is tried again a step later: the search advances)
+    renew_at = max(phase.t0 + plan.renew, t_start + h_step)
     coarse, tried = None, False
     armed = None
     thr = None
     t_a = t_start
     chunk = FIRST_CHUNK
+    phase.search_samples = 0
     while t_a < t_stop:
-        t_b = t_stop
+        if t_a >= renew_at:
+            # the fastest term kept has decayed into its budget: it no longer sets the step (an
+            # overdamped stiff mode after an impact), nor the coarse pass's
+            plan, band, h_step, bound4 = plan_from(t_a)
+            rows_at = plan.rows
+            renew_at = max(phase.t0 + plan.renew, t_a + h_step)
+            coarse, tried = None, False
+        t_b = min(t_stop, renew_at)
         if not tried and armed is not None and armed.all():
             # formed once a first chunk has found nothing (most phases of an impact burst end in it)
-            coarse, tried = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop), True
+            coarse, tried = _Coarse.of(phase, H, Hd, band, plan.rate, t_a, t_stop), True
         if coarse is not None:
             # every row armed at 0: skip what the coarse pass certifies, search the rest finely
-            t_skip, t_b = coarse.unclear(t_a)
+            t_skip, t_c = coarse.unclear(t_a)
+            t_b = min(t_b, t_c)
             if t_skip > t_a:
                 t_a = phase.searched_until = t_skip
                 chunk = FIRST_CHUNK
@@ -191,10 +209,13 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     report(t_a)
                 if t_a >= t_stop:
                     break
+                if t_a >= t_b:
+                    continue
         n = max(1, min(chunk, math.ceil((t_b - t_a) / h_step)))
         chunk = min(CHUNK, 4 * chunk)
         ts = np.linspace(t_a, min(t_b, t_a + n * h_step), n + 1)
         hh = rows_at(ts)
+        phase.search_samples += ts.size
         h, hd = hh[: rows.size], hh[rows.size:]
         if armed is None:
             # a row that starts inside its zero band is armed once it has left it upwards
@@ -290,12 +311,13 @@ class _Coarse:
         # difference of) and its constant
         size = phase.derivative_bound(H, 0, horizon) + np.abs(H[:, 2 * phase.config.r])
         budget = np.concatenate([COARSE * size, np.full(k, np.inf)])
-        rows_at, rate_c, e, bound_of = phase.search_map(np.vstack([H, Hd]), budget, horizon)
-        step = phase.max_step(horizon, rate_c)
-        if step < COARSE_GAIN * phase.max_step(horizon, rate) or bound_of is None or step * 4.0 > t_stop - t_start:
+        # (the terms bounded from t_start on: a decaying one at its size there)
+        plan = phase.search_plan(np.vstack([H, Hd]), budget, horizon, t_start - phase.t0)
+        step = phase.max_step(horizon, plan.rate)
+        if step < COARSE_GAIN * phase.max_step(horizon, rate) or plan.bound is None or step * 4.0 > t_stop - t_start:
             return None
-        b4 = bound_of(4)[:k] * step ** 4 / 384.0
-        return cls(rows_at, band + e[:k], b4, step, t_start, t_stop, k)
+        b4 = plan.bound(4)[:k] * step ** 4 / 384.0
+        return cls(plan.rows, band + plan.e[:k], b4, step, t_start, t_stop, k)
 
     def _extend(self) -> None:
         """Sample the next CHUNK coarse intervals and judge them."""
