@@ -716,6 +716,66 @@ def test_screen_row_is_screen():
         assert got == want, (f, hd, dt, b4, sub, tol)
 
 
+def test_cubic_max_is_hermite_min_negated():
+    """Arming a few intervals in plain floats (``_cubic_max``) takes each Hermite cubic's maximum with the
+    same operations as the array path (-``_hermite_min`` of the negated data): equal to the last bit on
+    20 000 random intervals, with zero slopes, equal ends and maxima at the ends among them."""
+    from nsfem.integrate.events import _cubic_max
+
+    rng = np.random.default_rng(29)
+    n = 20_000
+    f0, f1 = (rng.standard_normal(n) * 10.0 ** rng.uniform(-12, 0, n) for _ in range(2))
+    d0, d1 = (rng.standard_normal(n) * 10.0 ** rng.uniform(-12, 3, n) for _ in range(2))
+    d0[rng.random(n) < 0.1] = 0.0
+    d1[rng.random(n) < 0.1] = 0.0
+    same = rng.random(n) < 0.05
+    f1[same] = f0[same]
+    dt = 10.0 ** rng.uniform(-7, 0, n)
+    want = -_hermite_min(-f0, -f1, -d0, -d1, dt)
+    got = np.array([_cubic_max(*x) for x in zip(f0.tolist(), f1.tolist(), d0.tolist(), d1.tolist(), dt.tolist())])
+    np.testing.assert_array_equal(got, want)
+
+
+def test_event_rows_formed_once_per_configuration_are_the_phases():
+    """``event_rows`` forms H and H A_aug once per (configuration, mode) and adds each phase's constant
+    column; on every configuration of the friction scene (open, sticking, sliding on a generator, on a
+    facet) they are the rows built from that phase's maps, to the round-off of a sum of products summed
+    in another order: 2 gamma_n (|R| |P|) per entry (Higham's bound of a dot product of length n, for
+    both evaluations), and the same kinds, contacts and details."""
+    from nsfem import load_scene
+    from nsfem.integrate import event_driven
+    from nsfem.integrate.events import _event_rows, _RowsPlan
+    from nsfem.simulate import run_scene
+
+    seen = {}
+    formed = event_driven.event_rows
+
+    def collect(phase, mode):
+        seen.setdefault((bool(mode.closed), bool(mode.stick), bool(mode.slide), bool(mode.edge)), (phase, mode))
+        return formed(phase, mode)
+
+    event_driven.event_rows = collect
+    try:
+        run_scene(load_scene(None, ["delamination.0.friction=0.3", "simulation.t_end=1.0"]), "exact")
+    finally:
+        event_driven.event_rows = formed
+    assert {k[1:] for k in seen} >= {(False, False, False), (True, False, False), (False, True, False),
+                                     (False, False, True)}, list(seen)
+    eps = np.finfo(float).eps
+    for phase, mode in seen.values():
+        got, want = formed(phase, mode), _event_rows(phase, mode)
+        assert (got.kinds, got.contacts, got.detail) == (want.kinds, want.contacts, want.detail)
+        plan = _RowsPlan(phase, mode)
+        P = [phase.q_map(), phase.v_map(), phase.force_map()]
+        size = sum(np.abs(R) @ np.abs(X) for R, X in zip((plan.Rq, plan.Rv, plan.Rf), P))
+        size[:, 2 * phase.config.r] += np.abs(plan.K)
+        gamma = (P[0].shape[0] + 4) * eps
+        assert np.all(np.abs(got.H - want.H) <= 2 * gamma * size)
+        # H A_aug: the same bound carried through A_aug's products (length dim)
+        sized = size @ np.abs(phase.A_aug)
+        assert np.all(np.abs(got.Hd - want.H @ phase.A_aug) <= 2 * (gamma + phase.dim * eps) * sized)
+
+
 def test_search_certificates_do_not_depend_on_the_scale():
     """Rows in any units: scaling a row by a power of two (exact in floating point) leaves the
     envelope's minimum (scaled the same) and the screens' verdicts unchanged, also where b^2 - 4ac

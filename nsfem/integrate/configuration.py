@@ -339,6 +339,16 @@ class Configuration:
         """q_p with G^T q_p + g0 = 0 (least norm)."""
         return -self.Gpinv @ g0 if g0.size else np.zeros(self.system.n)
 
+    def force_parts(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Wpinv Rx, the harmonic loads' Wpinv Rphi f as columns): the parts of every phase's force map
+        that the configuration fixes (formed once)."""
+        parts = self.__dict__.get("_force_parts")
+        if parts is None:
+            harmonic = np.column_stack([self.Wpinv @ (self.Rphi @ f) for f in self.loads]) if self.loads else \
+                np.zeros((self.W.shape[1], 0))
+            parts = self._force_parts = (self.Wpinv @ self.Rx, harmonic)
+        return parts
+
     def fastest_rate(self) -> float:
         """max |eigenvalue| of A [1/s] (0 without coordinates)."""
         return float(np.max(np.abs(self.eigenvalues), initial=0.0))
@@ -632,11 +642,15 @@ class Phase:
 
     # -- maps ----------------------------------------------------------------------
     def q_map(self) -> np.ndarray:
-        """q = Pq xi."""
-        cfg, r = self.config, self.config.r
-        P = np.zeros((self.system_n, self.dim))
-        P[:, :r] = cfg.N
-        P[:, 2 * r] = self.qp   # the constant component is 1
+        """q = Pq xi (formed once per phase, read-only)."""
+        P = self.__dict__.get("_Pq")
+        if P is None:
+            cfg, r = self.config, self.config.r
+            P = np.zeros((self.system_n, self.dim))
+            P[:, :r] = cfg.N
+            P[:, 2 * r] = self.qp   # the constant component is 1
+            P.flags.writeable = False
+            self._Pq = P
         return P
 
     @property
@@ -644,22 +658,30 @@ class Phase:
         return self.config.system.n
 
     def v_map(self) -> np.ndarray:
-        cfg, r = self.config, self.config.r
-        P = np.zeros((self.system_n, self.dim))
-        P[:, r: 2 * r] = cfg.N
+        """q' = Pv xi (formed once per phase, read-only)."""
+        P = self.__dict__.get("_Pv")
+        if P is None:
+            cfg, r = self.config, self.config.r
+            P = np.zeros((self.system_n, self.dim))
+            P[:, r: 2 * r] = cfg.N
+            P.flags.writeable = False
+            self._Pv = P
         return P
 
     def force_map(self) -> np.ndarray:
-        """lam (constraint forces, one per row of the configuration) = P xi."""
-        cfg, r = self.config, self.config.r
-        P = np.zeros((cfg.W.shape[1], self.dim))
-        if not cfg.W.shape[1]:
-            return P
-        P[:, : 2 * r] = cfg.Wpinv @ cfg.Rx
-        for j, f in enumerate(self.forcing):
-            P[:, 2 * r + j] = cfg.Wpinv @ (cfg.Rphi @ f)
+        """lam (constraint forces, one per row of the configuration) = P xi (formed once per phase, read-only;
+        its columns but the constant load's once per configuration)."""
+        P = self.__dict__.get("_Pf")
+        if P is None:
+            cfg, r = self.config, self.config.r
+            P = np.zeros((cfg.W.shape[1], self.dim))
+            if cfg.W.shape[1]:
+                P[:, : 2 * r], harmonic = cfg.force_parts()
+                P[:, 2 * r] = cfg.Wpinv @ (cfg.Rphi @ self.forcing[0])
+                P[:, 2 * r + 1:] = harmonic
+            P.flags.writeable = False
+            self._Pf = P
         return P
-
 
     def max_step(self, horizon: float, rate: float | None = None) -> float:
         """Sampling step for event search: 1/8 of the fastest period (or time constant), of the

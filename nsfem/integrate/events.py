@@ -74,6 +74,8 @@ class Rows:
     kinds: list
     contacts: list
     detail: list | None = None
+    #: H A_aug when formed with H (:func:`event_rows`); None: the search forms it
+    Hd: np.ndarray | None = None
 
     @property
     def size(self) -> int:
@@ -81,10 +83,75 @@ class Rows:
 
 
 def event_rows(phase: Phase, mode: Mode) -> Rows:
+    """The event rows of a phase of configuration ``mode``, with H A_aug. Every row is a linear map of
+    the phase's q, q' and force maps plus a constant, and only their constant column (q_p, the constant
+    load) changes from phase to phase: the rest of H and H A_aug is formed once per (configuration,
+    mode) (:class:`_RowsPlan`; elastic rings' rows are formed per phase)."""
+    cfg = phase.config
+    if cfg.system.rings:
+        rows = _event_rows(phase, mode)
+        rows.Hd = rows.H @ phase.A_aug
+        return rows
+    plans = cfg.__dict__.setdefault("_rows_plans", {})
+    plan = plans.get(mode)
+    if plan is None:
+        plan = plans[mode] = _RowsPlan(phase, mode)
+    return plan.rows(phase)
+
+
+class _RowsPlan:
+    """The event rows of a (configuration, mode) as H = R_q Pq + R_v Pv + R_f Pf + K e_c (e_c the constant
+    component of xi), with R and K read off the rows built on identity maps; H and H A_aug but their
+    constant column formed once. A phase adds R_q q_p + R_f (its constant load's forces) + K to H's
+    constant column and H[:, :2r] B f0 to H A_aug's (the constant component has no derivative)."""
+
+    def __init__(self, phase: Phase, mode: Mode):
+        cfg = phase.config
+        n, nf = cfg.system.n, cfg.W.shape[1]
+        ident = _event_rows(_Basis(cfg, n, nf), mode)
+        self.kinds, self.contacts, self.detail = ident.kinds, ident.contacts, ident.detail
+        R = ident.H
+        self.Rq, self.Rv, self.Rf, self.K = R[:, :n], R[:, n:2 * n], R[:, 2 * n:2 * n + nf], R[:, -1]
+        self.c = c = 2 * cfg.r
+        Pq, Pv, Pf = phase.q_map().copy(), phase.v_map(), phase.force_map().copy()
+        Pq[:, c] = 0.0
+        Pf[:, c] = 0.0
+        self.H = self.Rq @ Pq + self.Rv @ Pv + self.Rf @ Pf
+        self.Hd = self.H @ cfg.A_aug_base
+
+    def rows(self, phase: Phase) -> Rows:
+        c = self.c
+        H, Hd = self.H.copy(), self.Hd.copy()
+        H[:, c] = self.Rq @ phase.qp + self.Rf @ phase.force_map()[:, c] + self.K
+        Hd[:, c] = H[:, :c] @ phase.A_aug[:c, c]
+        return Rows(H, self.kinds, self.contacts, self.detail, Hd)
+
+
+class _Basis:
+    """A stand-in phase of configuration ``cfg`` whose q, q' and force maps are identity blocks (columns: q,
+    q', lam, then the constant component): the rows built on it are their own coefficients."""
+
+    def __init__(self, cfg, n: int, nf: int):
+        eye = np.eye(2 * n + nf + 1)
+        self.config, self.dim, self.const = cfg, 2 * n + nf + 1, 2 * n + nf
+        self._maps = eye[:n], eye[n:2 * n], eye[2 * n:2 * n + nf]
+
+    def q_map(self):
+        return self._maps[0]
+
+    def v_map(self):
+        return self._maps[1]
+
+    def force_map(self):
+        return self._maps[2]
+
+
+def _event_rows(phase, mode: Mode) -> Rows:
+    """The rows of a phase (or of a :class:`_Basis`) built from its maps."""
     cfg = phase.config
     cs = cfg.system.contacts
     Pq, Pv, Pf = phase.q_map(), phase.v_map(), phase.force_map()
-    const = 2 * cfg.r  # index of the constant component of xi
+    const = getattr(phase, "const", 2 * cfg.r)  # index of the constant component of xi
     H, kinds, contacts, detail = [], [], [], []
 
     def add(row, kind, k, det=None):
@@ -148,7 +215,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     if rows.size == 0:
         return None
     H = rows.H
-    Hd = H @ phase.A_aug
+    Hd = H @ phase.A_aug if rows.Hd is None else rows.Hd
     if phase.config.fastest_rate() == 0.0 and phase.w == 0.0:
         return _polynomial_event(phase, rows, t_start, t_stop)
     # the size of the terms that make each row, over the next 4 periods of the fastest
@@ -447,6 +514,17 @@ def _hermite_min(f0, f1, d0, d1, dt):
 SLOPE = 384.0 * math.sqrt(3.0) / 216.0
 
 
+def _cubic_max(f0, f1, d0, d1, dt) -> float:
+    """The maximum over the interval of the Hermite cubic with end values f0, f1 and slopes d0, d1 (floats):
+    -:func:`_hermite_min` of the negated data, the same operations."""
+    c0, c1, c2, c3 = _cubic(-f0, -f1, -d0, -d1, dt)
+    low = min(-f0, -f1)
+    for r in _roots2(3.0 * c3, 2.0 * c2, c1):
+        if 0.0 < r < 1.0:
+            low = min(low, c0 + r * (c1 + r * (c2 + r * c3)))
+    return -low
+
+
 def _cubic_argmax(c0, c1, c2, c3) -> float:
     """Where on [0, 1] the cubic c0 + c1 s + c2 s^2 + c3 s^3 is largest (an end or a root of its
     derivative)."""
@@ -543,9 +621,16 @@ def _arm(row: "_Row", ts, h, hd, tol, bound4):
     """
     if ts.size < 2:
         return None
-    dt = np.diff(ts)
-    hmax = -_hermite_min(-h[:-1], -h[1:], -hd[:-1], -hd[1:], dt)
-    cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
+    if ts.size <= ROW_SCREEN + 1:
+        # a few intervals (the first chunk after an impact): the cubics' maxima in plain floats, as
+        # _hermite_min forms them (NumPy's calls would cost more than the arithmetic)
+        tl, hl, hdl = ts.tolist(), h.tolist(), hd.tolist()
+        hmax = [_cubic_max(hl[k], hl[k + 1], hdl[k], hdl[k + 1], tl[k + 1] - tl[k]) for k in range(len(tl) - 1)]
+        cand = [k for k in range(len(hmax)) if hl[k + 1] > tol or hmax[k] + bound4 > tol]
+    else:
+        dt = np.diff(ts)
+        hmax = -_hermite_min(-h[:-1], -h[1:], -hd[:-1], -hd[1:], dt)
+        cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
     for k in cand[:64]:
         a, b = ts[k], ts[k + 1]
         if hmax[k] - bound4 > tol:
