@@ -349,6 +349,19 @@ class Configuration:
             parts = self._force_parts = (self.Wpinv @ self.Rx, harmonic)
         return parts
 
+    def term_order(self, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """(speed, order, steady) of a phase's exponents nu (the modes', then the forcing's: the same for
+        every phase of this configuration, formed once): |nu|, the modes fastest first (stable), and
+        whether no term grows. Only modes are left out by a search, never the forcing's particular
+        solutions: the rows' direct harmonic terms stay, and without their particular solutions the kept
+        slope (from H A_aug) would no longer be the kept value's derivative."""
+        cached = self.__dict__.get("_term_order")
+        if cached is None or cached[0] is not nu:
+            speed = np.abs(nu)
+            order = np.argsort(-speed[: self.eig[0].size], kind="stable")
+            cached = self._term_order = (nu, speed, order, bool(np.all(nu.real <= 0.0)))
+        return cached[1:]
+
     def fastest_rate(self) -> float:
         """max |eigenvalue| of A [1/s] (0 without coordinates)."""
         return float(np.max(np.abs(self.eigenvalues), initial=0.0))
@@ -528,13 +541,11 @@ class Phase:
                               lambda order: self.derivative_bound(H, order, horizon))
         mot = self._modal
         HU = mot.U if H is None else H[:, :r2] @ mot.U   # formed once: for the sizes, the rows and their bound
-        size = np.abs(HU) * decay_factors(mot.nu, horizon, since)[None, :]
-        speed = np.abs(mot.nu)
-        # only modes are left out, never the forcing's particular solutions (the last columns, after the
-        # modes'): the rows' direct harmonic terms stay, and without their particular solutions the kept
-        # slope (from H A_aug) would no longer be the kept value's derivative
-        modes = self.config.eig[0].size
-        order = np.argsort(-speed[:modes], kind="stable")
+        speed, order, steady = self.config.term_order(mot.nu)
+        size = np.abs(HU)
+        if since or not steady:
+            size *= decay_factors(mot.nu, horizon, since)[None, :]
+        modes = order.size
         cum = np.cumsum(size[:, order], axis=1)
         fits = np.all(cum <= budget[:, None], axis=0)            # a prefix (cum is nondecreasing)
         n_drop = int(np.argmin(fits)) if not fits.all() else fits.size
