@@ -561,7 +561,9 @@ class Phase:
             rate = float(np.max(speed[keep], initial=0.0))
             for nodes, _ in mot.groups:
                 rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
-        renew = _renewal(mot.nu, size, order, n_drop, cum, budget, since)
+        # (a kept term that does not decay: no renewal)
+        renew = _renewal(mot.nu, size, order, n_drop, cum, budget, since) \
+            if n_drop < order.size and mot.nu[order[n_drop]].real < 0.0 else math.inf
 
         if H is None:
             return SearchPlan(self._states_of(kept), rate, e, None, renew)

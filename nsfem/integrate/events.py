@@ -291,7 +291,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
             # below -tol: a gap located with a previous phase's larger band)
             thr = np.where(armed, 0.0, np.minimum(-band, h[:, 0] - band))
         found = []
-        maybe, screens = _screened(ts, h - thr[:, None], hd, band, bound4)
+        maybe, (cross, turn, near), ok = _screened(ts, h - thr[:, None], hd, band, bound4)
         maybe |= ~armed
         # rows in the order of their first sample below threshold (a cheap lower bound of where
         # their root lies); a row whose first candidate interval starts after the earliest root
@@ -332,7 +332,8 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     ts2, h2, hd2 = after
                     res = _scan(row, ts2, h2, hd2, 0.0, band[i], _shorter(bound4[i], ts2, ts[1] - ts[0]), limit)
             else:
-                res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit, screen=screens[i])
+                res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit,
+                            screen=(cross[i], turn[i], near[i]) if ok[i] else None)
             if res is not None:
                 found.append((res[0], int(i), res[1], len(res) > 2))
                 limit = min(limit, res[0] + 1e-12 * max(1.0, abs(res[0])))
@@ -428,18 +429,18 @@ class _Coarse:
             j += 1
 
 
-def _screened(ts, f, hd, band, bound4) -> tuple[np.ndarray, list]:
-    """(maybe, screens): per row, False when :func:`_scan` certainly finds no candidate interval on
+def _screened(ts, f, hd, band, bound4) -> tuple[np.ndarray, tuple, np.ndarray]:
+    """(maybe, screens, ok): per row, False when :func:`_scan` certainly finds no candidate interval on
     these samples (no crossing, no near dip, nothing to subdivide: all rows screened at once, as each
-    scan would), True also for a row whose bound needs the local one (the matrix-exponential path);
-    and per row the (cross, turn, near) its scan of these samples would form (None for the latter)."""
+    scan would), True also for a row whose bound needs the local one (the matrix-exponential path, ok
+    False); and the (cross, turn, near) of all rows, row i's what its scan of these samples would form
+    where ok[i]."""
     dt = np.diff(ts)
     ok = bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH)   # depth 0: subdivided where the bound screens
     b4 = np.broadcast_to(bound4[:, None], (f.shape[0], dt.size))
     sub = np.broadcast_to(ok[:, None], b4.shape)
     cross, turn, near = _screen(dt, f, hd, band[:, None], b4, sub)
-    screens = [(cross[i], turn[i], near[i]) if ok[i] else None for i in range(f.shape[0])]
-    return ~ok | cross.any(axis=1) | near.any(axis=1), screens
+    return ~ok | cross.any(axis=1) | near.any(axis=1), (cross, turn, near), ok
 
 
 def round_off(H: np.ndarray, xis: np.ndarray, r2: int) -> np.ndarray:
