@@ -33,6 +33,7 @@ CASES = ("shipped", "stop", "rub_beta_1e-4", "rub_beta_1e-5")
 CHILD = r'''
 import json, math, sys, time
 case = sys.argv[1]
+import nsfem
 from nsfem.integrate import event_driven as ed
 parts = {"search": 0.0, "lcp": 0.0, "phase": 0.0, "energy": 0.0}
 
@@ -75,17 +76,22 @@ for k in parts:
 c0 = time.process_time()
 res, _ = run_scene(scene, "exact")
 cpu = time.process_time() - c0
-print(json.dumps({"wall_s": res.wall_s, "cpu_s": cpu, "events": len(res.events), "impacts": len(res.impacts),
+print(json.dumps({"nsfem": nsfem.__file__, "wall_s": res.wall_s, "cpu_s": cpu, "events": len(res.events), "impacts": len(res.impacts),
                   "energy_residual": res.energy["relative_residual"], "parts": parts,
                   "times": [e["t"] for e in res.events], "kinds": [e["kinds"] for e in res.events]}))
 '''
 
 
 def run(root: Path, case: str) -> dict:
+    root = Path(root).resolve()
     env = dict(os.environ, PYTHONPATH=str(root), MPLBACKEND="Agg")
+    # (run from the checkout's root: ``python -c`` puts the working folder first on sys.path)
     out = subprocess.run([sys.executable, "-c", CHILD, case, str(root / "tests")], env=env, capture_output=True,
-                         text=True, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+                         text=True, check=True, cwd=root)
+    found = json.loads(out.stdout.strip().splitlines()[-1])
+    if not Path(found["nsfem"]).resolve().is_relative_to(root):
+        raise RuntimeError(f"{root}: the child imported {found['nsfem']}")
+    return found
 
 
 def main(argv=None) -> dict:

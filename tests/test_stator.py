@@ -82,8 +82,8 @@ def test_full_annular_rub_is_a_stationary_state(facets):
 
 
 def test_a_damped_transient_from_rest_ends_in_the_stationary_rub():
-    # beta damps the shaft's own modes (zeta about 0.5 at 1e5 rad/s); a larger beta overdamps them, and the
-    # search then samples at their decay rate (1e6 1/s and more) long after they have died out
+    # beta damps the shaft's own modes (zeta about 0.5 at 1e5 rad/s); a larger beta overdamps them (the test
+    # below: the search samples at their decay rate only until they have died out)
     scene = scene_from_tree(rub_tree(16, beta=1e-5, simulation={"t_end": 4.0, "output_dt": 1e-3}))
     st = scene_stationary(scene)
     res, _ = run_scene(scene, "exact")

@@ -31,7 +31,9 @@ path), a local one is formed from the state at each sample (A_aug balanced, Tayl
 remainder). Roots are refined to round-off by Newton's method kept inside the sign change's bracket,
 from the Hermite cubic's root, on the whole row read from the state; after 3 subdivisions (4096 times finer than the step) the refined root
 is taken as it is. Terms that no row's band can notice (a quarter of it over the horizon) do not
-set the step; once every row is armed, a coarse pass (:class:`_Coarse`) leaves out the modes each
+set the step; a decaying term counts at its size where the search has come (its bound over the rest
+of the horizon), so the search re-plans once the fastest term it follows has decayed into that quarter
+(an overdamped stiff mode after an impact then stops setting the step); once every row is armed, a coarse pass (:class:`_Coarse`) leaves out the modes each
 row barely sees (1e-3 of its terms) and skips the stretches where the rest stays above the band
 by more than their bound: a stiff mode then sets the step only near a root. tests/test_event_search.py
 checks the search against a dense brute-force scan of random phases. A dip
