@@ -11,7 +11,7 @@ Cases: the shipped scene 1 s; the stop scene of studies/work_precision.py (a sto
 midspan, restitution 0.5) 0.05 s; the rub of tests/test_stator.py (16 facets, Craig-Bampton 4) with
 Rayleigh beta 1e-4 (its stiff modes overdamped) and 1e-5, 4 s.
 
-    python studies/side_by_side.py --base /path/to/other/checkout [--repeat 3] [--json] [--cases stop,...]
+    python studies/side_by_side.py --base /path/to/other/checkout [--repeat 3] [--quick] [--json] [--cases stop,...]
 
 Prints a table (and with ``--json`` one object {case: {"base": {...}, "this": {...}}}); writes
 side_by_side.json/.csv into studies/out/side_by_side.
@@ -98,10 +98,13 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--base", type=Path, required=True, help="the other checkout (its root folder)")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--quick", action="store_true", help="one run each (about 30 s; the base's beta 1e-4 rub most)")
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
+    if args.quick:
+        args.repeat = 1
     this = HERE.parent
     found: dict = {}
     rows = []
