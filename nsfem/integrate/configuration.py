@@ -428,6 +428,8 @@ class Phase:
         self.A_aug = config.A_aug_base.copy()
         self.A_aug[: 2 * r, 2 * r] = Bf0 = config.B @ f0
         self._modal = self.amplitudes = None
+        #: samples the event search evaluated on this phase (its fine passes; set by ``events.first_event``)
+        self.search_samples = 0
         if config.plan is not None:
             self._modal = self._motion(Bf0)
         if self._modal is None:
