@@ -84,13 +84,19 @@ class Rows:
         return len(self.kinds)
 
 
+#: the rows' coefficients are read off identity maps of this size at most (an unreduced model's would
+#: take n^2 memory: its rows are built per phase, as their products cost more than the set-up anyway)
+ROWS_PLAN_MAX = 1024
+
+
 def event_rows(phase: Phase, mode: Mode) -> Rows:
     """The event rows of a phase of configuration ``mode``, with H A_aug. Every row is a linear map of
     the phase's q, q' and force maps plus a constant, and only their constant column (q_p, the constant
     load) changes from phase to phase: the rest of H and H A_aug is formed once per (configuration,
-    mode) (:class:`_RowsPlan`; elastic rings' rows are formed per phase)."""
+    mode) (:class:`_RowsPlan`; elastic rings' rows, and those of a model of more than ROWS_PLAN_MAX / 2
+    coordinates, are formed per phase)."""
     cfg = phase.config
-    if cfg.system.rings:
+    if cfg.system.rings or 2 * cfg.system.n + cfg.W.shape[1] >= ROWS_PLAN_MAX:
         rows = _event_rows(phase, mode)
         rows.Hd = rows.H @ phase.A_aug
         return rows
