@@ -1,18 +1,20 @@
-"""The exact method's run time, side by side: a baseline commit, this tree's pure-Python event core and its
-compiled core, measured in one run (issue 33).
+"""The exact method's cost, side by side with another checkout of nsfem (issue 33, "cheap first").
 
-Each version runs in its own interpreter (``PYTHONPATH`` set to its source tree: the baseline is checked out
-into a temporary ``git worktree``; this tree needs its compiled core built in place, ``python setup.py
-build_ext --inplace``, or installed), one after the other per case and repetition, so the machine's load
-falls on all of them alike; the best of ``--repeat`` runs is kept. Reported per case and version: the
-integration's wall time (``Result.wall_s``: what the event core changes; the model's assembly and reduction
-are the same in all), events, ms per event, energy residual; and the ratios baseline / compiled and
-pure Python / compiled. The event sequences of the versions are compared (count, kinds; largest relative
-difference of the event times).
+Each case runs in a child process per checkout (its own PYTHONPATH, so each imports its own code),
+alternating the two, best of ``--repeat`` runs (the machine is shared: the best run is the one least
+disturbed). Per run: the wall time of the integration (``Result.wall_s``), the process's CPU time over
+the same span, the events, and a breakdown of the integration's wall time by part, timed in the run
+around the integrator's own functions (search: ``first_event``; LCPs: ``resolve``; phase set-up:
+``_phase`` and ``event_rows``; energy: ``_energy``; the rest: outputs, checks, the loop itself).
 
-    python studies/side_by_side.py [--baseline REV] [--repeat N] [--quick] [--json] [--cases a,b,...]
+Cases: the shipped scene 1 s; the stop scene of studies/work_precision.py (a stop 0.2 mm under
+midspan, restitution 0.5) 0.05 s; the rub of tests/test_stator.py (16 facets, Craig-Bampton 4) with
+Rayleigh beta 1e-4 (its stiff modes overdamped) and 1e-5, 4 s.
 
-Writes side_by_side.json/.csv into studies/out/side_by_side.
+    python studies/side_by_side.py --base /path/to/other/checkout [--repeat 3] [--quick] [--json] [--cases stop,...]
+
+Prints a table (and with ``--json`` one object {case: {"base": {...}, "this": {...}}}); writes
+side_by_side.json/.csv into studies/out/side_by_side.
 """
 
 from __future__ import annotations
@@ -22,118 +24,124 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
-from study_io import machine, write_outputs
-
-ROOT = Path(__file__).resolve().parents[1]
-STOP = 'obstacle=[{x=0.5, normal="-z", clearance=2e-4, restitution=0.5}]'
-
-#: name: (scene, overrides, quick overrides)
-CASES = {
-    "shipped": ("default", ["simulation.t_end=1.0"], ["simulation.t_end=1.0"]),
-    "stop": ("default", [STOP, "simulation.t_end=0.05"], [STOP, "simulation.t_end=0.05"]),
-    "friction": ("default", ["delamination.0.friction=0.3", "simulation.t_end=1.0"],
-                 ["delamination.0.friction=0.3", "simulation.t_end=0.3"]),
-    "crack": ("crack", [], ["simulation.t_end=0.2"]),
-    "rub": ("rub", [], ["simulation.t_end=0.3"]),
-    "retainer_drop": ("retainer_drop", [], ["simulation.t_end=0.05"]),
-}
+HERE = Path(__file__).resolve().parent
+OUT = HERE / "out" / "side_by_side"
+CASES = ("shipped", "stop", "rub_beta_1e-4", "rub_beta_1e-5")
 
 CHILD = r'''
-import json, sys
-from nsfem import load_scene
+import json, math, sys, time
+case = sys.argv[1]
+import nsfem
+from nsfem.integrate import event_driven as ed
+parts = {"search": 0.0, "lcp": 0.0, "phase": 0.0, "energy": 0.0}
+
+def timed(owner, name, part, method=False):
+    f = getattr(owner, name)
+    if method:
+        def wrap(self, *a, **k):
+            t = time.perf_counter()
+            try:
+                return f(self, *a, **k)
+            finally:
+                parts[part] += time.perf_counter() - t
+    else:
+        def wrap(*a, **k):
+            t = time.perf_counter()
+            try:
+                return f(*a, **k)
+            finally:
+                parts[part] += time.perf_counter() - t
+    setattr(owner, name, wrap)
+
+timed(ed, "first_event", "search")
+timed(ed, "resolve", "lcp")
+timed(ed, "event_rows", "phase")
+timed(ed.EventDriven, "_phase", "phase", True)
+timed(ed.EventDriven, "_energy", "energy", True)
+if case.startswith("rub"):
+    sys.path.insert(0, sys.argv[2])
+    from test_stator import rub_tree
+    from nsfem.scene import scene_from_tree
+    scene = scene_from_tree(rub_tree(16, beta=float(case.split("_")[-1]), simulation={"t_end": 4.0, "output_dt": 1e-3}))
+else:
+    from nsfem import load_scene
+    ov = {"shipped": ["simulation.t_end=1.0"],
+          "stop": ['obstacle=[{x=0.5, normal="-z", clearance=2e-4, restitution=0.5}]', "simulation.t_end=0.05"]}[case]
+    scene = load_scene(None, ov)
 from nsfem.simulate import run_scene
-try:
-    from nsfem.integrate import core
-    name = core.name()
-except ImportError:
-    name = "pure Python (before the compiled core)"
-scene, overrides = sys.argv[1], json.loads(sys.argv[2])
-res, _ = run_scene(load_scene(scene, overrides), "exact")
-print(json.dumps({"wall_s": res.wall_s, "events": len(res.events), "impacts": len(res.impacts),
-                  "times": [e["t"] for e in res.events], "kinds": [e["kinds"] for e in res.events],
-                  "energy_residual": res.energy.get("relative_residual"), "core": name}))
+for k in parts:
+    parts[k] = 0.0
+c0 = time.process_time()
+res, _ = run_scene(scene, "exact")
+cpu = time.process_time() - c0
+print(json.dumps({"nsfem": nsfem.__file__, "wall_s": res.wall_s, "cpu_s": cpu, "events": len(res.events), "impacts": len(res.impacts),
+                  "energy_residual": res.energy["relative_residual"], "parts": parts,
+                  "times": [e["t"] for e in res.events], "kinds": [e["kinds"] for e in res.events]}))
 '''
 
 
-def versions(baseline: str | None, tmp: Path) -> list[tuple[str, Path, dict]]:
-    """(label, source tree, extra environment) of each version to run."""
-    out = []
-    if baseline:
-        tree = tmp / "baseline"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), baseline], check=True)
-        out.append((f"baseline {baseline}", tree, {"NSFEM_PURE_PYTHON": "1"}))
-    out.append(("pure Python", ROOT, {"NSFEM_PURE_PYTHON": "1"}))
-    out.append(("compiled", ROOT, {"NSFEM_PURE_PYTHON": "0"}))
-    return out
+def run(root: Path, case: str) -> dict:
+    root = Path(root).resolve()
+    env = dict(os.environ, PYTHONPATH=str(root), MPLBACKEND="Agg")
+    # (run from the checkout's root: ``python -c`` puts the working folder first on sys.path)
+    out = subprocess.run([sys.executable, "-c", CHILD, case, str(root / "tests")], env=env, capture_output=True,
+                         text=True, check=True, cwd=root)
+    found = json.loads(out.stdout.strip().splitlines()[-1])
+    if not Path(found["nsfem"]).resolve().is_relative_to(root):
+        raise RuntimeError(f"{root}: the child imported {found['nsfem']}")
+    return found
 
 
-def run_one(tree: Path, extra: dict, scene: str, overrides: list) -> dict:
-    env = {**os.environ, **extra, "PYTHONPATH": str(tree), "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
-    done = subprocess.run([sys.executable, "-c", CHILD, scene, json.dumps(overrides)], env=env, cwd=tree,
-                          capture_output=True, text=True, timeout=3600)
-    if done.returncode != 0:
-        raise SystemExit(f"side_by_side: {scene} {overrides} failed in {tree}:\n{done.stderr[-2000:]}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
-def compare(a: dict, b: dict) -> dict:
-    """Whether two runs have the same event sequence, and their largest relative event-time difference."""
-    same = a["events"] == b["events"] and a["kinds"] == b["kinds"]
-    dt = max((abs(x - y) / max(1.0, abs(x)) for x, y in zip(a["times"], b["times"])), default=0.0)
-    return {"same_sequence": same, "max_time_diff_rel": dt}
-
-
-def main(argv=None) -> int:
+def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--baseline", default=None, help="a git revision to run beside this tree (e.g. 1b69cae)")
+    ap.add_argument("--base", type=Path, required=True, help="the other checkout (its root folder)")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--quick", action="store_true", help="shorter runs of the long scenes")
-    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="one run each (about 30 s; the base's beta 1e-4 rub most)")
     ap.add_argument("--cases", default=",".join(CASES))
-    ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "side_by_side"))
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
-    names = [c for c in args.cases.split(",") if c]
-    unknown = [c for c in names if c not in CASES]
-    if unknown:
-        ap.error(f"unknown case(s) {unknown}; known: {', '.join(CASES)}")
+    if args.quick:
+        args.repeat = 1
+    this = HERE.parent
+    found: dict = {}
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        vers = versions(args.baseline, Path(tmp))
-        try:
-            for case in names:
-                scene, full, quick = CASES[case]
-                overrides = quick if args.quick else full
-                best: dict = {}
-                for _ in range(args.repeat):
-                    for label, tree, extra in vers:
-                        r = run_one(tree, extra, scene, overrides)
-                        if label not in best or r["wall_s"] < best[label]["wall_s"]:
-                            best[label] = r
-                comp = best["compiled"]
-                for label, _, _ in vers:
-                    r = best[label]
-                    row = {"case": case, "version": label, "core": r["core"], "wall_s": r["wall_s"],
-                           "events": r["events"], "impacts": r["impacts"],
-                           "ms_per_event": 1e3 * r["wall_s"] / max(r["events"], 1),
-                           "energy_residual": r["energy_residual"], "over_compiled": r["wall_s"] / comp["wall_s"],
-                           **compare(r, comp)}
-                    rows.append(row)
-                    if not args.json:
-                        print("  ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()),
-                              flush=True)
-        finally:
-            if args.baseline:
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(Path(tmp) / "baseline")],
-                               check=False)
-    payload = {"machine": machine(), "baseline": args.baseline, "repeat": args.repeat, "quick": args.quick, "rows": rows}
-    write_outputs(Path(args.out), "side_by_side", rows, payload)
+    for case in args.cases.split(","):
+        best: dict = {}
+        for _ in range(args.repeat):
+            for name, root in (("base", args.base), ("this", this)):
+                r = run(root, case)
+                if name not in best or r["wall_s"] < best[name]["wall_s"]:
+                    best[name] = r
+        b, t = best["base"], best["this"]
+        same = b["kinds"] == t["kinds"]
+        dt = max((abs(x - y) / max(abs(x), 1e-300) for x, y in zip(b["times"], t["times"])), default=0.0)
+        entry = {"base": {k: v for k, v in b.items() if k not in ("times", "kinds")},
+                 "this": {k: v for k, v in t.items() if k not in ("times", "kinds")},
+                 "same_event_kinds": same, "max_relative_time_difference": dt if same else None,
+                 "ratio_wall": b["wall_s"] / t["wall_s"]}
+        found[case] = entry
+        for name, r in (("base", b), ("this", t)):
+            rows.append({"case": case, "version": name, "wall_s": r["wall_s"], "cpu_s": r["cpu_s"],
+                         "events": r["events"], "ms_per_event": 1e3 * r["wall_s"] / max(r["events"], 1),
+                         **{f"{k}_s": v for k, v in r["parts"].items()}})
+        print(f"{case:14s} base {b['wall_s']:.3f} s (cpu {b['cpu_s']:.3f}) this {t['wall_s']:.3f} s "
+              f"(cpu {t['cpu_s']:.3f}) x{entry['ratio_wall']:.2f}; events {b['events']} / {t['events']}, "
+              f"same kinds {same}, times within {dt:.1e}", file=sys.stderr, flush=True)
+        for name, r in (("base", b), ("this", t)):
+            n = max(r["events"], 1)
+            per = ", ".join(f"{k} {1e3 * v / n:.3f}" for k, v in r["parts"].items())
+            print(f"    {name}: ms/event {1e3 * r['wall_s'] / n:.3f} ({per})", file=sys.stderr)
+    sys.path.insert(0, str(HERE))
+    from study_io import machine, write_outputs
+
+    write_outputs(args.out, "side_by_side", rows, {"machine": machine(), "base": str(args.base), **found})
     if args.json:
-        print(json.dumps(payload, indent=1))
-    return 0
+        print(json.dumps(found))
+    return found
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -121,14 +121,24 @@ class Motion:
             out += np.real(DD @ divided_exp(nodes, tau))
         return out
 
-    def bound(self, H: np.ndarray | None, order: int, horizon: float) -> np.ndarray:
-        """Per row of H x (of x without H), a bound of its order-th derivative on [0, horizon]."""
+    def bound(self, H: np.ndarray | None, order: int, horizon: float, since: float = 0.0) -> np.ndarray:
+        """Per row of H x (of x without H), a bound of its order-th derivative on [since, horizon]: a
+        growing term at its size at the horizon, a decaying one at its size at ``since`` (a divided-
+        difference group at its bound over [0, horizon])."""
         with np.errstate(over="ignore"):
-            grow = np.exp(np.maximum(self.nu.real, 0.0) * horizon)
+            grow = decay_factors(self.nu, horizon, since)
             b = np.abs(self.U if H is None else H @ self.U) @ (np.abs(self.nu) ** order * grow)
             for nodes, D in self.groups:
                 b = b + np.abs(D if H is None else H @ D) @ divided_exp_bound(nodes, order, horizon)
         return b
+
+
+def decay_factors(nu: np.ndarray, horizon: float, since: float = 0.0) -> np.ndarray:
+    """max |e^{nu tau}| over tau in [since, horizon] per exponent: e^{Re(nu) horizon} for a growing
+    term, e^{Re(nu) since} for a decaying one (1 for a steady one)."""
+    with np.errstate(over="ignore"):
+        re = nu.real
+        return np.exp(np.where(re > 0.0, re * horizon, re * since))
 
 
 def exponentials(nu: np.ndarray, tau: np.ndarray) -> np.ndarray:

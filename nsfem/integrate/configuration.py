@@ -32,7 +32,7 @@ import scipy.linalg as sla
 
 from ..errors import NsfemError
 from . import core
-from .closed_form import ModalPlan, Motion, divided_exp
+from .closed_form import ModalPlan, Motion, decay_factors, divided_exp
 from .problem import ContactSystem
 
 #: relative singular value below which a constraint direction is redundant
@@ -361,9 +361,71 @@ class Configuration:
         """q_p with G^T q_p + g0 = 0 (least norm)."""
         return -self.Gpinv @ g0 if g0.size else np.zeros(self.system.n)
 
+    def force_parts(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Wpinv Rx, the harmonic loads' Wpinv Rphi f as columns): the parts of every phase's force map
+        that the configuration fixes (formed once)."""
+        parts = self.__dict__.get("_force_parts")
+        if parts is None:
+            harmonic = np.column_stack([self.Wpinv @ (self.Rphi @ f) for f in self.loads]) if self.loads else \
+                np.zeros((self.W.shape[1], 0))
+            parts = self._force_parts = (self.Wpinv @ self.Rx, harmonic)
+        return parts
+
+    def term_order(self, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """(speed, order, steady) of a phase's exponents nu (the modes', then the forcing's: the same for
+        every phase of this configuration, formed once): |nu|, the modes fastest first (stable), and
+        whether no term grows. Only modes are left out by a search, never the forcing's particular
+        solutions: the rows' direct harmonic terms stay, and without their particular solutions the kept
+        slope (from H A_aug) would no longer be the kept value's derivative."""
+        cached = self.__dict__.get("_term_order")
+        if cached is None or cached[0] is not nu:
+            speed = np.abs(nu)
+            order = np.argsort(-speed[: self.eig[0].size], kind="stable")
+            cached = self._term_order = (nu, speed, order, bool(np.all(nu.real <= 0.0)))
+        return cached[1:]
+
     def fastest_rate(self) -> float:
         """max |eigenvalue| of A [1/s] (0 without coordinates)."""
         return float(np.max(np.abs(self.eigenvalues), initial=0.0))
+
+
+@dataclass
+class SearchPlan:
+    """What :meth:`Phase.search_plan` gives a search: ``rows(t)`` (the rows without the terms left
+    out), the fastest ``rate`` kept, ``e`` the left-out terms' bound per row, ``bound(order)`` the kept
+    part's derivative bound per row (None for xi itself), ``renew`` (from the phase's start) the time
+    from which a new plan leaves out more."""
+
+    rows: object
+    rate: float
+    e: np.ndarray
+    bound: object
+    renew: float = math.inf
+
+
+def _renewal(nu, size, order, n_drop, cum, budget, since) -> float:
+    """The tau (>= since) from which the fastest terms kept (those of order[n_drop]'s speed), if they
+    decay, fit the budget next to those already left out: sizes at since times e^{Re(nu) (tau - since)}
+    (the left-out ones decay or stay: their sum at since bounds it later too); inf if they do not decay
+    or no term is left to leave out."""
+    if n_drop >= order.size:
+        return math.inf
+    speed = np.abs(nu[order])
+    group = order[n_drop:][speed[n_drop:] == speed[n_drop]]
+    rate = float(np.max(nu[group].real))
+    if not rate < 0.0:
+        return math.inf
+    s = size[:, group].sum(axis=1)
+    room = budget - (cum[:, n_drop - 1] if n_drop else 0.0)
+    need = s > 0.0
+    if not np.any(need):
+        return math.inf
+    if np.any(room[need] <= 0.0):
+        return math.inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(need, s / np.where(need, room, 1.0), 0.0)
+    wait = float(np.log(ratio.max())) / -rate
+    return since + wait if wait > 0.0 else math.inf   # (it would fit already: nothing to wait for)
 
 
 class Phase:
@@ -393,6 +455,8 @@ class Phase:
         self.A_aug[: 2 * r, 2 * r] = Bf0
         self._modal = self.amplitudes = None
         self._xi_kernel = None
+        #: samples the event search evaluated on this phase (its fine passes; set by ``events.first_event``)
+        self.search_samples = 0
         if config.plan is not None:
             self._modal = self._motion(Bf0, kernel)
             if kernel is not None:   # _xi_at's modal sum compiled: the kernel and its arrays' float views
@@ -501,28 +565,32 @@ class Phase:
         return rows
 
     def search_map(self, H: np.ndarray, budget: np.ndarray, horizon: float):
-        """(rows, rate, e, bound): ``rows(t)`` = H xi(t) without the fastest exponential terms whose
-        contributions to row i sum to at most budget[i] over the horizon (e[i] that sum), ``rate``
-        the fastest rate left (it sets the sampling step), ``bound(order)`` per row of H the bound of
-        the order-th derivative of what is left over the horizon. Without a modal form: the full rows.
-        H None: xi itself (budget per component of its modal part; for quadratures)."""
+        """(rows, rate, e, bound) of :meth:`search_plan` over the whole horizon."""
+        plan = self.search_plan(H, budget, horizon)
+        return plan.rows, plan.rate, plan.e, plan.bound
+
+    def search_plan(self, H: np.ndarray | None, budget: np.ndarray, horizon: float, since: float = 0.0) -> SearchPlan:
+        """The rows H xi(t) a search follows over tau = t - t0 in [since, horizon]: without the fastest
+        exponential terms whose contributions to row i sum to at most budget[i] there (e[i] that sum; a
+        decaying term counts at its size at ``since``, a growing one at the horizon), ``rate`` the fastest
+        rate left (it sets the sampling step), ``bound(order)`` per row of H the bound of the order-th
+        derivative of what is left on [since, horizon], ``renew`` the tau from which the fastest term
+        kept, if it decays, has decayed into the budget (a plan from there leaves it out; inf if never).
+        Without a modal form: the full rows. H None: xi itself (budget per component of its modal part;
+        for quadratures)."""
         r2 = 2 * self.config.r
         if H is None and (not r2 or self._modal is None):
-            return self.xi, self.config.fastest_rate(), np.zeros(self.dim), None
+            return SearchPlan(self.xi, self.config.fastest_rate(), np.zeros(self.dim), None)
         if not r2 or self._modal is None:
-            return (self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]),
-                    lambda order: self.derivative_bound(H, order, horizon))
+            return SearchPlan(self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]),
+                              lambda order: self.derivative_bound(H, order, horizon))
         mot = self._modal
         HU = mot.U if H is None else H[:, :r2] @ mot.U   # formed once: for the sizes, the rows and their bound
-        with np.errstate(over="ignore"):
-            grow = np.exp(np.maximum(mot.nu.real, 0.0) * horizon)
-        size = np.abs(HU) * grow[None, :]
-        speed = np.abs(mot.nu)
-        # only modes are left out, never the forcing's particular solutions (the last columns, after the
-        # modes'): the rows' direct harmonic terms stay, and without their particular solutions the kept
-        # slope (from H A_aug) would no longer be the kept value's derivative
-        modes = self.config.eig[0].size
-        order = np.argsort(-speed[:modes], kind="stable")
+        speed, order, steady = self.config.term_order(mot.nu)
+        size = np.abs(HU)
+        if since or not steady:
+            size *= decay_factors(mot.nu, horizon, since)[None, :]
+        modes = order.size
         cum = np.cumsum(size[:, order], axis=1)
         fits = np.all(cum <= budget[:, None], axis=0)            # a prefix (cum is nondecreasing)
         n_drop = int(np.argmin(fits)) if not fits.all() else fits.size
@@ -538,17 +606,20 @@ class Phase:
             rate = float(np.max(speed[keep], initial=0.0))
             for nodes, _ in mot.groups:
                 rate = max(rate, float(np.max(np.abs(nodes), initial=0.0)))
+        # (a kept term that does not decay: no renewal)
+        renew = _renewal(mot.nu, size, order, n_drop, cum, budget, since) \
+            if n_drop < order.size and mot.nu[order[n_drop]].real < 0.0 else math.inf
 
         if H is None:
-            return self._states_of(kept), rate, e, None
+            return SearchPlan(self._states_of(kept), rate, e, None, renew)
 
         def bound(order_):
-            b = kept.bound(None, order_, horizon)
+            b = kept.bound(None, order_, horizon, since)
             if self.w:
                 b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * self.w ** order_
             return b
 
-        return self._rows_of(kept, H[:, r2:]), rate, e, bound
+        return SearchPlan(self._rows_of(kept, H[:, r2:]), rate, e, bound, renew)
 
     def pruned_xi(self, rel: float, horizon: float):
         """(xi_fun, rate): xi(t) without the fastest terms whose sum stays below ``rel`` of the
@@ -629,11 +700,15 @@ class Phase:
 
     # -- maps ----------------------------------------------------------------------
     def q_map(self) -> np.ndarray:
-        """q = Pq xi."""
-        cfg, r = self.config, self.config.r
-        P = np.zeros((self.system_n, self.dim))
-        P[:, :r] = cfg.N
-        P[:, 2 * r] = self.qp   # the constant component is 1
+        """q = Pq xi (formed once per phase, read-only)."""
+        P = self.__dict__.get("_Pq")
+        if P is None:
+            cfg, r = self.config, self.config.r
+            P = np.zeros((self.system_n, self.dim))
+            P[:, :r] = cfg.N
+            P[:, 2 * r] = self.qp   # the constant component is 1
+            P.flags.writeable = False
+            self._Pq = P
         return P
 
     @property
@@ -641,22 +716,30 @@ class Phase:
         return self.config.system.n
 
     def v_map(self) -> np.ndarray:
-        cfg, r = self.config, self.config.r
-        P = np.zeros((self.system_n, self.dim))
-        P[:, r: 2 * r] = cfg.N
+        """q' = Pv xi (formed once per phase, read-only)."""
+        P = self.__dict__.get("_Pv")
+        if P is None:
+            cfg, r = self.config, self.config.r
+            P = np.zeros((self.system_n, self.dim))
+            P[:, r: 2 * r] = cfg.N
+            P.flags.writeable = False
+            self._Pv = P
         return P
 
     def force_map(self) -> np.ndarray:
-        """lam (constraint forces, one per row of the configuration) = P xi."""
-        cfg, r = self.config, self.config.r
-        P = np.zeros((cfg.W.shape[1], self.dim))
-        if not cfg.W.shape[1]:
-            return P
-        P[:, : 2 * r] = cfg.Wpinv @ cfg.Rx
-        for j, f in enumerate(self.forcing):
-            P[:, 2 * r + j] = cfg.Wpinv @ (cfg.Rphi @ f)
+        """lam (constraint forces, one per row of the configuration) = P xi (formed once per phase, read-only;
+        its columns but the constant load's once per configuration)."""
+        P = self.__dict__.get("_Pf")
+        if P is None:
+            cfg, r = self.config, self.config.r
+            P = np.zeros((cfg.W.shape[1], self.dim))
+            if cfg.W.shape[1]:
+                P[:, : 2 * r], harmonic = cfg.force_parts()
+                P[:, 2 * r] = cfg.Wpinv @ (cfg.Rphi @ self.forcing[0])
+                P[:, 2 * r + 1:] = harmonic
+            P.flags.writeable = False
+            self._Pf = P
         return P
-
 
     def max_step(self, horizon: float, rate: float | None = None) -> float:
         """Sampling step for event search: 1/8 of the fastest period (or time constant), of the

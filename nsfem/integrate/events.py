@@ -31,7 +31,9 @@ path), a local one is formed from the state at each sample (A_aug balanced, Tayl
 remainder). Roots are refined to round-off by Newton's method kept inside the sign change's bracket,
 from the Hermite cubic's root, on the whole row read from the state; after 3 subdivisions (4096 times finer than the step) the refined root
 is taken as it is. Terms that no row's band can notice (a quarter of it over the horizon) do not
-set the step; once every row is armed, a coarse pass (:class:`_Coarse`) leaves out the modes each
+set the step; a decaying term counts at its size where the search has come (its bound over the rest
+of the horizon), so the search re-plans once the fastest term it follows has decayed into that quarter
+(an overdamped stiff mode after an impact then stops setting the step); once every row is armed, a coarse pass (:class:`_Coarse`) leaves out the modes each
 row barely sees (1e-3 of its terms) and skips the stretches where the rest stays above the band
 by more than their bound: a stiff mode then sets the step only near a root. tests/test_event_search.py
 checks the search against a dense brute-force scan of random phases. A dip
@@ -75,17 +77,90 @@ class Rows:
     kinds: list
     contacts: list
     detail: list | None = None
+    #: H A_aug when formed with H (:func:`event_rows`); None: the search forms it
+    Hd: np.ndarray | None = None
 
     @property
     def size(self) -> int:
         return len(self.kinds)
 
 
+#: the rows' coefficients are read off identity maps of this size at most (an unreduced model's would
+#: take n^2 memory: its rows are built per phase, as their products cost more than the set-up anyway)
+ROWS_PLAN_MAX = 1024
+
+
 def event_rows(phase: Phase, mode: Mode) -> Rows:
+    """The event rows of a phase of configuration ``mode``, with H A_aug. Every row is a linear map of
+    the phase's q, q' and force maps plus a constant, and only their constant column (q_p, the constant
+    load) changes from phase to phase: the rest of H and H A_aug is formed once per (configuration,
+    mode) (:class:`_RowsPlan`; elastic rings' rows, and those of a model of more than ROWS_PLAN_MAX / 2
+    coordinates, are formed per phase)."""
+    cfg = phase.config
+    if cfg.system.rings or 2 * cfg.system.n + cfg.W.shape[1] >= ROWS_PLAN_MAX:
+        rows = _event_rows(phase, mode)
+        rows.Hd = rows.H @ phase.A_aug
+        return rows
+    plans = cfg.__dict__.setdefault("_rows_plans", {})
+    plan = plans.get(mode)
+    if plan is None:
+        plan = plans[mode] = _RowsPlan(phase, mode)
+    return plan.rows(phase)
+
+
+class _RowsPlan:
+    """The event rows of a (configuration, mode) as H = R_q Pq + R_v Pv + R_f Pf + K e_c (e_c the constant
+    component of xi), with R and K read off the rows built on identity maps; H and H A_aug but their
+    constant column formed once. A phase adds R_q q_p + R_f (its constant load's forces) + K to H's
+    constant column and H[:, :2r] B f0 to H A_aug's (the constant component has no derivative)."""
+
+    def __init__(self, phase: Phase, mode: Mode):
+        cfg = phase.config
+        n, nf = cfg.system.n, cfg.W.shape[1]
+        ident = _event_rows(_Basis(cfg, n, nf), mode)
+        self.kinds, self.contacts, self.detail = ident.kinds, ident.contacts, ident.detail
+        R = ident.H
+        self.Rq, self.Rv, self.Rf, self.K = R[:, :n], R[:, n:2 * n], R[:, 2 * n:2 * n + nf], R[:, -1]
+        self.c = c = 2 * cfg.r
+        Pq, Pv, Pf = phase.q_map().copy(), phase.v_map(), phase.force_map().copy()
+        Pq[:, c] = 0.0
+        Pf[:, c] = 0.0
+        self.H = self.Rq @ Pq + self.Rv @ Pv + self.Rf @ Pf
+        self.Hd = self.H @ cfg.A_aug_base
+
+    def rows(self, phase: Phase) -> Rows:
+        c = self.c
+        H, Hd = self.H.copy(), self.Hd.copy()
+        H[:, c] = self.Rq @ phase.qp + self.Rf @ phase.force_map()[:, c] + self.K
+        Hd[:, c] = H[:, :c] @ phase.A_aug[:c, c]
+        return Rows(H, self.kinds, self.contacts, self.detail, Hd)
+
+
+class _Basis:
+    """A stand-in phase of configuration ``cfg`` whose q, q' and force maps are identity blocks (columns: q,
+    q', lam, then the constant component): the rows built on it are their own coefficients."""
+
+    def __init__(self, cfg, n: int, nf: int):
+        eye = np.eye(2 * n + nf + 1)
+        self.config, self.dim, self.const = cfg, 2 * n + nf + 1, 2 * n + nf
+        self._maps = eye[:n], eye[n:2 * n], eye[2 * n:2 * n + nf]
+
+    def q_map(self):
+        return self._maps[0]
+
+    def v_map(self):
+        return self._maps[1]
+
+    def force_map(self):
+        return self._maps[2]
+
+
+def _event_rows(phase, mode: Mode) -> Rows:
+    """The rows of a phase (or of a :class:`_Basis`) built from its maps."""
     cfg = phase.config
     cs = cfg.system.contacts
     Pq, Pv, Pf = phase.q_map(), phase.v_map(), phase.force_map()
-    const = 2 * cfg.r  # index of the constant component of xi
+    const = getattr(phase, "const", 2 * cfg.r)  # index of the constant component of xi
     H, kinds, contacts, detail = [], [], [], []
 
     def add(row, kind, k, det=None):
@@ -152,7 +227,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     if rows.size == 0:
         return None
     H = rows.H
-    Hd = H @ phase.A_aug
+    Hd = H @ phase.A_aug if rows.Hd is None else rows.Hd
     if phase.config.fastest_rate() == 0.0 and phase.w == 0.0:
         return _polynomial_event(phase, rows, t_start, t_stop)
     # the size of the terms that make each row, over the next 4 periods of the fastest
@@ -165,33 +240,53 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     # starting at ~0 (a gap of 1e-19 m read to +-1e-18 m) must not fire by that noise
     tol = np.maximum(ZERO * scale, round_off(H, xis, 2 * phase.config.r))
     # the search follows the rows without the fastest terms whose sum stays below a quarter of each
-    # row's band over the horizon (round-off amplitudes of stiff modes, modes a row does not see):
-    # they no longer set the step. A row then crosses -tol no earlier than its search version
-    # crosses -(tol - e), e the left-out terms' bound: the search uses that band
-    rows_at, rate, e, bound_of = phase.search_map(np.vstack([H, Hd]), np.concatenate([tol / 4.0, np.full(
-        H.shape[0], np.inf)]), t_stop - t_start)
-    e = e[: rows.size]
-    band = tol - e
-    h_step = phase.max_step(t_stop - t_start, rate)
-    # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
-    bound4 = bound_of(4)[: rows.size] * h_step ** 4 / 384.0
+    # row's band over the horizon (round-off amplitudes of stiff modes, modes a row does not see, modes
+    # that have decayed): they no longer set the step. A row then crosses -tol no earlier than its
+    # search version crosses -(tol - e), e the left-out terms' bound: the search uses that band
+    HH, budget = np.vstack([H, Hd]), np.concatenate([tol / 4.0, np.full(H.shape[0], np.inf)])
+    k = rows.size
+
+    def plan_from(t):
+        """The search's rows, band, step and interpolation bound from t on (the left-out terms bounded
+        on [t, t_stop]: a decaying one by its size at t)."""
+        plan = phase.search_plan(HH, budget, t_stop - phase.t0, t - phase.t0)
+        band = tol - plan.e[:k]
+        step = phase.max_step(t_stop - phase.t0, plan.rate)
+        # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
+        return plan, band, step, plan.bound(4)[:k] * step ** 4 / 384.0
+
+    plan, band, h_step, bound4 = plan_from(t_start)
+    rows_at = plan.rows
+    # (a renewal that rounds to where the plan starts is tried again a step later: the search advances)
+    renew_at = max(phase.t0 + plan.renew, t_start + h_step)
     search = core.compiled("search")
-    if search is not None and _compilable(phase, rows_at, band, bound4):
-        return _compiled_search(search, phase, H, Hd, tol, band, rate, rows_at, bound4, h_step, t_start, t_stop,
-                                report)
+    if search is not None and renew_at >= t_stop and _compilable(phase, rows_at, band, bound4):
+        # one compiled call for the loop below (a plan renewed inside the window, an overdamped stiff
+        # mode dying out, stays on this loop)
+        return _compiled_search(search, phase, H, Hd, tol, band, plan.rate, rows_at, bound4, h_step, t_start,
+                                t_stop, report)
     coarse, tried = None, False
     armed = None
     thr = None
     t_a = t_start
     chunk = FIRST_CHUNK
+    phase.search_samples = 0
     while t_a < t_stop:
-        t_b = t_stop
+        if t_a >= renew_at:
+            # the fastest term kept has decayed into its budget: it no longer sets the step (an
+            # overdamped stiff mode after an impact), nor the coarse pass's
+            plan, band, h_step, bound4 = plan_from(t_a)
+            rows_at = plan.rows
+            renew_at = max(phase.t0 + plan.renew, t_a + h_step)
+            coarse, tried = None, False
+        t_b = min(t_stop, renew_at)
         if not tried and armed is not None and armed.all():
             # formed once a first chunk has found nothing (most phases of an impact burst end in it)
-            coarse, tried = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop), True
+            coarse, tried = _Coarse.of(phase, H, Hd, band, plan.rate, t_a, t_stop), True
         if coarse is not None:
             # every row armed at 0: skip what the coarse pass certifies, search the rest finely
-            t_skip, t_b = coarse.unclear(t_a)
+            t_skip, t_c = coarse.unclear(t_a)
+            t_b = min(t_b, t_c)
             if t_skip > t_a:
                 t_a = phase.searched_until = t_skip
                 chunk = FIRST_CHUNK
@@ -199,10 +294,13 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     report(t_a)
                 if t_a >= t_stop:
                     break
+                if t_a >= t_b:
+                    continue
         n = max(1, min(chunk, math.ceil((t_b - t_a) / h_step)))
         chunk = min(CHUNK, 4 * chunk)
         ts = np.linspace(t_a, min(t_b, t_a + n * h_step), n + 1)
         hh = rows_at(ts)
+        phase.search_samples += ts.size
         h, hd = hh[: rows.size], hh[rows.size:]
         if armed is None:
             # a row that starts inside its zero band is armed once it has left it upwards
@@ -211,7 +309,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
             # below -tol: a gap located with a previous phase's larger band)
             thr = np.where(armed, 0.0, np.minimum(-band, h[:, 0] - band))
         found = []
-        maybe, screens = _screened(ts, h - thr[:, None], hd, band, bound4)
+        maybe, (cross, turn, near), ok = _screened(ts, h - thr[:, None], hd, band, bound4)
         maybe |= ~armed
         # rows in the order of their first sample below threshold (a cheap lower bound of where
         # their root lies); a row whose first candidate interval starts after the earliest root
@@ -252,7 +350,8 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
                     ts2, h2, hd2 = after
                     res = _scan(row, ts2, h2, hd2, 0.0, band[i], _shorter(bound4[i], ts2, ts[1] - ts[0]), limit)
             else:
-                res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit, screen=screens[i])
+                res = _scan(row, ts, hi, hdi, thr[i], band[i], bound4[i], limit,
+                            screen=(cross[i], turn[i], near[i]) if ok[i] else None)
             if res is not None:
                 found.append((res[0], int(i), res[1], len(res) > 2))
                 limit = min(limit, res[0] + 1e-12 * max(1.0, abs(res[0])))
@@ -347,12 +446,13 @@ class _Coarse:
         # difference of) and its constant
         size = phase.derivative_bound(H, 0, horizon) + np.abs(H[:, 2 * phase.config.r])
         budget = np.concatenate([COARSE * size, np.full(k, np.inf)])
-        rows_at, rate_c, e, bound_of = phase.search_map(np.vstack([H, Hd]), budget, horizon)
-        step = phase.max_step(horizon, rate_c)
-        if step < COARSE_GAIN * phase.max_step(horizon, rate) or bound_of is None or step * 4.0 > t_stop - t_start:
+        # (the terms bounded from t_start on: a decaying one at its size there)
+        plan = phase.search_plan(np.vstack([H, Hd]), budget, horizon, t_start - phase.t0)
+        step = phase.max_step(horizon, plan.rate)
+        if step < COARSE_GAIN * phase.max_step(horizon, rate) or plan.bound is None or step * 4.0 > t_stop - t_start:
             return None
-        b4 = bound_of(4)[:k] * step ** 4 / 384.0
-        return cls(rows_at, band + e[:k], b4, step, t_start, t_stop, k)
+        b4 = plan.bound(4)[:k] * step ** 4 / 384.0
+        return cls(plan.rows, band + plan.e[:k], b4, step, t_start, t_stop, k)
 
     def _extend(self) -> None:
         """Sample the next CHUNK coarse intervals and judge them."""
@@ -396,18 +496,18 @@ class _Coarse:
             j += 1
 
 
-def _screened(ts, f, hd, band, bound4) -> tuple[np.ndarray, list]:
-    """(maybe, screens): per row, False when :func:`_scan` certainly finds no candidate interval on
+def _screened(ts, f, hd, band, bound4) -> tuple[np.ndarray, tuple, np.ndarray]:
+    """(maybe, screens, ok): per row, False when :func:`_scan` certainly finds no candidate interval on
     these samples (no crossing, no near dip, nothing to subdivide: all rows screened at once, as each
-    scan would), True also for a row whose bound needs the local one (the matrix-exponential path);
-    and per row the (cross, turn, near) its scan of these samples would form (None for the latter)."""
+    scan would), True also for a row whose bound needs the local one (the matrix-exponential path, ok
+    False); and the (cross, turn, near) of all rows, row i's what its scan of these samples would form
+    where ok[i]."""
     dt = np.diff(ts)
     ok = bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH)   # depth 0: subdivided where the bound screens
     b4 = np.broadcast_to(bound4[:, None], (f.shape[0], dt.size))
     sub = np.broadcast_to(ok[:, None], b4.shape)
     cross, turn, near = _screen(dt, f, hd, band[:, None], b4, sub)
-    screens = [(cross[i], turn[i], near[i]) if ok[i] else None for i in range(f.shape[0])]
-    return ~ok | cross.any(axis=1) | near.any(axis=1), screens
+    return ~ok | cross.any(axis=1) | near.any(axis=1), (cross, turn, near), ok
 
 
 def round_off(H: np.ndarray, xis: np.ndarray, r2: int) -> np.ndarray:
@@ -480,6 +580,17 @@ def _hermite_min(f0, f1, d0, d1, dt):
 #: sqrt(3) / 216 dt^3 max|h^(4)|, i.e. by SLOPE * bound4 in units of the interval (d/ds = dt d/dt,
 #: bound4 = dt^4 / 384 max|h^(4)|); its value by 16 bound4 s^2 (1 - s)^2, its curvature by 32 bound4
 SLOPE = 384.0 * math.sqrt(3.0) / 216.0
+
+
+def _cubic_max(f0, f1, d0, d1, dt) -> float:
+    """The maximum over the interval of the Hermite cubic with end values f0, f1 and slopes d0, d1 (floats):
+    -:func:`_hermite_min` of the negated data, the same operations."""
+    c0, c1, c2, c3 = _cubic(-f0, -f1, -d0, -d1, dt)
+    low = min(-f0, -f1)
+    for r in _roots2(3.0 * c3, 2.0 * c2, c1):
+        if 0.0 < r < 1.0:
+            low = min(low, c0 + r * (c1 + r * (c2 + r * c3)))
+    return -low
 
 
 def _cubic_argmax(c0, c1, c2, c3) -> float:
@@ -579,9 +690,16 @@ def _arm(row: "_Row", ts, h, hd, tol, bound4):
     """
     if ts.size < 2:
         return None
-    dt = np.diff(ts)
-    hmax = -_hermite_min(-h[:-1], -h[1:], -hd[:-1], -hd[1:], dt)
-    cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
+    if ts.size <= ROW_SCREEN + 1:
+        # a few intervals (the first chunk after an impact): the cubics' maxima in plain floats, as
+        # _hermite_min forms them (NumPy's calls would cost more than the arithmetic)
+        tl, hl, hdl = ts.tolist(), h.tolist(), hd.tolist()
+        hmax = [_cubic_max(hl[k], hl[k + 1], hdl[k], hdl[k + 1], tl[k + 1] - tl[k]) for k in range(len(tl) - 1)]
+        cand = [k for k in range(len(hmax)) if hl[k + 1] > tol or hmax[k] + bound4 > tol]
+    else:
+        dt = np.diff(ts)
+        hmax = -_hermite_min(-h[:-1], -h[1:], -hd[:-1], -hd[1:], dt)
+        cand = np.flatnonzero((h[1:] > tol) | (hmax + bound4 > tol))
     for k in cand[:64]:
         a, b = ts[k], ts[k + 1]
         if hmax[k] - bound4 > tol:
