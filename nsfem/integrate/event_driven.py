@@ -97,6 +97,7 @@ class EventDriven(Integrator):
             # no closed facet of a turned ring: the same equations; its rows read the turned facets' gaps
             cfg = copy.copy(cfg)
             cfg.system = self.system
+            cfg.__dict__.pop("_rows_plans", None)   # the old system's gap rows (events.event_rows)
             self._cache[key] = cfg
         return cfg
 

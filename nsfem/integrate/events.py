@@ -103,7 +103,9 @@ def event_rows(phase: Phase, mode: Mode) -> Rows:
         return rows
     plans = cfg.__dict__.setdefault("_rows_plans", {})
     plan = plans.get(mode)
-    if plan is None:
+    if plan is None or plan.system is not cfg.system:
+        # (a configuration shared by systems of other contact geometry, a round ring's turned facets: its
+        # open gaps' rows are those of the system it runs with)
         plan = plans[mode] = _RowsPlan(phase, mode)
     return plan.rows(phase)
 
@@ -116,6 +118,7 @@ class _RowsPlan:
 
     def __init__(self, phase: Phase, mode: Mode):
         cfg = phase.config
+        self.system = cfg.system   # whose contact geometry the rows are (event_rows checks it)
         n, nf = cfg.system.n, cfg.W.shape[1]
         ident = _event_rows(_Basis(cfg, n, nf), mode)
         self.kinds, self.contacts, self.detail = ident.kinds, ident.contacts, ident.detail
