@@ -262,15 +262,28 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     rows_at = plan.rows
     # (a renewal that rounds to where the plan starts is tried again a step later: the search advances)
     renew_at = max(phase.t0 + plan.renew, t_start + h_step)
+    armed = thr = None
     search = core.compiled("search")
-    if search is not None and renew_at >= t_stop and _compilable(phase, rows_at, band, bound4):
-        # one compiled call for the loop below (a plan renewed inside the window, an overdamped stiff
-        # mode dying out, stays on this loop)
-        return _compiled_search(search, phase, H, Hd, tol, band, plan.rate, rows_at, bound4, h_step, t_start,
-                                t_stop, report)
+    if search is not None and _compilable(phase, rows_at, band, bound4):
+        # the loop below as one compiled call per plan: a plan renewed at renew_at (an overdamped stiff mode
+        # died out) starts the next call there, the rows keeping their arming and thresholds
+        carry, t_a = [None, None], t_start
+        while True:
+            t_b = min(t_stop, renew_at)
+            found = _compiled_search(search, phase, H, Hd, tol, band, plan.rate, rows_at, bound4, h_step, t_a,
+                                     t_b, report, carry)
+            if found is not None or t_b >= t_stop:
+                return found
+            t_a = t_b
+            plan, band, h_step, bound4 = plan_from(t_a)
+            rows_at = plan.rows
+            renew_at = max(phase.t0 + plan.renew, t_a + h_step)
+            if not _compilable(phase, rows_at, band, bound4):   # the Python loop from here on
+                t_start = t_a
+                if carry[0] is not None:
+                    armed, thr = np.array(carry[0], dtype=bool), np.array(carry[1], dtype=float)
+                break
     coarse, tried = None, False
-    armed = None
-    thr = None
     t_a = t_start
     chunk = FIRST_CHUNK
     phase.search_samples = 0
@@ -389,10 +402,11 @@ def _terms(mot) -> tuple:
 
 
 def _compiled_search(search, phase: Phase, H, Hd, tol, band, rate, rows_at, bound4, h_step, t_start, t_stop,
-                     report) -> Event | None:
+                     report, carry=None) -> Event | None:
     """The loop of :func:`first_event` after its set-up, as one compiled call (``search.Search.run``: the
-    same chunks, screens, scans, arming, coarse pass and roots); the coarse pass is set up here when the
-    loop asks for it, and ``report`` and ``phase.searched_until`` follow its progress."""
+    same chunks, screens, scans, arming, coarse pass and roots) over [t_start, t_stop]; the coarse pass is
+    set up here when the loop asks for it, and ``report`` and ``phase.searched_until`` follow its
+    progress. ``carry``: the rows' arming across windows of one search (``Search.run``)."""
 
     def coarse_of(t_a):
         c = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop)
@@ -411,7 +425,7 @@ def _compiled_search(search, phase: Phase, H, Hd, tol, band, rate, rows_at, boun
                         np.ascontiguousarray(phase.A_aug, dtype=float), phase.t0, float(phase.w), _terms(rows_at.terms),
                         np.ascontiguousarray(band, dtype=float), np.ascontiguousarray(bound4, dtype=float),
                         float(h_step), float(t_start), float(t_stop), coarse_of)
-    found = run.run(progress)
+    found = run.run(progress, carry)
     if found is None:
         return None
     t_e, idx, graze, in_band = found

@@ -682,9 +682,11 @@ cdef class Search:
             j += 1
 
     # -- the loop ---------------------------------------------------------------------------
-    def run(self, progress):
+    def run(self, progress, carry=None):
         """events.first_event's loop: (t, rows, graze, in_band) of the earliest event, or None.
-        ``progress(t)`` is called after each chunk and each coarse skip (no event before t)."""
+        ``progress(t)`` is called after each chunk and each coarse skip (no event before t). ``carry``: None,
+        or a list [armed, thr] continuing a search of the same phase from an earlier window (None, None:
+        this is its first window); on return it holds the rows' arming and thresholds for the next one."""
         cdef int k = self.k, n, ns, i, j, q, ka, cnt, nfound = 0
         cdef int cap = CHUNK + 2
         cdef double t_a = self.t_start, t_b, t_skip, nd, limit, t_arm, t_e, rt, step
@@ -731,6 +733,12 @@ cdef class Search:
         cdef const double* v
         cdef int n1, n2
         result = None
+        if carry is not None and carry[0] is not None:
+            # a later window of one search: the rows keep their arming and thresholds
+            started = True
+            for i in range(k):
+                armed[i] = bool(carry[0][i])
+                thr[i] = float(carry[1][i])
         try:
             while t_a < self.t_stop:
                 t_b = self.t_stop
@@ -876,6 +884,9 @@ cdef class Search:
                     break
                 t_a = ts[n]
                 progress(t_a)   # no event before this time (an interrupted run keeps it)
+            if carry is not None and started:
+                carry[0] = [bool(armed[i]) for i in range(k)]
+                carry[1] = [thr[i] for i in range(k)]
         finally:
             free(dwork)
             free(cwork)
