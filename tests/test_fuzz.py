@@ -1205,7 +1205,7 @@ SIGNAL_CASES = [  # (argv after TINY, trigger, signal): writing frames, writing 
      "nsfem_00000.vtu", signal.SIGTERM),
     (["--set", "simulation.t_end=0.05", "--set", "simulation.output_dt=1e-6", "--set", "output.vtu_every=0",
       "--set", "output.plots=[]"], ".result.npz.*.tmp", signal.SIGTERM),
-    (["--set", "simulation.t_end=20", "--set", "output.vtu_every=0", "--set", "output.plots=[]"], "integrating",
+    (["--set", "simulation.t_end=100", "--set", "output.vtu_every=0", "--set", "output.plots=[]"], "integrating",
      signal.SIGINT),
 ]
 SLOW_SIGNAL_CASES = [
@@ -1216,7 +1216,7 @@ SLOW_SIGNAL_CASES = [
     (["--set", "simulation.t_end=0.05", "--set", "simulation.output_dt=1e-6", "--set", "output.vtu_every=0",
       "--set", "output.plots=[]"], ".result.npz.*.tmp", signal.SIGINT),
     (["--set", "simulation.t_end=0.05", "--set", "output.vtu_every=0"], ".phase.png.*.tmp", signal.SIGTERM),
-    (["--set", "simulation.t_end=20", "--set", "output.vtu_every=0", "--set", "output.plots=[]"], "integrating",
+    (["--set", "simulation.t_end=100", "--set", "output.vtu_every=0", "--set", "output.plots=[]"], "integrating",
      signal.SIGTERM),
     (["--set", "simulation.t_end=20", "--set", "output.vtu_every=0", "--set", "output.plots=[]"], LOCK,
      signal.SIGTERM),  # while building the model
@@ -1232,7 +1232,7 @@ def _signal_case(extra, trigger, sig, tmp_path):
         assert code in INTERRUPTED and "result.npz" in names
         with np.load(out / "result.npz") as r:
             meta = json.loads(str(r["meta"]))
-        assert meta["completed"] is False and 0 < meta["t_end"] < 20
+        assert meta["completed"] is False and 0 < meta["t_end"] < 100   # (100 s: minutes even compiled)
     if trigger.startswith(".result"):  # the file being written is finished: the whole run
         with np.load(out / "result.npz") as r:
             assert r["t"][-1] == pytest.approx(0.05, rel=1e-12) and r["t"].size == 50_001
