@@ -224,3 +224,38 @@ def test_divided_difference_kernel_is_the_closed_forms():
             tau = 10.0 ** rng.uniform(-3, 1) / size
             got, want = kernel(nodes, tau), divided_exp(nodes, np.array([tau]))[:, 0]
             assert np.all(np.abs(got - want) <= 64 * np.finfo(float).eps * np.abs(want)), (nodes, tau)
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "setitimer"), reason="no interval timers on this platform")
+def test_a_signal_interrupts_the_coarse_pass():
+    """Ctrl-C (and SIGTERM, which the command line turns into the same KeyboardInterrupt) stops the compiled
+    search while its coarse pass certifies a long stretch, where the loop calls no Python code until the
+    stretch ends (the reference's Python loop is interruptible anywhere): the signal handler runs from inside
+    the pass, not from the report that follows it. The stiff case lifted far above its bands, over 1e6 of its
+    horizons (the whole stretch coarse-certified: tens of seconds of C), interrupted after 0.2 s of CPU."""
+    import signal
+    import traceback
+
+    case = make_case(0, "stiff")
+    H = case.H.copy()
+    H[:, case.ref.const] += 10.0 * np.abs(H).sum(axis=1)
+    t1 = case.t0 + 1e6 * (case.t1 - case.t0)
+    spied, calls = events._compiled_search, []
+    events._compiled_search = lambda *a, **k: (calls.append(1), spied(*a, **k))[1]
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGPROF, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_PROF, 0.2)
+        with pytest.raises(KeyboardInterrupt) as exc:
+            _search(case.phase, H, case.t0, t1, False, lambda t: None)
+    finally:
+        signal.setitimer(signal.ITIMER_PROF, 0.0)
+        signal.signal(signal.SIGPROF, old)
+        events._compiled_search = spied
+    assert calls, "the compiled search did not run"
+    names = [frame.name for frame in traceback.extract_tb(exc.value.__traceback__)]
+    assert "progress" not in names, names   # (the handler ran at the report after the stretch)
+    assert case.phase.searched_until < t1

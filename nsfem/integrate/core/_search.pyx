@@ -8,6 +8,7 @@ compare the two paths."""
 
 from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, expm1, cos, sin, pow, ceil, hypot, isfinite, INFINITY
 from libc.stdlib cimport malloc, calloc, free, realloc
+from cpython.exc cimport PyErr_CheckSignals
 
 cdef extern from *:
     """
@@ -594,7 +595,9 @@ cdef class Search:
 
     # -- the coarse pass --------------------------------------------------------------------
     cdef void extend(self):
-        """events._Coarse._extend: the next CHUNK coarse intervals sampled and judged."""
+        """events._Coarse._extend: the next CHUNK coarse intervals sampled and judged. A pending signal's
+        handler runs first (Ctrl-C, SIGTERM): a certified stretch calls no Python code until it ends."""
+        PyErr_CheckSignals()
         cdef double t0c = self.cts[self.cn] if self.cn > 0 else self.start_c
         cdef double nd = ceil((self.t_stop - t0c) / self.step_c), lo, s0, s1, d0, d1, dt, mn
         cdef int n = 1 if nd < 1 else (CHUNK if nd > CHUNK else <int>nd), j, q, off
