@@ -151,18 +151,21 @@ def test_compiled_search_finds_the_references_event_many(kind):
     _check(kind, list(SEEDS) + list(SLOW_SEEDS))
 
 
-def test_progress_is_reported_as_the_reference_does():
+def test_progress_is_reported_as_the_reference_does(monkeypatch):
     """report(t) gets the same times on both paths (chunk ends and coarse skips, computed alike), and
     ``phase.searched_until`` is the last of them; an interrupt raised by report stops the compiled loop
     and leaves searched_until where it was reported (an interrupted run keeps what was searched)."""
     got, lengths = {}, []
+    spied, calls = events._compiled_search, []
+    monkeypatch.setattr(events, "_compiled_search", lambda *a, **k: (calls.append(1), spied(*a, **k))[1])
     for kind, seed in [(kind, seed) for kind in ("generic", "stiff") for seed in range(3)]:
         case = make_case(seed, kind)   # (stiff: the coarse pass skips; generic: chunk after chunk)
         H = case.H.copy()
         H[:, case.ref.const] += 10.0 * np.abs(H).sum(axis=1)   # lifted far: no event, the whole horizon searched
         for reference in (False, True):
-            seen = []
+            seen, n = [], len(calls)
             assert _search(case.phase, H, case.t0, case.t1, reference, seen.append) is None
+            assert len(calls) == n + (not reference)   # each path ran (not a fallback to the reference twice)
             assert case.phase.searched_until == seen[-1] == case.t1
             got[reference] = seen
         assert len(got[False]) == len(got[True]) > 1
