@@ -262,3 +262,37 @@ def test_a_signal_interrupts_the_coarse_pass():
     names = [frame.name for frame in traceback.extract_tb(exc.value.__traceback__)]
     assert "progress" not in names, names   # (the handler ran at the report after the stretch)
     assert case.phase.searched_until < t1
+
+
+def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
+    """The compiled search reads its arrays without bounds checks: a call whose shapes disagree (a row too few
+    in Hd, a band per row missing, a bound too many, A_aug not square, a harmonic part of 2 components, a
+    divided difference of one node) is a ValueError, never a read past an array. The arguments are those of a
+    real compiled search (captured), each spoilt in turn; the captured ones themselves are accepted."""
+    search = core.compiled("search")
+    captured = []
+
+    class Spy:
+        @staticmethod
+        def Search(*args):
+            captured.append(args)
+            return search.Search(*args)
+
+    monkeypatch.setitem(core._active, "search", Spy)
+    case = make_case(0, "generic")
+    _search(case.phase, case.H, case.t0, case.t1, reference=False)
+    assert captured
+    args = list(captured[0])
+    names = ("nu", "gnodes", "gm", "U", "H", "Hd", "A", "t0", "w", "kept", "band", "bound4")
+    a = dict(zip(names, args))
+    search.Search(*args)
+    one_node = {"gm": np.ones(1, dtype=np.intc), "gnodes": np.zeros((1, 3), dtype=complex),
+                "U": np.ascontiguousarray(np.hstack([a["U"], np.zeros((a["U"].shape[0], 1))]))}
+    for spoilt in ({"Hd": np.ascontiguousarray(a["Hd"][:-1])}, {"band": a["band"][:-1]},
+                   {"bound4": np.append(a["bound4"], 1.0)}, {"A": np.ascontiguousarray(a["A"][:, :-1])},
+                   {"H": np.ascontiguousarray(np.hstack([a["H"], a["H"][:, -1:]]))}, one_node):
+        bad = [spoilt.get(name, value) for name, value in zip(names, args)] + args[len(names):]
+        with pytest.raises(ValueError):
+            search.Search(*bad)
+    with pytest.raises(ValueError):
+        search.divided_exp(np.ones((1, 2), dtype=complex), 1.0)
