@@ -115,6 +115,8 @@ cdef class _Terms:
         """act, partner, nact: the exponents summed, each with its conjugate's index (or -1)."""
         cdef int m, j, n = 0, partner
         cdef char* used = <char*>calloc(max(self.pe, 1), 1)
+        if used == NULL:
+            raise MemoryError
         for m in range(self.pe):
             if used[m]:
                 continue
