@@ -151,18 +151,21 @@ def test_compiled_search_finds_the_references_event_many(kind):
     _check(kind, list(SEEDS) + list(SLOW_SEEDS))
 
 
-def test_progress_is_reported_as_the_reference_does():
+def test_progress_is_reported_as_the_reference_does(monkeypatch):
     """report(t) gets the same times on both paths (chunk ends and coarse skips, computed alike), and
     ``phase.searched_until`` is the last of them; an interrupt raised by report stops the compiled loop
     and leaves searched_until where it was reported (an interrupted run keeps what was searched)."""
     got, lengths = {}, []
+    spied, calls = events._compiled_search, []
+    monkeypatch.setattr(events, "_compiled_search", lambda *a, **k: (calls.append(1), spied(*a, **k))[1])
     for kind, seed in [(kind, seed) for kind in ("generic", "stiff") for seed in range(3)]:
         case = make_case(seed, kind)   # (stiff: the coarse pass skips; generic: chunk after chunk)
         H = case.H.copy()
         H[:, case.ref.const] += 10.0 * np.abs(H).sum(axis=1)   # lifted far: no event, the whole horizon searched
         for reference in (False, True):
-            seen = []
+            seen, n = [], len(calls)
             assert _search(case.phase, H, case.t0, case.t1, reference, seen.append) is None
+            assert len(calls) == n + (not reference)   # each path ran (not a fallback to the reference twice)
             assert case.phase.searched_until == seen[-1] == case.t1
             got[reference] = seen
         assert len(got[False]) == len(got[True]) > 1
@@ -224,3 +227,72 @@ def test_divided_difference_kernel_is_the_closed_forms():
             tau = 10.0 ** rng.uniform(-3, 1) / size
             got, want = kernel(nodes, tau), divided_exp(nodes, np.array([tau]))[:, 0]
             assert np.all(np.abs(got - want) <= 64 * np.finfo(float).eps * np.abs(want)), (nodes, tau)
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "setitimer"), reason="no interval timers on this platform")
+def test_a_signal_interrupts_the_coarse_pass():
+    """Ctrl-C (and SIGTERM, which the command line turns into the same KeyboardInterrupt) stops the compiled
+    search while its coarse pass certifies a long stretch, where the loop calls no Python code until the
+    stretch ends (the reference's Python loop is interruptible anywhere): the signal handler runs from inside
+    the pass, not from the report that follows it. The stiff case lifted far above its bands, over 1e6 of its
+    horizons (the whole stretch coarse-certified: tens of seconds of C), interrupted after 0.2 s of CPU."""
+    import signal
+    import traceback
+
+    case = make_case(0, "stiff")
+    H = case.H.copy()
+    H[:, case.ref.const] += 10.0 * np.abs(H).sum(axis=1)
+    t1 = case.t0 + 1e6 * (case.t1 - case.t0)
+    spied, calls = events._compiled_search, []
+    events._compiled_search = lambda *a, **k: (calls.append(1), spied(*a, **k))[1]
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGPROF, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_PROF, 0.2)
+        with pytest.raises(KeyboardInterrupt) as exc:
+            _search(case.phase, H, case.t0, t1, False, lambda t: None)
+    finally:
+        signal.setitimer(signal.ITIMER_PROF, 0.0)
+        signal.signal(signal.SIGPROF, old)
+        events._compiled_search = spied
+    assert calls, "the compiled search did not run"
+    names = [frame.name for frame in traceback.extract_tb(exc.value.__traceback__)]
+    assert "progress" not in names, names   # (the handler ran at the report after the stretch)
+    assert getattr(case.phase, "searched_until", case.t0) < t1
+
+
+def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
+    """The compiled search reads its arrays without bounds checks: a call whose shapes disagree (a row too few
+    in Hd, a band per row missing, a bound too many, A_aug not square, a harmonic part of 2 components, a
+    divided difference of one node) is a ValueError, never a read past an array. The arguments are those of a
+    real compiled search (captured), each spoilt in turn; the captured ones themselves are accepted."""
+    search = core.compiled("search")
+    captured = []
+
+    class Spy:
+        @staticmethod
+        def Search(*args):
+            captured.append(args)
+            return search.Search(*args)
+
+    monkeypatch.setitem(core._active, "search", Spy)
+    case = make_case(0, "generic")
+    _search(case.phase, case.H, case.t0, case.t1, reference=False)
+    assert captured
+    args = list(captured[0])
+    names = ("nu", "gnodes", "gm", "U", "H", "Hd", "A", "t0", "w", "kept", "band", "bound4")
+    a = dict(zip(names, args))
+    search.Search(*args)
+    one_node = {"gm": np.ones(1, dtype=np.intc), "gnodes": np.zeros((1, 3), dtype=complex),
+                "U": np.ascontiguousarray(np.hstack([a["U"], np.zeros((a["U"].shape[0], 1))]))}
+    for spoilt in ({"Hd": np.ascontiguousarray(a["Hd"][:-1])}, {"band": a["band"][:-1]},
+                   {"bound4": np.append(a["bound4"], 1.0)}, {"A": np.ascontiguousarray(a["A"][:, :-1])},
+                   {"H": np.ascontiguousarray(np.hstack([a["H"], a["H"][:, -1:]]))}, one_node):
+        bad = [spoilt.get(name, value) for name, value in zip(names, args)] + args[len(names):]
+        with pytest.raises(ValueError):
+            search.Search(*bad)
+    with pytest.raises(ValueError):
+        search.divided_exp(np.ones((1, 2), dtype=complex), 1.0)

@@ -8,6 +8,7 @@ compare the two paths."""
 
 from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, expm1, cos, sin, pow, ceil, hypot, isfinite, INFINITY
 from libc.stdlib cimport malloc, calloc, free, realloc
+from cpython.exc cimport PyErr_CheckSignals
 
 cdef extern from *:
     """
@@ -75,6 +76,12 @@ cdef class _Terms:
         self.pe, self.K = self.nu.shape[0], self.gm.shape[0]
         self.p = self.pe + self.K
         self.R = R
+        # the kernels read 3 nodes per divided difference and, from ``like``, its pairs of these exponents
+        if self.gnodes.shape[0] != self.K or (self.K and self.gnodes.shape[1] != 3) or any(
+                self.gm[m] not in (2, 3) for m in range(self.K)):
+            raise ValueError("Search: the divided differences need 3 nodes each (2 or 3 used)")
+        if C is None and (like is None or like.pe != self.pe or like.K != self.K):
+            raise ValueError("Search: terms without coefficients take another set's pairs of the same exponents")
         self.act = <int*>malloc(max(self.p, 1) * sizeof(int))
         self.partner = <int*>malloc(max(self.p, 1) * sizeof(int))
         if self.act == NULL or self.partner == NULL:
@@ -108,6 +115,8 @@ cdef class _Terms:
         """act, partner, nact: the exponents summed, each with its conjugate's index (or -1)."""
         cdef int m, j, n = 0, partner
         cdef char* used = <char*>calloc(max(self.pe, 1), 1)
+        if used == NULL:
+            raise MemoryError
         for m in range(self.pe):
             if used[m]:
                 continue
@@ -192,12 +201,18 @@ cdef class Search:
         self.k, self.dim = self.H.shape[0], self.H.shape[1]
         self.r2 = U.shape[0]
         self.nh = self.dim - self.r2
+        self.band, self.bound4 = band, bound4
+        # every index below is read without bounds checks: the shapes are checked here
+        if (self.Hd.shape[0] != self.k or self.Hd.shape[1] != self.dim or self.A.shape[0] != self.dim
+                or self.A.shape[1] != self.dim or self.nh not in (1, 3) or self.band.shape[0] != self.k
+                or self.bound4.shape[0] != self.k):
+            raise ValueError("Search: H and Hd need k rows of the state's size (the modal part's rows and 1 or 3 "
+                             "harmonic components), A_aug that size square, band and bound4 a value per row")
         self.t0, self.w = t0, w
         self.state = _Terms(nu, gnodes, gm, U, self.r2)
         self.kept = _Terms(*kept, 2 * self.k)
         self.full = _Terms(nu, gnodes, gm, None, 2 * self.k, self.state)
         self.p = self.state.nact
-        self.band, self.bound4 = band, bound4
         self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
         self.coarse_of = coarse_of
         self.coarse = None
@@ -594,7 +609,9 @@ cdef class Search:
 
     # -- the coarse pass --------------------------------------------------------------------
     cdef void extend(self):
-        """events._Coarse._extend: the next CHUNK coarse intervals sampled and judged."""
+        """events._Coarse._extend: the next CHUNK coarse intervals sampled and judged. A pending signal's
+        handler runs first (Ctrl-C, SIGTERM): a certified stretch calls no Python code until it ends."""
+        PyErr_CheckSignals()
         cdef double t0c = self.cts[self.cn] if self.cn > 0 else self.start_c
         cdef double nd = ceil((self.t_stop - t0c) / self.step_c), lo, s0, s1, d0, d1, dt, mn
         cdef int n = 1 if nd < 1 else (CHUNK if nd > CHUNK else <int>nd), j, q, off
@@ -755,6 +772,10 @@ cdef class Search:
                         if c is not None:
                             terms, margin, b4c, step_c = c
                             self.coarse = _Terms(*terms, 2 * k)
+                            if (self.coarse.p > max(self.state.p, self.kept.p) or len(margin) != k
+                                    or len(b4c) != k):
+                                raise ValueError("Search: the coarse pass takes a subset of the phase's terms "
+                                                 "and a margin and bound per row")
                             self.margin, self.b4c, self.step_c, self.start_c = margin, b4c, step_c, t_a
                 if self.coarse is not None:
                     # every row armed at 0: skip what the coarse pass certifies, search the rest finely

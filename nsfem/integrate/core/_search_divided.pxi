@@ -88,6 +88,8 @@ def divided_exp(nodes, double tau):
     (m x K complex, m = 2 or 3), F[nodes](tau)."""
     cdef const double complex[:, ::1] nv = np.ascontiguousarray(np.asarray(nodes, dtype=complex).T)
     cdef int K = nv.shape[0], m = nv.shape[1] if K else 0, j
+    if K and m not in (2, 3):
+        raise ValueError("divided_exp: 2 or 3 nodes per column")
     out = np.empty(K, dtype=complex)
     cdef double r, i
     for j in range(K):
