@@ -442,3 +442,13 @@ def test_wildly_scaled_lcps_end_alike_but_for_rounding_at_thresholds():
         if outcomes[0][0] == "error" or outcomes[1][0] == "error":
             assert outcomes[0] == outcomes[1]
     assert differ <= 20, differ
+
+
+def test_pivot_limits_beyond_int64_end_alike():
+    # max_pivots and refactor are Python ints: the reference compares them as they are; the kernel's are
+    # int64 (a limit beyond 2^63 raised OverflowError there). No run reaches 2^62 pivots: the same outcome
+    A, b = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
+    for kw in ({"max_pivots": 10 ** 20}, {"refactor": 10 ** 20}, {"max_pivots": -10 ** 20}, {"refactor": -10 ** 20}):
+        fast, ref = both(A, b, **kw)
+        assert_same_outcome(fast, ref)
+        assert fast.message == ref.message   # (the limit printed as given)
