@@ -132,3 +132,22 @@ def test_turned_configurations_leave_with_the_cache(monkeypatch):
     assert res.info["round_rings"]["stator.0"]["mirrors"] > 64   # more configurations than the cap (measured 140)
     gc.collect()
     assert len(made) <= 32
+
+
+def test_a_wedge_about_another_facet_starts_afresh():
+    """conform: where the closed facet is not the one the wedge is about (the point crossed a corner of the
+    turned polygon), the wedge is the new facet's +-delta widened to the point, not the old facet's wedge
+    (angles about another tangent) widened."""
+    from nsfem.integrate.round import RoundRing, conform
+
+    F_, c = 8, 1e-3
+    angles = 2.0 * np.pi * np.arange(F_) / F_
+    P = np.eye(2)
+    ring = RoundRing("stator.0", tuple(range(F_)), angles, P, c, 0.0, 0.0, delta=0.01)
+    ring.k, ring.lo, ring.hi = 0, -0.03, 0.01          # a trailing wedge about facet 0
+    u = c * np.array([np.cos(angles[1] + 0.005), np.sin(angles[1] + 0.005)])   # on facet 1, 0.005 rad ahead
+    conform([ring], [1], u)
+    assert ring.k == 1 and (ring.lo, ring.hi) == (-0.01, 0.01)
+    u = c * np.array([np.cos(angles[1] + 0.02), np.sin(angles[1] + 0.02)])     # the same facet, beyond: widened
+    conform([ring], [1], u)
+    assert ring.lo == -0.01 and abs(ring.hi - 0.02) < 1e-12

@@ -203,9 +203,10 @@ def conform(rings, closed, q: np.ndarray) -> None:
         slack = 1e-9 * max(r.hi - r.lo, r.delta)   # the turn's own round-off puts u on its wedge's edge
         if r.k == k and r.lo - slack <= rel <= r.hi + slack:
             continue
-        if r.k != k:
+        same = r.k == k   # (else the old wedge is about another facet: it starts afresh at +-delta)
+        if not same:
             r.k, r.last, r.run = k, 0, 0
-        r.lo, r.hi = min(r.lo if r.k == k else -r.delta, rel), max(r.hi if r.k == k else r.delta, rel)
+        r.lo, r.hi = min(r.lo if same else -r.delta, rel), max(r.hi if same else r.delta, rel)
         _record(r)
 
 
