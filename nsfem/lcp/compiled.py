@@ -113,4 +113,7 @@ def _group_ids(groups, n: int) -> np.ndarray:
         return np.empty(0, dtype=np.int64)
     if labels.dtype.kind in "iub":
         return np.ascontiguousarray(labels, dtype=np.int64)
-    return np.unique(labels, return_inverse=True)[1].astype(np.int64).ravel()
+    # other labels as the reference's certificate keys them: a dict (Python's equality; each nan its own
+    # group; labels numpy cannot order, None beside numbers, are labels too)
+    ids: dict = {}
+    return np.array([ids.setdefault(g, len(ids)) for g in labels.tolist()], dtype=np.int64)
