@@ -442,3 +442,34 @@ def test_wildly_scaled_lcps_end_alike_but_for_rounding_at_thresholds():
         if outcomes[0][0] == "error" or outcomes[1][0] == "error":
             assert outcomes[0] == outcomes[1]
     assert differ <= 20, differ
+
+
+def test_pivot_limits_beyond_int64_end_alike():
+    # max_pivots and refactor are Python ints: the reference compares them as they are; the kernel's are
+    # int64 (a limit beyond 2^63 raised OverflowError there). No run reaches 2^62 pivots: the same outcome
+    A, b = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
+    for kw in ({"max_pivots": 10 ** 20}, {"refactor": 10 ** 20}, {"max_pivots": -10 ** 20}, {"refactor": -10 ** 20}):
+        fast, ref = both(A, b, **kw)
+        assert_same_outcome(fast, ref)
+        assert fast.message == ref.message   # (the limit printed as given)
+
+
+def test_labels_of_any_kind_group_as_the_reference():
+    """``groups``: labels the reference keys a dict by (its certificate's groups: equal labels, Python's
+    equality, each nan its own): the compiled path groups them the same (np.unique raised TypeError on
+    labels numpy cannot order, None beside numbers, and merged the nans)."""
+    A, b = friction_lcp(np.random.default_rng(2), 7, 2, 0.3)
+    n = b.size
+    rng = np.random.default_rng(6)
+    for labels in ([None if i % 3 else 1.5 for i in range(n)], [np.nan] * n, [float(i % 2) for i in range(n)],
+                   [("motion" if i < n - 2 else 7) for i in range(n)], [True] * (n - 2) + [2, 2]):
+        fast, ref = both(A, b, groups=labels)
+        assert_same_outcome(fast, ref)
+        # the certificate alone, at a point that is no solution (a value that depends on the grouping)
+        x = np.abs(rng.standard_normal(n))
+        w = A @ x + b
+        r, c = pivoting._equilibrate(A)
+        want = pivoting._certificate(A, b, x, w, (r, c), labels)["relative"]
+        from nsfem.lcp.compiled import _group_ids
+        got = lib.certificate(A, b, x, w, r, c, _group_ids(labels, n))[3]
+        assert abs(got - want) <= 2 * (n + 1) * EPS * want   # (test_certificate_agrees_with_the_reference)

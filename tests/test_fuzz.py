@@ -2188,3 +2188,34 @@ def test_the_stator_shape_reproductions(tmp_path):
         assert code == cli.EXIT_ERROR and "stator.0.shape" in err
     code, out, err = check_invocation(["stationary", "rub", "--set", "stator.0.shape=round", "--json"], tmp_path)
     assert code == 0, err   # stationary's LCP holds the polygon: the key only changes the exact method's run
+
+
+# --- issue 33: review 2 (compiled Lemke, compiled phase, round rings) ---
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@given(n=st.integers(1, 6), which=st.integers(0, 1), at=st.integers(0, 5),
+       bad=st.sampled_from([0.0, -0.0, -1.0, -1e-300, math.nan, math.inf, -math.inf]))
+def test_lemke_refuses_scales_that_are_not_positive_and_finite(n, which, at, bad):
+    """lemke's ``scales`` (row and column scalings, as equilibrate returns them) with an entry that is 0,
+    negative or not finite: a one-line NsfemError naming them on both paths. (A zero row scaling made the
+    compiled path's certificate divide by 0 and accept a point with w < 0 as 'solved'; the reference raised
+    ZeroDivisionError; a nan made the two paths end differently.)"""
+    from nsfem.integrate import core
+    from nsfem.lcp import lemke
+
+    rng = np.random.default_rng(n)
+    G = rng.standard_normal((n, n))
+    A, b = G @ G.T + np.eye(n), -np.abs(rng.standard_normal(n)) - 0.1
+    scales = [np.ones(n), np.ones(n)]
+    scales[which][at % n] = bad
+    for reference in (False, True):
+        with core.reference() if reference else contextlib.nullcontext(), pytest.raises(NsfemError) as err:
+            lemke(A, b, scales=tuple(scales))
+        assert "scales" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_lemke_zero_row_scaling_reproduction():
+    # the case found: w = A x + b = (-2, 0) was returned as 'solved' by the compiled path
+    from nsfem.lcp import lemke
+
+    with pytest.raises(NsfemError, match="scales"):
+        lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]), scales=(np.array([0.0, 1.0]), np.ones(2)))

@@ -117,3 +117,90 @@ def test_turned_ring_rows_follow_the_turned_facets():
     res, system = run_scene(scene, "exact")
     assert res.completed and res.t_end == pytest.approx(0.025)
     assert len(res.events) > 50
+
+
+def test_turned_configurations_leave_with_the_cache(monkeypatch):
+    """Every turn of a round ring's facet makes new configurations (the shipped rub: about one per event);
+    the integrator keeps at most its cache's cap of them: what the energy integrals derive from a
+    configuration goes with it (a run of thousands of turns otherwise holds every configuration it met:
+    43 kB each for this 13-dof model, n^2 growth with the model)."""
+    import gc
+    import weakref
+
+    from nsfem.integrate import event_driven
+    from nsfem.integrate.configuration import Configuration
+
+    made = weakref.WeakSet()
+
+    class Counted(Configuration):
+        def __init__(self, *args):
+            super().__init__(*args)
+            made.add(self)
+
+    monkeypatch.setattr(event_driven, "Configuration", Counted)
+    monkeypatch.setattr(event_driven.EventDriven, "max_configurations", 32)
+    system = ContactSystem.from_scene(load_scene("rub", ["stator.0.shape=round", "damping.rayleigh=[0.0, 1e-5]"]))
+    integrator = event_driven.Exact(system)
+    res = integrator.run(0.3, 1e-3)
+    assert res.info["round_rings"]["stator.0"]["mirrors"] > 64   # more configurations than the cap (measured 140)
+    gc.collect()
+    assert len(made) <= 32
+
+
+def test_a_wedge_about_another_facet_starts_afresh():
+    """conform: where the closed facet is not the one the wedge is about (the point crossed a corner of the
+    turned polygon), the wedge is the new facet's +-delta widened to the point, not the old facet's wedge
+    (angles about another tangent) widened."""
+    from nsfem.integrate.round import RoundRing, conform
+
+    F_, c = 8, 1e-3
+    angles = 2.0 * np.pi * np.arange(F_) / F_
+    P = np.eye(2)
+    ring = RoundRing("stator.0", tuple(range(F_)), angles, P, c, 0.0, 0.0, delta=0.01)
+    ring.k, ring.lo, ring.hi = 0, -0.03, 0.01          # a trailing wedge about facet 0
+    u = c * np.array([np.cos(angles[1] + 0.005), np.sin(angles[1] + 0.005)])   # on facet 1, 0.005 rad ahead
+    conform([ring], [1], u)
+    assert ring.k == 1 and (ring.lo, ring.hi) == (-0.01, 0.01)
+    u = c * np.array([np.cos(angles[1] + 0.02), np.sin(angles[1] + 0.02)])     # the same facet, beyond: widened
+    conform([ring], [1], u)
+    assert ring.lo == -0.01 and abs(ring.hi - 0.02) < 1e-12
+
+
+@pytest.mark.parametrize("facets", [8, 64, 1024])
+def test_outputs_on_the_polygon_name_only_the_facets_that_carry_the_force(facets):
+    """polygon_outputs: a ring's normal force along one of the scene's facet normals (a ring at rest on one
+    facet while another ring has turned, or a turn that happens to align) is that facet's alone; elsewhere
+    it splits onto the two facets around its direction, both >= 0, resultant kept. The 2 x 2 solve leaves
+    the other facet round-off (cond(G) eps |N| <= 1 / sin(2 pi / F) 2.2e-16 = 3.6e-14 |N| at F = 1024),
+    which was reported as a force of -2e-16 N with the ring's closed state on a facet that is open."""
+    from nsfem.integrate.round import RoundRing, polygon_outputs
+
+    angles = 2.0 * np.pi * np.arange(facets) / facets
+    ring = RoundRing("stator.0", tuple(range(facets)), angles, np.eye(2), 1e-3, 0.0, 0.0)
+
+    class Polygon:
+        def gaps(self, q):
+            return np.zeros((facets, q.shape[1]))
+
+    rng = np.random.default_rng(facets)
+    cases = [(i, None) for i in range(0, facets, max(1, facets // 64))] + [(None, rng.uniform(0, 2 * np.pi))
+                                                                          for _ in range(20)]
+    for i, direction in cases:
+        normal, state = np.zeros((facets, 1)), np.zeros((facets, 1), dtype=np.int8)
+        if i is not None:
+            normal[i, 0], state[i, 0] = 3.0, 1
+            N = 3.0 * np.array([np.cos(angles[i]), np.sin(angles[i])])
+        else:   # a turned ring's facet at an angle between the scene's normals
+            ring.alpha = direction
+            normal[0, 0], state[0, 0] = 3.0, 1
+            N = 3.0 * np.array([np.cos(direction), np.sin(direction)])
+        polygon_outputs([ring], Polygon(), np.zeros((2, 1)), np.zeros((facets, 1)), normal,
+                        np.zeros((facets, 2, 1)), state)
+        ring.alpha = 0.0
+        on = np.flatnonzero(state[:, 0])
+        assert np.array_equal(on, np.flatnonzero(normal[:, 0])) and np.all(normal[:, 0] >= 0.0)
+        assert len(on) == 1 if i is not None else 1 <= len(on) <= 2
+        if i is not None:
+            assert on[0] == i
+        # the resultant, to the solve's round-off (above)
+        assert np.allclose(np.vstack([np.cos(angles), np.sin(angles)]) @ normal[:, 0], N, rtol=0, atol=1e-13 * 3.0)

@@ -70,6 +70,8 @@ class EventDriven(Integrator):
     name = "event-driven"
     #: rigid stator rings as a facet that turns with the contact point (:mod:`.round`); else the fixed polygon
     round_rings = False
+    #: configurations kept with round rings (their turns make new ones, met once or twice): the recent half
+    max_configurations = 512
 
     def __init__(self, system, zeno: float = 1e-8, max_events: int = 10_000_000, progress: bool | None = None,
                  **options):
@@ -88,8 +90,8 @@ class EventDriven(Integrator):
             closed = set(mode.closed)
             key = (mode, tuple(r.signature() for r in self._rings if any(j in closed for j in r.facets)))
         if key not in self._cache:
-            if self._rings and len(self._cache) >= 512:   # turned ones are met once or twice: keep the recent
-                for old in list(self._cache)[:256]:
+            if self._rings and len(self._cache) >= self.max_configurations:   # turned ones: keep the recent
+                for old in list(self._cache)[: self.max_configurations // 2]:
                     del self._cache[old]
             self._cache[key] = Configuration(self.system, mode)
         cfg = self._cache[key]
@@ -516,11 +518,11 @@ class EventDriven(Integrator):
         Pq, Pv = phase.q_map(), phase.v_map()
         r2 = 2 * phase.config.r
         cols = [r2] + ([r2 + 1, r2 + 2] if phase.w else [])          # f(t) = F xi: f0, fc, fs there
-        ext_cache = self.__dict__.setdefault("_ext_forms", {})
-        hit = ext_cache.get(id(phase.config))
-        if hit is None or hit[0] is not phase.config or hit[1] != (phase.dim, bool(phase.w)):
+        # kept on the configuration: it goes when the configuration cache lets it go (round rings' turns)
+        hit = phase.config.__dict__.get("_ext_form")
+        if hit is None or hit[0] is not sysm.f0 or hit[1] != (phase.dim, bool(phase.w)):
             F = np.column_stack([sysm.f0] + ([sysm.fc, sysm.fs] if phase.w else []))
-            hit = ext_cache[id(phase.config)] = (phase.config, (phase.dim, bool(phase.w)), Pv.T @ F)
+            hit = phase.config.__dict__["_ext_form"] = (sysm.f0, (phase.dim, bool(phase.w)), Pv.T @ F)
         ext = hit[2]                                                    # the form's nonzero columns
         _, P, D, damped, circulatory, _ = forms
         full = []   # (key, dim x dim form)
@@ -573,8 +575,7 @@ class EventDriven(Integrator):
         c, g = phase.amplitudes
         m, r = c.size, cfg.r
         _, P, D, damped, circulatory, _ = forms
-        forms_cache = self.__dict__.setdefault("_modal_forms", {})
-        hit = forms_cache.get(cfg)
+        hit = cfg.__dict__.get("_modal_forms")   # (on the configuration: it goes with it, see _energy_terms)
         if hit is None or hit[0] is not forms:
             V = cfg.eig[1]
             Vq, Vv = cfg.N @ V[:r], cfg.N @ V[r:]
@@ -589,8 +590,8 @@ class EventDriven(Integrator):
                 S.append(Vv.T @ P @ Vq)
             # (C-ordered complex: the compiled kernel reads them as float views)
             S = np.ascontiguousarray(np.array(S, dtype=complex).reshape(len(keys), m, m))
-            hit = forms_cache[cfg] = (forms, np.ascontiguousarray(np.array(loads) @ Vv, dtype=complex), keys, S, Vv,
-                                      cfg.plan.nu[m:])
+            E = np.ascontiguousarray(np.array(loads) @ Vv, dtype=complex)
+            hit = cfg.__dict__["_modal_forms"] = (forms, E, keys, S, Vv, cfg.plan.nu[m:])
         _, E, keys, S, Vv, mus = hit
         nu = cfg.plan.nu
         kernel = core.compiled("phase")

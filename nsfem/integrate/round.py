@@ -41,6 +41,8 @@ DELTA = 2e-2
 WIDEN = 4
 #: the smallest delta after halvings [rad]
 DELTA_MIN = DELTA / 1024
+#: a facet's share of a ring's force below this fraction of it is the 2 x 2 split's round-off (polygon_outputs)
+ROUND_OFF = 1e-12
 
 
 @dataclass
@@ -203,9 +205,10 @@ def conform(rings, closed, q: np.ndarray) -> None:
         slack = 1e-9 * max(r.hi - r.lo, r.delta)   # the turn's own round-off puts u on its wedge's edge
         if r.k == k and r.lo - slack <= rel <= r.hi + slack:
             continue
-        if r.k != k:
+        same = r.k == k   # (else the old wedge is about another facet: it starts afresh at +-delta)
+        if not same:
             r.k, r.last, r.run = k, 0, 0
-        r.lo, r.hi = min(r.lo if r.k == k else -r.delta, rel), max(r.hi if r.k == k else r.delta, rel)
+        r.lo, r.hi = min(r.lo if same else -r.delta, rel), max(r.hi if same else r.delta, rel)
         _record(r)
 
 
@@ -288,6 +291,10 @@ def polygon_outputs(rings, polygon: ContactSet, q: np.ndarray, gap: np.ndarray, 
             pair = [i, (i + 1) % F]
             G = np.column_stack([np.cos(r.angles[pair]), np.sin(r.angles[pair])]).T
             lam, fr = np.linalg.solve(G, N[:, j]), np.linalg.solve(G, f[:, j])
+            # a force along one facet's normal is that facet's alone: the solve leaves the other round-off
+            # (cond(G) eps |N| <= 3.6e-14 |N| at F = 1024), no force on an open facet
+            lam[np.abs(lam) <= ROUND_OFF * math.hypot(*N[:, j])] = 0.0
+            fr[np.abs(fr) <= ROUND_OFF * math.hypot(*f[:, j])] = 0.0
             for kk, lm, fk in zip(pair, lam, fr):
                 c = idx[kk]
                 normal[c, j], tangential[c, 0, j] = lm, fk

@@ -31,6 +31,8 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
     n = b.size
     max_pivots = 50 * n + 1000 if max_pivots is None else int(max_pivots)
     refactor = max(50, n // 4) if refactor is None else int(refactor)
+    # the kernel's counters are int64: limits beyond 2^62 are never reached, so clamping changes nothing
+    limits = tuple(min(max(v, -2 ** 62), 2 ** 62) for v in (max_pivots, refactor))
     if scale and n:
         if scales is None:
             r_s, c_s = np.empty(n), np.empty(n)
@@ -69,7 +71,7 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
     Binv, xB, basis, c = np.eye(n), bs.copy(), np.arange(n, dtype=np.int64), np.empty(n)
     state = np.array([2 * n, 0, 0, 0], dtype=np.int64)   # entering (z0 first), pivots, since refactor, skip tie
     while True:
-        code = lib.pivot(As, dv, Binv, xB, basis, c, state, max_pivots, refactor, pivot_tol, d is None)
+        code = lib.pivot(As, dv, Binv, xB, basis, c, state, *limits, pivot_tol, d is None)
         entering, pivots = int(state[0]), int(state[1])
         if code == lib.DONE:
             break
@@ -111,4 +113,7 @@ def _group_ids(groups, n: int) -> np.ndarray:
         return np.empty(0, dtype=np.int64)
     if labels.dtype.kind in "iub":
         return np.ascontiguousarray(labels, dtype=np.int64)
-    return np.unique(labels, return_inverse=True)[1].astype(np.int64).ravel()
+    # other labels as the reference's certificate keys them: a dict (Python's equality; each nan its own
+    # group; labels numpy cannot order, None beside numbers, are labels too)
+    ids: dict = {}
+    return np.array([ids.setdefault(g, len(ids)) for g in labels.tolist()], dtype=np.int64)

@@ -360,6 +360,10 @@ def _validated(A, b, d, all_finite, groups=None, scales=None) -> tuple[np.ndarra
         raise NsfemError(f"lemke: groups must label each of the {n} rows, got {np.size(groups)} labels")
     if scales is not None and (len(scales) != 2 or any(np.shape(s) != (n,) for s in scales)):
         raise NsfemError(f"lemke: scales must be the row and column scalings of equilibrate(A), {n} entries each")
+    if scales is not None and not all(0.0 < v < math.inf for s in scales for v in np.asarray(s, dtype=float).tolist()):
+        # (a zero row scaling would certify any point: the certificate judges row i against floor / r_i)
+        raise NsfemError("lemke: scales must be finite and strictly positive (the row and column scalings of "
+                         "equilibrate(A))")
     return A, b, d
 
 
