@@ -139,7 +139,7 @@ def test_phase_setup_matches_the_reference_on_random_phases(kind):
         ref, got = _both(cfg, phase.t0, q0, v0, phase.g0)
         _check_phase(ref, got, q0, v0)
         taken.add(info["path_taken"])
-    assert "modal" in taken and (kind == "stiff" or "divided" in taken)   # (stiff phases are modal only)
+    assert "modal" in taken and (kind in ("stiff", "overdamped") or "divided" in taken)   # (modal only)
 
 
 @pytest.fixture(scope="module")
