@@ -29,7 +29,58 @@ def _load(part: str) -> ModuleType | None:
     try:
         return importlib.import_module(f"{__name__}._{part}")
     except ImportError:
+        return _installed(part)
+
+
+def _installed(part: str) -> ModuleType | None:
+    """The compiled module of the installed copy of nsfem when it was built from these very sources, or None.
+
+    A source checkout imported in place (``python -m pytest`` run in it after ``pip install .``: the
+    working folder comes first on sys.path) has no compiled modules of its own; the installed build is
+    used when every Cython source next to it (``_*.pyx``, ``*.pxi``) is byte for byte the checkout's."""
+    from importlib.metadata import distributions
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parent
+    sources = sorted(here.glob("_*.pyx")) + sorted(here.glob("*.pxi"))
+    if not sources:
         return None
+    for dist in distributions(name="nsfem"):   # (the checkout's own metadata, if any, among them)
+        try:
+            there = Path(dist.locate_file("nsfem/integrate/core")).resolve()
+            if there == here or not there.is_dir():
+                continue
+            if any(src.read_bytes() != (there / src.name).read_bytes() for src in sources):
+                continue
+        except (OSError, TypeError):
+            continue
+        module = _extension(there, part)
+        if module is not None:
+            return module
+    return None
+
+
+def _extension(there, part: str) -> ModuleType | None:
+    """The extension module ``_<part>`` in the folder ``there``, loaded as this package's, or None."""
+    import importlib.util
+    import sys
+    from importlib.machinery import EXTENSION_SUFFIXES
+
+    for suffix in EXTENSION_SUFFIXES:
+        path = there / f"_{part}{suffix}"
+        if path.is_file():
+            name = f"{__name__}._{part}"
+            spec = importlib.util.spec_from_file_location(name, path)
+            if spec is None or spec.loader is None:
+                return None
+            module = importlib.util.module_from_spec(spec)
+            try:
+                spec.loader.exec_module(module)
+            except ImportError:
+                return None
+            sys.modules[name] = module
+            return module
+    return None
 
 
 _built = {part: _load(part) for part in PARTS}
@@ -57,7 +108,8 @@ def name() -> str:
     if _forced or (not on and any(_built.values())):
         return f"pure Python ({SWITCH}=1)" if _forced else "pure Python (reference path)"
     if not on:
-        return "pure Python (no compiled core installed: no C compiler at install time)"
+        return ("pure Python (no compiled core built from these sources: no C compiler at install time, or a "
+                "source checkout changed since `pip install .`)")
     off = [p for p in PARTS if _active[p] is None]
     return f"compiled ({', '.join(on)}), pure Python ({', '.join(off)}: not built)"
 
