@@ -237,7 +237,6 @@ def test_a_signal_interrupts_the_coarse_pass():
     the pass, not from the report that follows it. The stiff case lifted far above its bands, over 1e6 of its
     horizons (the whole stretch coarse-certified: tens of seconds of C), interrupted after 0.2 s of CPU."""
     import signal
-    import traceback
 
     case = make_case(0, "stiff")
     H = case.H.copy()

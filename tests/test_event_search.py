@@ -199,6 +199,13 @@ def _stiff_phase(rng):
         omega = w_slow * 10.0 ** rng.uniform(0.2, 1.2)
         fc, fs = (np.square(w) * rng.standard_normal(n) * 0.3 * np.where(w > omega, 1e-4, 1.0) for _ in range(2))
     S, Pi = _system(rng, w, zeta, 0.0, f0, fc, fs, omega)
+    return _modal_start(rng, S, Pi, amp, w, T)
+
+
+def _modal_start(rng, S, Pi, amp, w, T):
+    """The phase of a modal system S (modes Pi) started with modal amplitudes ``amp`` (velocities amp w)
+    at a random t0, over T: the tuple the phase builders return."""
+    n = w.size
     p0 = amp * rng.standard_normal(n)
     pd0 = amp * w * rng.standard_normal(n)
     t0 = float(rng.uniform(0.0, 5.0)) if rng.random() < 0.5 else 0.0
@@ -224,12 +231,7 @@ def _overdamped_phase(rng):
     f0[n_slow:] = 0.0
     T = rng.uniform(3.0, 10.0) * 2 * math.pi / w_slow
     S, Pi = _system(rng, w, zeta, 0.0, f0)
-    p0 = amp * rng.standard_normal(n)
-    pd0 = amp * w * rng.standard_normal(n)
-    t0 = float(rng.uniform(0.0, 5.0)) if rng.random() < 0.5 else 0.0
-    Phi = np.linalg.inv(Pi)
-    phase = Phase(Configuration(S, Mode()), t0, Phi @ p0, Phi @ pd0, np.zeros(0))
-    return phase, Pi, w, t0, t0 + T, {"path": "modal", "path_taken": "modal"}
+    return _modal_start(rng, S, Pi, amp, w, T)
 
 
 def _phase(rng, kind: str, path: str):
