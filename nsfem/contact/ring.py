@@ -210,13 +210,29 @@ class Ring:
     def terms(self, law: int, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(Kr, Cr, fr): an engaged law adds Kr q + Cr q' to the left side of M q'' + C q' + Q q = f and
         fr to the load (F = -G (k_s (S u - a) + c_s D u'), G = I + mu s R)."""
-        S, a, _ = self.parts(law)
-        G = np.eye(2) + self.friction * s * ROT
+        S = self.parts(law)[0]
+        G = self.coupling(s)
         P = self.P
         Kr = self.stiffness * (P.T @ (G @ S) @ P)
         Cr = self.damping * (P.T @ (G @ self.damper(law)) @ P)
-        fr = self.stiffness * (P.T @ (G @ a))
-        return Kr, Cr, fr
+        return Kr, Cr, self.load(law, s)
+
+    def coupling(self, s: int) -> np.ndarray:
+        """G = I + mu s R: the normal force's map to the force on the shaft (friction along the circumference)."""
+        return np.eye(2) + self.friction * s * ROT
+
+    def load(self, law: int, s: int) -> np.ndarray:
+        """fr of :meth:`terms`: the load k_s P^T G a of the law's offset a (all that differs between the corner
+        laws of both facets, whose S = D = I)."""
+        return self.stiffness * (self.P.T @ (self.coupling(s) @ self.parts(law)[1]))
+
+    def matrix_key(self, law: int, s: int) -> tuple[int, int]:
+        """What of (law, s) sets :meth:`terms`' Kr and Cr: the one facet pushing (S = D = n n^T; -1 for both facets of
+        a corner, S = D = I whichever the corner) and the slip's sign where there is friction (G). Laws of one key
+        differ only in fr: a facet alone at a corner (codes 2F + k, 3F + k) is that facet's edge law, S, D and a
+        alike, and the corners' laws of both facets differ in a alone."""
+        single = law < self.F or law >= 2 * self.F
+        return (self.pushing(law)[0] if single else -1, s if self.friction else 0)
 
     def force_rows(self, law: int, Pq: np.ndarray, Pv: np.ndarray, const: int, damper=None) -> np.ndarray:
         """N (2 x dim) of a law as rows on an augmented state xi (q = Pq xi, q' = Pv xi, xi[const] = 1);

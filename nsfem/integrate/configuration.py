@@ -23,6 +23,7 @@ which is exact also for rigid-body modes (singular Q) and resonant forcing. Ever
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -70,6 +71,25 @@ class Mode:
     def dynamics(self) -> Mode:
         """The mode without its latent rings (they do not change the equations: one configuration)."""
         return replace(self, latent=()) if self.latent else self
+
+
+def matrix_key(system: ContactSystem, mode: Mode) -> tuple:
+    """What of a mode sets its configuration's matrices (constraints, M, C, Q): the contacts' states and per engaged
+    ring its :meth:`.Ring.matrix_key`. Modes of one key differ in the constant load alone
+    (:meth:`Configuration.with_load`)."""
+    rings = tuple((i, system.rings[i].matrix_key(law, s)) for i, law, s in mode.ring)
+    return mode.closed, mode.stick, mode.slide, mode.edge, rings
+
+
+def ring_load(system: ContactSystem, mode: Mode) -> np.ndarray:
+    """f0 of a configuration: the system's constant load and the engaged rings' (:meth:`.Ring.load`), in the rings'
+    order."""
+    if not mode.ring:
+        return system.f0
+    f0 = system.f0.copy()
+    for i, law, s in mode.ring:
+        f0 += system.rings[i].load(law, s)
+    return f0
 
 
 def _null(A: np.ndarray, n: int) -> tuple[np.ndarray, int]:
@@ -210,16 +230,15 @@ class Configuration:
         r = self.N.shape[1]
         self.r = r
         M, C, Q = system.M, system.C, system.Q
-        self.f0 = system.f0
+        self.f0 = ring_load(system, mode)
         symmetric = system.symmetric
         if mode.ring:   # engaged elastic rings: their piecewise-linear force on this region
-            C, Q, self.f0 = C.copy(), Q.copy(), self.f0.copy()
+            C, Q = C.copy(), Q.copy()
             for i, region, s in mode.ring:
                 ring = system.rings[i]
-                Kr, Cr, fr = ring.terms(region, s)
+                Kr, Cr, _ = ring.terms(region, s)
                 Q += Kr
                 C += Cr
-                self.f0 += fr
                 symmetric = symmetric and not (ring.friction and s)
         self.C, self.Q = C, Q
         Mr = self.L.T @ M @ self.N
@@ -335,6 +354,18 @@ class Configuration:
         # as 1e-14 |A|); divided differences are exact for any nodes, so a generous floor only costs
         floor = 1e-9 * max(float(np.max(np.abs(lam), initial=0.0)), self.w)
         self.plan = ModalPlan(lam, V, mus, k, S, floor)
+
+    def with_load(self, mode: Mode) -> Configuration:
+        """The configuration of ``mode``, whose equations differ from this one's in the constant load alone (the
+        same :func:`matrix_key`: elastic rings' laws of the same Kr and Cr): everything but ``f0`` shared, f0 as
+        its own construction forms it (bit for bit the configuration ``Configuration(system, mode)`` would be,
+        without its decompositions)."""
+        out = copy.copy(self)
+        out.mode, out.f0 = mode, ring_load(self.system, mode)
+        arrays = self.__dict__.get("kernel_arrays")
+        if arrays is not None:
+            out.kernel_arrays = {**arrays, "f0": np.ascontiguousarray(out.f0, dtype=float)}
+        return out
 
     @cached_property
     def kernel_arrays(self) -> dict:

@@ -35,7 +35,7 @@ from ..contact.ring import ROT, generalized_force, potential, unheld
 from ..result import Result
 from . import core
 from .base import Integrator, Progress, close_energy, initial_state, output_times
-from .configuration import Configuration, Mode, Phase
+from .configuration import Configuration, Mode, Phase, matrix_key
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
 from .rings import after_event, after_impact, initial_rings, with_rings
@@ -80,20 +80,24 @@ class EventDriven(Integrator):
             raise NsfemError(f"zeno must lie in (0, 1), got {zeno}")
         self.zeno, self.max_events, self.progress = zeno, int(max_events), progress
         self._cache: dict = {}
+        #: configurations with elastic rings by what sets their matrices (:meth:`_build`)
+        self._systems: dict = {}
         #: the round rings (:mod:`.round`) and the system of the fixed polygon they turn
         self._rings, self._polygon = (), system
 
     def configuration(self, mode: Mode) -> Configuration:
         mode = mode.dynamics
-        key = mode
+        key, turn = mode, ()
         if self._rings:   # a closed facet of a turned ring: the configuration of its turn
             closed = set(mode.closed)
-            key = (mode, tuple(r.signature() for r in self._rings if any(j in closed for j in r.facets)))
+            turn = tuple(r.signature() for r in self._rings if any(j in closed for j in r.facets))
+            key = (mode, turn)
         if key not in self._cache:
             if self._rings and len(self._cache) >= self.max_configurations:   # turned ones: keep the recent
                 for old in list(self._cache)[: self.max_configurations // 2]:
                     del self._cache[old]
-            self._cache[key] = Configuration(self.system, mode)
+                self._systems.clear()
+            self._cache[key] = self._build(mode, turn)
         cfg = self._cache[key]
         if cfg.system is not self.system:
             # no closed facet of a turned ring: the same equations; its rows read the turned facets' gaps
@@ -102,6 +106,20 @@ class EventDriven(Integrator):
             cfg.__dict__.pop("_rows_plans", None)   # the old system's gap rows (events.event_rows)
             self._cache[key] = cfg
         return cfg
+
+    def _build(self, mode: Mode, turn: tuple) -> Configuration:
+        """A new configuration (``turn``: the round rings' turns it is of); an elastic ring's law whose matrices an
+        earlier configuration has (the same :func:`.configuration.matrix_key`: a facet alone at a corner is its
+        edge's law, the corners' laws of both facets differ in their load alone) shares that one's decompositions
+        (:meth:`Configuration.with_load`): the same arrays, bit for bit, without another eigen-decomposition."""
+        if not mode.ring:
+            return Configuration(self.system, mode)
+        same = (matrix_key(self.system, mode), turn)
+        base = self._systems.get(same)
+        if base is None or base.system is not self.system:
+            base = self._systems[same] = Configuration(self.system, mode)
+            return base
+        return base.with_load(mode)
 
     def _turn(self) -> None:
         """The system of the round rings' turns now."""
@@ -125,7 +143,7 @@ class EventDriven(Integrator):
         self.system = self._polygon
         self._rings = round_rings(self.system.contacts, self.system.info.get("round_rings", ())) \
             if self.round_rings else ()
-        self._cache = {}
+        self._cache, self._systems = {}, {}
         sysm = self.system
         cs = sysm.contacts
         n, m = sysm.n, cs.m
@@ -310,6 +328,8 @@ class EventDriven(Integrator):
                      events, impacts, energy, time.perf_counter() - wall0, float(t_out[k - 1]) if k else 0.0,
                      completed, {**{kk: vv for kk, vv in sysm.info.items() if kk == "ndof_full"},
                                  "configurations": len(self._cache),
+                                 # of them, those that decomposed their matrices (the others share them)
+                                 "decompositions": len({id(c.eigenvalues) for c in self._cache.values()}),
                                  # exact in time (between events), not sampled at the outputs
                                  "closed_fraction": closed_time / covered if covered > 0.0 else 0.0})
         if self._rings:
