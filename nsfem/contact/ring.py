@@ -226,13 +226,12 @@ class Ring:
         laws of both facets, whose S = D = I)."""
         return self.stiffness * (self.P.T @ (self.coupling(s) @ self.parts(law)[1]))
 
-    def matrix_key(self, law: int, s: int) -> tuple[int, int]:
-        """What of (law, s) sets :meth:`terms`' Kr and Cr: the one facet pushing (S = D = n n^T; -1 for both facets of
-        a corner, S = D = I whichever the corner) and the slip's sign where there is friction (G). Laws of one key
-        differ only in fr: a facet alone at a corner (codes 2F + k, 3F + k) is that facet's edge law, S, D and a
-        alike, and the corners' laws of both facets differ in a alone."""
-        single = law < self.F or law >= 2 * self.F
-        return (self.pushing(law)[0] if single else -1, s if self.friction else 0)
+    def matrix_key(self, law: int, s: int) -> tuple[bytes, int]:
+        """What of (law, s) sets :meth:`terms`' Kr and Cr, by content: the spring's S (the damper's D is S) and the
+        slip's sign where there is friction (G). Laws of one key differ in fr alone: a facet alone at a corner
+        (codes 2F + k, 3F + k) is that facet's edge law, the corners' laws of both facets (S = I) differ in a
+        alone, and so do opposite facets where their n n^T round alike."""
+        return self.parts(law)[0].tobytes(), (s if self.friction else 0)
 
     def force_rows(self, law: int, Pq: np.ndarray, Pv: np.ndarray, const: int, damper=None) -> np.ndarray:
         """N (2 x dim) of a law as rows on an augmented state xi (q = Pq xi, q' = Pv xi, xi[const] = 1);
