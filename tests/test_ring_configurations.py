@@ -50,6 +50,8 @@ def test_laws_of_one_matrix_key_have_the_same_matrices(facets, mu, seed):
             key = ring.matrix_key
             assert key(2 * facets + k, s) == key(k, s) and key(3 * facets + k, s) == key((k + 1) % facets, s)
             assert key(facets + k, s) == key(facets, s) != key(k, s)
+            if facets % 2 == 0:     # opposite facets: one line, one spring (Ring.springs)
+                assert key(k, s) == key((k + facets // 2) % facets, s)
     # at most F single facets and the corners' one key per slip sign; without friction the sign does not count
     assert len(groups) <= (facets + 1) * (2 if mu else 1)
     assert (mu == 0.0) == all(k[1] == 0 for k in groups)
@@ -131,3 +133,23 @@ def test_compiled_phase_reads_the_shared_load():
     # 1e-4 m, 1e-2 m/s: 1e-12 of the largest component is a few hundred ulps of headroom)
     np.testing.assert_allclose(compiled, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
     assert not np.allclose(shared.f0, base.f0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(facets=st.integers(3, 256), turn=st.floats(-np.pi, np.pi), seed=st.integers(0, 2**31 - 1))
+def test_a_facet_spring_is_its_normal_to_round_off(facets, turn, seed):
+    """S_k is n_k n_k^T of its own normal, or of the first parallel facet's (opposite, n_j = -n_k within 8 eps):
+    then the entries (at most 1) differ by at most 2 |n_j + n_k| ~ 4e-15; 1e-14 leaves room for their rounding.
+    Regular polygons of even F pair every facet with its opposite; random angles have no parallel facets and keep
+    their own n n^T bit for bit."""
+    ring = Ring("ring", np.eye(2), turn + 2 * np.pi * np.arange(facets) / facets, 1e-4, 1e5)
+    own = np.einsum("ki,kj->kij", ring.normals, ring.normals)
+    assert np.abs(ring.springs - own).max() <= 1e-14
+    shared = {ring.springs[k].tobytes() for k in range(facets)}
+    assert len(shared) == (facets // 2 if facets % 2 == 0 else facets)
+    angles = np.sort(np.random.default_rng(seed).uniform(0.0, 2 * np.pi, facets))
+    if np.min(np.abs(np.sin(angles[:, None] - angles[None, :])) + np.eye(facets)) > 1e-9:
+        odd = Ring("ring", np.eye(2), angles, 1e-4, 1e5)
+        assert np.array_equal(odd.springs, np.einsum("ki,kj->kij", odd.normals, odd.normals))
+    with pytest.raises(ValueError):
+        ring.parts(0)[0][0, 0] = 1.0      # formed once per law and shared: read-only

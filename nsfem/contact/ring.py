@@ -130,15 +130,37 @@ class Ring:
         F, k = self.F, law % self.F
         return ((k,), (k, (k + 1) % F), (k,), ((k + 1) % F,))[law // F]
 
+    @cached_property
+    def springs(self) -> np.ndarray:
+        """S_k = n n^T (F x 2 x 2) of each facet's line: of parallel facets (opposite ones, n_j = -n_k to
+        round-off: |n_j x n_k| <= 8 eps) the first one's normal forms all, so that they are one linear system
+        under two loads (:meth:`matrix_key`); the other's S differs from its own n n^T in the last bits only."""
+        n = self.normals
+        cross = np.abs(n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0])
+        line = np.argmax(cross <= 8 * np.finfo(float).eps, axis=1)       # the first parallel facet (itself at the latest)
+        out = np.einsum("ki,kj->kij", n[line], n[line])
+        out.flags.writeable = False
+        return out
+
     def parts(self, law: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(S, a, nu) of a law (or a region, its own law): N = k_s (S u - a) + c_s D u' (:meth:`damper`),
-        nu the direction of the slip's normal (the facet's, the corner's bisector for both facets)."""
-        F = self.F
-        if law < F or law >= 2 * F:
-            n = self.normals[self.pushing(law)[0]]
-            return np.outer(n, n), self.clearance * n, n
-        k = law - F
-        return np.eye(2), self.corners[k], self.bisectors[k]
+        nu the direction of the slip's normal (the facet's, the corner's bisector for both facets); formed
+        once per law, read-only."""
+        cache = self.__dict__.setdefault("_parts", {})
+        got = cache.get(law)
+        if got is None:
+            F = self.F
+            if law < F or law >= 2 * F:
+                k = self.pushing(law)[0]
+                n = self.normals[k]
+                got = (self.springs[k], self.clearance * n, n)
+            else:
+                k = law - F
+                got = (np.eye(2), self.corners[k], self.bisectors[k])
+            for x in got:
+                x.flags.writeable = False
+            cache[law] = got
+        return got
 
     def damper(self, law: int) -> np.ndarray:
         """D (2 x 2): the damper's projector, the spring's S (n n^T for one facet, I for both: the ring
@@ -230,7 +252,7 @@ class Ring:
         """What of (law, s) sets :meth:`terms`' Kr and Cr, by content: the spring's S (the damper's D is S) and the
         slip's sign where there is friction (G). Laws of one key differ in fr alone: a facet alone at a corner
         (codes 2F + k, 3F + k) is that facet's edge law, the corners' laws of both facets (S = I) differ in a
-        alone, and so do opposite facets where their n n^T round alike."""
+        alone, and so do opposite facets (one line, one spring: :attr:`springs`)."""
         return self.parts(law)[0].tobytes(), (s if self.friction else 0)
 
     def force_rows(self, law: int, Pq: np.ndarray, Pv: np.ndarray, const: int, damper=None) -> np.ndarray:
