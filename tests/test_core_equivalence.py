@@ -29,6 +29,7 @@ it is built there, and runs the whole suite once more on the reference path (NSF
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -51,6 +52,8 @@ CASES = {
     "ross_example": ("ross_example", ["simulation.t_end=0.05"]),
     "rub": ("rub", ["simulation.t_end=0.05"]),
     "retainer_drop": ("retainer_drop", ["simulation.t_end=0.02"]),
+    # an elastic ring (no shipped scene has one): ROSS's rub of studies/ross_rub.py, through edges and corners
+    "ross_rub": (str(Path(__file__).resolve().parents[1] / "studies" / "ross_rub.toml"), ["simulation.t_end=0.05"]),
 }
 
 
