@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from nsfem.contact.ring import Ring
+from nsfem.contact.ring import PARALLEL, Ring
 from nsfem.integrate import core, integrate
 from nsfem.integrate.configuration import Configuration, Mode, Phase, matrix_key
 from nsfem.integrate.event_driven import EventDriven
@@ -138,13 +138,14 @@ def test_compiled_phase_reads_the_shared_load():
 @settings(max_examples=25, deadline=None)
 @given(facets=st.integers(3, 256), turn=st.floats(-np.pi, np.pi), seed=st.integers(0, 2**31 - 1))
 def test_a_facet_spring_is_its_normal_to_round_off(facets, turn, seed):
-    """S_k is n_k n_k^T of its own normal, or of the first parallel facet's (opposite, n_j = -n_k within 8 eps):
-    then the entries (at most 1) differ by at most 2 |n_j + n_k| ~ 4e-15; 1e-14 leaves room for their rounding.
-    Regular polygons of even F pair every facet with its opposite; random angles have no parallel facets and keep
-    their own n n^T bit for bit."""
+    """S_k is n_k n_k^T of its own normal, or of the first parallel facet's (opposite, |n_j x n_k| within the
+    tolerance tol of PARALLEL, so |n_j + n_k| <= tol to first order): the entries (at most 1) then differ by at
+    most 2 tol, and 4 eps more for their own rounding. Regular polygons of even F pair every facet with its
+    opposite; random angles have no parallel facets and keep their own n n^T bit for bit."""
     ring = Ring("ring", np.eye(2), turn + 2 * np.pi * np.arange(facets) / facets, 1e-4, 1e5)
     own = np.einsum("ki,kj->kij", ring.normals, ring.normals)
-    assert np.abs(ring.springs - own).max() <= 1e-14
+    tol = PARALLEL * (1.0 + np.abs(ring.angles).max())
+    assert np.abs(ring.springs - own).max() <= 2 * tol + 4 * np.finfo(float).eps
     shared = {ring.springs[k].tobytes() for k in range(facets)}
     assert len(shared) == (facets // 2 if facets % 2 == 0 else facets)
     angles = np.sort(np.random.default_rng(seed).uniform(0.0, 2 * np.pi, facets))
@@ -153,3 +154,26 @@ def test_a_facet_spring_is_its_normal_to_round_off(facets, turn, seed):
         assert np.array_equal(odd.springs, np.einsum("ki,kj->kij", odd.normals, odd.normals))
     with pytest.raises(ValueError):
         ring.parts(0)[0][0, 0] = 1.0      # formed once per law and shared: read-only
+
+
+@settings(max_examples=60, deadline=None)
+@given(facets=st.sampled_from([3, 4, 5, 12, 64]), turn=st.floats(-np.pi, np.pi), region=st.integers(0, 10**6),
+       u=st.tuples(st.floats(-3e-4, 3e-4), st.floats(-3e-4, 3e-4)), scale=st.floats(-8, 2),
+       du=st.tuples(st.floats(-1, 1), st.floats(-1, 1)), cs=st.sampled_from([0.0, 30.0]),
+       on=st.sampled_from([None, "n0", "n1", "t0", "zero"]))
+def test_law_at_one_point_decides_as_laws(facets, turn, region, u, scale, du, cs, on):
+    """Ring.law (scalars, once per ring event) and Ring.laws (arrays, the outputs) are one function: the same
+    case for any X, also with X on a switch's line (along a facet's normal or tangent, or zero), where only
+    the same products and sums in the same order decide alike."""
+    ring = Ring("ring", np.eye(2), turn + 2 * np.pi * np.arange(facets) / facets, 1e-4, 1e5, cs)
+    reg = region % (2 * facets)
+    u, du = np.array(u), 10.0 ** scale * np.array(du)
+    if on is not None and cs:       # u' that puts X = k_s d + c_s u' on a line of the cone's cases
+        k = reg % facets
+        line = {"n0": ring.normals[k], "n1": ring.normals[(k + 1) % facets],
+                "t0": np.array([-ring.normals[k][1], ring.normals[k][0]]), "zero": np.zeros(2)}[on]
+        d = ring.push(reg, u, np.zeros(2))
+        du = (du[0] * line - d) / cs
+    X = ring.push(reg, u, du)
+    ref = int(ring.laws(np.array([reg]), X[:, None])[0])
+    assert ring.law(reg, u, du) == (None if ref < 0 else ref)

@@ -49,6 +49,11 @@ from functools import cached_property
 
 import numpy as np
 
+#: facet normals whose cross product is at most this (times 1 + the largest |angle|: an angle's rounding
+#: moves its normal by eps |angle|) are parallel: opposite facets of a regular polygon (:attr:`Ring.springs`);
+#: distinct facets of F facets lie sin(2 pi / F) apart (6e-6 at F = 1e6)
+PARALLEL = 8 * np.finfo(float).eps
+
 #: R: the rotation by +90 degrees in the y-z plane (from the normal to the circumferential direction)
 ROT = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -133,11 +138,13 @@ class Ring:
     @cached_property
     def springs(self) -> np.ndarray:
         """S_k = n n^T (F x 2 x 2) of each facet's line: of parallel facets (opposite ones, n_j = -n_k to
-        round-off: |n_j x n_k| <= 8 eps) the first one's normal forms all, so that they are one linear system
-        under two loads (:meth:`matrix_key`); the other's S differs from its own n n^T in the last bits only."""
+        round-off: |n_j x n_k| <= :data:`PARALLEL` (1 + max |angle|), the angles' own rounding) the first one's
+        normal forms all, so that they are one linear system under two loads (:meth:`matrix_key`); the other's
+        S differs from its own n n^T in the last bits only."""
         n = self.normals
         cross = np.abs(n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0])
-        line = np.argmax(cross <= 8 * np.finfo(float).eps, axis=1)       # the first parallel facet (itself at the latest)
+        tol = PARALLEL * (1.0 + float(np.max(np.abs(self.angles), initial=0.0)))
+        line = np.argmax(cross <= tol, axis=1)       # the first parallel facet (itself at the latest)
         out = np.einsum("ki,kj->kij", n[line], n[line])
         out.flags.writeable = False
         return out
@@ -190,9 +197,25 @@ class Ring:
                 3 * F + k: [(n1, None), (t1, F + k)]}[law]
 
     def law(self, region: int, u: np.ndarray, du: np.ndarray) -> int | None:
-        """The case of proj_K at (u, u') on a region (None: released)."""
-        law = int(self.laws(np.array([region]), self.push(region, u, du)[:, None])[0])
-        return None if law < 0 else law
+        """The case of proj_K at (u, u') on a region (None: released): :meth:`laws` at one point, in scalars
+        (the same products and sums, so the same decisions)."""
+        if self.damping == 0.0:   # X = k_s d lies in K
+            return region
+        x, y = (float(c) for c in self.push(region, u, du))
+        F, k = self.F, region % self.F
+        (n0x, n0y), (n1x, n1y) = self.normals[k], self.normals[(k + 1) % F]
+        p0 = n0x * x + n0y * y
+        if region < F:
+            return k if p0 > 0 else None
+        p1 = n1x * x + n1y * y
+        b, a = -n0y * x + n0x * y, -(-n1y * x + n1x * y)     # R n = (-n_y, n_x)
+        if a > 0 and b > 0:
+            return F + k
+        if p0 > 0 and b <= 0:
+            return 2 * F + k
+        if p1 > 0 and a <= 0:
+            return 3 * F + k
+        return None
 
     def laws(self, regions: np.ndarray, X: np.ndarray) -> np.ndarray:
         """The laws (-1: released) of X (2, t) on regions (t,) beyond the polygon."""

@@ -121,9 +121,16 @@ def after_event(rings, mode: Mode, fired: list, q: np.ndarray, v: np.ndarray, t:
     by_ring: dict[int, list] = {}
     for kind, det in fired:
         by_ring.setdefault(det[0], []).append((kind, det))
+    centres = {}   # (u, u') per ring, formed once
+
+    def centre(i):
+        if i not in centres:
+            centres[i] = rings[i].P @ q, rings[i].P @ v
+        return centres[i]
+
     for i, items in by_ring.items():
         ring = rings[i]
-        u, du = ring.P @ q, ring.P @ v
+        u, du = centre(i)
         if any(kind == "ring_turn" for kind, _ in items):
             raise rolling(ring, t)
         law, reg = state.get(i, (None, None))
@@ -146,8 +153,7 @@ def after_event(rings, mode: Mode, fired: list, q: np.ndarray, v: np.ndarray, t:
             state[i] = (law, reg)
     eng, lat = [], []
     for i, (law, reg) in state.items():
-        ring = rings[i]
-        _place(eng, lat, ring, i, reg, law, ring.P @ q, ring.P @ v, t)
+        _place(eng, lat, rings[i], i, reg, law, *centre(i), t)
     return tuple(sorted(eng)), tuple(sorted(lat))
 
 
