@@ -150,6 +150,7 @@ def test_frictional_elastic_rub_dissipates_what_the_spin_drives():
     growth = float(np.linalg.eigvals(A).real.max())
     transient = float(np.linalg.cond(np.linalg.eig(A)[1]))
     assert 80.0 < growth < 90.0
+    rate_drift = float(np.abs(res.normal_force[on] / st.normal_force[on, None] - 1).max())
     for name, (r, _) in runs.items():
         e = r.energy
         drift = np.abs(r.normal_force[on] / st.normal_force[on, None] - 1).max(axis=0)
@@ -158,9 +159,11 @@ def test_frictional_elastic_rub_dissipates_what_the_spin_drives():
         bound = d0 * (1 + steps) * transient * np.exp(growth * r.t)
         assert np.all(drift <= bound), (name, float(np.max(drift / bound)))
         # the energy terms are the rates times T, integrals of the force against the slip: off by at most the
-        # largest drift of the force (1e-12 to 2e-9) and the accuracy of the integral: round-off of the closed
-        # form (exact, moreau: 1e-12), rk's own tolerance (rtol 1e-8; measured 8e-12)
-        tol = drift.max() + (scene.simulation.rtol if name == "rk" else 1e-12)
+        # largest drift of the force (1e-12 to 2e-9), that of exact's final state the rate is read from (up to
+        # 2.3e-10: moreau's own energy and rate agree to 7e-16, measured, and it failed on OpenBLAS's Sandybridge
+        # kernels without this term) and the accuracy of the integral: round-off of the closed form (exact,
+        # moreau: 1e-12), rk's own tolerance (rtol 1e-8; measured 8e-12)
+        tol = drift.max() + rate_drift + (scene.simulation.rtol if name == "rk" else 1e-12)
         assert e["dissipated_friction_J"] == pytest.approx(T * rate, rel=tol), name
         assert e["work_spin_J"] == pytest.approx(e["dissipated_friction_J"], rel=tol), name
         assert abs(e["relative_residual"]) < 1e-9
