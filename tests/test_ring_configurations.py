@@ -146,6 +146,11 @@ def test_a_facet_spring_is_its_normal_to_round_off(facets, turn, seed):
     own = np.einsum("ki,kj->kij", ring.normals, ring.normals)
     tol = PARALLEL * (1.0 + np.abs(ring.angles).max())
     assert np.abs(ring.springs - own).max() <= 2 * tol + 4 * np.finfo(float).eps
+    # the definition, all pairs at once (Ring.springs finds them among neighbours in the lines' angle order)
+    n = ring.normals
+    cross = np.abs(n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0])
+    line = np.argmax(cross <= tol, axis=1)
+    assert np.array_equal(ring.springs, np.einsum("ki,kj->kij", n[line], n[line]))
     shared = {ring.springs[k].tobytes() for k in range(facets)}
     assert len(shared) == (facets // 2 if facets % 2 == 0 else facets)
     angles = np.sort(np.random.default_rng(seed).uniform(0.0, 2 * np.pi, facets))

@@ -141,10 +141,22 @@ class Ring:
         round-off: |n_j x n_k| <= :data:`PARALLEL` (1 + max |angle|), the angles' own rounding) the first one's
         normal forms all, so that they are one linear system under two loads (:meth:`matrix_key`); the other's
         S differs from its own n n^T in the last bits only."""
-        n = self.normals
-        cross = np.abs(n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0])
+        n, F = self.normals, self.F
         tol = PARALLEL * (1.0 + float(np.max(np.abs(self.angles), initial=0.0)))
-        line = np.argmax(cross <= tol, axis=1)       # the first parallel facet (itself at the latest)
+        # parallel facets are neighbours in the order of their lines' angles (mod pi, circular: 0 meets pi)
+        order = np.argsort(np.mod(self.angles, np.pi), kind="stable")
+        after = np.roll(order, -1)
+        par = np.abs(n[order, 0] * n[after, 1] - n[order, 1] * n[after, 0]) <= tol   # order[i] || order[i + 1]
+        line = np.arange(F)
+        if par.any() and not par.all():
+            first = (int(np.flatnonzero(~par)[0]) + 1) % F      # a line's first facet in that order
+            group = []
+            for step in range(F):
+                i = (first + step) % F
+                group.append(order[i])
+                if not par[i]:                                  # the line's last facet
+                    line[group] = min(group)
+                    group = []
         out = np.einsum("ki,kj->kij", n[line], n[line])
         out.flags.writeable = False
         return out
