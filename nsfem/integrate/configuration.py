@@ -385,8 +385,11 @@ class Configuration:
         return cached[1:]
 
     def fastest_rate(self) -> float:
-        """max |eigenvalue| of A [1/s] (0 without coordinates)."""
-        return float(np.max(np.abs(self.eigenvalues), initial=0.0))
+        """max |eigenvalue| of A [1/s] (0 without coordinates); formed once per set of eigenvalues."""
+        cached = self.__dict__.get("_fastest_rate")
+        if cached is None or cached[0] is not self.eigenvalues:
+            cached = self._fastest_rate = (self.eigenvalues, float(np.max(np.abs(self.eigenvalues), initial=0.0)))
+        return cached[1]
 
 
 @dataclass

@@ -101,8 +101,9 @@ class Memory:
     def abs_parts(self, cs) -> tuple:
         """(|J_N|, |j_N|, [|S_k| or None]) of the contact set (formed once per set)."""
         if self._abs is None or self._abs[0] is not cs:
-            self._abs = (cs, np.abs(cs.JN), np.abs(cs.jN), [np.abs(S) if S.shape[1] else None for S in cs.JS])
-        return self._abs[1:]
+            aS = [np.abs(S) if S.shape[1] else None for S in cs.JS]
+            self._abs = (cs, np.abs(cs.JN), np.abs(cs.jN), aS, any(S is not None for S in aS))
+        return self._abs[1:4]
 
     def _slip_terms(self, cs, av: np.ndarray, aq: np.ndarray) -> np.ndarray:
         """Per contact the largest size of its slip rate's terms over the columns of (|q|, |q'|):
@@ -113,15 +114,18 @@ class Memory:
             aS = np.hstack([np.abs(S) for S in cs.JS]) if cols else np.zeros((n, 0))
             aSq = np.hstack([np.abs(S) for S in cs.JSq]) if cols and np.any(cs.moving) else None
             aw = np.concatenate([np.abs(w) for w in cs.wS]) if cols else np.zeros(0)
-            self._slip = (cs, np.array(cols, dtype=int), aS, aSq, aw)
-        _, cols, aS, aSq, aw = self._slip
+            # each contact's columns are adjacent: their maximum is one reduceat per contact with any
+            owners = np.array(sorted(set(cols)), dtype=int)
+            starts = np.searchsorted(np.array(cols, dtype=int), owners)
+            self._slip = (cs, np.array(cols, dtype=int), aS, aSq, aw, owners, starts)
+        _, cols, aS, aSq, aw, owners, starts = self._slip
         sv = np.zeros(cs.m)
         if not cols.size:
             return sv
         terms = aS.T @ av
         if aSq is not None:
             terms = terms + aSq.T @ aq + aw[:, None]
-        np.maximum.at(sv, cols, terms.max(axis=1))
+        sv[owners] = np.maximum.reduceat(terms.max(axis=1), starts)
         return sv
 
     def abs_operators(self, system) -> tuple:
@@ -134,15 +138,18 @@ class Memory:
         """Update the scales with a state (q, q') of the run (or several, as columns); return the
         state's gap and gap-rate terms |J_N|^T |q| + |j_N|, |J_N|^T |q'| (of one column: numpy's
         matmul takes the same BLAS gemv for a column and a vector, so they are :func:`_tol`'s)."""
-        aJ, aj, aS = self.abs_parts(cs)
-        av = np.abs(v.reshape(v.shape[0], -1))
-        G, V = aJ.T @ np.abs(q.reshape(q.shape[0], -1)), aJ.T @ av
-        g = (G[:, 0] if G.shape[1] == 1 else G.max(axis=1)) + aj   # one column is its own maximum
-        gv = V[:, 0] if V.shape[1] == 1 else V.max(axis=1)
+        aJ, aj = self.abs_parts(cs)[:2]
+        aq, av = np.abs(q), np.abs(v)
+        if aq.ndim == 1:   # one state: a vector product is the column's (the same gemv)
+            g, gv = aJ.T @ aq + aj, aJ.T @ av
+        else:              # one column is its own maximum
+            G, V = aJ.T @ aq, aJ.T @ av
+            g = (G[:, 0] if G.shape[1] == 1 else G.max(axis=1)) + aj
+            gv = V[:, 0] if V.shape[1] == 1 else V.max(axis=1)
         self.gap_scale = g if self.gap_scale is None else np.maximum(self.gap_scale, g)
         self.rate_scale = gv if self.rate_scale is None else np.maximum(self.rate_scale, gv)
-        if self.slip_scale is None or any(S is not None for S in aS):   # else it stays 0
-            sv = self._slip_terms(cs, av, np.abs(q.reshape(q.shape[0], -1)))
+        if self.slip_scale is None or self._abs[4]:   # else it stays 0
+            sv = self._slip_terms(cs, av.reshape(av.shape[0], -1), aq.reshape(aq.shape[0], -1))
             self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
         return g, gv
 
@@ -150,7 +157,7 @@ class Memory:
 def _spin_work(cs, lcp, x: np.ndarray, q: np.ndarray) -> float | None:
     """The work -Lambda_T . (Sq^T q + w) of an impact LCP's frictional impulses against moving surfaces, or
     None without any."""
-    if not np.any(cs.moving[lcp.friction]):
+    if not lcp.friction.size or not np.any(cs.moving[lcp.friction]):
         return None
     return -sum(float(lt @ (cs.JSq[k].T @ q + cs.wS[k])) for k, lt in zip(lcp.friction, lcp.tangential(x))
                 if cs.moving[k])

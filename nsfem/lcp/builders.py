@@ -65,7 +65,7 @@ class ContactLCP:
     generators: tuple           # B_k per friction contact
     base: np.ndarray            # the motion without contact forces: Q^-1 f0, M^-1 f* or q'^-
     scales: tuple | None = None  # Lemke's equilibration of A, when built once for many solves
-
+    row_groups: np.ndarray | None = None   # :attr:`groups` when formed once with a cached matrix part
 
     @property
     def size(self) -> int:
@@ -74,9 +74,9 @@ class ContactLCP:
     @property
     def groups(self) -> np.ndarray:
         """Row kinds for the certificate: 0 motion rows (gaps, slips), 1 friction limits."""
-        g = np.zeros(self.size, dtype=int)
-        g[self.size - self.friction.size:] = 1
-        return g
+        if self.row_groups is not None:
+            return self.row_groups
+        return _groups(self.size, self.friction.size)
 
     def solve(self, **kw) -> LCPResult:
         """Lemke's method on (A, b); keywords go to :func:`~nsfem.lcp.pivoting.lemke`."""
@@ -113,6 +113,13 @@ class ContactLCP:
         return out
 
 
+def _groups(size: int, friction: int) -> np.ndarray:
+    """:attr:`ContactLCP.groups` of an LCP of ``size`` unknowns with ``friction`` friction contacts."""
+    g = np.zeros(size, dtype=int)
+    g[size - friction:] = 1
+    return g
+
+
 def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, slide=None,
                 base: np.ndarray | None = None, extra=None, cache: LCPCache | None = None, key=None) -> ContactLCP:
     """Assemble the LCP of the module docstring.
@@ -147,9 +154,21 @@ def _parts(solve: Factorization, cs: ContactSet, normal, friction, slide, extra,
     return entry
 
 
+def _impact_parts(solve: Factorization, cs: ContactSet, active, cache, key) -> tuple:
+    """(matrix part, normal, friction) of the impact LCP over ``active``; a cached matrix part keeps its
+    index arrays (its key names the contacts), so an event that meets the structure again forms neither."""
+    entry = cache.get(key) if cache is not None and key is not None else None
+    if entry is None:
+        normal = np.asarray(active, dtype=int).ravel()
+        friction = np.array([k for k in normal if cs.r[k] > 0], dtype=int)
+        entry = _parts(solve, cs, normal, friction, {}, None, cache, key)
+    return entry, entry[9], entry[10]
+
+
 def _assemble(entry: tuple, cs: ContactSet, normal, friction, bN, bT, base) -> ContactLCP:
     """:class:`ContactLCP` of a matrix part and the right-hand side (bN, bT)."""
     A, W, Y, r, generators, scales = entry[:6]
+    groups = entry[8]
     b = (np.asarray(bN, dtype=float).ravel().tolist() + np.asarray(bT, dtype=float).ravel().tolist()
          + [0.0] * friction.size)   # a list: a few entries, read twice
     # entries at round-off of the largest (J^T X^-1 f carries cond * eps of it) are zeros: a
@@ -157,7 +176,7 @@ def _assemble(entry: tuple, cs: ContactSet, normal, friction, bN, bT, base) -> C
     big = math.nan if any(e != e for e in b) else max(map(abs, b), default=0.0)   # as numpy: a nan zeroes nothing
     b = np.array([0.0 if abs(e) <= ROUND_OFF * big else e for e in b])
     return ContactLCP(A, b, normal, friction, r, W, Y, generators,
-                      np.zeros(cs.n) if base is None else np.asarray(base, dtype=float), scales)
+                      np.zeros(cs.n) if base is None else np.asarray(base, dtype=float), scales, groups)
 
 
 class LCPCache:
@@ -187,9 +206,9 @@ class LCPCache:
 
 
 def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, extra, keep: bool):
-    """(A, W, S W, r, generators, equilibration or None, J_N of the normal contacts, J_T) of
-    :func:`contact_lcp` (the last two give the right-hand sides' rows); read-only when ``keep``
-    (cached), with the equilibration computed then."""
+    """(A, W, S W, r, generators, equilibration or None, J_N of the normal contacts, J_T, the rows'
+    groups, normal, friction) of :func:`contact_lcp` (J_N and J_T give the right-hand sides' rows);
+    read-only when ``keep`` (cached), with the equilibration computed then."""
     JN = cs.JN[:, normal]
     WN = JN.copy()
     for j, k in enumerate(normal):
@@ -211,11 +230,14 @@ def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, 
         A[m + p + i, pos[int(k)]] = cs.mu[k]
     A[m + p:, m: m + p] = -E.T
     scales = None
+    groups = _groups(A.shape[0], f)
     if keep:
         scales = equilibrate(A) if A.size and np.all(np.isfinite(A)) else None
-        for arr in (A, W, Y, JN, JT):
+        normal, friction = normal.copy(), friction.copy()
+        for arr in (A, W, Y, JN, JT, groups, normal, friction):
             arr.setflags(write=False)
-    return A, W, Y, cs.r[friction], tuple(cs.generators(int(k)) for k in friction), scales, JN, JT
+    return (A, W, Y, cs.r[friction], tuple(cs.generators(int(k)) for k in friction), scales, JN, JT, groups,
+            normal, friction)
 
 
 def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, normal=None,
@@ -302,9 +324,7 @@ def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: L
     slip velocity a moving surface adds (eq. 32: the tangential law acts on the slip velocity after the
     impact, J_T^T q'^+ + g_0T').
     """
-    active = np.asarray(active, dtype=int)
-    friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
-    parts = _parts(M, cs, active, friction, {}, None, cache, key)
+    parts, active, friction = _impact_parts(M, cs, active, cache, key)
     e = (cs.eps if eps is None else np.asarray(eps, dtype=float)).tolist()
     # Newton's law acts on approaching contacts; a separating one must merely not approach
     # (min(g', 0) as numpy's: nan stays nan, -0.0 gives 0.0)
