@@ -57,6 +57,7 @@ import numpy as np
 from ..errors import NsfemError
 from ..lcp.builders import LCPCache, impact_lcp, transition_lcp
 from ..linalg import Factorization
+from . import core
 from .configuration import Mode
 from .problem import ContactSystem
 
@@ -97,6 +98,7 @@ class Memory:
     _abs: tuple | None = field(default=None, repr=False)
     _abs_system: tuple | None = field(default=None, repr=False)
     _slip: tuple | None = field(default=None, repr=False)
+    _kernel: tuple | None = field(default=None, repr=False)
 
     def abs_parts(self, cs) -> tuple:
         """(|J_N|, |j_N|, [|S_k| or None]) of the contact set (formed once per set)."""
@@ -104,6 +106,19 @@ class Memory:
             aS = [np.abs(S) if S.shape[1] else None for S in cs.JS]
             self._abs = (cs, np.abs(cs.JN), np.abs(cs.jN), aS, any(S is not None for S in aS))
         return self._abs[1:4]
+
+    def kernel_arrays(self, cs) -> tuple:
+        """(J_N^T, |J_N|^T, |j_N|) C-contiguous for the compiled kernels (formed once per set)."""
+        if self._kernel is None or self._kernel[0] is not cs:
+            aJ, aj = self.abs_parts(cs)[:2]
+            self._kernel = (cs, np.ascontiguousarray(cs.JN.T, dtype=float), np.ascontiguousarray(aJ.T, dtype=float),
+                            np.ascontiguousarray(aj, dtype=float))
+        return self._kernel[1:]
+
+    def observe_slip(self, cs, aq: np.ndarray, av: np.ndarray) -> None:
+        """The slip scales' part of :meth:`observe` (|q|, |q'| of one state or several, as columns)."""
+        sv = self._slip_terms(cs, av.reshape(av.shape[0], -1), aq.reshape(aq.shape[0], -1))
+        self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
 
     def _slip_terms(self, cs, av: np.ndarray, aq: np.ndarray) -> np.ndarray:
         """Per contact the largest size of its slip rate's terms over the columns of (|q|, |q'|):
@@ -149,8 +164,7 @@ class Memory:
         self.gap_scale = g if self.gap_scale is None else np.maximum(self.gap_scale, g)
         self.rate_scale = gv if self.rate_scale is None else np.maximum(self.rate_scale, gv)
         if self.slip_scale is None or self._abs[4]:   # else it stays 0
-            sv = self._slip_terms(cs, av.reshape(av.shape[0], -1), aq.reshape(aq.shape[0], -1))
-            self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
+            self.observe_slip(cs, aq, av)
         return g, gv
 
 
@@ -186,6 +200,49 @@ def _band(terms: np.ndarray) -> np.ndarray:
     return ZERO * terms + 1e-3 * ZERO * float(terms.max(initial=0.0)) + 1e-300
 
 
+def _bands(cs, memory: Memory, q: np.ndarray, v: np.ndarray, gap_tol, kernel=None) -> tuple:
+    """(g, g', gap bands, rate bands) of the state (q, q') after observing it (:meth:`Memory.observe`):
+    a gap counts as zero below the larger of ZERO times its scale, the band of its own terms, ``gap_tol``
+    (per contact, or None) and the gap floor; a rate likewise without the last two. g and the gap bands as
+    lists. ``kernel``: the compiled module of core part "resolve" (None: this reference)."""
+    if kernel is not None and memory.gap_scale is not None and memory.rate_scale is not None:
+        JNT, aJT, aj = memory.kernel_arrays(cs)
+        out = np.empty((6, cs.m))
+        kernel.state_bands(JNT, aJT, cs.jN, aj, _floats(q), _floats(v), memory.gap_scale, memory.rate_scale,
+                           _EMPTY if gap_tol is None else np.ascontiguousarray(gap_tol, dtype=float),
+                           float(memory.gap_floor), out)
+        memory.gap_scale, memory.rate_scale = out[0], out[1]
+        if memory._abs[4]:   # the slip scales as observe forms them
+            memory.observe_slip(cs, np.abs(q), np.abs(v))
+        return out[2].tolist(), out[3], out[4].tolist(), out[5]
+    gterms, vterms = memory.observe(cs, q, v)
+    g, gv = cs.gaps(q).tolist(), cs.JN.T @ v
+    tg = np.maximum(ZERO * memory.gap_scale, _band(gterms))
+    if gap_tol is not None:
+        tg = np.maximum(tg, gap_tol)
+    tg = np.maximum(tg, memory.gap_floor).tolist()
+    tv = np.maximum(ZERO * memory.rate_scale, _band(vterms))
+    return g, gv, tg, tv
+
+
+def _rate_bands(cs, memory: Memory, v: np.ndarray, tv: np.ndarray, kernel=None) -> tuple[np.ndarray, np.ndarray]:
+    """(g', bands) of the velocity v after an impulse: the bands ``tv`` widened to the round-off of
+    J_N^T v's terms (what cancelled in the impulse). ``kernel``: as in :func:`_bands`."""
+    if kernel is not None:
+        JNT, aJT, _ = memory.kernel_arrays(cs)
+        out = np.empty((2, cs.m))
+        kernel.rate_bands(JNT, aJT, _floats(v), tv, out)
+        return out[0], out[1]
+    return cs.JN.T @ v, np.maximum(tv, _tol(cs.JN, v, absJ=memory.abs_parts(cs)[0]))
+
+
+_EMPTY = np.zeros(0)
+
+
+def _floats(x: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=float)
+
+
 def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray, before: Mode,
             memory: Memory, touching=(), gap_tol=None, slipping=None,
             settled=(), facets=None, stopped=(), extra_load=None) -> tuple[Mode, np.ndarray, dict | None]:
@@ -212,16 +269,11 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     if cs.m == 0:
         return Mode(), v, None
     slipping = dict(slipping or {})
-    gterms, vterms = memory.observe(cs, q, v)
+    kernel = core.compiled("resolve")
     aJ, _, aS = memory.abs_parts(cs)
     # per-contact values as lists: the loops below read each a few times (a float's compare costs
     # a tenth of a numpy scalar's; the values are the same)
-    g, gv = cs.gaps(q).tolist(), cs.JN.T @ v
-    tg = np.maximum(ZERO * memory.gap_scale, _band(gterms))
-    if gap_tol is not None:
-        tg = np.maximum(tg, gap_tol)
-    tg = np.maximum(tg, memory.gap_floor).tolist()
-    tv = np.maximum(ZERO * memory.rate_scale, _band(vterms))
+    g, gv, tg, tv = _bands(cs, memory, q, v, gap_tol, kernel)
     gvl, tvl = gv.tolist(), tv.tolist()
     cand = [k for k in range(cs.m) if g[k] <= tg[k] or k in before.closed or k in touching]
     approaching = [k for k in cand if gvl[k] < -tvl[k]]
@@ -319,15 +371,13 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
             # (the kinetic energy may grow in the impact), the rest of the change is lost
             impact["work_spin_J"] = spin
         v = v_new
-        gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))  # what cancelled in the impact sets the round-off
+        gv, tv = _rate_bands(cs, memory, v, tv, kernel)  # what cancelled sets the round-off
         gvl, tvl = gv.tolist(), tv.tolist()
     creeping = [k for k in creeping if gvl[k] < -tvl[k]]
     if creeping:
         hold = sorted(set(creeping) | {k for k in cand if abs(gvl[k]) <= tvl[k]})
         v, impact = _settle(system, Mf, t, v, hold, creeping, impact, plastic=True)
-        gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))
+        gv, tv = _rate_bands(cs, memory, v, tv, kernel)  # what cancelled sets the round-off
         gvl, tvl = gv.tolist(), tv.tolist()
     closed = [k for k in cand if abs(gvl[k]) <= tvl[k]]
     memory.degenerate = []
@@ -363,8 +413,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
             break
         closed = sorted(closed + micro)
         v, impact = _settle(system, Mf, t, v, closed, micro, impact)
-        gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))
+        gv, tv = _rate_bands(cs, memory, v, tv, kernel)  # what cancelled sets the round-off
         gvl, tvl = gv.tolist(), tv.tolist()
     if not closed:
         return Mode(), v, impact
