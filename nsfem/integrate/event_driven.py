@@ -265,8 +265,9 @@ class EventDriven(Integrator):
                     if imp:
                         state = after_impact(rings, *state, q, v, t_next)
                     mode = with_rings(mode, *state)
-                mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
-                                       memory, cs, v)
+                if memory.degenerate:   # (else nothing to hold)
+                    mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
+                                           memory, cs, v)
                 if self._rings:
                     conform(self._rings, mode.closed, q)
                 if imp:

@@ -117,7 +117,7 @@ class Memory:
 
     def observe_slip(self, cs, aq: np.ndarray, av: np.ndarray) -> None:
         """The slip scales' part of :meth:`observe` (|q|, |q'| of one state or several, as columns)."""
-        sv = self._slip_terms(cs, av.reshape(av.shape[0], -1), aq.reshape(aq.shape[0], -1))
+        sv = self._slip_terms(cs, av if av.ndim == 2 else av[:, None], aq if aq.ndim == 2 else aq[:, None])
         self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
 
     def _slip_terms(self, cs, av: np.ndarray, aq: np.ndarray) -> np.ndarray:
