@@ -237,6 +237,8 @@ def _rate_bands(cs, memory: Memory, v: np.ndarray, tv: np.ndarray, kernel=None) 
 
 
 _EMPTY = np.zeros(0)
+#: the configuration with every contact open (a Mode is immutable: one serves every event)
+_FREE = Mode()
 
 
 def _floats(x: np.ndarray) -> np.ndarray:
@@ -267,7 +269,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     """
     cs = system.contacts
     if cs.m == 0:
-        return Mode(), v, None
+        return _FREE, v, None
     slipping = dict(slipping or {})
     kernel = core.compiled("resolve")
     aJ, _, aS = memory.abs_parts(cs)
@@ -416,7 +418,7 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         gv, tv = _rate_bands(cs, memory, v, tv, kernel)  # what cancelled sets the round-off
         gvl, tvl = gv.tolist(), tv.tolist()
     if not closed:
-        return Mode(), v, impact
+        return _FREE, v, impact
     lamN, beta, z = lcp.split(res.x)
     mc = len(closed)
     # the size of the terms of f* (f - C q' - Q q cancels to round-off when the springs are unstressed)

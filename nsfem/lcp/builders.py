@@ -138,6 +138,7 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
     """
     normal = np.asarray(normal, dtype=int).ravel()
     friction = np.asarray(friction, dtype=int).ravel()
+    bN, bT = (np.asarray(x, dtype=float).ravel() for x in (bN, bT))
     return _assemble(_parts(solve, cs, normal, friction, slide or {}, extra, cache, key), cs, normal, friction,
                      bN, bT, base)
 
@@ -169,8 +170,9 @@ def _assemble(entry: tuple, cs: ContactSet, normal, friction, bN, bT, base) -> C
     """:class:`ContactLCP` of a matrix part and the right-hand side (bN, bT)."""
     A, W, Y, r, generators, scales = entry[:6]
     groups = entry[8]
-    b = (np.asarray(bN, dtype=float).ravel().tolist() + np.asarray(bT, dtype=float).ravel().tolist()
-         + [0.0] * friction.size)   # a list: a few entries, read twice
+    # a list: a few entries, read twice (impact_lcp's lists of floats are taken as they are)
+    b = ((bN if type(bN) is list else np.asarray(bN, dtype=float).ravel().tolist())
+         + (bT if type(bT) is list else np.asarray(bT, dtype=float).ravel().tolist()) + [0.0] * friction.size)
     # entries at round-off of the largest (J^T X^-1 f carries cond * eps of it) are zeros: a
     # symmetric structure's midspan slip, say; left alone they make Lemke chase 1e-18 m
     big = math.nan if any(e != e for e in b) else max(map(abs, b), default=0.0)   # as numpy: a nan zeroes nothing
@@ -330,5 +332,5 @@ def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: L
     # (min(g', 0) as numpy's: nan stays nan, -0.0 gives 0.0)
     bN = [g + e[k] * (g if g < 0.0 or g != g else 0.0) for g, k in zip((parts[6].T @ v).tolist(), active.tolist())]
     bT = _with_surface(cs, friction, parts[7].T @ v, q, cs.surface_offsets,
-                       "impact LCP: a moving surface's slip velocity needs the configuration q") if friction.size else ()
+                       "impact LCP: a moving surface's slip velocity needs the configuration q") if friction.size else []
     return _assemble(parts, cs, active, friction, bN, bT, v)
