@@ -1,6 +1,7 @@
 """The compiled kernels of an event's resolution (core part "resolve", issue 33) against their Python
 references: transitions._bands (Memory.observe of one state, the gaps, gap rates and their zero bands) and
-transitions._rate_bands (the rates after an impulse and their widened bands).
+transitions._rate_bands (the rates after an impulse and their widened bands); and ContactLCP.solve's
+direct path for one unknown against lemke (the same compiled kernel: identical results).
 
 Tolerances. The kernels sum J^T x in a plain loop where numpy calls BLAS, whose summation order (and
 fused multiply-adds) depend on the CPU; both obey the dot product's forward error bound
@@ -25,6 +26,8 @@ from hypothesis import strategies as st
 from nsfem.contact.set import ContactSet
 from nsfem.integrate import core
 from nsfem.integrate.transitions import ZERO, Memory, _bands, _rate_bands
+from nsfem.lcp.builders import ContactLCP
+from nsfem.lcp.pivoting import equilibrate, lemke
 
 kernel = core.compiled("resolve")
 pytestmark = pytest.mark.skipif(kernel is None, reason="the compiled core part 'resolve' is not active (not "
@@ -150,3 +153,28 @@ def test_non_finite_entries_propagate_as_in_numpy():
             _check_bands(cs, mem, np.array([bad, 0.0]), np.array([1.0, 0.0]), None)
             _check_bands(cs, mem, np.array([0.0, 1.0]), np.array([0.0, bad]), None)
             _check_rates(cs, mem, np.array([0.0, bad]), np.zeros(2))
+
+
+@settings(max_examples=80, deadline=None)
+@given(a=st.floats(1e-300, 1e300), b=st.one_of(st.floats(-1e300, 1e300), st.sampled_from([0.0, -0.0, 5e-324])))
+def test_one_unknown_lcp_is_lemkes_result(a, b):
+    """An impact LCP of one unknown (most impacts) goes straight to the compiled kernel from its cached
+    equilibration: the same result as lemke's (x, w, status, pivots, message and certificate, exactly: the
+    same kernel on the same numbers), including where it declines (scaled entries near overflow)."""
+    if core.compiled("lcp") is None:
+        pytest.skip("the compiled core part 'lcp' is not active")
+    A = np.array([[a]])
+    scales = equilibrate(A)
+    lcp = ContactLCP(A, np.array([b]), np.array([0]), np.zeros(0, dtype=int), np.zeros(0, dtype=int),
+                     np.ones((1, 1)), np.ones((1, 1)), (), np.zeros(1), scales)
+    got = lcp.solve()
+    ref = lemke(A, np.array([b]), groups=lcp.groups, scales=scales)
+    assert (got.status, got.pivots, got.message) == (ref.status, ref.pivots, ref.message)
+    assert np.array_equal(got.x, ref.x, equal_nan=True) and np.array_equal(got.w, ref.w, equal_nan=True)
+    same = lambda x, y: x == y or (x != x and y != y)   # noqa: E731 - (a nan residual is the same nan)
+    assert got.certificate.keys() == ref.certificate.keys()
+    assert all(same(got.certificate[k], ref.certificate[k]) for k in ref.certificate)
+    assert same(got.residual, ref.residual)
+    # what a solved answer must satisfy: x >= 0, and x = 0 where b >= 0 (nothing to push)
+    if got.success:
+        assert got.x[0] >= 0.0 and (b < 0.0 or got.x[0] == 0.0)

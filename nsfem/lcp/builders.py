@@ -45,7 +45,8 @@ import numpy as np
 from ..contact.set import ContactSet
 from ..errors import NsfemError
 from ..linalg import Factorization
-from .pivoting import LCPResult, equilibrate, lemke
+from .compiled import lemke_one as compiled_one
+from .pivoting import LCPResult, _kernels, equilibrate, lemke
 
 #: relative size (to the largest right-hand side entry) below which an entry is round-off
 ROUND_OFF = 1e-13
@@ -80,6 +81,10 @@ class ContactLCP:
 
     def solve(self, **kw) -> LCPResult:
         """Lemke's method on (A, b); keywords go to :func:`~nsfem.lcp.pivoting.lemke`."""
+        if not kw and self.b.size == 1 and self.scales is not None:   # most impacts: one contact
+            one = _one_unknown(self)
+            if one is not None:
+                return one
         kw.setdefault("groups", self.groups)
         if self.scales is not None:
             kw.setdefault("scales", self.scales)
@@ -111,6 +116,23 @@ class ContactLCP:
             out.append(B @ beta[row:row + rk])
             row += rk
         return out
+
+
+def _one_unknown(lcp: ContactLCP) -> LCPResult | None:
+    """:func:`~nsfem.lcp.pivoting.lemke`'s result on an LCP of one unknown with its cached equilibration,
+    straight from the compiled kernel (what lemke's compiled path does after checking its arguments, which
+    a cached matrix part has passed: finite A, valid scales); None where that path would not take it (the
+    reference core, a non-finite b, scaled entries near overflow, the kernel declining): lemke decides."""
+    lib = _kernels()
+    if lib is None:
+        return None
+    a, b = float(lcp.A[0, 0]), float(lcp.b[0])
+    r_s, c_s = float(lcp.scales[0][0]), float(lcp.scales[1][0])
+    if not (math.isfinite(a) and math.isfinite(b) and 0.0 < r_s < math.inf and 0.0 < c_s < math.inf):
+        return None
+    if not math.isfinite(lib.scaled_size(lcp.A, lcp.b, *lcp.scales)):
+        return None
+    return compiled_one(lib, a, b, r_s, c_s, 1.0, 1e-11)
 
 
 def _groups(size: int, friction: int) -> np.ndarray:
