@@ -108,11 +108,10 @@ class Memory:
         return self._abs[1:4]
 
     def kernel_arrays(self, cs) -> tuple:
-        """(J_N^T, |J_N|^T, |j_N|) C-contiguous for the compiled kernels (formed once per set)."""
+        """(J_N^T, |J_N|^T, j_N, |j_N|) C-contiguous for the compiled kernels (formed once per set)."""
         if self._kernel is None or self._kernel[0] is not cs:
             aJ, aj = self.abs_parts(cs)[:2]
-            self._kernel = (cs, np.ascontiguousarray(cs.JN.T, dtype=float), np.ascontiguousarray(aJ.T, dtype=float),
-                            np.ascontiguousarray(aj, dtype=float))
+            self._kernel = (cs, *(np.ascontiguousarray(a, dtype=float) for a in (cs.JN.T, aJ.T, cs.jN, aj)))
         return self._kernel[1:]
 
     def observe_slip(self, cs, aq: np.ndarray, av: np.ndarray) -> None:
@@ -206,9 +205,9 @@ def _bands(cs, memory: Memory, q: np.ndarray, v: np.ndarray, gap_tol, kernel=Non
     (per contact, or None) and the gap floor; a rate likewise without the last two. g and the gap bands as
     lists. ``kernel``: the compiled module of core part "resolve" (None: this reference)."""
     if kernel is not None and memory.gap_scale is not None and memory.rate_scale is not None:
-        JNT, aJT, aj = memory.kernel_arrays(cs)
+        JNT, aJT, jN, aj = memory.kernel_arrays(cs)
         out = np.empty((6, cs.m))
-        kernel.state_bands(JNT, aJT, cs.jN, aj, _floats(q), _floats(v), memory.gap_scale, memory.rate_scale,
+        kernel.state_bands(JNT, aJT, jN, aj, _floats(q), _floats(v), memory.gap_scale, memory.rate_scale,
                            _EMPTY if gap_tol is None else np.ascontiguousarray(gap_tol, dtype=float),
                            float(memory.gap_floor), out)
         memory.gap_scale, memory.rate_scale = out[0], out[1]
@@ -229,7 +228,7 @@ def _rate_bands(cs, memory: Memory, v: np.ndarray, tv: np.ndarray, kernel=None) 
     """(g', bands) of the velocity v after an impulse: the bands ``tv`` widened to the round-off of
     J_N^T v's terms (what cancelled in the impulse). ``kernel``: as in :func:`_bands`."""
     if kernel is not None:
-        JNT, aJT, _ = memory.kernel_arrays(cs)
+        JNT, aJT = memory.kernel_arrays(cs)[:2]
         out = np.empty((2, cs.m))
         kernel.rate_bands(JNT, aJT, _floats(v), tv, out)
         return out[0], out[1]
