@@ -157,8 +157,9 @@ def main() -> None:
                "profile_stop_compiled": profile(stop)}
     rows = [{"case": "resolve (replayed)", **payload["resolve_stop"]}]
     rows += [{"case": name, **payload[name]} for name in ("stop", "shipped")]
-    rows += [{"case": f"stop part {k}", "python_ms_per_event": v, "compiled_ms_per_event": payload["parts_stop"]["compiled"][k]}
-             for k, v in payload["parts_stop"]["python"].items()]
+    parts = payload["parts_stop"]
+    rows += [{"case": f"stop part {k}", "python_ms_per_event": v, "compiled_ms_per_event": parts["compiled"][k]}
+             for k, v in parts["python"].items()]
     write_outputs(Path(args.out), "core_resolve", rows, payload)
     if args.json:
         print(json.dumps(payload))
