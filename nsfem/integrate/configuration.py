@@ -415,9 +415,26 @@ class Configuration:
             cached = self._term_order = (nu, speed, order, bool(np.all(nu.real <= 0.0)))
         return cached[1:]
 
+    def state_maps(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Pq, Pv) with q = Pq xi, q' = Pv xi for the phases' augmented states xi (x, 1, cos, sin), Pq
+        without the particular solution each phase puts in its constant column (formed once, read-only)."""
+        maps = self.__dict__.get("_state_maps")
+        if maps is None:
+            r, n = self.r, self.system.n
+            dim = 2 * r + 1 + len(self.loads)
+            Pq, Pv = np.zeros((n, dim)), np.zeros((n, dim))
+            Pq[:, :r] = self.N
+            Pv[:, r: 2 * r] = self.N
+            Pq.flags.writeable = Pv.flags.writeable = False
+            maps = self._state_maps = (Pq, Pv)
+        return maps
+
     def fastest_rate(self) -> float:
-        """max |eigenvalue| of A [1/s] (0 without coordinates)."""
-        return float(np.max(np.abs(self.eigenvalues), initial=0.0))
+        """max |eigenvalue| of A [1/s] (0 without coordinates); formed once per set of eigenvalues."""
+        cached = self.__dict__.get("_fastest_rate")
+        if cached is None or cached[0] is not self.eigenvalues:
+            cached = self._fastest_rate = (self.eigenvalues, float(np.max(np.abs(self.eigenvalues), initial=0.0)))
+        return cached[1]
 
 
 @dataclass
@@ -734,10 +751,8 @@ class Phase:
         """q = Pq xi (formed once per phase, read-only)."""
         P = self.__dict__.get("_Pq")
         if P is None:
-            cfg, r = self.config, self.config.r
-            P = np.zeros((self.system_n, self.dim))
-            P[:, :r] = cfg.N
-            P[:, 2 * r] = self.qp   # the constant component is 1
+            P = self.config.state_maps()[0].copy()
+            P[:, 2 * self.config.r] = self.qp   # the constant component is 1
             P.flags.writeable = False
             self._Pq = P
         return P
@@ -747,15 +762,8 @@ class Phase:
         return self.config.system.n
 
     def v_map(self) -> np.ndarray:
-        """q' = Pv xi (formed once per phase, read-only)."""
-        P = self.__dict__.get("_Pv")
-        if P is None:
-            cfg, r = self.config, self.config.r
-            P = np.zeros((self.system_n, self.dim))
-            P[:, r: 2 * r] = cfg.N
-            P.flags.writeable = False
-            self._Pv = P
-        return P
+        """q' = Pv xi (the configuration's, read-only)."""
+        return self.config.state_maps()[1]
 
     def force_map(self) -> np.ndarray:
         """lam (constraint forces, one per row of the configuration) = P xi (formed once per phase, read-only;

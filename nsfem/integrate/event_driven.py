@@ -25,6 +25,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+from bisect import bisect_left, bisect_right
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -148,6 +149,8 @@ class EventDriven(Integrator):
         cs = sysm.contacts
         n, m = sysm.n, cs.m
         t_out = output_times(t_end, output_dt)
+        t_list = t_out.tolist()
+        close_rows: dict = {}   # the gap rows of each list of row kinds met (_close_rows)
         q, v = initial_state(sysm, q0, v0)
         wall0 = time.perf_counter()
         Mf = factorize(sysm.M, "the mass matrix M")
@@ -194,9 +197,10 @@ class EventDriven(Integrator):
                 ev, xi_fun = self._advance(phase, rows, t, t_end)
                 t_next = t_end if ev is None else ev.t
                 # outputs in [t, t_next) (and t_end at the end)
-                last = ev is None
-                sel = np.flatnonzero((t_out >= t) & ((t_out < t_next) | (last & (t_out <= t_end))))
-                sel = sel[sel >= filled]
+                # (t_out is sorted: those times are the indices from the first >= t to the last < t_next, or
+                # <= t_end at the end)
+                hi = bisect_right(t_list, t_end) if ev is None else bisect_left(t_list, t_next)
+                sel = np.arange(max(bisect_left(t_list, t), filled), hi)
                 if sel.size:
                     xi_out = xi_fun(t_out[sel])
                     ok = _finite_prefix(xi_out)
@@ -234,9 +238,8 @@ class EventDriven(Integrator):
                 touching = {rows.contacts[i] for i in ev.rows if rows.kinds[i] == "close"}
                 gap_tol = np.zeros(m)
                 if ev.tol is not None:
-                    for i, (kind, k) in enumerate(zip(rows.kinds, rows.contacts)):
-                        if kind == "close":
-                            gap_tol[k] = ev.tol[i]
+                    i_close, k_close = _close_rows(rows, close_rows)
+                    gap_tol[k_close] = ev.tol[i_close]
                 # slipping: contacts whose force leaves the cone at a generator (they slide on it);
                 # facets: contacts whose force reached a polygon facet (stick limit) or whose slip
                 # velocity reached a facet normal (turn): LCP (29) decides facet or vertex
@@ -280,8 +283,9 @@ class EventDriven(Integrator):
                     if imp:
                         state = after_impact(rings, *state, q, v, t_next)
                     mode = with_rings(mode, *state)
-                mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
-                                       memory, cs, v)
+                if memory.degenerate:   # (else nothing to hold)
+                    mode = hold_degenerate(mode, lambda md, t_=t_next, q_=q, v_=v: self._phase(md, t_, q_, v_),
+                                           memory, cs, v)
                 if self._rings:
                     conform(self._rings, mode.closed, q)
                 if imp:
@@ -726,6 +730,21 @@ def _with_wedges(rows: Rows, rings, mode: Mode, phase: Phase) -> Rows:
 
     wedge_rows(rings, mode, phase.q_map(), add)
     return rows if len(kinds) == rows.size else Rows(np.vstack(H), kinds, contacts, detail)
+
+
+def _close_rows(rows: Rows, memo: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(row indices, contacts) of the ``close`` rows (gaps) of ``rows``, once per lists of row kinds and
+    contacts (a (configuration, mode)'s rows share theirs); ``memo`` keeps them by the lists' identity (and
+    the lists, so no other list takes their id; rows formed per phase: the last 64)."""
+    key = (id(rows.kinds), id(rows.contacts))
+    hit = memo.get(key)
+    if hit is None:
+        pairs = [(i, k) for i, (kind, k) in enumerate(zip(rows.kinds, rows.contacts)) if kind == "close"]
+        idx = np.array([i for i, _ in pairs], dtype=int), np.array([k for _, k in pairs], dtype=int)
+        if len(memo) >= 64:
+            memo.clear()
+        hit = memo[key] = (rows.kinds, rows.contacts, idx)
+    return hit[2]
 
 
 def _finite_prefix(xi: np.ndarray) -> int:

@@ -67,7 +67,9 @@ def check_phase(phase, t: float, t_end: float, mode) -> None:
     rate = cfg.fastest_rate()
     step = phase.max_step(math.inf)
     resolution = 16.0 * math.ulp(max(abs(t_end), abs(t)))
-    if math.isfinite(rate) and np.all(np.isfinite(phase.A_aug)) and (not math.isfinite(step) or step > resolution):
+    # (a finite sum has no non-finite entry; an overflowing one is judged entry by entry)
+    if math.isfinite(rate) and (math.isfinite(phase.A_aug.sum()) or np.all(np.isfinite(phase.A_aug))) \
+            and (not math.isfinite(step) or step > resolution):
         return
     where = describe_mode(cfg.system.contacts, mode)
     sysm = cfg.system
@@ -84,7 +86,8 @@ def check_phase(phase, t: float, t_end: float, mode) -> None:
 
 def check_state(t: float, q: np.ndarray, v: np.ndarray, mode, system) -> None:
     """Raise when the state has left the floating-point range (an unstable structure's overflow)."""
-    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+    # (a finite sum of q' q and q' v has no non-finite entry; an overflowing one is judged entry by entry)
+    if not ((math.isfinite(q @ q) and math.isfinite(v @ v)) or (np.all(np.isfinite(q)) and np.all(np.isfinite(v)))):
         raise overflow(t, mode, system)
 
 

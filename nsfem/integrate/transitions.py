@@ -57,6 +57,7 @@ import numpy as np
 from ..errors import NsfemError
 from ..lcp.builders import LCPCache, impact_lcp, transition_lcp
 from ..linalg import Factorization
+from . import core
 from .configuration import Mode
 from .problem import ContactSystem
 
@@ -97,12 +98,26 @@ class Memory:
     _abs: tuple | None = field(default=None, repr=False)
     _abs_system: tuple | None = field(default=None, repr=False)
     _slip: tuple | None = field(default=None, repr=False)
+    _kernel: tuple | None = field(default=None, repr=False)
 
     def abs_parts(self, cs) -> tuple:
         """(|J_N|, |j_N|, [|S_k| or None]) of the contact set (formed once per set)."""
         if self._abs is None or self._abs[0] is not cs:
-            self._abs = (cs, np.abs(cs.JN), np.abs(cs.jN), [np.abs(S) if S.shape[1] else None for S in cs.JS])
-        return self._abs[1:]
+            aS = [np.abs(S) if S.shape[1] else None for S in cs.JS]
+            self._abs = (cs, np.abs(cs.JN), np.abs(cs.jN), aS, any(S is not None for S in aS))
+        return self._abs[1:4]
+
+    def kernel_arrays(self, cs) -> tuple:
+        """(J_N^T, |J_N|^T, j_N, |j_N|) C-contiguous for the compiled kernels (formed once per set)."""
+        if self._kernel is None or self._kernel[0] is not cs:
+            aJ, aj = self.abs_parts(cs)[:2]
+            self._kernel = (cs, *(np.ascontiguousarray(a, dtype=float) for a in (cs.JN.T, aJ.T, cs.jN, aj)))
+        return self._kernel[1:]
+
+    def observe_slip(self, cs, aq: np.ndarray, av: np.ndarray) -> None:
+        """The slip scales' part of :meth:`observe` (|q|, |q'| of one state or several, as columns)."""
+        sv = self._slip_terms(cs, av if av.ndim == 2 else av[:, None], aq if aq.ndim == 2 else aq[:, None])
+        self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
 
     def _slip_terms(self, cs, av: np.ndarray, aq: np.ndarray) -> np.ndarray:
         """Per contact the largest size of its slip rate's terms over the columns of (|q|, |q'|):
@@ -113,15 +128,18 @@ class Memory:
             aS = np.hstack([np.abs(S) for S in cs.JS]) if cols else np.zeros((n, 0))
             aSq = np.hstack([np.abs(S) for S in cs.JSq]) if cols and np.any(cs.moving) else None
             aw = np.concatenate([np.abs(w) for w in cs.wS]) if cols else np.zeros(0)
-            self._slip = (cs, np.array(cols, dtype=int), aS, aSq, aw)
-        _, cols, aS, aSq, aw = self._slip
+            # each contact's columns are adjacent: their maximum is one reduceat per contact with any
+            owners = np.array(sorted(set(cols)), dtype=int)
+            starts = np.searchsorted(np.array(cols, dtype=int), owners)
+            self._slip = (cs, np.array(cols, dtype=int), aS, aSq, aw, owners, starts)
+        _, cols, aS, aSq, aw, owners, starts = self._slip
         sv = np.zeros(cs.m)
         if not cols.size:
             return sv
         terms = aS.T @ av
         if aSq is not None:
             terms = terms + aSq.T @ aq + aw[:, None]
-        np.maximum.at(sv, cols, terms.max(axis=1))
+        sv[owners] = np.maximum.reduceat(terms.max(axis=1), starts)
         return sv
 
     def abs_operators(self, system) -> tuple:
@@ -134,23 +152,25 @@ class Memory:
         """Update the scales with a state (q, q') of the run (or several, as columns); return the
         state's gap and gap-rate terms |J_N|^T |q| + |j_N|, |J_N|^T |q'| (of one column: numpy's
         matmul takes the same BLAS gemv for a column and a vector, so they are :func:`_tol`'s)."""
-        aJ, aj, aS = self.abs_parts(cs)
-        av = np.abs(v.reshape(v.shape[0], -1))
-        G, V = aJ.T @ np.abs(q.reshape(q.shape[0], -1)), aJ.T @ av
-        g = (G[:, 0] if G.shape[1] == 1 else G.max(axis=1)) + aj   # one column is its own maximum
-        gv = V[:, 0] if V.shape[1] == 1 else V.max(axis=1)
+        aJ, aj = self.abs_parts(cs)[:2]
+        aq, av = np.abs(q), np.abs(v)
+        if aq.ndim == 1:   # one state: a vector product is the column's (the same gemv)
+            g, gv = aJ.T @ aq + aj, aJ.T @ av
+        else:              # one column is its own maximum
+            G, V = aJ.T @ aq, aJ.T @ av
+            g = (G[:, 0] if G.shape[1] == 1 else G.max(axis=1)) + aj
+            gv = V[:, 0] if V.shape[1] == 1 else V.max(axis=1)
         self.gap_scale = g if self.gap_scale is None else np.maximum(self.gap_scale, g)
         self.rate_scale = gv if self.rate_scale is None else np.maximum(self.rate_scale, gv)
-        if self.slip_scale is None or any(S is not None for S in aS):   # else it stays 0
-            sv = self._slip_terms(cs, av, np.abs(q.reshape(q.shape[0], -1)))
-            self.slip_scale = sv if self.slip_scale is None else np.maximum(self.slip_scale, sv)
+        if self.slip_scale is None or self._abs[4]:   # else it stays 0
+            self.observe_slip(cs, aq, av)
         return g, gv
 
 
 def _spin_work(cs, lcp, x: np.ndarray, q: np.ndarray) -> float | None:
     """The work -Lambda_T . (Sq^T q + w) of an impact LCP's frictional impulses against moving surfaces, or
     None without any."""
-    if not np.any(cs.moving[lcp.friction]):
+    if not lcp.friction.size or not np.any(cs.moving[lcp.friction]):
         return None
     return -sum(float(lt @ (cs.JSq[k].T @ q + cs.wS[k])) for k, lt in zip(lcp.friction, lcp.tangential(x))
                 if cs.moving[k])
@@ -179,6 +199,51 @@ def _band(terms: np.ndarray) -> np.ndarray:
     return ZERO * terms + 1e-3 * ZERO * float(terms.max(initial=0.0)) + 1e-300
 
 
+def _bands(cs, memory: Memory, q: np.ndarray, v: np.ndarray, gap_tol, kernel=None) -> tuple:
+    """(g, g', gap bands, rate bands) of the state (q, q') after observing it (:meth:`Memory.observe`):
+    a gap counts as zero below the larger of ZERO times its scale, the band of its own terms, ``gap_tol``
+    (per contact, or None) and the gap floor; a rate likewise without the last two. g and the gap bands as
+    lists. ``kernel``: the compiled module of core part "resolve" (None: this reference)."""
+    if kernel is not None and memory.gap_scale is not None and memory.rate_scale is not None:
+        JNT, aJT, jN, aj = memory.kernel_arrays(cs)
+        out = np.empty((6, cs.m))
+        kernel.state_bands(JNT, aJT, jN, aj, _floats(q), _floats(v), memory.gap_scale, memory.rate_scale,
+                           _EMPTY if gap_tol is None else np.ascontiguousarray(gap_tol, dtype=float),
+                           float(memory.gap_floor), out)
+        memory.gap_scale, memory.rate_scale = out[0], out[1]
+        if memory._abs[4]:   # the slip scales as observe forms them
+            memory.observe_slip(cs, np.abs(q), np.abs(v))
+        return out[2].tolist(), out[3], out[4].tolist(), out[5]
+    gterms, vterms = memory.observe(cs, q, v)
+    g, gv = cs.gaps(q).tolist(), cs.JN.T @ v
+    tg = np.maximum(ZERO * memory.gap_scale, _band(gterms))
+    if gap_tol is not None:
+        tg = np.maximum(tg, gap_tol)
+    tg = np.maximum(tg, memory.gap_floor).tolist()
+    tv = np.maximum(ZERO * memory.rate_scale, _band(vterms))
+    return g, gv, tg, tv
+
+
+def _rate_bands(cs, memory: Memory, v: np.ndarray, tv: np.ndarray, kernel=None) -> tuple[np.ndarray, np.ndarray]:
+    """(g', bands) of the velocity v after an impulse: the bands ``tv`` widened to the round-off of
+    J_N^T v's terms (what cancelled in the impulse). ``kernel``: as in :func:`_bands`."""
+    if kernel is not None:
+        JNT, aJT = memory.kernel_arrays(cs)[:2]
+        out = np.empty((2, cs.m))
+        kernel.rate_bands(JNT, aJT, _floats(v), tv, out)
+        return out[0], out[1]
+    return cs.JN.T @ v, np.maximum(tv, _tol(cs.JN, v, absJ=memory.abs_parts(cs)[0]))
+
+
+_EMPTY = np.zeros(0)
+#: the configuration with every contact open (a Mode is immutable: one serves every event)
+_FREE = Mode()
+
+
+def _floats(x: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=float)
+
+
 def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray, before: Mode,
             memory: Memory, touching=(), gap_tol=None, slipping=None,
             settled=(), facets=None, stopped=(), extra_load=None) -> tuple[Mode, np.ndarray, dict | None]:
@@ -203,18 +268,13 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     """
     cs = system.contacts
     if cs.m == 0:
-        return Mode(), v, None
+        return _FREE, v, None
     slipping = dict(slipping or {})
-    gterms, vterms = memory.observe(cs, q, v)
+    kernel = core.compiled("resolve")
     aJ, _, aS = memory.abs_parts(cs)
     # per-contact values as lists: the loops below read each a few times (a float's compare costs
     # a tenth of a numpy scalar's; the values are the same)
-    g, gv = cs.gaps(q).tolist(), cs.JN.T @ v
-    tg = np.maximum(ZERO * memory.gap_scale, _band(gterms))
-    if gap_tol is not None:
-        tg = np.maximum(tg, gap_tol)
-    tg = np.maximum(tg, memory.gap_floor).tolist()
-    tv = np.maximum(ZERO * memory.rate_scale, _band(vterms))
+    g, gv, tg, tv = _bands(cs, memory, q, v, gap_tol, kernel)
     gvl, tvl = gv.tolist(), tv.tolist()
     cand = [k for k in range(cs.m) if g[k] <= tg[k] or k in before.closed or k in touching]
     approaching = [k for k in cand if gvl[k] < -tvl[k]]
@@ -312,15 +372,13 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
             # (the kinetic energy may grow in the impact), the rest of the change is lost
             impact["work_spin_J"] = spin
         v = v_new
-        gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))  # what cancelled in the impact sets the round-off
+        gv, tv = _rate_bands(cs, memory, v, tv, kernel)  # what cancelled sets the round-off
         gvl, tvl = gv.tolist(), tv.tolist()
     creeping = [k for k in creeping if gvl[k] < -tvl[k]]
     if creeping:
         hold = sorted(set(creeping) | {k for k in cand if abs(gvl[k]) <= tvl[k]})
         v, impact = _settle(system, Mf, t, v, hold, creeping, impact, plastic=True)
-        gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))
+        gv, tv = _rate_bands(cs, memory, v, tv, kernel)  # what cancelled sets the round-off
         gvl, tvl = gv.tolist(), tv.tolist()
     closed = [k for k in cand if abs(gvl[k]) <= tvl[k]]
     memory.degenerate = []
@@ -356,11 +414,10 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
             break
         closed = sorted(closed + micro)
         v, impact = _settle(system, Mf, t, v, closed, micro, impact)
-        gv = cs.JN.T @ v
-        tv = np.maximum(tv, _tol(cs.JN, v, absJ=aJ))
+        gv, tv = _rate_bands(cs, memory, v, tv, kernel)  # what cancelled sets the round-off
         gvl, tvl = gv.tolist(), tv.tolist()
     if not closed:
-        return Mode(), v, impact
+        return _FREE, v, impact
     lamN, beta, z = lcp.split(res.x)
     mc = len(closed)
     # the size of the terms of f* (f - C q' - Q q cancels to round-off when the springs are unstressed)

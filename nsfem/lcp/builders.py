@@ -45,7 +45,8 @@ import numpy as np
 from ..contact.set import ContactSet
 from ..errors import NsfemError
 from ..linalg import Factorization
-from .pivoting import LCPResult, equilibrate, lemke
+from .compiled import lemke_one as compiled_one
+from .pivoting import LCPResult, _kernels, equilibrate, lemke
 
 #: relative size (to the largest right-hand side entry) below which an entry is round-off
 ROUND_OFF = 1e-13
@@ -65,7 +66,7 @@ class ContactLCP:
     generators: tuple           # B_k per friction contact
     base: np.ndarray            # the motion without contact forces: Q^-1 f0, M^-1 f* or q'^-
     scales: tuple | None = None  # Lemke's equilibration of A, when built once for many solves
-
+    row_groups: np.ndarray | None = None   # :attr:`groups` when formed once with a cached matrix part
 
     @property
     def size(self) -> int:
@@ -74,12 +75,16 @@ class ContactLCP:
     @property
     def groups(self) -> np.ndarray:
         """Row kinds for the certificate: 0 motion rows (gaps, slips), 1 friction limits."""
-        g = np.zeros(self.size, dtype=int)
-        g[self.size - self.friction.size:] = 1
-        return g
+        if self.row_groups is not None:
+            return self.row_groups
+        return _groups(self.size, self.friction.size)
 
     def solve(self, **kw) -> LCPResult:
         """Lemke's method on (A, b); keywords go to :func:`~nsfem.lcp.pivoting.lemke`."""
+        if not kw and self.b.size == 1 and self.scales is not None:   # most impacts: one contact
+            one = _one_unknown(self)
+            if one is not None:
+                return one
         kw.setdefault("groups", self.groups)
         if self.scales is not None:
             kw.setdefault("scales", self.scales)
@@ -113,6 +118,30 @@ class ContactLCP:
         return out
 
 
+def _one_unknown(lcp: ContactLCP) -> LCPResult | None:
+    """:func:`~nsfem.lcp.pivoting.lemke`'s result on an LCP of one unknown with its cached equilibration,
+    straight from the compiled kernel (what lemke's compiled path does after checking its arguments, which
+    a cached matrix part has passed: finite A, valid scales); None where that path would not take it (the
+    reference core, a non-finite b, scaled entries near overflow, the kernel declining): lemke decides."""
+    lib = _kernels()
+    if lib is None:
+        return None
+    a, b = float(lcp.A[0, 0]), float(lcp.b[0])
+    r_s, c_s = float(lcp.scales[0][0]), float(lcp.scales[1][0])
+    if not (math.isfinite(a) and math.isfinite(b) and 0.0 < r_s < math.inf and 0.0 < c_s < math.inf):
+        return None
+    if not math.isfinite(lib.scaled_size(lcp.A, lcp.b, *lcp.scales)):
+        return None
+    return compiled_one(lib, a, b, r_s, c_s, 1.0, 1e-11)
+
+
+def _groups(size: int, friction: int) -> np.ndarray:
+    """:attr:`ContactLCP.groups` of an LCP of ``size`` unknowns with ``friction`` friction contacts."""
+    g = np.zeros(size, dtype=int)
+    g[size - friction:] = 1
+    return g
+
+
 def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, slide=None,
                 base: np.ndarray | None = None, extra=None, cache: LCPCache | None = None, key=None) -> ContactLCP:
     """Assemble the LCP of the module docstring.
@@ -131,6 +160,7 @@ def contact_lcp(solve: Factorization, cs: ContactSet, normal, friction, bN, bT, 
     """
     normal = np.asarray(normal, dtype=int).ravel()
     friction = np.asarray(friction, dtype=int).ravel()
+    bN, bT = (np.asarray(x, dtype=float).ravel() for x in (bN, bT))
     return _assemble(_parts(solve, cs, normal, friction, slide or {}, extra, cache, key), cs, normal, friction,
                      bN, bT, base)
 
@@ -147,17 +177,30 @@ def _parts(solve: Factorization, cs: ContactSet, normal, friction, slide, extra,
     return entry
 
 
+def _impact_parts(solve: Factorization, cs: ContactSet, active, cache, key) -> tuple:
+    """(matrix part, normal, friction) of the impact LCP over ``active``; a cached matrix part keeps its
+    index arrays (its key names the contacts), so an event that meets the structure again forms neither."""
+    entry = cache.get(key) if cache is not None and key is not None else None
+    if entry is None:
+        normal = np.asarray(active, dtype=int).ravel()
+        friction = np.array([k for k in normal if cs.r[k] > 0], dtype=int)
+        entry = _parts(solve, cs, normal, friction, {}, None, cache, key)
+    return entry, entry[9], entry[10]
+
+
 def _assemble(entry: tuple, cs: ContactSet, normal, friction, bN, bT, base) -> ContactLCP:
     """:class:`ContactLCP` of a matrix part and the right-hand side (bN, bT)."""
     A, W, Y, r, generators, scales = entry[:6]
-    b = (np.asarray(bN, dtype=float).ravel().tolist() + np.asarray(bT, dtype=float).ravel().tolist()
-         + [0.0] * friction.size)   # a list: a few entries, read twice
+    groups = entry[8]
+    # a list: a few entries, read twice (impact_lcp's lists of floats are taken as they are)
+    b = ((bN if type(bN) is list else np.asarray(bN, dtype=float).ravel().tolist())
+         + (bT if type(bT) is list else np.asarray(bT, dtype=float).ravel().tolist()) + [0.0] * friction.size)
     # entries at round-off of the largest (J^T X^-1 f carries cond * eps of it) are zeros: a
     # symmetric structure's midspan slip, say; left alone they make Lemke chase 1e-18 m
     big = math.nan if any(e != e for e in b) else max(map(abs, b), default=0.0)   # as numpy: a nan zeroes nothing
     b = np.array([0.0 if abs(e) <= ROUND_OFF * big else e for e in b])
     return ContactLCP(A, b, normal, friction, r, W, Y, generators,
-                      np.zeros(cs.n) if base is None else np.asarray(base, dtype=float), scales)
+                      np.zeros(cs.n) if base is None else np.asarray(base, dtype=float), scales, groups)
 
 
 class LCPCache:
@@ -187,9 +230,9 @@ class LCPCache:
 
 
 def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, extra, keep: bool):
-    """(A, W, S W, r, generators, equilibration or None, J_N of the normal contacts, J_T) of
-    :func:`contact_lcp` (the last two give the right-hand sides' rows); read-only when ``keep``
-    (cached), with the equilibration computed then."""
+    """(A, W, S W, r, generators, equilibration or None, J_N of the normal contacts, J_T, the rows'
+    groups, normal, friction) of :func:`contact_lcp` (J_N and J_T give the right-hand sides' rows);
+    read-only when ``keep`` (cached), with the equilibration computed then."""
     JN = cs.JN[:, normal]
     WN = JN.copy()
     for j, k in enumerate(normal):
@@ -211,11 +254,14 @@ def _matrix_part(solve: Factorization, cs: ContactSet, normal, friction, slide, 
         A[m + p + i, pos[int(k)]] = cs.mu[k]
     A[m + p:, m: m + p] = -E.T
     scales = None
+    groups = _groups(A.shape[0], f)
     if keep:
         scales = equilibrate(A) if A.size and np.all(np.isfinite(A)) else None
-        for arr in (A, W, Y, JN, JT):
+        normal, friction = normal.copy(), friction.copy()
+        for arr in (A, W, Y, JN, JT, groups, normal, friction):
             arr.setflags(write=False)
-    return A, W, Y, cs.r[friction], tuple(cs.generators(int(k)) for k in friction), scales, JN, JT
+    return (A, W, Y, cs.r[friction], tuple(cs.generators(int(k)) for k in friction), scales, JN, JT, groups,
+            normal, friction)
 
 
 def stationary_lcp(cs: ContactSet, Q: Factorization, f0: np.ndarray | None, normal=None,
@@ -302,13 +348,11 @@ def impact_lcp(cs: ContactSet, M: Factorization, v: np.ndarray, active, cache: L
     slip velocity a moving surface adds (eq. 32: the tangential law acts on the slip velocity after the
     impact, J_T^T q'^+ + g_0T').
     """
-    active = np.asarray(active, dtype=int)
-    friction = np.array([k for k in active if cs.r[k] > 0], dtype=int)
-    parts = _parts(M, cs, active, friction, {}, None, cache, key)
+    parts, active, friction = _impact_parts(M, cs, active, cache, key)
     e = (cs.eps if eps is None else np.asarray(eps, dtype=float)).tolist()
     # Newton's law acts on approaching contacts; a separating one must merely not approach
     # (min(g', 0) as numpy's: nan stays nan, -0.0 gives 0.0)
     bN = [g + e[k] * (g if g < 0.0 or g != g else 0.0) for g, k in zip((parts[6].T @ v).tolist(), active.tolist())]
     bT = _with_surface(cs, friction, parts[7].T @ v, q, cs.surface_offsets,
-                       "impact LCP: a moving surface's slip velocity needs the configuration q") if friction.size else ()
+                       "impact LCP: a moving surface's slip velocity needs the configuration q") if friction.size else []
     return _assemble(parts, cs, active, friction, bN, bT, v)

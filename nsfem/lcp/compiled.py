@@ -46,13 +46,9 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
 
     dv1 = 1.0 if d is None or n != 1 else float(r_s[0] * d[0])
     if n == 1 and max_pivots >= 2 and refactor >= 2 and 0.0 < dv1 < math.inf:   # (else: _covering's error)
-        one = lib.lemke_one(float(A[0, 0]), float(b[0]), float(r_s[0]), float(c_s[0]), dv1, pivot_tol)
+        one = lemke_one(lib, float(A[0, 0]), float(b[0]), float(r_s[0]), float(c_s[0]), dv1, pivot_tol)
         if one is not None:
-            pivots, x, w, x_min, w_min, comp, rel = one
-            cert = {"x_min": x_min, "w_min": w_min, "complementarity": comp, "relative": rel}
-            # (x is finite: the kernel declines where c x is not, so _finite has nothing to say)
-            return LCPResult(np.array([x]), np.array([w]), "solved", pivots, rel,
-                             _TRIVIAL if pivots == 0 else "solved in 2 pivots", cert)
+            return one
 
     gid = _group_ids(groups, n)
 
@@ -102,6 +98,19 @@ def lemke(lib, A, b, *, d=None, max_pivots=None, scale=True, refactor=None, pivo
     if lib.polished(A, b, As, bs, r_s, c_s, basis, xB, -1, gid, x) == lib.NEEDS_SVD:   # the reference's polish
         x = _polish_certified(A, b, _basic_x(basis.tolist(), xB, n) * c_s, basis.tolist(), n, eq, groups)[0]
     return _complementary(result(x, "solved", pivots, f"solved in {pivots} pivots"))
+
+
+def lemke_one(lib, a: float, b: float, r_s: float, c_s: float, dv: float, pivot_tol: float) -> LCPResult | None:
+    """:func:`lemke`'s result for one unknown (a x + b >= 0, x >= 0, complementary) on the equilibration
+    (r_s, c_s) and covering dv, or None where the kernel declines (then :func:`lemke` decides)."""
+    one = lib.lemke_one(a, b, r_s, c_s, dv, pivot_tol)
+    if one is None:
+        return None
+    pivots, x, w, x_min, w_min, comp, rel = one
+    cert = {"x_min": x_min, "w_min": w_min, "complementarity": comp, "relative": rel}
+    # (x is finite: the kernel declines where c x is not, so _finite has nothing to say)
+    return LCPResult(np.array([x]), np.array([w]), "solved", pivots, rel,
+                     _TRIVIAL if pivots == 0 else "solved in 2 pivots", cert)
 
 
 def _group_ids(groups, n: int) -> np.ndarray:

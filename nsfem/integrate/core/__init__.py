@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from types import ModuleType
 
 #: the parts of the event core that have a compiled module ``_<part>``
-PARTS = ("search", "phase", "lcp")
+PARTS = ("search", "phase", "lcp", "resolve")
 #: environment variable that forces the pure-Python reference path
 SWITCH = "NSFEM_PURE_PYTHON"
 

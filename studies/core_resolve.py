@@ -1,0 +1,174 @@
+"""An event's resolution and the run loop's bookkeeping (core part "resolve", issue 33) against the Python reference.
+
+Side by side in one process, both paths through ``core.reference()``, best of ``--repeat`` runs in CPU
+time of the process (the machine is shared), OPENBLAS_NUM_THREADS=1:
+
+- ``resolve`` alone: every call of a run replayed on its captured inputs (each on a copy of the memory
+  it met), us per call;
+- end to end: the stop scene (the shipped shaft with a stop 0.2 mm under midspan, restitution 0.5,
+  0.05 s: 282 events) and the shipped scene over 1 s, ms per event both ways;
+- the stop scene's time per event by part of the event loop (the loop's own Python is what is left of
+  the run's time after the parts named), both ways;
+- where the compiled run's time per event goes: cProfile of the stop scene (CPU time), by function (tottime).
+
+    OPENBLAS_NUM_THREADS=1 python studies/core_resolve.py [--quick] [--json] [--out DIR]
+
+``--quick``: best of 3 (default 5) and the shipped scene over 0.3 s. Writes core_resolve.json/.csv into
+studies/out/core_resolve.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import functools
+import json
+import time
+from pathlib import Path
+
+from core_phase import STOP, best, end_to_end, profile
+from study_io import machine, write_outputs
+
+from nsfem import load_scene
+from nsfem.integrate import core
+from nsfem.integrate import event_driven as ed
+from nsfem.integrate import guard
+from nsfem.integrate import transitions as tr
+from nsfem.simulate import run_scene
+
+#: the memory's caches of its contact set and system (immutable): shared by the replay's copies
+_CACHES = ("_abs", "_abs_system", "_slip", "_kernel", "lcp_cache")
+
+
+def _copy(memory: tr.Memory) -> tr.Memory:
+    """A copy of the memory's state (scales, impacts) sharing its caches."""
+    saved = {f: getattr(memory, f) for f in _CACHES if hasattr(memory, f)}   # (an older checkout has fewer)
+    for f in saved:
+        setattr(memory, f, None)
+    try:
+        out = copy.deepcopy(memory)
+    finally:
+        for f, v in saved.items():
+            setattr(memory, f, v)
+    for f, v in saved.items():
+        setattr(out, f, v)
+    return out
+
+
+def resolve_calls(scene, repeat: int) -> dict:
+    """us per resolve call, both paths, on the calls of one run."""
+    calls, orig = [], ed.resolve
+
+    def capture(*args, **kw):
+        calls.append((args, kw, _copy(args[6])))
+        return orig(*args, **kw)
+
+    ed.resolve = capture
+    try:
+        run_scene(scene, "exact")
+    finally:
+        ed.resolve = orig
+
+    def replay():
+        for args, kw, memory in calls:
+            args = list(args)
+            args[6] = _copy(memory)
+            tr.resolve(*args, **kw)
+
+    def copies():   # the replay's own cost (the copies), taken off
+        for _, _, memory in calls:
+            _copy(memory)
+
+    base = best(copies, repeat)
+    with core.reference():
+        ref = best(replay, repeat) - base
+    comp = best(replay, repeat) - base
+    n = len(calls)
+    return {"calls": n, "python_us": 1e6 * ref / n, "compiled_us": 1e6 * comp / n, "speedup": ref / comp}
+
+
+#: the parts of an event timed by wrappers: (module, attribute, label)
+PARTS = ((ed.Exact, "_advance", "search"), (ed, "resolve", "resolve"), (ed.EventDriven, "_phase", "phase set-up"),
+         (ed.EventDriven, "_energy", "energy"), (ed, "event_rows", "event rows"), (ed, "check_phase", "check_phase"),
+         (ed, "check_state", "check_state"), (guard.EventGuard, "record", "guard.record"),
+         (ed, "hold_degenerate", "hold_degenerate"), (ed.EventDriven, "_outputs", "outputs"),
+         (ed.EventDriven, "run", "integration"))
+
+
+def by_part(scene, repeat: int) -> dict:
+    """ms per event by part of the loop, both paths (CPU time; each part's best over the runs)."""
+    spent: dict = {}
+    saved = [(owner, name, getattr(owner, name)) for owner, name, _ in PARTS]
+
+    def timed(fn, label):
+        @functools.wraps(fn)
+        def wrapper(*a, **k):
+            t = time.process_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                spent[label] = spent.get(label, 0.0) + time.process_time() - t
+        return wrapper
+
+    out = {}
+    try:
+        for owner, name, label in PARTS:
+            setattr(owner, name, timed(getattr(owner, name), label))
+        for path in ("python", "compiled"):
+            best_run = None
+            for _ in range(repeat):
+                spent.clear()
+                t = time.process_time()
+                if path == "python":
+                    with core.reference():
+                        res = run_scene(scene, "exact")[0]
+                else:
+                    res = run_scene(scene, "exact")[0]
+                total = time.process_time() - t
+                run = dict(spent, total=total)
+                if best_run is None or run["integration"] < best_run["integration"]:
+                    best_run = run
+            n = max(len(res.events), 1)
+            # the loop's own Python: the integration's time (EventDriven.run) less the parts'
+            loop = best_run["integration"] - sum(v for k, v in best_run.items() if k not in ("total", "integration"))
+            out[path] = {**{k: 1e3 * v / n for k, v in best_run.items() if k not in ("total", "integration")},
+                         "loop": 1e3 * loop / n, "integration": 1e3 * best_run["integration"] / n}
+    finally:
+        for owner, name, fn in saved:
+            setattr(owner, name, fn)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="best of 3, the shipped scene over 0.3 s")
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--repeat", type=int, default=None, help="runs per timing (best of them)")
+    ap.add_argument("--out", default=str(Path(__file__).parent / "out" / "core_resolve"))
+    args = ap.parse_args()
+    repeat = args.repeat or (3 if args.quick else 5)
+    if not any(core.compiled(part) is not None for part in core.PARTS):   # (a checkout before "resolve" runs too)
+        raise SystemExit(f"core_resolve: no compiled part is active ({core.name()})")
+    stop = load_scene("default", STOP)
+    shipped = load_scene("default", [f"simulation.t_end={0.3 if args.quick else 1.0}"])
+    payload = {"machine": machine(), "core": core.name(), "repeat": repeat,
+               "resolve_stop": resolve_calls(stop, repeat), "parts_stop": by_part(stop, repeat),
+               "stop": end_to_end(stop, repeat), "shipped": end_to_end(shipped, repeat),
+               "profile_stop_compiled": profile(stop)}
+    rows = [{"case": "resolve (replayed)", **payload["resolve_stop"]}]
+    rows += [{"case": name, **payload[name]} for name in ("stop", "shipped")]
+    parts = payload["parts_stop"]
+    rows += [{"case": f"stop part {k}", "python_ms_per_event": v, "compiled_ms_per_event": parts["compiled"][k]}
+             for k, v in parts["python"].items()]
+    write_outputs(Path(args.out), "core_resolve", rows, payload)
+    if args.json:
+        print(json.dumps(payload))
+        return
+    for r in rows:
+        print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
+    for p in payload["profile_stop_compiled"]:
+        print(f"{p['tottime_ms_per_event']:8.4f} {p['cumtime_ms_per_event']:8.4f} {p['calls']:7d} {p['function']}")
+
+
+if __name__ == "__main__":
+    main()
