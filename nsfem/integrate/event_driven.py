@@ -35,6 +35,7 @@ from ..contact.ring import ROT, generalized_force, potential, unheld
 from ..result import Result
 from . import core
 from .base import Integrator, Progress, close_energy, initial_state, output_times
+from .closed_form import group_integrals
 from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
@@ -505,7 +506,7 @@ class EventDriven(Integrator):
         if phase.amplitudes is not None and not (mode.slide or mode.edge or mode.ring):
             self._energy_modal(phase, t1, forms, energy)
         else:
-            terms = phase.exponential_terms()
+            terms = phase.closed_form_terms()
             if terms is None:
                 return None
             self._energy_terms(phase, mode, terms, t1, forms, energy)
@@ -547,7 +548,7 @@ class EventDriven(Integrator):
             if np.any(spin):
                 full.append(("work_spin_J", -spin))
         full += _ring_forms(sysm.rings, mode, Pq, Pv, r2)
-        U, mu = terms
+        U, mu, groups = terms
         T = t1 - phase.t0
         if full:
             Uc, J = U, slice(None)
@@ -557,6 +558,18 @@ class EventDriven(Integrator):
             Uc = Uc[:, J]
         kernel = core.compiled("phase")
         phi = _exp_integrals(mu, mu[J], T) if kernel is None else _compiled_exp_integrals(kernel, mu, mu[J], T)
+        if groups:
+            # the divided-difference columns are further terms: their integrals with the exponentials and
+            # (with full forms) with each other (closed_form.group_integrals); they reach no load column
+            Pe, Pg = group_integrals(mu, groups, T, pairs=bool(full)) if kernel is None else \
+                _compiled_group_integrals(kernel, mu, groups, T, bool(full))
+            Dg = np.hstack([D for _, D in groups])
+            if full:
+                phi = np.block([[phi, Pe.T], [Pe, Pg]])
+                U = Uc = np.hstack([U, Dg])
+            else:
+                phi = np.vstack([phi, Pe[:, J]])
+                U = np.hstack([U, Dg])
         G = U @ (phi @ Uc.T)      # G[:, c] = sum_jk U_j phi_jk U_ck over the columns c formed
         if full:
             energy["work_external_J"] += float(np.real(np.sum(ext * G[:, cols])))
@@ -627,6 +640,19 @@ def _compiled_energy_modal(kernel, cfg, hit: tuple, c: np.ndarray, g: np.ndarray
                                                      np.ascontiguousarray(g).view(float), T, t0, E.view(float),
                                                      S.view(float), vals, PZ.view(float))
     return vals, PZ
+
+
+def _compiled_group_integrals(kernel, nu: np.ndarray, groups: list, T: float, pairs: bool):
+    """:func:`.closed_form.group_integrals` by the compiled kernel ``group_integrals``."""
+    cols = [nodes[:, c] for nodes, _ in groups for c in range(nodes.shape[1])]
+    X = np.zeros((len(cols), 3), dtype=complex)
+    for i, c in enumerate(cols):
+        X[i, : c.size] = c
+    sizes = np.array([c.size for c in cols], dtype=np.int64)
+    Pe = np.empty((len(cols), nu.size), dtype=complex)
+    Pg = np.empty((len(cols) if pairs else 0, len(cols)), dtype=complex)
+    kernel.group_integrals(np.ascontiguousarray(nu, dtype=complex), X, sizes, T, Pe, Pg)
+    return Pe, (Pg if pairs else None)
 
 
 def _compiled_exp_integrals(kernel, a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:
