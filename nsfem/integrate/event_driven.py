@@ -367,10 +367,11 @@ class EventDriven(Integrator):
         """Add the work integrals over [t0, t1]; return max E seen (at the evaluation points).
         ``ends``: (q, q') at t0 and at t1 when the caller has them (the closed form then evaluates E there).
 
-        For ``exact`` on the modal path the integrals are quadratic forms of sums of exponentials,
-        integrated in closed form; where divided differences enter (resonance, rigid bodies), Gauss-
-        Legendre on segments of 16 sampling steps with nodes enough for the fastest term to 1e-17;
-        for ``rk``, 4-point Gauss-Legendre on the sampling grid.
+        For ``exact`` on the modal path the integrals are quadratic forms of sums of exponentials and
+        divided differences (resonance, rigid bodies), integrated in closed form (:meth:`_energy_terms`);
+        without a modal form (the matrix exponential's path), Gauss-Legendre on segments of 16 sampling
+        steps with nodes enough for the fastest term to 1e-17; for ``rk``, 4-point Gauss-Legendre on the
+        sampling grid.
         """
         if t1 <= t0:
             return 0.0
@@ -494,7 +495,8 @@ class EventDriven(Integrator):
         """The work integrals int xi^T S xi dt of the phase in closed form, or None (no modal form).
 
         With xi(t) = sum_j U_j e^{mu_j (t - t0)} (:meth:`Phase.exponential_terms`, conjugate terms
-        included) each integral is sum_ab S_ab G_ab with G = U Phi U^T, Phi_jk = int e^{(mu_j + mu_k) s} ds:
+        included; divided-difference groups are further terms, :meth:`_energy_terms`) each integral is
+        sum_ab S_ab G_ab with G = U Phi U^T, Phi_jk = int e^{(mu_j + mu_k) s} ds:
         one G for all forms. The external work's form has nonzero columns only at the load's
         components of xi (constant, cos, sin), so without damping, circulatory or friction work
         (their forms are skipped when zero) only those columns of G are formed, from the terms
@@ -513,7 +515,9 @@ class EventDriven(Integrator):
         return self._end_energy(phase, t1, forms, ends)[0]
 
     def _energy_terms(self, phase, mode, terms, t1, forms, energy) -> None:
-        """The work integrals from the exponential terms (U, mu) of xi."""
+        """The work integrals from the terms (U, mu, groups) of xi (:meth:`Phase.closed_form_terms`): the
+        exponentials' table by :func:`_exp_integrals`, the divided-difference columns' by
+        :func:`.closed_form.group_integrals` (docs/theory.md, "The closed form of the work integrals")."""
         sysm = self.system
         cs = sysm.contacts
         Pq, Pv = phase.q_map(), phase.v_map()
