@@ -530,11 +530,16 @@ class EventDriven(Integrator):
             hit = phase.config.__dict__["_ext_form"] = (sysm.f0, (phase.dim, bool(phase.w)), Pv.T @ F)
         ext = hit[2]                                                    # the form's nonzero columns
         _, P, D, damped, circulatory, _ = forms
+        # the damping form and the circulatory form's left part are the configuration's (Pv is): formed once
+        parts = phase.config.__dict__.get("_work_forms")
+        if parts is None or parts[0] is not forms or parts[1] != phase.dim:
+            parts = phase.config.__dict__["_work_forms"] = (forms, phase.dim, Pv.T @ D @ Pv if damped else None,
+                                                            Pv.T @ P if circulatory else None)
         full = []   # (key, dim x dim form)
         if damped:
-            full.append(("dissipated_damping_J", Pv.T @ D @ Pv))
+            full.append(("dissipated_damping_J", parts[2]))
         if circulatory:
-            full.append(("work_circulatory_J", Pv.T @ P @ Pq))
+            full.append(("work_circulatory_J", parts[3] @ Pq))
         if mode.slide or mode.edge:
             Pf = phase.force_map()
             idx = {key: i for i, key in enumerate(phase.config.rows)}
@@ -648,13 +653,15 @@ def _compiled_energy_modal(kernel, cfg, hit: tuple, c: np.ndarray, g: np.ndarray
 
 def _compiled_group_integrals(kernel, nu: np.ndarray, groups: list, T: float, pairs: bool):
     """:func:`.closed_form.group_integrals` by the compiled kernel ``group_integrals``."""
-    cols = [nodes[:, c] for nodes, _ in groups for c in range(nodes.shape[1])]
-    X = np.zeros((len(cols), 3), dtype=complex)
-    for i, c in enumerate(cols):
-        X[i, : c.size] = c
-    sizes = np.array([c.size for c in cols], dtype=np.int64)
-    Pe = np.empty((len(cols), nu.size), dtype=complex)
-    Pg = np.empty((len(cols) if pairs else 0, len(cols)), dtype=complex)
+    Kt = sum(nodes.shape[1] for nodes, _ in groups)
+    X, sizes = np.zeros((Kt, 3), dtype=complex), np.empty(Kt, dtype=np.int64)
+    start = 0
+    for nodes, _ in groups:         # one row per column of nodes, padded to 3
+        m, K = nodes.shape
+        X[start: start + K, :m], sizes[start: start + K] = nodes.T, m
+        start += K
+    Pe = np.empty((Kt, nu.size), dtype=complex)
+    Pg = np.empty((Kt if pairs else 0, Kt), dtype=complex)
     kernel.group_integrals(np.ascontiguousarray(nu, dtype=complex), X, sizes, T, Pe, Pg)
     return Pe, (Pg if pairs else None)
 
