@@ -173,9 +173,7 @@ def _classical_eig(w2, Phi, Mr, Cr, k: int):
 class Configuration:
     """The constrained LTI system of one :class:`Mode` (cached by the integrator)."""
 
-    def __init__(self, system: ContactSystem, mode: Mode, basis: tuple | None = None):
-        """``basis``: (N, L, k, eig, redundant) of this configuration known without a decomposition (a turned
-        round ring's configuration rotated from another: :mod:`.axisymmetry`), used as given."""
+    def __init__(self, system: ContactSystem, mode: Mode):
         cs, n = system.contacts, system.n
         self.system, self.mode = system, mode
         slide, edge = dict(mode.slide), dict(mode.edge)
@@ -202,16 +200,13 @@ class Configuration:
             self.rows.append(("tangent", k, 0))
         self.G = np.column_stack(Gc) if Gc else np.zeros((n, 0))
         self.W = np.column_stack(Wc) if Wc else np.zeros((n, 0))
-        if basis is not None:
-            self.N, self.L, self.redundant = basis[0], basis[1], basis[4]
+        self.N, rank = _null(self.G, n)
+        self.redundant = self.G.shape[1] - rank
+        if slide or edge:
+            L, rank_w = _null(self.W, n)
+            self.L = L if rank_w == rank else self.N
         else:
-            self.N, rank = _null(self.G, n)
-            self.redundant = self.G.shape[1] - rank
-            if slide or edge:
-                L, rank_w = _null(self.W, n)
-                self.L = L if rank_w == rank else self.N
-            else:
-                self.L = self.N
+            self.L = self.N
         r = self.N.shape[1]
         self.r = r
         M, C, Q = system.M, system.C, system.Q
@@ -236,13 +231,10 @@ class Configuration:
         Cr = self.L.T @ C @ self.N
         # a symmetric configuration with classical damping: its real modes give the first-order
         # eigen-decomposition in closed form (eigh of r x r instead of eig of 2r x 2r)
-        modes = _classical_modes(Mr, Kr, Cr) if basis is None and r and self.L is self.N and symmetric else None
+        modes = _classical_modes(Mr, Kr, Cr) if r and self.L is self.N and symmetric else None
         T = None
         self.k = 0
-        if basis is not None:   # (its rigid coordinates come first, as the configuration it was rotated from split them)
-            self.k = basis[2]
-            Kr[:, : self.k] = 0.0
-        elif modes is not None:
+        if modes is not None:
             w2, Phi, _ = modes
             k = _rigid_count(w2, float(system.info.get("omega2_ref", 0.0)))
             if k:
@@ -284,7 +276,7 @@ class Configuration:
         MN = M @ self.N
         self.Rx = np.hstack([MN @ (-Mi @ Kr) + Q @ self.N, MN @ (-Mi @ Cr) + C @ self.N]) if r else np.zeros((n, 0))
         self.Rphi = MN @ self.Mi_L - np.eye(n)
-        self.eig = None if basis is None else basis[3]
+        self.eig = None
         k = self.k
         if r and modes is not None:
             self.eig = _classical_eig(modes[0], modes[1], Mr, Cr, k)

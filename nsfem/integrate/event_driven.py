@@ -35,7 +35,6 @@ from ..contact.ring import ROT, generalized_force, potential, unheld
 from ..result import Result
 from . import core
 from .base import Integrator, Progress, close_energy, initial_state, output_times
-from .axisymmetry import canonical, generator, rotated, rotation
 from .closed_form import group_integrals
 from .configuration import Configuration, Mode, Phase
 from .events import Event, Rows, event_rows, first_event, round_off
@@ -74,8 +73,6 @@ class EventDriven(Integrator):
     round_rings = False
     #: configurations kept with round rings (their turns make new ones, met once or twice): the recent half
     max_configurations = 512
-    #: a turned round ring's configuration by rotating the first one of its pattern (:mod:`.axisymmetry`)
-    rotate_turns = True
 
     def __init__(self, system, zeno: float = 1e-8, max_events: int = 10_000_000, progress: bool | None = None,
                  **options):
@@ -84,9 +81,6 @@ class EventDriven(Integrator):
             raise NsfemError(f"zeno must lie in (0, 1), got {zeno}")
         self.zeno, self.max_events, self.progress = zeno, int(max_events), progress
         self._cache: dict = {}
-        #: (ring, pattern of closed facets) -> (the first configuration met, its facet's angle); the rotation's generator
-        self._templates: dict = {}
-        self._axis = None
         #: the round rings (:mod:`.round`) and the system of the fixed polygon they turn
         self._rings, self._polygon = (), system
 
@@ -100,7 +94,7 @@ class EventDriven(Integrator):
             if self._rings and len(self._cache) >= self.max_configurations:   # turned ones: keep the recent
                 for old in list(self._cache)[: self.max_configurations // 2]:
                     del self._cache[old]
-            self._cache[key] = self._turned_configuration(mode) or Configuration(self.system, mode)
+            self._cache[key] = Configuration(self.system, mode)
         cfg = self._cache[key]
         if cfg.system is not self.system:
             # no closed facet of a turned ring: the same equations; its rows read the turned facets' gaps
@@ -109,33 +103,6 @@ class EventDriven(Integrator):
             cfg.__dict__.pop("_rows_plans", None)   # the old system's gap rows (events.event_rows)
             self._cache[key] = cfg
         return cfg
-
-    def _turned_configuration(self, mode: Mode) -> Configuration | None:
-        """A turned round ring's configuration rotated from the first one met with its pattern of closed facets
-        (:mod:`.axisymmetry`: no eigen-decomposition), that first one itself, or None (no round ring closed alone,
-        a rotor that is not axisymmetric, or constraints that are not the rotated ones)."""
-        if not (self._rings and self.rotate_turns):
-            return None
-        for i, ring in enumerate(self._rings):
-            canon = canonical(mode, ring)
-            if canon is not None:
-                break
-        else:
-            return None
-        if self._axis is None:   # once per run: the rotation's generator, or False
-            J = generator(self._polygon, self._rings)
-            self._axis = False if J is None else J
-        if self._axis is False:
-            return None
-        pattern, first = canon
-        phi = ring.phi(first)
-        hit = self._templates.get((i, pattern))
-        if hit is None:
-            cfg = Configuration(self.system, mode)
-            self._templates[(i, pattern)] = (cfg, phi)
-            return cfg
-        template, phi0 = hit
-        return rotated(template, self.system, mode, *rotation(self._axis, phi - phi0))
 
     def _turn(self) -> None:
         """The system of the round rings' turns now."""
@@ -159,7 +126,7 @@ class EventDriven(Integrator):
         self.system = self._polygon
         self._rings = round_rings(self.system.contacts, self.system.info.get("round_rings", ())) \
             if self.round_rings else ()
-        self._cache, self._templates, self._axis = {}, {}, None
+        self._cache = {}
         sysm = self.system
         cs = sysm.contacts
         n, m = sysm.n, cs.m
