@@ -3,8 +3,10 @@
 part "phase").
 
 Each mirrors a Python reference, named in its docstring: configuration.Phase.__init__, Phase._motion
-and Phase._xi_at, closed_form.ModalPlan.modes, event_driven._exp_integrals, EventDriven._energy_modal
-and EventDriven._end_energy. Complex arrays come in as float64 views of their interleaved (real,
+and Phase._xi_at, closed_form.ModalPlan.modes, event_driven._exp_integrals, EventDriven._energy_modal,
+EventDriven._end_energy and closed_form.group_integrals (the work integrals of divided-difference groups:
+C's complex arithmetic there, and Taylor lengths and scalings chosen per column, within 1e-13 of the
+reference's entries). Complex arrays come in as float64 views of their interleaved (real,
 imaginary) pairs (``a.view(np.float64)``), and each complex product, quotient, exp and expm1 is
 written out here with numpy's formula. Where numpy's SIMD loops fuse a multiply-add, the two differ in
 the last bit. The matrix products are plain loops, one sum per output entry in the order of its
