@@ -117,7 +117,8 @@ def energy_calls(scene, repeat: int) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="best of 3, retainer_drop over 0.05 s, the shipped scene 0.3 s")
+    ap.add_argument("--quick", action="store_true",
+                    help="best of 3, retainer_drop over 0.05 s, the shipped scene 0.3 s")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--repeat", type=int, default=None, help="runs per timing (best of them)")
     ap.add_argument("--out", default=str(Path(__file__).parent / "out" / "core_energy"))

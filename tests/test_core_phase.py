@@ -364,7 +364,8 @@ def test_group_integrals_kernel_matches_the_reference(seed):
         if not groups:
             continue
         p = int(rng.integers(0, 14))
-        nu = -np.abs(rng.normal(size=p)) * 10 ** rng.uniform(-3, 4, p) + 1j * rng.normal(size=p) * 10 ** rng.uniform(-3, 5, p)
+        nu = -np.abs(rng.normal(size=p)) * 10 ** rng.uniform(-3, 4, p) \
+            + 1j * rng.normal(size=p) * 10 ** rng.uniform(-3, 5, p)
         nu[: min(p, 2)] = 0.0
         if p > 3:
             nu[3] = nu[2]          # a tie
