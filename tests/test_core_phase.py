@@ -327,3 +327,54 @@ def test_state_at_one_time_matches_the_reference(kind):
                 bound = bound + 4 * EPS * np.abs(ref[:d])
             assert np.all(np.abs(got[:d] - ref[:d]) <= bound)
             assert np.array_equal(got[d:], ref[d:])
+
+
+# -- the work integrals of divided-difference groups (kernel group_integrals) ------------------------------
+
+def _groups(rng, kinds: str) -> list:
+    """Divided-difference groups as ModalPlan forms them: clusters of 2 or 3 nodes at 0 (rigid rows) or at a
+    forcing exponent +-i w (resonance), equal, 1e-9 or 1e-6 apart (the closeness floor), some columns exactly 0."""
+    out = []
+    for m in (2, 3):
+        K = int(rng.integers(0 if kinds == "mixed" else 1, 4))
+        if K == 0:
+            continue
+        c = 1j * rng.choice([-1, 1]) * 10 ** rng.uniform(-1, 3) if rng.random() < 0.5 else 0j
+        spread = rng.choice([0.0, 1e-9, 1e-6]) * max(abs(c), 1.0)
+        nodes = c + spread * (rng.normal(size=(m, K)) + 1j * rng.normal(size=(m, K)))
+        nodes[:, rng.random(K) < 0.2] = 0.0
+        out.append((nodes.astype(complex), None))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_group_integrals_kernel_matches_the_reference(seed):
+    """The kernel against closed_form.group_integrals on random groups and exponents (zero, slow, stiff up to
+    1e5 1/s, ties), T from 1e-7 to 1 s. Both evaluate the same formulas but choose their Taylor lengths and
+    scalings per column where the reference chooses them per batch, and the kernel's complex products
+    and sums are C's: each is within a few eps of the entry's natural size (Hermite-Genocchi: T^N / N! for
+    the exponential integrals of N + 1 nodes; the pair's T^(m+n-1) / ... for the products), so they agree to
+    1e-13 of the largest entry of each block (the sizes of one block differ by at most their nodes' spread)."""
+    from nsfem.integrate.closed_form import group_integrals
+    from nsfem.integrate.event_driven import _compiled_group_integrals
+
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        groups = _groups(rng, "mixed")
+        if not groups:
+            continue
+        p = int(rng.integers(0, 14))
+        nu = -np.abs(rng.normal(size=p)) * 10 ** rng.uniform(-3, 4, p) \
+            + 1j * rng.normal(size=p) * 10 ** rng.uniform(-3, 5, p)
+        nu[: min(p, 2)] = 0.0
+        if p > 3:
+            nu[3] = nu[2]          # a tie
+        T = 10 ** rng.uniform(-7, 0)
+        pairs = bool(rng.random() < 0.7)
+        Pe, Pg = group_integrals(nu, groups, T, pairs)
+        Qe, Qg = _compiled_group_integrals(kernel, nu, groups, T, pairs)
+        assert Qe.shape == Pe.shape and (Qg is None) == (Pg is None)
+        if Pe.size:
+            assert np.abs(Qe - Pe).max() <= 1e-13 * np.abs(Pe).max()
+        if pairs:
+            assert np.abs(Qg - Pg).max() <= 1e-13 * np.abs(Pg).max()

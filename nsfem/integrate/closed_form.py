@@ -65,7 +65,11 @@ def divided_exp(nodes: np.ndarray, tau: np.ndarray) -> np.ndarray:
         p2 = np.ones_like(dd1)       # d2^k
         term = tt * tt / 2.0
         acc = term * h
-        for k in range(1, 30):
+        # (the terms past _terms' count sum to below 1e-18 of tt^2 / 2, below half an ulp of the sum, which is at
+        # least 0.19 tt^2 / 2 here (|d| tt <= 1: the integrand's real part is at least e^-1 cos 1): leaving them
+        # out changes no bit; the nodes of rigid rows, 0 to round-off, need one or two)
+        rho = float(np.max(np.maximum(np.abs(dd1), np.abs(dd2)) * tt, initial=0.0))
+        for k in range(1, _terms(rho, 2)):
             p2 = p2 * dd2
             h = h * dd1 + p2          # h_k = d1 h_{k-1} + d2^k
             term = term * tt / (k + 2)
@@ -316,3 +320,158 @@ def _split(nodes: list, floor: float) -> tuple[list, list]:
     (p, _), (q, kq), (s_, ks) = nodes[a], nodes[b], nodes[c]
     den = s_ - p
     return [(ks, (1, den, s_ - q)), (kq, (-1, den, s_ - q))], [((p, q), (-1, den))]
+
+
+# -- work integrals of a motion with divided-difference groups ------------------------------------------
+#: terms of the Taylor series of a divided difference whose nodes lie within 1 / T of each other: the k-th is
+#: at most C(k + N - 2, N - 2) / (k + N - 1)! of the size T^(N-1) / (N-1)!, below 1e-20 of it at k = 30
+_TAYLOR_TERMS = 30
+
+
+def _terms(rho: float, n: int) -> int:
+    """Terms of the series sum_k rho^k C(k + n - 1, n - 1) n! / (k + n)! (the Taylor series of a divided
+    difference over n + 1 nodes within rho / T of the first, relative to its size) that leave a remainder
+    below 1e-18 (rho <= 1: at most :data:`_TAYLOR_TERMS`)."""
+    if rho == 0.0:
+        return 1
+    t = 1.0
+    for k in range(1, _TAYLOR_TERMS):
+        t *= rho * (k + n - 1) / k / (k + n)
+        if t <= 1e-18:
+            return k
+    return _TAYLOR_TERMS
+
+
+def divided_exp_at(nodes: np.ndarray, T: float) -> np.ndarray:
+    """F[x_0, .., x_{N-1}](T) of x -> e^{x T} for any number N >= 1 of nodes per column (``nodes`` (N, P)
+    complex, T >= 0 one time); returns (P,).
+
+    Nodes within 1 / T of each other: the Taylor series after a shift to the first node,
+    F = e^{x_0 T} sum_k T^(k+N-1) / (k+N-1)! h_k(x_1 - x_0, ..), h_k the complete homogeneous symmetric
+    polynomials; otherwise the recursion over the farthest pair (x_i, x_j), F = (F[nodes without x_i] -
+    F[nodes without x_j]) / (x_j - x_i), whose divisor is then above 1 / T: the difference loses at most
+    the size T^(N-1) e^{max Re x T} / (N-1)! times a few eps (Hermite-Genocchi bounds both terms)."""
+    X = np.asarray(nodes, dtype=complex)
+    N = X.shape[0]
+    if N == 1:
+        return np.exp(X[0] * T)
+    if N == 2:
+        return np.exp(X[0] * T) * T * _phi1((X[1] - X[0]) * T)
+    gap = np.abs(X[:, None, :] - X[None, :, :]).reshape(N * N, -1)
+    far = np.argmax(gap, axis=0)
+    out = np.empty(X.shape[1], dtype=complex)
+    small = gap[far, np.arange(X.shape[1])] * T <= 1.0
+    if np.any(small):
+        Xs = X[:, small]
+        d = Xs[1:] - Xs[0]
+        H = np.ones_like(d)                 # H[j]: h_k(d_0, .., d_j), here k = 0
+        term = T ** (N - 1) / math.factorial(N - 1)
+        acc = term * H[-1]
+        for k in range(1, _terms(float(np.max(np.abs(d))) * T, N - 1)):
+            H[0] = H[0] * d[0]
+            for j in range(1, N - 1):
+                H[j] = H[j - 1] + d[j] * H[j]
+            term = term * T / (k + N - 1)
+            acc = acc + term * H[-1]
+        out[small] = np.exp(Xs[0] * T) * acc
+    if not np.all(small):
+        cols = np.flatnonzero(~small)
+        i, j = far[cols] // N, far[cols] % N
+        # the nodes reordered per column: x_i first, x_j last, the others between (their order is free)
+        order = np.empty((N, cols.size), dtype=int)
+        order[0], order[-1] = i, j
+        rest = np.argsort((np.arange(N)[:, None] == i) | (np.arange(N)[:, None] == j), axis=0, kind="stable")
+        order[1:-1] = rest[: N - 2]
+        Xf = X[order, cols]
+        out[cols] = (divided_exp_at(Xf[1:], T) - divided_exp_at(Xf[:-1], T)) / (Xf[-1] - Xf[0])
+    return out
+
+
+def _expm_triangular(Z: np.ndarray) -> np.ndarray:
+    """exp(Z) of a stack of upper triangular (P, S, S) complex matrices whose diagonals have real parts
+    <= 0: scaled by 2^s to a 1-norm of at most 1/2, the Taylor series (S - 1 terms and as many more as
+    leave a remainder below 1e-18), squared s times."""
+    S = Z.shape[-1]
+    norm = float(np.max(np.sum(np.abs(Z), axis=-2), initial=0.0))
+    s = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
+    Zs = Z / 2.0 ** s
+    # terms: an entry k places above the diagonal starts at the k-th power (a path of k steps up); past
+    # that, the remainder of sum_j |Z|^j / j! below 1e-18 (|Z| <= 1/2: at most 16 more)
+    rho, j, t = norm / 2.0 ** s, 1, 1.0
+    while j < 24 and t * rho > 1e-18:
+        j += 1
+        t *= rho / j
+    n = S - 1 + j
+    I = np.eye(S)
+    E = I + Zs / n
+    for k in range(n - 1, 0, -1):          # Horner: I + Z/1 (I + Z/2 (I + ...))
+        E = Zs @ E
+        E /= k
+        E += I
+    for _ in range(s):
+        E = E @ E
+    return E
+
+
+def product_integrals(A: np.ndarray, B: np.ndarray, T: float) -> np.ndarray:
+    """int_0^T F[A_p](s) F[B_p](s) ds per column p of the nodes A (m, P) and B (n, P).
+
+    Opitz: F[X](s) is the corner entry of exp(s J_X), J_X bidiagonal with the nodes on its diagonal and
+    ones above; the product of two is the corner entry of exp(s K), K = J_A (x) I + I (x) J_B, and its
+    integral the corner of exp(T [[K, e], [0, 0]]) (e the last unit vector): one upper triangular
+    exponential of size m n + 1 per column (:func:`_expm_triangular`, after a shift by the largest real
+    part of its diagonal). Meant for the slow nodes of divided-difference groups (near 0 or a forcing
+    exponent), whose spans T |x| are small."""
+    A, B = np.asarray(A, dtype=complex), np.asarray(B, dtype=complex)
+    m, n, P = A.shape[0], B.shape[0], A.shape[1]
+    S = m * n + 1
+    K = np.zeros((P, S, S), dtype=complex)
+    idx = np.arange(m * n)
+    a, b = idx // n, idx % n
+    K[:, idx, idx] = (A[a] + B[b]).T
+    for i in range(m * n):          # J_A (x) I: (a, b) -> (a + 1, b); I (x) J_B: (a, b) -> (a, b + 1)
+        if a[i] + 1 < m:
+            K[:, i, i + n] = 1.0
+        if b[i] + 1 < n:
+            K[:, i, i + 1] = 1.0
+    K[:, m * n - 1, S - 1] = 1.0
+    shift = np.maximum(np.max(np.real(A[a] + B[b]), axis=0), 0.0)       # (P,): e^{shift T} taken out
+    Z = T * (K - shift[:, None, None] * np.eye(S))
+    return np.exp(shift * T) * _expm_triangular(Z)[:, 0, S - 1]
+
+
+def group_integrals(nu: np.ndarray, groups: list, T: float, pairs: bool = True):
+    """The integrals over [0, T] of products of a motion's divided-difference columns (F[X_c], the
+    groups' nodes (m, K) in order) with its exponentials e^{nu_j s} and with each other: (Pe (Kt, len(nu)),
+    Pg (Kt, Kt) or None without ``pairs``).
+
+    int e^{nu s} F[X](s) ds = F[0, X + nu](T) (e^{nu s} shifts the nodes; integrating from 0 adds the node
+    0): :func:`divided_exp_at` with m + 1 nodes; the products of two columns by :func:`product_integrals`."""
+    nu = np.asarray(nu, dtype=complex)
+    cols = [nodes[:, c] for nodes, _ in groups for c in range(nodes.shape[1])]
+    Kt, p = len(cols), nu.size
+    Pe = np.empty((Kt, p), dtype=complex)
+    start = 0
+    for nodes, _ in groups:
+        m, K = nodes.shape
+        X = np.empty((m + 1, K, p), dtype=complex)
+        X[0] = 0.0
+        X[1:] = nodes[:, :, None] + nu[None, None, :]
+        Pe[start: start + K] = divided_exp_at(X.reshape(m + 1, K * p), T).reshape(K, p)
+        start += K
+    if not pairs:
+        return Pe, None
+    Pg = np.empty((Kt, Kt), dtype=complex)
+    sizes = np.array([c.size for c in cols])
+    for ma in np.unique(sizes):
+        for mb in np.unique(sizes):
+            if ma > mb:     # (the pair (mb, ma) fills both triangles)
+                continue
+            I, J = np.meshgrid(np.flatnonzero(sizes == ma), np.flatnonzero(sizes == mb), indexing="ij")
+            I, J = (I[I <= J], J[I <= J]) if ma == mb else (I.ravel(), J.ravel())
+            A = np.array([cols[i] for i in I]).T
+            B = np.array([cols[j] for j in J]).T
+            v = product_integrals(A, B, T)
+            Pg[I, J] = v
+            Pg[J, I] = v
+    return Pe, Pg

@@ -711,6 +711,14 @@ class Phase:
         """
         if self._modal is None or self._modal.groups:
             return None
+        return self.closed_form_terms()[:2]
+
+    def closed_form_terms(self):
+        """(U, nu, groups): xi(t) = Re[sum_j U[:, j] exp(nu_j (t - t0)) + sum over groups D F[nodes](t - t0)]
+        on the modal path (:meth:`exponential_terms` and the divided-difference groups, each (nodes (m, K),
+        D (dim x K)) with D's rows beyond the modal part zero), or None."""
+        if self._modal is None:
+            return None
         mot = self._modal
         r2 = 2 * self.config.r
         # the constant, cos and sin components of xi as exponentials: 1, (e^{iwt} +- e^{-iwt}) / (2, 2i)
@@ -729,7 +737,12 @@ class Phase:
             nu[j] = mu
             for row, val in comps.items():
                 U[row, j] += val
-        return U, nu
+        groups = []
+        for nodes, D in mot.groups:
+            Dx = np.zeros((self.dim, D.shape[1]), dtype=complex)
+            Dx[: D.shape[0]] = D
+            groups.append((nodes, Dx))
+        return U, nu, groups
 
     def derivative_bound(self, H: np.ndarray, order: int, horizon: float) -> np.ndarray:
         """Per row of H, a bound of the order-th time derivative of H xi over [t0, t0 + horizon]."""

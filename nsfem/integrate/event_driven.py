@@ -36,6 +36,7 @@ from ..contact.ring import ROT, generalized_force, potential, unheld
 from ..result import Result
 from . import core
 from .base import Integrator, Progress, close_energy, initial_state, output_times
+from .closed_form import group_integrals
 from .configuration import Configuration, Mode, Phase, matrix_key
 from .events import Event, Rows, event_rows, first_event, round_off
 from .guard import EventGuard, check_phase, check_state, overflow
@@ -390,10 +391,11 @@ class EventDriven(Integrator):
         """Add the work integrals over [t0, t1]; return max E seen (at the evaluation points).
         ``ends``: (q, q') at t0 and at t1 when the caller has them (the closed form then evaluates E there).
 
-        For ``exact`` on the modal path the integrals are quadratic forms of sums of exponentials,
-        integrated in closed form; where divided differences enter (resonance, rigid bodies), Gauss-
-        Legendre on segments of 16 sampling steps with nodes enough for the fastest term to 1e-17;
-        for ``rk``, 4-point Gauss-Legendre on the sampling grid.
+        For ``exact`` on the modal path the integrals are quadratic forms of sums of exponentials and
+        divided differences (resonance, rigid bodies), integrated in closed form (:meth:`_energy_terms`);
+        without a modal form (the matrix exponential's path), Gauss-Legendre on segments of 16 sampling
+        steps with nodes enough for the fastest term to 1e-17; for ``rk``, 4-point Gauss-Legendre on the
+        sampling grid.
         """
         if t1 <= t0:
             return 0.0
@@ -517,7 +519,8 @@ class EventDriven(Integrator):
         """The work integrals int xi^T S xi dt of the phase in closed form, or None (no modal form).
 
         With xi(t) = sum_j U_j e^{mu_j (t - t0)} (:meth:`Phase.exponential_terms`, conjugate terms
-        included) each integral is sum_ab S_ab G_ab with G = U Phi U^T, Phi_jk = int e^{(mu_j + mu_k) s} ds:
+        included; divided-difference groups are further terms, :meth:`_energy_terms`) each integral is
+        sum_ab S_ab G_ab with G = U Phi U^T, Phi_jk = int e^{(mu_j + mu_k) s} ds:
         one G for all forms. The external work's form has nonzero columns only at the load's
         components of xi (constant, cos, sin), so without damping, circulatory or friction work
         (their forms are skipped when zero) only those columns of G are formed, from the terms
@@ -529,14 +532,16 @@ class EventDriven(Integrator):
         if phase.amplitudes is not None and not (mode.slide or mode.edge or mode.ring):
             self._energy_modal(phase, t1, forms, energy)
         else:
-            terms = phase.exponential_terms()
+            terms = phase.closed_form_terms()
             if terms is None:
                 return None
             self._energy_terms(phase, mode, terms, t1, forms, energy)
         return self._end_energy(phase, t1, forms, ends)[0]
 
     def _energy_terms(self, phase, mode, terms, t1, forms, energy) -> None:
-        """The work integrals from the exponential terms (U, mu) of xi."""
+        """The work integrals from the terms (U, mu, groups) of xi (:meth:`Phase.closed_form_terms`): the
+        exponentials' table by :func:`_exp_integrals`, the divided-difference columns' by
+        :func:`.closed_form.group_integrals` (docs/theory.md, "The closed form of the work integrals")."""
         sysm = self.system
         cs = sysm.contacts
         Pq, Pv = phase.q_map(), phase.v_map()
@@ -549,11 +554,16 @@ class EventDriven(Integrator):
             hit = phase.config.__dict__["_ext_form"] = (sysm.f0, (phase.dim, bool(phase.w)), Pv.T @ F)
         ext = hit[2]                                                    # the form's nonzero columns
         _, P, D, damped, circulatory, _ = forms
+        # the damping form and the circulatory form's left part are the configuration's (Pv is): formed once
+        parts = phase.config.__dict__.get("_work_forms")
+        if parts is None or parts[0] is not forms or parts[1] != phase.dim:
+            parts = phase.config.__dict__["_work_forms"] = (forms, phase.dim, Pv.T @ D @ Pv if damped else None,
+                                                            Pv.T @ P if circulatory else None)
         full = []   # (key, dim x dim form)
         if damped:
-            full.append(("dissipated_damping_J", Pv.T @ D @ Pv))
+            full.append(("dissipated_damping_J", parts[2]))
         if circulatory:
-            full.append(("work_circulatory_J", Pv.T @ P @ Pq))
+            full.append(("work_circulatory_J", parts[3] @ Pq))
         if mode.slide or mode.edge:
             Pf = phase.force_map()
             idx = {key: i for i, key in enumerate(phase.config.rows)}
@@ -571,7 +581,7 @@ class EventDriven(Integrator):
             if np.any(spin):
                 full.append(("work_spin_J", -spin))
         full += _ring_forms(sysm.rings, mode, Pq, Pv, r2)
-        U, mu = terms
+        U, mu, groups = terms
         T = t1 - phase.t0
         if full:
             Uc, J = U, slice(None)
@@ -581,6 +591,18 @@ class EventDriven(Integrator):
             Uc = Uc[:, J]
         kernel = core.compiled("phase")
         phi = _exp_integrals(mu, mu[J], T) if kernel is None else _compiled_exp_integrals(kernel, mu, mu[J], T)
+        if groups:
+            # the divided-difference columns are further terms: their integrals with the exponentials and
+            # (with full forms) with each other (closed_form.group_integrals); they reach no load column
+            Pe, Pg = group_integrals(mu, groups, T, pairs=bool(full)) if kernel is None else \
+                _compiled_group_integrals(kernel, mu, groups, T, bool(full))
+            Dg = np.hstack([D for _, D in groups])
+            if full:
+                phi = np.block([[phi, Pe.T], [Pe, Pg]])
+                U = Uc = np.hstack([U, Dg])
+            else:
+                phi = np.vstack([phi, Pe[:, J]])
+                U = np.hstack([U, Dg])
         G = U @ (phi @ Uc.T)      # G[:, c] = sum_jk U_j phi_jk U_ck over the columns c formed
         if full:
             energy["work_external_J"] += float(np.real(np.sum(ext * G[:, cols])))
@@ -651,6 +673,21 @@ def _compiled_energy_modal(kernel, cfg, hit: tuple, c: np.ndarray, g: np.ndarray
                                                      np.ascontiguousarray(g).view(float), T, t0, E.view(float),
                                                      S.view(float), vals, PZ.view(float))
     return vals, PZ
+
+
+def _compiled_group_integrals(kernel, nu: np.ndarray, groups: list, T: float, pairs: bool):
+    """:func:`.closed_form.group_integrals` by the compiled kernel ``group_integrals``."""
+    Kt = sum(nodes.shape[1] for nodes, _ in groups)
+    X, sizes = np.zeros((Kt, 3), dtype=complex), np.empty(Kt, dtype=np.int64)
+    start = 0
+    for nodes, _ in groups:         # one row per column of nodes, padded to 3
+        m, K = nodes.shape
+        X[start: start + K, :m], sizes[start: start + K] = nodes.T, m
+        start += K
+    Pe = np.empty((Kt, nu.size), dtype=complex)
+    Pg = np.empty((Kt if pairs else 0, Kt), dtype=complex)
+    kernel.group_integrals(np.ascontiguousarray(nu, dtype=complex), X, sizes, T, Pe, Pg)
+    return Pe, (Pg if pairs else None)
 
 
 def _compiled_exp_integrals(kernel, a: np.ndarray, b: np.ndarray, T: float) -> np.ndarray:

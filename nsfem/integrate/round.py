@@ -285,17 +285,23 @@ def polygon_outputs(rings, polygon: ContactSet, q: np.ndarray, gap: np.ndarray, 
         f = n @ tangential[idx, 0]                                  # R^T of the friction vector
         st = state[idx].max(axis=0)
         normal[idx], tangential[idx], state[idx] = 0.0, 0.0, 0
-        for j in np.flatnonzero(np.any(N != 0.0, axis=0) | np.any(f != 0.0, axis=0)):
-            w = N[:, j] if np.any(N[:, j]) else f[:, j]
-            i = int(math.floor(math.atan2(w[1], w[0]) / (2.0 * math.pi / F))) % F
-            pair = [i, (i + 1) % F]
-            G = np.column_stack([np.cos(r.angles[pair]), np.sin(r.angles[pair])]).T
-            lam, fr = np.linalg.solve(G, N[:, j]), np.linalg.solve(G, f[:, j])
-            # a force along one facet's normal is that facet's alone: the solve leaves the other round-off
-            # (cond(G) eps |N| <= 3.6e-14 |N| at F = 1024), no force on an open facet
-            lam[np.abs(lam) <= ROUND_OFF * math.hypot(*N[:, j])] = 0.0
-            fr[np.abs(fr) <= ROUND_OFF * math.hypot(*f[:, j])] = 0.0
-            for kk, lm, fk in zip(pair, lam, fr):
-                c = idx[kk]
-                normal[c, j], tangential[c, 0, j] = lm, fk
-                state[c, j] = st[j] if (lm or fk) else 0
+        cols = np.flatnonzero(np.any(N != 0.0, axis=0) | np.any(f != 0.0, axis=0))
+        if not cols.size:
+            continue
+        Nc, fc = N[:, cols], f[:, cols]
+        w = np.where(np.any(Nc != 0.0, axis=0), Nc, fc)
+        i = np.floor(np.arctan2(w[1], w[0]) / (2.0 * math.pi / F)).astype(int) % F
+        pair = np.array([i, (i + 1) % F])                                   # 2 x columns
+        G = np.empty((cols.size, 2, 2))
+        G[:, 0], G[:, 1] = np.cos(r.angles[pair]).T, np.sin(r.angles[pair]).T
+        lam = np.linalg.solve(G, Nc.T[:, :, None])[:, :, 0].T              # 2 x columns
+        fr = np.linalg.solve(G, fc.T[:, :, None])[:, :, 0].T
+        # a force along one facet's normal is that facet's alone: the solve leaves the other round-off
+        # (cond(G) eps |N| <= 3.6e-14 |N| at F = 1024), no force on an open facet
+        lam[np.abs(lam) <= ROUND_OFF * np.hypot(Nc[0], Nc[1])] = 0.0
+        fr[np.abs(fr) <= ROUND_OFF * np.hypot(fc[0], fc[1])] = 0.0
+        on = (lam != 0.0) | (fr != 0.0)
+        for side in range(2):
+            c = np.asarray(idx)[pair[side]]
+            normal[c, cols], tangential[c, 0, cols] = lam[side], fr[side]
+            state[c, cols] = np.where(on[side], st[cols], 0)

@@ -3,8 +3,10 @@
 part "phase").
 
 Each mirrors a Python reference, named in its docstring: configuration.Phase.__init__, Phase._motion
-and Phase._xi_at, closed_form.ModalPlan.modes, event_driven._exp_integrals, EventDriven._energy_modal
-and EventDriven._end_energy. Complex arrays come in as float64 views of their interleaved (real,
+and Phase._xi_at, closed_form.ModalPlan.modes, event_driven._exp_integrals, EventDriven._energy_modal,
+EventDriven._end_energy and closed_form.group_integrals (the work integrals of divided-difference groups:
+C's complex arithmetic there, and Taylor lengths and scalings chosen per column, within 1e-13 of the
+reference's entries). Complex arrays come in as float64 views of their interleaved (real,
 imaginary) pairs (``a.view(np.float64)``), and each complex product, quotient, exp and expm1 is
 written out here with numpy's formula. Where numpy's SIMD loops fuse a multiply-add, the two differ in
 the last bit. The matrix products are plain loops, one sum per output entry in the order of its
@@ -416,3 +418,171 @@ cpdef void xi_at(const double[:, ::1] U, const double[::1] nu, double tau, doubl
                 a0 = a0 + (u[r * ld + 2 * j] * e[2 * j] - u[r * ld + 2 * j + 1] * e[2 * j + 1])
             out[r] = a0
     free(e)
+
+
+# -- work integrals of divided-difference groups ------------------------------------------------------
+
+cdef inline double complex zexp(double complex z) noexcept nogil:
+    cdef double re, im
+    nsfem_cexp(z.real, z.imag, &re, &im)
+    return re + im * 1j
+
+
+cdef inline double complex zphi1(double complex z) noexcept nogil:
+    """(e^z - 1) / z, 1 at z = 0 (closed_form._phi1)."""
+    cdef double e[2]
+    cdef double q[2]
+    if z.real == 0.0 and z.imag == 0.0:
+        return 1.0
+    cexpm1(z.real, z.imag, e)
+    cdiv(e[0], e[1], z.real, z.imag, q)
+    return q[0] + q[1] * 1j
+
+
+cdef inline double zabs(double complex z) noexcept nogil:
+    return hypot(z.real, z.imag)
+
+
+cdef int taylor_terms(double rho, int n) noexcept nogil:
+    """closed_form._terms."""
+    cdef double t = 1.0
+    cdef int k
+    if rho == 0.0:
+        return 1
+    for k in range(1, 30):
+        t *= rho * (k + n - 1) / k / (k + n)
+        if t <= 1e-18:
+            return k
+    return 30
+
+
+cdef double complex divided_exp_one(const double complex* x, int N, double T) noexcept nogil:
+    """closed_form.divided_exp_at for one column of N <= 4 nodes."""
+    cdef double complex y[4]
+    cdef double complex d[3]
+    cdef double complex H[3]
+    cdef double complex acc
+    cdef double gap, best = -1.0, rho = 0.0, term
+    cdef int i, j, k, bi = 0, bj = 0, nt
+    if N == 1:
+        return zexp(x[0] * T)
+    if N == 2:
+        return zexp(x[0] * T) * T * zphi1((x[1] - x[0]) * T)
+    for i in range(N):
+        for j in range(N):
+            gap = zabs(x[i] - x[j])
+            if gap > best:
+                best, bi, bj = gap, i, j
+    if best * T <= 1.0:
+        for j in range(N - 1):
+            d[j] = x[j + 1] - x[0]
+            H[j] = 1.0
+            rho = max(rho, zabs(d[j]))
+        term = 1.0
+        for k in range(1, N):
+            term = term * T / k
+        acc = term * H[N - 2]
+        nt = taylor_terms(rho * T, N - 1)
+        for k in range(1, nt):
+            H[0] = H[0] * d[0]
+            for j in range(1, N - 1):
+                H[j] = H[j - 1] + d[j] * H[j]
+            term = term * T / (k + N - 1)
+            acc = acc + term * H[N - 2]
+        return zexp(x[0] * T) * acc
+    k = 1
+    for i in range(N):
+        if i != bi and i != bj:
+            y[k] = x[i]
+            k += 1
+    y[0], y[N - 1] = x[bi], x[bj]
+    return (divided_exp_one(&y[1], N - 1, T) - divided_exp_one(y, N - 1, T)) / (y[N - 1] - y[0])
+
+
+cdef double complex product_integral(const double complex* A, int m, const double complex* B, int n,
+                                     double T) noexcept nogil:
+    """closed_form.product_integrals for one pair of columns (m, n <= 3 nodes): the corner of the
+    exponential of T [[J_A (x) I + I (x) J_B, e], [0, 0]] by closed_form._expm_triangular's steps."""
+    cdef double complex Z[100]
+    cdef double complex E[100]
+    cdef double complex W[100]
+    cdef double complex acc
+    cdef int S = m * n + 1, i, l, q, a, b, s = 0, j, nt, k
+    cdef double shift = 0.0, norm = 0.0, col, rho, t
+    for i in range(S * S):
+        Z[i] = 0.0
+    for i in range(m * n):
+        a, b = i // n, i % n
+        Z[i * S + i] = A[a] + B[b]
+        shift = max(shift, (A[a] + B[b]).real)
+        if a + 1 < m:
+            Z[i * S + i + n] = 1.0
+        if b + 1 < n:
+            Z[i * S + i + 1] = 1.0
+    Z[(m * n - 1) * S + S - 1] = 1.0
+    for i in range(S):
+        Z[i * S + i] = Z[i * S + i] - shift
+    for i in range(S * S):
+        Z[i] = Z[i] * T
+    for l in range(S):
+        col = 0.0
+        for i in range(l + 1):
+            col += zabs(Z[i * S + l])
+        norm = max(norm, col)
+    while norm / (2.0 ** s) > 0.5:
+        s += 1
+    for i in range(S * S):
+        Z[i] = Z[i] / (2.0 ** s)
+    rho, j, t = norm / (2.0 ** s), 1, 1.0
+    while j < 24 and t * rho > 1e-18:
+        j += 1
+        t *= rho / j
+    nt = S - 1 + j
+    for i in range(S * S):
+        E[i] = Z[i] / nt
+    for i in range(S):
+        E[i * S + i] = E[i * S + i] + 1.0
+    for k in range(nt - 1, 0, -1):
+        for i in range(S):
+            for l in range(i, S):
+                acc = 0.0
+                for q in range(i, l + 1):
+                    acc = acc + Z[i * S + q] * E[q * S + l]
+                W[i * S + l] = acc / k
+        for i in range(S):
+            for l in range(i, S):
+                E[i * S + l] = W[i * S + l] + (1.0 if i == l else 0.0)
+    for k in range(s):
+        for i in range(S):
+            for l in range(i, S):
+                acc = 0.0
+                for q in range(i, l + 1):
+                    acc = acc + E[i * S + q] * E[q * S + l]
+                W[i * S + l] = acc
+        for i in range(S):
+            for l in range(i, S):
+                E[i * S + l] = W[i * S + l]
+    return exp(shift * T) * E[S - 1]
+
+
+cpdef void group_integrals(const double complex[::1] nu, const double complex[:, ::1] cols,
+                           const long[::1] sizes, double T, double complex[:, ::1] Pe,
+                           double complex[:, ::1] Pg) noexcept:
+    """closed_form.group_integrals: Pe[c, j] = int_0^T e^{nu_j s} F[X_c](s) ds and, when Pg has rows,
+    Pg[c, d] = int_0^T F[X_c](s) F[X_d](s) ds for the columns X_c = cols[c, :sizes[c]] (at most 3 nodes)."""
+    cdef Py_ssize_t Kt = cols.shape[0], p = nu.shape[0], c, dd, j, i
+    cdef double complex x[4]
+    cdef double complex v
+    with nogil:
+        for c in range(Kt):
+            x[0] = 0.0
+            for j in range(p):
+                for i in range(sizes[c]):
+                    x[i + 1] = cols[c, i] + nu[j]
+                Pe[c, j] = divided_exp_one(x, <int> sizes[c] + 1, T)
+        if Pg.shape[0]:
+            for c in range(Kt):
+                for dd in range(c, Kt):
+                    v = product_integral(&cols[c, 0], <int> sizes[c], &cols[dd, 0], <int> sizes[dd], T)
+                    Pg[c, dd] = v
+                    Pg[dd, c] = v
