@@ -6,7 +6,8 @@ Python functions in nsfem/integrate/events.py and closed_form.py are the referen
 the name given in its docstring; tests/test_core_search.py and tests/test_core_equivalence.py
 compare the two paths."""
 
-from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, expm1, cos, sin, pow, ceil, hypot, isfinite, INFINITY
+from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, expm1, log, cos, sin, pow, ceil, hypot, isfinite, isinf, INFINITY, NAN, M_PI
+from libc.float cimport DBL_EPSILON
 from libc.stdlib cimport malloc, calloc, free, realloc
 from cpython.exc cimport PyErr_CheckSignals
 
@@ -20,10 +21,60 @@ cdef extern from *:
     """
     void sincos "nsfem_sincos" (double x, double* s, double* c) nogil
 
+cdef extern from *:
+    """
+    /* Many independent sums side by side, four lanes at a time (GCC's vector extensions: each lane's
+       operations are the scalar ones, no contraction: -ffp-contract=off), in an AVX2 clone where the CPU
+       has it (the lanes round alike on any CPU: the same value whichever clone runs). */
+    #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__has_attribute)
+    #  if __has_attribute(target_clones)
+    #    define NSFEM_CLONES __attribute__((target_clones("avx2", "default")))
+    #  endif
+    #endif
+    #ifndef NSFEM_CLONES
+    #  define NSFEM_CLONES
+    #endif
+    #if defined(__GNUC__)
+    typedef double nsfem_v4 __attribute__((vector_size(32)));
+    /* x[j] = x[j] + (a * u[j] - b * v[j]), j < n (n a multiple of 4) */
+    NSFEM_CLONES static void nsfem_lanes_add(double* x, const double* u, const double* v, double a, double b, int n) {
+        nsfem_v4 va = {a, a, a, a}, vb = {b, b, b, b}, xv, uv, vv;
+        for (int j = 0; j < n; j += 4) {
+            __builtin_memcpy(&xv, x + j, sizeof xv);
+            __builtin_memcpy(&uv, u + j, sizeof uv);
+            __builtin_memcpy(&vv, v + j, sizeof vv);
+            xv = xv + (va * uv - vb * vv);
+            __builtin_memcpy(x + j, &xv, sizeof xv);
+        }
+    }
+    /* x[j] = x[j] + a * u[j], j < n (n a multiple of 4) */
+    NSFEM_CLONES static void nsfem_lanes_axpy(double* x, const double* u, double a, int n) {
+        nsfem_v4 va = {a, a, a, a}, xv, uv;
+        for (int j = 0; j < n; j += 4) {
+            __builtin_memcpy(&xv, x + j, sizeof xv);
+            __builtin_memcpy(&uv, u + j, sizeof uv);
+            xv = xv + va * uv;
+            __builtin_memcpy(x + j, &xv, sizeof xv);
+        }
+    }
+    #else
+    static void nsfem_lanes_axpy(double* x, const double* u, double a, int n) {
+        for (int j = 0; j < n; j++) x[j] = x[j] + a * u[j];
+    }
+    static void nsfem_lanes_add(double* x, const double* u, const double* v, double a, double b, int n) {
+        for (int j = 0; j < n; j++) x[j] = x[j] + (a * u[j] - b * v[j]);
+    }
+    #endif
+    """
+    void lanes_add "nsfem_lanes_add" (double* x, const double* u, const double* v, double a, double b, int n) nogil
+    void lanes_axpy "nsfem_lanes_axpy" (double* x, const double* u, double a, int n) nogil
+
 import numpy as np
 
 #: as events.SUBDIVIDE, DEPTH, FIRST_CHUNK, CHUNK
 cdef int SUBDIVIDE = 16, DEPTH = 3, FIRST_CHUNK = 4, CHUNK = 256
+#: as events.ZERO (a row's band relative to the terms that make it)
+cdef double ZERO = 1e-11
 #: as events.SLOPE (Birkhoff and Priver's slope bound in units of bound4)
 cdef double SLOPE = 384.0 * sqrt(3.0) / 216.0
 #: as first_event: at most this many arming candidates per row and chunk
@@ -36,6 +87,7 @@ cdef double SAFE_HI = 2.0 ** 400
 cdef double SAFE_LO = 2.0 ** -400
 
 
+include "_modal_sum.pxi"
 include "_search_kernels.pxi"
 include "_search_divided.pxi"
 
@@ -69,32 +121,40 @@ cdef class _Terms:
         free(self.act)
         free(self.partner)
 
-    def __init__(self, nu, gnodes, gm, C, int R, _Terms like=None):
+    def __init__(self, nu, gnodes, gm, C, int R, _Terms like=None, keep=None):
         cdef const double complex[:, ::1] Cv
+        cdef const char[::1] kept
         cdef int idx, r, m, j
         self.nu, self.gnodes, self.gm = nu, gnodes, gm
         self.pe, self.K = self.nu.shape[0], self.gm.shape[0]
         self.p = self.pe + self.K
         self.R = R
         # the kernels read 3 nodes per divided difference and, from ``like``, its pairs of these exponents
-        if self.gnodes.shape[0] != self.K or (self.K and self.gnodes.shape[1] != 3) or any(
-                self.gm[m] not in (2, 3) for m in range(self.K)):
+        if self.gnodes.shape[0] != self.K or (self.K and self.gnodes.shape[1] != 3):
             raise ValueError("Search: the divided differences need 3 nodes each (2 or 3 used)")
-        if C is None and (like is None or like.pe != self.pe or like.K != self.K):
+        for m in range(self.K):
+            if self.gm[m] != 2 and self.gm[m] != 3:
+                raise ValueError("Search: the divided differences need 3 nodes each (2 or 3 used)")
+        if like is not None and (like.pe != self.pe or like.K != self.K):
+            raise ValueError("Search: terms paired as another set's take the same exponents")
+        if C is None and like is None:
             raise ValueError("Search: terms without coefficients take another set's pairs of the same exponents")
         self.act = <int*>malloc(max(self.p, 1) * sizeof(int))
         self.partner = <int*>malloc(max(self.p, 1) * sizeof(int))
         if self.act == NULL or self.partner == NULL:
             raise MemoryError
+        cdef const char* flags = NULL
+        if keep is not None:
+            kept = keep
+            if kept.shape[0] != self.pe:
+                raise ValueError("Search: a kept term's flag per exponent")
+            flags = &kept[0] if self.pe else NULL
         if C is not None:
             Cv = C
             if Cv.shape[0] != R or Cv.shape[1] != self.p:
                 raise ValueError("Search: the coefficients need a row per row and a column per term")
-            self._pair()
-        else:
-            self.nact = like.nact
-            for idx in range(self.nact):
-                self.act[idx], self.partner[idx] = like.act[idx], like.partner[idx]
+        if like is None or not self._pairs_of(like, flags):
+            self._pair(flags)
         self.C = <double*>malloc(max(2 * R * self.nact, 1) * sizeof(double))
         if self.C == NULL:
             raise MemoryError
@@ -111,12 +171,33 @@ cdef class _Terms:
                     else:   # c + conj(c')
                         dst[2 * idx], dst[2 * idx + 1] = src[2 * m] + src[2 * j], src[2 * m + 1] - src[2 * j + 1]
 
-    cdef void _pair(self):
-        """act, partner, nact: the exponents summed, each with its conjugate's index (or -1)."""
+    cdef bint _pairs_of(self, _Terms like, const char* keep):
+        """act, partner, nact: ``like``'s pairs, those ``keep`` flags (all without it; a divided difference
+        always): the pairs :meth:`_pair` forms on the kept exponents, unless a pair is kept in part (then
+        False: :meth:`_pair` forms them)."""
+        cdef int idx, m, j, n = 0
+        for idx in range(like.nact):
+            m, j = like.act[idx], like.partner[idx]
+            if keep != NULL and m < self.pe:
+                if j >= 0 and keep[m] != keep[j]:
+                    return False
+                if not keep[m]:
+                    continue
+            self.act[n], self.partner[n] = m, j
+            n += 1
+        self.nact = n
+        return True
+
+    cdef void _pair(self, const char* keep):
+        """act, partner, nact: the exponents summed (those ``keep`` flags, all without it), each with its
+        conjugate's index (or -1); then the divided differences (always kept)."""
         cdef int m, j, n = 0, partner
         cdef char* used = <char*>calloc(max(self.pe, 1), 1)
         if used == NULL:
             raise MemoryError
+        if keep != NULL:
+            for m in range(self.pe):
+                used[m] = not keep[m]
         for m in range(self.pe):
             if used[m]:
                 continue
@@ -153,14 +234,23 @@ cdef void terms_at(_Terms T, double tau, double* er, double* ei):
 
 
 cdef class Search:
-    """One phase's search (events.first_event after its set-up, on the modal path): the state of the
-    loop, the rows read from the state, the coarse pass. Arrays in (the closed form's terms, the rows
-    H and Hd = H A_aug, A_aug, the bands and bounds), the event out (:meth:`run`)."""
-    cdef int k, r2, dim, nh, p
+    """One phase's search (events.first_event on the modal path, its set-up included): the band from the
+    state at 33 times, the plans of the terms the search follows (Phase.search_plan), the state of the
+    loop, the rows read from the state, the coarse pass. Arrays in (the closed form's terms, the rows H
+    and Hd = H A_aug, A_aug, the rows' images of the terms, the configuration's term order), the event
+    out (:meth:`run`); the bands written to the arrays ``tol`` and ``band`` given."""
+    cdef int k, r2, dim, nh, p, pe, K, m
     cdef double t0, w
     cdef const double[:, ::1] H, Hd, A
+    cdef const double complex[:, ::1] HU     # the rows' images of the terms (2k x (pe + K))
+    cdef const double complex[::1] nu
+    cdef const int[::1] order               # the modes, fastest first (Configuration.term_order)
+    cdef const double[::1] weights, gb4
+    cdef bint steady
+    cdef double node_rate, fastest
+    cdef object terms_in                    # (nu, gnodes, gm, HU, keep flags): the kept rows' _Terms
+    cdef char[::1] keep
     cdef _Terms state, kept, full, coarse  # xi's modal part (C: U), the kept rows, all rows, coarse
-    cdef char* full_ok                     # per row: its H_i U, Hd_i U formed (in full)
     cdef char* hdd_ok                      # per row: its Hd_i A_aug formed (in Hdd)
     cdef int* nmemo
     cdef double* Hdd                       # k x dim
@@ -171,9 +261,15 @@ cdef class Search:
     cdef double* si
     cdef double* acc
     cdef double* xi
+    cdef double* speed                     # |nu| (pe)
+    cdef double* size                      # the plan's term sizes (k x pe) and their sums (k x m)
+    cdef double* cum
+    cdef double* absHU                     # |H U| of the H rows (k x (pe + K))
+    cdef double* nan_from                  # per mode in the term order: 1 where an Hd row's size is nan
     cdef double* work
-    cdef const double[::1] band, bound4
-    cdef double h_step, t_start, t_stop
+    cdef double[::1] tol, band, bound4
+    cdef double h_step, t_start, t_stop, rate, renew_at
+    cdef public bint compilable            # the current plan's bound screens every row (no local bound)
     # the coarse pass (events._Coarse)
     cdef object coarse_of
     cdef const double[::1] margin, b4c
@@ -184,7 +280,7 @@ cdef class Search:
 
     def __cinit__(self):
         self.cts = self.work = NULL
-        self.cclear = self.full_ok = NULL
+        self.cclear = self.hdd_ok = NULL
         self.nmemo = NULL
         self.cn = self.ccap = 0
 
@@ -192,40 +288,53 @@ cdef class Search:
         free(self.cts)
         free(self.cclear)
         free(self.work)
-        free(self.full_ok)
+        free(self.hdd_ok)
         free(self.nmemo)
 
-    def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, kept, band, bound4, double h_step,
-                 double t_start, double t_stop, coarse_of):
-        self.H, self.Hd, self.A = H, Hd, A
+    def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, HU, order, bint steady, weights, gb4,
+                 double node_rate, double fastest, double t_start, double t_stop, tol, band, coarse_of):
+        cdef int j
+        self.H, self.Hd, self.A, self.HU = H, Hd, A, HU
         self.k, self.dim = self.H.shape[0], self.H.shape[1]
         self.r2 = U.shape[0]
         self.nh = self.dim - self.r2
-        self.band, self.bound4 = band, bound4
+        self.nu, self.order, self.weights, self.gb4 = nu, order, weights, gb4
+        self.tol, self.band = tol, band
+        self.pe, self.m, self.K = self.nu.shape[0], self.order.shape[0], self.gb4.shape[0]
         # every index below is read without bounds checks: the shapes are checked here
         if (self.Hd.shape[0] != self.k or self.Hd.shape[1] != self.dim or self.A.shape[0] != self.dim
-                or self.A.shape[1] != self.dim or self.nh not in (1, 3) or self.band.shape[0] != self.k
-                or self.bound4.shape[0] != self.k):
+                or self.A.shape[1] != self.dim or self.nh not in (1, 3) or self.tol.shape[0] != self.k
+                or self.band.shape[0] != self.k or self.weights.shape[0] != self.k):
             raise ValueError("Search: H and Hd need k rows of the state's size (the modal part's rows and 1 or 3 "
-                             "harmonic components), A_aug that size square, band and bound4 a value per row")
-        self.t0, self.w = t0, w
+                             "harmonic components), A_aug that size square, tol, band and weights a value per row")
+        cdef bint bad = self.HU.shape[0] != 2 * self.k or self.HU.shape[1] != self.pe + self.K or self.m > self.pe
+        for j in range(self.m):
+            bad = bad or not 0 <= self.order[j] < self.m
+        if bad:
+            raise ValueError("Search: the rows' images need a row per row of H and Hd and a column per term, the "
+                             "order an index per mode")
+        self.t0, self.w, self.steady, self.node_rate, self.fastest = t0, w, steady, node_rate, fastest
         self.state = _Terms(nu, gnodes, gm, U, self.r2)
-        self.kept = _Terms(*kept, 2 * self.k)
-        self.full = _Terms(nu, gnodes, gm, None, 2 * self.k, self.state)
+        if self.state.K != self.K:
+            raise ValueError("Search: a bound per divided difference")
+        self.full = _Terms(nu, gnodes, gm, HU, 2 * self.k, self.state)
+        self.keep = np.ones(self.pe, dtype=np.int8)
+        self.terms_in = (nu, gnodes, gm, HU)
         self.p = self.state.nact
-        self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
+        self.t_start, self.t_stop = t_start, t_stop
         self.coarse_of = coarse_of
         self.coarse = None
-        cdef int m = max(self.state.p, self.kept.p) + 1, k = self.k, j   # (the coarse terms are fewer)
-        # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi
-        self.work = <double*>malloc((k * self.dim + 4 * MEMO * k + 4 * m + 2 * k + self.dim) * sizeof(double))
-        self.full_ok = <char*>malloc(2 * k)
-        self.nmemo = <int*>malloc(k * sizeof(int))
-        if self.work == NULL or self.full_ok == NULL or self.nmemo == NULL:
+        self.bound4 = np.empty(self.k)
+        cdef int m = self.state.p + 1, k = self.k   # (kept and coarse terms are fewer)
+        # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi, speed, size, cum
+        self.work = <double*>malloc((k * self.dim + 4 * MEMO * k + 4 * m + 2 * k + self.dim + self.pe
+                                     + k * (3 * self.pe + self.m + self.K) + 1) * sizeof(double))
+        self.hdd_ok = <char*>malloc(k + 1)
+        self.nmemo = <int*>malloc((k + 1) * sizeof(int))
+        if self.work == NULL or self.hdd_ok == NULL or self.nmemo == NULL:
             raise MemoryError
-        self.hdd_ok = &self.full_ok[k]
         for j in range(k):
-            self.full_ok[j] = self.hdd_ok[j] = False
+            self.hdd_ok[j] = False
             self.nmemo[j] = 0
         self.Hdd = self.work
         self.memo = &self.Hdd[k * self.dim]
@@ -233,6 +342,221 @@ cdef class Search:
         self.ei, self.sr, self.si = &self.er[m], &self.er[2 * m], &self.er[3 * m]
         self.acc = &self.er[4 * m]
         self.xi = &self.acc[2 * k]
+        self.speed = &self.xi[self.dim]
+        self.size = &self.speed[self.pe]
+        self.cum = &self.size[k * self.pe]
+        self.absHU = &self.cum[k * self.m]
+        self.nan_from = &self.absHU[k * (self.pe + self.K)]
+        for j in range(self.pe):
+            self.speed[j] = hypot(self.nu[j].real, self.nu[j].imag)
+        self._sizes()
+        self._tolerance()
+        self._plan(t_start)
+
+    # -- the set-up -------------------------------------------------------------------------
+    cdef double _max_step(self, double horizon, double rate) noexcept:
+        """Phase.max_step: 1/8 of the fastest period of ``rate`` (or of the forcing), within horizon / 8."""
+        cdef double h
+        if self.w > rate:
+            rate = self.w
+        h = M_PI / (4.0 * rate) if rate > 0 else INFINITY
+        if horizon > 0:
+            return horizon / 8.0 if horizon / 8.0 < h else h
+        return h
+
+    cdef void _tolerance(self):
+        """events.band_tolerance: per row, ZERO times the largest |H| |xi(t)| at 33 times over the next 4
+        periods of the fastest mode (or to t_stop), never below events.round_off's 16 eps |H[:, :r2]| max|xi|.
+        The state at the 33 times is Phase.xi_on_grid's (repeated products of the exponentials); each of its
+        components, and each row's |H| |xi|, summed in the reference's order, the times side by side (lanes)."""
+        cdef int n = 33, L = 36, k = self.k, dim = self.dim, r2 = self.r2, p = self.p, i, j, l, m
+        cdef double step = self._max_step(INFINITY, self.fastest), window, dtau, a, b, big = 0.0, c, sn, h
+        cdef bint finite = True
+        cdef double* X = <double*>calloc(dim * L + 2 * p * L + L + 1, sizeof(double))
+        if X == NULL:
+            raise MemoryError
+        cdef double* E = &X[dim * L]            # the terms' values: real parts (p x L), then imaginary
+        cdef double* S = &E[2 * p * L]          # a row's |H| |xi| per time
+        cdef double* x
+        window = self.t_stop - self.t_start
+        if isfinite(step) and step < window:
+            window = step
+        dtau = window / 32.0
+        # Phase.xi_on_grid: the exponentials by repeated products (closed_form.Motion.on_grid)
+        self._steps(self.state, dtau)
+        for j in range(n):
+            self._terms_on(self.state, self.t_start - self.t0, dtau, j, True)
+            for m in range(p):
+                E[m * L + j] = self.er[m]
+                E[(p + m) * L + j] = self.ei[m]
+        for l in range(r2):                     # xi's modal part: Re(U e^{nu tau}), each sum over the terms
+            for m in range(p):
+                lanes_add(&X[l * L], &E[m * L], &E[(p + m) * L], self.state.C[2 * (l * p + m)],
+                          self.state.C[2 * (l * p + m) + 1], L)
+        for j in range(n):
+            X[r2 * L + j] = 1.0
+            if self.nh == 3:
+                sincos(self.w * (self.t_start + dtau * <double>j), &sn, &c)
+                X[(r2 + 1) * L + j], X[(r2 + 2) * L + j] = c, sn
+        for l in range(dim):
+            for j in range(n):
+                X[l * L + j] = fabs(X[l * L + j])
+                finite = finite and isfinite(X[l * L + j])
+        for l in range(r2):                     # (NumPy's max: a nan anywhere is the answer)
+            for j in range(n):
+                if X[l * L + j] > big or X[l * L + j] != X[l * L + j]:
+                    big = X[l * L + j]
+            if big != big:
+                break
+        for i in range(k):                      # |H| |xi|: each sum over the components in order
+            for j in range(L):
+                S[j] = 0.0
+            for l in range(dim):
+                h = fabs(self.H[i, l])
+                if h == 0.0 and finite:         # (adds exactly nothing: 0 |xi| = 0)
+                    continue
+                lanes_axpy(S, &X[l * L], h, L)
+            a = S[0]
+            for j in range(1, n):
+                if S[j] > a or S[j] != S[j]:
+                    a = S[j]
+                    if a != a:
+                        break
+            a = ZERO * (a + 1e-300)
+            b = 16.0 * DBL_EPSILON * self.weights[i] * big if r2 else 0.0
+            self.tol[i] = a if (a >= b or a != a) else b
+        free(X)
+
+    cdef void _sizes(self) noexcept:
+        """|H U| of the H rows (np.abs: hypot), formed once; of the Hd rows, whose budget is unbounded, only
+        where their size is nan (a cumulative sum that fits no budget), by mode in the term order."""
+        cdef int k = self.k, pe = self.pe, P = self.pe + self.K, i, j, q
+        cdef double re, im
+        cdef bint nan
+        for i in range(k):
+            for j in range(P):
+                self.absHU[i * P + j] = hypot(self.HU[i, j].real, self.HU[i, j].imag)
+        nan = False
+        for q in range(self.m):
+            j = self.order[q]
+            for i in range(k, 2 * k):
+                re, im = self.HU[i, j].real, self.HU[i, j].imag
+                if (re != re or im != im) and not (isinf(re) or isinf(im)):
+                    nan = True
+            self.nan_from[q] = nan
+
+    cdef void _plan(self, double t):
+        """Phase.search_plan from t on (tau = t - t0) with events.first_event's plan_from: the terms each row
+        leaves out (the fastest modes whose sizes, at t for a decaying one, sum to at most a quarter of the
+        H rows' tol: e), the kept rows' terms, the rate they set, the renewal time, band = tol - e, h_step
+        and bound4 (the kept part's 4th-derivative bound times h_step^4 / 384); ``compilable``: every
+        row's bound screens. (The Hd rows' budget is unbounded: they leave out any term, and their sizes
+        do not limit the renewal.)"""
+        cdef int k = self.k, pe = self.pe, P = self.pe + self.K, m = self.m, i, j, q, n_drop, ng
+        cdef double horizon = self.t_stop - self.t0, since = t - self.t0, re, x, fac, s, room, ratio
+        cdef double best, rate_r, renew = INFINITY, b, bg, a, step, s4, w4
+        cdef double* size = self.size
+        cdef double* cum = self.cum
+        cdef bint fits, need_any, bad, scaled = since != 0.0 or not self.steady
+        # sizes |H U| (a decaying term at its size at t, a growing one at the horizon: decay_factors)
+        for j in range(pe):
+            re = self.nu[j].real
+            fac = exp(re * horizon if re > 0.0 else re * since)
+            self.er[j] = fac                        # (kept for the bound)
+            for i in range(k):
+                x = self.absHU[i * P + j]
+                size[i * pe + j] = x * fac if scaled else x
+        for i in range(k):                          # cumsum in the term order
+            s = 0.0
+            for q in range(m):
+                s = s + size[i * pe + self.order[q]]
+                cum[i * m + q] = s
+        n_drop = m
+        for q in range(m):
+            fits = not self.nan_from[q]
+            for i in range(k):
+                if not cum[i * m + q] <= self.tol[i] / 4.0:
+                    fits = False
+                    break
+            if not fits:
+                n_drop = q
+                break
+        # terms of one speed (a conjugate pair) are left out together or not at all
+        while 0 < n_drop < m and self.speed[self.order[n_drop]] == self.speed[self.order[n_drop - 1]]:
+            n_drop -= 1
+        for j in range(pe):
+            self.keep[j] = True
+        for q in range(n_drop):
+            self.keep[self.order[q]] = False
+        if n_drop == 0:
+            self.rate = self.fastest
+        else:
+            self.rate = 0.0
+            for j in range(pe):
+                if self.keep[j] and self.speed[j] > self.rate:
+                    self.rate = self.speed[j]
+            if self.K and self.node_rate > self.rate:
+                self.rate = self.node_rate
+        # the renewal (configuration._renewal): when the fastest kept modes, if they decay, fit the budget
+        if n_drop < m and self.nu[self.order[n_drop]].real < 0.0:
+            ng = n_drop
+            rate_r = -INFINITY
+            while ng < m and self.speed[self.order[ng]] == self.speed[self.order[n_drop]]:
+                if self.nu[self.order[ng]].real > rate_r:
+                    rate_r = self.nu[self.order[ng]].real
+                ng += 1
+            if rate_r < 0.0:
+                best = 0.0
+                need_any = bad = False
+                for i in range(k):
+                    s = 0.0
+                    for q in range(n_drop, ng):
+                        s = s + size[i * pe + self.order[q]]
+                    room = self.tol[i] / 4.0 - (cum[i * m + n_drop - 1] if n_drop else 0.0)
+                    if s > 0.0:
+                        need_any = True
+                        if room <= 0.0:
+                            bad = True
+                        ratio = s / room
+                        if ratio > best or ratio != ratio:
+                            best = ratio
+                if need_any and not bad:
+                    a = log(best) / -rate_r
+                    renew = since + a if a > 0.0 else INFINITY
+        self.renew_at = self.t0 + renew
+        # the kept part's bound of the 4th derivative (Motion.bound: |H U| (|nu|^4 decay), the divided
+        # differences' bounds, the harmonic part's w^4), the step and the band
+        step = self._max_step(horizon, self.rate)
+        s4 = step * step * step * step       # (closed_form.power: 1 * s * s * s * s)
+        w4 = self.w * self.w * self.w * self.w
+        self.compilable = True
+        for i in range(k):
+            b = 0.0
+            for j in range(pe):
+                if self.keep[j]:
+                    a = self.speed[j]
+                    b = b + self.absHU[i * P + j] * (a * a * a * a * self.er[j])
+            if self.K:
+                bg = 0.0
+                for j in range(self.K):
+                    bg = bg + self.absHU[i * P + pe + j] * self.gb4[j]
+                b = b + bg
+            if self.nh == 3 and self.w != 0.0:
+                b = b + (fabs(self.H[i, self.r2 + 1]) + fabs(self.H[i, self.r2 + 2])) * w4
+            self.bound4[i] = b * s4 / 384.0
+            self.band[i] = self.tol[i] - (cum[i * m + n_drop - 1] if n_drop else 0.0)
+            if not self.bound4[i] <= self.band[i] * 281474976710656.0:    # 16^12: SUBDIVIDE^(4 DEPTH)
+                self.compilable = False
+        self.h_step = step
+        if self.renew_at < t + step:                # (a renewal that rounds to where the plan starts: a step on)
+            self.renew_at = t + step
+        self.kept = _Terms(*self.terms_in, 2 * k, self.state, self.keep)
+
+    def setup(self):
+        """The set-up's results, for tests against the reference (events.band_tolerance, plan_from):
+        (tol, band, bound4, h_step, rate, renew_at, kept flags per exponent)."""
+        return (np.asarray(self.tol).copy(), np.asarray(self.band).copy(), np.asarray(self.bound4).copy(),
+                self.h_step, self.rate, self.renew_at, np.asarray(self.keep).astype(bool))
 
     def terms(self):
         """(terms, terms summed) of the state's closed form and of the kept rows (a conjugate pair summed
@@ -240,73 +564,64 @@ cdef class Search:
         return (self.state.p, self.state.nact), (self.kept.p, self.kept.nact)
 
     # -- the rows ---------------------------------------------------------------------------
+    cdef bint _grid(self, _Terms T, const double* ts, int n) noexcept:
+        """Whether the times ts are a uniform grid of more than 8 (closed_form.exponentials: then e^{nu tau}
+        by repeated products); if so, the exponents' steps into sr, si (:meth:`_steps`)."""
+        cdef int j
+        cdef double d0
+        if n <= 8:
+            return False
+        d0 = (ts[1] - self.t0) - (ts[0] - self.t0)
+        for j in range(1, n):
+            if not fabs(((ts[j] - self.t0) - (ts[j - 1] - self.t0)) - d0) <= 1e-12 * fabs(d0):
+                return False
+        self._steps(T, d0)
+        return True
+
+    cdef void _steps(self, _Terms T, double d0) noexcept:
+        """The exponents' steps e^{nu d0} into sr, si (a divided difference's unused)."""
+        cdef int idx, m
+        cdef double e, a, b
+        for idx in range(T.nact):
+            m = T.act[idx]
+            if m < T.pe:
+                e = exp(T.nu[m].real * d0)
+                sincos(T.nu[m].imag * d0, &b, &a)
+                self.sr[idx], self.si[idx] = e * a, e * b
+
+    cdef void _terms_on(self, _Terms T, double tau0, double dtau, int j, bint uniform) noexcept:
+        """The terms' values at tau0 + j dtau into er, ei: on a uniform grid (steps in sr, si) the
+        exponentials as the product of those at j - 1 with their step, else (and at j = 0) afresh
+        (terms_at); ``dtau`` 0 for the times of an explicit grid: tau0 is then the time's own."""
+        cdef int idx, m
+        cdef double x, y, tau = tau0 + dtau * <double>j
+        cdef double* er = self.er
+        cdef double* ei = self.ei
+        if uniform and j > 0:
+            for idx in range(T.nact):
+                m = T.act[idx]
+                if m < T.pe:
+                    x = er[idx] * self.sr[idx] - ei[idx] * self.si[idx]
+                    y = er[idx] * self.si[idx] + ei[idx] * self.sr[idx]
+                    er[idx], ei[idx] = x, y
+                else:
+                    dexp(&T.gnodes[m - T.pe, 0], T.gm[m - T.pe], tau, &er[idx], &ei[idx])
+        else:
+            terms_at(T, tau, er, ei)
+
     cdef void _sample(self, _Terms T, int j0, int nj, int jstep, const double* ts, int n, double* out):
         """Rows j0, j0 + jstep, ... (nj of them) of T at the times ts (n), into out (nj x n):
         Motion.evaluate (e^{nu tau} by repeated products on a uniform grid of more than 8 times, as
         closed_form.exponentials) plus the rows' harmonic part (Phase._harmonics)."""
-        cdef int p = T.nact, R = T.R, j, m, q, row, idx
-        cdef double tau, d0, e, x, y, a, b, c = 0.0, sn = 0.0, s0, s1, s2, s3
-        cdef const double* c0
-        cdef const double* c1
-        cdef const double* c2
-        cdef const double* c3
-        cdef bint uniform = False
-        cdef double* er = self.er
-        cdef double* ei = self.ei
-        cdef double* sr = self.sr
-        cdef double* si = self.si
+        cdef int p = T.nact, j, q, row
+        cdef double c = 0.0, sn = 0.0
         cdef double* acc = self.acc
         cdef const double* hrow
-        if n > 8:
-            d0 = (ts[1] - self.t0) - (ts[0] - self.t0)
-            uniform = True
-            for j in range(1, n):
-                if not fabs(((ts[j] - self.t0) - (ts[j - 1] - self.t0)) - d0) <= 1e-12 * fabs(d0):
-                    uniform = False
-                    break
-            if uniform:   # (the steps of the exponents; sr, si of a divided difference unused)
-                for idx in range(p):
-                    m = T.act[idx]
-                    if m < T.pe:
-                        e = exp(T.nu[m].real * d0)
-                        sincos(T.nu[m].imag * d0, &b, &a)
-                        sr[idx], si[idx] = e * a, e * b
+        cdef bint uniform = self._grid(T, ts, n)
         for j in range(n):
-            tau = ts[j] - self.t0
-            if uniform and j > 0:
-                for idx in range(p):
-                    m = T.act[idx]
-                    if m < T.pe:
-                        x = er[idx] * sr[idx] - ei[idx] * si[idx]
-                        y = er[idx] * si[idx] + ei[idx] * sr[idx]
-                        er[idx], ei[idx] = x, y
-                    else:
-                        dexp(&T.gnodes[m - T.pe, 0], T.gm[m - T.pe], tau, &er[idx], &ei[idx])
-            else:
-                terms_at(T, tau, er, ei)
+            self._terms_on(T, ts[j] - self.t0, 0.0, j, uniform)
             # the rows' sums over the terms, each in order, four rows at a time (independent sums)
-            q = 0
-            while q + 4 <= nj:
-                c0 = &T.C[2 * p * (j0 + q * jstep)]
-                c1 = &T.C[2 * p * (j0 + (q + 1) * jstep)]
-                c2 = &T.C[2 * p * (j0 + (q + 2) * jstep)]
-                c3 = &T.C[2 * p * (j0 + (q + 3) * jstep)]
-                s0 = s1 = s2 = s3 = 0.0
-                for m in range(p):
-                    a, b = er[m], ei[m]
-                    s0 += c0[2 * m] * a - c0[2 * m + 1] * b
-                    s1 += c1[2 * m] * a - c1[2 * m + 1] * b
-                    s2 += c2[2 * m] * a - c2[2 * m + 1] * b
-                    s3 += c3[2 * m] * a - c3[2 * m + 1] * b
-                acc[q], acc[q + 1], acc[q + 2], acc[q + 3] = s0, s1, s2, s3
-                q += 4
-            while q < nj:
-                c0 = &T.C[2 * p * (j0 + q * jstep)]
-                s0 = 0.0
-                for m in range(p):
-                    s0 += c0[2 * m] * er[m] - c0[2 * m + 1] * ei[m]
-                acc[q] = s0
-                q += 1
+            modal_rows(T.C, 2 * p, j0, nj, jstep, self.er, self.ei, 1, p, acc)
             if self.nh == 3:
                 sincos(self.w * ts[j], &sn, &c)
             for q in range(nj):
@@ -318,22 +633,8 @@ cdef class Search:
                     out[q * n + j] = acc[q] + hrow[0]
 
     cdef void samples(self, int i, const double* ts, int n, double* out):
-        """events._Row.samples: (h, h') of row i at the times ts (2 x n), from all its terms."""
-        cdef int m, l
-        cdef double sr, si, tr, ti
-        cdef int R = 2 * self.k
-        cdef const double* U = self.state.C
-        if not self.full_ok[i]:   # H_i U and Hd_i U (the columns summed)
-            for m in range(self.p):
-                sr = si = tr = ti = 0.0
-                for l in range(self.r2):
-                    sr += self.H[i, l] * U[2 * (l * self.p + m)]
-                    si += self.H[i, l] * U[2 * (l * self.p + m) + 1]
-                    tr += self.Hd[i, l] * U[2 * (l * self.p + m)]
-                    ti += self.Hd[i, l] * U[2 * (l * self.p + m) + 1]
-                self.full.C[2 * (i * self.p + m)], self.full.C[2 * (i * self.p + m) + 1] = sr, si
-                self.full.C[2 * ((self.k + i) * self.p + m)], self.full.C[2 * ((self.k + i) * self.p + m) + 1] = tr, ti
-            self.full_ok[i] = True
+        """events._Row.samples: (h, h') of row i at the times ts (2 x n), from all its terms (the rows'
+        images H_i U, Hd_i U given)."""
         self._sample(self.full, i, 2, self.k, ts, n, out)
 
     cdef const double* at(self, int i, double t):
@@ -363,26 +664,7 @@ cdef class Search:
         terms_at(self.state, tau, self.er, self.ei)
         # xi's modal part, Re(U e^{nu tau}): each component summed over the terms in order, four
         # components at a time (independent sums: they overlap)
-        l = 0
-        while l + 4 <= self.r2:
-            u0, u1 = &U[2 * self.p * l], &U[2 * self.p * (l + 1)]
-            u2, u3 = &U[2 * self.p * (l + 2)], &U[2 * self.p * (l + 3)]
-            s0 = s1 = s2 = s3 = 0.0
-            for m in range(self.p):
-                e, s = self.er[m], self.ei[m]
-                s0 += u0[2 * m] * e - u0[2 * m + 1] * s
-                s1 += u1[2 * m] * e - u1[2 * m + 1] * s
-                s2 += u2[2 * m] * e - u2[2 * m + 1] * s
-                s3 += u3[2 * m] * e - u3[2 * m + 1] * s
-            xi[l], xi[l + 1], xi[l + 2], xi[l + 3] = s0, s1, s2, s3
-            l += 4
-        while l < self.r2:
-            u0 = &U[2 * self.p * l]
-            s0 = 0.0
-            for m in range(self.p):
-                s0 += u0[2 * m] * self.er[m] - u0[2 * m + 1] * self.ei[m]
-            xi[l] = s0
-            l += 1
+        modal_rows(U, 2 * self.p, 0, self.r2, 1, self.er, self.ei, 1, self.p, xi)
         xi[self.r2] = 1.0
         if self.nh == 3:
             sincos(self.w * t, &xi[self.r2 + 2], &xi[self.r2 + 1])
@@ -700,13 +982,15 @@ cdef class Search:
 
     # -- the loop ---------------------------------------------------------------------------
     def run(self, progress, carry=None):
-        """events.first_event's loop: (t, rows, graze, in_band) of the earliest event, or None.
-        ``progress(t)`` is called after each chunk and each coarse skip (no event before t). ``carry``: None,
-        or a list [armed, thr] continuing a search of the same phase from an earlier window (None, None:
-        this is its first window); on return it holds the rows' arming and thresholds for the next one."""
+        """events.first_event's loop: (t, rows, graze, in_band) of the earliest event, or None; a float t
+        where a plan's bound does not screen every row (events._compilable): the search goes on from t in
+        Python. ``progress(t)`` is called after each chunk and each coarse skip (no event before t).
+        ``carry``: None, or a list [armed, thr] continuing a search of the same phase (None, None: from its
+        start); on return it holds the rows' arming and thresholds (for the Python loop after a float)."""
         cdef int k = self.k, n, ns, i, j, q, ka, cnt, nfound = 0
         cdef int cap = CHUNK + 2
-        cdef double t_a = self.t_start, t_b, t_skip, nd, limit, t_arm, t_e, rt, step
+        cdef double t_a = self.t_start, t_b, t_c, t_skip, nd, limit, t_arm, t_e, rt, step
+        cdef bint handover = False
         cdef int chunk = FIRST_CHUNK
         cdef bint tried = False, started = False, all_armed, ok, g, in_band
         # work space in three blocks: doubles, flags, indices
@@ -756,9 +1040,22 @@ cdef class Search:
             for i in range(k):
                 armed[i] = bool(carry[0][i])
                 thr[i] = float(carry[1][i])
+        if not self.compilable:   # the first plan's bound does not screen: the Python loop from the start
+            free(dwork)
+            free(cwork)
+            free(iwork)
+            return float(t_a)
         try:
             while t_a < self.t_stop:
-                t_b = self.t_stop
+                if t_a >= self.renew_at:
+                    # the fastest term kept has decayed into its budget: it no longer sets the step (an
+                    # overdamped stiff mode after an impact), nor the coarse pass's
+                    self._plan(t_a)
+                    if not self.compilable:   # the Python loop from here on, the rows' arming carried
+                        handover = True
+                        break
+                    self.coarse, tried = None, False
+                t_b = self.t_stop if self.t_stop <= self.renew_at else self.renew_at
                 if not tried and started:
                     all_armed = True
                     for i in range(k):
@@ -768,7 +1065,7 @@ cdef class Search:
                     if all_armed:
                         # formed once a first chunk has found nothing
                         tried = True
-                        c = self.coarse_of(t_a)
+                        c = self.coarse_of(t_a, self.rate)
                         if c is not None:
                             terms, margin, b4c, step_c = c
                             self.coarse = _Terms(*terms, 2 * k)
@@ -779,13 +1076,17 @@ cdef class Search:
                             self.margin, self.b4c, self.step_c, self.start_c = margin, b4c, step_c, t_a
                 if self.coarse is not None:
                     # every row armed at 0: skip what the coarse pass certifies, search the rest finely
-                    t_skip = self.unclear(t_a, &t_b)
+                    t_skip = self.unclear(t_a, &t_c)
+                    if t_c < t_b:
+                        t_b = t_c
                     if t_skip > t_a:
                         t_a = t_skip
                         chunk = FIRST_CHUNK
                         progress(t_a)
                         if t_a >= self.t_stop:
                             break
+                        if t_a >= t_b:
+                            continue
                 nd = ceil((t_b - t_a) / self.h_step)
                 n = chunk if nd > chunk else <int>nd
                 if n < 1:
@@ -912,4 +1213,4 @@ cdef class Search:
             free(dwork)
             free(cwork)
             free(iwork)
-        return result
+        return float(t_a) if handover else result
