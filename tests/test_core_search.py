@@ -289,13 +289,13 @@ def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
     _search(case.phase, case.H, case.t0, case.t1, reference=False)
     assert captured
     args = list(captured[0])
-    names = ("nu", "gnodes", "gm", "U", "H", "Hd", "A", "t0", "w", "HU", "order", "steady", "weights", "gb4",
+    names = ("nu", "gnodes", "gm", "U", "H", "Hd", "A", "t0", "w", "HU", "order", "steady", "weights", "gb",
              "node_rate", "fastest", "t_start", "t_stop", "tol", "band")
     a = dict(zip(names, args))
     search.Search(*args)
     pad = lambda X: np.ascontiguousarray(np.hstack([X, np.zeros((X.shape[0], 1))]))  # noqa: E731
     one_node = {"gm": np.ones(1, dtype=np.intc), "gnodes": np.zeros((1, 3), dtype=complex), "U": pad(a["U"]),
-                "HU": pad(a["HU"]), "gb4": np.ones(1)}
+                "HU": pad(a["HU"]), "gb": np.ones((2, 1))}
     bad_order = a["order"].copy()
     bad_order[0] = a["order"].size
     for spoilt in ({"Hd": np.ascontiguousarray(a["Hd"][:-1])}, {"band": np.empty(a["band"].size - 1)},

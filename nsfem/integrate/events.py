@@ -435,42 +435,39 @@ def _compiled_search(search, phase: Phase, rows: Rows, t_start: float, t_stop: f
     """:func:`first_event` on the modal path as one compiled call (``search.Search``): its set-up (the band
     from the state at 33 times, :func:`band_tolerance`; the plans of :meth:`Phase.search_plan` from the rows'
     images of the phase's terms, :func:`modal_images`, renewed where the fastest kept term has decayed) and
-    its loop (the same chunks, screens, scans, arming, coarse pass and roots) over [t_start, t_stop]. The
-    coarse pass is set up here when the loop asks for it, and ``report`` and ``phase.searched_until`` follow
-    its progress. A :class:`_Handover` where a plan cannot be screened without the local bound."""
+    its loop (the same chunks, screens, scans, arming, coarse pass (:meth:`_Coarse.of`) and roots) over
+    [t_start, t_stop]; ``report`` and ``phase.searched_until`` follow its progress. A :class:`_Handover`
+    where a plan cannot be screened without the local bound."""
     mot, cfg, k = phase._modal, phase.config, rows.size
-    H, Hd = rows.H, (rows.H @ phase.A_aug if rows.Hd is None else rows.Hd)
+    H = np.ascontiguousarray(rows.H, dtype=float)
+    Hd = np.ascontiguousarray(H @ phase.A_aug if rows.Hd is None else rows.Hd, dtype=float)
     r2 = 2 * cfg.r
     nu, gnodes, gm, U = _terms(mot)
-    images = modal_images(phase, rows)
     horizon = t_stop - phase.t0
-    if mot.groups:   # the divided differences' images and bounds (those of the terms do not depend on t)
-        HH = np.vstack([H, Hd])[:, :r2]
-        images = np.hstack([images] + [HH @ D for _, D in mot.groups])
-        gb4 = np.concatenate([divided_exp_bound(nodes, 4, horizon) for nodes, _ in mot.groups])
-        node_rate = max(float(np.max(np.abs(nodes), initial=0.0)) for nodes, _ in mot.groups)
+    gb, node_rate = _NO_GROUPS, 0.0
+    if rows.HV is not None and phase.amplitudes is not None:
+        images = (rows.HV, *phase.amplitudes)   # (formed in the call as modal_images forms them)
     else:
-        gb4, node_rate = _NONE, 0.0
+        images = modal_images(phase, rows)
+        if mot.groups:   # the divided differences' images and bounds of order 4 and 0 (independent of t)
+            HH = np.vstack([H, Hd])[:, :r2]
+            images = np.hstack([images] + [HH @ D for _, D in mot.groups])
+            gb = np.array([np.concatenate([divided_exp_bound(nodes, order, horizon) for nodes, _ in mot.groups])
+                           for order in (4, 0)])
+            node_rate = max(float(np.max(np.abs(nodes), initial=0.0)) for nodes, _ in mot.groups)
+        images = np.ascontiguousarray(images, dtype=complex)
     weights = np.abs(H[:, :r2]).sum(axis=1) if rows.weights is None else rows.weights
     _, order, steady = cfg.term_order(mot.nu)
     tol, band = np.empty(k), np.empty(k)
-
-    def coarse_of(t_a, rate):
-        c = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop, images[:, : nu.size])
-        if c is None:
-            return None
-        return (_terms(c.rows_at.terms), np.ascontiguousarray(c.margin, dtype=float),
-                np.ascontiguousarray(c.b4, dtype=float), float(c.step))
 
     def progress(t):
         phase.searched_until = t
         if report is not None:
             report(t)
 
-    run = search.Search(nu, gnodes, gm, U, H, Hd, phase.A_aug, phase.t0, float(phase.w),
-                        np.ascontiguousarray(images, dtype=complex), _order_c(cfg, order), bool(steady),
-                        weights, gb4, node_rate, cfg.fastest_rate(), float(t_start), float(t_stop), tol, band,
-                        coarse_of)
+    run = search.Search(nu, gnodes, gm, U, H, Hd, phase.A_aug, phase.t0, float(phase.w), images,
+                        _order_c(cfg, order), bool(steady), weights, gb, node_rate, cfg.fastest_rate(),
+                        float(t_start), float(t_stop), tol, band)
     carry = [None, None]
     found = run.run(progress, carry)
     if isinstance(found, float):
@@ -483,7 +480,7 @@ def _compiled_search(search, phase: Phase, rows: Rows, t_start: float, t_stop: f
     return Event(t_e, idx, graze, tol, in_band)
 
 
-_NONE = np.zeros(0)
+_NO_GROUPS = np.zeros((2, 0))
 
 
 def _order_c(cfg, order: np.ndarray) -> np.ndarray:

@@ -75,6 +75,8 @@ import numpy as np
 cdef int SUBDIVIDE = 16, DEPTH = 3, FIRST_CHUNK = 4, CHUNK = 256
 #: as events.ZERO (a row's band relative to the terms that make it)
 cdef double ZERO = 1e-11
+#: as events.COARSE, COARSE_GAIN (the coarse pass's budget per row's size, and its least gain)
+cdef double COARSE = 1e-3, COARSE_GAIN = 4.0
 #: as events.SLOPE (Birkhoff and Priver's slope bound in units of bound4)
 cdef double SLOPE = 384.0 * sqrt(3.0) / 216.0
 #: as first_event: at most this many arming candidates per row and chunk
@@ -124,6 +126,25 @@ cdef class _Terms:
     def __init__(self, nu, gnodes, gm, C, int R, _Terms like=None, keep=None):
         cdef const double complex[:, ::1] Cv
         cdef const char[::1] kept
+        cdef const char* flags = NULL
+        cdef const double* src = NULL
+        if keep is not None:
+            kept = keep
+            if kept.shape[0] != len(nu):
+                raise ValueError("Search: a kept term's flag per exponent")
+            flags = &kept[0] if kept.shape[0] else NULL
+        if C is not None:
+            Cv = C
+            if Cv.shape[0] != R or Cv.shape[1] != len(nu) + len(gm):
+                raise ValueError("Search: the coefficients need a row per row and a column per term")
+            src = <const double*>&Cv[0, 0] if Cv.shape[0] * Cv.shape[1] else NULL
+        self._set(nu, gnodes, gm, src, C is not None, R, like, flags)
+
+    cdef void _set(self, const double complex[::1] nu, const double complex[:, ::1] gnodes, const int[::1] gm,
+                   const double* C, bint given, int R, _Terms like, const char* keep) except *:
+        """The terms of exponents nu and divided differences (gnodes, gm) with the coefficients C (R rows
+        of p interleaved complex: exponents, then divided differences; ``given`` False: none, formed by
+        the owner) paired as ``like``'s (or afresh), those ``keep`` flags (NULL: all)."""
         cdef int idx, r, m, j
         self.nu, self.gnodes, self.gm = nu, gnodes, gm
         self.pe, self.K = self.nu.shape[0], self.gm.shape[0]
@@ -137,33 +158,23 @@ cdef class _Terms:
                 raise ValueError("Search: the divided differences need 3 nodes each (2 or 3 used)")
         if like is not None and (like.pe != self.pe or like.K != self.K):
             raise ValueError("Search: terms paired as another set's take the same exponents")
-        if C is None and like is None:
+        if not given and like is None:
             raise ValueError("Search: terms without coefficients take another set's pairs of the same exponents")
         self.act = <int*>malloc(max(self.p, 1) * sizeof(int))
         self.partner = <int*>malloc(max(self.p, 1) * sizeof(int))
         if self.act == NULL or self.partner == NULL:
             raise MemoryError
-        cdef const char* flags = NULL
-        if keep is not None:
-            kept = keep
-            if kept.shape[0] != self.pe:
-                raise ValueError("Search: a kept term's flag per exponent")
-            flags = &kept[0] if self.pe else NULL
-        if C is not None:
-            Cv = C
-            if Cv.shape[0] != R or Cv.shape[1] != self.p:
-                raise ValueError("Search: the coefficients need a row per row and a column per term")
-        if like is None or not self._pairs_of(like, flags):
-            self._pair(flags)
+        if like is None or not self._pairs_of(like, keep):
+            self._pair(keep)
         self.C = <double*>malloc(max(2 * R * self.nact, 1) * sizeof(double))
         if self.C == NULL:
             raise MemoryError
         cdef const double* src
         cdef double* dst
         cdef int p = self.p, n = self.nact
-        if C is not None and R * p:
+        if given and R * p:
             for r in range(R):
-                src, dst = <const double*>&Cv[r, 0], &self.C[2 * r * n]
+                src, dst = &C[2 * r * p], &self.C[2 * r * n]
                 for idx in range(n):
                     m, j = self.act[idx], self.partner[idx]
                     if j < 0:
@@ -242,14 +253,22 @@ cdef class Search:
     cdef int k, r2, dim, nh, p, pe, K, m
     cdef double t0, w
     cdef const double[:, ::1] H, Hd, A
-    cdef const double complex[:, ::1] HU     # the rows' images of the terms (2k x (pe + K))
+    cdef const double complex[:, ::1] HUv    # the rows' images of the terms when given as such
+    cdef double* hu                         # the rows' images of the terms (2k x (pe + K), interleaved)
+    cdef double* hu_own                     # (formed here: from H V and the amplitudes)
     cdef const double complex[::1] nu
+    cdef const double complex[:, ::1] gnodes
+    cdef const int[::1] gm
     cdef const int[::1] order               # the modes, fastest first (Configuration.term_order)
-    cdef const double[::1] weights, gb4
+    cdef const double[::1] weights
+    cdef const double[:, ::1] gb            # per divided difference, its bound of order 4 (row 0) and 0 (row 1)
     cdef bint steady
     cdef double node_rate, fastest
-    cdef object terms_in                    # (nu, gnodes, gm, HU, keep flags): the kept rows' _Terms
-    cdef char[::1] keep
+    cdef char* keep                         # per exponent: kept by the current plan
+    cdef char* ckeep                        # kept by the coarse pass
+    cdef char* all                          # every exponent
+    cdef double* budget                     # per H row: a quarter of its tol
+    cdef double* cbud                       # the coarse pass's: COARSE of its size
     cdef _Terms state, kept, full, coarse  # xi's modal part (C: U), the kept rows, all rows, coarse
     cdef char* hdd_ok                      # per row: its Hd_i A_aug formed (in Hdd)
     cdef int* nmemo
@@ -267,19 +286,20 @@ cdef class Search:
     cdef double* absHU                     # |H U| of the H rows (k x (pe + K))
     cdef double* nan_from                  # per mode in the term order: 1 where an Hd row's size is nan
     cdef double* work
-    cdef double[::1] tol, band, bound4
+    cdef double[::1] tol, band
+    cdef double* bound4
     cdef double h_step, t_start, t_stop, rate, renew_at
     cdef public bint compilable            # the current plan's bound screens every row (no local bound)
     # the coarse pass (events._Coarse)
-    cdef object coarse_of
-    cdef const double[::1] margin, b4c
+    cdef double* margin
+    cdef double* b4c
     cdef double step_c, start_c
     cdef double* cts
     cdef char* cclear
     cdef int cn, ccap
 
     def __cinit__(self):
-        self.cts = self.work = NULL
+        self.cts = self.work = self.hu_own = NULL
         self.cclear = self.hdd_ok = NULL
         self.nmemo = NULL
         self.cn = self.ccap = 0
@@ -290,46 +310,68 @@ cdef class Search:
         free(self.work)
         free(self.hdd_ok)
         free(self.nmemo)
+        free(self.hu_own)
 
-    def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, HU, order, bint steady, weights, gb4,
-                 double node_rate, double fastest, double t_start, double t_stop, tol, band, coarse_of):
+    def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, images, order, bint steady, weights, gb,
+                 double node_rate, double fastest, double t_start, double t_stop, tol, band):
+        """``images``: the rows' images of the terms, (H; Hd)[:, :r2] U then their divided differences' (2k x
+        (pe + K) complex), or (HV, c, g) without divided differences: (H; Hd)[:, :r2] V (2k x m) and the
+        phase's amplitudes, the images then HV diag(c) and HV g^T (events.modal_images)."""
         cdef int j
-        self.H, self.Hd, self.A, self.HU = H, Hd, A, HU
+        cdef const double complex[:, ::1] HV, g
+        cdef const double complex[::1] c
+        self.H, self.Hd, self.A = H, Hd, A
         self.k, self.dim = self.H.shape[0], self.H.shape[1]
         self.r2 = U.shape[0]
         self.nh = self.dim - self.r2
-        self.nu, self.order, self.weights, self.gb4 = nu, order, weights, gb4
+        self.nu, self.gnodes, self.gm, self.order, self.weights, self.gb = nu, gnodes, gm, order, weights, gb
         self.tol, self.band = tol, band
-        self.pe, self.m, self.K = self.nu.shape[0], self.order.shape[0], self.gb4.shape[0]
+        self.pe, self.m, self.K = self.nu.shape[0], self.order.shape[0], self.gb.shape[1]
         # every index below is read without bounds checks: the shapes are checked here
         if (self.Hd.shape[0] != self.k or self.Hd.shape[1] != self.dim or self.A.shape[0] != self.dim
                 or self.A.shape[1] != self.dim or self.nh not in (1, 3) or self.tol.shape[0] != self.k
                 or self.band.shape[0] != self.k or self.weights.shape[0] != self.k):
             raise ValueError("Search: H and Hd need k rows of the state's size (the modal part's rows and 1 or 3 "
                              "harmonic components), A_aug that size square, tol, band and weights a value per row")
-        cdef bint bad = self.HU.shape[0] != 2 * self.k or self.HU.shape[1] != self.pe + self.K or self.m > self.pe
+        cdef bint bad = self.m > self.pe or self.gb.shape[0] != 2
         for j in range(self.m):
             bad = bad or not 0 <= self.order[j] < self.m
+        cdef bint formed = isinstance(images, tuple)
+        if formed:
+            HV, c, g = images
+            bad = (bad or self.K or HV.shape[0] != 2 * self.k or HV.shape[1] != self.m or c.shape[0] != self.m
+                   or g.shape[1] != self.m or g.shape[0] != self.pe - self.m)
+        else:
+            self.HUv = images
+            bad = bad or self.HUv.shape[0] != 2 * self.k or self.HUv.shape[1] != self.pe + self.K
         if bad:
-            raise ValueError("Search: the rows' images need a row per row of H and Hd and a column per term, the "
-                             "order an index per mode")
+            raise ValueError("Search: the rows' images need a row per row of H and Hd and a column per term (or "
+                             "per mode, with an amplitude per mode and forcing term), the order an index per mode")
         self.t0, self.w, self.steady, self.node_rate, self.fastest = t0, w, steady, node_rate, fastest
-        self.state = _Terms(nu, gnodes, gm, U, self.r2)
-        if self.state.K != self.K:
-            raise ValueError("Search: a bound per divided difference")
-        self.full = _Terms(nu, gnodes, gm, HU, 2 * self.k, self.state)
-        self.keep = np.ones(self.pe, dtype=np.int8)
-        self.terms_in = (nu, gnodes, gm, HU)
+        cdef const double complex[:, ::1] Uv = U
+        self.state = _Terms.__new__(_Terms)
+        self.state._set(self.nu, self.gnodes, self.gm, <const double*>&Uv[0, 0] if Uv.shape[0] * Uv.shape[1] else NULL,
+                        True, self.r2, None, NULL)
+        if self.state.K != self.K or Uv.shape[1] != self.pe + self.K:
+            raise ValueError("Search: a bound per divided difference, a column of U per term")
+        cdef int P = self.pe + self.K
+        if not formed:
+            self.hu = <double*>&self.HUv[0, 0] if 2 * self.k * P else NULL
+        else:
+            self.hu_own = self.hu = <double*>malloc((4 * self.k * P + 1) * sizeof(double))
+            if self.hu == NULL:
+                raise MemoryError
+            self._images(HV, c, g)
+        self.full = _Terms.__new__(_Terms)
+        self.full._set(self.nu, self.gnodes, self.gm, self.hu, True, 2 * self.k, self.state, NULL)
         self.p = self.state.nact
         self.t_start, self.t_stop = t_start, t_stop
-        self.coarse_of = coarse_of
         self.coarse = None
-        self.bound4 = np.empty(self.k)
         cdef int m = self.state.p + 1, k = self.k   # (kept and coarse terms are fewer)
-        # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi, speed, size, cum
+        # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi, speed, size, cum, absHU, nan_from, bound4
         self.work = <double*>malloc((k * self.dim + 4 * MEMO * k + 4 * m + 2 * k + self.dim + self.pe
-                                     + k * (3 * self.pe + self.m + self.K) + 1) * sizeof(double))
-        self.hdd_ok = <char*>malloc(k + 1)
+                                     + k * (2 * self.pe + self.m + self.K) + self.m + 5 * k + 1) * sizeof(double))
+        self.hdd_ok = <char*>malloc(k + 3 * self.pe + 1)
         self.nmemo = <int*>malloc((k + 1) * sizeof(int))
         if self.work == NULL or self.hdd_ok == NULL or self.nmemo == NULL:
             raise MemoryError
@@ -347,10 +389,18 @@ cdef class Search:
         self.cum = &self.size[k * self.pe]
         self.absHU = &self.cum[k * self.m]
         self.nan_from = &self.absHU[k * (self.pe + self.K)]
+        self.bound4 = &self.nan_from[self.m]
+        self.budget, self.cbud = &self.bound4[k], &self.bound4[2 * k]
+        self.margin, self.b4c = &self.bound4[3 * k], &self.bound4[4 * k]
+        self.keep, self.ckeep, self.all = &self.hdd_ok[k], &self.hdd_ok[k + self.pe], &self.hdd_ok[k + 2 * self.pe]
+        for j in range(self.pe):
+            self.all[j] = True
         for j in range(self.pe):
             self.speed[j] = hypot(self.nu[j].real, self.nu[j].imag)
         self._sizes()
         self._tolerance()
+        for j in range(k):
+            self.budget[j] = self.tol[j] / 4.0
         self._plan(t_start)
 
     # -- the set-up -------------------------------------------------------------------------
@@ -435,34 +485,32 @@ cdef class Search:
         cdef bint nan
         for i in range(k):
             for j in range(P):
-                self.absHU[i * P + j] = hypot(self.HU[i, j].real, self.HU[i, j].imag)
+                self.absHU[i * P + j] = hypot(self.hu[2 * (i * P + j)], self.hu[2 * (i * P + j) + 1])
         nan = False
         for q in range(self.m):
             j = self.order[q]
             for i in range(k, 2 * k):
-                re, im = self.HU[i, j].real, self.HU[i, j].imag
+                re, im = self.hu[2 * (i * P + j)], self.hu[2 * (i * P + j) + 1]
                 if (re != re or im != im) and not (isinf(re) or isinf(im)):
                     nan = True
             self.nan_from[q] = nan
 
-    cdef void _plan(self, double t):
-        """Phase.search_plan from t on (tau = t - t0) with events.first_event's plan_from: the terms each row
-        leaves out (the fastest modes whose sizes, at t for a decaying one, sum to at most a quarter of the
-        H rows' tol: e), the kept rows' terms, the rate they set, the renewal time, band = tol - e, h_step
-        and bound4 (the kept part's 4th-derivative bound times h_step^4 / 384); ``compilable``: every
-        row's bound screens. (The Hd rows' budget is unbounded: they leave out any term, and their sizes
-        do not limit the renewal.)"""
-        cdef int k = self.k, pe = self.pe, P = self.pe + self.K, m = self.m, i, j, q, n_drop, ng
-        cdef double horizon = self.t_stop - self.t0, since = t - self.t0, re, x, fac, s, room, ratio
-        cdef double best, rate_r, renew = INFINITY, b, bg, a, step, s4, w4
+    cdef int _leave_out(self, double since, const double* budget, char* keep, double* rate) noexcept:
+        """Phase.search_plan's choice from tau = since on: the fastest modes whose sizes (|H U| of the H rows,
+        a decaying term at its size at since, a growing one at the horizon: decay_factors) sum, in the term
+        order, to at most each row's budget are left out (keep False), a conjugate pair together; the
+        fastest rate kept. Returns how many modes are left out; their sums per row stay in ``cum``, the
+        sizes in ``size``, the decay factors in er. (The Hd rows' budget is unbounded: they leave out any
+        term; their sizes only where nan.)"""
+        cdef int k = self.k, pe = self.pe, P = self.pe + self.K, m = self.m, i, j, q, n_drop
+        cdef double horizon = self.t_stop - self.t0, re, x, fac, s
         cdef double* size = self.size
         cdef double* cum = self.cum
-        cdef bint fits, need_any, bad, scaled = since != 0.0 or not self.steady
-        # sizes |H U| (a decaying term at its size at t, a growing one at the horizon: decay_factors)
+        cdef bint fits, scaled = since != 0.0 or not self.steady
         for j in range(pe):
             re = self.nu[j].real
             fac = exp(re * horizon if re > 0.0 else re * since)
-            self.er[j] = fac                        # (kept for the bound)
+            self.er[j] = fac
             for i in range(k):
                 x = self.absHU[i * P + j]
                 size[i * pe + j] = x * fac if scaled else x
@@ -475,7 +523,7 @@ cdef class Search:
         for q in range(m):
             fits = not self.nan_from[q]
             for i in range(k):
-                if not cum[i * m + q] <= self.tol[i] / 4.0:
+                if not cum[i * m + q] <= budget[i]:
                     fits = False
                     break
             if not fits:
@@ -485,78 +533,155 @@ cdef class Search:
         while 0 < n_drop < m and self.speed[self.order[n_drop]] == self.speed[self.order[n_drop - 1]]:
             n_drop -= 1
         for j in range(pe):
-            self.keep[j] = True
+            keep[j] = True
         for q in range(n_drop):
-            self.keep[self.order[q]] = False
+            keep[self.order[q]] = False
         if n_drop == 0:
-            self.rate = self.fastest
+            rate[0] = self.fastest
         else:
-            self.rate = 0.0
+            rate[0] = 0.0
             for j in range(pe):
-                if self.keep[j] and self.speed[j] > self.rate:
-                    self.rate = self.speed[j]
-            if self.K and self.node_rate > self.rate:
-                self.rate = self.node_rate
-        # the renewal (configuration._renewal): when the fastest kept modes, if they decay, fit the budget
-        if n_drop < m and self.nu[self.order[n_drop]].real < 0.0:
-            ng = n_drop
-            rate_r = -INFINITY
-            while ng < m and self.speed[self.order[ng]] == self.speed[self.order[n_drop]]:
-                if self.nu[self.order[ng]].real > rate_r:
-                    rate_r = self.nu[self.order[ng]].real
-                ng += 1
-            if rate_r < 0.0:
-                best = 0.0
-                need_any = bad = False
-                for i in range(k):
-                    s = 0.0
-                    for q in range(n_drop, ng):
-                        s = s + size[i * pe + self.order[q]]
-                    room = self.tol[i] / 4.0 - (cum[i * m + n_drop - 1] if n_drop else 0.0)
-                    if s > 0.0:
-                        need_any = True
-                        if room <= 0.0:
-                            bad = True
-                        ratio = s / room
-                        if ratio > best or ratio != ratio:
-                            best = ratio
-                if need_any and not bad:
-                    a = log(best) / -rate_r
-                    renew = since + a if a > 0.0 else INFINITY
-        self.renew_at = self.t0 + renew
-        # the kept part's bound of the 4th derivative (Motion.bound: |H U| (|nu|^4 decay), the divided
-        # differences' bounds, the harmonic part's w^4), the step and the band
+                if keep[j] and self.speed[j] > rate[0]:
+                    rate[0] = self.speed[j]
+            if self.K and self.node_rate > rate[0]:
+                rate[0] = self.node_rate
+        return n_drop
+
+    cdef double _renewal(self, int n_drop, double since, const double* budget) noexcept:
+        """configuration._renewal: the tau (>= since) from which the fastest kept modes, if they decay, fit
+        the budget next to those left out (inf if never)."""
+        cdef int k = self.k, pe = self.pe, m = self.m, i, q, ng
+        cdef double rate_r = -INFINITY, best = 0.0, s, room, ratio, a
+        cdef bint need_any = False, bad = False
+        if not (n_drop < m and self.nu[self.order[n_drop]].real < 0.0):
+            return INFINITY
+        ng = n_drop
+        while ng < m and self.speed[self.order[ng]] == self.speed[self.order[n_drop]]:
+            if self.nu[self.order[ng]].real > rate_r:
+                rate_r = self.nu[self.order[ng]].real
+            ng += 1
+        if not rate_r < 0.0:
+            return INFINITY
+        for i in range(k):
+            s = 0.0
+            for q in range(n_drop, ng):
+                s = s + self.size[i * pe + self.order[q]]
+            room = budget[i] - (self.cum[i * m + n_drop - 1] if n_drop else 0.0)
+            if s > 0.0:
+                need_any = True
+                if room <= 0.0:
+                    bad = True
+                ratio = s / room
+                if ratio > best or ratio != ratio:
+                    best = ratio
+        if not need_any or bad:
+            return INFINITY
+        a = log(best) / -rate_r
+        return since + a if a > 0.0 else INFINITY
+
+    cdef double _bound(self, int i, const char* keep, int order) noexcept:
+        """Motion.bound's order-th derivative bound (order 0 or 4) of the kept part of H row i over the
+        horizon, |H U| (|nu|^order decay factors, er), the divided differences' bounds (gb), the harmonic
+        part's w^order (closed_form.power: explicit products)."""
+        cdef int pe = self.pe, P = self.pe + self.K, j
+        cdef double b = 0.0, bg, a, p
+        for j in range(pe):
+            if keep[j]:
+                a = self.speed[j]
+                p = a * a * a * a if order == 4 else 1.0
+                b = b + self.absHU[i * P + j] * (p * self.er[j])
+        if self.K:
+            bg = 0.0
+            for j in range(self.K):
+                bg = bg + self.absHU[i * P + pe + j] * self.gb[0 if order == 4 else 1, j]
+            b = b + bg
+        if self.nh == 3 and self.w != 0.0:
+            p = self.w * self.w * self.w * self.w if order == 4 else 1.0
+            b = b + (fabs(self.H[i, self.r2 + 1]) + fabs(self.H[i, self.r2 + 2])) * p
+        return b
+
+    cdef void _plan(self, double t):
+        """events.first_event's plan_from(t): Phase.search_plan with a quarter of each row's tol as its
+        budget, from tau = t - t0 on: the kept rows' terms, the rate they set, the renewal time, band =
+        tol - e (e: the left-out terms' sum), h_step and bound4 (the kept part's 4th-derivative bound
+        times h_step^4 / 384); ``compilable``: every row's bound screens."""
+        cdef int k = self.k, m = self.m, i, n_drop
+        cdef double horizon = self.t_stop - self.t0, since = t - self.t0, step, s4
+        n_drop = self._leave_out(since, self.budget, self.keep, &self.rate)
+        self.renew_at = self.t0 + self._renewal(n_drop, since, self.budget)
         step = self._max_step(horizon, self.rate)
         s4 = step * step * step * step       # (closed_form.power: 1 * s * s * s * s)
-        w4 = self.w * self.w * self.w * self.w
         self.compilable = True
         for i in range(k):
-            b = 0.0
-            for j in range(pe):
-                if self.keep[j]:
-                    a = self.speed[j]
-                    b = b + self.absHU[i * P + j] * (a * a * a * a * self.er[j])
-            if self.K:
-                bg = 0.0
-                for j in range(self.K):
-                    bg = bg + self.absHU[i * P + pe + j] * self.gb4[j]
-                b = b + bg
-            if self.nh == 3 and self.w != 0.0:
-                b = b + (fabs(self.H[i, self.r2 + 1]) + fabs(self.H[i, self.r2 + 2])) * w4
-            self.bound4[i] = b * s4 / 384.0
-            self.band[i] = self.tol[i] - (cum[i * m + n_drop - 1] if n_drop else 0.0)
+            self.bound4[i] = self._bound(i, self.keep, 4) * s4 / 384.0
+            self.band[i] = self.tol[i] - (self.cum[i * m + n_drop - 1] if n_drop else 0.0)
             if not self.bound4[i] <= self.band[i] * 281474976710656.0:    # 16^12: SUBDIVIDE^(4 DEPTH)
                 self.compilable = False
         self.h_step = step
         if self.renew_at < t + step:                # (a renewal that rounds to where the plan starts: a step on)
             self.renew_at = t + step
-        self.kept = _Terms(*self.terms_in, 2 * k, self.state, self.keep)
+        self.kept = _Terms.__new__(_Terms)
+        self.kept._set(self.nu, self.gnodes, self.gm, self.hu, True, 2 * k, self.state, self.keep)
+
+    cdef void _coarse_plan(self, double t):
+        """events._Coarse.of from t: the rows without the fastest terms up to COARSE of each row's size (its
+        terms' amplitudes over the horizon and its constant), sampled at the step of the rate left, the
+        margin band + e and that step's bound4 (self.coarse None when it would not sample COARSE_GAIN
+        times slower than the fine search, or the stretch to t_stop is under 4 of its steps)."""
+        cdef int k = self.k, m = self.m, pe = self.pe, i, j, n_drop
+        cdef double horizon = self.t_stop - self.t0, re, rate, step, s4
+        self.coarse = None
+        for j in range(pe):                         # the sizes over the whole horizon (since 0)
+            re = self.nu[j].real
+            self.er[j] = exp(re * horizon if re > 0.0 else re * 0.0)
+        for i in range(k):
+            self.cbud[i] = COARSE * (self._bound(i, self.all, 0) + fabs(self.H[i, self.r2]))
+        n_drop = self._leave_out(t - self.t0, self.cbud, self.ckeep, &rate)
+        step = self._max_step(horizon, rate)
+        if step < COARSE_GAIN * self._max_step(horizon, self.rate) or step * 4.0 > self.t_stop - t:
+            return
+        s4 = step * step * step * step
+        for i in range(k):
+            self.b4c[i] = self._bound(i, self.ckeep, 4) * s4 / 384.0
+            self.margin[i] = self.band[i] + (self.cum[i * m + n_drop - 1] if n_drop else 0.0)
+        self.step_c, self.start_c, self.cn = step, t, 0
+        self.coarse = _Terms.__new__(_Terms)
+        self.coarse._set(self.nu, self.gnodes, self.gm, self.hu, True, 2 * k, self.state, self.ckeep)
 
     def setup(self):
         """The set-up's results, for tests against the reference (events.band_tolerance, plan_from):
         (tol, band, bound4, h_step, rate, renew_at, kept flags per exponent)."""
-        return (np.asarray(self.tol).copy(), np.asarray(self.band).copy(), np.asarray(self.bound4).copy(),
-                self.h_step, self.rate, self.renew_at, np.asarray(self.keep).astype(bool))
+        return (np.asarray(self.tol).copy(), np.asarray(self.band).copy(),
+                np.array([self.bound4[i] for i in range(self.k)]), self.h_step, self.rate, self.renew_at,
+                np.array([bool(self.keep[j]) for j in range(self.pe)], dtype=bool))
+
+    def images(self):
+        """The rows' images of the terms the search uses (2k x (pe + K) complex; tests)."""
+        cdef int P = self.pe + self.K
+        return np.array([[complex(self.hu[2 * (i * P + j)], self.hu[2 * (i * P + j) + 1]) for j in range(P)]
+                         for i in range(2 * self.k)], dtype=complex).reshape(2 * self.k, P)
+
+    cdef void _images(self, const double complex[:, ::1] HV, const double complex[::1] c,
+                      const double complex[:, ::1] g) noexcept:
+        """events.modal_images from the rows' images of the modes HV and the amplitudes: HV diag(c), then per
+        forcing term HV g_i (each entry one sum over the modes in order)."""
+        cdef int R = 2 * self.k, m = self.m, P = self.pe, i, j, l
+        cdef double sr, si, hr, hi, gr, gi
+        cdef double* out
+        for i in range(R):
+            out = &self.hu[2 * i * P]
+            for j in range(m):
+                hr, hi = HV[i, j].real, HV[i, j].imag
+                out[2 * j] = hr * c[j].real - hi * c[j].imag
+                out[2 * j + 1] = hr * c[j].imag + hi * c[j].real
+            for l in range(P - m):
+                sr = si = 0.0
+                for j in range(m):
+                    hr, hi = HV[i, j].real, HV[i, j].imag
+                    gr, gi = g[l, j].real, g[l, j].imag
+                    sr = sr + (hr * gr - hi * gi)
+                    si = si + (hr * gi + hi * gr)
+                out[2 * (m + l)], out[2 * (m + l) + 1] = sr, si
 
     def terms(self):
         """(terms, terms summed) of the state's closed form and of the kept rows (a conjugate pair summed
@@ -1065,15 +1190,7 @@ cdef class Search:
                     if all_armed:
                         # formed once a first chunk has found nothing
                         tried = True
-                        c = self.coarse_of(t_a, self.rate)
-                        if c is not None:
-                            terms, margin, b4c, step_c = c
-                            self.coarse = _Terms(*terms, 2 * k)
-                            if (self.coarse.p > max(self.state.p, self.kept.p) or len(margin) != k
-                                    or len(b4c) != k):
-                                raise ValueError("Search: the coarse pass takes a subset of the phase's terms "
-                                                 "and a margin and bound per row")
-                            self.margin, self.b4c, self.step_c, self.start_c = margin, b4c, step_c, t_a
+                        self._coarse_plan(t_a)
                 if self.coarse is not None:
                     # every row armed at 0: skip what the coarse pass certifies, search the rest finely
                     t_skip = self.unclear(t_a, &t_c)
