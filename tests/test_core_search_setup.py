@@ -225,6 +225,14 @@ def test_search_hands_over_where_the_bound_does_not_screen(monkeypatch):
     rows = Rows(H, ["close"], [0])
     a = first_event(phase, rows, 0.0, t1)
     assert handed, "the compiled call did not hand over"
+    # by the reference's rule (events._compilable) too: the plan from the start cannot be screened
+    rows.Hd = H @ phase.A_aug
+    tol, band, bound4, *_ = _reference_setup(phase, rows, 0.0, t1)
+    plan = phase.search_plan(np.vstack([H, rows.Hd]), np.concatenate([tol / 4.0, [np.inf]]), t1, 0.0)
+    assert not events._compilable(phase, plan.rows, band, bound4)
+    # handed over at the start, before any row was armed, with the call's band (the reference's, to round-off)
+    assert handed[0][1] == 0.0 and handed[0][2] is None
+    assert np.allclose(handed[0][0], tol, rtol=1e-12, atol=0.0)
     with core.reference():
         b = first_event(phase, Rows(H, ["close"], [0]), 0.0, t1)
     assert a is not None and b is not None
