@@ -25,8 +25,9 @@ cdef extern from *:
     """
     /* Many independent sums side by side, four lanes at a time (GCC's vector extensions: each lane's
        operations are the scalar ones, no contraction: -ffp-contract=off), in an AVX2 clone where the CPU
-       has it (the lanes round alike on any CPU: the same value whichever clone runs). */
-    #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__has_attribute)
+       has it (GCC on glibc: the clone is chosen at load time; each lane rounds as the scalar code, the
+       same value whichever clone runs). */
+    #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__GLIBC__) && defined(__has_attribute)
     #  if __has_attribute(target_clones)
     #    define NSFEM_CLONES __attribute__((target_clones("avx2", "default")))
     #  endif
@@ -1331,3 +1332,23 @@ cdef class Search:
             free(cwork)
             free(iwork)
         return float(t_a) if handover else result
+
+
+def lanes(x, u, v, double a, double b):
+    """For tests: (x + (a u - b v), x + a u) by the four-lane kernels the band's sums use (the clone this CPU
+    runs) and by plain scalar loops, as four lists; each lane must round as the scalar code."""
+    cdef int n = len(x), j
+    cdef int L = (n + 3) // 4 * 4
+    cdef double[::1] X = np.zeros(L + 1), Y = np.zeros(L + 1), U = np.zeros(L + 1), V = np.zeros(L + 1)
+    cdef double xj, uj, vj
+    for j in range(n):
+        X[j], Y[j], U[j], V[j] = x[j], x[j], u[j], v[j]
+    lanes_add(&X[0], &U[0], &V[0], a, b, L)
+    lanes_axpy(&Y[0], &U[0], a, L)
+    add, axpy = [], []
+    for j in range(n):
+        xj, uj, vj = x[j], u[j], v[j]
+        add.append(xj + (a * uj - b * vj))
+        axpy.append(xj + a * uj)
+    return [X[j] for j in range(n)], add, [Y[j] for j in range(n)], axpy
+
