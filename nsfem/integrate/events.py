@@ -237,8 +237,9 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     """The earliest root of any row in (t_start, t_stop], or None. ``report(t)`` (optional) is
     told how far the search has come after each chunk of samples (progress of long phases).
 
-    After the set-up, the loop below runs as one compiled call where the compiled event core is built
-    and the phase is on the modal path (:func:`_compiled_search`); this code is its reference."""
+    The set-up (:func:`band_tolerance`, :func:`modal_images`, the plans) and the loop below run as one
+    compiled call where the compiled event core is built and the phase is on the modal path
+    (:func:`_compiled_search`); this code is its reference."""
     if rows.size == 0:
         return None
     H = rows.H
