@@ -120,7 +120,6 @@ def _check_case(phase, H, t0, t1, with_hv, monkeypatch) -> tuple[str | None, boo
     if np.any(np.abs(img_c - images_r) > 4.0 * (r2 + scale.shape[1] + 2) * EPS * scale + 1e-300):
         return "images differ beyond the round-off of their sums", False
     # the plan: the same terms kept unless a running sum ties its budget within the images' round-off
-    tie = False
     if int(keep_c.sum()) != n_kept_r or rate_c != rate_r:
         mot = phase._modal
         size = np.abs(images_r[:k, : mot.nu.size])

@@ -6,7 +6,8 @@ Python functions in nsfem/integrate/events.py and closed_form.py are the referen
 the name given in its docstring; tests/test_core_search.py and tests/test_core_equivalence.py
 compare the two paths."""
 
-from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, expm1, log, cos, sin, pow, ceil, hypot, isfinite, isinf, INFINITY, NAN, M_PI
+from libc.math cimport (sqrt, fabs, copysign, frexp, ldexp, exp, expm1, log, cos, sin, pow, ceil, hypot, isfinite,
+                        isinf, INFINITY, M_PI)
 from libc.float cimport DBL_EPSILON
 from libc.stdlib cimport malloc, calloc, free, realloc
 from cpython.exc cimport PyErr_CheckSignals
@@ -27,7 +28,8 @@ cdef extern from *:
        operations are the scalar ones, no contraction: -ffp-contract=off), in an AVX2 clone where the CPU
        has it (GCC on glibc: the clone is chosen at load time; each lane rounds as the scalar code, the
        same value whichever clone runs). */
-    #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__GLIBC__) && defined(__has_attribute)
+    #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__GLIBC__) \
+        && defined(__has_attribute)
     #  if __has_attribute(target_clones)
     #    define NSFEM_CLONES __attribute__((target_clones("avx2", "default")))
     #  endif
