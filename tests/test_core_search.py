@@ -271,9 +271,10 @@ def test_a_signal_interrupts_the_coarse_pass():
 
 def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
     """The compiled search reads its arrays without bounds checks: a call whose shapes disagree (a row too few
-    in Hd, a band per row missing, a bound too many, A_aug not square, a harmonic part of 2 components, a
-    divided difference of one node) is a ValueError, never a read past an array. The arguments are those of a
-    real compiled search (captured), each spoilt in turn; the captured ones themselves are accepted."""
+    in Hd or in the rows' images, a column too few in the images, a band or tol or weight per row missing,
+    A_aug not square, a harmonic part of 2 components, a term order naming a term that is not a mode, a divided
+    difference of one node) is a ValueError, never a read past an array. The arguments are those of a real
+    compiled search (captured), each spoilt in turn; the captured ones themselves are accepted."""
     search = core.compiled("search")
     captured = []
 
@@ -288,14 +289,21 @@ def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
     _search(case.phase, case.H, case.t0, case.t1, reference=False)
     assert captured
     args = list(captured[0])
-    names = ("nu", "gnodes", "gm", "U", "H", "Hd", "A", "t0", "w", "kept", "band", "bound4")
+    names = ("nu", "gnodes", "gm", "U", "H", "Hd", "A", "t0", "w", "HU", "order", "steady", "weights", "gb",
+             "node_rate", "fastest", "t_start", "t_stop", "tol", "band")
     a = dict(zip(names, args))
     search.Search(*args)
-    one_node = {"gm": np.ones(1, dtype=np.intc), "gnodes": np.zeros((1, 3), dtype=complex),
-                "U": np.ascontiguousarray(np.hstack([a["U"], np.zeros((a["U"].shape[0], 1))]))}
-    for spoilt in ({"Hd": np.ascontiguousarray(a["Hd"][:-1])}, {"band": a["band"][:-1]},
-                   {"bound4": np.append(a["bound4"], 1.0)}, {"A": np.ascontiguousarray(a["A"][:, :-1])},
-                   {"H": np.ascontiguousarray(np.hstack([a["H"], a["H"][:, -1:]]))}, one_node):
+    pad = lambda X: np.ascontiguousarray(np.hstack([X, np.zeros((X.shape[0], 1))]))  # noqa: E731
+    one_node = {"gm": np.ones(1, dtype=np.intc), "gnodes": np.zeros((1, 3), dtype=complex), "U": pad(a["U"]),
+                "HU": pad(a["HU"]), "gb": np.ones((2, 1))}
+    bad_order = a["order"].copy()
+    bad_order[0] = a["order"].size
+    for spoilt in ({"Hd": np.ascontiguousarray(a["Hd"][:-1])}, {"band": np.empty(a["band"].size - 1)},
+                   {"tol": np.empty(a["tol"].size + 1)}, {"weights": a["weights"][:-1]},
+                   {"A": np.ascontiguousarray(a["A"][:, :-1])},
+                   {"H": np.ascontiguousarray(np.hstack([a["H"], a["H"][:, -1:]]))},
+                   {"HU": np.ascontiguousarray(a["HU"][:-1])}, {"HU": np.ascontiguousarray(a["HU"][:, :-1])},
+                   {"order": bad_order}, one_node):
         bad = [spoilt.get(name, value) for name, value in zip(names, args)] + args[len(names):]
         with pytest.raises(ValueError):
             search.Search(*bad)

@@ -567,10 +567,10 @@ def _run_reference(kind: str, seeds) -> None:
     plan_of = Phase.search_plan
     renewed = set()
 
-    def planned(phase, H, budget, horizon, since=0.0):   # the searches that re-planned after a decay
+    def planned(phase, H, budget, horizon, since=0.0, **kw):   # the searches that re-planned after a decay
         if since > 0.0:
             renewed.add(id(phase))
-        return plan_of(phase, H, budget, horizon, since)
+        return plan_of(phase, H, budget, horizon, since, **kw)
 
     Phase.search_plan = planned
 

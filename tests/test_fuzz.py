@@ -2219,3 +2219,93 @@ def test_lemke_zero_row_scaling_reproduction():
 
     with pytest.raises(NsfemError, match="scales"):
         lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]), scales=(np.array([0.0, 1.0]), np.ones(2)))
+
+
+# --- issue 33: compiled search set-up (csetup) ---
+
+#: the compiled Search's arguments, by name (events._compiled_search)
+_SEARCH_ARGS = ("nu", "gnodes", "gm", "U", "H", "Hd", "A", "t0", "w", "images", "order", "steady", "weights", "gb",
+                "node_rate", "fastest", "t_start", "t_stop", "tol", "band")
+
+
+def _captured_search_args():
+    """The arguments of the first compiled search of a short stop-scene run (images as (HV, c, g)), or None
+    where the compiled search is not built."""
+    from nsfem import load_scene
+    from nsfem.integrate import core
+    from nsfem.simulate import run_scene
+
+    search = core.compiled("search")
+    if search is None:
+        return None
+    cached = _captured_search_args.__dict__.get("args")
+    if cached is None:
+        captured = []
+
+        class Spy:
+            @staticmethod
+            def Search(*args):
+                captured.append(args)
+                return search.Search(*args)
+
+        scene = load_scene("default", ['obstacle=[{x=0.5, normal="-z", clearance=2e-4, restitution=0.5}]',
+                                       "simulation.t_end=0.003"])
+        core._active["search"] = Spy
+        try:
+            run_scene(scene, "exact")
+        finally:
+            core._active["search"] = search
+        cached = _captured_search_args.args = dict(zip(_SEARCH_ARGS, captured[0]))
+    return cached
+
+
+def _spoil(value, how: str):
+    """An array one row (entry) short, one column short, or empty."""
+    import numpy as np
+
+    a = np.asarray(value)
+    if how == "empty":
+        return np.ascontiguousarray(a[:0])
+    if how == "row" or a.ndim == 1:
+        return np.ascontiguousarray(a[:-1]) if a.shape[0] else np.ascontiguousarray(np.append(a, a.dtype.type(0)))
+    return np.ascontiguousarray(a[:, :-1]) if a.shape[1] else np.ascontiguousarray(np.zeros((a.shape[0], 1), a.dtype))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(which=st.sampled_from(["U", "H", "Hd", "A", "order", "weights", "gb", "tol", "band", "HV", "c", "g", "HU"]),
+       how=st.sampled_from(["row", "column", "empty"]))
+def test_compiled_search_refuses_any_array_of_the_wrong_shape(which, how):
+    """Property: the compiled search reads its arrays without bounds checks; a call with any one of them one
+    row or column short, or empty (the rows' images given either as H U or as (H V, c, g)), is a ValueError
+    naming the shapes, never a read past an array (a crash) nor a search on garbage."""
+    from nsfem.integrate import core
+
+    args = _captured_search_args()
+    if args is None:
+        pytest.skip("the compiled event core's part 'search' is not built or is switched off")
+    search = core.compiled("search")
+    args = dict(args)
+    HV, c, g = args["images"]
+    if which in ("HV", "c", "g"):
+        parts = {"HV": HV, "c": c, "g": g}
+        parts[which] = _spoil(parts[which], how)
+        args["images"] = (parts["HV"], parts["c"], parts["g"])
+    elif which == "HU":
+        args["images"] = _spoil(np.ascontiguousarray(np.hstack([HV * c, HV @ g.T])), how)
+    else:
+        args[which] = _spoil(args[which], how)
+    with pytest.raises(ValueError):
+        search.Search(*(args[name] for name in _SEARCH_ARGS))
+
+
+def test_compiled_search_images_of_the_wrong_forcing_count_reproduction():
+    # (H V, c, g) with g's rows not the phase's forcing terms (pe - modes): refused before any image is formed
+    from nsfem.integrate import core
+
+    args = _captured_search_args()
+    if args is None:
+        pytest.skip("the compiled event core's part 'search' is not built or is switched off")
+    HV, c, g = args["images"]
+    bad = dict(args, images=(HV, c, np.ascontiguousarray(g[:1])))
+    with pytest.raises(ValueError, match="images"):
+        core.compiled("search").Search(*(bad[name] for name in _SEARCH_ARGS))

@@ -116,25 +116,45 @@ class Motion:
     U: np.ndarray           # (d, p)
     groups: list            # [(nodes (m, K), D (d, K))]
 
-    def evaluate(self, tau: np.ndarray, H: np.ndarray | None = None) -> np.ndarray:
-        """H x(tau) (x itself without H), tau: (T,) -> (rows, T)."""
+    def evaluate(self, tau: np.ndarray, H: np.ndarray | None = None, E: np.ndarray | None = None) -> np.ndarray:
+        """H x(tau) (x itself without H), tau: (T,) -> (rows, T); ``E``: e^{nu tau} when formed."""
         U = self.U if H is None else H @ self.U
-        out = np.real(U @ exponentials(self.nu, tau))
+        out = np.real(U @ (exponentials(self.nu, tau) if E is None else E))
         for nodes, D in self.groups:
             DD = D if H is None else H @ D
             out += np.real(DD @ divided_exp(nodes, tau))
         return out
 
-    def bound(self, H: np.ndarray | None, order: int, horizon: float, since: float = 0.0) -> np.ndarray:
+    def on_grid(self, tau0: float, dtau: float, n: int) -> np.ndarray:
+        """x at the n times tau0 + j dtau, its exponentials by repeated products from e^{nu tau0} with the
+        step e^{nu dtau} (relative error ~ j eps; :func:`exponentials` does the same on a grid it finds
+        uniform)."""
+        E = np.empty((self.nu.size, n), dtype=complex)
+        E[:, 0] = np.exp(self.nu * tau0)
+        E[:, 1:] = np.exp(self.nu * dtau)[:, None]
+        return self.evaluate(tau0 + dtau * np.arange(n), E=np.cumprod(E, axis=1))
+
+    def bound(self, H: np.ndarray | None, order: int, horizon: float, since: float = 0.0,
+              HU: np.ndarray | None = None) -> np.ndarray:
         """Per row of H x (of x without H), a bound of its order-th derivative on [since, horizon]: a
         growing term at its size at the horizon, a decaying one at its size at ``since`` (a divided-
-        difference group at its bound over [0, horizon])."""
+        difference group at its bound over [0, horizon]). ``HU``: H U when the caller has it."""
         with np.errstate(over="ignore"):
             grow = decay_factors(self.nu, horizon, since)
-            b = np.abs(self.U if H is None else H @ self.U) @ (np.abs(self.nu) ** order * grow)
+            HU = (self.U if H is None else H @ self.U) if HU is None else HU
+            b = np.abs(HU) @ (power(np.abs(self.nu), order) * grow)
             for nodes, D in self.groups:
                 b = b + np.abs(D if H is None else H @ D) @ divided_exp_bound(nodes, order, horizon)
         return b
+
+
+def power(x, order: int):
+    """x^order as repeated products, x * x * ... left to right (C's pow and NumPy's power round differently
+    from each other: the compiled search forms the same products)."""
+    out = 1.0
+    for _ in range(order):
+        out = out * x
+    return out
 
 
 def decay_factors(nu: np.ndarray, horizon: float, since: float = 0.0) -> np.ndarray:

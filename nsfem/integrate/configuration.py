@@ -33,7 +33,7 @@ import scipy.linalg as sla
 
 from ..errors import NsfemError
 from . import core
-from .closed_form import ModalPlan, Motion, decay_factors, divided_exp
+from .closed_form import ModalPlan, Motion, decay_factors, divided_exp, power
 from .problem import ContactSystem
 
 #: relative singular value below which a constraint direction is redundant
@@ -560,6 +560,17 @@ class Phase:
                 out[:r2] = self._expm_states(tt)[:r2]
         return out[:, 0] if scalar else out
 
+    def xi_on_grid(self, t: float, dt: float, n: int) -> np.ndarray:
+        """xi at the n times t + j dt (dim x n); on the modal path by repeated products of the exponentials
+        (:meth:`.closed_form.Motion.on_grid`), whatever the round-off of the times."""
+        ts = t + dt * np.arange(n)
+        if self._modal is None or not self.config.r:
+            return self.xi(ts)
+        out = np.empty((self.dim, n))
+        out[2 * self.config.r:] = self._harmonics(ts)
+        out[: 2 * self.config.r] = self._modal.on_grid(t - self.t0, dt, n)
+        return out
+
     def _xi_at(self, t: float) -> np.ndarray:
         """xi at one time on the modal path (root refinement reads rows from it many times per
         event): the same sums as :meth:`xi`, without its array set-up."""
@@ -617,7 +628,8 @@ class Phase:
         plan = self.search_plan(H, budget, horizon)
         return plan.rows, plan.rate, plan.e, plan.bound
 
-    def search_plan(self, H: np.ndarray | None, budget: np.ndarray, horizon: float, since: float = 0.0) -> SearchPlan:
+    def search_plan(self, H: np.ndarray | None, budget: np.ndarray, horizon: float, since: float = 0.0,
+                    images: np.ndarray | None = None) -> SearchPlan:
         """The rows H xi(t) a search follows over tau = t - t0 in [since, horizon]: without the fastest
         exponential terms whose contributions to row i sum to at most budget[i] there (e[i] that sum; a
         decaying term counts at its size at ``since``, a growing one at the horizon), ``rate`` the fastest
@@ -625,7 +637,7 @@ class Phase:
         derivative of what is left on [since, horizon], ``renew`` the tau from which the fastest term
         kept, if it decays, has decayed into the budget (a plan from there leaves it out; inf if never).
         Without a modal form: the full rows. H None: xi itself (budget per component of its modal part;
-        for quadratures)."""
+        for quadratures). ``images``: H[:, :r2] U when the caller has formed it (events.modal_images)."""
         r2 = 2 * self.config.r
         if H is None and (not r2 or self._modal is None):
             return SearchPlan(self.xi, self.config.fastest_rate(), np.zeros(self.dim), None)
@@ -633,7 +645,8 @@ class Phase:
             return SearchPlan(self.row_map(H), self.config.fastest_rate(), np.zeros(H.shape[0]),
                               lambda order: self.derivative_bound(H, order, horizon))
         mot = self._modal
-        HU = mot.U if H is None else H[:, :r2] @ mot.U   # formed once: for the sizes, the rows and their bound
+        # formed once: for the sizes, the rows and their bound
+        HU = mot.U if H is None else (H[:, :r2] @ mot.U if images is None else images)
         speed, order, steady = self.config.term_order(mot.nu)
         size = np.abs(HU)
         if since or not steady:
@@ -664,7 +677,7 @@ class Phase:
         def bound(order_):
             b = kept.bound(None, order_, horizon, since)
             if self.w:
-                b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * self.w ** order_
+                b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * power(self.w, order_)
             return b
 
         return SearchPlan(self._rows_of(kept, H[:, r2:]), rate, e, bound, renew)
@@ -744,13 +757,15 @@ class Phase:
             groups.append((nodes, Dx))
         return U, nu, groups
 
-    def derivative_bound(self, H: np.ndarray, order: int, horizon: float) -> np.ndarray:
-        """Per row of H, a bound of the order-th time derivative of H xi over [t0, t0 + horizon]."""
+    def derivative_bound(self, H: np.ndarray, order: int, horizon: float, images: np.ndarray | None = None
+                         ) -> np.ndarray:
+        """Per row of H, a bound of the order-th time derivative of H xi over [t0, t0 + horizon] (``images``:
+        H[:, :r2] U when the caller has it)."""
         r2 = 2 * self.config.r
         if self._modal is not None:
-            b = self._modal.bound(H[:, :r2], order, horizon)
+            b = self._modal.bound(H[:, :r2], order, horizon, HU=images)
             if self.w:
-                b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * self.w ** order
+                b = b + (np.abs(H[:, r2 + 1]) + np.abs(H[:, r2 + 2])) * power(self.w, order)
             return b
         # crude: |H A_aug^order xi| <= |H| ||A_aug||^order max|xi| (with growth)
         nA = np.linalg.norm(self.A_aug, 2)

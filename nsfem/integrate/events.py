@@ -56,6 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import core
+from .closed_form import divided_exp_bound, power
 from .configuration import Mode, Phase
 from .rings import ring_rows
 
@@ -79,6 +80,11 @@ class Rows:
     detail: list | None = None
     #: H A_aug when formed with H (:func:`event_rows`); None: the search forms it
     Hd: np.ndarray | None = None
+    #: per row, sum |H[:, :2r]| (the weights of :func:`round_off`); None: the search forms them
+    weights: np.ndarray | None = None
+    #: (H; H A_aug)[:, :2r] V, V the configuration's modes (without rigid coordinates), when formed once
+    #: per (configuration, mode): the rows' images of a phase's terms are these times its amplitudes
+    HV: np.ndarray | None = None
 
     @property
     def size(self) -> int:
@@ -130,13 +136,19 @@ class _RowsPlan:
         Pf[:, c] = 0.0
         self.H = self.Rq @ Pq + self.Rv @ Pv + self.Rf @ Pf
         self.Hd = self.H @ cfg.A_aug_base
+        # (H and Hd but their constant column are the configuration's: so are the round-off weights and,
+        # on the modal path without rigid coordinates, the rows' images of the modes)
+        self.weights = np.abs(self.H[:, :c]).sum(axis=1)
+        self.HV = None
+        if cfg.plan is not None and cfg.k == 0:
+            self.HV = np.vstack([self.H, self.Hd])[:, :c] @ cfg.plan.V
 
     def rows(self, phase: Phase) -> Rows:
         c = self.c
         H, Hd = self.H.copy(), self.Hd.copy()
         H[:, c] = self.Rq @ phase.qp + self.Rf @ phase.force_map()[:, c] + self.K
         Hd[:, c] = H[:, :c] @ phase.A_aug[:c, c]
-        return Rows(H, self.kinds, self.contacts, self.detail, Hd)
+        return Rows(H, self.kinds, self.contacts, self.detail, Hd, self.weights, self.HV)
 
 
 class _Basis:
@@ -225,64 +237,47 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     """The earliest root of any row in (t_start, t_stop], or None. ``report(t)`` (optional) is
     told how far the search has come after each chunk of samples (progress of long phases).
 
-    After the set-up, the loop below runs as one compiled call where the compiled event core is built
-    and the phase is on the modal path (:func:`_compiled_search`); this code is its reference."""
+    The set-up (:func:`band_tolerance`, :func:`modal_images`, the plans) and the loop below run as one
+    compiled call where the compiled event core is built and the phase is on the modal path
+    (:func:`_compiled_search`); this code is its reference."""
     if rows.size == 0:
         return None
     H = rows.H
     Hd = H @ phase.A_aug if rows.Hd is None else rows.Hd
     if phase.config.fastest_rate() == 0.0 and phase.w == 0.0:
         return _polynomial_event(phase, rows, t_start, t_stop)
-    # the size of the terms that make each row, over the next 4 periods of the fastest
-    # mode or up to t_stop if sooner (so t_end matters only within 4 periods of it)
-    step = phase.max_step(math.inf)
-    window = min(step, t_stop - t_start) if math.isfinite(step) else t_stop - t_start
-    xis = phase.xi(t_start + window * np.linspace(0.0, 1.0, 33))
-    scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
-    # the band never below the round-off of evaluating the row from the state: a row
-    # starting at ~0 (a gap of 1e-19 m read to +-1e-18 m) must not fire by that noise
-    tol = np.maximum(ZERO * scale, round_off(H, xis, 2 * phase.config.r))
+    armed = thr = None
+    search = core.compiled("search")
+    if search is not None and phase._modal is not None:
+        # the set-up and the loop below as one compiled call on the modal path (:func:`_compiled_search`);
+        # it hands the search back to this loop where a plan's bound is too crude to screen
+        found = _compiled_search(search, phase, rows, t_start, t_stop, report)
+        if not isinstance(found, _Handover):
+            return found
+        tol, t_start, armed, thr = found
+    else:
+        tol = band_tolerance(phase, H, t_start, t_stop, rows.weights)
     # the search follows the rows without the fastest terms whose sum stays below a quarter of each
     # row's band over the horizon (round-off amplitudes of stiff modes, modes a row does not see, modes
     # that have decayed): they no longer set the step. A row then crosses -tol no earlier than its
     # search version crosses -(tol - e), e the left-out terms' bound: the search uses that band
     HH, budget = np.vstack([H, Hd]), np.concatenate([tol / 4.0, np.full(H.shape[0], np.inf)])
+    images = modal_images(phase, rows)
     k = rows.size
 
     def plan_from(t):
         """The search's rows, band, step and interpolation bound from t on (the left-out terms bounded
         on [t, t_stop]: a decaying one by its size at t)."""
-        plan = phase.search_plan(HH, budget, t_stop - phase.t0, t - phase.t0)
+        plan = phase.search_plan(HH, budget, t_stop - phase.t0, t - phase.t0, images=images)
         band = tol - plan.e[:k]
         step = phase.max_step(t_stop - phase.t0, plan.rate)
         # certified dip screening: |h - Hermite cubic| <= dt^4 / 384 * max |4th derivative|
-        return plan, band, step, plan.bound(4)[:k] * step ** 4 / 384.0
+        return plan, band, step, plan.bound(4)[:k] * power(step, 4) / 384.0
 
     plan, band, h_step, bound4 = plan_from(t_start)
     rows_at = plan.rows
     # (a renewal that rounds to where the plan starts is tried again a step later: the search advances)
     renew_at = max(phase.t0 + plan.renew, t_start + h_step)
-    armed = thr = None
-    search = core.compiled("search")
-    if search is not None and _compilable(phase, rows_at, band, bound4):
-        # the loop below as one compiled call per plan: a plan renewed at renew_at (an overdamped stiff mode
-        # died out) starts the next call there, the rows keeping their arming and thresholds
-        carry, t_a = [None, None], t_start
-        while True:
-            t_b = min(t_stop, renew_at)
-            found = _compiled_search(search, phase, H, Hd, tol, band, plan.rate, rows_at, bound4, h_step, t_a,
-                                     t_b, report, carry)
-            if found is not None or t_b >= t_stop:
-                return found
-            t_a = t_b
-            plan, band, h_step, bound4 = plan_from(t_a)
-            rows_at = plan.rows
-            renew_at = max(phase.t0 + plan.renew, t_a + h_step)
-            if not _compilable(phase, rows_at, band, bound4):   # the Python loop from here on
-                t_start = t_a
-                if carry[0] is not None:
-                    armed, thr = np.array(carry[0], dtype=bool), np.array(carry[1], dtype=float)
-                break
     coarse, tried = None, False
     t_a = t_start
     chunk = FIRST_CHUNK
@@ -298,7 +293,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
         t_b = min(t_stop, renew_at)
         if not tried and armed is not None and armed.all():
             # formed once a first chunk has found nothing (most phases of an impact burst end in it)
-            coarse, tried = _Coarse.of(phase, H, Hd, band, plan.rate, t_a, t_stop), True
+            coarse, tried = _Coarse.of(phase, H, Hd, band, plan.rate, t_a, t_stop, images), True
         if coarse is not None:
             # every row armed at 0: skip what the coarse pass certifies, search the rest finely
             t_skip, t_c = coarse.unclear(t_a)
@@ -382,11 +377,46 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     return None
 
 
+def band_tolerance(phase: Phase, H: np.ndarray, t_start: float, t_stop: float,
+                   weights: np.ndarray | None = None) -> np.ndarray:
+    """Per row of H, the size below which it counts as zero from t_start on: ZERO times the largest sum of
+    the terms that make it, |H| |xi(t)|, at 33 times over the next 4 periods of the fastest mode (up to
+    t_stop if sooner: t_end matters only within 4 periods of it), and never below the round-off of
+    evaluating the row from the state (:func:`round_off`, ``weights`` its row weights when formed): a
+    row starting at ~0 (a gap of 1e-19 m read to +-1e-18 m) must not fire by that noise."""
+    step = phase.max_step(math.inf)
+    window = min(step, t_stop - t_start) if math.isfinite(step) else t_stop - t_start
+    xis = phase.xi_on_grid(t_start, window / 32.0, 33)
+    scale = np.max(np.abs(H) @ np.abs(xis), axis=1) + 1e-300
+    return np.maximum(ZERO * scale, round_off(H, xis, 2 * phase.config.r, weights))
+
+
+def modal_images(phase: Phase, rows: Rows) -> np.ndarray | None:
+    """(H; H A_aug)[:, :2r] U, the rows' coefficients of the phase's exponential terms (rows.size * 2 x
+    terms; None off the modal path): with the rows' images of the modes formed once per configuration
+    (rows.HV) and the phase's amplitudes (c, g), U = V [diag(c), g^T] gives them as HV diag(c) and HV g^T
+    (O(rows m) per phase instead of O(rows r m))."""
+    if phase._modal is None:
+        return None
+    if rows.HV is not None and phase.amplitudes is not None:
+        c, g = phase.amplitudes
+        return np.hstack([rows.HV * c, rows.HV @ g.T])
+    r2 = 2 * phase.config.r
+    Hd = rows.H @ phase.A_aug if rows.Hd is None else rows.Hd
+    return np.vstack([rows.H, Hd])[:, :r2] @ phase._modal.U
+
+
 def _compilable(phase: Phase, rows_at, band: np.ndarray, bound4: np.ndarray) -> bool:
-    """Whether the compiled search (nsfem/integrate/core/_search.pyx) runs this phase: the modal path
-    (divided differences included), every row's bound fine enough to screen (no local bound)."""
+    """Whether the compiled search (nsfem/integrate/core/_search.pyx) can run a plan: the modal path
+    (divided differences included), every row's bound fine enough to screen (no local bound). (The
+    compiled call checks the same of its own plans, ``Search.compilable``.)"""
     return (phase._modal is not None and getattr(rows_at, "terms", None) is not None
             and bool(np.all(bound4 <= band * float(SUBDIVIDE) ** (4 * DEPTH))))
+
+
+class _Handover(tuple):
+    """What the compiled search hands back where a plan's bound is too crude to screen: (tol, t, armed,
+    thr), the search to go on from t in Python (armed, thr: the rows' arming so far, or None)."""
 
 
 def _terms(mot) -> tuple:
@@ -401,35 +431,65 @@ def _terms(mot) -> tuple:
             np.ascontiguousarray(gm, dtype=np.intc), np.ascontiguousarray(C, dtype=complex))
 
 
-def _compiled_search(search, phase: Phase, H, Hd, tol, band, rate, rows_at, bound4, h_step, t_start, t_stop,
-                     report, carry=None) -> Event | None:
-    """The loop of :func:`first_event` after its set-up, as one compiled call (``search.Search.run``: the
-    same chunks, screens, scans, arming, coarse pass and roots) over [t_start, t_stop]; the coarse pass is
-    set up here when the loop asks for it, and ``report`` and ``phase.searched_until`` follow its
-    progress. ``carry``: the rows' arming across windows of one search (``Search.run``)."""
-
-    def coarse_of(t_a):
-        c = _Coarse.of(phase, H, Hd, band, rate, t_a, t_stop)
-        if c is None:
-            return None
-        return (_terms(c.rows_at.terms), np.ascontiguousarray(c.margin, dtype=float),
-                np.ascontiguousarray(c.b4, dtype=float), float(c.step))
+def _compiled_search(search, phase: Phase, rows: Rows, t_start: float, t_stop: float,
+                     report) -> "Event | None | _Handover":
+    """:func:`first_event` on the modal path as one compiled call (``search.Search``): its set-up (the band
+    from the state at 33 times, :func:`band_tolerance`; the plans of :meth:`Phase.search_plan` from the rows'
+    images of the phase's terms, :func:`modal_images`, renewed where the fastest kept term has decayed) and
+    its loop (the same chunks, screens, scans, arming, coarse pass (:meth:`_Coarse.of`) and roots) over
+    [t_start, t_stop]; ``report`` and ``phase.searched_until`` follow its progress. A :class:`_Handover`
+    where a plan cannot be screened without the local bound."""
+    mot, cfg, k = phase._modal, phase.config, rows.size
+    H = np.ascontiguousarray(rows.H, dtype=float)
+    Hd = np.ascontiguousarray(H @ phase.A_aug if rows.Hd is None else rows.Hd, dtype=float)
+    r2 = 2 * cfg.r
+    nu, gnodes, gm, U = _terms(mot)
+    horizon = t_stop - phase.t0
+    gb, node_rate = _NO_GROUPS, 0.0
+    if rows.HV is not None and phase.amplitudes is not None:
+        images = (rows.HV, *phase.amplitudes)   # (formed in the call as modal_images forms them)
+    else:
+        images = modal_images(phase, rows)
+        if mot.groups:   # the divided differences' images and bounds of order 4 and 0 (independent of t)
+            HH = np.vstack([H, Hd])[:, :r2]
+            images = np.hstack([images] + [HH @ D for _, D in mot.groups])
+            gb = np.array([np.concatenate([divided_exp_bound(nodes, order, horizon) for nodes, _ in mot.groups])
+                           for order in (4, 0)])
+            node_rate = max(float(np.max(np.abs(nodes), initial=0.0)) for nodes, _ in mot.groups)
+        images = np.ascontiguousarray(images, dtype=complex)
+    weights = np.abs(H[:, :r2]).sum(axis=1) if rows.weights is None else rows.weights
+    _, order, steady = cfg.term_order(mot.nu)
+    tol, band = np.empty(k), np.empty(k)
 
     def progress(t):
         phase.searched_until = t
         if report is not None:
             report(t)
 
-    nu, gnodes, gm, U = _terms(phase._modal)
-    run = search.Search(nu, gnodes, gm, U, np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(Hd, dtype=float),
-                        np.ascontiguousarray(phase.A_aug, dtype=float), phase.t0, float(phase.w), _terms(rows_at.terms),
-                        np.ascontiguousarray(band, dtype=float), np.ascontiguousarray(bound4, dtype=float),
-                        float(h_step), float(t_start), float(t_stop), coarse_of)
+    run = search.Search(nu, gnodes, gm, U, H, Hd, phase.A_aug, phase.t0, float(phase.w), images,
+                        _order_c(cfg, order), bool(steady), weights, gb, node_rate, cfg.fastest_rate(),
+                        float(t_start), float(t_stop), tol, band)
+    carry = [None, None]
     found = run.run(progress, carry)
+    if isinstance(found, float):
+        armed = None if carry[0] is None else np.array(carry[0], dtype=bool)
+        thr = None if carry[1] is None else np.array(carry[1], dtype=float)
+        return _Handover((tol, found, armed, thr))
     if found is None:
         return None
     t_e, idx, graze, in_band = found
     return Event(t_e, idx, graze, tol, in_band)
+
+
+_NO_GROUPS = np.zeros((2, 0))
+
+
+def _order_c(cfg, order: np.ndarray) -> np.ndarray:
+    """The configuration's term order (Configuration.term_order) as C ints, formed once per order."""
+    cached = cfg.__dict__.get("_order_c")
+    if cached is None or cached[0] is not order:
+        cached = cfg._order_c = (order, np.ascontiguousarray(order, dtype=np.intc))
+    return cached[1]
 
 
 #: the coarse pass leaves out the fastest terms up to COARSE of each row's size; it is used when that
@@ -454,21 +514,22 @@ class _Coarse:
         self.clear = np.zeros(0, dtype=bool)
 
     @classmethod
-    def of(cls, phase, H, Hd, band, rate, t_start, t_stop) -> "_Coarse | None":
+    def of(cls, phase, H, Hd, band, rate, t_start, t_stop, images=None) -> "_Coarse | None":
         """The coarse pass of a search from t_start, or None when it would not sample COARSE_GAIN times
-        slower."""
+        slower (``images``: :func:`modal_images` of the rows, when formed)."""
         horizon = t_stop - phase.t0   # the terms' bounds hold from the phase's start
         k = H.shape[0]
         # a row's size: the sum of its modal terms' amplitudes (a gap's, not the layers' it is the
         # difference of) and its constant
-        size = phase.derivative_bound(H, 0, horizon) + np.abs(H[:, 2 * phase.config.r])
+        size = phase.derivative_bound(H, 0, horizon, None if images is None else images[:k]) + \
+            np.abs(H[:, 2 * phase.config.r])
         budget = np.concatenate([COARSE * size, np.full(k, np.inf)])
         # (the terms bounded from t_start on: a decaying one at its size there)
-        plan = phase.search_plan(np.vstack([H, Hd]), budget, horizon, t_start - phase.t0)
+        plan = phase.search_plan(np.vstack([H, Hd]), budget, horizon, t_start - phase.t0, images=images)
         step = phase.max_step(horizon, plan.rate)
         if step < COARSE_GAIN * phase.max_step(horizon, rate) or plan.bound is None or step * 4.0 > t_stop - t_start:
             return None
-        b4 = plan.bound(4)[:k] * step ** 4 / 384.0
+        b4 = plan.bound(4)[:k] * power(step, 4) / 384.0
         return cls(plan.rows, band + plan.e[:k], b4, step, t_start, t_stop, k)
 
     def _extend(self) -> None:
@@ -527,14 +588,16 @@ def _screened(ts, f, hd, band, bound4) -> tuple[np.ndarray, tuple, np.ndarray]:
     return ~ok | cross.any(axis=1) | near.any(axis=1), (cross, turn, near), ok
 
 
-def round_off(H: np.ndarray, xis: np.ndarray, r2: int) -> np.ndarray:
+def round_off(H: np.ndarray, xis: np.ndarray, r2: int, weights: np.ndarray | None = None) -> np.ndarray:
     """Per row, the round-off of evaluating h = H xi from a state: a few ulps of the largest
-    state component times the row's weights. A row can be much smaller than the state it is
-    read from (the gap coordinate of a Craig-Bampton model, 1e-8 m, next to velocities of
-    1e-2 m/s): its band must not fall below what a restart from that state reproduces."""
+    state component times the row's weights (sum |H[:, :r2]|, given or formed). A row can be much
+    smaller than the state it is read from (the gap coordinate of a Craig-Bampton model, 1e-8 m, next
+    to velocities of 1e-2 m/s): its band must not fall below what a restart from that state reproduces."""
     if r2 == 0:
         return np.zeros(H.shape[0])
-    return 16.0 * np.finfo(float).eps * np.abs(H[:, :r2]).sum(axis=1) * float(np.abs(xis[:r2]).max())
+    if weights is None:
+        weights = np.abs(H[:, :r2]).sum(axis=1)
+    return 16.0 * np.finfo(float).eps * weights * float(np.abs(xis[:r2]).max())
 
 
 def _cubic(f0, f1, d0, d1, dt):

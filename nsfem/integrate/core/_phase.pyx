@@ -17,6 +17,9 @@ terms, and round differently from BLAS. The harmonic load's terms of the set-up 
 from libc.math cimport fabs, hypot, sin, cos, exp, expm1, NAN
 from libc.stdlib cimport malloc, free
 
+include "_modal_sum.pxi"
+
+
 cdef extern from *:
     """
     #include <complex.h>
@@ -376,11 +379,9 @@ cpdef double end_energy(const double[:, ::1] H, const double[:, ::1] X) noexcept
 cpdef void xi_at(const double[:, ::1] U, const double[::1] nu, double tau, double w, double t,
                  double[::1] out) noexcept:
     """Phase._xi_at: out[:d] = Re(U e^{nu tau}) (U: d x p complex, interleaved), each row one sum over the
-    terms in order, four rows at a time (independent sums, the same order in each); then the harmonic
-    components 1 (and cos w t, sin w t when w != 0)."""
-    cdef Py_ssize_t d = U.shape[0], p = nu.shape[0] // 2, i, j, r
-    cdef double er, ei
-    cdef double a0, a1, a2, a3
+    terms in order, four rows at a time (_modal_sum.pxi's modal_rows, shared with the compiled search); then
+    the harmonic components 1 (and cos w t, sin w t when w != 0)."""
+    cdef Py_ssize_t d = U.shape[0], p = nu.shape[0] // 2, j
     cdef const double* u
     cdef Py_ssize_t ld = 2 * p
     out[d] = 1.0
@@ -394,29 +395,7 @@ cpdef void xi_at(const double[:, ::1] U, const double[::1] nu, double tau, doubl
     with nogil:
         for j in range(p):
             nsfem_cexp(nu[2 * j] * tau, nu[2 * j + 1] * tau, &e[2 * j], &e[2 * j + 1])
-        i = 0
-        while i + 4 <= d:
-            a0 = 0.0
-            a1 = 0.0
-            a2 = 0.0
-            a3 = 0.0
-            for j in range(p):
-                er = e[2 * j]
-                ei = e[2 * j + 1]
-                a0 = a0 + (u[i * ld + 2 * j] * er - u[i * ld + 2 * j + 1] * ei)
-                a1 = a1 + (u[(i + 1) * ld + 2 * j] * er - u[(i + 1) * ld + 2 * j + 1] * ei)
-                a2 = a2 + (u[(i + 2) * ld + 2 * j] * er - u[(i + 2) * ld + 2 * j + 1] * ei)
-                a3 = a3 + (u[(i + 3) * ld + 2 * j] * er - u[(i + 3) * ld + 2 * j + 1] * ei)
-            out[i] = a0
-            out[i + 1] = a1
-            out[i + 2] = a2
-            out[i + 3] = a3
-            i = i + 4
-        for r in range(i, d):
-            a0 = 0.0
-            for j in range(p):
-                a0 = a0 + (u[r * ld + 2 * j] * e[2 * j] - u[r * ld + 2 * j + 1] * e[2 * j + 1])
-            out[r] = a0
+        modal_rows(u, ld, 0, d, 1, e, &e[1], 2, p, &out[0])
     free(e)
 
 

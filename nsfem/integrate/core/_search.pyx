@@ -6,7 +6,9 @@ Python functions in nsfem/integrate/events.py and closed_form.py are the referen
 the name given in its docstring; tests/test_core_search.py and tests/test_core_equivalence.py
 compare the two paths."""
 
-from libc.math cimport sqrt, fabs, copysign, frexp, ldexp, exp, expm1, cos, sin, pow, ceil, hypot, isfinite, INFINITY
+from libc.math cimport (sqrt, fabs, copysign, frexp, ldexp, exp, expm1, log, cos, sin, pow, ceil, hypot, isfinite,
+                        isinf, INFINITY, M_PI)
+from libc.float cimport DBL_EPSILON
 from libc.stdlib cimport malloc, calloc, free, realloc
 from cpython.exc cimport PyErr_CheckSignals
 
@@ -20,10 +22,64 @@ cdef extern from *:
     """
     void sincos "nsfem_sincos" (double x, double* s, double* c) nogil
 
+cdef extern from *:
+    """
+    /* Many independent sums side by side, four lanes at a time (GCC's vector extensions: each lane's
+       operations are the scalar ones, no contraction: -ffp-contract=off), in an AVX2 clone where the CPU
+       has it (GCC on glibc: the clone is chosen at load time; each lane rounds as the scalar code, the
+       same value whichever clone runs). */
+    #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__GLIBC__) \
+        && defined(__has_attribute)
+    #  if __has_attribute(target_clones)
+    #    define NSFEM_CLONES __attribute__((target_clones("avx2", "default")))
+    #  endif
+    #endif
+    #ifndef NSFEM_CLONES
+    #  define NSFEM_CLONES
+    #endif
+    #if defined(__GNUC__)
+    typedef double nsfem_v4 __attribute__((vector_size(32)));
+    /* x[j] = x[j] + (a * u[j] - b * v[j]), j < n (n a multiple of 4) */
+    NSFEM_CLONES static void nsfem_lanes_add(double* x, const double* u, const double* v, double a, double b, int n) {
+        nsfem_v4 va = {a, a, a, a}, vb = {b, b, b, b}, xv, uv, vv;
+        for (int j = 0; j < n; j += 4) {
+            __builtin_memcpy(&xv, x + j, sizeof xv);
+            __builtin_memcpy(&uv, u + j, sizeof uv);
+            __builtin_memcpy(&vv, v + j, sizeof vv);
+            xv = xv + (va * uv - vb * vv);
+            __builtin_memcpy(x + j, &xv, sizeof xv);
+        }
+    }
+    /* x[j] = x[j] + a * u[j], j < n (n a multiple of 4) */
+    NSFEM_CLONES static void nsfem_lanes_axpy(double* x, const double* u, double a, int n) {
+        nsfem_v4 va = {a, a, a, a}, xv, uv;
+        for (int j = 0; j < n; j += 4) {
+            __builtin_memcpy(&xv, x + j, sizeof xv);
+            __builtin_memcpy(&uv, u + j, sizeof uv);
+            xv = xv + va * uv;
+            __builtin_memcpy(x + j, &xv, sizeof xv);
+        }
+    }
+    #else
+    static void nsfem_lanes_axpy(double* x, const double* u, double a, int n) {
+        for (int j = 0; j < n; j++) x[j] = x[j] + a * u[j];
+    }
+    static void nsfem_lanes_add(double* x, const double* u, const double* v, double a, double b, int n) {
+        for (int j = 0; j < n; j++) x[j] = x[j] + (a * u[j] - b * v[j]);
+    }
+    #endif
+    """
+    void lanes_add "nsfem_lanes_add" (double* x, const double* u, const double* v, double a, double b, int n) nogil
+    void lanes_axpy "nsfem_lanes_axpy" (double* x, const double* u, double a, int n) nogil
+
 import numpy as np
 
 #: as events.SUBDIVIDE, DEPTH, FIRST_CHUNK, CHUNK
 cdef int SUBDIVIDE = 16, DEPTH = 3, FIRST_CHUNK = 4, CHUNK = 256
+#: as events.ZERO (a row's band relative to the terms that make it)
+cdef double ZERO = 1e-11
+#: as events.COARSE, COARSE_GAIN (the coarse pass's budget per row's size, and its least gain)
+cdef double COARSE = 1e-3, COARSE_GAIN = 4.0
 #: as events.SLOPE (Birkhoff and Priver's slope bound in units of bound4)
 cdef double SLOPE = 384.0 * sqrt(3.0) / 216.0
 #: as first_event: at most this many arming candidates per row and chunk
@@ -36,6 +92,7 @@ cdef double SAFE_HI = 2.0 ** 400
 cdef double SAFE_LO = 2.0 ** -400
 
 
+include "_modal_sum.pxi"
 include "_search_kernels.pxi"
 include "_search_divided.pxi"
 
@@ -69,41 +126,58 @@ cdef class _Terms:
         free(self.act)
         free(self.partner)
 
-    def __init__(self, nu, gnodes, gm, C, int R, _Terms like=None):
+    def __init__(self, nu, gnodes, gm, C, int R, _Terms like=None, keep=None):
         cdef const double complex[:, ::1] Cv
+        cdef const char[::1] kept
+        cdef const char* flags = NULL
+        cdef const double* src = NULL
+        if keep is not None:
+            kept = keep
+            if kept.shape[0] != len(nu):
+                raise ValueError("Search: a kept term's flag per exponent")
+            flags = &kept[0] if kept.shape[0] else NULL
+        if C is not None:
+            Cv = C
+            if Cv.shape[0] != R or Cv.shape[1] != len(nu) + len(gm):
+                raise ValueError("Search: the coefficients need a row per row and a column per term")
+            src = <const double*>&Cv[0, 0] if Cv.shape[0] * Cv.shape[1] else NULL
+        self._set(nu, gnodes, gm, src, C is not None, R, like, flags)
+
+    cdef void _set(self, const double complex[::1] nu, const double complex[:, ::1] gnodes, const int[::1] gm,
+                   const double* C, bint given, int R, _Terms like, const char* keep) except *:
+        """The terms of exponents nu and divided differences (gnodes, gm) with the coefficients C (R rows
+        of p interleaved complex: exponents, then divided differences; ``given`` False: none, formed by
+        the owner) paired as ``like``'s (or afresh), those ``keep`` flags (NULL: all)."""
         cdef int idx, r, m, j
         self.nu, self.gnodes, self.gm = nu, gnodes, gm
         self.pe, self.K = self.nu.shape[0], self.gm.shape[0]
         self.p = self.pe + self.K
         self.R = R
         # the kernels read 3 nodes per divided difference and, from ``like``, its pairs of these exponents
-        if self.gnodes.shape[0] != self.K or (self.K and self.gnodes.shape[1] != 3) or any(
-                self.gm[m] not in (2, 3) for m in range(self.K)):
+        if self.gnodes.shape[0] != self.K or (self.K and self.gnodes.shape[1] != 3):
             raise ValueError("Search: the divided differences need 3 nodes each (2 or 3 used)")
-        if C is None and (like is None or like.pe != self.pe or like.K != self.K):
+        for m in range(self.K):
+            if self.gm[m] != 2 and self.gm[m] != 3:
+                raise ValueError("Search: the divided differences need 3 nodes each (2 or 3 used)")
+        if like is not None and (like.pe != self.pe or like.K != self.K):
+            raise ValueError("Search: terms paired as another set's take the same exponents")
+        if not given and like is None:
             raise ValueError("Search: terms without coefficients take another set's pairs of the same exponents")
         self.act = <int*>malloc(max(self.p, 1) * sizeof(int))
         self.partner = <int*>malloc(max(self.p, 1) * sizeof(int))
         if self.act == NULL or self.partner == NULL:
             raise MemoryError
-        if C is not None:
-            Cv = C
-            if Cv.shape[0] != R or Cv.shape[1] != self.p:
-                raise ValueError("Search: the coefficients need a row per row and a column per term")
-            self._pair()
-        else:
-            self.nact = like.nact
-            for idx in range(self.nact):
-                self.act[idx], self.partner[idx] = like.act[idx], like.partner[idx]
+        if like is None or not self._pairs_of(like, keep):
+            self._pair(keep)
         self.C = <double*>malloc(max(2 * R * self.nact, 1) * sizeof(double))
         if self.C == NULL:
             raise MemoryError
         cdef const double* src
         cdef double* dst
         cdef int p = self.p, n = self.nact
-        if C is not None and R * p:
+        if given and R * p:
             for r in range(R):
-                src, dst = <const double*>&Cv[r, 0], &self.C[2 * r * n]
+                src, dst = &C[2 * r * p], &self.C[2 * r * n]
                 for idx in range(n):
                     m, j = self.act[idx], self.partner[idx]
                     if j < 0:
@@ -111,12 +185,33 @@ cdef class _Terms:
                     else:   # c + conj(c')
                         dst[2 * idx], dst[2 * idx + 1] = src[2 * m] + src[2 * j], src[2 * m + 1] - src[2 * j + 1]
 
-    cdef void _pair(self):
-        """act, partner, nact: the exponents summed, each with its conjugate's index (or -1)."""
+    cdef bint _pairs_of(self, _Terms like, const char* keep):
+        """act, partner, nact: ``like``'s pairs, those ``keep`` flags (all without it; a divided difference
+        always): the pairs :meth:`_pair` forms on the kept exponents, unless a pair is kept in part (then
+        False: :meth:`_pair` forms them)."""
+        cdef int idx, m, j, n = 0
+        for idx in range(like.nact):
+            m, j = like.act[idx], like.partner[idx]
+            if keep != NULL and m < self.pe:
+                if j >= 0 and keep[m] != keep[j]:
+                    return False
+                if not keep[m]:
+                    continue
+            self.act[n], self.partner[n] = m, j
+            n += 1
+        self.nact = n
+        return True
+
+    cdef void _pair(self, const char* keep):
+        """act, partner, nact: the exponents summed (those ``keep`` flags, all without it), each with its
+        conjugate's index (or -1); then the divided differences (always kept)."""
         cdef int m, j, n = 0, partner
         cdef char* used = <char*>calloc(max(self.pe, 1), 1)
         if used == NULL:
             raise MemoryError
+        if keep != NULL:
+            for m in range(self.pe):
+                used[m] = not keep[m]
         for m in range(self.pe):
             if used[m]:
                 continue
@@ -153,14 +248,31 @@ cdef void terms_at(_Terms T, double tau, double* er, double* ei):
 
 
 cdef class Search:
-    """One phase's search (events.first_event after its set-up, on the modal path): the state of the
-    loop, the rows read from the state, the coarse pass. Arrays in (the closed form's terms, the rows
-    H and Hd = H A_aug, A_aug, the bands and bounds), the event out (:meth:`run`)."""
-    cdef int k, r2, dim, nh, p
+    """One phase's search (events.first_event on the modal path, its set-up included): the band from the
+    state at 33 times, the plans of the terms the search follows (Phase.search_plan), the state of the
+    loop, the rows read from the state, the coarse pass. Arrays in (the closed form's terms, the rows H
+    and Hd = H A_aug, A_aug, the rows' images of the terms, the configuration's term order), the event
+    out (:meth:`run`); the bands written to the arrays ``tol`` and ``band`` given."""
+    cdef int k, r2, dim, nh, p, pe, K, m
     cdef double t0, w
     cdef const double[:, ::1] H, Hd, A
+    cdef const double complex[:, ::1] HUv    # the rows' images of the terms when given as such
+    cdef double* hu                         # the rows' images of the terms (2k x (pe + K), interleaved)
+    cdef double* hu_own                     # (formed here: from H V and the amplitudes)
+    cdef const double complex[::1] nu
+    cdef const double complex[:, ::1] gnodes
+    cdef const int[::1] gm
+    cdef const int[::1] order               # the modes, fastest first (Configuration.term_order)
+    cdef const double[::1] weights
+    cdef const double[:, ::1] gb            # per divided difference, its bound of order 4 (row 0) and 0 (row 1)
+    cdef bint steady
+    cdef double node_rate, fastest
+    cdef char* keep                         # per exponent: kept by the current plan
+    cdef char* ckeep                        # kept by the coarse pass
+    cdef char* all                          # every exponent
+    cdef double* budget                     # per H row: a quarter of its tol
+    cdef double* cbud                       # the coarse pass's: COARSE of its size
     cdef _Terms state, kept, full, coarse  # xi's modal part (C: U), the kept rows, all rows, coarse
-    cdef char* full_ok                     # per row: its H_i U, Hd_i U formed (in full)
     cdef char* hdd_ok                      # per row: its Hd_i A_aug formed (in Hdd)
     cdef int* nmemo
     cdef double* Hdd                       # k x dim
@@ -171,20 +283,27 @@ cdef class Search:
     cdef double* si
     cdef double* acc
     cdef double* xi
+    cdef double* speed                     # |nu| (pe)
+    cdef double* size                      # the plan's term sizes (k x pe) and their sums (k x m)
+    cdef double* cum
+    cdef double* absHU                     # |H U| of the H rows (k x (pe + K))
+    cdef double* nan_from                  # per mode in the term order: 1 where an Hd row's size is nan
     cdef double* work
-    cdef const double[::1] band, bound4
-    cdef double h_step, t_start, t_stop
+    cdef double[::1] tol, band
+    cdef double* bound4
+    cdef double h_step, t_start, t_stop, rate, renew_at
+    cdef public bint compilable            # the current plan's bound screens every row (no local bound)
     # the coarse pass (events._Coarse)
-    cdef object coarse_of
-    cdef const double[::1] margin, b4c
+    cdef double* margin
+    cdef double* b4c
     cdef double step_c, start_c
     cdef double* cts
     cdef char* cclear
     cdef int cn, ccap
 
     def __cinit__(self):
-        self.cts = self.work = NULL
-        self.cclear = self.full_ok = NULL
+        self.cts = self.work = self.hu_own = NULL
+        self.cclear = self.hdd_ok = NULL
         self.nmemo = NULL
         self.cn = self.ccap = 0
 
@@ -192,40 +311,75 @@ cdef class Search:
         free(self.cts)
         free(self.cclear)
         free(self.work)
-        free(self.full_ok)
+        free(self.hdd_ok)
         free(self.nmemo)
+        free(self.hu_own)
 
-    def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, kept, band, bound4, double h_step,
-                 double t_start, double t_stop, coarse_of):
+    def __init__(self, nu, gnodes, gm, U, H, Hd, A, double t0, double w, images, order, bint steady, weights, gb,
+                 double node_rate, double fastest, double t_start, double t_stop, tol, band):
+        """``images``: the rows' images of the terms, (H; Hd)[:, :r2] U then their divided differences' (2k x
+        (pe + K) complex), or (HV, c, g) without divided differences: (H; Hd)[:, :r2] V (2k x m) and the
+        phase's amplitudes, the images then HV diag(c) and HV g^T (events.modal_images)."""
+        cdef int j
+        cdef const double complex[:, ::1] HV, g
+        cdef const double complex[::1] c
         self.H, self.Hd, self.A = H, Hd, A
         self.k, self.dim = self.H.shape[0], self.H.shape[1]
         self.r2 = U.shape[0]
         self.nh = self.dim - self.r2
-        self.band, self.bound4 = band, bound4
+        self.nu, self.gnodes, self.gm, self.order, self.weights, self.gb = nu, gnodes, gm, order, weights, gb
+        self.tol, self.band = tol, band
+        self.pe, self.m, self.K = self.nu.shape[0], self.order.shape[0], self.gb.shape[1]
         # every index below is read without bounds checks: the shapes are checked here
         if (self.Hd.shape[0] != self.k or self.Hd.shape[1] != self.dim or self.A.shape[0] != self.dim
-                or self.A.shape[1] != self.dim or self.nh not in (1, 3) or self.band.shape[0] != self.k
-                or self.bound4.shape[0] != self.k):
+                or self.A.shape[1] != self.dim or self.nh not in (1, 3) or self.tol.shape[0] != self.k
+                or self.band.shape[0] != self.k or self.weights.shape[0] != self.k):
             raise ValueError("Search: H and Hd need k rows of the state's size (the modal part's rows and 1 or 3 "
-                             "harmonic components), A_aug that size square, band and bound4 a value per row")
-        self.t0, self.w = t0, w
-        self.state = _Terms(nu, gnodes, gm, U, self.r2)
-        self.kept = _Terms(*kept, 2 * self.k)
-        self.full = _Terms(nu, gnodes, gm, None, 2 * self.k, self.state)
+                             "harmonic components), A_aug that size square, tol, band and weights a value per row")
+        cdef bint bad = self.m > self.pe or self.gb.shape[0] != 2
+        for j in range(self.m):
+            bad = bad or not 0 <= self.order[j] < self.m
+        cdef bint formed = isinstance(images, tuple)
+        if formed:
+            HV, c, g = images
+            bad = (bad or self.K or HV.shape[0] != 2 * self.k or HV.shape[1] != self.m or c.shape[0] != self.m
+                   or g.shape[1] != self.m or g.shape[0] != self.pe - self.m)
+        else:
+            self.HUv = images
+            bad = bad or self.HUv.shape[0] != 2 * self.k or self.HUv.shape[1] != self.pe + self.K
+        if bad:
+            raise ValueError("Search: the rows' images need a row per row of H and Hd and a column per term (or "
+                             "per mode, with an amplitude per mode and forcing term), the order an index per mode")
+        self.t0, self.w, self.steady, self.node_rate, self.fastest = t0, w, steady, node_rate, fastest
+        cdef const double complex[:, ::1] Uv = U
+        self.state = _Terms.__new__(_Terms)
+        self.state._set(self.nu, self.gnodes, self.gm, <const double*>&Uv[0, 0] if Uv.shape[0] * Uv.shape[1] else NULL,
+                        True, self.r2, None, NULL)
+        if self.state.K != self.K or Uv.shape[1] != self.pe + self.K:
+            raise ValueError("Search: a bound per divided difference, a column of U per term")
+        cdef int P = self.pe + self.K
+        if not formed:
+            self.hu = <double*>&self.HUv[0, 0] if 2 * self.k * P else NULL
+        else:
+            self.hu_own = self.hu = <double*>malloc((4 * self.k * P + 1) * sizeof(double))
+            if self.hu == NULL:
+                raise MemoryError
+            self._images(HV, c, g)
+        self.full = _Terms.__new__(_Terms)
+        self.full._set(self.nu, self.gnodes, self.gm, self.hu, True, 2 * self.k, self.state, NULL)
         self.p = self.state.nact
-        self.h_step, self.t_start, self.t_stop = h_step, t_start, t_stop
-        self.coarse_of = coarse_of
+        self.t_start, self.t_stop = t_start, t_stop
         self.coarse = None
-        cdef int m = max(self.state.p, self.kept.p) + 1, k = self.k, j   # (the coarse terms are fewer)
-        # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi
-        self.work = <double*>malloc((k * self.dim + 4 * MEMO * k + 4 * m + 2 * k + self.dim) * sizeof(double))
-        self.full_ok = <char*>malloc(2 * k)
-        self.nmemo = <int*>malloc(k * sizeof(int))
-        if self.work == NULL or self.full_ok == NULL or self.nmemo == NULL:
+        cdef int m = self.state.p + 1, k = self.k   # (kept and coarse terms are fewer)
+        # one block of work space: Hdd, memo, er, ei, sr, si, acc, xi, speed, size, cum, absHU, nan_from, bound4
+        self.work = <double*>malloc((k * self.dim + 4 * MEMO * k + 4 * m + 2 * k + self.dim + self.pe
+                                     + k * (2 * self.pe + self.m + self.K) + self.m + 5 * k + 1) * sizeof(double))
+        self.hdd_ok = <char*>malloc(k + 3 * self.pe + 1)
+        self.nmemo = <int*>malloc((k + 1) * sizeof(int))
+        if self.work == NULL or self.hdd_ok == NULL or self.nmemo == NULL:
             raise MemoryError
-        self.hdd_ok = &self.full_ok[k]
         for j in range(k):
-            self.full_ok[j] = self.hdd_ok[j] = False
+            self.hdd_ok[j] = False
             self.nmemo[j] = 0
         self.Hdd = self.work
         self.memo = &self.Hdd[k * self.dim]
@@ -233,6 +387,304 @@ cdef class Search:
         self.ei, self.sr, self.si = &self.er[m], &self.er[2 * m], &self.er[3 * m]
         self.acc = &self.er[4 * m]
         self.xi = &self.acc[2 * k]
+        self.speed = &self.xi[self.dim]
+        self.size = &self.speed[self.pe]
+        self.cum = &self.size[k * self.pe]
+        self.absHU = &self.cum[k * self.m]
+        self.nan_from = &self.absHU[k * (self.pe + self.K)]
+        self.bound4 = &self.nan_from[self.m]
+        self.budget, self.cbud = &self.bound4[k], &self.bound4[2 * k]
+        self.margin, self.b4c = &self.bound4[3 * k], &self.bound4[4 * k]
+        self.keep, self.ckeep, self.all = &self.hdd_ok[k], &self.hdd_ok[k + self.pe], &self.hdd_ok[k + 2 * self.pe]
+        for j in range(self.pe):
+            self.all[j] = True
+        for j in range(self.pe):
+            self.speed[j] = hypot(self.nu[j].real, self.nu[j].imag)
+        self._sizes()
+        self._tolerance()
+        for j in range(k):
+            self.budget[j] = self.tol[j] / 4.0
+        self._plan(t_start)
+
+    # -- the set-up -------------------------------------------------------------------------
+    cdef double _max_step(self, double horizon, double rate) noexcept:
+        """Phase.max_step: 1/8 of the fastest period of ``rate`` (or of the forcing), within horizon / 8."""
+        cdef double h
+        if self.w > rate:
+            rate = self.w
+        h = M_PI / (4.0 * rate) if rate > 0 else INFINITY
+        if horizon > 0:
+            return horizon / 8.0 if horizon / 8.0 < h else h
+        return h
+
+    cdef void _tolerance(self):
+        """events.band_tolerance: per row, ZERO times the largest |H| |xi(t)| at 33 times over the next 4
+        periods of the fastest mode (or to t_stop), never below events.round_off's 16 eps |H[:, :r2]| max|xi|.
+        The state at the 33 times is Phase.xi_on_grid's (repeated products of the exponentials); each of its
+        components, and each row's |H| |xi|, summed in the reference's order, the times side by side (lanes)."""
+        cdef int n = 33, L = 36, k = self.k, dim = self.dim, r2 = self.r2, p = self.p, i, j, l, m
+        cdef double step = self._max_step(INFINITY, self.fastest), window, dtau, a, b, big = 0.0, c, sn, h
+        cdef bint finite = True
+        cdef double* X = <double*>calloc(dim * L + 2 * p * L + L + 1, sizeof(double))
+        if X == NULL:
+            raise MemoryError
+        cdef double* E = &X[dim * L]            # the terms' values: real parts (p x L), then imaginary
+        cdef double* S = &E[2 * p * L]          # a row's |H| |xi| per time
+        cdef double* x
+        window = self.t_stop - self.t_start
+        if isfinite(step) and step < window:
+            window = step
+        dtau = window / 32.0
+        # Phase.xi_on_grid: the exponentials by repeated products (closed_form.Motion.on_grid)
+        self._steps(self.state, dtau)
+        for j in range(n):
+            self._terms_on(self.state, self.t_start - self.t0, dtau, j, True)
+            for m in range(p):
+                E[m * L + j] = self.er[m]
+                E[(p + m) * L + j] = self.ei[m]
+        for l in range(r2):                     # xi's modal part: Re(U e^{nu tau}), each sum over the terms
+            for m in range(p):
+                lanes_add(&X[l * L], &E[m * L], &E[(p + m) * L], self.state.C[2 * (l * p + m)],
+                          self.state.C[2 * (l * p + m) + 1], L)
+        for j in range(n):
+            X[r2 * L + j] = 1.0
+            if self.nh == 3:
+                sincos(self.w * (self.t_start + dtau * <double>j), &sn, &c)
+                X[(r2 + 1) * L + j], X[(r2 + 2) * L + j] = c, sn
+        for l in range(dim):
+            for j in range(n):
+                X[l * L + j] = fabs(X[l * L + j])
+                finite = finite and isfinite(X[l * L + j])
+        for l in range(r2):                     # (NumPy's max: a nan anywhere is the answer)
+            for j in range(n):
+                if X[l * L + j] > big or X[l * L + j] != X[l * L + j]:
+                    big = X[l * L + j]
+            if big != big:
+                break
+        for i in range(k):                      # |H| |xi|: each sum over the components in order
+            for j in range(L):
+                S[j] = 0.0
+            for l in range(dim):
+                h = fabs(self.H[i, l])
+                if h == 0.0 and finite:         # (adds exactly nothing: 0 |xi| = 0)
+                    continue
+                lanes_axpy(S, &X[l * L], h, L)
+            a = S[0]
+            for j in range(1, n):
+                if S[j] > a or S[j] != S[j]:
+                    a = S[j]
+                    if a != a:
+                        break
+            a = ZERO * (a + 1e-300)
+            b = 16.0 * DBL_EPSILON * self.weights[i] * big if r2 else 0.0
+            self.tol[i] = a if (a >= b or a != a) else b
+        free(X)
+
+    cdef void _sizes(self) noexcept:
+        """|H U| of the H rows (np.abs: hypot), formed once; of the Hd rows, whose budget is unbounded, only
+        where their size is nan (a cumulative sum that fits no budget), by mode in the term order."""
+        cdef int k = self.k, pe = self.pe, P = self.pe + self.K, i, j, q
+        cdef double re, im
+        cdef bint nan
+        for i in range(k):
+            for j in range(P):
+                self.absHU[i * P + j] = hypot(self.hu[2 * (i * P + j)], self.hu[2 * (i * P + j) + 1])
+        nan = False
+        for q in range(self.m):
+            j = self.order[q]
+            for i in range(k, 2 * k):
+                re, im = self.hu[2 * (i * P + j)], self.hu[2 * (i * P + j) + 1]
+                if (re != re or im != im) and not (isinf(re) or isinf(im)):
+                    nan = True
+            self.nan_from[q] = nan
+
+    cdef int _leave_out(self, double since, const double* budget, char* keep, double* rate) noexcept:
+        """Phase.search_plan's choice from tau = since on: the fastest modes whose sizes (|H U| of the H rows,
+        a decaying term at its size at since, a growing one at the horizon: decay_factors) sum, in the term
+        order, to at most each row's budget are left out (keep False), a conjugate pair together; the
+        fastest rate kept. Returns how many modes are left out; their sums per row stay in ``cum``, the
+        sizes in ``size``, the decay factors in er. (The Hd rows' budget is unbounded: they leave out any
+        term; their sizes only where nan.)"""
+        cdef int k = self.k, pe = self.pe, P = self.pe + self.K, m = self.m, i, j, q, n_drop
+        cdef double horizon = self.t_stop - self.t0, re, x, fac, s
+        cdef double* size = self.size
+        cdef double* cum = self.cum
+        cdef bint fits, scaled = since != 0.0 or not self.steady
+        for j in range(pe):
+            re = self.nu[j].real
+            fac = exp(re * horizon if re > 0.0 else re * since)
+            self.er[j] = fac
+            for i in range(k):
+                x = self.absHU[i * P + j]
+                size[i * pe + j] = x * fac if scaled else x
+        for i in range(k):                          # cumsum in the term order
+            s = 0.0
+            for q in range(m):
+                s = s + size[i * pe + self.order[q]]
+                cum[i * m + q] = s
+        n_drop = m
+        for q in range(m):
+            fits = not self.nan_from[q]
+            for i in range(k):
+                if not cum[i * m + q] <= budget[i]:
+                    fits = False
+                    break
+            if not fits:
+                n_drop = q
+                break
+        # terms of one speed (a conjugate pair) are left out together or not at all
+        while 0 < n_drop < m and self.speed[self.order[n_drop]] == self.speed[self.order[n_drop - 1]]:
+            n_drop -= 1
+        for j in range(pe):
+            keep[j] = True
+        for q in range(n_drop):
+            keep[self.order[q]] = False
+        if n_drop == 0:
+            rate[0] = self.fastest
+        else:
+            rate[0] = 0.0
+            for j in range(pe):
+                if keep[j] and self.speed[j] > rate[0]:
+                    rate[0] = self.speed[j]
+            if self.K and self.node_rate > rate[0]:
+                rate[0] = self.node_rate
+        return n_drop
+
+    cdef double _renewal(self, int n_drop, double since, const double* budget) noexcept:
+        """configuration._renewal: the tau (>= since) from which the fastest kept modes, if they decay, fit
+        the budget next to those left out (inf if never)."""
+        cdef int k = self.k, pe = self.pe, m = self.m, i, q, ng
+        cdef double rate_r = -INFINITY, best = 0.0, s, room, ratio, a
+        cdef bint need_any = False, bad = False
+        if not (n_drop < m and self.nu[self.order[n_drop]].real < 0.0):
+            return INFINITY
+        ng = n_drop
+        while ng < m and self.speed[self.order[ng]] == self.speed[self.order[n_drop]]:
+            if self.nu[self.order[ng]].real > rate_r:
+                rate_r = self.nu[self.order[ng]].real
+            ng += 1
+        if not rate_r < 0.0:
+            return INFINITY
+        for i in range(k):
+            s = 0.0
+            for q in range(n_drop, ng):
+                s = s + self.size[i * pe + self.order[q]]
+            room = budget[i] - (self.cum[i * m + n_drop - 1] if n_drop else 0.0)
+            if s > 0.0:
+                need_any = True
+                if room <= 0.0:
+                    bad = True
+                ratio = s / room
+                if ratio > best or ratio != ratio:
+                    best = ratio
+        if not need_any or bad:
+            return INFINITY
+        a = log(best) / -rate_r
+        return since + a if a > 0.0 else INFINITY
+
+    cdef double _bound(self, int i, const char* keep, int order) noexcept:
+        """Motion.bound's order-th derivative bound (order 0 or 4) of the kept part of H row i over the
+        horizon, |H U| (|nu|^order decay factors, er), the divided differences' bounds (gb), the harmonic
+        part's w^order (closed_form.power: explicit products)."""
+        cdef int pe = self.pe, P = self.pe + self.K, j
+        cdef double b = 0.0, bg, a, p
+        for j in range(pe):
+            if keep[j]:
+                a = self.speed[j]
+                p = a * a * a * a if order == 4 else 1.0
+                b = b + self.absHU[i * P + j] * (p * self.er[j])
+        if self.K:
+            bg = 0.0
+            for j in range(self.K):
+                bg = bg + self.absHU[i * P + pe + j] * self.gb[0 if order == 4 else 1, j]
+            b = b + bg
+        if self.nh == 3 and self.w != 0.0:
+            p = self.w * self.w * self.w * self.w if order == 4 else 1.0
+            b = b + (fabs(self.H[i, self.r2 + 1]) + fabs(self.H[i, self.r2 + 2])) * p
+        return b
+
+    cdef void _plan(self, double t):
+        """events.first_event's plan_from(t): Phase.search_plan with a quarter of each row's tol as its
+        budget, from tau = t - t0 on: the kept rows' terms, the rate they set, the renewal time, band =
+        tol - e (e: the left-out terms' sum), h_step and bound4 (the kept part's 4th-derivative bound
+        times h_step^4 / 384); ``compilable``: every row's bound screens."""
+        cdef int k = self.k, m = self.m, i, n_drop
+        cdef double horizon = self.t_stop - self.t0, since = t - self.t0, step, s4
+        n_drop = self._leave_out(since, self.budget, self.keep, &self.rate)
+        self.renew_at = self.t0 + self._renewal(n_drop, since, self.budget)
+        step = self._max_step(horizon, self.rate)
+        s4 = step * step * step * step       # (closed_form.power: 1 * s * s * s * s)
+        self.compilable = True
+        for i in range(k):
+            self.bound4[i] = self._bound(i, self.keep, 4) * s4 / 384.0
+            self.band[i] = self.tol[i] - (self.cum[i * m + n_drop - 1] if n_drop else 0.0)
+            if not self.bound4[i] <= self.band[i] * 281474976710656.0:    # 16^12: SUBDIVIDE^(4 DEPTH)
+                self.compilable = False
+        self.h_step = step
+        if self.renew_at < t + step:                # (a renewal that rounds to where the plan starts: a step on)
+            self.renew_at = t + step
+        self.kept = _Terms.__new__(_Terms)
+        self.kept._set(self.nu, self.gnodes, self.gm, self.hu, True, 2 * k, self.state, self.keep)
+
+    cdef void _coarse_plan(self, double t):
+        """events._Coarse.of from t: the rows without the fastest terms up to COARSE of each row's size (its
+        terms' amplitudes over the horizon and its constant), sampled at the step of the rate left, the
+        margin band + e and that step's bound4 (self.coarse None when it would not sample COARSE_GAIN
+        times slower than the fine search, or the stretch to t_stop is under 4 of its steps)."""
+        cdef int k = self.k, m = self.m, pe = self.pe, i, j, n_drop
+        cdef double horizon = self.t_stop - self.t0, re, rate, step, s4
+        self.coarse = None
+        for j in range(pe):                         # the sizes over the whole horizon (since 0)
+            re = self.nu[j].real
+            self.er[j] = exp(re * horizon if re > 0.0 else re * 0.0)
+        for i in range(k):
+            self.cbud[i] = COARSE * (self._bound(i, self.all, 0) + fabs(self.H[i, self.r2]))
+        n_drop = self._leave_out(t - self.t0, self.cbud, self.ckeep, &rate)
+        step = self._max_step(horizon, rate)
+        if step < COARSE_GAIN * self._max_step(horizon, self.rate) or step * 4.0 > self.t_stop - t:
+            return
+        s4 = step * step * step * step
+        for i in range(k):
+            self.b4c[i] = self._bound(i, self.ckeep, 4) * s4 / 384.0
+            self.margin[i] = self.band[i] + (self.cum[i * m + n_drop - 1] if n_drop else 0.0)
+        self.step_c, self.start_c, self.cn = step, t, 0
+        self.coarse = _Terms.__new__(_Terms)
+        self.coarse._set(self.nu, self.gnodes, self.gm, self.hu, True, 2 * k, self.state, self.ckeep)
+
+    def setup(self):
+        """The set-up's results, for tests against the reference (events.band_tolerance, plan_from):
+        (tol, band, bound4, h_step, rate, renew_at, kept flags per exponent)."""
+        return (np.asarray(self.tol).copy(), np.asarray(self.band).copy(),
+                np.array([self.bound4[i] for i in range(self.k)]), self.h_step, self.rate, self.renew_at,
+                np.array([bool(self.keep[j]) for j in range(self.pe)], dtype=bool))
+
+    def images(self):
+        """The rows' images of the terms the search uses (2k x (pe + K) complex; tests)."""
+        cdef int P = self.pe + self.K
+        return np.array([[complex(self.hu[2 * (i * P + j)], self.hu[2 * (i * P + j) + 1]) for j in range(P)]
+                         for i in range(2 * self.k)], dtype=complex).reshape(2 * self.k, P)
+
+    cdef void _images(self, const double complex[:, ::1] HV, const double complex[::1] c,
+                      const double complex[:, ::1] g) noexcept:
+        """events.modal_images from the rows' images of the modes HV and the amplitudes: HV diag(c), then per
+        forcing term HV g_i (each entry one sum over the modes in order)."""
+        cdef int R = 2 * self.k, m = self.m, P = self.pe, i, j, l
+        cdef double sr, si, hr, hi, gr, gi
+        cdef double* out
+        for i in range(R):
+            out = &self.hu[2 * i * P]
+            for j in range(m):
+                hr, hi = HV[i, j].real, HV[i, j].imag
+                out[2 * j] = hr * c[j].real - hi * c[j].imag
+                out[2 * j + 1] = hr * c[j].imag + hi * c[j].real
+            for l in range(P - m):
+                sr = si = 0.0
+                for j in range(m):
+                    hr, hi = HV[i, j].real, HV[i, j].imag
+                    gr, gi = g[l, j].real, g[l, j].imag
+                    sr = sr + (hr * gr - hi * gi)
+                    si = si + (hr * gi + hi * gr)
+                out[2 * (m + l)], out[2 * (m + l) + 1] = sr, si
 
     def terms(self):
         """(terms, terms summed) of the state's closed form and of the kept rows (a conjugate pair summed
@@ -240,73 +692,64 @@ cdef class Search:
         return (self.state.p, self.state.nact), (self.kept.p, self.kept.nact)
 
     # -- the rows ---------------------------------------------------------------------------
+    cdef bint _grid(self, _Terms T, const double* ts, int n) noexcept:
+        """Whether the times ts are a uniform grid of more than 8 (closed_form.exponentials: then e^{nu tau}
+        by repeated products); if so, the exponents' steps into sr, si (:meth:`_steps`)."""
+        cdef int j
+        cdef double d0
+        if n <= 8:
+            return False
+        d0 = (ts[1] - self.t0) - (ts[0] - self.t0)
+        for j in range(1, n):
+            if not fabs(((ts[j] - self.t0) - (ts[j - 1] - self.t0)) - d0) <= 1e-12 * fabs(d0):
+                return False
+        self._steps(T, d0)
+        return True
+
+    cdef void _steps(self, _Terms T, double d0) noexcept:
+        """The exponents' steps e^{nu d0} into sr, si (a divided difference's unused)."""
+        cdef int idx, m
+        cdef double e, a, b
+        for idx in range(T.nact):
+            m = T.act[idx]
+            if m < T.pe:
+                e = exp(T.nu[m].real * d0)
+                sincos(T.nu[m].imag * d0, &b, &a)
+                self.sr[idx], self.si[idx] = e * a, e * b
+
+    cdef void _terms_on(self, _Terms T, double tau0, double dtau, int j, bint uniform) noexcept:
+        """The terms' values at tau0 + j dtau into er, ei: on a uniform grid (steps in sr, si) the
+        exponentials as the product of those at j - 1 with their step, else (and at j = 0) afresh
+        (terms_at); ``dtau`` 0 for the times of an explicit grid: tau0 is then the time's own."""
+        cdef int idx, m
+        cdef double x, y, tau = tau0 + dtau * <double>j
+        cdef double* er = self.er
+        cdef double* ei = self.ei
+        if uniform and j > 0:
+            for idx in range(T.nact):
+                m = T.act[idx]
+                if m < T.pe:
+                    x = er[idx] * self.sr[idx] - ei[idx] * self.si[idx]
+                    y = er[idx] * self.si[idx] + ei[idx] * self.sr[idx]
+                    er[idx], ei[idx] = x, y
+                else:
+                    dexp(&T.gnodes[m - T.pe, 0], T.gm[m - T.pe], tau, &er[idx], &ei[idx])
+        else:
+            terms_at(T, tau, er, ei)
+
     cdef void _sample(self, _Terms T, int j0, int nj, int jstep, const double* ts, int n, double* out):
         """Rows j0, j0 + jstep, ... (nj of them) of T at the times ts (n), into out (nj x n):
         Motion.evaluate (e^{nu tau} by repeated products on a uniform grid of more than 8 times, as
         closed_form.exponentials) plus the rows' harmonic part (Phase._harmonics)."""
-        cdef int p = T.nact, R = T.R, j, m, q, row, idx
-        cdef double tau, d0, e, x, y, a, b, c = 0.0, sn = 0.0, s0, s1, s2, s3
-        cdef const double* c0
-        cdef const double* c1
-        cdef const double* c2
-        cdef const double* c3
-        cdef bint uniform = False
-        cdef double* er = self.er
-        cdef double* ei = self.ei
-        cdef double* sr = self.sr
-        cdef double* si = self.si
+        cdef int p = T.nact, j, q, row
+        cdef double c = 0.0, sn = 0.0
         cdef double* acc = self.acc
         cdef const double* hrow
-        if n > 8:
-            d0 = (ts[1] - self.t0) - (ts[0] - self.t0)
-            uniform = True
-            for j in range(1, n):
-                if not fabs(((ts[j] - self.t0) - (ts[j - 1] - self.t0)) - d0) <= 1e-12 * fabs(d0):
-                    uniform = False
-                    break
-            if uniform:   # (the steps of the exponents; sr, si of a divided difference unused)
-                for idx in range(p):
-                    m = T.act[idx]
-                    if m < T.pe:
-                        e = exp(T.nu[m].real * d0)
-                        sincos(T.nu[m].imag * d0, &b, &a)
-                        sr[idx], si[idx] = e * a, e * b
+        cdef bint uniform = self._grid(T, ts, n)
         for j in range(n):
-            tau = ts[j] - self.t0
-            if uniform and j > 0:
-                for idx in range(p):
-                    m = T.act[idx]
-                    if m < T.pe:
-                        x = er[idx] * sr[idx] - ei[idx] * si[idx]
-                        y = er[idx] * si[idx] + ei[idx] * sr[idx]
-                        er[idx], ei[idx] = x, y
-                    else:
-                        dexp(&T.gnodes[m - T.pe, 0], T.gm[m - T.pe], tau, &er[idx], &ei[idx])
-            else:
-                terms_at(T, tau, er, ei)
+            self._terms_on(T, ts[j] - self.t0, 0.0, j, uniform)
             # the rows' sums over the terms, each in order, four rows at a time (independent sums)
-            q = 0
-            while q + 4 <= nj:
-                c0 = &T.C[2 * p * (j0 + q * jstep)]
-                c1 = &T.C[2 * p * (j0 + (q + 1) * jstep)]
-                c2 = &T.C[2 * p * (j0 + (q + 2) * jstep)]
-                c3 = &T.C[2 * p * (j0 + (q + 3) * jstep)]
-                s0 = s1 = s2 = s3 = 0.0
-                for m in range(p):
-                    a, b = er[m], ei[m]
-                    s0 += c0[2 * m] * a - c0[2 * m + 1] * b
-                    s1 += c1[2 * m] * a - c1[2 * m + 1] * b
-                    s2 += c2[2 * m] * a - c2[2 * m + 1] * b
-                    s3 += c3[2 * m] * a - c3[2 * m + 1] * b
-                acc[q], acc[q + 1], acc[q + 2], acc[q + 3] = s0, s1, s2, s3
-                q += 4
-            while q < nj:
-                c0 = &T.C[2 * p * (j0 + q * jstep)]
-                s0 = 0.0
-                for m in range(p):
-                    s0 += c0[2 * m] * er[m] - c0[2 * m + 1] * ei[m]
-                acc[q] = s0
-                q += 1
+            modal_rows(T.C, 2 * p, j0, nj, jstep, self.er, self.ei, 1, p, acc)
             if self.nh == 3:
                 sincos(self.w * ts[j], &sn, &c)
             for q in range(nj):
@@ -318,22 +761,8 @@ cdef class Search:
                     out[q * n + j] = acc[q] + hrow[0]
 
     cdef void samples(self, int i, const double* ts, int n, double* out):
-        """events._Row.samples: (h, h') of row i at the times ts (2 x n), from all its terms."""
-        cdef int m, l
-        cdef double sr, si, tr, ti
-        cdef int R = 2 * self.k
-        cdef const double* U = self.state.C
-        if not self.full_ok[i]:   # H_i U and Hd_i U (the columns summed)
-            for m in range(self.p):
-                sr = si = tr = ti = 0.0
-                for l in range(self.r2):
-                    sr += self.H[i, l] * U[2 * (l * self.p + m)]
-                    si += self.H[i, l] * U[2 * (l * self.p + m) + 1]
-                    tr += self.Hd[i, l] * U[2 * (l * self.p + m)]
-                    ti += self.Hd[i, l] * U[2 * (l * self.p + m) + 1]
-                self.full.C[2 * (i * self.p + m)], self.full.C[2 * (i * self.p + m) + 1] = sr, si
-                self.full.C[2 * ((self.k + i) * self.p + m)], self.full.C[2 * ((self.k + i) * self.p + m) + 1] = tr, ti
-            self.full_ok[i] = True
+        """events._Row.samples: (h, h') of row i at the times ts (2 x n), from all its terms (the rows'
+        images H_i U, Hd_i U given)."""
         self._sample(self.full, i, 2, self.k, ts, n, out)
 
     cdef const double* at(self, int i, double t):
@@ -363,26 +792,7 @@ cdef class Search:
         terms_at(self.state, tau, self.er, self.ei)
         # xi's modal part, Re(U e^{nu tau}): each component summed over the terms in order, four
         # components at a time (independent sums: they overlap)
-        l = 0
-        while l + 4 <= self.r2:
-            u0, u1 = &U[2 * self.p * l], &U[2 * self.p * (l + 1)]
-            u2, u3 = &U[2 * self.p * (l + 2)], &U[2 * self.p * (l + 3)]
-            s0 = s1 = s2 = s3 = 0.0
-            for m in range(self.p):
-                e, s = self.er[m], self.ei[m]
-                s0 += u0[2 * m] * e - u0[2 * m + 1] * s
-                s1 += u1[2 * m] * e - u1[2 * m + 1] * s
-                s2 += u2[2 * m] * e - u2[2 * m + 1] * s
-                s3 += u3[2 * m] * e - u3[2 * m + 1] * s
-            xi[l], xi[l + 1], xi[l + 2], xi[l + 3] = s0, s1, s2, s3
-            l += 4
-        while l < self.r2:
-            u0 = &U[2 * self.p * l]
-            s0 = 0.0
-            for m in range(self.p):
-                s0 += u0[2 * m] * self.er[m] - u0[2 * m + 1] * self.ei[m]
-            xi[l] = s0
-            l += 1
+        modal_rows(U, 2 * self.p, 0, self.r2, 1, self.er, self.ei, 1, self.p, xi)
         xi[self.r2] = 1.0
         if self.nh == 3:
             sincos(self.w * t, &xi[self.r2 + 2], &xi[self.r2 + 1])
@@ -700,13 +1110,15 @@ cdef class Search:
 
     # -- the loop ---------------------------------------------------------------------------
     def run(self, progress, carry=None):
-        """events.first_event's loop: (t, rows, graze, in_band) of the earliest event, or None.
-        ``progress(t)`` is called after each chunk and each coarse skip (no event before t). ``carry``: None,
-        or a list [armed, thr] continuing a search of the same phase from an earlier window (None, None:
-        this is its first window); on return it holds the rows' arming and thresholds for the next one."""
+        """events.first_event's loop: (t, rows, graze, in_band) of the earliest event, or None; a float t
+        where a plan's bound does not screen every row (events._compilable): the search goes on from t in
+        Python. ``progress(t)`` is called after each chunk and each coarse skip (no event before t).
+        ``carry``: None, or a list [armed, thr] continuing a search of the same phase (None, None: from its
+        start); on return it holds the rows' arming and thresholds (for the Python loop after a float)."""
         cdef int k = self.k, n, ns, i, j, q, ka, cnt, nfound = 0
         cdef int cap = CHUNK + 2
-        cdef double t_a = self.t_start, t_b, t_skip, nd, limit, t_arm, t_e, rt, step
+        cdef double t_a = self.t_start, t_b, t_c, t_skip, nd, limit, t_arm, t_e, rt, step
+        cdef bint handover = False
         cdef int chunk = FIRST_CHUNK
         cdef bint tried = False, started = False, all_armed, ok, g, in_band
         # work space in three blocks: doubles, flags, indices
@@ -756,9 +1168,22 @@ cdef class Search:
             for i in range(k):
                 armed[i] = bool(carry[0][i])
                 thr[i] = float(carry[1][i])
+        if not self.compilable:   # the first plan's bound does not screen: the Python loop from the start
+            free(dwork)
+            free(cwork)
+            free(iwork)
+            return float(t_a)
         try:
             while t_a < self.t_stop:
-                t_b = self.t_stop
+                if t_a >= self.renew_at:
+                    # the fastest term kept has decayed into its budget: it no longer sets the step (an
+                    # overdamped stiff mode after an impact), nor the coarse pass's
+                    self._plan(t_a)
+                    if not self.compilable:   # the Python loop from here on, the rows' arming carried
+                        handover = True
+                        break
+                    self.coarse, tried = None, False
+                t_b = self.t_stop if self.t_stop <= self.renew_at else self.renew_at
                 if not tried and started:
                     all_armed = True
                     for i in range(k):
@@ -768,24 +1193,20 @@ cdef class Search:
                     if all_armed:
                         # formed once a first chunk has found nothing
                         tried = True
-                        c = self.coarse_of(t_a)
-                        if c is not None:
-                            terms, margin, b4c, step_c = c
-                            self.coarse = _Terms(*terms, 2 * k)
-                            if (self.coarse.p > max(self.state.p, self.kept.p) or len(margin) != k
-                                    or len(b4c) != k):
-                                raise ValueError("Search: the coarse pass takes a subset of the phase's terms "
-                                                 "and a margin and bound per row")
-                            self.margin, self.b4c, self.step_c, self.start_c = margin, b4c, step_c, t_a
+                        self._coarse_plan(t_a)
                 if self.coarse is not None:
                     # every row armed at 0: skip what the coarse pass certifies, search the rest finely
-                    t_skip = self.unclear(t_a, &t_b)
+                    t_skip = self.unclear(t_a, &t_c)
+                    if t_c < t_b:
+                        t_b = t_c
                     if t_skip > t_a:
                         t_a = t_skip
                         chunk = FIRST_CHUNK
                         progress(t_a)
                         if t_a >= self.t_stop:
                             break
+                        if t_a >= t_b:
+                            continue
                 nd = ceil((t_b - t_a) / self.h_step)
                 n = chunk if nd > chunk else <int>nd
                 if n < 1:
@@ -912,4 +1333,24 @@ cdef class Search:
             free(dwork)
             free(cwork)
             free(iwork)
-        return result
+        return float(t_a) if handover else result
+
+
+def lanes(x, u, v, double a, double b):
+    """For tests: (x + (a u - b v), x + a u) by the four-lane kernels the band's sums use (the clone this CPU
+    runs) and by plain scalar loops, as four lists; each lane must round as the scalar code."""
+    cdef int n = len(x), j
+    cdef int L = (n + 3) // 4 * 4
+    cdef double[::1] X = np.zeros(L + 1), Y = np.zeros(L + 1), U = np.zeros(L + 1), V = np.zeros(L + 1)
+    cdef double xj, uj, vj
+    for j in range(n):
+        X[j], Y[j], U[j], V[j] = x[j], x[j], u[j], v[j]
+    lanes_add(&X[0], &U[0], &V[0], a, b, L)
+    lanes_axpy(&Y[0], &U[0], a, L)
+    add, axpy = [], []
+    for j in range(n):
+        xj, uj, vj = x[j], u[j], v[j]
+        add.append(xj + (a * uj - b * vj))
+        axpy.append(xj + a * uj)
+    return [X[j] for j in range(n)], add, [Y[j] for j in range(n)], axpy
+
