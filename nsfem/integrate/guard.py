@@ -65,14 +65,15 @@ def check_phase(phase, t: float, t_end: float, mode) -> None:
     """Raise when the phase's event search cannot advance (non-finite rate or step below 16 ulp(t_end))."""
     cfg = phase.config
     rate = cfg.fastest_rate()
-    step = phase.max_step(math.inf)
+    step = phase.max_step(math.inf, rate)   # (the configuration's rate: as max_step finds it, once)
     resolution = 16.0 * math.ulp(max(abs(t_end), abs(t)))
-    if math.isfinite(rate) and np.all(np.isfinite(phase.A_aug)) and (not math.isfinite(step) or step > resolution):
+    finite = math.isfinite(rate) and bool(np.isfinite(phase.A_aug).all())
+    if finite and (not math.isfinite(step) or step > resolution):
         return
     where = describe_mode(cfg.system.contacts, mode)
     sysm = cfg.system
     cause = likely_cause(sysm)
-    if not (math.isfinite(rate) and np.all(np.isfinite(phase.A_aug))):
+    if not finite:
         raise NsfemError(f"no progress at t = {t:.6g} s: the equations of motion of configuration {where} "
                          f"overflow the floating-point range (fastest rate {rate:.3g} 1/s){cause}; "
                          "try method moreau (implicit time stepping needs no event search on these time scales)")
@@ -84,7 +85,7 @@ def check_phase(phase, t: float, t_end: float, mode) -> None:
 
 def check_state(t: float, q: np.ndarray, v: np.ndarray, mode, system) -> None:
     """Raise when the state has left the floating-point range (an unstable structure's overflow)."""
-    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+    if not (np.isfinite(q).all() and np.isfinite(v).all()):   # (the methods: once per event, no dispatch)
         raise overflow(t, mode, system)
 
 
