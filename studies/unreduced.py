@@ -54,7 +54,7 @@ def _work(method: str, options: dict, t_end: float, channel) -> None:
     try:
         from nsfem import load_scene
         from nsfem.fem.assemble import build_model
-        from nsfem.integrate import ContactSystem, integrate
+        from nsfem.integrate import ContactSystem, core, integrate
         from nsfem.reduce import scene_reduction
         from nsfem.simulate import initial_state
 
@@ -74,7 +74,7 @@ def _work(method: str, options: dict, t_end: float, channel) -> None:
         wall = time.perf_counter() - t1
         channel.put({"status": "ok", "wall_s": wall, "events": len(res.events), "impacts": len(res.impacts),
                      "completed": bool(res.completed), "gap": res.gap.tolist(),
-                     "max_penetration_m": float(max(-res.gap.min(), 0.0)), "core": res.info.get("core")})
+                     "max_penetration_m": float(max(-res.gap.min(), 0.0)), "core": core.name()})
     except BaseException as exc:  # noqa: BLE001 - a failing run is a data point
         channel.put({"status": "error", "error": f"{type(exc).__name__}: {exc}"[:300]})
 
