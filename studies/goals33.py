@@ -1,7 +1,8 @@
 """Issue 33's goals, one table: collected from the JSON the goal studies wrote (no run of its own).
 
 Reads, from ``--out`` (default studies/out): work_precision/work_precision.json, paper_figure3/paper_figure3.json,
-scaling/scaling.json, rub/rub.json, unreduced/unreduced.json and profile_exact/profile_exact.json (each
+scaling/scaling.json, rub/rub.json, unreduced/unreduced.json, cli_time/cli_time.json and
+profile_exact/profile_exact.json (each
 written by its study, e.g. ``python studies/work_precision.py --quick --json``), and writes goals33.md there:
 per goal the case, what was measured side by side in one run, the ratio, met or not, and where exact's
 time goes (studies/profile_exact.py's split, ms per event). A study not run is reported as missing.
@@ -120,6 +121,12 @@ def rows(out: Path) -> list[tuple]:
             table.append(("scaling: unreduced search cost per row-term-sample within 2x of Craig-Bampton 16's",
                           f"CB 16 {g['reference']['search_ns_per_sample_term']:.3g} ns; {per}",
                           "-" if worst is None else f"up to {worst:.3g}x", yes(g["met"]), ""))
+    ct = load(out, "cli_time")
+    if ct and ct.get("base_over_this") is not None:
+        table.append((f"nsfem run, shipped scene, whole command: not slower than {ct['base']}",
+                      f"{ct['base']['command_s']:.3g} s -> {ct['this']['command_s']:.3g} s (integration "
+                      f"{ct['base']['integration_s']:.3g} -> {ct['this']['integration_s']:.3g} s), best of {ct['repeat']}",
+                      f"{ct['base_over_this']:.3g}x", yes(ct["not_slower"]), ""))
     return table
 
 
@@ -134,7 +141,7 @@ def main(argv=None) -> str:
     ap.add_argument("--out", type=Path, default=Path(__file__).parent / "out")
     args = ap.parse_args(argv)
     text = "# Issue 33's goals, measured\n\n" + markdown(rows(args.out))
-    missing = [n for n in ("work_precision", "paper_figure3", "scaling", "rub", "unreduced", "profile_exact")
+    missing = [n for n in ("work_precision", "paper_figure3", "scaling", "rub", "unreduced", "profile_exact", "cli_time")
                if load(args.out, n) is None]
     if missing:
         text += "\nNot run: " + ", ".join(missing) + "\n"
