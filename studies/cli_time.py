@@ -70,7 +70,7 @@ def main(argv=None) -> dict:
                 if "error" not in r and r["command_s"] < best.get(label, {}).get("command_s", float("inf")):
                     best[label] = r
     ratio = best["base"]["command_s"] / best["this"]["command_s"] if {"base", "this"} <= best.keys() else None
-    payload = {"base": args.base, "repeat": repeat, **best, "base_over_this": ratio,
+    payload = {"base_commit": args.base, "repeat": repeat, **best, "base_over_this": ratio,
                "not_slower": ratio is not None and ratio >= 1.0, "machine": machine()}
     write_outputs(Path(args.out), "cli_time", [{"tree": k, **v} for k, v in best.items()], payload)
     if ratio is not None:

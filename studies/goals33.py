@@ -123,7 +123,7 @@ def rows(out: Path) -> list[tuple]:
                           "-" if worst is None else f"up to {worst:.3g}x", yes(g["met"]), ""))
     ct = load(out, "cli_time")
     if ct and ct.get("base_over_this") is not None:
-        table.append((f"nsfem run, shipped scene, whole command: not slower than {ct['base']}",
+        table.append((f"nsfem run, shipped scene, whole command: not slower than {ct['base_commit']}",
                       f"{ct['base']['command_s']:.3g} s -> {ct['this']['command_s']:.3g} s (integration "
                       f"{ct['base']['integration_s']:.3g} -> {ct['this']['integration_s']:.3g} s), best of {ct['repeat']}",
                       f"{ct['base_over_this']:.3g}x", yes(ct["not_slower"]), ""))
