@@ -1,7 +1,7 @@
 """Where the exact method's time goes, per event, on both event cores side by side (issue 33's goals).
 
 Per case, in this one process, the compiled core and the pure-Python reference (``core.reference()``)
-one after the other, best of ``--repeat`` runs each: the integration's wall time, its events, ms per event,
+alternating, best of ``--repeat`` runs each: the integration's wall time, its events, ms per event,
 and the split of the wall time into the parts of the per-event path (each part at its fastest over the
 runs), each timed exclusively (a part's time excludes the parts it calls, e.g. a phase's set-up excludes
 the configuration it builds):
@@ -22,7 +22,9 @@ Cases: ``stop`` (the shipped shaft with a stop 0.2 mm under midspan, restitution
 ``--quick``: 1 s), ``rub`` (the shipped rub, 1 s), ``fig3-modal16`` and ``fig3-cb16`` (figure 3's runs of
 studies/paper_figure3.py at its first gravity resonance from the open orbit, 0.1 s).
 
-    python studies/profile_exact.py [--quick] [--json] [--cases stop,shipped,...] [--repeat 3] [--top 15]
+    python studies/profile_exact.py [--quick] [--json] [--cases stop,shipped,...] [--repeat 3] [--top 15] [--update]
+
+``--update`` keeps the saved JSON's other cases (rerun one case in a quieter moment, say).
 
 Writes profile_exact.json/.csv into studies/out/profile_exact.
 """
@@ -30,6 +32,7 @@ Writes profile_exact.json/.csv into studies/out/profile_exact.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import cProfile
 import functools
 import io
@@ -130,21 +133,26 @@ def runner(case: str, quick: bool):
     return lambda: integrate(system, sim.t_end, "exact", sim.output_dt, q0, v0, **integrator_options(sim, "exact"))
 
 
-def measure(run, repeat: int) -> dict:
-    """Best of ``repeat`` runs: the integration's fastest wall time, and each part at its own fastest over
-    the runs (the machine is shared: a busy spell in one part of the fastest run would show in its split;
-    ``loop`` too: the parts' minima sum to at most the fastest run)."""
-    best, parts = None, None
+def measure(run, repeat: int, labels: tuple[str, ...]) -> dict:
+    """Per core of ``labels`` ("compiled", "python"), the runs alternating between them, ``repeat`` each: the
+    integration's fastest wall time, and each part at its own fastest over the runs (the machine is shared:
+    a busy spell in one part of the fastest run would show in its split; ``loop`` too: the parts' minima
+    sum to at most the fastest run)."""
+    best: dict = {}
+    parts: dict = {}
     for _ in range(repeat):
-        with Split() as sp:
-            res = run()
-        spent = {**sp.spent, "loop": res.wall_s - sum(sp.spent.values())}
-        parts = spent if parts is None else {k: min(v, spent[k]) for k, v in parts.items()}
-        if best is None or res.wall_s < best["wall_s"]:
-            best = {"wall_s": res.wall_s, "events": len(res.events), "configurations": res.info.get("configurations")}
-    n = max(best["events"], 1)
-    best["ms_per_event"] = 1e3 * best["wall_s"] / n
-    best["parts_ms_per_event"] = {k: 1e3 * v / n for k, v in parts.items()}
+        for label in labels:
+            with Split() as sp, (core.reference() if label == "python" else contextlib.nullcontext()):
+                res = run()
+            spent = {**sp.spent, "loop": res.wall_s - sum(sp.spent.values())}
+            parts[label] = spent if label not in parts else {k: min(v, spent[k]) for k, v in parts[label].items()}
+            if label not in best or res.wall_s < best[label]["wall_s"]:
+                best[label] = {"wall_s": res.wall_s, "events": len(res.events),
+                               "configurations": res.info.get("configurations"), "repeat": repeat}
+    for label, b in best.items():
+        n = max(b["events"], 1)
+        b["ms_per_event"] = 1e3 * b["wall_s"] / n
+        b["parts_ms_per_event"] = {k: 1e3 * v / n for k, v in parts[label].items()}
     return best
 
 
@@ -168,25 +176,17 @@ def main(argv=None) -> dict:
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--repeat", type=int, default=None, help="runs per core, the best kept (3; --quick 1)")
     ap.add_argument("--top", type=int, default=15)
+    ap.add_argument("--update", action="store_true", help="keep the other cases of the saved JSON (rerun some)")
     ap.add_argument("--out", default=str(Path(__file__).parent / "out" / "profile_exact"))
     args = ap.parse_args(argv)
     say = functools.partial(print, file=sys.stderr if args.json else sys.stdout, flush=True)
     repeat = args.repeat or (1 if args.quick else 3)
-    found, rows = {"core": core.name(), "repeat": repeat, "machine": machine()}, []
+    saved = Path(args.out) / "profile_exact.json"
+    found = json.loads(saved.read_text()) if args.update and saved.is_file() else {}
+    found.update({"core": core.name(), "machine": machine()})
     for case in args.cases.split(","):
         run = runner(case, args.quick)
-        entry = {}
-        for label in ("compiled", "python"):
-            if label == "compiled" and core.name() != "compiled":
-                continue
-            if label == "python":
-                with core.reference():
-                    entry[label] = measure(run, repeat)
-            else:
-                entry[label] = measure(run, repeat)
-            rows.append({"case": case, "core": label, **{k: v for k, v in entry[label].items()
-                                                          if k != "parts_ms_per_event"},
-                         **{f"{k}_ms_per_event": v for k, v in entry[label]["parts_ms_per_event"].items()}})
+        entry = measure(run, repeat, ("compiled", "python") if core.name() == "compiled" else ("python",))
         if "compiled" in entry:
             entry["python_over_compiled_per_event"] = entry["python"]["ms_per_event"] / entry["compiled"]["ms_per_event"]
             entry["profile_compiled"] = profile(run, args.top)
@@ -201,6 +201,9 @@ def main(argv=None) -> dict:
                                                           entry[k]["parts_ms_per_event"].items()))
         for r in entry.get("profile_compiled", [])[:args.top]:
             say(f"      {r['own_s']:8.3f} s own {r['cumulative_s']:8.3f} s cum {r['calls']:8d} calls  {r['function']}")
+    rows = [{"case": case, "core": label, **{k: v for k, v in e[label].items() if k != "parts_ms_per_event"},
+             **{f"{k}_ms_per_event": v for k, v in e[label]["parts_ms_per_event"].items()}}
+            for case, e in found.items() if case in CASES for label in ("compiled", "python") if label in e]
     write_outputs(Path(args.out), "profile_exact", rows, found)
     if args.json:
         print(json.dumps(found))
