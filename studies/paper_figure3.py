@@ -21,7 +21,11 @@ Outputs (into studies/out/paper_figure3, figures also to docs/figures):
 - ``figure3``: (a) phase portraits of the first three modal coordinates in the steady window,
   modal and Craig-Bampton; (b) the gap at the middle of the delamination, exact and penalty;
   (c) the PSD of W in the undamaged region, with the rotation harmonics; (d) run time against
-  dof for exact, rk and penalty, with each method's error against exact on the same model.
+  dof for exact, rk and penalty (rtol 1e-6) and moreau (its default step), with each method's error
+  against exact on the same model (the methods interleaved over 3 rounds, the fastest run of each
+  kept; a run over a second runs once). Issue 33's goals on (d):
+  rk at least 10x exact's time for modal 16 and Craig-Bampton 16, and no answer faster than exact's
+  (``goals`` in the JSON, printed at the end).
 - ``paper_figure3.json/.csv``: every number the findings quote.
 
     python studies/paper_figure3.py [--quick] [--json] [--zeta 1e-3]
@@ -189,6 +193,27 @@ def run(S, T, method, q0, v0, dt, **opt):
     return r, time.perf_counter() - t0
 
 
+#: rounds of (d)'s runs (each method once per round; the fastest run of each kept)
+REPEAT = 3
+
+
+def goals(cost: list[dict]) -> dict:
+    """Issue 33's goals on (d): rk at rtol 1e-6 at least 10x exact's wall time for modal 16 and
+    Craig-Bampton 16, and no method's answer (any error) faster than exact's."""
+    out = {}
+    for c in cost:
+        if c["ndof"] != 16:
+            continue
+        others = {m: c[m] for m in ("rk", "penalty", "moreau") if c[m].get("error") is not None}
+        first = min(others, key=lambda m: others[m]["wall_s"]) if others else None
+        rk = c["rk"].get("ratio_to_exact")
+        out[f"{c['reduction']} 16"] = {
+            "rk_over_exact": rk, "rk_goal_met": rk is not None and rk >= 10.0,
+            "fastest_other": first, "fastest_other_over_exact": others[first]["ratio_to_exact"] if first else None,
+            "exact_is_fastest": first is None or others[first]["ratio_to_exact"] >= 1.0}
+    return out
+
+
 # --------------------------------------------------------------------------- study
 REDUCTIONS = {"modal": ['reduction.method="modal"', "reduction.modes=16"],
               "craig-bampton": ['reduction.method="craig-bampton"', "reduction.modes=7"]}
@@ -308,27 +333,46 @@ def main(argv=None) -> dict:
         for k in counts:
             mk = Model([f'reduction.method="{red}"', f"reduction.modes={k}"])
             Sk, qk, vk, _ = start_on_orbit(None, mk, speed, ce)
-            ref, w_ex = run(Sk, Td, "exact", qk, vk, dt)
+            # each method in turn, REPEAT rounds, the fastest run of each kept (the machine is shared: the
+            # rounds interleave the methods so that a busy spell slows all of them); a method whose run
+            # takes over a second or fails runs once
+            opts = {"exact": {}, "rk": {"rtol": 1e-6, "atol": 1e-10}, "penalty": {"rtol": 1e-6, "atol": 1e-10},
+                    "moreau": {}}
+            best: dict = {}
+            for _ in range(REPEAT):
+                for meth, opt in opts.items():
+                    if meth in best and (best[meth][1] is None or best[meth][1] > 1.0):
+                        continue
+                    try:
+                        rr, ww = run(Sk, Td, meth, qk, vk, dt, **opt)
+                    except IntegrationError as exc:  # a finding, not the end of the study (exact's is)
+                        if meth == "exact":
+                            raise
+                        best[meth] = (exc, None)
+                        continue
+                    if meth not in best or ww < best[meth][1]:
+                        best[meth] = (rr, ww)
+            ref, w_ex = best["exact"]
             entry = {"reduction": red, "ndof": Sk.n, "exact": {"wall_s": w_ex, "events": len(ref.events)}}
-            for meth, opt in (("rk", {"rtol": 1e-6, "atol": 1e-10}),
-                              ("penalty", {"rtol": 1e-6, "atol": 1e-10})):
-                try:
-                    rr, ww = run(Sk, Td, meth, qk, vk, dt, **opt)
+            for meth in ("rk", "penalty", "moreau"):
+                rr, ww = best[meth]
+                if ww is None:
+                    entry[meth] = {"wall_s": rr.result.wall_s, "error": None, "failed": str(rr),
+                                   "t_reached": rr.result.t_end}
+                else:
                     entry[meth] = {"wall_s": ww, "error": gap_error(rr, ref), "ratio_to_exact": ww / w_ex}
-                except IntegrationError as exc:  # a finding, not the end of the study
-                    entry[meth] = {"wall_s": exc.result.wall_s, "error": None, "failed": str(exc),
-                                   "t_reached": exc.result.t_end}
             cost.append(entry)
             rows.append({"part": "cost", "reduction": red, "ndof": Sk.n,
-                         **{f"{mm}_{kk}": entry[mm][kk] for mm in ("exact", "rk", "penalty")
+                         **{f"{mm}_{kk}": entry[mm][kk] for mm in ("exact", "rk", "penalty", "moreau")
                             for kk in ("wall_s", "error", "failed") if kk in entry[mm]}})
             def said(mm):
                 e = entry[mm]
                 return f"{mm} {e['wall_s']:.2f} s (" + (f"err {e['error']:.1e})" if e["error"] is not None
                                                         else f"FAILED at t = {e['t_reached']:g} s)")
-            print(f"  cost {red} {Sk.n} dofs: exact {w_ex:.2f} s, {said('rk')}, {said('penalty')}",
+            print(f"  cost {red} {Sk.n} dofs: exact {w_ex:.3f} s, {said('rk')}, {said('penalty')}, {said('moreau')}",
                   file=sys.stderr, flush=True)
-    found["cost"] = {"t_end": Td, "runs": cost}
+    found["cost"] = {"t_end": Td, "runs": cost, "repeat": REPEAT}
+    found["goals"] = goals(cost)
     found["wall_s"] = time.perf_counter() - t_wall
 
     out = Path(args.out)
@@ -458,7 +502,7 @@ def plot_figure3(path, runs, rp, psd, speed, t0, cost, zeta, pt) -> Path:
     ax = fig.add_subplot(gs[2, :])
     for red, mark in (("modal", "o"), ("craig-bampton", "s")):
         sub = [c for c in cost if c["reduction"] == red]
-        for meth, color in (("exact", "k"), ("rk", "tab:blue"), ("penalty", "tab:red")):
+        for meth, color in (("exact", "k"), ("rk", "tab:blue"), ("penalty", "tab:red"), ("moreau", "tab:green")):
             ok = [c for c in sub if meth == "exact" or c[meth]["error"] is not None]
             ax.semilogy([c["ndof"] for c in ok], [c[meth]["wall_s"] for c in ok], marker=mark, color=color,
                         ls="-" if red == "modal" else "--", label=f"{meth}, {red}")
@@ -499,6 +543,13 @@ def report(f: dict) -> None:
     fr = f["friction"]
     print(f"friction 0.3: closed {fr['closed_fraction_steady']:.3f}, gap difference {fr['gap_difference_rel']:.2e}")
     p = f["psd"]
+    for name, g in f.get("goals", {}).items():
+        rk = "failed" if g["rk_over_exact"] is None else f"{g['rk_over_exact']:.3g}"
+        first = "none" if g["fastest_other"] is None else \
+            f"{g['fastest_other']} at {g['fastest_other_over_exact']:.3g} x exact's time"
+        print(f"goals, {name} ({f['cost']['t_end']:g} s, best of {f['cost']['repeat']}): rk rtol 1e-6 / exact "
+              f"{rk} (goal >= 10: {'met' if g['rk_goal_met'] else 'NOT met'}); fastest other answer {first}"
+              + ("" if g["exact_is_fastest"] else " (FASTER THAN EXACT)"))
     print(f"PSD: harmonics (dB below 1x) {', '.join(f'{k}x {v:.0f}' for k, v in p['harmonics_db'].items())}; "
           f"largest other peak {p['other_peak_hz']:.1f} Hz at {p['other_peak_db']:.0f} dB")
 

@@ -65,7 +65,7 @@ def check_phase(phase, t: float, t_end: float, mode) -> None:
     """Raise when the phase's event search cannot advance (non-finite rate or step below 16 ulp(t_end))."""
     cfg = phase.config
     rate = cfg.fastest_rate()
-    step = phase.max_step(math.inf)
+    step = phase.max_step(math.inf, rate)   # (the configuration's rate: as max_step finds it, once)
     resolution = 16.0 * math.ulp(max(abs(t_end), abs(t)))
     # (a finite sum has no non-finite entry; an overflowing one is judged entry by entry)
     if math.isfinite(rate) and (math.isfinite(phase.A_aug.sum()) or np.all(np.isfinite(phase.A_aug))) \
