@@ -37,7 +37,7 @@ from nsfem.integrate import transitions as tr
 from nsfem.simulate import run_scene
 
 #: the memory's caches of its contact set and system (immutable): shared by the replay's copies
-_CACHES = ("_abs", "_abs_system", "_slip", "_kernel", "lcp_cache")
+_CACHES = ("_abs", "_abs_system", "_slip", "_kernel", "_impact", "lcp_cache")
 
 
 def _copy(memory: tr.Memory) -> tr.Memory:
