@@ -2,7 +2,7 @@
 _resolve.pyx's ``ImpactPath``) against resolve's full path, which is its specification.
 
 The fast path takes an event when it is an impact of frictionless contacts after which every contact is
-open; otherwise it must hand the event back before changing anything. Replayed on random contact systems
+open (frictionless or with Coulomb friction on fixed surfaces); otherwise it must hand the event back before changing anything. Replayed on random contact systems
 near contact (gaps at zero, inside and outside their bands; approaching, resting and separating contacts;
 restitutions 0..1; Zeno memories that make some impacts plastic; settled, touching and closed-before
 contacts), both paths on the compiled core:
@@ -12,12 +12,12 @@ contacts), both paths on the compiled core:
   read the same compiled gap rates);
 - when the fast path declines, the memory is bitwise what it was;
 - impulses, the velocity after and the kinetic energies within round-off bounds. The two paths solve the
-  same LCP on right-hand sides b = (1 + e) J_N^T q'^- that differ only in how J_N^T q'^- is summed (a loop
-  here, BLAS there): at most 2 n eps |J_N|^T |q'^-| per entry (the dot product's forward error bound,
-  twice: one per path), times (1 + e) <= 2. With the same active set the impulses solve A x = -b there, so
-  they move by at most ||A^-1|| ||db|| (A is the Delassus matrix J^T M^-1 J: symmetric positive definite
-  here), plus the solvers' own rounding (refined to a few eps of |x|, 16 eps allowed per unknown). The
-  velocity q'^- + Y x then moves by |Y| |dx| plus its own sums' rounding (2 (m + 1) eps of |q'^-| + |Y||x|);
+  same LCP on right-hand sides (normal rows (1 + e) J_N^T q'^-, friction rows J_T^T q'^-, limits 0) that
+  differ only in how J^T q'^- is summed (a loop here, BLAS there): at most 2 n eps |J|^T |q'^-| per entry
+  (the dot product's forward error bound, twice: one per path), times (1 + e) <= 2. With the same basis
+  the unknowns x_S > 0 solve A_SS x_S = -b_S, so they move by at most ||A_SS^-1|| ||db_S||, plus the
+  solvers' own rounding (refined to a few eps of |x|, 16 eps allowed per unknown). The velocity
+  q'^- + Y x then moves by |Y| |dx| plus its own sums' rounding (2 (p + 1) eps of |q'^-| + |Y||x|, p terms);
   the kinetic energies (sums of n^2 products) by 2 n^2 eps of |q'| |M| |q'| plus what dv moves them.
   Everything is asserted with a margin of 4 on these bounds.
 
@@ -37,6 +37,7 @@ from nsfem.contact.set import ContactSet
 from nsfem.integrate import ContactSystem, core
 from nsfem.integrate import transitions as tr
 from nsfem.integrate.configuration import Mode
+from nsfem.lcp.builders import impact_lcp
 from nsfem.linalg import factorize
 
 kernel = core.compiled("resolve")
@@ -63,7 +64,12 @@ def _case(seed: int):
     v0 = rng.standard_normal(n)
     v = v0 + JN @ np.linalg.lstsq(JN.T @ JN, rate - JN.T @ v0, rcond=None)[0]
     eps = rng.choice([0.0, 0.5, 1.0, 0.05 + 0.95 * float(rng.random())], m, p=[0.1, 0.3, 0.3, 0.3])
-    system = ContactSystem.from_arrays(M=M, Q=np.eye(n), contacts=ContactSet.from_arrays(JN, jN, eps=eps))
+    friction = {}
+    if rng.random() < 0.5 and n >= 3:   # Coulomb friction on some contacts (1 or 2 tangent directions)
+        d = rng.integers(1, 3, m)
+        JS = [rng.standard_normal((n, int(d[k]))) if rng.random() < 0.6 else None for k in range(m)]
+        friction = {"mu": rng.choice([0.1, 0.3, 1.0], m), "JS": JS, "r": np.where(d == 1, 2, 4)}
+    system = ContactSystem.from_arrays(M=M, Q=np.eye(n), contacts=ContactSet.from_arrays(JN, jN, eps=eps, **friction))
     memory = tr.Memory(10.0 ** rng.uniform(-4, 1, m) * (rng.random(m) < 0.7), rng.integers(0, 3, m),
                        zeno=float(rng.choice([1e-8, 0.3, 0.9])))
     memory.observe(system.contacts, q, v)
@@ -118,17 +124,29 @@ def check_case(seed: int) -> bool:
     for key in ("t", "contacts", "plastic", "approach_m_s"):
         assert imp_f[key] == imp_p[key], key
     assert _same(_memory_state(mem_f), _memory_state(mem_p))
-    # results within the round-off bounds of the module docstring
+    # results within the round-off bounds of the module docstring: the full path's LCP (its restitutions:
+    # plastic ones 0) and its solution x; on the unknowns x_S > 0 it solves A_SS x_S = -b_S
     cs, n = system.contacts, system.n
     act = imp_f["contacts"]
-    J = cs.JN[:, act]
-    A = J.T @ np.linalg.solve(system.M, J)
-    Y = np.linalg.solve(system.M, J)
+    e_used = cs.eps.copy()
+    e_used[imp_p["plastic"]] = 0.0
+    lcp = impact_lcp(cs, Mf, v, act, eps=e_used)
+    x = lcp.solve().x
+    na, nw = len(act), lcp.Y.shape[1]
+    rows = np.hstack([cs.JN[:, act], lcp.W[:, na:]])   # [J_N, J_T]: the right-hand side's products
+    db = np.zeros(x.size)
+    db[:nw] = 2 * 2 * n * EPS * (np.abs(rows).T @ np.abs(v))
+    S = np.flatnonzero(x > 0.0)
+    # (A_SS is singular where a friction limit's multiplier z > 0 belongs to a contact without a normal impulse:
+    # that z is free, and enters neither the impulses nor the velocity; the pseudo-inverse bounds the rest)
+    inv = np.linalg.norm(np.linalg.pinv(lcp.A[np.ix_(S, S)], rcond=1e-12), 2) if S.size else 0.0
+    dx = np.zeros(x.size)
+    dx[S] = inv * np.linalg.norm(db[S])
+    dx += 16 * EPS * np.abs(x)
     x_f, x_p = np.array(imp_f["impulse_Ns"]), np.array(imp_p["impulse_Ns"])
-    db = 2 * 2 * n * EPS * (np.abs(J).T @ np.abs(v))
-    dx = np.linalg.norm(np.linalg.inv(A), 2) * np.linalg.norm(db) + 16 * EPS * np.abs(x_p)
-    assert np.all(np.abs(x_f - x_p) <= 4 * dx)
-    dv = np.abs(Y) @ (4 * dx) + 2 * (len(act) + 1) * EPS * (np.abs(v) + np.abs(Y) @ np.abs(x_p))
+    assert np.all(np.abs(x_f - x_p) <= 4 * dx[:na])
+    Y = np.abs(lcp.Y)
+    dv = Y @ (4 * dx[:nw]) + 2 * (nw + 1) * EPS * (np.abs(v) + Y @ np.abs(x[:nw]))
     assert np.all(np.abs(v_f - v_p) <= 4 * dv)
     for key, w, dw in (("kinetic_before_J", v, np.zeros(n)), ("kinetic_after_J", v_p, 4 * dv)):
         size = np.abs(w) @ np.abs(system.M) @ np.abs(w)
@@ -142,7 +160,7 @@ def check_case(seed: int) -> bool:
 def test_fast_path_takes_impacts_and_agrees_with_the_full_path():
     """200 random cases: both outcomes occur (the path is exercised and declines), and each agrees."""
     took = [check_case(seed) for seed in range(200)]
-    assert 20 <= sum(took) <= 190
+    assert 10 <= sum(took) <= 190   # (24 of 200 taken, 12 of them with friction or more than one contact)
 
 
 @settings(max_examples=40, deadline=None)
@@ -152,13 +170,14 @@ def test_fast_path_property(seed):
 
 
 def test_declines_what_is_not_its_own():
-    """Hand-made cases the path must hand back, memory untouched: a contact with friction among the
+    """Hand-made cases the path must hand back, memory untouched: a contact on a moving surface among the
     candidates, a plastic impact (the contact stays closed: the transition LCP decides), no approach."""
     M = np.diag([2.0, 3.0])
     JN = np.array([[1.0], [0.5]])
     v = np.array([-1.0, 0.0])
     cases = [
-        ContactSet.from_arrays(JN, [0.0], eps=0.5, mu=0.3, JS=[np.array([[0.0], [1.0]])]),   # friction
+        ContactSet.from_arrays(JN, [0.0], eps=0.5, mu=0.3, JS=[np.array([[0.0], [1.0]])], r=2,
+                               wS=[np.array([0.5])]),                                        # a moving surface
         ContactSet.from_arrays(JN, [0.0], eps=0.0),                                          # plastic: closed after
     ]
     for cs in cases:

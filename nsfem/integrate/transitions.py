@@ -123,11 +123,12 @@ class Memory:
         if self._impact is None or self._impact[0] is not system or self._impact[1] is not Mf:
             cs, m = system.contacts, system.contacts.m
             JNT, aJT, jN, aj = self.kernel_arrays(cs)
-            rough = np.array([S.shape[1] > 0 for S in cs.JS], dtype=np.int8)
+            ST = _floats(np.vstack([S.T for S in cs.JS])) if m else np.zeros((0, cs.n))
+            srow = np.concatenate([[0], np.cumsum([S.shape[1] for S in cs.JS], dtype=np.int64)]).astype(np.int64)
             lib = _lcp_kernels()
-            path = kernel.ImpactPath(JNT, aJT, jN, aj, _floats(cs.eps), rough, _floats(system.M),
-                                     None if lib is None else lib.lemke_one, np.empty(m, dtype=np.int8),
-                                     np.empty(m, dtype=np.int64), np.empty((2, m)))
+            path = kernel.ImpactPath(JNT, aJT, jN, aj, _floats(cs.eps), _floats(system.M), ST, srow,
+                                     cs.moving.astype(np.int8), None if lib is None else lib.lemke_one,
+                                     np.empty(m, dtype=np.int8), np.empty(m, dtype=np.int64), np.empty((2, m)))
             self._impact = (system, Mf, path)
         return self._impact[2]
 
@@ -499,11 +500,11 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
 def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray,
                  before: Mode, memory: Memory, touching, gap_tol, settled) -> tuple[np.ndarray, dict] | None:
     """:func:`resolve`'s result (velocity after, impact record) on the compiled kernels when the event is an
-    impact of frictionless contacts after which every contact is open, else None (then nothing of ``memory``
+    impact after which every contact is open, else None (then nothing of ``memory``
     has changed and :func:`resolve`'s full path runs: it is this path's specification, which the kernels
     mirror step for step, see _resolve.pyx's ``ImpactPath``).
 
-    Not this path's: a candidate with tangent directions, a creeping approach, no approach, a contact closed
+    Not this path's: a candidate on a moving surface, a creeping approach, no approach, a contact closed
     after the impact or lifted without impacting (micro-lifts, the transition LCP), a touching contact pushed
     into approach (set closure), an LCP the direct kernels decline or do not solve, a non-finite state."""
     cs = system.contacts
@@ -518,10 +519,10 @@ def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: 
     mat = path.matrices.get(active)
     if mat is None:
         entry = _impact_parts(Mf, cs, active, memory.lcp_cache, (id(system), id(Mf), "impact", active))[0]
-        if entry[5] is None or entry[0].shape[0] != na:   # (a non-finite matrix part; friction rows)
+        if entry[5] is None:   # (a non-finite matrix part)
             return None
-        mat = path.matrices[active] = kernel.Matrix(entry[0], entry[2], entry[5], entry[8])
-    x, v_new, ke = np.empty(na), np.empty(cs.n), np.empty(2)
+        mat = path.matrices[active] = kernel.Matrix(entry[0], entry[2], entry[7], na, entry[5], entry[8])
+    x, v_new, ke = np.empty(mat.A.shape[0]), np.empty(cs.n), np.empty(2)
 
     def general():
         res = lemke(mat.A, x.copy(), groups=mat.groups, scales=mat.scales)
@@ -535,7 +536,7 @@ def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: 
         memory.observe_slip(cs, np.abs(q), np.abs(v))
     memory.degenerate = []
     gv = state[3].tolist()
-    impact = {"t": t, "contacts": list(active), "impulse_Ns": x.tolist(), "approach_m_s": [-gv[k] for k in active],
+    impact = {"t": t, "contacts": list(active), "impulse_Ns": x[:na].tolist(), "approach_m_s": [-gv[k] for k in active],
               "plastic": path.plastic(), "kinetic_before_J": float(ke[0]), "kinetic_after_J": float(ke[1])}
     return v_new, impact
 
