@@ -10,7 +10,8 @@ time of the process (the machine is shared), OPENBLAS_NUM_THREADS=1:
   which every contact is open) on the stop scene and every shipped scene (the default over 1 s, the others
   over 0.3 s, retainer_drop 0.05 s), and the calls it handed back by the full path's outcome;
 - end to end: the stop scene (the shipped shaft with a stop 0.2 mm under midspan, restitution 0.5,
-  0.05 s: 282 events) and the shipped scene over 1 s, ms per event both ways;
+  0.05 s: 282 events), the same with friction 0.3 on the stop (309 events) and the shipped scene over 1 s,
+  ms per event both ways (and the compiled core without its impact path, the stop scenes);
 - the stop scene's time per event by part of the event loop (the loop's own Python is what is left of
   the run's time after the parts named), both ways;
 - where the compiled run's time per event goes: cProfile of the stop scene (CPU time), by function (tottime).
@@ -105,6 +106,17 @@ SCENES = {"stop": ("default", STOP), "default": ("default", ["simulation.t_end=1
           "crack": ("crack", ["simulation.t_end=0.3"]), "critical_speed": ("critical_speed", ["simulation.t_end=0.3"]),
           "ross_example": ("ross_example", ["simulation.t_end=0.3"]), "rub": ("rub", ["simulation.t_end=0.3"]),
           "retainer_drop": ("retainer_drop", ["simulation.t_end=0.05"])}
+
+
+def without_impact_path(scene, repeat: int) -> float:
+    """The compiled run's ms per event with the impact path handing every event back (same process)."""
+    fast = tr._impact_fast
+    tr._impact_fast = lambda *a, **k: None
+    try:
+        n = max(len(run_scene(scene, "exact")[0].events), 1)
+        return 1e3 * best(lambda: run_scene(scene, "exact"), repeat) / n
+    finally:
+        tr._impact_fast = fast
 
 
 def impact_path_share() -> dict:
@@ -204,14 +216,21 @@ def main() -> None:
     if not any(core.compiled(part) is not None for part in core.PARTS):   # (a checkout before "resolve" runs too)
         raise SystemExit(f"core_resolve: no compiled part is active ({core.name()})")
     stop = load_scene("default", STOP)
+    stop_mu = load_scene("default", [STOP[0].replace("restitution=0.5", "restitution=0.5, friction=0.3"), *STOP[1:]])
     shipped = load_scene("default", [f"simulation.t_end={0.3 if args.quick else 1.0}"])
     payload = {"machine": machine(), "core": core.name(), "repeat": repeat,
-               "resolve_stop": resolve_calls(stop, repeat), "impact_path": impact_path_share(),
+               "resolve_stop": resolve_calls(stop, repeat), "resolve_stop_friction": resolve_calls(stop_mu, repeat),
+               "impact_path": impact_path_share(),
                "parts_stop": by_part(stop, repeat),
-               "stop": end_to_end(stop, repeat), "shipped": end_to_end(shipped, repeat),
+               "stop": {**end_to_end(stop, repeat),
+                        "compiled_without_impact_path_ms_per_event": without_impact_path(stop, repeat)},
+               "stop_friction": {**end_to_end(stop_mu, repeat),
+                                 "compiled_without_impact_path_ms_per_event": without_impact_path(stop_mu, repeat)},
+               "shipped": end_to_end(shipped, repeat),
                "profile_stop_compiled": profile(stop)}
-    rows = [{"case": "resolve (replayed)", **payload["resolve_stop"]}]
-    rows += [{"case": name, **payload[name]} for name in ("stop", "shipped")]
+    rows = [{"case": "resolve (replayed)", **payload["resolve_stop"]},
+            {"case": "resolve (replayed), friction", **payload["resolve_stop_friction"]}]
+    rows += [{"case": name, **payload[name]} for name in ("stop", "stop_friction", "shipped")]
     rows += [{"case": f"impact path {k}", **{kk: vv for kk, vv in v.items() if kk != "handed_back"},
               "handed_back": json.dumps(v["handed_back"])} for k, v in payload["impact_path"].items()]
     parts = payload["parts_stop"]

@@ -1,11 +1,11 @@
 """The compiled impact path of transitions.resolve (core part "resolve", issue 33: ``_impact_fast`` with
 _resolve.pyx's ``ImpactPath``) against resolve's full path, which is its specification.
 
-The fast path takes an event when it is an impact of frictionless contacts after which every contact is
-open (frictionless or with Coulomb friction on fixed surfaces); otherwise it must hand the event back before changing anything. Replayed on random contact systems
-near contact (gaps at zero, inside and outside their bands; approaching, resting and separating contacts;
-restitutions 0..1; Zeno memories that make some impacts plastic; settled, touching and closed-before
-contacts), both paths on the compiled core:
+The fast path takes an event when it is an impact after which every contact is open (frictionless, or
+with Coulomb friction on fixed surfaces); otherwise it must hand the event back before changing anything.
+Replayed on random contact systems near contact (gaps at zero, inside and outside their bands;
+approaching, resting and separating contacts; restitutions 0..1; Zeno memories that make some impacts
+plastic; settled, touching and closed-before contacts; friction on some), both paths on the compiled core:
 
 - identical decisions: whether the result is the all-open configuration, the impact record's contacts,
   plastic contacts and keys, and the Zeno memory (impact counts, largest approach speeds: bitwise, both

@@ -151,8 +151,9 @@ cdef class Matrix:
 cdef class ImpactPath:
     """resolve's common case on one contact system: an impact after which every contact is open. Holds the
     system's arrays (J_N^T, |J_N|^T, j_N, |j_N|, the restitutions, M, the tangent rows S_k^T stacked (contact
-    k's are rows ``srow[k]`` to ``srow[k + 1]`` of ``ST``), the contacts on moving surfaces), work arrays, the matrix parts met (``matrices``, by active contacts)
-    and ``one``, the compiled Lemke's one-unknown kernel (_lcp.lemke_one) or None. An event is
+    k's are rows ``srow[k]`` to ``srow[k + 1]`` of ``ST``), the contacts on moving surfaces), work arrays,
+    the matrix parts met (``matrices``, by active contacts) and ``one``, the compiled Lemke's one-unknown
+    kernel (_lcp.lemke_one) or None. An event is
     :meth:`classify`, then :meth:`open` with the impact LCP's :class:`Matrix`; each mirrors its part of
     transitions.resolve (the reference), and says when the event is not this path's."""
 
@@ -258,8 +259,8 @@ cdef class ImpactPath:
         impacting (a micro-lift candidate). ``state``: :meth:`classify`'s.
 
         Returns 1 when all holds: ``x`` (the LCP's unknowns, the normal impulses first), ``v_new``, ``ke``
-        (kinetic energy before, after) are the result and the Zeno memory (``max_approach``, ``impacts``) is updated; 0 otherwise, the memory
-        untouched (the full path then runs)."""
+        (kinetic energy before, after) are the result and the Zeno memory (``max_approach``, ``impacts``) is
+        updated; 0 otherwise, the memory untouched (the full path then runs)."""
         cdef Py_ssize_t i, j, k, n = v.shape[0], m = self.JNT.shape[0], na = self.na
         cdef Py_ssize_t size = mat.a.shape[0], p = mat.jt.shape[1], nw = na + p
         cdef const double[::1] gv = state[3], tv = state[5]
