@@ -214,3 +214,20 @@ def test_one_contact_impact_is_newtons():
         assert abs(imp["impulse_Ns"][0] - 2.0 * (1 + e) * 3.0) <= 8 * EPS * 12.0
         assert abs(imp["kinetic_after_J"] - e * e * imp["kinetic_before_J"]) <= 16 * EPS * imp["kinetic_before_J"]
         assert memory.impacts[0] == 1 and memory.max_approach[0] == 3.0 and imp["plastic"] == []
+
+
+def test_a_memory_with_its_impact_path_copies():
+    """A Memory that has met an impact copies (the path is a cache its copies share) and the copy resolves as
+    the original: the same velocity and Zeno memory."""
+    for seed in range(200):   # a case the path takes
+        system, Mf, q, v, before, memory, touching, settled = _case(seed)
+        probe = copy.deepcopy(memory)
+        if tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, probe, touching, None, settled) is not None:
+            break
+    assert probe._impact is not None
+    twin = copy.deepcopy(probe)
+    assert twin._impact[2] is probe._impact[2]
+    a = tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, probe, touching, None, settled)
+    b = tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, twin, touching, None, settled)
+    assert np.array_equal(a[0], b[0]) and a[1] == b[1]
+    assert _same(_memory_state(probe), _memory_state(twin))

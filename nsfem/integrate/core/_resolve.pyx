@@ -181,6 +181,13 @@ cdef class ImpactPath:
         self.flags, self.idx, self.rates = flags, idx, rates
         self.one, self.matrices, self.na = one, {}, 0
 
+    def __copy__(self):
+        return self
+
+    def __deepcopy__(self, memo):
+        """A cache of its system's arrays with work space used within one event: copies of a Memory share it."""
+        return self
+
     cpdef Py_ssize_t classify(self, const double[::1] q, const double[::1] v, const double[::1] gap_scale,
                               const double[::1] rate_scale, const double[::1] gap_tol, double gap_floor,
                               object closed, object touching, object settled, double[:, ::1] state):
