@@ -500,17 +500,19 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
 def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray,
                  before: Mode, memory: Memory, touching, gap_tol, settled) -> tuple[np.ndarray, dict] | None:
     """:func:`resolve`'s result (velocity after, impact record) on the compiled kernels when the event is an
-    impact after which every contact is open, else None (then nothing of ``memory``
-    has changed and :func:`resolve`'s full path runs: it is this path's specification, which the kernels
-    mirror step for step, see _resolve.pyx's ``ImpactPath``).
+    impact after which every contact is open (frictionless, or with friction on fixed surfaces), else None:
+    then nothing of ``memory`` has changed and :func:`resolve`'s full path runs (it is this path's
+    specification, which the kernels mirror step for step: _resolve.pyx's ``ImpactPath``).
 
     Not this path's: a candidate on a moving surface, a creeping approach, no approach, a contact closed
     after the impact or lifted without impacting (micro-lifts, the transition LCP), a touching contact pushed
     into approach (set closure), an LCP the direct kernels decline or do not solve, a non-finite state."""
+    if memory.impacts.dtype != np.int64 or memory.max_approach.dtype != np.float64:   # (written in place by the kernel)
+        return None
     cs = system.contacts
     path = memory.impact_path(system, Mf, kernel)
-    state = np.empty((6, cs.m))
-    na = path.classify(_floats(q), _floats(v), memory.gap_scale, memory.rate_scale,
+    state, vf = np.empty((6, cs.m)), _floats(v)
+    na = path.classify(_floats(q), vf, memory.gap_scale, memory.rate_scale,
                        _EMPTY if gap_tol is None else _floats(gap_tol), float(memory.gap_floor), before.closed,
                        touching, settled, state)
     if na <= 0:
@@ -528,7 +530,7 @@ def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: 
         res = lemke(mat.A, x.copy(), groups=mat.groups, scales=mat.scales)
         return res.x if res.success else None
 
-    if not path.open(mat, general, _floats(v), state, memory.max_approach, memory.impacts, float(memory.zeno), x,
+    if not path.open(mat, general, vf, state, memory.max_approach, memory.impacts, float(memory.zeno), x,
                      v_new, ke):
         return None
     memory.gap_scale, memory.rate_scale = state[0], state[1]
