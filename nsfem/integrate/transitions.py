@@ -282,7 +282,9 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     (read against the contact's own slip scale, a stop located within the phase's zero band
     could look like a reversal onto the opposite facet, and back, every 5e-16 s).
     ``extra_load(v)``: forces besides the system's at the velocity after any impact (elastic rings).
-    The returned mode has no rings: the caller adds their state.
+    The returned mode has no rings: the caller adds their state. On the compiled core an impact after
+    which every contact is open runs whole in :func:`_impact_fast`; every other event runs the body below,
+    which is that path's specification.
     """
     cs = system.contacts
     if cs.m == 0:
@@ -534,7 +536,8 @@ def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: 
                      v_new, ke):
         return None
     memory.gap_scale, memory.rate_scale = state[0], state[1]
-    if memory._abs[4]:   # the slip scales as observe forms them (contacts elsewhere with friction)
+    memory.abs_parts(cs)
+    if memory._abs[4]:   # the slip scales as observe forms them (contacts with friction)
         memory.observe_slip(cs, np.abs(q), np.abs(v))
     memory.degenerate = []
     gv = state[3].tolist()
