@@ -55,7 +55,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import NsfemError
-from ..lcp.builders import LCPCache, impact_lcp, transition_lcp
+from ..lcp.builders import LCPCache, _impact_parts, impact_lcp, transition_lcp
+from ..lcp.pivoting import _kernels as _lcp_kernels
+from ..lcp.pivoting import lemke
 from ..linalg import Factorization
 from . import core
 from .configuration import Mode
@@ -99,6 +101,7 @@ class Memory:
     _abs_system: tuple | None = field(default=None, repr=False)
     _slip: tuple | None = field(default=None, repr=False)
     _kernel: tuple | None = field(default=None, repr=False)
+    _impact: tuple | None = field(default=None, repr=False)
 
     def abs_parts(self, cs) -> tuple:
         """(|J_N|, |j_N|, [|S_k| or None]) of the contact set (formed once per set)."""
@@ -113,6 +116,21 @@ class Memory:
             aJ, aj = self.abs_parts(cs)[:2]
             self._kernel = (cs, *(np.ascontiguousarray(a, dtype=float) for a in (cs.JN.T, aJ.T, cs.jN, aj)))
         return self._kernel[1:]
+
+    def impact_path(self, system, Mf, kernel):
+        """The compiled impact path (``kernel.ImpactPath``) of the system with the factorization Mf of its M
+        (formed once per pair: it keeps the impact LCPs' matrix parts it meets)."""
+        if self._impact is None or self._impact[0] is not system or self._impact[1] is not Mf:
+            cs, m = system.contacts, system.contacts.m
+            JNT, aJT, jN, aj = self.kernel_arrays(cs)
+            ST = _floats(np.vstack([S.T for S in cs.JS])) if m else np.zeros((0, cs.n))
+            srow = np.concatenate([[0], np.cumsum([S.shape[1] for S in cs.JS], dtype=np.int64)]).astype(np.int64)
+            lib = _lcp_kernels()
+            path = kernel.ImpactPath(JNT, aJT, jN, aj, _floats(cs.eps), _floats(system.M), ST, srow,
+                                     cs.moving.astype(np.int8), None if lib is None else lib.lemke_one,
+                                     np.empty(m, dtype=np.int8), np.empty(m, dtype=np.int64), np.empty((2, m)))
+            self._impact = (system, Mf, path)
+        return self._impact[2]
 
     def observe_slip(self, cs, aq: np.ndarray, av: np.ndarray) -> None:
         """The slip scales' part of :meth:`observe` (|q|, |q'| of one state or several, as columns)."""
@@ -264,13 +282,19 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
     (read against the contact's own slip scale, a stop located within the phase's zero band
     could look like a reversal onto the opposite facet, and back, every 5e-16 s).
     ``extra_load(v)``: forces besides the system's at the velocity after any impact (elastic rings).
-    The returned mode has no rings: the caller adds their state.
+    The returned mode has no rings: the caller adds their state. On the compiled core an impact after
+    which every contact is open runs whole in :func:`_impact_fast`; every other event runs the body below,
+    which is that path's specification.
     """
     cs = system.contacts
     if cs.m == 0:
         return _FREE, v, None
-    slipping = dict(slipping or {})
     kernel = core.compiled("resolve")
+    if kernel is not None and memory.gap_scale is not None and memory.rate_scale is not None:
+        fast = _impact_fast(kernel, system, Mf, t, q, v, before, memory, touching, gap_tol, settled)
+        if fast is not None:   # an impact after which every contact is open
+            return _FREE, fast[0], fast[1]
+    slipping = dict(slipping or {})
     aJ, _, aS = memory.abs_parts(cs)
     # per-contact values as lists: the loops below read each a few times (a float's compare costs
     # a tenth of a numpy scalar's; the values are the same)
@@ -473,6 +497,53 @@ def resolve(system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v
         raise _rolling(cs, rolling[0], t, "the slip velocity and the friction the cone allows both say so")
     mode = Mode(tuple(sorted(keep)), tuple(sorted(new_stick)), tuple(sorted(new_slide)), tuple(sorted(new_edge)))
     return mode, v, impact
+
+
+def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: np.ndarray, v: np.ndarray,
+                 before: Mode, memory: Memory, touching, gap_tol, settled) -> tuple[np.ndarray, dict] | None:
+    """:func:`resolve`'s result (velocity after, impact record) on the compiled kernels when the event is an
+    impact after which every contact is open (frictionless, or with friction on fixed surfaces), else None:
+    then nothing of ``memory`` has changed and :func:`resolve`'s full path runs (it is this path's
+    specification, which the kernels mirror step for step: _resolve.pyx's ``ImpactPath``).
+
+    Not this path's: a candidate on a moving surface, a creeping approach, no approach, a contact closed
+    after the impact or lifted without impacting (micro-lifts, the transition LCP), a touching contact pushed
+    into approach (set closure), an LCP the direct kernels decline or do not solve, a non-finite state."""
+    if memory.impacts.dtype != np.int64 or memory.max_approach.dtype != np.float64:   # (written in place by the kernel)
+        return None
+    cs = system.contacts
+    path = memory.impact_path(system, Mf, kernel)
+    state, vf = np.empty((6, cs.m)), _floats(v)
+    na = path.classify(_floats(q), vf, memory.gap_scale, memory.rate_scale,
+                       _EMPTY if gap_tol is None else _floats(gap_tol), float(memory.gap_floor), before.closed,
+                       touching, settled, state)
+    if na <= 0:
+        return None
+    active = path.active()
+    mat = path.matrices.get(active)
+    if mat is None:
+        entry = _impact_parts(Mf, cs, active, memory.lcp_cache, (id(system), id(Mf), "impact", active))[0]
+        if entry[5] is None:   # (a non-finite matrix part)
+            return None
+        mat = path.matrices[active] = kernel.Matrix(entry[0], entry[2], entry[7], na, entry[5], entry[8])
+    x, v_new, ke = np.empty(mat.A.shape[0]), np.empty(cs.n), np.empty(2)
+
+    def general():
+        res = lemke(mat.A, x.copy(), groups=mat.groups, scales=mat.scales)
+        return res.x if res.success else None
+
+    if not path.open(mat, general, vf, state, memory.max_approach, memory.impacts, float(memory.zeno), x,
+                     v_new, ke):
+        return None
+    memory.gap_scale, memory.rate_scale = state[0], state[1]
+    memory.abs_parts(cs)
+    if memory._abs[4]:   # the slip scales as observe forms them (contacts with friction)
+        memory.observe_slip(cs, np.abs(q), np.abs(v))
+    memory.degenerate = []
+    gv = state[3].tolist()
+    impact = {"t": t, "contacts": list(active), "impulse_Ns": x[:na].tolist(), "approach_m_s": [-gv[k] for k in active],
+              "plastic": path.plastic(), "kinetic_before_J": float(ke[0]), "kinetic_after_J": float(ke[1])}
+    return v_new, impact
 
 
 def _rolling(cs, k: int, t: float, why: str) -> NsfemError:

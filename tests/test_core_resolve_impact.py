@@ -1,0 +1,233 @@
+"""The compiled impact path of transitions.resolve (core part "resolve", issue 33: ``_impact_fast`` with
+_resolve.pyx's ``ImpactPath``) against resolve's full path, which is its specification.
+
+The fast path takes an event when it is an impact after which every contact is open (frictionless, or
+with Coulomb friction on fixed surfaces); otherwise it must hand the event back before changing anything.
+Replayed on random contact systems near contact (gaps at zero, inside and outside their bands;
+approaching, resting and separating contacts; restitutions 0..1; Zeno memories that make some impacts
+plastic; settled, touching and closed-before contacts; friction on some), both paths on the compiled core:
+
+- identical decisions: whether the result is the all-open configuration, the impact record's contacts,
+  plastic contacts and keys, and the Zeno memory (impact counts, largest approach speeds: bitwise, both
+  read the same compiled gap rates);
+- when the fast path declines, the memory is bitwise what it was;
+- impulses, the velocity after and the kinetic energies within round-off bounds. The two paths solve the
+  same LCP on right-hand sides (normal rows (1 + e) J_N^T q'^-, friction rows J_T^T q'^-, limits 0) that
+  differ only in how J^T q'^- is summed (a loop here, BLAS there): at most 2 n eps |J|^T |q'^-| per entry
+  (the dot product's forward error bound, twice: one per path), times (1 + e) <= 2. With the same basis
+  the unknowns x_S > 0 solve A_SS x_S = -b_S, so they move by at most ||A_SS^-1|| ||db_S||, plus the
+  solvers' own rounding (refined to a few eps of |x|, 16 eps allowed per unknown). The velocity
+  q'^- + Y x then moves by |Y| |dx| plus its own sums' rounding (2 (p + 1) eps of |q'^-| + |Y||x|, p terms);
+  the kinetic energies (sums of n^2 products) by 2 n^2 eps of |q'| |M| |q'| plus what dv moves them.
+  Everything is asserted with a margin of 4 on these bounds.
+
+Skipped where the compiled part "resolve" is not active (not built, or NSFEM_PURE_PYTHON=1).
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from nsfem.contact.set import ContactSet
+from nsfem.integrate import ContactSystem, core
+from nsfem.integrate import transitions as tr
+from nsfem.integrate.configuration import Mode
+from nsfem.lcp.builders import impact_lcp
+from nsfem.linalg import factorize
+
+kernel = core.compiled("resolve")
+pytestmark = pytest.mark.skipif(kernel is None, reason="the compiled core part 'resolve' is not active (not "
+                                                       "built, or NSFEM_PURE_PYTHON=1): the reference runs")
+EPS = np.finfo(float).eps
+
+
+def _case(seed: int):
+    """A random frictionless system near contact and the arguments of one resolve call."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 12))
+    m = int(rng.integers(1, min(6, n + 1)))   # independent normals: one impact LCP solution
+    B = rng.standard_normal((n, n))
+    M = B @ B.T + n * np.eye(n) * 10.0 ** rng.uniform(-2, 2)
+    JN = rng.standard_normal((n, m)) * 10.0 ** rng.uniform(-1, 1)
+    q = rng.standard_normal(n) * 1e-3
+    # gaps: zero (touching), inside the band, or open
+    kind = rng.choice([0, 1, 2], m, p=[0.3, 0.2, 0.5])
+    g = np.where(kind == 0, 0.0, np.where(kind == 1, 1e-14 * rng.random(m), 1e-4 * (1 + rng.random(m))))
+    jN = g - JN.T @ q
+    # rates: approaching, at rest or separating, set through the minimum-norm change of a random velocity
+    rate = rng.choice([-1.0, 0.0, 1.0], m, p=[0.7, 0.1, 0.2]) * 10.0 ** rng.uniform(-3, 0, m)
+    v0 = rng.standard_normal(n)
+    v = v0 + JN @ np.linalg.lstsq(JN.T @ JN, rate - JN.T @ v0, rcond=None)[0]
+    eps = rng.choice([0.0, 0.5, 1.0, 0.05 + 0.95 * float(rng.random())], m, p=[0.1, 0.3, 0.3, 0.3])
+    friction = {}
+    if rng.random() < 0.5 and n >= 3:   # Coulomb friction on some contacts (1 or 2 tangent directions)
+        d = rng.integers(1, 3, m)
+        JS = [rng.standard_normal((n, int(d[k]))) if rng.random() < 0.6 else None for k in range(m)]
+        friction = {"mu": rng.choice([0.1, 0.3, 1.0], m), "JS": JS, "r": np.where(d == 1, 2, 4)}
+    system = ContactSystem.from_arrays(M=M, Q=np.eye(n), contacts=ContactSet.from_arrays(JN, jN, eps=eps, **friction))
+    memory = tr.Memory(10.0 ** rng.uniform(-4, 1, m) * (rng.random(m) < 0.7), rng.integers(0, 3, m),
+                       zeno=float(rng.choice([1e-8, 0.3, 0.9])))
+    memory.observe(system.contacts, q, v)
+    close = [k for k in range(m) if kind[k] < 2]
+    pick = lambda: {k for k in close if rng.random() < 0.4}   # noqa: E731
+    before = Mode(closed=tuple(sorted(pick()))) if rng.random() < 0.3 else Mode()
+    return system, factorize(M), q, v, before, memory, pick(), pick()
+
+
+def _resolve(system, Mf, q, v, before, memory, touching, settled, fast: bool):
+    if fast:
+        return tr.resolve(system, Mf, 0.1, q, v, before, memory, touching, None, None, settled)
+    saved = tr._impact_fast
+    tr._impact_fast = lambda *a, **k: None
+    try:
+        return tr.resolve(system, Mf, 0.1, q, v, before, memory, touching, None, None, settled)
+    finally:
+        tr._impact_fast = saved
+
+
+def _memory_state(memory: tr.Memory) -> list:
+    return [np.array(getattr(memory, f), copy=True) for f in ("max_approach", "impacts", "gap_scale", "rate_scale")] \
+        + [list(memory.degenerate)]
+
+
+def _same(a: list, b: list) -> bool:
+    return all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def check_case(seed: int) -> bool:
+    """Both paths on one case; whether the fast path took it."""
+    system, Mf, q, v, before, memory, touching, settled = _case(seed)
+    start = _memory_state(memory)
+    probe = copy.deepcopy(memory)
+    took = tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, probe, touching, None, settled) is not None
+    if not took:   # handed back before changing anything
+        assert _same(_memory_state(probe), start)
+    mem_f, mem_p = copy.deepcopy(memory), copy.deepcopy(memory)
+    try:
+        full = _resolve(system, Mf, q, v, before, mem_p, touching, settled, fast=False)
+    except tr.NsfemError:   # (a failed LCP: the fast path must not have taken it either)
+        assert not took
+        return False
+    fast = _resolve(system, Mf, q, v, before, mem_f, touching, settled, fast=True)
+    if not took:
+        return False
+    mode, v_f, imp_f = fast
+    mode_p, v_p, imp_p = full
+    # identical decisions
+    assert mode == mode_p == Mode()
+    assert imp_f.keys() == imp_p.keys()
+    for key in ("t", "contacts", "plastic", "approach_m_s"):
+        assert imp_f[key] == imp_p[key], key
+    assert _same(_memory_state(mem_f), _memory_state(mem_p))
+    # results within the round-off bounds of the module docstring: the full path's LCP (its restitutions:
+    # plastic ones 0) and its solution x; on the unknowns x_S > 0 it solves A_SS x_S = -b_S
+    cs, n = system.contacts, system.n
+    act = imp_f["contacts"]
+    e_used = cs.eps.copy()
+    e_used[imp_p["plastic"]] = 0.0
+    lcp = impact_lcp(cs, Mf, v, act, eps=e_used)
+    x = lcp.solve().x
+    na, nw = len(act), lcp.Y.shape[1]
+    rows = np.hstack([cs.JN[:, act], lcp.W[:, na:]])   # [J_N, J_T]: the right-hand side's products
+    db = np.zeros(x.size)
+    db[:nw] = 2 * 2 * n * EPS * (np.abs(rows).T @ np.abs(v))
+    S = np.flatnonzero(x > 0.0)
+    # (A_SS is singular where a friction limit's multiplier z > 0 belongs to a contact without a normal impulse:
+    # that z is free, and enters neither the impulses nor the velocity; the pseudo-inverse bounds the rest)
+    inv = np.linalg.norm(np.linalg.pinv(lcp.A[np.ix_(S, S)], rcond=1e-12), 2) if S.size else 0.0
+    dx = np.zeros(x.size)
+    dx[S] = inv * np.linalg.norm(db[S])
+    dx += 16 * EPS * np.abs(x)
+    x_f, x_p = np.array(imp_f["impulse_Ns"]), np.array(imp_p["impulse_Ns"])
+    assert np.all(np.abs(x_f - x_p) <= 4 * dx[:na])
+    Y = np.abs(lcp.Y)
+    dv = Y @ (4 * dx[:nw]) + 2 * (nw + 1) * EPS * (np.abs(v) + Y @ np.abs(x[:nw]))
+    assert np.all(np.abs(v_f - v_p) <= 4 * dv)
+    for key, w, dw in (("kinetic_before_J", v, np.zeros(n)), ("kinetic_after_J", v_p, 4 * dv)):
+        size = np.abs(w) @ np.abs(system.M) @ np.abs(w)
+        bound = 2 * n * n * EPS * size + (np.abs(w) @ np.abs(system.M) @ dw + 0.5 * dw @ np.abs(system.M) @ dw)
+        assert abs(imp_f[key] - imp_p[key]) <= 4 * bound, key
+    # what the answer must satisfy (Newton's law on the active contacts, q'^+ = q'^- + M^-1 J x)
+    assert np.all(x_f >= 0.0)
+    return True
+
+
+def test_fast_path_takes_impacts_and_agrees_with_the_full_path():
+    """200 random cases: both outcomes occur (the path is exercised and declines), and each agrees."""
+    took = [check_case(seed) for seed in range(200)]
+    assert 10 <= sum(took) <= 190   # (24 of 200 taken, 12 of them with friction or more than one contact)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(200, 2 ** 32 - 1))
+def test_fast_path_property(seed):
+    check_case(seed)
+
+
+def test_declines_what_is_not_its_own():
+    """Hand-made cases the path must hand back, memory untouched: a contact on a moving surface among the
+    candidates, a plastic impact (the contact stays closed: the transition LCP decides), no approach."""
+    M = np.diag([2.0, 3.0])
+    JN = np.array([[1.0], [0.5]])
+    v = np.array([-1.0, 0.0])
+    cases = [
+        ContactSet.from_arrays(JN, [0.0], eps=0.5, mu=0.3, JS=[np.array([[0.0], [1.0]])], r=2,
+                               wS=[np.array([0.5])]),                                        # a moving surface
+        ContactSet.from_arrays(JN, [0.0], eps=0.0),                                          # plastic: closed after
+    ]
+    for cs in cases:
+        system = ContactSystem.from_arrays(M=M, Q=np.eye(2), contacts=cs)
+        memory = tr.Memory(np.zeros(1), np.zeros(1, dtype=int))
+        memory.observe(cs, np.zeros(2), v)
+        start = _memory_state(memory)
+        assert tr._impact_fast(kernel, system, factorize(M), 0.0, np.zeros(2), v, Mode(), memory, {0}, None,
+                               set()) is None
+        assert _same(_memory_state(memory), start)
+    # no approach (separating): nothing to do here
+    cs = ContactSet.from_arrays(JN, [0.0], eps=0.5)
+    system = ContactSystem.from_arrays(M=M, Q=np.eye(2), contacts=cs)
+    memory = tr.Memory(np.zeros(1), np.zeros(1, dtype=int))
+    memory.observe(cs, np.zeros(2), -v)
+    assert tr._impact_fast(kernel, system, factorize(M), 0.0, np.zeros(2), -v, Mode(), memory, {0}, None,
+                           set()) is None
+
+
+def test_one_contact_impact_is_newtons():
+    """A point mass m on a stop, restitution e, Zeno memory off: q'^+ = -e q'^-, impulse m (1 + e) |q'^-|,
+    kinetic energy e^2 of what it was (to a few ulp: one division, a few products)."""
+    for e in (0.25, 0.5, 1.0):
+        cs = ContactSet.from_arrays([[1.0]], [0.0], eps=e)
+        system = ContactSystem.from_arrays(M=[[2.0]], Q=[[0.0]], contacts=cs)
+        memory = tr.Memory(np.zeros(1), np.zeros(1, dtype=int))
+        v = np.array([-3.0])
+        memory.observe(cs, np.zeros(1), v)
+        out = tr._impact_fast(kernel, system, factorize(system.M), 0.0, np.zeros(1), v, Mode(), memory, {0}, None,
+                              set())
+        assert out is not None
+        v_new, imp = out
+        assert abs(v_new[0] - 3.0 * e) <= 8 * EPS * 3.0
+        assert abs(imp["impulse_Ns"][0] - 2.0 * (1 + e) * 3.0) <= 8 * EPS * 12.0
+        assert abs(imp["kinetic_after_J"] - e * e * imp["kinetic_before_J"]) <= 16 * EPS * imp["kinetic_before_J"]
+        assert memory.impacts[0] == 1 and memory.max_approach[0] == 3.0 and imp["plastic"] == []
+
+
+def test_a_memory_with_its_impact_path_copies():
+    """A Memory that has met an impact copies (the path is a cache its copies share) and the copy resolves as
+    the original: the same velocity and Zeno memory."""
+    for seed in range(200):   # a case the path takes
+        system, Mf, q, v, before, memory, touching, settled = _case(seed)
+        probe = copy.deepcopy(memory)
+        if tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, probe, touching, None, settled) is not None:
+            break
+    assert probe._impact is not None
+    twin = copy.deepcopy(probe)
+    assert twin._impact[2] is probe._impact[2]
+    a = tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, probe, touching, None, settled)
+    b = tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, twin, touching, None, settled)
+    assert np.array_equal(a[0], b[0]) and a[1] == b[1]
+    assert _same(_memory_state(probe), _memory_state(twin))
