@@ -213,8 +213,11 @@ class EventDriven(Integrator):
                     self._outputs(phase, mode, xi_out, sel, out)
                     memory.observe(cs, phase.q_map() @ xi_out, phase.v_map() @ xi_out)
                     filled = int(sel[-1]) + 1
-                xi_end = xi_fun(t_next)
-                q_end, v_end = phase.q_map() @ xi_end, phase.v_map() @ xi_end
+                if xi_fun == phase.xi:
+                    q_end, v_end = phase.state_at(t_next)
+                else:
+                    xi_end = xi_fun(t_next)
+                    q_end, v_end = phase.q_map() @ xi_end, phase.v_map() @ xi_end
                 with np.errstate(over="ignore", invalid="ignore"):  # overflow: judged just below
                     e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy,
                                                     ends=(q, v, q_end, v_end)))
