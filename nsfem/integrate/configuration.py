@@ -429,6 +429,13 @@ class Configuration:
             maps = self._state_maps = (Pq, Pv)
         return maps
 
+    def base_finite(self) -> bool:
+        """Whether A_aug_base has finite entries only (its phases' A_aug then have iff their B f0 has; formed once)."""
+        cached = self.__dict__.get("_base_finite")
+        if cached is None or cached[0] is not self.A_aug_base:
+            cached = self._base_finite = (self.A_aug_base, bool(np.all(np.isfinite(self.A_aug_base))))
+        return cached[1]
+
     def fastest_rate(self) -> float:
         """max |eigenvalue| of A [1/s] (0 without coordinates); formed once per set of eigenvalues."""
         cached = self.__dict__.get("_fastest_rate")
@@ -501,7 +508,7 @@ class Phase:
         self.dim = 2 * r + len(self.forcing)
         # augmented matrix (order: x, 1, cos, sin): the configuration's, with this phase's constant load
         self.A_aug = config.A_aug_base.copy()
-        self.A_aug[: 2 * r, 2 * r] = Bf0
+        self.A_aug[: 2 * r, 2 * r] = self._Bf0 = Bf0
         self._modal = self.amplitudes = None
         self._xi_kernel = None
         #: samples the event search evaluated on this phase (its fine passes; set by ``events.first_event``)
@@ -815,11 +822,26 @@ class Phase:
             P = np.zeros((cfg.W.shape[1], self.dim))
             if cfg.W.shape[1]:
                 P[:, : 2 * r], harmonic = cfg.force_parts()
-                P[:, 2 * r] = cfg.Wpinv @ (cfg.Rphi @ self.forcing[0])
+                P[:, 2 * r] = self.constant_forces()
                 P[:, 2 * r + 1:] = harmonic
             P.flags.writeable = False
             self._Pf = P
         return P
+
+    def constant_forces(self) -> np.ndarray:
+        """The force map's constant column, Wpinv Rphi f0 of this phase's constant load (formed once per phase,
+        without the rest of the map: the event rows need this column alone)."""
+        lam = self.__dict__.get("_lam0")
+        if lam is None:
+            cfg = self.config
+            lam = self._lam0 = cfg.Wpinv @ (cfg.Rphi @ self.forcing[0]) if cfg.W.shape[1] else np.zeros(0)
+        return lam
+
+    def finite(self) -> bool:
+        """Whether A_aug has finite entries only: the configuration's part (A_aug_base, its constant column 0)
+        and this phase's B f0 (a finite sum has no non-finite term; an overflowing one is judged term by term)."""
+        Bf0 = self._Bf0
+        return self.config.base_finite() and (math.isfinite(Bf0.sum()) or bool(np.all(np.isfinite(Bf0))))
 
     def max_step(self, horizon: float, rate: float | None = None) -> float:
         """Sampling step for event search: 1/8 of the fastest period (or time constant), of the

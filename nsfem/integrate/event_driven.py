@@ -221,7 +221,9 @@ class EventDriven(Integrator):
                 with np.errstate(over="ignore", invalid="ignore"):  # overflow: judged just below
                     e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy,
                                                     ends=(q, v, q_end, v_end)))
-                if not (math.isfinite(e_max) and all(math.isfinite(x) for x in energy.values())):
+                # (a finite sum has no non-finite term; an overflowing one is judged term by term)
+                if not (math.isfinite(e_max) and (math.isfinite(sum(energy.values()))
+                                                  or all(math.isfinite(x) for x in energy.values()))):
                     raise overflow(t_next, mode, sysm, "energy")
                 phase_integrated = True
                 if mode.closed or mode.ring:
