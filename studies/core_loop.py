@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from contextlib import nullcontext
 from pathlib import Path
 
 from core_phase import STOP, best, end_to_end, profile
@@ -55,27 +56,63 @@ def capture(scene) -> list:
 
 
 def per_phase(calls: list, repeat: int) -> dict:
-    """µs per phase of the set-up and of the state at its end, compiled and reference."""
-    out = {}
-    for label, ctx in (("compiled", None), ("python", core.reference)):
-        def build():
-            return [Phase(cfg, t0, q, v, g0) for cfg, t0, q, v, g0, _ in calls]
+    """µs per phase of the set-up and of the state at its end, compiled and reference: the two timed in turn,
+    ``repeat`` times each (best of them), so that both see the same heap (a fresh run's first set-ups, with the
+    allocator's pages still to be touched, take up to twice as long either way)."""
+    def build():
+        return [Phase(cfg, t0, q, v, g0) for cfg, t0, q, v, g0, _ in calls]
 
-        def states(phases):
-            return [p.state_at(t1) for p, (*_, t1) in zip(phases, calls)]
+    def states(phases):
+        return [p.state_at(t1) for p, (*_, t1) in zip(phases, calls)]
 
-        if ctx is None:
-            build()     # (warm: the configurations' compiled set-ups formed)
-            setup = best(build, repeat)
-            phases = build()
-            state = best(lambda: states(phases), repeat)
-        else:
-            with ctx():
-                setup = best(build, repeat)
+    times = {label: {"setup_us": [], "state_us": []} for label in ("compiled", "python")}
+    for _ in range(repeat):
+        for label in times:
+            with (core.reference() if label == "python" else nullcontext()):
+                times[label]["setup_us"].append(best(build, 1))
                 phases = build()
-                state = best(lambda: states(phases), repeat)
-        out[label] = {"setup_us": 1e6 * setup / len(calls), "state_us": 1e6 * state / len(calls)}
-    return out
+                times[label]["state_us"].append(best(lambda: states(phases), 1))
+    return {label: {key: 1e6 * min(vals) / len(calls) for key, vals in parts.items()}
+            for label, parts in times.items()}
+
+
+def per_event(scene, repeat: int) -> dict:
+    """µs per call, compiled and reference in turn (best of ``repeat``), of the loop's other per-phase steps on a
+    run's own calls: the event rows (``events.event_rows``), ``guard.check_phase`` and the energy
+    (``EventDriven._energy``, its work integrals into a scratch dict)."""
+    seen = {"rows": [], "check": [], "energy": []}
+    spied = [(ed_mod, "event_rows", "rows"), (ed_mod, "check_phase", "check"), (ed_mod.EventDriven, "_energy", "energy")]
+    origs = [getattr(obj, name) for obj, name, _ in spied]
+
+    def spy(orig, key):
+        def wrapped(*args, **kw):
+            seen[key].append((args, kw))
+            return orig(*args, **kw)
+        return wrapped
+
+    for (obj, name, key), orig in zip(spied, origs):
+        setattr(obj, name, spy(orig, key))
+    try:
+        run_scene(scene, "exact")
+    finally:
+        for (obj, name, _), orig in zip(spied, origs):
+            setattr(obj, name, orig)
+    fns = dict(zip(seen, origs))
+
+    def replay(key):
+        fn, calls = fns[key], seen[key]
+        if key == "energy":     # (a scratch dict: the run's own is not touched)
+            return lambda: [fn(*a[:9], {k: 0.0 for k in a[9]}, *a[10:], **kw) for a, kw in calls]
+        return lambda: [fn(*a, **kw) for a, kw in calls]
+
+    times = {label: {key: [] for key in seen} for label in ("compiled", "python")}
+    for _ in range(repeat):
+        for label in times:
+            with (core.reference() if label == "python" else nullcontext()):
+                for key in seen:
+                    times[label][key].append(best(replay(key), 1))
+    return {label: {f"{key}_us": 1e6 * min(vals) / max(len(seen[key]), 1) for key, vals in parts.items()}
+            for label, parts in times.items()}
 
 
 def main() -> None:
@@ -95,6 +132,7 @@ def main() -> None:
     calls = capture(scenes["stop"])
     payload = {"machine": machine(), "core": core.name(), "repeat": repeat,
                "per_phase_stop": {"phases": len(calls), **per_phase(calls, repeat)},
+               "per_call_stop": per_event(scenes["stop"], repeat),
                "end_to_end": {name: end_to_end(scene, repeat) for name, scene in scenes.items()},
                "profile_stop": profile(scenes["stop"], 30)}
     rows = [{"case": name, **vals} for name, vals in payload["end_to_end"].items()]
@@ -106,6 +144,9 @@ def main() -> None:
     print(f"per phase (stop scene, {pp['phases']} phases): set-up {pp['compiled']['setup_us']:.1f} µs compiled, "
           f"{pp['python']['setup_us']:.1f} µs Python; state at the end {pp['compiled']['state_us']:.2f} µs compiled, "
           f"{pp['python']['state_us']:.2f} µs Python")
+    pc = payload["per_call_stop"]
+    print("per call (stop scene): " + ", ".join(f"{key[:-3]} {pc['compiled'][key]:.1f} µs compiled, "
+                                                f"{pc['python'][key]:.1f} µs Python" for key in pc["compiled"]))
     for name, e in payload["end_to_end"].items():
         print(f"{name:8s} {e['events']:5d} events: {e['python_ms_per_event']:.3f} ms/event Python, "
               f"{e['compiled_ms_per_event']:.3f} compiled ({e['speedup']:.2f}x)")
