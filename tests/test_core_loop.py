@@ -133,3 +133,22 @@ def test_phase_setup_gives_each_phase_its_own_arrays(rotor):  # noqa: F811
     for x, y in [(a.qp, a.x0), (a.x0, a.forcing[0]), (a._modal.U, a.amplitudes[1]), (a.amplitudes[0], a._modal.U)]:
         assert not np.shares_memory(x, y)
     assert not np.shares_memory(a._modal.U, cfg.plan.V)
+
+
+def test_state_at_keeps_the_core_its_phase_was_built_on(rotor):  # noqa: F811
+    """A phase built on the compiled core evaluates its state with its own set-up's kernel inside a
+    ``core.reference()`` block too (the same values, bit for bit: the same call), and a phase built inside the
+    block evaluates it as the reference (q_map() @ xi, bit for bit)."""
+    rng = np.random.default_rng(39)
+    cfg = Configuration(rotor, Mode(closed=(2,)))
+    q0, v0 = 1e-4 * rng.standard_normal(rotor.n), 1e-2 * rng.standard_normal(rotor.n)
+    phase = Phase(cfg, 0.3, q0, v0, np.array([2e-5]))
+    t = 0.3 + 1e-3
+    q, v = phase.state_at(t)
+    with core.reference():
+        q2, v2 = phase.state_at(t)
+        ref = Phase(cfg, 0.3, q0, v0, np.array([2e-5]))
+        xi = ref.xi(t)
+        q3, v3 = ref.state_at(t)
+    assert np.array_equal(q, q2) and np.array_equal(v, v2)
+    assert np.array_equal(q3, ref.q_map() @ xi) and np.array_equal(v3, ref.v_map() @ xi)

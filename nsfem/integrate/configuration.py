@@ -515,8 +515,9 @@ class Phase:
         self.search_samples = 0
         if config.plan is not None:
             self._modal = self._motion(Bf0, modes)
-            if kernel is not None:   # _xi_at's modal sum compiled: the kernel and its arrays' float views
-                self._xi_kernel = (kernel.xi_at, self._modal.U.view(float), self._modal.nu.view(float))
+            if kernel is not None:   # _xi_at's modal sum compiled: the kernel, its arrays' float views, the set-up
+                self._xi_kernel = (kernel.xi_at, self._modal.U.view(float), self._modal.nu.view(float),
+                                   phase_setup(kernel, config)[0])
         if self._modal is None:
             self._xi0 = np.concatenate([self.x0, self._harmonics(self.t0)])
 
@@ -585,8 +586,8 @@ class Phase:
         if self._xi_kernel is not None and not self._modal.groups and self._modal.U.shape[0] == 2 * self.config.r:
             n = self.config.system.n
             q, v = np.empty(n), np.empty(n)
-            phase_setup(core.compiled("phase"), self.config)[0].state(self._xi_kernel[1], self._xi_kernel[2],
-                                                                      t - self.t0, self.qp, q, v)
+            _, U, nu, setup = self._xi_kernel
+            setup.state(U, nu, t - self.t0, self.qp, q, v)
             return q, v
         xi = self.xi(t)
         return self.q_map() @ xi, self.v_map() @ xi
@@ -596,7 +597,7 @@ class Phase:
         event): the same sums as :meth:`xi`, without its array set-up."""
         mot, tau = self._modal, t - self.t0
         if self._xi_kernel is not None:
-            xi_at, Uv, nuv = self._xi_kernel
+            xi_at, Uv, nuv, _ = self._xi_kernel
             out = np.empty(self.dim)
             xi_at(Uv, nuv, tau, self.w, t, out)
             for nodes, D in mot.groups:
