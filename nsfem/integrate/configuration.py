@@ -429,6 +429,13 @@ class Configuration:
             maps = self._state_maps = (Pq, Pv)
         return maps
 
+    def base_finite(self) -> bool:
+        """Whether A_aug_base has finite entries only (its phases' A_aug then have iff their B f0 has; formed once)."""
+        cached = self.__dict__.get("_base_finite")
+        if cached is None or cached[0] is not self.A_aug_base:
+            cached = self._base_finite = (self.A_aug_base, bool(np.all(np.isfinite(self.A_aug_base))))
+        return cached[1]
+
     def fastest_rate(self) -> float:
         """max |eigenvalue| of A [1/s] (0 without coordinates); formed once per set of eigenvalues."""
         cached = self.__dict__.get("_fastest_rate")
@@ -488,27 +495,29 @@ class Phase:
         N, r = config.N, config.r
         self.w = config.w
         kernel = core.compiled("phase")
+        modes = None
         if kernel is None:
             self.qp = config.particular(self.g0)
             # forcing phi(t) = (f0 - Q q_p) + fc cos + fs sin as extra state components
             f0 = config.f0 - config.Q @ self.qp
             self.x0 = np.concatenate([N.T @ (q0 - self.qp), N.T @ v0])
             Bf0 = config.B @ f0
-        else:
-            self.qp, f0, self.x0, Bf0 = _compiled_start(kernel, config, self.g0, q0, v0)
+        else:   # the set-up and the modal coefficients in one call
+            self.qp, f0, self.x0, Bf0, modes = _compiled_setup(kernel, config, self.g0, q0, v0, self.t0)
         self.forcing = [f0] + config.loads
         self.dim = 2 * r + len(self.forcing)
         # augmented matrix (order: x, 1, cos, sin): the configuration's, with this phase's constant load
         self.A_aug = config.A_aug_base.copy()
-        self.A_aug[: 2 * r, 2 * r] = Bf0
+        self.A_aug[: 2 * r, 2 * r] = self._Bf0 = Bf0
         self._modal = self.amplitudes = None
         self._xi_kernel = None
         #: samples the event search evaluated on this phase (its fine passes; set by ``events.first_event``)
         self.search_samples = 0
         if config.plan is not None:
-            self._modal = self._motion(Bf0, kernel)
-            if kernel is not None:   # _xi_at's modal sum compiled: the kernel and its arrays' float views
-                self._xi_kernel = (kernel.xi_at, self._modal.U.view(float), self._modal.nu.view(float))
+            self._modal = self._motion(Bf0, modes)
+            if kernel is not None:   # _xi_at's modal sum compiled: the kernel, its arrays' float views, the set-up
+                self._xi_kernel = (kernel.xi_at, self._modal.U.view(float), self._modal.nu.view(float),
+                                   phase_setup(kernel, config)[0])
         if self._modal is None:
             self._xi0 = np.concatenate([self.x0, self._harmonics(self.t0)])
 
@@ -520,13 +529,13 @@ class Phase:
             parts += [np.cos(self.w * t), np.sin(self.w * t)]
         return np.array(parts)
 
-    def _motion(self, Bf0: np.ndarray, kernel=None) -> Motion:
+    def _motion(self, Bf0: np.ndarray, modes: tuple | None = None) -> Motion:
         """x(t - t0) in closed form (:class:`.closed_form.ModalPlan`): modes, particular solutions, and
         divided differences where the forcing is resonant or a rigid-body coordinate integrates a load.
         Without those (modes and particular solutions only) ``amplitudes`` keeps its modal coefficients.
-        ``kernel``: the compiled module of core part "phase" (None: this reference)."""
+        ``modes``: (z0, beta, U, c, g) as the compiled set-up formed them (None: this reference)."""
         cfg, k = self.config, self.config.k
-        if kernel is None:
+        if modes is None:
             Vi = cfg.eig[2]
             beta = np.empty((len(cfg.plan.mus), Vi.shape[0]), dtype=complex)     # mus: 0, -iw, iw
             beta[0] = Vi @ Bf0[k:]
@@ -537,7 +546,7 @@ class Phase:
             z0 = Vi @ self.x0[k:]
             U, c, g = cfg.plan.modes(z0, beta)
         else:
-            z0, beta, U, c, g = _compiled_modes(kernel, cfg, Bf0, self.x0, self.w, self.t0)
+            z0, beta, U, c, g = modes
         mot = cfg.plan.complete(U, z0, beta, self.x0[:k])
         if not k and not mot.groups:
             self.amplitudes = (c, g)
@@ -571,12 +580,24 @@ class Phase:
         out[: 2 * self.config.r] = self._modal.on_grid(t - self.t0, dt, n)
         return out
 
+    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(q, q') at one time: ``q_map() @ xi(t)``, ``v_map() @ xi(t)`` (the loop's state at an event); on the
+        modal path without divided differences one compiled call (``PhaseSetup.state``) when the core has it."""
+        if self._xi_kernel is not None and not self._modal.groups and self._modal.U.shape[0] == 2 * self.config.r:
+            n = self.config.system.n
+            q, v = np.empty(n), np.empty(n)
+            _, U, nu, setup = self._xi_kernel
+            setup.state(U, nu, t - self.t0, self.qp, q, v)
+            return q, v
+        xi = self.xi(t)
+        return self.q_map() @ xi, self.v_map() @ xi
+
     def _xi_at(self, t: float) -> np.ndarray:
         """xi at one time on the modal path (root refinement reads rows from it many times per
         event): the same sums as :meth:`xi`, without its array set-up."""
         mot, tau = self._modal, t - self.t0
         if self._xi_kernel is not None:
-            xi_at, Uv, nuv = self._xi_kernel
+            xi_at, Uv, nuv, _ = self._xi_kernel
             out = np.empty(self.dim)
             xi_at(Uv, nuv, tau, self.w, t, out)
             for nodes, D in mot.groups:
@@ -802,11 +823,26 @@ class Phase:
             P = np.zeros((cfg.W.shape[1], self.dim))
             if cfg.W.shape[1]:
                 P[:, : 2 * r], harmonic = cfg.force_parts()
-                P[:, 2 * r] = cfg.Wpinv @ (cfg.Rphi @ self.forcing[0])
+                P[:, 2 * r] = self.constant_forces()
                 P[:, 2 * r + 1:] = harmonic
             P.flags.writeable = False
             self._Pf = P
         return P
+
+    def constant_forces(self) -> np.ndarray:
+        """The force map's constant column, Wpinv Rphi f0 of this phase's constant load (formed once per phase,
+        without the rest of the map: the event rows need this column alone)."""
+        lam = self.__dict__.get("_lam0")
+        if lam is None:
+            cfg = self.config
+            lam = self._lam0 = cfg.Wpinv @ (cfg.Rphi @ self.forcing[0]) if cfg.W.shape[1] else np.zeros(0)
+        return lam
+
+    def finite(self) -> bool:
+        """Whether A_aug has finite entries only: the configuration's part (A_aug_base, its constant column 0)
+        and this phase's B f0 (a finite sum has no non-finite term; an overflowing one is judged term by term)."""
+        Bf0 = self._Bf0
+        return self.config.base_finite() and (math.isfinite(Bf0.sum()) or bool(np.all(np.isfinite(Bf0))))
 
     def max_step(self, horizon: float, rate: float | None = None) -> float:
         """Sampling step for event search: 1/8 of the fastest period (or time constant), of the
@@ -816,24 +852,36 @@ class Phase:
         return min(h, horizon / 8.0) if horizon > 0 else h
 
 
-def _compiled_start(kernel, config: Configuration, g0: np.ndarray, q0: np.ndarray, v0: np.ndarray):
-    """(q_p, f0, x0, B f0) of :meth:`Phase.__init__` by the compiled kernel ``phase_start``."""
-    a, n, r2 = config.kernel_arrays, config.system.n, 2 * config.r
-    qp, f0, x0, Bf0 = np.empty(n), np.empty(n), np.empty(r2), np.empty(r2)
-    kernel.phase_start(a["GpinvT"], np.ascontiguousarray(g0, dtype=float), a["QT"], a["f0"], a["BT"], a["N"],
-                       np.ascontiguousarray(q0, dtype=float), np.ascontiguousarray(v0, dtype=float), qp, f0, Bf0, x0)
-    return qp, f0, x0, Bf0
+def _compiled_setup(kernel, config: Configuration, g0: np.ndarray, q0: np.ndarray, v0: np.ndarray, t0: float):
+    """(q_p, f0, x0, B f0, modes) of :meth:`Phase.__init__` by one call of the compiled kernel
+    ``PhaseSetup.start`` (phase_start, then phase_modal with a modal plan): views into one buffer; modes the
+    (z0, beta, U, c, g) of :meth:`Phase._motion` and :meth:`.closed_form.ModalPlan.modes` (U's rigid rows left
+    to :meth:`.closed_form.ModalPlan.complete`), None without a modal plan."""
+    setup, lay, shapes = phase_setup(kernel, config)
+    buf = np.empty(lay[9])
+    setup.start(np.ascontiguousarray(g0, dtype=float), np.ascontiguousarray(q0, dtype=float),
+                np.ascontiguousarray(v0, dtype=float), config.w, t0, buf)
+    qp, f0, Bf0, x0 = buf[lay[0]: lay[1]], buf[lay[1]: lay[2]], buf[lay[2]: lay[3]], buf[lay[3]: lay[4]]
+    if shapes is None:
+        return qp, f0, x0, Bf0, None
+    z0, beta, c, g, U = (buf[lay[i]: lay[i + 1]].view(complex) for i in range(4, 9))
+    return qp, f0, x0, Bf0, (z0, beta.reshape(shapes[0]), U.reshape(shapes[1]), c, g.reshape(shapes[0]))
 
 
-def _compiled_modes(kernel, config: Configuration, Bf0: np.ndarray, x0: np.ndarray, w: float, t0: float):
-    """(z0, beta, U, c, g) of :meth:`Phase._motion` and :meth:`.closed_form.ModalPlan.modes` by the compiled
-    kernel ``phase_modal`` (U's rigid rows left to :meth:`.closed_form.ModalPlan.complete`)."""
-    a, plan, k = config.kernel_arrays, config.plan, config.k
-    m, nmu = config.eig[2].shape[0], len(plan.mus)
-    z0, c = np.empty(m, dtype=complex), np.empty(m, dtype=complex)
-    beta, g = np.empty((nmu, m), dtype=complex), np.empty((nmu, m), dtype=complex)
-    U = np.empty((k + plan.V.shape[0], plan.nu.size), dtype=complex)
-    ph = complex(np.exp(1j * w * t0)) if w else 0j     # as the reference forms e^{i w t0}
-    kernel.phase_modal(a["ViT"], Bf0, x0, a["harmonic"], ph.real, ph.imag, k, a["V"], a["den"], z0.view(float),
-                       beta.view(float), c.view(float), g.view(float), U.view(float))
-    return z0, beta, U, c, g
+def phase_setup(kernel, config: Configuration) -> tuple:
+    """(the compiled ``PhaseSetup`` of ``config``'s kernel_arrays, its buffer's layout, the shapes (beta and g,
+    U) or None without a modal plan), formed once per configuration (again when its kernel_arrays change:
+    :meth:`Configuration.with_load`)."""
+    arrays = config.kernel_arrays
+    hit = config.__dict__.get("_phase_setup")
+    if hit is None or hit[0] is not arrays:
+        a, plan = arrays, config.plan
+        if plan is None:
+            setup, shapes = kernel.PhaseSetup(a["GpinvT"], a["QT"], a["f0"], a["BT"], a["N"]), None
+        else:
+            nmu, p = len(plan.mus), plan.nu.size
+            setup = kernel.PhaseSetup(a["GpinvT"], a["QT"], a["f0"], a["BT"], a["N"], a["ViT"], a["harmonic"],
+                                      a["V"], a["den"], config.k, nmu, p)
+            shapes = ((nmu, config.eig[2].shape[0]), (config.k + plan.V.shape[0], p))
+        hit = config.__dict__["_phase_setup"] = (arrays, setup, setup.layout, shapes)
+    return hit[1:]

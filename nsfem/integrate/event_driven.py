@@ -82,6 +82,8 @@ class EventDriven(Integrator):
             raise NsfemError(f"zeno must lie in (0, 1), got {zeno}")
         self.zeno, self.max_events, self.progress = zeno, int(max_events), progress
         self._cache: dict = {}
+        #: the gaps' constants g0 of the modes without sticking or edge rows (:meth:`_phase`), by mode
+        self._gaps: dict = {}
         #: configurations with elastic rings by what sets their matrices (:meth:`_build`)
         self._systems: dict = {}
         #: the round rings (:mod:`.round`) and the system of the fixed polygon they turn
@@ -132,9 +134,15 @@ class EventDriven(Integrator):
     def _phase(self, mode: Mode, t: float, q: np.ndarray, v: np.ndarray) -> Phase:
         """The phase of configuration ``mode`` from (t, q, v); sticking slips held at their value."""
         cs = self.system.contacts
-        g0 = np.concatenate([cs.jN[list(mode.closed)]] + [-(cs.JS[k].T @ q) for k in mode.stick]
-                            + [[-(cs.facet(k, i)[1] @ (cs.JS[k].T @ q))] for k, i in mode.edge]) \
-            if mode.closed else np.zeros(0)
+        if mode.stick or mode.edge:
+            g0 = np.concatenate([cs.jN[list(mode.closed)]] + [-(cs.JS[k].T @ q) for k in mode.stick]
+                                + [[-(cs.facet(k, i)[1] @ (cs.JS[k].T @ q))] for k, i in mode.edge])
+        else:   # the closed gaps' constants alone: the same for every phase of the mode (formed once per contacts)
+            hit = self._gaps.get(mode)
+            if hit is None or hit[0] is not cs:
+                hit = self._gaps[mode] = (cs, cs.jN[list(mode.closed)] if mode.closed else np.zeros(0))
+                hit[1].flags.writeable = False
+            g0 = hit[1]
         return Phase(self.configuration(mode), t, q, v, g0)
 
     def _advance(self, phase: Phase, rows: Rows, t0: float, t1: float):  # pragma: no cover - abstract
@@ -145,7 +153,7 @@ class EventDriven(Integrator):
         self.system = self._polygon
         self._rings = round_rings(self.system.contacts, self.system.info.get("round_rings", ())) \
             if self.round_rings else ()
-        self._cache, self._systems = {}, {}
+        self._cache, self._systems, self._gaps = {}, {}, {}
         sysm = self.system
         cs = sysm.contacts
         n, m = sysm.n, cs.m
@@ -213,12 +221,17 @@ class EventDriven(Integrator):
                     self._outputs(phase, mode, xi_out, sel, out)
                     memory.observe(cs, phase.q_map() @ xi_out, phase.v_map() @ xi_out)
                     filled = int(sel[-1]) + 1
-                xi_end = xi_fun(t_next)
-                q_end, v_end = phase.q_map() @ xi_end, phase.v_map() @ xi_end
+                if xi_fun == phase.xi:
+                    q_end, v_end = phase.state_at(t_next)
+                else:
+                    xi_end = xi_fun(t_next)
+                    q_end, v_end = phase.q_map() @ xi_end, phase.v_map() @ xi_end
                 with np.errstate(over="ignore", invalid="ignore"):  # overflow: judged just below
                     e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy,
                                                     ends=(q, v, q_end, v_end)))
-                if not (math.isfinite(e_max) and all(math.isfinite(x) for x in energy.values())):
+                # (a finite sum has no non-finite term; an overflowing one is judged term by term)
+                if not (math.isfinite(e_max) and (math.isfinite(sum(energy.values()))
+                                                  or all(math.isfinite(x) for x in energy.values()))):
                     raise overflow(t_next, mode, sysm, "energy")
                 phase_integrated = True
                 if mode.closed or mode.ring:
@@ -637,8 +650,10 @@ class EventDriven(Integrator):
             # (C-ordered complex: the compiled kernel reads them as float views)
             S = np.ascontiguousarray(np.array(S, dtype=complex).reshape(len(keys), m, m))
             E = np.ascontiguousarray(np.array(loads) @ Vv, dtype=complex)
-            hit = cfg.__dict__["_modal_forms"] = (forms, E, keys, S, Vv, cfg.plan.nu[m:])
-        _, E, keys, S, Vv, mus = hit
+            # (and the float views the compiled kernel reads: nu, E, S)
+            hit = cfg.__dict__["_modal_forms"] = (forms, E, keys, S, Vv, cfg.plan.nu[m:],
+                                                  (cfg.plan.nu.view(float), E.view(float), S.view(float)))
+        _, E, keys, S, Vv, mus, _ = hit
         nu = cfg.plan.nu
         kernel = core.compiled("phase")
         if kernel is not None:
@@ -666,12 +681,12 @@ def _compiled_energy_modal(kernel, cfg, hit: tuple, c: np.ndarray, g: np.ndarray
                            energy: dict) -> tuple[np.ndarray, np.ndarray]:
     """The compiled kernel ``energy_modal`` for :meth:`EventDriven._energy_modal` (its configuration's cached
     forms ``hit``): books the external work, returns (the forms' values, PZ)."""
-    _, E, keys, S = hit[:4]
+    keys, (nu, E, S) = hit[2], hit[6]
     m, nmu = c.size, len(cfg.plan.mus)
     vals, PZ = np.empty(len(keys)), np.empty((nmu, m), dtype=complex)
-    energy["work_external_J"] += kernel.energy_modal(cfg.plan.nu.view(float), np.ascontiguousarray(c).view(float),
-                                                     np.ascontiguousarray(g).view(float), T, t0, E.view(float),
-                                                     S.view(float), vals, PZ.view(float))
+    energy["work_external_J"] += kernel.energy_modal(nu, np.ascontiguousarray(c).view(float),
+                                                     np.ascontiguousarray(g).view(float), T, t0, E, S, vals,
+                                                     PZ.view(float))
     return vals, PZ
 
 

@@ -146,7 +146,7 @@ class _RowsPlan:
     def rows(self, phase: Phase) -> Rows:
         c = self.c
         H, Hd = self.H.copy(), self.Hd.copy()
-        H[:, c] = self.Rq @ phase.qp + self.Rf @ phase.force_map()[:, c] + self.K
+        H[:, c] = self.Rq @ phase.qp + self.Rf @ phase.constant_forces() + self.K
         Hd[:, c] = H[:, :c] @ phase.A_aug[:c, c]
         return Rows(H, self.kinds, self.contacts, self.detail, Hd, self.weights, self.HV)
 

@@ -67,9 +67,7 @@ def check_phase(phase, t: float, t_end: float, mode) -> None:
     rate = cfg.fastest_rate()
     step = phase.max_step(math.inf, rate)   # (the configuration's rate: as max_step finds it, once)
     resolution = 16.0 * math.ulp(max(abs(t_end), abs(t)))
-    # (a finite sum has no non-finite entry; an overflowing one is judged entry by entry)
-    if math.isfinite(rate) and (math.isfinite(phase.A_aug.sum()) or np.all(np.isfinite(phase.A_aug))) \
-            and (not math.isfinite(step) or step > resolution):
+    if math.isfinite(rate) and phase.finite() and (not math.isfinite(step) or step > resolution):
         return
     where = describe_mode(cfg.system.contacts, mode)
     sysm = cfg.system

@@ -139,69 +139,75 @@ cpdef void phase_modal(const double[:, ::1] ViT, const double[::1] Bf0, const do
     kernel_arrays: rows Vi conj(hb), Vi hb, those over den_1, den_2, and V times these), the same
     values to a few eps of each term (tests/test_core_phase.py) at O(m) instead of O(m^2) per phase.
     Complex pairs interleaved."""
-    cdef Py_ssize_t m = ViT.shape[1] // 2, ncol = ViT.shape[0], nmu = beta.shape[0], d = V.shape[0]
-    cdef Py_ssize_t p = U.shape[1] // 2, i, j, l, a
-    cdef double x, y, vr, vi_, gr, gi, cr, ci, sr, si
-    cdef double q[2]
+    cdef Py_ssize_t m = ViT.shape[1] // 2
     if m == 0:
         return
-    cdef double* pz = &z0[0]
-    cdef double* pbeta = &beta[0, 0]
-    cdef double* pg = &g[0, 0]
-    cdef double* pc = &c[0]
-    cdef double* pU = &U[0, 0]
+    with nogil:
+        modal_core(ViT, &Bf0[0], &x0[0], harmonic, ph_re, ph_im, k, V, den, beta.shape[0], U.shape[1] // 2,
+                   &z0[0], &beta[0, 0], &c[0], &g[0, 0], &U[0, 0])
+
+
+cdef void modal_core(const double[:, ::1] ViT, const double* Bf0, const double* x0,
+                     const double[:, ::1] harmonic, double ph_re, double ph_im, Py_ssize_t k,
+                     const double[:, ::1] V, const double[:, ::1] den, Py_ssize_t nmu, Py_ssize_t p,
+                     double* pz, double* pbeta, double* pc, double* pg, double* pU) noexcept nogil:
+    """phase_modal's arithmetic on its arrays' first entries (m > 0; nmu rows of beta and g, p terms per row of
+    U), shared with PhaseSetup.start."""
+    cdef Py_ssize_t m = ViT.shape[1] // 2, ncol = ViT.shape[0], d = V.shape[0]
+    cdef Py_ssize_t i, j, l, a
+    cdef double x, y, vr, vi_, sr, si
+    cdef double q[2]
     cdef double* out
     cdef const double* row
     cdef const double* h
-    with nogil:
-        for j in range(2 * m):
-            pz[j] = 0.0
-            pbeta[j] = 0.0
-        for l in range(ncol):
-            x = Bf0[k + l]
-            y = x0[k + l]
-            row = &ViT[l, 0]
-            if x != 0.0:    # (B f0's displacement rows are zeros: their terms add nothing)
-                for j in range(2 * m):
-                    pbeta[j] = pbeta[j] + row[j] * x
+    for j in range(2 * m):
+        pz[j] = 0.0
+        pbeta[j] = 0.0
+    for l in range(ncol):
+        x = Bf0[k + l]
+        y = x0[k + l]
+        row = &ViT[l, 0]
+        if x != 0.0:    # (B f0's displacement rows are zeros: their terms add nothing)
             for j in range(2 * m):
-                pz[j] = pz[j] + row[j] * y
+                pbeta[j] = pbeta[j] + row[j] * x
+        for j in range(2 * m):
+            pz[j] = pz[j] + row[j] * y
+    for j in range(m):
+        cdiv(pbeta[2 * j], pbeta[2 * j + 1], den[0, 2 * j], den[0, 2 * j + 1], q)
+        pg[2 * j] = q[0]
+        pg[2 * j + 1] = q[1]
+        pc[2 * j] = pz[2 * j] - q[0]
+        pc[2 * j + 1] = pz[2 * j + 1] - q[1]
+    for i in range(1, nmu):
+        # mus[1] = -i w: the conjugate phase; mus[2] = i w
+        sr = ph_re
+        si = -ph_im if i == 1 else ph_im
+        h = &harmonic[i - 1, 0]                 # Vi conj(hb), Vi hb
         for j in range(m):
-            cdiv(pbeta[2 * j], pbeta[2 * j + 1], den[0, 2 * j], den[0, 2 * j + 1], q)
-            pg[2 * j] = q[0]
-            pg[2 * j + 1] = q[1]
-            pc[2 * j] = pz[2 * j] - q[0]
-            pc[2 * j + 1] = pz[2 * j + 1] - q[1]
-        for i in range(1, nmu):
-            # mus[1] = -i w: the conjugate phase; mus[2] = i w
-            sr = ph_re
-            si = -ph_im if i == 1 else ph_im
-            h = &harmonic[i - 1, 0]                 # Vi conj(hb), Vi hb
-            for j in range(m):
-                cmul(h[2 * j], h[2 * j + 1], sr, si, &pbeta[2 * (i * m + j)])
-            h = &harmonic[1 + i, 0]                 # those over den_i
-            for j in range(m):
-                cmul(h[2 * j], h[2 * j + 1], sr, si, &pg[2 * (i * m + j)])
-                pc[2 * j] = pc[2 * j] - pg[2 * (i * m + j)]
-                pc[2 * j + 1] = pc[2 * j + 1] - pg[2 * (i * m + j) + 1]
-            h = &harmonic[3 + i, 0]                 # V times those
-            for a in range(d):
-                cmul(h[2 * a], h[2 * a + 1], sr, si, &pU[2 * ((k + a) * p + m + i)])
+            cmul(h[2 * j], h[2 * j + 1], sr, si, &pbeta[2 * (i * m + j)])
+        h = &harmonic[1 + i, 0]                 # those over den_i
+        for j in range(m):
+            cmul(h[2 * j], h[2 * j + 1], sr, si, &pg[2 * (i * m + j)])
+            pc[2 * j] = pc[2 * j] - pg[2 * (i * m + j)]
+            pc[2 * j + 1] = pc[2 * j + 1] - pg[2 * (i * m + j) + 1]
+        h = &harmonic[3 + i, 0]                 # V times those
         for a in range(d):
-            # row a of U: V[a] diag(c), then the particular solution V[a] . g_0 (one sum in order of j)
-            row = &V[a, 0]
-            out = pU + 2 * (k + a) * p
-            sr = 0.0
-            si = 0.0
-            for j in range(m):
-                vr = row[2 * j]
-                vi_ = row[2 * j + 1]
-                out[2 * j] = vr * pc[2 * j] - vi_ * pc[2 * j + 1]
-                out[2 * j + 1] = vr * pc[2 * j + 1] + vi_ * pc[2 * j]
-                sr = sr + (vr * pg[2 * j] - vi_ * pg[2 * j + 1])
-                si = si + (vr * pg[2 * j + 1] + vi_ * pg[2 * j])
-            out[2 * m] = sr
-            out[2 * m + 1] = si
+            cmul(h[2 * a], h[2 * a + 1], sr, si, &pU[2 * ((k + a) * p + m + i)])
+    for a in range(d):
+        # row a of U: V[a] diag(c), then the particular solution V[a] . g_0 (one sum in order of j)
+        row = &V[a, 0]
+        out = pU + 2 * (k + a) * p
+        sr = 0.0
+        si = 0.0
+        for j in range(m):
+            vr = row[2 * j]
+            vi_ = row[2 * j + 1]
+            out[2 * j] = vr * pc[2 * j] - vi_ * pc[2 * j + 1]
+            out[2 * j + 1] = vr * pc[2 * j + 1] + vi_ * pc[2 * j]
+            sr = sr + (vr * pg[2 * j] - vi_ * pg[2 * j + 1])
+            si = si + (vr * pg[2 * j + 1] + vi_ * pg[2 * j])
+        out[2 * m] = sr
+        out[2 * m + 1] = si
 
 
 # -- the closed-form energy -----------------------------------------------------------------------
@@ -565,3 +571,81 @@ cpdef void group_integrals(const double complex[::1] nu, const double complex[:,
                     v = product_integral(&cols[c, 0], <int> sizes[c], &cols[dd, 0], <int> sizes[dd], T)
                     Pg[c, dd] = v
                     Pg[dd, c] = v
+
+
+# -- one call per phase: its set-up, and its state at the event ---------------------------------------
+
+cdef class PhaseSetup:
+    """A configuration's arrays for its phases' set-up (Configuration.kernel_arrays), held once per
+    configuration so that a phase costs one call: :meth:`start` is phase_start then phase_modal (Phase.__init__
+    and Phase._motion), :meth:`state` the state (q, q') at one time (Phase._xi_at, then q_map() @ xi and
+    v_map() @ xi). ``layout`` gives where start's results lie in its one output buffer."""
+
+    cdef const double[:, ::1] GpinvT, QT, BT, N, ViT, harmonic, V, den
+    cdef const double[::1] f0
+    cdef Py_ssize_t n, r, k, m, nmu, p, d
+    cdef readonly tuple layout
+
+    def __init__(self, GpinvT, QT, f0, BT, N, ViT=None, harmonic=None, V=None, den=None, Py_ssize_t k=0,
+                 Py_ssize_t nmu=0, Py_ssize_t p=0):
+        self.GpinvT, self.QT, self.f0, self.BT, self.N = GpinvT, QT, f0, BT, N
+        self.n, self.r, self.k, self.nmu, self.p = QT.shape[0], N.shape[1], k, nmu, p
+        self.m = self.d = 0
+        if ViT is not None:
+            self.ViT, self.harmonic, self.V, self.den = ViT, harmonic, V, den
+            self.m, self.d = ViT.shape[1] // 2, V.shape[0]
+        # (qp, f0, B f0, x0, z0, beta, c, g, U): their offsets in the buffer, then its size
+        sizes = (self.n, self.n, 2 * self.r, 2 * self.r, 2 * self.m, 2 * self.nmu * self.m, 2 * self.m,
+                 2 * self.nmu * self.m, 2 * (self.k + self.d) * self.p)
+        offsets, at = [], 0
+        for size in sizes:
+            offsets.append(at)
+            at += size
+        self.layout = (*offsets, at)
+
+    cpdef void start(self, const double[::1] g0, const double[::1] q0, const double[::1] v0, double w, double t0,
+                     double[::1] out) noexcept:
+        """Phase.__init__'s set-up into ``out`` (``layout``): phase_start's (q_p, f0, B f0, x0), then with a
+        modal plan phase_modal's (z0, beta, c, g, U; U's rigid rows left to ModalPlan.complete) with the
+        phase e^{i w t0} as the reference forms it (numpy's exp of i w t0: the C library's cexp)."""
+        cdef tuple lay = self.layout
+        cdef Py_ssize_t o_qp = lay[0], o_f0 = lay[1], o_b = lay[2], o_x = lay[3], o_z = lay[4], o_beta = lay[5]
+        cdef Py_ssize_t o_c = lay[6], o_g = lay[7], o_U = lay[8]
+        cdef double ph_re = 0.0, ph_im = 0.0
+        phase_start(self.GpinvT, g0, self.QT, self.f0, self.BT, self.N, q0, v0, out[o_qp: o_f0], out[o_f0: o_b],
+                    out[o_b: o_x], out[o_x: o_z])
+        if self.m == 0:
+            return
+        if w != 0.0:
+            nsfem_cexp(0.0, w * t0, &ph_re, &ph_im)
+        with nogil:
+            modal_core(self.ViT, &out[o_b], &out[o_x], self.harmonic, ph_re, ph_im, self.k, self.V, self.den,
+                       self.nmu, self.p, &out[o_z], &out[o_beta], &out[o_c], &out[o_g], &out[o_U])
+
+    cpdef void state(self, const double[:, ::1] U, const double[::1] nu, double tau, const double[::1] qp,
+                     double[::1] q, double[::1] v) noexcept:
+        """(q, q') at t0 + tau of a phase on the modal path without divided differences: x = Re(U e^{nu tau})
+        as xi_at forms it, then q = N x[:r] + q_p, q' = N x[r:] (Phase.q_map() @ xi, v_map() @ xi; each entry
+        one sum in the order of N's columns, BLAS's products round otherwise)."""
+        cdef Py_ssize_t d = U.shape[0], p = nu.shape[0] // 2, n = self.n, r = self.r, i, j
+        cdef double sq, sv
+        cdef const double* row
+        if n == 0:
+            return
+        cdef double* e = <double*> malloc((2 * p + d + 1) * sizeof(double))
+        cdef double* x = e + 2 * p
+        with nogil:
+            for j in range(p):
+                nsfem_cexp(nu[2 * j] * tau, nu[2 * j + 1] * tau, &e[2 * j], &e[2 * j + 1])
+            if d:
+                modal_rows(&U[0, 0], 2 * p, 0, d, 1, e, &e[1], 2, p, x)
+            for i in range(n):
+                row = &self.N[i, 0]
+                sq = 0.0
+                sv = 0.0
+                for j in range(r):
+                    sq = sq + row[j] * x[j]
+                    sv = sv + row[j] * x[r + j]
+                q[i] = sq + qp[i]
+                v[i] = sv
+        free(e)
