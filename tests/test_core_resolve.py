@@ -188,3 +188,24 @@ def test_one_unknown_lcp_is_lemkes_result(a, b):
     # what a solved answer must satisfy: x >= 0, and x = 0 where b >= 0 (nothing to push)
     if got.success:
         assert got.x[0] >= 0.0 and (b < 0.0 or got.x[0] == 0.0)
+
+
+def test_bands_of_a_number_or_a_short_array_are_the_references():
+    """Reproduction (review-b): the kernels read gap_tol[k], q[i] without bounds checks; a gap tolerance given as
+    one number (the reference broadcasts it to every contact) was read as a one-entry array, the other
+    contacts' bands from whatever lay past it, and a state two coordinates short summed memory past its end.
+    Now such calls take the reference: the same bands, or numpy's ValueError."""
+    rng = np.random.default_rng(0)
+    m, n = 6, 4
+    cs = ContactSet.from_arrays(rng.standard_normal((n, m)), rng.standard_normal(m) * 1e-3)
+    mem = Memory(np.zeros(m), np.zeros(m, dtype=int))
+    mem.observe(cs, rng.standard_normal(n), rng.standard_normal(n))
+    q, v = rng.standard_normal(n), rng.standard_normal(n)
+    for tol in (0.5, np.array([0.5])):
+        tg = _bands(cs, copy.deepcopy(mem), q, v, tol, kernel)[2]
+        assert tg == _bands(cs, copy.deepcopy(mem), q, v, tol)[2] and min(tg) == 0.5   # each band is the tolerance
+    for args in ((q, v, np.full(3, 0.5)), (q[:2], v[:2], None)):
+        with pytest.raises(ValueError):
+            _bands(cs, copy.deepcopy(mem), *args, kernel)
+    with pytest.raises(ValueError):
+        _rate_bands(cs, mem, v[:2], np.ones(m), kernel)
