@@ -142,15 +142,18 @@ def test_impact_records_agree(case, monkeypatch):
     bands, used = transitions._bands, []
     monkeypatch.setattr(transitions, "_bands",
                         lambda *a, **k: (used.append(len(a) > 5 and a[5] is not None), bands(*a, **k))[1])
-    kernel, ran = core.compiled("resolve"), []
+    kernel, ran, rates = core.compiled("resolve"), [], []
 
-    class Spy:   # the kernel's state_bands counted: a call handed to the reference every time passes no kernel
-        rate_bands = staticmethod(kernel.rate_bands)
-
+    class Spy:   # the kernels' calls counted: a call handed to the reference every time passes a kernel too
         @staticmethod
         def state_bands(*args):
             ran.append(1)
             return kernel.state_bands(*args)
+
+        @staticmethod
+        def rate_bands(*args):
+            rates.append(1)
+            return kernel.rate_bands(*args)
 
     monkeypatch.setitem(core._active, "resolve", Spy)
     name, overrides = CASES[case]
@@ -166,6 +169,7 @@ def test_impact_records_agree(case, monkeypatch):
     assert len(compiled.impacts) == len(python.impacts)
     if not python.impacts:
         return
+    assert rates   # the rates after the impulses in the kernel too
     top = {key: max(max((abs(x) for x in i[key]), default=0.0) for i in python.impacts) or 1.0
            for key in ("approach_m_s", "impulse_Ns")}
     k_top = max(i["kinetic_before_J"] for i in python.impacts) or 1.0
