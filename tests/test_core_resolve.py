@@ -209,3 +209,29 @@ def test_bands_of_a_number_or_a_short_array_are_the_references():
             _bands(cs, copy.deepcopy(mem), *args, kernel)
     with pytest.raises(ValueError):
         _rate_bands(cs, mem, v[:2], np.ones(m), kernel)
+
+
+def test_one_unknown_lcp_on_degenerate_entries_is_lemkes_result():
+    """The direct path of a one-unknown LCP on the entries hypothesis's range leaves out: A zero (either sign),
+    negative, subnormal, at the float limit, non-finite (then no cached equilibration: lemke decides), against b
+    of every kind. The same kernel on the same numbers: lemke's result or error, exactly (review-b)."""
+    if core.compiled("lcp") is None:
+        pytest.skip("the compiled core part 'lcp' is not active")
+    special = [0.0, -0.0, 5e-324, -5e-324, -1.0, 1.0, -1e300, 1e300, 1.7e308, -1.7e308, math.inf, -math.inf, math.nan]
+    for a in special:
+        for b in special:
+            A = np.array([[a]])
+            scales = equilibrate(A) if math.isfinite(a) else None   # (a cached matrix part equilibrates finite A)
+            lcp = ContactLCP(A, np.array([b]), np.array([0]), np.zeros(0, dtype=int), np.zeros(0, dtype=int),
+                             np.ones((1, 1)), np.ones((1, 1)), (), np.zeros(1), scales)
+            with np.errstate(all="ignore"):
+                try:
+                    ref = lemke(A, np.array([b]), groups=lcp.groups, scales=scales)
+                except NsfemError as exc:
+                    with pytest.raises(NsfemError) as got_err:
+                        lcp.solve()
+                    assert str(got_err.value) == str(exc)
+                    continue
+                got = lcp.solve()
+            assert repr((got.status, got.pivots, got.message, got.x, got.w, got.residual, got.certificate)) == \
+                repr((ref.status, ref.pivots, ref.message, ref.x, ref.w, ref.residual, ref.certificate)), (a, b)
