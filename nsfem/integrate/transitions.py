@@ -241,8 +241,9 @@ def _rate_bands(cs, memory: Memory, v: np.ndarray, tv: np.ndarray, kernel=None) 
 def _fits(cs, q, v, *per_contact) -> bool:
     """Whether the compiled band kernels may read these arrays: q and q' of the n coordinates, one value per
     contact in each of ``per_contact`` (None: not given)."""
-    n, m = cs.n, cs.m
-    return np.shape(q) == (n,) and np.shape(v) == (n,) and all(a is None or np.shape(a) == (m,) for a in per_contact)
+    n, m = (cs.n,), (cs.m,)   # (a number or a list has no shape: the reference takes it)
+    return getattr(q, "shape", None) == n and getattr(v, "shape", None) == n \
+        and all(a is None or getattr(a, "shape", None) == m for a in per_contact)
 
 
 _EMPTY = np.zeros(0)
