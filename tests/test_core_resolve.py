@@ -188,3 +188,50 @@ def test_one_unknown_lcp_is_lemkes_result(a, b):
     # what a solved answer must satisfy: x >= 0, and x = 0 where b >= 0 (nothing to push)
     if got.success:
         assert got.x[0] >= 0.0 and (b < 0.0 or got.x[0] == 0.0)
+
+
+def test_bands_of_a_number_or_a_short_array_are_the_references():
+    """Reproduction (review-b): the kernels read gap_tol[k], q[i] without bounds checks; a gap tolerance given as
+    one number (the reference broadcasts it to every contact) was read as a one-entry array, the other
+    contacts' bands from whatever lay past it, and a state two coordinates short summed memory past its end.
+    Now such calls take the reference: the same bands, or numpy's ValueError."""
+    rng = np.random.default_rng(0)
+    m, n = 6, 4
+    cs = ContactSet.from_arrays(rng.standard_normal((n, m)), rng.standard_normal(m) * 1e-3)
+    mem = Memory(np.zeros(m), np.zeros(m, dtype=int))
+    mem.observe(cs, rng.standard_normal(n), rng.standard_normal(n))
+    q, v = rng.standard_normal(n), rng.standard_normal(n)
+    for tol in (0.5, np.array([0.5])):
+        tg = _bands(cs, copy.deepcopy(mem), q, v, tol, kernel)[2]
+        assert tg == _bands(cs, copy.deepcopy(mem), q, v, tol)[2] and min(tg) == 0.5   # each band is the tolerance
+    for args in ((q, v, np.full(3, 0.5)), (q[:2], v[:2], None)):
+        with pytest.raises(ValueError):
+            _bands(cs, copy.deepcopy(mem), *args, kernel)
+    with pytest.raises(ValueError):
+        _rate_bands(cs, mem, v[:2], np.ones(m), kernel)
+
+
+def test_one_unknown_lcp_on_degenerate_entries_is_lemkes_result():
+    """The direct path of a one-unknown LCP on the entries hypothesis's range leaves out: A zero (either sign),
+    negative, subnormal, at the float limit, non-finite (then no cached equilibration: lemke decides), against b
+    of every kind. The same kernel on the same numbers: lemke's result or error, exactly (review-b)."""
+    if core.compiled("lcp") is None:
+        pytest.skip("the compiled core part 'lcp' is not active")
+    special = [0.0, -0.0, 5e-324, -5e-324, -1.0, 1.0, -1e300, 1e300, 1.7e308, -1.7e308, math.inf, -math.inf, math.nan]
+    for a in special:
+        for b in special:
+            A = np.array([[a]])
+            scales = equilibrate(A) if math.isfinite(a) else None   # (a cached matrix part equilibrates finite A)
+            lcp = ContactLCP(A, np.array([b]), np.array([0]), np.zeros(0, dtype=int), np.zeros(0, dtype=int),
+                             np.ones((1, 1)), np.ones((1, 1)), (), np.zeros(1), scales)
+            with np.errstate(all="ignore"):
+                try:
+                    ref = lemke(A, np.array([b]), groups=lcp.groups, scales=scales)
+                except NsfemError as exc:
+                    with pytest.raises(NsfemError) as got_err:
+                        lcp.solve()
+                    assert str(got_err.value) == str(exc)
+                    continue
+                got = lcp.solve()
+            assert repr((got.status, got.pivots, got.message, got.x, got.w, got.residual, got.certificate)) == \
+                repr((ref.status, ref.pivots, ref.message, ref.x, ref.w, ref.residual, ref.certificate)), (a, b)

@@ -2309,3 +2309,63 @@ def test_compiled_search_images_of_the_wrong_forcing_count_reproduction():
     bad = dict(args, images=(HV, c, np.ascontiguousarray(g[:1])))
     with pytest.raises(ValueError, match="images"):
         core.compiled("search").Search(*(bad[name] for name in _SEARCH_ARGS))
+
+
+# --- issue 33: review-b (compiled resolve bands, elastic rings' shared configurations, group integrals) ---
+
+def _bands_outcome(call):
+    """(values as float arrays, or the exception's type): what a band function gave."""
+    import numpy as np
+
+    try:
+        return tuple(np.asarray(x, dtype=float) for x in call())
+    except (ValueError, IndexError) as exc:
+        return type(exc)
+
+
+@settings(max_examples=40, deadline=None)
+@given(m=st.integers(1, 6), n=st.integers(1, 5), tol_len=st.sampled_from([None, 0, 1, 2, 5, 7, "scalar"]),
+       q_len=st.integers(0, 6), seed=st.integers(0, 2 ** 16))
+def test_compiled_bands_of_any_shapes_are_the_references(m, n, tol_len, q_len, seed):
+    """The compiled band kernels (core part "resolve") read their arrays without bounds checks: arguments of
+    other shapes than they expect (a gap tolerance given as one number or of another length, a state of
+    another length, a band of another length) must give what the reference gives (numpy's broadcast of a
+    number, its ValueError otherwise), never numbers read beyond an array."""
+    import copy
+
+    import numpy as np
+
+    from nsfem.contact.set import ContactSet
+    from nsfem.integrate import core
+    from nsfem.integrate.transitions import Memory, _bands, _rate_bands
+
+    kernel = core.compiled("resolve")
+    if kernel is None:
+        pytest.skip("the compiled core part 'resolve' is not active")
+    rng = np.random.default_rng(seed)
+    cs = ContactSet.from_arrays(rng.standard_normal((n, m)), 1e-3 * rng.standard_normal(m))
+    mem = Memory(np.zeros(m), np.zeros(m, dtype=int))
+    mem.observe(cs, rng.standard_normal(n), rng.standard_normal(n))
+    q, v = rng.standard_normal(q_len), rng.standard_normal(q_len)
+    tol = None if tol_len is None else 0.5 if tol_len == "scalar" else rng.uniform(0, 1, tol_len)
+    with np.errstate(all="ignore"):
+        ref = _bands_outcome(lambda: _bands(cs, copy.deepcopy(mem), q, v, tol))
+        got = _bands_outcome(lambda: _bands(cs, copy.deepcopy(mem), q, v, tol, kernel))
+        if isinstance(ref, tuple):
+            assert isinstance(got, tuple)
+            # (gaps and rates: C sums against BLAS, within the dot product's bound; the bands exact or as close)
+            scale = np.abs(cs.JN).T @ np.abs(q) + np.abs(cs.jN) + np.abs(cs.JN).T @ np.abs(v) + 1e-300
+            for a, b in zip(got, ref):
+                assert np.all(np.abs(a - b) <= 4 * (n + 2) * np.finfo(float).eps * np.maximum(scale, np.abs(b)))
+        else:
+            assert got is ref
+        tv = rng.uniform(0, 1, tol_len) if isinstance(tol_len, int) and tol_len else rng.uniform(0, 1, m)
+        ref = _bands_outcome(lambda: _rate_bands(cs, mem, v, tv))
+        got = _bands_outcome(lambda: _rate_bands(cs, mem, v, tv, kernel))
+    if not isinstance(ref, tuple):
+        assert got is ref
+        return
+    # (g' = J^T v: C sum against BLAS, within twice the dot product's bound n eps |J|^T |v|; the bands as close)
+    scale = np.abs(cs.JN).T @ np.abs(v) + 1e-300
+    assert isinstance(got, tuple) and all(
+        np.all(np.abs(a - b) <= 4 * (n + 2) * np.finfo(float).eps * np.maximum(scale, np.abs(b))) for a, b in zip(got, ref))

@@ -222,13 +222,16 @@ def _bands(cs, memory: Memory, q: np.ndarray, v: np.ndarray, gap_tol, kernel=Non
     a gap counts as zero below the larger of ZERO times its scale, the band of its own terms, ``gap_tol``
     (per contact, or None) and the gap floor; a rate likewise without the last two. g and the gap bands as
     lists. ``kernel``: the compiled module of core part "resolve" (None: this reference)."""
-    if kernel is not None and memory.gap_scale is not None and memory.rate_scale is not None:
+    if kernel is not None and memory.gap_scale is not None and memory.rate_scale is not None \
+            and _fits(cs, q, v, memory.gap_scale, memory.rate_scale, gap_tol):
+        # (the kernel reads without bounds checks: other shapes take the reference, which broadcasts or refuses)
         JNT, aJT, jN, aj = memory.kernel_arrays(cs)
         out = np.empty((6, cs.m))
         kernel.state_bands(JNT, aJT, jN, aj, _floats(q), _floats(v), memory.gap_scale, memory.rate_scale,
                            _EMPTY if gap_tol is None else np.ascontiguousarray(gap_tol, dtype=float),
                            float(memory.gap_floor), out)
         memory.gap_scale, memory.rate_scale = out[0], out[1]
+        memory.abs_parts(cs)   # (of this set: its last entry says whether any contact has a slip)
         if memory._abs[4]:   # the slip scales as observe forms them
             memory.observe_slip(cs, np.abs(q), np.abs(v))
         return out[2].tolist(), out[3], out[4].tolist(), out[5]
@@ -245,12 +248,20 @@ def _bands(cs, memory: Memory, q: np.ndarray, v: np.ndarray, gap_tol, kernel=Non
 def _rate_bands(cs, memory: Memory, v: np.ndarray, tv: np.ndarray, kernel=None) -> tuple[np.ndarray, np.ndarray]:
     """(g', bands) of the velocity v after an impulse: the bands ``tv`` widened to the round-off of
     J_N^T v's terms (what cancelled in the impulse). ``kernel``: as in :func:`_bands`."""
-    if kernel is not None:
+    if kernel is not None and _fits(cs, v, v, tv):
         JNT, aJT = memory.kernel_arrays(cs)[:2]
         out = np.empty((2, cs.m))
         kernel.rate_bands(JNT, aJT, _floats(v), tv, out)
         return out[0], out[1]
     return cs.JN.T @ v, np.maximum(tv, _tol(cs.JN, v, absJ=memory.abs_parts(cs)[0]))
+
+
+def _fits(cs, q, v, *per_contact) -> bool:
+    """Whether the compiled band kernels may read these arrays: q and q' of the n coordinates, one value per
+    contact in each of ``per_contact`` (None: not given)."""
+    n, m = (cs.n,), (cs.m,)   # (a number or a list has no shape: the reference takes it)
+    return getattr(q, "shape", None) == n and getattr(v, "shape", None) == n \
+        and all(a is None or getattr(a, "shape", None) == m for a in per_contact)
 
 
 _EMPTY = np.zeros(0)
