@@ -309,3 +309,31 @@ def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
             search.Search(*bad)
     with pytest.raises(ValueError):
         search.divided_exp(np.ones((1, 2), dtype=complex), 1.0)
+
+
+def test_search_checks_the_terms_before_reading_them(monkeypatch):
+    """Review of issue 33 (csetup): U's columns (the terms') and the divided differences' count were checked
+    after the state's terms had been copied from U, so a U without columns was read through a NULL pointer
+    (a segfault) and a U a column short was read past its end. Each is a ValueError before any read now; the
+    captured arguments themselves are accepted."""
+    search = core.compiled("search")
+    captured = []
+
+    class Spy:
+        @staticmethod
+        def Search(*args):
+            captured.append(args)
+            return search.Search(*args)
+
+    monkeypatch.setitem(core._active, "search", Spy)
+    case = make_case(0, "generic")
+    _search(case.phase, case.H, case.t0, case.t1, reference=False)
+    args = list(captured[0])
+    U, gb = args[3], args[13]
+    assert U.shape[1] > 1
+    search.Search(*args)
+    for spoilt in ({3: np.zeros((U.shape[0], 0), dtype=complex)}, {3: np.ascontiguousarray(U[:, :1])},
+                   {13: np.ones((2, gb.shape[1] + 1))}):   # (a bound for a divided difference that gm lacks)
+        bad = [spoilt.get(j, value) for j, value in enumerate(args)]
+        with pytest.raises(ValueError):
+            search.Search(*bad)

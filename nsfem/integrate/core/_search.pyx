@@ -352,6 +352,9 @@ cdef class Search:
                              "per mode, with an amplitude per mode and forcing term), the order an index per mode")
         self.t0, self.w, self.steady, self.node_rate, self.fastest = t0, w, steady, node_rate, fastest
         cdef const double complex[:, ::1] Uv = U
+        # (checked before U is read: its columns are the terms', exponents then divided differences)
+        if self.gm.shape[0] != self.K or Uv.shape[1] != self.pe + self.K:
+            raise ValueError("Search: a bound per divided difference, a column of U per term")
         self.state = _Terms.__new__(_Terms)
         self.state._set(self.nu, self.gnodes, self.gm, <const double*>&Uv[0, 0] if Uv.shape[0] * Uv.shape[1] else NULL,
                         True, self.r2, None, NULL)
