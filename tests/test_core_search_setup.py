@@ -314,3 +314,25 @@ def test_search_hands_over_after_a_renewal_with_rows_armed(monkeypatch):
     assert (a.rows, a.graze, a.in_band) == (b.rows, b.graze, b.in_band)
     # the root refined from the state on both paths: within the contract's 1e-12 relative
     assert abs(a.t - b.t) <= 1e-12 * max(1.0, abs(b.t))
+
+
+def test_the_compiled_core_has_no_fused_multiply_adds():
+    """Review of issue 33: setup.py builds the kernels with -ffp-contract=off so that each product and sum
+    rounds as the reference's formula, but GCC's vectorizer still formed fused complex multiply-adds
+    (vfmaddsub: the compiled search's images H V diag(c), the phase kernels' complex products) when CFLAGS let
+    the target have FMA (-march=haswell, x86-64-v3, native); the vectorizer is off now. The x86-64 build's
+    machine code holds no FMA instruction of any width (skipped elsewhere, or without objdump)."""
+    import platform
+    import shutil
+    import subprocess
+
+    if platform.machine() not in ("x86_64", "AMD64") or shutil.which("objdump") is None:
+        pytest.skip("an x86-64 check of the machine code (needs objdump)")
+    for part in core.PARTS:
+        module = core.compiled(part)
+        if module is None or not getattr(module, "__file__", None):
+            continue
+        code = subprocess.run(["objdump", "-d", "--no-show-raw-insn", module.__file__], capture_output=True,
+                              text=True, check=True).stdout
+        fused = [line for line in code.splitlines() if "\tvfm" in line or "\tvfnm" in line]
+        assert not fused, (part, fused[:5])
