@@ -97,8 +97,8 @@ def _check_case(phase, H, t0, t1, with_hv, monkeypatch) -> tuple[str | None, boo
     """(None or what differs, whether a plan's choice was a tie within round-off)."""
     rows = _rows(phase, H, with_hv)
     made = _compiled_setup(phase, rows, t0, t1, monkeypatch)
-    if made is None:
-        return None, False
+    if made is None:   # (the callers' phases are on the modal path: the compiled call must have been built)
+        return "no compiled search was built on the modal path: nothing compared", False
     (tol_c, band_c, b4_c, step_c, rate_c, renew_c, keep_c), img_c = made
     tol_r, band_r, b4_r, step_r, rate_r, renew_r, n_kept_r, images_r = _reference_setup(phase, rows, t0, t1)
     k, r2 = rows.size, 2 * phase.config.r
