@@ -1165,18 +1165,17 @@ cdef class Search:
         cdef const double* v
         cdef int n1, n2
         result = None
-        if carry is not None and carry[0] is not None:
-            # a later window of one search: the rows keep their arming and thresholds
-            started = True
-            for i in range(k):
-                armed[i] = bool(carry[0][i])
-                thr[i] = float(carry[1][i])
-        if not self.compilable:   # the first plan's bound does not screen: the Python loop from the start
-            free(dwork)
-            free(cwork)
-            free(iwork)
-            return float(t_a)
-        try:
+        try:   # (the work space is freed on every way out: a return, a bad carry, an exception from progress)
+            if carry is not None and carry[0] is not None:
+                # a later window of one search: the rows keep their arming and thresholds
+                if len(carry[0]) != k or len(carry[1]) != k:
+                    raise ValueError("Search.run: the carried arming and thresholds need a value per row")
+                started = True
+                for i in range(k):
+                    armed[i] = bool(carry[0][i])
+                    thr[i] = float(carry[1][i])
+            if not self.compilable:   # the first plan's bound does not screen: the Python loop from the start
+                return float(t_a)
             while t_a < self.t_stop:
                 if t_a >= self.renew_at:
                     # the fastest term kept has decayed into its budget: it no longer sets the step (an
