@@ -293,6 +293,7 @@ cdef class Search:
     cdef double* bound4
     cdef double h_step, t_start, t_stop, rate, renew_at
     cdef public bint compilable            # the current plan's bound screens every row (no local bound)
+    cdef public long sampled               # the fine passes' samples so far (events' Phase.search_samples)
     # the coarse pass (events._Coarse)
     cdef double* margin
     cdef double* b4c
@@ -306,6 +307,7 @@ cdef class Search:
         self.cclear = self.hdd_ok = NULL
         self.nmemo = NULL
         self.cn = self.ccap = 0
+        self.sampled = 0
 
     def __dealloc__(self):
         free(self.cts)
@@ -1217,6 +1219,7 @@ cdef class Search:
                 ns = n + 1
                 linspace(t_a, min(t_b, t_a + n * self.h_step), ns, ts)
                 self._sample(self.kept, 0, 2 * k, 1, ts, ns, hh)
+                self.sampled += ns
                 if not started:
                     # a row that starts inside its zero band is armed once it has left it upwards; unarmed
                     # rows fire by going down by the band from where they start
