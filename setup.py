@@ -15,8 +15,11 @@ import sys
 from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 
-#: no fused multiply-adds: a kernel must round each operation as the Python reference does
-CFLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math"]
+#: no fused multiply-adds: a kernel must round each operation as the Python reference does. GCC's vectorizer
+#: fuses complex products' multiply-adds (vfmaddsub) despite -ffp-contract=off where the target has FMA (CFLAGS
+#: -march=haswell, x86-64-v3 or native; seen with GCC 12): it is off (no loss measured: the stop scene 0.099 s
+#: either way; the band's explicit vector lanes are not the vectorizer's)
+CFLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math", "-fno-tree-vectorize"]
 
 
 def _note(text: str) -> None:

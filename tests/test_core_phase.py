@@ -378,3 +378,75 @@ def test_group_integrals_kernel_matches_the_reference(seed):
             assert np.abs(Qe - Pe).max() <= 1e-13 * np.abs(Pe).max()
         if pairs:
             assert np.abs(Qg - Pg).max() <= 1e-13 * np.abs(Pg).max()
+
+
+def _shorter(a: np.ndarray, axis: int = 0) -> np.ndarray:
+    """a without its last entry along ``axis`` (C-contiguous, same dtype)."""
+    return np.ascontiguousarray(np.delete(a, -1, axis=axis))
+
+
+def test_kernels_refuse_arrays_of_the_wrong_shape(monkeypatch):
+    """Review of issue 33: the phase kernels read and write without bounds checks, and had no shape checks (and
+    no check of their work space's malloc): an output a row short was written past its end, an input a
+    column short read past it, a divided difference of 4 or 0 nodes overflowed a stack array. Each such call
+    is a ValueError now, before any access; the arguments of real calls (captured from a phase's set-up, and
+    built as the energy's callers build them) are accepted."""
+    import nsfem.integrate.core._phase as phase_kernels
+
+    captured = {}
+
+    class Spy:
+        def __getattr__(self, name):
+            fun = getattr(phase_kernels, name)
+
+            def call(*args):
+                captured.setdefault(name, args)
+                return fun(*args)
+            return call
+
+    monkeypatch.setitem(core._active, "phase", Spy())
+    rng = np.random.default_rng([33, 99])
+    with core.reference():
+        phase, *_ = _phase(rng, "generic", "modal")
+    cfg = phase.config
+    Phase(cfg, phase.t0, cfg.N @ phase.x0[: cfg.r] + phase.qp, cfg.N @ phase.x0[cfg.r:], phase.g0)
+    assert {"phase_start", "phase_modal"} <= set(captured)
+
+    def refuses(name, args, spoilt: dict):
+        fun = getattr(phase_kernels, name)
+        fun(*args)                                     # the real call is accepted
+        for j, value in spoilt.items():
+            bad = list(args)
+            bad[j] = value
+            with pytest.raises(ValueError, match=name):   # (its message names the kernel)
+                fun(*bad)
+
+    a = captured["phase_start"]   # GpinvT, g0, QT, f0, BT, N, q0, v0, qp, f0, Bf0, x0
+    refuses("phase_start", a, {2: _shorter(a[2], 1), 4: _shorter(a[4], 0), 5: _shorter(a[5], 0),
+                               6: _shorter(a[6]), 8: _shorter(a[8]), 9: _shorter(a[9]), 10: _shorter(a[10]),
+                               11: _shorter(a[11])})
+    a = captured["phase_modal"]   # ViT, Bf0, x0, harmonic, re, im, k, V, den, z0, beta, c, g, U
+    refuses("phase_modal", a, {1: _shorter(a[1]), 2: _shorter(a[2]), 3: _shorter(a[3], 0), 7: _shorter(a[7], 1),
+                               9: _shorter(a[9]), 10: _shorter(a[10], 1), 11: _shorter(a[11]),
+                               12: _shorter(a[12], 0), 13: _shorter(a[13], 0)})
+    # the energy's kernels, their arrays as event_driven's callers form them
+    nu, c, g, E, S, mus = _random_modal(rng, 4, 3, 2)
+    vals, PZ = np.empty(2), np.empty((3, 4), dtype=complex)
+    args = (_cv(nu), _cv(c), _cv(g), 0.3, 0.1, _cv(E), _cv(S), vals, PZ.view(float))
+    refuses("energy_modal", args, {2: _cv(g[:2]), 5: _cv(E[:2]), 6: _cv(S[:, :3]), 7: np.empty(1),
+                                   8: _shorter(PZ.view(float))})
+    phi = np.empty((3, 4), dtype=complex)
+    refuses("exp_integrals", (_cv(nu[:3]), _cv(nu[:4]), 0.2, phi.view(float)),
+            {3: _shorter(phi.view(float)), 1: _cv(nu[:5])})   # (phi a column short; b one longer)
+    X = rng.standard_normal((2, 4))
+    refuses("end_energy", (np.eye(4), X), {0: np.eye(3)})
+    mot = phase._modal
+    out = np.empty(phase.dim)
+    refuses("xi_at", (_cv(mot.U), _cv(mot.nu), 0.1, phase.w, 0.1, out),
+            {5: out[: mot.U.shape[0]].copy(), 1: _cv(mot.nu[:-1])})
+    cols, sizes = np.zeros((2, 3), dtype=complex), np.array([2, 3], dtype=np.int64)
+    Pe, Pg = np.empty((2, 3), dtype=complex), np.empty((2, 2), dtype=complex)
+    refuses("group_integrals", (nu[:3].copy(), cols, sizes, 0.5, Pe, Pg),
+            {2: np.array([2, 4], dtype=np.int64), 5: np.empty((1, 2), dtype=complex), 4: Pe[:1].copy()})
+    with pytest.raises(ValueError):
+        phase_kernels.group_integrals(nu[:3].copy(), cols, np.array([0, 2], dtype=np.int64), 0.5, Pe, Pg)

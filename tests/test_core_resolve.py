@@ -235,3 +235,34 @@ def test_one_unknown_lcp_on_degenerate_entries_is_lemkes_result():
                 got = lcp.solve()
             assert repr((got.status, got.pivots, got.message, got.x, got.w, got.residual, got.certificate)) == \
                 repr((ref.status, ref.pivots, ref.message, ref.x, ref.w, ref.residual, ref.certificate)), (a, b)
+
+
+def test_kernels_refuse_arrays_of_the_wrong_shape():
+    """Review of issue 33: state_bands and rate_bands read and write without bounds checks and had no shape
+    checks: a memory whose scales were formed for another contact set (a value per contact of that set), an
+    output or a state a row short, were read or written past their ends. Each is a ValueError now, before any
+    access; the arrays transitions._bands and _rate_bands pass are accepted."""
+    rng = np.random.default_rng(7)
+    n, m = 5, 3
+    cs = _contacts(rng, n, m, 1.0, False)
+    mem = _observed(cs, rng, n, 1.0)
+    q, v = _state(rng, n, 1.0)
+    JNT, aJT, jN, aj = mem.kernel_arrays(cs)
+    args = [JNT, aJT, jN, aj, q, v, mem.gap_scale, mem.rate_scale, np.zeros(0), 0.0, np.empty((6, m))]
+    kernel.state_bands(*args)
+    short = lambda a: np.ascontiguousarray(a[:-1])  # noqa: E731
+    for j, bad in ((0, short(JNT)), (1, np.ascontiguousarray(aJT[:, :-1])), (2, short(jN)), (3, short(aj)),
+                   (4, short(q)), (5, short(v)), (6, short(mem.gap_scale)), (7, short(mem.rate_scale)),
+                   (8, np.ones(m + 1)), (10, np.empty((5, m))), (10, np.empty((6, m - 1)))):
+        spoilt = list(args)
+        spoilt[j] = bad
+        with pytest.raises(ValueError, match="state_bands"):
+            kernel.state_bands(*spoilt)
+    args = [JNT, aJT, v, np.ones(m), np.empty((2, m))]
+    kernel.rate_bands(*args)
+    for j, bad in ((1, short(aJT)), (2, short(v)), (3, short(np.ones(m))), (4, np.empty((1, m))),
+                   (4, np.empty((2, m - 1)))):
+        spoilt = list(args)
+        spoilt[j] = bad
+        with pytest.raises(ValueError, match="rate_bands"):
+            kernel.rate_bands(*spoilt)

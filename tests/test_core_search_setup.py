@@ -97,8 +97,8 @@ def _check_case(phase, H, t0, t1, with_hv, monkeypatch) -> tuple[str | None, boo
     """(None or what differs, whether a plan's choice was a tie within round-off)."""
     rows = _rows(phase, H, with_hv)
     made = _compiled_setup(phase, rows, t0, t1, monkeypatch)
-    if made is None:
-        return None, False
+    if made is None:   # (the callers' phases are on the modal path: the compiled call must have been built)
+        return "no compiled search was built on the modal path: nothing compared", False
     (tol_c, band_c, b4_c, step_c, rate_c, renew_c, keep_c), img_c = made
     tol_r, band_r, b4_r, step_r, rate_r, renew_r, n_kept_r, images_r = _reference_setup(phase, rows, t0, t1)
     k, r2 = rows.size, 2 * phase.config.r
@@ -263,3 +263,76 @@ def test_the_band_lanes_round_as_scalar_code():
                 same = (got.view(np.int64) == want.view(np.int64)) | (np.isnan(got) & np.isnan(want))
                 assert same.all(), (n, trial, got[~same], want[~same])
 
+
+
+def test_search_hands_over_after_a_renewal_with_rows_armed(monkeypatch):
+    """Review of issue 33 (csetup): the hand-over after a renewal, with rows already armed. An overdamped stiff
+    mode (exponents -536 and -7464 1/s) sets the first plans' step, so they screen; once it has decayed into
+    the budget (renewal at about 3 ms) the plan follows the slow mode, which grows at 0.2 1/s over a horizon of
+    150 s (e^30): its bound no longer screens and the compiled call hands the search back to the Python loop.
+    By then two rows are armed at 0 (they start above their bands), a zero row sits in its band (unarmed), and
+    a row that started 1e-6 below zero is still rising towards its band (unarmed, its threshold the start's
+    h - band). The hand-over carries exactly that, and the Python loop finds the reference's event."""
+    rng = np.random.default_rng(5)
+    S, Pi = _system(rng, np.array([20.0, 2000.0]), np.array([-0.01, 2.0]))
+    Phi = np.linalg.inv(Pi)
+    phase = Phase(Configuration(S, Mode()), 0.0, Phi @ np.array([1e-3, 1e-3]), np.zeros(2), np.zeros(0))
+    assert phase._modal is not None
+    r, c = phase.config.r, 2 * phase.config.r
+    N = phase.config.N
+    H = np.zeros((4, phase.dim))
+    H[0, :r], H[0, c] = (Pi[0] + Pi[1]) @ N, 5e-3           # both modes, 5e-3 above zero
+    H[1, :r], H[1, c] = (Pi[0] - 0.5 * Pi[1]) @ N, 6e-3
+    H[3, :r], H[3, c] = -0.01 * Pi[0] @ N, 1e-5 - 1e-6     # -1e-6 at the start, rising as 1e-5 (1 - cos 20t)
+    handed = []
+
+    class Handover(events._Handover):
+        def __new__(cls, x):
+            # (copies: the Python loop goes on arming the rows in the arrays it was handed)
+            handed.append(tuple(None if a is None else np.array(a, copy=True) for a in x[2:]) + (x[1],))
+            return super().__new__(cls, x)
+
+    monkeypatch.setattr(events, "_Handover", Handover)
+    rows = lambda: Rows(H, ["close"] * 4, [0, 1, 2, 3])  # noqa: E731
+    a = first_event(phase, rows(), 0.0, 150.0)
+    assert handed, "the compiled call did not hand over"
+    armed, thr, t_h = handed[0]
+    # after a renewal (the first plan screens), before the rising row reaches its band (about 23 ms)
+    assert 0.0 < t_h < 0.01, t_h
+    assert armed is not None and armed.tolist() == [True, True, False, False]
+    assert thr[0] == thr[1] == 0.0
+    # the zero row and the rising row keep the thresholds set at the start, min(-band, h(t_start) - band): the
+    # bands are ZERO (1e-11) times the rows' terms (<= 1e-13 here), so the rising row's threshold is h(0) to
+    # 1e-12; read again at the hand-over it would be 1.7e-8 higher (the row's rise by then)
+    h0 = H @ phase.xi(0.0)
+    assert -1e-12 <= thr[2] < 0.0
+    assert abs(thr[3] - h0[3]) <= 1e-12, (thr[3], h0[3])
+    assert H[3] @ phase.xi(float(t_h)) - h0[3] > 1e-8
+    with core.reference():
+        b = first_event(phase, rows(), 0.0, 150.0)
+    assert a is not None and b is not None
+    assert (a.rows, a.graze, a.in_band) == (b.rows, b.graze, b.in_band)
+    # the root refined from the state on both paths: within the contract's 1e-12 relative
+    assert abs(a.t - b.t) <= 1e-12 * max(1.0, abs(b.t))
+
+
+def test_the_compiled_core_has_no_fused_multiply_adds():
+    """Review of issue 33: setup.py builds the kernels with -ffp-contract=off so that each product and sum
+    rounds as the reference's formula, but GCC's vectorizer still formed fused complex multiply-adds
+    (vfmaddsub: the compiled search's images H V diag(c), the phase kernels' complex products) when CFLAGS let
+    the target have FMA (-march=haswell, x86-64-v3, native); the vectorizer is off now. The x86-64 build's
+    machine code holds no FMA instruction of any width (skipped elsewhere, or without objdump)."""
+    import platform
+    import shutil
+    import subprocess
+
+    if platform.machine() not in ("x86_64", "AMD64") or shutil.which("objdump") is None:
+        pytest.skip("an x86-64 check of the machine code (needs objdump)")
+    for part in core.PARTS:
+        module = core.compiled(part)
+        if module is None or not getattr(module, "__file__", None):
+            continue
+        code = subprocess.run(["objdump", "-d", "--no-show-raw-insn", module.__file__], capture_output=True,
+                              text=True, check=True).stdout
+        fused = [line for line in code.splitlines() if "\tvfm" in line or "\tvfnm" in line]
+        assert not fused, (part, fused[:5])

@@ -2369,3 +2369,84 @@ def test_compiled_bands_of_any_shapes_are_the_references(m, n, tol_len, q_len, s
     scale = np.abs(cs.JN).T @ np.abs(v) + 1e-300
     assert isinstance(got, tuple) and all(
         np.all(np.abs(a - b) <= 4 * (n + 2) * np.finfo(float).eps * np.maximum(scale, np.abs(b))) for a, b in zip(got, ref))
+
+
+# --- issue 33: review of the compiled search set-up and the kernels' shapes (review-a) ---
+
+def _guarded(shape: tuple, dtype=float):
+    """(an output array of ``shape`` that is a C-contiguous view at the start of a larger buffer, the buffer):
+    a kernel writing past the output's end changes the buffer's tail (filled with a sentinel)."""
+    size = int(np.prod(shape)) if shape else 1
+    buf = np.full(size + 64, 12345.0, dtype=dtype)
+    return buf[:size].reshape(shape), buf
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(m=st.integers(0, 4), n=st.integers(0, 4),
+       deltas=st.lists(st.sampled_from([-1, 0, 0, 1]), min_size=16, max_size=16))
+def test_resolve_and_phase_kernels_refuse_any_shape_they_cannot_serve(m, n, deltas):
+    """Property: the compiled kernels of the parts 'resolve' (state_bands, rate_bands) and 'phase'
+    (exp_integrals, xi_at) read and write without bounds checks. With each array's size perturbed by -1, 0 or
+    +1 entries (rows, columns), a call is a ValueError naming the kernel or runs; it never writes past an
+    output (each output is the head of a larger buffer whose tail must stay as filled). Unperturbed, it runs."""
+    from nsfem.integrate import core
+
+    resolve, phase = core.compiled("resolve"), core.compiled("phase")
+    if resolve is None or phase is None:
+        pytest.skip("the compiled event core's parts 'resolve' and 'phase' are not built or are switched off")
+    rng = np.random.default_rng(m * 10 + n)
+    d = iter(deltas)
+    size = lambda s: max(0, s + next(d))  # noqa: E731
+    JNT = np.ascontiguousarray(rng.standard_normal((size(m), size(n))))
+    aJT = np.abs(rng.standard_normal((size(m), size(n))))
+    vecs = [rng.standard_normal(size(k)) for k in (m, m, n, n, m, m)]   # jN, aj, q, v, gap_scale, rate_scale
+    out, buf = _guarded((size(6), size(m)))
+    exact = all(x == 0 for x in deltas[:12])
+
+    def runs_or_refuses(fun, args, name, exact, bufs):
+        try:
+            fun(*args)
+        except ValueError as err:
+            assert name in str(err) and not exact, (name, str(err))
+        for b, filled in bufs:
+            assert np.all(b[filled:] == 12345.0), f"{name} wrote past its output"
+
+    runs_or_refuses(resolve.state_bands, [JNT, aJT, *vecs[:2], *vecs[2:4], *vecs[4:], np.zeros(0), 0.0, out],
+                    "state_bands", exact, [(buf, out.size)])
+    out2, buf2 = _guarded((2, m))
+    runs_or_refuses(resolve.rate_bands, [JNT, aJT, vecs[3], vecs[4], out2], "rate_bands",
+                    JNT.shape == (m, n) and aJT.shape == (m, n) and vecs[3].size == n and vecs[4].size == m,
+                    [(buf2, out2.size)])
+    # exp_integrals(a, b, T, phi): phi len(a) x len(b) complex (interleaved)
+    na, nb = size(m), size(n)
+    phi, buf3 = _guarded((m, 2 * n))
+    runs_or_refuses(phase.exp_integrals, [rng.standard_normal(2 * na), rng.standard_normal(2 * nb), 0.5, phi],
+                    "exp_integrals", na == m and nb == n, [(buf3, phi.size)])
+    # xi_at(U, nu, tau, w, t, out): U d x p complex, out d + 3 entries with a frequency
+    p = m + 1
+    U = rng.standard_normal((n, 2 * size(p)))
+    xi, buf4 = _guarded((n + 3 + next(d),))
+    runs_or_refuses(phase.xi_at, [U, rng.standard_normal(2 * p), 0.1, 3.0, 0.1, xi], "xi_at",
+                    U.shape[1] == 2 * p and xi.size >= n + 3, [(buf4, xi.size)])
+
+
+def test_compiled_search_of_a_U_without_columns_reproduction():
+    # U (the state's terms) without columns was read through a NULL pointer (a segfault) before its shape was
+    # checked; run in a child process so that a regression fails this test instead of killing the suite
+    from nsfem.integrate import core
+
+    if core.compiled("search") is None:
+        pytest.skip("the compiled event core's part 'search' is not built or is switched off")
+    code = ("import numpy as np\n"
+            "from nsfem.integrate import core\n"
+            "nu = np.array([-1 + 10j, -1 - 10j])\n"
+            "try:\n"
+            "    core.compiled('search').Search(nu, np.zeros((0, 3), complex), np.zeros(0, np.intc),\n"
+            "        np.zeros((2, 0), complex), np.zeros((1, 3)), np.zeros((1, 3)), np.eye(3), 0.0, 0.0,\n"
+            "        np.zeros((2, 2), complex), np.array([0], np.intc), True, np.ones(1), np.zeros((2, 0)),\n"
+            "        0.0, 10.0, 0.0, 1.0, np.empty(1), np.empty(1))\n"
+            "except ValueError as err:\n"
+            "    print('refused:', err)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, (done.returncode, done.stderr[-500:])
+    assert done.stdout.startswith("refused:") and "column of U" in done.stdout

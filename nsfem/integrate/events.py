@@ -247,6 +247,7 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     if phase.config.fastest_rate() == 0.0 and phase.w == 0.0:
         return _polynomial_event(phase, rows, t_start, t_stop)
     armed = thr = None
+    phase.search_samples = 0
     search = core.compiled("search")
     if search is not None and phase._modal is not None:
         # the set-up and the loop below as one compiled call on the modal path (:func:`_compiled_search`);
@@ -281,7 +282,6 @@ def first_event(phase: Phase, rows: Rows, t_start: float, t_stop: float, report=
     coarse, tried = None, False
     t_a = t_start
     chunk = FIRST_CHUNK
-    phase.search_samples = 0
     while t_a < t_stop:
         if t_a >= renew_at:
             # the fastest term kept has decayed into its budget: it no longer sets the step (an
@@ -470,7 +470,10 @@ def _compiled_search(search, phase: Phase, rows: Rows, t_start: float, t_stop: f
                         _order_c(cfg, order), bool(steady), weights, gb, node_rate, cfg.fastest_rate(),
                         float(t_start), float(t_stop), tol, band)
     carry = [None, None]
-    found = run.run(progress, carry)
+    try:
+        found = run.run(progress, carry)
+    finally:
+        phase.search_samples += run.sampled   # (the fine passes' samples, as the loop below counts them)
     if isinstance(found, float):
         armed = None if carry[0] is None else np.array(carry[0], dtype=bool)
         thr = None if carry[1] is None else np.array(carry[1], dtype=float)

@@ -65,7 +65,7 @@ cdef inline void cexpm1(double x, double y, double* out) noexcept nogil:
 cpdef void phase_start(const double[:, ::1] GpinvT, const double[::1] g0, const double[:, ::1] QT,
                        const double[::1] f0_config, const double[:, ::1] BT, const double[:, ::1] N,
                        const double[::1] q0, const double[::1] v0, double[::1] qp, double[::1] f0,
-                       double[::1] Bf0, double[::1] x0) noexcept:
+                       double[::1] Bf0, double[::1] x0):
     """Phase.__init__'s products: q_p = -Gpinv g0 (Configuration.particular), the phase's constant load
     f0 = f0_config - Q q_p, B f0, and x0 = (N^T (q0 - q_p), N^T v0). The matrices come transposed
     (GpinvT, QT, BT; N for N^T) so that each product runs along contiguous rows, one independent sum
@@ -75,6 +75,12 @@ cpdef void phase_start(const double[:, ::1] GpinvT, const double[::1] g0, const 
     cdef double x, y
     if n == 0:
         return
+    # read and written without bounds checks: every shape checked here (a ValueError, never a stray write)
+    if (QT.shape[1] != n or GpinvT.shape[0] != nc or (nc and GpinvT.shape[1] != n) or f0_config.shape[0] != n
+            or BT.shape[0] != n or N.shape[0] != n or q0.shape[0] != n or v0.shape[0] != n or qp.shape[0] != n
+            or f0.shape[0] != n or Bf0.shape[0] != rows or x0.shape[0] != 2 * r):
+        raise ValueError("phase_start: Q, Gpinv, B and N need the phase's n coordinates (and g0's constraints, "
+                         "B f0's and x0's rows) in every array")
     cdef double* pq = &qp[0]
     cdef double* pf = &f0[0]
     cdef double* pb = &Bf0[0] if rows else NULL
@@ -128,7 +134,7 @@ cdef inline void cmul(double ar, double ai, double br, double bi, double* out) n
 cpdef void phase_modal(const double[:, ::1] ViT, const double[::1] Bf0, const double[::1] x0,
                        const double[:, ::1] harmonic, double ph_re, double ph_im, Py_ssize_t k,
                        const double[:, ::1] V, const double[:, ::1] den, double[::1] z0,
-                       double[:, ::1] beta, double[::1] c, double[:, ::1] g, double[:, ::1] U) noexcept:
+                       double[:, ::1] beta, double[::1] c, double[:, ::1] g, double[:, ::1] U):
     """Phase._motion's modal coefficients and ModalPlan.modes: z0 = Vi x0[k:], beta_0 = Vi (B f0)[k:],
     g_0 = beta_0 / den_0, c = z0 - g_0 - g_1 - ..., U[k:, :m] = V diag(c), U[k:, m] = V g_0 (Vi comes
     transposed, ViT: contiguous columns; the rigid rows U[:k] are left as they are).
@@ -142,6 +148,14 @@ cpdef void phase_modal(const double[:, ::1] ViT, const double[::1] Bf0, const do
     cdef Py_ssize_t m = ViT.shape[1] // 2
     if m == 0:
         return
+    cdef Py_ssize_t ncol = ViT.shape[0], nmu = beta.shape[0], d = V.shape[0], p = U.shape[1] // 2
+    # read and written without bounds checks: every shape checked here (a ValueError, never a stray write)
+    if (k < 0 or Bf0.shape[0] < k + ncol or x0.shape[0] < k + ncol or V.shape[1] < 2 * m or den.shape[0] < 1
+            or den.shape[1] < 2 * m or z0.shape[0] < 2 * m or c.shape[0] < 2 * m or beta.shape[1] != 2 * m
+            or g.shape[0] != nmu or g.shape[1] != 2 * m or nmu < 1 or U.shape[0] < k + d or p < m + nmu
+            or (nmu > 1 and (harmonic.shape[0] < nmu + 3 or harmonic.shape[1] < 2 * max(m, d)))):
+        raise ValueError("phase_modal: Vi, V, den, z0, beta, c, g and U need the configuration's m modes, its "
+                         "forcing exponents and rows (U a column per term, harmonic 6 rows of max(m, d) entries)")
     with nogil:
         modal_core(ViT, &Bf0[0], &x0[0], harmonic, ph_re, ph_im, k, V, den, beta.shape[0], U.shape[1] // 2,
                    &z0[0], &beta[0, 0], &c[0], &g[0, 0], &U[0, 0])
@@ -241,11 +255,15 @@ cdef inline void exp_integral(double sr, double si, double ar, double ai, double
     cdiv(pr, pi_, sr, si, out)
 
 
-cpdef void exp_integrals(const double[::1] a, const double[::1] b, double T, double[:, ::1] phi) noexcept:
+cpdef void exp_integrals(const double[::1] a, const double[::1] b, double T, double[:, ::1] phi):
     """event_driven._exp_integrals(a, b, T) into phi (len(a) x len(b) complex, interleaved)."""
     cdef Py_ssize_t na = a.shape[0] // 2, nb = b.shape[0] // 2, j, l
     cdef double T2 = T * T / 2.0, T3 = T * T * T / 6.0
-    cdef double* ea = <double*> malloc(2 * (na + nb) * sizeof(double))
+    if phi.shape[0] < na or phi.shape[1] < 2 * nb:
+        raise ValueError("exp_integrals: phi needs a row per entry of a and a column per entry of b")
+    cdef double* ea = <double*> malloc((2 * (na + nb) + 1) * sizeof(double))
+    if ea == NULL:
+        raise MemoryError
     cdef double* eb = ea + 2 * na
     with nogil:
         for j in range(na):
@@ -261,7 +279,7 @@ cpdef void exp_integrals(const double[::1] a, const double[::1] b, double T, dou
 
 cpdef double energy_modal(const double[::1] nu, const double[::1] c, const double[:, ::1] g, double T,
                           double t0, const double[:, ::1] E, const double[:, :, ::1] S, double[::1] vals,
-                          double[:, ::1] PZ) noexcept:
+                          double[:, ::1] PZ):
     """EventDriven._energy_modal's integrals for z(s) = Z e^{nu s}, Z = [diag(c), g^T] (m modes, then the
     forcing exponents mus = nu[m:]): returns the external work Re sum_i e^{mu_i t0} E_i . PZ_i and writes
     PZ (the rows mus of Phi Z^T) and vals[f] = Re sum S_f * (Z Phi Z^T), Phi = _exp_integrals(nu, nu, T)
@@ -270,14 +288,26 @@ cpdef double energy_modal(const double[::1] nu, const double[::1] c, const doubl
     cdef Py_ssize_t i, j, l, kk, f, rows
     cdef double T2 = T * T / 2.0, T3 = T * T * T / 6.0
     cdef double re, im, zr, zi, yr, yi, sr, si, work, er, ei
-    cdef double* en = <double*> malloc(2 * p * sizeof(double))
+    cdef double* en = <double*> malloc((2 * p + 1) * sizeof(double))
     cdef double* phi
     cdef double* zp
     cdef Py_ssize_t first
     rows = p if nf else nmu       # Phi's rows formed: all of nu's, or the mus' only
     first = 0 if nf else m
-    phi = <double*> malloc(2 * rows * p * sizeof(double))
+    # read and written without bounds checks: every shape checked here (a ValueError, never a stray write)
+    if (nmu < 0 or g.shape[0] < nmu or g.shape[1] < 2 * m or E.shape[0] < nmu or E.shape[1] < 2 * m
+            or (nf and (S.shape[1] < m or S.shape[2] < 2 * m)) or vals.shape[0] < nf or PZ.shape[0] < nmu
+            or PZ.shape[1] < 2 * m):
+        free(en)
+        raise ValueError("energy_modal: g, E and PZ need a row per forcing exponent and the m modes' columns, "
+                         "S m x m per form, vals a value per form")
+    phi = <double*> malloc((2 * rows * p + 1) * sizeof(double))
     zp = <double*> malloc(2 * (m * p if nf else 1) * sizeof(double))
+    if en == NULL or phi == NULL or zp == NULL:
+        free(en)
+        free(phi)
+        free(zp)
+        raise MemoryError
     with nogil:
         for j in range(p):
             nsfem_cexp(nu[2 * j] * T, nu[2 * j + 1] * T, &en[2 * j], &en[2 * j + 1])
@@ -351,7 +381,7 @@ cpdef double energy_modal(const double[::1] nu, const double[::1] c, const doubl
     return work
 
 
-cpdef double end_energy(const double[:, ::1] H, const double[:, ::1] X) noexcept:
+cpdef double end_energy(const double[:, ::1] H, const double[:, ::1] X):
     """EventDriven._end_energy's max_t |X_t^T H X_t| over the rows X_t of X (the states (q, q') at t0 and
     t1; H = diag(K, M) / 2): (X_t H) X_t, the row X_t H formed along H's contiguous rows."""
     cdef Py_ssize_t nt = X.shape[0], n = X.shape[1], t, i, j
@@ -359,7 +389,11 @@ cpdef double end_energy(const double[:, ::1] H, const double[:, ::1] X) noexcept
     cdef bint nan = False
     if n == 0:
         return 0.0
+    if H.shape[0] != n or H.shape[1] != n:
+        raise ValueError("end_energy: H needs a row and a column per entry of the states X")
     cdef double* row = <double*> malloc(n * sizeof(double))
+    if row == NULL:
+        raise MemoryError
     cdef const double* h
     with nogil:
         for t in range(nt):
@@ -383,13 +417,15 @@ cpdef double end_energy(const double[:, ::1] H, const double[:, ::1] X) noexcept
 # -- the phase's state at one time ----------------------------------------------------------------
 
 cpdef void xi_at(const double[:, ::1] U, const double[::1] nu, double tau, double w, double t,
-                 double[::1] out) noexcept:
+                 double[::1] out):
     """Phase._xi_at: out[:d] = Re(U e^{nu tau}) (U: d x p complex, interleaved), each row one sum over the
     terms in order, four rows at a time (_modal_sum.pxi's modal_rows, shared with the compiled search); then
     the harmonic components 1 (and cos w t, sin w t when w != 0)."""
     cdef Py_ssize_t d = U.shape[0], p = nu.shape[0] // 2, j
     cdef const double* u
     cdef Py_ssize_t ld = 2 * p
+    if (d and U.shape[1] != ld) or out.shape[0] < d + (3 if w != 0.0 else 1):
+        raise ValueError("xi_at: U needs a column per term of nu, out the state's entries (with 1, cos, sin)")
     out[d] = 1.0
     if w != 0.0:
         out[d + 1] = cos(w * t)
@@ -397,6 +433,8 @@ cpdef void xi_at(const double[:, ::1] U, const double[::1] nu, double tau, doubl
     if d == 0:
         return
     cdef double* e = <double*> malloc((2 * p + 1) * sizeof(double))
+    if e == NULL:
+        raise MemoryError
     u = &U[0, 0]
     with nogil:
         for j in range(p):
@@ -552,12 +590,20 @@ cdef double complex product_integral(const double complex* A, int m, const doubl
 
 cpdef void group_integrals(const double complex[::1] nu, const double complex[:, ::1] cols,
                            const long[::1] sizes, double T, double complex[:, ::1] Pe,
-                           double complex[:, ::1] Pg) noexcept:
+                           double complex[:, ::1] Pg):
     """closed_form.group_integrals: Pe[c, j] = int_0^T e^{nu_j s} F[X_c](s) ds and, when Pg has rows,
     Pg[c, d] = int_0^T F[X_c](s) F[X_d](s) ds for the columns X_c = cols[c, :sizes[c]] (at most 3 nodes)."""
     cdef Py_ssize_t Kt = cols.shape[0], p = nu.shape[0], c, dd, j, i
     cdef double complex x[4]
     cdef double complex v
+    # the kernels hold at most 4 nodes (x, divided_exp_one) and 3 x 3 + 1 (product_integral) on the stack
+    if sizes.shape[0] != Kt or Pe.shape[0] != Kt or Pe.shape[1] < p or not (
+            Pg.shape[0] == 0 or (Pg.shape[0] == Kt and Pg.shape[1] == Kt)):
+        raise ValueError("group_integrals: a size per column of nodes, Pe a row per column and an entry per "
+                         "exponent, Pg none or one per pair of columns")
+    for c in range(Kt):
+        if not 1 <= sizes[c] <= 3 or sizes[c] > cols.shape[1]:
+            raise ValueError("group_integrals: 1 to 3 nodes per column (within cols' row)")
     with nogil:
         for c in range(Kt):
             x[0] = 0.0

@@ -53,11 +53,17 @@ cdef inline double band_floor(const double[::1] terms) noexcept nogil:
 cpdef void state_bands(const double[:, ::1] JNT, const double[:, ::1] aJT, const double[::1] jN,
                        const double[::1] aj, const double[::1] q, const double[::1] v,
                        const double[::1] gap_scale, const double[::1] rate_scale, const double[::1] gap_tol,
-                       double gap_floor, double[:, ::1] out) noexcept nogil:
+                       double gap_floor, double[:, ::1] out):
     """Mirrors transitions._bands on the path with scales (Memory.observe of one state, then the gaps,
     gap rates and their zero bands): ``out`` rows are the new gap scale, the new rate scale, g, g', the
     gap band and the rate band (6 x m). ``gap_tol``: per contact, or empty for none."""
-    cdef Py_ssize_t k, m = JNT.shape[0]
+    cdef Py_ssize_t k, m = JNT.shape[0], n = JNT.shape[1]
+    # read and written without bounds checks: every shape checked here (a ValueError, never a stray access)
+    if (aJT.shape[0] != m or aJT.shape[1] != n or jN.shape[0] != m or aj.shape[0] != m or q.shape[0] != n
+            or v.shape[0] != n or gap_scale.shape[0] != m or rate_scale.shape[0] != m
+            or (gap_tol.shape[0] and gap_tol.shape[0] != m) or out.shape[0] != 6 or out.shape[1] != m):
+        raise ValueError("state_bands: J_N^T and |J_N|^T m x n, j_N, |j_N|, the scales (and gap_tol when given) "
+                         "a value per contact, q and v a value per coordinate, out 6 x m")
     cdef double[::1] gs = out[0], rs = out[1], g = out[2], gv = out[3], tg = out[4], tv = out[5]
     cdef double fg, fv
     # Memory.observe: the terms of the gaps (|J_N|^T |q| + |j_N|) and rates (|J_N|^T |q'|); the scales
@@ -80,10 +86,14 @@ cpdef void state_bands(const double[:, ::1] JNT, const double[:, ::1] aJT, const
 
 
 cpdef void rate_bands(const double[:, ::1] JNT, const double[:, ::1] aJT, const double[::1] v,
-                      const double[::1] tv, double[:, ::1] out) noexcept nogil:
+                      const double[::1] tv, double[:, ::1] out):
     """Mirrors transitions._rate_bands: ``out`` rows are g' = J_N^T v and the band max(tv, _tol(J_N, v))
     (2 x m)."""
-    cdef Py_ssize_t k, m = JNT.shape[0]
+    cdef Py_ssize_t k, m = JNT.shape[0], n = JNT.shape[1]
+    if (aJT.shape[0] != m or aJT.shape[1] != n or v.shape[0] != n or tv.shape[0] != m or out.shape[0] != 2
+            or out.shape[1] != m):
+        raise ValueError("rate_bands: J_N^T and |J_N|^T m x n, v a value per coordinate, tv a value per contact, "
+                         "out 2 x m")
     cdef double[::1] gv = out[0], tn = out[1]
     cdef double f
     for k in range(m):

@@ -293,6 +293,7 @@ cdef class Search:
     cdef double* bound4
     cdef double h_step, t_start, t_stop, rate, renew_at
     cdef public bint compilable            # the current plan's bound screens every row (no local bound)
+    cdef public long sampled               # the fine passes' samples so far (events' Phase.search_samples)
     # the coarse pass (events._Coarse)
     cdef double* margin
     cdef double* b4c
@@ -306,6 +307,7 @@ cdef class Search:
         self.cclear = self.hdd_ok = NULL
         self.nmemo = NULL
         self.cn = self.ccap = 0
+        self.sampled = 0
 
     def __dealloc__(self):
         free(self.cts)
@@ -352,6 +354,9 @@ cdef class Search:
                              "per mode, with an amplitude per mode and forcing term), the order an index per mode")
         self.t0, self.w, self.steady, self.node_rate, self.fastest = t0, w, steady, node_rate, fastest
         cdef const double complex[:, ::1] Uv = U
+        # (checked before U is read: its columns are the terms', exponents then divided differences)
+        if self.gm.shape[0] != self.K or Uv.shape[1] != self.pe + self.K:
+            raise ValueError("Search: a bound per divided difference, a column of U per term")
         self.state = _Terms.__new__(_Terms)
         self.state._set(self.nu, self.gnodes, self.gm, <const double*>&Uv[0, 0] if Uv.shape[0] * Uv.shape[1] else NULL,
                         True, self.r2, None, NULL)
@@ -1162,18 +1167,17 @@ cdef class Search:
         cdef const double* v
         cdef int n1, n2
         result = None
-        if carry is not None and carry[0] is not None:
-            # a later window of one search: the rows keep their arming and thresholds
-            started = True
-            for i in range(k):
-                armed[i] = bool(carry[0][i])
-                thr[i] = float(carry[1][i])
-        if not self.compilable:   # the first plan's bound does not screen: the Python loop from the start
-            free(dwork)
-            free(cwork)
-            free(iwork)
-            return float(t_a)
-        try:
+        try:   # (the work space is freed on every way out: a return, a bad carry, an exception from progress)
+            if carry is not None and carry[0] is not None:
+                # a later window of one search: the rows keep their arming and thresholds
+                if len(carry[0]) != k or len(carry[1]) != k:
+                    raise ValueError("Search.run: the carried arming and thresholds need a value per row")
+                started = True
+                for i in range(k):
+                    armed[i] = bool(carry[0][i])
+                    thr[i] = float(carry[1][i])
+            if not self.compilable:   # the first plan's bound does not screen: the Python loop from the start
+                return float(t_a)
             while t_a < self.t_stop:
                 if t_a >= self.renew_at:
                     # the fastest term kept has decayed into its budget: it no longer sets the step (an
@@ -1215,6 +1219,7 @@ cdef class Search:
                 ns = n + 1
                 linspace(t_a, min(t_b, t_a + n * self.h_step), ns, ts)
                 self._sample(self.kept, 0, 2 * k, 1, ts, ns, hh)
+                self.sampled += ns
                 if not started:
                     # a row that starts inside its zero band is armed once it has left it upwards; unarmed
                     # rows fire by going down by the band from where they start
