@@ -395,14 +395,23 @@ def test_kernels_refuse_arrays_of_the_wrong_shape(monkeypatch):
 
     captured = {}
 
+    class Setup:
+        """PhaseSetup, its construction and its first start recorded (the arrays a phase's set-up passes)."""
+        def __init__(self, *args, **kw):
+            captured["init"] = (args, kw)
+            self._real = phase_kernels.PhaseSetup(*args, **kw)
+            self.layout = self._real.layout
+
+        def start(self, *args):
+            captured.setdefault("start", args)
+            return self._real.start(*args)
+
+        def state(self, *args):
+            return self._real.state(*args)
+
     class Spy:
         def __getattr__(self, name):
-            fun = getattr(phase_kernels, name)
-
-            def call(*args):
-                captured.setdefault(name, args)
-                return fun(*args)
-            return call
+            return Setup if name == "PhaseSetup" else getattr(phase_kernels, name)
 
     monkeypatch.setitem(core._active, "phase", Spy())
     rng = np.random.default_rng([33, 99])
@@ -410,7 +419,19 @@ def test_kernels_refuse_arrays_of_the_wrong_shape(monkeypatch):
         phase, *_ = _phase(rng, "generic", "modal")
     cfg = phase.config
     Phase(cfg, phase.t0, cfg.N @ phase.x0[: cfg.r] + phase.qp, cfg.N @ phase.x0[cfg.r:], phase.g0)
-    assert {"phase_start", "phase_modal"} <= set(captured)
+    assert {"init", "start"} <= set(captured)
+    # phase_start's and phase_modal's arguments as PhaseSetup.start forms them from its arrays
+    GpinvT, QT, f0, BT, N, ViT, harmonic, V, den, k, nmu, p = captured["init"][0]   # (a modal plan's set-up)
+    g0, q0, v0, w, t0, _ = captured["start"]
+    n, r, m, d = QT.shape[0], N.shape[1], ViT.shape[1] // 2, V.shape[0]
+    qp, f0o, Bf0, x0 = np.empty(n), np.empty(n), np.empty(2 * r), np.empty(2 * r)
+    phase_kernels.phase_start(GpinvT, g0, QT, f0, BT, N, q0, v0, qp, f0o, Bf0, x0)
+    ph = np.exp(1j * w * t0) if w else 0.0
+    z0, beta, c = np.empty(2 * m), np.empty((nmu, 2 * m)), np.empty(2 * m)
+    g, U = np.empty((nmu, 2 * m)), np.zeros((k + d, 2 * p))
+    captured["phase_start"] = (GpinvT, g0, QT, f0, BT, N, q0, v0, qp, f0o, Bf0, x0)
+    captured["phase_modal"] = (ViT, Bf0, x0, harmonic, float(np.real(ph)), float(np.imag(ph)), k, V, den, z0, beta,
+                               c, g, U)
 
     def refuses(name, args, spoilt: dict):
         fun = getattr(phase_kernels, name)
