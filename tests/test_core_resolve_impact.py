@@ -231,3 +231,38 @@ def test_a_memory_with_its_impact_path_copies():
     b = tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, twin, touching, None, settled)
     assert np.array_equal(a[0], b[0]) and a[1] == b[1]
     assert _same(_memory_state(probe), _memory_state(twin))
+
+
+def _three_stops(eps: float = 0.5):
+    """Three independent stops 1e-6 m away, each approached at 1 m/s (M diagonal, J_N = I)."""
+    M = np.diag([1.0, 2.0, 3.0])
+    cs = ContactSet.from_arrays(np.eye(3), [1e-6, 1e-6, 1e-6], eps=eps)
+    return ContactSystem.from_arrays(M=M, Q=np.eye(3), contacts=cs), factorize(M), np.zeros(3), -np.ones(3)
+
+
+def test_a_gap_tolerance_given_as_one_number_is_the_references():
+    """resolve's ``gap_tol`` given as one number (numpy broadcasts it: every gap below it is zero): the impact path
+    read it as a one-entry array and the other contacts' tolerances from memory beyond it (review-c: an impact on
+    contact 0 alone, contacts 1 and 2 left approaching at -1 m/s, where the reference impacts all three). Each
+    stop is independent (M diagonal, J_N = I): q'+ = -e q'- exactly on each, to a few ulp of 1 m/s."""
+    system, Mf, q, v = _three_stops()
+    for gap_tol in (1e-3, np.float64(1e-3), [1e-3] * 3):
+        memory = tr.Memory(np.zeros(3), np.zeros(3, dtype=np.int64))
+        memory.observe(system.contacts, q, v)
+        mode, v_new, imp = tr.resolve(system, Mf, 0.0, q, v, Mode(), memory, (), gap_tol)
+        assert mode == Mode() and imp["contacts"] == [0, 1, 2]
+        assert np.all(np.abs(v_new - 0.5) <= 8 * EPS)
+        assert memory.impacts.tolist() == [1, 1, 1]
+
+
+def test_states_and_memories_of_other_shapes_take_the_full_path():
+    """q, q' or a Zeno memory of another length than the system's (the kernels would read and write past them):
+    the full path's answer (numpy's ValueError or IndexError), the memory's arrays unchanged in length."""
+    system, Mf, q, v = _three_stops()
+    for q_, v_, size in ((q[:2], v, 3), (q, v[:2], 3), (q, v, 2)):
+        memory = tr.Memory(np.zeros(3), np.zeros(3, dtype=np.int64))
+        memory.observe(system.contacts, q, v)
+        memory.max_approach, memory.impacts = np.zeros(size), np.zeros(size, dtype=np.int64)
+        assert tr._impact_fast(kernel, system, Mf, 0.0, q_, v_, Mode(), memory, {0, 1, 2}, None, set()) is None
+        with pytest.raises((ValueError, IndexError)):
+            tr.resolve(system, Mf, 0.0, q_, v_, Mode(), memory, {0, 1, 2})

@@ -2369,3 +2369,53 @@ def test_compiled_bands_of_any_shapes_are_the_references(m, n, tol_len, q_len, s
     scale = np.abs(cs.JN).T @ np.abs(v) + 1e-300
     assert isinstance(got, tuple) and all(
         np.all(np.abs(a - b) <= 4 * (n + 2) * np.finfo(float).eps * np.maximum(scale, np.abs(b))) for a, b in zip(got, ref))
+
+
+# --- issue 33: review-c (compiled impact path and phase set-up) ---
+
+@settings(max_examples=40, deadline=None)
+@given(m=st.integers(1, 4), tol_len=st.sampled_from([None, 0, 1, 2, 4, 5, "scalar"]), dq=st.integers(-1, 1),
+       dmem=st.integers(-1, 1), seed=st.integers(0, 2 ** 16))
+def test_compiled_impact_path_of_any_shapes_is_the_references(m, tol_len, dq, dmem, seed):
+    """resolve on the compiled core (its impact path reads q, q', gap_tol and the memory's per-contact arrays
+    without bounds checks, and writes the Zeno memory in place) against the reference core on arguments of any
+    shapes: a gap tolerance as one number, a list or of another length, a state or a memory of another length.
+    The same outcome: the same exception type, or the same configuration, impact contacts, plastic contacts and
+    impact counts (m independent stops approached at 1 m/s; the velocities after are -e q'- on each, a few ulp)."""
+    import numpy as np
+
+    from nsfem.contact.set import ContactSet
+    from nsfem.integrate import ContactSystem, core
+    from nsfem.integrate.configuration import Mode
+    from nsfem.integrate.transitions import Memory, resolve
+    from nsfem.linalg import factorize
+
+    if core.compiled("resolve") is None:
+        pytest.skip("the compiled core part 'resolve' is not active")
+    rng = np.random.default_rng(seed)
+    n = m
+    M = np.diag(rng.uniform(0.5, 2.0, n))
+    gaps = rng.choice([0.0, 1e-6, 1e-2], m)
+    cs = ContactSet.from_arrays(np.eye(n), gaps, eps=rng.choice([0.0, 0.5, 1.0], m))
+    system, Mf = ContactSystem.from_arrays(M=M, Q=np.eye(n), contacts=cs), factorize(M)
+    q, v = np.zeros(n + dq) if n + dq else np.zeros(0), -np.ones(max(n + dq, 0))
+    tol = None if tol_len is None else 1e-3 if tol_len == "scalar" else rng.uniform(0, 2e-3, tol_len)
+    touching = {k for k in range(m) if gaps[k] == 0.0}
+
+    def outcome():
+        mem = Memory(np.zeros(m + dmem), np.zeros(m + dmem, dtype=np.int64))
+        mem.observe(cs, np.zeros(n), -np.ones(n))
+        try:
+            with np.errstate(all="ignore"):
+                mode, v_new, imp = resolve(system, Mf, 0.0, q, v, Mode(), mem, touching, tol)
+        except (ValueError, IndexError) as exc:
+            return type(exc), None
+        key = (mode, None if imp is None else (imp["contacts"], imp["plastic"]), mem.impacts.tolist())
+        return key, np.asarray(v_new, dtype=float)
+
+    got = outcome()
+    with core.reference():
+        ref = outcome()
+    assert got[0] == ref[0]
+    if got[1] is not None:   # (each stop alone: q'+ = -e q'- or 0 in one division and product, 4 ulp of 1 m/s)
+        assert np.all(np.abs(got[1] - ref[1]) <= 4 * np.finfo(float).eps)

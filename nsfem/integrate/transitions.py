@@ -519,10 +519,15 @@ def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: 
 
     Not this path's: a candidate on a moving surface, a creeping approach, no approach, a contact closed
     after the impact or lifted without impacting (micro-lifts, the transition LCP), a touching contact pushed
-    into approach (set closure), an LCP the direct kernels decline or do not solve, a non-finite state."""
+    into approach (set closure), an LCP the direct kernels decline or do not solve, a non-finite state,
+    arguments of other shapes than (n,) and (m,) (a gap tolerance given as one number, a list)."""
     if memory.impacts.dtype != np.int64 or memory.max_approach.dtype != np.float64:   # (written in place by the kernel)
         return None
     cs = system.contacts
+    # (the kernels read q[i], q'[i], gap_tol[k] and the memory's per-contact arrays without bounds checks, and
+    # write the Zeno memory in place: other shapes take the full path, which broadcasts a number or refuses)
+    if not _fits(cs, q, v, memory.gap_scale, memory.rate_scale, memory.max_approach, memory.impacts, gap_tol):
+        return None
     path = memory.impact_path(system, Mf, kernel)
     state, vf = np.empty((6, cs.m)), _floats(v)
     na = path.classify(_floats(q), vf, memory.gap_scale, memory.rate_scale,
