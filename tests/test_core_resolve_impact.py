@@ -266,3 +266,41 @@ def test_states_and_memories_of_other_shapes_take_the_full_path():
         assert tr._impact_fast(kernel, system, Mf, 0.0, q_, v_, Mode(), memory, {0, 1, 2}, None, set()) is None
         with pytest.raises((ValueError, IndexError)):
             tr.resolve(system, Mf, 0.0, q_, v_, Mode(), memory, {0, 1, 2})
+
+
+def test_the_kernels_refuse_arrays_of_other_shapes():
+    """ImpactPath.classify and .open read and write without bounds checks: called with an array of another shape
+    (one entry short, or one row of state short) they decline (-1, 0) before reading it, and leave the Zeno
+    memory as it was; with the right shapes the same call is taken (so the refusals are the shapes')."""
+    system, Mf, q, v = _three_stops()
+    cs = system.contacts
+    memory = tr.Memory(np.zeros(3), np.zeros(3, dtype=np.int64))
+    memory.observe(cs, q, v)
+    path = memory.impact_path(system, Mf, kernel)
+    good = dict(q=q, v=v, gap_scale=memory.gap_scale, rate_scale=memory.rate_scale, gap_tol=np.zeros(0),
+                state=np.empty((6, 3)))
+    args = lambda a: (a["q"], a["v"], a["gap_scale"], a["rate_scale"], a["gap_tol"], 0.0, (), (0, 1, 2), (),  # noqa: E731
+                      a["state"])
+    for key, bad in (("q", q[:2]), ("v", v[:2]), ("gap_scale", memory.gap_scale[:2]),
+                     ("rate_scale", memory.rate_scale[:2]), ("gap_tol", np.zeros(1)), ("state", np.empty((5, 3))),
+                     ("state", np.empty((6, 2)))):
+        assert path.classify(*args({**good, key: bad})) == -1, key
+    assert path.classify(*args(good)) == 3
+    state = good["state"]
+    active = path.active()
+    entry = tr._impact_parts(Mf, cs, active, tr.LCPCache(), ("impact", active))[0]   # (kept: equilibrated)
+    mat = kernel.Matrix(entry[0], entry[2], entry[7], 3, entry[5], entry[8])
+    general = lambda: tr.lemke(mat.A, x.copy(), groups=mat.groups, scales=mat.scales).x  # noqa: E731
+    x = np.empty(3)
+    good = dict(v=v, state=state, max_approach=np.zeros(3), impacts=np.zeros(3, dtype=np.int64), x=x,
+                v_new=np.empty(3), ke=np.empty(2))
+    args = lambda a: (mat, general, a["v"], a["state"], a["max_approach"], a["impacts"], 1e-8, a["x"],  # noqa: E731
+                      a["v_new"], a["ke"])
+    for key, bad in (("v", v[:2]), ("state", state[:5]), ("max_approach", np.zeros(2)),
+                     ("impacts", np.zeros(2, dtype=np.int64)), ("x", np.empty(2)), ("v_new", np.empty(2)),
+                     ("ke", np.empty(1))):
+        a = {**good, key: bad}
+        assert path.open(*args(a)) == 0, key
+        assert not a["max_approach"].any() and not a["impacts"].any()
+    assert path.open(*args(good)) == 1
+    assert good["impacts"].tolist() == [1, 1, 1]
