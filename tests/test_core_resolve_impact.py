@@ -354,3 +354,23 @@ def test_fast_path_at_its_decision_boundaries():
     untouched; the path takes some of them."""
     took = [check_args(*args) for args in map(_boundary_case, range(200)) if args is not None]
     assert sum(took) >= 3   # (9 of 200 taken: the boundaries reach the path, not only its hand-backs)
+
+
+def test_an_interrupt_inside_the_general_lcp_leaves_the_memory(monkeypatch):
+    """A KeyboardInterrupt (Ctrl-C) or error raised by the general Lemke solve the kernel calls back into
+    propagates out of ImpactPath.open (not swallowed in the C code), with the Zeno memory and the scales as they
+    were; the same path then resolves the event (its work arrays are not left half-used)."""
+    system, Mf, q, v = _three_stops()
+    memory = tr.Memory(np.zeros(3), np.zeros(3, dtype=np.int64))
+    memory.observe(system.contacts, q, v)
+    start = _memory_state(memory)
+    for exc in (KeyboardInterrupt, MemoryError):
+        def interrupted(*args, **kw):
+            raise exc
+        monkeypatch.setattr(tr, "lemke", interrupted)
+        with pytest.raises(exc):
+            tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {0, 1, 2}, None, set())
+        assert _same(_memory_state(memory), start)
+    monkeypatch.undo()
+    v_new, imp = tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {0, 1, 2}, None, set())
+    assert imp["contacts"] == [0, 1, 2] and np.all(np.abs(v_new - 0.5) <= 8 * EPS)
