@@ -374,3 +374,28 @@ def test_an_interrupt_inside_the_general_lcp_leaves_the_memory(monkeypatch):
     monkeypatch.undo()
     v_new, imp = tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {0, 1, 2}, None, set())
     assert imp["contacts"] == [0, 1, 2] and np.all(np.abs(v_new - 0.5) <= 8 * EPS)
+
+
+def test_a_pushed_contact_is_handed_back():
+    """Two touching stops on a coupled mass (M = [[1, .9], [.9, 1]], J_N = I): contact 0 approaches at 1 m/s,
+    contact 1 separates at 1 mm/s; the impulse on 0 drives 1 into approach (M^-1 e_0 = [1, -.9] / .19), a set
+    closure: the path hands it back untouched, and resolve's full path closes the set (both contacts in the
+    impact, ``set_closure`` from 1 on) as on the reference core."""
+    M = np.array([[1.0, 0.9], [0.9, 1.0]])
+    cs = ContactSet.from_arrays(np.eye(2), [0.0, 0.0], eps=0.5)
+    system, Mf = ContactSystem.from_arrays(M=M, Q=np.eye(2), contacts=cs), factorize(M)
+    q, v = np.zeros(2), np.array([-1.0, 1e-3])
+    records = []
+    for reference in (False, True):
+        memory = tr.Memory(np.zeros(2), np.zeros(2, dtype=np.int64))
+        memory.observe(cs, q, v)
+        if not reference:
+            start = _memory_state(memory)
+            assert tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {0, 1}, None, set()) is None
+            assert _same(_memory_state(memory), start)
+            records.append(tr.resolve(system, Mf, 0.0, q, v, Mode(), memory, {0, 1})[2])
+        else:
+            with core.reference():
+                records.append(tr.resolve(system, Mf, 0.0, q, v, Mode(), memory, {0, 1})[2])
+    assert records[0]["contacts"] == records[1]["contacts"] == [0, 1]
+    assert records[0]["set_closure"] == records[1]["set_closure"] and records[0]["set_closure"][0] == 1
