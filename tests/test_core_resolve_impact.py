@@ -399,3 +399,23 @@ def test_a_pushed_contact_is_handed_back():
                 records.append(tr.resolve(system, Mf, 0.0, q, v, Mode(), memory, {0, 1})[2])
     assert records[0]["contacts"] == records[1]["contacts"] == [0, 1]
     assert records[0]["set_closure"] == records[1]["set_closure"] and records[0]["set_closure"][0] == 1
+
+
+def test_the_paths_matrices_are_bounded_as_the_lcp_cache():
+    """ImpactPath.matrices keeps the impact LCPs' matrix parts it meets: no more of them than the Memory's LCP cache
+    keeps (its entries, the oldest dropped first), none the cache declined as too large (review-c: they grew
+    without bound beside the cache's byte budget). Six stops, impacts on six different active sets, a cache of 2
+    entries; then a cache of 0 bytes. Each impact is still resolved (q'+ = -e q'- on each stop, a few ulp)."""
+    M = np.diag(np.arange(1.0, 7.0))
+    cs = ContactSet.from_arrays(np.eye(6), np.zeros(6), eps=0.5)
+    system, Mf = ContactSystem.from_arrays(M=M, Q=np.eye(6), contacts=cs), factorize(M)
+    for entries, nbytes, kept in ((2, 2 ** 27, 2), (256, 0, 0)):
+        memory = tr.Memory(np.zeros(6), np.zeros(6, dtype=np.int64))
+        memory.lcp_cache = tr.LCPCache(entries, nbytes)
+        for k in range(6):
+            q, v = np.full(6, 1e-3), np.ones(6)
+            q[k], v[k] = 0.0, -1.0   # contact k touches and approaches, the others are open and separate
+            memory.observe(cs, q, v)
+            v_new, imp = tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {k}, None, set())
+            assert imp["contacts"] == [k] and abs(v_new[k] - 0.5) <= 8 * EPS
+        assert len(memory._impact[2].matrices) == kept

@@ -538,10 +538,18 @@ def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: 
     active = path.active()
     mat = path.matrices.get(active)
     if mat is None:
-        entry = _impact_parts(Mf, cs, active, memory.lcp_cache, (id(system), id(Mf), "impact", active))[0]
+        key = (id(system), id(Mf), "impact", active)
+        entry = _impact_parts(Mf, cs, active, memory.lcp_cache, key)[0]
         if entry[5] is None:   # (a non-finite matrix part)
             return None
-        mat = path.matrices[active] = kernel.Matrix(entry[0], entry[2], entry[7], na, entry[5], entry[8])
+        mat = kernel.Matrix(entry[0], entry[2], entry[7], na, entry[5], entry[8])
+        # kept as long as the LCP cache would keep it: at most its number of entries, the oldest dropped first,
+        # none it declined (larger than its byte budget: an unreduced model's M^-1 W)
+        cache = memory.lcp_cache
+        if cache.get(key) is entry:
+            while path.matrices and len(path.matrices) >= cache.entries:
+                del path.matrices[next(iter(path.matrices))]
+            path.matrices[active] = mat
     x, v_new, ke = np.empty(mat.A.shape[0]), np.empty(cs.n), np.empty(2)
 
     def general():
