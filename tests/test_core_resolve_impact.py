@@ -283,8 +283,8 @@ def test_the_kernels_refuse_arrays_of_other_shapes():
     path = memory.impact_path(system, Mf, kernel)
     good = dict(q=q, v=v, gap_scale=memory.gap_scale, rate_scale=memory.rate_scale, gap_tol=np.zeros(0),
                 state=np.empty((6, 3)))
-    args = lambda a: (a["q"], a["v"], a["gap_scale"], a["rate_scale"], a["gap_tol"], 0.0, (), (0, 1, 2), (),  # noqa: E731
-                      a["state"])
+    def args(a):
+        return a["q"], a["v"], a["gap_scale"], a["rate_scale"], a["gap_tol"], 0.0, (), (0, 1, 2), (), a["state"]
     for key, bad in (("q", q[:2]), ("v", v[:2]), ("gap_scale", memory.gap_scale[:2]),
                      ("rate_scale", memory.rate_scale[:2]), ("gap_tol", np.zeros(1)), ("state", np.empty((5, 3))),
                      ("state", np.empty((6, 2)))):
@@ -298,8 +298,8 @@ def test_the_kernels_refuse_arrays_of_other_shapes():
     x = np.empty(3)
     good = dict(v=v, state=state, max_approach=np.zeros(3), impacts=np.zeros(3, dtype=np.int64), x=x,
                 v_new=np.empty(3), ke=np.empty(2))
-    args = lambda a: (mat, general, a["v"], a["state"], a["max_approach"], a["impacts"], 1e-8, a["x"],  # noqa: E731
-                      a["v_new"], a["ke"])
+    def args(a):   # noqa: F811 - open's arguments
+        return mat, general, a["v"], a["state"], a["max_approach"], a["impacts"], 1e-8, a["x"], a["v_new"], a["ke"]
     for key, bad in (("v", v[:2]), ("state", state[:5]), ("max_approach", np.zeros(2)),
                      ("impacts", np.zeros(2, dtype=np.int64)), ("x", np.empty(2)), ("v_new", np.empty(2)),
                      ("ke", np.empty(1))):
