@@ -2419,3 +2419,50 @@ def test_compiled_impact_path_of_any_shapes_is_the_references(m, tol_len, dq, dm
     assert got[0] == ref[0]
     if got[1] is not None:   # (each stop alone: q'+ = -e q'- or 0 in one division and product, 4 ulp of 1 m/s)
         assert np.all(np.abs(got[1] - ref[1]) <= 4 * np.finfo(float).eps)
+
+
+@settings(max_examples=30, deadline=None)
+@given(kind=st.integers(0, 2), dg=st.integers(-1, 2), dq=st.integers(-1, 1), dv=st.integers(-1, 1),
+       seed=st.integers(0, 2 ** 16))
+def test_compiled_phase_setup_of_any_shapes_is_the_references(kind, dg, dq, dv, seed):
+    """Phase's compiled set-up (PhaseSetup.start reads g0, q0 and q0' without bounds checks) against the reference
+    on closed gaps and states of any lengths: the same exception type, or, where a shape differs from the
+    configuration's (which the reference broadcasts), its result bit for bit (the reference runs); with the right
+    shapes q_p and x0 within twice the dot product's bound (n + 2) eps of their terms (C sums against BLAS)."""
+    import contextlib
+
+    import numpy as np
+
+    from nsfem.integrate import core
+    from nsfem.integrate.configuration import Phase
+    from test_event_search import KINDS, _phase
+
+    if core.compiled("phase") is None:
+        pytest.skip("the compiled core part 'phase' is not active")
+    rng = np.random.default_rng([37, kind, seed])
+    with core.reference():
+        base, *_ = _phase(rng, KINDS[kind], "modal")
+    cfg = base.config
+    n, nc = cfg.system.n, cfg.Gpinv.shape[1]
+    q0, v0 = rng.standard_normal(max(n + dq, 0)), rng.standard_normal(max(n + dv, 0))
+    g0 = rng.standard_normal(max(nc + dg, 0)) * 1e-3
+    out = []
+    for reference in (True, False):
+        try:
+            with core.reference() if reference else contextlib.nullcontext():
+                p = Phase(cfg, 0.0, q0, v0, g0)
+            out.append((p.qp, p.x0))
+        except ValueError:
+            out.append(None)
+    if out[0] is None:
+        assert out[1] is None
+        return
+    assert out[1] is not None
+    if (q0.size, v0.size) != (n, n) or g0.size not in (0, nc):
+        assert all(np.array_equal(a, b) for a, b in zip(*out))
+        return
+    eps = np.finfo(float).eps
+    qp_terms = np.abs(cfg.Gpinv) @ np.abs(g0) if g0.size else np.zeros(n)
+    assert np.all(np.abs(out[1][0] - out[0][0]) <= 2 * (nc + 2) * eps * qp_terms)
+    x_terms = np.abs(cfg.N).T @ np.abs(np.stack([q0 - out[0][0], v0], axis=1)) + np.abs(cfg.N).T @ qp_terms[:, None]
+    assert np.all(np.abs(out[1][1] - out[0][1]) <= 4 * (n + 2) * eps * x_terms.T.ravel() + 1e-300)
