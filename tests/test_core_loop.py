@@ -15,6 +15,7 @@ Skipped where the compiled core is not installed (no C compiler at install time)
 
 from __future__ import annotations
 
+import contextlib
 import copy
 
 import numpy as np
@@ -152,3 +153,35 @@ def test_state_at_keeps_the_core_its_phase_was_built_on(rotor):  # noqa: F811
         q3, v3 = ref.state_at(t)
     assert np.array_equal(q, q2) and np.array_equal(v, v2)
     assert np.array_equal(q3, ref.q_map() @ xi) and np.array_equal(v3, ref.v_map() @ xi)
+
+
+def test_a_phase_of_other_shapes_is_the_references():
+    """Phase's compiled set-up reads g0, q0 and q0' without bounds checks: a g0 longer than the configuration's
+    constraint rows (it read q_p from past them: -4.7e-310 seen, review-c), or a state one entry short or long, take
+    the reference: its result bit for bit (numpy broadcasts a one-entry state) or its ValueError. An empty g0
+    (q_p = 0) stays compiled."""
+    for kind in KINDS[:3]:
+        rng = np.random.default_rng([36, KINDS.index(kind)])
+        with core.reference():
+            base, *_ = _phase(rng, kind, "modal")
+        cfg = base.config
+        q0, v0 = cfg.N @ base.x0[: cfg.r] + base.qp, cfg.N @ base.x0[cfg.r:]
+        for args in ((q0, v0, np.r_[base.g0, 1.0, 2.0]), (q0[:-1], v0, base.g0), (q0, v0[:-1], base.g0),
+                     (np.r_[q0, 1.0], v0, base.g0), (q0, np.r_[v0, 1.0], base.g0)):
+            outcome = []
+            for reference in (True, False):
+                try:
+                    with core.reference() if reference else contextlib.nullcontext():
+                        p = Phase(cfg, 0.0, *args)
+                    outcome.append((p.qp, p.x0))
+                except ValueError:
+                    outcome.append(None)
+            assert (outcome[0] is None and outcome[1] is None) or (
+                outcome[1] is not None and all(np.array_equal(a, b) for a, b in zip(*outcome)))
+        with core.reference():
+            ref = Phase(cfg, 0.0, q0, v0, np.zeros(0))
+        # (q_p = 0 either way; x0 = N^T q0: one sum per entry, within the dot product's bound twice)
+        got = Phase(cfg, 0.0, q0, v0, np.zeros(0))
+        assert not got.qp.any() and not ref.qp.any()
+        bound = 2 * (cfg.system.n + 2) * EPS * (np.abs(cfg.N).T @ np.abs(np.r_[q0, v0].reshape(2, -1)).T)
+        assert np.all(np.abs(got.x0 - ref.x0) <= bound.T.ravel())

@@ -101,7 +101,11 @@ def _same(a: list, b: list) -> bool:
 
 def check_case(seed: int) -> bool:
     """Both paths on one case; whether the fast path took it."""
-    system, Mf, q, v, before, memory, touching, settled = _case(seed)
+    return check_args(*_case(seed))
+
+
+def check_args(system, Mf, q, v, before, memory, touching, settled) -> bool:
+    """Both paths on one set of resolve's arguments; whether the fast path took it."""
     start = _memory_state(memory)
     probe = copy.deepcopy(memory)
     took = tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, probe, touching, None, settled) is not None
@@ -231,3 +235,187 @@ def test_a_memory_with_its_impact_path_copies():
     b = tr._impact_fast(kernel, system, Mf, 0.1, q, v, before, twin, touching, None, settled)
     assert np.array_equal(a[0], b[0]) and a[1] == b[1]
     assert _same(_memory_state(probe), _memory_state(twin))
+
+
+def _three_stops(eps: float = 0.5):
+    """Three independent stops 1e-6 m away, each approached at 1 m/s (M diagonal, J_N = I)."""
+    M = np.diag([1.0, 2.0, 3.0])
+    cs = ContactSet.from_arrays(np.eye(3), [1e-6, 1e-6, 1e-6], eps=eps)
+    return ContactSystem.from_arrays(M=M, Q=np.eye(3), contacts=cs), factorize(M), np.zeros(3), -np.ones(3)
+
+
+def test_a_gap_tolerance_given_as_one_number_is_the_references():
+    """resolve's ``gap_tol`` given as one number (numpy broadcasts it: every gap below it is zero): the impact path
+    read it as a one-entry array and the other contacts' tolerances from memory beyond it (review-c: an impact on
+    contact 0 alone, contacts 1 and 2 left approaching at -1 m/s, where the reference impacts all three). Each
+    stop is independent (M diagonal, J_N = I): q'+ = -e q'- exactly on each, to a few ulp of 1 m/s."""
+    system, Mf, q, v = _three_stops()
+    for gap_tol in (1e-3, np.float64(1e-3), [1e-3] * 3):
+        memory = tr.Memory(np.zeros(3), np.zeros(3, dtype=np.int64))
+        memory.observe(system.contacts, q, v)
+        mode, v_new, imp = tr.resolve(system, Mf, 0.0, q, v, Mode(), memory, (), gap_tol)
+        assert mode == Mode() and imp["contacts"] == [0, 1, 2]
+        assert np.all(np.abs(v_new - 0.5) <= 8 * EPS)
+        assert memory.impacts.tolist() == [1, 1, 1]
+
+
+def test_states_and_memories_of_other_shapes_take_the_full_path():
+    """q, q' or a Zeno memory of another length than the system's (the kernels would read and write past them):
+    the full path's answer (numpy's ValueError or IndexError), the memory's arrays unchanged in length."""
+    system, Mf, q, v = _three_stops()
+    for q_, v_, size in ((q[:2], v, 3), (q, v[:2], 3), (q, v, 2)):
+        memory = tr.Memory(np.zeros(3), np.zeros(3, dtype=np.int64))
+        memory.observe(system.contacts, q, v)
+        memory.max_approach, memory.impacts = np.zeros(size), np.zeros(size, dtype=np.int64)
+        assert tr._impact_fast(kernel, system, Mf, 0.0, q_, v_, Mode(), memory, {0, 1, 2}, None, set()) is None
+        with pytest.raises((ValueError, IndexError)):
+            tr.resolve(system, Mf, 0.0, q_, v_, Mode(), memory, {0, 1, 2})
+
+
+def test_the_kernels_refuse_arrays_of_other_shapes():
+    """ImpactPath.classify and .open read and write without bounds checks: called with an array of another shape
+    (one entry short, or one row of state short) they decline (-1, 0) before reading it, and leave the Zeno
+    memory as it was; with the right shapes the same call is taken (so the refusals are the shapes')."""
+    system, Mf, q, v = _three_stops()
+    cs = system.contacts
+    memory = tr.Memory(np.zeros(3), np.zeros(3, dtype=np.int64))
+    memory.observe(cs, q, v)
+    path = memory.impact_path(system, Mf, kernel)
+    good = dict(q=q, v=v, gap_scale=memory.gap_scale, rate_scale=memory.rate_scale, gap_tol=np.zeros(0),
+                state=np.empty((6, 3)))
+    def args(a):
+        return a["q"], a["v"], a["gap_scale"], a["rate_scale"], a["gap_tol"], 0.0, (), (0, 1, 2), (), a["state"]
+    for key, bad in (("q", q[:2]), ("v", v[:2]), ("gap_scale", memory.gap_scale[:2]),
+                     ("rate_scale", memory.rate_scale[:2]), ("gap_tol", np.zeros(1)), ("state", np.empty((5, 3))),
+                     ("state", np.empty((6, 2)))):
+        assert path.classify(*args({**good, key: bad})) == -1, key
+    assert path.classify(*args(good)) == 3
+    state = good["state"]
+    active = path.active()
+    entry = tr._impact_parts(Mf, cs, active, tr.LCPCache(), ("impact", active))[0]   # (kept: equilibrated)
+    mat = kernel.Matrix(entry[0], entry[2], entry[7], 3, entry[5], entry[8])
+    general = lambda: tr.lemke(mat.A, x.copy(), groups=mat.groups, scales=mat.scales).x  # noqa: E731
+    x = np.empty(3)
+    good = dict(v=v, state=state, max_approach=np.zeros(3), impacts=np.zeros(3, dtype=np.int64), x=x,
+                v_new=np.empty(3), ke=np.empty(2))
+    def args(a):   # noqa: F811 - open's arguments
+        return mat, general, a["v"], a["state"], a["max_approach"], a["impacts"], 1e-8, a["x"], a["v_new"], a["ke"]
+    for key, bad in (("v", v[:2]), ("state", state[:5]), ("max_approach", np.zeros(2)),
+                     ("impacts", np.zeros(2, dtype=np.int64)), ("x", np.empty(2)), ("v_new", np.empty(2)),
+                     ("ke", np.empty(1))):
+        a = {**good, key: bad}
+        assert path.open(*args(a)) == 0, key
+        assert not a["max_approach"].any() and not a["impacts"].any()
+    assert path.open(*args(good)) == 1
+    assert good["impacts"].tolist() == [1, 1, 1]
+
+
+def _boundary_case(seed: int):
+    """resolve's arguments at the path's decision boundaries: two contacts at one point (equal or nearly equal
+    normals), approach rates at the CREEP boundary (-1e-7 of the speed and one ulp-scale beyond), at +-1e-300,
+    resting and separating; restitutions 0, 1/2 and 1; Zeno memories exactly at their threshold (zeno a power of
+    two: zeno * max_approach == the speed, not plastic by the strict test); friction with mu up to 10 on 4-8
+    generators, some with no slip at all; speeds from 1e-120 to 1e120. None on a contact set the set refuses."""
+    rng = np.random.default_rng([77, seed])
+    n, m = int(rng.integers(2, 6)), int(rng.integers(2, 5))
+    B = rng.standard_normal((n, n))
+    M = B @ B.T + n * np.eye(n)
+    JN = rng.standard_normal((n, m))
+    if rng.random() < 0.3:
+        JN[:, 1] = JN[:, 0] * (1 + (0 if rng.random() < 0.5 else 1e-12))
+    q, jN = np.zeros(n), np.where(rng.random(m) < 0.7, 0.0, 1e-3)
+    rate = rng.choice([-1.0, 0.0, 1.0, -1e-7, -1e-7 * (1 + 1e-15), 1e-300, -1e-300], m) * 10.0 ** rng.uniform(-120, 120)
+    v0 = rng.standard_normal(n)
+    v = v0 + np.linalg.lstsq(JN.T, rate - JN.T @ v0, rcond=None)[0]
+    friction = {}
+    if rng.random() < 0.5 and n >= 3:
+        JS = [rng.standard_normal((n, int(rng.integers(1, 3)))) for _ in range(m)]
+        if rng.random() < 0.5:   # no slip: S^T q' = 0
+            JS = [S - np.outer(v, v @ S) / (v @ v) for S in JS]
+        friction = {"mu": rng.choice([0.1, 1.0, 10.0], m), "JS": JS,
+                    "r": [2 if S.shape[1] == 1 else int(rng.choice([4, 6, 8])) for S in JS]}
+    try:
+        cs = ContactSet.from_arrays(JN, jN, eps=rng.choice([0.0, 1.0, 0.5], m), **friction)
+    except tr.NsfemError:
+        return None
+    system = ContactSystem.from_arrays(M=M, Q=np.eye(n), contacts=cs)
+    zeno = float(rng.choice([0.5, 0.25]))
+    maxa = np.maximum(np.where(rng.random(m) < 0.5, -(JN.T @ v) / zeno, 0.0), 0.0)
+    memory = tr.Memory(maxa, (maxa > 0).astype(np.int64), zeno=zeno)
+    memory.observe(cs, q, v)
+    touching = {k for k in range(m) if jN[k] == 0.0 and rng.random() < 0.5}
+    before = Mode(closed=tuple(k for k in range(m) if jN[k] == 0.0 and rng.random() < 0.3))
+    return system, factorize(M), q, v, before, memory, touching, {k for k in range(m) if rng.random() < 0.2}
+
+
+def test_fast_path_at_its_decision_boundaries():
+    """200 boundary cases (review-c; 3000 checked once, 256 taken, all agree): each agrees with the full path
+    (check_args: identical decisions and Zeno memory, results within their round-off bounds) or is handed back
+    untouched; the path takes some of them."""
+    took = [check_args(*args) for args in map(_boundary_case, range(200)) if args is not None]
+    assert sum(took) >= 3   # (9 of 200 taken: the boundaries reach the path, not only its hand-backs)
+
+
+def test_an_interrupt_inside_the_general_lcp_leaves_the_memory(monkeypatch):
+    """A KeyboardInterrupt (Ctrl-C) or error raised by the general Lemke solve the kernel calls back into
+    propagates out of ImpactPath.open (not swallowed in the C code), with the Zeno memory and the scales as they
+    were; the same path then resolves the event (its work arrays are not left half-used)."""
+    system, Mf, q, v = _three_stops()
+    memory = tr.Memory(np.zeros(3), np.zeros(3, dtype=np.int64))
+    memory.observe(system.contacts, q, v)
+    start = _memory_state(memory)
+    for exc in (KeyboardInterrupt, MemoryError):
+        def interrupted(*args, **kw):
+            raise exc
+        monkeypatch.setattr(tr, "lemke", interrupted)
+        with pytest.raises(exc):
+            tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {0, 1, 2}, None, set())
+        assert _same(_memory_state(memory), start)
+    monkeypatch.undo()
+    v_new, imp = tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {0, 1, 2}, None, set())
+    assert imp["contacts"] == [0, 1, 2] and np.all(np.abs(v_new - 0.5) <= 8 * EPS)
+
+
+def test_a_pushed_contact_is_handed_back():
+    """Two touching stops on a coupled mass (M = [[1, .9], [.9, 1]], J_N = I): contact 0 approaches at 1 m/s,
+    contact 1 separates at 1 mm/s; the impulse on 0 drives 1 into approach (M^-1 e_0 = [1, -.9] / .19), a set
+    closure: the path hands it back untouched, and resolve's full path closes the set (both contacts in the
+    impact, ``set_closure`` from 1 on) as on the reference core."""
+    M = np.array([[1.0, 0.9], [0.9, 1.0]])
+    cs = ContactSet.from_arrays(np.eye(2), [0.0, 0.0], eps=0.5)
+    system, Mf = ContactSystem.from_arrays(M=M, Q=np.eye(2), contacts=cs), factorize(M)
+    q, v = np.zeros(2), np.array([-1.0, 1e-3])
+    records = []
+    for reference in (False, True):
+        memory = tr.Memory(np.zeros(2), np.zeros(2, dtype=np.int64))
+        memory.observe(cs, q, v)
+        if not reference:
+            start = _memory_state(memory)
+            assert tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {0, 1}, None, set()) is None
+            assert _same(_memory_state(memory), start)
+            records.append(tr.resolve(system, Mf, 0.0, q, v, Mode(), memory, {0, 1})[2])
+        else:
+            with core.reference():
+                records.append(tr.resolve(system, Mf, 0.0, q, v, Mode(), memory, {0, 1})[2])
+    assert records[0]["contacts"] == records[1]["contacts"] == [0, 1]
+    assert records[0]["set_closure"] == records[1]["set_closure"] and records[0]["set_closure"][0] == 1
+
+
+def test_the_paths_matrices_are_bounded_as_the_lcp_cache():
+    """ImpactPath.matrices keeps the impact LCPs' matrix parts it meets: no more of them than the Memory's LCP cache
+    keeps (its entries, the oldest dropped first), none the cache declined as too large (review-c: they grew
+    without bound beside the cache's byte budget). Six stops, impacts on six different active sets, a cache of 2
+    entries; then a cache of 0 bytes. Each impact is still resolved (q'+ = -e q'- on each stop, a few ulp)."""
+    M = np.diag(np.arange(1.0, 7.0))
+    cs = ContactSet.from_arrays(np.eye(6), np.zeros(6), eps=0.5)
+    system, Mf = ContactSystem.from_arrays(M=M, Q=np.eye(6), contacts=cs), factorize(M)
+    for entries, nbytes, kept in ((2, 2 ** 27, 2), (256, 0, 0)):
+        memory = tr.Memory(np.zeros(6), np.zeros(6, dtype=np.int64))
+        memory.lcp_cache = tr.LCPCache(entries, nbytes)
+        for k in range(6):
+            q, v = np.full(6, 1e-3), np.ones(6)
+            q[k], v[k] = 0.0, -1.0   # contact k touches and approaches, the others are open and separate
+            memory.observe(cs, q, v)
+            v_new, imp = tr._impact_fast(kernel, system, Mf, 0.0, q, v, Mode(), memory, {k}, None, set())
+            assert imp["contacts"] == [k] and abs(v_new[k] - 0.5) <= 8 * EPS
+        assert len(memory._impact[2].matrices) == kept

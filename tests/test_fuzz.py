@@ -2450,3 +2450,100 @@ def test_compiled_search_of_a_U_without_columns_reproduction():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, (done.returncode, done.stderr[-500:])
     assert done.stdout.startswith("refused:") and "column of U" in done.stdout
+
+
+# --- issue 33: review-c (compiled impact path and phase set-up) ---
+
+@settings(max_examples=40, deadline=None)
+@given(m=st.integers(1, 4), tol_len=st.sampled_from([None, 0, 1, 2, 4, 5, "scalar"]), dq=st.integers(-1, 1),
+       dmem=st.integers(-1, 1), seed=st.integers(0, 2 ** 16))
+def test_compiled_impact_path_of_any_shapes_is_the_references(m, tol_len, dq, dmem, seed):
+    """resolve on the compiled core (its impact path reads q, q', gap_tol and the memory's per-contact arrays
+    without bounds checks, and writes the Zeno memory in place) against the reference core on arguments of any
+    shapes: a gap tolerance as one number, a list or of another length, a state or a memory of another length.
+    The same outcome: the same exception type, or the same configuration, impact contacts, plastic contacts and
+    impact counts (m independent stops approached at 1 m/s; the velocities after are -e q'- on each, a few ulp)."""
+    import numpy as np
+
+    from nsfem.contact.set import ContactSet
+    from nsfem.integrate import ContactSystem, core
+    from nsfem.integrate.configuration import Mode
+    from nsfem.integrate.transitions import Memory, resolve
+    from nsfem.linalg import factorize
+
+    if core.compiled("resolve") is None:
+        pytest.skip("the compiled core part 'resolve' is not active")
+    rng = np.random.default_rng(seed)
+    n = m
+    M = np.diag(rng.uniform(0.5, 2.0, n))
+    gaps = rng.choice([0.0, 1e-6, 1e-2], m)
+    cs = ContactSet.from_arrays(np.eye(n), gaps, eps=rng.choice([0.0, 0.5, 1.0], m))
+    system, Mf = ContactSystem.from_arrays(M=M, Q=np.eye(n), contacts=cs), factorize(M)
+    q, v = np.zeros(n + dq) if n + dq else np.zeros(0), -np.ones(max(n + dq, 0))
+    tol = None if tol_len is None else 1e-3 if tol_len == "scalar" else rng.uniform(0, 2e-3, tol_len)
+    touching = {k for k in range(m) if gaps[k] == 0.0}
+
+    def outcome():
+        mem = Memory(np.zeros(m + dmem), np.zeros(m + dmem, dtype=np.int64))
+        mem.observe(cs, np.zeros(n), -np.ones(n))
+        try:
+            with np.errstate(all="ignore"):
+                mode, v_new, imp = resolve(system, Mf, 0.0, q, v, Mode(), mem, touching, tol)
+        except (ValueError, IndexError) as exc:
+            return type(exc), None
+        key = (mode, None if imp is None else (imp["contacts"], imp["plastic"]), mem.impacts.tolist())
+        return key, np.asarray(v_new, dtype=float)
+
+    got = outcome()
+    with core.reference():
+        ref = outcome()
+    assert got[0] == ref[0]
+    if got[1] is not None:   # (each stop alone: q'+ = -e q'- or 0 in one division and product, 4 ulp of 1 m/s)
+        assert np.all(np.abs(got[1] - ref[1]) <= 4 * np.finfo(float).eps)
+
+
+@settings(max_examples=30, deadline=None)
+@given(kind=st.integers(0, 2), dg=st.integers(-1, 2), dq=st.integers(-1, 1), dv=st.integers(-1, 1),
+       seed=st.integers(0, 2 ** 16))
+def test_compiled_phase_setup_of_any_shapes_is_the_references(kind, dg, dq, dv, seed):
+    """Phase's compiled set-up (PhaseSetup.start reads g0, q0 and q0' without bounds checks) against the reference
+    on closed gaps and states of any lengths: the same exception type, or, where a shape differs from the
+    configuration's (which the reference broadcasts), its result bit for bit (the reference runs); with the right
+    shapes q_p and x0 within twice the dot product's bound (n + 2) eps of their terms (C sums against BLAS)."""
+    import contextlib
+
+    import numpy as np
+
+    from nsfem.integrate import core
+    from nsfem.integrate.configuration import Phase
+    from test_event_search import KINDS, _phase
+
+    if core.compiled("phase") is None:
+        pytest.skip("the compiled core part 'phase' is not active")
+    rng = np.random.default_rng([37, kind, seed])
+    with core.reference():
+        base, *_ = _phase(rng, KINDS[kind], "modal")
+    cfg = base.config
+    n, nc = cfg.system.n, cfg.Gpinv.shape[1]
+    q0, v0 = rng.standard_normal(max(n + dq, 0)), rng.standard_normal(max(n + dv, 0))
+    g0 = rng.standard_normal(max(nc + dg, 0)) * 1e-3
+    out = []
+    for reference in (True, False):
+        try:
+            with core.reference() if reference else contextlib.nullcontext():
+                p = Phase(cfg, 0.0, q0, v0, g0)
+            out.append((p.qp, p.x0))
+        except ValueError:
+            out.append(None)
+    if out[0] is None:
+        assert out[1] is None
+        return
+    assert out[1] is not None
+    if (q0.size, v0.size) != (n, n) or g0.size not in (0, nc):
+        assert all(np.array_equal(a, b) for a, b in zip(*out))
+        return
+    eps = np.finfo(float).eps
+    qp_terms = np.abs(cfg.Gpinv) @ np.abs(g0) if g0.size else np.zeros(n)
+    assert np.all(np.abs(out[1][0] - out[0][0]) <= 2 * (nc + 2) * eps * qp_terms)
+    x_terms = np.abs(cfg.N).T @ np.abs(np.stack([q0 - out[0][0], v0], axis=1)) + np.abs(cfg.N).T @ qp_terms[:, None]
+    assert np.all(np.abs(out[1][1] - out[0][1]) <= 4 * (n + 2) * eps * x_terms.T.ravel() + 1e-300)

@@ -495,6 +495,8 @@ class Phase:
         N, r = config.N, config.r
         self.w = config.w
         kernel = core.compiled("phase")
+        if kernel is not None and not _fits_setup(config, self.g0, q0, v0):
+            kernel = None   # (the set-up kernel reads without bounds checks: the reference broadcasts or refuses)
         modes = None
         if kernel is None:
             self.qp = config.particular(self.g0)
@@ -850,6 +852,14 @@ class Phase:
         rate = max(self.config.fastest_rate() if rate is None else rate, self.w)
         h = math.pi / (4.0 * rate) if rate > 0 else math.inf
         return min(h, horizon / 8.0) if horizon > 0 else h
+
+
+def _fits_setup(config: Configuration, g0: np.ndarray, q0, v0) -> bool:
+    """Whether the compiled set-up may read these: q0 and v0 of the n coordinates, g0 one value per constraint
+    row of the configuration (or none: q_p = 0, as :meth:`Configuration.particular`)."""
+    n = (config.system.n,)
+    return getattr(q0, "shape", None) == n and getattr(v0, "shape", None) == n \
+        and g0.ndim == 1 and g0.size in (0, config.Gpinv.shape[1])
 
 
 def _compiled_setup(kernel, config: Configuration, g0: np.ndarray, q0: np.ndarray, v0: np.ndarray, t0: float):

@@ -519,10 +519,15 @@ def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: 
 
     Not this path's: a candidate on a moving surface, a creeping approach, no approach, a contact closed
     after the impact or lifted without impacting (micro-lifts, the transition LCP), a touching contact pushed
-    into approach (set closure), an LCP the direct kernels decline or do not solve, a non-finite state."""
+    into approach (set closure), an LCP the direct kernels decline or do not solve, a non-finite state,
+    arguments of other shapes than (n,) and (m,) (a gap tolerance given as one number, a list)."""
     if memory.impacts.dtype != np.int64 or memory.max_approach.dtype != np.float64:   # (written in place by the kernel)
         return None
     cs = system.contacts
+    # (the kernels read q[i], q'[i], gap_tol[k] and the memory's per-contact arrays without bounds checks, and
+    # write the Zeno memory in place: other shapes take the full path, which broadcasts a number or refuses)
+    if not _fits(cs, q, v, memory.gap_scale, memory.rate_scale, memory.max_approach, memory.impacts, gap_tol):
+        return None
     path = memory.impact_path(system, Mf, kernel)
     state, vf = np.empty((6, cs.m)), _floats(v)
     na = path.classify(_floats(q), vf, memory.gap_scale, memory.rate_scale,
@@ -533,10 +538,18 @@ def _impact_fast(kernel, system: ContactSystem, Mf: Factorization, t: float, q: 
     active = path.active()
     mat = path.matrices.get(active)
     if mat is None:
-        entry = _impact_parts(Mf, cs, active, memory.lcp_cache, (id(system), id(Mf), "impact", active))[0]
+        key = (id(system), id(Mf), "impact", active)
+        entry = _impact_parts(Mf, cs, active, memory.lcp_cache, key)[0]
         if entry[5] is None:   # (a non-finite matrix part)
             return None
-        mat = path.matrices[active] = kernel.Matrix(entry[0], entry[2], entry[7], na, entry[5], entry[8])
+        mat = kernel.Matrix(entry[0], entry[2], entry[7], na, entry[5], entry[8])
+        # kept as long as the LCP cache would keep it: at most its number of entries, the oldest dropped first,
+        # none it declined (larger than its byte budget: an unreduced model's M^-1 W)
+        cache = memory.lcp_cache
+        if cache.get(key) is entry:
+            while path.matrices and len(path.matrices) >= cache.entries:
+                del path.matrices[next(iter(path.matrices))]
+            path.matrices[active] = mat
     x, v_new, ke = np.empty(mat.A.shape[0]), np.empty(cs.n), np.empty(2)
 
     def general():

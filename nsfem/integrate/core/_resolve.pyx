@@ -207,12 +207,16 @@ cdef class ImpactPath:
         the candidates' largest |g'| and slip rate |S_k^T q'|).
         Returns the number of active contacts (:meth:`active`), 0 when none approaches, -1 when the event is
         not this path's (a non-finite state, a candidate on a moving surface, a creeping approach, a contact
-        index out of range): nothing outside this object and ``state`` is written."""
+        index out of range, arrays of other shapes than (n,), (m,) and 6 x m: read without bounds checks):
+        nothing outside this object and ``state`` is written."""
         cdef Py_ssize_t k, i, j, m = self.JNT.shape[0], n = self.JNT.shape[1], na = 0
         cdef double vscale = 0.0, s
         cdef bint approach = False
         cdef signed char[::1] flags = self.flags
         self.na = 0
+        if (q.shape[0] != n or v.shape[0] != n or gap_scale.shape[0] != m or rate_scale.shape[0] != m
+                or gap_tol.shape[0] not in (0, m) or state.shape[0] != 6 or state.shape[1] != m):
+            return -1
         for k in range(m):
             flags[k] = MOVING if self.moving[k] else 0
         for group, bit in ((closed, FORCED), (touching, FORCED), (settled, SETTLED)):
@@ -277,16 +281,20 @@ cdef class ImpactPath:
 
         Returns 1 when all holds: ``x`` (the LCP's unknowns, the normal impulses first), ``v_new``, ``ke``
         (kinetic energy before, after) are the result and the Zeno memory (``max_approach``, ``impacts``) is
-        updated; 0 otherwise, the memory untouched (the full path then runs)."""
+        updated; 0 otherwise, the memory untouched (the full path then runs; also for arrays of other shapes
+        than :meth:`classify`'s: read and written without bounds checks)."""
         cdef Py_ssize_t i, j, k, n = v.shape[0], m = self.JNT.shape[0], na = self.na
         cdef Py_ssize_t size = mat.a.shape[0], p = mat.jt.shape[1], nw = na + p
-        cdef const double[::1] gv = state[3], tv = state[5]
         cdef signed char[::1] flags = self.flags
         cdef double g, e, big = 0.0, a, b0, t, scaled, s, top = 0.0, speed
         cdef const double[::1] xs
         if (na == 0 or mat.normal != na or mat.a.shape[1] != size or size < nw or mat.y.shape[1] != nw
-                or mat.y.shape[0] != n or mat.jt.shape[0] != n or x.shape[0] != size):
+                or mat.y.shape[0] != n or mat.jt.shape[0] != n or x.shape[0] != size or n != self.JNT.shape[1]
+                or self.M.shape[0] != n or self.M.shape[1] != n or v_new.shape[0] != n or ke.shape[0] < 2
+                or max_approach.shape[0] != m or impacts.shape[0] != m or state.shape[0] != 6
+                or state.shape[1] != m):
             return 0
+        cdef const double[::1] gv = state[3], tv = state[5]
         # restitutions: plastic for a settled contact or a Zeno impact (slower than zeno of its fastest);
         # the right-hand side in x, then the solution in its place
         for j in range(na):
