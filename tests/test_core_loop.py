@@ -185,3 +185,28 @@ def test_a_phase_of_other_shapes_is_the_references():
         assert not got.qp.any() and not ref.qp.any()
         bound = 2 * (cfg.system.n + 2) * EPS * (np.abs(cfg.N).T @ np.abs(np.r_[q0, v0].reshape(2, -1)).T)
         assert np.all(np.abs(got.x0 - ref.x0) <= bound.T.ravel())
+
+
+def test_phase_setup_refuses_outputs_and_states_of_other_shapes(rotor):  # noqa: F811
+    """PhaseSetup.start and .state write into their outputs without bounds checks and were ``noexcept`` (an
+    error inside was printed and ignored, the call went on): an output shorter than the layout, a q or q' a
+    coordinate short, or a U without the phase's state rows, is a ValueError now, before any write; the real
+    calls are accepted."""
+    from nsfem.integrate.configuration import phase_setup
+
+    rng = np.random.default_rng(40)
+    cfg = Configuration(rotor, Mode(closed=(0,)))
+    setup, lay, _ = phase_setup(kernel, cfg)
+    q0, v0, g0 = 1e-4 * rng.standard_normal(rotor.n), 1e-3 * rng.standard_normal(rotor.n), np.array([1e-5])
+    setup.start(g0, q0, v0, 0.0, 0.0, np.empty(lay[9]))
+    with pytest.raises(ValueError, match="PhaseSetup.start"):
+        setup.start(g0, q0, v0, 0.0, 0.0, np.empty(lay[9] - 1))
+    phase = Phase(cfg, 0.0, q0, v0, g0)
+    mot, n = phase._modal, rotor.n
+    U, nu = np.ascontiguousarray(mot.U).view(float), np.ascontiguousarray(mot.nu).view(float)
+    q, v = np.empty(n), np.empty(n)
+    setup.state(U, nu, 1e-4, phase.qp, q, v)
+    for bad in [(U, nu, 1e-4, phase.qp, q[:-1], v), (U, nu, 1e-4, phase.qp, q, v[:-1]),
+                (U, nu, 1e-4, phase.qp[:-1], q, v), (np.ascontiguousarray(U[:1]), nu, 1e-4, phase.qp, q, v)]:
+        with pytest.raises(ValueError, match="PhaseSetup.state"):
+            setup.state(*bad)

@@ -650,7 +650,7 @@ cdef class PhaseSetup:
         self.layout = (*offsets, at)
 
     cpdef void start(self, const double[::1] g0, const double[::1] q0, const double[::1] v0, double w, double t0,
-                     double[::1] out) noexcept:
+                     double[::1] out):
         """Phase.__init__'s set-up into ``out`` (``layout``): phase_start's (q_p, f0, B f0, x0), then with a
         modal plan phase_modal's (z0, beta, c, g, U; U's rigid rows left to ModalPlan.complete) with the
         phase e^{i w t0} as the reference forms it (numpy's exp of i w t0: the C library's cexp)."""
@@ -658,6 +658,8 @@ cdef class PhaseSetup:
         cdef Py_ssize_t o_qp = lay[0], o_f0 = lay[1], o_b = lay[2], o_x = lay[3], o_z = lay[4], o_beta = lay[5]
         cdef Py_ssize_t o_c = lay[6], o_g = lay[7], o_U = lay[8]
         cdef double ph_re = 0.0, ph_im = 0.0
+        if out.shape[0] < lay[9]:
+            raise ValueError(f"PhaseSetup.start: its output needs {lay[9]} entries (layout), got {out.shape[0]}")
         phase_start(self.GpinvT, g0, self.QT, self.f0, self.BT, self.N, q0, v0, out[o_qp: o_f0], out[o_f0: o_b],
                     out[o_b: o_x], out[o_x: o_z])
         if self.m == 0:
@@ -669,7 +671,7 @@ cdef class PhaseSetup:
                        self.nmu, self.p, &out[o_z], &out[o_beta], &out[o_c], &out[o_g], &out[o_U])
 
     cpdef void state(self, const double[:, ::1] U, const double[::1] nu, double tau, const double[::1] qp,
-                     double[::1] q, double[::1] v) noexcept:
+                     double[::1] q, double[::1] v):
         """(q, q') at t0 + tau of a phase on the modal path without divided differences: x = Re(U e^{nu tau})
         as xi_at forms it, then q = N x[:r] + q_p, q' = N x[r:] (Phase.q_map() @ xi, v_map() @ xi; each entry
         one sum in the order of N's columns, BLAS's products round otherwise)."""
@@ -678,7 +680,12 @@ cdef class PhaseSetup:
         cdef const double* row
         if n == 0:
             return
+        if q.shape[0] < n or v.shape[0] < n or qp.shape[0] < n or d < 2 * r or U.shape[1] < 2 * p:
+            raise ValueError("PhaseSetup.state: U needs the phase's 2 r state rows and a column pair per exponent, "
+                             "q, q' and q_p the configuration's n coordinates")
         cdef double* e = <double*> malloc((2 * p + d + 1) * sizeof(double))
+        if e == NULL:
+            raise MemoryError("PhaseSetup.state: no memory for its work space")
         cdef double* x = e + 2 * p
         with nogil:
             for j in range(p):
