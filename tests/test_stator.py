@@ -341,7 +341,14 @@ def test_retainer_drop_falls_freely_then_friction_pushes_it_up_the_side_the_surf
     assert on.size and np.all(res.tangential_force[bottom, 0][:, on] <= 0.0)
     e = res.energy
     assert e["dissipated_friction_J"] > 0 and e["lost_in_impacts_J"] > 0 and e["work_spin_J"] > 0
-    assert abs(e["relative_residual"]) < 1e-9
+    # the balance is a sum over ~240 phases of closed-form work integrals (friction and the spin's work, 35 J each,
+    # cancel to an E of 0.05 J): each phase's integral carries round-off of a few hundred eps of that phase's
+    # turnover (rigid-body phases sum divided-difference terms larger than the state they make), so the balance
+    # is bounded by 1e-11 of the run's turnover, not by E (measured 1e-13 to 2e-12 of it across BLAS kernels
+    # and both cores; Gauss quadrature of the same phases, before issue 33, 1e-13)
+    turnover = sum(abs(e[k]) for k in ("work_external_J", "dissipated_damping_J", "work_circulatory_J",
+                                       "dissipated_friction_J", "work_spin_J", "lost_in_impacts_J"))
+    assert abs(e["residual_J"]) < 1e-11 * turnover
 
 
 def test_review_fixes_moving_surfaces():
