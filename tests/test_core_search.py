@@ -269,12 +269,8 @@ def test_a_signal_interrupts_the_coarse_pass():
     assert getattr(case.phase, "searched_until", case.t0) < t1
 
 
-def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
-    """The compiled search reads its arrays without bounds checks: a call whose shapes disagree (a row too few
-    in Hd or in the rows' images, a column too few in the images, a band or tol or weight per row missing,
-    A_aug not square, a harmonic part of 2 components, a term order naming a term that is not a mode, a divided
-    difference of one node) is a ValueError, never a read past an array. The arguments are those of a real
-    compiled search (captured), each spoilt in turn; the captured ones themselves are accepted."""
+def _captured(monkeypatch) -> tuple[list, object]:
+    """(the arguments of the compiled Search calls of one generic random phase's search, that case)."""
     search = core.compiled("search")
     captured = []
 
@@ -287,6 +283,17 @@ def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
     monkeypatch.setitem(core._active, "search", Spy)
     case = make_case(0, "generic")
     _search(case.phase, case.H, case.t0, case.t1, reference=False)
+    return captured, case
+
+
+def test_search_refuses_arrays_of_the_wrong_shape(monkeypatch):
+    """The compiled search reads its arrays without bounds checks: a call whose shapes disagree (a row too few
+    in Hd or in the rows' images, a column too few in the images, a band or tol or weight per row missing,
+    A_aug not square, a harmonic part of 2 components, a term order naming a term that is not a mode, a divided
+    difference of one node) is a ValueError, never a read past an array. The arguments are those of a real
+    compiled search (captured), each spoilt in turn; the captured ones themselves are accepted."""
+    search = core.compiled("search")
+    captured, case = _captured(monkeypatch)
     assert captured
     args = list(captured[0])
     names = ("nu", "gnodes", "gm", "U", "H", "Hd", "A", "t0", "w", "HU", "order", "steady", "weights", "gb",
@@ -317,17 +324,7 @@ def test_search_checks_the_terms_before_reading_them(monkeypatch):
     (a segfault) and a U a column short was read past its end. Each is a ValueError before any read now; the
     captured arguments themselves are accepted."""
     search = core.compiled("search")
-    captured = []
-
-    class Spy:
-        @staticmethod
-        def Search(*args):
-            captured.append(args)
-            return search.Search(*args)
-
-    monkeypatch.setitem(core._active, "search", Spy)
-    case = make_case(0, "generic")
-    _search(case.phase, case.H, case.t0, case.t1, reference=False)
+    captured, case = _captured(monkeypatch)
     args = list(captured[0])
     U, gb = args[3], args[13]
     assert U.shape[1] > 1
@@ -347,17 +344,7 @@ def test_a_bad_carry_is_refused_and_frees_the_work_space(monkeypatch):
     and every way out frees: 2000 refused calls grow the process's data segment by less than a tenth of what
     the leak took (the allocator may keep a few pages; the leak grew it by 2000 work spaces)."""
     search = core.compiled("search")
-    captured = []
-
-    class Spy:
-        @staticmethod
-        def Search(*args):
-            captured.append(args)
-            return search.Search(*args)
-
-    monkeypatch.setitem(core._active, "search", Spy)
-    case = make_case(0, "generic")
-    _search(case.phase, case.H, case.t0, case.t1, reference=False)
+    captured, case = _captured(monkeypatch)
     run = search.Search(*captured[0])
     k = case.H.shape[0]
     with pytest.raises(ValueError, match="a value per row"):
