@@ -18,6 +18,8 @@ from .errors import IntegrationError, NsfemError
 
 EXIT_ERROR = 2
 FIELD_NAMES = {"U": "U (axial)", "V": "V (bending x-y)", "W": "W (bending x-z)"}
+RIGID_NAMES = {"U": "rigid axial motion (U)", "V": "rigid lateral motion in x-y (V)",
+               "W": "rigid lateral motion in x-z (W)"}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -175,15 +177,22 @@ def cmd_modes(args) -> int:
     red = scene_reduction(scene.reduction, model)
     modes = natural_frequencies(model, args.contact, args.count, red)
     wall = time.perf_counter() - t0
+    from .analysis.rigid_motion import free_motions, rigid_warning
+
+    warning = rigid_warning(model)
+    if warning:
+        print(f"nsfem modes: warning: {warning}", file=sys.stderr)
     payload = {"title": scene.title, **modes.to_json(), "reduction": red.info,
-               "elements": model.mesh.elements, "wall_s": wall}
+               "elements": model.mesh.elements, "wall_s": wall, "rigid_motions": free_motions(model),
+               "warnings": [warning] if warning else []}
     lines = [scene.title, f"contact {modes.contact}: {modes.ndof} dofs ({red.name}; full model "
              f"{modes.ndof_full}), {model.mesh.elements} elements",
              "  mode  frequency [Hz]  field"]
     # 4 decimals for Hz-sized frequencies; 5 significant digits for tiny or huge ones (a
     # nondimensional E = rho = 1 shaft's first frequency is 8.2e-3, which .4f would show as 0.0082)
-    lines += [f"  {k + 1:4d}  {f:14.4f}  {FIELD_NAMES[fld]}" if 0.1 <= f < 1e9 else
-              f"  {k + 1:4d}  {f:14.5g}  {FIELD_NAMES[fld]}"
+    # a rigid-body mode (exactly 0 Hz from the kinematics, nsfem.fem.rigid) is named as the motion it is
+    lines += [f"  {k + 1:4d}  {f:14.4f}  {RIGID_NAMES[fld] if f == 0.0 else FIELD_NAMES[fld]}" if 0.1 <= f < 1e9
+              or f == 0.0 else f"  {k + 1:4d}  {f:14.5g}  {FIELD_NAMES[fld]}"
               for k, (f, fld) in enumerate(zip(modes.frequencies_hz, modes.fields))]
     _emit(args, payload, "\n".join(lines))
     return 0
@@ -364,6 +373,7 @@ def cmd_stationary(args) -> int:
                "wall_s": st.wall_s}
     if "note" in info:
         payload["note"] = info["note"]
+    # the existence caveat is said once: a warning on stderr when it is one, else on the LCP line
     if not st.existence["guaranteed"]:
         print(f"nsfem stationary: warning: {st.existence['reason']}", file=sys.stderr)
     for w in info["warnings"]:
@@ -372,19 +382,64 @@ def cmd_stationary(args) -> int:
     loads = " + ".join(info["loads"]) or "none"
     lines = [scene.title, f"speed {info['speed_hz']:g} Hz, constant loads: {loads}; {info['ndof']} dofs "
              f"({info['reduction']['method']}; full model {info['ndof_full']})",
-             f"LCP (28): {st.lcp.x.size} unknowns, {st.lcp.pivots} pivots, residual {st.lcp.residual:.1e}; "
-             f"{st.existence['reason']}"]
+             f"LCP (28): {st.lcp.x.size} unknowns, {st.lcp.pivots} pivots, residual {st.lcp.residual:.1e}"
+             + (f"; {st.existence['reason']}" if st.existence["guaranteed"] else "")]
     if "note" in info:
         lines.append(f"note: {info['note']}")
-    if st.contacts.m:
+    lines += _stationary_parts(st.parts)
+    grouped = {r["key"] for r in st.parts["rings"] + st.parts["cracks"]}
+    rows = [k for k, c in enumerate(st.contacts.labels) if c.rpartition(".")[0] not in grouped]
+    if rows:
         lines.append("  contact              x [m]      gap [m]   normal [N]  tangential [N]  state")
-        for k, (lab, x) in enumerate(zip(st.contacts.labels, st.contacts.x)):
-            lines.append(f"  {lab:18s} {x:7.4f}  {st.gap[k]:11.4e}  {st.normal_force[k]:11.4e}  "
-                         f"{payload['tangential_force_N'][k]:14.4e}  {st.state[k]}")
-    else:
+        for k in rows:
+            lines.append(f"  {st.contacts.labels[k]:18s} {st.contacts.x[k]:7.4f}  {st.gap[k]:11.4e}  "
+                         f"{st.normal_force[k]:11.4e}  {payload['tangential_force_N'][k]:14.4e}  {st.state[k]}")
+    if not st.contacts.m:
         lines.append("no contacts: the stationary state is Q^-1 f0")
     _emit(args, payload, "\n".join(lines))
     return 0
+
+
+def _angle(deg) -> str:
+    return "-" if deg is None else f"{deg:.2f}"
+
+
+def _stationary_parts(parts: dict) -> list[str]:
+    """The text lines of a stationary state's parts (:func:`nsfem.analysis.stationary.rotor_parts`)."""
+    frame = parts["frame"]
+    fy, fz = parts["load_N"]
+    out = [f"constant load {fy:.6g} N along y, {fz:.6g} N along z ({frame} frame); forces on the shaft:"
+           if parts["bearings"] or parts["supports"] else f"constant load {fy:.6g} N along y, {fz:.6g} N along z "
+           f"({frame} frame)"]
+    if parts["bearings"] or parts["supports"]:
+        out.append("  reaction             x [m]       y [N]        z [N]      |F| [N]")
+        for b in parts["bearings"]:
+            out.append(f"  {b['label']:18s} {b['x_m']:7.4f}  {b['reaction_N'][0]:11.5g}  {b['reaction_N'][1]:11.5g}  "
+                       f"{b['magnitude_N']:11.5g}")
+        for i, s in enumerate(parts["supports"]):
+            out.append(f"  {'support ' + '+'.join(s['fix']):18s} {s['x_m']:7.4f}  {s['reaction_N'][0]:11.5g}  "
+                       f"{s['reaction_N'][1]:11.5g}  {s['magnitude_N']:11.5g}")
+    if parts["disks"]:
+        out.append("  deflection           x [m]       y [m]        z [m]      |u| [m]")
+        for d in parts["disks"]:
+            out.append(f"  {d['label']:18s} {d['x_m']:7.4f}  {d['deflection_m'][0]:11.4e}  "
+                       f"{d['deflection_m'][1]:11.4e}  {d['magnitude_m']:11.4e}")
+    top = parts["max_deflection"]
+    out.append(f"largest shaft deflection {top['magnitude_m']:.4e} m at x = {top['x_m']:.4f} m (y {top['deflection_m'][0]:.4e}, "
+               f"z {top['deflection_m'][1]:.4e} m)")
+    if parts["rings"]:
+        out.append("  ring           x [m]  force on ring [N]  angle [deg]  whirl radius [m]  angle [deg]  "
+                   "min gap [m]  state")
+        for r in parts["rings"]:
+            state = r["state"] + (f" on facet{'s' * (len(r['facets']) > 1)} {', '.join(map(str, r['facets']))}"
+                                  if r["facets"] else "")
+            out.append(f"  {r['key']:12s} {r['x_m']:7.4f}  {r['force_N']:17.5g}  {_angle(r['angle_deg']):>11s}  "
+                       f"{r['radius_m']:16.4e}  {_angle(r['whirl_angle_deg']):>11s}  {r['min_clearance_m']:11.4e}  {state}")
+    if parts["cracks"]:
+        out.append("  crack          x [m]  opening [m]  face force [N]  state")
+        for c in parts["cracks"]:
+            out.append(f"  {c['key']:12s} {c['x_m']:7.4f}  {c['opening_m']:11.4e}  {c['face_force_N']:14.5g}  {c['state']}")
+    return out
 
 
 def cmd_run(args) -> int:

@@ -334,6 +334,12 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
         text = check_output_size(files, nbytes, free, scene.output.vtu_every, n_times)
         if text and warn is not None:
             warn(text)
+    if warn is not None:  # a free axial travel (a thrust bearing left out) is a 0 Hz mode: said once
+        from .analysis.rigid_motion import rigid_warning
+
+        text = rigid_warning(model, caught=any(c.kind == "obstacle" for c in model.stack.contacts))
+        if text:
+            warn(text)
     q0, v0 = initial_state(scene, model, red, system)
     if warn is not None and method == "penalty" and np.any(system.contacts.mu > 0):
         warn(f"penalty neglects friction, as in the paper: the friction coefficients of "

@@ -56,6 +56,9 @@ class Stationary:
     contacts: ContactSet
     wall_s: float = 0.0
     info: dict = field(default_factory=dict)
+    #: the rotor's parts in this state (:func:`rotor_parts`): ``load_N``, ``bearings``, ``supports``,
+    #: ``disks``, ``max_deflection``, ``rings``, ``cracks``; empty when not computed
+    parts: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         cs = self.contacts
@@ -70,6 +73,7 @@ class Stationary:
             "existence": self.existence,
             "lcp": {"size": int(self.lcp.x.size), "pivots": self.lcp.pivots, "status": self.lcp.status,
                     "residual": self.lcp.residual},
+            **self.parts,
         }
 
 
@@ -244,13 +248,23 @@ def scene_stationary(scene: Scene, model=None, reduction=None) -> Stationary:
 def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0: float | None = None) -> Stationary:
     """The stationary state of a model with ``[rotation]`` and ``[damping]`` at ``rotation.speed_hz``, in
     ``reduction``'s coordinates; ``wall_s`` counts from ``t0`` (a ``time.perf_counter()``; default: now)."""
-    from ..fem.rotating import rotor_operators
+    from ..fem.rotating import full_operators
     from ..system import rotor_system
 
     t0 = time.perf_counter() if t0 is None else t0
-    ops = rotor_operators(model, reduction.T)
+    full = full_operators(model)
+    ops = full.project(reduction.T)
     _check_damping(ops, damping, model)
     system = rotor_system(ops, rotation, damping)
+    system_full = rotor_system(full, rotation, damping)
+    from .rigid_motion import rigid_error
+
+    try:
+        factorize(system.Q, "Q")
+    except NsfemError:  # name the rigid motion that makes it singular, and the key that restrains it
+        text = rigid_error(model, system_full.Q)
+        if text:
+            raise NsfemError(text) from None
     cs = ContactSet.from_model(model, reduction, omega=2.0 * math.pi * rotation.speed_hz, frame=rotation.frame)
     st = stationary(system.Q, system.f0, cs, compliance(model.stack.contacts),
                     asymmetry=asymmetry_causes(model.stack, rotation, damping))
@@ -265,6 +279,7 @@ def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0:
             loads.append("external-damping drag")
     elif rotation.gravity:
         loads.append("gravity")
+    st.parts = rotor_parts(model, st, system_full, reduction.T, rotation)
     st.wall_s = time.perf_counter() - t0
     st.info = {"speed_hz": rotation.speed_hz, "loads": loads, "ndof_full": model.n, "ndof": reduction.ndof,
                "reduction": reduction.info}
@@ -281,4 +296,49 @@ def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0:
     return st
 
 
-__all__ = ["Stationary", "existence", "rotor_stationary", "scene_stationary", "stationary", "NsfemError"]
+def contact_forces_full(model, st: Stationary) -> np.ndarray:
+    """The contact forces J_N lam_N + J_S lam_T of a stationary state in full finite-element coordinates."""
+    from ..contact.kinematics import gap_jacobian, slip_jacobian
+    from ..contact.set import tangent_names
+
+    J, _ = gap_jacobian(model)
+    f = np.asarray(J @ st.normal_force).ravel()
+    S = slip_jacobian(model).tocsc()
+    col = 0
+    for k, c in enumerate(model.stack.contacts):
+        if c.friction <= 0:
+            continue
+        for j, name in enumerate(tangent_names(c)):
+            if name in st.contacts.tangents[k]:
+                f += np.asarray(S[:, col + j].toarray()).ravel() * st.tangential_force[k][st.contacts.tangents[k].index(name)]
+        col += 2
+    return f
+
+
+def rotor_parts(model, st: Stationary, system, basis, rotation: Rotation) -> dict:
+    """The parts of a rotor in a stationary state (``system``: the linear system in full coordinates,
+    ``basis``: q_full = basis q): the constant load's resultant ``load_N`` [y, z], each bearing's and
+    support's force on the shaft, the deflection at each disk and its largest value along the shaft,
+    one entry per stator ring and per crack (:mod:`nsfem.analysis.parts`)."""
+    from .parts import crack_summaries, ring_summaries
+    from .reactions import bearing_reactions, disk_deflections, lateral_total, shaft_deflection, support_reactions
+
+    q = np.asarray(basis @ st.q).ravel()
+    f0 = np.zeros(model.n_full) if system.f0 is None else np.asarray(system.f0)
+    residual = np.asarray(system.Q @ q).ravel() - f0 - contact_forces_full(model, st)
+    omega = 2.0 * math.pi * rotation.speed_hz
+    Rb = bearing_reactions(model, q, omega, rotation.frame)
+    Rs = support_reactions(model, residual)
+    stack = model.stack
+    return {
+        "frame": rotation.frame, "load_N": lateral_total(model, f0).tolist(),
+        "bearings": [{"label": b.label or f"bearing.{i}", "x_m": b.x, "reaction_N": r.tolist(),
+                      "magnitude_N": float(np.hypot(*r))} for i, (b, r) in enumerate(zip(stack.bearings, Rb))],
+        "supports": [{"x_m": s.x, "segment": s.segment, "fix": list(s.fix), "reaction_N": r.tolist(),
+                      "magnitude_N": float(np.hypot(*r))} for s, r in zip(stack.supports, Rs)],
+        "disks": disk_deflections(model, q), "max_deflection": shaft_deflection(model, q),
+        "rings": ring_summaries(st, model, q), "cracks": crack_summaries(st, model),
+    }
+
+
+__all__ = ["Stationary", "contact_forces_full", "existence", "rotor_parts", "rotor_stationary", "scene_stationary", "stationary", "NsfemError"]
