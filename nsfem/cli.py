@@ -404,9 +404,21 @@ def _angle(deg) -> str:
     return "-" if deg is None else f"{deg:.2f}"
 
 
+def _shown(values, scale: float) -> list[float]:
+    """``values`` with round-off (below 1e-9 of ``scale``, the table's largest size) shown as 0."""
+    return [0.0 if abs(v) <= 1e-9 * scale else v for v in values]
+
+
 def _stationary_parts(parts: dict) -> list[str]:
     """The text lines of a stationary state's parts (:func:`nsfem.analysis.stationary.rotor_parts`)."""
     frame = parts["frame"]
+    force = max([abs(v) for v in parts["load_N"]] + [r["magnitude_N"] for r in parts["bearings"] + parts["supports"]])
+    top = parts["max_deflection"]
+    parts = {**parts, "load_N": _shown(parts["load_N"], force),
+             "bearings": [{**b, "reaction_N": _shown(b["reaction_N"], force)} for b in parts["bearings"]],
+             "supports": [{**b, "reaction_N": _shown(b["reaction_N"], force)} for b in parts["supports"]],
+             "disks": [{**d, "deflection_m": _shown(d["deflection_m"], top["magnitude_m"])} for d in parts["disks"]],
+             "max_deflection": {**top, "deflection_m": _shown(top["deflection_m"], top["magnitude_m"])}}
     fy, fz = parts["load_N"]
     out = [f"constant load {fy:.6g} N along y, {fz:.6g} N along z ({frame} frame); forces on the shaft:"
            if parts["bearings"] or parts["supports"] else f"constant load {fy:.6g} N along y, {fz:.6g} N along z "

@@ -2547,3 +2547,51 @@ def test_compiled_phase_setup_of_any_shapes_is_the_references(kind, dg, dq, dv, 
     assert np.all(np.abs(out[1][0] - out[0][0]) <= 2 * (nc + 2) * eps * qp_terms)
     x_terms = np.abs(cfg.N).T @ np.abs(np.stack([q0 - out[0][0], v0], axis=1)) + np.abs(cfg.N).T @ qp_terms[:, None]
     assert np.all(np.abs(out[1][1] - out[0][1]) <= 4 * (n + 2) * eps * x_terms.T.ravel() + 1e-300)
+
+
+# --- issue 34: stationary for rotors and rings, rigid motions -----------------------------------------
+ROSS_FAST = ["ross_example", "--set", "mesh.elements=6", "--set", "reduction.method=none"]
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(zeroed=st.sets(st.sampled_from(["bearing.0.kxx", "bearing.0.kyy", "bearing.0.kzz", "bearing.1.kyy",
+                                       "bearing.1.kzz"])))
+def test_stationary_names_every_unrestrained_rigid_motion(zeroed, tmp_path):
+    """Any bearing stiffness taken away: either a stationary state whose reactions carry the weight, or one
+    line naming the free motion and each key that would restrain it (kxx for axial travel, kyy / kzz per
+    plane); ``modes`` warns once and labels the 0 Hz modes instead."""
+    import json
+
+    sets = [a for key in sorted(zeroed) for a in ("--set", f"{key}=0")]
+    code, out, err = check_invocation(["stationary", *ROSS_FAST, *sets, "--json"], tmp_path)
+    axial = "bearing.0.kxx" in zeroed
+    planes = {p for p in ("yy", "zz") if any(k.endswith(p) for k in zeroed)}
+    if not axial and not planes:
+        assert code == 0
+        parts = json.loads(out)
+        weight = -parts["load_N"][1]
+        # no reduction: equilibrium of the exact discrete solution, round-off of the solve (~1e5 eps)
+        assert sum(b["reaction_N"][1] for b in parts["bearings"]) == pytest.approx(weight, rel=1e-9)
+        return
+    assert code == cli.EXIT_ERROR and "unrestrained" in err
+    assert ("kxx" in err) == axial and ("axial" in err) == axial
+    for p in ("yy", "zz"):
+        assert (f"k{p}" in err) == (p in planes)
+    code, out, err = check_invocation(["modes", *ROSS_FAST, *sets, "--count", "4", "--json"], tmp_path)
+    assert code == 0 and err.count("nsfem modes: warning:") == 1
+    assert json.loads(out)["frequencies_hz"][0] == 0.0 and json.loads(out)["rigid_motions"]
+
+
+def test_issue34_stationary_rub_prints_one_ring_line(tmp_path):
+    code, out, err = check_invocation(["stationary", "rub", "--set", "mesh.elements=8", "--set", "reduction.modes=6"],
+                                      tmp_path)
+    assert code == 0 and not any(line.lstrip().startswith("stator.0.") for line in out.splitlines())
+    ring = [line for line in out.splitlines() if line.lstrip().startswith("stator.0 ")]
+    assert len(ring) == 1 and "slip on facets" in ring[0]
+    assert (out + err).count("existence not guaranteed") == 1
+
+
+def test_issue34_stationary_ross_example_prints_sag_and_bearing_loads(tmp_path):
+    code, out, _ = check_invocation(["stationary", *ROSS_FAST], tmp_path)
+    assert code == 0 and "no contacts: the stationary state is Q^-1 f0" in out
+    assert out.count("bearing.") == 2 and "disk.0" in out and "largest shaft deflection" in out

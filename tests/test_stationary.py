@@ -232,3 +232,160 @@ def test_cli_warns_when_existence_is_not_guaranteed(capsys):
     assert cli.main(["stationary", "--set", "rotation.speed_hz=45", "--set", "mesh.elements=20"]) in (0, 2)
     err = capsys.readouterr().err
     assert "existence not guaranteed" in err and "positive definite" in err
+
+
+# --- issue 34: a rotor's parts in its stationary state -----------------------------------------------
+# A free-free circular Euler-Bernoulli shaft on two end bearings of stiffness k (kzz), a disk given by
+# its mass at midspan, gravity at rest: its sag at midspan is the bearings' W / (2 k) plus the simply
+# supported beam's P L^3 / (48 EI) + 5 q L^4 / (384 EI). Hermite elements with consistent loads are
+# nodally exact (the static Green's function is cubic between nodes), so the model reproduces both to
+# round-off: Q's componentwise condition at midspan is ~1e5 for 12 elements (module docstring: 8.3e4 for
+# 20), 1e5 eps = 2e-11; 1e-9 leaves a factor 50. The reactions are -k u at the bearings' nodes (the same
+# round-off) and their sum is the weight by the equilibrium of the exact solution (rigid translation in the
+# basis): 1e-9 as well.
+ROTOR_L, ROTOR_D, ROTOR_E, ROTOR_RHO, DISK_M, K_BEARING = 0.8, 0.03, 2.1e11, 7850.0, 3.0, 2e6
+
+
+def rotor_scene(bearings=True, **overrides):
+    tree = {"shaft": {"length": ROTOR_L, "section": "circle", "diameter": ROTOR_D, "E": ROTOR_E, "rho": ROTOR_RHO,
+                      "supports": "free-free" if bearings else "pinned-pinned"},
+            "disk": [{"x": ROTOR_L / 2, "mass": DISK_M}],
+            "rotation": {"speed_hz": 0.0, "gravity": G, "frame": "inertial"},
+            "mesh": {"elements": 12}, "reduction": {"method": "none"}}
+    if bearings:
+        tree["bearing"] = [{"x": 0.0, "kyy": K_BEARING, "kzz": K_BEARING, "kxx": K_BEARING},
+                           {"x": ROTOR_L, "kyy": K_BEARING, "kzz": K_BEARING}]
+    tree.update(overrides)
+    return scene_from_tree(tree)
+
+
+def rotor_sag(bearings: bool) -> tuple[float, float]:
+    """(weight [N], midspan sag [m], downward > 0) in closed form."""
+    area, inertia = np.pi * ROTOR_D**2 / 4, np.pi * ROTOR_D**4 / 64
+    q, P = ROTOR_RHO * area * G, DISK_M * G
+    W = q * ROTOR_L + P
+    beam = P * ROTOR_L**3 / (48 * ROTOR_E * inertia) + 5 * q * ROTOR_L**4 / (384 * ROTOR_E * inertia)
+    return W, beam + (W / (2 * K_BEARING) if bearings else 0.0)
+
+
+@pytest.mark.parametrize("bearings", [True, False])
+def test_rotor_sag_and_reactions_against_the_closed_form(bearings):
+    W, sag = rotor_sag(bearings)
+    parts = scene_stationary(rotor_scene(bearings)).parts
+    assert parts["load_N"][1] == pytest.approx(-W, rel=1e-12)   # the loads' sum: a few eps per node
+    disk = parts["disks"][0]
+    assert disk["deflection_m"][1] == pytest.approx(-sag, rel=1e-9)
+    assert abs(disk["deflection_m"][0]) <= 1e-12 * sag            # no load along y: round-off
+    top = parts["max_deflection"]
+    assert top["x_m"] == pytest.approx(ROTOR_L / 2) and top["magnitude_m"] == pytest.approx(sag, rel=1e-9)
+    carriers = parts["bearings"] if bearings else parts["supports"]
+    assert len(carriers) == 2 and not (parts["supports"] if bearings else parts["bearings"])
+    for c in carriers:   # symmetric: each end carries half the weight, upwards on the shaft
+        assert c["reaction_N"][1] == pytest.approx(W / 2, rel=1e-9)
+        assert abs(c["reaction_N"][0]) <= 1e-9 * W
+    total = np.sum([c["reaction_N"] for c in carriers], axis=0) + parts["load_N"]
+    assert np.all(np.abs(total) <= 1e-9 * W)
+
+
+def test_bearing_reactions_of_a_speed_free_static_load_and_cross_coupling():
+    """An asymmetric rotor (disk at 0.3 L) on cross-coupled bearings: the reactions are -K u at the nodes and
+    still balance the weight (no other static load: the unbalance is harmonic in the inertial frame)."""
+    from nsfem.analysis.reactions import bearing_reactions
+    from nsfem.fem.assemble import build_model
+
+    scene = rotor_scene(disk=[{"x": 0.3 * ROTOR_L, "mass": DISK_M}], unbalance=[{"x": 0.3 * ROTOR_L, "magnitude": 1e-3}],
+                        bearing=[{"x": 0.0, "kyy": 2e6, "kzz": 1e6, "kyz": 3e5, "kzy": -2e5, "kxx": 1e6},
+                                 {"x": ROTOR_L, "kyy": 1.5e6, "kzz": 3e6}],
+                        rotation={"speed_hz": 30.0, "gravity": G, "frame": "inertial"})
+    st = scene_stationary(scene)
+    W, _ = rotor_sag(True)
+    R = np.array([b["reaction_N"] for b in st.parts["bearings"]])
+    # the split follows the lever rule of a rigid beam: 0.7 of the disk and half the shaft at x = 0
+    assert R[0, 1] == pytest.approx(W - DISK_M * G * 0.3 - (W - DISK_M * G) / 2, rel=1e-9)
+    assert np.all(np.abs(R.sum(axis=0) + st.parts["load_N"]) <= 1e-9 * W)
+    model = build_model(scene)
+    u = np.asarray(st.q).ravel()   # no reduction: q holds the constrained coordinates
+    assert np.allclose(bearing_reactions(model, np.asarray(model.T @ u).ravel()), R, rtol=1e-12, atol=0)
+    # the cross-coupled bearing pushes along y too: -(kyz w) with v ~ 0 would not do; check -K u itself
+    b = model.stack.bearings[0]
+    vw = np.array([model.T[model.dof(model.stack.carrier(0.0), f, 0.0)] @ u for f in ("V", "W")]).ravel()
+    assert R[0] == pytest.approx(-(np.asarray(b.K) @ vw), rel=1e-12)
+
+
+RUB_FAST = ["--set", "mesh.elements=8", "--set", "reduction.modes=6"]
+
+
+def test_ring_is_one_line_whose_force_sums_its_facets_along_the_whirl(capsys):
+    """rub: the ring's resultant is the vector sum of its facets' forces (lam_N n + mu lam_N t on the ring,
+    friction dragging it forwards), its normal part points along the whirl to within a facet's angle
+    (the shaft sits in a corner of the 64-gon: 5.6 deg), the friction part is mu times the normal one
+    where every touching facet slides; one text line for the ring, none per facet."""
+    assert cli.main(["stationary", "rub", "--json", *RUB_FAST]) == 0
+    out = json.loads(capsys.readouterr().out)
+    scene = load_scene("rub", RUB_FAST[1::2])
+    ring, = out["rings"]
+    contacts = [c for c in scene.stack.contacts if c.table_key == "stator.0"]
+    n = np.array([[np.cos(c.angle), np.sin(c.angle)] for c in contacts])
+    lamN = np.array(out["normal_force_N"][:len(contacts)])
+    lamT = np.array([t[0] if t else 0.0 for t in out["tangential_force_components_N"][:len(contacts)]])
+    t = np.column_stack([-n[:, 1], n[:, 0]])
+    F = lamN @ n - lamT @ t
+    # sums of 64 terms of one sign: 64 eps relative
+    assert np.allclose(ring["force_yz_N"], F, rtol=1e-13, atol=1e-13 * np.abs(F).max())
+    assert ring["force_N"] == pytest.approx(np.hypot(*F), rel=1e-13)
+    normal = lamN @ n
+    whirl = np.radians(ring["whirl_angle_deg"])
+    facet = 2 * np.pi / len(contacts)
+    assert abs(np.angle(np.exp(1j * (np.arctan2(normal[1], normal[0]) - whirl)))) <= facet
+    assert ring["state"] == "slip" and ring["facets"] and ring["min_clearance_m"] == 0.0
+    assert np.all(lamN[[i for i in range(len(contacts)) if i not in ring["facets"]]] == 0.0)
+    mu = scene.stack.contacts[0].friction
+    # sliding facets: friction mu lam_N t_k with t_k = J n_k, so the friction part is mu J (normal part): 1e-13
+    assert ring["friction_N"] == pytest.approx(mu * ring["normal_N"], rel=1e-13)
+    assert ring["normal_N"] == pytest.approx(np.hypot(*normal), rel=1e-13)
+    assert ring["radius_m"] == pytest.approx(np.hypot(*ring["whirl_yz_m"]), rel=1e-15)
+    assert ring["radius_m"] >= 0.99 * 1e-4   # the whirl reaches the 0.1 mm clearance (within the polygon's cos)
+    capsys.readouterr()
+    assert cli.main(["stationary", "rub", *RUB_FAST]) == 0
+    text = capsys.readouterr().out
+    assert "stator.0.1 " not in text and len([line for line in text.splitlines() if "stator.0" in line]) == 1
+
+
+def test_existence_caveat_is_said_once_and_names_its_cause(capsys):
+    """rub has no external damping: the caveat names the bearing damper's circulatory term, once."""
+    assert cli.main(["stationary", "rub", *RUB_FAST]) == 0
+    cap = capsys.readouterr()
+    both = cap.out + cap.err
+    assert both.count("existence not guaranteed") == 1 and "bearing.0's damping" in both
+    assert "external" not in both
+    assert cli.main(["stationary", "rub", *RUB_FAST, "--set", "damping.external=0.5"]) == 0
+    both = "".join(capsys.readouterr())
+    assert both.count("existence not guaranteed") == 1 and "damping.external" in both
+
+
+def test_axial_rigid_motion_is_named_with_the_key_that_restrains_it(capsys):
+    args = ["ross_example", "--set", "bearing.0.kxx=0", "--set", "mesh.elements=8", "--set", "reduction.modes=8"]
+    assert cli.main(["stationary", *args]) == cli.EXIT_ERROR
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "axial rigid motion" in err and "kxx" in err and "singular" in err
+    assert cli.main(["modes", *args, "--count", "3", "--json"]) == 0
+    cap = capsys.readouterr()
+    out = json.loads(cap.out)
+    assert out["rigid_motions"] == ["axial rigid motion (U)"] and out["frequencies_hz"][0] == 0.0
+    assert cap.err.count("warning") == 1 and "kxx" in cap.err
+    assert cli.main(["modes", *args, "--count", "3"]) == 0
+    assert "rigid axial motion (U)" in capsys.readouterr().out.splitlines()[3]
+    # restrained (the shipped scene's thrust bearing): no warning, no rigid motion
+    assert cli.main(["modes", "ross_example", "--set", "mesh.elements=8", "--set", "reduction.modes=8", "--json"]) == 0
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["rigid_motions"] == [] and "warning" not in cap.err
+
+
+def test_free_lateral_motions_are_named_per_plane():
+    from nsfem.analysis.rigid_motion import free_motions
+    from nsfem.fem.assemble import build_model
+
+    names = free_motions(build_model(rotor_scene(bearing=[{"x": 0.0, "kyy": 1e6, "kzz": 1e6, "kxx": 1e6}])))
+    # one bearing: each plane keeps the tilt about it
+    assert names == ["rigid tilt in the x-y plane about x = 0 m", "rigid tilt in the x-z plane about x = 0 m"]
+    assert free_motions(build_model(rotor_scene())) == []

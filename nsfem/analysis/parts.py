@@ -26,9 +26,9 @@ def polar(v: np.ndarray) -> np.ndarray:
     return np.array([math.hypot(v[0], v[1]), math.atan2(v[1], v[0])])
 
 
-def facet_forces(st, model) -> dict[int, np.ndarray]:
-    """Per stator facet k (index into the contacts): the force (y, z) [N] the shaft puts on it, the
-    negative of the contact force -lam_N n + lam_circ t on the shaft (eq. 19 and
+def facet_forces(st, model) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Per stator facet k (index into the contacts): the (normal, friction) forces (y, z) [N] the shaft puts
+    on it, the negative of the contact force -lam_N n + lam_circ t on the shaft (eq. 19 and
     :func:`~nsfem.contact.kinematics.slip_rows`' circumferential row t.(V, W))."""
     out = {}
     for k, c in enumerate(model.stack.contacts):
@@ -38,7 +38,7 @@ def facet_forces(st, model) -> dict[int, np.ndarray]:
         t = np.array([-n[1], n[0]])
         names = st.contacts.tangents[k]
         circ = float(st.tangential_force[k][names.index("circumferential")]) if "circumferential" in names else 0.0
-        out[k] = st.normal_force[k] * n - circ * t
+        out[k] = (st.normal_force[k] * n, -circ * t)
     return out
 
 
@@ -54,21 +54,22 @@ def _groups(model, prefix: str) -> dict[str, list[int]]:
 def ring_summaries(st, model, q_full: np.ndarray) -> list[dict]:
     """One entry per stator ring: ``{"key", "x_m", "force_N", "force_yz_N", "angle_deg", "normal_N",
     "friction_N", "radius_m", "whirl_yz_m", "whirl_angle_deg", "min_clearance_m", "state", "facets"}``
-    (force on the ring; ``normal_N`` and ``friction_N`` its components along and across the whirl;
+    (force on the ring; ``normal_N`` and ``friction_N`` the sizes of its normal and friction parts;
     ``facets`` the facet numbers in contact; ``state`` open, stick or slip)."""
     forces = facet_forces(st, model)
     out = []
     for key, ks in _groups(model, "stator.").items():
         c0 = model.stack.contacts[ks[0]]
-        F = np.sum([forces[k] for k in ks], axis=0)
+        N = np.sum([forces[k][0] for k in ks], axis=0)
+        T = np.sum([forces[k][1] for k in ks], axis=0)
+        F = N + T
         u = node_lateral(model, c0.x, q_full, c0.segments[0])
         (force, angle), (radius, whirl) = polar(F), polar(u)
         closed = [k for k in ks if st.state[k] != "open"]
         states = {st.state[k] for k in closed}
-        e = np.array([math.cos(whirl), math.sin(whirl)]) if radius > 0 else F / max(force, 1e-300)
         out.append({"key": key, "x_m": c0.x, "force_N": float(force), "force_yz_N": F.tolist(),
                     "angle_deg": math.degrees(angle) if force > 0 else None,
-                    "normal_N": float(F @ e), "friction_N": float(F @ np.array([-e[1], e[0]])),
+                    "normal_N": float(math.hypot(*N)), "friction_N": float(math.hypot(*T)),
                     "radius_m": float(radius), "whirl_yz_m": u.tolist(),
                     "whirl_angle_deg": math.degrees(whirl) if radius > 0 else None,
                     "min_clearance_m": float(min(st.gap[k] for k in ks)),
