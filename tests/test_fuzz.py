@@ -2595,3 +2595,20 @@ def test_issue34_stationary_ross_example_prints_sag_and_bearing_loads(tmp_path):
     code, out, _ = check_invocation(["stationary", *ROSS_FAST], tmp_path)
     assert code == 0 and "no contacts: the stationary state is Q^-1 f0" in out
     assert out.count("bearing.") == 2 and "disk.0" in out and "largest shaft deflection" in out
+
+
+def test_issue34_run_warns_once_of_a_free_axial_motion(tmp_path):
+    """`run` used to accept a rotor without a thrust bearing silently; it says so once (and runs)."""
+    code, _, err = check_invocation(["run", *ROSS_FAST, "--set", "bearing.0.kxx=0", "--set", 'initial.state="rest"',
+                                     "--set", "simulation.t_end=0.002", "--set", "output.vtu_every=0",
+                                     "--set", "output.plots=[]", "--out", str(tmp_path / "o"), "--json"], tmp_path)
+    assert code == 0 and err.count("free rigid motion") == 1 and "kxx" in err
+
+
+def test_issue34_retainer_drop_lateral_freedom_is_caught_by_its_rings():
+    from nsfem import build_model, load_scene
+    from nsfem.analysis.rigid_motion import free_motions, rigid_warning
+
+    model = build_model(load_scene("retainer_drop", ["mesh.elements=8"]))
+    assert len(free_motions(model)) == 2                  # both lateral planes float on failed magnetic bearings
+    assert rigid_warning(model, caught=True) is None and "x-z" in rigid_warning(model)
