@@ -389,3 +389,19 @@ def test_free_lateral_motions_are_named_per_plane():
     # one bearing: each plane keeps the tilt about it
     assert names == ["rigid tilt in the x-y plane about x = 0 m", "rigid tilt in the x-z plane about x = 0 m"]
     assert free_motions(build_model(rotor_scene())) == []
+
+
+def test_ross_example_statics_match_ross_run_static():
+    """ROSS 2.3.0's ``Rotor.run_static`` on its example rotor (6 shaft elements, shear_effects=False: the same
+    Hermite beam as the scene's Rayleigh model in statics; g = 9.8065, ROSS's): bearing forces 432.3774305443126 N
+    each, shaft sag at the disk (node 2) 6.473626038799438e-4 m and at midspan 7.445426152804584e-4 m. ROSS's
+    deformation holds the shaft at the bearings (zero there), so ours less the bearings' own W / (2 kzz) is
+    compared. Both discretizations are nodally exact for this load: round-off only (1e-10)."""
+    st = scene_stationary(load_scene("ross_example", ["rotation.gravity=9.8065", "mesh.elements=6",
+                                                      "reduction.method=none"]))
+    R = [b["reaction_N"][1] for b in st.parts["bearings"]]
+    assert R == pytest.approx([432.3774305443126] * 2, rel=1e-10)
+    settle = R[0] / 8e5   # kzz of both bearings
+    assert st.parts["disks"][0]["deflection_m"][1] + settle == pytest.approx(-6.473626038799438e-4, rel=1e-10)
+    assert st.parts["max_deflection"]["x_m"] == pytest.approx(0.75)
+    assert st.parts["max_deflection"]["deflection_m"][1] + settle == pytest.approx(-7.445426152804584e-4, rel=1e-10)
