@@ -179,11 +179,12 @@ def cmd_modes(args) -> int:
     wall = time.perf_counter() - t0
     from .analysis.rigid_motion import free_motions, rigid_warning
 
-    warning = rigid_warning(model)
+    rigid = free_motions(model)
+    warning = rigid_warning(model, names=rigid)
     if warning:
         print(f"nsfem modes: warning: {warning}", file=sys.stderr)
     payload = {"title": scene.title, **modes.to_json(), "reduction": red.info,
-               "elements": model.mesh.elements, "wall_s": wall, "rigid_motions": free_motions(model),
+               "elements": model.mesh.elements, "wall_s": wall, "rigid_motions": rigid,
                "warnings": [warning] if warning else []}
     lines = [scene.title, f"contact {modes.contact}: {modes.ndof} dofs ({red.name}; full model "
              f"{modes.ndof_full}), {model.mesh.elements} elements",
@@ -437,8 +438,8 @@ def _stationary_parts(parts: dict) -> list[str]:
             out.append(f"  {d['label']:18s} {d['x_m']:7.4f}  {d['deflection_m'][0]:11.4e}  "
                        f"{d['deflection_m'][1]:11.4e}  {d['magnitude_m']:11.4e}")
     top = parts["max_deflection"]
-    out.append(f"largest shaft deflection {top['magnitude_m']:.4e} m at x = {top['x_m']:.4f} m (y {top['deflection_m'][0]:.4e}, "
-               f"z {top['deflection_m'][1]:.4e} m)")
+    out.append(f"largest shaft deflection {top['magnitude_m']:.4e} m at x = {top['x_m']:.4f} m "
+               f"(y {top['deflection_m'][0]:.4e}, z {top['deflection_m'][1]:.4e} m)")
     if parts["rings"]:
         out.append("  ring           x [m]  force on ring [N]  angle [deg]  whirl radius [m]  angle [deg]  "
                    "min gap [m]  state")
@@ -446,11 +447,13 @@ def _stationary_parts(parts: dict) -> list[str]:
             state = r["state"] + (f" on facet{'s' * (len(r['facets']) > 1)} {', '.join(map(str, r['facets']))}"
                                   if r["facets"] else "")
             out.append(f"  {r['key']:12s} {r['x_m']:7.4f}  {r['force_N']:17.5g}  {_angle(r['angle_deg']):>11s}  "
-                       f"{r['radius_m']:16.4e}  {_angle(r['whirl_angle_deg']):>11s}  {r['min_clearance_m']:11.4e}  {state}")
+                       f"{r['radius_m']:16.4e}  {_angle(r['whirl_angle_deg']):>11s}  {r['min_clearance_m']:11.4e}  "
+                       f"{state}")
     if parts["cracks"]:
         out.append("  crack          x [m]  opening [m]  face force [N]  state")
         for c in parts["cracks"]:
-            out.append(f"  {c['key']:12s} {c['x_m']:7.4f}  {c['opening_m']:11.4e}  {c['face_force_N']:14.5g}  {c['state']}")
+            out.append(f"  {c['key']:12s} {c['x_m']:7.4f}  {c['opening_m']:11.4e}  {c['face_force_N']:14.5g}  "
+                       f"{c['state']}")
     return out
 
 

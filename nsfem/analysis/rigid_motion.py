@@ -80,17 +80,18 @@ def restraints(names: list[str]) -> str:
     return ", ".join(keys) + ", or shaft.supports" if len(keys) > 1 else f"{keys[0]} or shaft.supports"
 
 
-def rigid_warning(model, caught: bool = False) -> str | None:
+def rigid_warning(model, caught: bool = False, names: list[str] | None = None) -> str | None:
     """The one-line warning of ``run`` and ``modes`` when the model has free rigid motions, else None;
     ``caught``: lateral motions are held by contacts (a stator, a stop: a rotor dropping into its retainer
-    bearings), so only a free axial motion is said."""
-    names = free_motions(model)
+    bearings), so only a free axial motion is said; ``names``: :func:`free_motions` of the model when known."""
+    names = free_motions(model) if names is None else names
     if caught:
         names = [n for n in names if n.startswith("axial")]
     if not names:
         return None
-    return (f"the model has free rigid motion: {', '.join(names)}; {'they are 0 Hz modes' if len(names) > 1 else 'it is a 0 Hz mode'} (restrain {'them' if len(names) > 1 else 'it'} with "
-            f"{restraints(names)})")
+    many = len(names) > 1
+    return (f"the model has free rigid motion: {', '.join(names)}; {'they are 0 Hz modes' if many else 'it is a 0 Hz mode'} "
+            f"(restrain {'them' if many else 'it'} with {restraints(names)})")
 
 
 def rigid_error(model, Q_full) -> str | None:
@@ -99,8 +100,8 @@ def rigid_error(model, Q_full) -> str | None:
     names = free_motions(model, Q_full)
     if not names:
         return None
-    return (f"no stationary state: {', '.join(names)} {'are' if len(names) > 1 else 'is'} unrestrained, so the stiffness Q is singular; restrain it "
-            f"with {restraints(names)}")
+    return (f"no stationary state: {', '.join(names)} {'are' if len(names) > 1 else 'is'} unrestrained, so the "
+            f"stiffness Q is singular; restrain {'them' if len(names) > 1 else 'it'} with {restraints(names)}")
 
 
 __all__ = ["free_motions", "restraints", "rigid_error", "rigid_warning"]

@@ -310,7 +310,8 @@ def contact_forces_full(model, st: Stationary) -> np.ndarray:
             continue
         for j, name in enumerate(tangent_names(c)):
             if name in st.contacts.tangents[k]:
-                f += np.asarray(S[:, col + j].toarray()).ravel() * st.tangential_force[k][st.contacts.tangents[k].index(name)]
+                lam = st.tangential_force[k][st.contacts.tangents[k].index(name)]
+                f += np.asarray(S[:, col + j].toarray()).ravel() * lam
         col += 2
     return f
 
@@ -341,4 +342,5 @@ def rotor_parts(model, st: Stationary, system, basis, rotation: Rotation) -> dic
     }
 
 
-__all__ = ["Stationary", "contact_forces_full", "existence", "rotor_parts", "rotor_stationary", "scene_stationary", "stationary", "NsfemError"]
+__all__ = ["Stationary", "contact_forces_full", "existence", "rotor_parts", "rotor_stationary", "scene_stationary",
+           "stationary", "NsfemError"]
