@@ -345,6 +345,10 @@ def test_ring_is_one_line_whose_force_sums_its_facets_along_the_whirl(capsys):
     assert ring["normal_N"] == pytest.approx(np.hypot(*normal), rel=1e-13)
     assert ring["radius_m"] == pytest.approx(np.hypot(*ring["whirl_yz_m"]), rel=1e-15)
     assert ring["radius_m"] >= 0.99 * 1e-4   # the whirl reaches the 0.1 mm clearance (within the polygon's cos)
+    # the damper at the disk, fixed in space, sees the synchronous whirl's velocity Omega J u: -Omega c J u on the
+    # shaft (round-off of a 2-vector product)
+    (v, w), omega, c = ring["whirl_yz_m"], 2 * np.pi * scene.rotation.speed_hz, scene.stack.bearings[0].C[0][0]
+    assert out["bearings"][0]["reaction_N"] == pytest.approx([omega * c * w, -omega * c * v], rel=1e-13)
     capsys.readouterr()
     assert cli.main(["stationary", "rub", *RUB_FAST]) == 0
     text = capsys.readouterr().out
