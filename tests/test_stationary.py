@@ -409,3 +409,16 @@ def test_ross_example_statics_match_ross_run_static():
     assert st.parts["disks"][0]["deflection_m"][1] + settle == pytest.approx(-6.473626038799438e-4, rel=1e-10)
     assert st.parts["max_deflection"]["x_m"] == pytest.approx(0.75)
     assert st.parts["max_deflection"]["deflection_m"][1] + settle == pytest.approx(-7.445426152804584e-4, rel=1e-10)
+
+
+def test_spinning_free_rotor_is_refused_for_its_axial_motion_only():
+    """Free-free at 21 Hz in the rotating frame: the centrifugal term -Omega^2 m makes the lateral rigid motions a
+    negative stiffness, not a singular one, so only the axial travel (no speed term acts on U) is named; at rest
+    all three are."""
+    base = ["shaft.supports=free-free", "mesh.elements=12"]
+    with pytest.raises(NsfemError) as spinning:
+        scene_stationary(load_scene(None, base))
+    assert "axial rigid motion" in str(spinning.value) and "lateral" not in str(spinning.value)
+    with pytest.raises(NsfemError) as rest:
+        scene_stationary(load_scene(None, [*base, "rotation.speed_hz=0"]))
+    assert all(k in str(rest.value) for k in ("axial rigid motion", "x-y plane", "x-z plane", "kyy and kzz"))
