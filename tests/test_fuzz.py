@@ -537,7 +537,8 @@ def test_issue32_overflowed_sweep_run_is_a_failed_row_in_strict_json(tmp_path, m
     import nsfem.simulate
     from nsfem.sweep import run_sweep
 
-    base = ["simulation.t_end=0.02", "output.plots=[]", "output.vtu_every=0"]
+    # 0.05 s: the last half holds a whole period of 50 Hz, which the 1x amplitude needs (issue 34)
+    base = ["simulation.t_end=0.05", "output.plots=[]", "output.vtu_every=0"]
     code, _, stderr = check_invocation(["sweep", "ross_example", *sum((["--set", o] for o in base), []), "--set",
                                         "unbalance.0.magnitude=1e-3:1e300:2", "--workers", "1", "--json"], tmp_path)
     assert code == cli.EXIT_ERROR and "unbalance.0.magnitude" in stderr
