@@ -474,9 +474,12 @@ def value_digits(values: Iterable) -> int:
 
 
 def _cell(v, digits: int = 6) -> str:
+    """A table cell: a number to ``digits`` significant digits, "-" for none or not finite, text on one line."""
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
-    return format(v, f".{digits}g") if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return format(v, f".{digits}g")
+    return " ".join(str(v).split()) or "-"
 
 
 def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
@@ -511,7 +514,8 @@ def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
                       _cell(r.get("min_gap_m"), 5), _cell(r.get("max_gap_m"), 5), _cell(r.get("max_normal_force_N"), 5)]
         for name in sensors:
             phase = r.get(PHASE.format(name))
-            cells += [_cell(r.get(AMPLITUDE.format(name))), "-" if phase is None else f"{phase:.1f}"]
+            cells += [_cell(r.get(AMPLITUDE.format(name))),
+                      f"{phase:.1f}" if isinstance(phase, float) and math.isfinite(phase) else _cell(phase)]
         rows.append((cells, ""))
     widths = [max([len(h)] + [len(c[i]) for c, _ in rows if i < len(c)]) for i, h in enumerate(head)]
 
