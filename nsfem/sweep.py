@@ -19,7 +19,9 @@ comes after one run.
 Each run writes ``<out>/<name>/result.npz`` and ``<out>/<name>/record.json`` (its row; the
 ledger of resumption, written last and atomically); ``<out>/sweep.csv`` and
 ``<out>/sweep.json`` are rewritten atomically as runs finish (at most once a second, see
-:data:`TABLE_EVERY`) and at the end, ``<out>/resonance.png`` at the end.
+:data:`TABLE_EVERY`) and at the end, ``<out>/resonance.png`` at the end. With sensors, each row holds
+their steady 1x amplitude and phase lag, fitted over whole periods of the run's last half
+(:func:`sensor_amplitudes`); :func:`table_lines` is the table ``nsfem sweep`` prints.
 
 >>> fixed, axes = parse_ranges(["rotation.speed_hz=10:20:3", "mesh.elements=20"])
 >>> fixed, axes
