@@ -491,7 +491,7 @@ def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
 
     >>> print("\\n".join(table_lines(["s"], [{"s": 10, "min_gap_m": None, "amplitude_a_m": 4.222581e-6,
     ...                                          "phase_a_deg": 12.0, "error": ""}])))
-    sensors: steady 1x amplitude [m] and phase lag [deg] (a cos + b sin of the rotation angle, least squares over whole periods of each run's last half)
+    sensors: steady 1x amplitude [m], lag [deg]: a cos + b sin at the speed, fitted over whole periods of each run's last half
       s   a [m]        a [deg]
       10  4.22258e-06  12.0
     """
@@ -526,8 +526,8 @@ def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
 
     lines = []
     if sensors:
-        lines.append("sensors: steady 1x amplitude [m] and phase lag [deg] (a cos + b sin of the rotation angle, "
-                     "least squares over whole periods of each run's last half)")
+        lines.append("sensors: steady 1x amplitude [m], lag [deg]: a cos + b sin at the speed, fitted over whole "
+                     "periods of each run's last half")
     elif not contacts:
         lines.append("no contacts and no [[sensor]]: add sensors to the scene for its response amplitudes")
     lines.append(line(head))
@@ -572,7 +572,8 @@ def format_progress(k: int, n: int, row: dict, keys: Sequence[str], digits: dict
     ...                        "wall_s": 0.25, "error": ""}, ["s"])
     '[1/5] s=21: exact, 17 events, closed 3.1 %, 0.25 s'
     >>> format_progress(2, 5, {"s": 13.181818181818, "method": "exact", "events": 0, "closed_fraction": 0.0,
-    ...                        "min_gap_m": None, "amplitude_disk_y_m": 8.530532e-06, "wall_s": 0.44, "error": ""}, ["s"])
+    ...                        "min_gap_m": None, "amplitude_disk_y_m": 8.530532e-06, "wall_s": 0.44, "error": ""},
+    ...                 ["s"])
     '[2/5] s=13.1818: exact, 1x disk_y 8.531e-06 m, 0.44 s'
     """
     head = f"[{k}/{n}] " + ", ".join(f"{key}={_cell(row[key], (digits or {}).get(key, 6))}" for key in keys)

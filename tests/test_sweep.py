@@ -401,7 +401,8 @@ def test_sweep_table_lines_columns_and_digits():
     assert lines[1].split() == ["s", "probe", "[m]", "probe", "[deg]"]     # no contact columns
     assert lines[2].split() == ["10", "4.22258e-06", "9.7"] and lines[3].split()[0] == "13.1818"
     assert lines[4].split()[:2] == ["45", "failed:"]
-    assert lines[1].index("probe [m]") == lines[2].index("4.22") and lines[1].index("probe [deg]") == lines[3].index("15.0")
+    assert lines[1].index("probe [m]") == lines[2].index("4.22")
+    assert lines[1].index("probe [deg]") == lines[3].index("15.0")
     # with contacts: their columns, then the sensors'
     touch = dict(rotor[0], min_gap_m=-1e-9, max_gap_m=2e-4, closed_fraction=0.25, max_normal_force_N=12.5, events=7)
     head = table_lines(["s"], [touch])[1]
