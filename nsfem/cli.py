@@ -201,7 +201,7 @@ def cmd_modes(args) -> int:
 
 def cmd_sweep(args) -> int:
     """One run per value of the swept keys; the table, JSON and resonance curve in the sweep folder."""
-    from .sweep import SweepInterrupted, run_sweep
+    from .sweep import SweepInterrupted, run_sweep, table_lines
 
     if args.workers is not None and args.scheduler:
         raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
@@ -221,17 +221,7 @@ def cmd_sweep(args) -> int:
     shown = [r for r in res.runs if r is not None]
     lines = [f"{len(shown)} runs in the folder ({res.info['executed']} run now, {res.info['resumed']} already done) "
              f"in {res.info['wall_s']:.3g} s on {res.info['workers']} workers; {res.info['models_built']} model(s) "
-             "built",
-             "  " + "  ".join(keys) + "  events  closed [%]  min gap [m]  max gap [m]  max force [N]"]
-    for r in shown:
-        vals = "  ".join(f"{r[k]}" for k in keys)
-        if r.get("error"):
-            lines.append(f"  {vals}  failed: {r['error']}")
-        elif r["min_gap_m"] is None:
-            lines.append(f"  {vals}  {r['events']}  no contacts")
-        else:
-            lines.append(f"  {vals}  {r['events']}  {100 * r['closed_fraction']:.2f}  {r['min_gap_m']:.4e}  "
-                         f"{r['max_gap_m']:.4e}  {r['max_normal_force_N']:.4g}")
+             "built", *table_lines(keys, shown)]
     lines.append(f"wrote {res.table}" + (f", {res.figure}" if res.figure else ""))
     _emit(args, payload, "\n".join(lines))
     if interrupted:

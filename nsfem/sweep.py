@@ -19,7 +19,9 @@ comes after one run.
 Each run writes ``<out>/<name>/result.npz`` and ``<out>/<name>/record.json`` (its row; the
 ledger of resumption, written last and atomically); ``<out>/sweep.csv`` and
 ``<out>/sweep.json`` are rewritten atomically as runs finish (at most once a second, see
-:data:`TABLE_EVERY`) and at the end, ``<out>/resonance.png`` at the end.
+:data:`TABLE_EVERY`) and at the end, ``<out>/resonance.png`` at the end. With sensors, each row holds
+their steady 1x amplitude and phase lag, fitted over whole periods of the run's last half
+(:func:`sensor_amplitudes`); :func:`table_lines` is the table ``nsfem sweep`` prints.
 
 >>> fixed, axes = parse_ranges(["rotation.speed_hz=10:20:3", "mesh.elements=20"])
 >>> fixed, axes
@@ -261,7 +263,7 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
         summary = result.summary()
         finite = bool(np.all(np.isfinite(result.q)))
         # a broken-off run has no steady state, an overflowed one no amplitudes
-        amplitudes = sensor_amplitudes(result, system) if not error and finite else {}
+        amplitudes = sensor_amplitudes(result, system, warnings.append) if not error and finite else {}
         bad = [k for k, v in {**summary, **amplitudes}.items()
                if isinstance(v, float) and not math.isfinite(v) and k != "energy"]
         if not error and (bad or not finite):
@@ -275,30 +277,72 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
         row["error"] = _message(exc)
     row["wall_s"] = time.perf_counter() - t0  # as nsfem run: the whole run (the shared model built before)
     row["warnings"] = warnings
-    write_json(run_dir / "record.json", {"fingerprint": fp, "point": point, "row": row})
+    write_json(run_dir / "record.json", {"fingerprint": fp, "point": point, "row": row, "amplitudes": AMPLITUDE_FIT})
     return row
 
 
-#: the columns of sensor amplitudes: ``amplitude_<sensor name>_m``
+#: the columns of sensor amplitudes and phases: ``amplitude_<sensor name>_m``, ``phase_<sensor name>_deg``
 AMPLITUDE = "amplitude_{}_m"
+PHASE = "phase_{}_deg"
+#: What the amplitudes are (stamped on each run's record.json: rows of an older definition, half the
+#: peak-to-peak, are run again rather than mixed into one table with these)
+AMPLITUDE_FIT = "1x fit: c + a cos + b sin of the rotation angle over the last half's whole periods"
+#: The share of the run the steady harmonic is fitted over (its last part), and the change of the fitted
+#: amplitude between the window's two halves above which a row warns that its run is not steady yet
+STEADY_SHARE = 0.5
+STEADY_DRIFT = 1e-2
+#: The fewest samples a period the fit takes: below, harmonics k = n -+ 1 of n samples a period alias onto 1x
+MIN_SAMPLES_PER_PERIOD = 8
 
 
-def sensor_amplitudes(result, system) -> dict:
-    """Per sensor of the run, half its peak-to-peak over the last half of the run [m] (the steady
-    response's amplitude once the start has died out): the resonance curve of a rotor without contacts."""
+def sensor_amplitudes(result, system, warn: Callable[[str], None] = lambda text: None) -> dict:
+    """Per sensor of the run, its steady 1x response: amplitude [m] and phase lag [deg] of the harmonic
+    at the speed, c + a cos(theta) + b sin(theta) = c + A cos(theta - phi) with theta the rotation angle,
+    fitted over the whole periods of the last :data:`STEADY_SHARE` of the run (the resonance curve of a
+    rotor). The offset c (the sag) and the other harmonics do not enter A. None for a sensor where the
+    fit has nothing to go on (no speed, less than a period, too few samples a period: ``warn`` says
+    which); ``warn`` also names sensors whose amplitude still changes by more than :data:`STEADY_DRIFT`."""
+    from .analysis.harmonic import steady_harmonic
     from .simulate import sensor_signals
 
     sensors = system.info.get("sensors", ())
     if not sensors or result.t.size < 2:
         return {}
-    values = sensor_signals(result, system)
-    half = result.t >= result.t[0] + 0.5 * (result.t[-1] - result.t[0])
-    return {AMPLITUDE.format(s.name): float(np.ptp(values[half, k]) / 2) for k, s in enumerate(sensors)}
+    empty = {**{AMPLITUDE.format(s.name): None for s in sensors}, **{PHASE.format(s.name): None for s in sensors}}
+    f = float(result.info.get("speed_hz", 0.0))
+    if f <= 0:
+        return empty              # no rotation, no 1x (an unbalance at rest has no force)
+    span = result.t[-1] - result.t[0]
+    if STEADY_SHARE * span * f < 1:
+        warn(f"no sensor amplitudes: the last half of the run ({STEADY_SHARE * span:.4g} s) holds less than one "
+             f"period at {f:.6g} Hz ({1 / f:.4g} s); lengthen simulation.t_end")
+        return empty
+    per_period = 1.0 / (f * float(np.median(np.diff(result.t))))
+    if per_period < MIN_SAMPLES_PER_PERIOD:
+        warn(f"no sensor amplitudes: {per_period:.3g} samples a period at {f:.6g} Hz (at least "
+             f"{MIN_SAMPLES_PER_PERIOD}: higher harmonics alias onto 1x); lower simulation.output_dt")
+        return empty
+    A, phi, drift = steady_harmonic(result.t, sensor_signals(result, system), f,
+                                    np.radians(result.info.get("phase_deg", 0.0)), STEADY_SHARE)
+    out = {}
+    for k, s in enumerate(sensors):
+        out[AMPLITUDE.format(s.name)], out[PHASE.format(s.name)] = float(A[k]), float(phi[k])
+        if drift[k] > STEADY_DRIFT:
+            warn(f"sensor {s.name}: its 1x amplitude changes by {100 * drift[k]:.2g} % between the halves of the "
+                 f"last {STEADY_SHARE * span:.4g} s (not steady yet; lengthen simulation.t_end)")
+    return out
 
 
 def _message(exc: BaseException) -> str:
     text = str(exc) if isinstance(exc, NsfemError) else f"{type(exc).__name__}: {exc}"
     return " ".join(text.split())
+
+
+def current_amplitudes(rec: dict) -> bool:
+    """Whether a run record's sensor amplitudes (if it has any) are of this version's definition
+    (:data:`AMPLITUDE_FIT`); an older record's (half the peak-to-peak) would mix two measures in one table."""
+    row = rec.get("row")
+    return rec.get("amplitudes") == AMPLITUDE_FIT or not any(str(k).startswith("amplitude_") for k in row or ())
 
 
 def error_row(point: dict, method: str, error: str) -> dict:
@@ -315,7 +359,7 @@ def read_record(run_dir: Path, fp: str) -> dict | None:
         return None
     row = rec.get("row") if isinstance(rec, dict) else None
     if (not isinstance(row, dict) or rec.get("fingerprint") != fp or row.get("error") or not row.get("result")
-            or row.get("completed") is not True):
+            or row.get("completed") is not True or not current_amplitudes(rec)):
         return None
     return row if Path(row["result"]).is_file() else None
 
@@ -404,10 +448,91 @@ class SweepResult:
                 "failed": len(self.failed), **self.info}
 
 
+def sensor_names(runs: Sequence[dict | None]) -> list[str]:
+    """The sensors whose amplitudes the rows hold, in the order the rows list them (the scene's)."""
+    names = [k[len("amplitude_"):-len("_m")] for r in runs if r for k in r
+             if k.startswith("amplitude_") and k.endswith("_m")]
+    return list(dict.fromkeys(names))
+
+
 def table_columns(axes: Sequence[Axis], runs: Sequence[dict | None] = ()) -> list[str]:
-    """The swept keys, the run keys, the sensors' amplitudes the rows hold, error and result file."""
-    amplitudes = sorted({k for r in runs if r for k in r if k.startswith("amplitude_") and k.endswith("_m")})
-    return [a.key for a in axes] + list(RUN_KEYS) + amplitudes + ["error", "result"]
+    """The swept keys, the run keys, each sensor's amplitude and phase the rows hold, error and result file."""
+    sensors = [c for name in sensor_names(runs) for c in (AMPLITUDE.format(name), PHASE.format(name))]
+    return [a.key for a in axes] + list(RUN_KEYS) + sensors + ["error", "result"]
+
+
+def value_digits(values: Iterable) -> int:
+    """The significant digits that show ``values`` apart: 6, or more (up to 12, a run folder's) where
+    6 would print two of them alike.
+
+    >>> value_digits([10, 13.181818181818, 45]), value_digits([1.0, 1.0000001])
+    (6, 8)
+    """
+    vals = [v for v in values if isinstance(v, (int, float))]
+    for d in range(6, 12):
+        if len({format(v, f".{d}g") for v in vals}) == len(set(vals)):
+            return d
+    return 12
+
+
+def _cell(v, digits: int = 6) -> str:
+    """A table cell: a number to ``digits`` significant digits, "-" for none or not finite, text on one line."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return format(v, f".{digits}g")
+    return " ".join(str(v).split()) or "-"
+
+
+def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
+    """The sweep's table as ``nsfem sweep`` prints it: per finished value, the contact measures (only when
+    the scene has contacts) and each sensor's steady 1x amplitude and phase, numbers to 6 significant
+    digits (more where a swept key's values need them to differ), columns aligned.
+
+    >>> print("\\n".join(table_lines(["s"], [{"s": 10, "min_gap_m": None, "amplitude_a_m": 4.222581e-6,
+    ...                                          "phase_a_deg": 12.0, "error": ""}])))
+    sensors: steady 1x amplitude [m], lag [deg]: a cos + b sin at the speed, fitted over whole periods of each run's last half
+      s   a [m]        a [deg]
+      10  4.22258e-06  12.0
+    """
+    shown = [r for r in runs if r is not None]
+    contacts = any(not r.get("error") and r.get("min_gap_m") is not None for r in shown)
+    sensors = sensor_names(shown)
+    digits = {k: value_digits(r.get(k) for r in shown) for k in keys}
+    head = list(keys)
+    if contacts:
+        head += ["events", "closed [%]", "min gap [m]", "max gap [m]", "max force [N]"]
+    for name in sensors:
+        head += [f"{name} [m]", f"{name} [deg]"]
+    rows = []
+    for r in shown:
+        cells = [_cell(r.get(k), digits[k]) for k in keys]
+        if r.get("error"):
+            rows.append((cells, f"failed: {' '.join(str(r['error']).split())}"))
+            continue
+        if contacts:
+            closed = r.get("closed_fraction")
+            cells += [_cell(r.get("events")), _cell(None if closed is None else 100 * closed, 4),
+                      _cell(r.get("min_gap_m"), 5), _cell(r.get("max_gap_m"), 5), _cell(r.get("max_normal_force_N"), 5)]
+        for name in sensors:
+            phase = r.get(PHASE.format(name))
+            cells += [_cell(r.get(AMPLITUDE.format(name))),
+                      f"{phase:.1f}" if isinstance(phase, float) and math.isfinite(phase) else _cell(phase)]
+        rows.append((cells, ""))
+    widths = [max([len(h)] + [len(c[i]) for c, _ in rows if i < len(c)]) for i, h in enumerate(head)]
+
+    def line(cells: Sequence[str], tail: str = "") -> str:
+        return "  " + "  ".join([c.ljust(w) for c, w in zip(cells, widths)] + ([tail] if tail else [])).rstrip()
+
+    lines = []
+    if sensors:
+        lines.append("sensors: steady 1x amplitude [m], lag [deg]: a cos + b sin at the speed, fitted over whole "
+                     "periods of each run's last half")
+    elif not contacts:
+        lines.append("no contacts and no [[sensor]]: add sensors to the scene for its response amplitudes")
+    lines.append(line(head))
+    lines += [line(c, tail) for c, tail in rows]
+    return lines
 
 
 def write_table(path: Path, axes: Sequence[Axis], runs: Sequence[dict | None]) -> Path:
@@ -433,23 +558,34 @@ def folder_rows(out: Path, fp: str, keys: Sequence[str]) -> list[tuple[dict, dic
         if not isinstance(rec, dict) or rec.get("fingerprint") != fp:
             continue
         point, row = rec.get("point"), rec.get("row")
-        if isinstance(point, dict) and list(point) == list(keys) and isinstance(row, dict):
+        if isinstance(point, dict) and list(point) == list(keys) and isinstance(row, dict) and current_amplitudes(rec):
             found.append((point, row))
     return found
 
 
-def format_progress(k: int, n: int, row: dict, keys: Sequence[str]) -> str:
-    """``[k/n] rotation.speed_hz=21: exact, 17 events, closed 3.1 %, 0.25 s`` (or the error).
+def format_progress(k: int, n: int, row: dict, keys: Sequence[str], digits: dict | None = None) -> str:
+    """``[k/n] rotation.speed_hz=21: exact, 17 events, closed 3.1 %, 0.25 s`` (or the error); the contact
+    measures with contacts, each sensor's 1x amplitude with sensors; swept values to ``digits`` {key: d}
+    significant digits (6 by default).
 
-    >>> format_progress(1, 5, {"s": 21, "method": "exact", "events": 17, "closed_fraction": 0.031,
+    >>> format_progress(1, 5, {"s": 21, "method": "exact", "events": 17, "closed_fraction": 0.031, "min_gap_m": 0.0,
     ...                        "wall_s": 0.25, "error": ""}, ["s"])
     '[1/5] s=21: exact, 17 events, closed 3.1 %, 0.25 s'
+    >>> format_progress(2, 5, {"s": 13.181818181818, "method": "exact", "events": 0, "closed_fraction": 0.0,
+    ...                        "min_gap_m": None, "amplitude_disk_y_m": 8.530532e-06, "wall_s": 0.44, "error": ""},
+    ...                 ["s"])
+    '[2/5] s=13.1818: exact, 1x disk_y 8.531e-06 m, 0.44 s'
     """
-    head = f"[{k}/{n}] " + ", ".join(f"{key}={_num(row[key])}" for key in keys)
+    head = f"[{k}/{n}] " + ", ".join(f"{key}={_cell(row[key], (digits or {}).get(key, 6))}" for key in keys)
     if row.get("error"):
         return f"{head}: failed: {row['error']}"
-    return (f"{head}: {row['method']}, {row['events']} events, closed {100 * row['closed_fraction']:.1f} %, "
-            f"{row['wall_s']:.2f} s")
+    parts = [str(row["method"])]
+    if row.get("min_gap_m") is not None:
+        parts += [f"{row['events']} events", f"closed {100 * row['closed_fraction']:.1f} %"]
+    amplitudes = [f"{name} {_cell(row.get(AMPLITUDE.format(name)), 4)} m" for name in sensor_names([row])]
+    if amplitudes:
+        parts.append("1x " + ", ".join(amplitudes))
+    return f"{head}: {', '.join(parts)}, {row['wall_s']:.2f} s"
 
 
 #: The table and JSON are rewritten as runs finish, at most once per TABLE_EVERY seconds and after at
@@ -763,6 +899,7 @@ def _run_sweep(p: _Plan, out: Path, scene_path, client, workers: int | None, sch
     say = progress or (lambda line: None)
 
     written = {"at": -math.inf, "took": 0.0}
+    digits = {a.key: value_digits(a.values) for a in p.axes}
 
     def record(i: int, row: dict) -> None:
         res.set_row(p.points[i], row)
@@ -773,7 +910,7 @@ def _run_sweep(p: _Plan, out: Path, scene_path, client, workers: int | None, sch
             written["at"] = time.perf_counter()
             written["took"] = written["at"] - start
         res.info["executed"] += 1
-        say(format_progress(resumed + res.info["executed"], len(p.points), row, keys))
+        say(format_progress(resumed + res.info["executed"], len(p.points), row, keys, digits))
         for w in row.get("warnings") or []:
             say(f"  warning: {w}")
 

@@ -537,7 +537,8 @@ def test_issue32_overflowed_sweep_run_is_a_failed_row_in_strict_json(tmp_path, m
     import nsfem.simulate
     from nsfem.sweep import run_sweep
 
-    base = ["simulation.t_end=0.02", "output.plots=[]", "output.vtu_every=0"]
+    # 0.05 s: the last half holds a whole period of 50 Hz, which the 1x amplitude needs (issue 34)
+    base = ["simulation.t_end=0.05", "output.plots=[]", "output.vtu_every=0"]
     code, _, stderr = check_invocation(["sweep", "ross_example", *sum((["--set", o] for o in base), []), "--set",
                                         "unbalance.0.magnitude=1e-3:1e300:2", "--workers", "1", "--json"], tmp_path)
     assert code == cli.EXIT_ERROR and "unbalance.0.magnitude" in stderr
@@ -2612,3 +2613,63 @@ def test_issue34_retainer_drop_lateral_freedom_is_caught_by_its_rings():
     model = build_model(load_scene("retainer_drop", ["mesh.elements=8"]))
     assert len(free_motions(model)) == 2                  # both lateral planes float on failed magnetic bearings
     assert rigid_warning(model, caught=True) is None and "x-z" in rigid_warning(model)
+
+# --- issue 34: sweep table for rotors ---
+def test_issue34_a_rotor_sweep_prints_amplitudes_not_contact_columns(tmp_path):
+    """The issue's sweep of a rotor without contacts: contact columns that all read "no contacts", no
+    amplitudes, speeds as 13.3333333333. Now: each probe's 1x amplitude and phase under a line saying how
+    they are fitted, 6 significant digits, and the start that has not died out in 0.4 s said per run."""
+    code, out, err = check_invocation(["sweep", "critical_speed", "--set", "simulation.t_end=0.4", "--set",
+                                       "rotation.speed_hz=10:20:4", "--workers", "1", "--out", "s"], tmp_path)
+    assert code == 0 and "no contacts" not in out and "13.3333333" not in out + err
+    lines = out.splitlines()
+    assert "1x" in lines[1] and "whole periods" in lines[1]
+    assert lines[2].split() == ["rotation.speed_hz", "disk_y", "[m]", "disk_y", "[deg]", "disk_z", "[m]", "disk_z",
+                                "[deg]"]
+    assert [line.split()[0] for line in lines[3:7]] == ["10", "13.3333", "16.6667", "20"]
+    assert all(float(v) > 0 for line in lines[3:7] for v in line.split()[1:])
+    assert "not steady yet" in err                     # 0.4 s: the start (5 1/s) is still there
+
+
+_CELL = st.one_of(st.none(), st.integers(-10**30, 10**30), st.floats(allow_nan=True, allow_infinity=True),
+                  st.text(max_size=12), st.booleans())
+
+
+@settings(max_examples=60, deadline=None)
+@given(rows=st.lists(st.fixed_dictionaries(
+    {"s": st.one_of(st.integers(0, 10**6), st.floats(0, 1e6)), "min_gap_m": _CELL, "max_gap_m": _CELL,
+     "closed_fraction": st.one_of(st.none(), st.floats(0, 1)), "events": _CELL, "max_normal_force_N": _CELL,
+     "error": st.one_of(st.just(""), st.text(min_size=1, max_size=40)),
+     "amplitude_p q_m": _CELL, "phase_p q_deg": _CELL}), max_size=6))
+def test_issue34_property_the_sweep_table_prints_any_rows_one_line_each(rows):
+    """Whatever the rows hold (missing, non-finite, huge, text, failures with newlines), the table is a
+    header line and one line per row, failed rows say so, and cells of the same column line up."""
+    from nsfem.sweep import table_lines
+
+    lines = table_lines(["s"], rows)
+    assert all("\n" not in line and "\r" not in line for line in lines)
+    body = lines[-len(rows):] if rows else []
+    assert len(lines) == len(rows) + 2
+    assert [("failed:" in line) for line in body] == [bool(r["error"]) for r in rows]
+    if rows and not any(r["error"] for r in rows):     # aligned: each column starts where its header does
+        starts = [i for i in range(1, len(lines[1])) if lines[1][i - 1] == " " == lines[1][i - 2] != lines[1][i]]
+        assert all(line[i - 2:i] == "  " for line in body for i in starts if i < len(line))
+
+
+@settings(max_examples=60, deadline=None)
+@given(A=st.floats(1e-9, 1e3), phi=st.floats(-10, 10), c=st.floats(-1e3, 1e3), f=st.floats(0.5, 500),
+       per=st.floats(3.5, 200), periods=st.floats(1, 30))
+def test_issue34_property_the_harmonic_fit_returns_a_sampled_sinusoid(A, phi, c, f, per, periods):
+    """A sampled harmonic with an offset, on any grid of at least 3.5 samples a period (not a whole number
+    of samples a period, nor of periods), is returned exactly: the model holds the signal, so the least
+    squares only adds round-off (the offset, up to 1e12 x A, enters through cond ~ |c|/A: bounded by
+    1e-9 (1 + |c| / A) in amplitude)."""
+    import numpy as np
+
+    from nsfem.analysis.harmonic import amplitude_phase, harmonic_fit
+
+    t = np.arange(int(per * periods) + 1) / (f * per)
+    amp, lag = amplitude_phase(harmonic_fit(t, c + A * np.cos(2 * np.pi * f * t - phi), f))
+    tol = 1e-9 * (1 + abs(c) / A)
+    assert abs(amp - A) <= tol * A
+    assert abs((np.radians(lag) - phi + np.pi) % (2 * np.pi) - np.pi) <= tol

@@ -286,7 +286,11 @@ def test_cli_sweep_scene_without_contacts(tmp_path, capsys):
             "rotation.speed_hz=10:20:2", "--workers", "1", "--out", str(tmp_path / "s")]
     assert cli.main(argv) == 0
     out, err = capsys.readouterr()
-    assert out.count("no contacts") == 2 and "wrote" in out
+    lines = out.splitlines()
+    # no contact columns that all read "no contacts", and the note on what would give amplitudes
+    assert "no contacts" not in out.replace("no contacts and no [[sensor]]", "")
+    assert lines[1].startswith("no contacts and no [[sensor]]") and lines[2].split() == ["rotation.speed_hz"]
+    assert [line.split() for line in lines[3:5]] == [["10"], ["20"]] and lines[5].startswith("wrote")
 
 
 def test_folder_table_covers_every_sweep_into_it(inprocess, tmp_path):
@@ -304,11 +308,14 @@ def test_folder_table_covers_every_sweep_into_it(inprocess, tmp_path):
 
 
 def test_a_rotor_sweep_records_its_sensors_steady_amplitudes(inprocess, tmp_path):
-    """The shipped critical_speed rotor (no contacts): each run's row holds its probes' amplitudes over
-    the last half of the run, which equal the steady unbalance response of the linear system (the
-    harmonic solve of (-w^2 M + i w C + Q) X = fc - i fs) once the start has decayed (its slowest
-    lateral mode decays at 5 1/s: e^-20 by the last half's start; 1e-4 leaves room for that and the
-    sampling of the peaks, 1 ms against 26 to 31 Hz)."""
+    """The shipped critical_speed rotor (no contacts): each run's row holds its probes' 1x amplitude and
+    phase lag, fitted over whole periods of the last half of the run, which equal the steady unbalance
+    response of the linear system (the harmonic solve of (-w^2 M + i w C + Q) X = fc - i fs: the probe
+    reads Re(z e^{i w t}) = |z| cos(w t - phi), phi = -arg z) once the start has decayed. The fit is exact
+    for the harmonic (round-off), so what is left is the start: its slowest lateral mode decays at
+    5 1/s, e^-20 = 2e-9 of it by the last half's start (measured 1e-11); 1e-8 in amplitude and 1e-8 rad
+    (6e-7 deg) in phase bound that. (Half the sampled peak-to-peak, the former amplitude, was off by
+    1.5e-5: the samples miss the peaks.)"""
     import math
 
     from nsfem import load_scene
@@ -327,6 +334,99 @@ def test_a_rotor_sweep_records_its_sensors_steady_amplitudes(inprocess, tmp_path
         w = 2 * math.pi * speed
         X = np.linalg.solve(-w**2 * s.M.toarray() + 1j * w * s.C.toarray() + s.Q.toarray(), s.fc - 1j * s.fs)
         for field, name in (("V", "disk_y"), ("W", "disk_z")):
-            steady = abs((hermite_row(model, "intact_0", field, 0.5) @ np.asarray(red.T)) @ X)[0]
-            assert row[f"amplitude_{name}_m"] == pytest.approx(steady, rel=1e-4)
-    assert res.figure is not None and res.figure.exists()
+            z = ((hermite_row(model, "intact_0", field, 0.5) @ np.asarray(red.T)) @ X)[0]
+            assert row[f"amplitude_{name}_m"] == pytest.approx(abs(z), rel=1e-8)
+            lag = (row[f"phase_{name}_deg"] + math.degrees(np.angle(z)) + 180.0) % 360.0 - 180.0
+            assert abs(lag) < math.degrees(1e-8)
+        assert not row["warnings"]      # steady: no row says otherwise
+    assert "phase_disk_y_deg" in text[0] and res.figure is not None and res.figure.exists()
+
+
+# --- issue 34: the sweep table for rotors (1x amplitudes fitted, contact columns only with contacts) ---
+
+def test_harmonic_fit_of_a_sampled_sinusoid_is_exact_where_half_the_peak_to_peak_is_low():
+    """A sinusoid sampled 40 times a period with its peaks midway between two samples: half the sampled
+    peak-to-peak is A cos(pi f dt) (low by 1 - cos(pi / 40) = 3.1e-3, the old sweep amplitude's error),
+    while the least-squares harmonic over whole periods returns A and the phase lag exactly; an offset
+    and the 2x and 3x harmonics (a crack's, a rub's) do not enter it, their samples being orthogonal to
+    1x over whole periods. Tolerance: the fit is a 3-column least squares with orthogonal columns
+    (condition sqrt(2)) on 400 samples: round-off of order 400 eps = 1e-13; 1e-12 leaves margin."""
+    from nsfem.analysis.harmonic import amplitude_phase, harmonic_fit, whole_periods
+
+    f, per, A, c = 25.0, 40, 3.0e-5, -2.0e-4
+    dt = 1.0 / (f * per)
+    t = np.arange(10 * per + 1) * dt                      # 10 periods, both ends sampled
+    lag = np.pi / per                                     # the peak half a sample after t = 0
+    pure = A * np.cos(2 * np.pi * f * t - lag)
+    assert np.ptp(pure) / 2 == pytest.approx(A * np.cos(np.pi * f * dt), rel=1e-12)
+    assert 1 - np.ptp(pure) / (2 * A) == pytest.approx(1 - np.cos(np.pi / per), rel=1e-6)    # 3.08e-3 low
+    window = whole_periods(t, f, share=0.5)
+    assert window.sum() == 5 * per                        # 5 whole periods, each sample once
+    others = c + 0.7 * A * np.cos(4 * np.pi * f * t + 0.3) + 0.2 * A * np.sin(6 * np.pi * f * t)
+    for x in (pure, pure + others):
+        amp, phi = amplitude_phase(harmonic_fit(t[window], x[window], f))
+        assert amp == pytest.approx(A, rel=1e-12) and phi == pytest.approx(np.degrees(lag), rel=1e-12)
+    # theta0 (rotation.phase_deg: the angle at t = 0) moves the mark: the peak lags the angle's zero by 30 deg more
+    amp, phi = amplitude_phase(harmonic_fit(t[window], pure[window], f, theta0=np.radians(30.0)))
+    assert phi == pytest.approx(np.degrees(lag) + 30.0, rel=1e-12)
+
+
+@pytest.mark.parametrize("overrides, amplitudes, words", [
+    # the start decays at 5 1/s: 5 % change of the vertical probe's 1x between 0.3-0.45 s and 0.45-0.6 s
+    # (the horizontal one's, 3e-5, is steady enough)
+    (["simulation.t_end=0.6"], True, "sensor disk_z: its 1x amplitude changes by"),
+    (["simulation.t_end=0.05"], False, "less than one period"),           # 0.025 s against 1/26 s
+    (["simulation.output_dt=0.02"], False, "samples a period"),           # 1.9 samples a period
+    (["rotation.speed_hz=0", "simulation.t_end=0.2"], False, None),         # no rotation, no 1x (and no warning)
+], ids=["not-steady", "short", "coarse", "at-rest"])
+def test_sensor_amplitudes_say_when_the_run_cannot_give_them(overrides, amplitudes, words):
+    from nsfem.sweep import sensor_amplitudes
+
+    scene = nsfem.load_scene("critical_speed", ["simulation.t_end=0.3", *overrides])
+    result, system = run_scene(scene, progress=False)
+    said = []
+    amps = sensor_amplitudes(result, system, said.append)
+    assert set(amps) == {"amplitude_disk_y_m", "phase_disk_y_deg", "amplitude_disk_z_m", "phase_disk_z_deg"}
+    assert all((v is not None) == amplitudes for v in amps.values())
+    assert (words is None and not said) or (said and all(words in w for w in said)), said
+
+
+def test_sweep_table_lines_columns_and_digits():
+    from nsfem.sweep import table_lines, value_digits
+
+    rotor = [{"s": s, "min_gap_m": None, "events": 0, "amplitude_probe_m": a, "phase_probe_deg": p, "error": ""}
+             for s, a, p in ((10, 4.222581371620753e-06, 9.7143), (13.181818181818, 8.53053226944922e-06, 15.03))]
+    lines = table_lines(["s"], rotor + [{"s": 45, "error": "boom\\n here"}])
+    assert "1x" in lines[0] and "whole periods" in lines[0]                # what the amplitude is
+    assert lines[1].split() == ["s", "probe", "[m]", "probe", "[deg]"]     # no contact columns
+    assert lines[2].split() == ["10", "4.22258e-06", "9.7"] and lines[3].split()[0] == "13.1818"
+    assert lines[4].split()[:2] == ["45", "failed:"]
+    assert lines[1].index("probe [m]") == lines[2].index("4.22")
+    assert lines[1].index("probe [deg]") == lines[3].index("15.0")
+    # with contacts: their columns, then the sensors'
+    touch = dict(rotor[0], min_gap_m=-1e-9, max_gap_m=2e-4, closed_fraction=0.25, max_normal_force_N=12.5, events=7)
+    head = table_lines(["s"], [touch])[1]
+    assert "closed [%]" in head and head.index("max force [N]") < head.index("probe [m]")
+    assert table_lines(["s"], [touch])[2].split()[1:4] == ["7", "25", "-1e-09"]
+    # values that 6 digits would print alike get the digits that tell them apart (a folder's 12 at most)
+    assert value_digits([1.0, 1.0000001, 2]) == 8 and value_digits([1.0, 1.0 + 1e-13]) == 12
+
+
+def test_records_of_the_old_amplitude_are_run_again(tmp_path):
+    """A record whose row has sensor amplitudes of the former definition (half the peak-to-peak, no
+    stamp) is not a finished run of this version: resumed, it would mix two measures in one table."""
+    from nsfem.sweep import AMPLITUDE_FIT, folder_rows, read_record
+
+    run = tmp_path / "s=1"
+    run.mkdir()
+    (run / "result.npz").write_bytes(b"x")
+    row = {"s": 1, "error": "", "result": str(run / "result.npz"), "completed": True, "amplitude_a_m": 1e-6}
+    for stamp, current in ((None, False), (AMPLITUDE_FIT, True)):
+        rec = {"fingerprint": "fp", "point": {"s": 1}, "row": row, **({"amplitudes": stamp} if stamp else {})}
+        (run / "record.json").write_text(json.dumps(rec))
+        assert (read_record(run, "fp") is not None) == current
+        assert len(folder_rows(tmp_path, "fp", ["s"])) == current
+    # a row without sensor amplitudes has nothing to mix: an unstamped one stays valid
+    row.pop("amplitude_a_m")
+    (run / "record.json").write_text(json.dumps({"fingerprint": "fp", "point": {"s": 1}, "row": row}))
+    assert read_record(run, "fp") is not None

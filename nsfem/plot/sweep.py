@@ -75,7 +75,7 @@ def plot_resonance(path: str | Path, keys: Sequence[str], points: Sequence[dict]
             axes[0].legend(fontsize=7)
     if amp_ax is not None:
         amp_ax.set_yscale("log")
-        amp_ax.set_ylabel("sensor amplitude [um]\n(last half of each run)")
+        amp_ax.set_ylabel("sensor 1x amplitude [um]\n(fitted, last half of each run)")
         amp_ax.legend(fontsize=7)
     every[-1].set_xlabel(keys[0])
     for ax in every:
