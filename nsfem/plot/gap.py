@@ -39,62 +39,34 @@ def gap_plot(result, system, path) -> Path:
     t = result.t
     counts = tally(result, [g["part"] for g in groups])
     labels = list(system.model_contacts.labels)
-    fig, axes = figure(nrows=len(groups), ncols=1, sharex=True, squeeze=False,
-                       figsize=(FIGSIZE[0] + 2.6, max(FIGSIZE[1], 2.4 * len(groups))))
-    wmin = 2e-3 * (t[-1] - t[0])  # closures often last far less than a pixel: widen them to one
-    for ax, g, pt in zip(axes[:, 0], groups, counts.parts):
-        kind, rows = g["kind"], g["indices"]
-        peak = float(np.abs(result.gap[rows]).max(initial=0.0))
-        scale, unit = (1e3, "mm") if peak >= 1e-5 or peak == 0.0 else (1e6, r"$\mu$m")
-        if kind == "crack":
-            for k in rows:
-                draw_signal(ax, t, scale * result.gap[k], lw=0.5, color="0.65")
-            ax.plot([], [], lw=0.5, color="0.65", label="front ends " + ", ".join(labels[k].rsplit(".", 1)[-1]
-                                                                                for k in rows))
-            draw_signal(ax, t, scale * result.gap[rows].max(axis=0), lw=1.3, color="tab:blue",
-                        label="opening (larger end gap)")
-            for a, b in pt.spans:
-                ax.axvspan(a, max(b, a + wmin), color="tab:orange", alpha=0.2, lw=0)
-            spans = closed_intervals(result, rows)   # both ends
-            shaded = "both ends closed"
-        elif kind == "delamination":
-            if len(rows) > 1:
-                for k in rows:
-                    if k != g["middle"]:
-                        draw_signal(ax, t, scale * result.gap[k], lw=0.5, color="0.65")
-                ax.plot([], [], lw=0.5, color="0.65", label="its other contact points")
-            draw_signal(ax, t, scale * result.gap[g["middle"]], lw=1.3, color="tab:blue",
-                        label=f"middle, x = {g['x']:.4g} m")
-            spans, shaded = pt.spans, "some point closed"
-        else:
-            draw_signal(ax, t, scale * pt.gap, lw=1.3, color="tab:blue",
-                        label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
-            spans, shaded = pt.spans, "closed"
-        ax.axhline(0.0, color="k", lw=0.6)
-        for a, b in spans:
-            ax.axvspan(a, max(b, a + wmin), color="tab:red", alpha=0.3, lw=0)
-            ax.plot([a, max(b, a + wmin)], [0.0, 0.0], color="tab:red", lw=4, solid_capstyle="butt")
-        share = f"{100 * pt.closed_fraction:.3g} % of the time"
-        if kind == "crack":
-            if pt.spans:
-                ax.plot([], [], color="tab:orange", alpha=0.3, lw=6, label=f"one end or both closed: {share}")
-            if spans:
-                ax.plot([], [], color="tab:red", alpha=0.5, lw=6, label=f"{shaded} ({len(spans)} intervals)")
-        elif spans:
-            ax.plot([], [], color="tab:red", alpha=0.5, lw=6, label=f"{shaded}: {share}")
-        if pt.impacts:
-            ax.plot(pt.impact_t, np.zeros(pt.impacts), "v", color="tab:red", ms=5,
-                    label=f"impacts ({pt.impacts}, largest {pt.max_impulse_Ns:.3g} N s)")
-        ax.set_ylabel(f"{QUANTITY[kind]} [{unit}]")
+    zoom = zoom_window(t, result.info.get("speed_hz") or 0.0)
+    fig, axes = figure(nrows=len(groups), ncols=1 + bool(zoom), sharex="col", squeeze=False,
+                       figsize=(FIGSIZE[0] + 2.6 + 2.4 * bool(zoom), max(FIGSIZE[1], 2.4 * len(groups))),
+                       gridspec_kw={"width_ratios": [3, 1]} if zoom else None)
+    for row, (g, pt) in enumerate(zip(groups, counts.parts)):
+        ax = axes[row, 0]
+        unit = _panel(ax, result, g, pt, labels, t)
         a, b = g["span"]
         where = f"x = {a:.4g} to {b:.4g} m" if b > a else f"x = {g['x']:.4g} m"
+        n = len(g["indices"])
         title = {"delamination": f"{g['name']} ({where}): gap at its middle",
                  "crack": f"{g['name']} ({where}): opening, the larger gap of its front's two ends",
-                 "ring": f"{g['name']} ({where}): clearance, the smallest gap over its {len(rows)} facets",
-                 "stop": f"{g['name']} ({where}): gap"}[kind]
+                 "ring": f"{g['name']} ({where}): clearance, the smallest gap over its {n} facets",
+                 "stop": f"{g['name']} ({where}): gap"}[g["kind"]]
         ax.set_title(title, fontsize=9)
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+        ax.set_ylabel(f"{QUANTITY[g['kind']]} [{unit}]")
+        if zoom:
+            zx = axes[row, 1]
+            inside = t >= zoom[0]
+            _panel(zx, result, g, pt, labels, t, inside)
+            zx.set_title(f"the last {zoom[1]} revolutions", fontsize=9)
+            zx.set_xlim(t[inside][0], t[-1])
+            zx.legend(*ax.get_legend_handles_labels(), fontsize=7.5, loc="upper left", bbox_to_anchor=(1.03, 1.0),
+                      borderaxespad=0.0)
+        else:
+            ax.legend(fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    if zoom:
+        axes[-1, 1].set_xlabel("time [s]")
     axes[-1, 0].set_xlabel("time [s]")
     axes[-1, 0].set_xlim(t[0], t[-1])
     kinds = list(dict.fromkeys(g["kind"] for g in groups))
@@ -102,3 +74,68 @@ def gap_plot(result, system, path) -> Path:
     fig.suptitle(head[0].upper() + head[1:], fontsize=10)
     fig.tight_layout()
     return save(fig, path)
+
+
+#: a run of more revolutions than this gets a zoom on its last ZOOM_REVOLUTIONS beside each panel
+ZOOM_AFTER, ZOOM_REVOLUTIONS = 30, 3
+
+
+def zoom_window(t: np.ndarray, speed_hz: float) -> tuple[float, int] | None:
+    """(start time, revolutions) of the zoom on the last revolutions of a run that holds more than
+    :data:`ZOOM_AFTER` of them at ``speed_hz`` (and at least 8 samples in the zoom), else None."""
+    if t.size < 2 or not speed_hz > 0 or (t[-1] - t[0]) * speed_hz <= ZOOM_AFTER:
+        return None
+    start = t[-1] - ZOOM_REVOLUTIONS / speed_hz
+    return (float(start), ZOOM_REVOLUTIONS) if np.count_nonzero(t >= start) >= 8 else None
+
+
+def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray | None = None) -> str:
+    """Draw one part's gap panel (see :func:`gap_plot`) on ``ax`` over the samples ``sel`` (default all);
+    returns the unit of its axis."""
+    kind, rows = g["kind"], g["indices"]
+    sel = np.ones(t.size, bool) if sel is None else sel
+    ts, gap = t[sel], result.gap[:, sel]
+    peak = float(np.abs(result.gap[rows]).max(initial=0.0))
+    scale, unit = (1e3, "mm") if peak >= 1e-5 or peak == 0.0 else (1e6, r"$\mu$m")
+    wmin = 2e-3 * (ts[-1] - ts[0])  # closures often last far less than a pixel: widen them to one
+    if kind == "crack":
+        for k in rows:
+            draw_signal(ax, ts, scale * gap[k], lw=0.5, color="0.65")
+        ax.plot([], [], lw=0.5, color="0.65", label="front ends " + ", ".join(labels[k].rsplit(".", 1)[-1]
+                                                                            for k in rows))
+        draw_signal(ax, ts, scale * gap[rows].max(axis=0), lw=1.3, color="tab:blue", label="opening (larger end gap)")
+        for a, b in pt.spans:
+            ax.axvspan(a, max(b, a + wmin), color="tab:orange", alpha=0.2, lw=0)
+        spans = closed_intervals(result, rows)   # both ends
+    elif kind == "delamination":
+        if len(rows) > 1:
+            for k in rows:
+                if k != g["middle"]:
+                    draw_signal(ax, ts, scale * gap[k], lw=0.5, color="0.65")
+            ax.plot([], [], lw=0.5, color="0.65", label="its other contact points")
+        draw_signal(ax, ts, scale * gap[g["middle"]], lw=1.3, color="tab:blue", label=f"middle, x = {g['x']:.4g} m")
+        spans = pt.spans
+    else:
+        draw_signal(ax, ts, scale * pt.gap[sel], lw=1.3, color="tab:blue",
+                    label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
+        spans = pt.spans
+    ax.axhline(0.0, color="k", lw=0.6)
+    for a, b in spans:
+        if b >= ts[0] and a <= ts[-1]:
+            ax.axvspan(a, max(b, a + wmin), color="tab:red", alpha=0.3, lw=0)
+            ax.plot([a, max(b, a + wmin)], [0.0, 0.0], color="tab:red", lw=4, solid_capstyle="butt")
+    share = f"{100 * pt.closed_fraction:.3g} % of the time"
+    if kind == "crack":
+        if pt.spans:
+            ax.plot([], [], color="tab:orange", alpha=0.3, lw=6, label=f"closed, one end or both: {share}")
+        if spans:
+            ax.plot([], [], color="tab:red", alpha=0.5, lw=6, label=f"both ends closed ({len(spans)} intervals)")
+    elif spans:
+        ax.plot([], [], color="tab:red", alpha=0.5, lw=6,
+                label=f"{'some point closed' if kind == 'delamination' else 'closed'}: {share}")
+    if pt.impacts:
+        hit = (pt.impact_t >= ts[0]) & (pt.impact_t <= ts[-1])
+        ax.plot(pt.impact_t[hit], np.zeros(int(hit.sum())), "v", color="tab:red", ms=5,
+                label=f"impacts ({pt.impacts}, largest {pt.max_impulse_Ns:.3g} N s)")
+    ax.grid(True, alpha=0.3)
+    return unit
