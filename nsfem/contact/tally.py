@@ -82,7 +82,12 @@ def parts_of_contacts(contacts: Sequence) -> list[Part]:
 def parts_of_labels(labels: Sequence[str]) -> list[Part]:
     """The parts read from contact labels alone (a results file without its model): ``delamination.<i>.<k>``,
     ``stator.<i>.<k>`` (facet k of F at 2 pi k / F, as the scene builds them), ``crack.<i>.<k>``; any other
-    label is a stop."""
+    label is a stop.
+
+    >>> [(p.name, p.kind, p.rows, [round(a, 4) for a in p.angles]) for p in
+    ...  parts_of_labels(["delamination.0.0", "delamination.0.1", "stator.0.0", "stator.0.1", "obstacle.0"])]
+    [('delamination.0', 'delamination', (0, 1), []), ('stator.0', 'ring', (2, 3), [0.0, 3.1416]), ('obstacle.0', 'stop', (4,), [])]
+    """
     labels = [str(s) for s in labels]
     groups: dict = {}
     for k, lab in enumerate(labels):
@@ -130,14 +135,14 @@ def result_parts(result) -> list[Part]:
 # --------------------------------------------------------------------------- arrays in, arrays out
 def impulse_table(impacts: Sequence[dict], m: int, index: Sequence[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(t (I,), P (m, I)): each impact record's time and the normal impulse [N s] of each contact row in it
-    (0 for the rows it does not hold). ``index`` maps the record's contact numbers to result rows (the
+    (0 for the rows it does not hold; a record's negative or non-finite impulse counts as none). ``index`` maps the record's contact numbers to result rows (the
     rigid contacts' places among a model's contacts with elastic rings); a number outside is ignored."""
     t = np.array([float(im.get("t", np.nan)) for im in impacts], dtype=float)
     P = np.zeros((m, len(impacts)))
     for j, im in enumerate(impacts):
         for c, p in zip(im.get("contacts", []), im.get("impulse_Ns", [])):
             k = int(c) if index is None else (int(index[int(c)]) if 0 <= int(c) < len(index) else -1)
-            if 0 <= k < m and math.isfinite(float(p)):
+            if 0 <= k < m and math.isfinite(float(p)) and float(p) > 0.0:   # a negative one is round-off
                 P[k, j] += float(p)
     return t, P
 
