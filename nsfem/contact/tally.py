@@ -84,9 +84,11 @@ def parts_of_labels(labels: Sequence[str]) -> list[Part]:
     ``stator.<i>.<k>`` (facet k of F at 2 pi k / F, as the scene builds them), ``crack.<i>.<k>``; any other
     label is a stop.
 
-    >>> [(p.name, p.kind, p.rows, [round(a, 4) for a in p.angles]) for p in
-    ...  parts_of_labels(["delamination.0.0", "delamination.0.1", "stator.0.0", "stator.0.1", "obstacle.0"])]
-    [('delamination.0', 'delamination', (0, 1), []), ('stator.0', 'ring', (2, 3), [0.0, 3.1416]), ('obstacle.0', 'stop', (4,), [])]
+    >>> for p in parts_of_labels(["delamination.0.0", "delamination.0.1", "stator.0.0", "stator.0.1", "obstacle.0"]):
+    ...     print(p.name, p.kind, p.rows, [round(a, 4) for a in p.angles])
+    delamination.0 delamination (0, 1) []
+    stator.0 ring (2, 3) [0.0, 3.1416]
+    obstacle.0 stop (4,) []
     """
     labels = [str(s) for s in labels]
     groups: dict = {}
@@ -133,10 +135,12 @@ def result_parts(result) -> list[Part]:
 
 
 # --------------------------------------------------------------------------- arrays in, arrays out
-def impulse_table(impacts: Sequence[dict], m: int, index: Sequence[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def impulse_table(impacts: Sequence[dict], m: int,
+                  index: Sequence[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(t (I,), P (m, I)): each impact record's time and the normal impulse [N s] of each contact row in it
-    (0 for the rows it does not hold; a record's negative or non-finite impulse counts as none). ``index`` maps the record's contact numbers to result rows (the
-    rigid contacts' places among a model's contacts with elastic rings); a number outside is ignored."""
+    (0 for the rows it does not hold; a negative (round-off) or non-finite impulse counts as none).
+    ``index`` maps the record's contact numbers to result rows (the rigid contacts' places among a model's
+    contacts with elastic rings); a number outside is ignored."""
     t = np.array([float(im.get("t", np.nan)) for im in impacts], dtype=float)
     P = np.zeros((m, len(impacts)))
     for j, im in enumerate(impacts):

@@ -32,7 +32,8 @@ def forces_plot(result, system, path) -> Path:
     rings = [pt for pt in counts.parts if pt.angle is not None and pt.max_normal_force_N > 0]
     heights = [3] + [1.4] * bool(rings) + [2]
     fig, axes = figure(nrows=len(heights), ncols=1, sharex=True, squeeze=False,
-                       figsize=(FIGSIZE[0] + 2.6, FIGSIZE[1] + 1.4 * bool(rings)), gridspec_kw={"height_ratios": heights})
+                       figsize=(FIGSIZE[0] + 2.6, FIGSIZE[1] + 1.4 * bool(rings)),
+                       gridspec_kw={"height_ratios": heights})
     axes = list(axes[:, 0])
     ax, bx = axes[0], axes[-1]
     cx = axes[1] if rings else None
