@@ -395,3 +395,15 @@ def test_long_signals_are_drawn_as_their_envelope():
     edges = np.linspace(0.0, 8.0, 501)
     which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, 499)
     assert np.all((lo[which] <= y) & (y <= hi[which]))
+
+
+def test_zoom_on_the_last_revolutions_of_long_runs_only():
+    """gap.png zooms on the last 3 revolutions of a run of more than 30 (the crack scene's 3 s at 12.4 Hz: 37),
+    not of the shipped scene's 21 revolutions; the window ends at the last output."""
+    from nsfem.plot.gap import zoom_window
+
+    t = np.linspace(0.0, 3.0, 6001)
+    start, revolutions = zoom_window(t, 12.4)
+    assert revolutions == 3 and start == pytest.approx(3.0 - 3 / 12.4, abs=1e-15)
+    assert zoom_window(np.linspace(0.0, 1.0, 1001), 21.0) is None
+    assert zoom_window(t, 0.0) is None

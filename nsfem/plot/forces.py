@@ -31,7 +31,7 @@ def forces_plot(result, system, path) -> Path:
     counts = tally(result, [p for p in system_parts(system) if tuple(p.rows) in shown])
     rings = [pt for pt in counts.parts if pt.angle is not None and pt.max_normal_force_N > 0]
     heights = [3] + [1.4] * bool(rings) + [2]
-    fig, axes = figure(nrows=len(heights), ncols=1, sharex=True, squeeze=False,
+    fig, axes = figure(nrows=len(heights), ncols=1, sharex=True, squeeze=False, layout="constrained",
                        figsize=(FIGSIZE[0] + 2.6, FIGSIZE[1] + 1.4 * bool(rings)),
                        gridspec_kw={"height_ratios": heights})
     axes = list(axes[:, 0])
@@ -84,5 +84,4 @@ def forces_plot(result, system, path) -> Path:
         bx.legend(fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     if t.size:
         bx.set_xlim(t[0], t[-1])
-    fig.tight_layout()
     return save(fig, path)

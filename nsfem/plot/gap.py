@@ -40,7 +40,9 @@ def gap_plot(result, system, path) -> Path:
     counts = tally(result, [g["part"] for g in groups])
     labels = list(system.model_contacts.labels)
     zoom = zoom_window(t, result.info.get("speed_hz") or 0.0)
-    fig, axes = figure(nrows=len(groups), ncols=1 + bool(zoom), sharex="col", squeeze=False,
+    if zoom and all(np.any(result.state[g["indices"]][:, t >= zoom[0]] != 0, axis=0).all() for g in groups):
+        zoom = None   # closed throughout (a steady rub): nothing to see closer
+    fig, axes = figure(nrows=len(groups), ncols=1 + bool(zoom), sharex="col", squeeze=False, layout="constrained",
                        figsize=(FIGSIZE[0] + 2.6 + 2.4 * bool(zoom), max(FIGSIZE[1], 2.4 * len(groups))),
                        gridspec_kw={"width_ratios": [3, 1]} if zoom else None)
     for row, (g, pt) in enumerate(zip(groups, counts.parts)):
@@ -72,11 +74,11 @@ def gap_plot(result, system, path) -> Path:
     kinds = list(dict.fromkeys(g["kind"] for g in groups))
     head = "; ".join(TITLES[k] for k in kinds)
     fig.suptitle(head[0].upper() + head[1:], fontsize=10)
-    fig.tight_layout()
     return save(fig, path)
 
 
-#: a run of more revolutions than this gets a zoom on its last ZOOM_REVOLUTIONS beside each panel
+#: a run of more revolutions than this gets a zoom on its last ZOOM_REVOLUTIONS beside each panel (unless every
+#: part is closed throughout them)
 ZOOM_AFTER, ZOOM_REVOLUTIONS = 30, 3
 
 
