@@ -407,3 +407,22 @@ def test_zoom_on_the_last_revolutions_of_long_runs_only():
     assert revolutions == 3 and start == pytest.approx(3.0 - 3 / 12.4, abs=1e-15)
     assert zoom_window(np.linspace(0.0, 1.0, 1001), 21.0) is None
     assert zoom_window(t, 0.0) is None
+
+
+def test_the_shipped_rubs_ring_force_settles_on_the_stationary_resultant():
+    """`nsfem run rub` settles onto the full annular rub of `nsfem stationary rub`: the ring's resultant force
+    (the tally's, drawn by forces.png) at the end of the run is the vector sum of the stationary facet forces,
+    in magnitude and direction, though the polygon shares it between two facets (62 and 63). The slowest
+    mode in contact decays as e^(-c t / 2 m) = e^(-4 t): 3.4e-4 of the transient is left after 2 s, so 1e-3."""
+    from nsfem.analysis.stationary import scene_stationary
+    from nsfem.contact.tally import tally
+
+    scene = load_scene("rub")
+    result, _ = run_scene(scene)
+    st = scene_stationary(scene)
+    F = scene["stator"][0]["facets"]
+    z = np.sum(np.asarray(st.normal_force) * np.exp(2j * np.pi * np.arange(F) / F))
+    (ring,) = tally(result).parts
+    assert ring.part.kind == "ring" and np.count_nonzero(st.normal_force) == 2
+    assert ring.force[-1] == pytest.approx(abs(z), rel=1e-3)
+    assert abs(np.exp(1j * ring.angle[-1]) - z / abs(z)) < 1e-3
