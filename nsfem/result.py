@@ -62,7 +62,7 @@ class Result:
         return {
             "method": self.method, "t_end": self.t_end, "completed": self.completed, "wall_s": self.wall_s,
             "ndof_full": self.info.get("ndof_full"), "ndof": int(self.q.shape[0]),
-            "events": len(self.events), "impacts": counts.impacts,
+            "events": len(self.events), "impacts": counts.impacts, "shared_impacts": counts.shared_impacts,
             "min_gap_m": float(self.gap.min()) if m and self.t.size else None,
             "max_gap_m": float(self.gap.max()) if m and self.t.size else None,
             # event-driven runs know it between events; the others sample their outputs

@@ -2581,6 +2581,10 @@ def test_tally_of_any_records_is_consistent(labels, records, K, seed):
     assert sorted(k for p in counts.parts for k in p.part.rows) == list(range(m))   # each row in one part
     part_impacts = [p.impacts for p in counts.parts]
     assert max(part_impacts) <= expected <= sum(part_impacts)
+    owner = {k: i for i, p in enumerate(counts.parts) for k in p.part.rows}
+    struck = [{owner[c] for c, p in rec if 0 <= c < m and np.isfinite(p) and p > 0} for rec in records]
+    assert counts.shared_impacts == sum(len(s) > 1 for s in struck)
+    assert sum(part_impacts) == sum(len(s) for s in struck)
     for p in counts.parts:
         rows = list(p.part.rows)
         # a resultant lies between the largest point's force (parallel normals) or 0 (a ring's vectors) and the sum

@@ -245,12 +245,15 @@ class PartTally:
 @dataclass
 class Tally:
     """The run's counts: ``impacts`` (records with a positive impulse), ``max_impulse_Ns`` and
-    ``max_normal_force_N`` (the largest at one contact point), and per part a :class:`PartTally`."""
+    ``max_normal_force_N`` (the largest at one contact point), per part a :class:`PartTally`, and
+    ``shared_impacts``, the impacts that strike more than one part (counted once for the run, once for each
+    of its parts)."""
 
     impacts: int
     max_impulse_Ns: float
     max_normal_force_N: float
     parts: list[PartTally]
+    shared_impacts: int = 0
 
     def part(self, name: str) -> PartTally:
         return next(p for p in self.parts if p.part.name == name)
@@ -271,9 +274,11 @@ def tally(result, parts: Sequence[Part] | None = None) -> Tally:
     rigid = None if index is None else set(int(r) for r in index)
     span = float(t[-1] - t[0]) if K > 1 else 0.0
     out = []
+    parts_struck = np.zeros(it.size, int)
     for p in parts:
         rows = list(p.rows)
         struck = hit[rows].any(axis=0) if rows else np.zeros(it.size, bool)
+        parts_struck += struck
         imp, _, _ = resultant(p, P[:, struck])
         force, friction, angle = resultant(p, result.normal_force, result.tangential_force)
         gap = result.gap[rows].min(axis=0) if rows and K else np.zeros(K)
@@ -294,4 +299,4 @@ def tally(result, parts: Sequence[Part] | None = None) -> Tally:
             float(gap.min()) if rows and K else None, float(min(max(closed, 0.0), 1.0)), gap, force, friction,
             angle, it[struck], imp, spans, deg))
     return Tally(int(hit.any(axis=0).sum()), float(P.max(initial=0.0)),
-                 float(result.normal_force.max(initial=0.0)) if m and K else 0.0, out)
+                 float(result.normal_force.max(initial=0.0)) if m and K else 0.0, out, int((parts_struck > 1).sum()))

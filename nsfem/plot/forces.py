@@ -77,8 +77,9 @@ def forces_plot(result, system, path) -> Path:
     bx.axhline(0.0, color="k", lw=0.6)
     bx.set_ylabel("impulse [N s]")
     bx.set_xlabel("time [s]")
-    bx.set_title(f"Impacts: {counts.impacts}, largest impulse {max(p.max_impulse_Ns for p in counts.parts):.3g} N s "
-                 "(each part's resultant)" if counts.impacts else "no impacts", fontsize=9)
+    shared = f", {counts.shared_impacts} of them on two parts at once" if counts.shared_impacts else ""
+    bx.set_title(f"Impacts: {counts.impacts}{shared}, largest impulse {max(p.max_impulse_Ns for p in counts.parts):.3g}"
+                 " N s (each part's resultant)" if counts.impacts else "no impacts", fontsize=9)
     bx.grid(True, alpha=0.3)
     if counts.impacts:
         bx.legend(fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
