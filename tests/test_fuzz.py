@@ -2573,8 +2573,13 @@ def test_tally_of_any_records_is_consistent(labels, records, K, seed):
     normal = np.abs(rng.standard_normal((m, K))) * (rng.random((m, K)) < 0.5)
     impacts = [{"t": 0.01 * i, "contacts": [c for c, _ in rec], "impulse_Ns": [p for _, p in rec]}
                for i, rec in enumerate(records)]
+    # a parts record that names rows the arrays do not have, or an unknown kind, is read from the labels instead
+    broken = [None, [{"name": "stator.0", "kind": "ring", "rows": [0, m + 3]}], [{"name": "x", "kind": "gear",
+                                                                                  "rows": list(range(m))}],
+              [{"name": "x"}], "parts"][seed % 5]
     r = Result("exact", np.linspace(0.0, 1.0, K), np.zeros((1, K)), np.zeros((1, K)), rng.random((m, K)), normal,
-               np.zeros((m, 2, K)), (normal > 0).astype(int), impacts=impacts, info={"contacts": labels})
+               np.zeros((m, 2, K)), (normal > 0).astype(int), impacts=impacts,
+               info={"contacts": labels, "parts": broken})
     counts = tally(r)
     expected = sum(any(0 <= c < m and np.isfinite(p) and p > 0 for c, p in rec) for rec in records)
     assert counts.impacts == expected

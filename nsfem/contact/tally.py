@@ -122,12 +122,18 @@ def system_parts(system) -> list[Part]:
 
 
 def result_parts(result) -> list[Part]:
-    """The parts recorded in ``result.info['parts']`` (:func:`nsfem.simulate.run_scene`), else those of its
-    contact labels (``info['contacts']``), else one stop per contact row."""
+    """The parts recorded in ``result.info['parts']`` (:func:`nsfem.simulate.run_scene`) when they hold each
+    contact row once, else those of its contact labels (``info['contacts']``), else one stop per contact row."""
     m = result.gap.shape[0]
     rec = result.info.get("parts")
     if rec:
-        return [Part.from_record(d) for d in rec]
+        try:
+            parts = [Part.from_record(d) for d in rec]
+        except (KeyError, TypeError, ValueError):   # a results file edited by hand: read the labels instead
+            parts = []
+        rows = sorted(k for p in parts for k in p.rows)
+        if rows == list(range(m)) and all(p.kind in KINDS for p in parts):
+            return parts
     labels = result.info.get("contacts")
     if labels is None or len(labels) != m:
         labels = [f"contact.{k}" for k in range(m)]
