@@ -106,8 +106,7 @@ def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray
         ax.plot([], [], lw=0.5, color="0.65", label="front ends " + ", ".join(labels[k].rsplit(".", 1)[-1]
                                                                             for k in rows))
         draw_signal(ax, ts, scale * gap[rows].max(axis=0), lw=1.3, color="tab:blue", label="opening (larger end gap)")
-        for a, b in pt.spans:
-            ax.axvspan(a, max(b, a + wmin), color="tab:orange", alpha=0.2, lw=0)
+        _shade(ax, pt.spans, ts, wmin, color="tab:orange", alpha=0.2)
         spans = closed_intervals(result, rows)   # both ends
     elif kind == "delamination":
         if len(rows) > 1:
@@ -122,10 +121,10 @@ def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray
                     label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
         spans = pt.spans
     ax.axhline(0.0, color="k", lw=0.6)
-    for a, b in spans:
-        if b >= ts[0] and a <= ts[-1]:
-            ax.axvspan(a, max(b, a + wmin), color="tab:red", alpha=0.3, lw=0)
-            ax.plot([a, max(b, a + wmin)], [0.0, 0.0], color="tab:red", lw=4, solid_capstyle="butt")
+    seen = _shade(ax, spans, ts, wmin, color="tab:red", alpha=0.3)
+    if seen:
+        ax.hlines(np.zeros(len(seen)), [a for a, _ in seen], [b for _, b in seen], color="tab:red", lw=4,
+                  capstyle="butt")
     share = f"{100 * pt.closed_fraction:.3g} % of the time"
     if kind == "crack":
         if pt.spans:
@@ -141,3 +140,12 @@ def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray
                 label=f"impacts ({pt.impacts}, largest {pt.max_impulse_Ns:.3g} N s)")
     ax.grid(True, alpha=0.3)
     return unit
+
+
+def _shade(ax, spans, ts: np.ndarray, wmin: float, **kw) -> list[tuple[float, float]]:
+    """Shade the closed intervals ``spans`` that meet the samples' span ``ts`` over the panel's height, as one
+    collection (hundreds of intervals in a long run), each at least ``wmin`` wide; returns them."""
+    seen = [(a, max(b, a + wmin)) for a, b in spans if b >= ts[0] and a <= ts[-1]]
+    if seen:
+        ax.broken_barh([(a, b - a) for a, b in seen], (0.0, 1.0), transform=ax.get_xaxis_transform(), lw=0, **kw)
+    return seen
