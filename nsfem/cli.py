@@ -563,11 +563,14 @@ def _run(args, scene, out_dir, written: set) -> int:
                "interrupted": bool(interrupted), "core": event_core.name()}
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
-             f"{summary['impacts']} impacts; event core: {event_core.name()}",
+             f"{summary['impacts']} impacts"
+             + (f" ({summary['shared_impacts']} on two parts at once)" if summary["shared_impacts"] else "")
+             + f"; event core: {event_core.name()}",
              f"gap {summary['min_gap_m']:.4e} .. {summary['max_gap_m']:.4e} m, closed "
-             f"{100 * summary['closed_fraction']:.2f} % of the time, max normal force "
-             f"{summary['max_normal_force_N']:.4g} N, energy residual "
-             f"{summary['energy']:.1e}" if summary["min_gap_m"] is not None else "no contacts",
+             f"{100 * summary['closed_fraction']:.2f} % of the time, {_force_words(summary)} at one contact point, "
+             f"energy residual {summary['energy']:.1e}" if summary["min_gap_m"] is not None
+             else "no contacts",
+             *_part_lines(summary["parts"]),
              "wrote " + ", ".join(outputs)]
     if not result.completed:
         lines.append(f"interrupted at t = {result.t_end:g} s: the results file holds the run up to there")
@@ -577,6 +580,30 @@ def _run(args, scene, out_dir, written: set) -> int:
         print(printable(interrupted), file=sys.stderr)
         return 130
     return 0
+
+
+def _force_words(summary: dict) -> str:
+    """The run's largest contact force and impulse in words: an impact-only run has no sustained force."""
+    force = (f"max normal force {summary['max_normal_force_N']:.4g} N" if summary["max_normal_force_N"] > 0
+             else "no sustained normal force")
+    return force + (f", largest impulse {summary['max_impulse_Ns']:.3g} N s" if summary["impacts"] else "")
+
+
+def _part_lines(parts: list[dict]) -> list[str]:
+    """One line per contact part of the run summary (:func:`nsfem.contact.tally.tally`'s numbers)."""
+    lines = []
+    for p in parts:
+        what = {"ring": "facet", "crack": "front point"}.get(p["kind"], "contact point") + "s" * (p["contacts"] != 1)
+        force = (f"max normal force {p['max_normal_force_N']:.4g} N (resultant"
+                 + (f" at {p['force_angle_deg']:.0f} deg" if p.get("force_angle_deg") is not None else "")
+                 + (f"; {p['max_point_force_N']:.4g} N at one point)" if p["contacts"] > 1 else ")")
+                 if p["max_normal_force_N"] > 0 else "no sustained normal force")
+        impacts = (f"{p['impacts']} impacts (largest impulse {p['max_impulse_Ns']:.3g} N s)" if p["impacts"]
+                   else "no impacts")
+        gap = "" if p["min_gap_m"] is None else f", min gap {p['min_gap_m']:.4e} m"
+        lines.append(f"  {p['name']} ({p['kind']}, {p['contacts']} {what}): {impacts}, {force}{gap}, closed "
+                     f"{100 * p['closed_fraction']:.2f} % of the time")
+    return lines
 
 
 def _check_png(png: str | None) -> None:

@@ -50,19 +50,27 @@ class Result:
     info: dict = field(default_factory=dict)
 
     def summary(self) -> dict:
-        """The ``nsfem run`` JSON keys (design section 5)."""
+        """The ``nsfem run`` JSON keys (design section 5). The contact counts and maxima come from
+        :func:`nsfem.contact.tally.tally`, their one definition: ``impacts`` the impact records with a positive
+        impulse, ``max_normal_force_N`` and ``max_impulse_Ns`` the largest force and impulse at one contact
+        point, ``parts`` one entry per delamination, ring, crack and stop (its resultant's maxima)."""
+        from .contact.tally import tally
+
         m = self.gap.shape[0]
         closed_any = (self.state != 0).any(axis=0) if m else np.zeros(self.t.size, bool)
+        counts = tally(self)
         return {
             "method": self.method, "t_end": self.t_end, "completed": self.completed, "wall_s": self.wall_s,
             "ndof_full": self.info.get("ndof_full"), "ndof": int(self.q.shape[0]),
-            "events": len(self.events), "impacts": len(self.impacts),
+            "events": len(self.events), "impacts": counts.impacts, "shared_impacts": counts.shared_impacts,
             "min_gap_m": float(self.gap.min()) if m and self.t.size else None,
             "max_gap_m": float(self.gap.max()) if m and self.t.size else None,
             # event-driven runs know it between events; the others sample their outputs
             "closed_fraction": float(self.info["closed_fraction"]) if "closed_fraction" in self.info
             else float(closed_any.mean()) if self.t.size else 0.0,
-            "max_normal_force_N": float(self.normal_force.max(initial=0.0)) if m else 0.0,
+            "max_normal_force_N": counts.max_normal_force_N,
+            "max_impulse_Ns": counts.max_impulse_Ns,
+            "parts": [p.record() for p in counts.parts],
             "energy": self.energy.get("relative_residual"),
         }
 

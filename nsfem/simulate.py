@@ -350,9 +350,15 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
             warn(f"the structure without contact forces is unstable at {rot.speed_hz:g} Hz: its "
                  f"fastest-growing mode grows at {rate:.3g} 1/s (x10 every {math.log(10) / rate:.3g} s); unless the "
                  "contacts or damping hold it, displacements soon exceed the linear model's range")
+    from .contact.tally import system_parts
+
     info = {"ndof_full": model.n, "reduction": red.info, "title": scene.title,
             "speed_hz": rot.speed_hz, "contacts": list(system.model_contacts.labels),
-            "frame": rot.frame, "phase_deg": rot.phase_deg}
+            "frame": rot.frame, "phase_deg": rot.phase_deg,
+            # the contact parts and, with elastic rings, the rigid contacts' rows: read by nsfem.contact.tally
+            "parts": [p.record() for p in system_parts(system)]}
+    if system.info.get("contact_index") is not None:
+        info["contact_index"] = [int(k) for k in system.info["contact_index"]]
     system.info["sensors"] = scene.sensors
     try:
         result = integrate(system, sim.t_end, method, sim.output_dt, q0, v0, progress=progress,

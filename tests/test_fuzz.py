@@ -2673,3 +2673,65 @@ def test_issue34_property_the_harmonic_fit_returns_a_sampled_sinusoid(A, phi, c,
     tol = 1e-9 * (1 + abs(c) / A)
     assert abs(amp - A) <= tol * A
     assert abs((np.radians(lag) - phi + np.pi) % (2 * np.pi) - np.pi) <= tol
+
+
+# --- issue 34: counts and maxima (nsfem.contact.tally) ---
+# A results file is input too (``Result.load`` of a file edited by hand or written by an older version): its
+# impact records may name contacts that do not exist, carry zero, negative or non-finite impulses, and its
+# labels may follow no scene's pattern. The tally never fails on them, counts an impact once per record with a
+# positive finite impulse on an existing contact, and the summary stays strict JSON.
+TALLY_LABELS = ["delamination.0.0", "delamination.0.1", "stator.0.0", "stator.0.3", "stator.1.1", "crack.0.0",
+                "crack.0.1", "obstacle.0", "contact.3", "stator.x.y", "crack..1", "", "delamination.0.-1", "a.b.c.d"]
+IMPULSES = st.sampled_from([0.0, 1e-12, 0.1, 2.5, -0.3, -1e-19, float("nan"), float("inf")])
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+@given(st.lists(st.sampled_from(TALLY_LABELS), min_size=1, max_size=8),
+       st.lists(st.lists(st.tuples(st.integers(-2, 9), IMPULSES), max_size=4), max_size=6),
+       st.integers(1, 5), st.integers(0, 2 ** 31 - 1))
+def test_tally_of_any_records_is_consistent(labels, records, K, seed):
+    from nsfem.contact.tally import tally
+    from nsfem.jsonio import dumps
+    from nsfem.result import Result
+
+    m = len(labels)
+    rng = np.random.default_rng(seed)
+    normal = np.abs(rng.standard_normal((m, K))) * (rng.random((m, K)) < 0.5)
+    impacts = [{"t": 0.01 * i, "contacts": [c for c, _ in rec], "impulse_Ns": [p for _, p in rec]}
+               for i, rec in enumerate(records)]
+    # a parts record that names rows the arrays do not have, or an unknown kind, is read from the labels instead
+    broken = [None, [{"name": "stator.0", "kind": "ring", "rows": [0, m + 3]}], [{"name": "x", "kind": "gear",
+                                                                                  "rows": list(range(m))}],
+              [{"name": "x"}], "parts"][seed % 5]
+    r = Result("exact", np.linspace(0.0, 1.0, K), np.zeros((1, K)), np.zeros((1, K)), rng.random((m, K)), normal,
+               np.zeros((m, 2, K)), (normal > 0).astype(int), impacts=impacts,
+               info={"contacts": labels, "parts": broken})
+    counts = tally(r)
+    expected = sum(any(0 <= c < m and np.isfinite(p) and p > 0 for c, p in rec) for rec in records)
+    assert counts.impacts == expected
+    assert sorted(k for p in counts.parts for k in p.part.rows) == list(range(m))   # each row in one part
+    part_impacts = [p.impacts for p in counts.parts]
+    assert max(part_impacts) <= expected <= sum(part_impacts)
+    owner = {k: i for i, p in enumerate(counts.parts) for k in p.part.rows}
+    struck = [{owner[c] for c, p in rec if 0 <= c < m and np.isfinite(p) and p > 0} for rec in records]
+    assert counts.shared_impacts == sum(len(s) > 1 for s in struck)
+    assert sum(part_impacts) == sum(len(s) for s in struck)
+    for p in counts.parts:
+        rows = list(p.part.rows)
+        # a resultant lies between the largest point's force (parallel normals) or 0 (a ring's vectors) and the sum
+        assert p.max_normal_force_N <= normal[rows].sum(axis=0).max() * (1 + 1e-12) + 1e-300
+        assert 0.0 <= p.closed_fraction <= 1.0 and p.max_impulse_Ns >= 0.0
+    json.loads(dumps(r.summary()))   # strict JSON: no NaN, no inf
+
+
+@pytest.mark.parametrize("restitution, sustained", [(1.0, False), (0.5, True)])
+def test_issue34_impact_only_run_is_not_reported_as_zero_force(restitution, sustained, tmp_path):
+    """Reproduction: a run of impacts only (21 of up to 0.1 N s) said "max normal force 0 N"."""
+    from test_plots import STOP_TOML
+
+    (tmp_path / "stop.toml").write_text(STOP_TOML.replace("restitution = 1.0", f"restitution = {restitution}")
+                                        .replace("t_end = 0.04", "t_end = 0.15"))
+    code, out, err = check_invocation(["run", "stop.toml", "--out", "o", "--set", "output.vtu_every=0",
+                                       "--set", "output.plots=[]"], tmp_path)
+    assert code == 0 and "max normal force 0 N" not in out
+    assert ("no sustained normal force" in out) is not sustained and "largest impulse" in out

@@ -239,3 +239,42 @@ def test_run_warns_when_the_open_structure_is_unstable(overrides, unstable):
     assert bool(grows) == unstable
     if overrides == ["rotation.speed_hz=120"]:
         assert growth_rate(system) == pytest.approx(255, rel=5e-3)
+
+
+# --- issue 34: the run's counts, one definition (nsfem.contact.tally) ---------------------------------------
+def test_impact_only_run_reports_its_impulses_not_a_zero_force(tmp_path, capsys):
+    """A shaft bouncing on a stop with restitution 1 never rests on it: the JSON and the text give its impacts
+    and largest impulse, and say there was no sustained force instead of "max normal force 0 N"."""
+    from test_plots import STOP_TOML
+
+    scene = tmp_path / "stop.toml"
+    scene.write_text(STOP_TOML)
+    assert cli.main(["run", str(scene), "--out", str(tmp_path / "o"), "--set", "output.plots=[]",
+                     "--set", "output.vtu_every=0"]) == 0
+    text = capsys.readouterr().out
+    res, meta, _ = Result.load(tmp_path / "o" / "result.npz")
+    s = meta["summary"]
+    largest = max(max(im["impulse_Ns"]) for im in res.impacts)
+    assert s["max_normal_force_N"] == 0.0 and s["impacts"] == len(res.impacts) > 3
+    assert s["max_impulse_Ns"] == largest > 0
+    (part,) = s["parts"]
+    assert (part["name"], part["kind"], part["impacts"], part["max_impulse_Ns"]) == ("obstacle.0", "stop",
+                                                                                       s["impacts"], largest)
+    assert "max normal force 0 N" not in text
+    assert f"no sustained normal force, largest impulse {largest:.3g} N s at one contact point" in text
+    assert f"obstacle.0 (stop, 1 contact point): {s['impacts']} impacts (largest impulse {largest:.3g} N s)" in text
+
+
+def test_run_json_parts_agree_with_the_run(tmp_path, capsys):
+    """The shipped scene's JSON: one part, delamination.0, whose impacts are the run's and whose closed share,
+    booked from the events' closure times, is the run's closed_fraction (booked by the integrator between
+    events): the same intervals summed in another order, round-off of t_end (1e-15) over the run."""
+    assert cli.main(["run", "--json", "--out", str(tmp_path), "--set", "simulation.t_end=0.3",
+                     "--set", "output.plots=[]", "--set", "output.vtu_every=0"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    (part,) = out["parts"]
+    assert part["name"] == "delamination.0" and part["kind"] == "delamination" and part["contacts"] == 9
+    assert part["impacts"] == out["impacts"] > 0
+    assert out["closed_fraction"] > 0 and part["closed_fraction"] == pytest.approx(out["closed_fraction"], rel=1e-9)
+    assert part["max_point_force_N"] == out["max_normal_force_N"] <= part["max_normal_force_N"]
+    assert out["max_impulse_Ns"] <= part["max_impulse_Ns"]

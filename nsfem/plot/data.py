@@ -100,60 +100,39 @@ def _uniform(t: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
 
 
 def delamination_middles(system) -> list[dict]:
-    """Per delamination (contacts on one interface), stator ring, crack or stop: its contacts and
-    the one nearest its midspan.
+    """Per contact part (:func:`nsfem.contact.tally.system_parts`: a delamination, stator ring, crack or
+    stop): its contacts and the one nearest its midspan.
 
-    Each entry: ``name`` ("delamination.0", "crack.0", "obstacle.1", ...), ``kind`` ("interface",
-    "stator", "crack" or "stop"), ``indices`` (contact rows), ``middle`` (the row nearest the
-    middle), ``x`` (its position [m]) and ``span`` (start, end) [m]. Interfaces are grouped by the
-    pair of sub-beams they join and their span is the sub-beams' length; a crack's two front ends
-    are one group; without a model, contacts are grouped by label prefix and the span is that of
-    their positions.
+    Each entry: ``name`` ("delamination.0", "crack.0", "stator.1", "obstacle.1", ...), ``kind``
+    ("delamination", "ring", "crack" or "stop"), ``part`` (the :class:`~nsfem.contact.tally.Part`),
+    ``indices`` (contact rows), ``middle`` (the row nearest the middle), ``x`` (its position [m]) and
+    ``span`` (start, end) [m]: a delamination's is its layers' length, a ring's, crack's or stop's its
+    position; without a model, that of the contacts' positions.
     """
+    from ..contact.tally import system_parts
+
     cs = system.model_contacts
-    m = cs.m
-    if m == 0:
+    if cs.m == 0:
         return []
-    labels = list(cs.labels)
     xs = np.asarray(cs.x, dtype=float)
     model, _ = _model_and_T(system)
-    groups: dict = {}
-    if model is not None and len(model.stack.contacts) == m:
-        for k, c in enumerate(model.stack.contacts):
-            if c.kind == "interface":
-                seg = model.stack.segment(c.segments[0])
-                key = ("interface", tuple(c.segments))
-                span = (seg.start, seg.end)
-                name = labels[k].rsplit(".", 1)[0] if labels[k].startswith("delamination.") \
-                    else f"interface {c.segments[0]}/{c.segments[1]}"
-            elif c.angle is not None:   # a stator's facets: one ring, one panel
-                name = labels[k].rsplit(".", 1)[0]
-                key, span = ("stator", name), (c.x, c.x)
-            elif c.kind == "crack":     # a crack's front ends: one crack, one panel
-                name = c.table_key
-                key, span = ("crack", tuple(c.segments), c.x), (c.x, c.x)
-            else:
-                key, span, name = ("stop", k), (c.x, c.x), labels[k]
-            groups.setdefault(key, {"name": name, "kind": key[0], "indices": [], "span": span})["indices"].append(k)
-    else:
-        for k, lab in enumerate(labels):
-            head = lab.split(".", 1)[0]
-            key = lab.rsplit(".", 1)[0] if head in ("delamination", "stator", "crack") and lab.count(".") == 2 else lab
-            kind = {"delamination": "interface", "stator": "stator", "crack": "crack"}.get(head, "stop")
-            groups.setdefault(key, {"name": key, "kind": kind, "indices": []})["indices"].append(k)
-        for g in groups.values():
-            gx = xs[g["indices"]]
-            g["span"] = (float(np.nanmin(gx)), float(np.nanmax(gx))) if np.isfinite(gx).any() else (np.nan, np.nan)
+    contacts = model.stack.contacts if model is not None and len(model.stack.contacts) == cs.m else None
     out = []
-    for g in groups.values():
-        idx = np.asarray(g["indices"])
-        mid = 0.5 * (g["span"][0] + g["span"][1])
+    for part in system_parts(system):
+        idx = np.asarray(part.rows)
+        if contacts is not None and part.kind == "delamination":
+            seg = model.stack.segment(contacts[idx[0]].segments[0])
+            span = (seg.start, seg.end)
+        else:
+            gx = xs[idx]
+            span = (float(np.nanmin(gx)), float(np.nanmax(gx))) if np.isfinite(gx).any() else (np.nan, np.nan)
+        mid = 0.5 * (span[0] + span[1])
         if np.isfinite(mid) and np.isfinite(xs[idx]).all():
             k = int(idx[np.argmin(np.abs(xs[idx] - mid))])
         else:
             k = int(idx[len(idx) // 2])
-        out.append({"name": g["name"], "kind": g["kind"], "indices": [int(i) for i in idx], "middle": k,
-                    "x": float(xs[k]), "span": tuple(float(s) for s in g["span"])})
+        out.append({"name": part.name, "kind": part.kind, "part": part, "indices": [int(i) for i in idx],
+                    "middle": k, "x": float(xs[k]), "span": tuple(float(v) for v in span)})
     return out
 
 
@@ -161,31 +140,40 @@ def closed_intervals(result, k, every: bool = True) -> list[tuple[float, float]]
     """[(t_close, t_release)] of contact row k: from the events when the integrator records
     them (exact), else from the sampled states. ``k`` may be a list of rows (a crack's front
     ends): closed when all of them are (``every``; else when any is: the crack at least partly
-    closed)."""
-    t = result.t
-    if t.size == 0:
-        return []
-    rows = [int(r) for r in np.atleast_1d(k)]
-    events = [e for e in result.events if isinstance(e.get("after"), dict) and "closed" in e["after"]]
-    spans = []
-    if events:
-        together = all if every else any
-        closed, start = together(result.state[r, 0] != 0 for r in rows), float(t[0])
-        for e in sorted(events, key=lambda e: e["t"]):
-            now = together(r in e["after"]["closed"] for r in rows)
-            if now and not closed:
-                start = float(e["t"])
-            elif closed and not now:
-                spans.append((start, float(e["t"])))
-            closed = now
-        if closed:
-            spans.append((start, float(t[-1])))
-        return spans
-    on = (np.all if every else np.any)(result.state[rows] != 0, axis=0)
-    edges = np.flatnonzero(np.diff(np.r_[0, on.astype(int), 0]))
-    for a, b in zip(edges[::2], edges[1::2]):
-        spans.append((float(t[a]), float(t[b - 1])))
-    return spans
+    closed). See :func:`nsfem.contact.tally.closed_spans`."""
+    from ..contact.tally import closed_spans
+
+    return closed_spans(result.t, result.state, result.events, k, every=every,
+                        index=result.info.get("contact_index"))
+
+
+def min_max_bins(t: np.ndarray, y: np.ndarray, bins: int = 700) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, low, high): a long signal's envelope, its least and largest value in each of ``bins`` equal
+    time bins (about one per pixel column), drawn as a band so that 8 s of a 20 Hz whirl reads as its
+    envelope rather than a solid block; a signal of at most 2 ``bins`` samples is returned as it is
+    (low = high = y). Every sample lies in its bin's [low, high], so no peak is lost."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    if t.size <= 2 * bins:
+        return t, y, y
+    edges = np.linspace(t[0], t[-1], bins + 1)
+    which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, bins - 1)
+    starts = np.flatnonzero(np.r_[True, which[1:] != which[:-1]])
+    lo, hi = np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
+    mid = 0.5 * (edges[which[starts]] + edges[which[starts] + 1])
+    return mid, lo, hi
+
+
+def draw_signal(ax, t: np.ndarray, y: np.ndarray, bins: int = 700, **kw):
+    """Plot ``y(t)`` on ``ax``: as a line, or for a long signal as its :func:`min_max_bins` envelope (a band
+    of the line's colour); returns the artist (for the legend)."""
+    tb, lo, hi = min_max_bins(t, y, bins)
+    if tb.size == np.asarray(t).size:
+        return ax.plot(t, y, **kw)[0]
+    kw.pop("marker", None)
+    band = ax.fill_between(tb, lo, hi, color=kw.get("color"), alpha=kw.pop("alpha", 1.0),
+                           lw=kw.get("lw", 0.8), edgecolor=kw.get("color"), label=kw.get("label"),
+                           zorder=kw.get("zorder"))
+    return band
 
 
 def measurement_point(model, x: float | None = None, field: str = "W") -> dict:
@@ -261,28 +249,31 @@ def hermite_refine(t: np.ndarray, x: np.ndarray, dx: np.ndarray, f_hz: float, ki
 
 
 def loaded_contacts(result) -> list[int]:
-    """Rows of the contacts that carry a force at some sample or take part in an impact."""
+    """Rows of the contacts that carry a force at some sample or take a positive impulse in an impact."""
+    from ..contact.tally import impulse_table
+
     m = result.gap.shape[0]
     if m == 0:
         return []
-    hit = {int(k) for im in result.impacts for k in im.get("contacts", [])}
+    _, P = impulse_table(result.impacts, m, result.info.get("contact_index"))
     tang = np.linalg.norm(result.tangential_force, axis=1) if result.t.size else np.zeros((m, 0))
     loaded = (np.abs(result.normal_force).max(axis=1, initial=0.0) > 0) | (tang.max(axis=1, initial=0.0) > 0)
-    return sorted(hit | set(np.flatnonzero(loaded).tolist()))
+    return sorted(set(np.flatnonzero(loaded | (P > 0).any(axis=1)).tolist()))
 
 
 def _force_series(system, rows: list[int]) -> list[tuple[str, list[int]]]:
-    """(legend label, contact rows) of each line of :func:`forces_plot`: one per loaded contact, but a
-    crack's loaded front ends (labels ``crack.<i>.<k>``) as one line, ``crack.<i> faces``, their forces summed (an
-    end that never carries load adds nothing)."""
-    labels = list(system.model_contacts.labels)
+    """(legend label, contact rows) of each part of :func:`forces_plot` with a loaded contact among ``rows``:
+    one line per part (a delamination's points, a ring's facets, a crack's front ends resolved to their
+    resultant, :func:`nsfem.contact.tally.resultant`), labelled with its name and position."""
+    from ..contact.tally import system_parts
+
     xs = np.asarray(system.model_contacts.x, dtype=float)
-    series: dict[str, list[int]] = {}
-    for k in rows:
-        head, _, tail = labels[k].rpartition(".")
-        crack = head.startswith("crack.") and head.count(".") == 1 and tail.isdigit()
-        key = f"{head} faces (x = {xs[k]:.3g} m)" if crack else f"{labels[k]} (x = {xs[k]:.3g} m)"
-        series.setdefault(key, []).append(k)
-    return list(series.items())
-
-
+    loaded = set(int(k) for k in rows)
+    out = []
+    for part in system_parts(system):
+        if loaded & set(part.rows):
+            px = xs[list(part.rows)]
+            lo, hi = (float(np.nanmin(px)), float(np.nanmax(px))) if np.isfinite(px).any() else (np.nan, np.nan)
+            where = f"x = {lo:.3g} m" if hi - lo <= 1e-12 * max(1.0, abs(hi)) else f"x = {lo:.3g} to {hi:.3g} m"
+            out.append((f"{part.name} ({where})", list(part.rows)))
+    return out

@@ -1,4 +1,5 @@
-"""forces.png: contact forces over time and the impact impulses."""
+"""forces.png: each contact part's resultant force over time and its impact impulses (the numbers of
+:mod:`nsfem.contact.tally`, as in the run JSON's ``parts``)."""
 
 from __future__ import annotations
 
@@ -7,14 +8,18 @@ from pathlib import Path
 import numpy as np
 
 from .common import figure, save
-from .data import FIGSIZE, NoPlotData, _force_series, loaded_contacts
+from .data import FIGSIZE, NoPlotData, _force_series, draw_signal, loaded_contacts
 
 
 def forces_plot(result, system, path) -> Path:
-    """Normal and tangential contact-force magnitudes [N] over time of the contacts that
-    ever carry load, and the impacts as stems of their impulses [N s]. A crack's front ends
-    are one line: the force across its faces (their normal forces summed, and impulses per
-    impact)."""
+    """Per part that ever carries load or takes an impact (:func:`~nsfem.plot.data._force_series`), the
+    magnitude of its resultant normal force [N] (solid) and tangential force (dashed) over time, for a ring
+    the angle of its force, and its impacts as stems of its resultant impulse [N s]: a delamination's
+    points and a crack's front ends summed, a ring's facets as a vector sum
+    (:func:`nsfem.contact.tally.resultant`). One legend entry per part, beside the panels; a long run's
+    forces are drawn as their envelope (:func:`~nsfem.plot.data.min_max_bins`)."""
+    from ..contact.tally import system_parts, tally
+
     if result.gap.shape[0] == 0:
         raise NoPlotData("forces: the scene has no contacts")
     rows = loaded_contacts(result)
@@ -22,46 +27,62 @@ def forces_plot(result, system, path) -> Path:
         raise NoPlotData("forces: no contact carried load or took an impact during the run")
     t = result.t
     series = _force_series(system, rows)
-    fig, (ax, bx) = figure(nrows=2, ncols=1, sharex=True, figsize=FIGSIZE, gridspec_kw={"height_ratios": [3, 2]})
+    shown = {tuple(ks) for _, ks in series}
+    counts = tally(result, [p for p in system_parts(system) if tuple(p.rows) in shown])
+    rings = [pt for pt in counts.parts if pt.angle is not None and pt.max_normal_force_N > 0]
+    heights = [3] + [1.4] * bool(rings) + [2]
+    fig, axes = figure(nrows=len(heights), ncols=1, sharex=True, squeeze=False, layout="constrained",
+                       figsize=(FIGSIZE[0] + 2.6, FIGSIZE[1] + 1.4 * bool(rings)),
+                       gridspec_kw={"height_ratios": heights})
+    axes = list(axes[:, 0])
+    ax, bx = axes[0], axes[-1]
+    cx = axes[1] if rings else None
     colors = [f"C{i % 10}" for i in range(len(series))]
     friction = False
-    for (name, ks), color in zip(series, colors):
-        normal = result.normal_force[ks].sum(axis=0)
-        ax.plot(t, normal, lw=1.0, color=color, label=name)
-        on = normal > 0  # closures shorter than output_dt show as single samples
-        ax.plot(t[on], normal[on], ".", ms=4, color=color)
-        tg = np.linalg.norm(result.tangential_force[ks], axis=1).sum(axis=0)
-        if np.any(tg > 0):
+    for (_, _), pt, color in zip(series, counts.parts, colors):
+        name = pt.part.name
+        label = (f"{name}: max {pt.max_normal_force_N:.4g} N" if pt.max_normal_force_N > 0 else
+                 f"{name}: no force (impacts only)")
+        draw_signal(ax, t, pt.force, lw=1.0, color=color, label=label)
+        if t.size <= 1400:   # closures shorter than output_dt show as single samples
+            on = pt.force > 0
+            ax.plot(t[on], pt.force[on], ".", ms=3, color=color)
+        if np.any(pt.friction > 0):
             friction = True
-            ax.plot(t, tg, lw=0.9, ls="--", color=color)
+            draw_signal(ax, t, pt.friction, lw=0.9, ls="--", color=color, alpha=0.6)
+        if cx is not None and pt.angle is not None and pt.max_normal_force_N > 0:
+            on = pt.force > 0
+            cx.plot(t[on], np.degrees(pt.angle[on]), ".", ms=1.5, color=color)
+    ax.plot([], [], color="k", lw=1.0, label="normal force (solid)")
     if friction:
-        ax.plot([], [], ls="--", color="k", lw=0.9, label="tangential |lam_T|")
-    ax.set_ylabel("contact force [N]")
-    ax.set_title("Normal force (solid)" + (" and tangential force magnitude (dashed)" if friction else "")
-                 + " at the output times", fontsize=9)
+        ax.plot([], [], ls="--", color="k", lw=0.9, label=r"tangential force |$\lambda_T$| (dashed)")
+    ax.set_ylabel("force [N]")
+    ax.set_title("Each part's resultant contact force (its points summed, a ring's facets as vectors)",
+                 fontsize=9)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="upper right", ncol=2 if len(series) > 4 else 1)
-    n_imp = 0
-    for (_, ks), color in zip(series, colors):
-        ti, pi = [], []
-        for im in result.impacts:
-            mine = [p for c, p in zip(im.get("contacts", []), im.get("impulse_Ns", [])) if int(c) in ks]
-            if mine:
-                ti.append(im["t"])
-                pi.append(sum(mine))
-        if ti:
-            n_imp += len(ti)
-            ml, sl, bl = bx.stem(ti, pi, basefmt=" ")
+    ax.legend(fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    if cx is not None:
+        cx.set_ylabel("angle [deg]")
+        cx.set_ylim(-180, 180)
+        cx.set_yticks([-180, -90, 0, 90, 180])
+        cx.set_title("direction of the ring's normal force while loaded (from +y towards +z)", fontsize=9)
+        cx.grid(True, alpha=0.3)
+    for pt, color in zip(counts.parts, colors):
+        if pt.impacts:
+            ml, sl, _ = bx.stem(pt.impact_t, pt.impact_Ns, basefmt=" ", label=f"{pt.part.name}: {pt.impacts} impacts")
             ml.set_color(color)
-            ml.set_markersize(4)
+            ml.set_markersize(3.5)
             sl.set_color(color)
+            sl.set_linewidth(0.8)
     bx.axhline(0.0, color="k", lw=0.6)
     bx.set_ylabel("impulse [N s]")
     bx.set_xlabel("time [s]")
-    bx.set_title(f"Impacts: {n_imp} impulses" if n_imp else "no impacts", fontsize=9)
+    shared = f", {counts.shared_impacts} of them on two parts at once" if counts.shared_impacts else ""
+    bx.set_title(f"Impacts: {counts.impacts}{shared}, largest impulse {max(p.max_impulse_Ns for p in counts.parts):.3g}"
+                 " N s (each part's resultant)" if counts.impacts else "no impacts", fontsize=9)
     bx.grid(True, alpha=0.3)
+    if counts.impacts:
+        bx.legend(fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     if t.size:
         bx.set_xlim(t[0], t[-1])
-    fig.tight_layout()
     return save(fig, path)
-

@@ -6,9 +6,10 @@ a path, writes one PNG atomically (temporary file in the same directory, then a 
 see :func:`nsfem.plot.common.save`) and returns the path:
 
 - :func:`phase_plot`: phase portraits of the first modal coordinates at steady state,
-- :func:`gap_plot`: the gap at the middle of each delamination, and each crack's opening, over time,
+- :func:`gap_plot`: per contact part, a delamination's middle gap, a crack's opening, a ring's clearance, a
+  stop's gap over time, with the counts of :mod:`nsfem.contact.tally`,
 - :func:`psd_plot`: Welch PSD of the transverse displacement in an undamaged region,
-- :func:`forces_plot`: contact forces over time and the impact impulses (a crack's faces as one),
+- :func:`forces_plot`: each part's resultant contact force (a ring's with its angle) and impulses,
 - :func:`write_plots`: the plots named in ``output.plots`` (``campbell`` is drawn by
   :func:`nsfem.plot.campbell_plot`), skipping those without data.
 
