@@ -2557,6 +2557,8 @@ ROTOR_TOML = """
 length = 0.8
 diameter = 0.03
 {supports}
+[beam]
+theory = "euler-bernoulli"
 [[disk]]
 x = 0.4
 mass = 3.0

@@ -1,6 +1,7 @@
 """Defaults that never change a rotor's model silently (issue 34, points 2 and 3): no supports hidden under
 bearings, steel's density, a diameter meaning a circle, and a note for every default left that shapes a
-rotor's model (a disk without inertias, kxx read in ROSS's axes, nothing holding the axial motion)."""
+rotor's model (its section, its beam theory, a disk without inertias, kxx read in ROSS's axes, nothing holding
+the axial motion)."""
 
 import functools
 import json
@@ -116,7 +117,7 @@ BEARINGS = [{"x": 0.0, "kyy": 1e6, "kzz": 1e6}, {"x": 1.0, "kyy": 1e6, "kzz": 1e
 
 def rotor(bearings=None, disk=None, **shaft) -> dict:
     tree = {"shaft": {"section": "circle", "diameter": 0.03, "supports": "pinned-pinned", **shaft},
-            "bearing": BEARINGS if bearings is None else bearings,
+            "beam": {"theory": "euler-bernoulli"}, "bearing": BEARINGS if bearings is None else bearings,
             "rotation": {"frame": "inertial"}}
     if disk is not None:
         tree["disk"] = [disk]
@@ -145,11 +146,14 @@ NOTE_CASES = [
     pytest.param(rotor(disk={"x": 0.5, "mass": 3.0, "polar_inertia": 0.0, "diametral_inertia": 0.0}), [],
                  id="disk-point-mass-said"),
     pytest.param(rotor(disk={"x": 0.5, "outer_diameter": 0.2, "width": 0.03}), [], id="disk-geometry"),
-    pytest.param({"shaft": {"supports": "pinned-pinned"}, "disk": [{"x": 0.5, "mass": 1.0, "polar_inertia": 0.0,
-                                                                     "diametral_inertia": 0.0}]},
+    pytest.param({"shaft": {"supports": "pinned-pinned"}, "beam": {"theory": "rayleigh"},
+                  "disk": [{"x": 0.5, "mass": 1.0, "polar_inertia": 0.0, "diametral_inertia": 0.0}]},
                  ['shaft: no section given: the default rectangle, 0.02 m (y) x 0.02 m (z); a round shaft is '
                   'section = "circle" with its diameter'], id="rotor-without-section"),
     pytest.param({"shaft": {"length": 1.0}, "delamination": [{}]}, [], id="papers-beam-without-section"),
+    pytest.param({**rotor(), "beam": {}}, ['beam.theory: euler-bernoulli by default: the shaft has no rotary inertia '
+                                           'and no gyroscopic moments of its own (its disks keep theirs); theory = '
+                                           '"rayleigh" adds them'], id="rotor-without-beam-theory"),
 ]
 
 
@@ -176,6 +180,8 @@ NOISY = """
 length = 0.8
 diameter = 0.03
 supports = "pinned-pinned"
+[beam]
+theory = "rayleigh"
 [[disk]]
 x = 0.4
 mass = 3.0

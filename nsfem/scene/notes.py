@@ -7,7 +7,8 @@ A scene that states what it means gets none (the shipped scenes):
 >>> from nsfem.scene import load_scene
 >>> load_scene("ross_example").notes
 ()
->>> for n in load_scene(None, ["rotation.speed_hz=0", "bearing.0.kxx=1e6", "bearing.0.kyy=1e6"]).notes:
+>>> for n in load_scene(None, ["rotation.speed_hz=0", "beam.theory=euler-bernoulli", "bearing.0.kxx=1e6",
+...                            "bearing.0.kyy=1e6"]).notes:
 ...     print(n)
 bearing.0: kxx = 1e+06 N/m with kyy and no kzz: x is the shaft axis: kxx is an axial (thrust) stiffness; the lateral directions are y (horizontal) and z (vertical, up)
 """
@@ -37,6 +38,16 @@ def section_notes(raw: dict) -> list[str]:
     return [f"{key}: no section given: the default rectangle, {w:g} m (y) x {h:g} m (z); a round shaft is "
             f"section = \"circle\" with its diameter" for key, t in tables
             if isinstance(t, dict) and not any(k in t for k in SECTION_KEYS)]
+
+
+def beam_notes(raw: dict) -> list[str]:
+    """A rotor whose beam theory the scene leaves out gets Euler-Bernoulli's: a shaft without rotary inertia and
+    without gyroscopic moments of its own (ROSS's shaft elements carry both)."""
+    beam = raw.get("beam")
+    if not any(raw.get(t) for t in ROTOR_TABLES) or (isinstance(beam, dict) and "theory" in beam):
+        return []
+    return ["beam.theory: euler-bernoulli by default: the shaft has no rotary inertia and no gyroscopic moments of "
+            "its own (its disks keep theirs); theory = \"rayleigh\" adds them"]
 
 
 def disk_notes(tree: dict) -> list[str]:
@@ -87,4 +98,4 @@ def axial_notes(tree: dict, stack: BeamStack) -> list[str]:
 def scene_notes(raw: dict, tree: dict, stack: BeamStack) -> tuple[str, ...]:
     """The notes on a scene: ``raw`` as its file and overrides give it, ``tree`` validated with every default,
     ``stack`` its translation."""
-    return tuple(section_notes(raw) + disk_notes(tree) + bearing_notes(tree) + axial_notes(tree, stack))
+    return tuple(section_notes(raw) + beam_notes(raw) + disk_notes(tree) + bearing_notes(tree) + axial_notes(tree, stack))

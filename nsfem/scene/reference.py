@@ -61,11 +61,13 @@ def scene_reference() -> str:
             "scene saying so; every command that loads a scene prints each once on stderr",
             "(`nsfem run: note: ...`) and its JSON lists them under `notes` (`export` and `render` re-read",
             "the scene a run stored, whose notes that run printed). A scene that states these gets none",
-            "(the shipped scenes get none):", "",
+            "(the shipped scenes get none). A rotor here is a scene with bearings, disks, unbalances, stators",
+            "or cracks:", "",
             "| note | when | silenced by |", "|---|---|---|",
-            "| `shaft: no section given` | a rotor's shaft (or segment) gives no section key (a scene with "
-            "bearings, disks, unbalances, stators or cracks; the paper's delaminated beams are its default square) "
-            "| `section`, its size |",
+            "| `shaft: no section given` | a rotor's shaft (or segment) gives no section key (the paper's "
+            "delaminated beams are its default square) | `section`, its size |",
+            "| `beam.theory: euler-bernoulli by default` | a rotor without `[beam] theory`: the shaft has no "
+            "rotary inertia or gyroscopic moments of its own (ROSS's elements have both) | `theory` |",
             "| `disk.<i>: given by its mass, its polar_inertia ... is 0` | a disk with `mass` and without an inertia: "
             "a point mass, no gyroscopic moment or rotary inertia | `polar_inertia`, `diametral_inertia` (0 if "
             "meant), or the geometry |",

@@ -305,7 +305,8 @@ SCHEMA: dict[str, Any] = {
     "delamination": [_DELAMINATION],
     "obstacle": [_OBSTACLE],
     "beam": {
-        "theory": Key("str", "euler-bernoulli", "euler-bernoulli, or rayleigh (adds rotary inertia)", THEORIES),
+        "theory": Key("str", "euler-bernoulli", "euler-bernoulli, or rayleigh (adds the shaft's rotary inertia and "
+                      "gyroscopic moments); a rotor left at the default gets a note", THEORIES),
     },
     "rotation": {
         "speed_hz": Key("float", 0.0, "rotation speed [Hz] (0 = not rotating)", check=_nonneg),
