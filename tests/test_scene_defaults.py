@@ -225,3 +225,30 @@ def test_a_quiet_scene_prints_no_note(capsys):
     assert cli.main(["modes", "ross_example", "--count", "2", "--json"]) == 0
     out, err = capsys.readouterr()
     assert "note:" not in err and json.loads(out)["notes"] == []
+
+
+@pytest.mark.parametrize("command, module, name", [(["sweep", "--set", "rotation.speed_hz=5:10:2"], "nsfem.sweep",
+                                                     "run_sweep"),
+                                                    (["fit", "--data", "m.csv", "--vary", "bearing.0.kyy=1e5:1e7"],
+                                                     "nsfem.fit", "fit")])
+def test_sweep_and_fit_print_the_notes_of_their_scene_before_any_run(command, module, name, tmp_path, capsys,
+                                                                     monkeypatch):
+    """sweep and fit load their scene with its fixed --set once for the notes, before the library's runs (stubbed
+    here: the notes must already be out when it starts)."""
+    import importlib
+
+    from nsfem.errors import NsfemError
+
+    path = tmp_path / "rotor.toml"
+    path.write_text(NOISY)
+    notes = load_scene(path).notes
+    assert len(notes) == 2
+    seen = []
+
+    def stub(*args, **kwargs):
+        seen.append(capsys.readouterr().err)
+        raise NsfemError("stubbed")
+
+    monkeypatch.setattr(importlib.import_module(module), name, stub)
+    assert cli.main([command[0], str(path), *command[1:]]) == cli.EXIT_ERROR
+    assert seen and all(seen[0].count(f"nsfem {command[0]}: note: {n}\n") == 1 for n in notes)

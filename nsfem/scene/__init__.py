@@ -27,10 +27,10 @@ from ..errors import SceneError
 from .checks import (COMPONENT_RANGE, check_components, check_frame, check_frame_at_speed, check_mesh, check_scales,
                      check_speed, check_times, speed_limit_hz)
 from .load import Scene, default_scene_path, load_scene, scene_file, scene_from_tree, shipped_scenes
+from .notes import scene_notes
 from .overrides import apply_override, nesting_depth, parse_value
 from .parts import Damping, Initial, MeshOptions, Output, ReductionOptions, Rotation, Simulation
 from .reference import scene_reference
-from .notes import scene_notes
 from .schema import (AXES, AXIAL, FRAMES, HIGH_LEVEL, INITIAL_STATES, LCP_BYTES_PER_ENTRY, LOW_LEVEL, MATERIAL_RANGE,
                      MAX_CONTACT_POINTS, MAX_ELEMENTS, MAX_FRICTION_DIRECTIONS, MAX_NESTING, METHODS, MIN_LAYER,
                      MIN_SPACING, PATH_KEYS, PLOTS, REDUCTIONS, RK_SOLVERS, SCHEMA, STIFF_SOLVERS, SUPPORT_DOFS_BY_NAME,
@@ -47,6 +47,7 @@ __all__ = [
     "Rotation", "Scene", "SceneError", "Simulation", "apply_override", "check_components", "check_frame",
     "check_frame_at_speed", "check_mesh", "check_scales", "check_speed", "check_times", "contact_positions",
     "default_scene_path", "defaults", "disk_inertia", "high_level_stack", "load_scene", "low_level_stack",
-    "nesting_depth", "parse_value", "point_components", "scene_file", "scene_from_tree", "scene_notes", "scene_reference",
-    "section", "section_of", "implied_defaults", "shipped_scenes", "speed_limit_hz", "stator_contacts", "validate_tree",
+    "implied_defaults", "nesting_depth", "parse_value", "point_components", "scene_file", "scene_from_tree",
+    "scene_notes", "scene_reference", "section", "section_of", "shipped_scenes", "speed_limit_hz", "stator_contacts",
+    "validate_tree",
 ]

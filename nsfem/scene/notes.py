@@ -20,8 +20,6 @@ from .schema import _SECTION, AXES, LOW_LEVEL
 
 #: The keys that give a section's shape or size.
 SECTION_KEYS = tuple(_SECTION)
-
-
 #: The tables that make a scene a rotor's (the paper's beam stacks, delaminations and stops, have none).
 ROTOR_TABLES = ("bearing", "disk", "unbalance", "stator", "crack")
 
@@ -85,7 +83,7 @@ def bearing_notes(tree: dict) -> list[str]:
     return out
 
 
-def axial_notes(tree: dict, stack: BeamStack) -> list[str]:
+def axial_notes(stack: BeamStack) -> list[str]:
     """A rotor on bearings that nothing holds along its axis (no support fixes U, no bearing has kxx)."""
     if not stack.bearings or any("U" in s.fix for s in stack.supports) or any(b.kxx > 0.0 for b in stack.bearings):
         return []
@@ -98,4 +96,4 @@ def axial_notes(tree: dict, stack: BeamStack) -> list[str]:
 def scene_notes(raw: dict, tree: dict, stack: BeamStack) -> tuple[str, ...]:
     """The notes on a scene: ``raw`` as its file and overrides give it, ``tree`` validated with every default,
     ``stack`` its translation."""
-    return tuple(section_notes(raw) + beam_notes(raw) + disk_notes(tree) + bearing_notes(tree) + axial_notes(tree, stack))
+    return tuple(section_notes(raw) + beam_notes(raw) + disk_notes(tree) + bearing_notes(tree) + axial_notes(stack))
