@@ -136,6 +136,15 @@ NOTE_CASES = [
                  "bearing has kxx): it may slide along x (a 0 Hz axial mode, and no stationary state); a thrust "
                  "bearing is a [[bearing]] with kxx"], id="axial-free"),
     pytest.param(rotor([*BEARINGS, {"x": 0.0, "kxx": 1e6}], supports="free-free"), [], id="axial-held"),
+    pytest.param(rotor([{"x": 0.5, "cyy": 40.0, "czz": 40.0, "kxx": 1e6}], supports="free-free"),
+                 ["nothing holds the rotor's rigid motion in y (horizontal: kyy or supports fixing V) and z (vertical: "
+                  "kzz or supports fixing W) at two places at least: it has 0 Hz rigid-body modes there, and no "
+                  "stationary state"], id="a-damper-holds-nothing"),
+    pytest.param(rotor([{"x": 0.0, "kyy": 1e6}, {"x": 1.0, "kyy": 1e6}, {"x": 0.0, "kxx": 1e6}], supports="free-free"),
+                 ["nothing holds the rotor's rigid motion in z (vertical: kzz or supports fixing W) at two places at "
+                  "least: it has 0 Hz rigid-body modes there, and no stationary state"], id="vertical-free"),
+    pytest.param(rotor([{"x": 1.0, "kyy": 1e6, "kzz": 1e6}, {"x": 0.0, "kxx": 1e6}], supports="clamped-free"), [],
+                 id="clamp-and-bearing-hold"),
     pytest.param(rotor(disk={"x": 0.5, "mass": 3.0}), ["disk.0: given by its mass, its polar_inertia and "
                  "diametral_inertia are 0 (no gyroscopic moment, no rotary inertia); give polar_inertia and "
                  "diametral_inertia in kg m^2, or the disk's outer_diameter and width instead of its mass"],
