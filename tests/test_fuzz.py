@@ -2658,3 +2658,31 @@ def test_issue34_bearing_keys_of_other_axes_name_the_axes(kind, a, b):
         assert "unknown key" not in err, err
     else:
         assert code == cli.EXIT_ERROR and f"bearing.0.{key}: unknown key: x is the shaft axis" in err
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@given(st.fixed_dictionaries({}, optional={"section": st.sampled_from(["rectangle", "circle"]),
+                                           "diameter": st.just(0.03), "inner_diameter": st.just(0.01),
+                                           "width": st.just(0.03), "height": st.just(0.02),
+                                           "supports": st.sampled_from(["pinned-pinned", "free-free", "clamped-free"])}),
+       st.booleans())
+def test_issue34_supports_and_sections_follow_what_the_scene_says(shaft, bearings):
+    """Any mix of section and supports keys, with or without bearings: the scene loads with the supports it names
+    (none hidden under bearings: free-free when it names none), the section it names or its keys imply (a diameter
+    alone: a circle), or is refused with one line naming a shaft key."""
+    from nsfem.scene import SceneError, scene_from_tree
+
+    tree = {"shaft": {"length": 0.8, **shaft}, "rotation": {"speed_hz": 0.0}, "mesh": {"elements": 8},
+            "bearing": [{"x": 0.0, "kyy": 1e6, "kzz": 1e6, "kxx": 1e5}, {"x": 0.8, "kyy": 1e6, "kzz": 1e6}]
+            if bearings else []}
+    try:
+        scene = scene_from_tree(tree)
+    except SceneError as exc:
+        assert str(exc).startswith("shaft.") and "\n" not in str(exc), exc
+        return
+    named = shaft.get("supports", "free-free" if bearings else "pinned-pinned")
+    assert scene["shaft"]["supports"] == named
+    assert bool(scene.stack.supports) == (named != "free-free")
+    roundish = ("diameter" in shaft or "inner_diameter" in shaft) and not ("width" in shaft or "height" in shaft)
+    assert scene["shaft"]["section"] == shaft.get("section", "circle" if roundish else "rectangle")
+    assert scene.stack.segments[0].section == scene["shaft"]["section"]

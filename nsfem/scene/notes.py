@@ -29,8 +29,9 @@ def section_notes(raw: dict) -> list[str]:
     paper's section: no note for its delaminated beams)."""
     if not any(raw.get(t) for t in ROTOR_TABLES):
         return []
-    low = any(t in raw for t in LOW_LEVEL)
-    tables = ([(f"segment.{i}", t) for i, t in enumerate(raw.get("segment") or [])] if low else
+    segments = raw.get("segment") or []
+    segments = [segments] if isinstance(segments, dict) else segments   # one [segment] table: validated as a list
+    tables = ([(f"segment.{i}", t) for i, t in enumerate(segments)] if any(t in raw for t in LOW_LEVEL) else
               [("shaft", raw.get("shaft", {}))])
     w, h = _SECTION["width"].default, _SECTION["height"].default
     return [f"{key}: no section given: the default rectangle, {w:g} m (y) x {h:g} m (z); a round shaft is "
