@@ -154,6 +154,18 @@ class _Stderr:
         return getattr(self.stream, name)
 
 
+def _scene(args, command: str, overrides: Sequence[str] | None = None):
+    """The command's scene (``args.scene`` with ``overrides``, default ``args.overrides``); its notes, the
+    defaults that shape its model without the scene saying so, printed once on stderr as
+    ``nsfem <command>: note: ...`` (a JSON payload lists them as ``notes``)."""
+    from .scene import load_scene
+
+    scene = load_scene(args.scene, args.overrides if overrides is None else overrides)
+    for note in scene.notes:
+        print(printable(f"nsfem {command}: note: {note}"), file=sys.stderr)
+    return scene
+
+
 def _emit(args, payload: dict, text: str) -> None:
     if args.json:
         from .jsonio import as_text, dumps
@@ -167,11 +179,10 @@ def cmd_modes(args) -> int:
     from .analysis.modes import natural_frequencies
     from .fem.assemble import build_model
     from .reduce import scene_reduction
-    from .scene import load_scene
 
     if args.count < 1:
         raise NsfemError(f"--count must be a positive integer, got {args.count}")
-    scene = load_scene(args.scene, args.overrides)
+    scene = _scene(args, "modes")
     t0 = time.perf_counter()
     model = build_model(scene)
     red = scene_reduction(scene.reduction, model)
@@ -185,7 +196,7 @@ def cmd_modes(args) -> int:
         print(f"nsfem modes: warning: {warning}", file=sys.stderr)
     payload = {"title": scene.title, **modes.to_json(), "reduction": red.info,
                "elements": model.mesh.elements, "wall_s": wall, "rigid_motions": rigid,
-               "warnings": [warning] if warning else []}
+               "warnings": [warning] if warning else [], "notes": list(scene.notes)}
     lines = [scene.title, f"contact {modes.contact}: {modes.ndof} dofs ({red.name}; full model "
              f"{modes.ndof_full}), {model.mesh.elements} elements",
              "  mode  frequency [Hz]  field"]
@@ -209,6 +220,9 @@ def cmd_sweep(args) -> int:
     def progress(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
+    from .sweep import parse_ranges
+
+    notes = _scene(args, "sweep", parse_ranges(args.overrides)[0]).notes   # the scene with its fixed --set
     interrupted = False
     try:
         with sigterm_as_interrupt():   # finished rows kept
@@ -216,7 +230,7 @@ def cmd_sweep(args) -> int:
                             scheduler=args.scheduler, progress=progress)
     except SweepInterrupted as exc:
         res, interrupted = exc.result, True
-    payload = res.to_json()
+    payload = {**res.to_json(), "notes": list(notes)}
     keys = [a.key for a in res.axes]
     shown = [r for r in res.runs if r is not None]
     lines = [f"{len(shown)} runs in the folder ({res.info['executed']} run now, {res.info['resumed']} already done) "
@@ -245,6 +259,7 @@ def cmd_fit(args) -> int:
     def progress(line: str) -> None:
         print(printable(line), file=sys.stderr, flush=True)
 
+    notes = _scene(args, "fit").notes   # the scene with its fixed --set
     interrupted = False
     try:
         with sigterm_as_interrupt():   # the runs so far kept; fit() refuses --workers with --scheduler
@@ -253,7 +268,7 @@ def cmd_fit(args) -> int:
                       refine=args.refine)
     except FitInterrupted as exc:
         res, interrupted = exc.result, True
-    payload = res.to_json()
+    payload = {**res.to_json(), "notes": list(notes)}
     width = max(len(k) for k in res.keys)
     lines = [f"  {'key':{width}s}  {'estimate':>12s}  {'95 % interval':>27s}  note"]
     for key, p in payload["parameters"].items():
@@ -293,13 +308,12 @@ def cmd_campbell(args) -> int:
     from .fem.assemble import build_model
     from .plot.campbell import campbell_plot
     from .reduce import scene_reduction
-    from .scene import load_scene
 
     if args.count < 1:
         raise NsfemError(f"--count must be a positive integer, got {args.count}")
     speeds = parse_speeds(args.speeds) if args.speeds else None
     _check_png(args.png)
-    scene = load_scene(args.scene, args.overrides)
+    scene = _scene(args, "campbell")
     from .atomic import check_file
 
     targets = [Path(args.png)] if args.png else []
@@ -331,7 +345,7 @@ def cmd_campbell(args) -> int:
                                  rep["critical_speeds_hz"] if inertial else rep["gravity_resonances_hz"], bands,
                                  scene.title, whirl=res["open"].whirl)) for t in targets]
     payload = {"title": scene.title, **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
-               "outputs": outputs}
+               "outputs": outputs, "notes": list(scene.notes)}
     fmt = ", ".join
     lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
@@ -354,9 +368,8 @@ def cmd_campbell(args) -> int:
 
 def cmd_stationary(args) -> int:
     from .analysis.stationary import scene_stationary
-    from .scene import load_scene
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = _scene(args, "stationary")
     st = scene_stationary(scene)
     info = st.info
     payload = {"title": scene.title, **st.to_json(), "speed_hz": info["speed_hz"], "loads": info["loads"],
@@ -370,6 +383,7 @@ def cmd_stationary(args) -> int:
     for w in info["warnings"]:
         print(f"nsfem stationary: warning: {w}", file=sys.stderr)
     payload["warnings"] = info["warnings"]
+    payload["notes"] = list(scene.notes)
     loads = " + ".join(info["loads"]) or "none"
     lines = [scene.title, f"speed {info['speed_hz']:g} Hz, constant loads: {loads}; {info['ndof']} dofs "
              f"({info['reduction']['method']}; full model {info['ndof_full']})",
@@ -451,9 +465,8 @@ def cmd_run(args) -> int:
     from pathlib import Path
 
     from .outdir import claim
-    from .scene import load_scene
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = _scene(args, "run")
     out_dir = Path(args.out or scene.output.dir)
     what = "--out" if args.out else "output.dir"
     _check_run_targets(out_dir, scene.output, scene.sensors, what)
@@ -560,7 +573,7 @@ def _run(args, scene, out_dir, written: set) -> int:
     payload = {"title": scene.title, **summary, **extra, "wall_s": time.perf_counter() - t0,
                "integration_wall_s": result.wall_s, "outputs": outputs,
                "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings,
-               "interrupted": bool(interrupted), "core": event_core.name()}
+               "interrupted": bool(interrupted), "core": event_core.name(), "notes": list(scene.notes)}
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts"

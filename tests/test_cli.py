@@ -68,7 +68,7 @@ def test_human_output_names_the_reduction():
 
 def test_scene_file_argument_and_overrides(tmp_path):
     scene = tmp_path / "s.toml"
-    scene.write_text('[shaft]\nsupports = "clamped-free"\n[mesh]\nelements = 30\n[reduction]\nmethod = "none"\n')
+    scene.write_text('[shaft]\nsupports = "clamped-free"\nrho = 7500.0\n[mesh]\nelements = 30\n[reduction]\nmethod = "none"\n')
     code, out, err = run("modes", str(scene), "--json", "--count", "1", "--set", "shaft.height=0.01")
     assert code == 0 and err == ""
     f = json.loads(out)["frequencies_hz"][0]

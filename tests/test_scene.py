@@ -49,12 +49,12 @@ def test_defaults_cover_every_table():
     assert [seg.name for seg in s.stack.segments] == ["intact_0"] and not s.stack.contacts
 
 
-LOW_LEVEL_DEFAULT = {
+LOW_LEVEL_DEFAULT = {   # the shipped scene's shaft (its rho is the paper's 7500, not the default steel 7850)
     "segment": [
-        {"name": "intact_0", "start": 0.0, "end": 0.1},
-        {"name": "upper", "start": 0.1, "end": 0.9, "height": 0.011, "offset": [0.0, 0.0045]},
-        {"name": "lower", "start": 0.1, "end": 0.9, "height": 0.009, "offset": [0.0, -0.0055]},
-        {"name": "intact_1", "start": 0.9, "end": 1.0},
+        {"name": "intact_0", "start": 0.0, "end": 0.1, "rho": 7500.0},
+        {"name": "upper", "start": 0.1, "end": 0.9, "height": 0.011, "offset": [0.0, 0.0045], "rho": 7500.0},
+        {"name": "lower", "start": 0.1, "end": 0.9, "height": 0.009, "offset": [0.0, -0.0055], "rho": 7500.0},
+        {"name": "intact_1", "start": 0.9, "end": 1.0, "rho": 7500.0},
     ],
     "junction": [{"x": 0.1, "master": "intact_0", "slaves": ["upper", "lower"]},
                  {"x": 0.9, "master": "intact_1", "slaves": ["upper", "lower"]}],

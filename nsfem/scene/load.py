@@ -12,11 +12,12 @@ from ..errors import SceneError
 from ..stack import BeamStack
 from .checks import check_components, check_frame, check_mesh, check_scales, check_speed, check_times
 from .cracks import crack_stack
+from .notes import scene_notes
 from .overrides import _check_nesting, apply_override
 from .parts import Damping, Initial, MeshOptions, Output, ReductionOptions, Rotation, Simulation, parts
 from .schema import HIGH_LEVEL, LOW_LEVEL, MAX_NESTING
 from .translate import _check_section_keys, high_level_stack, low_level_stack, point_components
-from .validate import validate_tree
+from .validate import implied_defaults, validate_tree
 
 
 class Scene(dict):
@@ -30,7 +31,8 @@ class Scene(dict):
     the mapping: load the scene again with overrides instead.
 
     ``scene.path`` is the file it came from (None for the shipped default), ``scene.base``
-    the directory relative paths in it refer to.
+    the directory relative paths in it refer to. ``scene.notes``: one line for each default that shapes
+    the model without the scene saying so (:mod:`nsfem.scene.notes`; empty for a scene that states it).
     """
 
     title: str
@@ -42,12 +44,14 @@ class Scene(dict):
     simulation: Simulation
     output: Output
 
-    def __init__(self, tree: dict, stack: BeamStack, path: Path | None, base: Path, sensors: tuple = ()):
+    def __init__(self, tree: dict, stack: BeamStack, path: Path | None, base: Path, sensors: tuple = (),
+                 notes: tuple[str, ...] = ()):
         super().__init__(tree)
         self.stack = stack
         self.path = path
         self.base = base
         self.sensors = sensors
+        self.notes = notes
         for name, part in parts(tree, base).items():
             setattr(self, name, part)
 
@@ -118,7 +122,7 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     raw = copy.deepcopy(raw)
     for o in overrides:
         apply_override(raw, o, cwd)
-    tree = validate_tree(raw)
+    tree = implied_defaults(raw, validate_tree(raw))
     check_times(tree["simulation"])
     _check_section_keys(raw)
     if any(t in raw for t in LOW_LEVEL):
@@ -138,4 +142,4 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     check_mesh(tree["mesh"], stack, base)
     from ..sensors import sensors_from_scene
 
-    return Scene(tree, stack, path, base, sensors_from_scene(tree, stack))
+    return Scene(tree, stack, path, base, sensors_from_scene(tree, stack), scene_notes(raw, tree, stack))

@@ -42,5 +42,42 @@ def scene_reference() -> str:
     for k, (a, b) in SUPPORT_DOFS_BY_NAME.items():
         out.append(f"| `{k}` | {', '.join(a) or 'none'} | {', '.join(b) or 'none'} |")
     out += ["", "A prime marks a slope (V' = dV/dx). Where a delamination reaches a shaft end, the support",
-            "holds each sub-beam.", ""]
+            "holds each sub-beam.", "",
+            "## Axes", "",
+            "x is the shaft axis, y is horizontal and z vertical (up; gravity acts along -z). A bearing's",
+            "`kxx` is therefore an axial (thrust) stiffness on U, and its lateral stiffness and damping are",
+            "`kyy`, `kzz`, `kyz`, `kzy` and `cyy`, `czz`, `cyz`, `czy` (ROSS's horizontal x is our y, its",
+            "vertical y our z). Keys in other axes (`cxx`, `kxy`, ...) are errors that say so. Write a thrust",
+            "bearing as its own `[[bearing]]` with `kxx` alone.", "",
+            "## Defaults that follow from the scene, and notes", "",
+            "- `shaft.supports`: `\"pinned-pinned\"` for a shaft without bearings (the paper's); a rotor scene,",
+            "  one with `[[bearing]]`, has no supports unless it gives the key (`\"free-free\"`: its bearings",
+            "  hold it; supports are never added under bearings).",
+            "- `section` left out: a circle when the table gives `diameter` (or `inner_diameter`) and neither",
+            "  `width` nor `height`; else a rectangle.",
+            "- `rho`: 7850 kg/m^3 (steel) for the shaft, segments and disks alike. The paper's delaminated",
+            "  shaft (the shipped `default` scene) states its 7500.", "",
+            "A scene is loaded with one-line notes for the defaults that shape a rotor's model without the",
+            "scene saying so; every command that loads a scene prints each once on stderr",
+            "(`nsfem run: note: ...`) and its JSON lists them under `notes` (`export` and `render` re-read",
+            "the scene a run stored, whose notes that run printed). A scene that states these gets none",
+            "(the shipped scenes get none). A rotor here is a scene with bearings, disks, unbalances, stators",
+            "or cracks:", "",
+            "| note | when | silenced by |", "|---|---|---|",
+            "| `shaft: no section given` | a rotor's shaft (or segment) gives no section key (the paper's "
+            "delaminated beams are its default square) | `section`, its size |",
+            "| `beam.theory: euler-bernoulli by default` | a rotor without `[beam] theory`: the shaft has no "
+            "rotary inertia or gyroscopic moments of its own (ROSS's elements have both) | `theory` |",
+            "| `disk.<i>: given by its mass, its polar_inertia ... is 0` | a disk with `mass` and without an inertia: "
+            "a point mass, no gyroscopic moment or rotary inertia | `polar_inertia`, `diametral_inertia` (0 if "
+            "meant), or the geometry |",
+            "| `bearing.<i>: kxx = ... with kyy and no kzz` / `as large as its lateral ...` | a bearing with `kxx` "
+            "beside `kyy` and no `kzz` (ROSS's axes), or `kxx` at least its smaller lateral stiffness | the "
+            "thrust bearing as its own `[[bearing]]` |",
+            "| `nothing holds the rotor along its axis` | a scene with bearings where no support fixes U and "
+            "no bearing has `kxx` (a 0 Hz axial mode; `stationary` has no solution) | a `kxx`, or `supports` "
+            "holding U |",
+            "| `nothing holds the rotor's rigid motion in y ... z` | a scene with bearings and no lateral stops "
+            "where fewer than two places hold y (supports fixing V, bearings with `kyy`; a clamp and one place do) "
+            "or z likewise (dampers hold nothing at rest) | `kyy`, `kzz`, or `supports` |", ""]
     return "\n".join(out)

@@ -10,6 +10,9 @@ from typing import Any, Callable
 from ..stack import CRACK_SIDES, NORMALS, SECTIONS, SUPPORT_DOFS, THEORIES, WEIGHTINGS
 
 
+#: The axes, said wherever a key could be read in another program's axes (ROSS's x is horizontal).
+AXES = ("x is the shaft axis: kxx is an axial (thrust) stiffness; the lateral directions are y (horizontal) and z "
+        "(vertical, up)")
 SUPPORTS = ("pinned-pinned", "clamped-free", "clamped-clamped", "clamped-pinned", "free-free")
 #: Dofs fixed at (x = 0, x = L) for each support name. Pinned-pinned fixes U at x = 0 only.
 SUPPORT_DOFS_BY_NAME = {
@@ -145,7 +148,8 @@ def _all_nonneg(v):
 
 _SECTION = {
     "section": Key("str", "rectangle", "cross-section: rectangle (width, height) or circle (diameter, "
-                   "inner_diameter)", SECTIONS),
+                   "inner_diameter); left out, a table that gives diameter or inner_diameter and neither width "
+                   "nor height is a circle", SECTIONS),
     "width": Key("float", 0.02, "rectangle: section width b along y [m]", check=_positive),
     "height": Key("float", 0.02, "rectangle: section height h along z [m]", check=_positive),
     "diameter": Key("float", 0.02, "circle: outer diameter D [m]", check=_positive),
@@ -156,8 +160,11 @@ _SHAFT = {
     **_SECTION,
     "E": Key("float", 2.1e11, "Young's modulus [Pa] (the paper gives none; steel assumed; 1e-100 to 1e100)",
              check=_material),
-    "rho": Key("float", 7500.0, "density [kg/m^3] (1e-100 to 1e100)", check=_material),
-    "supports": Key("str", "pinned-pinned", "end conditions; pinned-pinned fixes U at x = 0 only", SUPPORTS),
+    "rho": Key("float", 7850.0, "density [kg/m^3] (steel; the paper's shaft states 7500; 1e-100 to 1e100)",
+               check=_material),
+    "supports": Key("str", "pinned-pinned", "end conditions; pinned-pinned fixes U at x = 0 only. A rotor scene "
+                    "(one with [[bearing]]) has none unless it says so: its default is free-free, the bearings "
+                    "hold it", SUPPORTS),
 }
 _DELAMINATION = {
     "start": Key("float", 0.1, "x where the delamination starts [m]"),
@@ -187,7 +194,7 @@ _SEGMENT = {
     **_SECTION,
     "offset": Key("floats", [0.0, 0.0], "centroid offset (y_c, z_c) from the rotation axis [m]", length=2),
     "E": Key("float", 2.1e11, "Young's modulus [Pa] (1e-100 to 1e100)", check=_material),
-    "rho": Key("float", 7500.0, "density [kg/m^3] (1e-100 to 1e100)", check=_material),
+    "rho": Key("float", 7850.0, "density [kg/m^3] (steel; 1e-100 to 1e100)", check=_material),
 }
 _JUNCTION = {
     "x": Key("float", 0.0, "position [m]; an end of the master and of every slave"),
@@ -217,8 +224,9 @@ _DISK = {
     "x": Key("float?", None, "position on the shaft [m] (default: the rotor's middle)"),
     "mass": Key("float?", None, "mass [kg]; or leave it out and give outer_diameter and width"),
     "polar_inertia": Key("float?", None, "polar moment of inertia I_p about the axis [kg m^2] (with mass; "
-                         "default 0)"),
-    "diametral_inertia": Key("float?", None, "diametral moment of inertia I_d [kg m^2] (with mass; default 0)"),
+                         "default 0: no gyroscopic moment, said in a note)"),
+    "diametral_inertia": Key("float?", None, "diametral moment of inertia I_d [kg m^2] (with mass; default 0: no "
+                             "rotary inertia, said in a note)"),
     "outer_diameter": Key("float?", None, "geometry instead of mass: outer diameter [m]"),
     "inner_diameter": Key("float", 0.0, "geometry: bore [m]", check=_nonneg),
     "width": Key("float?", None, "geometry: axial width [m]"),
@@ -230,7 +238,9 @@ _BEARING = {
        for a, b in ("yy", "zz", "yz", "zy")},
     **{f"c{a}{b}": Key("float", 0.0, f"damping, force along {a} per velocity along {b} [N s/m]")
        for a, b in ("yy", "zz", "yz", "zy")},
-    "kxx": Key("float", 0.0, "axial stiffness on U [N/m] (a thrust bearing; 0 = none)", check=_nonneg),
+    "kxx": Key("float", 0.0, "axial stiffness on U [N/m]: x is the shaft axis, so this is a thrust bearing (0 = "
+               "none); with lateral keys, a note when kzz is missing or kxx is as large as kyy or kzz: write a "
+               "thrust bearing as its own [[bearing]] with kxx alone", check=_nonneg),
 }
 _UNBALANCE = {
     "x": Key("float?", None, "position on the shaft [m] (default: the rotor's middle)"),
@@ -295,7 +305,8 @@ SCHEMA: dict[str, Any] = {
     "delamination": [_DELAMINATION],
     "obstacle": [_OBSTACLE],
     "beam": {
-        "theory": Key("str", "euler-bernoulli", "euler-bernoulli, or rayleigh (adds rotary inertia)", THEORIES),
+        "theory": Key("str", "euler-bernoulli", "euler-bernoulli, or rayleigh (adds the shaft's rotary inertia and "
+                      "gyroscopic moments); a rotor left at the default gets a note", THEORIES),
     },
     "rotation": {
         "speed_hz": Key("float", 0.0, "rotation speed [Hz] (0 = not rotating)", check=_nonneg),

@@ -8,6 +8,7 @@ import math
 from ..errors import SceneError
 from ..stack import BeamStack, Bearing, Contact, Disk, Junction, Segment, Support, Unbalance
 from .schema import _SECTION, MAX_CONTACT_POINTS, MIN_LAYER, SUPPORT_DOFS_BY_NAME
+from .validate import section_of
 
 
 def _node_key(stack: BeamStack, *xs: float) -> str:
@@ -50,12 +51,14 @@ def _check_section_keys(raw: dict) -> None:
     for key, t in tables:
         if not isinstance(t, dict):
             continue
-        circle = t.get("section", "rectangle") == "circle"
+        circle = section_of(t) == "circle"
         unused = [k for k in (("width", "height") if circle else ("diameter", "inner_diameter"))
                   if k in t and t[k] != _SECTION[k].default]
         if unused:
+            said = "" if "section" in t else (" (no section given: width or height says rectangle; a round shaft "
+                                              "is section = \"circle\" with diameter alone)")
             raise SceneError(f"{key}.{unused[0]}", f"a {'circular' if circle else 'rectangular'} section does not use "
-                             f"{unused[0]} (circle: diameter, inner_diameter; rectangle: width, height)")
+                             f"{unused[0]} (circle: diameter, inner_diameter; rectangle: width, height){said}")
 
 
 def section(table: dict, key: str) -> dict:

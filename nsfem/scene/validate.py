@@ -8,7 +8,7 @@ import math
 from typing import Any
 
 from ..errors import SceneError
-from .schema import SCHEMA, Key
+from .schema import AXES, SCHEMA, Key
 
 
 def defaults() -> dict:
@@ -84,9 +84,42 @@ def _check_table(prefix: str, spec: dict, raw: Any) -> dict:
         raise SceneError(prefix, f"must be a table, got {raw!r}")
     for k in raw:
         if k not in spec:
+            if prefix.startswith("bearing.") and _axis_key(k):
+                raise SceneError(f"{prefix}.{k}", f"unknown key: {AXES}; a bearing takes kyy, kzz, kyz, kzy, the same "
+                                 "for c, and kxx (axial; no axial damping)")
             raise SceneError(f"{prefix}.{k}", f"unknown key (known: {', '.join(spec)})")
     return {k: _check_value(f"{prefix}.{k}", s, raw[k]) if k in raw else copy.deepcopy(s.default)
             for k, s in spec.items()}
+
+
+def _axis_key(k: str) -> bool:
+    """A stiffness or damping key in another program's axes (ROSS's kxy, cxx): k or c and two of x, y, z."""
+    return len(k) == 3 and k[0] in "kc" and all(a in "xyz" for a in k[1:])
+
+
+def section_of(table: dict) -> str:
+    """The section a raw ``[shaft]`` or ``[[segment]]`` table means: its ``section``, else a circle when it gives
+    diameter or inner_diameter and neither width nor height (a diameter says circle), else a rectangle."""
+    if "section" in table:
+        return table["section"]
+    round_ = any(k in table for k in ("diameter", "inner_diameter"))
+    return "circle" if round_ and not any(k in table for k in ("width", "height")) else "rectangle"
+
+
+def implied_defaults(raw: dict, tree: dict) -> dict:
+    """``tree`` with the defaults that follow from other keys of ``raw``: a section left out is the one its
+    keys imply (:func:`section_of`), and a rotor scene (one with ``[[bearing]]``) without ``shaft.supports``
+    has no supports (free-free: its bearings hold it), never supports hidden under its bearings."""
+    tables = [("shaft", raw.get("shaft"), tree["shaft"])]
+    if isinstance(raw.get("segment"), list):
+        tables += [(f"segment.{i}", t, s) for i, (t, s) in enumerate(zip(raw["segment"], tree["segment"]))]
+    for _, t, out in tables:
+        if isinstance(t, dict) and "section" not in t:
+            out["section"] = section_of(t)
+    shaft = raw.get("shaft") if isinstance(raw.get("shaft"), dict) else {}
+    if tree["bearing"] and "supports" not in shaft:
+        tree["shaft"]["supports"] = "free-free"
+    return tree
 
 
 def validate_tree(raw: dict) -> dict:

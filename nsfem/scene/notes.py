@@ -1,0 +1,121 @@
+"""Notes on a scene: one line for each default that shapes its model without the scene saying so, and for
+keys that read differently in other programs' axes. Collected at load (``Scene.notes``); the command line
+prints each once as ``nsfem <command>: note: ...`` and adds them to its JSON as ``notes``.
+
+A scene that states what it means gets none (the shipped scenes):
+
+>>> from nsfem.scene import load_scene
+>>> load_scene("ross_example").notes
+()
+>>> for n in load_scene(None, ["rotation.speed_hz=0", "beam.theory=euler-bernoulli", "bearing.0.kxx=1e6",
+...                            "bearing.0.kyy=1e6"]).notes:
+...     print(n)
+bearing.0: kxx = 1e+06 N/m with kyy and no kzz: x is the shaft axis: kxx is an axial (thrust) stiffness; the lateral directions are y (horizontal) and z (vertical, up)
+"""
+
+from __future__ import annotations
+
+from ..stack import BeamStack
+from .schema import _SECTION, AXES, LOW_LEVEL
+
+#: The keys that give a section's shape or size.
+SECTION_KEYS = tuple(_SECTION)
+#: The tables that make a scene a rotor's (the paper's beam stacks, delaminations and stops, have none).
+ROTOR_TABLES = ("bearing", "disk", "unbalance", "stator", "crack")
+
+
+def section_notes(raw: dict) -> list[str]:
+    """A rotor's shaft (or segment) whose section the scene leaves out entirely is the default square (the
+    paper's section: no note for its delaminated beams)."""
+    if not any(raw.get(t) for t in ROTOR_TABLES):
+        return []
+    segments = raw.get("segment") or []
+    segments = [segments] if isinstance(segments, dict) else segments   # one [segment] table: validated as a list
+    tables = ([(f"segment.{i}", t) for i, t in enumerate(segments)] if any(t in raw for t in LOW_LEVEL) else
+              [("shaft", raw.get("shaft", {}))])
+    w, h = _SECTION["width"].default, _SECTION["height"].default
+    return [f"{key}: no section given: the default rectangle, {w:g} m (y) x {h:g} m (z); a round shaft is "
+            f"section = \"circle\" with its diameter" for key, t in tables
+            if isinstance(t, dict) and not any(k in t for k in SECTION_KEYS)]
+
+
+def beam_notes(raw: dict) -> list[str]:
+    """A rotor whose beam theory the scene leaves out gets Euler-Bernoulli's: a shaft without rotary inertia and
+    without gyroscopic moments of its own (ROSS's shaft elements carry both)."""
+    beam = raw.get("beam")
+    if not any(raw.get(t) for t in ROTOR_TABLES) or (isinstance(beam, dict) and "theory" in beam):
+        return []
+    return ["beam.theory: euler-bernoulli by default: the shaft has no rotary inertia and no gyroscopic moments of "
+            "its own (its disks keep theirs); theory = \"rayleigh\" adds them"]
+
+
+def disk_notes(tree: dict) -> list[str]:
+    """A disk given by its mass without its inertias is a point mass: no gyroscopic moment, no rotary inertia."""
+    out = []
+    for i, d in enumerate(tree["disk"]):
+        if d["mass"] is None:   # from its geometry: every inertia computed
+            continue
+        missing = [k for k in ("polar_inertia", "diametral_inertia") if d[k] is None]
+        if not missing:
+            continue
+        what = {"polar_inertia": "no gyroscopic moment", "diametral_inertia": "no rotary inertia"}
+        out.append(f"disk.{i}: given by its mass, its {' and '.join(missing)} {'are' if len(missing) > 1 else 'is'} "
+                   f"0 ({', '.join(what[k] for k in missing)}); give {' and '.join(missing)} in kg m^2, or the "
+                   "disk's outer_diameter and width instead of its mass")
+    return out
+
+
+def bearing_notes(tree: dict) -> list[str]:
+    """A bearing with an axial stiffness beside lateral ones that reads like another program's axes: kxx with
+    kyy and no kzz (ROSS's horizontal and vertical), or kxx as large as the smaller lateral stiffness."""
+    out = []
+    for i, b in enumerate(tree["bearing"]):
+        kxx, kyy, kzz = b["kxx"], b["kyy"], b["kzz"]
+        lateral = [k for k in (kyy, kzz) if k > 0.0]
+        if not (kxx > 0.0 and lateral):
+            continue   # no axial stiffness, or a thrust bearing alone: nothing to misread
+        if kyy and not kzz:
+            why = "with kyy and no kzz"
+        elif kxx >= min(lateral):
+            why = f"as large as its lateral {'kyy' if min(lateral) == kyy else 'kzz'} = {min(lateral):g} N/m"
+        else:
+            continue
+        out.append(f"bearing.{i}: kxx = {kxx:g} N/m {why}: {AXES}")
+    return out
+
+
+def axial_notes(stack: BeamStack) -> list[str]:
+    """A rotor on bearings that nothing holds along its axis (no support fixes U, no bearing has kxx)."""
+    if not stack.bearings or any("U" in s.fix for s in stack.supports) or any(b.kxx > 0.0 for b in stack.bearings):
+        return []
+    if any(c.normal in ("+x", "-x") for c in stack.contacts):   # an axial stop may hold it
+        return []
+    return ["nothing holds the rotor along its axis (no support fixes U and no bearing has kxx): it may slide "
+            "along x (a 0 Hz axial mode, and no stationary state); a thrust bearing is a [[bearing]] with kxx"]
+
+
+def lateral_notes(raw: dict, stack: BeamStack) -> list[str]:
+    """A rotor on bearings whose rigid lateral motion a + b x in y or z nothing holds: fewer than two places with
+    a support fixing V (W) or a bearing with kyy (kzz), and no clamp (a fixed slope with one such place). Only the
+    high-level form's one shaft (low-level segments may be joined otherwise), without lateral stops."""
+    if not stack.bearings or any(t in raw for t in LOW_LEVEL):
+        return []
+    if any(c.normal not in ("+x", "-x") for c in stack.contacts):   # stops and rings may hold it (retainer_drop)
+        return []
+    free = []
+    for axis, dof, k, what in (("y", "V", 0, "horizontal"), ("z", "W", 1, "vertical")):
+        places = {s.x for s in stack.supports if dof in s.fix} | {b.x for b in stack.bearings if b.K[k][k] > 0.0}
+        clamped = any(f"{dof}'" in s.fix for s in stack.supports)
+        if not (len(places) >= 2 or (clamped and places)):
+            free.append(f"{axis} ({what}: k{axis}{axis} or supports fixing {dof})")
+    if not free:
+        return []
+    return [f"nothing holds the rotor's rigid motion in {' and '.join(free)} at two places at least: it has 0 Hz "
+            "rigid-body modes there, and no stationary state"]
+
+
+def scene_notes(raw: dict, tree: dict, stack: BeamStack) -> tuple[str, ...]:
+    """The notes on a scene: ``raw`` as its file and overrides give it, ``tree`` validated with every default,
+    ``stack`` its translation."""
+    return tuple(section_notes(raw) + beam_notes(raw) + disk_notes(tree) + bearing_notes(tree) + axial_notes(stack)
+                 + lateral_notes(raw, stack))
