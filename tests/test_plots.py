@@ -223,3 +223,35 @@ def test_plots_of_a_scene_whose_only_contacts_are_a_crack(tmp_path):
     assert [p.name for p in paths] == [f"{n}.png" for n in rp.RESULT_PLOTS] and warned == []
     for p in paths:
         assert_png(p)
+
+
+# --- issue 34: plots that read (envelope of long signals, phase, psd, orbits, units on every axis) ---
+def test_envelope_bounds_every_sample_and_touches_the_extremes_of_each_bin():
+    """min/max per bin: every sample of a bin lies in [lo, hi] of its bin, and lo and hi are samples (exact:
+    reduceat only compares floats)."""
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0.0, 8.0, 50_001))
+    y = np.sin(2 * np.pi * 21.0 * t) * np.exp(-0.1 * t) + 0.1 * rng.standard_normal(t.size)
+    from nsfem.plot.common import envelope
+
+    tc, lo, hi = envelope(t, y, 300)
+    assert tc.size <= 300 and np.all(np.diff(tc) > 0)
+    edges = np.linspace(t[0], t[-1], 301)
+    b = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, 299)
+    for k in rng.choice(np.unique(b), 25, replace=False):
+        j = np.searchsorted(tc, 0.5 * (t[b == k][0] + t[b == k][-1]))
+        assert lo[j] == y[b == k].min() and hi[j] == y[b == k].max()
+    assert lo.min() == y.min() and hi.max() == y.max()
+
+
+def test_zoom_span_is_the_last_periods_from_the_rotation_or_the_spectrum():
+    from nsfem.plot.common import zoom_span
+
+    t = np.arange(0.0, 4.0, 1e-4)
+    y = np.sin(2 * np.pi * 37.0 * t)
+    assert zoom_span(t, period=0.05) == (pytest.approx(4.0 - 1e-4 - 0.25, abs=1e-12), t[-1])
+    # from the spectrum: the peak bin of a 2 s Hann record is within its 0.5 Hz spacing of 37 Hz
+    a, b = zoom_span(t, y=y)
+    assert b == t[-1] and (b - a) == pytest.approx(5 / 37.0, rel=0.5 / 37.0)
+    assert zoom_span(t[:2000], period=0.05) is None     # 0.2 s of 0.05 s periods: short enough as it is
+    assert zoom_span(t, y=np.ones_like(t)) is None      # no period to zoom on

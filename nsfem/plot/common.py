@@ -1,10 +1,33 @@
-"""Shared plotting helpers: an off-screen figure and an atomic save."""
+"""Shared plotting helpers: an off-screen figure, an atomic save, and long signals drawn so they read.
+
+A run of several seconds sampled every 0.1 ms has 10^4..10^5 samples and hundreds of periods: drawn as a
+line it is a solid block. :func:`long_signal` draws such a signal as its envelope (the smallest and largest
+value in each pixel column of the axes, filled) and, on a second axes, the last few periods as a line;
+:func:`zoom_panel` splits an axes into that pair and :func:`zoom_span` picks the periods.
+
+>>> import numpy as np
+>>> t = np.linspace(0.0, 8.0, 80001); y = np.sin(2 * np.pi * 50 * t)
+>>> tc, lo, hi = envelope(t, y, 400)
+>>> tc.size, bool(lo.max() < -0.99 and hi.min() > 0.99)
+(400, True)
+>>> zoom_span(t, period=1 / 50)
+(7.9, 8.0)
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ..atomic import write_atomic
+
+#: the resolution PNGs are saved at (:func:`save`), and so the pixel columns an envelope bins into
+DPI = 130
+#: a signal with more samples than this many per pixel column of its axes is drawn as its envelope
+SAMPLES_PER_COLUMN = 2
+#: how many periods the zoom panel of :func:`zoom_span` shows
+ZOOM_PERIODS = 5
 
 
 def figure(**kw):
@@ -17,7 +40,7 @@ def figure(**kw):
     return plt.subplots(**kw)
 
 
-def save(fig, path: str | Path, dpi: int = 130) -> Path:
+def save(fig, path: str | Path, dpi: int = DPI) -> Path:
     """Save ``fig`` as PNG through a temporary file and a rename; close it."""
     import matplotlib.pyplot as plt
 
@@ -25,3 +48,104 @@ def save(fig, path: str | Path, dpi: int = 130) -> Path:
         return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png"))
     finally:
         plt.close(fig)
+
+
+# --------------------------------------------------------------------------- long signals
+def envelope(t: np.ndarray, y: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t_c, lo, hi): the smallest and largest ``y`` in each of ``bins`` equal time bins of [t[0], t[-1]]
+    (``t`` ascending), at the middle time of the samples in the bin; empty bins are left out, NaNs ignored.
+    Drawn as a band, this is exactly what a line through every sample would cover at that resolution."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    if t.size == 0:
+        return t, y, y
+    bins = max(1, int(bins))
+    inner = np.linspace(t[0], t[-1], bins + 1)[1:-1]
+    starts = np.unique(np.r_[0, np.searchsorted(t, inner, side="left")])
+    starts = starts[starts < t.size]
+    ends = np.r_[starts[1:], t.size] - 1
+    with np.errstate(invalid="ignore"):
+        lo = np.fmin.reduceat(y, starts)
+        hi = np.fmax.reduceat(y, starts)
+    return 0.5 * (t[starts] + t[ends]), lo, hi
+
+
+def columns(ax) -> int:
+    """The pixel columns ``ax`` spans in the saved PNG (at :data:`DPI`)."""
+    fig = ax.figure
+    return max(16, int(round(ax.get_position().width * fig.get_figwidth() * DPI)))
+
+
+def zoom_span(t: np.ndarray, period: float | None = None, y: np.ndarray | None = None,
+              periods: int = ZOOM_PERIODS) -> tuple[float, float] | None:
+    """(t_a, t_b): the last ``periods`` periods of the record ``t``, or None when the whole record is not
+    longer than four times that (it reads as it is). The period is ``period`` [s] (e.g. of the rotation),
+    else that of the largest peak of ``y``'s spectrum over the last half (mean removed), else None."""
+    t = np.asarray(t, dtype=float)
+    if t.size < 2:
+        return None
+    if not (period and period > 0) and y is not None:
+        period = dominant_period(t, np.asarray(y, dtype=float))
+    if not (period and period > 0):
+        return None
+    length = periods * float(period)
+    if t[-1] - t[0] <= 4.0 * length:
+        return None
+    return float(t[-1] - length), float(t[-1])
+
+
+def dominant_period(t: np.ndarray, y: np.ndarray) -> float | None:
+    """1 / the frequency of the largest peak of the amplitude spectrum of ``y`` (mean removed, Hann window)
+    over the last half of the record, or None for a constant signal."""
+    half = t >= t[0] + 0.5 * (t[-1] - t[0])
+    if np.count_nonzero(half) < 8:
+        return None
+    th, yh = t[half], y[half]
+    dt = float(np.median(np.diff(th)))
+    if not dt > 0:
+        return None
+    yh = np.interp(np.arange(th[0], th[-1], dt), th, yh) if th.size > 1 else yh
+    a = np.abs(np.fft.rfft((yh - yh.mean()) * np.hanning(yh.size)))
+    if a.size < 2 or not a[1:].max() > 0:
+        return None
+    return 1.0 / np.fft.rfftfreq(yh.size, dt)[1 + int(np.argmax(a[1:]))]
+
+
+def zoom_panel(ax, width: float = 0.32):
+    """(main, zoom): ``ax`` replaced by two axes side by side in its place, the right one ``width`` of it
+    (for :func:`long_signal`'s ``zoom``); ``ax`` is removed."""
+    fig = ax.figure
+    spec = ax.get_subplotspec().subgridspec(1, 2, width_ratios=[1.0 - width, width], wspace=0.28)
+    ax.remove()
+    return fig.add_subplot(spec[0]), fig.add_subplot(spec[1])
+
+
+def long_signal(ax, t: np.ndarray, y: np.ndarray, *, zoom=None, span: tuple[float, float] | None = None,
+                color=None, label: str | None = None, lw: float = 0.8, **line_kw) -> list:
+    """Draw the signal ``y(t)`` on ``ax``: as a line when it has at most :data:`SAMPLES_PER_COLUMN`
+    samples per pixel column of ``ax``, else as its :func:`envelope` (a band between the least and largest
+    value in each pixel column, edged in ``color``). With a ``zoom`` axes and a ``span`` (see
+    :func:`zoom_span`), the samples in ``span`` are drawn on ``zoom`` as a line too, and the span is shaded
+    on ``ax``. Returns the artists drawn on ``ax`` (the first carries ``label``)."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    bins = columns(ax)
+    if t.size <= SAMPLES_PER_COLUMN * bins:
+        drawn = ax.plot(t, y, lw=lw, color=color, label=label, **line_kw)
+        color = drawn[0].get_color()
+    else:
+        from matplotlib.colors import to_rgba
+
+        if color is None:  # the next colour of the axes' cycle, as a line would take
+            color = ax.plot([], [])[0].get_color()
+        tc, lo, hi = envelope(t, y, bins)
+        drawn = [ax.fill_between(tc, lo, hi, facecolor=to_rgba(color, 0.35), edgecolor=color, lw=0.5 * lw,
+                                 label=label)]
+    if zoom is not None and span is not None:
+        a, b = span
+        sel = (t >= a) & (t <= b)
+        zoom.plot(t[sel], y[sel], lw=lw, color=color, **line_kw)
+        zoom.set_xlim(a, b)
+        if not getattr(ax, "_nsfem_zoom_marked", False):
+            ax.axvspan(a, b, color="0.5", alpha=0.15, lw=0, zorder=0)
+            ax._nsfem_zoom_marked = True
+            zoom.set_title(f"last {b - a:.3g} s", fontsize=8)
+    return drawn
