@@ -26,6 +26,9 @@ from ..atomic import write_atomic
 DPI = 130
 #: a signal with more samples than this many per pixel column of its axes is drawn as its envelope
 SAMPLES_PER_COLUMN = 2
+#: a periodic signal with fewer pixel columns than this per period is drawn as its envelope (a sine drawn
+#: in fewer reads as a blur of crossing lines)
+PIXELS_PER_PERIOD = 8
 #: how many periods the zoom panel of :func:`zoom_span` shows
 ZOOM_PERIODS = 5
 
@@ -119,16 +122,30 @@ def zoom_panel(ax, width: float = 0.32):
     return fig.add_subplot(spec[0]), fig.add_subplot(spec[1])
 
 
-def long_signal(ax, t: np.ndarray, y: np.ndarray, *, zoom=None, span: tuple[float, float] | None = None,
-                color=None, label: str | None = None, lw: float = 0.8, **line_kw) -> list:
-    """Draw the signal ``y(t)`` on ``ax``: as a line when it has at most :data:`SAMPLES_PER_COLUMN`
-    samples per pixel column of ``ax``, else as its :func:`envelope` (a band between the least and largest
-    value in each pixel column, edged in ``color``). With a ``zoom`` axes and a ``span`` (see
-    :func:`zoom_span`), the samples in ``span`` are drawn on ``zoom`` as a line too, and the span is shaded
-    on ``ax``. Returns the artists drawn on ``ax`` (the first carries ``label``)."""
+def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None, zoom=None,
+                span: tuple[float, float] | None = None, color=None, label: str | None = None, lw: float = 0.8,
+                **line_kw) -> list:
+    """Draw the signal ``y(t)`` on ``ax`` so that it reads at the size it is drawn.
+
+    With a ``period`` [s] (e.g. of the rotation): as a line while every period gets at least
+    :data:`PIXELS_PER_PERIOD` pixel columns of ``ax``, else as its :func:`envelope` over bins of one period
+    (the band the vibration fills, its amplitude's course readable; bins shorter than a period would beat
+    against it). Without: as a line while it has at most :data:`SAMPLES_PER_COLUMN` samples per pixel
+    column, else as its envelope per pixel column. The envelope is a band edged in ``color``.
+
+    With a ``zoom`` axes and a ``span`` (see :func:`zoom_span`), the samples in ``span`` are drawn on
+    ``zoom`` as a line too, and the span is shaded on ``ax``. Returns the artists drawn on ``ax`` (the first
+    carries ``label``, for a legend)."""
     t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
-    bins = columns(ax)
-    if t.size <= SAMPLES_PER_COLUMN * bins:
+    cols = columns(ax)
+    duration = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    if period and period > 0:
+        bins = int(duration / period)
+        dense = bins * PIXELS_PER_PERIOD > cols and t.size > bins
+    else:
+        bins = cols
+        dense = t.size > SAMPLES_PER_COLUMN * cols
+    if not dense:
         drawn = ax.plot(t, y, lw=lw, color=color, label=label, **line_kw)
         color = drawn[0].get_color()
     else:

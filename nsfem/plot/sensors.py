@@ -1,12 +1,18 @@
-"""Sensor plots: time signals, their spectra, and orbits where two probes look at one x."""
+"""sensors.png: the probes' signals over the run and the last periods, their spectra, and the orbits where
+two probes look at one x (with the clearance circle of a stator ring there)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
-from .common import figure, save
+from .common import dominant_period, figure, long_signal, save, zoom_panel, zoom_span
+
+#: an amplitude spectrum is drawn down to this fraction of its peak (6 decades: 12 of power, the PSD's range)
+SPECTRUM_DECADES = 6
 
 
 def orbit_pairs(sensors) -> list[tuple[int, int]]:
@@ -19,53 +25,116 @@ def orbit_pairs(sensors) -> list[tuple[int, int]]:
     return pairs
 
 
+def stator_rings(system) -> list[tuple[float, float]]:
+    """(x [m], clearance [m]) of each stator ring of ``system``'s model (its facets, contacts with an angle,
+    share one x and one clearance); empty without a model or rings. A ring is centred on the bearing axis,
+    so its clearance circle is the same in the inertial and the rotating frame."""
+    model = (getattr(system, "info", None) or {}).get("model")
+    if model is None:
+        return []
+    rings: dict[str, tuple[float, float]] = {}
+    for c in model.stack.contacts:
+        if c.kind == "obstacle" and c.angle is not None:
+            rings.setdefault(c.table_key, (float(c.x), float(c.clearance)))
+    return list(rings.values())
+
+
 def sensors_plot(path: str | Path, t: np.ndarray, values: np.ndarray, sensors, speed_hz: float = 0.0,
-                 title: str = "") -> Path:
-    """Signals against time, their amplitude spectra over the last half (1x marked), and each orbit
-    (y-probe against z-probe at one x; the last half drawn darker)."""
+                 title: str = "", rings: Sequence[tuple[float, float]] = ()) -> Path:
+    """Signals against time (the run as its envelope, and the last periods as lines: see
+    :func:`nsfem.plot.common.long_signal`), their amplitude spectra over the last half (1x marked), and
+    one panel per orbit (y-probe against z-probe at one x, the last half drawn darker), with the clearance
+    circle of each ring in ``rings`` [(x, clearance)] at that x (:func:`stator_rings`)."""
+    t, values = np.asarray(t, dtype=float), np.asarray(values, dtype=float)
     pairs = orbit_pairs(sensors)
-    ncols = 3 if pairs else 2
-    fig, axes = figure(figsize=(4.2 * ncols, 4.2), ncols=ncols)
-    ax_t, ax_f = axes[0], axes[1]
+    ncols = 1 + len(pairs)
+    fig, axes = figure(nrows=2, ncols=ncols, figsize=(max(8.4, 4.2 * ncols), 7.6), squeeze=False,
+                       gridspec_kw={"height_ratios": [1.0, 1.25]})
+    grid = axes[0, 0].get_gridspec()
+    for ax in axes[0]:
+        ax.remove()
+    period = 1.0 / speed_hz if speed_hz > 0 else None
+    if period is None and len(sensors):
+        period = dominant_period(t, values[:, 0])
+    span = zoom_span(t, period)
+    ax_t, ax_z = fig.add_subplot(grid[0, :]), None
+    if span:
+        ax_t, ax_z = zoom_panel(ax_t, width=0.3)
+    colors = [f"C{k % 10}" for k in range(len(sensors))]
     for k, s in enumerate(sensors):
-        ax_t.plot(t, 1e6 * values[:, k], lw=0.8, label=f"{s.name} ({s.direction}, {s.frame}, x = {s.x:g} m)")
+        long_signal(ax_t, t, 1e6 * values[:, k], period=period, zoom=ax_z, span=span, color=colors[k],
+                    label=f"{s.name} ({s.direction}, {s.frame}, x = {s.x:g} m)")
+    ax_t.set_xlim(t[0], t[-1])
     ax_t.set_xlabel("time [s]")
-    ax_t.set_ylabel("displacement [um]")
+    ax_t.set_ylabel("displacement [µm]")
+    ax_t.set_title("the run" + (" (band: its envelope)" if ax_t.collections else "")
+                   + ("; shaded: zoomed on the right" if span else ""), fontsize=8)
+    if ax_z is not None:
+        ax_z.set_xlabel("time [s]")
+        ax_z.set_ylabel("displacement [µm]")
+        ax_z.grid(True, alpha=0.3)
     ax_t.grid(True, alpha=0.3)
-    ax_t.legend(fontsize=7, loc="upper right")
-    half = t >= t[0] + 0.5 * (t[-1] - t[0])
-    if np.count_nonzero(half) >= 8:
-        dt = float(np.median(np.diff(t[half])))
-        n = int(np.count_nonzero(half))
-        f = np.fft.rfftfreq(n, dt)
-        window = np.hanning(n)
-        for k, s in enumerate(sensors):
-            x = values[half, k] - values[half, k].mean()
-            amp = 2 * np.abs(np.fft.rfft(x * window)) / window.sum()
-            ax_f.semilogy(f[1:], 1e6 * np.maximum(amp[1:], 1e-30), lw=0.8, label=s.name)
-        if speed_hz > 0:
-            ax_f.axvline(speed_hz, color="tab:red", ls=":", lw=0.9, label=f"1x = {speed_hz:g} Hz")
-        top = min(f[-1], 10 * speed_hz if speed_hz > 0 else f[-1])
-        ax_f.set_xlim(0, top)
-        ax_f.set_xlabel("frequency [Hz]")
-        ax_f.set_ylabel("amplitude [um] (Hann, last half)")
-        ax_f.grid(True, which="both", alpha=0.3)
-        ax_f.legend(fontsize=7, loc="upper right")
-    if pairs:
-        ax_o = axes[2]
-        for i, j in pairs:
-            sy = -1.0 if sensors[i].direction[0] == "-" else 1.0
-            sz = -1.0 if sensors[j].direction[0] == "-" else 1.0
-            y, z = 1e6 * sy * values[:, i], 1e6 * sz * values[:, j]
-            ax_o.plot(y, z, lw=0.5, alpha=0.4)
-            ax_o.plot(y[half], z[half], lw=1.0, label=f"x = {sensors[i].x:g} m ({sensors[i].frame})")
-        ax_o.set_aspect("equal", adjustable="datalim")
-        ax_o.set_xlabel("y [um]")
-        ax_o.set_ylabel("z [um]")
-        ax_o.grid(True, alpha=0.3)
-        ax_o.legend(fontsize=7, loc="upper right")
-        ax_o.set_title("orbit", fontsize=9)
+    fig.legend(*ax_t.get_legend_handles_labels(), loc="upper center", bbox_to_anchor=(0.5, 0.965),
+               ncol=min(len(sensors), 4), fontsize=7, frameon=False)
+    _spectra(axes[1, 0], t, values, sensors, colors, speed_hz)
+    for ax, (i, j) in zip(axes[1, 1:], pairs):
+        _orbit(ax, t, values, sensors[i], sensors[j], i, j, rings)
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    rows = -(-len(sensors) // 4)  # the legend's rows above the panels
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.95 - 0.025 * (rows - 1)))
     return save(fig, path)
+
+
+def _spectra(ax, t, values, sensors, colors, speed_hz: float) -> None:
+    """Amplitude spectra (Hann window) of the last half, down to 10^-SPECTRUM_DECADES of the peak."""
+    half = t >= t[0] + 0.5 * (t[-1] - t[0])
+    n = int(np.count_nonzero(half))
+    if n < 8:
+        ax.text(0.5, 0.5, "fewer than 8 samples in the last half: no spectrum", ha="center", va="center",
+                transform=ax.transAxes, fontsize=8)
+        ax.set_xlabel("frequency [Hz]")
+        ax.set_ylabel("amplitude [µm]")
+        return
+    dt = float(np.median(np.diff(t[half])))
+    f = np.fft.rfftfreq(n, dt)
+    window = np.hanning(n)
+    peak = 0.0
+    for k, s in enumerate(sensors):
+        x = values[half, k] - values[half, k].mean()
+        amp = 1e6 * 2 * np.abs(np.fft.rfft(x * window)) / window.sum()
+        peak = max(peak, float(amp[1:].max(initial=0.0)))
+        ax.semilogy(f[1:], np.maximum(amp[1:], 1e-300), lw=0.8, color=colors[k])
+    right = min(f[-1], 10 * speed_hz if speed_hz > 0 else f[-1])
+    if speed_hz > 0:
+        ax.axvline(speed_hz, color="tab:red", ls=":", lw=0.9)
+        ax.annotate(f"1x = {speed_hz:g} Hz", (speed_hz, 1.0), xycoords=("data", "axes fraction"),
+                    xytext=(3, -10), textcoords="offset points", color="tab:red", fontsize=7)
+    ax.set_xlim(0, right)
+    if peak > 0:
+        ax.set_ylim(peak * 10.0 ** -SPECTRUM_DECADES, peak * 3.0)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("amplitude [µm]")
+    ax.set_title(f"spectrum of the last half (Hann window, {f[1] - f[0]:.3g} Hz resolution)", fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def _orbit(ax, t, values, sy, sz, i: int, j: int, rings) -> None:
+    """The orbit of one (y, z) probe pair, the clearance circle of a ring at its x, equal scales."""
+    half = t >= t[0] + 0.5 * (t[-1] - t[0])
+    y = 1e6 * (-1.0 if sy.direction[0] == "-" else 1.0) * values[:, i]
+    z = 1e6 * (-1.0 if sz.direction[0] == "-" else 1.0) * values[:, j]
+    ax.plot(y, z, lw=0.5, color="tab:blue", alpha=0.35)
+    ax.plot(y[half], z[half], lw=1.0, color="tab:blue")
+    ring = [c for x, c in rings if math.isclose(x, sy.x, rel_tol=1e-9, abs_tol=1e-12)]
+    head = f"orbit at x = {sy.x:g} m ({sy.frame}); dark: last half"
+    if ring:
+        a = np.linspace(0.0, 2.0 * np.pi, 361)
+        ax.plot(1e6 * ring[0] * np.cos(a), 1e6 * ring[0] * np.sin(a), color="k", lw=1.0, ls="--")
+        head += f"\ndashed: stator clearance {1e6 * ring[0]:.4g} µm"
+    ax.set_aspect("equal", adjustable="datalim")
+    inertial = sy.frame == "inertial"
+    ax.set_xlabel(("y, horizontal" if inertial else "y (rotating)") + " [µm]")
+    ax.set_ylabel(("z, vertical (up)" if inertial else "z (rotating)") + " [µm]")
+    ax.set_title(head, fontsize=8)
+    ax.grid(True, alpha=0.3)
