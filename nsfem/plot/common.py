@@ -166,3 +166,73 @@ def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None
             ax._nsfem_zoom_marked = True
             zoom.set_title(f"last {b - a:.3g} s", fontsize=8)
     return drawn
+
+
+# --------------------------------------------------------------------------- axis labels of scene keys
+#: "quantity [unit]" of the scene keys a sweep or a fit varies most ("*": a list item's index); a
+#: dimensionless quantity is marked [-]
+KEY_LABELS = {
+    "rotation.speed_hz": "rotor speed [Hz]",
+    "rotation.gravity": "gravity [m/s²]",
+    "rotation.phase_deg": "angle of the rotating frame at t = 0 [deg]",
+    "damping.external": "external damping [N s/m²]",
+    "shaft.E": "Young's modulus [Pa]",
+    "shaft.rho": "shaft density [kg/m³]",
+    "shaft.length": "shaft length [m]",
+    "shaft.diameter": "shaft diameter [m]",
+    "simulation.t_end": "simulated time [s]",
+}
+#: the same for the keys of a list item (``stator.0.clearance``), named after the item
+ITEM_LABELS = {
+    "clearance": "clearance [m]",
+    "friction": "friction coefficient [-]",
+    "restitution": "restitution coefficient [-]",
+    "stiffness": "stiffness [N/m]",
+    "damping": "damping [N s/m]",
+    "magnitude": "unbalance [kg m]",
+    "mass": "mass [kg]",
+    "x": "position x [m]",
+    "phase_deg": "angle [deg]",
+    "polar_inertia": "polar inertia [kg m²]",
+    "diametral_inertia": "diametral inertia [kg m²]",
+}
+
+
+def key_label(key: str) -> str:
+    """An axis label "quantity [unit]" for the scene key ``key`` (``rotation.speed_hz`` -> "rotor speed
+    [Hz]", ``stator.0.friction`` -> "stator.0 friction coefficient [-]", a bearing's ``kyz`` -> "... k_yz
+    [N/m]"); else the key with the unit its schema entry gives ("shaft.width [m]"); else the key itself."""
+    import re
+
+    parts = key.split(".")
+    generic = ".".join("*" if p.isdigit() else p for p in parts)
+    if generic in KEY_LABELS:
+        return KEY_LABELS[generic]
+    if len(parts) == 3 and parts[1].isdigit():
+        item, last = f"{parts[0]}.{parts[1]}", parts[2]
+        m = re.fullmatch(r"([kc])([xyz])([xyz])", last)
+        if m:
+            what, unit = ("stiffness", "N/m") if m[1] == "k" else ("damping", "N s/m")
+            return f"{item} {what} {m[1]}_{m[2]}{m[3]} [{unit}]"
+        if last in ITEM_LABELS:
+            return f"{item} {ITEM_LABELS[last]}"
+    unit = _schema_unit(parts)
+    return f"{key} [{unit}]" if unit else key
+
+
+def _schema_unit(parts: list[str]) -> str | None:
+    """The unit in brackets of the schema's description of the key ``parts``, if it names one."""
+    import re
+
+    from ..scene.schema import SCHEMA
+
+    node = SCHEMA
+    for p in parts:
+        if isinstance(node, list) and p.isdigit():
+            node = node[0]
+        elif isinstance(node, dict) and p in node:
+            node = node[p]
+        else:
+            return None
+    m = re.search(r"\[([^\]]+)\]", getattr(node, "doc", "") or "")
+    return m[1] if m else None

@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .common import figure, save
+from .common import figure, key_label, save
 
 
 def fit_plot(path: str | Path, t: np.ndarray, measured: np.ndarray, fitted: np.ndarray, names: Sequence[str],
@@ -18,9 +18,10 @@ def fit_plot(path: str | Path, t: np.ndarray, measured: np.ndarray, fitted: np.n
     for k, (ax, name) in enumerate(zip(axes[:, 0], names)):
         ax.plot(t, 1e6 * measured[:, k], ".", ms=2.5, color="0.4", label="measured")
         ax.plot(t, 1e6 * fitted[:, k], lw=1.0, color="tab:red", label="fitted")
-        ax.set_ylabel(f"{name} [um]")
+        ax.set_ylabel(f"{name} [µm]")
         ax.grid(True, alpha=0.3)
-    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[0, 0].legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, frameon=False,
+                      borderaxespad=0.2)
     axes[-1, 0].set_xlabel("time [s]")
     fig.suptitle(f"measured and fitted signals (relative RMS misfit {100 * misfit:.3g} %)", fontsize=10)
     fig.tight_layout()
@@ -36,20 +37,21 @@ def landscape_plot(path: str | Path, keys: Sequence[str], samples: np.ndarray, m
     if len(keys) == 2:
         fig, ax = figure(figsize=(6.0, 5.0))
         sc = ax.scatter(x[:, 0], x[:, 1], c=np.log10(np.maximum(f, 1e-16)), cmap="viridis", s=30)
-        fig.colorbar(sc, ax=ax, label="log10 relative misfit")
+        fig.colorbar(sc, ax=ax, label="log10 of the relative misfit [-]")
         ax.plot(estimate[0], estimate[1], "r*", ms=12, label="estimate")
-        ax.set_xlabel(keys[0])
-        ax.set_ylabel(keys[1])
-        ax.legend(fontsize=7)
+        ax.set_xlabel(key_label(keys[0]))
+        ax.set_ylabel(key_label(keys[1]))
+        ax.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), frameon=False, borderaxespad=0.2)
     else:
         fig, axes = figure(ncols=len(keys), figsize=(4.2 * len(keys), 3.8), squeeze=False)
         for k, (ax, key) in enumerate(zip(axes[0], keys)):
             ax.semilogy(x[:, k], np.maximum(f, 1e-16), "o", ms=4)
             ax.axvline(estimate[k], color="tab:red", ls=":", label="estimate")
-            ax.set_xlabel(key)
-            ax.set_ylabel("relative misfit")
+            ax.set_xlabel(key_label(key))
+            ax.set_ylabel("relative misfit [-]")
             ax.grid(True, which="both", alpha=0.3)
-        axes[0, 0].legend(fontsize=7)
+        axes[0, 0].legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), frameon=False,
+                          borderaxespad=0.2)
     fig.suptitle(f"global stage: {int(ok.sum())} runs" + (f" ({int((~ok).sum())} failed)" if (~ok).any() else ""),
                  fontsize=10)
     fig.tight_layout()
