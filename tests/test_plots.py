@@ -343,7 +343,7 @@ def legend_problems(fig) -> list[str]:
 
 @pytest.fixture
 def saved_figures(monkeypatch):
-    """[(file name, axis problems, legend problems)] of every figure saved while the test runs."""
+    """[(file name, axis problems, legend problems, figure)] of every figure saved while the test runs."""
     from matplotlib.figure import Figure
 
     seen = []
@@ -353,7 +353,7 @@ def saved_figures(monkeypatch):
         done = real(self, fname, *args, **kwargs)
         # the tmp name of write_atomic: ".<target>.<random>.tmp"
         name = Path(str(fname)).name.lstrip(".").split(".png")[0] + ".png"
-        seen.append((name, axis_problems(self), legend_problems(self)))
+        seen.append((name, axis_problems(self), legend_problems(self), self))
         return done
 
     monkeypatch.setattr(Figure, "savefig", spy)
@@ -479,9 +479,9 @@ BEING_REDRAWN = {"gap.png": "issue 34.6, contact plots: gap legends over the tra
 @pytest.mark.parametrize("case", list(PLOT_CASES))
 def test_every_axis_has_a_unit_and_no_legend_covers_data(case, saved_figures, tmp_path):
     warned = PLOT_CASES[case](tmp_path)
-    names = {name for name, _, _ in saved_figures}
+    names = {name for name, *_ in saved_figures}
     assert names == EXPECTED[case], (names, warned)
-    problems = {name: axes + legends for name, axes, legends in saved_figures if axes + legends}
+    problems = {name: axes + legends for name, axes, legends, _ in saved_figures if axes + legends}
     assert {n: p for n, p in problems.items() if n not in BEING_REDRAWN} == {}
     if problems:
         pytest.xfail("; ".join(f"{n} ({BEING_REDRAWN[n]}): {p}" for n, p in problems.items()))
@@ -498,7 +498,78 @@ def test_the_checks_catch_a_missing_unit_and_a_legend_over_data(saved_figures, t
     ax.set_ylabel("displacement")
     ax.legend(loc="center")
     save(fig, tmp_path / "bad.png")
-    (name, axes, legends), = saved_figures
+    (name, axes, legends, _), = saved_figures
     assert name == "bad.png"
     assert axes == ["'': y axis labelled 'displacement', no [unit]"]
     assert len(legends) == 1 and "covers data" in legends[0]
+
+
+def test_phase_portraits_are_each_modes_displacement_where_it_is_largest(run, saved_figures, tmp_path):
+    """mode_peaks: phi_j at the largest translation of mode j, so scale * eta_j is what mode j alone moves
+    there; on the shipped scene the modes drawn are the first three (the paper's fig. 3a)."""
+    from nsfem.plot.phase import mode_peaks
+
+    result, system = run
+    model, T = system.info["model"], system.info["reduction"].T
+    _, Phi = rp.modal_basis(system)
+    peaks = mode_peaks(system, 4)
+    shapes = np.asarray(T @ Phi[:, :4])
+    rotations = np.concatenate([sp_.dofs[f][sp_.bending.nodal_dofs[1]] for sp_ in model.spaces.values()
+                                for f in "VW"])
+    translations = np.setdiff1d(np.arange(model.n_full), rotations)
+    for j, p in enumerate(peaks):
+        dof = model.dof(p["segment"], p["field"], p["x"])
+        assert shapes[dof, j] == p["scale"]                                   # the same number, read back
+        assert abs(p["scale"]) == np.abs(shapes[translations, j]).max()       # the largest translation
+    # the shipped delamination's first modes bend in W then V, largest at midspan (a symmetric beam)
+    assert [p["field"] for p in peaks[:2]] == ["W", "V"] and peaks[0]["x"] == pytest.approx(0.5, abs=0.05)
+    rp.phase_plot(result, system, tmp_path / "phase.png")
+    (_, axes, legends, fig), = saved_figures
+    titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
+    assert [t.split(":")[0] for t in titles[:3]] == ["mode 1", "mode 2", "mode 3"]
+    # the portrait of mode 1 spans the mode's displacement at its peak, in um: 1e6 scale eta (a plotted copy)
+    f, eta, _ = rp.modal_coordinates(result, system)
+    sel = result.t >= 0.5 * result.t[-1]
+    x = fig.axes[0].lines[0].get_xdata()
+    span = 1e6 * abs(peaks[0]["scale"]) * np.ptp(eta[0, sel])
+    # the curve between samples reaches the extremes the samples miss by at most 1 - cos(w h / 2) of the
+    # amplitude each (43.4 Hz sampled every 1 ms: 0.93 %), so the spans differ by at most 1.9 %
+    assert span * (1 - 1e-12) <= np.ptp(x) <= 1.019 * span   # (1e-12: the two products' round-off)
+
+
+def test_psd_plot_spans_twelve_decades_below_its_peak(run, saved_figures, tmp_path):
+    result, system = run
+    rp.psd_plot(result, system, tmp_path / "psd.png")
+    (_, _, _, fig), = saved_figures
+    ax = fig.axes[0]
+    lo, hi = ax.get_ylim()
+    peak = max(line.get_ydata().max() for line in ax.lines if line.get_label().startswith("sensor")
+               or "at x =" in line.get_label())
+    # the axis limits are set from the peak: float products, a few ulps
+    assert lo == pytest.approx(peak * 1e-12, rel=1e-12) and hi == pytest.approx(peak * 10, rel=1e-12)
+    assert ax.get_ylabel().endswith("[m$^2$/Hz]")
+
+
+def test_long_signal_draws_a_band_when_periods_are_denser_than_the_pixels():
+    """208 periods of 26 Hz in 8 s get an envelope band with one bin per period whose edges are the amplitude
+    (sampled every 0.1 ms: the largest sample of a period is within 1 - cos(w dt / 2) = 3.3e-5 of it); 0.4 s
+    (10 periods) is drawn as a line."""
+    from nsfem.plot.common import figure, long_signal, zoom_span
+
+    t = np.arange(0.0, 8.0, 1e-4)
+    y = 3.0 * np.cos(2 * np.pi * 26.0 * t)
+    fig, ax = figure()
+    fig2, zoom = figure()
+    span = zoom_span(t, 1 / 26.0)
+    (band,) = long_signal(ax, t, y, period=1 / 26.0, zoom=zoom, span=span)
+    v = band.get_paths()[0].vertices
+    n = int(8.0 * 26.0)
+    assert ax.lines == [] or all(len(line.get_xdata()) == 0 for line in ax.lines)   # no solid block of lines
+    assert abs(v[:, 1]).max() == 3.0 and np.all(abs(v[2:-2, 1]) > 3.0 * (1 - 3.4e-5))
+    assert len(v) <= 2 * n + 8                  # one point per period on each edge (+ closing vertices)
+    (line,) = zoom.lines
+    assert line.get_xdata()[0] >= span[0] and line.get_xdata()[-1] == t[-1]
+    fig3, ax3 = figure()
+    short = t < 0.4
+    (drawn,) = long_signal(ax3, t[short], y[short], period=1 / 26.0)
+    assert len(drawn.get_xdata()) == short.sum()
