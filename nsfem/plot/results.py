@@ -5,7 +5,8 @@ Each function takes a :class:`~nsfem.result.Result`, the
 a path, writes one PNG atomically (temporary file in the same directory, then a rename,
 see :func:`nsfem.plot.common.save`) and returns the path:
 
-- :func:`phase_plot`: phase portraits of the first modal coordinates at steady state,
+- :func:`phase_plot`: phase portraits of the modes that vibrate most at steady state, in um and mm/s at each
+  mode's largest point,
 - :func:`gap_plot`: the gap at the middle of each delamination, and each crack's opening, over time,
 - :func:`psd_plot`: Welch PSD of the transverse displacement in an undamaged region,
 - :func:`forces_plot`: contact forces over time and the impact impulses (a crack's faces as one),
