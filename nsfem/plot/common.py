@@ -98,7 +98,7 @@ def zoom_span(t: np.ndarray, period: float | None = None, y: np.ndarray | None =
 
 def dominant_period(t: np.ndarray, y: np.ndarray) -> float | None:
     """1 / the frequency of the largest peak of the amplitude spectrum of ``y`` (mean removed, Hann window)
-    over the last half of the record, or None for a constant signal."""
+    over the last half of the record, or None for a constant or not finite one."""
     half = t >= t[0] + 0.5 * (t[-1] - t[0])
     if np.count_nonzero(half) < 8:
         return None
@@ -107,8 +107,11 @@ def dominant_period(t: np.ndarray, y: np.ndarray) -> float | None:
     if not dt > 0:
         return None
     yh = np.interp(np.arange(th[0], th[-1], dt), th, yh) if th.size > 1 else yh
-    a = np.abs(np.fft.rfft((yh - yh.mean()) * np.hanning(yh.size)))
-    if a.size < 2 or not a[1:].max() > 0:
+    if yh.size < 8 or not np.all(np.isfinite(yh)):
+        return None
+    with np.errstate(over="ignore", invalid="ignore"):
+        a = np.abs(np.fft.rfft((yh - yh.mean()) * np.hanning(yh.size)))
+    if a.size < 2 or not a[1:].max() > 0 or not np.isfinite(a).all():
         return None
     return 1.0 / np.fft.rfftfreq(yh.size, dt)[1 + int(np.argmax(a[1:]))]
 

@@ -101,9 +101,11 @@ def _spectra(ax, t, values, sensors, colors, speed_hz: float) -> None:
     window = np.hanning(n)
     peak = 0.0
     for k, s in enumerate(sensors):
-        x = values[half, k] - values[half, k].mean()
-        amp = 1e6 * 2 * np.abs(np.fft.rfft(x * window)) / window.sum()
-        peak = max(peak, float(amp[1:].max(initial=0.0)))
+        with np.errstate(over="ignore", invalid="ignore"):   # a diverged record: inf and NaN, drawn as gaps
+            x = values[half, k] - values[half, k].mean()
+            amp = 1e6 * 2 * np.abs(np.fft.rfft(x * window)) / window.sum()
+        if np.isfinite(amp[1:]).any():
+            peak = max(peak, float(np.nanmax(np.where(np.isfinite(amp[1:]), amp[1:], np.nan))))
         ax.semilogy(f[1:], np.maximum(amp[1:], 1e-300), lw=0.8, color=colors[k])
     right = min(f[-1], 10 * speed_hz if speed_hz > 0 else f[-1])
     if speed_hz > 0:
