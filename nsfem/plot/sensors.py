@@ -13,6 +13,8 @@ from .common import dominant_period, figure, long_signal, save, zoom_panel, zoom
 
 #: an amplitude spectrum is drawn down to this fraction of its peak (6 decades: 12 of power, the PSD's range)
 SPECTRUM_DECADES = 6
+#: up to this many probes get a row of their own over time; more share one
+MAX_ROWS = 6
 
 
 def orbit_pairs(sensors) -> list[tuple[int, int]]:
@@ -41,48 +43,73 @@ def stator_rings(system) -> list[tuple[float, float]]:
 
 def sensors_plot(path: str | Path, t: np.ndarray, values: np.ndarray, sensors, speed_hz: float = 0.0,
                  title: str = "", rings: Sequence[tuple[float, float]] = ()) -> Path:
-    """Signals against time (the run as its envelope, and the last periods as lines: see
-    :func:`nsfem.plot.common.long_signal`), their amplitude spectra over the last half (1x marked), and
-    one panel per orbit (y-probe against z-probe at one x, the last half drawn darker), with the clearance
-    circle of each ring in ``rings`` [(x, clearance)] at that x (:func:`stator_rings`)."""
+    """Each signal against time in a row of its own (its own scale: a probe's static sag would flatten the
+    others' vibration; more than :data:`MAX_ROWS` probes share one row), drawn as the run (its envelope where
+    it is denser than the pixels) and the last periods (see :func:`nsfem.plot.common.long_signal`); their
+    amplitude spectra over the last half (1x marked); one panel per orbit (y-probe against z-probe at one
+    x, the last half drawn darker), with the clearance circle of each ring in ``rings`` [(x, clearance)]
+    at that x (:func:`stator_rings`)."""
     t, values = np.asarray(t, dtype=float), np.asarray(values, dtype=float)
     pairs = orbit_pairs(sensors)
     ncols = 1 + len(pairs)
-    fig, axes = figure(nrows=2, ncols=ncols, figsize=(max(8.4, 4.2 * ncols), 7.6), squeeze=False,
-                       gridspec_kw={"height_ratios": [1.0, 1.25]})
-    grid = axes[0, 0].get_gridspec()
-    for ax in axes[0]:
-        ax.remove()
+    rows = len(sensors) if 0 < len(sensors) <= MAX_ROWS else 1
+    fig = figure(figsize=(max(8.4, 4.2 * ncols), 1.45 * rows + 4.6))[0]
+    fig.axes[0].remove()
+    height = fig.get_figheight()
+    lines = -(-len(sensors) // 4)  # the legend's lines above the panels
+    top = 1.0 - ((0.32 if title else 0.05) + 0.16 * lines + 0.38) / height
+    bottom = 0.55 / height
+    gap = 1.0  # inches between the time rows and the panels below: tick labels, a label, a two-line title
+    avail = height * (top - bottom)
+    outer = fig.add_gridspec(2, 1, height_ratios=[1.0 * rows, 2.4], hspace=2 * gap / (avail - gap),
+                             left=0.8 / fig.get_figwidth(), right=1.0 - 0.3 / fig.get_figwidth(), bottom=bottom,
+                             top=top)
+    over_time = outer[0].subgridspec(rows, 1, hspace=0.12)
+    below = outer[1].subgridspec(1, ncols, wspace=0.3)
     period = 1.0 / speed_hz if speed_hz > 0 else None
     if period is None and len(sensors):
         period = dominant_period(t, values[:, 0])
     span = zoom_span(t, period)
-    ax_t, ax_z = fig.add_subplot(grid[0, :]), None
-    if span:
-        ax_t, ax_z = zoom_panel(ax_t, width=0.3)
     colors = [f"C{k % 10}" for k in range(len(sensors))]
-    for k, s in enumerate(sensors):
-        long_signal(ax_t, t, 1e6 * values[:, k], period=period, zoom=ax_z, span=span, color=colors[k],
-                    label=f"{s.name} ({s.direction}, {s.frame}, x = {s.x:g} m)")
-    ax_t.set_xlim(t[0], t[-1])
-    ax_t.set_xlabel("time [s]")
-    ax_t.set_ylabel("displacement [µm]")
-    ax_t.set_title("the run" + (" (band: its envelope)" if ax_t.collections else "")
-                   + ("; shaded: zoomed on the right" if span else ""), fontsize=8)
-    if ax_z is not None:
-        ax_z.set_xlabel("time [s]")
-        ax_z.set_ylabel("displacement [µm]")
-        ax_z.grid(True, alpha=0.3)
-    ax_t.grid(True, alpha=0.3)
-    fig.legend(*ax_t.get_legend_handles_labels(), loc="upper center", bbox_to_anchor=(0.5, 0.965),
-               ncol=min(len(sensors), 4), fontsize=7, frameon=False)
-    _spectra(axes[1, 0], t, values, sensors, colors, speed_hz)
-    for ax, (i, j) in zip(axes[1, 1:], pairs):
-        _orbit(ax, t, values, sensors[i], sensors[j], i, j, rings)
+    handles, mains, zooms = [], [], []
+    for r in range(rows):
+        ax, zoom = fig.add_subplot(over_time[r]), None
+        if span:
+            ax, zoom = zoom_panel(ax, width=0.3)
+        mains.append(ax)
+        zooms.append(zoom)
+        if r:
+            ax.sharex(mains[0])
+            if zoom is not None:
+                zoom.sharex(zooms[0])
+        for k in ([r] if rows > 1 else range(len(sensors))):
+            s = sensors[k]
+            handles += long_signal(ax, t, 1e6 * values[:, k], period=period, zoom=zoom, span=span,
+                                   color=colors[k], label=f"{s.name} ({s.direction}, {s.frame}, x = {s.x:g} m)")
+        name = sensors[r].name if rows > 1 else "displacement"
+        for a in (ax, zoom):
+            if a is None:
+                continue
+            a.set_ylabel(f"{name} [µm]")
+            a.grid(True, alpha=0.3)
+            if r < rows - 1:
+                a.tick_params(labelbottom=False)
+            else:
+                a.set_xlabel("time [s]")
+    mains[0].set_xlim(t[0], t[-1])
+    mains[0].set_title("the run" + (" (bands: envelopes)" if any(a.collections for a in mains) else "")
+                       + ("; shaded: zoomed on the right" if span else ""), fontsize=8)
+    for zoom in zooms[1:]:
+        if zoom is not None:
+            zoom.set_title("")
+    fig.legend(handles, [h.get_label() for h in handles], loc="upper center",
+               bbox_to_anchor=(0.5, 1.0 - (0.32 if title else 0.05) / height), ncol=min(len(sensors), 4),
+               fontsize=7, frameon=False)
+    _spectra(fig.add_subplot(below[0]), t, values, sensors, colors, speed_hz)
+    for c, (i, j) in enumerate(pairs, start=1):
+        _orbit(fig.add_subplot(below[c]), t, values, sensors[i], sensors[j], i, j, rings)
     if title:
-        fig.suptitle(title, fontsize=10)
-    rows = -(-len(sensors) // 4)  # the legend's rows above the panels
-    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.95 - 0.025 * (rows - 1)))
+        fig.suptitle(title, fontsize=10, y=1.0 - 0.08 / height, va="top")
     return save(fig, path)
 
 
