@@ -443,6 +443,9 @@ def _case_fit(out):
     t = np.linspace(0.0, 0.5, 501)
     measured = 1e-5 * np.column_stack([np.sin(60 * t), np.cos(60 * t)])
     fit_plot(out / "fit.png", t, measured, 1.01 * measured, ["disk_y", "disk_z"], 0.01)
+    t_long = np.arange(0.0, 4.0, 1e-4)   # 160 periods: envelopes and a zoom column
+    long = 1e-5 * np.column_stack([np.sin(2 * np.pi * 40 * t_long), np.cos(2 * np.pi * 40 * t_long)])
+    fit_plot(out / "fit_long.png", t_long, long, 1.01 * long, ["disk_y", "disk_z"], 0.01)
     rng = np.random.default_rng(0)
     x = rng.uniform([10.0, 0.0], [30.0, 0.3], (20, 2))
     misfit = (x[:, 0] - 21.0) ** 2 / 100 + x[:, 1]
@@ -466,7 +469,7 @@ EXPECTED = {
     "long sensor record": {"sensors.png"},
     "campbell": {"campbell.png"},
     "resonance": {"resonance.png", "resonance_rotor.png"},
-    "fit": {"fit.png", "landscape.png", "landscape1.png"},
+    "fit": {"fit.png", "fit_long.png", "landscape.png", "landscape1.png"},
 }
 
 
