@@ -480,7 +480,8 @@ BEING_REDRAWN = {"gap.png": "issue 34.6, contact plots: gap legends over the tra
 
 
 @pytest.mark.parametrize("case", list(PLOT_CASES))
-def test_every_axis_has_a_unit_and_no_legend_covers_data(case, saved_figures, tmp_path):
+def test_every_axis_has_a_unit_and_no_legend_covers_data(case, saved_figures, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)   # a command's default output folder lands here, not in the checkout
     warned = PLOT_CASES[case](tmp_path)
     names = {name for name, *_ in saved_figures}
     assert names == EXPECTED[case], (names, warned)
