@@ -159,7 +159,7 @@ def _orbit(ax, t, values, sy, sz, i: int, j: int, rings) -> None:
     head = f"orbit at x = {sy.x:g} m ({sy.frame}); dark: last half"
     if ring:
         a = np.linspace(0.0, 2.0 * np.pi, 361)
-        ax.plot(1e6 * ring[0] * np.cos(a), 1e6 * ring[0] * np.sin(a), color="k", lw=1.0, ls="--")
+        ax.plot(1e6 * ring[0] * np.cos(a), 1e6 * ring[0] * np.sin(a), color="0.3", lw=1.0, ls="--", zorder=1.5)
         head += f"\ndashed: stator clearance {1e6 * ring[0]:.4g} µm"
     ax.set_aspect("equal", adjustable="datalim")
     inertial = sy.frame == "inertial"
