@@ -113,8 +113,8 @@ def phase_plot(result, system, path, modes: int = 3, steady_from: float | None =
     for a in axes[nm + 1:]:
         a.set_visible(False)
     frame = result.info.get("frame", "rotating")
-    fig.suptitle(f"Phase portraits of the modes that vibrate most, t = {t0:.3g} to {result.t[-1]:.3g} s (red: the end)\n"
-                 f"modes of the open, non-rotating structure; {frame} frame", fontsize=9)
+    fig.suptitle(f"Phase portraits of the modes that vibrate most, t = {t0:.3g} to {result.t[-1]:.3g} s "
+                 f"(red: the end)\nmodes of the open, non-rotating structure; {frame} frame", fontsize=9)
     fig.tight_layout()
     return save(fig, path)
 
