@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .common import figure, save
-from .data import FIGSIZE, NoPlotData, _dense, _model_and_T, _window, hermite_refine, modal_basis, modal_coordinates
+from .data import FIGSIZE, NoPlotData, _model_and_T, _window, hermite_refine, modal_basis, modal_coordinates
 
 FIELD_NAMES = {"U": "axial U", "V": "bending V", "W": "bending W"}
 #: the modes whose vibration the bar panel shows, and among which the portraits' modes are chosen
