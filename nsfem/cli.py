@@ -554,10 +554,10 @@ def _run(args, scene, out_dir, written: set) -> int:
             extra["sensors"] = str(write_csv(out_dir / "sensors.csv", result.t, scene.sensors, values))
             outputs.append(extra["sensors"])
             if scene.output.plots and result.t.size > 1:
-                from .plot.sensors import sensors_plot
+                from .plot.sensors import sensors_plot, stator_rings
 
                 outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
-                                                scene.rotation.speed_hz, scene.title)))
+                                                scene.rotation.speed_hz, scene.title, stator_rings(system))))
     except KeyboardInterrupt:  # what was written stays valid; say so, and still print the JSON
         from .outdir import MANIFEST
 

@@ -2874,3 +2874,56 @@ def test_issue34_supports_and_sections_follow_what_the_scene_says(shaft, bearing
     roundish = ("diameter" in shaft or "inner_diameter" in shaft) and not ("width" in shaft or "height" in shaft)
     assert scene["shaft"]["section"] == shaft.get("section", "circle" if roundish else "rectangle")
     assert scene.stack.segments[0].section == scene["shaft"]["section"]
+
+
+# --- issue 34: plots that read (sensors.png, long signals) ---
+from hypothesis.extra import numpy as hnp  # noqa: E402
+
+
+@settings(max_examples=30, deadline=None, derandomize=True, database=None)
+@given(n=st.integers(1, 3000), speed=st.sampled_from([0.0, 26.0, 1e6]),
+       values=hnp.arrays(float, 64, elements=st.one_of(st.floats(-1e3, 1e3),
+                                                       st.sampled_from([np.nan, np.inf, -np.inf]))),
+       scale=st.sampled_from([1e-300, 1e-6, 1.0, 1e20]))
+def test_sensor_panels_draw_any_record(n, speed, values, scale):
+    """The panels of sensors.png (the run with its zoom, the spectra, the orbit) take a record of any length,
+    speed and values (constant, 1e-300 m to 1e23 m, with NaN and inf: a diverged run's sensors) without an
+    exception or a numpy warning (laid out, not rendered: test_sensors_plot_reproductions saves). Beyond about
+    1e300 matplotlib's own axis arithmetic overflows: no record of a machine comes near."""
+    import warnings
+
+    import matplotlib.pyplot as plt
+
+    from nsfem.plot.common import dominant_period, figure, long_signal, zoom_panel, zoom_span
+    from nsfem.plot.sensors import _orbit, _spectra
+    from nsfem.sensors import Sensor
+
+    t = np.linspace(0.0, 1e-3 * n, n)
+    v = scale * np.resize(values, (n, 2))
+    sensors = [Sensor("a", 0.5, "+y", "inertial", "s"), Sensor("b", 0.5, "+z", "inertial", "s")]
+    fig, axes = figure(ncols=3)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            period = 1 / speed if speed else dominant_period(t, v[:, 0])
+            span = zoom_span(t, period)
+            ax, zoom = zoom_panel(axes[0]) if span else (axes[0], None)
+            for k in range(2):
+                long_signal(ax, t, v[:, k], period=period, zoom=zoom, span=span)
+            _spectra(axes[1], t, v, sensors, ["C0", "C1"], speed)
+            _orbit(axes[2], t, v, sensors[0], sensors[1], 0, 1, [(0.5, 1e-4)])
+    finally:
+        plt.close(fig)
+
+
+def test_sensors_plot_reproductions(tmp_path):
+    """The listed cases: an 8 s record at 26 Hz (a solid block before: now an envelope and a zoom of the
+    last 5 periods), a constant record (no period: no zoom), a record of NaN (a diverged run)."""
+    from nsfem.plot.sensors import sensors_plot
+    from nsfem.sensors import Sensor
+
+    sensors = [Sensor("a", 0.5, "+y", "inertial", "s"), Sensor("b", 0.5, "+z", "inertial", "s")]
+    t = np.arange(0.0, 8.0, 1e-4)
+    for name, v in (("long", 1e-5 * np.column_stack([np.cos(163 * t), np.sin(163 * t)])),
+                    ("constant", np.full((t.size, 2), 3e-6)), ("nan", np.full((t.size, 2), np.nan))):
+        assert sensors_plot(tmp_path / f"{name}.png", t, v, sensors, 26.0, name).stat().st_size > 10_000

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -288,6 +291,161 @@ def struck(result, rows) -> int:
 def kinds():
     """One short run per kind of contact part: a delamination (the shipped scene, 0.3 s), a crack, a ring (rub,
     0.1 s: the impacts that bring the rotor onto the ring) and a stop (impacts only)."""
+
+
+# --- issue 34: plots that read (envelope of long signals, phase, psd, orbits, units on every axis) ---
+def test_envelope_bounds_every_sample_and_touches_the_extremes_of_each_bin():
+    """min/max per bin: every sample of a bin lies in [lo, hi] of its bin, and lo and hi are samples (exact:
+    reduceat only compares floats)."""
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0.0, 8.0, 50_001))
+    y = np.sin(2 * np.pi * 21.0 * t) * np.exp(-0.1 * t) + 0.1 * rng.standard_normal(t.size)
+    from nsfem.plot.common import envelope
+
+    tc, lo, hi = envelope(t, y, 300)
+    assert tc.size <= 300 and np.all(np.diff(tc) > 0)
+    edges = np.linspace(t[0], t[-1], 301)
+    b = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, 299)
+    for k in rng.choice(np.unique(b), 25, replace=False):
+        j = np.searchsorted(tc, 0.5 * (t[b == k][0] + t[b == k][-1]))
+        assert lo[j] == y[b == k].min() and hi[j] == y[b == k].max()
+    assert lo.min() == y.min() and hi.max() == y.max()
+
+
+def test_zoom_span_is_the_last_periods_from_the_rotation_or_the_spectrum():
+    from nsfem.plot.common import zoom_span
+
+    t = np.arange(0.0, 4.0, 1e-4)
+    y = np.sin(2 * np.pi * 37.0 * t)
+    assert zoom_span(t, period=0.05) == (pytest.approx(4.0 - 1e-4 - 0.25, abs=1e-12), t[-1])
+    # from the spectrum: the peak bin of a 2 s Hann record is within its 0.5 Hz spacing of 37 Hz
+    a, b = zoom_span(t, y=y)
+    assert b == t[-1] and (b - a) == pytest.approx(5 / 37.0, rel=0.5 / 37.0)
+    assert zoom_span(t[:2000], period=0.05) is None     # 0.2 s of 0.05 s periods: short enough as it is
+    assert zoom_span(t, y=np.ones_like(t)) is None      # no period to zoom on
+
+
+# Every PNG: each axis that shows numbers names a quantity and its unit, "[unit]" (a dimensionless quantity: "[-]");
+# no legend lies over plotted data. Every figure saved while a case draws is checked (Figure.savefig is wrapped,
+# so a plot added to any module is caught); to cover a new kind of plot, add a case to PLOT_CASES.
+UNIT = re.compile(r"\[[^\[\]]+\]")
+
+
+def _shows_numbers(labels) -> bool:
+    return any(t.get_visible() and t.get_text().strip() for t in labels)
+
+
+def axis_problems(fig) -> list[str]:
+    """What a reader could not tell from the figure: an axis with tick labels but no "quantity [unit]"."""
+    out = []
+    for ax in fig.axes:
+        if not ax.get_visible() or not ax.axison:
+            continue
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+            if not _shows_numbers(axis.get_ticklabels()):
+                continue
+            label = axis.get_label_text()
+            if not UNIT.search(label):
+                out.append(f"{ax.get_title()!r}: {name} axis labelled {label!r}, no [unit]")
+    return out
+
+
+def _data_paths(ax):
+    """(display-coordinate path, filled, markers only) of what ``ax`` plots in data coordinates (not the
+    axvline/axvspan kind, which span the axes whatever the data)."""
+    from matplotlib.collections import PathCollection
+    from matplotlib.path import Path as MPath
+
+    for line in ax.lines:
+        xy = np.asarray(line.get_xydata(), dtype=float)
+        if line.get_visible() and line.get_transform() == ax.transData and xy.size:
+            markers_only = line.get_linestyle() in ("None", "none", " ", "")
+            yield MPath(ax.transData.transform(xy)), False, markers_only
+    for coll in ax.collections:
+        if not coll.get_visible():
+            continue
+        if isinstance(coll, PathCollection):        # scatter: the markers at the offsets
+            off = np.asarray(coll.get_offsets(), dtype=float)
+            if off.size:
+                yield MPath(coll.get_offset_transform().transform(off)), False, True
+        elif coll.get_transform() == ax.transData:  # fill_between, stems
+            for p in coll.get_paths():
+                yield p.transformed(ax.transData), True, False
+    for patch in ax.patches:                        # bars
+        if patch.get_visible() and patch.get_data_transform() == ax.transData:
+            yield patch.get_path().transformed(patch.get_transform()), True, False
+
+
+def legend_problems(fig) -> list[str]:
+    """Legends lying over plotted data: the legend's box (in pixels, shrunk by one) against each axes'
+    data (lines, markers, fills, bars) within the axes' box."""
+    from matplotlib.transforms import Bbox
+
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None] + list(fig.legends)
+    out = []
+    for leg in legends:
+        box = leg.get_window_extent(renderer)
+        box = Bbox.from_extents(box.x0 + 1, box.y0 + 1, box.x1 - 1, box.y1 - 1)
+        for ax in fig.axes:
+            if not ax.get_visible():
+                continue
+            region = Bbox.intersection(box, ax.get_window_extent(renderer))
+            if region is None or region.width <= 0 or region.height <= 0:
+                continue
+            for path, filled, markers in _data_paths(ax):
+                v = path.vertices
+                inside = ((v[:, 0] > region.x0) & (v[:, 0] < region.x1) & (v[:, 1] > region.y0)
+                          & (v[:, 1] < region.y1))
+                hit = bool(inside.any()) if markers or len(v) < 2 else path.intersects_bbox(region, filled=filled)
+                if hit:
+                    texts = [t.get_text() for t in leg.get_texts()]
+                    out.append(f"legend {texts[:3]} covers data of {ax.get_title()!r}")
+                    break
+    return out
+
+
+@pytest.fixture
+def saved_figures(monkeypatch):
+    """[(file name, axis problems, legend problems, figure)] of every figure saved while the test runs."""
+    from matplotlib.figure import Figure
+
+    seen = []
+    real = Figure.savefig
+
+    def spy(self, fname, *args, **kwargs):
+        done = real(self, fname, *args, **kwargs)
+        # the tmp name of write_atomic: ".<target>.<random>.tmp"
+        name = Path(str(fname)).name.lstrip(".").split(".png")[0] + ".png"
+        seen.append((name, axis_problems(self), legend_problems(self), self))
+        return done
+
+    monkeypatch.setattr(Figure, "savefig", spy)
+    return seen
+
+
+def _tiny(overrides, t_end=0.05):
+    return run_scene(load_scene(None, ["mesh.elements=16", "reduction.modes=8", f"simulation.t_end={t_end}",
+                                       *overrides]))
+
+
+def _run_plots(result, system, out):
+    warned = []
+    rp.write_plots(result, system, out, list(rp.RESULT_PLOTS), warn=warned.append)
+    return warned
+
+
+def _case_delamination(out):
+    return _run_plots(*_tiny(["simulation.t_end=0.1"]), out)
+
+
+def _case_stop(out):
+    return _run_plots(*_tiny(["delamination=[]", 'obstacle=[{x=0.5, clearance=2e-4, normal="-z"}]',
+                              "rotation.speed_hz=5"], t_end=0.1), out)
+
+
+def _case_crack(out):
     from nsfem.scene.load import scene_from_tree
 
     from test_vtu_crack import cracked_tree
@@ -426,3 +584,197 @@ def test_the_shipped_rubs_ring_force_settles_on_the_stationary_resultant():
     assert ring.part.kind == "ring" and np.count_nonzero(st.normal_force) == 2
     assert ring.force[-1] == pytest.approx(abs(z), rel=1e-3)
     assert abs(np.exp(1j * ring.angle[-1]) - z / abs(z)) < 1e-3
+
+
+    return _run_plots(*run_scene(scene_from_tree(cracked_tree(t_end=0.03))), out)
+
+
+def _case_ring_and_sensors(out):
+    """The rub scene (a stator ring, an orbit pair of probes at it) over 0.4 s: 9 periods of 22.4 Hz."""
+    from nsfem.plot.sensors import sensors_plot, stator_rings
+    from nsfem.simulate import sensor_signals
+
+    scene = load_scene("rub", ["simulation.t_end=0.4", "mesh.elements=8"])
+    result, system = run_scene(scene)
+    warned = _run_plots(result, system, out)
+    sensors_plot(out / "sensors.png", result.t, sensor_signals(result, system), scene.sensors,
+                 scene.rotation.speed_hz, scene.title, stator_rings(system))
+    return warned
+
+
+def _case_long_sensor_record(out):
+    """8 s of two probes at 26 Hz (208 periods: the envelope and the zoom panel) and one far from the first."""
+    from nsfem.plot.sensors import sensors_plot
+    from nsfem.sensors import Sensor
+
+    t = np.arange(0.0, 8.0, 1e-4)
+    w = 2 * np.pi * 26.0
+    values = 5e-5 * np.column_stack([np.cos(w * t), np.sin(w * t) - 5.0, np.cos(w * t)])
+    sensors = [Sensor("a_y", 0.5, "+y", "inertial", "s"), Sensor("a_z", 0.5, "+z", "inertial", "s"),
+               Sensor("b_y", 0.2, "-y", "rotating", "s")]
+    sensors_plot(out / "sensors.png", t, values, sensors, 26.0, "long", rings=[(0.5, 3e-4)])
+    return []
+
+
+def _case_campbell(out):
+    from nsfem import cli
+
+    assert cli.main(["campbell", "critical_speed", "--speeds", "0:60:7", "--count", "4",
+                     "--png", str(out / "campbell.png")]) == 0
+    return []
+
+
+def _case_resonance(out):
+    from nsfem.plot.sweep import plot_resonance
+
+    keys = ["rotation.speed_hz", "stator.0.friction"]
+    points = [{keys[0]: s, keys[1]: m} for m in (0.0, 0.2) for s in (10.0, 20.0, 30.0)]
+    runs = [{"closed_fraction": 0.1 * s / 10, "min_gap_m": -1e-9, "max_gap_m": 1e-4 / s,
+             "max_normal_force_N": s * (1 + m), "amplitude_disk_y_m": 1e-6 * s}
+            for p in points for s, m in [(p[keys[0]], p[keys[1]])]]
+    plot_resonance(out / "resonance.png", keys, points, runs, "contacts", marks={"resonance": [22.0]})
+    plot_resonance(out / "resonance_rotor.png", keys[:1], points[:3],
+                   [{"amplitude_disk_y_m": 1e-6 * s, "min_gap_m": None} for s in (10, 20, 30)], "rotor")
+    return []
+
+
+def _case_fit(out):
+    from nsfem.plot.fit import fit_plot, landscape_plot
+
+    t = np.linspace(0.0, 0.5, 501)
+    measured = 1e-5 * np.column_stack([np.sin(60 * t), np.cos(60 * t)])
+    fit_plot(out / "fit.png", t, measured, 1.01 * measured, ["disk_y", "disk_z"], 0.01)
+    t_long = np.arange(0.0, 4.0, 1e-4)   # 160 periods: envelopes and a zoom column
+    long = 1e-5 * np.column_stack([np.sin(2 * np.pi * 40 * t_long), np.cos(2 * np.pi * 40 * t_long)])
+    fit_plot(out / "fit_long.png", t_long, long, 1.01 * long, ["disk_y", "disk_z"], 0.01)
+    rng = np.random.default_rng(0)
+    x = rng.uniform([10.0, 0.0], [30.0, 0.3], (20, 2))
+    misfit = (x[:, 0] - 21.0) ** 2 / 100 + x[:, 1]
+    landscape_plot(out / "landscape.png", ["rotation.speed_hz", "stator.0.friction"], x, misfit, x[0])
+    landscape_plot(out / "landscape1.png", ["rotation.speed_hz"], x[:, :1], misfit, x[0, :1])
+    return []
+
+
+#: name -> draw(out_dir) -> the skip warnings of write_plots; each PNG it saves is checked
+PLOT_CASES = {
+    "delamination": _case_delamination, "stop": _case_stop, "crack": _case_crack,
+    "ring+sensors": _case_ring_and_sensors, "long sensor record": _case_long_sensor_record,
+    "campbell": _case_campbell, "resonance": _case_resonance, "fit": _case_fit,
+}
+#: the PNGs each case must produce (a run plot without data may be skipped, with a reason, where listed)
+EXPECTED = {
+    "delamination": {"phase.png", "gap.png", "psd.png", "forces.png"},
+    "stop": {"phase.png", "gap.png", "psd.png", "forces.png"},
+    "crack": {"phase.png", "gap.png", "psd.png", "forces.png"},
+    "ring+sensors": {"phase.png", "gap.png", "psd.png", "forces.png", "sensors.png"},
+    "long sensor record": {"sensors.png"},
+    "campbell": {"campbell.png"},
+    "resonance": {"resonance.png", "resonance_rotor.png"},
+    "fit": {"fit.png", "fit_long.png", "landscape.png", "landscape1.png"},
+}
+
+
+#: PNGs another part of issue 34 is redrawing (their legends covered data when this test was written): their
+#: problems make the case an expected failure instead of a failure, until this entry is removed after the merge
+BEING_REDRAWN = {"gap.png": "issue 34.6, contact plots: gap legends over the traces",
+                 "campbell.png": "issue 34.1, Campbell diagram: legend over the branches"}
+
+
+@pytest.mark.parametrize("case", list(PLOT_CASES))
+def test_every_axis_has_a_unit_and_no_legend_covers_data(case, saved_figures, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)   # a command's default output folder lands here, not in the checkout
+    warned = PLOT_CASES[case](tmp_path)
+    names = {name for name, *_ in saved_figures}
+    assert names == EXPECTED[case], (names, warned)
+    problems = {name: axes + legends for name, axes, legends, _ in saved_figures if axes + legends}
+    assert {n: p for n, p in problems.items() if n not in BEING_REDRAWN} == {}
+    if problems:
+        pytest.xfail("; ".join(f"{n} ({BEING_REDRAWN[n]}): {p}" for n, p in problems.items()))
+
+
+def test_the_checks_catch_a_missing_unit_and_a_legend_over_data(saved_figures, tmp_path):
+    """The checks above can fail: an unlabelled axis and a legend on the line are reported."""
+    from nsfem.plot.common import figure, save
+
+    fig, ax = figure()
+    ax.plot([0.0, 1.0], [0.0, 1.0], label="a line through the legend")
+    ax.plot([0.0, 1.0], [0.5, 0.5], label="another")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("displacement")
+    ax.legend(loc="center")
+    save(fig, tmp_path / "bad.png")
+    (name, axes, legends, _), = saved_figures
+    assert name == "bad.png"
+    assert axes == ["'': y axis labelled 'displacement', no [unit]"]
+    assert len(legends) == 1 and "covers data" in legends[0]
+
+
+def test_phase_portraits_are_each_modes_displacement_where_it_is_largest(run, saved_figures, tmp_path):
+    """mode_peaks: phi_j at the largest translation of mode j, so scale * eta_j is what mode j alone moves
+    there; on the shipped scene the modes drawn are the first three (the paper's fig. 3a)."""
+    from nsfem.plot.phase import mode_peaks
+
+    result, system = run
+    model, T = system.info["model"], system.info["reduction"].T
+    _, Phi = rp.modal_basis(system)
+    peaks = mode_peaks(system, 4)
+    shapes = np.asarray(T @ Phi[:, :4])
+    rotations = np.concatenate([sp_.dofs[f][sp_.bending.nodal_dofs[1]] for sp_ in model.spaces.values()
+                                for f in "VW"])
+    translations = np.setdiff1d(np.arange(model.n_full), rotations)
+    for j, p in enumerate(peaks):
+        dof = model.dof(p["segment"], p["field"], p["x"])
+        assert shapes[dof, j] == p["scale"]                                   # the same number, read back
+        assert abs(p["scale"]) == np.abs(shapes[translations, j]).max()       # the largest translation
+    # the shipped delamination's first modes bend in W then V, largest at midspan (a symmetric beam)
+    assert [p["field"] for p in peaks[:2]] == ["W", "V"] and peaks[0]["x"] == pytest.approx(0.5, abs=0.05)
+    rp.phase_plot(result, system, tmp_path / "phase.png")
+    (_, axes, legends, fig), = saved_figures
+    titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
+    assert [t.split(":")[0] for t in titles[:3]] == ["mode 1", "mode 2", "mode 3"]
+    # the portrait of mode 1 spans the mode's displacement at its peak, in um: 1e6 scale eta (a plotted copy)
+    f, eta, _ = rp.modal_coordinates(result, system)
+    sel = result.t >= 0.5 * result.t[-1]
+    x = fig.axes[0].lines[0].get_xdata()
+    span = 1e6 * abs(peaks[0]["scale"]) * np.ptp(eta[0, sel])
+    # the curve between samples reaches the extremes the samples miss by at most 1 - cos(w h / 2) of the
+    # amplitude each (43.4 Hz sampled every 1 ms: 0.93 %), so the spans differ by at most 1.9 %
+    assert span * (1 - 1e-12) <= np.ptp(x) <= 1.019 * span   # (1e-12: the two products' round-off)
+
+
+def test_psd_plot_spans_twelve_decades_below_its_peak(run, saved_figures, tmp_path):
+    result, system = run
+    rp.psd_plot(result, system, tmp_path / "psd.png")
+    (_, _, _, fig), = saved_figures
+    ax = fig.axes[0]
+    lo, hi = ax.get_ylim()
+    peak = max(line.get_ydata().max() for line in ax.lines if line.get_label().startswith("sensor")
+               or "at x =" in line.get_label())
+    # the axis limits are set from the peak: float products, a few ulps
+    assert lo == pytest.approx(peak * 1e-12, rel=1e-12) and hi == pytest.approx(peak * 10, rel=1e-12)
+    assert ax.get_ylabel().endswith("[m$^2$/Hz]")
+
+
+def test_long_signal_draws_a_band_when_periods_are_denser_than_the_pixels():
+    """208 periods of 26 Hz in 8 s get an envelope band with one bin per period whose edges are the amplitude
+    (sampled every 0.1 ms: the largest sample of a period is within 1 - cos(w dt / 2) = 3.3e-5 of it); 0.4 s
+    (10 periods) is drawn as a line."""
+    from nsfem.plot.common import figure, long_signal, zoom_span
+
+    t = np.arange(0.0, 8.0, 1e-4)
+    y = 3.0 * np.cos(2 * np.pi * 26.0 * t)
+    fig, ax = figure()
+    fig2, zoom = figure()
+    span = zoom_span(t, 1 / 26.0)
+    (band,) = long_signal(ax, t, y, period=1 / 26.0, zoom=zoom, span=span)
+    v = band.get_paths()[0].vertices
+    n = int(8.0 * 26.0)
+    assert ax.lines == [] or all(len(line.get_xdata()) == 0 for line in ax.lines)   # no solid block of lines
+    assert abs(v[:, 1]).max() == 3.0 and np.all(abs(v[2:-2, 1]) > 3.0 * (1 - 3.4e-5))
+    assert len(v) <= 2 * n + 8                  # one point per period on each edge (+ closing vertices)
+    (line,) = zoom.lines
+    assert line.get_xdata()[0] >= span[0] and line.get_xdata()[-1] == t[-1]
+    fig3, ax3 = figure()
+    short = t < 0.4
+    (drawn,) = long_signal(ax3, t[short], y[short], period=1 / 26.0)
+    assert len(drawn.get_xdata()) == short.sum()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -82,3 +83,38 @@ def test_sensor_errors():
         load_scene(None, ['sensor.0.name="a"', "sensor.0.x=0.05", 'sensor.1.name="a"', "sensor.1.x=0.05"])
     with pytest.raises(SceneError, match="sensor.0.x: x=3.0 lies outside"):
         load_scene(None, ["sensor.0.x=3.0"])
+
+
+# --- issue 34: sensor plots (orbits with the clearance circle, envelope of long records) ---
+def test_orbit_panel_draws_the_stator_clearance_circle_at_its_x(tmp_path, monkeypatch):
+    """rub: one rigid ring (64 facets, clearance 0.1 mm) at x = 0.4 with the probe pair there: its orbit
+    panel carries the circle of radius 100 um about the bearing axis, labelled y horizontal, z vertical."""
+    from matplotlib.figure import Figure
+
+    from nsfem.plot.sensors import sensors_plot, stator_rings
+    from nsfem.simulate import run_scene, sensor_signals
+
+    scene = load_scene("rub", ["simulation.t_end=0.05", "mesh.elements=8"])
+    result, system = run_scene(scene)
+    rings = stator_rings(system)
+    assert rings == [(0.4, 1e-4)]
+    assert stator_rings(run_scene(load_scene(None, ["simulation.t_end=0.001", "mesh.elements=16"]))[1]) == []
+    figs = []
+    real = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (figs.append(self), real(self, *a, **k))[1])
+    sensors_plot(tmp_path / "sensors.png", result.t, sensor_signals(result, system), scene.sensors,
+                 scene.rotation.speed_hz, scene.title, rings)
+    (fig,) = figs
+    (orbit,) = [ax for ax in fig.axes if ax.get_title().startswith("orbit")]
+    assert orbit.get_xlabel() == "y, horizontal [µm]" and orbit.get_ylabel() == "z, vertical (up) [µm]"
+    circles = [ln for ln in orbit.lines if ln.get_linestyle() == "--"]
+    (circle,) = circles
+    r = np.hypot(circle.get_xdata(), circle.get_ydata())
+    np.testing.assert_allclose(r, 100.0, rtol=1e-14)     # cos^2 + sin^2 = 1 to a few ulps
+    # a probe pair elsewhere gets no circle
+    fig.clear()
+    figs.clear()
+    moved = [dataclasses.replace(s, x=0.2) for s in scene.sensors]
+    sensors_plot(tmp_path / "sensors.png", result.t, sensor_signals(result, system), moved, 22.4, "", rings)
+    (orbit,) = [ax for ax in figs[0].axes if ax.get_title().startswith("orbit")]
+    assert [ln for ln in orbit.lines if ln.get_linestyle() == "--"] == []

@@ -9,13 +9,18 @@ import numpy as np
 from .common import figure, save
 from .data import FIGSIZE, NoPlotData, _dense, _model_and_T, _speed_hz, _uniform, _window, measurement_point, welch_psd
 
+#: decades of PSD drawn below its peak: a displacement PSD 10^-12 below the peak is 10^-6 of the peak's
+#: amplitude, the most a probe's dynamic range resolves; lower lies round-off and window leakage
+PSD_DECADES = 12
+
 
 def psd_plot(result, system, path, x: float | None = None, field: str = "W",
              steady_from: float | None = None, f_max: float | None = None, nperseg: int | None = None) -> Path:
     """Welch PSD of the transverse displacement ``field`` (rotating frame) at a point of an
     undamaged region (:func:`measurement_point`), for t >= ``steady_from`` (default: the last
-    half), log scale, with the rotation frequency and its harmonics marked; the frequency axis
-    ends at ``f_max`` (default 10 x the rotation frequency, or 250 Hz, within Nyquist).
+    half), log scale down to :data:`PSD_DECADES` decades below the peak, with the rotation frequency and
+    its harmonics marked; the frequency axis ends at ``f_max`` (default 10 x the rotation frequency, or
+    250 Hz, within Nyquist).
 
     ``nperseg`` defaults to the whole window (one Hann segment): a simulated signal has no
     noise to average out, and the forced 1x line must be told apart from the nearby free
@@ -58,6 +63,8 @@ def psd_plot(result, system, path, x: float | None = None, field: str = "W",
     i = int(np.argmax(np.where(keep, P, -np.inf)))
     ax.plot(f[i], P[i], "o", mfc="none", color="k", ms=8, label=f"peak {f[i]:.4g} Hz")
     ax.set_xlim(0.0, top)
+    if P[i] > 0:  # below 12 decades under the peak lies round-off and window leakage, not the machine
+        ax.set_ylim(P[i] * 10.0 ** -PSD_DECADES, P[i] * 10.0)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"PSD of {field} [m$^2$/Hz]")
     where = ("sensor" if sensors else "undamaged region") if pt["undamaged"] else \
@@ -65,6 +72,6 @@ def psd_plot(result, system, path, x: float | None = None, field: str = "W",
     ax.set_title(f"Power spectrum of the displacement {field} ({frame} frame), {where}\n"
                  f"t = {t[0]:.3g} to {t[-1]:.3g} s, resolution {f[1] - f[0]:.3g} Hz", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper right")
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=3, frameon=False)
     fig.tight_layout()
     return save(fig, path)

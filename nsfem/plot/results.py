@@ -5,7 +5,8 @@ Each function takes a :class:`~nsfem.result.Result`, the
 a path, writes one PNG atomically (temporary file in the same directory, then a rename,
 see :func:`nsfem.plot.common.save`) and returns the path:
 
-- :func:`phase_plot`: phase portraits of the first modal coordinates at steady state,
+- :func:`phase_plot`: phase portraits of the modes that vibrate most at steady state, in um and mm/s at each
+  mode's largest point,
 - :func:`gap_plot`: per contact part, a delamination's middle gap, a crack's opening, a ring's clearance, a
   stop's gap over time, with the counts of :mod:`nsfem.contact.tally`,
 - :func:`psd_plot`: Welch PSD of the transverse displacement in an undamaged region,

@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .common import figure, save
+from .common import figure, key_label, save
 
 
 def plot_resonance(path: str | Path, keys: Sequence[str], points: Sequence[dict], runs: Sequence[dict | None],
@@ -72,12 +72,12 @@ def plot_resonance(path: str | Path, keys: Sequence[str], points: Sequence[dict]
         axes[1].set_ylabel("gap [mm]\nmax (—), min (--)")
         axes[2].set_ylabel("max normal force [N]")
         if any(k for k in curves if k) or marks or bands:
-            axes[0].legend(fontsize=7)
+            axes[0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     if amp_ax is not None:
         amp_ax.set_yscale("log")
-        amp_ax.set_ylabel("sensor 1x amplitude [um]\n(fitted, last half of each run)")
-        amp_ax.legend(fontsize=7)
-    every[-1].set_xlabel(keys[0])
+        amp_ax.set_ylabel("sensor 1x amplitude [µm]\n(fitted, last half of each run)")
+        amp_ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    every[-1].set_xlabel(key_label(keys[0]))
     for ax in every:
         ax.grid(True, alpha=0.3)
     head = title + (f"\n{failed} failed run(s) not shown" if failed else "")
