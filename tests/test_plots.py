@@ -291,6 +291,144 @@ def struck(result, rows) -> int:
 def kinds():
     """One short run per kind of contact part: a delamination (the shipped scene, 0.3 s), a crack, a ring (rub,
     0.1 s: the impacts that bring the rotor onto the ring) and a stop (impacts only)."""
+    from nsfem.scene.load import scene_from_tree
+
+    from test_vtu_crack import cracked_tree
+
+    return {"delamination": run_scene(load_scene(None, ["simulation.t_end=0.3"])),
+            "crack": run_scene(scene_from_tree(cracked_tree())),
+            "ring": run_scene(load_scene("rub", ["simulation.t_end=0.1"])),
+            "stop": run_scene(scene_from_tree(stop_tree()))}
+
+
+@pytest.mark.parametrize("kind", ["delamination", "crack", "ring", "stop"])
+def test_counts_agree_between_summary_json_and_plots(kinds, kind, monkeypatch, tmp_path):
+    """The run JSON's counts (impacts per run and per part, each part's largest resultant force and impulse)
+    are the ones gap.png and forces.png print and draw, and an impact is counted once per record however
+    many of the part's points it strikes."""
+    import json
+
+    from nsfem.jsonio import dumps
+    from nsfem.plot import forces as forces_module
+    from nsfem.plot import gap as gap_module
+
+    result, system = kinds[kind]
+    summary = json.loads(dumps(result.summary()))     # what the JSON carries
+    (part,) = summary["parts"]
+    rows = rp.delamination_middles(system)[0]["indices"]
+    assert part["kind"] == kind and part["contacts"] == len(rows)
+    assert summary["impacts"] == part["impacts"] == struck(result, set(rows)) > 0
+    text, fig = figure_text(monkeypatch, gap_module, lambda: rp.gap_plot(result, system, tmp_path / "gap.png"))
+    assert f"impacts ({part['impacts']}, largest {part['max_impulse_Ns']:.3g} N s)" in text
+    title = {"delamination": "Gap at the middle of the delamination", "crack": "Crack opening",
+             "ring": "Stator ring clearance", "stop": "Gap at the stop"}[kind]
+    assert fig._suptitle.get_text() == title
+    marks = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "v"]
+    assert len(marks) == 1 and len(marks[0].get_xdata()) == part["impacts"]
+    text, fig = figure_text(monkeypatch, forces_module,
+                            lambda: rp.forces_plot(result, system, tmp_path / "forces.png"))
+    assert f"Impacts: {summary['impacts']}, largest impulse {part['max_impulse_Ns']:.3g} N s" in text
+    assert f"{part['name']}: {part['impacts']} impacts" in text
+    if part["max_normal_force_N"] > 0:
+        assert f"{part['name']}: max {part['max_normal_force_N']:.4g} N" in text
+    else:
+        assert f"{part['name']}: no force (impacts only)" in text
+    assert "lam_T" not in text
+    # a part's force is its points' resultant, at least the largest point's and at most their sum
+    # (equal for parallel normals; a ring's facets add as vectors); summation round-off: len(rows) eps
+    top = result.normal_force[rows]
+    slack = len(rows) * np.finfo(float).eps * top.sum(axis=0).max(initial=0.0)
+    assert top.max(initial=0.0) - slack <= part["max_normal_force_N"] <= top.sum(axis=0).max(initial=0.0) + slack
+    assert part["max_point_force_N"] == summary["max_normal_force_N"] == top.max(initial=0.0)
+    if kind != "ring":
+        assert part["max_normal_force_N"] == pytest.approx(top.sum(axis=0).max(initial=0.0), rel=2 * slack + 1e-300,
+                                                           abs=slack)
+
+
+def test_a_rings_resultant_is_the_vector_sum_of_its_facet_forces(kinds):
+    """The ring's force at each output time is sum_k lambda_k n_k over its facets, n_k = (cos, sin) of the facet's
+    normal angle in the model; its angle is that vector's."""
+    from nsfem.contact.tally import system_parts, tally
+
+    result, system = kinds["ring"]
+    (part,) = system_parts(system)
+    contacts = system.info["model"].stack.contacts
+    a = np.array([contacts[k].angle for k in part.rows])
+    lam = result.normal_force[list(part.rows)]
+    vec = np.stack([np.cos(a) @ lam, np.sin(a) @ lam])
+    (pt,) = tally(result).parts
+    # summation round-off over 64 facets: 64 eps of the largest facet force
+    tol = 64 * np.finfo(float).eps * lam.max()
+    np.testing.assert_allclose(pt.force, np.hypot(*vec), rtol=0, atol=tol)
+    on = pt.force > 1e3 * tol
+    assert on.any()
+    np.testing.assert_allclose(np.exp(1j * pt.angle[on]), np.exp(1j * np.arctan2(vec[1], vec[0])[on]), atol=1e-9)
+
+
+def test_ring_resultant_of_facets_in_closed_form():
+    """Hand cases: 3 N on the facet at 0 and 4 N on the one at 90 degrees make 5 N at atan(4/3); equal forces
+    on opposite facets cancel; the impulses resolve the same way."""
+    from nsfem.contact.tally import Part, resultant, tally
+
+    part = Part("stator.0", "ring", (0, 1, 2, 3), tuple(np.pi / 2 * np.arange(4)))
+    normal = np.array([[3.0, 2.0], [4.0, 0.0], [0.0, 2.0], [0.0, 0.0]])
+    mag, _, angle = resultant(part, normal)
+    np.testing.assert_allclose(mag, [5.0, 0.0], atol=1e-15)       # cos(pi) = -1 exactly; sin(pi) = 1.2e-16
+    assert angle[0] == pytest.approx(np.arctan2(4.0, 3.0), abs=1e-15)
+    t = np.array([0.0, 1.0])
+    r = Result("exact", t, np.zeros((1, 2)), np.zeros((1, 2)), np.ones((4, 2)), normal, np.zeros((4, 2, 2)),
+               np.zeros((4, 2), int), impacts=[{"t": 0.5, "contacts": [0, 1], "impulse_Ns": [0.3, 0.4]},
+                                               {"t": 0.7, "contacts": [3], "impulse_Ns": [0.0]}],
+               info={"parts": [part.record()]})
+    (pt,) = tally(r).parts
+    # one impact (the record without an impulse is none), its resultant 0.5 N s; 0.4 N s at one point
+    assert (pt.impacts, pt.max_impulse_Ns, r.summary()["max_impulse_Ns"]) == (1, pytest.approx(0.5, abs=1e-16), 0.4)
+    assert r.summary()["impacts"] == 1 and pt.max_normal_force_N == 5.0 and pt.max_point_force_N == 4.0
+
+
+def test_long_signals_are_drawn_as_their_envelope():
+    """min_max_bins keeps every sample within its bin's [low, high] and the extremes exactly, in few bins."""
+    from nsfem.plot.data import min_max_bins
+
+    t = np.linspace(0.0, 8.0, 40_001)
+    y = np.sin(2 * np.pi * 20 * t) * np.exp(-t)
+    tb, lo, hi = min_max_bins(t, y, bins=500)
+    assert tb.size == 500 and np.all(lo <= hi)
+    assert lo.min() == y.min() and hi.max() == y.max()
+    edges = np.linspace(0.0, 8.0, 501)
+    which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, 499)
+    assert np.all((lo[which] <= y) & (y <= hi[which]))
+
+
+def test_zoom_on_the_last_revolutions_of_long_runs_only():
+    """gap.png zooms on the last 3 revolutions of a run of more than 30 (the crack scene's 3 s at 12.4 Hz: 37),
+    not of the shipped scene's 21 revolutions; the window ends at the last output."""
+    from nsfem.plot.gap import zoom_window
+
+    t = np.linspace(0.0, 3.0, 6001)
+    start, revolutions = zoom_window(t, 12.4)
+    assert revolutions == 3 and start == pytest.approx(3.0 - 3 / 12.4, abs=1e-15)
+    assert zoom_window(np.linspace(0.0, 1.0, 1001), 21.0) is None
+    assert zoom_window(t, 0.0) is None
+
+
+def test_the_shipped_rubs_ring_force_settles_on_the_stationary_resultant():
+    """`nsfem run rub` settles onto the full annular rub of `nsfem stationary rub`: the ring's resultant force
+    (the tally's, drawn by forces.png) at the end of the run is the vector sum of the stationary facet forces,
+    in magnitude and direction, though the polygon shares it between two facets (62 and 63). The slowest
+    mode in contact decays as e^(-c t / 2 m) = e^(-4 t): 3.4e-4 of the transient is left after 2 s, so 1e-3."""
+    from nsfem.analysis.stationary import scene_stationary
+    from nsfem.contact.tally import tally
+
+    scene = load_scene("rub")
+    result, _ = run_scene(scene)
+    st = scene_stationary(scene)
+    F = scene["stator"][0]["facets"]
+    z = np.sum(np.asarray(st.normal_force) * np.exp(2j * np.pi * np.arange(F) / F))
+    (ring,) = tally(result).parts
+    assert ring.part.kind == "ring" and np.count_nonzero(st.normal_force) == 2
+    assert ring.force[-1] == pytest.approx(abs(z), rel=1e-3)
+    assert abs(np.exp(1j * ring.angle[-1]) - z / abs(z)) < 1e-3
 
 
 # --- issue 34: plots that read (envelope of long signals, phase, psd, orbits, units on every axis) ---
@@ -449,142 +587,6 @@ def _case_crack(out):
     from nsfem.scene.load import scene_from_tree
 
     from test_vtu_crack import cracked_tree
-
-    return {"delamination": run_scene(load_scene(None, ["simulation.t_end=0.3"])),
-            "crack": run_scene(scene_from_tree(cracked_tree())),
-            "ring": run_scene(load_scene("rub", ["simulation.t_end=0.1"])),
-            "stop": run_scene(scene_from_tree(stop_tree()))}
-
-
-@pytest.mark.parametrize("kind", ["delamination", "crack", "ring", "stop"])
-def test_counts_agree_between_summary_json_and_plots(kinds, kind, monkeypatch, tmp_path):
-    """The run JSON's counts (impacts per run and per part, each part's largest resultant force and impulse)
-    are the ones gap.png and forces.png print and draw, and an impact is counted once per record however
-    many of the part's points it strikes."""
-    import json
-
-    from nsfem.jsonio import dumps
-    from nsfem.plot import forces as forces_module
-    from nsfem.plot import gap as gap_module
-
-    result, system = kinds[kind]
-    summary = json.loads(dumps(result.summary()))     # what the JSON carries
-    (part,) = summary["parts"]
-    rows = rp.delamination_middles(system)[0]["indices"]
-    assert part["kind"] == kind and part["contacts"] == len(rows)
-    assert summary["impacts"] == part["impacts"] == struck(result, set(rows)) > 0
-    text, fig = figure_text(monkeypatch, gap_module, lambda: rp.gap_plot(result, system, tmp_path / "gap.png"))
-    assert f"impacts ({part['impacts']}, largest {part['max_impulse_Ns']:.3g} N s)" in text
-    title = {"delamination": "Gap at the middle of the delamination", "crack": "Crack opening",
-             "ring": "Stator ring clearance", "stop": "Gap at the stop"}[kind]
-    assert fig._suptitle.get_text() == title
-    marks = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "v"]
-    assert len(marks) == 1 and len(marks[0].get_xdata()) == part["impacts"]
-    text, fig = figure_text(monkeypatch, forces_module,
-                            lambda: rp.forces_plot(result, system, tmp_path / "forces.png"))
-    assert f"Impacts: {summary['impacts']}, largest impulse {part['max_impulse_Ns']:.3g} N s" in text
-    assert f"{part['name']}: {part['impacts']} impacts" in text
-    if part["max_normal_force_N"] > 0:
-        assert f"{part['name']}: max {part['max_normal_force_N']:.4g} N" in text
-    else:
-        assert f"{part['name']}: no force (impacts only)" in text
-    assert "lam_T" not in text
-    # a part's force is its points' resultant, at least the largest point's and at most their sum
-    # (equal for parallel normals; a ring's facets add as vectors); summation round-off: len(rows) eps
-    top = result.normal_force[rows]
-    slack = len(rows) * np.finfo(float).eps * top.sum(axis=0).max(initial=0.0)
-    assert top.max(initial=0.0) - slack <= part["max_normal_force_N"] <= top.sum(axis=0).max(initial=0.0) + slack
-    assert part["max_point_force_N"] == summary["max_normal_force_N"] == top.max(initial=0.0)
-    if kind != "ring":
-        assert part["max_normal_force_N"] == pytest.approx(top.sum(axis=0).max(initial=0.0), rel=2 * slack + 1e-300,
-                                                           abs=slack)
-
-
-def test_a_rings_resultant_is_the_vector_sum_of_its_facet_forces(kinds):
-    """The ring's force at each output time is sum_k lambda_k n_k over its facets, n_k = (cos, sin) of the facet's
-    normal angle in the model; its angle is that vector's."""
-    from nsfem.contact.tally import system_parts, tally
-
-    result, system = kinds["ring"]
-    (part,) = system_parts(system)
-    contacts = system.info["model"].stack.contacts
-    a = np.array([contacts[k].angle for k in part.rows])
-    lam = result.normal_force[list(part.rows)]
-    vec = np.stack([np.cos(a) @ lam, np.sin(a) @ lam])
-    (pt,) = tally(result).parts
-    # summation round-off over 64 facets: 64 eps of the largest facet force
-    tol = 64 * np.finfo(float).eps * lam.max()
-    np.testing.assert_allclose(pt.force, np.hypot(*vec), rtol=0, atol=tol)
-    on = pt.force > 1e3 * tol
-    assert on.any()
-    np.testing.assert_allclose(np.exp(1j * pt.angle[on]), np.exp(1j * np.arctan2(vec[1], vec[0])[on]), atol=1e-9)
-
-
-def test_ring_resultant_of_facets_in_closed_form():
-    """Hand cases: 3 N on the facet at 0 and 4 N on the one at 90 degrees make 5 N at atan(4/3); equal forces
-    on opposite facets cancel; the impulses resolve the same way."""
-    from nsfem.contact.tally import Part, resultant, tally
-
-    part = Part("stator.0", "ring", (0, 1, 2, 3), tuple(np.pi / 2 * np.arange(4)))
-    normal = np.array([[3.0, 2.0], [4.0, 0.0], [0.0, 2.0], [0.0, 0.0]])
-    mag, _, angle = resultant(part, normal)
-    np.testing.assert_allclose(mag, [5.0, 0.0], atol=1e-15)       # cos(pi) = -1 exactly; sin(pi) = 1.2e-16
-    assert angle[0] == pytest.approx(np.arctan2(4.0, 3.0), abs=1e-15)
-    t = np.array([0.0, 1.0])
-    r = Result("exact", t, np.zeros((1, 2)), np.zeros((1, 2)), np.ones((4, 2)), normal, np.zeros((4, 2, 2)),
-               np.zeros((4, 2), int), impacts=[{"t": 0.5, "contacts": [0, 1], "impulse_Ns": [0.3, 0.4]},
-                                               {"t": 0.7, "contacts": [3], "impulse_Ns": [0.0]}],
-               info={"parts": [part.record()]})
-    (pt,) = tally(r).parts
-    # one impact (the record without an impulse is none), its resultant 0.5 N s; 0.4 N s at one point
-    assert (pt.impacts, pt.max_impulse_Ns, r.summary()["max_impulse_Ns"]) == (1, pytest.approx(0.5, abs=1e-16), 0.4)
-    assert r.summary()["impacts"] == 1 and pt.max_normal_force_N == 5.0 and pt.max_point_force_N == 4.0
-
-
-def test_long_signals_are_drawn_as_their_envelope():
-    """min_max_bins keeps every sample within its bin's [low, high] and the extremes exactly, in few bins."""
-    from nsfem.plot.data import min_max_bins
-
-    t = np.linspace(0.0, 8.0, 40_001)
-    y = np.sin(2 * np.pi * 20 * t) * np.exp(-t)
-    tb, lo, hi = min_max_bins(t, y, bins=500)
-    assert tb.size == 500 and np.all(lo <= hi)
-    assert lo.min() == y.min() and hi.max() == y.max()
-    edges = np.linspace(0.0, 8.0, 501)
-    which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, 499)
-    assert np.all((lo[which] <= y) & (y <= hi[which]))
-
-
-def test_zoom_on_the_last_revolutions_of_long_runs_only():
-    """gap.png zooms on the last 3 revolutions of a run of more than 30 (the crack scene's 3 s at 12.4 Hz: 37),
-    not of the shipped scene's 21 revolutions; the window ends at the last output."""
-    from nsfem.plot.gap import zoom_window
-
-    t = np.linspace(0.0, 3.0, 6001)
-    start, revolutions = zoom_window(t, 12.4)
-    assert revolutions == 3 and start == pytest.approx(3.0 - 3 / 12.4, abs=1e-15)
-    assert zoom_window(np.linspace(0.0, 1.0, 1001), 21.0) is None
-    assert zoom_window(t, 0.0) is None
-
-
-def test_the_shipped_rubs_ring_force_settles_on_the_stationary_resultant():
-    """`nsfem run rub` settles onto the full annular rub of `nsfem stationary rub`: the ring's resultant force
-    (the tally's, drawn by forces.png) at the end of the run is the vector sum of the stationary facet forces,
-    in magnitude and direction, though the polygon shares it between two facets (62 and 63). The slowest
-    mode in contact decays as e^(-c t / 2 m) = e^(-4 t): 3.4e-4 of the transient is left after 2 s, so 1e-3."""
-    from nsfem.analysis.stationary import scene_stationary
-    from nsfem.contact.tally import tally
-
-    scene = load_scene("rub")
-    result, _ = run_scene(scene)
-    st = scene_stationary(scene)
-    F = scene["stator"][0]["facets"]
-    z = np.sum(np.asarray(st.normal_force) * np.exp(2j * np.pi * np.arange(F) / F))
-    (ring,) = tally(result).parts
-    assert ring.part.kind == "ring" and np.count_nonzero(st.normal_force) == 2
-    assert ring.force[-1] == pytest.approx(abs(z), rel=1e-3)
-    assert abs(np.exp(1j * ring.angle[-1]) - z / abs(z)) < 1e-3
-
 
     return _run_plots(*run_scene(scene_from_tree(cracked_tree(t_end=0.03))), out)
 

@@ -39,7 +39,7 @@ from .psd import psd_plot
 
 #: plots this module draws, in the order of ``output.plots``
 __all__ = ["FIGSIZE", "NoPlotData", "closed_intervals", "delamination_middles", "hermite_refine", "loaded_contacts",
-           "measurement_point", "modal_basis", "modal_coordinates", "welch_psd", "forces_plot", "gap_plot",
+           "measurement_point", "modal_basis", "modal_coordinates", "welch_psd", "_force_series", "forces_plot", "gap_plot",
            "phase_plot", "psd_plot", "write_plots", "RESULT_PLOTS", "PLOT_FUNCTIONS"]
 RESULT_PLOTS = ("phase", "gap", "psd", "forces")
 PLOT_FUNCTIONS = {"phase": phase_plot, "gap": gap_plot, "psd": psd_plot, "forces": forces_plot}
