@@ -8,7 +8,7 @@ import pytest
 
 from nsfem import load_scene
 from nsfem.export import displacements, stack_geometry, write_series
-from nsfem.export.vtu import nodal_dofs
+from nsfem.export.vtu import nodal_dofs, series_parts
 from nsfem.simulate import run_scene
 
 EVERY = 10
@@ -86,15 +86,15 @@ def test_series_files_meshio_vtk_and_pvd(run, series):
     res, _, model, Q = run
     out, pvd = series
     assert pvd.name == "nsfem.pvd" and pvd.is_file()
-    assert not [p for p in out.iterdir() if p.name.startswith(".") or p.suffix == ".tmp"]
+    assert not [p for p in out.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
     root = ET.parse(pvd).getroot()
     assert root.get("type") == "Collection"
-    ds = root.find("Collection").findall("DataSet")
+    parts = series_parts(pvd)
     taken = np.arange(0, res.t.size, EVERY)
-    for part in ("0", "1"):
-        t = np.array([float(d.get("timestep")) for d in ds if d.get("part") == part])
+    for part in ("stack", "contacts"):
+        t = np.array([t for t, _ in parts[part]])
         assert np.all(np.diff(t) > 0) and np.array_equal(t, res.t[taken])
-    files = [d.get("file") for d in ds if d.get("part") == "0"]
+    files = [f for _, f in parts["stack"]]
     pts, cells, seg, _ = stack_geometry(model)
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
@@ -114,7 +114,7 @@ def test_series_files_meshio_vtk_and_pvd(run, series):
         g = r.GetOutput()
         assert g.GetNumberOfPoints() == len(pts) and g.GetNumberOfCells() == len(cells)
         assert vtk_to_numpy(g.GetPointData().GetArray("displacement")).shape == (len(pts), 3)
-    cfiles = [d.get("file") for d in ds if d.get("part") == "1"]
+    cfiles = [f for _, f in parts["contacts"]]
     for i, f in zip(taken, cfiles):
         c = meshio.read(out / f)
         assert c.points.shape == (res.gap.shape[0], 3)
@@ -129,11 +129,10 @@ def test_gap_seen_in_vtu_equals_result_gap(run, series):
     out, pvd = series
     _, _, _, book = stack_geometry(model)
     names = [s.name for s in model.stack.segments]
-    ds = [d for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part") == "0"]
     worst = 0.0
-    for k_out, d in enumerate(ds):
+    for k_out, (_, f) in enumerate(series_parts(pvd)["stack"]):
         i = k_out * EVERY
-        m = meshio.read(out / d.get("file"))
+        m = meshio.read(out / f)
         cur = m.points + m.point_data["displacement"]
         for k, c in enumerate(model.stack.contacts):
             up, lo = (names.index(n) for n in c.segments)
@@ -153,12 +152,11 @@ def test_gap_seen_in_vtu_equals_result_gap(run, series):
 def test_inertial_frame_rotates_about_x(run, tmp_path):
     res, sysm, model, Q = run
     pvd = write_series(res, sysm, tmp_path, every=25, frame="inertial", prefix="iner")
-    ds = [d for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part") == "0"]
     pts, _, _, _ = stack_geometry(model)
     omega = 2 * np.pi * res.info["speed_hz"]
-    for k, d in enumerate(ds):
+    for k, (_, f) in enumerate(series_parts(pvd)["stack"]):
         i = 25 * k
-        m = meshio.read(tmp_path / d.get("file"))
+        m = meshio.read(tmp_path / f)
         a = omega * res.t[i]
         R = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
         # the same product with the same angle (numpy's and math's cos, sin may differ by an ulp): a few
@@ -167,13 +165,14 @@ def test_inertial_frame_rotates_about_x(run, tmp_path):
         # displacements from T q vs T Q, as in test_series_files_meshio_vtk_and_pvd (measured 3.3e-19 m)
         u = displacements(model, Q[:, i]) @ R.T
         assert np.allclose(m.point_data["displacement"], u, rtol=0, atol=1e-13 * np.abs(u).max())
-    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".")]
 
 
 def test_model_and_T_tuple_and_bad_args(run, tmp_path):
     res, sysm, model, _ = run
     pvd = write_series(res, (model, sysm.info["reduction"].T), tmp_path, every=50)
-    assert len([d for d in ET.parse(pvd).getroot().iter("DataSet")]) == 2 * len(range(0, res.t.size, 50))
+    assert len([d for d in ET.parse(pvd).getroot().iter("DataSet")]) == len(range(0, res.t.size, 50))
+    assert [len(v) for v in series_parts(pvd).values()] == [len(range(0, res.t.size, 50))] * 2
     with pytest.raises(Exception, match="frame"):
         write_series(res, sysm, tmp_path, frame="lab")
 
@@ -192,7 +191,7 @@ def test_stator_friction_force_is_drawn_along_the_circumference(tmp_path):
     scene = load_scene("rub", ["simulation.t_end=0.3", "simulation.output_dt=1e-2"])
     res, system = run_scene(scene, "exact")
     write_series(res, system, tmp_path, every=30)
-    mesh = meshio.read(tmp_path / "nsfem_contacts_00030.vtu")
+    mesh = meshio.read(tmp_path / "vtu" / "nsfem_contacts_00030.vtu")
     tf = mesh.point_data["tangential_force"]
     mu, facets = scene["stator"][0]["friction"], scene["stator"][0]["facets"]
     # each facet's point sits on the shaft surface it faces (radius 10 mm along its normal), and the ring's
@@ -207,7 +206,7 @@ def test_stator_friction_force_is_drawn_along_the_circumference(tmp_path):
     # re-exported from the model and the basis alone (`nsfem export --vtu`: no contact set), the same forces
     # (raised KeyError 'stator' before)
     write_series(res, (system.info["model"], system.info["reduction"].T), tmp_path / "again", every=30)
-    again = meshio.read(tmp_path / "again" / "nsfem_contacts_00030.vtu")
+    again = meshio.read(tmp_path / "again" / "vtu" / "nsfem_contacts_00030.vtu")
     np.testing.assert_array_equal(again.point_data["tangential_force"], tf)
     closed = np.flatnonzero(res.normal_force[:, 30] > 0)
     assert closed.size
@@ -250,5 +249,5 @@ def test_round_shafts_are_drawn_round(inner, tmp_path):
                 q[model.dof(s.name, "V", x)], q[model.dof(s.name, "W", x)]]
         assert np.allclose(u[p], want, rtol=0, atol=1e-15 * np.abs(u).max())
     write_series(res, system, tmp_path, every=5)     # and the files take the new cells
-    mesh = meshio.read(tmp_path / "nsfem_00000.vtu")
+    mesh = meshio.read(tmp_path / "vtu" / "nsfem_00000.vtu")
     assert mesh.cells[0].data.shape == cells.shape

@@ -72,10 +72,12 @@ from ..errors import NsfemError
 #: (so a hexahedron (section i, section i+1) has positive volume in VTK's ordering)
 CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 _AXIS = {"x": 0, "y": 1, "z": 2}
-#: the parts of a series after the stack, in their order in the .pvd (files ``<prefix>_<part>_NNNNN.vtu``)
+#: the parts of a series after the stack, in their order in a frame (files ``<prefix>_<part>_NNNNN.vtu``)
 PARTS = ("contacts", "disks", "stators", "cracks")
-#: the name of a frame file of a series
-SERIES_FRAME = re.compile(r"^.+?(_(%s))?_\d{5,}\.vtu$" % "|".join(PARTS))
+#: the subfolder of the output folder that holds a series' frames (the .pvd stays at the top, beside the plots)
+SUBFOLDER = "vtu"
+#: the name of a frame file of a series (in :data:`SUBFOLDER`): a part's .vtu or the frame's .vtm
+SERIES_FRAME = re.compile(r"^.+?((_(%s))?_\d{5,}\.vtu|_\d{5,}\.vtm)$" % "|".join(PARTS))
 
 
 def _tangent_vector(contact, name: str) -> np.ndarray:
@@ -484,22 +486,26 @@ def _model_and_T(system_or_model_and_T):
 
 
 def series_files(n_times: int, every: int, prefix: str = "nsfem", parts=PARTS) -> list[str]:
-    """The names a series of ``n_times`` output times may write: its .pvd and, for every
-    ``every``-th time, the stack's frame and one per part of ``parts``."""
+    """The names (relative to the output folder) a series of ``n_times`` output times may write: its
+    .pvd at the top and, in :data:`SUBFOLDER`, for every ``every``-th time the stack's frame, one per
+    part of ``parts`` and the frame's .vtm that names them."""
     names = [f"{prefix}.pvd"]
     for i in range(0, n_times, every):
-        names += [f"{prefix}_{i:05d}.vtu"] + [f"{prefix}_{p}_{i:05d}.vtu" for p in parts]
+        names += ([f"{SUBFOLDER}/{prefix}_{i:05d}.vtu"] + [f"{SUBFOLDER}/{prefix}_{p}_{i:05d}.vtu" for p in parts]
+                  + [f"{SUBFOLDER}/{prefix}_{i:05d}.vtm"])
     return names
 
 
 #: bytes of a VTU file besides its arrays (XML header, array descriptions: 1.2 to 1.9 kB measured)
 VTU_OVERHEAD = 2048
+#: bytes of a frame's .vtm (0.4 to 0.6 kB measured for 2 to 5 parts)
+VTM_BYTES = 1024
 
 
 def frame_size(model) -> tuple[int, float]:
-    """(files, bytes) of one frame of ``model``'s series: the bytes an upper bound (every array in
-    meshio's raw binary, 8 bytes a value, as base64, before its zlib compression, which gains 2x
-    to 5x on these files; plus :data:`VTU_OVERHEAD` a file)."""
+    """(files, bytes) of one frame of ``model``'s series: its parts and its .vtm. The bytes are an upper
+    bound (every array in meshio's raw binary, 8 bytes a value, as base64, before its zlib compression,
+    which gains 2x to 5x on these files; plus :data:`VTU_OVERHEAD` a file and the .vtm)."""
     points, cells, _, _ = stack_geometry(model)
     dpoints, dcells, _, _ = disk_geometry(model)
     spoints, scells, _, _ = stator_geometry(model)
@@ -507,14 +513,16 @@ def frame_size(model) -> tuple[int, float]:
     m = len(model.stack.contacts)
     # values per part: coordinates and displacements (6 a point), connectivity, offsets and types,
     # then the point / cell data of write_series
-    values = [6 * len(points) + cells.size + 3 * len(cells), 15 * m]
+    values = [6 * len(points) + cells.size + 3 * len(cells)]
+    if m:
+        values.append(15 * m)
     if len(dcells):
         values.append(6 * len(dpoints) + dcells.size + 3 * len(dcells))
     if len(scells):
         values.append(6 * len(spoints) + scells.size + 10 * len(scells))
     if len(cpolys):
         values.append(7 * len(cpoints) + sum(len(p) for p in cpolys) + 6 * len(cpolys))
-    return len(values), float(sum(8 * 4 / 3 * v + VTU_OVERHEAD for v in values))
+    return len(values) + 1, float(sum(8 * 4 / 3 * v + VTU_OVERHEAD for v in values) + VTM_BYTES)
 
 
 def _write_vtu(path: Path, mesh) -> None:
@@ -523,37 +531,59 @@ def _write_vtu(path: Path, mesh) -> None:
     write_atomic(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
 
 
-def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame: str = "rotating",
-                 prefix: str = "nsfem", phase_deg: float = 0.0) -> Path:
+def series_frame(result, frame: str | None) -> tuple[str, bool]:
+    """(the frame a series of ``result`` is written in, whether its coordinates are turned to it): ``frame``
+    None keeps the run's (``result.info["frame"]``); "inertial" turns a rotating-frame run's coordinates by
+    Omega t + phase. A run computed in the inertial frame cannot be written in the rotating one (its stators
+    are fixed in space, and the series would need them turned back): refused, as is any other name."""
+    computed = result.info.get("frame", "rotating")
+    if frame is None:
+        return computed, False
+    if frame not in ("rotating", "inertial"):
+        raise NsfemError(f"export: frame must be rotating | inertial, got {frame!r}")
+    if frame == "rotating" and computed == "inertial":
+        raise NsfemError("export: the run was computed in the inertial frame (rotation.frame = \"inertial\"); its "
+                         "series is written in that frame only: leave out the rotating frame")
+    return frame, frame != computed
+
+
+def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame: str | None = None,
+                 prefix: str = "nsfem", phase_deg: float | None = None) -> Path:
     """Write the VTU series of a run and its ``<prefix>.pvd`` index; returns the .pvd path.
+
+    The .pvd is written in ``out_dir``, the frames in its subfolder :data:`SUBFOLDER`: per output time
+    written, one .vtu per part and a .vtm that names them (``stack``, ``contacts``, ``disks``, ``stators``,
+    ``cracks``: a part the model lacks, contacts included, is left out), which the .pvd indexes by time
+    (paths relative to it, so the folder can be moved whole).
 
     ``system_or_model_and_T`` is the ContactSystem of :func:`nsfem.simulate.run_scene` or a
     tuple ``(model, T)`` with q_full = T q (e.g. a rebuilt model and the results file's
     ``basis``). Every ``every``-th output time is written (indices 0, every, 2 every, ...).
-    ``frame="inertial"`` rotates points and displacements about x by Omega t + phase
-    (Omega = 2 pi ``result.info["speed_hz"]``; ``phase_deg`` as ``rotation.phase_deg``, the
-    frame in which gravity points along -z). A model with disks, stators or cracks gets their parts too
+    ``frame`` (:func:`series_frame`): None writes the run's frame; ``"inertial"`` turns a rotating-frame
+    run's points and displacements about x by Omega t + phase (Omega = 2 pi ``result.info["speed_hz"]``;
+    ``phase_deg`` as ``rotation.phase_deg``, the frame in which gravity points along -z, by default the
+    run's, ``result.info["phase_deg"]``). A model with disks, stators or cracks gets their parts too
     (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`; the module's docstring lists
     the parts). Interrupted (KeyboardInterrupt) or failing part way, it removes the frame it was
     writing, writes the .pvd of the frames before it and re-raises.
     """
     import meshio
 
-    if frame not in ("rotating", "inertial"):
-        raise NsfemError(f"export: frame must be rotating | inertial, got {frame!r}")
+    written, turn = series_frame(result, frame)
     if not (isinstance(every, int) and every >= 1):
         raise NsfemError(f"export: every must be a positive integer, got {every!r}")
     model, T, contacts = _model_and_T(system_or_model_and_T)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    sub = out / SUBFOLDER   # created by the first frame's write
     points, cells, seg_ids, _ = stack_geometry(model)
     dpoints, dcells, disk_ids, _ = disk_geometry(model)
     spoints, scells, ring_ids, facet_contact = stator_geometry(model)
     cpoints, cpolys, _ = crack_geometry(model)
     faces = crack_faces(model)
-    # a result computed in the inertial frame is already there: nothing to turn
-    turn = frame == "inertial" and result.info.get("frame", "rotating") == "rotating"
     omega = 2.0 * math.pi * float(result.info.get("speed_hz", 0.0)) if turn else 0.0
+    if phase_deg is None:
+        phase_deg = float(result.info.get("phase_deg", 0.0))
     phase = math.radians(phase_deg) if turn else 0.0
     m = result.gap.shape[0]
     stack_contacts = model.stack.contacts
@@ -564,10 +594,9 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         names = contacts.tangents[k] if contacts is not None else tangent_names(c)
         tangents.append([_tangent_vector(c, name) for name in names[:2]])
     idx = list(range(0, result.t.size, every))
-    entries = []
-    names = (["stack", "contacts"] + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
-             + ["cracks"] * bool(faces))
-    written = "inertial" if turn else result.info.get("frame", "rotating")
+    entries: list[tuple[float, str]] = []
+    blocks = (["stack"] + ["contacts"] * bool(m) + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
+              + ["cracks"] * bool(faces))
     pvd = out / f"{prefix}.pvd"
     files: list[str] = []
     try:
@@ -583,30 +612,29 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
             du = disk_displacements(model, q_full)
             ku, kgap = crack_displacements(model, q_full)
             p, dp, sp_, kp = points, dpoints, spoints, cpoints
-            if frame == "inertial":
+            if turn:
                 R = rotation(omega * float(result.t[i]) + phase)
                 p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku = (a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du,
                                                                                 spoints, cpoints, ku))
-            name = f"{prefix}_{i:05d}.vtu"
-            files.append(name)
-            _write_vtu(out / name, meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
-                                               cell_data={"segment": [seg_ids]}))
-            cname = f"{prefix}_contacts_{i:05d}.vtu"
-            files.append(cname)
-            vert = np.arange(m, dtype=np.int64).reshape(-1, 1)
-            _write_vtu(out / cname, meshio.Mesh(
-                cpos, [("vertex", vert)],
-                point_data={"displacement": cdisp, "gap": np.asarray(result.gap[:, i], dtype=float),
-                            "normal_force": np.asarray(result.normal_force[:, i], dtype=float),
-                            "tangential_force": tf, "state": np.asarray(result.state[:, i], dtype=np.int32)}))
+            files.append(f"{prefix}_{i:05d}.vtu")
+            _write_vtu(sub / files[-1], meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
+                                                    cell_data={"segment": [seg_ids]}))
+            if m:
+                files.append(f"{prefix}_contacts_{i:05d}.vtu")
+                vert = np.arange(m, dtype=np.int64).reshape(-1, 1)
+                _write_vtu(sub / files[-1], meshio.Mesh(
+                    cpos, [("vertex", vert)],
+                    point_data={"displacement": cdisp, "gap": np.asarray(result.gap[:, i], dtype=float),
+                                "normal_force": np.asarray(result.normal_force[:, i], dtype=float),
+                                "tangential_force": tf, "state": np.asarray(result.state[:, i], dtype=np.int32)}))
             if len(dcells):
                 files.append(f"{prefix}_disks_{i:05d}.vtu")
-                _write_vtu(out / files[-1], meshio.Mesh(dp, [("hexahedron", dcells)], point_data={"displacement": du},
+                _write_vtu(sub / files[-1], meshio.Mesh(dp, [("hexahedron", dcells)], point_data={"displacement": du},
                                                         cell_data={"disk": [disk_ids]}))
             if len(scells):
                 files.append(f"{prefix}_stators_{i:05d}.vtu")
                 fc = facet_contact
-                _write_vtu(out / files[-1], meshio.Mesh(
+                _write_vtu(sub / files[-1], meshio.Mesh(
                     sp_, [("hexahedron", scells)], point_data={"displacement": np.zeros_like(sp_)},
                     cell_data={"stator": [ring_ids], "contact": [fc],
                                "gap": [np.asarray(result.gap[fc, i], dtype=float)],
@@ -615,33 +643,66 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
             if faces:
                 files.append(f"{prefix}_cracks_{i:05d}.vtu")
                 data = crack_data(result, faces, i)
-                _write_vtu(out / files[-1], meshio.Mesh(
+                _write_vtu(sub / files[-1], meshio.Mesh(
                     kp, [("polygon", poly[None, :]) for poly in cpolys], point_data={"displacement": ku, "face_gap": kgap},
                     cell_data={"crack": [np.array([j]) for j in range(len(faces))],
                                **{n: [v[j:j + 1] for j in range(len(faces))] for n, v in data.items()}}))
-            entries.append((float(result.t[i]), files))
+            vtm = f"{prefix}_{i:05d}.vtm"
+            parts = list(zip(blocks, files))
+            files.append(vtm)
+            write_vtm(sub / vtm, parts)
+            with signals_deferred():  # the frame is whole: indexed, and no longer one to remove
+                entries.append((float(result.t[i]), f"{SUBFOLDER}/{vtm}"))
+                files = []
     except BaseException:  # interrupted (or failed): the frames written so far stay a valid series
         with signals_deferred():
-            for f in files if not entries or entries[-1][1] is not files else []:
-                (out / f).unlink(missing_ok=True)  # the frame cut short
-            write_pvd(pvd, entries, names, written, turn)
+            for f in files:
+                (sub / f).unlink(missing_ok=True)  # the frame cut short
+            write_pvd(pvd, entries, blocks, written, turn, prefix)
         raise
-    return write_pvd(pvd, entries, names, written, turn)
+    return write_pvd(pvd, entries, blocks, written, turn, prefix)
 
 
-def write_pvd(pvd: Path, entries: list, names: list[str], written: str, turn: bool) -> Path:
-    """The ``.pvd`` index of the frames ``entries`` [(t, [file per part])] with parts ``names``."""
+def write_vtm(path: Path, blocks: list[tuple[str, str]]) -> Path:
+    """A frame's ``.vtm`` (VTK's multiblock file): one named leaf block per (name, file in its folder)."""
+    lines = ['<?xml version="1.0"?>',
+             '<VTKFile type="vtkMultiBlockDataSet" version="1.0" byte_order="LittleEndian">',
+             "  <vtkMultiBlockDataSet>"]
+    lines += [f'    <DataSet index="{k}" name={quoteattr(name)} file={quoteattr(f)}/>'
+              for k, (name, f) in enumerate(blocks)]
+    lines += ["  </vtkMultiBlockDataSet>", "</VTKFile>", ""]
+    return write_atomic(path, lambda tmp: Path(tmp).write_text("\n".join(lines), encoding="utf-8"))
+
+
+def write_pvd(pvd: Path, entries: list[tuple[float, str]], blocks: list[str], written: str, turn: bool,
+              prefix: str = "nsfem") -> Path:
+    """The ``.pvd`` index of the frames ``entries`` [(t, the frame's .vtm relative to the .pvd)], whose
+    blocks are ``blocks``."""
     note = (" (it turns with the shaft at Omega; stator rings are fixed in it, as in the model)" if written == "rotating"
             else " (turned from the run's rotating frame by Omega t + phase: its stator rings, fixed in that frame "
             "in the model, turn with it)" if turn else "")
     lines = ['<?xml version="1.0"?>',
              '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             f"  <!-- nsfem: coordinates in the {written} frame{note}; parts: "
-             + ", ".join(f"{k} {n}" for k, n in enumerate(names)) + " -->",
+             f"  <!-- nsfem: coordinates in the {written} frame{note}; each time a .vtm in {SUBFOLDER}/ with the "
+             "blocks " + ", ".join(blocks) + " -->",
              "  <Collection>"]
-    for t, files in entries:
-        for part, (label, f) in enumerate(zip(names, files)):
-            lines.append(f'    <DataSet timestep="{t!r}" group="" part="{part}" name="{label}" file={quoteattr(f)}/>')
+    lines += [f'    <DataSet timestep="{t!r}" group="" part="0" name={quoteattr(prefix)} file={quoteattr(f)}/>'
+              for t, f in entries]
     lines += ["  </Collection>", "</VTKFile>", ""]
     write_atomic(pvd, lambda tmp: Path(tmp).write_text("\n".join(lines), encoding="utf-8"))
     return pvd
+
+
+def series_parts(pvd) -> dict[str, list[tuple[float, str]]]:
+    """{block name: [(time, its .vtu relative to the .pvd's folder), ...]} of a series written by
+    :func:`write_series` (the .pvd and the .vtm of each time it indexes)."""
+    import posixpath
+    import xml.etree.ElementTree as ET
+
+    pvd = Path(pvd)
+    out: dict[str, list[tuple[float, str]]] = {}
+    for d in ET.parse(pvd).getroot().iter("DataSet"):
+        t, vtm = float(d.get("timestep")), d.get("file")
+        for b in ET.parse(pvd.parent / vtm).getroot().iter("DataSet"):
+            out.setdefault(b.get("name"), []).append((t, posixpath.join(posixpath.dirname(vtm), b.get("file"))))
+    return out
