@@ -268,8 +268,8 @@ def stator_rings(model) -> list[dict]:
     ``stator.<i>`` of their labels, else by x, segment, clearance and radius), each ring that closes
     (3 or more facets, no gap of pi or more between neighbouring normals) as a dict: ``label``, ``x``,
     ``centre`` (y, z) (the carrying segment's centroid axis, where the gap is measured from), ``radius``
-    (clearance + the surface radius: the distance of every facet from the centre), ``contacts`` (the
-    facets' contact indices ordered by angle) and ``angles``."""
+    (clearance + the surface radius: the distance of every facet from the centre), ``clearance`` and
+    ``surface`` (the two terms), ``contacts`` (the facets' contact indices ordered by angle) and ``angles``."""
     groups: dict[tuple, list[int]] = {}
     for k, c in enumerate(model.stack.contacts):
         if c.angle is None:
@@ -286,11 +286,11 @@ def stator_rings(model) -> list[dict]:
             continue
         rings.append({"label": ring or model.stack.contacts[ks[0]].label, "x": x,
                       "centre": model.stack.segment(seg).offset, "radius": clearance + radius,
-                      "contacts": np.asarray(ks)[order], "angles": a})
+                      "clearance": clearance, "surface": radius, "contacts": np.asarray(ks)[order], "angles": a})
     return rings
 
 
-def stator_geometry(model):
+def stator_geometry(model, clearance_scale: float = 1.0, width: float | None = None):
     """Each stator ring (:func:`stator_rings`) as the polygon the model has: facet k is the plane
     n_k . (y, z) = clearance + radius from the ring's centre (n_k = (cos a_k, sin a_k)), so that the shaft
     surface touches it when its gap is 0; neighbouring facets meet at the corners, at the angle halfway
@@ -298,6 +298,10 @@ def stator_geometry(model):
     (for ``facets`` equal sides at (2 k + 1) pi / facets, (clearance + radius) / cos(pi / facets)). The ring
     is :data:`RING_THICKNESS` of its inner radius thick (its outer facets parallel to the inner ones) and
     :data:`RING_WIDTH` of it wide, centred at x: one hexahedron per facet.
+
+    ``clearance_scale`` draws the clearance that many times as wide (surface + scale x clearance from the
+    centre; :mod:`nsfem.export.render` scales it with the displacements, so that the drawn shaft touches the
+    drawn ring where the gap closes); ``width`` [m] replaces the RING_WIDTH rule.
 
     Returns ``(points (P, 3), cells (C, 8), ring (C,), contact (C,))``: the ring index and the contact index
     (the row of the result's gap, forces and state) of each facet's cell.
@@ -310,9 +314,10 @@ def stator_geometry(model):
         n = a.size
         nxt = np.append(a[1:], a[0] + 2.0 * math.pi)
         phi, half = (a + nxt) / 2.0, (nxt - a) / 2.0    # corner j: between facets j and j + 1
-        rad = np.concatenate([r["radius"] / np.cos(half), r["radius"] * (1.0 + RING_THICKNESS) / np.cos(half)])
+        inner = r["radius"] if clearance_scale == 1.0 else r["surface"] + clearance_scale * r["clearance"]
+        rad = np.concatenate([inner / np.cos(half), inner * (1.0 + RING_THICKNESS) / np.cos(half)])
         ang = np.concatenate([phi, phi])                 # inner corners 0..n-1, outer n..2n-1
-        w = RING_WIDTH * r["radius"]
+        w = RING_WIDTH * inner if width is None else width
         p = np.empty((2, 2 * n, 3))
         p[0, :, 0], p[1, :, 0] = r["x"] - w / 2.0, r["x"] + w / 2.0
         p[:, :, 1] = r["centre"][0] + rad * np.cos(ang)
