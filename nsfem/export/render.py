@@ -138,6 +138,17 @@ def render(result, model, T, path, time: float | None = None, exaggeration: floa
     ``exaggeration`` defaults to 10 % of the stack's length over the largest displacement.
     Returns the path written (atomically).
     """
+    plotter = picture(result, model, T, time, exaggeration, window)
+    img = plotter.screenshot(return_img=True)
+    plotter.close()
+    import matplotlib.image as mpimg
+
+    return write_atomic(path, lambda tmp: mpimg.imsave(tmp, img, format="png"))
+
+
+def picture(result, model, T, time: float | None = None, exaggeration: float | None = None, window=(1400, 700)):
+    """The off-screen pyvista Plotter of :func:`render` (its arguments), before the screenshot: one actor per
+    mesh of :func:`scene_meshes`, named like it, besides the bars, texts, axes and ruler."""
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     import pyvista as pv
 
@@ -160,7 +171,7 @@ def render(result, model, T, path, time: float | None = None, exaggeration: floa
                          f"picture would show nothing; at most {MAX_SHOWN * length / umax:.3g} here")
     meshes = scene_meshes(model, q_full, result.gap[:, k], scale)
     plotter = pv.Plotter(off_screen=True, window_size=list(window))
-    plotter.add_mesh(meshes["stack"], scalars="u3 [mm]", cmap="coolwarm", show_edges=False,
+    plotter.add_mesh(meshes["stack"], scalars="u3 [mm]", cmap="coolwarm", show_edges=False, name="stack",
                      scalar_bar_args={"title": "u3 [mm]", "vertical": True, **BAR, "position_x": 0.9})
     gaps = [meshes[n]["gap [mm]"] for n in ("stators", "contacts") if n in meshes]
     if gaps:
@@ -170,10 +181,10 @@ def render(result, model, T, path, time: float | None = None, exaggeration: floa
         for n in ("stators", "contacts"):
             if n in meshes:
                 plotter.add_mesh(meshes[n], scalars="gap [mm]", cmap="viridis", clim=clim, scalar_bar_args=bar,
-                                 opacity=0.85 if n == "stators" else 1.0)
+                                 opacity=0.85 if n == "stators" else 1.0, name=n)
     for n in ("disks", "bearings", "supports", "cracks"):
         if n in meshes:
-            plotter.add_mesh(meshes[n], color=COLOURS[n], opacity=0.35 if n == "disks" else 1.0)
+            plotter.add_mesh(meshes[n], color=COLOURS[n], opacity=0.35 if n == "disks" else 1.0, name=n)
     legend = [LABELS[n] for n in ("disks", "stators", "bearings", "supports", "cracks") if n in meshes]
     if legend:
         plotter.add_text("\n".join(legend), position="upper_right", font_size=9, color="black")
@@ -190,8 +201,4 @@ def render(result, model, T, path, time: float | None = None, exaggeration: floa
     plotter.camera.azimuth = -25
     plotter.reset_camera()
     plotter.camera.zoom(1.4)   # the stack spans the middle of the width, clear of the bars
-    img = plotter.screenshot(return_img=True)
-    plotter.close()
-    import matplotlib.image as mpimg
-
-    return write_atomic(path, lambda tmp: mpimg.imsave(tmp, img, format="png"))
+    return plotter
