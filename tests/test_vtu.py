@@ -251,3 +251,66 @@ def test_round_shafts_are_drawn_round(inner, tmp_path):
     write_series(res, system, tmp_path, every=5)     # and the files take the new cells
     mesh = meshio.read(tmp_path / "vtu" / "nsfem_00000.vtu")
     assert mesh.cells[0].data.shape == cells.shape
+
+
+# --- issue 34: the series in a subfolder, named leaves, the inertial frame from the command line ---
+def test_pvd_indexes_vtm_frames_in_the_subfolder_with_named_leaves(run, series):
+    """The .pvd at the top indexes one .vtm a time in vtu/ by a relative path; every file it and the .vtm
+    name exists in vtu/; VTK's multiblock reader gives the leaves their names (stack, contacts)."""
+    import vtk
+    from vtkmodules.vtkIOXML import vtkXMLMultiBlockDataReader
+
+    res, _, _, _ = run
+    out, pvd = series
+    assert sorted(p.name for p in out.iterdir()) == ["nsfem.pvd", "vtu"]
+    files = [d.get("file") for d in ET.parse(pvd).getroot().iter("DataSet")]
+    assert files == [f"vtu/nsfem_{i:05d}.vtm" for i in range(0, res.t.size, EVERY)]
+    named = {f for v in series_parts(pvd).values() for _, f in v}
+    assert {str(p.relative_to(out)) for p in (out / "vtu").iterdir()} == set(files) | named
+    r = vtkXMLMultiBlockDataReader()
+    r.SetFileName(str(out / files[-1]))
+    r.Update()
+    mb = r.GetOutput()
+    names = [mb.GetMetaData(i).Get(vtk.vtkCompositeDataSet.NAME()) for i in range(mb.GetNumberOfBlocks())]
+    assert names == ["stack", "contacts"]
+    assert mb.GetBlock(1).GetNumberOfPoints() == res.gap.shape[0]
+
+
+def test_no_contacts_block_without_contacts(tmp_path):
+    """critical_speed has no contacts: its frames are the stack and the disk, no empty contacts block."""
+    res, system = run_scene(load_scene("critical_speed", ["simulation.t_end=0.005"]))
+    pvd = write_series(res, system, tmp_path, every=5)
+    assert list(series_parts(pvd)) == ["stack", "disks"]
+    assert not list((tmp_path / "vtu").glob("*contacts*"))
+
+
+def test_export_inertial_equals_the_python_path(tmp_path, capsys):
+    """`nsfem export RESULT --vtu DIR --frame inertial` of a rotating-frame run (phase 30 deg) writes what
+    write_series(frame="inertial") writes from the run itself: the same points and displacements (the
+    results file's dense basis against the run's T: T q in another order of sums, 1e-13 of the largest
+    displacement as in test_series_files_meshio_vtk_and_pvd; the coordinates ulps of 1 m)."""
+    from nsfem import cli
+
+    sets = ["simulation.t_end=0.02", "rotation.phase_deg=30"]
+    res, system = run_scene(load_scene(None, sets))
+    pvd = write_series(res, system, tmp_path / "py", every=5, frame="inertial")
+    argv = [a for s in sets for a in ("--set", s)]
+    assert cli.main(["run", "--out", str(tmp_path / "run"), *argv, "--set", "output.plots=[]",
+                     "--set", "output.vtu_every=0"]) == 0
+    assert cli.main(["export", str(tmp_path / "run" / "result.npz"), "--vtu", str(tmp_path / "cli"), "--every", "5",
+                     "--frame", "inertial"]) == 0
+    assert "inertial frame" in capsys.readouterr().out
+    cli_pvd = tmp_path / "cli" / "nsfem.pvd"
+    assert "coordinates in the inertial frame" in cli_pvd.read_text()
+    py, cl = series_parts(pvd), series_parts(cli_pvd)
+    assert py == cl and list(py) == ["stack", "contacts"]
+    for frames in py.values():
+        for _, f in frames:
+            a, b = meshio.read(tmp_path / "py" / f), meshio.read(tmp_path / "cli" / f)
+            np.testing.assert_allclose(b.points, a.points, rtol=0, atol=1e-15)
+            u = a.point_data["displacement"]
+            np.testing.assert_allclose(b.point_data["displacement"], u, rtol=0, atol=1e-13 * np.abs(u).max())
+    # not vacuous: at t = 0 the points are already turned by the phase (30 deg of 20 mm sections: ~5 mm)
+    rest = stack_geometry(system.info["model"])[0]
+    first = meshio.read(tmp_path / "cli" / py["stack"][0][1]).points
+    assert np.abs(first[:, 1:] - rest[:, 1:]).max() > 1e-3
