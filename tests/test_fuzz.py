@@ -2556,3 +2556,54 @@ def test_compiled_phase_setup_of_any_shapes_is_the_references(kind, dg, dq, dv, 
     assert np.all(np.abs(out[1][0] - out[0][0]) <= 2 * (nc + 2) * eps * qp_terms)
     x_terms = np.abs(cfg.N).T @ np.abs(np.stack([q0 - out[0][0], v0], axis=1)) + np.abs(cfg.N).T @ qp_terms[:, None]
     assert np.all(np.abs(out[1][1] - out[0][1]) <= 4 * (n + 2) * eps * x_terms.T.ravel() + 1e-300)
+
+
+# --- issue 34: render and ParaView (the series in vtu/, export --frame) ---
+VTU_TARGETS = ("missing", "file", "users_folder")
+
+
+def _vtu_target(out: Path, kind: str) -> None:
+    """What stands at ``out/vtu`` before an export into ``out``: nothing (no ``out`` either), a user's
+    file, or a folder holding a user's file."""
+    if kind != "missing":
+        out.mkdir()
+    if kind == "file":
+        (out / "vtu").write_text("mine")
+    elif kind == "users_folder":
+        (out / "vtu").mkdir()
+        (out / "vtu" / "mine.vtu").write_text("mine")
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(frame=st.sampled_from([None, "rotating", "inertial", "lab", "", "INERTIAL"]),
+       target=st.sampled_from(VTU_TARGETS), every=st.sampled_from(["1", "4", "0"]))
+def test_export_frame_and_subfolder_property(saved_result, frame, target, every):
+    """Any --frame, any thing at DIR/vtu, any --every: exit 0 with a valid folder (the .pvd indexing
+    exactly its frames in vtu/, a user's file there kept) or one line naming the problem, nothing written."""
+    with tempfile.TemporaryDirectory() as d:
+        root = Path(d)
+        _vtu_target(root / "v", target)
+        argv = ["export", str(saved_result), "--vtu", "v", "--every", every] + ([] if frame is None else ["--frame", frame])
+        code, _, stderr = check_invocation(argv, root)
+        ok = frame in (None, "rotating", "inertial") and target != "file" and every != "0"
+        assert (code == 0) == ok, (argv, target, stderr)
+        if ok:
+            folder_is_valid(root / "v", foreign=["vtu/mine.vtu"] if target == "users_folder" else ())
+            assert (root / "v" / "nsfem.pvd").is_file()
+        else:
+            assert not (root / "v" / "nsfem.pvd").exists()
+        if target == "file":
+            assert (root / "v" / "vtu").read_text() == "mine"
+        if target == "users_folder":
+            assert (root / "v" / "vtu" / "mine.vtu").read_text() == "mine"
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["--frame", "lab"], "--frame: invalid choice: 'lab'"),
+    (["--frame", ""], "--frame: invalid choice: ''"),
+])
+def test_export_frame_reproductions(saved_result, argv, text, tmp_path):
+    code, _, stderr = check_invocation(["export", str(saved_result), "--vtu", "v", *argv], tmp_path)
+    assert code == cli.EXIT_ERROR and text in stderr, stderr
+    assert not (tmp_path / "v").exists()
