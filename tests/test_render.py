@@ -129,3 +129,21 @@ def test_render_draws_more_than_the_beam(tmp_path):
     assert cli.main(["render", str(out / "result.npz"), "--png", str(png)]) == 0
     img = mpimg.imread(png)
     assert np.any(np.abs(img[:, :, :3] - 1.0) > 0.05, axis=2).mean() > 0.03
+
+
+def test_a_thrust_bearing_is_drawn_along_the_axis():
+    """retainer_drop's only bearing is axial (kxx alone, the magnetic bearings failed): its spring runs
+    along -x from the shaft's axis at its x (3 shaft depths and the block's 0.3), not down to the ground;
+    pyvista's single precision: 1e-6 m at these 0.2 m extents."""
+    from nsfem import build_model, load_scene
+    from nsfem.export.render import scene_meshes
+
+    model = build_model(load_scene("retainer_drop"))
+    (b,) = model.stack.bearings
+    assert not np.any(b.K) and not np.any(b.C) and b.kxx > 0
+    meshes = scene_meshes(model, np.zeros(model.n_full), np.zeros(len(model.stack.contacts)), 1.0)
+    size = max(s.width for s in model.stack.segments)           # the 50 mm round shaft's depth
+    x0, x1, _, _, z0, z1 = meshes["bearings"].bounds
+    assert x1 == pytest.approx(b.x, abs=1e-6)                    # from the axis point (the tube's ends are open)
+    assert x0 == pytest.approx(b.x - 3.3 * size, abs=1e-6)
+    assert z1 - z0 == pytest.approx(1.2 * size, abs=1e-6)        # the ground block, upright

@@ -5,7 +5,7 @@ pyvista draws the stack's solids (:func:`~nsfem.export.vtu.stack_geometry`) disp
 the scene around it (:func:`scene_meshes`): disks (translucent cylinders of
 :func:`~nsfem.export.vtu.disk_size`, moving rigidly with their node), stator rings (the model's polygon,
 :func:`~nsfem.export.vtu.stator_geometry`, each facet coloured by its gap), bearings (a spring from the
-shaft down to a ground block at their x), lateral supports (a cone under the shaft), cracks (a red collar
+shaft down to a ground block at their x; a thrust bearing, kxx alone, along -x from the axis), lateral supports (a cone under the shaft), cracks (a red collar
 at their x, thick around the cracked part of the section) and the other contact points (spheres coloured
 by their gap).
 A ring's clearance is drawn ``exaggeration`` times as wide as it is, like the displacements, so that the
@@ -35,7 +35,7 @@ MAX_SHOWN = 10.0
 #: colours of the parts drawn in one colour (the legend's)
 COLOURS = {"disks": "silver", "bearings": "dimgray", "supports": "dimgray", "cracks": "red"}
 #: the legend's words for them
-LABELS = {"disks": "grey: disks (translucent)", "bearings": "dark grey: bearings (springs to ground)",
+LABELS = {"disks": "grey: disks (translucent)", "bearings": "dark grey: bearings (springs to ground; along x: thrust)",
           "supports": "dark grey cones: supports", "cracks": "red: crack (a collar at its x, thick on the cracked side)",
           "stators": "stator rings: facets coloured by their gap"}
 
@@ -99,7 +99,11 @@ def scene_meshes(model, q_full, gap, scale: float) -> dict[str, object]:
     springs = []
     for b in model.stack.bearings:
         seg, V, W = _lateral(model, q_full, b.x)
-        springs.append(_spring(b.x, seg.offset[0] + scale * V, seg.offset[1] + scale * W - _depth(seg) / 2.0, size))
+        y, z = seg.offset[0] + scale * V, seg.offset[1] + scale * W
+        if np.any(b.K) or np.any(b.C):   # lateral: down from the shaft's underside
+            springs.append(_spring(b.x, y, z - _depth(seg) / 2.0, size))
+        else:                            # a thrust bearing (kxx alone): along -x from the axis
+            springs.append(_spring(b.x, y, z, size).rotate_y(90.0, point=(b.x, y, z)))
     if springs:
         out["bearings"] = pv.merge(springs)
     cones = []
@@ -193,12 +197,12 @@ def picture(result, model, T, time: float | None = None, exaggeration: float | N
                      + (" and ring clearances" if "stators" in meshes else "") + f" drawn x {scale:.3g}", font_size=10)
     plotter.add_axes(xlabel="x (shaft)", ylabel="y", zlabel="z", line_width=3)
     bounds = np.array(pv.MultiBlock(list(meshes.values())).bounds).reshape(3, 2)
-    below = bounds[2, 0] - 0.05 * length
+    below = bounds[2, 0] - 0.05 * length   # under everything, in front (it is drawn over the scene)
     plotter.add_ruler(pointa=(points[:, 0].min(), bounds[1, 0], below), pointb=(points[:, 0].max(), bounds[1, 0], below),
                       title="x [m]", label_format="%.2f", number_labels=5, font_size_factor=0.5)
     plotter.view_xz()
     plotter.camera.elevation = 20
     plotter.camera.azimuth = -25
     plotter.reset_camera()
-    plotter.camera.zoom(1.4)   # the stack spans the middle of the width, clear of the bars
+    plotter.camera.zoom(1.25)   # the stack spans the middle of the width, clear of the bars, the ruler in view
     return plotter
