@@ -48,8 +48,8 @@ def parser() -> argparse.ArgumentParser:
     top.add_argument("--version", action="version", version=f"nsfem {__version__}")
     sub = top.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    p = sub.add_parser("run", help="transient simulation of a scene", formatter_class=argparse.RawDescriptionHelpFormatter,
-                       epilog="shipped scenes (give the name as SCENE, e.g. `nsfem run rub`):\n" + "\n".join(
+    p = sub.add_parser("run", help="transient simulation of a scene",
+                       formatter_class=argparse.RawDescriptionHelpFormatter, epilog="shipped scenes (give the name as SCENE, e.g. `nsfem run rub`):\n" + "\n".join(
                            f"  {name:15s} {what}" for name, what in SHIPPED_SCENES.items()))
     _scene_args(p)
     p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"),

@@ -205,7 +205,8 @@ def remove_leftovers(path: Path) -> list[str]:
     for folder, where in [(path, "")] + [(path / sub, f"{sub}/") for sub in _subfolders(path)]:
         with contextlib.suppress(OSError):
             for entry in os.scandir(folder):
-                if entry.is_file(follow_symlinks=False) and (TMP_NAME.match(entry.name) or PROBE_NAME.match(entry.name)):
+                if entry.is_file(follow_symlinks=False) and (TMP_NAME.match(entry.name)
+                                                             or PROBE_NAME.match(entry.name)):
                     with contextlib.suppress(FileNotFoundError):
                         os.unlink(entry.path)
                         gone.append(where + entry.name)

@@ -1306,7 +1306,7 @@ def folder_holds_the_last_run_only(runs):
             assert code == 0, stderr
             outputs = {Path(o).name for o in json.loads(stdout)["outputs"]}
             names = set(folder_is_valid(out, foreign=["nsfem_99999.vtu"])) - {MANIFEST}
-            frames = ({n for n in names if n.startswith("vtu/")} - {"vtu/nsfem_99999.vtu"}) if run["vtu_every"] else set()
+            frames = {n for n in names if n.startswith("vtu/")} if run["vtu_every"] else set()
             assert names == outputs | frames | {"notes.txt", "nsfem_99999.vtu"}, (run, sorted(names))
             n_frames = len(range(0, round(run["t_end"] / 1e-3) + 1, run["vtu_every"])) if run["vtu_every"] else 0
             assert len(frames) == 5 * n_frames  # stack, contacts, disks, cracks and the .vtm naming them
@@ -1405,7 +1405,8 @@ def test_two_runs_at_once_into_one_folder(tmp_path):
 # ---- files without bound: the output's size is estimated before the run
 BOUND_REPRODUCTIONS = [
     (["run", "crack", "--set", "simulation.t_end=1", "--set", "simulation.output_dt=1e-5", "--set",
-      "output.vtu_every=1", "--set", "output.plots=[]"], "output.vtu_every: this run would write 500008 files"),  # 100001 outputs x (4 parts + vtm) + pvd, result, sensors
+      "output.vtu_every=1", "--set", "output.plots=[]"],
+     "output.vtu_every: this run would write 500008 files"),  # 100001 outputs x (4 parts + vtm) + pvd, result, sensors
     (["run", "crack", "--set", "simulation.t_end=1", "--set", "simulation.output_dt=1e-5", "--set",
       "output.vtu_every=3", "--set", "output.plots=[]"], "more than the limit of 100000 files"),
 ]
@@ -2584,7 +2585,8 @@ def test_export_frame_and_subfolder_property(saved_result, frame, target, every)
     with tempfile.TemporaryDirectory() as d:
         root = Path(d)
         _vtu_target(root / "v", target)
-        argv = ["export", str(saved_result), "--vtu", "v", "--every", every] + ([] if frame is None else ["--frame", frame])
+        argv = ["export", str(saved_result), "--vtu", "v", "--every", every]
+        argv += [] if frame is None else ["--frame", frame]
         code, _, stderr = check_invocation(argv, root)
         ok = frame in (None, "rotating", "inertial") and target != "file" and every != "0"
         assert (code == 0) == ok, (argv, target, stderr)

@@ -5,7 +5,8 @@ pyvista draws the stack's solids (:func:`~nsfem.export.vtu.stack_geometry`) disp
 the scene around it (:func:`scene_meshes`): disks (translucent cylinders of
 :func:`~nsfem.export.vtu.disk_size`, moving rigidly with their node), stator rings (the model's polygon,
 :func:`~nsfem.export.vtu.stator_geometry`, each facet coloured by its gap), bearings (a spring from the
-shaft down to a ground block at their x; a thrust bearing, kxx alone, along -x from the axis), lateral supports (a cone under the shaft), cracks (a red collar
+shaft down to a ground block at their x; a thrust bearing, kxx alone, along -x from the axis), lateral
+supports (a cone under the shaft), cracks (a red collar
 at their x, thick around the cracked part of the section) and the other contact points (spheres coloured
 by their gap).
 A ring's clearance is drawn ``exaggeration`` times as wide as it is, like the displacements, so that the
@@ -36,7 +37,8 @@ MAX_SHOWN = 10.0
 COLOURS = {"disks": "silver", "bearings": "dimgray", "supports": "dimgray", "cracks": "red"}
 #: the legend's words for them
 LABELS = {"disks": "grey: disks (translucent)", "bearings": "dark grey: bearings (springs to ground; along x: thrust)",
-          "supports": "dark grey cones: supports", "cracks": "red: crack (a collar at its x, thick on the cracked side)",
+          "supports": "dark grey cones: supports",
+          "cracks": "red: crack (a collar at its x, thick on the cracked side)",
           "stators": "stator rings: facets coloured by their gap"}
 
 
@@ -198,7 +200,8 @@ def picture(result, model, T, time: float | None = None, exaggeration: float | N
     plotter.add_axes(xlabel="x (shaft)", ylabel="y", zlabel="z", line_width=3)
     bounds = np.array(pv.MultiBlock(list(meshes.values())).bounds).reshape(3, 2)
     below = bounds[2, 0] - 0.05 * length   # under everything, in front (it is drawn over the scene)
-    plotter.add_ruler(pointa=(points[:, 0].min(), bounds[1, 0], below), pointb=(points[:, 0].max(), bounds[1, 0], below),
+    plotter.add_ruler(pointa=(points[:, 0].min(), bounds[1, 0], below),
+                      pointb=(points[:, 0].max(), bounds[1, 0], below),
                       title="x [m]", label_format="%.2f", number_labels=5, font_size_factor=0.5)
     plotter.view_xz()
     plotter.camera.elevation = 20
