@@ -18,25 +18,25 @@ so a positive slope W' = dW/dx rotates the section such that points above the ax
 (zeta > 0) move towards -x. The node values are exact; the solid between two sections is
 the trilinear hexahedron, not the Hermite cubic.
 
-The series is one ``.pvd`` with two parts: part 0 the stack (``<prefix>_NNNNN.vtu``, point
-data ``displacement``, cell data ``segment``), part 1 the contact points
-(``<prefix>_contacts_NNNNN.vtu``, vertex cells, point data ``displacement``, ``gap``,
-``normal_force``, ``tangential_force`` (3 components, x y z), ``state``). A rotor with disks adds
-the next part, the disks as short cylinders (``<prefix>_disks_NNNNN.vtu``, :func:`disk_geometry`:
-their geometry, or a steel cylinder of their mass and polar inertia, :func:`disk_size`; point data
-``displacement``, each disk moving rigidly with its node, cell data ``disk``); one with stators the
-next, the rings as polygons of their facets (``<prefix>_stators_NNNNN.vtu``,
-:func:`stator_geometry`; point data ``displacement`` (0: fixed), one cell per facet with cell data
-``stator``, ``contact`` (its row in the contacts part and the result), ``gap``, ``normal_force``,
-``tangential_force``, ``state``); one with cracks the next, each crack's face as a polygon in the
-section plane at its x (``<prefix>_cracks_NNNNN.vtu``, :func:`crack_geometry`: the strip or circular
+The series is one ``<prefix>.pvd`` in the output folder indexing, by time, one ``<prefix>_NNNNN.vtm`` a
+frame in its subfolder :data:`SUBFOLDER` (``vtu/``); the .vtm (VTK's multiblock file) names the frame's
+parts as leaf blocks, each a .vtu beside it: ``stack`` (``<prefix>_NNNNN.vtu``, point data
+``displacement``, cell data ``segment``), ``contacts`` when the model has any (``<prefix>_contacts_NNNNN.vtu``,
+vertex cells, point data ``displacement``, ``gap``, ``normal_force``, ``tangential_force`` (3 components,
+x y z), ``state``). A rotor with disks adds ``disks``, the disks as short cylinders
+(``<prefix>_disks_NNNNN.vtu``, :func:`disk_geometry`: their geometry, or a steel cylinder of their mass and
+polar inertia, :func:`disk_size`; point data ``displacement``, each disk moving rigidly with its node, cell
+data ``disk``); one with stators ``stators``, the rings as polygons of their facets
+(``<prefix>_stators_NNNNN.vtu``, :func:`stator_geometry`; point data ``displacement`` (0: fixed), one cell
+per facet with cell data ``stator``, ``contact`` (its row in the contacts part and the result), ``gap``,
+``normal_force``, ``tangential_force``, ``state``); one with cracks ``cracks``, each crack's face as a polygon
+in the section plane at its x (``<prefix>_cracks_NNNNN.vtu``, :func:`crack_geometry`: the strip or circular
 segment the crack has cut, moving with the left side's section; point data ``displacement`` and
 ``face_gap``, the faces' axial opening at that point; one cell per crack with cell data ``crack``,
 ``opening`` (the larger gap of its front's two contacts), ``state`` (how many of them are closed: 0 open,
 1 partly closed, 2 closed) and ``normal_force`` (their sum)). Every part carries point data
-``displacement``, so *Warp By Vector* applies to all of them; each ``DataSet`` of the .pvd is named
-(``stack``, ``contacts``, ``disks``, ``stators``, ``cracks``) and a comment in it says which frame the
-coordinates are in. NNNNN is the index
+``displacement``, so *Warp By Vector* applies to all of them; a comment in the .pvd says which frame the
+coordinates are in and names the blocks. NNNNN is the index
 of the output time in ``result.t``. Every file is written to a temporary name in the
 output folder and renamed, so a reader never sees a half-written file; a series stopped part way
 (Ctrl-C, SIGTERM, an error) still gets its ``.pvd``, indexing exactly the frames complete by then.
