@@ -171,9 +171,12 @@ def _settle(path: Path, logged: set[str]) -> None:
 
 
 def _remove(path: Path, names: Iterable[str]) -> None:
-    """Remove the files ``names`` of folder ``path``, and a subfolder they leave empty."""
-    emptied = set()
+    """Remove the files ``names`` of folder ``path``, and a subfolder they leave empty; never through a
+    link (a subfolder replaced by a link to another folder keeps that folder's files)."""
+    emptied, real = set(), set(_subfolders(path))
     for name in names:
+        if "/" in name and name.split("/")[0] not in real:
+            continue
         with contextlib.suppress(OSError):  # gone already, a folder of that name, read-only
             (path / name).unlink()
             if "/" in name:

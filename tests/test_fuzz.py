@@ -2609,3 +2609,20 @@ def test_export_frame_reproductions(saved_result, argv, text, tmp_path):
     code, _, stderr = check_invocation(["export", str(saved_result), "--vtu", "v", *argv], tmp_path)
     assert code == cli.EXIT_ERROR and text in stderr, stderr
     assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "symlink"), reason="needs symbolic links")
+def test_a_manifest_never_removes_through_a_linked_vtu(tmp_path):
+    """A run's folder whose vtu/ was replaced by a link to another folder: the next run, which writes no
+    series, removes the frames the manifest names but never the linked folder's files of those names."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    assert cli.main(["run", *CHEAP[:2], *TINY_RUN, "--set", "output.vtu_every=1", "--out", str(out)]) == 0
+    listed = json.loads((out / MANIFEST).read_text())["files"]["series"]
+    frames = [n for n in listed if n.startswith("vtu/")]
+    assert frames
+    (out / "vtu").rename(elsewhere)
+    os.symlink(elsewhere, out / "vtu")
+    before = sorted(p.name for p in elsewhere.iterdir())
+    code, _, stderr = check_invocation(["run", *CHEAP[:2], *TINY_RUN, "--out", "out"], tmp_path)
+    assert code == 0, stderr
+    assert sorted(p.name for p in elsewhere.iterdir()) == before
