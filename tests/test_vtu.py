@@ -276,12 +276,27 @@ def test_pvd_indexes_vtm_frames_in_the_subfolder_with_named_leaves(run, series):
     assert mb.GetBlock(1).GetNumberOfPoints() == res.gap.shape[0]
 
 
-def test_no_contacts_block_without_contacts(tmp_path):
-    """critical_speed has no contacts: its frames are the stack and the disk, no empty contacts block."""
-    res, system = run_scene(load_scene("critical_speed", ["simulation.t_end=0.005"]))
+def test_no_contacts_block_without_contacts_and_the_bearings_block(tmp_path):
+    """critical_speed has no contacts: its frames are the stack, the disk and the bearings, no empty contacts
+    block. The bearings block: a vertex on the axis at each bearing's x with the scene's stiffness and
+    damping (as given: exact) and the shaft's displacement there (the same dofs of T q: exact)."""
+    scene = load_scene("critical_speed", ["simulation.t_end=0.005"])
+    res, system = run_scene(scene)
     pvd = write_series(res, system, tmp_path, every=5)
-    assert list(series_parts(pvd)) == ["stack", "disks"]
+    parts = series_parts(pvd)
+    assert list(parts) == ["stack", "disks", "bearings"]
     assert not list((tmp_path / "vtu").glob("*contacts*"))
+    model = system.info["model"]
+    m = meshio.read(tmp_path / parts["bearings"][-1][1])
+    i = 5 * (len(parts["bearings"]) - 1)
+    q = np.asarray(system.info["reduction"].T @ res.q[:, i]).ravel()
+    for k, (b, want) in enumerate(zip(model.stack.bearings, scene["bearing"])):
+        assert m.points[k].tolist() == [b.x, 0.0, 0.0]
+        assert m.point_data["stiffness"][k].tolist() == [want["kyy"], want["kzz"], want["kyz"], want["kzy"]]
+        assert m.point_data["damping"][k].tolist() == [want["cyy"], want["czz"], want["cyz"], want["czy"]]
+        seg = model.stack.carrier(b.x)
+        assert m.point_data["displacement"][k].tolist() == [q[model.dof(seg, f, b.x)] for f in ("U", "V", "W")]
+    assert np.abs(m.point_data["displacement"]).max() > 0   # not vacuous: the shaft sags at the bearings
 
 
 def test_export_inertial_equals_the_python_path(tmp_path, capsys):

@@ -178,7 +178,7 @@ def test_stator_cell_data_are_the_results(rub):
 
 def test_existing_parts_unchanged_and_parts_named(rub):
     """The .pvd indexes one .vtm a time in vtu/, whose leaf blocks are the parts, named: stack, contacts,
-    disks, stators, with their files; the stack and contact parts keep their arrays; the index says its frame."""
+    disks, stators, bearings (rub's damper at the disk), with their files; the stack and contact parts keep their arrays; the index says its frame."""
     _, res, _, model, Q, out, pvd = rub
     root = ET.parse(pvd).getroot()
     ds = list(root.iter("DataSet"))
@@ -190,7 +190,8 @@ def test_existing_parts_unchanged_and_parts_named(rub):
         assert [(b.get("index"), b.get("name"), b.get("file")) for b in leaves] == [
             (str(k), name, f.format(i)) for k, (name, f) in enumerate([
                 ("stack", "nsfem_{:05d}.vtu"), ("contacts", "nsfem_contacts_{:05d}.vtu"),
-                ("disks", "nsfem_disks_{:05d}.vtu"), ("stators", "nsfem_stators_{:05d}.vtu")])]
+                ("disks", "nsfem_disks_{:05d}.vtu"), ("stators", "nsfem_stators_{:05d}.vtu"),
+                ("bearings", "nsfem_bearings_{:05d}.vtu")])]
     assert "coordinates in the rotating frame" in pvd.read_text()
     pts, cells, seg, _ = stack_geometry(model)
     i = taken[-1]
@@ -235,7 +236,7 @@ def test_inertial_run_keeps_its_rings_still(tmp_path):
     res, system = run_scene(load_scene("retainer_drop", ["simulation.t_end=0.01"]))
     pvd = write_series(res, system, tmp_path, every=20, frame="inertial")
     parts = _parts(pvd)
-    assert list(parts) == ["stack", "contacts", "disks", "stators"]
+    assert list(parts) == ["stack", "contacts", "disks", "stators", "bearings"]
     first = meshio.read(tmp_path / parts["stators"][0][1])
     assert set(first.cell_data["stator"][0]) == {0, 1}
     for _, f in parts["stators"][1:]:
@@ -252,7 +253,7 @@ def test_pyvista_reads_every_part(rub):
     reader = pv.get_reader(str(pvd))
     reader.set_active_time_value(reader.time_values[-1])
     (blocks,) = reader.read()   # the time's .vtm
-    assert blocks.keys() == ["stack", "contacts", "disks", "stators"]
+    assert blocks.keys() == ["stack", "contacts", "disks", "stators", "bearings"]
     assert blocks[2].n_cells == 16 and blocks[3].n_cells == 64
     assert "normal_force" in blocks[3].cell_data and "displacement" in blocks[2].point_data
 

@@ -34,7 +34,10 @@ in the section plane at its x (``<prefix>_cracks_NNNNN.vtu``, :func:`crack_geome
 segment the crack has cut, moving with the left side's section; point data ``displacement`` and
 ``face_gap``, the faces' axial opening at that point; one cell per crack with cell data ``crack``,
 ``opening`` (the larger gap of its front's two contacts), ``state`` (how many of them are closed: 0 open,
-1 partly closed, 2 closed) and ``normal_force`` (their sum)). Every part carries point data
+1 partly closed, 2 closed) and ``normal_force`` (their sum)); one with bearings ``bearings``
+(``<prefix>_bearings_NNNNN.vtu``, :func:`bearing_points`: a vertex on the shaft's axis at each bearing's x,
+moving with it, point data ``displacement`` and the bearing's ``stiffness`` (kyy, kzz, kyz, kzy [N/m]),
+``damping`` (cyy, czz, cyz, czy [N s/m]) and ``kxx`` [N/m]). Every part carries point data
 ``displacement``, so *Warp By Vector* applies to all of them; a comment in the .pvd says which frame the
 coordinates are in and names the blocks. NNNNN is the index
 of the output time in ``result.t``. Every file is written to a temporary name in the
@@ -73,7 +76,7 @@ from ..errors import NsfemError
 CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 _AXIS = {"x": 0, "y": 1, "z": 2}
 #: the parts of a series after the stack, in their order in a frame (files ``<prefix>_<part>_NNNNN.vtu``)
-PARTS = ("contacts", "disks", "stators", "cracks")
+PARTS = ("contacts", "disks", "stators", "cracks", "bearings")
 #: the subfolder of the output folder that holds a series' frames (the .pvd stays at the top, beside the plots)
 SUBFOLDER = "vtu"
 #: the name of a frame file of a series (in :data:`SUBFOLDER`): a part's .vtu or the frame's .vtm
@@ -429,6 +432,27 @@ def crack_data(result, faces, i: int) -> dict[str, np.ndarray]:
             "normal_force": np.array([result.normal_force[r, i].sum() for r in rows], dtype=float)}
 
 
+def bearing_points(model, q_full) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(positions (b, 3), displacements (b, 3), point data) of the bearings: each on the centroid axis of
+    the segment carrying its x, moving with the shaft there (U, V, W); point data ``stiffness`` and
+    ``damping`` (b, 4): yy, zz, yz, zy, and ``kxx`` (b,)."""
+    q_full = np.asarray(q_full, dtype=float).ravel()
+    pos, disp, k, c, kxx = [], [], [], [], []
+    for b in model.stack.bearings:
+        name = model.stack.carrier(b.x) or next(s.name for s in model.stack.segments if s.start <= b.x <= s.end)
+        off = model.stack.segment(name).offset
+        pos.append([b.x, off[0], off[1]])
+        disp.append([q_full[model.dof(name, f, b.x)] for f in ("U", "V", "W")])
+        (kyy, kyz), (kzy, kzz) = b.K
+        (cyy, cyz), (czy, czz) = b.C
+        k.append([kyy, kzz, kyz, kzy])
+        c.append([cyy, czz, cyz, czy])
+        kxx.append(b.kxx)
+    data = {"stiffness": np.array(k, dtype=float).reshape(-1, 4), "damping": np.array(c, dtype=float).reshape(-1, 4),
+            "kxx": np.array(kxx, dtype=float)}
+    return np.array(pos, dtype=float).reshape(-1, 3), np.array(disp, dtype=float).reshape(-1, 3), data
+
+
 def rotation(angle: float) -> np.ndarray:
     """Rotation about +x by ``angle`` [rad]: rotating-frame vectors to inertial ones."""
     c, s = math.cos(angle), math.sin(angle)
@@ -527,6 +551,8 @@ def frame_size(model) -> tuple[int, float]:
         values.append(6 * len(spoints) + scells.size + 10 * len(scells))
     if len(cpolys):
         values.append(7 * len(cpoints) + sum(len(p) for p in cpolys) + 6 * len(cpolys))
+    if model.stack.bearings:
+        values.append(18 * len(model.stack.bearings))
     return len(values) + 1, float(sum(8 * 4 / 3 * v + VTU_OVERHEAD for v in values) + VTM_BYTES)
 
 
@@ -558,7 +584,7 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
 
     The .pvd is written in ``out_dir``, the frames in its subfolder :data:`SUBFOLDER`: per output time
     written, one .vtu per part and a .vtm that names them (``stack``, ``contacts``, ``disks``, ``stators``,
-    ``cracks``: a part the model lacks, contacts included, is left out), which the .pvd indexes by time
+    ``cracks``, ``bearings``: a part the model lacks, contacts included, is left out), which the .pvd indexes by time
     (paths relative to it, so the folder can be moved whole).
 
     ``system_or_model_and_T`` is the ContactSystem of :func:`nsfem.simulate.run_scene` or a
@@ -567,9 +593,9 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     ``frame`` (:func:`series_frame`): None writes the run's frame; ``"inertial"`` turns a rotating-frame
     run's points and displacements about x by Omega t + phase (Omega = 2 pi ``result.info["speed_hz"]``;
     ``phase_deg`` as ``rotation.phase_deg``, the frame in which gravity points along -z, by default the
-    run's, ``result.info["phase_deg"]``). A model with disks, stators or cracks gets their parts too
-    (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`; the module's docstring lists
-    the parts). Interrupted (KeyboardInterrupt) or failing part way, it removes the frame it was
+    run's, ``result.info["phase_deg"]``). A model with disks, stators, cracks or bearings gets their parts too
+    (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`, :func:`bearing_points`; the
+    module's docstring lists the parts). Interrupted (KeyboardInterrupt) or failing part way, it removes the frame it was
     writing, writes the .pvd of the frames before it and re-raises.
     """
     import meshio
@@ -600,8 +626,9 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         tangents.append([_tangent_vector(c, name) for name in names[:2]])
     idx = list(range(0, result.t.size, every))
     entries: list[tuple[float, str]] = []
+    nb = len(model.stack.bearings)
     blocks = (["stack"] + ["contacts"] * bool(m) + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
-              + ["cracks"] * bool(faces))
+              + ["cracks"] * bool(faces) + ["bearings"] * bool(nb))
     pvd = out / f"{prefix}.pvd"
     files: list[str] = []
     try:
@@ -616,11 +643,12 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
                     tf[k] += result.tangential_force[k, j, i] * vec
             du = disk_displacements(model, q_full)
             ku, kgap = crack_displacements(model, q_full)
+            bpos, bdisp, bdata = bearing_points(model, q_full)
             p, dp, sp_, kp = points, dpoints, spoints, cpoints
             if turn:
                 R = rotation(omega * float(result.t[i]) + phase)
-                p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku = (a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du,
-                                                                                spoints, cpoints, ku))
+                p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku, bpos, bdisp = (
+                    a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du, spoints, cpoints, ku, bpos, bdisp))
             files.append(f"{prefix}_{i:05d}.vtu")
             _write_vtu(sub / files[-1], meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
                                                     cell_data={"segment": [seg_ids]}))
@@ -652,6 +680,11 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
                     kp, [("polygon", poly[None, :]) for poly in cpolys], point_data={"displacement": ku, "face_gap": kgap},
                     cell_data={"crack": [np.array([j]) for j in range(len(faces))],
                                **{n: [v[j:j + 1] for j in range(len(faces))] for n, v in data.items()}}))
+            if nb:
+                files.append(f"{prefix}_bearings_{i:05d}.vtu")
+                vert = np.arange(nb, dtype=np.int64).reshape(-1, 1)
+                _write_vtu(sub / files[-1], meshio.Mesh(bpos, [("vertex", vert)],
+                                                        point_data={"displacement": bdisp, **bdata}))
             vtm = f"{prefix}_{i:05d}.vtm"
             parts = list(zip(blocks, files))
             files.append(vtm)
