@@ -26,7 +26,7 @@ from typing import Callable, Iterator
 #: the temporary names :func:`write_atomic` makes for nsfem's outputs: ``.<target name>.<8 random
 #: characters>.tmp``, the target one of the kinds of file nsfem writes
 #: the suffixes of the files nsfem writes
-OUTPUT_SUFFIXES = (".npz", ".vtu", ".pvd", ".png", ".csv", ".json", ".txt")
+OUTPUT_SUFFIXES = (".npz", ".vtu", ".vtm", ".pvd", ".png", ".csv", ".json", ".txt")
 TMP_NAME = re.compile(r"^\.(?P<target>.+(" + "|".join(map(re.escape, OUTPUT_SUFFIXES)) + r"))\.[A-Za-z0-9_]{8}\.tmp$")
 _LETTERS = string.ascii_lowercase + string.digits + "_"
 #: the probe files of :func:`check_folder`

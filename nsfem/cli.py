@@ -20,6 +20,15 @@ EXIT_ERROR = 2
 FIELD_NAMES = {"U": "U (axial)", "V": "V (bending x-y)", "W": "W (bending x-z)"}
 RIGID_NAMES = {"U": "rigid axial motion (U)", "V": "rigid lateral motion in x-y (V)",
                "W": "rigid lateral motion in x-z (W)"}
+#: the scenes shipped in nsfem/scenes, by the name a SCENE argument takes, in a few words (``run --help``)
+SHIPPED_SCENES = {
+    "default": "the paper's rotating shaft with a through-width delamination (Waltersberger & Wauer)",
+    "critical_speed": "20 kg disk on anisotropic damped bearings: unbalance response near the critical speeds",
+    "ross_example": "ROSS's example rotor (rotor_example()): two disks, two anisotropic bearings",
+    "rub": "Jeffcott rotor rubbing a rigid stator ring with friction (full annular rub)",
+    "crack": "Jeffcott rotor with a breathing transverse crack under its weight (2x response)",
+    "retainer_drop": "spinning rotor dropping onto its retainer bearings (two rings, friction, impacts)",
+}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -28,7 +37,8 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _scene_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scene", nargs="?", default=None, help="scene TOML file (default: the shipped scene)")
+    p.add_argument("scene", nargs="?", default=None, help="scene TOML file, or the name of a shipped scene "
+                   "(default: the shipped scene `default`; `nsfem run --help` lists them)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key, e.g. delamination.0.friction=0.3 (repeatable)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -40,10 +50,15 @@ def parser() -> argparse.ArgumentParser:
     top.add_argument("--version", action="version", version=f"nsfem {__version__}")
     sub = top.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    p = sub.add_parser("run", help="transient simulation of a scene")
+    p = sub.add_parser("run", help="transient simulation of a scene",
+                       formatter_class=argparse.RawDescriptionHelpFormatter, epilog="shipped scenes (give the name as SCENE, e.g. `nsfem run rub`):\n" + "\n".join(
+                           f"  {name:15s} {what}" for name, what in SHIPPED_SCENES.items()))
     _scene_args(p)
-    p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"))
-    p.add_argument("--out", metavar="DIR")
+    p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"),
+                   help="integrator (default: the scene's simulation.method): exact (event-driven, closed form), rk "
+                   "(event-driven, Runge-Kutta), penalty (stiff springs), moreau (time stepping)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: the scene's output.dir): result.npz, the "
+                   "PNG plots, nsfem.pvd for ParaView with its VTU frames in DIR/vtu/")
 
     p = sub.add_parser("modes", help="natural frequencies of the non-rotating structure")
     _scene_args(p)
@@ -64,7 +79,8 @@ def parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("sweep", help="one run per parameter value (--set KEY=START:STOP:N), on a Dask cluster")
     _scene_args(p)
-    p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"))
+    p.add_argument("--method", choices=("exact", "rk", "penalty", "moreau"),
+                   help="integrator of every run (default: the scene's simulation.method)")
     p.add_argument("--workers", type=int, help="local worker processes (default: one per core; never more than the runs, at "
                    "most 4 per core)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
@@ -85,20 +101,24 @@ def parser() -> argparse.ArgumentParser:
                    help="skip the refined runs at the estimate (the intervals then leave out the model's "
                         "discretization error)")
 
-    p = sub.add_parser("export", help="re-export a saved result")
-    p.add_argument("result")
-    p.add_argument("--vtu", metavar="DIR", required=True)
+    p = sub.add_parser("export", help="re-export a saved result as a VTU/PVD series (ParaView)")
+    p.add_argument("result", help="a results file (result.npz) written by nsfem run")
+    p.add_argument("--vtu", metavar="DIR", required=True, help="folder to write DIR/nsfem.pvd into (open it in "
+                   "ParaView), with its VTU frames in DIR/vtu/")
     p.add_argument("--every", type=int, metavar="N", help="every N-th output time (default: the run's "
                    "output.vtu_every, else 1)")
-    p.add_argument("--debug", action="store_true")
+    p.add_argument("--frame", choices=("rotating", "inertial"), help="coordinates of the series (default: the "
+                   "frame the run was computed in); inertial turns a rotating-frame run about x by Omega t + phase")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
     p = sub.add_parser("render", help="off-screen picture of a saved result")
-    p.add_argument("result")
-    p.add_argument("--time", type=float)
-    p.add_argument("--png", metavar="FILE")
+    p.add_argument("result", help="a results file (result.npz) written by nsfem run")
+    p.add_argument("--time", type=float, metavar="T", help="output time to draw, in s (the nearest one "
+                   "saved; default: the last)")
+    p.add_argument("--png", metavar="FILE", help="picture to write (default: render.png next to RESULT)")
     p.add_argument("--exaggeration", type=float, metavar="X",
                    help="displacement scale (default: 10 %% of the stack's length over the largest displacement)")
-    p.add_argument("--debug", action="store_true")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     return top
 
 
@@ -561,7 +581,7 @@ def _run(args, scene, out_dir, written: set) -> int:
     except KeyboardInterrupt:  # what was written stays valid; say so, and still print the JSON
         from .outdir import MANIFEST
 
-        done = sorted(str(p) for p in written if Path(p).name != MANIFEST and Path(p).suffix != ".vtu")
+        done = sorted(str(p) for p in written if Path(p).name != MANIFEST and Path(p).suffix not in (".vtu", ".vtm"))
         outputs[:] = [str(path)] * (str(path) in done) + [p for p in done if p != str(path)]
         interrupted = "nsfem: interrupted while writing the outputs; written: " + (", ".join(outputs) or "nothing")
         if str(out_dir / "nsfem.pvd") in outputs:
@@ -638,10 +658,22 @@ def _check_run_targets(out_dir, output, sensors, what: str) -> None:
     names = ["result.npz"] + [f"{n}.png" for n in output.plots]
     if output.vtu_every:
         names.append("nsfem.pvd")
+        _check_frames_folder(out_dir, what)
     if sensors:
         names += ["sensors.csv", "sensors.png"]
     for name in names:
         check_file(out_dir / name, what)
+
+
+def _check_frames_folder(out_dir, what: str) -> None:
+    """The subfolder a VTU series' frames go into (:data:`nsfem.export.vtu.SUBFOLDER`) is a folder or can be
+    one: a file of that name is refused (the folder itself is checked by the caller; nothing is written)."""
+    from .export.vtu import SUBFOLDER
+
+    sub = out_dir / SUBFOLDER
+    if sub.exists() and not sub.is_dir():
+        raise NsfemError(f"{what}: {sub} is a file, not a folder (nsfem writes the VTU frames of nsfem.pvd into "
+                         f"{SUBFOLDER}/); move it away or choose another folder")
 
 
 def _saved(path_text: str, command: str):
@@ -739,7 +771,7 @@ def cmd_export(args) -> int:
     from pathlib import Path
 
     from .atomic import check_folder
-    from .export.vtu import frame_size, series_files, write_series
+    from .export.vtu import SUBFOLDER, frame_size, series_files, series_frame, write_series
     from .outdir import claim, replaced_bytes
     from .simulate import FILES_MAX, free_bytes
 
@@ -747,8 +779,15 @@ def cmd_export(args) -> int:
     every = args.every if args.every is not None else scene.output.vtu_every or 1
     if every < 1:
         raise NsfemError(f"--every must be a positive integer, got {every}")
+    rot = scene.rotation   # the run's frame, speed and phase, as run_scene records them
+    res.info = {"frame": rot.frame, "speed_hz": rot.speed_hz, "phase_deg": rot.phase_deg, **res.info}
+    try:
+        frame, _ = series_frame(res, args.frame)
+    except NsfemError as exc:
+        raise NsfemError(f"--frame: {str(exc).removeprefix('export: ')}") from None
     out = Path(args.vtu)
     check_folder(out, "--vtu")
+    _check_frames_folder(out, "--vtu")
     frames = -(-res.t.size // every)
     per_frame, frame_bytes = frame_size(model)
     files, nbytes, free = 1 + frames * per_frame, frames * frame_bytes, free_bytes(out)
@@ -761,12 +800,12 @@ def cmd_export(args) -> int:
                          "replaces); raise --every")
     with claim(out, "export", {"series": series_files(res.t.size, every)}, "--vtu"):
         try:
-            pvd = write_series(res, (model, extra["basis"]), out, every=every)
+            pvd = write_series(res, (model, extra["basis"]), out, every=every, frame=frame, phase_deg=rot.phase_deg)
         except KeyboardInterrupt:
             print(printable(f"nsfem: interrupted: {out / 'nsfem.pvd'} indexes the VTU frames written so far"),
                   file=sys.stderr)
             return 130
-    print(f"wrote {pvd} ({frames} times)")
+    print(printable(f"wrote {pvd} ({frames} times, {frame} frame; the frames in {out / SUBFOLDER})"))
     return 0
 
 

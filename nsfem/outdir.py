@@ -8,7 +8,8 @@
 * **leftovers**: the temporary files of a killed earlier write (``.<name>.XXXXXXXX.tmp``, see
   :func:`nsfem.atomic.write_atomic`) are removed.
 * **manifest** (``.nsfem-files.json``): the files nsfem wrote there, by kind (``run``: result.npz,
-  plots, sensors, render.png; ``series``: the .pvd and its VTU frames; ``fit``: fit.json,
+  plots, sensors, render.png; ``series``: the .pvd and its frames, ``vtu/...``: the files of the
+  subfolders in :data:`SUBFOLDERS` are listed by their path in the folder; ``fit``: fit.json,
   evaluations.csv and its plots). A command replaces its kinds: once its first file is written the
   files of those kinds that it will not rewrite are removed (and the old .pvd, whose frames are
   about to be replaced), at the end those it did not rewrite after all (an interrupted run). Only
@@ -54,6 +55,9 @@ NO_LOCKS = {errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL}
 
 LOCK = ".nsfem.lock"
 MANIFEST = ".nsfem-files.json"
+#: the subfolders of an output folder that nsfem writes files into (a VTU series' frames,
+#: :data:`nsfem.export.vtu.SUBFOLDER`); the manifest names their files ``<subfolder>/<name>``
+SUBFOLDERS = ("vtu",)
 #: the kinds of output each command replaces
 REPLACES = {"run": ("run", "series"), "export": ("series",), "fit": ("fit",), "sweep": (), "render": ()}
 
@@ -98,10 +102,29 @@ def _lock(path: Path, what: str) -> int | None:
 
 
 def _names(name: object) -> bool:
-    """A plain file name of the folder of a kind nsfem writes (no path, not the bookkeeping files): a
-    manifest edited by hand never costs a scene, a mesh or notes."""
+    """A file name of the folder of a kind nsfem writes (a plain name, or one in a subfolder of
+    :data:`SUBFOLDERS`; not the bookkeeping files): a manifest edited by hand never costs a scene, a
+    mesh or notes, nor a file elsewhere."""
+    if isinstance(name, str) and name.count("/") == 1:
+        sub, name = name.split("/")
+        if sub not in SUBFOLDERS:
+            return False
     return (isinstance(name, str) and "/" not in name and "\0" not in name
             and name not in ("", ".", "..", LOCK, MANIFEST) and name.endswith(OUTPUT_SUFFIXES))
+
+
+def _subfolders(path: Path) -> list[str]:
+    """The subfolders of :data:`SUBFOLDERS` that folder ``path`` has (real folders, not links)."""
+    return [sub for sub in SUBFOLDERS if (path / sub).is_dir() and not (path / sub).is_symlink()]
+
+
+def _listing(path: Path) -> set[str]:
+    """The names in folder ``path``, and ``<subfolder>/<name>`` of those in its :func:`_subfolders`."""
+    names = {e.name for e in os.scandir(path)}
+    for sub in _subfolders(path):
+        with contextlib.suppress(OSError):
+            names |= {f"{sub}/{e.name}" for e in os.scandir(path / sub)}
+    return names
 
 
 def _read_manifest(path: Path, entry: str = "files") -> dict[str, set[str]]:
@@ -148,9 +171,19 @@ def _settle(path: Path, logged: set[str]) -> None:
 
 
 def _remove(path: Path, names: Iterable[str]) -> None:
+    """Remove the files ``names`` of folder ``path``, and a subfolder they leave empty; never through a
+    link (a subfolder replaced by a link to another folder keeps that folder's files)."""
+    emptied, real = set(), set(_subfolders(path))
     for name in names:
+        if "/" in name and name.split("/")[0] not in real:
+            continue
         with contextlib.suppress(OSError):  # gone already, a folder of that name, read-only
             (path / name).unlink()
+            if "/" in name:
+                emptied.add(name.split("/")[0])
+    for sub in emptied:
+        with contextlib.suppress(OSError):  # not empty: the user's files or the new series
+            (path / sub).rmdir()
 
 
 def replaced_bytes(path, command: str) -> float:
@@ -168,14 +201,18 @@ def replaced_bytes(path, command: str) -> float:
 
 
 def remove_leftovers(path: Path) -> list[str]:
-    """Remove the temporary files of killed writes (and probes) in folder ``path``; their names."""
+    """Remove the temporary files of killed writes (and probes) in folder ``path`` and its
+    :func:`_subfolders`; their names."""
     gone = []
-    with contextlib.suppress(OSError):
-        for entry in os.scandir(path):
-            if entry.is_file(follow_symlinks=False) and (TMP_NAME.match(entry.name) or PROBE_NAME.match(entry.name)):
-                with contextlib.suppress(FileNotFoundError):
-                    os.unlink(entry.path)
-                    gone.append(entry.name)
+    path = Path(path)
+    for folder, where in [(path, "")] + [(path / sub, f"{sub}/") for sub in _subfolders(path)]:
+        with contextlib.suppress(OSError):
+            for entry in os.scandir(folder):
+                if entry.is_file(follow_symlinks=False) and (TMP_NAME.match(entry.name)
+                                                             or PROBE_NAME.match(entry.name)):
+                    with contextlib.suppress(FileNotFoundError):
+                        os.unlink(entry.path)
+                        gone.append(where + entry.name)
     return gone
 
 
@@ -248,7 +285,7 @@ def _refuse_users_files(path: Path, expected: Mapping[str, Iterable[str]], what:
         return
     ours = set().union(set(), *_read_manifest(path).values())
     names = set().union(set(), *(set(v) for v in expected.values()))
-    clash = sorted(e.name for e in os.scandir(path) if e.name in names and e.name not in ours)
+    clash = sorted(n for n in _listing(path) if n in names and n not in ours)
     if clash:
         more = f" (and {len(clash) - 1} more)" if len(clash) > 1 else ""
         raise NsfemError(f"{what}: {path} holds {clash[0]}{more}, which nsfem did not write there and this command "
@@ -265,8 +302,21 @@ class _Folder:
         self.planned: dict[str, set[str]] = {}
         self.replaced = False   # the older files replaced: a file was written
 
+    def _name(self, target: Path) -> str | None:
+        """``target``'s name in the manifest (``<subfolder>/<name>`` in a subfolder), None when it is
+        not a file of the folder of a kind nsfem writes."""
+        target = Path(target)
+        parent = target.parent.resolve()
+        if parent == self.here:
+            name = target.name
+        elif parent.parent == self.here and parent.name in SUBFOLDERS and not (self.here / parent.name).is_symlink():
+            name = f"{parent.name}/{target.name}"
+        else:
+            return None
+        return name if _names(name) else None
+
     def _ours(self, target: Path) -> bool:
-        return _names(Path(target).name) and Path(target).parent.resolve() == self.here
+        return self._name(target) is not None
 
     def before_write(self, target: Path) -> None:
         """Before the first write into the folder: the manifest plans what the command may write (not
@@ -276,7 +326,7 @@ class _Folder:
             return
         with signals_deferred():
             old = _read_manifest(self.path)
-            existing = {e.name for e in os.scandir(self.path)}
+            existing = _listing(self.path)
             self.old = old = {k: v & existing for k, v in old.items()}
             users = existing - set().union(set(), *old.values())
             self.planned = {k: v - users - old.get(k, set()) for k, v in self.expected.items()}
@@ -291,13 +341,13 @@ class _Folder:
             return
         if self.fd is not None:
             with contextlib.suppress(OSError):
-                os.write(self.fd, f"wrote {Path(target).name}\n".encode("utf-8", "surrogateescape"))
+                os.write(self.fd, f"wrote {self._name(target)}\n".encode("utf-8", "surrogateescape"))
         if self.replaced or self.old is None:
             return
         with signals_deferred():
             self.replaced = True
             stale = {n for k in self.kinds for n in self.old.get(k, set())
-                     if n not in self.expected.get(k, set()) or n.endswith(".pvd")} - {Path(target).name}
+                     if n not in self.expected.get(k, set()) or n.endswith(".pvd")} - {self._name(target)}
             _remove(self.path, stale)
             self.old = {k: v - stale for k, v in self.old.items()}
             if stale:
@@ -308,9 +358,13 @@ class _Folder:
         files it did not rewrite are removed (they belong to another run); other kinds gain what
         it wrote of them. A command that wrote nothing leaves the manifest as it was."""
         remove_leftovers(self.path)  # a write cut short in a window write_atomic cannot close
+        for sub in _subfolders(self.path):  # one this command was to write into, left empty
+            if any(n.startswith(f"{sub}/") for v in self.expected.values() for n in v):
+                with contextlib.suppress(OSError):
+                    (self.path / sub).rmdir()
         if self.old is None:  # nothing tried
             return
-        names = {Path(p).name for p in written if self._ours(Path(p))}
+        names = {self._name(Path(p)) for p in written if self._ours(Path(p))}
         if not self.replaced:  # every write failed: the folder is as it was
             _write_manifest(self.path, self.old)
             return

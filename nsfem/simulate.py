@@ -167,9 +167,9 @@ def check_outputs(system: ContactSystem, t_end: float, output_dt: float, memory:
                          "simulation.t_end")
 
 
-#: files a run may write into its folder. Refused above FILES_MAX: 1e5 files are 2.5e4 to 5e4 VTU frames
-#: (2 to 4 files each), more than a viewer can step through, each written in 1 to 3 ms (minutes of
-#: writing after the run), and past where listing, copying and removing the folder become slow;
+#: files a run may write into its folder. Refused above FILES_MAX: 1e5 files are 1.4e4 to 5e4 VTU frames
+#: (2 to 7 files each: the parts and the .vtm), more than a viewer can step through, each written in 1 to 3 ms
+#: (minutes of writing after the run), and past where listing, copying and removing the folder become slow;
 #: warned above FILES_WARN. Bytes (an upper bound, see frame_size) are warned above BYTES_WARN and
 #: refused beyond the free space of the folder's file system.
 FILES_MAX = 100_000

@@ -95,3 +95,28 @@ def test_bad_count_and_unknown_command(capsys):
 def test_debug_shows_the_traceback():
     code, _, err = run("modes", "--set", "shaft.E=-1", "--debug")
     assert code != 0 and "Traceback" in err and "shaft.E" in err
+
+
+# --- issue 34: help texts ---
+def test_every_option_of_every_command_has_help_text():
+    """Every argument of every subcommand (positionals and options; --help's own aside) says what it is."""
+    import argparse
+
+    top = cli.parser()
+    (sub,) = [a for a in top._actions if isinstance(a, argparse._SubParsersAction)]
+    assert set(sub.choices) == set(cli.COMMANDS)
+    missing = [f"{name} {a.dest}" for name, p in sub.choices.items() for a in p._actions
+               if not isinstance(a, argparse._HelpAction) and not (a.help and a.help != argparse.SUPPRESS)]
+    assert not missing, missing
+
+
+def test_run_help_lists_the_shipped_scenes(capsys):
+    """`nsfem run --help` names every scene shipped in nsfem/scenes, each with a few words."""
+    from nsfem.scene import shipped_scenes
+
+    assert set(cli.SHIPPED_SCENES) == set(shipped_scenes())
+    with pytest.raises(SystemExit):
+        cli.main(["run", "--help"])
+    text = capsys.readouterr().out
+    for name, what in cli.SHIPPED_SCENES.items():
+        assert f"  {name}" in text and what in text

@@ -1114,19 +1114,28 @@ TINY = ["crack", "--set", "mesh.elements=10"]
 
 
 def folder_is_valid(out: Path, foreign=()) -> list[str]:
-    """The files of a folder a run left; asserts the property: no temporary file, a .pvd that
-    indexes exactly the VTU frames there (each one parsing; ``foreign``: a user's files), a
-    result.npz that loads."""
+    """The files of a folder a run left (those of its subfolder vtu/ as ``vtu/<name>``, the subfolder
+    itself not listed); asserts the property: no temporary file, a .pvd that indexes exactly the
+    frames there (a .vtm a time and the .vtu files it names, each one parsing; ``foreign``: a user's
+    files), no empty vtu/, a result.npz that loads."""
     import meshio
 
-    names = sorted(p.name for p in out.iterdir()) if out.exists() else []
-    assert not [n for n in names if n.endswith(".tmp") or n.startswith(".nsfem-probe")], names
+    from nsfem.export.vtu import series_parts
+
+    names = sorted(p.name for p in out.iterdir() if p.name != "vtu") if out.exists() else []
+    if (out / "vtu").is_dir():
+        inner = sorted(f"vtu/{p.name}" for p in (out / "vtu").iterdir())
+        assert inner, "an empty vtu/ left behind"
+        names = sorted(names + inner)
+    assert not [n for n in names if n.endswith(".tmp") or ".nsfem-probe" in n], names
     assert LOCK not in names, names  # released and removed
-    frames = {n for n in names if n.endswith(".vtu")} - set(foreign)
+    frames = {n for n in names if n.endswith((".vtu", ".vtm"))} - set(foreign)
     if "nsfem.pvd" in names:
-        indexed = re.findall(r'file="([^"]+)"', (out / "nsfem.pvd").read_text())
+        vtms = re.findall(r'file="([^"]+)"', (out / "nsfem.pvd").read_text())
+        parts = [f for v in series_parts(out / "nsfem.pvd").values() for _, f in v]
+        indexed = vtms + parts
         assert set(indexed) == frames and len(indexed) == len(frames), (sorted(frames - set(indexed)), indexed)
-        for f in indexed[-4:]:
+        for f in parts[-4:]:
             meshio.read(out / f)
     else:
         assert not frames, frames
@@ -1203,7 +1212,7 @@ def check_interrupted(code: int, err: str, out: Path) -> list[str]:
 
 SIGNAL_CASES = [  # (argv after TINY, trigger, signal): writing frames, writing result.npz, integrating
     (["--set", "simulation.t_end=0.2", "--set", "output.vtu_every=1", "--set", "output.plots=[]"],
-     "nsfem_00000.vtu", signal.SIGTERM),
+     "vtu/nsfem_00000.vtu", signal.SIGTERM),
     (["--set", "simulation.t_end=0.05", "--set", "simulation.output_dt=1e-6", "--set", "output.vtu_every=0",
       "--set", "output.plots=[]"], ".result.npz.*.tmp", signal.SIGTERM),
     (["--set", "simulation.t_end=100", "--set", "output.vtu_every=0", "--set", "output.plots=[]"], "integrating",
@@ -1211,9 +1220,9 @@ SIGNAL_CASES = [  # (argv after TINY, trigger, signal): writing frames, writing 
 ]
 SLOW_SIGNAL_CASES = [
     (["--set", "simulation.t_end=0.2", "--set", "output.vtu_every=1", "--set", "output.plots=[]"],
-     "nsfem_00004.vtu", signal.SIGINT),
+     "vtu/nsfem_00004.vtu", signal.SIGINT),
     (["--set", "simulation.t_end=0.2", "--set", "output.vtu_every=1", "--set", "output.plots=[]"],
-     "nsfem_contacts_00002.vtu", signal.SIGTERM),
+     "vtu/nsfem_contacts_00002.vtu", signal.SIGTERM),
     (["--set", "simulation.t_end=0.05", "--set", "simulation.output_dt=1e-6", "--set", "output.vtu_every=0",
       "--set", "output.plots=[]"], ".result.npz.*.tmp", signal.SIGINT),
     (["--set", "simulation.t_end=0.05", "--set", "output.vtu_every=0"], ".phase.png.*.tmp", signal.SIGTERM),
@@ -1258,7 +1267,7 @@ def test_a_signal_during_export_leaves_a_pvd_of_the_frames_written(tmp_path):
                      "output.vtu_every=0", "--set", "output.plots=[]", "--out", str(saved)]) == 0
     out = tmp_path / "vtu"
     code, err = signalled(["export", str(saved / "result.npz"), "--vtu", str(out), "--every", "1"], out,
-                          appears(out, "nsfem_00002.vtu"), signal.SIGTERM)
+                          appears(out, "vtu/nsfem_00002.vtu"), signal.SIGTERM)
     names = check_interrupted(code, err, out)
     assert "nsfem.pvd" in names and "result.npz" not in names
 
@@ -1298,10 +1307,10 @@ def folder_holds_the_last_run_only(runs):
             assert code == 0, stderr
             outputs = {Path(o).name for o in json.loads(stdout)["outputs"]}
             names = set(folder_is_valid(out, foreign=["nsfem_99999.vtu"])) - {MANIFEST}
-            frames = set(re.findall(r'file="([^"]+)"', (out / "nsfem.pvd").read_text())) if run["vtu_every"] else set()
+            frames = {n for n in names if n.startswith("vtu/")} if run["vtu_every"] else set()
             assert names == outputs | frames | {"notes.txt", "nsfem_99999.vtu"}, (run, sorted(names))
             n_frames = len(range(0, round(run["t_end"] / 1e-3) + 1, run["vtu_every"])) if run["vtu_every"] else 0
-            assert len(frames) == 4 * n_frames  # stack, contacts, disks, cracks
+            assert len(frames) == 5 * n_frames  # stack, contacts, disks, cracks and the .vtm naming them
         assert (out / "notes.txt").read_text() == "my notes" and (out / "nsfem_99999.vtu").read_text() == "mine too"
 
 
@@ -1342,9 +1351,9 @@ def test_an_export_into_the_runs_folder_replaces_its_series_only(tmp_path):
     before = {p.name for p in out.iterdir()}
     assert cli.main(["export", str(out / "result.npz"), "--vtu", str(out), "--every", "2"]) == 0
     after = set(folder_is_valid(out))
-    vtus = {n for n in after if n.endswith(".vtu")}
-    assert len(vtus) == 4 * 3   # outputs 0, 2, 4
-    assert after - vtus == {n for n in before if not n.endswith(".vtu")}   # result, plot, sensors kept
+    vtus = {n for n in after if n.startswith("vtu/")}
+    assert len(vtus) == 5 * 3   # outputs 0, 2, 4: 4 parts and the .vtm each
+    assert after - vtus == before - {"vtu"}   # result, plot, sensors, the .pvd (rewritten) kept
 
 
 COMMANDS_INTO = {  # each command that writes a folder, into "busy" (exit 2 before any computing)
@@ -1397,7 +1406,8 @@ def test_two_runs_at_once_into_one_folder(tmp_path):
 # ---- files without bound: the output's size is estimated before the run
 BOUND_REPRODUCTIONS = [
     (["run", "crack", "--set", "simulation.t_end=1", "--set", "simulation.output_dt=1e-5", "--set",
-      "output.vtu_every=1", "--set", "output.plots=[]"], "output.vtu_every: this run would write 400007 files"),  # 100001 outputs x 4 files + pvd, result, sensors
+      "output.vtu_every=1", "--set", "output.plots=[]"],
+     "output.vtu_every: this run would write 500008 files"),  # 100001 outputs x (4 parts + vtm) + pvd, result, sensors
     (["run", "crack", "--set", "simulation.t_end=1", "--set", "simulation.output_dt=1e-5", "--set",
       "output.vtu_every=3", "--set", "output.plots=[]"], "more than the limit of 100000 files"),
 ]
@@ -1453,7 +1463,7 @@ def test_the_size_estimate_bounds_the_files_written(scene, tmp_path):
     assert cli.main(["run", *args]) == 0
     files, nbytes = frame_size(build_model(load_scene(scene, [])))
     for i in range(3):
-        frame = list(out.glob(f"nsfem*_{i:05d}.vtu"))
+        frame = list(out.glob(f"vtu/nsfem*_{i:05d}.vt[um]"))
         assert len(frame) == files
         assert sum(p.stat().st_size for p in frame) <= nbytes
 
@@ -1505,12 +1515,12 @@ def test_a_shorter_run_without_plots_leaves_nothing_of_the_longer_one(tmp_path):
     out = tmp_path / "out"
     assert cli.main(["run", *TINY, "--set", "simulation.t_end=0.02", "--set", "output.vtu_every=4",
                      "--out", str(out)]) == 0
-    assert len(list(out.glob("*.png"))) == 5 and len(list(out.glob("*.vtu"))) == 4 * 11   # outputs 0..40
+    assert len(list(out.glob("*.png"))) == 5 and len(list(out.glob("vtu/*.vt[um]"))) == 5 * 11   # outputs 0..40
     assert cli.main(["run", *TINY, "--set", "simulation.t_end=0.004", "--set", "output.plots=[]",
                      "--set", "output.vtu_every=4", "--out", str(out)]) == 0
     names = folder_is_valid(out)
     assert not [n for n in names if n.endswith(".png")]
-    assert len([n for n in names if n.endswith(".vtu")]) == 4 * 3   # outputs 0, 4, 8
+    assert len([n for n in names if n.startswith("vtu/")]) == 5 * 3   # outputs 0, 4, 8
 
 
 @pytest.mark.slow
@@ -1590,8 +1600,8 @@ def test_an_interrupt_while_writing_the_plots_still_prints_the_json(tmp_path, mo
 
 
 @pytest.mark.parametrize("every, limit, free, text", [
-    ("1", 10, None, "--every: 23 files (11 of the 11 output times)"),   # 11 frames x 2 files + the pvd
-    ("5", 10, None, None),                                              # 3 frames: 7 files
+    ("1", 10, None, "--every: 34 files (11 of the 11 output times)"),   # 11 frames x 3 files + the pvd
+    ("5", 10, None, None),                                              # 3 frames: 10 files
     ("1", None, 1e3, "GB free in"),
     ("0", None, None, "--every must be a positive integer, got 0"),
     ("x", None, None, "--every"),
@@ -1605,7 +1615,7 @@ def test_export_size_is_bounded(saved_result, every, limit, free, text, tmp_path
         monkeypatch.setattr(simulate, "free_bytes", lambda folder: free)
     code, _, stderr = check_invocation(["export", str(saved_result), "--vtu", "v", "--every", every], tmp_path)
     if text is None:
-        assert code == 0 and len(list((tmp_path / "v").glob("*.vtu"))) == 2 * 3
+        assert code == 0 and len(list((tmp_path / "v").glob("vtu/*.vt[um]"))) == 3 * 3
     else:
         assert code == cli.EXIT_ERROR and text in stderr, stderr
         assert not (tmp_path / "v").exists()
@@ -2927,3 +2937,72 @@ def test_sensors_plot_reproductions(tmp_path):
     for name, v in (("long", 1e-5 * np.column_stack([np.cos(163 * t), np.sin(163 * t)])),
                     ("constant", np.full((t.size, 2), 3e-6)), ("nan", np.full((t.size, 2), np.nan))):
         assert sensors_plot(tmp_path / f"{name}.png", t, v, sensors, 26.0, name).stat().st_size > 10_000
+
+
+# --- issue 34: render and ParaView (the series in vtu/, export --frame) ---
+VTU_TARGETS = ("missing", "file", "users_folder")
+
+
+def _vtu_target(out: Path, kind: str) -> None:
+    """What stands at ``out/vtu`` before an export into ``out``: nothing (no ``out`` either), a user's
+    file, or a folder holding a user's file."""
+    if kind != "missing":
+        out.mkdir()
+    if kind == "file":
+        (out / "vtu").write_text("mine")
+    elif kind == "users_folder":
+        (out / "vtu").mkdir()
+        (out / "vtu" / "mine.vtu").write_text("mine")
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(frame=st.sampled_from([None, "rotating", "inertial", "lab", "", "INERTIAL"]),
+       target=st.sampled_from(VTU_TARGETS), every=st.sampled_from(["1", "4", "0"]))
+def test_export_frame_and_subfolder_property(saved_result, frame, target, every):
+    """Any --frame, any thing at DIR/vtu, any --every: exit 0 with a valid folder (the .pvd indexing
+    exactly its frames in vtu/, a user's file there kept) or one line naming the problem, nothing written."""
+    with tempfile.TemporaryDirectory() as d:
+        root = Path(d)
+        _vtu_target(root / "v", target)
+        argv = ["export", str(saved_result), "--vtu", "v", "--every", every]
+        argv += [] if frame is None else ["--frame", frame]
+        code, _, stderr = check_invocation(argv, root)
+        ok = frame in (None, "rotating", "inertial") and target != "file" and every != "0"
+        assert (code == 0) == ok, (argv, target, stderr)
+        if ok:
+            folder_is_valid(root / "v", foreign=["vtu/mine.vtu"] if target == "users_folder" else ())
+            assert (root / "v" / "nsfem.pvd").is_file()
+        else:
+            assert not (root / "v" / "nsfem.pvd").exists()
+        if target == "file":
+            assert (root / "v" / "vtu").read_text() == "mine"
+        if target == "users_folder":
+            assert (root / "v" / "vtu" / "mine.vtu").read_text() == "mine"
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["--frame", "lab"], "--frame: invalid choice: 'lab'"),
+    (["--frame", ""], "--frame: invalid choice: ''"),
+])
+def test_export_frame_reproductions(saved_result, argv, text, tmp_path):
+    code, _, stderr = check_invocation(["export", str(saved_result), "--vtu", "v", *argv], tmp_path)
+    assert code == cli.EXIT_ERROR and text in stderr, stderr
+    assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "symlink"), reason="needs symbolic links")
+def test_a_manifest_never_removes_through_a_linked_vtu(tmp_path):
+    """A run's folder whose vtu/ was replaced by a link to another folder: the next run, which writes no
+    series, removes the frames the manifest names but never the linked folder's files of those names."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    assert cli.main(["run", *CHEAP[:2], *TINY_RUN, "--set", "output.vtu_every=1", "--out", str(out)]) == 0
+    listed = json.loads((out / MANIFEST).read_text())["files"]["series"]
+    frames = [n for n in listed if n.startswith("vtu/")]
+    assert frames
+    (out / "vtu").rename(elsewhere)
+    os.symlink(elsewhere, out / "vtu")
+    before = sorted(p.name for p in elsewhere.iterdir())
+    code, _, stderr = check_invocation(["run", *CHEAP[:2], *TINY_RUN, "--out", "out"], tmp_path)
+    assert code == 0, stderr
+    assert sorted(p.name for p in elsewhere.iterdir()) == before

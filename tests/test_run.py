@@ -211,8 +211,10 @@ def test_export_rewrites_the_vtu_series_of_a_results_file(tmp_path, capsys):
                      "--set", "output.plots=[]", "--set", "output.vtu_every=5"]) == 0
     assert cli.main(["export", str(tmp_path / "run" / "result.npz"), "--vtu", str(tmp_path / "again")]) == 0
     capsys.readouterr()
-    written = sorted(p.name for p in (tmp_path / "run").glob("*.vtu"))
-    assert len(written) == 2 * 5 and written == sorted(p.name for p in (tmp_path / "again").glob("*.vtu"))
+    written = sorted(str(p.relative_to(tmp_path / "run")) for p in (tmp_path / "run").glob("vtu/*.vt[um]"))
+    # 5 frames of the stack, its contacts and the .vtm naming them, in the subfolder vtu/
+    assert len(written) == 3 * 5 and written == sorted(str(p.relative_to(tmp_path / "again"))
+                                                      for p in (tmp_path / "again").glob("vtu/*.vt[um]"))
     for name in written + ["nsfem.pvd"]:
         assert (tmp_path / "run" / name).read_bytes() == (tmp_path / "again" / name).read_bytes(), name
     assert cli.main(["export", str(tmp_path / "missing.npz"), "--vtu", str(tmp_path / "x")]) == cli.EXIT_ERROR

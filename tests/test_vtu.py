@@ -8,7 +8,7 @@ import pytest
 
 from nsfem import load_scene
 from nsfem.export import displacements, stack_geometry, write_series
-from nsfem.export.vtu import nodal_dofs
+from nsfem.export.vtu import nodal_dofs, series_parts
 from nsfem.simulate import run_scene
 
 EVERY = 10
@@ -86,15 +86,15 @@ def test_series_files_meshio_vtk_and_pvd(run, series):
     res, _, model, Q = run
     out, pvd = series
     assert pvd.name == "nsfem.pvd" and pvd.is_file()
-    assert not [p for p in out.iterdir() if p.name.startswith(".") or p.suffix == ".tmp"]
+    assert not [p for p in out.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
     root = ET.parse(pvd).getroot()
     assert root.get("type") == "Collection"
-    ds = root.find("Collection").findall("DataSet")
+    parts = series_parts(pvd)
     taken = np.arange(0, res.t.size, EVERY)
-    for part in ("0", "1"):
-        t = np.array([float(d.get("timestep")) for d in ds if d.get("part") == part])
+    for part in ("stack", "contacts"):
+        t = np.array([t for t, _ in parts[part]])
         assert np.all(np.diff(t) > 0) and np.array_equal(t, res.t[taken])
-    files = [d.get("file") for d in ds if d.get("part") == "0"]
+    files = [f for _, f in parts["stack"]]
     pts, cells, seg, _ = stack_geometry(model)
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
@@ -114,7 +114,7 @@ def test_series_files_meshio_vtk_and_pvd(run, series):
         g = r.GetOutput()
         assert g.GetNumberOfPoints() == len(pts) and g.GetNumberOfCells() == len(cells)
         assert vtk_to_numpy(g.GetPointData().GetArray("displacement")).shape == (len(pts), 3)
-    cfiles = [d.get("file") for d in ds if d.get("part") == "1"]
+    cfiles = [f for _, f in parts["contacts"]]
     for i, f in zip(taken, cfiles):
         c = meshio.read(out / f)
         assert c.points.shape == (res.gap.shape[0], 3)
@@ -129,11 +129,10 @@ def test_gap_seen_in_vtu_equals_result_gap(run, series):
     out, pvd = series
     _, _, _, book = stack_geometry(model)
     names = [s.name for s in model.stack.segments]
-    ds = [d for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part") == "0"]
     worst = 0.0
-    for k_out, d in enumerate(ds):
+    for k_out, (_, f) in enumerate(series_parts(pvd)["stack"]):
         i = k_out * EVERY
-        m = meshio.read(out / d.get("file"))
+        m = meshio.read(out / f)
         cur = m.points + m.point_data["displacement"]
         for k, c in enumerate(model.stack.contacts):
             up, lo = (names.index(n) for n in c.segments)
@@ -153,12 +152,11 @@ def test_gap_seen_in_vtu_equals_result_gap(run, series):
 def test_inertial_frame_rotates_about_x(run, tmp_path):
     res, sysm, model, Q = run
     pvd = write_series(res, sysm, tmp_path, every=25, frame="inertial", prefix="iner")
-    ds = [d for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part") == "0"]
     pts, _, _, _ = stack_geometry(model)
     omega = 2 * np.pi * res.info["speed_hz"]
-    for k, d in enumerate(ds):
+    for k, (_, f) in enumerate(series_parts(pvd)["stack"]):
         i = 25 * k
-        m = meshio.read(tmp_path / d.get("file"))
+        m = meshio.read(tmp_path / f)
         a = omega * res.t[i]
         R = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
         # the same product with the same angle (numpy's and math's cos, sin may differ by an ulp): a few
@@ -167,13 +165,14 @@ def test_inertial_frame_rotates_about_x(run, tmp_path):
         # displacements from T q vs T Q, as in test_series_files_meshio_vtk_and_pvd (measured 3.3e-19 m)
         u = displacements(model, Q[:, i]) @ R.T
         assert np.allclose(m.point_data["displacement"], u, rtol=0, atol=1e-13 * np.abs(u).max())
-    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".")]
 
 
 def test_model_and_T_tuple_and_bad_args(run, tmp_path):
     res, sysm, model, _ = run
     pvd = write_series(res, (model, sysm.info["reduction"].T), tmp_path, every=50)
-    assert len([d for d in ET.parse(pvd).getroot().iter("DataSet")]) == 2 * len(range(0, res.t.size, 50))
+    assert len([d for d in ET.parse(pvd).getroot().iter("DataSet")]) == len(range(0, res.t.size, 50))
+    assert [len(v) for v in series_parts(pvd).values()] == [len(range(0, res.t.size, 50))] * 2
     with pytest.raises(Exception, match="frame"):
         write_series(res, sysm, tmp_path, frame="lab")
 
@@ -192,7 +191,7 @@ def test_stator_friction_force_is_drawn_along_the_circumference(tmp_path):
     scene = load_scene("rub", ["simulation.t_end=0.3", "simulation.output_dt=1e-2"])
     res, system = run_scene(scene, "exact")
     write_series(res, system, tmp_path, every=30)
-    mesh = meshio.read(tmp_path / "nsfem_contacts_00030.vtu")
+    mesh = meshio.read(tmp_path / "vtu" / "nsfem_contacts_00030.vtu")
     tf = mesh.point_data["tangential_force"]
     mu, facets = scene["stator"][0]["friction"], scene["stator"][0]["facets"]
     # each facet's point sits on the shaft surface it faces (radius 10 mm along its normal), and the ring's
@@ -207,7 +206,7 @@ def test_stator_friction_force_is_drawn_along_the_circumference(tmp_path):
     # re-exported from the model and the basis alone (`nsfem export --vtu`: no contact set), the same forces
     # (raised KeyError 'stator' before)
     write_series(res, (system.info["model"], system.info["reduction"].T), tmp_path / "again", every=30)
-    again = meshio.read(tmp_path / "again" / "nsfem_contacts_00030.vtu")
+    again = meshio.read(tmp_path / "again" / "vtu" / "nsfem_contacts_00030.vtu")
     np.testing.assert_array_equal(again.point_data["tangential_force"], tf)
     closed = np.flatnonzero(res.normal_force[:, 30] > 0)
     assert closed.size
@@ -250,5 +249,83 @@ def test_round_shafts_are_drawn_round(inner, tmp_path):
                 q[model.dof(s.name, "V", x)], q[model.dof(s.name, "W", x)]]
         assert np.allclose(u[p], want, rtol=0, atol=1e-15 * np.abs(u).max())
     write_series(res, system, tmp_path, every=5)     # and the files take the new cells
-    mesh = meshio.read(tmp_path / "nsfem_00000.vtu")
+    mesh = meshio.read(tmp_path / "vtu" / "nsfem_00000.vtu")
     assert mesh.cells[0].data.shape == cells.shape
+
+
+# --- issue 34: the series in a subfolder, named leaves, the inertial frame from the command line ---
+def test_pvd_indexes_vtm_frames_in_the_subfolder_with_named_leaves(run, series):
+    """The .pvd at the top indexes one .vtm a time in vtu/ by a relative path; every file it and the .vtm
+    name exists in vtu/; VTK's multiblock reader gives the leaves their names (stack, contacts)."""
+    import vtk
+    from vtkmodules.vtkIOXML import vtkXMLMultiBlockDataReader
+
+    res, _, _, _ = run
+    out, pvd = series
+    assert sorted(p.name for p in out.iterdir()) == ["nsfem.pvd", "vtu"]
+    files = [d.get("file") for d in ET.parse(pvd).getroot().iter("DataSet")]
+    assert files == [f"vtu/nsfem_{i:05d}.vtm" for i in range(0, res.t.size, EVERY)]
+    named = {f for v in series_parts(pvd).values() for _, f in v}
+    assert {str(p.relative_to(out)) for p in (out / "vtu").iterdir()} == set(files) | named
+    r = vtkXMLMultiBlockDataReader()
+    r.SetFileName(str(out / files[-1]))
+    r.Update()
+    mb = r.GetOutput()
+    names = [mb.GetMetaData(i).Get(vtk.vtkCompositeDataSet.NAME()) for i in range(mb.GetNumberOfBlocks())]
+    assert names == ["stack", "contacts"]
+    assert mb.GetBlock(1).GetNumberOfPoints() == res.gap.shape[0]
+
+
+def test_no_contacts_block_without_contacts_and_the_bearings_block(tmp_path):
+    """critical_speed has no contacts: its frames are the stack, the disk and the bearings, no empty contacts
+    block. The bearings block: a vertex on the axis at each bearing's x with the scene's stiffness and
+    damping (as given: exact) and the shaft's displacement there (the same dofs of T q: exact)."""
+    scene = load_scene("critical_speed", ["simulation.t_end=0.005"])
+    res, system = run_scene(scene)
+    pvd = write_series(res, system, tmp_path, every=5)
+    parts = series_parts(pvd)
+    assert list(parts) == ["stack", "disks", "bearings"]
+    assert not list((tmp_path / "vtu").glob("*contacts*"))
+    model = system.info["model"]
+    m = meshio.read(tmp_path / parts["bearings"][-1][1])
+    i = 5 * (len(parts["bearings"]) - 1)
+    q = np.asarray(system.info["reduction"].T @ res.q[:, i]).ravel()
+    for k, (b, want) in enumerate(zip(model.stack.bearings, scene["bearing"])):
+        assert m.points[k].tolist() == [b.x, 0.0, 0.0]
+        assert m.point_data["stiffness"][k].tolist() == [want["kyy"], want["kzz"], want["kyz"], want["kzy"]]
+        assert m.point_data["damping"][k].tolist() == [want["cyy"], want["czz"], want["cyz"], want["czy"]]
+        seg = model.stack.carrier(b.x)
+        assert m.point_data["displacement"][k].tolist() == [q[model.dof(seg, f, b.x)] for f in ("U", "V", "W")]
+    assert np.abs(m.point_data["displacement"]).max() > 0   # not vacuous: the shaft sags at the bearings
+
+
+def test_export_inertial_equals_the_python_path(tmp_path, capsys):
+    """`nsfem export RESULT --vtu DIR --frame inertial` of a rotating-frame run (phase 30 deg) writes what
+    write_series(frame="inertial") writes from the run itself: the same points and displacements (the
+    results file's dense basis against the run's T: T q in another order of sums, 1e-13 of the largest
+    displacement as in test_series_files_meshio_vtk_and_pvd; the coordinates ulps of 1 m)."""
+    from nsfem import cli
+
+    sets = ["simulation.t_end=0.02", "rotation.phase_deg=30"]
+    res, system = run_scene(load_scene(None, sets))
+    pvd = write_series(res, system, tmp_path / "py", every=5, frame="inertial")
+    argv = [a for s in sets for a in ("--set", s)]
+    assert cli.main(["run", "--out", str(tmp_path / "run"), *argv, "--set", "output.plots=[]",
+                     "--set", "output.vtu_every=0"]) == 0
+    assert cli.main(["export", str(tmp_path / "run" / "result.npz"), "--vtu", str(tmp_path / "cli"), "--every", "5",
+                     "--frame", "inertial"]) == 0
+    assert "inertial frame" in capsys.readouterr().out
+    cli_pvd = tmp_path / "cli" / "nsfem.pvd"
+    assert "coordinates in the inertial frame" in cli_pvd.read_text()
+    py, cl = series_parts(pvd), series_parts(cli_pvd)
+    assert py == cl and list(py) == ["stack", "contacts"]
+    for frames in py.values():
+        for _, f in frames:
+            a, b = meshio.read(tmp_path / "py" / f), meshio.read(tmp_path / "cli" / f)
+            np.testing.assert_allclose(b.points, a.points, rtol=0, atol=1e-15)
+            u = a.point_data["displacement"]
+            np.testing.assert_allclose(b.point_data["displacement"], u, rtol=0, atol=1e-13 * np.abs(u).max())
+    # not vacuous: at t = 0 the points are already turned by the phase (30 deg of 20 mm sections: ~5 mm)
+    rest = stack_geometry(system.info["model"])[0]
+    first = meshio.read(tmp_path / "cli" / py["stack"][0][1]).points
+    assert np.abs(first[:, 1:] - rest[:, 1:]).max() > 1e-3

@@ -2,7 +2,6 @@
 crack contacts' points)."""
 
 import math
-import xml.etree.ElementTree as ET
 
 import meshio
 import numpy as np
@@ -10,7 +9,7 @@ import pytest
 
 from nsfem import build_model
 from nsfem.export.vtu import (CRACK_ARC, contact_points, crack_displacements, crack_faces, crack_geometry, rotation,
-                              write_series)
+                              series_parts, write_series)
 from nsfem.fem.crack import SIDE_DIRECTION, ligament_centroid
 from nsfem.scene.load import scene_from_tree
 from nsfem.simulate import run_scene
@@ -36,10 +35,8 @@ def cracked(tmp_path_factory):
 
 
 def _parts(pvd):
-    out = {}
-    for d in ET.parse(pvd).getroot().iter("DataSet"):
-        out.setdefault(d.get("name"), []).append((float(d.get("timestep")), d.get("file")))
-    return out
+    """{block name: [(time, file relative to the .pvd's folder), ...]} of a series."""
+    return series_parts(pvd)
 
 
 def _area(yz):
@@ -108,7 +105,7 @@ def test_crack_part_in_the_pvd(cracked):
     parts = _parts(pvd)
     assert list(parts) == ["stack", "contacts", "cracks"]
     assert [t for t, _ in parts["cracks"]] == res.t.tolist()
-    assert parts["cracks"][7][1] == "nsfem_cracks_00007.vtu"
+    assert parts["cracks"][7][1] == "vtu/nsfem_cracks_00007.vtu"
     pts, polys, owner = crack_geometry(model)
     m = meshio.read(out / parts["cracks"][-1][1])
     np.testing.assert_array_equal(m.points, pts)
@@ -119,7 +116,7 @@ def test_crack_part_in_the_pvd(cracked):
     pv = pytest.importorskip("pyvista")
     reader = pv.get_reader(str(pvd))
     reader.set_active_time_value(reader.time_values[-1])
-    block = reader.read()[2]
+    block = reader.read()[0]["cracks"]   # the frame's multiblock (its .vtm), its leaves named
     assert block.n_cells == 1 and "state" in block.cell_data and "face_gap" in block.point_data
     assert block.compute_cell_sizes()["Area"][0] == pytest.approx(_area(pts[:, 1:]), rel=1e-12)
 
@@ -171,7 +168,7 @@ def test_crack_face_moves_with_the_left_section(cracked):
         np.testing.assert_allclose(gap[[0, -1]], res.gap[f["contacts"], i], rtol=0, atol=1e-20)
         if res.gap[f["contacts"], i].min() > 0:
             assert gap.max() > res.gap[f["contacts"], i].max()
-        c = meshio.read(out / f"nsfem_contacts_{i:05d}.vtu")
+        c = meshio.read(out / f"vtu/nsfem_contacts_{i:05d}.vtu")
         np.testing.assert_allclose(c.points[:, 1:], f["face"][[0, -1]], rtol=0, atol=1e-18)
         sides = []
         for name in (left, right):

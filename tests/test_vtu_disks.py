@@ -9,7 +9,8 @@ import pytest
 
 from nsfem import build_model, load_scene
 from nsfem.export.vtu import (DISK_RHO, RING_THICKNESS, RING_WIDTH, SECTORS, disk_displacements, disk_geometry,
-                              disk_size, displacements, stack_geometry, stator_geometry, write_series)
+                              disk_size, displacements, series_parts, stack_geometry, stator_geometry,
+                              write_series)
 from nsfem.simulate import run_scene
 from nsfem.stack import Disk
 
@@ -31,11 +32,8 @@ def rub(tmp_path_factory):
 
 
 def _parts(pvd):
-    """{part name: [(time, file), ...]} of a .pvd."""
-    out = {}
-    for d in ET.parse(pvd).getroot().iter("DataSet"):
-        out.setdefault(d.get("name"), []).append((float(d.get("timestep")), d.get("file")))
-    return out
+    """{block name: [(time, file relative to the .pvd's folder), ...]} of a series."""
+    return series_parts(pvd)
 
 
 def test_disk_size_rules():
@@ -179,33 +177,34 @@ def test_stator_cell_data_are_the_results(rub):
 
 
 def test_existing_parts_unchanged_and_parts_named(rub):
-    """The stack and contact parts keep their files, names and arrays; the disks and stators follow as parts
-    2 and 3, at the same times; the index says its frame."""
+    """The .pvd indexes one .vtm a time in vtu/, whose leaf blocks are the parts, named: stack, contacts,
+    disks, stators, bearings (rub's damper at the disk), with their files; the stack and contact parts keep their arrays; the index says its frame."""
     _, res, _, model, Q, out, pvd = rub
     root = ET.parse(pvd).getroot()
     ds = list(root.iter("DataSet"))
     taken = range(0, res.t.size, EVERY)
-    assert len(ds) == 4 * len(taken)
-    for d in ds:
-        part = int(d.get("part"))
-        i = int(d.get("file")[-9:-4])
-        assert d.get("name") == ("stack", "contacts", "disks", "stators")[part]
-        assert d.get("file") == ["nsfem_{:05d}.vtu", "nsfem_contacts_{:05d}.vtu", "nsfem_disks_{:05d}.vtu",
-                                 "nsfem_stators_{:05d}.vtu"][part].format(i)
-        assert float(d.get("timestep")) == res.t[i]
+    assert len(ds) == len(taken)
+    for d, i in zip(ds, taken):
+        assert d.get("file") == f"vtu/nsfem_{i:05d}.vtm" and float(d.get("timestep")) == res.t[i]
+        leaves = ET.parse(out / d.get("file")).getroot().iter("DataSet")
+        assert [(b.get("index"), b.get("name"), b.get("file")) for b in leaves] == [
+            (str(k), name, f.format(i)) for k, (name, f) in enumerate([
+                ("stack", "nsfem_{:05d}.vtu"), ("contacts", "nsfem_contacts_{:05d}.vtu"),
+                ("disks", "nsfem_disks_{:05d}.vtu"), ("stators", "nsfem_stators_{:05d}.vtu"),
+                ("bearings", "nsfem_bearings_{:05d}.vtu")])]
     assert "coordinates in the rotating frame" in pvd.read_text()
     pts, cells, seg, _ = stack_geometry(model)
     i = taken[-1]
-    m = meshio.read(out / f"nsfem_{i:05d}.vtu")
+    m = meshio.read(out / f"vtu/nsfem_{i:05d}.vtu")
     assert set(m.point_data) == {"displacement"} and set(m.cell_data) == {"segment"}
     np.testing.assert_array_equal(m.points, pts)
     np.testing.assert_array_equal(m.cells_dict["hexahedron"], cells)
     want = displacements(model, Q[:, i])
     np.testing.assert_allclose(m.point_data["displacement"], want, rtol=0, atol=1e-13 * np.abs(want).max())
-    c = meshio.read(out / f"nsfem_contacts_{i:05d}.vtu")
+    c = meshio.read(out / f"vtu/nsfem_contacts_{i:05d}.vtu")
     assert set(c.point_data) == {"displacement", "gap", "normal_force", "tangential_force", "state"}
     np.testing.assert_array_equal(c.point_data["gap"], res.gap[:, i])
-    assert not [p for p in out.iterdir() if p.name.startswith(".") or p.suffix == ".tmp"]
+    assert not [p for p in out.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
 
 
 def test_inertial_output_turns_disks_and_rings_with_the_coordinates(rub, tmp_path):
@@ -237,7 +236,7 @@ def test_inertial_run_keeps_its_rings_still(tmp_path):
     res, system = run_scene(load_scene("retainer_drop", ["simulation.t_end=0.01"]))
     pvd = write_series(res, system, tmp_path, every=20, frame="inertial")
     parts = _parts(pvd)
-    assert list(parts) == ["stack", "contacts", "disks", "stators"]
+    assert list(parts) == ["stack", "contacts", "disks", "stators", "bearings"]
     first = meshio.read(tmp_path / parts["stators"][0][1])
     assert set(first.cell_data["stator"][0]) == {0, 1}
     for _, f in parts["stators"][1:]:
@@ -253,8 +252,8 @@ def test_pyvista_reads_every_part(rub):
     _, _, _, _, _, _, pvd = rub
     reader = pv.get_reader(str(pvd))
     reader.set_active_time_value(reader.time_values[-1])
-    blocks = reader.read()
-    assert blocks.n_blocks == 4
+    (blocks,) = reader.read()   # the time's .vtm
+    assert blocks.keys() == ["stack", "contacts", "disks", "stators", "bearings"]
     assert blocks[2].n_cells == 16 and blocks[3].n_cells == 64
     assert "normal_force" in blocks[3].cell_data and "displacement" in blocks[2].point_data
 

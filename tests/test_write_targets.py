@@ -179,3 +179,51 @@ def test_json_keeps_the_title_as_written(capsys):
     assert cli.main(["modes", "--json", "--count", "1", "--set", "mesh.elements=20", "--set",
                      'title="a\\u001bb"']) == 0
     assert json.loads(capsys.readouterr().out)["title"] == "a\x1bb"
+
+
+# --- issue 34: the VTU frames in the subfolder vtu/ ---
+def test_frames_go_to_vtu_and_the_manifest_lists_them(tmp_path, capsys):
+    """A run writes nsfem.pvd beside result.npz and its frames in vtu/, and its manifest names them
+    vtu/<name>; the next run without a series removes them and the emptied vtu/, but a user's file
+    in vtu/ stays (and so does vtu/)."""
+    out = tmp_path / "out"
+    assert cli.main(["run", "--out", str(out), *SHORT[:2], "--set", "output.vtu_every=5", *SHORT[4:]]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [".nsfem-files.json", "nsfem.pvd", "result.npz", "vtu"]
+    listed = json.loads((out / ".nsfem-files.json").read_text())["files"]["series"]
+    assert sorted(listed) == sorted(["nsfem.pvd"] + [f"vtu/{p.name}" for p in (out / "vtu").iterdir()])
+    assert len(listed) == 1 + 3 * 3    # outputs 0, 5, 10: stack, contacts, .vtm
+    assert cli.main(["run", "--out", str(out), *SHORT]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [".nsfem-files.json", "result.npz"]
+    assert cli.main(["run", "--out", str(out), *SHORT[:2], "--set", "output.vtu_every=5", *SHORT[4:]]) == 0
+    (out / "vtu" / "mine.vtu").write_text("mine")
+    assert cli.main(["run", "--out", str(out), *SHORT]) == 0
+    assert tree(out) == [".nsfem-files.json", "result.npz", "vtu", "vtu/mine.vtu"]
+
+
+def test_a_file_named_vtu_is_refused_before_the_run(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "vtu").write_text("mine")
+    code = cli.main(["run", "--out", str(out), *SHORT[:2], "--set", "output.vtu_every=5", *SHORT[4:]])
+    one_line_error(capsys, code, "vtu is a file, not a folder")
+    assert tree(out) == ["vtu"] and (out / "vtu").read_text() == "mine"
+    one_line_error(capsys, cli.main(["export", str(_result_of(tmp_path)), "--vtu", str(out)]), "vtu is a file")
+
+
+def _result_of(tmp_path: Path) -> Path:
+    assert cli.main(["run", "--out", str(tmp_path / "r"), *SHORT]) == 0
+    return tmp_path / "r" / "result.npz"
+
+
+def test_export_frame_of_an_inertial_run(tmp_path, capsys):
+    """An inertial-frame run: exported as it is (default) or --frame inertial; --frame rotating is refused in
+    one line naming the run's frame, and leaves no folder."""
+    run = ["run", "critical_speed", "--out", str(tmp_path / "r"), "--set", "simulation.t_end=0.004",
+           "--set", "output.plots=[]", "--set", "output.vtu_every=0"]
+    assert cli.main(run) == 0
+    result = tmp_path / "r" / "result.npz"
+    code = cli.main(["export", str(result), "--vtu", str(tmp_path / "v"), "--frame", "rotating"])
+    one_line_error(capsys, code, "--frame", "inertial frame")
+    assert not (tmp_path / "v").exists()
+    assert cli.main(["export", str(result), "--vtu", str(tmp_path / "v"), "--frame", "inertial"]) == 0
+    assert "coordinates in the inertial frame" in (tmp_path / "v" / "nsfem.pvd").read_text()

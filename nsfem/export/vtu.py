@@ -18,25 +18,28 @@ so a positive slope W' = dW/dx rotates the section such that points above the ax
 (zeta > 0) move towards -x. The node values are exact; the solid between two sections is
 the trilinear hexahedron, not the Hermite cubic.
 
-The series is one ``.pvd`` with two parts: part 0 the stack (``<prefix>_NNNNN.vtu``, point
-data ``displacement``, cell data ``segment``), part 1 the contact points
-(``<prefix>_contacts_NNNNN.vtu``, vertex cells, point data ``displacement``, ``gap``,
-``normal_force``, ``tangential_force`` (3 components, x y z), ``state``). A rotor with disks adds
-the next part, the disks as short cylinders (``<prefix>_disks_NNNNN.vtu``, :func:`disk_geometry`:
-their geometry, or a steel cylinder of their mass and polar inertia, :func:`disk_size`; point data
-``displacement``, each disk moving rigidly with its node, cell data ``disk``); one with stators the
-next, the rings as polygons of their facets (``<prefix>_stators_NNNNN.vtu``,
-:func:`stator_geometry`; point data ``displacement`` (0: fixed), one cell per facet with cell data
-``stator``, ``contact`` (its row in the contacts part and the result), ``gap``, ``normal_force``,
-``tangential_force``, ``state``); one with cracks the next, each crack's face as a polygon in the
-section plane at its x (``<prefix>_cracks_NNNNN.vtu``, :func:`crack_geometry`: the strip or circular
+The series is one ``<prefix>.pvd`` in the output folder indexing, by time, one ``<prefix>_NNNNN.vtm`` a
+frame in its subfolder :data:`SUBFOLDER` (``vtu/``); the .vtm (VTK's multiblock file) names the frame's
+parts as leaf blocks, each a .vtu beside it: ``stack`` (``<prefix>_NNNNN.vtu``, point data
+``displacement``, cell data ``segment``), ``contacts`` when the model has any (``<prefix>_contacts_NNNNN.vtu``,
+vertex cells, point data ``displacement``, ``gap``, ``normal_force``, ``tangential_force`` (3 components,
+x y z), ``state``). A rotor with disks adds ``disks``, the disks as short cylinders
+(``<prefix>_disks_NNNNN.vtu``, :func:`disk_geometry`: their geometry, or a steel cylinder of their mass and
+polar inertia, :func:`disk_size`; point data ``displacement``, each disk moving rigidly with its node, cell
+data ``disk``); one with stators ``stators``, the rings as polygons of their facets
+(``<prefix>_stators_NNNNN.vtu``, :func:`stator_geometry`; point data ``displacement`` (0: fixed), one cell
+per facet with cell data ``stator``, ``contact`` (its row in the contacts part and the result), ``gap``,
+``normal_force``, ``tangential_force``, ``state``); one with cracks ``cracks``, each crack's face as a polygon
+in the section plane at its x (``<prefix>_cracks_NNNNN.vtu``, :func:`crack_geometry`: the strip or circular
 segment the crack has cut, moving with the left side's section; point data ``displacement`` and
 ``face_gap``, the faces' axial opening at that point; one cell per crack with cell data ``crack``,
 ``opening`` (the larger gap of its front's two contacts), ``state`` (how many of them are closed: 0 open,
-1 partly closed, 2 closed) and ``normal_force`` (their sum)). Every part carries point data
-``displacement``, so *Warp By Vector* applies to all of them; each ``DataSet`` of the .pvd is named
-(``stack``, ``contacts``, ``disks``, ``stators``, ``cracks``) and a comment in it says which frame the
-coordinates are in. NNNNN is the index
+1 partly closed, 2 closed) and ``normal_force`` (their sum)); one with bearings ``bearings``
+(``<prefix>_bearings_NNNNN.vtu``, :func:`bearing_points`: a vertex on the shaft's axis at each bearing's x,
+moving with it, point data ``displacement`` and the bearing's ``stiffness`` (kyy, kzz, kyz, kzy [N/m]),
+``damping`` (cyy, czz, cyz, czy [N s/m]) and ``kxx`` [N/m]). Every part carries point data
+``displacement``, so *Warp By Vector* applies to all of them; a comment in the .pvd says which frame the
+coordinates are in and names the blocks. NNNNN is the index
 of the output time in ``result.t``. Every file is written to a temporary name in the
 output folder and renamed, so a reader never sees a half-written file; a series stopped part way
 (Ctrl-C, SIGTERM, an error) still gets its ``.pvd``, indexing exactly the frames complete by then.
@@ -72,10 +75,12 @@ from ..errors import NsfemError
 #: (so a hexahedron (section i, section i+1) has positive volume in VTK's ordering)
 CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 _AXIS = {"x": 0, "y": 1, "z": 2}
-#: the parts of a series after the stack, in their order in the .pvd (files ``<prefix>_<part>_NNNNN.vtu``)
-PARTS = ("contacts", "disks", "stators", "cracks")
-#: the name of a frame file of a series
-SERIES_FRAME = re.compile(r"^.+?(_(%s))?_\d{5,}\.vtu$" % "|".join(PARTS))
+#: the parts of a series after the stack, in their order in a frame (files ``<prefix>_<part>_NNNNN.vtu``)
+PARTS = ("contacts", "disks", "stators", "cracks", "bearings")
+#: the subfolder of the output folder that holds a series' frames (the .pvd stays at the top, beside the plots)
+SUBFOLDER = "vtu"
+#: the name of a frame file of a series (in :data:`SUBFOLDER`): a part's .vtu or the frame's .vtm
+SERIES_FRAME = re.compile(r"^.+?((_(%s))?_\d{5,}\.vtu|_\d{5,}\.vtm)$" % "|".join(PARTS))
 
 
 def _tangent_vector(contact, name: str) -> np.ndarray:
@@ -266,8 +271,8 @@ def stator_rings(model) -> list[dict]:
     ``stator.<i>`` of their labels, else by x, segment, clearance and radius), each ring that closes
     (3 or more facets, no gap of pi or more between neighbouring normals) as a dict: ``label``, ``x``,
     ``centre`` (y, z) (the carrying segment's centroid axis, where the gap is measured from), ``radius``
-    (clearance + the surface radius: the distance of every facet from the centre), ``contacts`` (the
-    facets' contact indices ordered by angle) and ``angles``."""
+    (clearance + the surface radius: the distance of every facet from the centre), ``clearance`` and
+    ``surface`` (the two terms), ``contacts`` (the facets' contact indices ordered by angle) and ``angles``."""
     groups: dict[tuple, list[int]] = {}
     for k, c in enumerate(model.stack.contacts):
         if c.angle is None:
@@ -284,11 +289,11 @@ def stator_rings(model) -> list[dict]:
             continue
         rings.append({"label": ring or model.stack.contacts[ks[0]].label, "x": x,
                       "centre": model.stack.segment(seg).offset, "radius": clearance + radius,
-                      "contacts": np.asarray(ks)[order], "angles": a})
+                      "clearance": clearance, "surface": radius, "contacts": np.asarray(ks)[order], "angles": a})
     return rings
 
 
-def stator_geometry(model):
+def stator_geometry(model, clearance_scale: float = 1.0, width: float | None = None):
     """Each stator ring (:func:`stator_rings`) as the polygon the model has: facet k is the plane
     n_k . (y, z) = clearance + radius from the ring's centre (n_k = (cos a_k, sin a_k)), so that the shaft
     surface touches it when its gap is 0; neighbouring facets meet at the corners, at the angle halfway
@@ -296,6 +301,10 @@ def stator_geometry(model):
     (for ``facets`` equal sides at (2 k + 1) pi / facets, (clearance + radius) / cos(pi / facets)). The ring
     is :data:`RING_THICKNESS` of its inner radius thick (its outer facets parallel to the inner ones) and
     :data:`RING_WIDTH` of it wide, centred at x: one hexahedron per facet.
+
+    ``clearance_scale`` draws the clearance that many times as wide (surface + scale x clearance from the
+    centre; :mod:`nsfem.export.render` scales it with the displacements, so that the drawn shaft touches the
+    drawn ring where the gap closes); ``width`` [m] replaces the RING_WIDTH rule.
 
     Returns ``(points (P, 3), cells (C, 8), ring (C,), contact (C,))``: the ring index and the contact index
     (the row of the result's gap, forces and state) of each facet's cell.
@@ -308,9 +317,10 @@ def stator_geometry(model):
         n = a.size
         nxt = np.append(a[1:], a[0] + 2.0 * math.pi)
         phi, half = (a + nxt) / 2.0, (nxt - a) / 2.0    # corner j: between facets j and j + 1
-        rad = np.concatenate([r["radius"] / np.cos(half), r["radius"] * (1.0 + RING_THICKNESS) / np.cos(half)])
+        inner = r["radius"] if clearance_scale == 1.0 else r["surface"] + clearance_scale * r["clearance"]
+        rad = np.concatenate([inner / np.cos(half), inner * (1.0 + RING_THICKNESS) / np.cos(half)])
         ang = np.concatenate([phi, phi])                 # inner corners 0..n-1, outer n..2n-1
-        w = RING_WIDTH * r["radius"]
+        w = RING_WIDTH * inner if width is None else width
         p = np.empty((2, 2 * n, 3))
         p[0, :, 0], p[1, :, 0] = r["x"] - w / 2.0, r["x"] + w / 2.0
         p[:, :, 1] = r["centre"][0] + rad * np.cos(ang)
@@ -422,6 +432,27 @@ def crack_data(result, faces, i: int) -> dict[str, np.ndarray]:
             "normal_force": np.array([result.normal_force[r, i].sum() for r in rows], dtype=float)}
 
 
+def bearing_points(model, q_full) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(positions (b, 3), displacements (b, 3), point data) of the bearings: each on the centroid axis of
+    the segment carrying its x, moving with the shaft there (U, V, W); point data ``stiffness`` and
+    ``damping`` (b, 4): yy, zz, yz, zy, and ``kxx`` (b,)."""
+    q_full = np.asarray(q_full, dtype=float).ravel()
+    pos, disp, k, c, kxx = [], [], [], [], []
+    for b in model.stack.bearings:
+        name = model.stack.carrier(b.x) or next(s.name for s in model.stack.segments if s.start <= b.x <= s.end)
+        off = model.stack.segment(name).offset
+        pos.append([b.x, off[0], off[1]])
+        disp.append([q_full[model.dof(name, f, b.x)] for f in ("U", "V", "W")])
+        (kyy, kyz), (kzy, kzz) = b.K
+        (cyy, cyz), (czy, czz) = b.C
+        k.append([kyy, kzz, kyz, kzy])
+        c.append([cyy, czz, cyz, czy])
+        kxx.append(b.kxx)
+    data = {"stiffness": np.array(k, dtype=float).reshape(-1, 4), "damping": np.array(c, dtype=float).reshape(-1, 4),
+            "kxx": np.array(kxx, dtype=float)}
+    return np.array(pos, dtype=float).reshape(-1, 3), np.array(disp, dtype=float).reshape(-1, 3), data
+
+
 def rotation(angle: float) -> np.ndarray:
     """Rotation about +x by ``angle`` [rad]: rotating-frame vectors to inertial ones."""
     c, s = math.cos(angle), math.sin(angle)
@@ -484,22 +515,26 @@ def _model_and_T(system_or_model_and_T):
 
 
 def series_files(n_times: int, every: int, prefix: str = "nsfem", parts=PARTS) -> list[str]:
-    """The names a series of ``n_times`` output times may write: its .pvd and, for every
-    ``every``-th time, the stack's frame and one per part of ``parts``."""
+    """The names (relative to the output folder) a series of ``n_times`` output times may write: its
+    .pvd at the top and, in :data:`SUBFOLDER`, for every ``every``-th time the stack's frame, one per
+    part of ``parts`` and the frame's .vtm that names them."""
     names = [f"{prefix}.pvd"]
     for i in range(0, n_times, every):
-        names += [f"{prefix}_{i:05d}.vtu"] + [f"{prefix}_{p}_{i:05d}.vtu" for p in parts]
+        names += ([f"{SUBFOLDER}/{prefix}_{i:05d}.vtu"] + [f"{SUBFOLDER}/{prefix}_{p}_{i:05d}.vtu" for p in parts]
+                  + [f"{SUBFOLDER}/{prefix}_{i:05d}.vtm"])
     return names
 
 
 #: bytes of a VTU file besides its arrays (XML header, array descriptions: 1.2 to 1.9 kB measured)
 VTU_OVERHEAD = 2048
+#: bytes of a frame's .vtm (0.4 to 0.6 kB measured for 2 to 5 parts)
+VTM_BYTES = 1024
 
 
 def frame_size(model) -> tuple[int, float]:
-    """(files, bytes) of one frame of ``model``'s series: the bytes an upper bound (every array in
-    meshio's raw binary, 8 bytes a value, as base64, before its zlib compression, which gains 2x
-    to 5x on these files; plus :data:`VTU_OVERHEAD` a file)."""
+    """(files, bytes) of one frame of ``model``'s series: its parts and its .vtm. The bytes are an upper
+    bound (every array in meshio's raw binary, 8 bytes a value, as base64, before its zlib compression,
+    which gains 2x to 5x on these files; plus :data:`VTU_OVERHEAD` a file and the .vtm)."""
     points, cells, _, _ = stack_geometry(model)
     dpoints, dcells, _, _ = disk_geometry(model)
     spoints, scells, _, _ = stator_geometry(model)
@@ -507,14 +542,18 @@ def frame_size(model) -> tuple[int, float]:
     m = len(model.stack.contacts)
     # values per part: coordinates and displacements (6 a point), connectivity, offsets and types,
     # then the point / cell data of write_series
-    values = [6 * len(points) + cells.size + 3 * len(cells), 15 * m]
+    values = [6 * len(points) + cells.size + 3 * len(cells)]
+    if m:
+        values.append(15 * m)
     if len(dcells):
         values.append(6 * len(dpoints) + dcells.size + 3 * len(dcells))
     if len(scells):
         values.append(6 * len(spoints) + scells.size + 10 * len(scells))
     if len(cpolys):
         values.append(7 * len(cpoints) + sum(len(p) for p in cpolys) + 6 * len(cpolys))
-    return len(values), float(sum(8 * 4 / 3 * v + VTU_OVERHEAD for v in values))
+    if model.stack.bearings:
+        values.append(18 * len(model.stack.bearings))
+    return len(values) + 1, float(sum(8 * 4 / 3 * v + VTU_OVERHEAD for v in values) + VTM_BYTES)
 
 
 def _write_vtu(path: Path, mesh) -> None:
@@ -523,37 +562,59 @@ def _write_vtu(path: Path, mesh) -> None:
     write_atomic(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
 
 
-def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame: str = "rotating",
-                 prefix: str = "nsfem", phase_deg: float = 0.0) -> Path:
+def series_frame(result, frame: str | None) -> tuple[str, bool]:
+    """(the frame a series of ``result`` is written in, whether its coordinates are turned to it): ``frame``
+    None keeps the run's (``result.info["frame"]``); "inertial" turns a rotating-frame run's coordinates by
+    Omega t + phase. A run computed in the inertial frame cannot be written in the rotating one (its stators
+    are fixed in space, and the series would need them turned back): refused, as is any other name."""
+    computed = result.info.get("frame", "rotating")
+    if frame is None:
+        return computed, False
+    if frame not in ("rotating", "inertial"):
+        raise NsfemError(f"export: frame must be rotating | inertial, got {frame!r}")
+    if frame == "rotating" and computed == "inertial":
+        raise NsfemError("export: the run was computed in the inertial frame (rotation.frame = \"inertial\"); its "
+                         "series is written in that frame only: leave out the rotating frame")
+    return frame, frame != computed
+
+
+def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame: str | None = None,
+                 prefix: str = "nsfem", phase_deg: float | None = None) -> Path:
     """Write the VTU series of a run and its ``<prefix>.pvd`` index; returns the .pvd path.
+
+    The .pvd is written in ``out_dir``, the frames in its subfolder :data:`SUBFOLDER`: per output time
+    written, one .vtu per part and a .vtm that names them (``stack``, ``contacts``, ``disks``, ``stators``,
+    ``cracks``, ``bearings``: a part the model lacks, contacts included, is left out), which the .pvd indexes by time
+    (paths relative to it, so the folder can be moved whole).
 
     ``system_or_model_and_T`` is the ContactSystem of :func:`nsfem.simulate.run_scene` or a
     tuple ``(model, T)`` with q_full = T q (e.g. a rebuilt model and the results file's
     ``basis``). Every ``every``-th output time is written (indices 0, every, 2 every, ...).
-    ``frame="inertial"`` rotates points and displacements about x by Omega t + phase
-    (Omega = 2 pi ``result.info["speed_hz"]``; ``phase_deg`` as ``rotation.phase_deg``, the
-    frame in which gravity points along -z). A model with disks, stators or cracks gets their parts too
-    (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`; the module's docstring lists
-    the parts). Interrupted (KeyboardInterrupt) or failing part way, it removes the frame it was
+    ``frame`` (:func:`series_frame`): None writes the run's frame; ``"inertial"`` turns a rotating-frame
+    run's points and displacements about x by Omega t + phase (Omega = 2 pi ``result.info["speed_hz"]``;
+    ``phase_deg`` as ``rotation.phase_deg``, the frame in which gravity points along -z, by default the
+    run's, ``result.info["phase_deg"]``). A model with disks, stators, cracks or bearings gets their parts too
+    (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`, :func:`bearing_points`; the
+    module's docstring lists the parts). Interrupted (KeyboardInterrupt) or failing part way, it removes the frame it was
     writing, writes the .pvd of the frames before it and re-raises.
     """
     import meshio
 
-    if frame not in ("rotating", "inertial"):
-        raise NsfemError(f"export: frame must be rotating | inertial, got {frame!r}")
+    written, turn = series_frame(result, frame)
     if not (isinstance(every, int) and every >= 1):
         raise NsfemError(f"export: every must be a positive integer, got {every!r}")
     model, T, contacts = _model_and_T(system_or_model_and_T)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    sub = out / SUBFOLDER   # created by the first frame's write
     points, cells, seg_ids, _ = stack_geometry(model)
     dpoints, dcells, disk_ids, _ = disk_geometry(model)
     spoints, scells, ring_ids, facet_contact = stator_geometry(model)
     cpoints, cpolys, _ = crack_geometry(model)
     faces = crack_faces(model)
-    # a result computed in the inertial frame is already there: nothing to turn
-    turn = frame == "inertial" and result.info.get("frame", "rotating") == "rotating"
     omega = 2.0 * math.pi * float(result.info.get("speed_hz", 0.0)) if turn else 0.0
+    if phase_deg is None:
+        phase_deg = float(result.info.get("phase_deg", 0.0))
     phase = math.radians(phase_deg) if turn else 0.0
     m = result.gap.shape[0]
     stack_contacts = model.stack.contacts
@@ -564,10 +625,10 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         names = contacts.tangents[k] if contacts is not None else tangent_names(c)
         tangents.append([_tangent_vector(c, name) for name in names[:2]])
     idx = list(range(0, result.t.size, every))
-    entries = []
-    names = (["stack", "contacts"] + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
-             + ["cracks"] * bool(faces))
-    written = "inertial" if turn else result.info.get("frame", "rotating")
+    entries: list[tuple[float, str]] = []
+    nb = len(model.stack.bearings)
+    blocks = (["stack"] + ["contacts"] * bool(m) + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
+              + ["cracks"] * bool(faces) + ["bearings"] * bool(nb))
     pvd = out / f"{prefix}.pvd"
     files: list[str] = []
     try:
@@ -582,31 +643,31 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
                     tf[k] += result.tangential_force[k, j, i] * vec
             du = disk_displacements(model, q_full)
             ku, kgap = crack_displacements(model, q_full)
+            bpos, bdisp, bdata = bearing_points(model, q_full)
             p, dp, sp_, kp = points, dpoints, spoints, cpoints
-            if frame == "inertial":
+            if turn:
                 R = rotation(omega * float(result.t[i]) + phase)
-                p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku = (a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du,
-                                                                                spoints, cpoints, ku))
-            name = f"{prefix}_{i:05d}.vtu"
-            files.append(name)
-            _write_vtu(out / name, meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
-                                               cell_data={"segment": [seg_ids]}))
-            cname = f"{prefix}_contacts_{i:05d}.vtu"
-            files.append(cname)
-            vert = np.arange(m, dtype=np.int64).reshape(-1, 1)
-            _write_vtu(out / cname, meshio.Mesh(
-                cpos, [("vertex", vert)],
-                point_data={"displacement": cdisp, "gap": np.asarray(result.gap[:, i], dtype=float),
-                            "normal_force": np.asarray(result.normal_force[:, i], dtype=float),
-                            "tangential_force": tf, "state": np.asarray(result.state[:, i], dtype=np.int32)}))
+                p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku, bpos, bdisp = (
+                    a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du, spoints, cpoints, ku, bpos, bdisp))
+            files.append(f"{prefix}_{i:05d}.vtu")
+            _write_vtu(sub / files[-1], meshio.Mesh(p, [("hexahedron", cells)], point_data={"displacement": u},
+                                                    cell_data={"segment": [seg_ids]}))
+            if m:
+                files.append(f"{prefix}_contacts_{i:05d}.vtu")
+                vert = np.arange(m, dtype=np.int64).reshape(-1, 1)
+                _write_vtu(sub / files[-1], meshio.Mesh(
+                    cpos, [("vertex", vert)],
+                    point_data={"displacement": cdisp, "gap": np.asarray(result.gap[:, i], dtype=float),
+                                "normal_force": np.asarray(result.normal_force[:, i], dtype=float),
+                                "tangential_force": tf, "state": np.asarray(result.state[:, i], dtype=np.int32)}))
             if len(dcells):
                 files.append(f"{prefix}_disks_{i:05d}.vtu")
-                _write_vtu(out / files[-1], meshio.Mesh(dp, [("hexahedron", dcells)], point_data={"displacement": du},
+                _write_vtu(sub / files[-1], meshio.Mesh(dp, [("hexahedron", dcells)], point_data={"displacement": du},
                                                         cell_data={"disk": [disk_ids]}))
             if len(scells):
                 files.append(f"{prefix}_stators_{i:05d}.vtu")
                 fc = facet_contact
-                _write_vtu(out / files[-1], meshio.Mesh(
+                _write_vtu(sub / files[-1], meshio.Mesh(
                     sp_, [("hexahedron", scells)], point_data={"displacement": np.zeros_like(sp_)},
                     cell_data={"stator": [ring_ids], "contact": [fc],
                                "gap": [np.asarray(result.gap[fc, i], dtype=float)],
@@ -615,33 +676,71 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
             if faces:
                 files.append(f"{prefix}_cracks_{i:05d}.vtu")
                 data = crack_data(result, faces, i)
-                _write_vtu(out / files[-1], meshio.Mesh(
+                _write_vtu(sub / files[-1], meshio.Mesh(
                     kp, [("polygon", poly[None, :]) for poly in cpolys], point_data={"displacement": ku, "face_gap": kgap},
                     cell_data={"crack": [np.array([j]) for j in range(len(faces))],
                                **{n: [v[j:j + 1] for j in range(len(faces))] for n, v in data.items()}}))
-            entries.append((float(result.t[i]), files))
+            if nb:
+                files.append(f"{prefix}_bearings_{i:05d}.vtu")
+                vert = np.arange(nb, dtype=np.int64).reshape(-1, 1)
+                _write_vtu(sub / files[-1], meshio.Mesh(bpos, [("vertex", vert)],
+                                                        point_data={"displacement": bdisp, **bdata}))
+            vtm = f"{prefix}_{i:05d}.vtm"
+            parts = list(zip(blocks, files))
+            files.append(vtm)
+            write_vtm(sub / vtm, parts)
+            with signals_deferred():  # the frame is whole: indexed, and no longer one to remove
+                entries.append((float(result.t[i]), f"{SUBFOLDER}/{vtm}"))
+                files = []
     except BaseException:  # interrupted (or failed): the frames written so far stay a valid series
         with signals_deferred():
-            for f in files if not entries or entries[-1][1] is not files else []:
-                (out / f).unlink(missing_ok=True)  # the frame cut short
-            write_pvd(pvd, entries, names, written, turn)
+            for f in files:
+                (sub / f).unlink(missing_ok=True)  # the frame cut short
+            write_pvd(pvd, entries, blocks, written, turn, prefix)
         raise
-    return write_pvd(pvd, entries, names, written, turn)
+    return write_pvd(pvd, entries, blocks, written, turn, prefix)
 
 
-def write_pvd(pvd: Path, entries: list, names: list[str], written: str, turn: bool) -> Path:
-    """The ``.pvd`` index of the frames ``entries`` [(t, [file per part])] with parts ``names``."""
+def write_vtm(path: Path, blocks: list[tuple[str, str]]) -> Path:
+    """A frame's ``.vtm`` (VTK's multiblock file): one named leaf block per (name, file in its folder)."""
+    lines = ['<?xml version="1.0"?>',
+             '<VTKFile type="vtkMultiBlockDataSet" version="1.0" byte_order="LittleEndian">',
+             "  <vtkMultiBlockDataSet>"]
+    lines += [f'    <DataSet index="{k}" name={quoteattr(name)} file={quoteattr(f)}/>'
+              for k, (name, f) in enumerate(blocks)]
+    lines += ["  </vtkMultiBlockDataSet>", "</VTKFile>", ""]
+    return write_atomic(path, lambda tmp: Path(tmp).write_text("\n".join(lines), encoding="utf-8"))
+
+
+def write_pvd(pvd: Path, entries: list[tuple[float, str]], blocks: list[str], written: str, turn: bool,
+              prefix: str = "nsfem") -> Path:
+    """The ``.pvd`` index of the frames ``entries`` [(t, the frame's .vtm relative to the .pvd)], whose
+    blocks are ``blocks``."""
     note = (" (it turns with the shaft at Omega; stator rings are fixed in it, as in the model)" if written == "rotating"
             else " (turned from the run's rotating frame by Omega t + phase: its stator rings, fixed in that frame "
             "in the model, turn with it)" if turn else "")
     lines = ['<?xml version="1.0"?>',
              '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             f"  <!-- nsfem: coordinates in the {written} frame{note}; parts: "
-             + ", ".join(f"{k} {n}" for k, n in enumerate(names)) + " -->",
+             f"  <!-- nsfem: coordinates in the {written} frame{note}; each time a .vtm in {SUBFOLDER}/ with the "
+             "blocks " + ", ".join(blocks) + " -->",
              "  <Collection>"]
-    for t, files in entries:
-        for part, (label, f) in enumerate(zip(names, files)):
-            lines.append(f'    <DataSet timestep="{t!r}" group="" part="{part}" name="{label}" file={quoteattr(f)}/>')
+    lines += [f'    <DataSet timestep="{t!r}" group="" part="0" name={quoteattr(prefix)} file={quoteattr(f)}/>'
+              for t, f in entries]
     lines += ["  </Collection>", "</VTKFile>", ""]
     write_atomic(pvd, lambda tmp: Path(tmp).write_text("\n".join(lines), encoding="utf-8"))
     return pvd
+
+
+def series_parts(pvd) -> dict[str, list[tuple[float, str]]]:
+    """{block name: [(time, its .vtu relative to the .pvd's folder), ...]} of a series written by
+    :func:`write_series` (the .pvd and the .vtm of each time it indexes)."""
+    import posixpath
+    import xml.etree.ElementTree as ET
+
+    pvd = Path(pvd)
+    out: dict[str, list[tuple[float, str]]] = {}
+    for d in ET.parse(pvd).getroot().iter("DataSet"):
+        t, vtm = float(d.get("timestep")), d.get("file")
+        for b in ET.parse(pvd.parent / vtm).getroot().iter("DataSet"):
+            out.setdefault(b.get("name"), []).append((t, posixpath.join(posixpath.dirname(vtm), b.get("file"))))
+    return out
