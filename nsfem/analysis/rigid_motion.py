@@ -8,7 +8,7 @@ scene key that restrains them. A free axial motion is harmless for the lateral d
 mode of its own), but a stationary state needs an invertible stiffness.
 
 >>> from nsfem import build_model, load_scene
->>> free_motions(build_model(load_scene("ross_example", ["bearing.0.kxx=0", "mesh.elements=6"])))
+>>> free_motions(build_model(load_scene("ross_example", ["bearing.2.kxx=0", "mesh.elements=6"])))
 ['axial rigid motion (U)']
 """
 

@@ -84,38 +84,8 @@ def bearing_notes(tree: dict) -> list[str]:
     return out
 
 
-def axial_notes(stack: BeamStack) -> list[str]:
-    """A rotor on bearings that nothing holds along its axis (no support fixes U, no bearing has kxx)."""
-    if not stack.bearings or any("U" in s.fix for s in stack.supports) or any(b.kxx > 0.0 for b in stack.bearings):
-        return []
-    if any(c.normal in ("+x", "-x") for c in stack.contacts):   # an axial stop may hold it
-        return []
-    return ["nothing holds the rotor along its axis (no support fixes U and no bearing has kxx): it may slide "
-            "along x (a 0 Hz axial mode, and no stationary state); a thrust bearing is a [[bearing]] with kxx"]
-
-
-def lateral_notes(raw: dict, stack: BeamStack) -> list[str]:
-    """A rotor on bearings whose rigid lateral motion a + b x in y or z nothing holds: fewer than two places with
-    a support fixing V (W) or a bearing with kyy (kzz), and no clamp (a fixed slope with one such place). Only the
-    high-level form's one shaft (low-level segments may be joined otherwise), without lateral stops."""
-    if not stack.bearings or any(t in raw for t in LOW_LEVEL):
-        return []
-    if any(c.normal not in ("+x", "-x") for c in stack.contacts):   # stops and rings may hold it (retainer_drop)
-        return []
-    free = []
-    for axis, dof, k, what in (("y", "V", 0, "horizontal"), ("z", "W", 1, "vertical")):
-        places = {s.x for s in stack.supports if dof in s.fix} | {b.x for b in stack.bearings if b.K[k][k] > 0.0}
-        clamped = any(f"{dof}'" in s.fix for s in stack.supports)
-        if not (len(places) >= 2 or (clamped and places)):
-            free.append(f"{axis} ({what}: k{axis}{axis} or supports fixing {dof})")
-    if not free:
-        return []
-    return [f"nothing holds the rotor's rigid motion in {' and '.join(free)} at two places at least: it has 0 Hz "
-            "rigid-body modes there, and no stationary state"]
-
-
 def scene_notes(raw: dict, tree: dict, stack: BeamStack) -> tuple[str, ...]:
     """The notes on a scene: ``raw`` as its file and overrides give it, ``tree`` validated with every default,
-    ``stack`` its translation."""
-    return tuple(section_notes(raw) + beam_notes(raw) + disk_notes(tree) + bearing_notes(tree) + axial_notes(stack)
-                 + lateral_notes(raw, stack))
+    ``stack`` its translation. Rigid motions that nothing restrains are not notes: the model says them exactly
+    (:func:`nsfem.analysis.rigid_motion.free_motions`), once, where they matter (run, modes, stationary)."""
+    return tuple(section_notes(raw) + beam_notes(raw) + disk_notes(tree) + bearing_notes(tree))

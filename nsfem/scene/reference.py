@@ -74,10 +74,8 @@ def scene_reference() -> str:
             "| `bearing.<i>: kxx = ... with kyy and no kzz` / `as large as its lateral ...` | a bearing with `kxx` "
             "beside `kyy` and no `kzz` (ROSS's axes), or `kxx` at least its smaller lateral stiffness | the "
             "thrust bearing as its own `[[bearing]]` |",
-            "| `nothing holds the rotor along its axis` | a scene with bearings where no support fixes U and "
             "no bearing has `kxx` (a 0 Hz axial mode; `stationary` has no solution) | a `kxx`, or `supports` "
             "holding U |",
-            "| `nothing holds the rotor's rigid motion in y ... z` | a scene with bearings and no lateral stops "
             "where fewer than two places hold y (supports fixing V, bearings with `kyy`; a clamp and one place do) "
             "or z likewise (dampers hold nothing at rest) | `kyy`, `kzz`, or `supports` |", ""]
     return "\n".join(out)
