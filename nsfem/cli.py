@@ -291,7 +291,7 @@ def cmd_campbell(args) -> int:
 
     from .analysis.campbell import campbell_report, parse_speeds
     from .fem.assemble import build_model
-    from .plot.campbell import campbell_plot
+    from .plot.campbell import report_plot
     from .reduce import scene_reduction
     from .scene import load_scene
 
@@ -302,10 +302,13 @@ def cmd_campbell(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     from .atomic import check_file
 
-    targets = [Path(args.png)] if args.png else []
-    if "campbell" in scene.output.plots:
-        targets.append(scene.output.dir / "campbell.png")
-    for t, what in zip(targets, ("--png" if args.png else "output.dir", "output.dir")):
+    # --png names the one file written; without it, output.dir/campbell.png when output.plots lists campbell
+    if args.png:
+        targets, what = [Path(args.png)], "--png"
+    else:
+        targets = [scene.output.dir / "campbell.png"] if "campbell" in scene.output.plots else []
+        what = "output.dir"
+    for t in targets:
         check_file(t, what)
     if speeds is not None:
         from .scene import check_speed
@@ -315,7 +318,6 @@ def cmd_campbell(args) -> int:
     model = build_model(scene)
     red = scene_reduction(scene.reduction, model)
     rep = campbell_report(scene, model, speeds, args.count, red)
-    res, bands = rep.pop("_results"), rep.pop("_bands")
     from .analysis.campbell import supercritical_warning
     from .analysis.whirl import unstable_warning
 
@@ -326,20 +328,23 @@ def cmd_campbell(args) -> int:
     if warning:
         print(f"nsfem campbell: warning: {warning}", file=sys.stderr)
 
-    outputs = [str(campbell_plot(t, res["open"].speeds_hz, res["open"].frequencies_hz,
-                                 res["closed"].frequencies_hz,
-                                 rep["critical_speeds_hz"] if inertial else rep["gravity_resonances_hz"], bands,
-                                 scene.title, whirl=res["open"].whirl)) for t in targets]
+    outputs = [str(report_plot(t, rep, scene.title, speed)) for t in targets]
+    for key in ("_results", "_bands", "_critical"):
+        rep.pop(key)
     payload = {"title": scene.title, **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
                "outputs": outputs}
     fmt = ", ".join
     lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
     if inertial:
-        lines += ["critical speeds [Hz]     open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
-                      rep["critical_speeds_hz"]["open"], rep["critical_whirl"]["open"])),
-                  "                       closed: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
-                      rep["critical_speeds_hz"]["closed"], rep["critical_whirl"]["closed"])),
+        lines += ["critical speeds [Hz] (1x crossings of the damped branches; b backward, f forward, p planar; "
+                  "damping ratio)",
+                  "                         open: " + fmt(f"{c['speed_hz']:.3f} ({c['whirl'][0]}, {_ratio(c)})"
+                                                      for c in rep["critical_speeds"]["open"]),
+                  "                       closed: " + fmt(f"{c['speed_hz']:.3f} ({c['whirl'][0]}, {_ratio(c)})"
+                                                      for c in rep["critical_speeds"]["closed"]),
+                  "undamped critical speeds open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
+                      rep["undamped_critical_speeds_hz"]["open"], rep["undamped_critical_whirl"]["open"])),
                   "instability onsets [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
                   "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
     else:
@@ -350,6 +355,11 @@ def cmd_campbell(args) -> int:
     lines += [f"wrote {o}" for o in outputs]
     _emit(args, payload, "\n".join(lines))
     return 0
+
+
+def _ratio(crossing: dict) -> str:
+    """A critical speed's damping ratio to two decimals (0.00, never -0.00, for a round-off-sized one)."""
+    return f"{crossing['damping_ratio'] + 0.0:.2f}".replace("-0.00", "0.00")
 
 
 def cmd_stationary(args) -> int:
@@ -408,7 +418,7 @@ def _run_files(scene) -> dict[str, list[str]]:
     from .simulate import FILES_MAX
 
     out = scene.output
-    run = ["result.npz"] + [f"{n}.png" for n in out.plots if n != "campbell"]
+    run = ["result.npz"] + [f"{n}.png" for n in out.plots]
     if scene.sensors:
         run += ["sensors.csv", "sensors.png"]
     sim = scene.simulation
@@ -469,6 +479,10 @@ def _run(args, scene, out_dir, written: set) -> int:
             from .plot.results import write_plots
 
             outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
+            if "campbell" in scene.output.plots:
+                from .plot.campbell import scene_campbell
+
+                outputs.append(str(scene_campbell(out_dir / "campbell.png", scene, system.info["model"], red)))
             if scene.output.vtu_every:
                 from .export.vtu import write_series
 
