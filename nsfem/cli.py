@@ -49,13 +49,14 @@ def parser() -> argparse.ArgumentParser:
                    help="contact points open (free sub-beams) or closed (gap held at zero, frictionless)")
     p.add_argument("--count", type=int, default=10, help="number of frequencies (default 10)")
 
-    p = sub.add_parser("campbell", help="frequencies against speed, gravity resonances")
+    p = sub.add_parser("campbell", help="frequencies against speed, critical speeds, gravity resonances")
     _scene_args(p)
-    p.add_argument("--speeds", metavar="START:STOP:N", help="speeds in Hz (default: 0 to 1.2 x the second "
-                   "critical speed, 61 values)")
+    p.add_argument("--speeds", metavar="START:STOP:N", help="speeds in Hz (default: 61 values from 0 to 1.23 x "
+                   "the second divergence (rotating frame) or forward critical (inertial) speed, at least 2 x "
+                   "rotation.speed_hz)")
     p.add_argument("--count", type=int, default=6, help="frequencies per speed and resonances listed (default 6)")
-    p.add_argument("--png", metavar="FILE", help="write the Campbell diagram here (also written to the output "
-                   "directory when the scene's output.plots lists campbell)")
+    p.add_argument("--png", metavar="FILE", help="write the Campbell diagram to this file only (without --png: "
+                   "to <output.dir>/campbell.png when the scene's output.plots lists campbell)")
 
     p = sub.add_parser("stationary", help="stationary contact state (LCP 28)")
     _scene_args(p)

@@ -264,7 +264,7 @@ def _whirl(X: np.ndarray, ops: RotorOperators, turn, speed_hz: float) -> np.ndar
 
 
 def _tracked_roots(lam, X, m: int, ops: RotorOperators, turn, speed_hz: float):
-    """(eigenvalues, vectors, whirl codes) of the lowest ``m`` oscillating roots, the input of :func:`.branches.track`."""
+    """(eigenvalues, vectors, whirl codes) of the lowest ``m`` oscillating roots (input of :func:`.branches.track`)."""
     pick = _oscillating(lam, m)
     W = _whirl(X[:, pick], ops, turn, speed_hz) if turn is not None and len(pick) else np.zeros(len(pick), dtype=int)
     return lam[pick], X[:, pick], W
