@@ -32,6 +32,12 @@ MAC_MIN = 0.5
 #: weight of the relative eigenvalue distance against the MAC in the pairing: it only breaks ties (one
 #: shape at two frequencies, as an isotropic rotor's rotating-frame branches omega +- Omega)
 EIG_WEIGHT = 0.1
+#: roots closer than this relative distance are one degenerate group (:func:`_subspace_mac`)
+DEGENERATE = 1e-7
+#: a step is halved (:func:`refine`) when a pair's MAC is below this (a shape changing fast)
+MAC_GOOD = 0.9
+#: at most this many halvings of a speed step
+REFINE_DEPTH = 5
 #: Brent's method stops within this fraction of the speed range (the marker's speed is exact to it)
 XTOL = 1e-11
 
@@ -48,6 +54,7 @@ class Branches:
     vectors: np.ndarray       # (B, S, n) complex displacement eigenvectors
     whirl: np.ndarray         # (B, S) whirl code per point (nsfem.analysis.whirl; 0 without a turn)
     label: np.ndarray         # (B,) the branch's whirl code: its whirl at its highest speed
+    reported: np.ndarray      # (S,) True at the speeds asked for (False: inserted by refine)
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -80,50 +87,105 @@ def mac(M: sp.spmatrix | np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray
     return cross / np.maximum(np.outer(na, nb), 1e-300)
 
 
-def track(speeds_hz: np.ndarray, roots: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-          M: sp.spmatrix | np.ndarray) -> Branches:
-    """Branches through the roots at each speed (``roots[i]``: eigenvalues with Im > 0, their displacement
-    eigenvectors as columns, their whirl codes), paired between neighbouring speeds by the largest total
-    MAC (an assignment problem) among pairs with MAC >= :data:`MAC_MIN`."""
+def _subspace_mac(M, A: np.ndarray, lam: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """:func:`mac` of columns A and B, but for a column of A in a group of equal eigenvalues (relative
+    :data:`DEGENERATE`: a round rotor's pair at rest, whose eigenvectors are any basis of its plane) the
+    share of B's column in the group's span, x^H M P x / x^H M x with P the M-orthogonal projector."""
+    C = mac(M, A, B)
+    done = np.zeros(lam.size, dtype=bool)
+    for i in range(lam.size):
+        if done[i]:
+            continue
+        group = np.flatnonzero(np.abs(lam - lam[i]) <= DEGENERATE * np.abs(lam[i]))
+        done[group] = True
+        if group.size < 2:
+            continue
+        V = A[:, group]
+        G = V.conj().T @ (M @ V)                       # Gram matrix of the span
+        W = V.conj().T @ (M @ B)
+        proj = np.einsum("ij,ij->j", W.conj(), np.linalg.lstsq(G, W, rcond=None)[0]).real
+        nb = np.einsum("ij,ij->j", B.conj(), M @ B).real
+        C[group] = np.clip(proj / np.maximum(nb, 1e-300), 0.0, 1.0)[None, :]
+    return C
+
+
+def pair(M, a: tuple, b: tuple, step_hz: float) -> dict[int, tuple[int, float]]:
+    """Roots of ``a`` paired with roots of ``b`` (each (eigenvalues, vectors, ...), ``step_hz`` apart):
+    {index in a: (index in b, MAC)}, by the largest total MAC (an assignment problem) among pairs with
+    MAC >= :data:`MAC_MIN`; then the roots left over through zero frequency (the rotating frame's
+    f0 - Omega past Omega = f0 goes on as the conjugate root, whose vector is the conjugate)."""
     from scipy.optimize import linear_sum_assignment
 
-    speeds = np.asarray(speeds_hz, dtype=float)
+    lam0, X0 = a[0], a[1]
+    lam, X = b[0], b[1]
+    out: dict[int, tuple[int, float]] = {}
+    taken: set[int] = set()
+    for conjugate in (False, True):
+        free = [i for i in range(lam0.size) if i not in out]
+        new = [k for k in range(lam.size) if k not in taken]
+        if not free or not new:
+            break
+        A = X0[:, free].conj() if conjugate else X0[:, free]
+        a0 = lam0[free].conj() if conjugate else lam0[free]
+        C = _subspace_mac(M, A, a0, X[:, new])
+        # ties (one shape at two frequencies) go to the nearer root
+        D = np.abs(a0[:, None] - lam[new][None, :]) / (np.abs(a0)[:, None] + np.abs(lam[new])[None, :])
+        r, c = linear_sum_assignment(-(C - EIG_WEIGHT * D))
+        # through zero only: both frequencies within the speed step (f0 - Omega moves by it)
+        near = (np.abs(a0.imag)[:, None] + np.abs(lam[new].imag)[None, :] <= 2 * 2 * math.pi * abs(step_hz)
+                if conjugate else np.ones_like(C, dtype=bool))
+        for i, k in zip(r, c):
+            if C[i, k] >= MAC_MIN and near[i, k]:
+                out[free[i]] = (new[k], float(C[i, k]))
+                taken.add(new[k])
+    return out
+
+
+def refine(speeds_hz: np.ndarray, roots: list, root_function: RootFunction | None, M,
+           depth: int = REFINE_DEPTH) -> tuple[np.ndarray, list, np.ndarray]:
+    """The grid with midpoints inserted (at most ``depth`` halvings of a step) wherever a root of one speed
+    finds no partner at the next (:func:`pair`) or a pair's MAC is below :data:`MAC_GOOD`: a step too
+    coarse for the shapes' change (or a root dying there: a pair turning real, leaving the window).
+    Returns (speeds, roots, mask of the given speeds)."""
+    grid = [(float(s), r, True, 0) for s, r in zip(np.asarray(speeds_hz, dtype=float), roots)]
+    if root_function is None:
+        return np.array([g[0] for g in grid]), [g[1] for g in grid], np.ones(len(grid), dtype=bool)
+    i = 0
+    while i < len(grid) - 1:
+        (sa, a, _, da), (sb, b, _, db) = grid[i], grid[i + 1]
+        level = max(da, db)
+        if level < depth and sb > sa:
+            p = pair(M, a, b, sb - sa)
+            if len(p) < a[0].size or min((m for _, m in p.values()), default=1.0) < MAC_GOOD:
+                sm = 0.5 * (sa + sb)
+                grid.insert(i + 1, (sm, root_function(sm), False, level + 1))
+                continue
+        i += 1
+    return np.array([g[0] for g in grid]), [g[1] for g in grid], np.array([g[2] for g in grid])
+
+
+def track(speeds_hz: np.ndarray, roots: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+          M: sp.spmatrix | np.ndarray, root_function: RootFunction | None = None) -> Branches:
+    """Branches through the roots at each speed (``roots[i]``: eigenvalues with Im > 0, their displacement
+    eigenvectors as columns, their whirl codes), paired between neighbouring speeds by :func:`pair`; with
+    ``root_function``, on the grid :func:`refine` makes of the speeds (``Branches.reported`` marks the
+    given ones)."""
+    speeds, roots, reported = refine(speeds_hz, roots, root_function, M)
     S = speeds.size
     n = M.shape[0]
     rows: list[dict[int, int]] = []  # branch -> {speed index: root index}
-    last: list[int] = []             # branches alive at the previous speed (their indices in rows)
-    for i, (lam, X, _) in enumerate(roots):
-        alive = []
-        taken = set()
-        if last and lam.size:
-            prev = np.column_stack([roots[i - 1][1][:, rows[b][i - 1]] for b in last])
-            lam0 = np.array([roots[i - 1][0][rows[b][i - 1]] for b in last])
-            for conjugate in (False, True):
-                # then the roots left: a branch through zero frequency (the rotating frame's omega - Omega
-                # past Omega = omega) goes on as the conjugate root, whose vector is the conjugate
-                free = [a for a in range(len(last)) if last[a] not in alive]
-                new = [k for k in range(lam.size) if k not in taken]
-                if not free or not new:
-                    break
-                A = prev[:, free].conj() if conjugate else prev[:, free]
-                a0 = lam0[free].conj() if conjugate else lam0[free]
-                C = mac(M, A, X[:, new])
-                # ties (one shape at two frequencies) go to the nearer root
-                D = np.abs(a0[:, None] - lam[new][None, :]) / (np.abs(a0)[:, None] + np.abs(lam[new])[None, :])
-                r, c = linear_sum_assignment(-(C - EIG_WEIGHT * D))
-                # through zero only: both frequencies within the speed step (omega - Omega moves by it)
-                near = (np.abs(a0.imag)[:, None] + np.abs(lam[new].imag)[None, :]
-                        <= 2 * 2 * math.pi * abs(speeds[i] - speeds[i - 1])) if conjugate else np.ones_like(C, bool)
-                for a, k in zip(r, c):
-                    if C[a, k] >= MAC_MIN and near[a, k]:
-                        rows[last[free[a]]][i] = new[k]
-                        alive.append(last[free[a]])
-                        taken.add(new[k])
-        for k in range(lam.size):
-            if k not in taken:
+    owner: dict[int, int] = {}       # root index at the previous speed -> its branch
+    for i, r in enumerate(roots):
+        links = pair(M, roots[i - 1], r, speeds[i] - speeds[i - 1]) if i else {}
+        now: dict[int, int] = {}
+        for j, (k, _) in links.items():
+            rows[owner[j]][i] = k
+            now[k] = owner[j]
+        for k in range(r[0].size):
+            if k not in now:
                 rows.append({i: k})
-                alive.append(len(rows) - 1)
-        last = alive
+                now[k] = len(rows) - 1
+        owner = now
     B = len(rows)
     lam_b = np.full((B, S), complex(np.nan, np.nan))
     vec_b = np.zeros((B, S, n), dtype=complex)
@@ -137,7 +199,7 @@ def track(speeds_hz: np.ndarray, roots: list[tuple[np.ndarray, np.ndarray, np.nd
     first = np.array([lam_b[b, min(row)].imag for b, row in enumerate(rows)]) if B else np.zeros(0)
     start = np.array([min(row) for row in rows]) if B else np.zeros(0, dtype=int)
     order = np.lexsort((first, start)) if B else np.zeros(0, dtype=int)
-    return Branches(speeds, lam_b[order], vec_b[order], whirl_b[order], label[order])
+    return Branches(speeds, lam_b[order], vec_b[order], whirl_b[order], label[order], reported)
 
 
 def crossings(branches: Branches, roots: RootFunction, M, skip=()) -> list[Crossing]:

@@ -230,7 +230,8 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
     forward or backward by :func:`.whirl.whirl_sense` (``turn``: the quarter turn J in full coordinates,
     :func:`nsfem.fem.components.lateral_turn`; ops.basis maps to them). The roots are also followed in
     speed as branches (:mod:`.branches`), :data:`TRACKED` x ``count`` of them per speed, so that a branch
-    leaving the lowest ``count`` is not cut short."""
+    leaving the lowest ``count`` is not cut short (on a grid refined where the shapes change fast,
+    :func:`.branches.refine`)."""
     from .branches import track
 
     speeds = np.asarray(speeds_hz, dtype=float)
@@ -247,7 +248,8 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
         roots.append(_tracked_roots(lam, X, TRACKED * count, ops, turn, s))
         F[i] = frequencies_of(lam, count)
         growth[i] = growth_rate(lam, count, _omega_max(system.M, system.Q))
-    return CampbellResult(speeds, F, growth, W, track(speeds, roots, ops.M))
+    follow = root_function(ops, count, rayleigh, external, frame, turn)
+    return CampbellResult(speeds, F, growth, W, track(speeds, roots, ops.M, follow))
 
 
 #: campbell follows this many times ``count`` roots per speed as branches
@@ -285,13 +287,13 @@ def shown_branches(res: CampbellResult) -> np.ndarray:
     and those that cross the 1x line within the speeds (a critical speed; the branches are followed
     among the lowest :data:`TRACKED` x ``count`` roots)."""
     B = res.branches
-    F = B.frequencies_hz
+    F = B.frequencies_hz[:, B.reported]
     known = np.isfinite(res.frequencies_hz)
     # the count-th frequency per speed (every root is among the lowest count when fewer exist)
     ceiling = np.where(known.all(axis=1), np.where(known, res.frequencies_hz, -np.inf).max(axis=1, initial=-np.inf),
                        np.inf)
     inside = np.isfinite(F) & (F <= ceiling[None, :] * (1 + 1e-12))
-    g = F - B.speeds_hz[None, :]
+    g = B.frequencies_hz - B.speeds_hz[None, :]
     crosses = np.any(np.isfinite(g[:, :-1]) & np.isfinite(g[:, 1:]) & (g[:, :-1] * g[:, 1:] <= 0.0)
                      & (B.speeds_hz[None, 1:] > 0), axis=1)
     return np.flatnonzero(inside.any(axis=1) | crosses)
@@ -304,7 +306,7 @@ def branches_json(res: CampbellResult, whirl_names: dict | None = None) -> list[
     B = res.branches
     out = []
     for b in shown_branches(res):
-        f, z = B.frequencies_hz[b], B.damping_ratios[b]
+        f, z = B.frequencies_hz[b, B.reported], B.damping_ratios[b, B.reported]
         row = {"whirl": whirl_names[int(B.label[b])]} if whirl_names else {}
         row["frequencies_hz"] = [float(x) if np.isfinite(x) else None for x in f]
         row["damping_ratio"] = [float(x) if np.isfinite(x) else None for x in z]

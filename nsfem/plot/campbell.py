@@ -3,6 +3,7 @@ line, the critical speeds where it crosses the branches (or the gravity resonanc
 
 from __future__ import annotations
 
+import math
 import textwrap
 from pathlib import Path
 
@@ -15,6 +16,8 @@ WHIRL_STYLE = {1: ("forward whirl", "tab:blue", "-"), -1: ("backward whirl", "ta
                0: ("planar (no whirl)", "tab:gray", "-."), 2: ("axial", "tab:green", ":")}
 #: characters per title line at the figure's width and font size
 TITLE_WIDTH = 88
+#: at most this many title lines (then the plot's own line, what is drawn)
+TITLE_LINES = 3
 
 
 def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), undamped=(), resonances=None,
@@ -33,10 +36,11 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
     s = np.asarray(open_res.speeds_hz, dtype=float)
     top = float(s.max()) if s.size else 1.0
     fig, ax = figure(figsize=(7.6, 6.4), layout="constrained")
-    for lo, hi in bands:
-        if lo < top:
-            ax.axvspan(lo, min(hi, top), color="tab:red", alpha=0.08, lw=0)
-    if bands:
+    # a band of zero width (an isotropic shaft's double divergence speed) is no band
+    shaded = [(lo, min(hi, top)) for lo, hi in bands if lo < top and hi - lo > 1e-9 * max(abs(hi), 1.0)]
+    for lo, hi in shaded:
+        ax.axvspan(lo, hi, color="tab:red", alpha=0.08, lw=0)
+    if shaded:
         ax.plot([], [], color="tab:red", alpha=0.3, lw=6, label="unstable" if inertial else "divergence band")
     fmax = 0.0
     sets = [(open_res, "open")]
@@ -46,7 +50,7 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
     for res, name in sets:
         B = res.branches
         for j, b in enumerate(shown_branches(res)):
-            x, y = _with_crossings(s, B.frequencies_hz[b], [c.speed_hz for c in critical if c.branch == j]
+            x, y = _with_crossings(B.speeds_hz, B.frequencies_hz[b], [c.speed_hz for c in critical if c.branch == j]
                                    if name == "open" else [])
             if not np.any(np.isfinite(y)):
                 continue
@@ -79,12 +83,13 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
         ax.axvline(run_speed_hz, color="tab:red", lw=1.0, ls="-.", label=f"run speed {run_speed_hz:g} Hz")
     ax.set_xlabel("rotor speed [Hz]")
     ax.set_ylabel("frequency [Hz]")
-    ax.set_xlim(s.min() if s.size else 0.0, top)
+    if s.size and top > s.min():  # (one speed: matplotlib's default span around it)
+        ax.set_xlim(s.min(), top)
     ax.set_ylim(0.0, 1.05 * max(fmax, top))
     ax.grid(True, alpha=0.3)
     what = ("damped natural frequencies (inertial frame: whirl frequencies)" if inertial
             else "damped natural frequencies (rotating frame)")
-    ax.set_title("\n".join(textwrap.wrap(title, TITLE_WIDTH) + [what]), fontsize=10)
+    ax.set_title("\n".join(_wrap(title) + [what]), fontsize=10)
     fig.legend(loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     return save(fig, path)
 
@@ -107,6 +112,24 @@ def scene_campbell(path: str | Path, scene, model, reduction=None, count: int = 
 
     rep = campbell_report(scene, model, None, count, reduction)
     return report_plot(path, rep, scene.title, scene.rotation.speed_hz)
+
+
+def _wrap(title: str) -> list[str]:
+    """``title`` in as few lines of at most :data:`TITLE_WIDTH` characters as it needs, of even lengths
+    (no single word left on a line of its own), at most :data:`TITLE_LINES` of them."""
+    if not title:
+        return []
+    lines = math.ceil(len(title) / TITLE_WIDTH)
+    out = textwrap.wrap(title, TITLE_WIDTH)
+    for width in range(math.ceil(len(title) / lines), TITLE_WIDTH + 1):
+        even = textwrap.wrap(title, width)
+        if len(even) <= lines:
+            out = even
+            break
+    if len(out) > TITLE_LINES:  # a title longer than the figure can hold: its start, marked as cut
+        out = out[:TITLE_LINES]
+        out[-1] = out[-1][: TITLE_WIDTH - 3] + "..."
+    return out
 
 
 def _with_crossings(s: np.ndarray, f: np.ndarray, speeds) -> tuple[np.ndarray, np.ndarray]:
