@@ -483,7 +483,10 @@ def _run(args, scene, out_dir, written: set) -> int:
             if "campbell" in scene.output.plots:
                 from .plot.campbell import scene_campbell
 
-                outputs.append(str(scene_campbell(out_dir / "campbell.png", scene, system.info["model"], red)))
+                try:
+                    outputs.append(str(scene_campbell(out_dir / "campbell.png", scene, system.info["model"], red)))
+                except NsfemError as exc:  # a diagram this scene cannot have (e.g. spun in the wrong frame)
+                    warn(f"plot 'campbell' skipped: {exc}")
             if scene.output.vtu_every:
                 from .export.vtu import write_series
 

@@ -248,3 +248,14 @@ def test_run_draws_the_campbell_plot_the_scene_lists(tmp_path):
     outputs = json.loads(out.getvalue())["outputs"]
     assert str(tmp_path / "o" / "campbell.png") in outputs
     assert (tmp_path / "o" / "campbell.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_run_says_why_it_draws_no_campbell_plot(tmp_path, capsys):
+    """A scene whose diagram is refused (anisotropic bearings in the rotating frame, at rest: the run is
+    fine, the spun diagram is not) gets a warning naming the reason, never a silently missing plot."""
+    assert cli.main(["run", "critical_speed", "--out", str(tmp_path), "--set", "rotation.frame=rotating", "--set",
+                     "rotation.speed_hz=0", "--set", 'output.plots=["campbell"]', "--set", "simulation.t_end=0.01",
+                     "--set", "output.vtu_every=0"]) == 0
+    err = capsys.readouterr().err
+    assert "plot 'campbell' skipped: rotation.frame: bearing.0 is not isotropic" in err
+    assert not (tmp_path / "campbell.png").exists()
