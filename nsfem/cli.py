@@ -328,6 +328,8 @@ def cmd_campbell(args) -> int:
                if inertial else supercritical_warning(speed, rep["instability_hz"]["open"]))
     if warning:
         print(f"nsfem campbell: warning: {warning}", file=sys.stderr)
+    for text in rep.get("warnings", []):
+        print(f"nsfem campbell: warning: {text}", file=sys.stderr)
 
     outputs = [str(report_plot(t, rep, scene.title, speed)) for t in targets]
     for key in ("_results", "_bands", "_critical"):
@@ -484,7 +486,8 @@ def _run(args, scene, out_dir, written: set) -> int:
                 from .plot.campbell import scene_campbell
 
                 try:
-                    outputs.append(str(scene_campbell(out_dir / "campbell.png", scene, system.info["model"], red)))
+                    outputs.append(str(scene_campbell(out_dir / "campbell.png", scene, system.info["model"], red,
+                                                              warn=warn)))
                 except NsfemError as exc:  # a diagram this scene cannot have (e.g. spun in the wrong frame)
                     warn(f"plot 'campbell' skipped: {exc}")
             if scene.output.vtu_every:

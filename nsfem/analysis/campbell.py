@@ -513,6 +513,7 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
                                  for c, d in div.items()},
         "ndof_full": model.n, "ndof": model.n if reduction is None else reduction.ndof,
         "valid_up_to_hz": None if math.isinf(valid) else valid,
+        "warnings": [],
         "_results": res, "_bands": divergence_bands(div["open"]), "_critical": {c: [] for c in res},
     }
 

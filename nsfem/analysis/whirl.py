@@ -218,6 +218,8 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
         onsets[c] = instability_onsets(o, speeds, res[c].growth_per_s, count, *rd)
         damped[c] = damped_critical_speeds(o, res[c], count, *rd, turn=turn)
 
+    warnings = reduction_warnings(model, damped["open"], count, rd, reduction)
+
     def clean(a):
         return [None if not np.isfinite(x) else float(x) for x in np.ravel(a)]
 
@@ -251,6 +253,7 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
         "ndof_full": model.n, "ndof": model.n if reduction is None else reduction.ndof,
         "valid_up_to_hz": None if math.isinf(valid) else valid,
         "_results": res, "_bands": [(a, math.inf if b is None else b) for a, b in bands("open")],
+        "warnings": warnings,
         "_critical": damped,
     }
 
@@ -269,6 +272,40 @@ def damped_critical_speeds(ops: RotorOperators, res, count: int, rayleigh=(0.0, 
     sub = replace(B, eigenvalues=B.eigenvalues[shown], vectors=B.vectors[shown], whirl=B.whirl[shown],
                   label=B.label[shown])
     return crossings(sub, root_function(ops, count, rayleigh, external, "inertial", turn), ops.M, skip=(AXIAL,))
+
+
+#: a reduced model's damped critical speed is reported as off when the full model's nearest root at that speed
+#: whirls more than this fraction of the speed away
+REDUCED_CRITICAL_TOLERANCE = 1e-3
+#: full models up to this many dofs are checked (one eigen solve per critical speed)
+REDUCED_CHECK_MAX_DOF = 2000
+
+
+def reduction_warnings(model, crossings, count: int, rd, reduction) -> list[str]:
+    """Warnings for the damped critical speeds (contacts open) of a reduced model that the full model does not
+    confirm: at each speed s its roots (:func:`.campbell.state_eigenvalues`, the lowest 2 x ``count``) must hold
+    one whirling within :data:`REDUCED_CRITICAL_TOLERANCE` s. Heavy bearing damping couples the kept modes to
+    truncated ones, which a truncation judged by frequency alone misses (critical_speed, 12 modes: 88.00 and
+    209.59 Hz against 85.74 and 221.09 Hz in full)."""
+    from ..fem.rotating import rotor_operators
+    from .campbell import TRACKED
+    from .modes import contact_basis
+
+    if reduction is None or not crossings or model.n > REDUCED_CHECK_MAX_DOF:
+        return []
+    ops = rotor_operators(model, contact_basis(model, "open"))
+    off = []
+    for c in crossings:
+        lam = state_eigenvalues(linear_system(ops, c.speed_hz, 0.0, 0.0, *rd, "inertial"), TRACKED * count)
+        f = lam.imag[lam.imag > 0] / (2 * math.pi)
+        nearest = float(f[np.argmin(np.abs(f - c.speed_hz))]) if f.size else math.nan
+        if not abs(nearest - c.speed_hz) <= REDUCED_CRITICAL_TOLERANCE * c.speed_hz:
+            off.append(f"{c.speed_hz:.2f} Hz (full model's nearest root there: {nearest:.2f} Hz)")
+    if not off:
+        return []
+    return [f"the reduced model's damped critical speeds {', '.join(off)} are off by more than "
+            f"{100 * REDUCED_CRITICAL_TOLERANCE:g} %: the bearings' damping couples the kept modes to truncated "
+            "ones; keep more modes (reduction.modes) or none (reduction.method = \"none\")"]
 
 
 def unstable_warning(speed_hz: float, onsets_hz, bands) -> str | None:

@@ -104,13 +104,17 @@ def report_plot(path: str | Path, rep: dict, title: str = "", run_speed_hz: floa
                          None if inertial else rep["gravity_resonances_hz"], rep["_bands"], title, run_speed_hz)
 
 
-def scene_campbell(path: str | Path, scene, model, reduction=None, count: int = 6) -> Path:
+def scene_campbell(path: str | Path, scene, model, reduction=None, count: int = 6, warn=None) -> Path:
     """The Campbell diagram ``nsfem run`` draws when ``output.plots`` lists campbell: the default speeds of
     :func:`nsfem.analysis.campbell.campbell_report` (0 to past the first critical or divergence speeds, at
-    least twice the run speed), ``count`` branches, the run speed marked."""
+    least twice the run speed), ``count`` branches, the run speed marked; the report's warnings go to
+    ``warn(text)``."""
     from ..analysis.campbell import campbell_report
 
     rep = campbell_report(scene, model, None, count, reduction)
+    for text in rep["warnings"]:
+        if warn is not None:
+            warn(f"campbell: {text}")
     return report_plot(path, rep, scene.title, scene.rotation.speed_hz)
 
 
