@@ -340,12 +340,10 @@ def cmd_campbell(args) -> int:
     lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
     if inertial:
-        lines += ["critical speeds [Hz] (1x crossings of the damped branches; b backward, f forward, p planar; "
-                  "damping ratio)",
-                  "                         open: " + fmt(f"{c['speed_hz']:.3f} ({c['whirl'][0]}, {_ratio(c)})"
-                                                      for c in rep["critical_speeds"]["open"]),
-                  "                       closed: " + fmt(f"{c['speed_hz']:.3f} ({c['whirl'][0]}, {_ratio(c)})"
-                                                      for c in rep["critical_speeds"]["closed"]),
+        lines += ["critical speeds [Hz] (1x crossings of the damped branches; b backward, f forward, p planar, "
+                  "b/p: branch backward, planar at that speed; damping ratio)",
+                  "                         open: " + fmt(map(_crossing, rep["critical_speeds"]["open"])),
+                  "                       closed: " + fmt(map(_crossing, rep["critical_speeds"]["closed"])),
                   "undamped critical speeds open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
                       rep["undamped_critical_speeds_hz"]["open"], rep["undamped_critical_whirl"]["open"])),
                   "instability onsets [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
@@ -360,9 +358,12 @@ def cmd_campbell(args) -> int:
     return 0
 
 
-def _ratio(crossing: dict) -> str:
-    """A critical speed's damping ratio to two decimals (0.00, never -0.00, for a round-off-sized one)."""
-    return f"{crossing['damping_ratio'] + 0.0:.2f}".replace("-0.00", "0.00")
+def _crossing(c: dict) -> str:
+    """A damped critical speed for the text output: speed, branch label (/ the crossing's own whirl where it
+    differs), damping ratio to two decimals (0.00, never -0.00, for a round-off-sized one)."""
+    whirl = c["whirl"][0] + ("" if c["whirl_at_speed"] == c["whirl"] else "/" + c["whirl_at_speed"][0])
+    ratio = f"{c['damping_ratio'] + 0.0:.2f}".replace("-0.00", "0.00")
+    return f"{c['speed_hz']:.3f} ({whirl}, {ratio})"
 
 
 def cmd_stationary(args) -> int:

@@ -76,6 +76,7 @@ class Crossing:
     whirl: int                # the branch's label
     damping_ratio: float
     eigenvalue: complex
+    whirl_at_speed: int = 0   # the crossing root's own whirl (the label is the branch's at its highest speed)
 
 
 def mac(M: sp.spmatrix | np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -219,18 +220,20 @@ def crossings(branches: Branches, roots: RootFunction, M, skip=()) -> list[Cross
         for i in range(s.size):
             if g[i] == 0.0 and s[i] > 0:
                 lam = branches.eigenvalues[b, i]
-                out.append(Crossing(float(s[i]), b, int(branches.label[b]), float(-lam.real / abs(lam)), complex(lam)))
+                out.append(Crossing(float(s[i]), b, int(branches.label[b]), float(-lam.real / abs(lam)), complex(lam),
+                                    int(branches.whirl[b, i])))
         for i in np.flatnonzero(np.isfinite(g[:-1]) & np.isfinite(g[1:]) & (g[:-1] * g[1:] < 0.0)):
             refs = [branches.vectors[b, j] for j in (i, i + 1) if s[j] > 0.0]
             R = np.column_stack(refs)
 
             def follow(speed, R=R):
-                lam, X, _ = roots(speed)
-                score = mac(M, R, X).sum(axis=0)
-                return lam[int(np.argmax(score))]
+                lam, X, W = roots(speed)
+                k = int(np.argmax(mac(M, R, X).sum(axis=0)))
+                return lam[k], int(W[k])
 
-            speed = brentq(lambda x: follow(x).imag / (2 * math.pi) - x, s[i], s[i + 1],
+            speed = brentq(lambda x: follow(x)[0].imag / (2 * math.pi) - x, s[i], s[i + 1],
                            xtol=XTOL * max(span, 1.0), rtol=4 * np.finfo(float).eps)
-            lam = follow(speed)
-            out.append(Crossing(float(speed), b, int(branches.label[b]), float(-lam.real / abs(lam)), complex(lam)))
+            lam, here = follow(speed)
+            out.append(Crossing(float(speed), b, int(branches.label[b]), float(-lam.real / abs(lam)), complex(lam),
+                                here))
     return sorted(out, key=lambda c: c.speed_hz)

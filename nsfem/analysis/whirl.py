@@ -243,7 +243,8 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
         "critical_speeds_hz": {c: [x.speed_hz for x in v] for c, v in damped.items()},
         "critical_whirl": {c: [WHIRL_NAMES[x.whirl] for x in v] for c, v in damped.items()},
         "critical_speeds": {c: [{"speed_hz": x.speed_hz, "branch": x.branch, "whirl": WHIRL_NAMES[x.whirl],
-                                 "damping_ratio": x.damping_ratio} for x in v] for c, v in damped.items()},
+                                 "whirl_at_speed": WHIRL_NAMES[x.whirl_at_speed], "damping_ratio": x.damping_ratio}
+                                for x in v] for c, v in damped.items()},
         "undamped_critical_speeds_hz": {c: clean(v[0][:count]) for c, v in crit.items()},
         "undamped_critical_whirl": {c: [WHIRL_NAMES[int(w)] for w in v[1][:count]] for c, v in crit.items()},
         "gravity_resonances_hz": {"open": [], "closed": []},
