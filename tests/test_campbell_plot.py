@@ -291,3 +291,18 @@ def test_reduced_model_critical_speeds_the_full_model_does_not_confirm_are_warne
     text = rep["warnings"][0]
     assert "88.00 Hz" in text and "209.59 Hz" in text and "23.48" not in text and "30.94" not in text
     assert "reduction.modes" in text
+
+
+def test_open_ended_and_zero_width_bands(critical, monkeypatch, tmp_path):
+    """An instability band open to the top (onset, no end: (a, inf)) is shaded from a to the last speed; a
+    zero-width one (an isotropic shaft's double divergence speed) is no band and gets no legend entry."""
+    from nsfem.plot.campbell import report_plot
+
+    scene, _, _, rep = critical
+    top = rep["speeds_hz"][-1]
+    for bands, shaded in (([(100.0, math.inf)], [(100.0, top)]), ([(50.0, 50.0)], [])):
+        fig = _figure(monkeypatch, lambda: report_plot(tmp_path / "c.png", {**rep, "_bands": bands}, scene.title))
+        ax = fig.axes[0]
+        got = [x for p in ax.patches for x in (p.get_x(), p.get_x() + p.get_width())]  # axvspan: data x
+        assert got == pytest.approx([x for band in shaded for x in band], rel=1e-12)
+        assert ("unstable" in [t.get_text() for t in fig.legends[0].get_texts()]) == bool(shaded)

@@ -37,7 +37,7 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
     top = float(s.max()) if s.size else 1.0
     fig, ax = figure(figsize=(7.6, 6.4), layout="constrained")
     # a band of zero width (an isotropic shaft's double divergence speed) is no band
-    shaded = [(lo, min(hi, top)) for lo, hi in bands if lo < top and hi - lo > 1e-9 * max(abs(hi), 1.0)]
+    shaded = [(lo, min(hi, top)) for lo, hi in bands if lo < top and hi - lo > 1e-9 * max(abs(lo), 1.0)]
     for lo, hi in shaded:
         ax.axvspan(lo, hi, color="tab:red", alpha=0.08, lw=0)
     if shaded:
@@ -89,6 +89,8 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
     ax.grid(True, alpha=0.3)
     what = ("damped natural frequencies (inertial frame: whirl frequencies)" if inertial
             else "damped natural frequencies (rotating frame)")
+    if inertial and closed_res is not None and closed_res is not open_res:
+        what += ", contacts open"  # (the closed ones are in the JSON)
     ax.set_title("\n".join(_wrap(title) + [what]), fontsize=10)
     fig.legend(loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     return save(fig, path)
