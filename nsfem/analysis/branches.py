@@ -8,8 +8,10 @@ modal assurance criterion of their eigenvectors,
     MAC(a, b) = |a^H M b|^2 / ((a^H M a) (b^H M b)),
 
 which is insensitive to the complex scale of an eigenvector, 1 for one shape, 0 for M-orthogonal ones
-(forward and backward whirl of one shape, the two bending planes). A root left unpaired (a complex
-pair born from two real, overdamped roots, or entering the computed window) starts a new branch.
+(forward and backward whirl of one shape, the two bending planes). A degenerate group at one speed
+(a round rotor's pair at rest) is matched by its span. A step where a root finds no partner or a
+pair matches poorly is halved (:func:`refine`). A root left unpaired (a complex pair born from two
+real, overdamped roots, or entering the computed window) starts a new branch.
 
 A branch crosses 1x where g(Omega) = f(Omega) - Omega changes sign between two speeds of the grid;
 the crossing is refined by Brent's method on g, with f(Omega) the frequency of the root that best
