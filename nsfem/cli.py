@@ -66,13 +66,14 @@ def parser() -> argparse.ArgumentParser:
                    help="contact points open (free sub-beams) or closed (gap held at zero, frictionless)")
     p.add_argument("--count", type=int, default=10, help="number of frequencies (default 10)")
 
-    p = sub.add_parser("campbell", help="frequencies against speed, gravity resonances")
+    p = sub.add_parser("campbell", help="frequencies against speed, critical speeds, gravity resonances")
     _scene_args(p)
-    p.add_argument("--speeds", metavar="START:STOP:N", help="speeds in Hz (default: 0 to 1.2 x the second "
-                   "critical speed, 61 values)")
+    p.add_argument("--speeds", metavar="START:STOP:N", help="speeds in Hz (default: 61 values from 0 to 1.23 x "
+                   "the second divergence (rotating frame) or forward critical (inertial) speed, at least 2 x "
+                   "rotation.speed_hz)")
     p.add_argument("--count", type=int, default=6, help="frequencies per speed and resonances listed (default 6)")
-    p.add_argument("--png", metavar="FILE", help="write the Campbell diagram here (also written to the output "
-                   "directory when the scene's output.plots lists campbell)")
+    p.add_argument("--png", metavar="FILE", help="write the Campbell diagram to this file only (without --png: "
+                   "to <output.dir>/campbell.png when the scene's output.plots lists campbell)")
 
     p = sub.add_parser("stationary", help="stationary contact state (LCP 28)")
     _scene_args(p)
@@ -326,7 +327,7 @@ def cmd_campbell(args) -> int:
 
     from .analysis.campbell import campbell_report, parse_speeds
     from .fem.assemble import build_model
-    from .plot.campbell import campbell_plot
+    from .plot.campbell import report_plot
     from .reduce import scene_reduction
 
     if args.count < 1:
@@ -336,10 +337,13 @@ def cmd_campbell(args) -> int:
     scene = _scene(args, "campbell")
     from .atomic import check_file
 
-    targets = [Path(args.png)] if args.png else []
-    if "campbell" in scene.output.plots:
-        targets.append(scene.output.dir / "campbell.png")
-    for t, what in zip(targets, ("--png" if args.png else "output.dir", "output.dir")):
+    # --png names the one file written; without it, output.dir/campbell.png when output.plots lists campbell
+    if args.png:
+        targets, what = [Path(args.png)], "--png"
+    else:
+        targets = [scene.output.dir / "campbell.png"] if "campbell" in scene.output.plots else []
+        what = "output.dir"
+    for t in targets:
         check_file(t, what)
     if speeds is not None:
         from .scene import check_speed
@@ -349,7 +353,6 @@ def cmd_campbell(args) -> int:
     model = build_model(scene)
     red = scene_reduction(scene.reduction, model)
     rep = campbell_report(scene, model, speeds, args.count, red)
-    res, bands = rep.pop("_results"), rep.pop("_bands")
     from .analysis.campbell import supercritical_warning
     from .analysis.whirl import unstable_warning
 
@@ -359,21 +362,24 @@ def cmd_campbell(args) -> int:
                if inertial else supercritical_warning(speed, rep["instability_hz"]["open"]))
     if warning:
         print(f"nsfem campbell: warning: {warning}", file=sys.stderr)
+    for text in rep.get("warnings", []):
+        print(f"nsfem campbell: warning: {text}", file=sys.stderr)
 
-    outputs = [str(campbell_plot(t, res["open"].speeds_hz, res["open"].frequencies_hz,
-                                 res["closed"].frequencies_hz,
-                                 rep["critical_speeds_hz"] if inertial else rep["gravity_resonances_hz"], bands,
-                                 scene.title, whirl=res["open"].whirl)) for t in targets]
+    outputs = [str(report_plot(t, rep, scene.title, speed)) for t in targets]
+    for key in ("_results", "_bands", "_critical"):
+        rep.pop(key)
     payload = {"title": scene.title, **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
                "outputs": outputs, "notes": list(scene.notes)}
     fmt = ", ".join
     lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
     if inertial:
-        lines += ["critical speeds [Hz]     open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
-                      rep["critical_speeds_hz"]["open"], rep["critical_whirl"]["open"])),
-                  "                       closed: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
-                      rep["critical_speeds_hz"]["closed"], rep["critical_whirl"]["closed"])),
+        lines += ["critical speeds [Hz] (1x crossings of the damped branches; b backward, f forward, p planar, "
+                  "b/p: branch backward, planar at that speed; damping ratio)",
+                  "                         open: " + fmt(map(_crossing, rep["critical_speeds"]["open"])),
+                  "                       closed: " + fmt(map(_crossing, rep["critical_speeds"]["closed"])),
+                  "undamped critical speeds open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
+                      rep["undamped_critical_speeds_hz"]["open"], rep["undamped_critical_whirl"]["open"])),
                   "instability onsets [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
                   "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
     else:
@@ -384,6 +390,14 @@ def cmd_campbell(args) -> int:
     lines += [f"wrote {o}" for o in outputs]
     _emit(args, payload, "\n".join(lines))
     return 0
+
+
+def _crossing(c: dict) -> str:
+    """A damped critical speed for the text output: speed, branch label (/ the crossing's own whirl where it
+    differs), damping ratio to two decimals (0.00, never -0.00, for a round-off-sized one)."""
+    whirl = c["whirl"][0] + ("" if c["whirl_at_speed"] == c["whirl"] else "/" + c["whirl_at_speed"][0])
+    ratio = f"{c['damping_ratio'] + 0.0:.2f}".replace("-0.00", "0.00")
+    return f"{c['speed_hz']:.3f} ({whirl}, {ratio})"
 
 
 def cmd_stationary(args) -> int:
@@ -501,7 +515,7 @@ def _run_files(scene) -> dict[str, list[str]]:
     from .simulate import FILES_MAX
 
     out = scene.output
-    run = ["result.npz"] + [f"{n}.png" for n in out.plots if n != "campbell"]
+    run = ["result.npz"] + [f"{n}.png" for n in out.plots]
     if scene.sensors:
         run += ["sensors.csv", "sensors.png"]
     sim = scene.simulation
@@ -562,6 +576,14 @@ def _run(args, scene, out_dir, written: set) -> int:
             from .plot.results import write_plots
 
             outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
+            if "campbell" in scene.output.plots:
+                from .plot.campbell import scene_campbell
+
+                try:
+                    outputs.append(str(scene_campbell(out_dir / "campbell.png", scene, system.info["model"], red,
+                                                              warn=warn)))
+                except NsfemError as exc:  # a diagram this scene cannot have (e.g. spun in the wrong frame)
+                    warn(f"plot 'campbell' skipped: {exc}")
             if scene.output.vtu_every:
                 from .export.vtu import write_series
 

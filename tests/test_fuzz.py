@@ -3007,3 +3007,46 @@ def test_a_manifest_never_removes_through_a_linked_vtu(tmp_path):
     code, _, stderr = check_invocation(["run", *CHEAP[:2], *TINY_RUN, "--out", "out"], tmp_path)
     assert code == 0, stderr
     assert sorted(p.name for p in elsewhere.iterdir()) == before
+
+
+# --- issue 34: campbell ---
+def test_campbell_png_writes_only_that_file(tmp_path):
+    """The reproduction: `nsfem campbell ross_example --png X` wrote X and also ./out/campbell.png (the
+    scene lists campbell in output.plots); --png names the one file written."""
+    code, out, _ = check_invocation(["campbell", "ross_example", "--speeds", "0:60:7", "--png", "x.png"], tmp_path)
+    assert code == 0 and sorted(p.name for p in tmp_path.iterdir()) == ["x.png"], out
+
+
+@settings(max_examples=8, deadline=None, derandomize=True, database=None)
+@given(start=st.floats(0.0, 200.0), span=st.floats(0.0, 300.0), n=st.integers(1, 9), count=st.integers(1, 8))
+def test_property_campbell_critical_speeds_lie_on_the_speeds_and_the_branches(start, span, n, count,
+                                                                              tmp_path_factory):
+    """Any speed grid and count: exit 0, the critical speeds lie within the grid's range, each is the
+    frequency of a damped root at that speed (to Brent's tolerance, 1e-11 of the range, relative 1e-8
+    with the eigen solver's round-off), the JSON has no private keys and the plot is the only file."""
+    from nsfem.analysis.campbell import state_eigenvalues
+    from nsfem.analysis.modes import contact_basis
+    from nsfem.fem.assemble import build_model
+    from nsfem.fem.rotating import rotor_operators
+    from nsfem.reduce import scene_reduction
+    from nsfem.scene import load_scene
+    from nsfem.system import linear_system
+
+    root = tmp_path_factory.mktemp("campbell")
+    speeds = f"{start!r}:{start + span!r}:{n}"
+    code, out, stderr = check_invocation(["campbell", "critical_speed", "--speeds", speeds, "--count", str(count),
+                                          "--png", "c.png", "--json"], root)
+    assert code == 0, stderr
+    payload = json.loads(out)
+    assert not [k for k in payload if k.startswith("_")]
+    assert sorted(p.name for p in root.iterdir()) == ["c.png"]
+    found = payload["critical_speeds"]["open"]
+    assert [c["speed_hz"] for c in found] == payload["critical_speeds_hz"]["open"]
+    scene = load_scene("critical_speed")
+    model = build_model(scene)
+    ops = rotor_operators(model, contact_basis(model, "open", scene_reduction(scene.reduction, model)))
+    for c in found:
+        assert start <= c["speed_hz"] <= start + span
+        lam = state_eigenvalues(linear_system(ops, c["speed_hz"], frame="inertial", rayleigh=scene.damping.rayleigh,
+                                              external=scene.damping.external), 2 * count)
+        assert np.min(np.abs(lam.imag / (2 * math.pi) - c["speed_hz"])) <= 1e-8 * c["speed_hz"]

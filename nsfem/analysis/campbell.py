@@ -48,6 +48,7 @@ from ..system import LinearSystem, check_damping, linear_system
 
 if TYPE_CHECKING:
     from ..scene import Scene
+    from .branches import Branches
 
 #: A root counts as a gravity resonance when its excitation (see gravity_resonances, 0 for an
 #: isotropic shaft, 0.05-0.2 for the shipped scene's real ones) exceeds this. Roots of the
@@ -87,6 +88,7 @@ class CampbellResult:
     frequencies_hz: np.ndarray  # (speeds, count); nan where fewer modes exist
     growth_per_s: np.ndarray  # (speeds,): max Re(lambda) over the reported and real roots (growth_rate)
     whirl: np.ndarray | None = None  # inertial frame: (speeds, count) +1 forward, -1 backward, 0 planar
+    branches: Branches | None = None  # the roots followed in speed (one mode per branch)
 
 
 def state_eigenvalues(system: LinearSystem, count: int, vectors: bool = False):
@@ -226,27 +228,90 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
     """Natural frequencies at each speed (damping as given, no gravity needed): in the rotating frame,
     those a frame turning with the shaft sees; in the inertial frame, whirl frequencies, each marked
     forward or backward by :func:`.whirl.whirl_sense` (``turn``: the quarter turn J in full coordinates,
-    :func:`nsfem.fem.components.lateral_turn`; ops.basis maps to them)."""
+    :func:`nsfem.fem.components.lateral_turn`; ops.basis maps to them). The roots are also followed in
+    speed as branches (:mod:`.branches`), :data:`TRACKED` x ``count`` of them per speed, so that a branch
+    leaving the lowest ``count`` is not cut short (on a grid refined where the shapes change fast,
+    :func:`.branches.refine`)."""
+    from .branches import track
+
     speeds = np.asarray(speeds_hz, dtype=float)
     F = np.full((len(speeds), count), np.nan)
     W = np.zeros((len(speeds), count)) if frame == "inertial" else None
     growth = np.zeros(len(speeds))
+    roots = []
     for i, s in enumerate(speeds):
         system = linear_system(ops, s, 0.0, 0.0, rayleigh, external, frame)
-        if W is None:
-            lam = state_eigenvalues(system, count)
-        else:
-            lam, X = state_eigenvalues(system, count, vectors=True)
-            pick = _oscillating(lam, count)
-            if turn is not None and len(pick):
-                from .whirl import AXIAL, whirl_sense
-
-                sense = whirl_sense(X[:, pick], ops.basis, turn)
-                # at rest no mode whirls: an isotropic pair's eigenvectors are any combination
-                W[i, : len(pick)] = sense if s > 0 else np.where(sense == AXIAL, AXIAL, 0)
+        lam, X = state_eigenvalues(system, TRACKED * count, vectors=True)
+        pick = _oscillating(lam, count)
+        if W is not None and turn is not None and len(pick):
+            W[i, : len(pick)] = _whirl(X[:, pick], ops, turn, s)
+        roots.append(_tracked_roots(lam, X, TRACKED * count, ops, turn, s))
         F[i] = frequencies_of(lam, count)
         growth[i] = growth_rate(lam, count, _omega_max(system.M, system.Q))
-    return CampbellResult(speeds, F, growth, W)
+    follow = root_function(ops, count, rayleigh, external, frame, turn)
+    return CampbellResult(speeds, F, growth, W, track(speeds, roots, ops.M, follow))
+
+
+#: campbell follows this many times ``count`` roots per speed as branches
+TRACKED = 2
+
+
+def _whirl(X: np.ndarray, ops: RotorOperators, turn, speed_hz: float) -> np.ndarray:
+    """Whirl codes of eigenvector columns X (:func:`.whirl.whirl_sense`); at rest no mode whirls (an
+    isotropic pair's eigenvectors are any combination): 0 there, but for axial modes."""
+    from .whirl import AXIAL, whirl_sense
+
+    sense = whirl_sense(X, ops.basis, turn)
+    return sense if speed_hz > 0 else np.where(sense == AXIAL, AXIAL, 0)
+
+
+def _tracked_roots(lam, X, m: int, ops: RotorOperators, turn, speed_hz: float):
+    """(eigenvalues, vectors, whirl codes) of the lowest ``m`` oscillating roots (input of :func:`.branches.track`)."""
+    pick = _oscillating(lam, m)
+    W = _whirl(X[:, pick], ops, turn, speed_hz) if turn is not None and len(pick) else np.zeros(len(pick), dtype=int)
+    return lam[pick], X[:, pick], W
+
+
+def root_function(ops: RotorOperators, count: int, rayleigh=(0.0, 0.0), external: float = 0.0,
+                  frame: str = "rotating", turn: sp.spmatrix | None = None):
+    """speed [Hz] -> the roots :func:`campbell` tracks there (for :func:`.branches.crossings`)."""
+    def roots(speed_hz: float):
+        system = linear_system(ops, speed_hz, 0.0, 0.0, rayleigh, external, frame)
+        lam, X = state_eigenvalues(system, TRACKED * count, vectors=True)
+        return _tracked_roots(lam, X, TRACKED * count, ops, turn, speed_hz)
+    return roots
+
+
+def shown_branches(res: CampbellResult) -> np.ndarray:
+    """Indices of the diagram's branches: those among the lowest ``count`` frequencies at some speed,
+    and those that cross the 1x line within the speeds (a critical speed; the branches are followed
+    among the lowest :data:`TRACKED` x ``count`` roots)."""
+    B = res.branches
+    F = B.frequencies_hz[:, B.reported]
+    known = np.isfinite(res.frequencies_hz)
+    # the count-th frequency per speed (every root is among the lowest count when fewer exist)
+    ceiling = np.where(known.all(axis=1), np.where(known, res.frequencies_hz, -np.inf).max(axis=1, initial=-np.inf),
+                       np.inf)
+    inside = np.isfinite(F) & (F <= ceiling[None, :] * (1 + 1e-12))
+    g = B.frequencies_hz - B.speeds_hz[None, :]
+    crosses = np.any(np.isfinite(g[:, :-1]) & np.isfinite(g[:, 1:]) & (g[:, :-1] * g[:, 1:] <= 0.0)
+                     & (B.speeds_hz[None, 1:] > 0), axis=1)
+    return np.flatnonzero(inside.any(axis=1) | crosses)
+
+
+def branches_json(res: CampbellResult, whirl_names: dict | None = None) -> list[dict]:
+    """The diagram's branches (:func:`shown_branches`) for the JSON: damped frequency [Hz] and damping
+    ratio per speed (null where the branch does not exist), and with ``whirl_names`` (inertial frame) the
+    branch's whirl label."""
+    B = res.branches
+    out = []
+    for b in shown_branches(res):
+        f, z = B.frequencies_hz[b, B.reported], B.damping_ratios[b, B.reported]
+        row = {"whirl": whirl_names[int(B.label[b])]} if whirl_names else {}
+        row["frequencies_hz"] = [float(x) if np.isfinite(x) else None for x in f]
+        row["damping_ratio"] = [float(x) if np.isfinite(x) else None for x in z]
+        out.append(row)
+    return out
 
 
 def _oscillating(lam: np.ndarray, count: int) -> np.ndarray:
@@ -439,6 +504,7 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
         "frequencies_hz": [clean(row) for row in res["open"].frequencies_hz],
         "frequencies_closed_hz": [clean(row) for row in res["closed"].frequencies_hz],
         "growth_rate_per_s": {c: clean(r.growth_per_s) for c, r in res.items()},
+        "branches": {c: branches_json(r) for c, r in res.items()},
         "gravity_resonances_hz": {c: clean(g[0][:count]) for c, g in grav.items()},
         "gravity_excitation": {c: clean(g[1][:count]) for c, g in grav.items()},
         "instability_hz": {c: clean(d[:count]) for c, d in div.items()},
@@ -447,7 +513,8 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
                                  for c, d in div.items()},
         "ndof_full": model.n, "ndof": model.n if reduction is None else reduction.ndof,
         "valid_up_to_hz": None if math.isinf(valid) else valid,
-        "_results": res, "_bands": divergence_bands(div["open"]),
+        "warnings": [],
+        "_results": res, "_bands": divergence_bands(div["open"]), "_critical": {c: [] for c in res},
     }
 
 

@@ -20,8 +20,8 @@ import scipy.sparse as sp
 from ..fem.constraints import dense as _dense
 from ..fem.rotating import RotorOperators
 from ..system import linear_system
-from .campbell import (VALID_FRACTION, _omega_max, _oscillating, _pencil, campbell, frequencies_of, growth_rate,
-                       state_eigenvalues)
+from .campbell import (VALID_FRACTION, _omega_max, _oscillating, _pencil, branches_json, campbell, frequencies_of,
+                       growth_rate, state_eigenvalues)
 
 if TYPE_CHECKING:
     from ..scene import Damping, Rotation
@@ -208,8 +208,17 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
     else:
         speeds = np.asarray(speeds_hz, dtype=float)
     rd = (damp.rayleigh, damp.external)
-    res = {c: campbell(o, speeds, count, *rd, frame="inertial", turn=turn) for c, o in ops.items()}
-    onsets = {c: instability_onsets(o, speeds, res[c].growth_per_s, count, *rd) for c, o in ops.items()}
+    res, onsets, damped = {}, {}, {}
+    for c, o in ops.items():
+        same = [d for d in res if ops[d] is o]  # no contacts: one set of operators, computed once
+        if same:
+            res[c], onsets[c], damped[c] = res[same[0]], onsets[same[0]], damped[same[0]]
+            continue
+        res[c] = campbell(o, speeds, count, *rd, frame="inertial", turn=turn)
+        onsets[c] = instability_onsets(o, speeds, res[c].growth_per_s, count, *rd)
+        damped[c] = damped_critical_speeds(o, res[c], count, *rd, turn=turn)
+
+    warnings = reduction_warnings(model, damped["open"], count, rd, reduction)
 
     def clean(a):
         return [None if not np.isfinite(x) else float(x) for x in np.ravel(a)]
@@ -230,8 +239,14 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
         "whirl": whirl,
         "frequencies_closed_hz": [clean(row) for row in res["closed"].frequencies_hz],
         "growth_rate_per_s": {c: clean(r.growth_per_s) for c, r in res.items()},
-        "critical_speeds_hz": {c: clean(v[0][:count]) for c, v in crit.items()},
-        "critical_whirl": {c: [WHIRL_NAMES[int(w)] for w in v[1][:count]] for c, v in crit.items()},
+        "branches": {c: branches_json(r, WHIRL_NAMES) for c, r in res.items()},
+        "critical_speeds_hz": {c: [x.speed_hz for x in v] for c, v in damped.items()},
+        "critical_whirl": {c: [WHIRL_NAMES[x.whirl] for x in v] for c, v in damped.items()},
+        "critical_speeds": {c: [{"speed_hz": x.speed_hz, "branch": x.branch, "whirl": WHIRL_NAMES[x.whirl],
+                                 "whirl_at_speed": WHIRL_NAMES[x.whirl_at_speed], "damping_ratio": x.damping_ratio}
+                                for x in v] for c, v in damped.items()},
+        "undamped_critical_speeds_hz": {c: clean(v[0][:count]) for c, v in crit.items()},
+        "undamped_critical_whirl": {c: [WHIRL_NAMES[int(w)] for w in v[1][:count]] for c, v in crit.items()},
         "gravity_resonances_hz": {"open": [], "closed": []},
         "gravity_excitation": {"open": [], "closed": []},
         "instability_hz": {c: clean(v) for c, v in onsets.items()},
@@ -239,7 +254,59 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
         "ndof_full": model.n, "ndof": model.n if reduction is None else reduction.ndof,
         "valid_up_to_hz": None if math.isinf(valid) else valid,
         "_results": res, "_bands": [(a, math.inf if b is None else b) for a, b in bands("open")],
+        "warnings": warnings,
+        "_critical": damped,
     }
+
+
+def damped_critical_speeds(ops: RotorOperators, res, count: int, rayleigh=(0.0, 0.0), external: float = 0.0,
+                           turn: sp.spmatrix | None = None):
+    """Inertial frame: the speeds where the 1x line crosses a damped branch of the diagram ``res``
+    (:func:`.campbell.campbell`), forward, backward and planar alike (axial modes left out: an unbalance
+    does not drive them), each found by Brent's method on its tracked branch (:func:`.branches.crossings`);
+    ``Crossing.branch`` indexes :func:`.campbell.shown_branches`."""
+    from .branches import crossings
+    from .campbell import root_function, shown_branches
+
+    shown = shown_branches(res)
+    B = res.branches
+    sub = replace(B, eigenvalues=B.eigenvalues[shown], vectors=B.vectors[shown], whirl=B.whirl[shown],
+                  label=B.label[shown])
+    return crossings(sub, root_function(ops, count, rayleigh, external, "inertial", turn), ops.M, skip=(AXIAL,))
+
+
+#: a reduced model's damped critical speed is reported as off when the full model's nearest root at that speed
+#: whirls more than this fraction of the speed away
+REDUCED_CRITICAL_TOLERANCE = 1e-3
+#: full models up to this many dofs are checked (one eigen solve per critical speed)
+REDUCED_CHECK_MAX_DOF = 2000
+
+
+def reduction_warnings(model, crossings, count: int, rd, reduction) -> list[str]:
+    """Warnings for the damped critical speeds (contacts open) of a reduced model that the full model does not
+    confirm: at each speed s its roots (:func:`.campbell.state_eigenvalues`, the lowest 2 x ``count``) must hold
+    one whirling within :data:`REDUCED_CRITICAL_TOLERANCE` s. Heavy bearing damping couples the kept modes to
+    truncated ones, which a truncation judged by frequency alone misses (critical_speed, 12 modes: 88.00 and
+    209.59 Hz against 85.74 and 221.09 Hz in full)."""
+    from ..fem.rotating import rotor_operators
+    from .campbell import TRACKED
+    from .modes import contact_basis
+
+    if reduction is None or not crossings or model.n > REDUCED_CHECK_MAX_DOF:
+        return []
+    ops = rotor_operators(model, contact_basis(model, "open"))
+    off = []
+    for c in crossings:
+        lam = state_eigenvalues(linear_system(ops, c.speed_hz, 0.0, 0.0, *rd, "inertial"), TRACKED * count)
+        f = lam.imag[lam.imag > 0] / (2 * math.pi)
+        nearest = float(f[np.argmin(np.abs(f - c.speed_hz))]) if f.size else math.nan
+        if not abs(nearest - c.speed_hz) <= REDUCED_CRITICAL_TOLERANCE * c.speed_hz:
+            off.append(f"{c.speed_hz:.2f} Hz (full model's nearest root there: {nearest:.2f} Hz)")
+    if not off:
+        return []
+    return [f"the reduced model's damped critical speeds {', '.join(off)} are off by more than "
+            f"{100 * REDUCED_CRITICAL_TOLERANCE:g} %: the bearings' damping couples the kept modes to truncated "
+            "ones; keep more modes (reduction.modes) or none (reduction.method = \"none\")"]
 
 
 def unstable_warning(speed_hz: float, onsets_hz, bands) -> str | None:

@@ -357,7 +357,8 @@ SCHEMA: dict[str, Any] = {
         "dir": Key("str", "out", "output directory (relative to the working directory)"),
         "vtu_every": Key("int", 10, "write a VTU frame every N output steps into the output folder's vtu/, "
                           "indexed by its nsfem.pvd (0 = none)", check=_nonneg),
-        "plots": Key("strs", ["phase", "gap", "psd", "forces"], "PNG plots to write", PLOTS),
+        "plots": Key("strs", ["phase", "gap", "psd", "forces"],
+                     "PNG plots to write (campbell: over `nsfem campbell`'s default speeds)", PLOTS),
     },
     "disk": [_DISK],
     "bearing": [_BEARING],
