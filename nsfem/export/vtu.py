@@ -60,7 +60,6 @@ import math
 import re
 from pathlib import Path
 from typing import NamedTuple
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -631,6 +630,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
 
 def write_pvd(pvd: Path, entries: list, names: list[str], written: str, turn: bool) -> Path:
     """The ``.pvd`` index of the frames ``entries`` [(t, [file per part])] with parts ``names``."""
+    from xml.sax.saxutils import quoteattr  # here: it loads urllib, http and ssl (25 ms) into every run
+
     note = (" (it turns with the shaft at Omega; stator rings are fixed in it, as in the model)" if written == "rotating"
             else " (turned from the run's rotating frame by Omega t + phase: its stator rings, fixed in that frame "
             "in the model, turn with it)" if turn else "")
