@@ -13,7 +13,11 @@ is judged on the fastest wall time (other jobs only ever add to it). ``--breakdo
 timing of the whole run's parts (imports, model and reduction, integration, results file, each plot,
 VTU) and the heavy modules each command imported.
 
-    python studies/latency.py [--quick] [--json] [--repeat 7] [--breakdown]
+    python studies/latency.py [--quick] [--json] [--repeat 7] [--breakdown] [--base COMMIT]
+
+``--base COMMIT``: the same commands on that commit's sources too (``git archive`` into a temporary folder, with
+this tree's compiled core when the core's sources are the same, else its pure Python), interleaved with this
+tree's round by round, so that both see the same load.
 
 ``--quick``: 3 rounds (7 without). Writes latency.json/.csv into studies/out/latency.
 """
@@ -25,6 +29,7 @@ import functools
 import json
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -93,20 +98,20 @@ print(json.dumps(sorted(m for m in sys.modules if m in HEAVY)), file=sys.__stder
 """
 
 
-def _env() -> dict:
+def _env(tree: Path = ROOT) -> dict:
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    return {**env, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"}
+    return {**env, "PYTHONPATH": str(tree), "MPLBACKEND": "Agg"}
 
 
 def _argv(name: str, out: str) -> list[str]:
     return [a.replace("{out}", out) for a in COMMANDS[name][0]]
 
 
-def one(name: str, out: str) -> dict:
-    """One fresh ``python -m nsfem`` command: wall time, CPU time of the child, exit status."""
+def one(name: str, out: str, tree: Path = ROOT) -> dict:
+    """One fresh ``python -m nsfem`` command on ``tree``'s sources: wall time, CPU time of the child."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    run = subprocess.run([sys.executable, "-m", "nsfem", *_argv(name, out)], env=_env(), cwd=ROOT,
+    run = subprocess.run([sys.executable, "-m", "nsfem", *_argv(name, out)], env=_env(tree), cwd=tree,
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -133,6 +138,22 @@ def breakdown(out: str) -> dict:
     return json.loads(run.stdout.strip().splitlines()[-1])
 
 
+def base_tree(commit: str, folder: Path) -> tuple[Path, str]:
+    """``commit``'s sources in ``folder`` and which event core they run: this tree's compiled one when the
+    core's sources are unchanged since ``commit`` (and built here), else pure Python."""
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", commit], capture_output=True, check=True)
+    folder.mkdir(parents=True)
+    subprocess.run(["tar", "-x", "-C", str(folder)], input=archive.stdout, check=True)
+    core = ROOT / "nsfem" / "integrate" / "core"
+    same = subprocess.run(["git", "-C", str(ROOT), "diff", "--quiet", commit, "--", str(core)]).returncode == 0
+    built = sorted(core.glob("_*.so"))
+    if not (same and built):
+        return folder, "python"
+    for so in built:
+        shutil.copy2(so, folder / "nsfem" / "integrate" / "core" / so.name)
+    return folder, "compiled (this tree's build)"
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="3 rounds")
@@ -140,36 +161,46 @@ def main(argv=None) -> dict:
     ap.add_argument("--repeat", type=int, default=None, help="rounds (7; --quick 3)")
     ap.add_argument("--breakdown", action="store_true", help="also time the whole run's parts and list the "
                     "heavy modules each command imports")
+    ap.add_argument("--base", metavar="COMMIT", help="also time that commit's sources, round by round")
     ap.add_argument("--out", default=str(Path(__file__).parent / "out" / "latency"))
     args = ap.parse_args(argv)
     say = functools.partial(print, file=sys.stderr if args.json else sys.stdout, flush=True)
     repeat = args.repeat or (3 if args.quick else 7)
-    times: dict[str, list[dict]] = {name: [] for name in COMMANDS}
+    if repeat < 1:
+        ap.error(f"--repeat: {repeat} rounds; give at least 1")
     extra: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
+        trees = {"this": (ROOT, "this tree")}
+        if args.base:
+            folder, core = base_tree(args.base, Path(tmp) / "base")
+            trees["base"] = (folder, f"{args.base} (event core: {core})")
+        times = {(label, name): [] for label in trees for name in COMMANDS}
         for k in range(repeat + 1):   # round 0 untimed: bytecode and file caches
             for name in COMMANDS:
-                r = one(name, str(Path(tmp) / f"{name}_{k}"))
-                if k:
-                    times[name].append(r)
+                for label, (tree, _) in trees.items():
+                    r = one(name, str(Path(tmp) / f"{label}_{name}_{k}"), tree)
+                    if k:
+                        times[label, name].append(r)
         if args.breakdown:
             extra["breakdown"] = breakdown(str(Path(tmp) / "breakdown"))
             extra["imported"] = {name: imported(name, str(Path(tmp) / f"imported_{name}")) for name in COMMANDS}
     rows = []
     for name, (_, goal) in COMMANDS.items():
-        walls = [r["wall_s"] for r in times[name]]
-        cpus = [r["cpu_s"] for r in times[name]]
-        rows.append({"command": "nsfem " + " ".join(_argv(name, "DIR")), "name": name, "goal_s": goal,
-                     "min_wall_s": min(walls), "median_wall_s": statistics.median(walls),
-                     "median_cpu_s": statistics.median(cpus), "met": min(walls) <= goal})
+        for label, (_, about) in trees.items():
+            walls = [r["wall_s"] for r in times[label, name]]
+            cpus = [r["cpu_s"] for r in times[label, name]]
+            rows.append({"command": "nsfem " + " ".join(_argv(name, "DIR")), "name": name, "tree": about,
+                         "goal_s": goal, "min_wall_s": min(walls), "median_wall_s": statistics.median(walls),
+                         "median_cpu_s": statistics.median(cpus), "met": min(walls) <= goal})
     for r in rows:
-        say(f"{r['command']}\n    fastest {r['min_wall_s']:.3f} s, median {r['median_wall_s']:.3f} s wall, "
-            f"median {r['median_cpu_s']:.3f} s CPU (goal {r['goal_s']} s: {'met' if r['met'] else 'NOT met'})")
+        say(f"{r['command']}\n    {r['tree']}: fastest {r['min_wall_s']:.3f} s, median {r['median_wall_s']:.3f} s "
+            f"wall, median {r['median_cpu_s']:.3f} s CPU (goal {r['goal_s']} s: {'met' if r['met'] else 'NOT met'})")
     for part, v in extra.get("breakdown", {}).items():
         say(f"  {part:42s} {v['wall_s']:.3f} s" + (f" wall, {v['cpu_s']:.3f} s CPU" if "cpu_s" in v else ""))
     for name, mods in extra.get("imported", {}).items():
         say(f"  {name} imports: {', '.join(mods) or 'none of ' + ', '.join(HEAVY)}")
-    payload = {"repeat": repeat, "commands": rows, **extra, "all_met": all(r["met"] for r in rows),
+    payload = {"repeat": repeat, "commands": rows, **extra,
+               "all_met": all(r["met"] for r in rows if r["tree"] == "this tree"),
                "machine": {**machine(), "load_average": os.getloadavg()}}
     write_outputs(Path(args.out), "latency", rows, payload)
     if args.json:
