@@ -60,6 +60,8 @@ def _solver_class(name: str):
 
         SOLVERS[name] = getattr(scipy.integrate, name)
     return SOLVERS[name]
+
+
 #: largest damping ratio used (eps below restitution(ZETA_MAX) ~ 0.0025 is not reachable)
 ZETA_MAX = 10.0
 #: reference frequency [Hz] of the mass-based stiffness rule (factor 100 -> a 1 kHz contact)
