@@ -47,8 +47,9 @@ COMMANDS = {
                       0.8),
     "run": (["run", "--out", "{out}"], 1.5),
 }
-#: modules that only drawing, rendering, sweeping or a PSD / rk / penalty should import
-HEAVY = ("matplotlib", "pyvista", "vtk", "dask", "distributed", "scipy.signal", "scipy.integrate", "scipy.optimize")
+#: modules that only drawing, rendering, sweeping, writing VTU or a PSD / rk / penalty should import
+HEAVY = ("matplotlib", "pyvista", "vtk", "dask", "distributed", "meshio", "scipy.signal", "scipy.integrate",
+         "scipy.optimize")
 
 #: the child of ``--breakdown``: the parts of ``nsfem run`` (as cli._run does them) timed in one interpreter
 BREAKDOWN = r"""
@@ -59,6 +60,8 @@ def lap(name, t):
     parts[name] = {"wall_s": w - t[0], "cpu_s": c - t[1]}
     t[:] = [w, c]
 t = [time.perf_counter(), time.process_time()]
+from nsfem.cli import one_blas_thread
+one_blas_thread()   # as the command does
 from pathlib import Path
 from nsfem.fem.constraints import dense
 from nsfem.scene import load_scene
