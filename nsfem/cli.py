@@ -835,7 +835,24 @@ COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stat
             "sweep": cmd_sweep, "fit": cmd_fit, "export": cmd_export, "render": cmd_render}
 
 
+#: the variables by which a user sets the BLAS threads (OpenBLAS reads the first it finds; MKL its own)
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def one_blas_thread() -> None:
+    """One BLAS thread for a command whose environment sets none: nsfem's dense products and eigenproblems have
+    tens to hundreds of rows, where a second thread costs more than it gives (the shipped scene's reduction:
+    0.03 s with one thread, 0.26-0.33 s with two on two busy cores; the integrators run with one anyway, see
+    :mod:`nsfem.integrate.blas`). Only before NumPy is loaded (OpenBLAS reads the variable once, at load): a
+    fresh command, not a call from Python."""
+    import os
+
+    if "numpy" not in sys.modules and not any(v in os.environ for v in BLAS_THREAD_VARIABLES):
+        os.environ["OPENBLAS_NUM_THREADS"] = "1"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    one_blas_thread()
     stderr = sys.stderr
     sys.stderr = _Stderr(stderr)
     try:

@@ -3050,3 +3050,31 @@ def test_property_campbell_critical_speeds_lie_on_the_speeds_and_the_branches(st
         lam = state_eigenvalues(linear_system(ops, c["speed_hz"], frame="inertial", rayleigh=scene.damping.rayleigh,
                                               external=scene.damping.external), 2 * count)
         assert np.min(np.abs(lam.imag / (2 * math.pi) - c["speed_hz"])) <= 1e-8 * c["speed_hz"]
+
+
+# --- issue 34: latency (a command's BLAS threads) ---
+# A fresh command sets one BLAS thread only where the environment names none (nsfem.cli.one_blas_thread);
+# whatever a user put in those variables reaches OpenBLAS as it is, and the command still answers.
+def _modes_with_blas_threads(value: str | None, cwd: Path) -> list[float]:
+    env = {k: v for k, v in os.environ.items() if k not in cli.BLAS_THREAD_VARIABLES}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[1])
+    if value is not None:
+        env["OPENBLAS_NUM_THREADS"] = value
+    run = subprocess.run([sys.executable, "-m", "nsfem", "modes", "--count", "2", "--json"], cwd=cwd, env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and "Traceback" not in run.stderr, (value, run.stderr)
+    return json.loads(run.stdout)["frequencies_hz"]
+
+
+@pytest.fixture(scope="module")
+def modes_one_thread(tmp_path_factory) -> list[float]:
+    return _modes_with_blas_threads(None, tmp_path_factory.mktemp("blas"))
+
+
+@pytest.mark.parametrize("value", ["abc", "-1", "99999999999999999999"])
+def test_hostile_blas_thread_setting(value, tmp_path, modes_one_thread):
+    """A hostile OPENBLAS_NUM_THREADS: the command answers (exit 0, no traceback, nothing left behind) with the
+    frequencies of a command left to its one thread (to 1e-9: the thread count only reorders the eigensolver's
+    sums, round-off of order 1e-13 relative)."""
+    assert np.allclose(_modes_with_blas_threads(value, tmp_path), modes_one_thread, rtol=1e-9, atol=0)
+    assert not leftovers(tmp_path)

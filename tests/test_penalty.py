@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.integrate
 
 import nsfem.integrate.penalty as pen
 from nsfem.contact.set import ContactSet
@@ -291,7 +292,7 @@ class _Stop(Exception):
 
 def _patched(monkeypatch, exc, after_t: float):
     """BDF whose step raises ``exc`` (or fails) once past ``after_t``."""
-    class Stepper(pen.BDF):
+    class Stepper(scipy.integrate.BDF):
         def step(self):
             if self.t > after_t:
                 if exc is None:

@@ -63,7 +63,6 @@ import math
 import re
 from pathlib import Path
 from typing import NamedTuple
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -703,6 +702,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
 
 def write_vtm(path: Path, blocks: list[tuple[str, str]]) -> Path:
     """A frame's ``.vtm`` (VTK's multiblock file): one named leaf block per (name, file in its folder)."""
+    from xml.sax.saxutils import quoteattr  # here: it loads urllib, http and ssl (25 ms) into every run
+
     lines = ['<?xml version="1.0"?>',
              '<VTKFile type="vtkMultiBlockDataSet" version="1.0" byte_order="LittleEndian">',
              "  <vtkMultiBlockDataSet>"]
@@ -716,6 +717,8 @@ def write_pvd(pvd: Path, entries: list[tuple[float, str]], blocks: list[str], wr
               prefix: str = "nsfem") -> Path:
     """The ``.pvd`` index of the frames ``entries`` [(t, the frame's .vtm relative to the .pvd)], whose
     blocks are ``blocks``."""
+    from xml.sax.saxutils import quoteattr
+
     note = (" (it turns with the shaft at Omega; stator rings are fixed in it, as in the model)" if written == "rotating"
             else " (turned from the run's rotating frame by Omega t + phase: its stator rings, fixed in that frame "
             "in the model, turn with it)" if turn else "")

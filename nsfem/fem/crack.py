@@ -29,7 +29,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.integrate import quad
 
 #: Dimarogonas' J(a/h) coefficients of a^2 .. a^10 (Rizos et al. 1990)
 J_COEFFICIENTS = (1.8624, -3.95, 16.375, -37.226, 76.81, -126.9, 172.0, -143.97, 66.56)
@@ -88,6 +87,8 @@ def _strip_integral(F, s_max: float) -> float:
     s_max = 1e-154, where the hinge is far stiffer than :data:`MAX_HINGE_STIFFNESS` allows anyway)."""
     if not s_max > 0.0:
         return 0.0
+    from scipy.integrate import quad
+
     return s_max * s_max * quad(lambda t: t * F(s_max * t) ** 2, 0.0, 1.0, limit=200, epsabs=0.0, epsrel=1e-12)[0]
 
 
@@ -138,6 +139,8 @@ def circle_compliance(E: float, diameter: float, depth: float) -> tuple[float, f
         alpha_max = a * (1.0 - (2.0 * R - a) * u * u / (R + half))
         # int_0^alpha_max pi alpha F(alpha / h)^2 dalpha = pi h^2 int_0^s_max s F(s)^2 ds
         return math.pi * h * h * _strip_integral(F, alpha_max / h)
+
+    from scipy.integrate import quad
 
     def outer(F, weight):
         # even in y, taken over u = y / beta in [0, 1]; it ends like (1 - u)^2 at the front's edge: smooth

@@ -40,8 +40,6 @@ import numbers
 import time
 
 import numpy as np
-from scipy.integrate import BDF, LSODA, Radau
-from scipy.optimize import brentq
 
 from ..errors import IntegrationError, NsfemError
 from ..result import Result
@@ -49,7 +47,21 @@ from .base import EXTRA_METHODS, Integrator, Progress, close_energy, initial_sta
 from .guard import likely_cause
 from .problem import ContactSystem
 
-SOLVERS = {"BDF": BDF, "Radau": Radau, "LSODA": LSODA}
+SOLVER_NAMES = ("BDF", "Radau", "LSODA")
+#: the stiff solver classes by name, taken from scipy.integrate on first use (:func:`_solver_class`; scipy.integrate
+#: costs 0.1 s of every command's start otherwise)
+SOLVERS: dict = {}
+
+
+def _solver_class(name: str):
+    """scipy.integrate's solver class ``name`` (one of :data:`SOLVER_NAMES`), or what :data:`SOLVERS` holds for it."""
+    if name not in SOLVERS:
+        import scipy.integrate
+
+        SOLVERS[name] = getattr(scipy.integrate, name)
+    return SOLVERS[name]
+
+
 #: largest damping ratio used (eps below restitution(ZETA_MAX) ~ 0.0025 is not reachable)
 ZETA_MAX = 10.0
 #: reference frequency [Hz] of the mass-based stiffness rule (factor 100 -> a 1 kHz contact)
@@ -129,6 +141,8 @@ def damping_ratio(eps: float, rule: str = "cut") -> float:
         return a / math.sqrt(math.pi ** 2 + a * a)
     if eps <= restitution(ZETA_MAX):
         return ZETA_MAX
+    from scipy.optimize import brentq
+
     return brentq(lambda z: restitution(z) - eps, 0.0, ZETA_MAX, xtol=1e-14, rtol=1e-13)
 
 
@@ -165,8 +179,8 @@ class Penalty(Integrator):
                              "factor, damping, damping_ratio, restitution_rule, rtol, atol, max_step, "
                              "progress)")
         super().__init__(system)
-        if solver not in SOLVERS:
-            raise NsfemError(f"penalty: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
+        if solver not in SOLVER_NAMES:
+            raise NsfemError(f"penalty: solver must be one of {', '.join(SOLVER_NAMES)}, got {solver!r}")
 
         def positive(value, name):
             if not (_number(value) and value > 0):
@@ -294,8 +308,8 @@ class Penalty(Integrator):
         try:
             while t < t_end:
                 fun, jac = self._segment(tuple(np.flatnonzero(active)))
-                solver = SOLVERS[self.solver](fun, t, x, t_end, rtol=self.rtol, atol=self.atol,
-                                              max_step=self.max_step, jac=jac)
+                solver = _solver_class(self.solver)(fun, t, x, t_end, rtol=self.rtol, atol=self.atol,
+                                                     max_step=self.max_step, jac=jac)
                 s_prev = self._switch(x)
                 switched = None
                 while solver.status == "running":
@@ -399,6 +413,8 @@ class Penalty(Integrator):
         xa, xb = sol(t_a), sol(t_b)
         pen = float(max(-cs.gaps(xa[:n]).min(), -cs.gaps(xb[:n]).min(), 0.0))
         gda, gdb = cs.JN.T @ xa[n:2 * n], cs.JN.T @ xb[n:2 * n]
+        from scipy.optimize import brentq
+
         for k in np.flatnonzero(active & (gda < 0) & (gdb >= 0)):
             tm = brentq(lambda t: float(cs.JN[:, k] @ sol(t)[n:2 * n]), t_a, t_b, xtol=1e-15)
             pen = max(pen, float(-cs.gaps(sol(tm)[:n])[k]))

@@ -80,13 +80,13 @@ def modal_coordinates(result, system) -> tuple[np.ndarray, np.ndarray, np.ndarra
 def welch_psd(signal, dt: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(f [Hz], one-sided PSD [unit^2/Hz]) of a uniformly sampled signal (Hann, 50 % overlap,
     mean removed); default segments of half the record (three averages)."""
-    from scipy.signal import welch
+    from ..spectrum import welch
 
     x = np.asarray(signal, dtype=float)
     n = x.size
     if nperseg is None:
         nperseg = n if n < 32 else max(32, n // 2)
-    return welch(x, fs=1.0 / dt, nperseg=min(nperseg, n), detrend="constant", scaling="density")
+    return welch(x, dt, min(nperseg, n))
 
 
 def _uniform(t: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
