@@ -676,12 +676,6 @@ EXPECTED = {
 }
 
 
-#: PNGs another part of issue 34 is redrawing (their legends covered data when this test was written): their
-#: problems make the case an expected failure instead of a failure, until this entry is removed after the merge
-BEING_REDRAWN = {"gap.png": "issue 34.6, contact plots: gap legends over the traces",
-                 "campbell.png": "issue 34.1, Campbell diagram: legend over the branches"}
-
-
 @pytest.mark.parametrize("case", list(PLOT_CASES))
 def test_every_axis_has_a_unit_and_no_legend_covers_data(case, saved_figures, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)   # a command's default output folder lands here, not in the checkout
@@ -689,9 +683,7 @@ def test_every_axis_has_a_unit_and_no_legend_covers_data(case, saved_figures, tm
     names = {name for name, *_ in saved_figures}
     assert names == EXPECTED[case], (names, warned)
     problems = {name: axes + legends for name, axes, legends, _ in saved_figures if axes + legends}
-    assert {n: p for n, p in problems.items() if n not in BEING_REDRAWN} == {}
-    if problems:
-        pytest.xfail("; ".join(f"{n} ({BEING_REDRAWN[n]}): {p}" for n, p in problems.items()))
+    assert problems == {}
 
 
 def test_the_checks_catch_a_missing_unit_and_a_legend_over_data(saved_figures, tmp_path):
