@@ -13,7 +13,7 @@ its dofs: the residual r = Q q - f of the unconstrained equations, carried by th
 >>> from nsfem import build_model, load_scene
 >>> model = build_model(load_scene("ross_example", ["reduction.method=none", "mesh.elements=6"]))
 >>> bearing_reactions(model, np.zeros(model.n_full)).tolist()
-[[0.0, 0.0], [0.0, 0.0]]
+[[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]
 """
 
 from __future__ import annotations
