@@ -42,6 +42,25 @@ LABELS = {"disks": "grey: disks (translucent)", "bearings": "dark grey: bearings
           "stators": "stator rings: facets coloured by their gap"}
 
 
+#: pixels between the window's edge and the caption
+MARGIN = 12
+
+
+def ruler_labels(length: float) -> int:
+    """The number of labels of a ruler over ``length`` [m] (from 0) so that they fall on round numbers: steps of
+    1, 2, 2.5 or 5 x 10^k that divide it into 3 to 8 parts, the count nearest 5 parts (else 5 labels).
+
+    >>> ruler_labels(1.5), ruler_labels(0.8), ruler_labels(0.6), ruler_labels(1.0), ruler_labels(0.77)
+    (7, 5, 7, 6, 5)
+    """
+    if not (math.isfinite(length) and length > 0):
+        return 5
+    k = math.floor(math.log10(length))
+    parts = [length / (m * 10.0 ** e) for e in (k - 1, k) for m in (1.0, 2.0, 2.5, 5.0)]
+    whole = [round(n) for n in parts if 3 <= round(n) <= 8 and abs(n - round(n)) < 1e-9 * n]
+    return min(whole, key=lambda n: abs(n - 5)) + 1 if whole else 5
+
+
 def _depth(seg) -> float:
     """The section's extent along z (a circle's diameter is its ``width``)."""
     return seg.width if seg.section == "circle" else seg.height
@@ -178,7 +197,7 @@ def picture(result, model, T, time: float | None = None, exaggeration: float | N
     meshes = scene_meshes(model, q_full, result.gap[:, k], scale)
     plotter = pv.Plotter(off_screen=True, window_size=list(window))
     plotter.add_mesh(meshes["stack"], scalars="u3 [mm]", cmap="coolwarm", show_edges=False, name="stack",
-                     scalar_bar_args={"title": "u3 [mm]", "vertical": True, **BAR, "position_x": 0.9})
+                     scalar_bar_args={"title": "vertical u3 [mm]", "vertical": True, **BAR, "position_x": 0.9})
     gaps = [meshes[n]["gap [mm]"] for n in ("stators", "contacts") if n in meshes]
     if gaps:
         clim = [float(min(g.min() for g in gaps)), float(max(g.max() for g in gaps))]
@@ -193,16 +212,21 @@ def picture(result, model, T, time: float | None = None, exaggeration: float | N
             plotter.add_mesh(meshes[n], color=COLOURS[n], opacity=0.35 if n == "disks" else 1.0, name=n)
     legend = [LABELS[n] for n in ("disks", "stators", "bearings", "supports", "cracks") if n in meshes]
     if legend:
-        plotter.add_text("\n".join(legend), position="upper_right", font_size=9, color="black")
+        # (right-justified at the window's edge: each line ends in two spaces, a margin)
+        plotter.add_text("\n".join(f"{line}  " for line in legend), position="upper_right", font_size=9,
+                         color="black")
     frame = result.info.get("frame", "rotating")
+    # (a corner text starts at the window's very edge and loses its first letter: placed a margin inside)
     plotter.add_text(f"t = {result.t[k]:.4g} s, {frame} frame; displacements"
-                     + (" and ring clearances" if "stators" in meshes else "") + f" drawn x {scale:.3g}", font_size=10)
+                     + (" and ring clearances" if "stators" in meshes else "") + f" drawn x {scale:.3g}", font_size=10,
+                     position=(MARGIN, window[1] - MARGIN - 18))
     plotter.add_axes(xlabel="x (shaft)", ylabel="y", zlabel="z", line_width=3)
     bounds = np.array(pv.MultiBlock(list(meshes.values())).bounds).reshape(3, 2)
     below = bounds[2, 0] - 0.05 * length   # under everything, in front (it is drawn over the scene)
     plotter.add_ruler(pointa=(points[:, 0].min(), bounds[1, 0], below),
                       pointb=(points[:, 0].max(), bounds[1, 0], below),
-                      title="x [m]", label_format="%.2f", number_labels=5, font_size_factor=0.5)
+                      title="x [m]", label_format="%.3g", number_labels=ruler_labels(float(np.ptp(points[:, 0]))),
+                      font_size_factor=0.5)
     plotter.view_xz()
     plotter.camera.elevation = 20
     plotter.camera.azimuth = -25

@@ -54,8 +54,11 @@ def plot_resonance(path: str | Path, keys: Sequence[str], points: Sequence[dict]
             axes[2].plot(x, [r["max_normal_force_N"] for _, r in pts], "o-", ms=3, color=color)
         if amp_ax is not None:
             for j, k in enumerate(amp_keys):
+                # one curve per probe: its own colour unless the colours tell the other keys' values apart;
+                # the later probes' markers hollow, so that equal amplitudes (a circular orbit) show both
                 amp_ax.plot(x, [1e6 * r[k] if r.get(k) is not None else np.nan for _, r in pts],
-                            ["o-", "s--", "^-.", "v:"][j % 4], ms=3, color=color,
+                            ["o-", "s--", "^-.", "v:"][j % 4], ms=3 if j == 0 else 5, mfc=None if j == 0 else "none",
+                            color=color if len(curves) > 1 else f"C{j % 10}",
                             label=f"{k[len('amplitude_'):-2]}" + (f" ({name})" if name else ""))
     every = axes + ([amp_ax] if amp_ax is not None else [])
     for ax in every:
@@ -74,7 +77,7 @@ def plot_resonance(path: str | Path, keys: Sequence[str], points: Sequence[dict]
         if any(k for k in curves if k) or marks or bands:
             axes[0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     if amp_ax is not None:
-        amp_ax.set_yscale("log")
+        _amplitude_scale(amp_ax)
         amp_ax.set_ylabel("sensor 1x amplitude [µm]\n(fitted, last half of each run)")
         amp_ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     every[-1].set_xlabel(key_label(keys[0]))
@@ -84,3 +87,23 @@ def plot_resonance(path: str | Path, keys: Sequence[str], points: Sequence[dict]
     every[0].set_title(head, fontsize=9)
     fig.tight_layout()
     return save(fig, path, dpi)
+
+
+#: amplitudes spanning less than this ratio are drawn on a linear axis (a log axis over less than two decades may
+#: have a single labelled decade, and its minor labels read as "3 x 10^1, 4 x 10^1"); over more, two decades at least
+LOG_RATIO = 100.0
+
+
+def _amplitude_scale(ax) -> None:
+    """A log axis for amplitudes over more than :data:`LOG_RATIO` (a resonance peak over decades), its labels
+    plain numbers at the decades; else a linear one from 0."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    y = np.concatenate([np.asarray(line.get_ydata(), dtype=float) for line in ax.lines] or [np.zeros(0)])
+    y = y[np.isfinite(y) & (y > 0)]
+    if y.size and y.max() > LOG_RATIO * y.min():
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(NullFormatter())
+    else:
+        ax.set_ylim(bottom=0.0, top=1.08 * float(y.max()) if y.size else None)
