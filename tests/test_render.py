@@ -121,8 +121,8 @@ def test_render_draws_more_than_the_beam(tmp_path):
     model = build_model(load_scene("rub", ["simulation.t_end=0.01"]))
     plotter = picture(res, model, extra["basis"], exaggeration=300.0)
     assert {"stack", "disks", "stators", "bearings", "supports"} <= set(plotter.actors)
-    texts = " ".join((a.GetText(2) if a.GetClassName() == "vtkCornerAnnotation" else a.GetInput()) or ""
-                     for a in plotter.actors.values() if a.GetClassName() in ("vtkCornerAnnotation", "vtkTextActor"))
+    texts = " ".join((a.GetText(2) if a.IsA("vtkCornerAnnotation") else a.GetInput()) or ""
+                     for a in plotter.actors.values() if a.IsA("vtkCornerAnnotation") or a.IsA("vtkTextActor"))
     assert "rotating frame" in texts and "ring clearances drawn x 300" in texts
     plotter.close()
     png = tmp_path / "rub.png"

@@ -120,6 +120,23 @@ def dominant_period(t: np.ndarray, y: np.ndarray) -> float | None:
     return 1.0 / np.fft.rfftfreq(yh.size, dt)[1 + int(np.argmax(a[1:]))]
 
 
+def revolution_bins(ax, t: np.ndarray, speed_hz: float | None, default: int = 700) -> int:
+    """The bins of an envelope (:func:`nsfem.plot.data.draw_signal`) of a signal over ``t`` on ``ax``: one per
+    revolution at ``speed_hz`` where the revolutions get fewer than :data:`PIXELS_PER_PERIOD` pixel columns each
+    (bins shorter than a revolution would draw each one's oscillation: a solid block), else ``default``.
+
+    >>> fig, ax = figure(figsize=(6.4, 4.8))
+    >>> t = np.linspace(0.0, 8.0, 8001)
+    >>> revolution_bins(ax, t, 12.4), revolution_bins(ax, t, 1.0), revolution_bins(ax, t, None)
+    (99, 700, 700)
+    """
+    t = np.asarray(t, dtype=float)
+    if not (speed_hz and speed_hz > 0) or t.size < 2:
+        return default
+    revolutions = int((t[-1] - t[0]) * speed_hz)
+    return max(1, revolutions) if revolutions * PIXELS_PER_PERIOD > columns(ax) else default
+
+
 def zoom_panel(ax, width: float = 0.32):
     """(main, zoom): ``ax`` replaced by two axes side by side in its place, the right one ``width`` of it
     (for :func:`long_signal`'s ``zoom``); ``ax`` is removed."""

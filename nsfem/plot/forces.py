@@ -7,17 +7,30 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import figure, save
+from .common import figure, revolution_bins, save
 from .data import FIGSIZE, NoPlotData, _force_series, draw_signal, loaded_contacts
+
+
+#: a part's friction force is drawn in its colour mixed with this share of white, opaque: over the part's normal
+#: force (a band where it is dense) it stays in view
+FRICTION_WHITE = 0.55
+
+
+def lighter(color, white: float = FRICTION_WHITE) -> tuple:
+    """``color`` mixed with ``white`` of white (RGB)."""
+    from matplotlib.colors import to_rgb
+
+    return tuple(1.0 - (1.0 - c) * (1.0 - white) for c in to_rgb(color))
 
 
 def forces_plot(result, system, path) -> Path:
     """Per part that ever carries load or takes an impact (:func:`~nsfem.plot.data._force_series`), the
-    magnitude of its resultant normal force [N] (solid) and tangential force (dashed) over time, for a ring
+    magnitude of its resultant normal force [N] and, lighter, of its friction (tangential) force over time, for a ring
     the angle of its force, and its impacts as stems of its resultant impulse [N s]: a delamination's
     points and a crack's front ends summed, a ring's facets as a vector sum
     (:func:`nsfem.contact.tally.resultant`). One legend entry per part, beside the panels; a long run's
-    forces are drawn as their envelope (:func:`~nsfem.plot.data.min_max_bins`)."""
+    forces are drawn as their envelope (:func:`~nsfem.plot.data.min_max_bins`), per revolution where revolutions
+    are denser than the pixels (:func:`~nsfem.plot.common.revolution_bins`)."""
     from ..contact.tally import system_parts, tally
 
     if result.gap.shape[0] == 0:
@@ -39,23 +52,25 @@ def forces_plot(result, system, path) -> Path:
     cx = axes[1] if rings else None
     colors = [f"C{i % 10}" for i in range(len(series))]
     friction = False
+    bins = revolution_bins(ax, t, result.info.get("speed_hz"))   # a long run: the envelope per revolution
     for (_, _), pt, color in zip(series, counts.parts, colors):
         name = pt.part.name
         label = (f"{name}: max {pt.max_normal_force_N:.4g} N" if pt.max_normal_force_N > 0 else
                  f"{name}: no force (impacts only)")
-        draw_signal(ax, t, pt.force, lw=1.0, color=color, label=label)
+        draw_signal(ax, t, pt.force, bins=bins, lw=1.0, color=color, label=label)
         if t.size <= 1400:   # closures shorter than output_dt show as single samples
             on = pt.force > 0
             ax.plot(t[on], pt.force[on], ".", ms=3, color=color)
         if np.any(pt.friction > 0):
             friction = True
-            draw_signal(ax, t, pt.friction, lw=0.9, ls="--", color=color, alpha=0.6)
+            # lighter, as a line or as a band alike (a band has no dashes to tell it by)
+            draw_signal(ax, t, pt.friction, bins=bins, lw=0.9, color=lighter(color))
         if cx is not None and pt.angle is not None and pt.max_normal_force_N > 0:
             on = pt.force > 0
             cx.plot(t[on], np.degrees(pt.angle[on]), ".", ms=1.5, color=color)
-    ax.plot([], [], color="k", lw=1.0, label="normal force (solid)")
     if friction:
-        ax.plot([], [], ls="--", color="k", lw=0.9, label=r"tangential force |$\lambda_T$| (dashed)")
+        ax.plot([], [], color="k", lw=1.0, label="normal force: the part's colour")
+        ax.plot([], [], color=lighter("k"), lw=3.0, label="friction force (tangential): lighter")
     ax.set_ylabel("force [N]")
     ax.set_title("Each part's resultant contact force (its points summed, a ring's facets as vectors)",
                  fontsize=9)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import figure, save
+from .common import figure, revolution_bins, save
 from .data import FIGSIZE, NoPlotData, closed_intervals, delamination_middles, draw_signal
 
 #: per kind of part: the panel's quantity and the figure's title
@@ -28,7 +28,8 @@ def gap_plot(result, system, path) -> Path:
     shaded where the part is closed (at least one of its points; for a crack both ends, one end lighter)
     and its impacts marked, with the counts and closed share of :func:`nsfem.contact.tally.tally` (the run
     JSON's ``parts``). Gaps in mm, or in um when a panel's largest is below 0.01 mm; a long run's lines
-    are drawn as their envelope (:func:`~nsfem.plot.data.min_max_bins`). Legends sit beside the panels."""
+    are drawn as their envelope (:func:`~nsfem.plot.data.min_max_bins`), per revolution where revolutions are
+    denser than the pixels (:func:`~nsfem.plot.common.revolution_bins`). Legends sit beside the panels."""
     from ..contact.tally import tally
 
     groups = delamination_middles(system)
@@ -39,9 +40,13 @@ def gap_plot(result, system, path) -> Path:
     t = result.t
     counts = tally(result, [g["part"] for g in groups])
     labels = list(system.model_contacts.labels)
-    zoom = zoom_window(t, result.info.get("speed_hz") or 0.0)
+    speed = result.info.get("speed_hz") or 0.0
+    zoom = zoom_window(t, speed)
     if zoom and all(np.any(result.state[g["indices"]][:, t >= zoom[0]] != 0, axis=0).all() for g in groups):
-        zoom = None   # closed throughout (a steady rub): nothing to see closer
+        # closed throughout the last revolutions (a steady rub): nothing to see there; the first ones, where it
+        # closed, instead (drawn over the whole run, seconds long, that closure is a line on the axis)
+        zoom = (float(t[0]), zoom[1])
+    inside = None if zoom is None else (t >= zoom[0]) if zoom[0] > t[0] else (t <= t[0] + zoom[1] / speed)
     fig, axes = figure(nrows=len(groups), ncols=1 + bool(zoom), sharex="col", squeeze=False, layout="constrained",
                        figsize=(FIGSIZE[0] + 2.6 + 2.4 * bool(zoom), max(FIGSIZE[1], 2.4 * len(groups))),
                        gridspec_kw={"width_ratios": [3, 1]} if zoom else None)
@@ -59,10 +64,9 @@ def gap_plot(result, system, path) -> Path:
         ax.set_ylabel(f"{QUANTITY[g['kind']]} [{unit}]")
         if zoom:
             zx = axes[row, 1]
-            inside = t >= zoom[0]
             _panel(zx, result, g, pt, labels, t, inside)
-            zx.set_title(f"the last {zoom[1]} revolutions", fontsize=9)
-            zx.set_xlim(t[inside][0], t[-1])
+            zx.set_title(f"the {'last' if zoom[0] > t[0] else 'first'} {zoom[1]} revolutions", fontsize=9)
+            zx.set_xlim(t[inside][0], t[inside][-1])
             zx.legend(*ax.get_legend_handles_labels(), fontsize=7.5, loc="upper left", bbox_to_anchor=(1.03, 1.0),
                       borderaxespad=0.0)
         else:
@@ -77,8 +81,8 @@ def gap_plot(result, system, path) -> Path:
     return save(fig, path)
 
 
-#: a run of more revolutions than this gets a zoom on its last ZOOM_REVOLUTIONS beside each panel (unless every
-#: part is closed throughout them)
+#: a run of more revolutions than this gets a zoom on its last ZOOM_REVOLUTIONS beside each panel (on its first ones
+#: if every part is closed throughout the last)
 ZOOM_AFTER, ZOOM_REVOLUTIONS = 30, 3
 
 
@@ -97,27 +101,30 @@ def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray
     kind, rows = g["kind"], g["indices"]
     sel = np.ones(t.size, bool) if sel is None else sel
     ts, gap = t[sel], result.gap[:, sel]
+    bins = revolution_bins(ax, ts, result.info.get("speed_hz"))   # a long run: the envelope per revolution
     peak = float(np.abs(result.gap[rows]).max(initial=0.0))
     scale, unit = (1e3, "mm") if peak >= 1e-5 or peak == 0.0 else (1e6, r"$\mu$m")
     wmin = 2e-3 * (ts[-1] - ts[0])  # closures often last far less than a pixel: widen them to one
     if kind == "crack":
         for k in rows:
-            draw_signal(ax, ts, scale * gap[k], lw=0.5, color="0.65")
+            draw_signal(ax, ts, scale * gap[k], bins=bins, lw=0.5, color="0.65")
         ax.plot([], [], lw=0.5, color="0.65", label="front ends " + ", ".join(labels[k].rsplit(".", 1)[-1]
                                                                             for k in rows))
-        draw_signal(ax, ts, scale * gap[rows].max(axis=0), lw=1.3, color="tab:blue", label="opening (larger end gap)")
+        draw_signal(ax, ts, scale * gap[rows].max(axis=0), bins=bins, lw=1.3, color="tab:blue",
+                    label="opening (larger end gap)")
         _shade(ax, pt.spans, ts, wmin, color="tab:orange", alpha=0.2)
         spans = closed_intervals(result, rows)   # both ends
     elif kind == "delamination":
         if len(rows) > 1:
             for k in rows:
                 if k != g["middle"]:
-                    draw_signal(ax, ts, scale * gap[k], lw=0.5, color="0.65")
+                    draw_signal(ax, ts, scale * gap[k], bins=bins, lw=0.5, color="0.65")
             ax.plot([], [], lw=0.5, color="0.65", label="its other contact points")
-        draw_signal(ax, ts, scale * gap[g["middle"]], lw=1.3, color="tab:blue", label=f"middle, x = {g['x']:.4g} m")
+        draw_signal(ax, ts, scale * gap[g["middle"]], bins=bins, lw=1.3, color="tab:blue",
+                    label=f"middle, x = {g['x']:.4g} m")
         spans = pt.spans
     else:
-        draw_signal(ax, ts, scale * pt.gap[sel], lw=1.3, color="tab:blue",
+        draw_signal(ax, ts, scale * pt.gap[sel], bins=bins, lw=1.3, color="tab:blue",
                     label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
         spans = pt.spans
     ax.axhline(0.0, color="k", lw=0.6)
@@ -147,5 +154,7 @@ def _shade(ax, spans, ts: np.ndarray, wmin: float, **kw) -> list[tuple[float, fl
     collection (hundreds of intervals in a long run), each at least ``wmin`` wide; returns them."""
     seen = [(a, max(b, a + wmin)) for a, b in spans if b >= ts[0] and a <= ts[-1]]
     if seen:
-        ax.broken_barh([(a, b - a) for a, b in seen], (0.0, 1.0), transform=ax.get_xaxis_transform(), lw=0, **kw)
+        # behind the lines: a part closed most of the time would hide its gap
+        ax.broken_barh([(a, b - a) for a, b in seen], (0.0, 1.0), transform=ax.get_xaxis_transform(), lw=0,
+                       zorder=0.5, **kw)
     return seen

@@ -20,6 +20,10 @@ from .data import FIGSIZE, NoPlotData, _model_and_T, _window, hermite_refine, mo
 FIELD_NAMES = {"U": "axial U", "V": "bending V", "W": "bending W"}
 #: the modes whose vibration the bar panel shows, and among which the portraits' modes are chosen
 BAR_MODES = 12
+#: the bar panel's log axis starts at this fraction of the largest bar (6 decades, the spectra's range)
+BAR_DECADES_FLOOR = 1e-6
+#: a portrait whose mean displacement exceeds this many times its span is drawn about its mean
+OFFSET_RATIO = 3.0
 
 
 def mode_peaks(system, count: int) -> list[dict] | None:
@@ -85,9 +89,15 @@ def phase_plot(result, system, path, modes: int = 3, steady_from: float | None =
         if peaks is not None:
             p = peaks[j]
             c = p["scale"]
-            ax.plot(1e6 * c * x, 1e3 * c * dx, lw=0.7, color="tab:blue")
-            ax.plot(1e6 * c * eta[j, sel][-1:], 1e3 * c * deta[j, sel][-1:], "o", ms=4, color="tab:red")
-            ax.set_xlabel(f"{p['field']} of mode {j + 1} [µm]")
+            u = 1e6 * c * x
+            # a static sag far larger than the vibration (a rotor under its weight) would label the axis with
+            # five-digit numbers differing in the last: the portrait is drawn about the mean, which is named
+            mean = float(np.mean(u))
+            shift = mean if abs(mean) > OFFSET_RATIO * float(np.ptp(u)) else 0.0
+            ax.plot(u - shift, 1e3 * c * dx, lw=0.7, color="tab:blue")
+            ax.plot(1e6 * c * eta[j, sel][-1:] - shift, 1e3 * c * deta[j, sel][-1:], "o", ms=4, color="tab:red")
+            ax.set_xlabel(f"{p['field']} of mode {j + 1}" + (f" about its mean {shift:.4g}" if shift else "")
+                          + " [µm]")
             ax.set_ylabel(f"d{p['field']}/dt [mm/s]")
             ax.set_title(f"mode {j + 1}: {f[j]:.4g} Hz, {FIELD_NAMES[p['kind']]}\n"
                          f"at its largest, {p['field']} at x = {p['x']:.4g} m{_layer(p['segment'])}", fontsize=8)
@@ -104,11 +114,17 @@ def phase_plot(result, system, path, modes: int = 3, steady_from: float | None =
     ax = axes[nm]
     ax.set_ylabel("RMS [µm]" if peaks is not None else r"RMS of $\eta_j - \bar\eta_j$ [$\sqrt{kg}\,$m]")
     ax.bar(np.arange(1, k + 1), rms, color=["tab:blue" if i in drawn else "tab:gray" for i in range(k)])
-    ax.set_yscale("log" if np.all(rms > 0) else "linear")
+    below = []
+    if np.all(rms > 0):
+        ax.set_yscale("log")
+        floor = BAR_DECADES_FLOOR * float(rms.max())   # a mode 10^-13 below the rest would squash them into a line
+        below = [i + 1 for i in range(k) if rms[i] < floor]
+        ax.set_ylim(bottom=max(floor, 0.5 * float(rms.min())))
     ax.set_xlabel("mode number [-]")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_title("each mode's vibration" + (" at its largest point" if peaks is not None else "")
-                 + " (blue: drawn)", fontsize=8)
+                 + " (blue: drawn)" + (f"\nbelow 1e-6 of the largest, not shown: mode {', '.join(map(str, below))}"
+                                       if below else ""), fontsize=8)
     ax.grid(True, alpha=0.3, axis="y")
     for a in axes[nm + 1:]:
         a.set_visible(False)
