@@ -662,6 +662,7 @@ PLOT_CASES = {
     "delamination": _case_delamination, "stop": _case_stop, "crack": _case_crack,
     "ring+sensors": _case_ring_and_sensors, "long sensor record": _case_long_sensor_record,
     "campbell": _case_campbell, "resonance": _case_resonance, "fit": _case_fit,
+    "portrait about its mean": lambda out: _portrait_case(out),
 }
 #: the PNGs each case must produce (a run plot without data may be skipped, with a reason, where listed)
 EXPECTED = {
@@ -673,6 +674,7 @@ EXPECTED = {
     "campbell": {"campbell.png"},
     "resonance": {"resonance.png", "resonance_rotor.png"},
     "fit": {"fit.png", "fit_long.png", "landscape.png", "landscape1.png"},
+    "portrait about its mean": {"phase.png", "psd.png"},
 }
 
 
@@ -772,3 +774,108 @@ def test_long_signal_draws_a_band_when_periods_are_denser_than_the_pixels():
     short = t < 0.4
     (drawn,) = long_signal(ax3, t[short], y[short], period=1 / 26.0)
     assert len(drawn.get_xdata()) == short.sum()
+
+
+# --- issue 34: pictures that read at a glance (the shipped scenes' PNGs looked at) ---
+def test_an_envelope_per_revolution_where_revolutions_are_denser_than_the_pixels():
+    """The crack scene's 8 s at 12.4 Hz (99 revolutions) on a 6.4 in axes: one bin per revolution, so the band's
+    upper edge is the breathing opening's amplitude in every bin (its largest sample is within
+    1 - cos(w dt / 2) = 7.6e-4 of it, sampled every 1 ms) and its lower edge its zero, not each revolution's
+    oscillation drawn as strokes; 1 s of 21 Hz (the shipped scene) keeps the default bins."""
+    from nsfem.plot.common import figure, revolution_bins
+    from nsfem.plot.data import min_max_bins
+
+    fig, ax = figure(figsize=(6.4, 4.8))
+    t = np.arange(0.0, 8.0 + 5e-4, 1e-3)
+    y = np.maximum(np.sin(2 * np.pi * 12.4 * t), 0.0)   # open half a revolution, closed the other half
+    bins = revolution_bins(ax, t, 12.4)
+    assert bins == int(8.0 * 12.4)
+    _, lo, hi = min_max_bins(t, y, bins)
+    assert hi.min() > 1.0 - 7.6e-4 and lo.max() == 0.0
+    assert revolution_bins(ax, np.linspace(0.0, 1.0, 1001), 21.0) == 700
+
+
+@pytest.fixture(scope="module")
+def steady_rub():
+    """The rub scene over 1.5 s (34 revolutions of 22.4 Hz, closed from 0.02 s on), on a coarse mesh."""
+    return run_scene(load_scene("rub", ["simulation.t_end=1.5", "mesh.elements=8"]))
+
+
+def test_a_steady_rub_zooms_on_its_first_revolutions_and_draws_its_friction_lighter(steady_rub, saved_figures,
+                                                                                      tmp_path):
+    """gap.png: closed throughout its last revolutions, the ring gets its zoom on the first 3 (where the gap
+    closes), the shading behind the gap line; forces.png: the friction force in the ring's colour lightened (a
+    band has no dashes), named so in the legend."""
+    from matplotlib.colors import to_rgb
+
+    from nsfem.plot.forces import lighter
+
+    result, system = steady_rub
+    rp.gap_plot(result, system, tmp_path / "gap.png")
+    rp.forces_plot(result, system, tmp_path / "forces.png")
+    (_, axes_g, legends_g, gap), (_, axes_f, legends_f, forces) = saved_figures
+    assert axes_g + legends_g + axes_f + legends_f == []
+    main, zoom = gap.axes[:2]
+    assert zoom.get_title() == "the first 3 revolutions"
+    t = result.t
+    a, b = zoom.get_xlim()
+    # the first output time, and the last output time within 3 revolutions (outputs every 0.1 ms or so)
+    assert a == t[0] and b == t[t <= t[0] + 3 / 22.4][-1]
+    shading = [c for c in main.collections if c.get_zorder() < 1]
+    assert shading and all(c.get_zorder() < line.get_zorder() for c in shading for line in main.lines)
+    ax = forces.axes[0]
+    texts = [x.get_text() for x in ax.get_legend().get_texts()]
+    assert "friction force (tangential): lighter" in texts and not any("dashed" in s or "lambda" in s for s in texts)
+    drawn = [to_rgb(line.get_color()) for line in ax.lines] + [tuple(c.get_facecolor()[0][:3]) for c in ax.collections]
+    assert any(np.allclose(c, lighter("C0"), rtol=0, atol=1e-12) for c in drawn)   # colour arithmetic: ulps
+
+
+def _portrait_case(out):
+    """ross_example for 0.2 s: a rotor under its weight, mode 1's sag (1.29 mm) far larger than its vibration."""
+    return _run_plots(*run_scene(load_scene("ross_example", ["simulation.t_end=0.2"])), out)
+
+
+def test_a_portrait_dominated_by_the_sag_is_drawn_about_its_mean(saved_figures, tmp_path):
+    """ross_example: mode 1's portrait spans ~25 um about a mean of -1.29 mm: it is drawn about its mean (the
+    drawn points average to 0 to round-off of the 1.3e3 subtracted, 1e-9 um) and the label names the mean; the bar
+    panel's log axis starts at 1e-6 of the largest bar, and the modes below it are named in its title."""
+    from nsfem.plot.phase import phase_plot
+
+    result, system = run_scene(load_scene("ross_example", ["simulation.t_end=0.2"]))
+    phase_plot(result, system, tmp_path / "phase.png")
+    (_, axes, legends, fig), = saved_figures
+    assert axes + legends == []
+    shifted = [ax for ax in fig.axes if "about its mean" in ax.get_xlabel()]
+    assert shifted
+    for ax in shifted:
+        x = ax.lines[0].get_xdata()
+        mean = float(re.search(r"about its mean (\S+) \[", ax.get_xlabel())[1])
+        assert abs(np.mean(x)) < 1e-9 * max(1.0, abs(mean)) * 1e3 and abs(mean) > 3 * np.ptp(x)
+    bars = fig.axes[[ax.get_title().startswith("each mode") for ax in fig.axes].index(True)]
+    heights = np.array([p.get_height() for p in bars.patches])
+    lo = bars.get_ylim()[0]
+    assert lo >= 1e-6 * heights.max() * (1 - 1e-12)
+    hidden = [i + 1 for i, h in enumerate(heights) if h < 1e-6 * heights.max()]
+    if hidden:
+        assert f"not shown: mode {', '.join(map(str, hidden))}" in bars.get_title()
+
+
+def test_sensor_amplitudes_are_linear_over_less_than_100x_and_log_with_plain_labels_over_more(saved_figures,
+                                                                                             tmp_path):
+    """The rub sweep's amplitudes (30 to 100 um) on a log axis read "3x10^1, 4x10^1, 6x10^1": linear from 0
+    below a ratio of 100; above (a resonance peak over decades), log with the decades labelled as numbers."""
+    from nsfem.plot.sweep import plot_resonance
+
+    keys = ["rotation.speed_hz"]
+    points = [{keys[0]: s} for s in (10.0, 20.0, 30.0)]
+    narrow = [{"amplitude_disk_y_m": a, "min_gap_m": None} for a in (3e-5, 6e-5, 1e-4)]
+    wide = [{"amplitude_disk_y_m": a, "min_gap_m": None} for a in (2e-6, 6e-4, 3e-6)]
+    plot_resonance(tmp_path / "narrow.png", keys, points, narrow, "narrow")
+    plot_resonance(tmp_path / "wide.png", keys, points, wide, "wide")
+    (_, p1, l1, f1), (_, p2, l2, f2) = saved_figures
+    assert p1 + l1 + p2 + l2 == []
+    (a1,), (a2,) = f1.axes, f2.axes
+    assert a1.get_yscale() == "linear" and a1.get_ylim()[0] == 0.0 and a1.get_ylim()[1] >= 100.0
+    assert a2.get_yscale() == "log"
+    fmt = a2.yaxis.get_major_formatter()
+    assert [fmt(v, 0) for v in (1.0, 10.0, 100.0)] == ["1", "10", "100"]

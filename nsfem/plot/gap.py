@@ -65,6 +65,7 @@ def gap_plot(result, system, path) -> Path:
         if zoom:
             zx = axes[row, 1]
             _panel(zx, result, g, pt, labels, t, inside)
+            zx.set_ylabel(ax.get_ylabel())   # (its own scale: the numbers need their quantity too)
             zx.set_title(f"the {'last' if zoom[0] > t[0] else 'first'} {zoom[1]} revolutions", fontsize=9)
             zx.set_xlim(t[inside][0], t[inside][-1])
             zx.legend(*ax.get_legend_handles_labels(), fontsize=7.5, loc="upper left", bbox_to_anchor=(1.03, 1.0),
