@@ -3078,3 +3078,60 @@ def test_hostile_blas_thread_setting(value, tmp_path, modes_one_thread):
     sums, round-off of order 1e-13 relative)."""
     assert np.allclose(_modes_with_blas_threads(value, tmp_path), modes_one_thread, rtol=1e-9, atol=0)
     assert not leftovers(tmp_path)
+
+
+# --- issue 34: pictures that read (envelope bins, resonance amplitude axis, render ruler) ---
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(speed=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.none(),
+                       st.sampled_from([np.inf, -np.inf, np.nan, 1e300, 12.4])),
+       n=st.integers(0, 3000), duration=st.sampled_from([0.0, 1e-9, 1.0, 8.0, 1e6]))
+def test_revolution_bins_of_any_speed_and_record(speed, n, duration):
+    """The envelope bins of gap.png and forces.png: a positive int for any speed (0, negative, NaN, inf, a
+    scene's 1e300 Hz) and record (empty, one sample, no duration, a million seconds), never an exception."""
+    import matplotlib.pyplot as plt
+
+    from nsfem.plot.common import figure, revolution_bins
+
+    fig, ax = figure()
+    try:
+        bins = revolution_bins(ax, np.linspace(0.0, duration, n), speed)
+    finally:
+        plt.close(fig)
+    assert isinstance(bins, int) and 1 <= bins <= 700
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(amps=st.lists(st.one_of(st.none(), st.floats(-1e200, 1e200), st.sampled_from([0.0, 1e-200, 1e-6, np.nan,
+                                                                                       np.inf, -np.inf])),
+                     min_size=1, max_size=5))
+def test_resonance_amplitude_axis_of_any_values(amps, tmp_path_factory):
+    """resonance.png's amplitude panel (linear below a ratio of 100, log above) takes any amplitudes a sweep
+    may hold (missing, 0, negative, NaN, inf, 1e-200 to 1e200 m) and writes its PNG, no exception, no temporary
+    file (beyond about 1e300 matplotlib's own log-axis arithmetic overflows: no machine comes near)."""
+    from nsfem.plot.sweep import plot_resonance
+
+    out = tmp_path_factory.mktemp("res")
+    keys = ["rotation.speed_hz"]
+    points = [{keys[0]: 10.0 + i} for i in range(len(amps))]
+    runs = [{"amplitude_disk_y_m": a, "min_gap_m": None} for a in amps]
+    path = plot_resonance(out / "resonance.png", keys, points, runs, "fuzz")
+    assert path.stat().st_size > 0 and [p.name for p in out.iterdir()] == ["resonance.png"]
+
+
+@given(length=st.floats(allow_nan=True, allow_infinity=True))
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+def test_ruler_labels_of_any_length(length):
+    """render's ruler: 4 to 9 labels (3 to 8 parts) for any stack length (0, negative, NaN, inf, 1e-300 to
+    1e300 m), never an exception."""
+    from nsfem.export.render import ruler_labels
+
+    n = ruler_labels(length)
+    assert isinstance(n, int) and 4 <= n <= 9
+
+
+def test_ruler_labels_reproductions():
+    """The shipped scenes' lengths: 1.5 m (ross_example) in steps of 0.25 (0.375 before), 0.8 m (crack, rub) of
+    0.2, 0.6 m (retainer_drop) of 0.1, 1 m (default, critical_speed) of 0.2; a length of no round step: 5."""
+    from nsfem.export.render import ruler_labels
+
+    assert [ruler_labels(x) for x in (1.5, 0.8, 0.6, 1.0, 0.77)] == [7, 5, 7, 6, 5]

@@ -21,6 +21,7 @@ value in each pixel column of the axes, filled) and, on a second axes, the last 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -123,7 +124,8 @@ def dominant_period(t: np.ndarray, y: np.ndarray) -> float | None:
 def revolution_bins(ax, t: np.ndarray, speed_hz: float | None, default: int = 700) -> int:
     """The bins of an envelope (:func:`nsfem.plot.data.draw_signal`) of a signal over ``t`` on ``ax``: one per
     revolution at ``speed_hz`` where the revolutions get fewer than :data:`PIXELS_PER_PERIOD` pixel columns each
-    (bins shorter than a revolution would draw each one's oscillation: a solid block), else ``default``.
+    (bins shorter than a revolution would draw each one's oscillation: a solid block), at most ``default``;
+    else ``default``.
 
     >>> fig, ax = figure(figsize=(6.4, 4.8))
     >>> t = np.linspace(0.0, 8.0, 8001)
@@ -131,10 +133,12 @@ def revolution_bins(ax, t: np.ndarray, speed_hz: float | None, default: int = 70
     (99, 700, 700)
     """
     t = np.asarray(t, dtype=float)
-    if not (speed_hz and speed_hz > 0) or t.size < 2:
+    if t.size < 2:
         return default
-    revolutions = int((t[-1] - t[0]) * speed_hz)
-    return max(1, revolutions) if revolutions * PIXELS_PER_PERIOD > columns(ax) else default
+    revolutions = float((t[-1] - t[0]) * (speed_hz or 0.0))
+    if not (math.isfinite(revolutions) and revolutions * PIXELS_PER_PERIOD > columns(ax)):
+        return default
+    return max(1, min(int(revolutions), default))   # more revolutions than bins: bins of several each
 
 
 def zoom_panel(ax, width: float = 0.32):
