@@ -71,7 +71,7 @@ def forces_plot(result, system, path) -> Path:
     if friction:
         ax.plot([], [], color="k", lw=1.0, label="normal force: the part's colour")
         ax.plot([], [], color=lighter("k"), lw=3.0, label="friction force (tangential): lighter")
-    ax.set_ylabel("force [N]")
+    ax.set_ylabel("force [N]" if friction else "normal force [N]")   # (no friction: no key to the two)
     ax.set_title("Each part's resultant contact force (its points summed, a ring's facets as vectors)",
                  fontsize=9)
     ax.grid(True, alpha=0.3)
