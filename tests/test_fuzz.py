@@ -3078,3 +3078,34 @@ def test_hostile_blas_thread_setting(value, tmp_path, modes_one_thread):
     sums, round-off of order 1e-13 relative)."""
     assert np.allclose(_modes_with_blas_threads(value, tmp_path), modes_one_thread, rtol=1e-9, atol=0)
     assert not leftovers(tmp_path)
+
+
+# --- issue 34: review r3 (the series in vtu/ after an interrupt, output folders, lazy names) ---
+def _interrupt_the_nth_vtu(monkeypatch, n: int) -> None:
+    """The ``n``-th .vtu write of the process raises KeyboardInterrupt (Ctrl-C mid-frame), before writing."""
+    from nsfem.export import vtu
+
+    calls, write = [0], vtu._write_vtu
+
+    def interrupted(path, mesh):
+        calls[0] += 1
+        if calls[0] == n:
+            raise KeyboardInterrupt
+        write(path, mesh)
+
+    monkeypatch.setattr(vtu, "_write_vtu", interrupted)
+
+
+def test_an_export_interrupted_mid_frame_lists_only_the_files_left(saved_result, tmp_path, monkeypatch):
+    """Ctrl-C on a frame's second part: the frame's first .vtu is removed again, so the manifest must not
+    name it (else the next command takes a user's file of that name for nsfem's and removes it)."""
+    out = tmp_path / "v"
+    _interrupt_the_nth_vtu(monkeypatch, 4)   # frame 0: stack, contacts; frame 1: stack, then Ctrl-C
+    assert cli.main(["export", str(saved_result), "--vtu", str(out), "--every", "1"]) == 130
+    folder_is_valid(out)
+    listed = set().union(*map(set, json.loads((out / MANIFEST).read_text())["files"].values()))
+    assert {n for n in listed if not (out / n).exists()} == set()
+    monkeypatch.undo()
+    (out / "vtu" / "nsfem_00001.vtu").write_text("mine")   # the user's file of the name removed
+    assert cli.main(["export", str(saved_result), "--vtu", str(out), "--every", "2"]) == 0
+    assert (out / "vtu" / "nsfem_00001.vtu").read_text() == "mine"
