@@ -3109,3 +3109,24 @@ def test_an_export_interrupted_mid_frame_lists_only_the_files_left(saved_result,
     (out / "vtu" / "nsfem_00001.vtu").write_text("mine")   # the user's file of the name removed
     assert cli.main(["export", str(saved_result), "--vtu", str(out), "--every", "2"]) == 0
     assert (out / "vtu" / "nsfem_00001.vtu").read_text() == "mine"
+
+
+def test_ctrl_c_while_the_index_is_written_still_leaves_the_index(saved_result, tmp_path, monkeypatch):
+    """Ctrl-C (a real SIGINT) just as the series' nsfem.pvd is written, every frame done: the index is
+    finished (the signal acted on after it), so ParaView finds every frame; before, the frames were left
+    with no .pvd at all (the old one is removed by then)."""
+    from nsfem.export import vtu
+
+    write = vtu.write_atomic
+
+    def ctrl_c_on_the_index(path, fn):
+        if str(path).endswith(".pvd"):
+            os.kill(os.getpid(), signal.SIGINT)
+        return write(path, fn)
+
+    monkeypatch.setattr(vtu, "write_atomic", ctrl_c_on_the_index)
+    out = tmp_path / "v"
+    assert cli.main(["export", str(saved_result), "--vtu", str(out), "--every", "1"]) == 130
+    assert (out / "nsfem.pvd").is_file()
+    folder_is_valid(out)
+    assert len(vtu.series_parts(out / "nsfem.pvd")["stack"]) == len(np.load(saved_result)["t"])
