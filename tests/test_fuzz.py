@@ -3130,3 +3130,26 @@ def test_ctrl_c_while_the_index_is_written_still_leaves_the_index(saved_result, 
     assert (out / "nsfem.pvd").is_file()
     folder_is_valid(out)
     assert len(vtu.series_parts(out / "nsfem.pvd")["stack"]) == len(np.load(saved_result)["t"])
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(name=st.one_of(st.text(max_size=12), st.sampled_from(["no.such", "export.nosuch", "a..b", ".", "1x",
+                                                            "nosuch", "__nosuch__"])))
+def test_property_any_attribute_of_nsfem_is_a_value_or_absent(name):
+    """``getattr(nsfem, name, default)`` (what hasattr, IDEs and doc tools do) of any string gives a value or
+    the default, never another exception (a dotted name used to raise ModuleNotFoundError from the lazy
+    __getattr__); every public name resolves and ``from nsfem import *`` binds them."""
+    import nsfem
+
+    missing = object()
+    value = getattr(nsfem, name, missing)
+    assert value is missing or name in dir(nsfem) or name.isidentifier()
+    namespace: dict = {}
+    exec("from nsfem import *", namespace)
+    assert {n: namespace[n] for n in nsfem.__all__} == {n: getattr(nsfem, n) for n in nsfem.__all__}
+
+
+def test_a_dotted_attribute_of_nsfem_is_absent_reproduction():
+    import nsfem
+
+    assert not hasattr(nsfem, "no.such") and not hasattr(nsfem, "export.nosuch")
