@@ -584,10 +584,6 @@ def _run(args, scene, out_dir, written: set) -> int:
                                                               warn=warn)))
                 except NsfemError as exc:  # a diagram this scene cannot have (e.g. spun in the wrong frame)
                     warn(f"plot 'campbell' skipped: {exc}")
-            if scene.output.vtu_every:
-                from .export.vtu import write_series
-
-                outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
         if scene.sensors:
             from .sensors import write_csv
             from .simulate import sensor_signals
@@ -600,6 +596,10 @@ def _run(args, scene, out_dir, written: set) -> int:
 
                 outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
                                                 scene.rotation.speed_hz, scene.title, stator_rings(system))))
+        if result.completed and scene.output.vtu_every:   # last: the longest to write (Ctrl-C there keeps the rest)
+            from .export.vtu import write_series
+
+            outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
     except KeyboardInterrupt:  # what was written stays valid; say so, and still print the JSON
         from .outdir import MANIFEST
 

@@ -3153,3 +3153,14 @@ def test_a_dotted_attribute_of_nsfem_is_absent_reproduction():
     import nsfem
 
     assert not hasattr(nsfem, "no.such") and not hasattr(nsfem, "export.nosuch")
+
+
+def test_ctrl_c_during_the_series_keeps_the_sensor_signals(tmp_path, monkeypatch):
+    """The VTU series is the longest output to write: Ctrl-C there must not cost the sensors' file (the
+    probes' signals, which no other command writes from a results file); they are written before it."""
+    out = tmp_path / "r"
+    _interrupt_the_nth_vtu(monkeypatch, 3)
+    assert cli.main(["run", "rub", "--out", str(out), "--set", "simulation.t_end=0.01", "--set",
+                     "output.vtu_every=1", "--set", "output.plots=[]"]) == 130
+    folder_is_valid(out)
+    assert (out / "sensors.csv").is_file() and (out / "nsfem.pvd").is_file()
