@@ -3164,3 +3164,24 @@ def test_ctrl_c_during_the_series_keeps_the_sensor_signals(tmp_path, monkeypatch
                      "output.vtu_every=1", "--set", "output.plots=[]"]) == 130
     folder_is_valid(out)
     assert (out / "sensors.csv").is_file() and (out / "nsfem.pvd").is_file()
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@given(n=st.integers(1, 64), extra=st.integers(0, 200), seed=st.integers(0, 2**32 - 1))
+def test_property_welch_of_a_record_shorter_than_a_segment_is_scipys(n, extra, seed):
+    """psd.png of a short run: a record of n samples shorter than the segment asked for (n + extra) is one
+    segment of n, as scipy.signal.welch does (it warns); odd and even n. Same sums in another order: equal
+    to round-off (1e-10 of the largest bin, as in test_latency.test_welch_equals_scipy)."""
+    import warnings
+
+    from scipy.signal import welch as scipy_welch
+
+    from nsfem.spectrum import welch
+
+    x = np.random.default_rng(seed).standard_normal(n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)   # "nperseg = ... is greater than input length"
+        f_ref, p_ref = scipy_welch(x, fs=1e3, nperseg=n + extra, detrend="constant", scaling="density")
+    f, p = welch(x, 1e-3, n + extra)
+    assert f.shape == f_ref.shape and np.allclose(f, f_ref, rtol=1e-14, atol=0)
+    assert np.all(np.abs(p - p_ref) <= 1e-10 * max(np.max(np.abs(p_ref)), 1e-300))
