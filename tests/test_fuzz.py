@@ -3185,3 +3185,43 @@ def test_property_welch_of_a_record_shorter_than_a_segment_is_scipys(n, extra, s
     f, p = welch(x, 1e-3, n + extra)
     assert f.shape == f_ref.shape and np.allclose(f, f_ref, rtol=1e-14, atol=0)
     assert np.all(np.abs(p - p_ref) <= 1e-10 * max(np.max(np.abs(p_ref)), 1e-300))
+
+
+def _frame_name_as_folder(out: Path, name: str) -> None:
+    """A user's folder (holding a file) at ``out/vtu/<name>``, where a series writes a frame file."""
+    (out / "vtu" / name).mkdir(parents=True)
+    (out / "vtu" / name / "mine.txt").write_text("mine")
+
+
+@settings(max_examples=6, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(command=st.sampled_from(["run", "export"]), index=st.integers(0, 10),
+       part=st.sampled_from(["nsfem_{:05d}.vtu", "nsfem_{:05d}.vtm", "nsfem_contacts_{:05d}.vtu"]))
+def test_property_a_folder_named_like_a_frame_is_refused_before_the_run(saved_result, command, index, part):
+    """A folder in vtu/ named like a frame file the series would write: one line naming it, before anything
+    is computed or written (it used to fail at that frame after the run, leaving frames with no .pvd)."""
+    with tempfile.TemporaryDirectory() as d:
+        root = Path(d)
+        name = part.format(index)
+        _frame_name_as_folder(root / "o", name)
+        argv = (["run", *CHEAP, "--set", "output.vtu_every=1", "--out", "o"] if command == "run"
+                else ["export", str(saved_result), "--vtu", "o", "--every", "1"])
+        code, _, stderr = check_invocation(argv, root)
+        assert code == cli.EXIT_ERROR and f"vtu/{name}" in stderr, stderr
+        assert sorted(p.name for p in (root / "o").iterdir()) == ["vtu"]
+        assert sorted(p.name for p in (root / "o" / "vtu").iterdir()) == [name]
+
+
+def test_a_series_that_cannot_write_a_frame_still_indexes_the_frames_before(saved_result, tmp_path):
+    """write_series (from Python, no checks before) meeting a folder where frame 2's .vtm goes: OSError, and
+    nsfem.pvd indexes frames 0 and 1; the user's folder is left alone."""
+    from nsfem.export.vtu import series_parts, write_series
+
+    res, extra, model, _ = cli._saved(str(saved_result), "export")   # the model rebuilt from the file
+    out = tmp_path / "o"
+    _frame_name_as_folder(out, "nsfem_00002.vtm")
+    with pytest.raises(OSError):
+        write_series(res, (model, extra["basis"]), out, every=1)
+    assert [t for t, _ in series_parts(out / "nsfem.pvd")["stack"]] == [float(t) for t in res.t[:2]]
+    assert (out / "vtu" / "nsfem_00002.vtm" / "mine.txt").read_text() == "mine"
+    assert not (out / "vtu" / "nsfem_00002.vtu").exists()   # the frame cut short is removed

@@ -697,8 +697,9 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     except BaseException:  # interrupted (or failed): the frames written so far stay a valid series
         if indexed is None:
             with signals_deferred():
-                for f in files:
-                    (sub / f).unlink(missing_ok=True)  # the frame cut short
+                for f in files:  # the frame cut short; never a folder of that name, which made the write fail
+                    if not (sub / f).is_dir():
+                        (sub / f).unlink(missing_ok=True)
                 write_pvd(pvd, entries, blocks, written, turn, prefix)
         raise
     return indexed
