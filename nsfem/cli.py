@@ -702,7 +702,7 @@ def _check_frames_folder(out_dir, what: str, frames=()) -> None:
         raise NsfemError(f"{what}: {sub} is a file, not a folder (nsfem writes the VTU frames of nsfem.pvd into "
                          f"{SUBFOLDER}/); move it away or choose another folder")
     names = {n for n in frames if n.startswith(f"{SUBFOLDER}/")}
-    if names and sub.is_dir() and not sub.is_symlink():
+    if names and sub.is_dir():   # through a link too (frames kept on another disk): the writes go there
         with os.scandir(sub) as entries:
             folders = sorted(e.name for e in entries if f"{SUBFOLDER}/{e.name}" in names
                              and e.is_dir(follow_symlinks=False))
