@@ -698,6 +698,10 @@ def _check_frames_folder(out_dir, what: str, frames=()) -> None:
     from .export.vtu import SUBFOLDER
 
     sub = out_dir / SUBFOLDER
+    if sub.is_symlink() and not sub.exists():
+        raise NsfemError(f"{what}: {sub} is a link to {os.readlink(sub)}, which does not exist (nsfem writes the VTU "
+                         f"frames of nsfem.pvd into {SUBFOLDER}/); create that folder, remove the link or choose "
+                         "another folder")
     if sub.exists() and not sub.is_dir():
         raise NsfemError(f"{what}: {sub} is a file, not a folder (nsfem writes the VTU frames of nsfem.pvd into "
                          f"{SUBFOLDER}/); move it away or choose another folder")

@@ -3229,3 +3229,19 @@ def test_a_series_that_cannot_write_a_frame_still_indexes_the_frames_before(save
     assert [t for t, _ in series_parts(out / "nsfem.pvd")["stack"]] == [float(t) for t in res.t[:2]]
     assert (out / "vtu" / "nsfem_00002.vtm" / "mine.txt").read_text() == "mine"
     assert not (out / "vtu" / "nsfem_00002.vtu").exists()   # the frame cut short is removed
+
+
+@pytest.mark.skipif(not hasattr(os, "symlink"), reason="needs symbolic links")
+@pytest.mark.parametrize("command", ["run", "export"])
+def test_a_dangling_vtu_link_is_refused_before_the_run(saved_result, command, tmp_path, capsys):
+    """vtu/ a link to a folder that does not exist (a scratch disk not mounted): one line naming it before the
+    run; it failed after the run with "cannot write out/vtu: File exists", leaving an empty nsfem.pvd."""
+    out = tmp_path / "o"
+    out.mkdir()
+    os.symlink(tmp_path / "not-mounted" / "frames", out / "vtu")
+    argv = (["run", *CHEAP, "--set", "output.vtu_every=1", "--out", str(out)] if command == "run"
+            else ["export", str(saved_result), "--vtu", str(out), "--every", "1"])
+    assert cli.main(argv) == cli.EXIT_ERROR
+    err = capsys.readouterr().err
+    assert err.count("nsfem: error:") == 1 and f"{out / 'vtu'}" in err and "does not exist" in err, err
+    assert sorted(p.name for p in out.iterdir()) == ["vtu"]
