@@ -31,7 +31,8 @@ def __getattr__(name: str):
     as before the names were lazy), imported on first use."""
     if name in _LAZY:
         value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-    elif not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+    elif (name.isidentifier() and not name.startswith("_")   # a dotted name is no attribute (hasattr: False)
+          and importlib.util.find_spec(f"{__name__}.{name}") is not None):
         value = importlib.import_module(f".{name}", __name__)
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -503,8 +503,9 @@ def cmd_run(args) -> int:
     scene = _scene(args, "run")
     out_dir = Path(args.out or scene.output.dir)
     what = "--out" if args.out else "output.dir"
-    _check_run_targets(out_dir, scene.output, scene.sensors, what)
-    with claim(out_dir, "run", _run_files(scene), what) as written:
+    files = _run_files(scene)
+    _check_run_targets(out_dir, scene.output, scene.sensors, what, files["series"])
+    with claim(out_dir, "run", files, what) as written:
         return _run(args, scene, out_dir, written)
 
 
@@ -584,10 +585,6 @@ def _run(args, scene, out_dir, written: set) -> int:
                                                               warn=warn)))
                 except NsfemError as exc:  # a diagram this scene cannot have (e.g. spun in the wrong frame)
                     warn(f"plot 'campbell' skipped: {exc}")
-            if scene.output.vtu_every:
-                from .export.vtu import write_series
-
-                outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
         if scene.sensors:
             from .sensors import write_csv
             from .simulate import sensor_signals
@@ -600,6 +597,10 @@ def _run(args, scene, out_dir, written: set) -> int:
 
                 outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
                                                 scene.rotation.speed_hz, scene.title, stator_rings(system))))
+        if result.completed and scene.output.vtu_every:   # last: the longest to write (Ctrl-C there keeps the rest)
+            from .export.vtu import write_series
+
+            outputs.append(str(write_series(result, system, out_dir, every=scene.output.vtu_every)))
     except KeyboardInterrupt:  # what was written stays valid; say so, and still print the JSON
         from .outdir import MANIFEST
 
@@ -671,31 +672,47 @@ def _check_png(png: str | None) -> None:
                          "file, scene or data named there would be replaced by it)")
 
 
-def _check_run_targets(out_dir, output, sensors, what: str) -> None:
+def _check_run_targets(out_dir, output, sensors, what: str, frames=()) -> None:
     """Refuse, before the run, an output folder or file that cannot be written (``output``: the
-    scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors)."""
+    scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors, ``frames`` the series' names)."""
     from .atomic import check_file, check_folder
 
     check_folder(out_dir, what)
     names = ["result.npz"] + [f"{n}.png" for n in output.plots]
     if output.vtu_every:
         names.append("nsfem.pvd")
-        _check_frames_folder(out_dir, what)
+        _check_frames_folder(out_dir, what, frames)
     if sensors:
         names += ["sensors.csv", "sensors.png"]
     for name in names:
         check_file(out_dir / name, what)
 
 
-def _check_frames_folder(out_dir, what: str) -> None:
+def _check_frames_folder(out_dir, what: str, frames=()) -> None:
     """The subfolder a VTU series' frames go into (:data:`nsfem.export.vtu.SUBFOLDER`) is a folder or can be
-    one: a file of that name is refused (the folder itself is checked by the caller; nothing is written)."""
+    one: a file of that name is refused, as is a folder in it named like one of ``frames`` (the series'
+    names, :func:`nsfem.export.vtu.series_files`), where a frame file goes (the folder itself is checked
+    by the caller; nothing is written)."""
+    import os
+
     from .export.vtu import SUBFOLDER
 
     sub = out_dir / SUBFOLDER
+    if sub.is_symlink() and not sub.exists():
+        raise NsfemError(f"{what}: {sub} is a link to {os.readlink(sub)}, which does not exist (nsfem writes the VTU "
+                         f"frames of nsfem.pvd into {SUBFOLDER}/); create that folder, remove the link or choose "
+                         "another folder")
     if sub.exists() and not sub.is_dir():
         raise NsfemError(f"{what}: {sub} is a file, not a folder (nsfem writes the VTU frames of nsfem.pvd into "
                          f"{SUBFOLDER}/); move it away or choose another folder")
+    names = {n for n in frames if n.startswith(f"{SUBFOLDER}/")}
+    if names and sub.is_dir():   # through a link too (frames kept on another disk): the writes go there
+        with os.scandir(sub) as entries:
+            folders = sorted(e.name for e in entries if f"{SUBFOLDER}/{e.name}" in names
+                             and e.is_dir(follow_symlinks=False))
+        if folders:
+            raise NsfemError(f"{what}: {sub / folders[0]} is a folder, where nsfem writes a VTU frame of nsfem.pvd; "
+                             "move it away or choose another folder")
 
 
 def _saved(path_text: str, command: str):
@@ -820,7 +837,9 @@ def cmd_export(args) -> int:
     if free is not None and nbytes > free:
         raise NsfemError(f"--every: {what} exceed the {free / 1e9:.3g} GB free in {out} (with the series it "
                          "replaces); raise --every")
-    with claim(out, "export", {"series": series_files(res.t.size, every)}, "--vtu"):
+    names = series_files(res.t.size, every)
+    _check_frames_folder(out, "--vtu", names)
+    with claim(out, "export", {"series": names}, "--vtu"):
         try:
             pvd = write_series(res, (model, extra["basis"]), out, every=every, frame=frame, phase_deg=rot.phase_deg)
         except KeyboardInterrupt:

@@ -364,7 +364,9 @@ class _Folder:
                     (self.path / sub).rmdir()
         if self.old is None:  # nothing tried
             return
-        names = {self._name(Path(p)) for p in written if self._ours(Path(p))}
+        # written and still there: a file the command removed again (the frame an interrupt cut short,
+        # nsfem.export.vtu.write_series) is not its, so a user's file later of that name never counts as nsfem's
+        names = {self._name(Path(p)) for p in written if self._ours(Path(p)) and os.path.lexists(p)}
         if not self.replaced:  # every write failed: the folder is as it was
             _write_manifest(self.path, self.old)
             return

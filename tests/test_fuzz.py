@@ -3135,3 +3135,170 @@ def test_ruler_labels_reproductions():
     from nsfem.export.render import ruler_labels
 
     assert [ruler_labels(x) for x in (1.5, 0.8, 0.6, 1.0, 0.77)] == [7, 5, 7, 6, 5]
+
+
+# --- issue 34: review r3 (the series in vtu/ after an interrupt, output folders, lazy names) ---
+def _interrupt_the_nth_vtu(monkeypatch, n: int) -> None:
+    """The ``n``-th .vtu write of the process raises KeyboardInterrupt (Ctrl-C mid-frame), before writing."""
+    from nsfem.export import vtu
+
+    calls, write = [0], vtu._write_vtu
+
+    def interrupted(path, mesh):
+        calls[0] += 1
+        if calls[0] == n:
+            raise KeyboardInterrupt
+        write(path, mesh)
+
+    monkeypatch.setattr(vtu, "_write_vtu", interrupted)
+
+
+def test_an_export_interrupted_mid_frame_lists_only_the_files_left(saved_result, tmp_path, monkeypatch):
+    """Ctrl-C on a frame's second part: the frame's first .vtu is removed again, so the manifest must not
+    name it (else the next command takes a user's file of that name for nsfem's and removes it)."""
+    out = tmp_path / "v"
+    _interrupt_the_nth_vtu(monkeypatch, 4)   # frame 0: stack, contacts; frame 1: stack, then Ctrl-C
+    assert cli.main(["export", str(saved_result), "--vtu", str(out), "--every", "1"]) == 130
+    folder_is_valid(out)
+    listed = set().union(*map(set, json.loads((out / MANIFEST).read_text())["files"].values()))
+    assert {n for n in listed if not (out / n).exists()} == set()
+    monkeypatch.undo()
+    (out / "vtu" / "nsfem_00001.vtu").write_text("mine")   # the user's file of the name removed
+    assert cli.main(["export", str(saved_result), "--vtu", str(out), "--every", "2"]) == 0
+    assert (out / "vtu" / "nsfem_00001.vtu").read_text() == "mine"
+
+
+def test_ctrl_c_while_the_index_is_written_still_leaves_the_index(saved_result, tmp_path, monkeypatch):
+    """Ctrl-C (a real SIGINT) just as the series' nsfem.pvd is written, every frame done: the index is
+    finished (the signal acted on after it), so ParaView finds every frame; before, the frames were left
+    with no .pvd at all (the old one is removed by then)."""
+    from nsfem.export import vtu
+
+    write = vtu.write_atomic
+
+    def ctrl_c_on_the_index(path, fn):
+        if str(path).endswith(".pvd"):
+            os.kill(os.getpid(), signal.SIGINT)
+        return write(path, fn)
+
+    monkeypatch.setattr(vtu, "write_atomic", ctrl_c_on_the_index)
+    out = tmp_path / "v"
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)   # Ctrl-C's, even where started ignored
+    try:
+        assert cli.main(["export", str(saved_result), "--vtu", str(out), "--every", "1"]) == 130
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert (out / "nsfem.pvd").is_file()
+    folder_is_valid(out)
+    assert len(vtu.series_parts(out / "nsfem.pvd")["stack"]) == len(np.load(saved_result)["t"])
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(name=st.one_of(st.text(max_size=12), st.sampled_from(["no.such", "export.nosuch", "a..b", ".", "1x",
+                                                            "nosuch", "__nosuch__"])))
+def test_property_any_attribute_of_nsfem_is_a_value_or_absent(name):
+    """``getattr(nsfem, name, default)`` (what hasattr, IDEs and doc tools do) of any string gives a value or
+    the default, never another exception (a dotted name used to raise ModuleNotFoundError from the lazy
+    __getattr__); every public name resolves and ``from nsfem import *`` binds them."""
+    import nsfem
+
+    missing = object()
+    value = getattr(nsfem, name, missing)
+    assert value is missing or name in dir(nsfem) or name.isidentifier()
+    namespace: dict = {}
+    exec("from nsfem import *", namespace)
+    assert {n: namespace[n] for n in nsfem.__all__} == {n: getattr(nsfem, n) for n in nsfem.__all__}
+
+
+def test_a_dotted_attribute_of_nsfem_is_absent_reproduction():
+    import nsfem
+
+    assert not hasattr(nsfem, "no.such") and not hasattr(nsfem, "export.nosuch")
+
+
+def test_ctrl_c_during_the_series_keeps_the_sensor_signals(tmp_path, monkeypatch):
+    """The VTU series is the longest output to write: Ctrl-C there must not cost the sensors' file (the
+    probes' signals, which no other command writes from a results file); they are written before it."""
+    out = tmp_path / "r"
+    _interrupt_the_nth_vtu(monkeypatch, 3)
+    assert cli.main(["run", "rub", "--out", str(out), "--set", "simulation.t_end=0.01", "--set",
+                     "output.vtu_every=1", "--set", "output.plots=[]"]) == 130
+    folder_is_valid(out)
+    assert (out / "sensors.csv").is_file() and (out / "nsfem.pvd").is_file()
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@given(n=st.integers(1, 64), extra=st.integers(0, 200), seed=st.integers(0, 2**32 - 1))
+def test_property_welch_of_a_record_shorter_than_a_segment_is_scipys(n, extra, seed):
+    """psd.png of a short run: a record of n samples shorter than the segment asked for (n + extra) is one
+    segment of n, as scipy.signal.welch does (it warns); odd and even n. Same sums in another order: equal
+    to round-off (1e-10 of the largest bin, as in test_latency.test_welch_equals_scipy)."""
+    import warnings
+
+    from scipy.signal import welch as scipy_welch
+
+    from nsfem.spectrum import welch
+
+    x = np.random.default_rng(seed).standard_normal(n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)   # "nperseg = ... is greater than input length"
+        f_ref, p_ref = scipy_welch(x, fs=1e3, nperseg=n + extra, detrend="constant", scaling="density")
+    f, p = welch(x, 1e-3, n + extra)
+    assert f.shape == f_ref.shape and np.allclose(f, f_ref, rtol=1e-14, atol=0)
+    assert np.all(np.abs(p - p_ref) <= 1e-10 * max(np.max(np.abs(p_ref)), 1e-300))
+
+
+def _frame_name_as_folder(out: Path, name: str) -> None:
+    """A user's folder (holding a file) at ``out/vtu/<name>``, where a series writes a frame file."""
+    (out / "vtu" / name).mkdir(parents=True)
+    (out / "vtu" / name / "mine.txt").write_text("mine")
+
+
+@settings(max_examples=6, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(command=st.sampled_from(["run", "export"]), index=st.integers(0, 10),
+       part=st.sampled_from(["nsfem_{:05d}.vtu", "nsfem_{:05d}.vtm", "nsfem_contacts_{:05d}.vtu"]))
+def test_property_a_folder_named_like_a_frame_is_refused_before_the_run(saved_result, command, index, part):
+    """A folder in vtu/ named like a frame file the series would write: one line naming it, before anything
+    is computed or written (it used to fail at that frame after the run, leaving frames with no .pvd)."""
+    with tempfile.TemporaryDirectory() as d:
+        root = Path(d)
+        name = part.format(index)
+        _frame_name_as_folder(root / "o", name)
+        argv = (["run", *CHEAP, "--set", "output.vtu_every=1", "--out", "o"] if command == "run"
+                else ["export", str(saved_result), "--vtu", "o", "--every", "1"])
+        code, _, stderr = check_invocation(argv, root)
+        assert code == cli.EXIT_ERROR and f"vtu/{name}" in stderr, stderr
+        assert sorted(p.name for p in (root / "o").iterdir()) == ["vtu"]
+        assert sorted(p.name for p in (root / "o" / "vtu").iterdir()) == [name]
+
+
+def test_a_series_that_cannot_write_a_frame_still_indexes_the_frames_before(saved_result, tmp_path):
+    """write_series (from Python, no checks before) meeting a folder where frame 2's .vtm goes: OSError, and
+    nsfem.pvd indexes frames 0 and 1; the user's folder is left alone."""
+    from nsfem.export.vtu import series_parts, write_series
+
+    res, extra, model, _ = cli._saved(str(saved_result), "export")   # the model rebuilt from the file
+    out = tmp_path / "o"
+    _frame_name_as_folder(out, "nsfem_00002.vtm")
+    with pytest.raises(OSError):
+        write_series(res, (model, extra["basis"]), out, every=1)
+    assert [t for t, _ in series_parts(out / "nsfem.pvd")["stack"]] == [float(t) for t in res.t[:2]]
+    assert (out / "vtu" / "nsfem_00002.vtm" / "mine.txt").read_text() == "mine"
+    assert not (out / "vtu" / "nsfem_00002.vtu").exists()   # the frame cut short is removed
+
+
+@pytest.mark.skipif(not hasattr(os, "symlink"), reason="needs symbolic links")
+@pytest.mark.parametrize("command", ["run", "export"])
+def test_a_dangling_vtu_link_is_refused_before_the_run(saved_result, command, tmp_path, capsys):
+    """vtu/ a link to a folder that does not exist (a scratch disk not mounted): one line naming it before the
+    run; it failed after the run with "cannot write out/vtu: File exists", leaving an empty nsfem.pvd."""
+    out = tmp_path / "o"
+    out.mkdir()
+    os.symlink(tmp_path / "not-mounted" / "frames", out / "vtu")
+    argv = (["run", *CHEAP, "--set", "output.vtu_every=1", "--out", str(out)] if command == "run"
+            else ["export", str(saved_result), "--vtu", str(out), "--every", "1"])
+    assert cli.main(argv) == cli.EXIT_ERROR
+    err = capsys.readouterr().err
+    assert err.count("nsfem: error:") == 1 and f"{out / 'vtu'}" in err and "does not exist" in err, err
+    assert sorted(p.name for p in out.iterdir()) == ["vtu"]

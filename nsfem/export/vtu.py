@@ -630,6 +630,7 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
               + ["cracks"] * bool(faces) + ["bearings"] * bool(nb))
     pvd = out / f"{prefix}.pvd"
     files: list[str] = []
+    indexed: Path | None = None   # the .pvd, once written
     try:
         for i in idx:
             files = []
@@ -691,13 +692,17 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
             with signals_deferred():  # the frame is whole: indexed, and no longer one to remove
                 entries.append((float(result.t[i]), f"{SUBFOLDER}/{vtm}"))
                 files = []
+        with signals_deferred():  # Ctrl-C on the index itself is acted on once it is written
+            indexed = write_pvd(pvd, entries, blocks, written, turn, prefix)
     except BaseException:  # interrupted (or failed): the frames written so far stay a valid series
-        with signals_deferred():
-            for f in files:
-                (sub / f).unlink(missing_ok=True)  # the frame cut short
-            write_pvd(pvd, entries, blocks, written, turn, prefix)
+        if indexed is None:
+            with signals_deferred():
+                for f in files:  # the frame cut short; never a folder of that name, which made the write fail
+                    if not (sub / f).is_dir():
+                        (sub / f).unlink(missing_ok=True)
+                write_pvd(pvd, entries, blocks, written, turn, prefix)
         raise
-    return write_pvd(pvd, entries, blocks, written, turn, prefix)
+    return indexed
 
 
 def write_vtm(path: Path, blocks: list[tuple[str, str]]) -> Path:
