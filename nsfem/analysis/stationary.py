@@ -316,17 +316,32 @@ def contact_forces_full(model, st: Stationary) -> np.ndarray:
     return f
 
 
+def full_state(model, Q, loads: np.ndarray) -> np.ndarray:
+    """The full model's displacement (full finite-element coordinates) under ``loads`` (full coordinates) with
+    its supports and junctions held: q = T (T^T Q T)^-1 T^T loads. Its residual Q q - loads is then exactly
+    the constraint forces C^T lam; a reduced state's residual also holds the reduction's error on every dof
+    (the shipped crack scene's supports summed to 68.12 N of its 68.40 N weight)."""
+    T = model.T
+    Qc = sp.csc_matrix(T.T @ Q @ T)
+    return np.asarray(T @ factorize(Qc, "Q").solve(np.asarray(T.T @ loads).ravel())).ravel()
+
+
 def rotor_parts(model, st: Stationary, system, basis, rotation: Rotation) -> dict:
     """The parts of a rotor in a stationary state (``system``: the linear system in full coordinates,
     ``basis``: q_full = basis q): the constant load's resultant ``load_N`` [y, z], each bearing's and
     support's force on the shaft, the deflection at each disk and its largest value along the shaft,
-    one entry per stator ring and per crack (:mod:`nsfem.analysis.parts`)."""
+    one entry per stator ring and per crack (:mod:`nsfem.analysis.parts`). A bearing's force is -K u of the
+    state's u; a support's is the full model's constraint force under the state's loads and contact forces
+    (:func:`full_state`), which the reduced state's residual gives only to the reduction's error (amplified:
+    21 % on a 4-mode clamped shaft)."""
     from .parts import crack_summaries, ring_summaries
     from .reactions import bearing_reactions, disk_deflections, lateral_total, shaft_deflection, support_reactions
 
     q = np.asarray(basis @ st.q).ravel()
     f0 = np.zeros(model.n_full) if system.f0 is None else np.asarray(system.f0)
-    residual = np.asarray(system.Q @ q).ravel() - f0 - contact_forces_full(model, st)
+    loads = f0 + contact_forces_full(model, st)
+    held = full_state(model, system.Q, loads)
+    residual = np.asarray(system.Q @ held).ravel() - loads
     omega = 2.0 * math.pi * rotation.speed_hz
     Rb = bearing_reactions(model, q, omega, rotation.frame)
     Rs = support_reactions(model, residual)
