@@ -407,7 +407,12 @@ def test_sweep_table_lines_columns_and_digits():
     touch = dict(rotor[0], min_gap_m=-1e-9, max_gap_m=2e-4, closed_fraction=0.25, max_normal_force_N=12.5, events=7)
     head = table_lines(["s"], [touch])[1]
     assert "closed [%]" in head and head.index("max force [N]") < head.index("probe [m]")
-    assert table_lines(["s"], [touch])[2].split()[1:4] == ["7", "25", "-1e-09"]
+    assert table_lines(["s"], [touch])[2].split()[1:4] == ["7", "-", "25"]
+    # a run of impacts only (no sustained force): the table counts them as the run's summary does, beside
+    # its 0 N of sustained force (it printed events and "max force 0" alone)
+    knock = dict(touch, events=11, impacts=9, max_normal_force_N=0.0)
+    head, row = table_lines(["s"], [knock])[1:3]
+    assert "impacts" in head and row.split()[1:3] == ["11", "9"]
     # values that 6 digits would print alike get the digits that tell them apart (a folder's 12 at most)
     assert value_digits([1.0, 1.0000001, 2]) == 8 and value_digits([1.0, 1.0 + 1e-13]) == 12
 
