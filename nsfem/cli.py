@@ -209,10 +209,10 @@ def cmd_modes(args) -> int:
     red = scene_reduction(scene.reduction, model)
     modes = natural_frequencies(model, args.contact, args.count, red)
     wall = time.perf_counter() - t0
-    from .analysis.rigid_motion import free_motions, rigid_warning
+    from .analysis.rigid_motion import caught_by_contacts, free_motions, rigid_warning
 
     rigid = free_motions(model)
-    warning = rigid_warning(model, names=rigid)
+    warning = rigid_warning(model, caught_by_contacts(model), rigid)
     if warning:
         print(f"nsfem modes: warning: {warning}", file=sys.stderr)
     payload = {"title": scene.title, **modes.to_json(), "reduction": red.info,

@@ -3078,3 +3078,25 @@ def test_hostile_blas_thread_setting(value, tmp_path, modes_one_thread):
     sums, round-off of order 1e-13 relative)."""
     assert np.allclose(_modes_with_blas_threads(value, tmp_path), modes_one_thread, rtol=1e-9, atol=0)
     assert not leftovers(tmp_path)
+
+
+# --- issue 34: review (r2): stationary parts, notes, modes ---
+def test_issue34_modes_of_retainer_drop_does_not_warn_about_the_scene_itself(tmp_path):
+    """`run retainer_drop` is silent about the lateral freedom its retainer rings catch; `modes` warned
+    ("restrain them with bearings' kyy and kzz"), advice against the scene's own design. It lists the 0 Hz
+    modes of the open contacts by name and warns of nothing; a free axial motion is still said once."""
+    code, out, err = check_invocation(["modes", "retainer_drop", "--set", "mesh.elements=8"], tmp_path)
+    assert code == 0 and "warning" not in err and out.count("rigid lateral motion") == 4
+    code, _, err = check_invocation(["modes", "retainer_drop", "--set", "mesh.elements=8", "--set",
+                                     "bearing.0.kxx=0"], tmp_path)
+    assert code == 0 and err.count("free rigid motion") == 1 and "axial" in err and "x-z" not in err
+
+
+@pytest.mark.parametrize("name", ["default", "crack", "critical_speed", "retainer_drop", "ross_example", "rub"])
+def test_issue34_shipped_scenes_have_no_notes_and_modes_no_warning(tmp_path, name):
+    """A shipped scene states what it means: no note at load, no warning from `modes`."""
+    from nsfem import load_scene
+
+    assert load_scene(name).notes == ()
+    code, _, err = check_invocation(["modes", name, "--set", "reduction.modes=6", "--count", "4"], tmp_path)
+    assert code == 0 and "warning" not in err and "note" not in err
