@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -279,7 +279,8 @@ def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0:
             loads.append("external-damping drag")
     elif rotation.gravity:
         loads.append("gravity")
-    st.parts = rotor_parts(model, st, system_full, reduction.T, rotation)
+    rest = rotor_system(full, replace(rotation, speed_hz=0.0), damping) if rotation.speed_hz else system_full
+    st.parts = rotor_parts(model, st, system_full, reduction.T, rotation, rest.Q)
     st.wall_s = time.perf_counter() - t0
     st.info = {"speed_hz": rotation.speed_hz, "loads": loads, "ndof_full": model.n, "ndof": reduction.ndof,
                "reduction": reduction.info}
@@ -326,11 +327,14 @@ def full_state(model, Q, loads: np.ndarray) -> np.ndarray:
     return np.asarray(T @ factorize(Qc, "Q").solve(np.asarray(T.T @ loads).ravel())).ravel()
 
 
-def rotor_parts(model, st: Stationary, system, basis, rotation: Rotation) -> dict:
+def rotor_parts(model, st: Stationary, system, basis, rotation: Rotation, Q_rest=None) -> dict:
     """The parts of a rotor in a stationary state (``system``: the linear system in full coordinates,
     ``basis``: q_full = basis q): the constant load's resultant ``load_N`` [y, z], each bearing's and
     support's force on the shaft, the deflection at each disk and its largest value along the shaft,
-    one entry per stator ring and per crack (:mod:`nsfem.analysis.parts`). A bearing's force is -K u of the
+    one entry per stator ring and per crack (:mod:`nsfem.analysis.parts`), and ``deflection_load_N``, the
+    resultant of the speed's forces on the deflected rotor that Q holds (``Q_rest``: Q at speed 0; in the
+    rotating frame the centrifugal force Omega^2 m u, external damping's drag on the whirl), so that
+    ``load_N``, it and the reactions (and a ring's force) balance. A bearing's force is -K u of the
     state's u; a support's is the full model's constraint force under the state's loads and contact forces
     (:func:`full_state`), which the reduced state's residual gives only to the reduction's error (amplified:
     21 % on a 4-mode clamped shaft)."""
@@ -345,9 +349,14 @@ def rotor_parts(model, st: Stationary, system, basis, rotation: Rotation) -> dic
     omega = 2.0 * math.pi * rotation.speed_hz
     Rb = bearing_reactions(model, q, omega, rotation.frame)
     Rs = support_reactions(model, residual)
+    # Q q - Q_rest q: the speed's terms; those of the bearings (a fixed damper seen from the rotating frame)
+    # are in their reactions, the rest are forces on the rotor
+    speed_terms = np.zeros(2) if Q_rest is None or not omega else \
+        -lateral_total(model, np.asarray((system.Q - Q_rest) @ q).ravel()) - (Rb - bearing_reactions(model, q)).sum(axis=0)
     stack = model.stack
     return {
         "frame": rotation.frame, "load_N": lateral_total(model, f0).tolist(),
+        "deflection_load_N": (speed_terms + 0.0).tolist(),
         "bearings": [{"label": b.label or f"bearing.{i}", "x_m": b.x, "reaction_N": r.tolist(),
                       "magnitude_N": float(np.hypot(*r))} for i, (b, r) in enumerate(zip(stack.bearings, Rb))],
         "supports": [{"x_m": s.x, "segment": s.segment, "fix": list(s.fix), "reaction_N": r.tolist(),
