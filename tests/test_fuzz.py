@@ -3100,3 +3100,18 @@ def test_issue34_shipped_scenes_have_no_notes_and_modes_no_warning(tmp_path, nam
     assert load_scene(name).notes == ()
     code, _, err = check_invocation(["modes", name, "--set", "reduction.modes=6", "--count", "4"], tmp_path)
     assert code == 0 and "warning" not in err and "note" not in err
+
+
+def test_issue34_stationary_note_on_the_unbalance_advises_what_the_scene_can_do(tmp_path):
+    """On anisotropic bearings (critical_speed, ross_example) the rotating frame is refused, so the stationary
+    note must not send the user there; on isotropic ones (the Jeffcott rotor of tests/test_sweep.py) it may."""
+    from test_sweep import JEFFCOTT
+
+    for name in ("critical_speed", "ross_example"):
+        code, out, err = check_invocation(["stationary", name], tmp_path)
+        assert code == 0 and "harmonic in the inertial frame" in out and "rotation.frame" not in out + err
+        assert "nsfem sweep" in out
+    (tmp_path / "j.toml").write_text(JEFFCOTT)
+    code, out, _ = check_invocation(["stationary", str(tmp_path / "j.toml"), "--set", "rotation.speed_hz=40"],
+                                    tmp_path)
+    assert code == 0 and 'rotation.frame = "rotating"' in out

@@ -292,8 +292,11 @@ def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0:
         st.info["note"] = ("gravity is harmonic in the rotating frame and is not a stationary load; "
                            "set rotation.speed_hz = 0 for the state at rest under gravity")
     elif rotation.speed_hz and unbalanced and inertial:
-        st.info["note"] = ("the unbalance is harmonic in the inertial frame and is not a stationary load; "
-                           "rotation.frame = \"rotating\" (isotropic bearings) makes it one")
+        # the rotating frame takes isotropic bearings only (anisotropic ones are refused there)
+        st.info["note"] = ("the unbalance is harmonic in the inertial frame and is not a stationary load; " +
+                           ("rotation.frame = \"rotating\" makes it one (the bearings are isotropic)"
+                            if all(b.isotropic for b in model.stack.bearings) else
+                            "its steady response is the 1x amplitude of the sensors in `nsfem sweep`"))
     return st
 
 
