@@ -3115,3 +3115,11 @@ def test_issue34_stationary_note_on_the_unbalance_advises_what_the_scene_can_do(
     code, out, _ = check_invocation(["stationary", str(tmp_path / "j.toml"), "--set", "rotation.speed_hz=40"],
                                     tmp_path)
     assert code == 0 and 'rotation.frame = "rotating"' in out
+
+
+def test_issue34_stationary_of_a_rotor_its_rings_catch_says_why_not_and_what_to_run(tmp_path):
+    """retainer_drop's rotor is held laterally by its retainer rings only: the stationary LCP needs Q itself
+    invertible, so it is refused, but not with advice against the scene's design (add bearings) alone: the
+    message says the rings catch it and that `nsfem run` computes the drop."""
+    code, _, err = check_invocation(["stationary", "retainer_drop"], tmp_path)
+    assert code == 2 and "unrestrained" in err and "stator" in err and "nsfem run" in err

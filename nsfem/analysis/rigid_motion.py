@@ -106,8 +106,12 @@ def rigid_error(model, Q_full) -> str | None:
     names = free_motions(model, Q_full)
     if not names:
         return None
-    return (f"no stationary state: {', '.join(names)} {'are' if len(names) > 1 else 'is'} unrestrained, so the "
+    text = (f"no stationary state: {', '.join(names)} {'are' if len(names) > 1 else 'is'} unrestrained, so the "
             f"stiffness Q is singular; restrain {'them' if len(names) > 1 else 'it'} with {restraints(names)}")
+    if caught_by_contacts(model) and any(not n.startswith("axial") for n in names):
+        text += (" (the stators or stops that catch the lateral motion act only through the contact problem, which "
+                 "needs Q invertible; `nsfem run` computes the rotor falling onto them)")
+    return text
 
 
 __all__ = ["caught_by_contacts", "free_motions", "restraints", "rigid_error", "rigid_warning"]
