@@ -504,8 +504,9 @@ vtu_every = 0
 """
 
 
+@pytest.mark.parametrize("frame", ["inertial", "rotating"])
 @pytest.mark.parametrize("speed", [40.0, 60.0])
-def test_sweep_phase_is_the_jeffcott_lag_behind_the_unbalance(tmp_path, speed):
+def test_sweep_phase_is_the_jeffcott_lag_behind_the_unbalance(tmp_path, speed, frame):
     """Each sensor's phase_<sensor>_deg is the hand-computed lag of the Jeffcott rotor: the disk (m = 10 kg
     + the shaft's 0.016 kg, moving rigidly) on the shaft's central stiffness ks = 48 E I / L^3 in series with
     the two bearings (k = 1e6 N/m, c = 400 N s/m together); at the disk z = m e w^2 / D with
@@ -513,7 +514,8 @@ def test_sweep_phase_is_the_jeffcott_lag_behind_the_unbalance(tmp_path, speed):
     atan2(c w, k - m w^2)). The lag is measured from the unbalance's angle: +y reads
     |z| cos(theta + phase_u - lag), so phase_y = lag - phase_u whatever rotation.phase_deg (25 deg, in
     theta at t = 0 and in the unbalance's start alike); +z is a quarter period later (forward whirl),
-    -z half a period after +z. Below (40 Hz) and above (60 Hz) the 50 Hz resonance (lag < and > 90 deg).
+    -z half a period after +z. Below (40 Hz) and above (60 Hz) the 50 Hz resonance (lag < and > 90 deg), computed
+    in either frame (the probes read in the inertial one: the rotating run's signals are turned by theta).
     Tolerance: the closed form lumps the shaft's mass (1.6e-3 of m) into the disk and its bending is
     1.6e-4 of the bearings' compliance, a 3e-7 effect; the start decays at c / 2m = 20 1/s, e^-20 = 2e-9
     by the fitted last second; the fit itself is exact (round-off): 1e-5 relative and 1e-5 rad (6e-4 deg)
@@ -525,7 +527,7 @@ def test_sweep_phase_is_the_jeffcott_lag_behind_the_unbalance(tmp_path, speed):
 
     path = tmp_path / "jeffcott.toml"
     path.write_text(JEFFCOTT)
-    scene = nsfem.load_scene(str(path), [f"rotation.speed_hz={speed}"])
+    scene = nsfem.load_scene(str(path), [f"rotation.speed_hz={speed}", f"rotation.frame={frame}"])
     warnings: list[str] = []
     row = sensor_amplitudes(*run_scene(scene), warnings.append)
     assert warnings == []
