@@ -519,7 +519,7 @@ def test_sweep_phase_is_the_jeffcott_lag_behind_the_unbalance(tmp_path, speed, f
     Tolerance: the closed form lumps the shaft's mass (1.6e-3 of m) into the disk and its bending is
     1.6e-4 of the bearings' compliance, a 3e-7 effect; the start decays at c / 2m = 20 1/s, e^-20 = 2e-9
     by the fitted last second; the fit itself is exact (round-off): 1e-5 relative and 1e-5 rad (6e-4 deg)
-    bound both (measured 5e-7 and 1.2e-7 rad at 40 Hz)."""
+    bound both (measured at most 5.7e-7 and 2.9e-7 rad)."""
     import cmath
     import math
 
