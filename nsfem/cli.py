@@ -209,10 +209,10 @@ def cmd_modes(args) -> int:
     red = scene_reduction(scene.reduction, model)
     modes = natural_frequencies(model, args.contact, args.count, red)
     wall = time.perf_counter() - t0
-    from .analysis.rigid_motion import free_motions, rigid_warning
+    from .analysis.rigid_motion import caught_by_contacts, free_motions, rigid_warning
 
     rigid = free_motions(model)
-    warning = rigid_warning(model, names=rigid)
+    warning = rigid_warning(model, caught_by_contacts(model), rigid)
     if warning:
         print(f"nsfem modes: warning: {warning}", file=sys.stderr)
     payload = {"title": scene.title, **modes.to_json(), "reduction": red.info,
@@ -451,7 +451,8 @@ def _shown(values, scale: float) -> list[float]:
 def _stationary_parts(parts: dict) -> list[str]:
     """The text lines of a stationary state's parts (:func:`nsfem.analysis.stationary.rotor_parts`)."""
     frame = parts["frame"]
-    force = max([abs(v) for v in parts["load_N"]] + [r["magnitude_N"] for r in parts["bearings"] + parts["supports"]])
+    force = max([abs(v) for v in parts["load_N"] + parts.get("deflection_load_N", [])]
+                + [r["magnitude_N"] for r in parts["bearings"] + parts["supports"]])
     top = parts["max_deflection"]
     parts = {**parts, "load_N": _shown(parts["load_N"], force),
              "bearings": [{**b, "reaction_N": _shown(b["reaction_N"], force)} for b in parts["bearings"]],
@@ -462,6 +463,10 @@ def _stationary_parts(parts: dict) -> list[str]:
     out = [f"constant load {fy:.6g} N along y, {fz:.6g} N along z ({frame} frame); forces on the shaft:"
            if parts["bearings"] or parts["supports"] else f"constant load {fy:.6g} N along y, {fz:.6g} N along z "
            f"({frame} frame)"]
+    dy, dz = _shown(parts.get("deflection_load_N", [0.0, 0.0]), force)
+    if dy or dz:   # the reactions balance it too
+        out.insert(1, f"  and on the deflected rotor, from the speed (centrifugal Omega^2 m u, damping drag): "
+                      f"{dy:.6g} N along y, {dz:.6g} N along z")
     if parts["bearings"] or parts["supports"]:
         out.append("  reaction             x [m]       y [N]        z [N]      |F| [N]")
         for b in parts["bearings"]:

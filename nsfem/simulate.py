@@ -335,9 +335,9 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
         if text and warn is not None:
             warn(text)
     if warn is not None:  # a free axial travel (a thrust bearing left out) is a 0 Hz mode: said once
-        from .analysis.rigid_motion import rigid_warning
+        from .analysis.rigid_motion import caught_by_contacts, rigid_warning
 
-        text = rigid_warning(model, caught=any(c.kind == "obstacle" for c in model.stack.contacts))
+        text = rigid_warning(model, caught_by_contacts(model))
         if text:
             warn(text)
     q0, v0 = initial_state(scene, model, red, system)

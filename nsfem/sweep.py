@@ -501,7 +501,7 @@ def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
     digits = {k: value_digits(r.get(k) for r in shown) for k in keys}
     head = list(keys)
     if contacts:
-        head += ["events", "closed [%]", "min gap [m]", "max gap [m]", "max force [N]"]
+        head += ["events", "impacts", "closed [%]", "min gap [m]", "max gap [m]", "max force [N]"]
     for name in sensors:
         head += [f"{name} [m]", f"{name} [deg]"]
     rows = []
@@ -512,7 +512,7 @@ def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
             continue
         if contacts:
             closed = r.get("closed_fraction")
-            cells += [_cell(r.get("events")), _cell(None if closed is None else 100 * closed, 4),
+            cells += [_cell(r.get("events")), _cell(r.get("impacts")), _cell(None if closed is None else 100 * closed, 4),
                       _cell(r.get("min_gap_m"), 5), _cell(r.get("max_gap_m"), 5), _cell(r.get("max_normal_force_N"), 5)]
         for name in sensors:
             phase = r.get(PHASE.format(name))

@@ -3302,3 +3302,48 @@ def test_a_dangling_vtu_link_is_refused_before_the_run(saved_result, command, tm
     err = capsys.readouterr().err
     assert err.count("nsfem: error:") == 1 and f"{out / 'vtu'}" in err and "does not exist" in err, err
     assert sorted(p.name for p in out.iterdir()) == ["vtu"]
+
+
+# --- issue 34: review (r2): stationary parts, notes, modes ---
+def test_issue34_modes_of_retainer_drop_does_not_warn_about_the_scene_itself(tmp_path):
+    """`run retainer_drop` is silent about the lateral freedom its retainer rings catch; `modes` warned
+    ("restrain them with bearings' kyy and kzz"), advice against the scene's own design. It lists the 0 Hz
+    modes of the open contacts by name and warns of nothing; a free axial motion is still said once."""
+    code, out, err = check_invocation(["modes", "retainer_drop", "--set", "mesh.elements=8"], tmp_path)
+    assert code == 0 and "warning" not in err and out.count("rigid lateral motion") == 4
+    code, _, err = check_invocation(["modes", "retainer_drop", "--set", "mesh.elements=8", "--set",
+                                     "bearing.0.kxx=0"], tmp_path)
+    assert code == 0 and err.count("free rigid motion") == 1 and "axial" in err and "x-z" not in err
+
+
+@pytest.mark.parametrize("name", ["default", "crack", "critical_speed", "retainer_drop", "ross_example", "rub"])
+def test_issue34_shipped_scenes_have_no_notes_and_modes_no_warning(tmp_path, name):
+    """A shipped scene states what it means: no note at load, no warning from `modes`."""
+    from nsfem import load_scene
+
+    assert load_scene(name).notes == ()
+    code, _, err = check_invocation(["modes", name, "--set", "reduction.modes=6", "--count", "4"], tmp_path)
+    assert code == 0 and "warning" not in err and "note" not in err
+
+
+def test_issue34_stationary_note_on_the_unbalance_advises_what_the_scene_can_do(tmp_path):
+    """On anisotropic bearings (critical_speed, ross_example) the rotating frame is refused, so the stationary
+    note must not send the user there; on isotropic ones (the Jeffcott rotor of tests/test_sweep.py) it may."""
+    from test_sweep import JEFFCOTT
+
+    for name in ("critical_speed", "ross_example"):
+        code, out, err = check_invocation(["stationary", name], tmp_path)
+        assert code == 0 and "harmonic in the inertial frame" in out and "rotation.frame" not in out + err
+        assert "nsfem sweep" in out
+    (tmp_path / "j.toml").write_text(JEFFCOTT)
+    code, out, _ = check_invocation(["stationary", str(tmp_path / "j.toml"), "--set", "rotation.speed_hz=40"],
+                                    tmp_path)
+    assert code == 0 and 'rotation.frame = "rotating"' in out
+
+
+def test_issue34_stationary_of_a_rotor_its_rings_catch_says_why_not_and_what_to_run(tmp_path):
+    """retainer_drop's rotor is held laterally by its retainer rings only: the stationary LCP needs Q itself
+    invertible, so it is refused, but not with advice against the scene's design (add bearings) alone: the
+    message says the rings catch it and that `nsfem run` computes the drop."""
+    code, _, err = check_invocation(["stationary", "retainer_drop"], tmp_path)
+    assert code == 2 and "unrestrained" in err and "stator" in err and "nsfem run" in err

@@ -257,3 +257,20 @@ def test_sweep_and_fit_print_the_notes_of_their_scene_before_any_run(command, mo
     monkeypatch.setattr(importlib.import_module(module), name, stub)
     assert cli.main([command[0], str(path), *command[1:]]) == cli.EXIT_ERROR
     assert seen and all(seen[0].count(f"nsfem {command[0]}: note: {n}\n") == 1 for n in notes)
+
+
+# --- issue 34 review (r2): a section given in part ---
+@pytest.mark.parametrize("shaft, missing", [
+    ({"width": 0.03}, ["height"]), ({"section": "rectangle", "height": 0.04}, ["width"]),
+    ({"section": "rectangle"}, ["width", "height"]), ({"section": "circle"}, ["diameter"]),
+    ({"width": 0.03, "height": 0.03}, []), ({"diameter": 0.05}, []), ({"section": "circle", "diameter": 0.05}, []),
+])
+def test_a_rotor_section_given_in_part_notes_the_dimension_left_at_its_default(shaft, missing):
+    """A rotor's shaft with a width and no height was a 0.03 x 0.02 m rectangle without a word (the note fired
+    only for a table with no section key at all): each dimension the section uses and the scene leaves out
+    gets its default said, naming it (in the rotating frame: the inertial one refuses a non-square rectangle)."""
+    tree = {**rotor(), "shaft": {"supports": "pinned-pinned", **shaft}, "rotation": {"frame": "rotating"}}
+    notes = [n for n in scene_from_tree(tree).notes if n.startswith("shaft:")]
+    assert len(notes) == (1 if missing else 0), notes
+    if missing:
+        assert all(f"{k} = 0.02 m" in notes[0] for k in missing) and "default" in notes[0]

@@ -80,6 +80,12 @@ def restraints(names: list[str]) -> str:
     return ", ".join(keys) + ", or shaft.supports" if len(keys) > 1 else f"{keys[0]} or shaft.supports"
 
 
+def caught_by_contacts(model) -> bool:
+    """Whether rigid stops (stator rings, obstacles) are there to catch lateral rigid motions: a rotor that
+    drops into its retainer bearings is held by its contacts, not left free."""
+    return any(c.kind == "obstacle" for c in model.stack.contacts)
+
+
 def rigid_warning(model, caught: bool = False, names: list[str] | None = None) -> str | None:
     """The one-line warning of ``run`` and ``modes`` when the model has free rigid motions, else None;
     ``caught``: lateral motions are held by contacts (a stator, a stop: a rotor dropping into its retainer
@@ -100,8 +106,12 @@ def rigid_error(model, Q_full) -> str | None:
     names = free_motions(model, Q_full)
     if not names:
         return None
-    return (f"no stationary state: {', '.join(names)} {'are' if len(names) > 1 else 'is'} unrestrained, so the "
+    text = (f"no stationary state: {', '.join(names)} {'are' if len(names) > 1 else 'is'} unrestrained, so the "
             f"stiffness Q is singular; restrain {'them' if len(names) > 1 else 'it'} with {restraints(names)}")
+    if caught_by_contacts(model) and any(not n.startswith("axial") for n in names):
+        text += (" (the stators or stops that catch the lateral motion act only through the contact problem, which "
+                 "needs Q invertible; `nsfem run` computes the rotor falling onto them)")
+    return text
 
 
-__all__ = ["free_motions", "restraints", "rigid_error", "rigid_warning"]
+__all__ = ["caught_by_contacts", "free_motions", "restraints", "rigid_error", "rigid_warning"]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from ..stack import BeamStack
 from .schema import _SECTION, AXES, LOW_LEVEL
+from .validate import section_of
 
 #: The keys that give a section's shape or size.
 SECTION_KEYS = tuple(_SECTION)
@@ -34,9 +35,21 @@ def section_notes(raw: dict) -> list[str]:
     tables = ([(f"segment.{i}", t) for i, t in enumerate(segments)] if any(t in raw for t in LOW_LEVEL) else
               [("shaft", raw.get("shaft", {}))])
     w, h = _SECTION["width"].default, _SECTION["height"].default
-    return [f"{key}: no section given: the default rectangle, {w:g} m (y) x {h:g} m (z); a round shaft is "
-            f"section = \"circle\" with its diameter" for key, t in tables
-            if isinstance(t, dict) and not any(k in t for k in SECTION_KEYS)]
+    out = []
+    for key, t in tables:
+        if not isinstance(t, dict):
+            continue
+        if not any(k in t for k in SECTION_KEYS):
+            out.append(f"{key}: no section given: the default rectangle, {w:g} m (y) x {h:g} m (z); a round shaft "
+                       f"is section = \"circle\" with its diameter")
+            continue
+        # a section given in part: the dimensions it uses and the table leaves out are defaults too
+        uses = ("diameter",) if section_of(t) == "circle" else ("width", "height")
+        missing = [k for k in uses if k not in t]
+        if missing:
+            out.append(f"{key}: {section_of(t)} section without {' and '.join(missing)}: the default "
+                       f"{', '.join(f'{k} = {_SECTION[k].default:g} m' for k in missing)}")
+    return out
 
 
 def beam_notes(raw: dict) -> list[str]:
