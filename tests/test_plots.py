@@ -386,20 +386,6 @@ def test_ring_resultant_of_facets_in_closed_form():
     assert r.summary()["impacts"] == 1 and pt.max_normal_force_N == 5.0 and pt.max_point_force_N == 4.0
 
 
-def test_long_signals_are_drawn_as_their_envelope():
-    """min_max_bins keeps every sample within its bin's [low, high] and the extremes exactly, in few bins."""
-    from nsfem.plot.data import min_max_bins
-
-    t = np.linspace(0.0, 8.0, 40_001)
-    y = np.sin(2 * np.pi * 20 * t) * np.exp(-t)
-    tb, lo, hi = min_max_bins(t, y, bins=500)
-    assert tb.size == 500 and np.all(lo <= hi)
-    assert lo.min() == y.min() and hi.max() == y.max()
-    edges = np.linspace(0.0, 8.0, 501)
-    which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, 499)
-    assert np.all((lo[which] <= y) & (y <= hi[which]))
-
-
 def test_zoom_on_the_last_revolutions_of_long_runs_only():
     """gap.png zooms on the last 3 revolutions of a run of more than 30 (the crack scene's 3 s at 12.4 Hz: 37),
     not of the shipped scene's 21 revolutions; the window ends at the last output."""
@@ -772,3 +758,28 @@ def test_long_signal_draws_a_band_when_periods_are_denser_than_the_pixels():
     short = t < 0.4
     (drawn,) = long_signal(ax3, t[short], y[short], period=1 / 26.0)
     assert len(drawn.get_xdata()) == short.sum()
+
+
+# --- issue 34: gap.png and forces.png draw long runs with the shared long_signal ---
+def test_gap_and_forces_of_a_long_run_are_envelopes_over_each_revolution(saved_figures, tmp_path):
+    """8 s at 21 Hz (168 revolutions, fewer than 8 pixel columns each) are drawn as bands with one bin per
+    revolution (:func:`nsfem.plot.common.long_signal`), not as 8001-sample lines; the bands' upper edge is
+    the largest gap and force exactly (a min/max over samples: no arithmetic), and no legend covers them."""
+    from matplotlib.collections import PolyCollection
+
+    from nsfem.contact.tally import tally
+
+    result, system = _tiny([], t_end=8.0)
+    (pt,) = tally(result).parts
+    rp.write_plots(result, system, tmp_path, ["gap", "forces"])
+    figs = {name: fig for name, *_ , fig in saved_figures}
+    assert set(figs) == {"gap.png", "forces.png"}
+    assert [p for name, a, leg, _ in saved_figures for p in a + leg] == []
+    revolutions = int(8.0 * 21.0)
+    for name, peak in (("gap.png", 1e3 * result.gap[list(pt.part.rows)].max()), ("forces.png", pt.max_normal_force_N)):
+        ax = figs[name].axes[0]
+        assert all(len(line.get_xdata()) < result.t.size for line in ax.lines)   # no line through every sample
+        bands = [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_transform() == ax.transData]
+        top = max(c.get_paths()[0].vertices[:, 1].max() for c in bands)
+        assert top == peak
+        assert all(len(c.get_paths()[0].vertices) <= 2 * revolutions + 8 for c in bands)

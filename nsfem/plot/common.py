@@ -138,7 +138,8 @@ def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None
     :data:`PIXELS_PER_PERIOD` pixel columns of ``ax``, else as its :func:`envelope` over bins of one period
     (the band the vibration fills, its amplitude's course readable; bins shorter than a period would beat
     against it). Without: as a line while it has at most :data:`SAMPLES_PER_COLUMN` samples per pixel
-    column, else as its envelope per pixel column. The envelope is a band edged in ``color``.
+    column, else as its envelope per pixel column. The envelope is a band edged in ``color`` (and the line
+    style ``ls``).
 
     With a ``zoom`` axes and a ``span`` (see :func:`zoom_span`), the samples in ``span`` are drawn on
     ``zoom`` as a line too, and the span is shaded on ``ax``. Returns the artists drawn on ``ax`` (the first
@@ -162,7 +163,7 @@ def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None
             color = ax.plot([], [])[0].get_color()
         tc, lo, hi = envelope(t, y, bins)
         drawn = [ax.fill_between(tc, lo, hi, facecolor=to_rgba(color, 0.35), edgecolor=color, lw=0.5 * lw,
-                                 label=label)]
+                                 linestyle=line_kw.get("ls", line_kw.get("linestyle", "-")), label=label)]
     if zoom is not None and span is not None:
         a, b = span
         sel = (t >= a) & (t <= b)

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import figure, save
-from .data import FIGSIZE, NoPlotData, _force_series, draw_signal, loaded_contacts
+from .common import figure, long_signal, save
+from .data import FIGSIZE, NoPlotData, _force_series, _speed_hz, loaded_contacts
 
 
 def forces_plot(result, system, path) -> Path:
@@ -17,7 +17,7 @@ def forces_plot(result, system, path) -> Path:
     the angle of its force, and its impacts as stems of its resultant impulse [N s]: a delamination's
     points and a crack's front ends summed, a ring's facets as a vector sum
     (:func:`nsfem.contact.tally.resultant`). One legend entry per part, beside the panels; a long run's
-    forces are drawn as their envelope (:func:`~nsfem.plot.data.min_max_bins`)."""
+    forces are drawn as their envelope over each revolution (:func:`~nsfem.plot.common.long_signal`)."""
     from ..contact.tally import system_parts, tally
 
     if result.gap.shape[0] == 0:
@@ -26,6 +26,8 @@ def forces_plot(result, system, path) -> Path:
     if not rows:
         raise NoPlotData("forces: no contact carried load or took an impact during the run")
     t = result.t
+    speed = _speed_hz(result, system)
+    period = 1.0 / speed if speed > 0 else None
     series = _force_series(system, rows)
     shown = {tuple(ks) for _, ks in series}
     counts = tally(result, [p for p in system_parts(system) if tuple(p.rows) in shown])
@@ -43,13 +45,13 @@ def forces_plot(result, system, path) -> Path:
         name = pt.part.name
         label = (f"{name}: max {pt.max_normal_force_N:.4g} N" if pt.max_normal_force_N > 0 else
                  f"{name}: no force (impacts only)")
-        draw_signal(ax, t, pt.force, lw=1.0, color=color, label=label)
+        long_signal(ax, t, pt.force, period=period, lw=1.0, color=color, label=label)
         if t.size <= 1400:   # closures shorter than output_dt show as single samples
             on = pt.force > 0
             ax.plot(t[on], pt.force[on], ".", ms=3, color=color)
         if np.any(pt.friction > 0):
             friction = True
-            draw_signal(ax, t, pt.friction, lw=0.9, ls="--", color=color, alpha=0.6)
+            long_signal(ax, t, pt.friction, period=period, lw=0.9, ls="--", color=color, alpha=0.6)
         if cx is not None and pt.angle is not None and pt.max_normal_force_N > 0:
             on = pt.force > 0
             cx.plot(t[on], np.degrees(pt.angle[on]), ".", ms=1.5, color=color)

@@ -3,12 +3,13 @@ clearance, a stop's gap; closed intervals shaded, impacts marked, the counts of 
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from .common import figure, save
-from .data import FIGSIZE, NoPlotData, closed_intervals, delamination_middles, draw_signal
+from .common import figure, long_signal, save
+from .data import FIGSIZE, NoPlotData, _speed_hz, closed_intervals, delamination_middles
 
 #: per kind of part: the panel's quantity and the figure's title
 QUANTITY = {"delamination": "gap", "crack": "opening", "ring": "clearance", "stop": "gap"}
@@ -28,7 +29,8 @@ def gap_plot(result, system, path) -> Path:
     shaded where the part is closed (at least one of its points; for a crack both ends, one end lighter)
     and its impacts marked, with the counts and closed share of :func:`nsfem.contact.tally.tally` (the run
     JSON's ``parts``). Gaps in mm, or in um when a panel's largest is below 0.01 mm; a long run's lines
-    are drawn as their envelope (:func:`~nsfem.plot.data.min_max_bins`). Legends sit beside the panels."""
+    are drawn as their envelope over each revolution (:func:`~nsfem.plot.common.long_signal`). Legends sit beside the
+    panels."""
     from ..contact.tally import tally
 
     groups = delamination_middles(system)
@@ -39,7 +41,8 @@ def gap_plot(result, system, path) -> Path:
     t = result.t
     counts = tally(result, [g["part"] for g in groups])
     labels = list(system.model_contacts.labels)
-    zoom = zoom_window(t, result.info.get("speed_hz") or 0.0)
+    speed = _speed_hz(result, system)
+    zoom = zoom_window(t, speed)
     if zoom and all(np.any(result.state[g["indices"]][:, t >= zoom[0]] != 0, axis=0).all() for g in groups):
         zoom = None   # closed throughout (a steady rub): nothing to see closer
     fig, axes = figure(nrows=len(groups), ncols=1 + bool(zoom), sharex="col", squeeze=False, layout="constrained",
@@ -47,7 +50,7 @@ def gap_plot(result, system, path) -> Path:
                        gridspec_kw={"width_ratios": [3, 1]} if zoom else None)
     for row, (g, pt) in enumerate(zip(groups, counts.parts)):
         ax = axes[row, 0]
-        unit = _panel(ax, result, g, pt, labels, t)
+        unit = _panel(ax, result, g, pt, labels, t, period=1.0 / speed if speed > 0 else None)
         a, b = g["span"]
         where = f"x = {a:.4g} to {b:.4g} m" if b > a else f"x = {g['x']:.4g} m"
         n = len(g["indices"])
@@ -61,6 +64,7 @@ def gap_plot(result, system, path) -> Path:
             zx = axes[row, 1]
             inside = t >= zoom[0]
             _panel(zx, result, g, pt, labels, t, inside)
+            zx.set_ylabel(f"{QUANTITY[g['kind']]} [{unit}]")
             zx.set_title(f"the last {zoom[1]} revolutions", fontsize=9)
             zx.set_xlim(t[inside][0], t[-1])
             zx.legend(*ax.get_legend_handles_labels(), fontsize=7.5, loc="upper left", bbox_to_anchor=(1.03, 1.0),
@@ -91,9 +95,12 @@ def zoom_window(t: np.ndarray, speed_hz: float) -> tuple[float, int] | None:
     return (float(start), ZOOM_REVOLUTIONS) if np.count_nonzero(t >= start) >= 8 else None
 
 
-def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray | None = None) -> str:
-    """Draw one part's gap panel (see :func:`gap_plot`) on ``ax`` over the samples ``sel`` (default all);
-    returns the unit of its axis."""
+def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray | None = None,
+           period: float | None = None) -> str:
+    """Draw one part's gap panel (see :func:`gap_plot`) on ``ax`` over the samples ``sel`` (default all), a
+    signal denser than the pixels as its envelope over each ``period`` [s] (the rotation's); returns the unit of
+    its axis."""
+    draw = partial(long_signal, period=period)
     kind, rows = g["kind"], g["indices"]
     sel = np.ones(t.size, bool) if sel is None else sel
     ts, gap = t[sel], result.gap[:, sel]
@@ -102,23 +109,23 @@ def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray
     wmin = 2e-3 * (ts[-1] - ts[0])  # closures often last far less than a pixel: widen them to one
     if kind == "crack":
         for k in rows:
-            draw_signal(ax, ts, scale * gap[k], lw=0.5, color="0.65")
+            draw(ax, ts, scale * gap[k], lw=0.5, color="0.65")
         ax.plot([], [], lw=0.5, color="0.65", label="front ends " + ", ".join(labels[k].rsplit(".", 1)[-1]
                                                                             for k in rows))
-        draw_signal(ax, ts, scale * gap[rows].max(axis=0), lw=1.3, color="tab:blue", label="opening (larger end gap)")
+        draw(ax, ts, scale * gap[rows].max(axis=0), lw=1.3, color="tab:blue", label="opening (larger end gap)")
         _shade(ax, pt.spans, ts, wmin, color="tab:orange", alpha=0.2)
         spans = closed_intervals(result, rows)   # both ends
     elif kind == "delamination":
         if len(rows) > 1:
             for k in rows:
                 if k != g["middle"]:
-                    draw_signal(ax, ts, scale * gap[k], lw=0.5, color="0.65")
+                    draw(ax, ts, scale * gap[k], lw=0.5, color="0.65")
             ax.plot([], [], lw=0.5, color="0.65", label="its other contact points")
-        draw_signal(ax, ts, scale * gap[g["middle"]], lw=1.3, color="tab:blue", label=f"middle, x = {g['x']:.4g} m")
+        draw(ax, ts, scale * gap[g["middle"]], lw=1.3, color="tab:blue", label=f"middle, x = {g['x']:.4g} m")
         spans = pt.spans
     else:
-        draw_signal(ax, ts, scale * pt.gap[sel], lw=1.3, color="tab:blue",
-                    label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
+        draw(ax, ts, scale * pt.gap[sel], lw=1.3, color="tab:blue",
+             label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
         spans = pt.spans
     ax.axhline(0.0, color="k", lw=0.6)
     seen = _shade(ax, spans, ts, wmin, color="tab:red", alpha=0.3)
