@@ -575,7 +575,8 @@ def _run(args, scene, out_dir, written: set) -> int:
         if result.completed:
             from .plot.results import write_plots
 
-            outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
+            outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn,
+                                                        listed=scene.output.plots_listed)]
             if "campbell" in scene.output.plots:
                 from .plot.campbell import scene_campbell
 

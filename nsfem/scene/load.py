@@ -45,14 +45,14 @@ class Scene(dict):
     output: Output
 
     def __init__(self, tree: dict, stack: BeamStack, path: Path | None, base: Path, sensors: tuple = (),
-                 notes: tuple[str, ...] = ()):
+                 notes: tuple[str, ...] = (), plots_listed: bool = True):
         super().__init__(tree)
         self.stack = stack
         self.path = path
         self.base = base
         self.sensors = sensors
         self.notes = notes
-        for name, part in parts(tree, base).items():
+        for name, part in parts(tree, base, plots_listed).items():
             setattr(self, name, part)
 
     @property
@@ -142,4 +142,5 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     check_mesh(tree["mesh"], stack, base)
     from ..sensors import sensors_from_scene
 
-    return Scene(tree, stack, path, base, sensors_from_scene(tree, stack), scene_notes(raw, tree, stack))
+    listed = isinstance(raw.get("output"), dict) and "plots" in raw["output"]
+    return Scene(tree, stack, path, base, sensors_from_scene(tree, stack), scene_notes(raw, tree, stack), listed)

@@ -86,16 +86,17 @@ class Simulation:
 @dataclass(frozen=True)
 class Output:
     """``[output]``: output folder (relative to the working directory), VTU every N output steps
-    (0: none) and the PNG plots."""
+    (0: none), the PNG plots and whether the scene (or a ``--set``) listed them (False: the default list)."""
 
     dir: Path
     vtu_every: int
     plots: tuple[str, ...]
+    plots_listed: bool = True
 
 
-def parts(tree: dict, base: Path) -> dict[str, Any]:
+def parts(tree: dict, base: Path, plots_listed: bool = True) -> dict[str, Any]:
     """The typed parts of a validated tree, by attribute name; ``base``: the folder ``mesh.file`` is
-    relative to."""
+    relative to; ``plots_listed``: the scene gave ``output.plots`` itself."""
     mesh = tree["mesh"]
     out = tree["output"]
     return {
@@ -106,5 +107,5 @@ def parts(tree: dict, base: Path) -> dict[str, Any]:
         "reduction": ReductionOptions(**tree["reduction"]),
         "initial": Initial(tree["initial"]["state"], tuple(tree["initial"]["velocity"])),
         "simulation": Simulation(**tree["simulation"]),
-        "output": Output(Path(out["dir"]), out["vtu_every"], tuple(out["plots"])),
+        "output": Output(Path(out["dir"]), out["vtu_every"], tuple(out["plots"]), plots_listed),
     }
