@@ -370,23 +370,28 @@ def cmd_campbell(args) -> int:
         rep.pop(key)
     payload = {"title": scene.title, **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
                "outputs": outputs, "notes": list(scene.notes)}
-    fmt = ", ".join
+    def fmt(items) -> str:
+        return ", ".join(items) or "none"
+
+    # a rotor without contacts has one set of branches: its "closed" rows would repeat the open ones
+    closed = bool(model.stack.contacts)
     lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
     if inertial:
         lines += ["critical speeds [Hz] (1x crossings of the damped branches; b backward, f forward, p planar, "
                   "b/p: branch backward, planar at that speed; damping ratio)",
                   "                         open: " + fmt(map(_crossing, rep["critical_speeds"]["open"])),
-                  "                       closed: " + fmt(map(_crossing, rep["critical_speeds"]["closed"])),
+                  *["                       closed: " + fmt(map(_crossing, rep["critical_speeds"]["closed"]))] * closed,
                   "undamped critical speeds open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
                       rep["undamped_critical_speeds_hz"]["open"], rep["undamped_critical_whirl"]["open"])),
                   "instability onsets [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
-                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
+                  *["                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])] * closed]
     else:
         lines += ["gravity resonances [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["open"]),
-                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["closed"]),
+                  *["                       closed: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["closed"])]
+                  * closed,
                   "divergence speeds [Hz]   open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
-                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
+                  *["                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])] * closed]
     lines += [f"wrote {o}" for o in outputs]
     _emit(args, payload, "\n".join(lines))
     return 0
