@@ -3078,3 +3078,31 @@ def test_hostile_blas_thread_setting(value, tmp_path, modes_one_thread):
     sums, round-off of order 1e-13 relative)."""
     assert np.allclose(_modes_with_blas_threads(value, tmp_path), modes_one_thread, rtol=1e-9, atol=0)
     assert not leftovers(tmp_path)
+
+
+# --- issue 34: contact plots of a scene without contacts (write_plots, output.plots left out or listed) ---
+@settings(max_examples=8, deadline=None, derandomize=True, database=None,   # a phase.png is 0.4 s
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(names=st.lists(st.sampled_from(["phase", "gap", "psd", "forces", "campbell"]), max_size=6), listed=st.booleans())
+def test_contact_plots_of_a_run_without_contacts_warn_only_when_listed(names, listed, tmp_path):
+    """A run without contacts: the plots the scene listed (``listed``) that need contacts are each skipped with
+    one warning naming them; from the default list (not listed) they are left out without a word. The CLI's
+    reproduction is test_run.py::test_contact_plots_of_a_scene_without_contacts_are_skipped_silently_unless_listed."""
+    from nsfem.integrate import ContactSystem
+    from nsfem.plot.results import write_plots
+    from nsfem.result import Result
+
+    w = 2 * np.pi * np.array([1.0, 3.0])
+    system = ContactSystem.from_arrays(M=np.eye(2), Q=np.diag(w ** 2))
+    t = np.linspace(0.0, 1.0, 51)
+    q = np.vstack([np.cos(w[0] * t), np.sin(w[1] * t)])
+    empty = np.zeros((0, t.size))
+    r = Result("exact", t, q, -q, empty, empty, np.zeros((0, 2, t.size)), empty.astype(int), t_end=1.0)
+    out = Path(tempfile.mkdtemp(dir=tmp_path))
+    warned = []
+    paths = write_plots(r, system, out, names, warn=warned.append, listed=listed)
+    for p in ("gap", "forces"):
+        said = [m for m in warned if m.startswith(f"plot '{p}' skipped")]
+        assert len(said) == (listed and p in names), (names, listed, warned)
+    assert [p.name for p in paths] == ["phase.png"] * ("phase" in names)   # psd: no model to locate a point
+    assert sorted(f.name for f in out.iterdir()) == ["phase.png"] * ("phase" in names)   # no temporary file left
