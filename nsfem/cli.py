@@ -625,7 +625,7 @@ def _run(args, scene, out_dir, written: set) -> int:
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts"
-             + (f" ({summary['shared_impacts']} on two parts at once)" if summary["shared_impacts"] else "")
+             + (f" ({summary['shared_impacts']} on more than one part at once)" if summary["shared_impacts"] else "")
              + f"; event core: {event_core.name()}",
              f"gap {summary['min_gap_m']:.4e} .. {summary['max_gap_m']:.4e} m, closed "
              f"{100 * summary['closed_fraction']:.2f} % of the time, {_force_words(summary)} at one contact point, "

@@ -79,7 +79,7 @@ def forces_plot(result, system, path) -> Path:
     bx.axhline(0.0, color="k", lw=0.6)
     bx.set_ylabel("impulse [N s]")
     bx.set_xlabel("time [s]")
-    shared = f", {counts.shared_impacts} of them on two parts at once" if counts.shared_impacts else ""
+    shared = f", {counts.shared_impacts} of them on more than one part at once" if counts.shared_impacts else ""
     bx.set_title(f"Impacts: {counts.impacts}{shared}, largest impulse {max(p.max_impulse_Ns for p in counts.parts):.3g}"
                  " N s (each part's resultant)" if counts.impacts else "no impacts", fontsize=9)
     bx.grid(True, alpha=0.3)
