@@ -373,25 +373,26 @@ def cmd_campbell(args) -> int:
     def fmt(items) -> str:
         return ", ".join(items) or "none"
 
-    # a rotor without contacts has one set of branches: its "closed" rows would repeat the open ones
-    closed = bool(model.stack.contacts)
+    def rows(head: str, what) -> list[str]:
+        """``head`` with its open list, and the closed one below it: a rotor without contacts has one set of
+        branches, so its "closed" row would repeat the open one."""
+        out = [f"{head} open: " + fmt(what("open"))]
+        if model.stack.contacts:
+            out.append(" " * (len(head) - 1) + "closed: " + fmt(what("closed")))
+        return out
+
     lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
     if inertial:
         lines += ["critical speeds [Hz] (1x crossings of the damped branches; b backward, f forward, p planar, "
                   "b/p: branch backward, planar at that speed; damping ratio)",
-                  "                         open: " + fmt(map(_crossing, rep["critical_speeds"]["open"])),
-                  *["                       closed: " + fmt(map(_crossing, rep["critical_speeds"]["closed"]))] * closed,
+                  *rows(" " * 24, lambda c: map(_crossing, rep["critical_speeds"][c])),
                   "undamped critical speeds open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
                       rep["undamped_critical_speeds_hz"]["open"], rep["undamped_critical_whirl"]["open"])),
-                  "instability onsets [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
-                  *["                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])] * closed]
+                  *rows("instability onsets [Hz] ", lambda c: (f"{x:.3f}" for x in rep["instability_hz"][c]))]
     else:
-        lines += ["gravity resonances [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["open"]),
-                  *["                       closed: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["closed"])]
-                  * closed,
-                  "divergence speeds [Hz]   open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
-                  *["                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])] * closed]
+        lines += [*rows("gravity resonances [Hz] ", lambda c: (f"{x:.3f}" for x in rep["gravity_resonances_hz"][c])),
+                  *rows("divergence speeds [Hz]  ", lambda c: (f"{x:.3f}" for x in rep["instability_hz"][c]))]
     lines += [f"wrote {o}" for o in outputs]
     _emit(args, payload, "\n".join(lines))
     return 0
