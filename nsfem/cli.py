@@ -582,7 +582,7 @@ def _run(args, scene, out_dir, written: set) -> int:
             from .plot.results import write_plots
 
             outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn,
-                                                        listed=scene.output.plots_listed)]
+                                                        listed=scene.plots_listed)]
             if "campbell" in scene.output.plots:
                 from .plot.campbell import scene_campbell
 

@@ -33,6 +33,7 @@ class Scene(dict):
     ``scene.path`` is the file it came from (None for the shipped default), ``scene.base``
     the directory relative paths in it refer to. ``scene.notes``: one line for each default that shapes
     the model without the scene saying so (:mod:`nsfem.scene.notes`; empty for a scene that states it).
+    ``scene.plots_listed``: the scene (or an override) gave ``output.plots`` (False: the default list).
     """
 
     title: str
@@ -52,7 +53,8 @@ class Scene(dict):
         self.base = base
         self.sensors = sensors
         self.notes = notes
-        for name, part in parts(tree, base, plots_listed).items():
+        self.plots_listed = plots_listed
+        for name, part in parts(tree, base).items():
             setattr(self, name, part)
 
     @property

@@ -86,17 +86,16 @@ class Simulation:
 @dataclass(frozen=True)
 class Output:
     """``[output]``: output folder (relative to the working directory), VTU every N output steps
-    (0: none), the PNG plots and whether the scene (or a ``--set``) listed them (False: the default list)."""
+    (0: none) and the PNG plots."""
 
     dir: Path
     vtu_every: int
     plots: tuple[str, ...]
-    plots_listed: bool = True
 
 
-def parts(tree: dict, base: Path, plots_listed: bool = True) -> dict[str, Any]:
+def parts(tree: dict, base: Path) -> dict[str, Any]:
     """The typed parts of a validated tree, by attribute name; ``base``: the folder ``mesh.file`` is
-    relative to; ``plots_listed``: the scene gave ``output.plots`` itself."""
+    relative to."""
     mesh = tree["mesh"]
     out = tree["output"]
     return {
@@ -107,5 +106,5 @@ def parts(tree: dict, base: Path, plots_listed: bool = True) -> dict[str, Any]:
         "reduction": ReductionOptions(**tree["reduction"]),
         "initial": Initial(tree["initial"]["state"], tuple(tree["initial"]["velocity"])),
         "simulation": Simulation(**tree["simulation"]),
-        "output": Output(Path(out["dir"]), out["vtu_every"], tuple(out["plots"]), plots_listed),
+        "output": Output(Path(out["dir"]), out["vtu_every"], tuple(out["plots"])),
     }
