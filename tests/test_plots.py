@@ -762,9 +762,10 @@ def test_long_signal_draws_a_band_when_periods_are_denser_than_the_pixels():
 
 # --- issue 34: gap.png and forces.png draw long runs with the shared long_signal ---
 def test_gap_and_forces_of_a_long_run_are_envelopes_over_each_revolution(saved_figures, tmp_path):
-    """8 s at 21 Hz (168 revolutions, fewer than 8 pixel columns each) are drawn as bands with one bin per
-    revolution (:func:`nsfem.plot.common.long_signal`), not as 8001-sample lines; the bands' upper edge is
-    the largest gap and force exactly (a min/max over samples: no arithmetic), and no legend covers them."""
+    """8 s at 21 Hz (168 revolutions, more than 30: a long run) are drawn as bands with one bin per
+    revolution (:func:`nsfem.plot.common.long_signal`), not as 8001-sample lines, and their last revolutions
+    beside them as lines; the bands' upper edge is the largest gap and force exactly (a min/max over samples:
+    no arithmetic), and no legend covers them."""
     from matplotlib.collections import PolyCollection
 
     from nsfem.contact.tally import tally
@@ -777,8 +778,12 @@ def test_gap_and_forces_of_a_long_run_are_envelopes_over_each_revolution(saved_f
     assert [p for name, a, leg, _ in saved_figures for p in a + leg] == []
     revolutions = int(8.0 * 21.0)
     for name, peak in (("gap.png", 1e3 * result.gap[list(pt.part.rows)].max()), ("forces.png", pt.max_normal_force_N)):
-        ax = figs[name].axes[0]
+        # the panel over the whole run (the zoom beside it spans its last revolutions)
+        ax = next(a for a in figs[name].axes if a.get_ylabel().startswith(("gap", "force"))
+                  and a.get_xlim()[0] == result.t[0])
         assert all(len(line.get_xdata()) < result.t.size for line in ax.lines)   # no line through every sample
+        zoom = [a for a in figs[name].axes if a.get_ylabel() == ax.get_ylabel() and a.get_xlim()[0] > 7.5]
+        assert len(zoom) == 1 and max(len(line.get_xdata()) for line in zoom[0].lines) > 100
         bands = [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_transform() == ax.transData]
         top = max(c.get_paths()[0].vertices[:, 1].max() for c in bands)
         assert top == peak

@@ -131,7 +131,7 @@ def zoom_panel(ax, width: float = 0.32):
 
 def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None, zoom=None,
                 span: tuple[float, float] | None = None, color=None, label: str | None = None, lw: float = 0.8,
-                **line_kw) -> list:
+                dense: bool | None = None, **line_kw) -> list:
     """Draw the signal ``y(t)`` on ``ax`` so that it reads at the size it is drawn.
 
     With a ``period`` [s] (e.g. of the rotation): as a line while every period gets at least
@@ -139,7 +139,8 @@ def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None
     (the band the vibration fills, its amplitude's course readable; bins shorter than a period would beat
     against it). Without: as a line while it has at most :data:`SAMPLES_PER_COLUMN` samples per pixel
     column, else as its envelope per pixel column. The envelope is a band edged in ``color`` (and the line
-    style ``ls``).
+    style ``ls``). ``dense`` True asks for the envelope whenever there are more samples than bins (a signal
+    with several oscillations a period, e.g. a contact's gap, is a solid block at 8 columns a period).
 
     With a ``zoom`` axes and a ``span`` (see :func:`zoom_span`), the samples in ``span`` are drawn on
     ``zoom`` as a line too, and the span is shaded on ``ax``. Returns the artists drawn on ``ax`` (the first
@@ -149,10 +150,11 @@ def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None
     duration = float(t[-1] - t[0]) if t.size > 1 else 0.0
     if period and period > 0:
         bins = int(duration / period)
-        dense = bins * PIXELS_PER_PERIOD > cols and t.size > bins
+        crowded = bins * PIXELS_PER_PERIOD > cols
     else:
         bins = cols
-        dense = t.size > SAMPLES_PER_COLUMN * cols
+        crowded = t.size > SAMPLES_PER_COLUMN * cols
+    dense = (crowded if dense is None else dense) and t.size > max(bins, 1)
     if not dense:
         drawn = ax.plot(t, y, lw=lw, color=color, label=label, **line_kw)
         color = drawn[0].get_color()

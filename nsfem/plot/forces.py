@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import figure, long_signal, save
+from .common import figure, long_signal, save, zoom_panel, zoom_span
 from .data import FIGSIZE, NoPlotData, _force_series, _speed_hz, loaded_contacts
+from .gap import zoom_window
 
 
 def forces_plot(result, system, path) -> Path:
@@ -17,7 +18,8 @@ def forces_plot(result, system, path) -> Path:
     the angle of its force, and its impacts as stems of its resultant impulse [N s]: a delamination's
     points and a crack's front ends summed, a ring's facets as a vector sum
     (:func:`nsfem.contact.tally.resultant`). One legend entry per part, beside the panels; a long run's
-    forces are drawn as their envelope over each revolution (:func:`~nsfem.plot.common.long_signal`)."""
+    forces (more than :data:`~nsfem.plot.gap.ZOOM_AFTER` revolutions) are drawn as their envelope over each
+    revolution with their last revolutions beside them (:func:`~nsfem.plot.common.long_signal`)."""
     from ..contact.tally import system_parts, tally
 
     if result.gap.shape[0] == 0:
@@ -28,6 +30,7 @@ def forces_plot(result, system, path) -> Path:
     t = result.t
     speed = _speed_hz(result, system)
     period = 1.0 / speed if speed > 0 else None
+    dense = True if zoom_window(t, speed) is not None else None   # a long run: its envelope per revolution
     series = _force_series(system, rows)
     shown = {tuple(ks) for _, ks in series}
     counts = tally(result, [p for p in system_parts(system) if tuple(p.rows) in shown])
@@ -39,19 +42,29 @@ def forces_plot(result, system, path) -> Path:
     axes = list(axes[:, 0])
     ax, bx = axes[0], axes[-1]
     cx = axes[1] if rings else None
+    # a long run: the forces' envelope per revolution and, beside it, its last revolutions as lines
+    span = zoom_span(t, period) if dense else None
+    zx = None
+    if span is not None:
+        ax, zx = zoom_panel(ax)
+        ax.set_xlabel("time [s]")
+        zx.set_xlabel("time [s]")
+        zx.set_ylabel("force [N]")
+        zx.grid(True, alpha=0.3)
     colors = [f"C{i % 10}" for i in range(len(series))]
     friction = False
     for (_, _), pt, color in zip(series, counts.parts, colors):
         name = pt.part.name
         label = (f"{name}: max {pt.max_normal_force_N:.4g} N" if pt.max_normal_force_N > 0 else
                  f"{name}: no force (impacts only)")
-        long_signal(ax, t, pt.force, period=period, lw=1.0, color=color, label=label)
+        long_signal(ax, t, pt.force, period=period, dense=dense, zoom=zx, span=span, lw=1.0, color=color, label=label)
         if t.size <= 1400:   # closures shorter than output_dt show as single samples
             on = pt.force > 0
             ax.plot(t[on], pt.force[on], ".", ms=3, color=color)
         if np.any(pt.friction > 0):
             friction = True
-            long_signal(ax, t, pt.friction, period=period, lw=0.9, ls="--", color=color, alpha=0.6)
+            long_signal(ax, t, pt.friction, period=period, dense=dense, zoom=zx, span=span,
+                        lw=0.9, ls="--", color=color, alpha=0.6)
         if cx is not None and pt.angle is not None and pt.max_normal_force_N > 0:
             on = pt.force > 0
             cx.plot(t[on], np.degrees(pt.angle[on]), ".", ms=1.5, color=color)
@@ -59,10 +72,16 @@ def forces_plot(result, system, path) -> Path:
     if friction:
         ax.plot([], [], ls="--", color="k", lw=0.9, label=r"tangential force |$\lambda_T$| (dashed)")
     ax.set_ylabel("force [N]")
-    ax.set_title("Each part's resultant contact force (its points summed, a ring's facets as vectors)",
-                 fontsize=9)
+    head = "Each part's resultant contact force (its points summed, a ring's facets as vectors)"
+    if zx is None:
+        ax.set_title(head, fontsize=9)
+    else:   # the main panel is too narrow for it
+        fig.suptitle(head, fontsize=9)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    (zx or ax).legend(*ax.get_legend_handles_labels(), fontsize=7.5, loc="upper left",
+                      bbox_to_anchor=(1.03 if zx else 1.01, 1.0), borderaxespad=0.0)
+    if t.size:
+        ax.set_xlim(t[0], t[-1])
     if cx is not None:
         cx.set_ylabel("angle [deg]")
         cx.set_ylim(-180, 180)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import figure, long_signal, save
+from .common import columns, figure, long_signal, save
 from .data import FIGSIZE, NoPlotData, _speed_hz, closed_intervals, delamination_middles
 
 #: per kind of part: the panel's quantity and the figure's title
@@ -43,6 +43,7 @@ def gap_plot(result, system, path) -> Path:
     labels = list(system.model_contacts.labels)
     speed = _speed_hz(result, system)
     zoom = zoom_window(t, speed)
+    long = zoom is not None   # more than ZOOM_AFTER revolutions: each drawn as its envelope, the zoom shows them
     if zoom and all(np.any(result.state[g["indices"]][:, t >= zoom[0]] != 0, axis=0).all() for g in groups):
         zoom = None   # closed throughout (a steady rub): nothing to see closer
     fig, axes = figure(nrows=len(groups), ncols=1 + bool(zoom), sharex="col", squeeze=False, layout="constrained",
@@ -50,7 +51,7 @@ def gap_plot(result, system, path) -> Path:
                        gridspec_kw={"width_ratios": [3, 1]} if zoom else None)
     for row, (g, pt) in enumerate(zip(groups, counts.parts)):
         ax = axes[row, 0]
-        unit = _panel(ax, result, g, pt, labels, t, period=1.0 / speed if speed > 0 else None)
+        unit = _panel(ax, result, g, pt, labels, t, period=1.0 / speed if speed > 0 else None, long=long)
         a, b = g["span"]
         where = f"x = {a:.4g} to {b:.4g} m" if b > a else f"x = {g['x']:.4g} m"
         n = len(g["indices"])
@@ -81,6 +82,8 @@ def gap_plot(result, system, path) -> Path:
     return save(fig, path)
 
 
+#: a long run's closed intervals are shaded on its main panel only when each gets this many pixel columns or more
+SHADE_COLUMNS = 16
 #: a run of more revolutions than this gets a zoom on its last ZOOM_REVOLUTIONS beside each panel (unless every
 #: part is closed throughout them)
 ZOOM_AFTER, ZOOM_REVOLUTIONS = 30, 3
@@ -96,24 +99,27 @@ def zoom_window(t: np.ndarray, speed_hz: float) -> tuple[float, int] | None:
 
 
 def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray | None = None,
-           period: float | None = None) -> str:
+           period: float | None = None, long: bool = False) -> str:
     """Draw one part's gap panel (see :func:`gap_plot`) on ``ax`` over the samples ``sel`` (default all), a
-    signal denser than the pixels as its envelope over each ``period`` [s] (the rotation's); returns the unit of
-    its axis."""
-    draw = partial(long_signal, period=period)
+    signal denser than the pixels, or any of a ``long`` run, as its envelope over each ``period`` [s] (the
+    rotation's: a gap oscillates several times a revolution); returns the unit of its axis."""
+    draw = partial(long_signal, period=period, dense=True if long else None)
     kind, rows = g["kind"], g["indices"]
     sel = np.ones(t.size, bool) if sel is None else sel
     ts, gap = t[sel], result.gap[:, sel]
     peak = float(np.abs(result.gap[rows]).max(initial=0.0))
     scale, unit = (1e3, "mm") if peak >= 1e-5 or peak == 0.0 else (1e6, r"$\mu$m")
     wmin = 2e-3 * (ts[-1] - ts[0])  # closures often last far less than a pixel: widen them to one
+    # a long run's closures closer than SHADE_COLUMNS pixel columns are a moire over the envelope: the zoom shows them
+    shade = not (long and len(pt.spans) * SHADE_COLUMNS > columns(ax))
     if kind == "crack":
         for k in rows:
             draw(ax, ts, scale * gap[k], lw=0.5, color="0.65")
         ax.plot([], [], lw=0.5, color="0.65", label="front ends " + ", ".join(labels[k].rsplit(".", 1)[-1]
                                                                             for k in rows))
         draw(ax, ts, scale * gap[rows].max(axis=0), lw=1.3, color="tab:blue", label="opening (larger end gap)")
-        _shade(ax, pt.spans, ts, wmin, color="tab:orange", alpha=0.2)
+        if shade:
+            _shade(ax, pt.spans, ts, wmin, color="tab:orange", alpha=0.2)
         spans = closed_intervals(result, rows)   # both ends
     elif kind == "delamination":
         if len(rows) > 1:
@@ -128,7 +134,7 @@ def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray
              label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
         spans = pt.spans
     ax.axhline(0.0, color="k", lw=0.6)
-    seen = _shade(ax, spans, ts, wmin, color="tab:red", alpha=0.3)
+    seen = _shade(ax, spans, ts, wmin, color="tab:red", alpha=0.3) if shade else []
     if seen:
         ax.hlines(np.zeros(len(seen)), [a for a, _ in seen], [b for _, b in seen], color="tab:red", lw=4,
                   capstyle="butt")
