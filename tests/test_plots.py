@@ -788,3 +788,52 @@ def test_gap_and_forces_of_a_long_run_are_envelopes_over_each_revolution(saved_f
         top = max(c.get_paths()[0].vertices[:, 1].max() for c in bands)
         assert top == peak
         assert all(len(c.get_paths()[0].vertices) <= 2 * revolutions + 8 for c in bands)
+
+
+def test_long_signal_dense_draws_the_envelope_per_period_even_when_periods_have_room():
+    """80 periods of a signal with three peaks a period (a crack's gap) get 9+ pixel columns each on a
+    wide axes: by the period rule a line (a solid block of 240 peaks); ``dense=True`` draws the band, one bin
+    a period, its upper edge the amplitude (a max over samples: exact). Fewer samples than bins stay a line."""
+    from nsfem.plot.common import PIXELS_PER_PERIOD, columns, figure, long_signal
+
+    t = np.arange(0.0, 8.0, 1e-3)
+    y = np.abs(np.sin(2 * np.pi * 30.0 * t))
+    fig, ax = figure(figsize=(9.0, 3.0))
+    assert 80 * PIXELS_PER_PERIOD <= columns(ax)          # the period rule alone draws a line here
+    (line,) = long_signal(ax, t, y, period=0.1)
+    assert len(line.get_xdata()) == t.size
+    fig, ax = figure(figsize=(9.0, 3.0))
+    (band,) = long_signal(ax, t, y, period=0.1, dense=True)
+    v = band.get_paths()[0].vertices
+    assert len(v) <= 2 * 80 + 8 and v[:, 1].max() == y.max()
+    fig, ax = figure(figsize=(9.0, 3.0))
+    (few,) = long_signal(ax, t[::200], y[::200], period=0.1, dense=True)   # 40 samples, 80 periods
+    assert len(few.get_xdata()) == 40
+
+
+def test_a_long_runs_dense_closures_are_shaded_in_the_zoom_only(saved_figures, tmp_path):
+    """A breathing crack over 4 s at 10 Hz (40 revolutions: a long run) closes hundreds of times: shaded on the
+    main panel, one interval per few pixel columns, they were a moire over the envelope; now only the zoom on
+    the last 3 revolutions shades them, and the legend still gives the closed share."""
+    from matplotlib.collections import PolyCollection
+
+    from nsfem.contact.tally import tally
+    from nsfem.plot.common import columns
+    from nsfem.plot.gap import SHADE_COLUMNS
+    from nsfem.scene.load import scene_from_tree
+
+    from test_vtu_crack import cracked_tree
+
+    result, system = run_scene(scene_from_tree(cracked_tree(t_end=4.0)))
+    (pt,) = tally(result).parts
+    rp.write_plots(result, system, tmp_path, ["gap"])
+    ((_, axis, legend, fig),) = saved_figures
+    assert axis + legend == []
+    main, zoom = fig.axes[0], fig.axes[1]
+    assert len(pt.spans) * SHADE_COLUMNS > columns(main)
+
+    def shaded(ax):   # the closed intervals: bars spanning the axes' height (x in data, y in axes coordinates)
+        return [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_transform() != ax.transData]
+
+    assert shaded(main) == [] and len(shaded(zoom)) >= 1
+    assert any("% of the time" in text.get_text() for text in zoom.get_legend().get_texts())
