@@ -370,23 +370,29 @@ def cmd_campbell(args) -> int:
         rep.pop(key)
     payload = {"title": scene.title, **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
                "outputs": outputs, "notes": list(scene.notes)}
-    fmt = ", ".join
+    def fmt(items) -> str:
+        return ", ".join(items) or "none"
+
+    def rows(head: str, what) -> list[str]:
+        """``head`` with its open list, and the closed one below it: a rotor without contacts has one set of
+        branches, so its "closed" row would repeat the open one."""
+        out = [f"{head} open: " + fmt(what("open"))]
+        if model.stack.contacts:
+            out.append(" " * (len(head) - 1) + "closed: " + fmt(what("closed")))
+        return out
+
     lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), speeds "
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
     if inertial:
         lines += ["critical speeds [Hz] (1x crossings of the damped branches; b backward, f forward, p planar, "
                   "b/p: branch backward, planar at that speed; damping ratio)",
-                  "                         open: " + fmt(map(_crossing, rep["critical_speeds"]["open"])),
-                  "                       closed: " + fmt(map(_crossing, rep["critical_speeds"]["closed"])),
+                  *rows(" " * 24, lambda c: map(_crossing, rep["critical_speeds"][c])),
                   "undamped critical speeds open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
                       rep["undamped_critical_speeds_hz"]["open"], rep["undamped_critical_whirl"]["open"])),
-                  "instability onsets [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
-                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
+                  *rows("instability onsets [Hz] ", lambda c: (f"{x:.3f}" for x in rep["instability_hz"][c]))]
     else:
-        lines += ["gravity resonances [Hz]  open: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["open"]),
-                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["gravity_resonances_hz"]["closed"]),
-                  "divergence speeds [Hz]   open: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["open"]),
-                  "                       closed: " + fmt(f"{x:.3f}" for x in rep["instability_hz"]["closed"])]
+        lines += [*rows("gravity resonances [Hz] ", lambda c: (f"{x:.3f}" for x in rep["gravity_resonances_hz"][c])),
+                  *rows("divergence speeds [Hz]  ", lambda c: (f"{x:.3f}" for x in rep["instability_hz"][c]))]
     lines += [f"wrote {o}" for o in outputs]
     _emit(args, payload, "\n".join(lines))
     return 0
@@ -581,7 +587,8 @@ def _run(args, scene, out_dir, written: set) -> int:
         if result.completed:
             from .plot.results import write_plots
 
-            outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn)]
+            outputs += [str(p) for p in write_plots(result, system, out_dir, scene.output.plots, warn=warn,
+                                                        listed=scene.plots_listed)]
             if "campbell" in scene.output.plots:
                 from .plot.campbell import scene_campbell
 
@@ -625,7 +632,7 @@ def _run(args, scene, out_dir, written: set) -> int:
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts"
-             + (f" ({summary['shared_impacts']} on two parts at once)" if summary["shared_impacts"] else "")
+             + (f" ({summary['shared_impacts']} on more than one part at once)" if summary["shared_impacts"] else "")
              + f"; event core: {event_core.name()}",
              f"gap {summary['min_gap_m']:.4e} .. {summary['max_gap_m']:.4e} m, closed "
              f"{100 * summary['closed_fraction']:.2f} % of the time, {_force_words(summary)} at one contact point, "

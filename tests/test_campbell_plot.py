@@ -317,3 +317,20 @@ def test_open_ended_and_zero_width_bands(critical, monkeypatch, tmp_path):
         got = [x for p in ax.patches for x in (p.get_x(), p.get_x() + p.get_width())]  # axvspan: data x
         assert got == pytest.approx([x for band in shaded for x in band], rel=1e-12)
         assert ("unstable" in [t.get_text() for t in fig.legends[0].get_texts()]) == bool(shaded)
+
+
+# --- issue 34: the text of `nsfem campbell` for a rotor without contacts ---
+def test_text_of_a_rotor_without_contacts_has_no_closed_rows_and_says_none(capsys):
+    """ross_example has no contacts: its "closed" rows only repeated the open ones, and an empty list
+    printed as nothing after the colon; now the closed rows are left out and an empty list reads "none"
+    (the JSON keeps both keys)."""
+    from nsfem import cli
+
+    assert cli.main(["campbell", "ross_example", "--speeds", "0:60:7", "--count", "4"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert not any("closed:" in line for line in lines), lines
+    assert "instability onsets [Hz]  open: none" in lines
+    assert all(not line.rstrip().endswith(":") for line in lines), lines
+    assert cli.main(["campbell", "ross_example", "--speeds", "0:60:7", "--count", "4", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["critical_speeds_hz"]["closed"] == rep["critical_speeds_hz"]["open"]

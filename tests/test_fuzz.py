@@ -3083,21 +3083,32 @@ def test_hostile_blas_thread_setting(value, tmp_path, modes_one_thread):
 # --- issue 34: pictures that read (envelope bins, resonance amplitude axis, render ruler) ---
 @settings(max_examples=60, deadline=None, derandomize=True, database=None)
 @given(speed=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.none(),
-                       st.sampled_from([np.inf, -np.inf, np.nan, 1e300, 12.4])),
-       n=st.integers(0, 3000), duration=st.sampled_from([0.0, 1e-9, 1.0, 8.0, 1e6]))
-def test_revolution_bins_of_any_speed_and_record(speed, n, duration):
-    """The envelope bins of gap.png and forces.png: a positive int for any speed (0, negative, NaN, inf, a
-    scene's 1e300 Hz) and record (empty, one sample, no duration, a million seconds), never an exception."""
+                       st.sampled_from([np.inf, -np.inf, np.nan, 1e300, 1.7e308, 12.4])),
+       n=st.integers(0, 3000), duration=st.sampled_from([0.0, 1e-9, 1.0, 8.0, 1e6]),
+       dense=st.sampled_from([None, True]))
+def test_revolution_envelope_of_any_speed_and_record(speed, n, duration, dense):
+    """The per-revolution envelope of gap.png and forces.png (:func:`nsfem.plot.common.long_signal` with the
+    rotation's period, as they call it: none unless the speed is positive): for any speed (0, negative, NaN, inf,
+    a scene's 1e300 Hz) and record (empty, one sample, no duration, a million seconds), ``dense`` or not, it
+    draws one artist, a line through every sample or a band of at least one bin and at most one per sample,
+    never an exception (1.7e308 Hz over 1e6 s: more periods than a float holds)."""
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
-    from nsfem.plot.common import figure, revolution_bins
+    from nsfem.plot.common import figure, long_signal
 
+    t = np.linspace(0.0, duration, n)
+    with np.errstate(divide="ignore", over="ignore"):
+        period = 1.0 / speed if speed is not None and speed > 0 else None
     fig, ax = figure()
     try:
-        bins = revolution_bins(ax, np.linspace(0.0, duration, n), speed)
+        (drawn,) = long_signal(ax, t, np.sin(t), period=period, dense=dense)
+        if isinstance(drawn, Line2D):
+            assert len(drawn.get_xdata()) == n
+        else:
+            assert n > 1 and 4 <= len(drawn.get_paths()[0].vertices) <= 2 * n + 8
     finally:
         plt.close(fig)
-    assert isinstance(bins, int) and 1 <= bins <= 700
 
 
 @settings(max_examples=25, deadline=None, derandomize=True, database=None)
@@ -3347,3 +3358,31 @@ def test_issue34_stationary_of_a_rotor_its_rings_catch_says_why_not_and_what_to_
     message says the rings catch it and that `nsfem run` computes the drop."""
     code, _, err = check_invocation(["stationary", "retainer_drop"], tmp_path)
     assert code == 2 and "unrestrained" in err and "stator" in err and "nsfem run" in err
+
+
+# --- issue 34: contact plots of a scene without contacts (write_plots, output.plots left out or listed) ---
+@settings(max_examples=8, deadline=None, derandomize=True, database=None,   # a phase.png is 0.4 s
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(names=st.lists(st.sampled_from(["phase", "gap", "psd", "forces", "campbell"]), max_size=6), listed=st.booleans())
+def test_contact_plots_of_a_run_without_contacts_warn_only_when_listed(names, listed, tmp_path):
+    """A run without contacts: the plots the scene listed (``listed``) that need contacts are each skipped with
+    one warning naming them; from the default list (not listed) they are left out without a word. The CLI's
+    reproduction is test_run.py::test_contact_plots_of_a_scene_without_contacts_are_skipped_silently_unless_listed."""
+    from nsfem.integrate import ContactSystem
+    from nsfem.plot.results import write_plots
+    from nsfem.result import Result
+
+    w = 2 * np.pi * np.array([1.0, 3.0])
+    system = ContactSystem.from_arrays(M=np.eye(2), Q=np.diag(w ** 2))
+    t = np.linspace(0.0, 1.0, 51)
+    q = np.vstack([np.cos(w[0] * t), np.sin(w[1] * t)])
+    empty = np.zeros((0, t.size))
+    r = Result("exact", t, q, -q, empty, empty, np.zeros((0, 2, t.size)), empty.astype(int), t_end=1.0)
+    out = Path(tempfile.mkdtemp(dir=tmp_path))
+    warned = []
+    paths = write_plots(r, system, out, names, warn=warned.append, listed=listed)
+    for p in ("gap", "forces"):
+        said = [m for m in warned if m.startswith(f"plot '{p}' skipped")]
+        assert len(said) == (listed and p in names), (names, listed, warned)
+    assert [p.name for p in paths] == ["phase.png"] * ("phase" in names)   # psd: no model to locate a point
+    assert sorted(f.name for f in out.iterdir()) == ["phase.png"] * ("phase" in names)   # no temporary file left

@@ -386,20 +386,6 @@ def test_ring_resultant_of_facets_in_closed_form():
     assert r.summary()["impacts"] == 1 and pt.max_normal_force_N == 5.0 and pt.max_point_force_N == 4.0
 
 
-def test_long_signals_are_drawn_as_their_envelope():
-    """min_max_bins keeps every sample within its bin's [low, high] and the extremes exactly, in few bins."""
-    from nsfem.plot.data import min_max_bins
-
-    t = np.linspace(0.0, 8.0, 40_001)
-    y = np.sin(2 * np.pi * 20 * t) * np.exp(-t)
-    tb, lo, hi = min_max_bins(t, y, bins=500)
-    assert tb.size == 500 and np.all(lo <= hi)
-    assert lo.min() == y.min() and hi.max() == y.max()
-    edges = np.linspace(0.0, 8.0, 501)
-    which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, 499)
-    assert np.all((lo[which] <= y) & (y <= hi[which]))
-
-
 def test_zoom_on_the_last_revolutions_of_long_runs_only():
     """gap.png zooms on the last 3 revolutions of a run of more than 30 (the crack scene's 3 s at 12.4 Hz: 37),
     not of the shipped scene's 21 revolutions; the window ends at the last output."""
@@ -781,18 +767,24 @@ def test_an_envelope_per_revolution_where_revolutions_are_denser_than_the_pixels
     """The crack scene's 8 s at 12.4 Hz (99 revolutions) on a 6.4 in axes: one bin per revolution, so the band's
     upper edge is the breathing opening's amplitude in every bin (its largest sample is within
     1 - cos(w dt / 2) = 7.6e-4 of it, sampled every 1 ms) and its lower edge its zero, not each revolution's
-    oscillation drawn as strokes; 1 s of 21 Hz (the shipped scene) keeps the default bins."""
-    from nsfem.plot.common import figure, revolution_bins
-    from nsfem.plot.data import min_max_bins
+    oscillation drawn as strokes (:func:`nsfem.plot.common.long_signal`, the one mechanism since the merge with
+    i34-r1); 1 s of 21 Hz (the shipped scene, 8+ columns a revolution) stays a line through every sample."""
+    from nsfem.plot.common import envelope, figure, long_signal
 
     fig, ax = figure(figsize=(6.4, 4.8))
     t = np.arange(0.0, 8.0 + 5e-4, 1e-3)
     y = np.maximum(np.sin(2 * np.pi * 12.4 * t), 0.0)   # open half a revolution, closed the other half
-    bins = revolution_bins(ax, t, 12.4)
-    assert bins == int(8.0 * 12.4)
-    _, lo, hi = min_max_bins(t, y, bins)
+    (band,) = long_signal(ax, t, y, period=1 / 12.4)
+    bins = int(8.0 * 12.4)
+    v = band.get_paths()[0].vertices
+    assert len(v) <= 2 * bins + 8
+    _, lo, hi = envelope(t, y, bins)
+    assert np.isin(hi, v[:, 1]).all() and np.isin(lo, v[:, 1]).all()   # the band's edges are these bins'
     assert hi.min() > 1.0 - 7.6e-4 and lo.max() == 0.0
-    assert revolution_bins(ax, np.linspace(0.0, 1.0, 1001), 21.0) == 700
+    fig, ax = figure(figsize=(6.4, 4.8))
+    short = np.linspace(0.0, 1.0, 1001)
+    (line,) = long_signal(ax, short, np.sin(2 * np.pi * 21.0 * short), period=1 / 21.0)
+    assert len(line.get_xdata()) == short.size
 
 
 @pytest.fixture(scope="module")
@@ -804,8 +796,8 @@ def steady_rub():
 def test_a_steady_rub_zooms_on_its_first_revolutions_and_draws_its_friction_lighter(steady_rub, saved_figures,
                                                                                       tmp_path):
     """gap.png: closed throughout its last revolutions, the ring gets its zoom on the first 3 (where the gap
-    closes), the shading behind the gap line; forces.png: the friction force in the ring's colour lightened (a
-    band has no dashes), named so in the legend."""
+    closes), the shading behind the gap line; forces.png: its zoom on the first revolutions too, the friction
+    force in the ring's colour lightened (a band has no dashes), named so in the legend."""
     from matplotlib.colors import to_rgb
 
     from nsfem.plot.forces import lighter
@@ -823,8 +815,13 @@ def test_a_steady_rub_zooms_on_its_first_revolutions_and_draws_its_friction_ligh
     assert a == t[0] and b == t[t <= t[0] + 3 / 22.4][-1]
     shading = [c for c in main.collections if c.get_zorder() < 1]
     assert shading and all(c.get_zorder() < line.get_zorder() for c in shading for line in main.lines)
-    ax = forces.axes[0]
-    texts = [x.get_text() for x in ax.get_legend().get_texts()]
+    # 34 revolutions: forces.png has its zoom on the last 5 too (i34-r1), which carries the legend, beside the
+    # panel over the whole run
+    ax = next(a for a in forces.axes if a.get_ylabel() == "force [N]" and a.get_xlim()[0] == t[0])
+    # its zoom, as gap.png's, on the first revolutions (the last 5 were two flat lines), titled so
+    (zoom,) = [a for a in forces.axes if a.get_ylabel() == "force [N]" and a is not ax]
+    assert zoom.get_xlim()[0] == t[0] and zoom.get_title().startswith("first ")
+    texts = [x.get_text() for a in forces.axes if a.get_legend() for x in a.get_legend().get_texts()]
     assert "friction force (tangential): lighter" in texts and not any("dashed" in s or "lambda" in s for s in texts)
     drawn = [to_rgb(line.get_color()) for line in ax.lines] + [tuple(c.get_facecolor()[0][:3]) for c in ax.collections]
     assert any(np.allclose(c, lighter("C0"), rtol=0, atol=1e-12) for c in drawn)   # colour arithmetic: ulps
@@ -879,3 +876,82 @@ def test_sensor_amplitudes_are_linear_over_less_than_100x_and_log_with_plain_lab
     assert a2.get_yscale() == "log"
     fmt = a2.yaxis.get_major_formatter()
     assert [fmt(v, 0) for v in (1.0, 10.0, 100.0)] == ["1", "10", "100"]
+
+
+# --- issue 34: gap.png and forces.png draw long runs with the shared long_signal ---
+def test_gap_and_forces_of_a_long_run_are_envelopes_over_each_revolution(saved_figures, tmp_path):
+    """8 s at 21 Hz (168 revolutions, more than 30: a long run) are drawn as bands with one bin per
+    revolution (:func:`nsfem.plot.common.long_signal`), not as 8001-sample lines, and their last revolutions
+    beside them as lines; the bands' upper edge is the largest gap and force exactly (a min/max over samples:
+    no arithmetic), and no legend covers them."""
+    from matplotlib.collections import PolyCollection
+
+    from nsfem.contact.tally import tally
+
+    result, system = _tiny([], t_end=8.0)
+    (pt,) = tally(result).parts
+    rp.write_plots(result, system, tmp_path, ["gap", "forces"])
+    figs = {name: fig for name, *_ , fig in saved_figures}
+    assert set(figs) == {"gap.png", "forces.png"}
+    assert [p for name, a, leg, _ in saved_figures for p in a + leg] == []
+    revolutions = int(8.0 * 21.0)
+    for name, peak in (("gap.png", 1e3 * result.gap[list(pt.part.rows)].max()), ("forces.png", pt.max_normal_force_N)):
+        # the panel over the whole run (the zoom beside it spans its last revolutions)
+        ax = next(a for a in figs[name].axes if a.get_ylabel().startswith(("gap", "force", "normal force"))
+                  and a.get_xlim()[0] == result.t[0])
+        assert all(len(line.get_xdata()) < result.t.size for line in ax.lines)   # no line through every sample
+        zoom = [a for a in figs[name].axes if a.get_ylabel() == ax.get_ylabel() and a.get_xlim()[0] > 7.5]
+        assert len(zoom) == 1 and max(len(line.get_xdata()) for line in zoom[0].lines) > 100
+        bands = [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_transform() == ax.transData]
+        top = max(c.get_paths()[0].vertices[:, 1].max() for c in bands)
+        assert top == peak
+        assert all(len(c.get_paths()[0].vertices) <= 2 * revolutions + 8 for c in bands)
+
+
+def test_long_signal_dense_draws_the_envelope_per_period_even_when_periods_have_room():
+    """80 periods of a signal with three peaks a period (a crack's gap) get 9+ pixel columns each on a
+    wide axes: by the period rule a line (a solid block of 240 peaks); ``dense=True`` draws the band, one bin
+    a period, its upper edge the amplitude (a max over samples: exact). Fewer samples than bins stay a line."""
+    from nsfem.plot.common import PIXELS_PER_PERIOD, columns, figure, long_signal
+
+    t = np.arange(0.0, 8.0, 1e-3)
+    y = np.abs(np.sin(2 * np.pi * 30.0 * t))
+    fig, ax = figure(figsize=(9.0, 3.0))
+    assert 80 * PIXELS_PER_PERIOD <= columns(ax)          # the period rule alone draws a line here
+    (line,) = long_signal(ax, t, y, period=0.1)
+    assert len(line.get_xdata()) == t.size
+    fig, ax = figure(figsize=(9.0, 3.0))
+    (band,) = long_signal(ax, t, y, period=0.1, dense=True)
+    v = band.get_paths()[0].vertices
+    assert len(v) <= 2 * 80 + 8 and v[:, 1].max() == y.max()
+    fig, ax = figure(figsize=(9.0, 3.0))
+    (few,) = long_signal(ax, t[::200], y[::200], period=0.1, dense=True)   # 40 samples, 80 periods
+    assert len(few.get_xdata()) == 40
+
+
+def test_a_long_runs_dense_closures_are_shaded_in_the_zoom_only(saved_figures, tmp_path):
+    """A breathing crack over 4 s at 10 Hz (40 revolutions: a long run) closes hundreds of times: shaded on the
+    main panel, one interval per few pixel columns, they were a moire over the envelope; now only the zoom on
+    the last 3 revolutions shades them, and the legend still gives the closed share."""
+    from matplotlib.collections import PolyCollection
+
+    from nsfem.contact.tally import tally
+    from nsfem.plot.common import columns
+    from nsfem.plot.gap import SHADE_COLUMNS
+    from nsfem.scene.load import scene_from_tree
+
+    from test_vtu_crack import cracked_tree
+
+    result, system = run_scene(scene_from_tree(cracked_tree(t_end=4.0)))
+    (pt,) = tally(result).parts
+    rp.write_plots(result, system, tmp_path, ["gap"])
+    ((_, axis, legend, fig),) = saved_figures
+    assert axis + legend == []
+    main, zoom = fig.axes[0], fig.axes[1]
+    assert len(pt.spans) * SHADE_COLUMNS > columns(main)
+
+    def shaded(ax):   # the closed intervals: bars spanning the axes' height (x in data, y in axes coordinates)
+        return [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_transform() != ax.transData]
+
+    assert shaded(main) == [] and len(shaded(zoom)) >= 1
+    assert any("% of the time" in text.get_text() for text in zoom.get_legend().get_texts())

@@ -280,3 +280,25 @@ def test_run_json_parts_agree_with_the_run(tmp_path, capsys):
     assert out["closed_fraction"] > 0 and part["closed_fraction"] == pytest.approx(out["closed_fraction"], rel=1e-9)
     assert part["max_point_force_N"] == out["max_normal_force_N"] <= part["max_normal_force_N"]
     assert out["max_impulse_Ns"] <= part["max_impulse_Ns"]
+
+
+# --- issue 34: contact plots of a rotor without contacts ---
+def test_contact_plots_of_a_scene_without_contacts_are_skipped_silently_unless_listed(tmp_path, capsys):
+    """A rotor without contacts that leaves output.plots to its default (which lists gap and forces) gets no
+    warning about them; a scene that lists them itself is still told why they are missing."""
+    from nsfem import cli
+    from nsfem.scene.load import scene_file
+
+    text = scene_file("critical_speed").read_text(encoding="utf-8")
+    assert 'plots = ["psd"]' in text
+    path = tmp_path / "rotor.toml"
+    path.write_text(text.replace('plots = ["psd"]', ""), encoding="utf-8")
+    short = ["--set", "simulation.t_end=0.05", "--set", "output.vtu_every=0"]
+    assert cli.main(["run", str(path), *short, "--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "skipped" not in err, err
+    assert sorted(p.name for p in (tmp_path / "a").glob("*.png")) == ["phase.png", "psd.png", "sensors.png"]
+    assert cli.main(["run", str(path), *short, "--set", 'output.plots=["gap", "psd", "forces"]',
+                     "--out", str(tmp_path / "b")]) == 0
+    err = capsys.readouterr().err
+    assert "plot 'gap' skipped" in err and "plot 'forces' skipped" in err

@@ -76,6 +76,9 @@ def test_sweep_equals_single_runs(client, tmp_path):
         for key in RUN_KEYS:
             if key != "wall_s":
                 assert row[key] == want[key], key
+        # the counts and maxima of `run --json` (issue 34), per part too: one definition, the same numbers
+        for key in ("impacts", "shared_impacts", "max_impulse_Ns", "parts"):
+            assert row[key] == want[key], key
         got, _, _ = Result.load(row["result"])
         _assert_same_run(got, ref, ("t", "q", "v", "gap", "normal_force", "state"))
     assert res.runs[0]["events"] > 0  # 15 Hz touches within the window: the comparison is not trivial

@@ -21,7 +21,6 @@ value in each pixel column of the axes, filled) and, on a second axes, the last 
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -121,26 +120,6 @@ def dominant_period(t: np.ndarray, y: np.ndarray) -> float | None:
     return 1.0 / np.fft.rfftfreq(yh.size, dt)[1 + int(np.argmax(a[1:]))]
 
 
-def revolution_bins(ax, t: np.ndarray, speed_hz: float | None, default: int = 700) -> int:
-    """The bins of an envelope (:func:`nsfem.plot.data.draw_signal`) of a signal over ``t`` on ``ax``: one per
-    revolution at ``speed_hz`` where the revolutions get fewer than :data:`PIXELS_PER_PERIOD` pixel columns each
-    (bins shorter than a revolution would draw each one's oscillation: a solid block), at most ``default``;
-    else ``default``.
-
-    >>> fig, ax = figure(figsize=(6.4, 4.8))
-    >>> t = np.linspace(0.0, 8.0, 8001)
-    >>> revolution_bins(ax, t, 12.4), revolution_bins(ax, t, 1.0), revolution_bins(ax, t, None)
-    (99, 700, 700)
-    """
-    t = np.asarray(t, dtype=float)
-    if t.size < 2:
-        return default
-    revolutions = float((t[-1] - t[0]) * (speed_hz or 0.0))
-    if not (math.isfinite(revolutions) and revolutions * PIXELS_PER_PERIOD > columns(ax)):
-        return default
-    return max(1, min(int(revolutions), default))   # more revolutions than bins: bins of several each
-
-
 def zoom_panel(ax, width: float = 0.32):
     """(main, zoom): ``ax`` replaced by two axes side by side in its place, the right one ``width`` of it
     (for :func:`long_signal`'s ``zoom``); ``ax`` is removed."""
@@ -152,27 +131,32 @@ def zoom_panel(ax, width: float = 0.32):
 
 def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None, zoom=None,
                 span: tuple[float, float] | None = None, color=None, label: str | None = None, lw: float = 0.8,
-                **line_kw) -> list:
+                dense: bool | None = None, **line_kw) -> list:
     """Draw the signal ``y(t)`` on ``ax`` so that it reads at the size it is drawn.
 
     With a ``period`` [s] (e.g. of the rotation): as a line while every period gets at least
     :data:`PIXELS_PER_PERIOD` pixel columns of ``ax``, else as its :func:`envelope` over bins of one period
     (the band the vibration fills, its amplitude's course readable; bins shorter than a period would beat
     against it). Without: as a line while it has at most :data:`SAMPLES_PER_COLUMN` samples per pixel
-    column, else as its envelope per pixel column. The envelope is a band edged in ``color``.
+    column, else as its envelope per pixel column. The envelope is a band edged in ``color`` (and the line
+    style ``ls``). ``dense`` True asks for the envelope whenever there are more samples than bins (a signal
+    with several oscillations a period, e.g. a contact's gap, is a solid block at 8 columns a period).
 
-    With a ``zoom`` axes and a ``span`` (see :func:`zoom_span`), the samples in ``span`` are drawn on
+    With a ``zoom`` axes and a ``span`` (see :func:`zoom_span`; one that starts at ``t[0]`` is titled "first"
+    instead of "last"), the samples in ``span`` are drawn on
     ``zoom`` as a line too, and the span is shaded on ``ax``. Returns the artists drawn on ``ax`` (the first
     carries ``label``, for a legend)."""
     t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
     cols = columns(ax)
     duration = float(t[-1] - t[0]) if t.size > 1 else 0.0
     if period and period > 0:
-        bins = int(duration / period)
-        dense = bins * PIXELS_PER_PERIOD > cols and t.size > bins
+        per = duration / period   # (capped: a 1e308 Hz scene's periods overflow; NaN: no bins)
+        bins = int(per) if per < t.size else t.size   # at least as many bins as samples: a line
+        crowded = bins * PIXELS_PER_PERIOD > cols
     else:
         bins = cols
-        dense = t.size > SAMPLES_PER_COLUMN * cols
+        crowded = t.size > SAMPLES_PER_COLUMN * cols
+    dense = (crowded if dense is None else dense) and t.size > max(bins, 1)
     if not dense:
         drawn = ax.plot(t, y, lw=lw, color=color, label=label, **line_kw)
         color = drawn[0].get_color()
@@ -183,7 +167,7 @@ def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None
             color = ax.plot([], [])[0].get_color()
         tc, lo, hi = envelope(t, y, bins)
         drawn = [ax.fill_between(tc, lo, hi, facecolor=to_rgba(color, 0.35), edgecolor=color, lw=0.5 * lw,
-                                 label=label)]
+                                 linestyle=line_kw.get("ls", line_kw.get("linestyle", "-")), label=label)]
     if zoom is not None and span is not None:
         a, b = span
         sel = (t >= a) & (t <= b)
@@ -192,7 +176,7 @@ def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None
         if not getattr(ax, "_nsfem_zoom_marked", False):
             ax.axvspan(a, b, color="0.5", alpha=0.15, lw=0, zorder=0)
             ax._nsfem_zoom_marked = True
-            zoom.set_title(f"last {b - a:.3g} s", fontsize=8)
+            zoom.set_title(f"{'first' if t.size and a <= t[0] else 'last'} {b - a:.3g} s", fontsize=8)
     return drawn
 
 

@@ -147,35 +147,6 @@ def closed_intervals(result, k, every: bool = True) -> list[tuple[float, float]]
                         index=result.info.get("contact_index"))
 
 
-def min_max_bins(t: np.ndarray, y: np.ndarray, bins: int = 700) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t, low, high): a long signal's envelope, its least and largest value in each of ``bins`` equal
-    time bins (about one per pixel column), drawn as a band so that 8 s of a 20 Hz whirl reads as its
-    envelope rather than a solid block; a signal of at most 2 ``bins`` samples is returned as it is
-    (low = high = y). Every sample lies in its bin's [low, high], so no peak is lost."""
-    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
-    if t.size <= 2 * bins:
-        return t, y, y
-    edges = np.linspace(t[0], t[-1], bins + 1)
-    which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, bins - 1)
-    starts = np.flatnonzero(np.r_[True, which[1:] != which[:-1]])
-    lo, hi = np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
-    mid = 0.5 * (edges[which[starts]] + edges[which[starts] + 1])
-    return mid, lo, hi
-
-
-def draw_signal(ax, t: np.ndarray, y: np.ndarray, bins: int = 700, **kw):
-    """Plot ``y(t)`` on ``ax``: as a line, or for a long signal as its :func:`min_max_bins` envelope (a band
-    of the line's colour); returns the artist (for the legend)."""
-    tb, lo, hi = min_max_bins(t, y, bins)
-    if tb.size == np.asarray(t).size:
-        return ax.plot(t, y, **kw)[0]
-    kw.pop("marker", None)
-    band = ax.fill_between(tb, lo, hi, color=kw.get("color"), alpha=kw.pop("alpha", 1.0),
-                           lw=kw.get("lw", 0.8), edgecolor=kw.get("color"), label=kw.get("label"),
-                           zorder=kw.get("zorder"))
-    return band
-
-
 def measurement_point(model, x: float | None = None, field: str = "W") -> dict:
     """The mesh node where :func:`psd_plot` reads the displacement.
 

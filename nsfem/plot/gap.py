@@ -3,12 +3,13 @@ clearance, a stop's gap; closed intervals shaded, impacts marked, the counts of 
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from .common import figure, revolution_bins, save
-from .data import FIGSIZE, NoPlotData, closed_intervals, delamination_middles, draw_signal
+from .common import columns, figure, long_signal, save
+from .data import FIGSIZE, NoPlotData, _speed_hz, closed_intervals, delamination_middles
 
 #: per kind of part: the panel's quantity and the figure's title
 QUANTITY = {"delamination": "gap", "crack": "opening", "ring": "clearance", "stop": "gap"}
@@ -28,8 +29,8 @@ def gap_plot(result, system, path) -> Path:
     shaded where the part is closed (at least one of its points; for a crack both ends, one end lighter)
     and its impacts marked, with the counts and closed share of :func:`nsfem.contact.tally.tally` (the run
     JSON's ``parts``). Gaps in mm, or in um when a panel's largest is below 0.01 mm; a long run's lines
-    are drawn as their envelope (:func:`~nsfem.plot.data.min_max_bins`), per revolution where revolutions are
-    denser than the pixels (:func:`~nsfem.plot.common.revolution_bins`). Legends sit beside the panels."""
+    are drawn as their envelope over each revolution (:func:`~nsfem.plot.common.long_signal`). Legends sit beside the
+    panels."""
     from ..contact.tally import tally
 
     groups = delamination_middles(system)
@@ -40,8 +41,9 @@ def gap_plot(result, system, path) -> Path:
     t = result.t
     counts = tally(result, [g["part"] for g in groups])
     labels = list(system.model_contacts.labels)
-    speed = result.info.get("speed_hz") or 0.0
+    speed = _speed_hz(result, system)
     zoom = zoom_window(t, speed)
+    long = zoom is not None   # more than ZOOM_AFTER revolutions: each drawn as its envelope, the zoom shows them
     if zoom and all(np.any(result.state[g["indices"]][:, t >= zoom[0]] != 0, axis=0).all() for g in groups):
         # closed throughout the last revolutions (a steady rub): nothing to see there; the first ones, where it
         # closed, instead (drawn over the whole run, seconds long, that closure is a line on the axis)
@@ -52,7 +54,7 @@ def gap_plot(result, system, path) -> Path:
                        gridspec_kw={"width_ratios": [3, 1]} if zoom else None)
     for row, (g, pt) in enumerate(zip(groups, counts.parts)):
         ax = axes[row, 0]
-        unit = _panel(ax, result, g, pt, labels, t)
+        unit = _panel(ax, result, g, pt, labels, t, period=1.0 / speed if speed > 0 else None, long=long)
         a, b = g["span"]
         where = f"x = {a:.4g} to {b:.4g} m" if b > a else f"x = {g['x']:.4g} m"
         n = len(g["indices"])
@@ -82,6 +84,8 @@ def gap_plot(result, system, path) -> Path:
     return save(fig, path)
 
 
+#: a long run's closed intervals are shaded on its main panel only when each gets this many pixel columns or more
+SHADE_COLUMNS = 16
 #: a run of more revolutions than this gets a zoom on its last ZOOM_REVOLUTIONS beside each panel (on its first ones
 #: if every part is closed throughout the last)
 ZOOM_AFTER, ZOOM_REVOLUTIONS = 30, 3
@@ -96,40 +100,43 @@ def zoom_window(t: np.ndarray, speed_hz: float) -> tuple[float, int] | None:
     return (float(start), ZOOM_REVOLUTIONS) if np.count_nonzero(t >= start) >= 8 else None
 
 
-def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray | None = None) -> str:
-    """Draw one part's gap panel (see :func:`gap_plot`) on ``ax`` over the samples ``sel`` (default all);
-    returns the unit of its axis."""
+def _panel(ax, result, g: dict, pt, labels: list, t: np.ndarray, sel: np.ndarray | None = None,
+           period: float | None = None, long: bool = False) -> str:
+    """Draw one part's gap panel (see :func:`gap_plot`) on ``ax`` over the samples ``sel`` (default all), a
+    signal denser than the pixels, or any of a ``long`` run, as its envelope over each ``period`` [s] (the
+    rotation's: a gap oscillates several times a revolution); returns the unit of its axis."""
+    draw = partial(long_signal, period=period, dense=True if long else None)
     kind, rows = g["kind"], g["indices"]
     sel = np.ones(t.size, bool) if sel is None else sel
     ts, gap = t[sel], result.gap[:, sel]
-    bins = revolution_bins(ax, ts, result.info.get("speed_hz"))   # a long run: the envelope per revolution
     peak = float(np.abs(result.gap[rows]).max(initial=0.0))
     scale, unit = (1e3, "mm") if peak >= 1e-5 or peak == 0.0 else (1e6, r"$\mu$m")
     wmin = 2e-3 * (ts[-1] - ts[0])  # closures often last far less than a pixel: widen them to one
+    # a long run's closures closer than SHADE_COLUMNS pixel columns are a moire over the envelope: the zoom shows them
+    shade = not (long and len(pt.spans) * SHADE_COLUMNS > columns(ax))
     if kind == "crack":
         for k in rows:
-            draw_signal(ax, ts, scale * gap[k], bins=bins, lw=0.5, color="0.65")
+            draw(ax, ts, scale * gap[k], lw=0.5, color="0.65")
         ax.plot([], [], lw=0.5, color="0.65", label="front ends " + ", ".join(labels[k].rsplit(".", 1)[-1]
                                                                             for k in rows))
-        draw_signal(ax, ts, scale * gap[rows].max(axis=0), bins=bins, lw=1.3, color="tab:blue",
-                    label="opening (larger end gap)")
-        _shade(ax, pt.spans, ts, wmin, color="tab:orange", alpha=0.2)
+        draw(ax, ts, scale * gap[rows].max(axis=0), lw=1.3, color="tab:blue", label="opening (larger end gap)")
+        if shade:
+            _shade(ax, pt.spans, ts, wmin, color="tab:orange", alpha=0.2)
         spans = closed_intervals(result, rows)   # both ends
     elif kind == "delamination":
         if len(rows) > 1:
             for k in rows:
                 if k != g["middle"]:
-                    draw_signal(ax, ts, scale * gap[k], bins=bins, lw=0.5, color="0.65")
+                    draw(ax, ts, scale * gap[k], lw=0.5, color="0.65")
             ax.plot([], [], lw=0.5, color="0.65", label="its other contact points")
-        draw_signal(ax, ts, scale * gap[g["middle"]], bins=bins, lw=1.3, color="tab:blue",
-                    label=f"middle, x = {g['x']:.4g} m")
+        draw(ax, ts, scale * gap[g["middle"]], lw=1.3, color="tab:blue", label=f"middle, x = {g['x']:.4g} m")
         spans = pt.spans
     else:
-        draw_signal(ax, ts, scale * pt.gap[sel], bins=bins, lw=1.3, color="tab:blue",
-                    label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
+        draw(ax, ts, scale * pt.gap[sel], lw=1.3, color="tab:blue",
+             label=f"smallest of its {len(rows)} facets" if kind == "ring" else "gap")
         spans = pt.spans
     ax.axhline(0.0, color="k", lw=0.6)
-    seen = _shade(ax, spans, ts, wmin, color="tab:red", alpha=0.3)
+    seen = _shade(ax, spans, ts, wmin, color="tab:red", alpha=0.3) if shade else []
     if seen:
         ax.hlines(np.zeros(len(seen)), [a for a, _ in seen], [b for _, b in seen], color="tab:red", lw=4,
                   capstyle="butt")

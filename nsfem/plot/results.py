@@ -40,20 +40,28 @@ from .psd import psd_plot
 #: plots this module draws, in the order of ``output.plots``
 __all__ = ["FIGSIZE", "NoPlotData", "closed_intervals", "delamination_middles", "hermite_refine", "loaded_contacts",
            "measurement_point", "modal_basis", "modal_coordinates", "welch_psd", "_force_series", "forces_plot", "gap_plot",
-           "phase_plot", "psd_plot", "write_plots", "RESULT_PLOTS", "PLOT_FUNCTIONS"]
+           "phase_plot", "psd_plot", "write_plots", "RESULT_PLOTS", "PLOT_FUNCTIONS", "CONTACT_PLOTS"]
 RESULT_PLOTS = ("phase", "gap", "psd", "forces")
 PLOT_FUNCTIONS = {"phase": phase_plot, "gap": gap_plot, "psd": psd_plot, "forces": forces_plot}
 
-def write_plots(result, system, out_dir, names=RESULT_PLOTS, warn=None) -> list[Path]:
+#: the plots of contacts: left out without a word for a scene without contacts that did not list them
+CONTACT_PLOTS = ("gap", "forces")
+
+
+def write_plots(result, system, out_dir, names=RESULT_PLOTS, warn=None, listed: bool = True) -> list[Path]:
     """Write ``<out_dir>/<name>.png`` for each name in ``names`` (``output.plots``) and return
     the paths written. ``campbell`` is ignored here (it needs a speed sweep, see
     ``nsfem campbell``); a plot without data is skipped and its reason passed to
-    ``warn(text)`` (default: :func:`warnings.warn`); an unknown name raises NsfemError."""
+    ``warn(text)`` (default: :func:`warnings.warn`), except the :data:`CONTACT_PLOTS` of a run
+    without contacts when ``names`` is the default list (``listed`` False: the scene named no plots);
+    an unknown name raises NsfemError."""
     unknown = [n for n in names if n not in PLOT_FUNCTIONS and n != "campbell"]
     if unknown:
         raise NsfemError(f"output.plots: unknown plot(s) {', '.join(map(repr, unknown))} "
                          f"(known: {', '.join(RESULT_PLOTS)}, campbell)")
     out_dir = Path(out_dir)
+    if not listed and result.gap.shape[0] == 0:
+        names = [n for n in names if n not in CONTACT_PLOTS]
     written = []
     for name in dict.fromkeys(names):
         if name == "campbell":

@@ -33,6 +33,7 @@ class Scene(dict):
     ``scene.path`` is the file it came from (None for the shipped default), ``scene.base``
     the directory relative paths in it refer to. ``scene.notes``: one line for each default that shapes
     the model without the scene saying so (:mod:`nsfem.scene.notes`; empty for a scene that states it).
+    ``scene.plots_listed``: the scene (or an override) gave ``output.plots`` (False: the default list).
     """
 
     title: str
@@ -45,13 +46,14 @@ class Scene(dict):
     output: Output
 
     def __init__(self, tree: dict, stack: BeamStack, path: Path | None, base: Path, sensors: tuple = (),
-                 notes: tuple[str, ...] = ()):
+                 notes: tuple[str, ...] = (), plots_listed: bool = True):
         super().__init__(tree)
         self.stack = stack
         self.path = path
         self.base = base
         self.sensors = sensors
         self.notes = notes
+        self.plots_listed = plots_listed
         for name, part in parts(tree, base).items():
             setattr(self, name, part)
 
@@ -142,4 +144,5 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     check_mesh(tree["mesh"], stack, base)
     from ..sensors import sensors_from_scene
 
-    return Scene(tree, stack, path, base, sensors_from_scene(tree, stack), scene_notes(raw, tree, stack))
+    listed = isinstance(raw.get("output"), dict) and "plots" in raw["output"]
+    return Scene(tree, stack, path, base, sensors_from_scene(tree, stack), scene_notes(raw, tree, stack), listed)

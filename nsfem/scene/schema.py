@@ -358,7 +358,8 @@ SCHEMA: dict[str, Any] = {
         "vtu_every": Key("int", 10, "write a VTU frame every N output steps into the output folder's vtu/, "
                           "indexed by its nsfem.pvd (0 = none)", check=_nonneg),
         "plots": Key("strs", ["phase", "gap", "psd", "forces"],
-                     "PNG plots to write (campbell: over `nsfem campbell`'s default speeds)", PLOTS),
+                     "PNG plots to write (campbell: over `nsfem campbell`'s default speeds; left out, a scene without "
+                     "contacts gets no gap or forces)", PLOTS),
     },
     "disk": [_DISK],
     "bearing": [_BEARING],
