@@ -833,10 +833,12 @@ def test_save_lays_a_figure_out_once_and_draws_it_once(tmp_path, monkeypatch):
     draws = []
     real = Figure.draw
     monkeypatch.setattr(Figure, "draw", lambda self, renderer: (draws.append(1), real(self, renderer))[1])
-    for name, kw, tight in [("constrained", {"layout": "constrained"}, False), ("tight", {}, True)]:
+    cases = [("constrained", {"layout": "constrained"}, False, 130), ("tight", {}, True, 130),
+             ("constrained_at_90_dpi", {"layout": "constrained"}, False, 90)]   # laid out at the dpi saved with
+    for name, kw, tight, dpi in cases:
         ours, theirs = tmp_path / f"{name}_ours.png", tmp_path / f"{name}_mpl.png"
         draws.clear()
-        save(draw(kw, tight), ours)
+        save(draw(kw, tight), ours, dpi=dpi)
         assert len(draws) == 1
-        draw(kw, tight).savefig(theirs, format="png", dpi=130)
+        draw(kw, tight).savefig(theirs, format="png", dpi=dpi)
         assert np.array_equal(np.asarray(Image.open(ours)), np.asarray(Image.open(theirs)))
