@@ -63,7 +63,7 @@ import functools
 import math
 import re
 from pathlib import Path
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -71,6 +71,8 @@ from ..atomic import signals_deferred, write_atomic
 from ..contact.set import tangent_names
 from ..errors import NsfemError
 
+#: a stand-in for ``FEModel.dof``: (segment, field, x) -> the full-vector index
+DofLookup = Callable[[str, str, float], int]
 #: corner (eta, zeta) signs of a section, counter-clockwise seen from -x looking along +x
 #: (so a hexahedron (section i, section i+1) has positive volume in VTK's ordering)
 CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -247,7 +249,7 @@ def disk_geometry(model):
             np.concatenate(owner).astype(np.int64))
 
 
-def disk_displacements(model, q_full, dof=None) -> np.ndarray:
+def disk_displacements(model, q_full, dof: DofLookup | None = None) -> np.ndarray:
     """(P, 3) displacement of every point of :func:`disk_geometry`: each disk moves rigidly with its node,
     translated by (U, V, W) and tilted by the slopes; at (xi, eta, zeta) from its centre
 
@@ -400,7 +402,7 @@ def crack_geometry(model):
     return np.vstack(pts), polys, np.concatenate(owner).astype(np.int64)
 
 
-def crack_displacements(model, q_full, dof=None) -> tuple[np.ndarray, np.ndarray]:
+def crack_displacements(model, q_full, dof: DofLookup | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(displacement (P, 3), face_gap (P,)) of every point of :func:`crack_geometry`.
 
     The face moves with the left side's section at x: at (eta, zeta) from the centroid u1 = U - eta V' -
@@ -436,7 +438,7 @@ def crack_data(result, faces, i: int) -> dict[str, np.ndarray]:
             "normal_force": np.array([result.normal_force[r, i].sum() for r in rows], dtype=float)}
 
 
-def bearing_points(model, q_full, dof=None) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+def bearing_points(model, q_full, dof: DofLookup | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """(positions (b, 3), displacements (b, 3), point data) of the bearings: each on the centroid axis of
     the segment carrying its x, moving with the shaft there (U, V, W); point data ``stiffness`` and
     ``damping`` (b, 4): yy, zz, yz, zy, and ``kxx`` (b,).
@@ -465,7 +467,7 @@ def rotation(angle: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def contact_points(model, q_full, dof=None) -> tuple[np.ndarray, np.ndarray]:
+def contact_points(model, q_full, dof: DofLookup | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Positions (m, 3) and displacements (m, 3) of the contact points.
 
     Interface: on the interface plane (bottom face of the upper sub-beam) at y = y_c, with

@@ -57,7 +57,7 @@ def save(fig, path: str | Path, dpi: int = DPI) -> Path:
 
     A figure with a layout engine (``layout="constrained"``, or the placeholder ``fig.tight_layout()``
     leaves) is laid out here once and saved without it: ``savefig`` would otherwise draw the whole
-    figure a first time without rendering, only to run the engine (a third to a half of a save)."""
+    figure a first time without rendering, only to run the engine (phase.png: 0.04 s of a 0.17 s save)."""
     _lay_out(fig, dpi)
     return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png"))
 
