@@ -11,7 +11,7 @@ import contextlib
 import signal
 import sys
 import time
-from typing import Sequence
+from typing import NoReturn, Sequence
 
 from . import __version__
 from .errors import IntegrationError, NsfemError
@@ -851,6 +851,19 @@ def one_blas_thread() -> None:
         os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 
+def command() -> NoReturn:
+    """The ``nsfem`` command (``python -m nsfem`` and the installed script): :func:`main` on ``sys.argv``, then
+    exit with its status. Before the interpreter is torn down, every object still alive is moved out of the
+    cyclic garbage collector's reach (``gc.freeze``): the collections of its shutdown would otherwise walk all
+    of NumPy's, SciPy's and matplotlib's objects once more, 0.12 s of the shipped run's 1.8 s, to free memory
+    the process hands back to the system anyway. Exit handlers, flushing and closing run as usual."""
+    import gc
+
+    status = main()
+    gc.freeze()
+    sys.exit(status)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     one_blas_thread()
     stderr = sys.stderr
@@ -890,4 +903,4 @@ def _main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    command()
