@@ -11,7 +11,7 @@ import contextlib
 import signal
 import sys
 import time
-from typing import Sequence
+from typing import NoReturn, Sequence
 
 from . import __version__
 from .errors import IntegrationError, NsfemError
@@ -882,6 +882,31 @@ def one_blas_thread() -> None:
         os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 
+#: container objects a command allocates (less those freed) between two passes of Python's cyclic garbage
+#: collector over the young ones (Python's default: 700)
+YOUNG_OBJECTS_PER_COLLECTION = 7000
+
+
+def command() -> NoReturn:
+    """The ``nsfem`` command (``python -m nsfem`` and the installed script): :func:`main` on ``sys.argv``, then
+    exit with its status.
+
+    The cyclic garbage collector is tuned for a command, whose objects are mostly the imports' (they live to
+    the end) or freed by reference counting: it passes over the young objects every
+    :data:`YOUNG_OBJECTS_PER_COLLECTION` allocations instead of every 700 (the shipped run: 29 instead of 300
+    passes, and no full pass over everything imported instead of two: 0.09 -> 0.05 s; the memory it may hold
+    back is a few thousand objects more). Before the interpreter is torn down, every object still alive is moved
+    out of its reach (``gc.freeze``): the collections of the shutdown would otherwise walk all of NumPy's,
+    SciPy's and matplotlib's objects once more, 0.12 s of the run, to free memory the process hands back to the
+    system anyway. Exit handlers, flushing and closing run as usual."""
+    import gc
+
+    gc.set_threshold(YOUNG_OBJECTS_PER_COLLECTION, *gc.get_threshold()[1:])
+    status = main()
+    gc.freeze()
+    sys.exit(status)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     one_blas_thread()
     stderr = sys.stderr
@@ -921,4 +946,4 @@ def _main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    command()

@@ -13,11 +13,14 @@ is judged on the fastest wall time (other jobs only ever add to it). ``--breakdo
 timing of the whole run's parts (imports, model and reduction, integration, results file, each plot,
 VTU) and the heavy modules each command imported.
 
-    python studies/latency.py [--quick] [--json] [--repeat 7] [--breakdown] [--base COMMIT]
+    python studies/latency.py [--quick] [--json] [--repeat 7] [--breakdown] [--base COMMIT] [--options]
 
 ``--base COMMIT``: the same commands on that commit's sources too (``git archive`` into a temporary folder, with
 this tree's compiled core when the core's sources are the same, else its pure Python), interleaved with this
 tree's round by round, so that both see the same load.
+
+``--options``: also the whole run with one default changed (:data:`OPTIONS`: without phase.png, VTU every 20th
+output time, without VTU, without plots), this tree only.
 
 ``--quick``: 3 rounds (7 without). Writes latency.json/.csv into studies/out/latency.
 """
@@ -46,6 +49,14 @@ COMMANDS = {
     "run_json_bare": (["run", "--json", "--out", "{out}", "--set", "output.plots=[]", "--set", "output.vtu_every=0"],
                       0.8),
     "run": (["run", "--out", "{out}"], 1.5),
+}
+#: with ``--options``: the whole run with one default changed, each a product decision this study does not take
+#: (dropping a default plot or VTU frames), timed to say what each would give
+OPTIONS = {
+    "run_without_phase_png": (["run", "--out", "{out}", "--set", 'output.plots=["gap","psd","forces"]'], 1.5),
+    "run_vtu_every_20": (["run", "--out", "{out}", "--set", "output.vtu_every=20"], 1.5),
+    "run_without_vtu": (["run", "--out", "{out}", "--set", "output.vtu_every=0"], 1.5),
+    "run_without_plots": (["run", "--out", "{out}", "--set", "output.plots=[]"], 1.5),
 }
 #: modules that only drawing, rendering, sweeping, writing VTU or a PSD / rk / penalty should import
 HEAVY = ("matplotlib", "pyvista", "vtk", "dask", "distributed", "meshio", "scipy.signal", "scipy.integrate",
@@ -107,7 +118,7 @@ def _env(tree: Path = ROOT) -> dict:
 
 
 def _argv(name: str, out: str) -> list[str]:
-    return [a.replace("{out}", out) for a in COMMANDS[name][0]]
+    return [a.replace("{out}", out) for a in {**COMMANDS, **OPTIONS}[name][0]]
 
 
 def one(name: str, out: str, tree: Path = ROOT) -> dict:
@@ -165,6 +176,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--breakdown", action="store_true", help="also time the whole run's parts and list the "
                     "heavy modules each command imports")
     ap.add_argument("--base", metavar="COMMIT", help="also time that commit's sources, round by round")
+    ap.add_argument("--options", action="store_true", help="also the whole run with one default changed "
+                    "(no phase.png, VTU every 20, no VTU, no plots), this tree only")
     ap.add_argument("--out", default=str(Path(__file__).parent / "out" / "latency"))
     args = ap.parse_args(argv)
     say = functools.partial(print, file=sys.stderr if args.json else sys.stdout, flush=True)
@@ -177,19 +190,22 @@ def main(argv=None) -> dict:
         if args.base:
             folder, core = base_tree(args.base, Path(tmp) / "base")
             trees["base"] = (folder, f"{args.base} (event core: {core})")
-        times = {(label, name): [] for label in trees for name in COMMANDS}
+        commands = {**COMMANDS, **(OPTIONS if args.options else {})}
+        runs = [(name, label) for name in commands for label in trees if label == "this" or name in COMMANDS]
+        times = {(label, name): [] for name, label in runs}
         for k in range(repeat + 1):   # round 0 untimed: bytecode and file caches
-            for name in COMMANDS:
-                for label, (tree, _) in trees.items():
-                    r = one(name, str(Path(tmp) / f"{label}_{name}_{k}"), tree)
-                    if k:
-                        times[label, name].append(r)
+            for name, label in runs:
+                r = one(name, str(Path(tmp) / f"{label}_{name}_{k}"), trees[label][0])
+                if k:
+                    times[label, name].append(r)
         if args.breakdown:
             extra["breakdown"] = breakdown(str(Path(tmp) / "breakdown"))
             extra["imported"] = {name: imported(name, str(Path(tmp) / f"imported_{name}")) for name in COMMANDS}
     rows = []
-    for name, (_, goal) in COMMANDS.items():
+    for name, (_, goal) in commands.items():
         for label, (_, about) in trees.items():
+            if (label, name) not in times:
+                continue
             walls = [r["wall_s"] for r in times[label, name]]
             cpus = [r["cpu_s"] for r in times[label, name]]
             rows.append({"command": "nsfem " + " ".join(_argv(name, "DIR")), "name": name, "tree": about,
@@ -203,7 +219,7 @@ def main(argv=None) -> dict:
     for name, mods in extra.get("imported", {}).items():
         say(f"  {name} imports: {', '.join(mods) or 'none of ' + ', '.join(HEAVY)}")
     payload = {"repeat": repeat, "commands": rows, **extra,
-               "all_met": all(r["met"] for r in rows if r["tree"] == "this tree"),
+               "all_met": all(r["met"] for r in rows if r["tree"] == "this tree" and r["name"] in COMMANDS),
                "machine": {**machine(), "load_average": os.getloadavg()}}
     write_outputs(Path(args.out), "latency", rows, payload)
     if args.json:

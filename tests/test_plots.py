@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from nsfem import load_scene
 from nsfem.analysis.modes import natural_frequencies
@@ -955,3 +957,71 @@ def test_a_long_runs_dense_closures_are_shaded_in_the_zoom_only(saved_figures, t
 
     assert shaded(main) == [] and len(shaded(zoom)) >= 1
     assert any("% of the time" in text.get_text() for text in zoom.get_legend().get_texts())
+
+
+# --- issue 34: latency, second pass (one layout pass per save; the Hermite refinement vectorized) ------------
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(2, 40), f_hz=st.floats(0.0, 3000.0), seed=st.integers(0, 2**32 - 1),
+       kicks=st.integers(0, 4))
+def test_hermite_refine_reproduces_a_cubic_on_its_documented_grid(n, f_hz, seed, kicks):
+    """The cubic Hermite interpolant of a cubic's values and slopes is that cubic: every drawn point is p(tau),
+    p'(tau) at tau = t_i + k h_i / n_i, k = 1..n_i, n_i = ceil(h_i f 48) within [1, 64], n_i = 1 on an interval
+    holding an impact (its chord: the end sample itself), the first sample first. On [0, 1] with coefficients
+    of order 1 a value sums four products of order 1 (a few ulps: 1e-13 is 500 of them); a slope divides
+    a difference of such by h >= 1e-3 (2e-11)."""
+    from nsfem.plot.data import hermite_refine
+
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0.0, 1.0, n))
+    t = t[np.r_[True, np.diff(t) >= 1e-3]]
+    assume(t.size >= 2)
+    c = rng.normal(size=4)
+    p, dp = np.polynomial.Polynomial(c), np.polynomial.Polynomial(c).deriv()
+    kick = list(rng.uniform(-0.1, 1.1, kicks)) + list(t[rng.integers(0, t.size, kicks // 2)])
+    x, dx = hermite_refine(t, p(t), dp(t), f_hz, kick)
+    h = np.diff(t)
+    ni = np.clip(np.ceil(h * f_hz * 48).astype(int), 1, 64) if f_hz > 0 else np.ones(h.size, int)
+    if np.all(ni == 1):     # nothing to refine: the samples as they are
+        tau = t
+    else:
+        ni[[any(t[i] < k <= t[i + 1] for k in kick) for i in range(h.size)]] = 1
+        tau = np.r_[t[0], np.concatenate([t[i] + h[i] * np.arange(1, m + 1) / m for i, m in enumerate(ni)])]
+    assert x.shape == dx.shape == tau.shape
+    np.testing.assert_allclose(x, p(tau), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(dx, dp(tau), rtol=0, atol=2e-11)
+    ends = np.r_[0, np.cumsum(ni)] if not np.all(ni == 1) else np.arange(t.size)
+    assert np.array_equal(x[ends], p(t)) and np.array_equal(dx[ends], dp(t))   # the samples exactly
+
+
+def test_save_lays_a_figure_out_once_and_draws_it_once(tmp_path, monkeypatch):
+    """A constrained figure and a tight_layout one are saved as matplotlib's own savefig saves them (the same
+    pixels: the same layout, computed once), with one draw of the figure instead of two."""
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    from nsfem.plot.common import figure, save
+
+    def draw(fig_kw, tight):
+        fig, axes = figure(nrows=2, figsize=(4, 3), **fig_kw)
+        for k, ax in enumerate(axes):
+            ax.plot(np.linspace(0, 1, 50) ** (k + 1) * 10.0 ** (3 * k), label=f"curve {k}")
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel(f"amplitude {k} [µm]")
+            ax.legend()
+        fig.suptitle("a title\nover two lines")
+        if tight:
+            fig.tight_layout()
+        return fig
+
+    draws = []
+    real = Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda self, renderer: (draws.append(1), real(self, renderer))[1])
+    cases = [("constrained", {"layout": "constrained"}, False, 130), ("tight", {}, True, 130),
+             ("constrained_at_90_dpi", {"layout": "constrained"}, False, 90)]   # laid out at the dpi saved with
+    for name, kw, tight, dpi in cases:
+        ours, theirs = tmp_path / f"{name}_ours.png", tmp_path / f"{name}_mpl.png"
+        draws.clear()
+        save(draw(kw, tight), ours, dpi=dpi)
+        assert len(draws) == 1
+        draw(kw, tight).savefig(theirs, format="png", dpi=dpi)
+        assert np.array_equal(np.asarray(Image.open(ours)), np.asarray(Image.open(theirs)))

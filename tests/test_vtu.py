@@ -329,3 +329,27 @@ def test_export_inertial_equals_the_python_path(tmp_path, capsys):
     rest = stack_geometry(system.info["model"])[0]
     first = meshio.read(tmp_path / "cli" / py["stack"][0][1]).points
     assert np.abs(first[:, 1:] - rest[:, 1:]).max() > 1e-3
+
+
+# --- issue 34: latency, second pass (a series looks each dof up once) ---------------------------------------
+def test_a_series_looks_each_dof_up_once_and_writes_what_a_fresh_look_up_gives(run, tmp_path, monkeypatch):
+    """write_series caches model.dof: a series of every output time (6 frames) asks the model exactly the
+    look-ups one frame asks, each once; its contact points are those contact_points computes without the cache
+    (the same indices into the same vector, T q formed as write_series forms it: bitwise)."""
+    from nsfem.export.vtu import contact_points
+
+    res, sysm, model, _ = run
+    calls = []
+    real = model.dof
+    monkeypatch.setattr(model, "dof", lambda *a: (calls.append(a), real(*a))[1])
+    write_series(res, sysm, tmp_path / "one", every=res.t.size)
+    one = list(calls)
+    calls.clear()
+    pvd = write_series(res, sysm, tmp_path / "all", every=EVERY)
+    assert one and len(set(one)) == len(one) and sorted(calls) == sorted(one)
+    monkeypatch.setattr(model, "dof", real)
+    (t, last), *_ = reversed(series_parts(pvd)["contacts"])
+    i = int(np.argmin(np.abs(res.t - t)))
+    pos, disp = contact_points(model, np.asarray(sysm.info["reduction"].T @ res.q[:, i]).ravel())
+    frame = meshio.read(pvd.parent / last)
+    assert i > 0 and np.array_equal(frame.points, pos) and np.array_equal(frame.point_data["displacement"], disp)

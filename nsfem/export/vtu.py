@@ -59,10 +59,11 @@ facet (gap < 0), the overlap of the drawn shaft and ring is its mount's compress
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from pathlib import Path
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -70,6 +71,8 @@ from ..atomic import signals_deferred, write_atomic
 from ..contact.set import tangent_names
 from ..errors import NsfemError
 
+#: a stand-in for ``FEModel.dof``: (segment, field, x) -> the full-vector index
+DofLookup = Callable[[str, str, float], int]
 #: corner (eta, zeta) signs of a section, counter-clockwise seen from -x looking along +x
 #: (so a hexahedron (section i, section i+1) has positive volume in VTK's ordering)
 CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -246,19 +249,21 @@ def disk_geometry(model):
             np.concatenate(owner).astype(np.int64))
 
 
-def disk_displacements(model, q_full) -> np.ndarray:
+def disk_displacements(model, q_full, dof: DofLookup | None = None) -> np.ndarray:
     """(P, 3) displacement of every point of :func:`disk_geometry`: each disk moves rigidly with its node,
     translated by (U, V, W) and tilted by the slopes; at (xi, eta, zeta) from its centre
 
         u1 = U - eta V' - zeta W',   u2 = V + xi V',   u3 = W + xi W'
 
-    (the small rotation whose section part is the shaft's u1 of :func:`displacements`)."""
+    (the small rotation whose section part is the shaft's u1 of :func:`displacements`).
+    ``dof``: in place of ``model.dof`` (:func:`write_series` passes a cached one)."""
     q_full = np.asarray(q_full, dtype=float).ravel()
+    dof = dof or model.dof
     pts, _, _, owner = disk_geometry(model)
     u = np.zeros_like(pts)
     for i, d in enumerate(model.stack.disks):
         seg, c = _disk_centre(model, d)
-        U, V, W, Vp, Wp = (q_full[model.dof(seg, f, d.x)] for f in ("U", "V", "W", "V'", "W'"))
+        U, V, W, Vp, Wp = (q_full[dof(seg, f, d.x)] for f in ("U", "V", "W", "V'", "W'"))
         sel = owner == i
         xi, eta, zeta = (pts[sel] - c).T
         u[sel] = np.column_stack([U - eta * Vp - zeta * Wp, V + xi * Vp, W + xi * Wp])
@@ -397,7 +402,7 @@ def crack_geometry(model):
     return np.vstack(pts), polys, np.concatenate(owner).astype(np.int64)
 
 
-def crack_displacements(model, q_full) -> tuple[np.ndarray, np.ndarray]:
+def crack_displacements(model, q_full, dof: DofLookup | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(displacement (P, 3), face_gap (P,)) of every point of :func:`crack_geometry`.
 
     The face moves with the left side's section at x: at (eta, zeta) from the centroid u1 = U - eta V' -
@@ -405,14 +410,16 @@ def crack_displacements(model, q_full) -> tuple[np.ndarray, np.ndarray]:
     -(y dV' + z dW') with (y, z) from the ligament's centroid and d the right side's slope less the left's
     (the crack contacts' gap, :func:`nsfem.contact.kinematics.contact_row`): at the front's ends it is their
     gaps, and it grows towards the crack's mouth when the crack opens.
+    ``dof``: in place of ``model.dof`` (:func:`write_series` passes a cached one).
     """
     q_full = np.asarray(q_full, dtype=float).ravel()
+    dof = dof or model.dof
     pts, _, owner = crack_geometry(model)
     u, gap = np.zeros_like(pts), np.zeros(len(pts))
     for i, (k, f) in enumerate(zip(model.stack.cracks, crack_faces(model))):
         (left, right), x = k.segments, k.x
-        U, V, W, Vp, Wp = (q_full[model.dof(left, n, x)] for n in ("U", "V", "W", "V'", "W'"))
-        dVp, dWp = (q_full[model.dof(right, n, x)] - q_full[model.dof(left, n, x)] for n in ("V'", "W'"))
+        U, V, W, Vp, Wp = (q_full[dof(left, n, x)] for n in ("U", "V", "W", "V'", "W'"))
+        dVp, dWp = (q_full[dof(right, n, x)] - q_full[dof(left, n, x)] for n in ("V'", "W'"))
         sel = owner == i
         eta, zeta = (pts[sel, 1:] - model.stack.segment(left).offset).T
         u[sel] = np.column_stack([U - eta * Vp - zeta * Wp, np.full(eta.size, V), np.full(eta.size, W)])
@@ -431,17 +438,19 @@ def crack_data(result, faces, i: int) -> dict[str, np.ndarray]:
             "normal_force": np.array([result.normal_force[r, i].sum() for r in rows], dtype=float)}
 
 
-def bearing_points(model, q_full) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+def bearing_points(model, q_full, dof: DofLookup | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """(positions (b, 3), displacements (b, 3), point data) of the bearings: each on the centroid axis of
     the segment carrying its x, moving with the shaft there (U, V, W); point data ``stiffness`` and
-    ``damping`` (b, 4): yy, zz, yz, zy, and ``kxx`` (b,)."""
+    ``damping`` (b, 4): yy, zz, yz, zy, and ``kxx`` (b,).
+    ``dof``: in place of ``model.dof`` (:func:`write_series` passes a cached one)."""
     q_full = np.asarray(q_full, dtype=float).ravel()
+    dof = dof or model.dof
     pos, disp, k, c, kxx = [], [], [], [], []
     for b in model.stack.bearings:
         name = model.stack.carrier(b.x) or next(s.name for s in model.stack.segments if s.start <= b.x <= s.end)
         off = model.stack.segment(name).offset
         pos.append([b.x, off[0], off[1]])
-        disp.append([q_full[model.dof(name, f, b.x)] for f in ("U", "V", "W")])
+        disp.append([q_full[dof(name, f, b.x)] for f in ("U", "V", "W")])
         (kyy, kyz), (kzy, kzz) = b.K
         (cyy, cyz), (czy, czz) = b.C
         k.append([kyy, kzz, kyz, kzy])
@@ -458,7 +467,7 @@ def rotation(angle: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def contact_points(model, q_full) -> tuple[np.ndarray, np.ndarray]:
+def contact_points(model, q_full, dof: DofLookup | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Positions (m, 3) and displacements (m, 3) of the contact points.
 
     Interface: on the interface plane (bottom face of the upper sub-beam) at y = y_c, with
@@ -469,8 +478,10 @@ def contact_points(model, q_full) -> tuple[np.ndarray, np.ndarray]:
     displacement), measured from the surface the ring sees. A crack face's point: its end of the crack
     front in the section at x (its arm from the ligament's centroid, :func:`crack_faces`), with the mean
     of the two sides' displacements (U - eta V' - zeta W', V, W) there.
+    ``dof``: in place of ``model.dof`` (:func:`write_series` passes a cached one).
     """
     q_full = np.asarray(q_full, dtype=float).ravel()
+    dof = dof or model.dof
     centres = {(k.segments, k.x): f["centre"] for k, f in zip(model.stack.cracks, crack_faces(model))}
     pos, disp = [], []
     for c in model.stack.contacts:
@@ -479,7 +490,7 @@ def contact_points(model, q_full) -> tuple[np.ndarray, np.ndarray]:
             us = []
             for name in c.segments:
                 eta, zeta = yz - model.stack.segment(name).offset
-                U, V, W, Vp, Wp = (q_full[model.dof(name, f, c.x)] for f in ("U", "V", "W", "V'", "W'"))
+                U, V, W, Vp, Wp = (q_full[dof(name, f, c.x)] for f in ("U", "V", "W", "V'", "W'"))
                 us.append([U - eta * Vp - zeta * Wp, V, W])
             pos.append([c.x, yz[0], yz[1]])
             disp.append(np.mean(us, axis=0))
@@ -487,7 +498,7 @@ def contact_points(model, q_full) -> tuple[np.ndarray, np.ndarray]:
         if c.angle is not None:
             s = model.stack.segment(c.segments[0])
             n = np.array([math.cos(c.angle), math.sin(c.angle)])
-            U, V, W, Vp, Wp = (q_full[model.dof(s.name, f, c.x)] for f in ("U", "V", "W", "V'", "W'"))
+            U, V, W, Vp, Wp = (q_full[dof(s.name, f, c.x)] for f in ("U", "V", "W", "V'", "W'"))
             pos.append([c.x, s.offset[0] + c.radius * n[0], s.offset[1] + c.radius * n[1]])
             disp.append([U - c.radius * (n[0] * Vp + n[1] * Wp), V, W])
             continue
@@ -495,8 +506,8 @@ def contact_points(model, q_full) -> tuple[np.ndarray, np.ndarray]:
         us = []
         for k, s in enumerate(segs):
             zeta = (-s.height / 2.0 if k == 0 else s.height / 2.0) if c.kind == "interface" else 0.0
-            U, W, Wp = (q_full[model.dof(s.name, f, c.x)] for f in ("U", "W", "W'"))
-            us.append([U - zeta * Wp, q_full[model.dof(s.name, "V", c.x)], W])
+            U, W, Wp = (q_full[dof(s.name, f, c.x)] for f in ("U", "W", "W'"))
+            us.append([U - zeta * Wp, q_full[dof(s.name, "V", c.x)], W])
         up = segs[0]
         z = up.offset[1] - up.height / 2.0 if c.kind == "interface" else up.offset[1]
         pos.append([c.x, up.offset[0], z])
@@ -624,6 +635,7 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
         names = contacts.tangents[k] if contacts is not None else tangent_names(c)
         tangents.append([_tangent_vector(c, name) for name in names[:2]])
     idx = list(range(0, result.t.size, every))
+    dof = functools.lru_cache(maxsize=None)(model.dof)   # every frame looks up the same dofs (2 us each)
     entries: list[tuple[float, str]] = []
     nb = len(model.stack.bearings)
     blocks = (["stack"] + ["contacts"] * bool(m) + ["disks"] * bool(len(dcells)) + ["stators"] * bool(len(scells))
@@ -636,14 +648,14 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
             files = []
             q_full = np.asarray(T @ result.q[:, i]).ravel()
             u = displacements(model, q_full)
-            cpos, cdisp = contact_points(model, q_full)
+            cpos, cdisp = contact_points(model, q_full, dof)
             tf = np.zeros((m, 3))
             for k in range(m):
                 for j, vec in enumerate(tangents[k]):
                     tf[k] += result.tangential_force[k, j, i] * vec
-            du = disk_displacements(model, q_full)
-            ku, kgap = crack_displacements(model, q_full)
-            bpos, bdisp, bdata = bearing_points(model, q_full)
+            du = disk_displacements(model, q_full, dof)
+            ku, kgap = crack_displacements(model, q_full, dof)
+            bpos, bdisp, bdata = bearing_points(model, q_full, dof)
             p, dp, sp_, kp = points, dpoints, spoints, cpoints
             if turn:
                 R = rotation(omega * float(result.t[i]) + phase)

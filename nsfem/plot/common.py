@@ -53,8 +53,36 @@ def figure(**kw):
 
 
 def save(fig, path: str | Path, dpi: int = DPI) -> Path:
-    """Save ``fig`` as PNG through a temporary file and a rename."""
+    """Save ``fig`` as PNG through a temporary file and a rename.
+
+    A figure with a layout engine (``layout="constrained"``, or the placeholder ``fig.tight_layout()``
+    leaves) is laid out here once and saved without it: ``savefig`` would otherwise draw the whole
+    figure a first time without rendering, only to run the engine (phase.png: 0.04 s of a 0.17 s save)."""
+    _lay_out(fig, dpi)
     return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png"))
+
+
+def _lay_out(fig, dpi: float) -> None:
+    """Run ``fig``'s layout engine, if any, at the resolution ``dpi`` it is saved with (as ``savefig`` would),
+    and remove it (the positions stay as it set them)."""
+    import matplotlib
+    from matplotlib.layout_engine import PlaceHolderLayoutEngine
+
+    engine = fig.get_layout_engine()
+    if engine is None:
+        return
+    if not isinstance(engine, PlaceHolderLayoutEngine):   # a placeholder: tight_layout has been applied
+        shown = fig.dpi
+        if dpi != shown:
+            fig.dpi = dpi
+        try:
+            engine.execute(fig)
+        finally:
+            if fig.dpi != shown:
+                fig.dpi = shown
+    # None means "no engine" only while the rcParams name no default layout
+    with matplotlib.rc_context({"figure.autolayout": False, "figure.constrained_layout.use": False}):
+        fig.set_layout_engine(None)
 
 
 # --------------------------------------------------------------------------- long signals

@@ -202,20 +202,20 @@ def hermite_refine(t: np.ndarray, x: np.ndarray, dx: np.ndarray, f_hz: float, ki
     n = np.clip(np.ceil(h * f_hz * per_period).astype(int), 1, 64)
     if np.all(n == 1):
         return x, dx
-    kicks = np.asarray(sorted(kicks), dtype=float)
-    xs, dxs = [x[:1]], [dx[:1]]
-    for i in range(t.size - 1):
-        hit = kicks.size and np.any((kicks > t[i]) & (kicks <= t[i + 1]))
-        if n[i] == 1 or hit:
-            xs.append(x[i + 1:i + 2])
-            dxs.append(dx[i + 1:i + 2])
-            continue
-        s = np.arange(1, n[i] + 1) / n[i]
-        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-        d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
-        xs.append(h00 * x[i] + h10 * h[i] * dx[i] + h01 * x[i + 1] + h11 * h[i] * dx[i + 1])
-        dxs.append((d00 * x[i] + d01 * x[i + 1]) / h[i] + d10 * dx[i] + d11 * dx[i + 1])
-    return np.concatenate(xs), np.concatenate(dxs)
+    kicks = np.sort(np.asarray(kicks, dtype=float))
+    # an interval (t_i, t_i+1] holding an impact keeps its chord: one point, its end
+    hit = np.searchsorted(kicks, t[1:], side="right") > np.searchsorted(kicks, t[:-1], side="right")
+    n[hit] = 1
+    i = np.repeat(np.arange(t.size - 1), n)             # the interval of each drawn point
+    s = (np.arange(i.size) - np.repeat(np.cumsum(n) - n, n) + 1) / n[i]    # k / n_i, k = 1..n_i
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+    d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
+    hi = h[i]
+    xi = h00 * x[i] + h10 * hi * dx[i] + h01 * x[i + 1] + h11 * hi * dx[i + 1]
+    dxi = (d00 * x[i] + d01 * x[i + 1]) / hi + d10 * dx[i] + d11 * dx[i + 1]
+    end = (n == 1)[i]                                   # a single point is the interval's end sample itself
+    xi[end], dxi[end] = x[i[end] + 1], dx[i[end] + 1]
+    return np.r_[x[:1], xi], np.r_[dx[:1], dxi]
 
 
 
