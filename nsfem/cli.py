@@ -75,6 +75,13 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--png", metavar="FILE", help="write the Campbell diagram to this file only (without --png: "
                    "to <output.dir>/campbell.png when the scene's output.plots lists campbell)")
 
+    p = sub.add_parser("response", help="steady unbalance response against speed by a harmonic solve (linear scenes)")
+    _scene_args(p)
+    p.add_argument("--speeds", metavar="START:STOP:N", required=True,
+                   help="speeds in Hz, START > 0 (e.g. 10:45:1000)")
+    p.add_argument("--png", metavar="FILE", help="write the Bode plot (left) and the polar plot (right) to this "
+                   "one file")
+
     p = sub.add_parser("stationary", help="stationary contact state (LCP 28)")
     _scene_args(p)
 
@@ -862,8 +869,64 @@ def cmd_export(args) -> int:
     return 0
 
 
+def cmd_response(args) -> int:
+    from pathlib import Path
+
+    from .analysis.campbell import parse_speeds
+    from .analysis.response import check_linear, response_report
+    from .atomic import check_file
+    from .fem.assemble import build_model
+    from .reduce import scene_reduction
+    from .scene import check_speed
+
+    import numpy as np
+
+    speeds = parse_speeds(args.speeds)
+    if not speeds[0] > 0:
+        raise NsfemError(f"--speeds {args.speeds!r}: START must be above 0 Hz (at rest an unbalance has no force, "
+                         "no 1x response)")
+    _check_png(args.png)
+    scene = _scene(args, "response")
+    check_linear(scene.stack)
+    if not scene.sensors:
+        raise NsfemError("response: the scene has no [[sensor]]: add one where the response is read")
+    check_speed(float(speeds.max()), scene.stack, "--speeds")
+    if args.png:
+        check_file(Path(args.png), "--png")
+    t0 = time.perf_counter()
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    rep = response_report(scene, model, speeds, red)
+    rep.pop("_response")
+    for text in rep["warnings"]:
+        print(printable(f"nsfem response: warning: {text}"), file=sys.stderr)
+    outputs = []
+    if args.png:
+        from .plot.response import plot_response
+
+        outputs.append(str(plot_response(args.png, rep, scene.title, scene.rotation.speed_hz)))
+    payload = {"title": scene.title, **rep, "reduction": red.info, "wall_s": time.perf_counter() - t0,
+               "outputs": outputs, "notes": list(scene.notes)}
+    lines = [scene.title, f"{rep['ndof']} dofs ({red.name}; full model {model.n}), {speeds.size} speeds "
+             f"{speeds[0]:g} to {speeds[-1]:g} Hz, {rep['frame']} frame, harmonic solve"]
+    for name, v in rep["sensors"].items():
+        k = int(np.argmax(v["amplitude_m"]))
+        lines.append(f"  {name}: largest 1x amplitude {v['amplitude_m'][k]:.4e} m at {speeds[k]:.6g} Hz "
+                     f"(phase lag {v['phase_deg'][k]:.1f} deg)")
+    for p in rep["peaks"]:
+        sm = "" if p["separation_margin"] is None else f", separation margin {p['separation_margin']:.1f} %"
+        lines.append(f"  peak {p['sensor']}: {p['speed_hz']:.6g} Hz, {p['amplitude_m']:.4e} m, amplification "
+                     f"factor {p['amplification_factor']:.3g} (half-power band {p['band_hz'][0]:.6g}-"
+                     f"{p['band_hz'][1]:.6g} Hz){sm}")
+    if not rep["peaks"]:
+        lines.append("  no peak with its half-power band inside the speeds")
+    lines += [f"wrote {o}" for o in outputs]
+    _emit(args, payload, "\n".join(lines))
+    return 0
+
+
 COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run,
-            "sweep": cmd_sweep, "fit": cmd_fit, "export": cmd_export, "render": cmd_render}
+            "sweep": cmd_sweep, "response": cmd_response, "fit": cmd_fit, "export": cmd_export, "render": cmd_render}
 
 
 #: the variables by which a user sets the BLAS threads (OpenBLAS reads the first it finds; MKL its own)
