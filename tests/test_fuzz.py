@@ -3386,3 +3386,42 @@ def test_contact_plots_of_a_run_without_contacts_warn_only_when_listed(names, li
         assert len(said) == (listed and p in names), (names, listed, warned)
     assert [p.name for p in paths] == ["phase.png"] * ("phase" in names)   # psd: no model to locate a point
     assert sorted(f.name for f in out.iterdir()) == ["phase.png"] * ("phase" in names)   # no temporary file left
+
+
+# --- issue 35: nsfem response (harmonic unbalance response) ---
+RESPONSE_SPEEDS = ["10:45:20", "0:10:3", "10:5:3", "1:10", "::", "1:nan:3", "1:inf:3", "1:1e300:3", "-1:5:3",
+                   "1:2:0", "1:2:1e9", "x:y:z", "5:5:1", "1e-300:1e-299:2"]
+RESPONSE_SETS = [[], ["--set", "unbalance=[]"], ["--set", "sensor=[]"], ["--set", "unbalance.0.magnitude=-1"],
+                 ["--set", "bearing.0.kyy=0"], ["--set", 'rotation.frame="rotating"'],
+                 ["--set", "reduction.modes=2"]]
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,   # each under 0.5 s
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(scene=st.sampled_from(["critical_speed", "rub", "crack", "ross_example"]),
+       speeds=st.sampled_from(RESPONSE_SPEEDS), sets=st.sampled_from(RESPONSE_SETS),
+       png=st.sampled_from([[], ["--png", "b.png"], ["--png", "b.txt"], ["--png", "."]]))
+def test_response_invocations_end_in_a_result_or_one_line(scene, speeds, sets, png, tmp_path):
+    """Any scene, speed range, override and picture name: exit 0 with finite numbers (and the PNG when asked),
+    or exit 2 with one line, no traceback, nothing half-written."""
+    import json
+    import math
+
+    with tempfile.TemporaryDirectory(dir=tmp_path) as d:
+        code, out, err = check_invocation(["response", scene, "--speeds", speeds, *sets, *png, "--json"], Path(d))
+        if code == 0:
+            rep = json.loads(out)
+            assert all(math.isfinite(a) for v in rep["sensors"].values() for a in v["amplitude_m"])
+            assert rep["outputs"] == ([] if not png else [png[1]])
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["rub", "--speeds", "1:10:5"], "contacts"),
+    (["crack", "--speeds", "1:10:5"], "crack"),
+    (["critical_speed", "--speeds", "0:10:5"], "START must be above 0"),
+    (["critical_speed", "--speeds", "1:1e300:3"], "--speeds"),
+    (["critical_speed", "--speeds", "1:10:5", "--set", "unbalance=[]"], "[[unbalance]]"),
+])
+def test_response_reproductions(argv, words, tmp_path):
+    code, _, err = check_invocation(["response", *argv], tmp_path)
+    assert code == cli.EXIT_ERROR and words in err

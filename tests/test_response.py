@@ -180,3 +180,12 @@ def test_check_linear_names_what_is_not_linear():
 
     with pytest.raises(NsfemError, match="contacts"):
         check_linear(load_scene("default", []).stack)
+
+
+def test_round_off_wiggles_are_not_peaks():
+    """With two kept modes (both along y), the z probe reads round-off (1e-20 m beside 5e-5 m): its wiggles
+    are not listed as peaks, and a warning says the speeds pass half the highest kept mode."""
+    rep = _report(["reduction.modes=2"], np.linspace(10.0, 45.0, 50))[2]
+    assert max(rep["sensors"]["disk_z"]["amplitude_m"]) < 1e-12 * max(rep["sensors"]["disk_y"]["amplitude_m"])
+    assert [p["sensor"] for p in rep["peaks"]] == ["disk_y"]
+    assert len(rep["warnings"]) == 1 and "reduction.modes" in rep["warnings"][0]
