@@ -912,7 +912,7 @@ def cmd_response(args) -> int:
     for name, v in rep["sensors"].items():
         k = int(np.argmax(v["amplitude_m"]))
         lines.append(f"  {name}: largest 1x amplitude {v['amplitude_m'][k]:.4e} m at {speeds[k]:.6g} Hz "
-                     f"(phase lag {v['phase_deg'][k]:.1f} deg)")
+                     f"(phase lag {round(v['phase_deg'][k], 1) % 360.0:.1f} deg)")
     for p in rep["peaks"]:
         sm = "" if p["separation_margin"] is None else f", separation margin {p['separation_margin']:.1f} %"
         lines.append(f"  peak {p['sensor']}: {p['speed_hz']:.6g} Hz, {p['amplitude_m']:.4e} m, amplification "
