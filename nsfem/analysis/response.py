@@ -35,6 +35,8 @@ from ..errors import NsfemError
 #: stiffness's condition, 1e-16 x 1e6-1e7): a probe orthogonal to the response (a z probe of a model whose
 #: kept modes move along y only) has wiggles of 1e-20 m beside 5e-5 m, not resonances.
 NOISE = 1e-9
+#: Dense factorizations up to this many dofs (a reduced model), sparse LU beyond (a full model)
+DENSE_LIMIT = 400
 
 
 @dataclass(frozen=True)
@@ -88,8 +90,6 @@ def sensor_rows(sensors, model, basis) -> np.ndarray:
 def harmonic_response(ops, sensors, model, speeds_hz, rotation, damping) -> Response:
     """The steady 1x of each sensor at each speed (``ops``: operators in reduced coordinates, ops.basis the
     map to full ones; ``rotation``/``damping``: the scene's ``[rotation]`` and ``[damping]``)."""
-    import scipy.linalg as sla
-
     from ..system import linear_system
 
     speeds = np.asarray(speeds_hz, dtype=float)
@@ -101,19 +101,20 @@ def harmonic_response(ops, sensors, model, speeds_hz, rotation, damping) -> Resp
     axis = np.array([0 if s.direction[1] == "y" else 1 for s in sensors])
     k = np.arange(len(sensors))
     Z = np.zeros((speeds.size, len(sensors)), dtype=complex)
-    M = ops.M.toarray()
+    dense = ops.n <= DENSE_LIMIT
+    M = ops.M.toarray() if dense else ops.M.tocsc()
     for i, f in enumerate(speeds):
         sys_ = linear_system(ops, f, rotation.gravity, rotation.phase_deg, damping.rayleigh, damping.external, frame)
         w = sys_.omega
-        Q = sys_.Q.toarray()
-        D = Q + (1j * w * sys_.C.toarray() if sys_.C is not None else 0.0) - w * w * M
+        Q = sys_.Q.toarray() if dense else sys_.Q.tocsc()
+        C = (sys_.C.toarray() if dense else sys_.C.tocsc()) if sys_.C is not None else 0.0 * M
         load = (sys_.fc if sys_.fc is not None else 0.0) - 1j * (sys_.fs if sys_.fs is not None else 0.0)
-        X1 = sla.solve(D, np.broadcast_to(load, (ops.n,)).astype(complex), check_finite=False) \
-            if np.any(load) else np.zeros(ops.n, complex)
+        load = np.broadcast_to(load, (ops.n,)).astype(complex)
+        X1 = _solve(Q + 1j * w * C - w * w * M, load, f, "dynamic") if np.any(load) else np.zeros(ops.n, complex)
         same = rows @ X1                                  # (sensors, 2): Z_v, Z_w in the scene's frame
         z = same[k, axis]
         if any(other) and sys_.f0 is not None and np.any(sys_.f0):
-            X0 = _static(Q, sys_.f0, f)
+            X0 = _solve(Q, sys_.f0, f, "static")
             u0 = (rows @ X0) @ np.array([1.0, 1j])       # v0 + i w0 per sensor
             if frame == "rotating":                       # turned by +theta to the casing
                 zv, zw = u0 * np.exp(1j * phi), -1j * u0 * np.exp(1j * phi)
@@ -126,18 +127,26 @@ def harmonic_response(ops, sensors, model, speeds_hz, rotation, damping) -> Resp
     return Response(speeds, tuple(s.name for s in sensors), Z, phi)
 
 
-def _static(Q: np.ndarray, f0: np.ndarray, speed_hz: float) -> np.ndarray:
+def _solve(A, b: np.ndarray, speed_hz: float, what: str) -> np.ndarray:
+    """A x = b, A dense or sparse; a singular A (a pivot at round-off) is refused with the speed."""
     import scipy.linalg as sla
+    import scipy.sparse.linalg as spla
 
     try:
-        lu = sla.lu_factor(Q, check_finite=False)
-    except (ValueError, sla.LinAlgError):
-        lu = None
-    piv = np.abs(np.diag(lu[0])) if lu is not None else np.zeros(1)
-    if lu is None or not piv.min() > 1e-13 * piv.max():
-        raise NsfemError(f"response: the static stiffness at {speed_hz:g} Hz is singular (a free rotor, or a "
-                         "divergence speed): no steady state; support the rotor or move the speeds")
-    return sla.lu_solve(lu, f0, check_finite=False)
+        if isinstance(A, np.ndarray):
+            lu, piv_index = sla.lu_factor(A, check_finite=False)
+            piv = np.abs(np.diag(lu))
+            factor = lambda rhs: sla.lu_solve((lu, piv_index), rhs, check_finite=False)  # noqa: E731
+        else:
+            lu = spla.splu(A.tocsc())
+            piv = np.abs(lu.U.diagonal())
+            factor = lu.solve
+    except (ValueError, RuntimeError, sla.LinAlgError):
+        piv, factor = np.zeros(1), None
+    if factor is None or not piv.min() > 1e-13 * piv.max():
+        raise NsfemError(f"response: the {what} stiffness at {speed_hz:g} Hz is singular (a free rotor, an undamped "
+                         "resonance or a divergence speed): no steady state; support or damp the rotor, or move the speeds")
+    return factor(b)
 
 
 def half_power_peaks(speeds_hz: np.ndarray, amplitude: np.ndarray) -> list[dict]:
