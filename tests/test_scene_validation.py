@@ -261,6 +261,9 @@ def _nonfinite_cases(prefix: str, table: dict, list_len: dict[str, int] | None =
     out = []
     for name, spec in table.items():
         key = f"{prefix}.{name}"
+        if isinstance(spec, list):   # an array of tables inside a table ([[shaft.step]]): its first entry
+            out += _nonfinite_cases(f"{key}.0", spec[0], list_len)
+            continue
         for lit in ("nan", "inf", "-inf"):
             if spec.kind in ("float", "float?", "int"):
                 out.append(pytest.param([f"{key}={lit}"], key, "finite", id=f"{lit}-{key}"))

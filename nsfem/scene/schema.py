@@ -155,6 +155,16 @@ _SECTION = {
     "diameter": Key("float", 0.02, "circle: outer diameter D [m]", check=_positive),
     "inner_diameter": Key("float", 0.0, "circle: bore d [m] (0 = solid)", check=_nonneg),
 }
+_STEP = {
+    "start": Key("float", 0.0, "x where the step starts [m] (inside [0, length]; steps may touch, not overlap)"),
+    "end": Key("float", 0.0, "x where it ends [m] (above start)"),
+    "diameter": Key("float?", None, "circle: outer diameter D [m] (left out: the shaft's)", check=_positive),
+    "inner_diameter": Key("float?", None, "circle: bore d [m] (left out: the shaft's)", check=_nonneg),
+    "width": Key("float?", None, "rectangle: width b along y [m] (left out: the shaft's)", check=_positive),
+    "height": Key("float?", None, "rectangle: height h along z [m] (left out: the shaft's)", check=_positive),
+    "E": Key("float?", None, "Young's modulus [Pa] (left out: the shaft's)", check=_material),
+    "rho": Key("float?", None, "density [kg/m^3] (left out: the shaft's)", check=_material),
+}
 _SHAFT = {
     "length": Key("float", 1.0, "shaft length [m]", check=_positive),
     **_SECTION,
@@ -165,6 +175,7 @@ _SHAFT = {
     "supports": Key("str", "pinned-pinned", "end conditions; pinned-pinned fixes U at x = 0 only. A rotor scene "
                     "(one with [[bearing]]) has none unless it says so: its default is free-free, the bearings "
                     "hold it", SUPPORTS),
+    "step": [_STEP],
 }
 _DELAMINATION = {
     "start": Key("float", 0.1, "x where the delamination starts [m]"),

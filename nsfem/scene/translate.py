@@ -72,9 +72,75 @@ def section(table: dict, key: str) -> dict:
     return dict(width=table["width"], height=table["height"])
 
 
+def shaft_steps(sh: dict) -> list[tuple[float, float, dict, dict]]:
+    """The pieces of constant section of ``[shaft]`` with its ``[[shaft.step]]``: (start, end, section keywords,
+    material) from x = 0 to the length, a step's section replacing the shaft's where it lies (checked: steps inside
+    the shaft, not overlapping, of the shaft's section kind)."""
+    L = sh["length"]
+    circle = sh["section"] == "circle"
+    own, other = (("diameter", "inner_diameter"), ("width", "height")) if circle else \
+        (("width", "height"), ("diameter", "inner_diameter"))
+    steps = sorted(enumerate(sh["step"]), key=lambda it: it[1]["start"])
+    for i, st in steps:
+        key = f"shaft.step.{i}"
+        if not 0.0 <= st["start"] < L:
+            raise SceneError(f"{key}.start", f"x={st['start']} lies outside the shaft [0, {L})")
+        if not st["start"] < st["end"]:
+            raise SceneError(f"{key}.end", f"must exceed start ({st['start']}), got {st['end']}")
+        if not st["end"] <= L:
+            raise SceneError(f"{key}.end", f"x={st['end']} lies beyond the shaft's end ({L})")
+        given = next((k for k in other if st[k] is not None), None)
+        if given:
+            raise SceneError(f"{key}.{given}", f"the shaft's section is a {sh['section']}, whose steps take "
+                             f"{' and '.join(own)}, not {given}")
+    for (i, a), (j, c) in zip(steps, steps[1:]):
+        if c["start"] < a["end"]:
+            raise SceneError(f"shaft.step.{j}.start", f"step {j} [{c['start']}, {c['end']}] overlaps step {i} "
+                             f"[{a['start']}, {a['end']}]")
+    base_mat = dict(E=sh["E"], rho=sh["rho"])
+    pieces, cursor = [], 0.0
+    for i, st in steps:
+        if st["start"] > cursor:
+            pieces.append((cursor, st["start"], section(sh, "shaft"), base_mat))
+        table = {**sh, **{k: st[k] for k in own if st[k] is not None}}
+        mat = {k: sh[k] if st[k] is None else st[k] for k in ("E", "rho")}
+        pieces.append((st["start"], st["end"], section(table, f"shaft.step.{i}"), mat))
+        cursor = st["end"]
+    if cursor < L:
+        pieces.append((cursor, L, section(sh, "shaft"), base_mat))
+    return pieces
+
+
+def stepped_stack(tree: dict) -> BeamStack:
+    """The stepped shaft of ``[[shaft.step]]``: one segment per piece of constant section (:func:`shaft_steps`),
+    each joined rigidly to the next at the step (a junction), the ends held as ``supports`` says."""
+    sh = tree["shaft"]
+    if tree["delamination"]:
+        raise SceneError("shaft.step", "a stepped shaft cannot carry a delamination (a delamination splits one "
+                         "rectangular section into two layers); leave out one or the other")
+    segments = tuple(Segment(f"intact_{k}", a, c, offset=(0.0, 0.0), **sec, **mat)
+                     for k, (a, c, sec, mat) in enumerate(shaft_steps(sh)))
+    junctions = tuple(Junction(s.end, s.name, (t.name,)) for s, t in zip(segments, segments[1:]))
+    L = sh["length"]
+    at0, atL = SUPPORT_DOFS_BY_NAME[sh["supports"]]
+    supports = tuple(s for s in (Support(segments[0].name, 0.0, at0) if at0 else None,
+                                 Support(segments[-1].name, L, atL) if atL else None) if s)
+    contacts = []
+    for i, o in enumerate(tree["obstacle"]):
+        x = L if o["x"] is None else o["x"]
+        if not 0.0 <= x <= L:
+            raise SceneError(f"obstacle.{i}.x", f"x={x} lies outside the shaft [0, {L}]")
+        seg = next(s for s in segments if s.start <= x <= s.end)
+        contacts.append(Contact("obstacle", x, (seg.name,), "dirac", None, o["normal"], o["clearance"],
+                                o["friction"], o["friction_directions"], o["restitution"], label=f"obstacle.{i}"))
+    return BeamStack(segments, junctions, supports, tuple(contacts), tree["beam"]["theory"])
+
+
 def high_level_stack(tree: dict) -> BeamStack:
     """Translate ``[shaft]``, ``[[delamination]]``, ``[[obstacle]]`` into a BeamStack (checked first)."""
     sh = tree["shaft"]
+    if sh["step"]:
+        return stepped_stack(tree)
     L = sh["length"]
     sec = section(sh, "shaft")
     b, h = sec["width"], sec["height"]
