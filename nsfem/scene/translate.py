@@ -303,6 +303,31 @@ def disk_inertia(d: dict, key: str) -> tuple[float, float, float]:
     return m, ip, id_
 
 
+BEARING_COEFFICIENTS = ("kyy", "kyz", "kzy", "kzz", "cyy", "cyz", "czy", "czz", "kxx")
+
+
+def bearing(b: dict, key: str) -> Bearing:
+    """A ``[[bearing]]`` table as a :class:`Bearing`: constant coefficients, or a table over ``speeds_hz`` whose
+    list-valued coefficients have one value per speed (numbers stay constant); checked: lists need the speeds,
+    and as many values."""
+    speeds = b["speeds_hz"]
+    listed = [k for k in BEARING_COEFFICIENTS if isinstance(b[k], list)]
+    if listed and not speeds:
+        raise SceneError(f"{key}.{listed[0]}", f"a list of coefficients needs the bearing's speeds_hz (one value per "
+                         f"speed), got {b[listed[0]]}")
+    if speeds and not listed:
+        raise SceneError(f"{key}.speeds_hz", "a speed table needs at least one coefficient given as a list (one "
+                         "value per speed)")
+    for k in listed:
+        if len(b[k]) != len(speeds):
+            raise SceneError(f"{key}.{k}", f"has {len(b[k])} values for the {len(speeds)} speeds of speeds_hz")
+    at0 = {k: b[k][0] if isinstance(b[k], list) else b[k] for k in BEARING_COEFFICIENTS}
+    table = (tuple(speeds), tuple((k, tuple(b[k])) for k in listed)) if listed else ()
+    out = Bearing(b["x"], ((at0["kyy"], at0["kyz"]), (at0["kzy"], at0["kzz"])),
+                  ((at0["cyy"], at0["cyz"]), (at0["czy"], at0["czz"])), at0["kxx"], label=key, table=table)
+    return out
+
+
 def point_components(tree: dict, stack: BeamStack) -> BeamStack:
     """``stack`` with the scene's ``[[disk]]``, ``[[bearing]]`` and ``[[unbalance]]`` on it."""
     from dataclasses import replace
@@ -313,9 +338,8 @@ def point_components(tree: dict, stack: BeamStack) -> BeamStack:
                        **({"outer_diameter": d["outer_diameter"], "inner_diameter": d["inner_diameter"],
                            "width": d["width"]} if d["mass"] is None else {}))
                   for i, d in enumerate(tree["disk"]))
-    bearings = tuple(Bearing(b["x"], ((b["kyy"], b["kyz"]), (b["kzy"], b["kzz"])),
-                             ((b["cyy"], b["cyz"]), (b["czy"], b["czz"])), b["kxx"], label=f"bearing.{i}")
-                     for i, b in enumerate(tree["bearing"]))
+    speed = tree["rotation"]["speed_hz"]
+    bearings = tuple(bearing(b, f"bearing.{i}").at_speed(speed) for i, b in enumerate(tree["bearing"]))
     unbalances = tuple(Unbalance(middle if u["x"] is None else u["x"], u["magnitude"], math.radians(u["phase_deg"]),
                                  label=f"unbalance.{i}") for i, u in enumerate(tree["unbalance"]))
     return replace(stack, disks=disks, bearings=bearings, unbalances=unbalances,
