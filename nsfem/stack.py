@@ -271,8 +271,11 @@ class BeamStack:
         """Refuse speeds outside any bearing's table (before a computation over them)."""
         for b in self.bearings:
             if b.table and len(speeds_hz):
-                b.at_speed(float(min(speeds_hz)))
-                b.at_speed(float(max(speeds_hz)))
+                try:
+                    b.at_speed(float(min(speeds_hz)))
+                    b.at_speed(float(max(speeds_hz)))
+                except SceneError as exc:
+                    raise SceneError(exc.key, f"{exc.reason}, or choose speeds within it") from None
 
     def segment(self, name: str) -> Segment:
         if not self._index:

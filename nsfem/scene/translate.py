@@ -339,7 +339,12 @@ def point_components(tree: dict, stack: BeamStack) -> BeamStack:
                            "width": d["width"]} if d["mass"] is None else {}))
                   for i, d in enumerate(tree["disk"]))
     speed = tree["rotation"]["speed_hz"]
-    bearings = tuple(bearing(b, f"bearing.{i}").at_speed(speed) for i, b in enumerate(tree["bearing"]))
+    try:
+        bearings = tuple(bearing(b, f"bearing.{i}").at_speed(speed) for i, b in enumerate(tree["bearing"]))
+    except SceneError as exc:
+        if "outside the bearing's table" not in exc.reason:
+            raise
+        raise SceneError(exc.key, f"{exc.reason}: rotation.speed_hz must lie in every bearing's table") from None
     unbalances = tuple(Unbalance(middle if u["x"] is None else u["x"], u["magnitude"], math.radians(u["phase_deg"]),
                                  label=f"unbalance.{i}") for i, u in enumerate(tree["unbalance"]))
     return replace(stack, disks=disks, bearings=bearings, unbalances=unbalances,
