@@ -3467,6 +3467,10 @@ def test_any_bearing_table_is_modes_or_a_one_line_error(speeds, kyy, speed, tmp_
       "--set", "shaft.step.1.start=0.5", "--set", "shaft.step.1.end=0.7"], "shaft.step.1.start: step 1"),
     (["modes", "s.toml", "--set", "shaft.step.0.start=0.2", "--set", "shaft.step.0.end=1.2"],
      "beyond the shaft's end"),
+    (["modes", "s.toml", "--set", "shaft.step.0.start=0.2", "--set", "shaft.step.0.end=0.6",
+      "--set", "shaft.step.0.diameter=1e-40"], "shaft.step.0.diameter: the bending stiffness"),
+    (["modes", "s.toml", "--set", "shaft.step.0.start=0.2", "--set", "shaft.step.0.end=0.6",
+      "--set", "shaft.diameter=1e-40", "--set", "shaft.step.0.diameter=0.05"], "shaft.diameter: the bending"),
 ])
 def test_issue35_scene_reproductions(argv, words, tmp_path):
     (tmp_path / "s.toml").write_text(STEP_SCENE)

@@ -122,6 +122,11 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
         cut = ("diameter",) if s.section == "circle" else ("width", "height")
         size.update({"diameter": _magnitude(s.width)} if s.section == "circle" else
                     {"width": _magnitude(s.width), "height": _magnitude(s.height)})
+        table = prefix
+        if not low and tree["shaft"]["step"]:   # a stepped shaft's piece: the step that gives the key, else [shaft]
+            step = next((j for j, st in enumerate(tree["shaft"]["step"]) if (st["start"], st["end"]) == (s.start, s.end)),
+                        None)
+            table = None if step is None else f"shaft.step.{step}"
         for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, *cut)),
                               ("axial stiffness E A / l", axial, ("E", span_key, *cut)),
                               ("bending stiffness E I_y / l^3", bend_w, ("E", span_key, *cut)),
@@ -129,6 +134,8 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
                               ("squared frequency scale E / (rho l^2)", w2, ("E", "rho", span_key))):
             if not lo <= v <= hi:
                 key = max(keys, key=size.get)
+                if table != prefix and table is not None and tree["shaft"]["step"][step].get(key) is not None:
+                    prefix = table
                 raise SceneError(f"{prefix}.{key}", f"the {name} of {s.name} is {v:.3g}, outside [{lo:g}, {hi:g}] "
                                  "where the eigen solvers stay in double precision; choose units closer to 1 "
                                  "(E = rho = 1 nondimensionalizes)")
