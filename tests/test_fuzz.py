@@ -3461,6 +3461,7 @@ def test_any_bearing_table_is_modes_or_a_one_line_error(speeds, kyy, speed, tmp_
     (["stationary", "b.toml", "--set", "rotation.speed_hz=51"], "bearing.0.speeds_hz: 51 Hz lies outside"),
     (["modes", "b.toml", "--set", "bearing.0.kzz=[1e6, 2e6]"], "bearing.0.kzz: has 2 values for the 3 speeds"),
     (["modes", "b.toml", "--set", "bearing.1.kyy=[1e6, 2e6]"], "needs the bearing's speeds_hz"),
+    (["campbell", "b.toml", "--set", "rotation.frame=rotating", "--set", "bearing.0.kzz=[1e6, 3e6, 5e6]"], "bearing.0 is not isotropic at 50 Hz of its table"),
     (["modes", "s.toml", "--set", "shaft.step.0.start=0.5", "--set", "shaft.step.0.end=0.4"],
      "shaft.step.0.end: must exceed start"),
     (["modes", "s.toml", "--set", "shaft.step.0.start=0.2", "--set", "shaft.step.0.end=0.6",

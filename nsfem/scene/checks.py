@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -240,8 +241,11 @@ def check_frame_at_speed(frame: str, stack: BeamStack, spinning: bool = True) ->
         bad = next((i for i, b in enumerate(stack.bearings) if not b.isotropic), None)
         if spinning and bad is not None:
             b = stack.bearings[bad]
-            why = (f"bearing.{bad} is not isotropic (K = {[list(r) for r in b.K]}, C = {[list(r) for r in b.C]}): in "
-                   "the rotating frame its force has periodic coefficients")
+            rows = [(v, replace(b.at_speed(v), table=())) for v in b.table[0]] if b.table else [(None, b)]
+            v, row = next((v, r) for v, r in rows if not r.isotropic)   # a table: its first anisotropic row
+            at = "" if v is None else f" at {v:g} Hz of its table"
+            why = (f"bearing.{bad} is not isotropic{at} (K = {[list(r) for r in row.K]}, C = {[list(r) for r in row.C]}): "
+                   "in the rotating frame its force has periodic coefficients")
             if odd is None and stack.cracks:
                 raise SceneError("rotation.frame", f"{why}, and {stack.cracks[0].label} turns with the shaft, so the "
                                  "inertial frame cannot carry it either: the equations have periodic coefficients in "
