@@ -131,8 +131,8 @@ class Bearing:
             raise SceneError(f"{self.label or 'bearing'}.speeds_hz", f"{speed_hz:g} Hz lies outside the bearing's "
                              f"table [{lo:g}, {hi:g}] Hz (coefficients are not extrapolated); extend the table")
         v = {name: float(np.interp(speed_hz, speeds, values)) for name, values in columns}
-        K = ((v.get("kyy", self.K[0][0]), v.get("kyz", self.K[0][1])), (v.get("kzy", self.K[1][0]), v.get("kzz", self.K[1][1])))
-        C = ((v.get("cyy", self.C[0][0]), v.get("cyz", self.C[0][1])), (v.get("czy", self.C[1][0]), v.get("czz", self.C[1][1])))
+        K = tuple(tuple(v.get(f"k{a}{b}", self.K[i][j]) for j, b in enumerate("yz")) for i, a in enumerate("yz"))
+        C = tuple(tuple(v.get(f"c{a}{b}", self.C[i][j]) for j, b in enumerate("yz")) for i, a in enumerate("yz"))
         return replace(self, K=K, C=C, kxx=v.get("kxx", self.kxx))
 
     @property

@@ -125,8 +125,8 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
                     {"width": _magnitude(s.width), "height": _magnitude(s.height)})
         table = prefix
         if not low and tree["shaft"]["step"]:   # a stepped shaft's piece: the step that gives the key, else [shaft]
-            step = next((j for j, st in enumerate(tree["shaft"]["step"]) if (st["start"], st["end"]) == (s.start, s.end)),
-                        None)
+            step = next((j for j, st in enumerate(tree["shaft"]["step"])
+                         if (st["start"], st["end"]) == (s.start, s.end)), None)
             table = None if step is None else f"shaft.step.{step}"
         for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, *cut)),
                               ("axial stiffness E A / l", axial, ("E", span_key, *cut)),
@@ -244,8 +244,8 @@ def check_frame_at_speed(frame: str, stack: BeamStack, spinning: bool = True) ->
             rows = [(v, replace(b.at_speed(v), table=())) for v in b.table[0]] if b.table else [(None, b)]
             v, row = next((v, r) for v, r in rows if not r.isotropic)   # a table: its first anisotropic row
             at = "" if v is None else f" at {v:g} Hz of its table"
-            why = (f"bearing.{bad} is not isotropic{at} (K = {[list(r) for r in row.K]}, C = {[list(r) for r in row.C]}): "
-                   "in the rotating frame its force has periodic coefficients")
+            why = (f"bearing.{bad} is not isotropic{at} (K = {[list(r) for r in row.K]}, "
+                   f"C = {[list(r) for r in row.C]}): in the rotating frame its force has periodic coefficients")
             if odd is None and stack.cracks:
                 raise SceneError("rotation.frame", f"{why}, and {stack.cracks[0].label} turns with the shaft, so the "
                                  "inertial frame cannot carry it either: the equations have periodic coefficients in "

@@ -48,7 +48,8 @@ def _check_value(key: str, spec: Key, value: Any) -> Any:
         if spec.choices and value not in spec.choices:
             raise SceneError(key, f"unknown value {value!r} (use {' | '.join(spec.choices)})")
     elif kind == "coef":   # a bearing coefficient: a number, or a list of one per speed of its table
-        value = [number(v, f"{key}.{i}") for i, v in enumerate(value)] if isinstance(value, list) else number(value, key)
+        value = ([number(v, f"{key}.{i}") for i, v in enumerate(value)] if isinstance(value, list)
+                 else number(value, key))
     elif kind == "bool":
         if not isinstance(value, bool):
             raise SceneError(key, f"must be true or false, got {value!r}")
