@@ -70,7 +70,7 @@ def parser() -> argparse.ArgumentParser:
     _scene_args(p)
     p.add_argument("--speeds", metavar="START:STOP:N", help="speeds in Hz (default: 61 values from 0 to 1.23 x "
                    "the second divergence (rotating frame) or forward critical (inertial) speed, at least 2 x "
-                   "rotation.speed_hz)")
+                   "rotation.speed_hz; with speed-dependent bearings, 61 over their tables)")
     p.add_argument("--count", type=int, default=6, help="frequencies per speed and resonances listed (default 6)")
     p.add_argument("--png", metavar="FILE", help="write the Campbell diagram to this file only (without --png: "
                    "to <output.dir>/campbell.png when the scene's output.plots lists campbell)")

@@ -17,7 +17,9 @@ a segment's centroid sits at ``offset = (y_c, z_c)`` from the rotation axis.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+
+import numpy as np
 
 from .errors import SceneError
 
@@ -114,12 +116,31 @@ class Bearing:
     C: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0), (0.0, 0.0))
     kxx: float = 0.0
     label: str = ""
+    #: speed-dependent coefficients: (speeds_hz, ((name, values), ...)) with names kyy ... czz, kxx and one
+    #: value per speed, interpolated linearly in speed by :meth:`at_speed` (empty: constant K, C, kxx)
+    table: tuple = ()
+
+    def at_speed(self, speed_hz: float) -> "Bearing":
+        """This bearing with its table's coefficients at ``speed_hz`` (linear interpolation; a speed outside the
+        table is a :class:`SceneError` naming the bearing and the range). Without a table, itself."""
+        if not self.table:
+            return self
+        speeds, columns = self.table
+        lo, hi = speeds[0], speeds[-1]
+        if not lo <= speed_hz <= hi:
+            raise SceneError(f"{self.label or 'bearing'}.speeds_hz", f"{speed_hz:g} Hz lies outside the bearing's "
+                             f"table [{lo:g}, {hi:g}] Hz (coefficients are not extrapolated); extend the table")
+        v = {name: float(np.interp(speed_hz, speeds, values)) for name, values in columns}
+        K = tuple(tuple(v.get(f"k{a}{b}", self.K[i][j]) for j, b in enumerate("yz")) for i, a in enumerate("yz"))
+        C = tuple(tuple(v.get(f"c{a}{b}", self.C[i][j]) for j, b in enumerate("yz")) for i, a in enumerate("yz"))
+        return replace(self, K=K, C=C, kxx=v.get("kxx", self.kxx))
 
     @property
     def isotropic(self) -> bool:
         """K and C commute with a rotation about x (form [[a, b], [-b, a]]): the bearing looks the same
         from a frame spinning with the shaft, so the rotating frame can carry it."""
-        return all(A[0][0] == A[1][1] and A[0][1] == -A[1][0] for A in (self.K, self.C))
+        rows = [self.at_speed(s) for s in self.table[0]] if self.table else [self]
+        return all(A[0][0] == A[1][1] and A[0][1] == -A[1][0] for b in rows for A in (b.K, b.C))
 
 
 @dataclass(frozen=True)
@@ -234,6 +255,27 @@ class BeamStack:
     unbalances: tuple[Unbalance, ...] = ()
     cracks: tuple[Crack, ...] = ()
     _index: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    @property
+    def speed_dependent(self) -> bool:
+        """Some bearing has coefficients tabulated against speed."""
+        return any(b.table for b in self.bearings)
+
+    def at_speed(self, speed_hz: float) -> "BeamStack":
+        """The stack with every bearing's coefficients at ``speed_hz`` (:meth:`Bearing.at_speed`)."""
+        if not self.speed_dependent:
+            return self
+        return replace(self, bearings=tuple(b.at_speed(speed_hz) for b in self.bearings))
+
+    def check_speeds(self, speeds_hz) -> None:
+        """Refuse speeds outside any bearing's table (before a computation over them)."""
+        for b in self.bearings:
+            if b.table and len(speeds_hz):
+                try:
+                    b.at_speed(float(min(speeds_hz)))
+                    b.at_speed(float(max(speeds_hz)))
+                except SceneError as exc:
+                    raise SceneError(exc.key, f"{exc.reason}, or choose speeds within it") from None
 
     def segment(self, name: str) -> Segment:
         if not self._index:
@@ -362,6 +404,9 @@ class BeamStack:
                 raise SceneError(f"{key}.{scene_names.get(name, name)}", f"must be finite and >= 0, got {v}")
         if isinstance(p, Disk) and p.mass <= 0.0:
             raise SceneError(f"{key}.mass", f"must be positive, got {p.mass}")
+        if isinstance(p, Bearing) and p.table:   # every row of its table is a bearing of its own
+            for s in p.table[0]:
+                self._check_point(replace(p.at_speed(s), table=()))
         if isinstance(p, Bearing):
             for sym, A in (("k", p.K), ("c", p.C)):
                 for i, a in enumerate("yz"):

@@ -8,7 +8,8 @@ before anything is computed: every run's for sweeps of at most :data:`CHECK_ALL`
 At most :data:`MAX_POINTS` runs and :func:`max_workers` local workers, never more workers than runs.
 
 Runs that differ only in keys of :data:`SHARED_TABLES` (speed, damping, initial state,
-simulation and output settings) share one assembled model and one reduction basis: they are
+simulation and output settings) share one assembled model and one reduction basis (but not speeds
+when a bearing's coefficients depend on the speed): they are
 built once on the client and sent once to every worker (design section 2: speed-dependent
 matrices are never reassembled). Every other key (mesh, reduction, shaft, delaminations,
 friction and restitution, which the contact set reads from the model's stack) gets its own
@@ -636,8 +637,11 @@ class _Plan:
 
     def model_group(self, i: int) -> tuple:
         """What identifies point ``i``'s model: its values of the keys outside :data:`SHARED_TABLES`
-        (the fixed overrides are the same for every point)."""
-        return tuple(v for k, v in self.points[i].items() if k.split(".")[0] not in SHARED_TABLES)
+        (the fixed overrides are the same for every point), and its speed when a bearing's coefficients depend
+        on it (the model's K holds the bearings at the scene's speed)."""
+        tabled = self.base.stack.speed_dependent
+        return tuple(v for k, v in self.points[i].items()
+                     if k.split(".")[0] not in SHARED_TABLES or (tabled and k == "rotation.speed_hz"))
 
 
 def checked_points(axes: Sequence[Axis]) -> list[dict]:

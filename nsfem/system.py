@@ -118,9 +118,10 @@ def linear_system(ops: RotorOperators, speed_hz: float = 0.0, gravity: float = 0
     Inertial: C = Omega Gp1 + D_i + c_e De1 + C_b, Q = K0 + K_c - Omega D_i J (the rotating internal damping's
     circulatory part), f = gravity along -z + the unbalance turning at Omega.
     D_i = alpha M + beta (K0 - K_b): Rayleigh damping of the rotor, not of its bearings; K_c the bearings'
-    cross coupling (skew)."""
+    cross coupling (skew). Bearings with coefficients tabulated against speed take them at ``speed_hz``."""
     if frame not in ("rotating", "inertial"):
         raise ValueError(f"unknown frame {frame!r}")
+    ops = ops.at_speed(speed_hz)   # speed-dependent bearings: their tables read at this speed
     w = 2.0 * math.pi * speed_hz
     alpha, beta = rayleigh
     phi = math.radians(phase_deg)

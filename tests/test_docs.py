@@ -19,4 +19,6 @@ def test_every_key_is_documented_with_a_default():
         if isinstance(table, dict):
             for key, k in table.items():
                 assert f"| `{key}` |" in text, (name, key)
-                assert k.doc
+                for sub, j in (k[0].items() if isinstance(k, list) else [(key, k)]):   # [[shaft.step]]'s keys
+                    assert f"| `{sub}` |" in text, (name, key, sub)
+                    assert j.doc

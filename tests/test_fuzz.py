@@ -3425,3 +3425,107 @@ def test_response_invocations_end_in_a_result_or_one_line(scene, speeds, sets, p
 def test_response_reproductions(argv, words, tmp_path):
     code, _, err = check_invocation(["response", *argv], tmp_path)
     assert code == cli.EXIT_ERROR and words in err
+
+
+# --- issue 35: stepped shafts and speed-dependent bearings (scene) ---
+STEP_SCENE = """[shaft]
+length = 1.0
+section = "circle"
+diameter = 0.05
+[mesh]
+elements = 20
+[reduction]
+method = "none"
+"""
+TABLE_SCENE = """[shaft]
+length = 1.0
+section = "circle"
+diameter = 0.05
+[[bearing]]
+x = 0.0
+speeds_hz = [0.0, 25.0, 50.0]
+kyy = [1e6, 3e6, 4e6]
+kzz = [1e6, 3e6, 4e6]
+[[bearing]]
+x = 1.0
+kyy = 2e6
+kzz = 2e6
+[[bearing]]
+x = 0.0
+kxx = 1e7
+[rotation]
+frame = "inertial"
+[mesh]
+elements = 20
+[reduction]
+method = "none"
+"""
+_step_number = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-3, 3), st.just("x"),
+                         st.lists(st.floats(-1, 2), max_size=2))
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(step=st.dictionaries(st.sampled_from(["start", "end", "diameter", "inner_diameter", "width", "height", "E",
+                                             "rho", "bore"]), _step_number, max_size=5))
+def test_any_shaft_step_is_modes_or_a_one_line_error(step, tmp_path):
+    """Whatever a ``[[shaft.step]]`` holds, ``modes`` answers or refuses it in one line naming a key."""
+    from nsfem.jsonio import dumps as _dumps
+
+    sets = [f"shaft.step.0.{k}={_dumps(v)}" for k, v in step.items()]
+    (tmp_path / "s.toml").write_text(STEP_SCENE)
+    code, _, err = check_invocation(["modes", "s.toml", "--count", "2", *sum((["--set", s] for s in sets), [])],
+                                    tmp_path)
+    if code == 2 and "shaft.step" in err:
+        assert "nsfem: error: shaft.step" in err, err
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(speeds=st.lists(st.floats(-10, 100), max_size=4), kyy=st.one_of(st.floats(-1e6, 1e7), st.lists(
+    st.one_of(st.floats(-1e6, 1e7), st.just(float("nan"))), max_size=4)), speed=st.floats(0, 120))
+def test_any_bearing_table_is_modes_or_a_one_line_error(speeds, kyy, speed, tmp_path):
+    """A bearing table of any speeds and values, at any scene speed: ``modes`` answers or refuses in one line."""
+    from nsfem.jsonio import dumps as _dumps
+
+    (tmp_path / "b.toml").write_text(TABLE_SCENE)
+    argv = ["modes", "b.toml", "--count", "2", "--set", f"bearing.0.speeds_hz={_dumps(speeds)}",
+            "--set", f"bearing.0.kyy={_dumps(kyy)}", "--set", f"rotation.speed_hz={speed!r}"]
+    check_invocation(argv, tmp_path)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["campbell", "b.toml", "--speeds", "0:80:3"], "bearing.0.speeds_hz: 80 Hz lies outside the bearing's table"),
+    (["modes", "b.toml", "--set", "rotation.speed_hz=60"], "bearing.0.speeds_hz: 60 Hz lies outside"),
+    (["stationary", "b.toml", "--set", "rotation.speed_hz=51"], "bearing.0.speeds_hz: 51 Hz lies outside"),
+    (["modes", "b.toml", "--set", "bearing.0.kzz=[1e6, 2e6]"], "bearing.0.kzz: has 2 values for the 3 speeds"),
+    (["modes", "b.toml", "--set", "bearing.1.kyy=[1e6, 2e6]"], "needs the bearing's speeds_hz"),
+    (["campbell", "b.toml", "--set", "rotation.frame=rotating", "--set", "bearing.0.kzz=[1e6, 3e6, 5e6]"],
+     "bearing.0 is not isotropic at 50 Hz of its table"),
+    (["modes", "s.toml", "--set", "shaft.step.0.start=0.5", "--set", "shaft.step.0.end=0.4"],
+     "shaft.step.0.end: must exceed start"),
+    (["modes", "s.toml", "--set", "shaft.step.0.start=0.2", "--set", "shaft.step.0.end=0.6",
+      "--set", "shaft.step.1.start=0.5", "--set", "shaft.step.1.end=0.7"], "shaft.step.1.start: step 1"),
+    (["modes", "s.toml", "--set", "shaft.step.0.start=0.2", "--set", "shaft.step.0.end=1.2"],
+     "beyond the shaft's end"),
+    (["modes", "s.toml", "--set", "shaft.step.0.start=0.2", "--set", "shaft.step.0.end=0.6",
+      "--set", "shaft.step.0.diameter=1e-40"], "shaft.step.0.diameter: the bending stiffness"),
+    (["modes", "s.toml", "--set", "shaft.step.0.start=0.2", "--set", "shaft.step.0.end=0.6",
+      "--set", "shaft.diameter=1e-40", "--set", "shaft.step.0.diameter=0.05"], "shaft.diameter: the bending"),
+])
+def test_issue35_scene_reproductions(argv, words, tmp_path):
+    (tmp_path / "s.toml").write_text(STEP_SCENE)
+    (tmp_path / "b.toml").write_text(TABLE_SCENE)
+    code, _, err = check_invocation(argv, tmp_path)
+    assert code == 2 and words in err, err
+
+
+def test_a_speed_sweep_of_a_tabled_bearing_builds_a_model_per_speed(tmp_path):
+    """Runs of a sweep share a model only where the bearings are the same: with a table, one per speed, each
+    scene's bearings read at its speed."""
+    from nsfem.sweep import plan
+
+    (tmp_path / "b.toml").write_text(TABLE_SCENE)
+    p = plan(tmp_path / "b.toml", ["rotation.speed_hz=10:40:2"])
+    assert p.model_group(0) != p.model_group(1)
+    assert [p.scene(i).stack.bearings[0].K[0][0] for i in (0, 1)] == [1.8e6, 3.6e6]   # 1e6 + 0.8 (2e6), 3e6 + 0.6e6

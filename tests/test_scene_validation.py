@@ -261,8 +261,11 @@ def _nonfinite_cases(prefix: str, table: dict, list_len: dict[str, int] | None =
     out = []
     for name, spec in table.items():
         key = f"{prefix}.{name}"
+        if isinstance(spec, list):   # an array of tables inside a table ([[shaft.step]]): its first entry
+            out += _nonfinite_cases(f"{key}.0", spec[0], list_len)
+            continue
         for lit in ("nan", "inf", "-inf"):
-            if spec.kind in ("float", "float?", "int"):
+            if spec.kind in ("float", "float?", "int", "coef"):
                 out.append(pytest.param([f"{key}={lit}"], key, "finite", id=f"{lit}-{key}"))
             elif spec.kind == "floats":
                 n = spec.length or (list_len or {}).get(name, 2)

@@ -475,6 +475,9 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
 
     rot, damp = scene.rotation, scene.damping
     check_frame_at_speed(rot.frame, model.stack)     # the diagram spins a scene given at rest too
+    if model.stack.speed_dependent:
+        speeds_hz = table_speeds(model.stack) if speeds_hz is None else speeds_hz
+        model.stack.check_speeds(speeds_hz)
     ops = {c: rotor_operators(model, contact_basis(model, c, reduction)) for c in ("open", "closed")}
     if not model.stack.contacts:
         ops["closed"] = ops["open"]
@@ -484,7 +487,8 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
     if rot.frame == "inertial":
         from .whirl import inertial_report
 
-        return inertial_report(model, ops, rot, damp, speeds_hz, count, reduction)
+        return table_warning(inertial_report(model, ops, rot, damp, speeds_hz, count, reduction), model.stack, rot,
+                             "undamped_critical_speeds_hz")
     speeds = default_speeds(ops["open"], rot.speed_hz) if speeds_hz is None else np.asarray(speeds_hz)
     res = {c: campbell(o, speeds, count, damp.rayleigh, damp.external) for c, o in ops.items()}
     grav = {c: gravity_resonances(o, rot.phase_deg) for c, o in ops.items()}
@@ -498,7 +502,7 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
     def clean(a):
         return [None if not np.isfinite(x) else float(x) for x in np.ravel(a)]
 
-    return {
+    out = {
         "frame": "rotating",
         "speeds_hz": clean(speeds),
         "frequencies_hz": [clean(row) for row in res["open"].frequencies_hz],
@@ -516,6 +520,24 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
         "warnings": [],
         "_results": res, "_bands": divergence_bands(div["open"]), "_critical": {c: [] for c in res},
     }
+    return table_warning(out, model.stack, rot, "gravity_resonances_hz and instability_hz")
+
+
+def table_speeds(stack, n: int = 61) -> np.ndarray:
+    """The default speeds of a diagram with speed-dependent bearings: ``n`` over the span every table covers."""
+    lo = max(b.table[0][0] for b in stack.bearings if b.table)
+    hi = min(b.table[0][-1] for b in stack.bearings if b.table)
+    return np.linspace(lo, hi, n) if hi > lo else np.array([lo])
+
+
+def table_warning(report: dict, stack, rot, keys: str) -> dict:
+    """``report`` with a warning that ``keys`` (solved for the speed, not followed in it) hold the bearings'
+    coefficients at the scene's speed, when the bearings have speed tables."""
+    if stack.speed_dependent:
+        report["warnings"].append(f"{keys} take the speed-dependent bearings' coefficients at rotation.speed_hz = "
+                                  f"{rot.speed_hz:g} Hz (they are solved for the speed, not followed in it); the "
+                                  "frequencies and branches read the tables at each speed")
+    return report
 
 
 def supercritical_warning(speed_hz: float, divergence_hz) -> str | None:

@@ -33,6 +33,7 @@ True
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
+from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -70,17 +71,29 @@ class RotorOperators:
     fu1: np.ndarray              # unbalance load per Omega^2 along its rotating-frame direction
     fq1: np.ndarray              # ... and turned a quarter forwards (inertial frame's harmonic)
     basis: sp.csr_matrix | np.ndarray | None = None
+    #: speed-dependent bearings: speed [Hz] -> the changes of (Kb, Kbc, Cb, Cb J) from the assembled ones, in full
+    #: coordinates (:func:`bearing_change`); None: the bearings' coefficients are constant
+    bearing_change: Callable[[float], tuple] | None = None
 
     @property
     def n(self) -> int:
         return self.M.shape[0]
+
+    def at_speed(self, speed_hz: float) -> "RotorOperators":
+        """The operators with the bearings' coefficients at ``speed_hz`` (themselves without a speed table)."""
+        if self.bearing_change is None:
+            return self
+        dKb, dKbc, dCb, dCbJ = (d if self.basis is None else project(self.basis, d)
+                                for d in self.bearing_change(speed_hz))
+        return replace(self, K0=(self.K0 + dKb).tocsr(), Kb=(self.Kb + dKb).tocsr(), Kbc=(self.Kbc + dKbc).tocsr(),
+                       Cb=(self.Cb + dCb).tocsr(), CbJ=(self.CbJ + dCbJ).tocsr(), bearing_change=None)
 
     def project(self, T: sp.spmatrix) -> "RotorOperators":
         """Every operator in the coordinates q of q_full = T q (symmetry and skewness kept)."""
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
-            if f.name == "basis":
+            if f.name in ("basis", "bearing_change"):
                 continue
             out[f.name] = project(T, v) if sp.issparse(v) else np.asarray(T.T @ v)
         base = T if self.basis is None else self.basis @ T
@@ -155,4 +168,17 @@ def full_operators(model: FEModel) -> RotorOperators:
     J = components.lateral_turn(model.spaces, n)
     fu1, fq1 = components.unbalance_loads(model.stack, dof, n)
     return RotorOperators(model.M_full, model.K_full, **mats, **vec, Kb=Kb, Kbc=Kbc, Cb=Cb, CbJ=(Cb @ J).tocsr(),
-                          MJ=(model.M_full @ J).tocsr(), KJ=((model.K_full - Kb) @ J).tocsr(), fu1=fu1, fq1=fq1)
+                          MJ=(model.M_full @ J).tocsr(), KJ=((model.K_full - Kb) @ J).tocsr(), fu1=fu1, fq1=fq1,
+                          bearing_change=bearing_change(model, Kb, Kbc, Cb, J) if model.stack.speed_dependent else None)
+
+
+def bearing_change(model: FEModel, Kb, Kbc, Cb, J) -> Callable[[float], tuple]:
+    """speed [Hz] -> the changes of the bearings' (K_b, K_c, C_b, C_b J) from the assembled ones (``model``'s
+    stack holds the coefficients at the scene's speed) when their tables are read at that speed."""
+    n = model.n_full
+
+    def change(speed_hz: float) -> tuple:
+        Kb2, Kc2, Cb2 = components.bearing_matrices(model.stack.at_speed(speed_hz), model.dof, n)
+        dC = (Cb2 - Cb).tocsr()
+        return (Kb2 - Kb).tocsr(), (Kc2 - Kbc).tocsr(), dC, (dC @ J).tocsr()
+    return change

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -122,6 +123,11 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
         cut = ("diameter",) if s.section == "circle" else ("width", "height")
         size.update({"diameter": _magnitude(s.width)} if s.section == "circle" else
                     {"width": _magnitude(s.width), "height": _magnitude(s.height)})
+        table = prefix
+        if not low and tree["shaft"]["step"]:   # a stepped shaft's piece: the step that gives the key, else [shaft]
+            step = next((j for j, st in enumerate(tree["shaft"]["step"])
+                         if (st["start"], st["end"]) == (s.start, s.end)), None)
+            table = None if step is None else f"shaft.step.{step}"
         for name, v, keys in (("element mass rho A l", mass, ("rho", span_key, *cut)),
                               ("axial stiffness E A / l", axial, ("E", span_key, *cut)),
                               ("bending stiffness E I_y / l^3", bend_w, ("E", span_key, *cut)),
@@ -129,6 +135,8 @@ def check_scales(tree: dict, stack: BeamStack) -> None:
                               ("squared frequency scale E / (rho l^2)", w2, ("E", "rho", span_key))):
             if not lo <= v <= hi:
                 key = max(keys, key=size.get)
+                if table != prefix and table is not None and tree["shaft"]["step"][step].get(key) is not None:
+                    prefix = table
                 raise SceneError(f"{prefix}.{key}", f"the {name} of {s.name} is {v:.3g}, outside [{lo:g}, {hi:g}] "
                                  "where the eigen solvers stay in double precision; choose units closer to 1 "
                                  "(E = rho = 1 nondimensionalizes)")
@@ -233,8 +241,11 @@ def check_frame_at_speed(frame: str, stack: BeamStack, spinning: bool = True) ->
         bad = next((i for i, b in enumerate(stack.bearings) if not b.isotropic), None)
         if spinning and bad is not None:
             b = stack.bearings[bad]
-            why = (f"bearing.{bad} is not isotropic (K = {[list(r) for r in b.K]}, C = {[list(r) for r in b.C]}): in "
-                   "the rotating frame its force has periodic coefficients")
+            rows = [(v, replace(b.at_speed(v), table=())) for v in b.table[0]] if b.table else [(None, b)]
+            v, row = next((v, r) for v, r in rows if not r.isotropic)   # a table: its first anisotropic row
+            at = "" if v is None else f" at {v:g} Hz of its table"
+            why = (f"bearing.{bad} is not isotropic{at} (K = {[list(r) for r in row.K]}, "
+                   f"C = {[list(r) for r in row.C]}): in the rotating frame its force has periodic coefficients")
             if odd is None and stack.cracks:
                 raise SceneError("rotation.frame", f"{why}, and {stack.cracks[0].label} turns with the shaft, so the "
                                  "inertial frame cannot carry it either: the equations have periodic coefficients in "

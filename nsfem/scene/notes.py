@@ -83,7 +83,7 @@ def bearing_notes(tree: dict) -> list[str]:
     kyy and no kzz (ROSS's horizontal and vertical), or kxx as large as the smaller lateral stiffness."""
     out = []
     for i, b in enumerate(tree["bearing"]):
-        kxx, kyy, kzz = b["kxx"], b["kyy"], b["kzz"]
+        kxx, kyy, kzz = (max(b[k]) if isinstance(b[k], list) else b[k] for k in ("kxx", "kyy", "kzz"))
         lateral = [k for k in (kyy, kzz) if k > 0.0]
         if not (kxx > 0.0 and lateral):
             continue   # no axial stiffness, or a thrust bearing alone: nothing to misread

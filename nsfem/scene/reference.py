@@ -7,6 +7,12 @@ from typing import Any
 from .schema import SCHEMA, SUPPORT_DOFS_BY_NAME, Key
 
 
+STEP_TEXT = ("A stepped shaft: where a step covers x, its section (and material, if given) replaces `[shaft]`'s; "
+             "keys it leaves out keep the shaft's, and its section kind is the shaft's. The mesh has a node at each "
+             "step's ends (each piece of constant section is a segment, joined to the next one rigidly). Steps lie "
+             "inside the shaft and may touch but not overlap; they cannot be combined with `[[delamination]]`.")
+
+
 def _fmt(v: Any) -> str:
     if v is None:
         return "(see text)"
@@ -34,10 +40,19 @@ def scene_reference() -> str:
         table, array = (spec[0], True) if isinstance(spec, list) else (spec, False)
         out += [f"## `[[{name}]]` (zero or more)" if array else f"## `[{name}]`", "",
                 "| key | default | meaning |", "|---|---|---|"]
+        nested = [(k, s[0]) for k, s in table.items() if isinstance(s, list)]
         for k, s in table.items():
+            if isinstance(s, list):
+                out.append(f"| `{k}` | `[]` | array of tables `[[{name}.{k}]]`, below |")
+                continue
             doc = s.doc + (f"; one of {', '.join(f'`{c}`' for c in s.choices)}" if s.choices else "")
             out.append(f"| `{k}` | {_fmt(s.default)} | {doc} |")
         out.append("")
+        for k, sub in nested:
+            out += [f"### `[[{name}.{k}]]` (zero or more)", "", STEP_TEXT if (name, k) == ("shaft", "step") else "",
+                    "", "| key | default | meaning |", "|---|---|---|"]
+            out += [f"| `{j}` | {_fmt(t.default)} | {t.doc} |" for j, t in sub.items()]
+            out.append("")
     out += ["## Supports", "", "| supports | fixed at x = 0 | fixed at x = L |", "|---|---|---|"]
     for k, (a, b) in SUPPORT_DOFS_BY_NAME.items():
         out.append(f"| `{k}` | {', '.join(a) or 'none'} | {', '.join(b) or 'none'} |")

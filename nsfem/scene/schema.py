@@ -65,7 +65,7 @@ PATH_KEYS = ("mesh.file",)
 class Key:
     """One scene key: its kind, default, documentation and an optional value check."""
 
-    kind: str  # float | int | str | bool | floats | strs | points | float?
+    kind: str  # float | int | str | bool | floats | strs | points | float? | coef (a number or a list)
     default: Any
     doc: str
     choices: tuple = ()
@@ -155,6 +155,16 @@ _SECTION = {
     "diameter": Key("float", 0.02, "circle: outer diameter D [m]", check=_positive),
     "inner_diameter": Key("float", 0.0, "circle: bore d [m] (0 = solid)", check=_nonneg),
 }
+_STEP = {
+    "start": Key("float", 0.0, "x where the step starts [m] (inside [0, length]; steps may touch, not overlap)"),
+    "end": Key("float", 0.0, "x where it ends [m] (above start)"),
+    "diameter": Key("float?", None, "circle: outer diameter D [m] (left out: the shaft's)", check=_positive),
+    "inner_diameter": Key("float?", None, "circle: bore d [m] (left out: the shaft's)", check=_nonneg),
+    "width": Key("float?", None, "rectangle: width b along y [m] (left out: the shaft's)", check=_positive),
+    "height": Key("float?", None, "rectangle: height h along z [m] (left out: the shaft's)", check=_positive),
+    "E": Key("float?", None, "Young's modulus [Pa] (left out: the shaft's)", check=_material),
+    "rho": Key("float?", None, "density [kg/m^3] (left out: the shaft's)", check=_material),
+}
 _SHAFT = {
     "length": Key("float", 1.0, "shaft length [m]", check=_positive),
     **_SECTION,
@@ -165,6 +175,7 @@ _SHAFT = {
     "supports": Key("str", "pinned-pinned", "end conditions; pinned-pinned fixes U at x = 0 only. A rotor scene "
                     "(one with [[bearing]]) has none unless it says so: its default is free-free, the bearings "
                     "hold it", SUPPORTS),
+    "step": [_STEP],
 }
 _DELAMINATION = {
     "start": Key("float", 0.1, "x where the delamination starts [m]"),
@@ -232,15 +243,37 @@ _DISK = {
     "width": Key("float?", None, "geometry: axial width [m]"),
     "rho": Key("float", 7850.0, "geometry: density [kg/m^3]", check=_material),
 }
+def _coefficient_nonneg(v):
+    vals = v if isinstance(v, list) else [v]
+    return None if all(x >= 0 for x in vals) else f"must be >= 0, got {v}"
+
+
+def _speeds_table(v):
+    if not v:
+        return None
+    if len(v) < 2:
+        return f"a table needs at least two speeds, got {v}"
+    if v[0] < 0:
+        return f"speeds must be >= 0, got {v[0]}"
+    if any(b <= a for a, b in zip(v, v[1:])):
+        return f"speeds must increase strictly, got {v}"
+    return None
+
+
+_TABLE = " (a number, or with speeds_hz a list of one value per speed)"
 _BEARING = {
     "x": Key("float", 0.0, "position on the shaft [m]"),
-    **{f"k{a}{b}": Key("float", 0.0, f"stiffness, force along {a} per displacement along {b} [N/m]")
+    "speeds_hz": Key("floats", [], "speed-dependent coefficients: the rotation speeds [Hz] of a table (strictly "
+                     "increasing, at least two); each coefficient given as a list holds one value per speed and is "
+                     "interpolated linearly in speed; a speed outside the table is refused ([] = constant "
+                     "coefficients)", check=_speeds_table),
+    **{f"k{a}{b}": Key("coef", 0.0, f"stiffness, force along {a} per displacement along {b} [N/m]{_TABLE}")
        for a, b in ("yy", "zz", "yz", "zy")},
-    **{f"c{a}{b}": Key("float", 0.0, f"damping, force along {a} per velocity along {b} [N s/m]")
+    **{f"c{a}{b}": Key("coef", 0.0, f"damping, force along {a} per velocity along {b} [N s/m]{_TABLE}")
        for a, b in ("yy", "zz", "yz", "zy")},
-    "kxx": Key("float", 0.0, "axial stiffness on U [N/m]: x is the shaft axis, so this is a thrust bearing (0 = "
+    "kxx": Key("coef", 0.0, "axial stiffness on U [N/m]: x is the shaft axis, so this is a thrust bearing (0 = "
                "none); with lateral keys, a note when kzz is missing or kxx is as large as kyy or kzz: write a "
-               "thrust bearing as its own [[bearing]] with kxx alone", check=_nonneg),
+               f"thrust bearing as its own [[bearing]] with kxx alone{_TABLE}", check=_coefficient_nonneg),
 }
 _UNBALANCE = {
     "x": Key("float?", None, "position on the shaft [m] (default: the rotor's middle)"),

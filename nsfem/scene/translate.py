@@ -72,9 +72,75 @@ def section(table: dict, key: str) -> dict:
     return dict(width=table["width"], height=table["height"])
 
 
+def shaft_steps(sh: dict) -> list[tuple[float, float, dict, dict]]:
+    """The pieces of constant section of ``[shaft]`` with its ``[[shaft.step]]``: (start, end, section keywords,
+    material) from x = 0 to the length, a step's section replacing the shaft's where it lies (checked: steps inside
+    the shaft, not overlapping, of the shaft's section kind)."""
+    L = sh["length"]
+    circle = sh["section"] == "circle"
+    own, other = (("diameter", "inner_diameter"), ("width", "height")) if circle else \
+        (("width", "height"), ("diameter", "inner_diameter"))
+    steps = sorted(enumerate(sh["step"]), key=lambda it: it[1]["start"])
+    for i, st in steps:
+        key = f"shaft.step.{i}"
+        if not 0.0 <= st["start"] < L:
+            raise SceneError(f"{key}.start", f"x={st['start']} lies outside the shaft [0, {L})")
+        if not st["start"] < st["end"]:
+            raise SceneError(f"{key}.end", f"must exceed start ({st['start']}), got {st['end']}")
+        if not st["end"] <= L:
+            raise SceneError(f"{key}.end", f"x={st['end']} lies beyond the shaft's end ({L})")
+        given = next((k for k in other if st[k] is not None), None)
+        if given:
+            raise SceneError(f"{key}.{given}", f"the shaft's section is a {sh['section']}, whose steps take "
+                             f"{' and '.join(own)}, not {given}")
+    for (i, a), (j, c) in zip(steps, steps[1:]):
+        if c["start"] < a["end"]:
+            raise SceneError(f"shaft.step.{j}.start", f"step {j} [{c['start']}, {c['end']}] overlaps step {i} "
+                             f"[{a['start']}, {a['end']}]")
+    base_mat = dict(E=sh["E"], rho=sh["rho"])
+    pieces, cursor = [], 0.0
+    for i, st in steps:
+        if st["start"] > cursor:
+            pieces.append((cursor, st["start"], section(sh, "shaft"), base_mat))
+        table = {**sh, **{k: st[k] for k in own if st[k] is not None}}
+        mat = {k: sh[k] if st[k] is None else st[k] for k in ("E", "rho")}
+        pieces.append((st["start"], st["end"], section(table, f"shaft.step.{i}"), mat))
+        cursor = st["end"]
+    if cursor < L:
+        pieces.append((cursor, L, section(sh, "shaft"), base_mat))
+    return pieces
+
+
+def stepped_stack(tree: dict) -> BeamStack:
+    """The stepped shaft of ``[[shaft.step]]``: one segment per piece of constant section (:func:`shaft_steps`),
+    each joined rigidly to the next at the step (a junction), the ends held as ``supports`` says."""
+    sh = tree["shaft"]
+    if tree["delamination"]:
+        raise SceneError("shaft.step", "a stepped shaft cannot carry a delamination (a delamination splits one "
+                         "rectangular section into two layers); leave out one or the other")
+    segments = tuple(Segment(f"intact_{k}", a, c, offset=(0.0, 0.0), **sec, **mat)
+                     for k, (a, c, sec, mat) in enumerate(shaft_steps(sh)))
+    junctions = tuple(Junction(s.end, s.name, (t.name,)) for s, t in zip(segments, segments[1:]))
+    L = sh["length"]
+    at0, atL = SUPPORT_DOFS_BY_NAME[sh["supports"]]
+    supports = tuple(s for s in (Support(segments[0].name, 0.0, at0) if at0 else None,
+                                 Support(segments[-1].name, L, atL) if atL else None) if s)
+    contacts = []
+    for i, o in enumerate(tree["obstacle"]):
+        x = L if o["x"] is None else o["x"]
+        if not 0.0 <= x <= L:
+            raise SceneError(f"obstacle.{i}.x", f"x={x} lies outside the shaft [0, {L}]")
+        seg = next(s for s in segments if s.start <= x <= s.end)
+        contacts.append(Contact("obstacle", x, (seg.name,), "dirac", None, o["normal"], o["clearance"],
+                                o["friction"], o["friction_directions"], o["restitution"], label=f"obstacle.{i}"))
+    return BeamStack(segments, junctions, supports, tuple(contacts), tree["beam"]["theory"])
+
+
 def high_level_stack(tree: dict) -> BeamStack:
     """Translate ``[shaft]``, ``[[delamination]]``, ``[[obstacle]]`` into a BeamStack (checked first)."""
     sh = tree["shaft"]
+    if sh["step"]:
+        return stepped_stack(tree)
     L = sh["length"]
     sec = section(sh, "shaft")
     b, h = sec["width"], sec["height"]
@@ -237,6 +303,31 @@ def disk_inertia(d: dict, key: str) -> tuple[float, float, float]:
     return m, ip, id_
 
 
+BEARING_COEFFICIENTS = ("kyy", "kyz", "kzy", "kzz", "cyy", "cyz", "czy", "czz", "kxx")
+
+
+def bearing(b: dict, key: str) -> Bearing:
+    """A ``[[bearing]]`` table as a :class:`Bearing`: constant coefficients, or a table over ``speeds_hz`` whose
+    list-valued coefficients have one value per speed (numbers stay constant); checked: lists need the speeds,
+    and as many values."""
+    speeds = b["speeds_hz"]
+    listed = [k for k in BEARING_COEFFICIENTS if isinstance(b[k], list)]
+    if listed and not speeds:
+        raise SceneError(f"{key}.{listed[0]}", f"a list of coefficients needs the bearing's speeds_hz (one value per "
+                         f"speed), got {b[listed[0]]}")
+    if speeds and not listed:
+        raise SceneError(f"{key}.speeds_hz", "a speed table needs at least one coefficient given as a list (one "
+                         "value per speed)")
+    for k in listed:
+        if len(b[k]) != len(speeds):
+            raise SceneError(f"{key}.{k}", f"has {len(b[k])} values for the {len(speeds)} speeds of speeds_hz")
+    at0 = {k: b[k][0] if isinstance(b[k], list) else b[k] for k in BEARING_COEFFICIENTS}
+    table = (tuple(speeds), tuple((k, tuple(b[k])) for k in listed)) if listed else ()
+    out = Bearing(b["x"], ((at0["kyy"], at0["kyz"]), (at0["kzy"], at0["kzz"])),
+                  ((at0["cyy"], at0["cyz"]), (at0["czy"], at0["czz"])), at0["kxx"], label=key, table=table)
+    return out
+
+
 def point_components(tree: dict, stack: BeamStack) -> BeamStack:
     """``stack`` with the scene's ``[[disk]]``, ``[[bearing]]`` and ``[[unbalance]]`` on it."""
     from dataclasses import replace
@@ -247,9 +338,13 @@ def point_components(tree: dict, stack: BeamStack) -> BeamStack:
                        **({"outer_diameter": d["outer_diameter"], "inner_diameter": d["inner_diameter"],
                            "width": d["width"]} if d["mass"] is None else {}))
                   for i, d in enumerate(tree["disk"]))
-    bearings = tuple(Bearing(b["x"], ((b["kyy"], b["kyz"]), (b["kzy"], b["kzz"])),
-                             ((b["cyy"], b["cyz"]), (b["czy"], b["czz"])), b["kxx"], label=f"bearing.{i}")
-                     for i, b in enumerate(tree["bearing"]))
+    speed = tree["rotation"]["speed_hz"]
+    try:
+        bearings = tuple(bearing(b, f"bearing.{i}").at_speed(speed) for i, b in enumerate(tree["bearing"]))
+    except SceneError as exc:
+        if "outside the bearing's table" not in exc.reason:
+            raise
+        raise SceneError(exc.key, f"{exc.reason}: rotation.speed_hz must lie in every bearing's table") from None
     unbalances = tuple(Unbalance(middle if u["x"] is None else u["x"], u["magnitude"], math.radians(u["phase_deg"]),
                                  label=f"unbalance.{i}") for i, u in enumerate(tree["unbalance"]))
     return replace(stack, disks=disks, bearings=bearings, unbalances=unbalances,

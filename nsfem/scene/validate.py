@@ -18,7 +18,7 @@ def defaults() -> dict:
         if isinstance(spec, Key):
             out[name] = copy.deepcopy(spec.default)
         elif isinstance(spec, dict):
-            out[name] = {k: copy.deepcopy(v.default) for k, v in spec.items()}
+            out[name] = {k: [] if isinstance(v, list) else copy.deepcopy(v.default) for k, v in spec.items()}
     return out
 
 
@@ -47,6 +47,9 @@ def _check_value(key: str, spec: Key, value: Any) -> Any:
             raise SceneError(key, f"must be a string, got {value!r}")
         if spec.choices and value not in spec.choices:
             raise SceneError(key, f"unknown value {value!r} (use {' | '.join(spec.choices)})")
+    elif kind == "coef":   # a bearing coefficient: a number, or a list of one per speed of its table
+        value = ([number(v, f"{key}.{i}") for i, v in enumerate(value)] if isinstance(value, list)
+                 else number(value, key))
     elif kind == "bool":
         if not isinstance(value, bool):
             raise SceneError(key, f"must be true or false, got {value!r}")
@@ -88,8 +91,18 @@ def _check_table(prefix: str, spec: dict, raw: Any) -> dict:
                 raise SceneError(f"{prefix}.{k}", f"unknown key: {AXES}; a bearing takes kyy, kzz, kyz, kzy, the same "
                                  "for c, and kxx (axial; no axial damping)")
             raise SceneError(f"{prefix}.{k}", f"unknown key (known: {', '.join(spec)})")
-    return {k: _check_value(f"{prefix}.{k}", s, raw[k]) if k in raw else copy.deepcopy(s.default)
+    return {k: _check_array(f"{prefix}.{k}", s[0], raw.get(k, [])) if isinstance(s, list) else
+            _check_value(f"{prefix}.{k}", s, raw[k]) if k in raw else copy.deepcopy(s.default)
             for k, s in spec.items()}
+
+
+def _check_array(prefix: str, spec: dict, items: Any) -> list[dict]:
+    """An array of tables (``[[name]]``, or ``[[shaft.step]]`` inside a table), each checked against ``spec``."""
+    if isinstance(items, dict):
+        items = [items]
+    if not isinstance(items, list):
+        raise SceneError(prefix, f"must be an array of tables ([[{prefix}]]), got {items!r}")
+    return [_check_table(f"{prefix}.{i}", spec, item) for i, item in enumerate(items)]
 
 
 def _axis_key(k: str) -> bool:
@@ -136,10 +149,5 @@ def validate_tree(raw: dict) -> dict:
         elif isinstance(spec, dict):
             out[name] = _check_table(name, spec, raw.get(name, {}))
         else:
-            items = raw.get(name, [])
-            if isinstance(items, dict):
-                items = [items]
-            if not isinstance(items, list):
-                raise SceneError(name, f"must be an array of tables ([[{name}]]), got {items!r}")
-            out[name] = [_check_table(f"{name}.{i}", spec[0], item) for i, item in enumerate(items)]
+            out[name] = _check_array(name, spec[0], raw.get(name, []))
     return out
