@@ -40,8 +40,10 @@ def _forbidden(what):
 @pytest.fixture
 def no_model(monkeypatch):
     """Building the FE model (meshing + assembly) must not start for a bad scene."""
-    monkeypatch.setattr(ASSEMBLE, "build_model", _forbidden("build_model"))
+    # nsfem's public names load on first use: patch (and so resolve) nsfem.build_model before the module's
+    # function, or its first lookup would find the stand-in, which the undo would then leave in place
     monkeypatch.setattr(nsfem, "build_model", _forbidden("build_model"))
+    monkeypatch.setattr(ASSEMBLE, "build_model", _forbidden("build_model"))
 
 
 @pytest.fixture
