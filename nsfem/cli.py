@@ -65,6 +65,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--contact", choices=("open", "closed"), default="open",
                    help="contact points open (free sub-beams) or closed (gap held at zero, frictionless)")
     p.add_argument("--count", type=int, default=10, help="number of frequencies (default 10)")
+    p.add_argument("--speed", type=float, metavar="HZ", help="damped modes of the rotor spinning at HZ in the scene's "
+                   "frame (damped frequencies, damping ratios, log decrements, whirl); without it, the undamped "
+                   "modes at rest")
+    p.add_argument("--png", metavar="FILE", help="with --speed: write the whirl orbits of the first modes along "
+                   "the shaft to this PNG")
 
     p = sub.add_parser("campbell", help="frequencies against speed, critical speeds, gravity resonances")
     _scene_args(p)
@@ -203,6 +208,10 @@ def cmd_modes(args) -> int:
 
     if args.count < 1:
         raise NsfemError(f"--count must be a positive integer, got {args.count}")
+    if args.speed is None and args.png is not None:
+        raise NsfemError("--png draws the whirl orbits of damped modes: give --speed HZ too")
+    if args.speed is not None:
+        return _damped_modes(args)
     scene = _scene(args, "modes")
     t0 = time.perf_counter()
     model = build_model(scene)
@@ -227,6 +236,61 @@ def cmd_modes(args) -> int:
     lines += [f"  {k + 1:4d}  {f:14.4f}  {RIGID_NAMES[fld] if f == 0.0 else FIELD_NAMES[fld]}" if 0.1 <= f < 1e9
               or f == 0.0 else f"  {k + 1:4d}  {f:14.5g}  {FIELD_NAMES[fld]}"
               for k, (f, fld) in enumerate(zip(modes.frequencies_hz, modes.fields))]
+    _emit(args, payload, "\n".join(lines))
+    return 0
+
+
+def _damped_modes(args) -> int:
+    """``nsfem modes --speed HZ``: the damped modes at the speed (:func:`nsfem.analysis.damped.damped_modes`)."""
+    import math
+
+    from .analysis.damped import scene_damped_modes
+    from .fem.assemble import build_model
+    from .reduce import scene_reduction
+
+    if not (math.isfinite(args.speed) and args.speed >= 0):
+        raise NsfemError(f"--speed must be a finite speed >= 0 Hz, got {args.speed:g}")
+    _check_png(args.png)
+    if args.png:
+        from .atomic import check_file
+        from pathlib import Path
+
+        check_file(Path(args.png), "--png")
+    scene = _scene(args, "modes")
+    from .scene import check_speed
+
+    check_speed(args.speed, scene.stack, "--speed")
+    t0 = time.perf_counter()
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    modes = scene_damped_modes(scene, model, args.speed, args.count, red, args.contact)
+    warnings = []
+    top = red.info.get("max_frequency_hz")
+    if top and len(modes.frequencies_hz) and modes.frequencies_hz[-1] > 0.5 * top:
+        warnings.append(f"modes above {0.5 * top:.4g} Hz (half the reduction's highest kept mode, {top:.4g} Hz) are "
+                        "not converged in the reduction; raise reduction.modes or use reduction.method = none")
+    unstable = [k + 1 for k, z in enumerate(modes.damping_ratios) if z < 0]
+    if unstable:
+        warnings.append(f"mode(s) {', '.join(map(str, unstable))} grow (negative damping ratio): the rotor is unstable "
+                        f"at {args.speed:g} Hz")
+    for w in warnings:
+        print(printable(f"nsfem modes: warning: {w}"), file=sys.stderr)
+    outputs = []
+    if args.png:
+        from .plot.modes import whirl_orbits_plot
+
+        outputs.append(str(whirl_orbits_plot(args.png, modes, scene.title)))
+    payload = {"title": scene.title, **modes.to_json(), "contact": args.contact, "ndof": red.ndof,
+               "ndof_full": model.n, "reduction": red.info, "elements": model.mesh.elements,
+               "wall_s": time.perf_counter() - t0, "outputs": outputs, "warnings": warnings,
+               "notes": list(scene.notes)}
+    lines = [scene.title, f"damped modes at {args.speed:g} Hz ({modes.frame} frame), contact {args.contact}: "
+             f"{red.ndof} dofs ({red.name}; full model {model.n})",
+             "  mode  frequency [Hz]  damping ratio  log dec  whirl"]
+    lines += [f"  {k + 1:4d}  {f:14.5g}  {z:13.4g}  {d:7.4g}  {w}" for k, (f, z, d, w) in
+              enumerate(zip(modes.frequencies_hz, modes.damping_ratios, modes.log_decrements, modes.whirl))]
+    if outputs:
+        lines.append("wrote " + ", ".join(outputs))
     _emit(args, payload, "\n".join(lines))
     return 0
 
