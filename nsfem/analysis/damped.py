@@ -89,7 +89,9 @@ def damped_modes(model, ops, speed_hz: float, count: int, rayleigh=(0.0, 0.0), e
     lam = np.where(np.abs(lam.real) <= resolution, 1j * lam.imag, lam)
     turn = lateral_turn(model.spaces, model.n_full)
     xf = np.asarray(ops.basis @ X) if ops.basis is not None else X
-    sense = whirl_sense(X, ops.basis, turn) if len(pick) else np.zeros(0, dtype=int)
+    if speed_hz > 0:
+        xf = _split_repeated(lam, xf, turn)
+    sense = whirl_sense(xf, None, turn) if len(pick) else np.zeros(0, dtype=int)
     omega = 2 * math.pi * speed_hz
     if frame == "rotating" and omega:
         lateral = (sense == 1) | (sense == -1)
@@ -98,6 +100,39 @@ def damped_modes(model, ops, speed_hz: float, count: int, rayleigh=(0.0, 0.0), e
         sense = np.where(sense == 2, 2, 0)  # at rest no mode whirls: an isotropic pair is any combination
     x, shapes = _lateral_shapes(model, xf)
     return DampedModes(float(speed_hz), frame, lam, tuple(WHIRL_NAMES[int(s)] for s in sense), x, shapes)
+
+
+#: roots closer than this share of their modulus are one repeated root (an isotropic rotor's translation
+#: on isotropic bearings: its forward and backward whirl have one frequency; the solver returns any
+#: combination of the two, e.g. two planar ones). Measured: such a pair split by round-off by 3e-8 of its
+#: modulus (a shaft 3e4 times stiffer than its bearings); the gyroscopic split of a pair is larger than 1e-6
+#: from speeds of about 1e-6 of its frequency on. Within a group the backward combination comes first.
+REPEATED = 1e-6
+
+
+def _split_repeated(lam: np.ndarray, xf: np.ndarray, turn) -> np.ndarray:
+    """Eigenvectors (full coordinates, columns) with those of each repeated root replaced by the combinations
+    that whirl purely forward and backward: the eigenvectors of the whirl measure x^H (-i J) x (Hermitian, J
+    real skew) against the lateral amplitude x^H P x within the root's eigenspace."""
+    import scipy.linalg as sla
+
+    xf = np.array(xf, dtype=complex)
+    lateral = np.asarray(abs(turn).sum(axis=1)).ravel() > 0
+    done = np.zeros(lam.size, dtype=bool)
+    for i in range(lam.size):
+        group = np.flatnonzero(~done & (np.abs(lam - lam[i]) <= REPEATED * np.abs(lam[i])))
+        done[group] = True
+        if group.size < 2:
+            continue
+        Y = xf[:, group]
+        A = Y.conj().T @ (-1j * (turn @ Y))
+        B = Y[lateral].conj().T @ Y[lateral]
+        try:
+            _, V = sla.eigh(0.5 * (A + A.conj().T), 0.5 * (B + B.conj().T))
+        except np.linalg.LinAlgError:   # no lateral motion to split (axial modes)
+            continue
+        xf[:, group] = Y @ V
+    return xf
 
 
 def _lateral_shapes(model, xf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

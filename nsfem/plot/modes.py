@@ -23,16 +23,21 @@ COLOURS = {"forward": "tab:blue", "backward": "tab:red", "planar": "tab:gray", "
 def whirl_orbits_plot(path: str | Path, modes, title: str = "") -> Path:
     """The whirl orbits of the first :data:`PANELS` modes of ``modes`` along the shaft."""
     k = max(1, min(PANELS, len(modes.whirl)))
-    fig, axes = figure(nrows=k, ncols=1, figsize=(7.5, 2.2 * k + 0.6), squeeze=False,
-                       subplot_kw={"projection": "3d"})
+    rows = (k + 1) // 2
+    fig, axes = figure(nrows=rows, ncols=2 if k > 1 else 1, figsize=(11.0 if k > 1 else 6.5, 3.4 * rows + 0.7),
+                       squeeze=False, subplot_kw={"projection": "3d"})
     t = np.linspace(0.0, 2 * np.pi, 49)
     phase = np.exp(1j * t)
     x = modes.x_m
-    for i, ax in enumerate(axes[:, 0]):
-        if i >= len(modes.whirl):
+    for i, ax in enumerate(axes.ravel()):
+        if i >= len(modes.whirl) or modes.whirl[i] == "axial":
             ax.set_axis_off()
-            ax.text2D(0.5, 0.5, "no oscillating mode", ha="center", transform=ax.transAxes)
+            ax.text2D(0.5, 0.5, "no oscillating mode" if i >= len(modes.whirl) else
+                      f"mode {i + 1}: {modes.frequencies_hz[i]:.4g} Hz, axial (no lateral orbit)", ha="center",
+                      transform=ax.transAxes)
             continue
+        ax.set_box_aspect((3.0, 1.0, 1.0))
+        ax.view_init(elev=22, azim=-62)
         S = modes.shapes[i]
         colour = COLOURS[modes.whirl[i]]
         for j in range(x.size):
@@ -46,6 +51,8 @@ def whirl_orbits_plot(path: str | Path, modes, title: str = "") -> Path:
         ax.set_zlabel("z [-]")
         ax.set_ylim(-1.05, 1.05)
         ax.set_zlim(-1.05, 1.05)
+        ax.set_yticks([-1.0, 0.0, 1.0])
+        ax.set_zticks([-1.0, 0.0, 1.0])
         ax.set_title(f"mode {i + 1}: {modes.frequencies_hz[i]:.4g} Hz, {modes.whirl[i]}, log dec "
                      f"{modes.log_decrements[i]:.3g}", fontsize=9, color=colour)
     fig.suptitle(f"{title}\nwhirl orbits at {modes.speed_hz:g} Hz ({modes.frame} frame; amplitudes normalized "
