@@ -579,7 +579,7 @@ def cmd_run(args) -> int:
     out_dir = Path(args.out or scene.output.dir)
     what = "--out" if args.out else "output.dir"
     files = _run_files(scene)
-    _check_run_targets(out_dir, scene.output, scene.sensors, what, files["series"])
+    _check_run_targets(out_dir, scene.output, scene.sensors, what, files["series"], bool(scene.stack.bearings))
     with claim(out_dir, "run", files, what) as written:
         return _run(args, scene, out_dir, written)
 
@@ -594,6 +594,8 @@ def _run_files(scene) -> dict[str, list[str]]:
     run = ["result.npz"] + [f"{n}.png" for n in out.plots]
     if scene.sensors:
         run += ["sensors.csv", "sensors.png"]
+    if scene.stack.bearings:
+        run += ["bearings.csv", "bearings.png"]
     sim = scene.simulation
     n_times = output_times(sim.t_end, sim.output_dt).size
     # more than FILES_MAX in 2 files a frame: refused by run_scene's size check before any write
@@ -673,6 +675,8 @@ def _run(args, scene, out_dir, written: set) -> int:
 
                 outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
                                                 scene.rotation.speed_hz, scene.title, stator_rings(system))))
+        if scene.stack.bearings:
+            outputs += _bearing_outputs(result, system, scene, out_dir, extra)
         if result.completed and scene.output.vtu_every:   # last: the longest to write (Ctrl-C there keeps the rest)
             from .export.vtu import write_series
 
@@ -714,6 +718,28 @@ def _run(args, scene, out_dir, written: set) -> int:
     return 0
 
 
+def _bearing_outputs(result, system, scene, out_dir, extra: dict) -> list[str]:
+    """bearings.csv (the force of each bearing on the shaft over time, N, inertial frame) and, when the scene
+    draws plots, bearings.png; ``extra["bearings"]`` names the CSV (the run JSON's ``bearings``)."""
+    from .analysis.reactions import bearing_columns, bearing_force_histories, bearing_names, write_bearings_csv
+    from .fem.constraints import dense
+
+    model = system.info["model"]
+    info = result.info
+    forces = bearing_force_histories(model, dense(system.info["reduction"].T), result.t, result.q, result.v,
+                                     info.get("frame", "rotating"), info.get("speed_hz", 0.0),
+                                     info.get("phase_deg", 0.0))
+    columns, index = bearing_columns(model)
+    extra["bearings"] = str(write_bearings_csv(out_dir / "bearings.csv", result.t, columns, index, forces))
+    written = [extra["bearings"]]
+    if scene.output.plots and result.t.size > 1:
+        from .plot.bearings import bearings_plot
+
+        written.append(str(bearings_plot(out_dir / "bearings.png", result.t, forces, bearing_names(model), index,
+                                         scene.rotation.speed_hz, scene.title)))
+    return written
+
+
 def _force_words(summary: dict) -> str:
     """The run's largest contact force and impulse in words: an impact-only run has no sustained force."""
     force = (f"max normal force {summary['max_normal_force_N']:.4g} N" if summary["max_normal_force_N"] > 0
@@ -748,9 +774,10 @@ def _check_png(png: str | None) -> None:
                          "file, scene or data named there would be replaced by it)")
 
 
-def _check_run_targets(out_dir, output, sensors, what: str, frames=()) -> None:
+def _check_run_targets(out_dir, output, sensors, what: str, frames=(), bearings: bool = False) -> None:
     """Refuse, before the run, an output folder or file that cannot be written (``output``: the
-    scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors, ``frames`` the series' names)."""
+    scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors, ``frames`` the series' names,
+    ``bearings``: the scene has bearings, whose forces go to bearings.csv)."""
     from .atomic import check_file, check_folder
 
     check_folder(out_dir, what)
@@ -760,6 +787,8 @@ def _check_run_targets(out_dir, output, sensors, what: str, frames=()) -> None:
         _check_frames_folder(out_dir, what, frames)
     if sensors:
         names += ["sensors.csv", "sensors.png"]
+    if bearings:
+        names += ["bearings.csv", "bearings.png"]
     for name in names:
         check_file(out_dir / name, what)
 
