@@ -136,3 +136,73 @@ def test_modes_speed_json_lists_are_aligned_and_the_png_is_written(tmp_path, cap
     assert len({len(out[k]) for k in keys}) == 1 and len(out["frequencies_hz"]) == 5
     assert out["speed_hz"] == 50.0 and out["outputs"] == [str(png)]
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# ------------------------------------------------------------------ bearing reactions (bearings.csv of nsfem run)
+def test_bearing_forces_of_a_rotor_at_rest_under_gravity_carry_its_weight():
+    """The static sag K q = f_gravity of ross_example: its bearings' vertical forces sum to the weight m g of the
+    shaft (rho A L) and the two disks (rho pi/4 (D^2 - d^2) w each), the horizontal ones to 0. Tolerance 1e-9:
+    the solve's round-off, cond(K) eps with cond(K) ~ 1e6 here."""
+    from nsfem.analysis.reactions import bearing_force_histories
+    from nsfem.fem.constraints import dense
+    from nsfem.system import linear_system
+
+    scene = load_scene("ross_example", ["reduction.method=none", "mesh.elements=12", "rotation.speed_hz=0"])
+    model = build_model(scene)
+    basis = dense(model.T)
+    system = linear_system(rotor_operators(model, model.T), 0.0, 9.81, frame="inertial")
+    q = np.linalg.solve(system.Q.toarray(), system.f0)
+    F = bearing_force_histories(model, basis, np.zeros(1), q[:, None], np.zeros((q.size, 1)))
+    rho, g = 7810.0, 9.81
+    m = rho * math.pi / 4 * (0.05**2 * 1.5 + 2 * (0.28**2 - 0.05**2) * 0.07)
+    assert F[0, :, 2].sum() == pytest.approx(m * g, rel=1e-9)
+    assert abs(F[0, :, 1].sum()) <= 1e-9 * m * g
+
+
+@pytest.mark.parametrize("frame", ["inertial", "rotating"])
+def test_bearing_force_of_a_synchronous_circular_orbit_is_the_dynamic_stiffness_times_the_radius(frame):
+    """A steady unbalance orbit u = r (cos Omega t, sin Omega t) at an isotropic bearing (k, c): the force's
+    amplitude is |k + i Omega c| r, and it leads the displacement's opposite by atan(Omega c / k). In the
+    rotating frame the same orbit is a constant u_r = (r, 0), u_r' = 0 (the damping then acts on Omega J u_r).
+    Round-off only: 1e-12."""
+    from nsfem.analysis.reactions import bearing_force_histories
+
+    k, c, speed, r = 2e6, 3e3, 40.0, 1e-4
+    scene = load_scene("rub", ["reduction.method=none", f"rotation.frame={frame}", f"rotation.speed_hz={speed}",
+                               f"bearing.0.kyy={k}", f"bearing.0.kzz={k}", f"bearing.0.cyy={c}",
+                               f"bearing.0.czz={c}", "rotation.phase_deg=0"])
+    model = build_model(scene)
+    b = model.stack.bearings[0]
+    n = model.n_full
+    seg = model.stack.carrier(b.x)
+    iv, iw = model.dof(seg, "V", b.x), model.dof(seg, "W", b.x)
+    W = 2 * math.pi * speed
+    t = np.linspace(0.0, 0.05, 41)
+    q, v = np.zeros((n, t.size)), np.zeros((n, t.size))
+    if frame == "inertial":
+        q[iv], q[iw] = r * np.cos(W * t), r * np.sin(W * t)
+        v[iv], v[iw] = -r * W * np.sin(W * t), r * W * np.cos(W * t)
+    else:
+        q[iv] = r
+    F = bearing_force_histories(model, np.eye(n), t, q, v, frame, speed, 0.0)[:, 0, 1:]
+    assert np.hypot(F[:, 0], F[:, 1]) == pytest.approx(abs(k + 1j * W * c) * r, rel=1e-12)
+    # F = -(k + i W c) u in complex notation u = r e^{i W t}
+    assert F[:, 0] + 1j * F[:, 1] == pytest.approx(-(k + 1j * W * c) * r * np.exp(1j * W * t), rel=1e-12, abs=1e-9)
+
+
+def test_run_writes_bearings_csv_with_the_run(tmp_path, capsys):
+    """A scene with bearings: bearings.csv beside result.npz, named in the JSON as ``bearings``, a column per
+    lateral force of each bearing and the axial one of the thrust bearing, a row per output time."""
+    from nsfem import cli
+
+    out = tmp_path / "run"
+    assert cli.main(["run", "ross_example", "--json", "--out", str(out), "--set", "simulation.t_end=0.01",
+                     "--set", "output.vtu_every=0", "--set", "output.plots=[]"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["bearings"] == str(out / "bearings.csv") and payload["bearings"] in payload["outputs"]
+    lines = (out / "bearings.csv").read_text().splitlines()
+    assert lines[0] == "t,bearing.0.Fy,bearing.0.Fz,bearing.1.Fy,bearing.1.Fz,bearing.2.Fx"
+    import nsfem.result
+
+    res, _, _ = nsfem.result.Result.load(out / "result.npz")
+    assert len(lines) == 1 + res.t.size and not (out / "bearings.png").exists()
