@@ -60,7 +60,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="output folder (default: the scene's output.dir): result.npz, the "
                    "PNG plots, nsfem.pvd for ParaView with its VTU frames in DIR/vtu/")
 
-    p = sub.add_parser("modes", help="natural frequencies of the non-rotating structure")
+    p = sub.add_parser("modes", help="natural frequencies of the non-rotating structure; damped modes at a speed")
     _scene_args(p)
     p.add_argument("--contact", choices=("open", "closed"), default="open",
                    help="contact points open (free sub-beams) or closed (gap held at zero, frictionless)")
