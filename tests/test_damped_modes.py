@@ -229,3 +229,26 @@ def test_damped_modes_in_the_rotating_frame_are_the_inertial_ones_seen_from_the_
         k = int(np.argmin(np.abs(rot.eigenvalues - seen)))
         assert abs(rot.eigenvalues[k] - seen) <= scale, (lam, w, rot.eigenvalues)
         assert rot.whirl[k] == w
+
+
+def test_campbell_branches_carry_the_damped_modes_log_decrements(capsys):
+    """campbell --json's branches at a speed of its grid are the damped modes of modes --speed there: each shown
+    branch's frequency and log decrement are those of one mode (1e-8 relative: two eigen solves of one model,
+    the shift-invert solver's round-off), and its log decrement is 2 pi zeta / sqrt(1 - zeta^2) of its ratio."""
+    from nsfem import cli
+
+    damped = [f"bearing.{i}.c{a}=1000" for i in (0, 1) for a in ("yy", "zz")]
+    sets = [x for kv in ["mesh.elements=6", "reduction.method=none", *damped] for x in ("--set", kv)]
+    assert cli.main(["campbell", "ross_example", *sets, "--speeds", "0:60:3", "--count", "4", "--json"]) == 0
+    branches = json.loads(capsys.readouterr().out)["branches"]["open"]
+    scene = load_scene("ross_example", ["mesh.elements=6", "reduction.method=none", *damped])
+    modes = scene_damped_modes(scene, build_model(scene), 60.0, 12)
+    assert branches
+    for b in branches:
+        f, z, d = b["frequencies_hz"][-1], b["damping_ratio"][-1], b["log_decrement"][-1]
+        if f is None:
+            continue
+        k = int(np.argmin(np.abs(modes.frequencies_hz - f)))
+        assert modes.frequencies_hz[k] == pytest.approx(f, rel=1e-8)
+        assert modes.log_decrements[k] == pytest.approx(d, rel=1e-8, abs=1e-12)
+        assert d == pytest.approx(float(log_decrement(z)), rel=1e-12, abs=1e-15)
