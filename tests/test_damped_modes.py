@@ -252,3 +252,49 @@ def test_campbell_branches_carry_the_damped_modes_log_decrements(capsys):
         assert modes.frequencies_hz[k] == pytest.approx(f, rel=1e-8)
         assert modes.log_decrements[k] == pytest.approx(d, rel=1e-8, abs=1e-12)
         assert d == pytest.approx(float(log_decrement(z)), rel=1e-12, abs=1e-15)
+
+
+_RUB = {}
+
+
+def rub_model(frame: str):
+    """The rub rotor's 6-element model in ``frame`` (built once)."""
+    if frame not in _RUB:
+        _RUB[frame] = build_model(load_scene("rub", ["reduction.method=none", "mesh.elements=6",
+                                                     f"rotation.frame={frame}"]))
+    return _RUB[frame]
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(speed=st.floats(0.0, 300.0), phase=st.floats(-180.0, 180.0),
+       amp=st.tuples(*[st.floats(-1e-3, 1e-3)] * 4), w=st.floats(0.0, 2000.0))
+def test_bearing_forces_do_not_depend_on_the_frame_a_run_is_computed_in(speed, phase, amp, w):
+    """One motion of the bearing's node, u(t) = Re(a e^{i w t}) in space, handed over in the inertial frame and
+    in the rotating one (u_r = R(-theta) u, u_r' = R(-theta) (u' - Omega J u), theta = Omega t + phi): the
+    same forces. Round-off: 1e-9 of the largest force (the turn's cos/sin at theta up to 2e3 rad), at least
+    1e-12 N (a motion of round-off size)."""
+    from nsfem.analysis.reactions import QUARTER_TURN, bearing_force_histories
+
+    t = np.linspace(0.0, 0.1, 17)
+    a = np.array([amp[0] + 1j * amp[1], amp[2] + 1j * amp[3]])
+    u = np.real(a[:, None] * np.exp(1j * w * t))
+    du = np.real(1j * w * a[:, None] * np.exp(1j * w * t))
+    W = 2 * math.pi * speed
+    th = W * t + math.radians(phase)
+    c, s = np.cos(th), np.sin(th)
+    ur = np.array([c * u[0] + s * u[1], -s * u[0] + c * u[1]])
+    dd = du - W * (QUARTER_TURN @ u)
+    dur = np.array([c * dd[0] + s * dd[1], -s * dd[0] + c * dd[1]])
+    F = {}
+    for frame, (uu, vv) in (("inertial", (u, du)), ("rotating", (ur, dur))):
+        model = rub_model(frame)
+        b = model.stack.bearings[0]
+        seg = model.stack.carrier(b.x)
+        iv, iw = model.dof(seg, "V", b.x), model.dof(seg, "W", b.x)
+        q, v = np.zeros((model.n_full, t.size)), np.zeros((model.n_full, t.size))
+        q[[iv, iw]], v[[iv, iw]] = uu, vv
+        F[frame] = bearing_force_histories(model, np.eye(model.n_full), t, q, v, frame, speed, phase)
+    assert np.abs(F["rotating"] - F["inertial"]).max() <= 1e-9 * np.abs(F["inertial"]).max() + 1e-12
