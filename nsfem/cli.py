@@ -264,7 +264,10 @@ def _damped_modes(args) -> int:
     model = build_model(scene)
     red = scene_reduction(scene.reduction, model)
     modes = scene_damped_modes(scene, model, args.speed, args.count, red, args.contact)
-    warnings = []
+    from .analysis.rigid_motion import caught_by_contacts, free_motions, rigid_warning
+
+    rigid = free_motions(model)
+    warnings = [w for w in [rigid_warning(model, caught_by_contacts(model), rigid)] if w]
     top = red.info.get("max_frequency_hz")
     if top and len(modes.frequencies_hz) and modes.frequencies_hz[-1] > 0.5 * top:
         warnings.append(f"modes above {0.5 * top:.4g} Hz (half the reduction's highest kept mode, {top:.4g} Hz) are "
@@ -282,7 +285,7 @@ def _damped_modes(args) -> int:
         outputs.append(str(whirl_orbits_plot(args.png, modes, scene.title)))
     payload = {"title": scene.title, **modes.to_json(), "contact": args.contact, "ndof": red.ndof,
                "ndof_full": model.n, "reduction": red.info, "elements": model.mesh.elements,
-               "wall_s": time.perf_counter() - t0, "outputs": outputs, "warnings": warnings,
+               "wall_s": time.perf_counter() - t0, "rigid_motions": rigid, "outputs": outputs, "warnings": warnings,
                "notes": list(scene.notes)}
     lines = [scene.title, f"damped modes at {args.speed:g} Hz ({modes.frame} frame), contact {args.contact}: "
              f"{red.ndof} dofs ({red.name}; full model {model.n})",

@@ -298,3 +298,14 @@ def test_bearing_forces_do_not_depend_on_the_frame_a_run_is_computed_in(speed, p
         q[[iv, iw]], v[[iv, iw]] = uu, vv
         F[frame] = bearing_force_histories(model, np.eye(model.n_full), t, q, v, frame, speed, phase)
     assert np.abs(F["rotating"] - F["inertial"]).max() <= 1e-9 * np.abs(F["inertial"]).max() + 1e-12
+
+
+def test_a_free_rotors_rigid_motions_are_not_listed_as_modes():
+    """retainer_drop's rotor floats free (its magnetic bearings off, the retainer rings open): its rigid
+    translations and precession are roots at 0, split by round-off into pairs of about sqrt(eps) omega_max
+    (measured 1.8e-4 Hz); none is a mode. The first mode is the forward nutation, at a sizeable fraction of the
+    speed (Ip / Id Omega for a rigid rotor), so every reported frequency is above 1 Hz."""
+    scene = load_scene("retainer_drop", [])
+    modes = scene_damped_modes(scene, build_model(scene), 100.0, 4)
+    assert len(modes.whirl) == 4 and modes.frequencies_hz.min() > 1.0
+    assert modes.whirl[0] == "forward"

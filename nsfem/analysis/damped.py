@@ -14,7 +14,8 @@ orbits are seen from the shaft; the whirl reported is the inertial one, sign(s o
 mode turning with sense s in the rotating frame (exact for the circular orbits of an axisymmetric rotor
 on isotropic bearings, the only one the rotating frame spins; :func:`nsfem.scene.check_frame_at_speed`).
 Overdamped (real) roots have no frequency and are not listed; a real part within the roots' round-off
-resolution sqrt(eps) omega_max (:func:`.campbell.growth_rate`) is reported as 0 (undamped).
+resolution sqrt(eps) omega_max (:func:`.campbell.growth_rate`) is reported as 0 (undamped), and a root
+within it of 0 (a free rotor's rigid motion split by round-off) is not a mode.
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ from ..errors import NsfemError
 from ..system import linear_system
 from .campbell import _omega_max, _oscillating, state_eigenvalues
 
+#: roots beyond ``count`` looked at, so that dropping round-off roots at 0 leaves ``count`` modes
+SPARE = 6
 #: whirl codes (:func:`.whirl.whirl_sense`) to names
 WHIRL_NAMES = {1: "forward", -1: "backward", 0: "planar", 2: "axial"}
 
@@ -82,10 +85,12 @@ def damped_modes(model, ops, speed_hz: float, count: int, rayleigh=(0.0, 0.0), e
         raise NsfemError(f"--count must be a positive integer, got {count}")
     system = linear_system(ops, speed_hz, 0.0, 0.0, rayleigh, external, frame)
     lam, X = state_eigenvalues(system, count, vectors=True)
-    pick = _oscillating(lam, count)
-    lam, X = lam[pick], X[:, pick]
-    # a real part below the roots' round-off resolution (:func:`.campbell.growth_rate`) is no damping
+    pick = _oscillating(lam, count + SPARE)
+    # a real part below the roots' round-off resolution (:func:`.campbell.growth_rate`) is no damping, and a
+    # root within it of 0 no mode: a free rotor's rigid motions (a defective root at 0, split by round-off)
     resolution = math.sqrt(np.finfo(float).eps) * _omega_max(system.M, system.Q)
+    pick = pick[np.abs(lam[pick]) > resolution][:count]
+    lam, X = lam[pick], X[:, pick]
     lam = np.where(np.abs(lam.real) <= resolution, 1j * lam.imag, lam)
     turn = lateral_turn(model.spaces, model.n_full)
     xf = np.asarray(ops.basis @ X) if ops.basis is not None else X
