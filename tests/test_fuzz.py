@@ -3400,6 +3400,10 @@ MODES_SPEED_CASES = [
     (["modes", *ROSS, "--speed", "10", "--set", "rotation.frame=\"rotating\""], "error", "bearing.0"),  # anisotropic
     (["modes", *ROSS, "--speed", "10"], "ok", ""),
     (["modes", *RUB, "--speed", "0", "--contact", "closed"], "ok", ""),
+    # a growing mode (cross-coupled bearings) and modes beyond a reduction's trust are said, not hidden
+    (["modes", *ROSS, "--speed", "50", "--set", "bearing.0.kyz=5e5", "--set", "bearing.0.kzy=-5e5"], "ok",
+     "unstable at 50 Hz"),
+    (["modes", *ROSS, "--speed", "50", "--count", "30"], "ok", "not converged in the reduction"),
 ]
 
 
