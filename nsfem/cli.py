@@ -60,11 +60,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="output folder (default: the scene's output.dir): result.npz, the "
                    "PNG plots, nsfem.pvd for ParaView with its VTU frames in DIR/vtu/")
 
-    p = sub.add_parser("modes", help="natural frequencies of the non-rotating structure")
+    p = sub.add_parser("modes", help="natural frequencies of the non-rotating structure; damped modes at a speed")
     _scene_args(p)
     p.add_argument("--contact", choices=("open", "closed"), default="open",
                    help="contact points open (free sub-beams) or closed (gap held at zero, frictionless)")
     p.add_argument("--count", type=int, default=10, help="number of frequencies (default 10)")
+    p.add_argument("--speed", type=float, metavar="HZ", help="damped modes of the rotor spinning at HZ in the scene's "
+                   "frame (damped frequencies, damping ratios, log decrements, whirl); without it, the undamped "
+                   "modes at rest")
+    p.add_argument("--png", metavar="FILE", help="with --speed: write the whirl orbits of the first modes along "
+                   "the shaft to this PNG")
 
     p = sub.add_parser("campbell", help="frequencies against speed, critical speeds, gravity resonances")
     _scene_args(p)
@@ -210,6 +215,10 @@ def cmd_modes(args) -> int:
 
     if args.count < 1:
         raise NsfemError(f"--count must be a positive integer, got {args.count}")
+    if args.speed is None and args.png is not None:
+        raise NsfemError("--png draws the whirl orbits of damped modes: give --speed HZ too")
+    if args.speed is not None:
+        return _damped_modes(args)
     scene = _scene(args, "modes")
     t0 = time.perf_counter()
     model = build_model(scene)
@@ -234,6 +243,64 @@ def cmd_modes(args) -> int:
     lines += [f"  {k + 1:4d}  {f:14.4f}  {RIGID_NAMES[fld] if f == 0.0 else FIELD_NAMES[fld]}" if 0.1 <= f < 1e9
               or f == 0.0 else f"  {k + 1:4d}  {f:14.5g}  {FIELD_NAMES[fld]}"
               for k, (f, fld) in enumerate(zip(modes.frequencies_hz, modes.fields))]
+    _emit(args, payload, "\n".join(lines))
+    return 0
+
+
+def _damped_modes(args) -> int:
+    """``nsfem modes --speed HZ``: the damped modes at the speed (:func:`nsfem.analysis.damped.damped_modes`)."""
+    import math
+
+    from .analysis.damped import scene_damped_modes
+    from .fem.assemble import build_model
+    from .reduce import scene_reduction
+
+    if not (math.isfinite(args.speed) and args.speed >= 0):
+        raise NsfemError(f"--speed must be a finite speed >= 0 Hz, got {args.speed:g}")
+    _check_png(args.png)
+    if args.png:
+        from .atomic import check_file
+        from pathlib import Path
+
+        check_file(Path(args.png), "--png")
+    scene = _scene(args, "modes")
+    from .scene import check_speed
+
+    check_speed(args.speed, scene.stack, "--speed")
+    t0 = time.perf_counter()
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    modes = scene_damped_modes(scene, model, args.speed, args.count, red, args.contact)
+    from .analysis.rigid_motion import caught_by_contacts, free_motions, rigid_warning
+
+    rigid = free_motions(model)
+    warnings = [w for w in [rigid_warning(model, caught_by_contacts(model), rigid)] if w]
+    top = red.info.get("max_frequency_hz")
+    if top and len(modes.frequencies_hz) and modes.frequencies_hz[-1] > 0.5 * top:
+        warnings.append(f"modes above {0.5 * top:.4g} Hz (half the reduction's highest kept mode, {top:.4g} Hz) are "
+                        "not converged in the reduction; raise reduction.modes or use reduction.method = none")
+    unstable = [k + 1 for k, z in enumerate(modes.damping_ratios) if z < 0]
+    if unstable:
+        warnings.append(f"mode(s) {', '.join(map(str, unstable))} grow (negative damping ratio): the rotor is unstable "
+                        f"at {args.speed:g} Hz")
+    for w in warnings:
+        print(printable(f"nsfem modes: warning: {w}"), file=sys.stderr)
+    outputs = []
+    if args.png:
+        from .plot.modes import whirl_orbits_plot
+
+        outputs.append(str(whirl_orbits_plot(args.png, modes, scene.title)))
+    payload = {"title": scene.title, **modes.to_json(), "contact": args.contact, "ndof": red.ndof,
+               "ndof_full": model.n, "reduction": red.info, "elements": model.mesh.elements,
+               "wall_s": time.perf_counter() - t0, "rigid_motions": rigid, "outputs": outputs, "warnings": warnings,
+               "notes": list(scene.notes)}
+    lines = [scene.title, f"damped modes at {args.speed:g} Hz ({modes.frame} frame), contact {args.contact}: "
+             f"{red.ndof} dofs ({red.name}; full model {model.n})",
+             "  mode  frequency [Hz]  damping ratio  log dec  whirl"]
+    lines += [f"  {k + 1:4d}  {f:14.5g}  {z:13.4g}  {d:7.4g}  {w}" for k, (f, z, d, w) in
+              enumerate(zip(modes.frequencies_hz, modes.damping_ratios, modes.log_decrements, modes.whirl))]
+    if outputs:
+        lines.append("wrote " + ", ".join(outputs))
     _emit(args, payload, "\n".join(lines))
     return 0
 
@@ -522,7 +589,7 @@ def cmd_run(args) -> int:
     out_dir = Path(args.out or scene.output.dir)
     what = "--out" if args.out else "output.dir"
     files = _run_files(scene)
-    _check_run_targets(out_dir, scene.output, scene.sensors, what, files["series"])
+    _check_run_targets(out_dir, scene.output, scene.sensors, what, files["series"], bool(scene.stack.bearings))
     with claim(out_dir, "run", files, what) as written:
         return _run(args, scene, out_dir, written)
 
@@ -537,6 +604,8 @@ def _run_files(scene) -> dict[str, list[str]]:
     run = ["result.npz"] + [f"{n}.png" for n in out.plots]
     if scene.sensors:
         run += ["sensors.csv", "sensors.png"]
+    if scene.stack.bearings:
+        run += ["bearings.csv", "bearings.png"]
     sim = scene.simulation
     n_times = output_times(sim.t_end, sim.output_dt).size
     # more than FILES_MAX in 2 files a frame: refused by run_scene's size check before any write
@@ -616,6 +685,8 @@ def _run(args, scene, out_dir, written: set) -> int:
 
                 outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
                                                 scene.rotation.speed_hz, scene.title, stator_rings(system))))
+        if scene.stack.bearings:
+            outputs += _bearing_outputs(result, system, scene, out_dir, extra)
         if result.completed and scene.output.vtu_every:   # last: the longest to write (Ctrl-C there keeps the rest)
             from .export.vtu import write_series
 
@@ -657,6 +728,28 @@ def _run(args, scene, out_dir, written: set) -> int:
     return 0
 
 
+def _bearing_outputs(result, system, scene, out_dir, extra: dict) -> list[str]:
+    """bearings.csv (the force of each bearing on the shaft over time, N, inertial frame) and, when the scene
+    draws plots, bearings.png; ``extra["bearings"]`` names the CSV (the run JSON's ``bearings``)."""
+    from .analysis.reactions import bearing_columns, bearing_force_histories, bearing_names, write_bearings_csv
+    from .fem.constraints import dense
+
+    model = system.info["model"]
+    info = result.info
+    forces = bearing_force_histories(model, dense(system.info["reduction"].T), result.t, result.q, result.v,
+                                     info.get("frame", "rotating"), info.get("speed_hz", 0.0),
+                                     info.get("phase_deg", 0.0))
+    columns, index = bearing_columns(model)
+    extra["bearings"] = str(write_bearings_csv(out_dir / "bearings.csv", result.t, columns, index, forces))
+    written = [extra["bearings"]]
+    if scene.output.plots and result.t.size > 1:
+        from .plot.bearings import bearings_plot
+
+        written.append(str(bearings_plot(out_dir / "bearings.png", result.t, forces, bearing_names(model), index,
+                                         scene.rotation.speed_hz, scene.title)))
+    return written
+
+
 def _force_words(summary: dict) -> str:
     """The run's largest contact force and impulse in words: an impact-only run has no sustained force."""
     force = (f"max normal force {summary['max_normal_force_N']:.4g} N" if summary["max_normal_force_N"] > 0
@@ -691,9 +784,10 @@ def _check_png(png: str | None) -> None:
                          "file, scene or data named there would be replaced by it)")
 
 
-def _check_run_targets(out_dir, output, sensors, what: str, frames=()) -> None:
+def _check_run_targets(out_dir, output, sensors, what: str, frames=(), bearings: bool = False) -> None:
     """Refuse, before the run, an output folder or file that cannot be written (``output``: the
-    scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors, ``frames`` the series' names)."""
+    scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors, ``frames`` the series' names,
+    ``bearings``: the scene has bearings, whose forces go to bearings.csv)."""
     from .atomic import check_file, check_folder
 
     check_folder(out_dir, what)
@@ -703,6 +797,8 @@ def _check_run_targets(out_dir, output, sensors, what: str, frames=()) -> None:
         _check_frames_folder(out_dir, what, frames)
     if sensors:
         names += ["sensors.csv", "sensors.png"]
+    if bearings:
+        names += ["bearings.csv", "bearings.png"]
     for name in names:
         check_file(out_dir / name, what)
 

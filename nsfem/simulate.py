@@ -178,17 +178,19 @@ BYTES_WARN = 2.0**30
 
 
 def output_size(model, system: ContactSystem, t_end: float, output_dt: float, vtu_every: int,
-                n_times: int, sensors: int = 0) -> tuple[int, float]:
+                n_times: int, sensors: int = 0, bearing_columns: int = 0) -> tuple[int, float]:
     """(files, bytes) a run writes into its folder: result.npz (:func:`output_bytes` and its basis)
     and, with ``vtu_every``, its VTU series (every ``vtu_every``-th output time a frame of
     :func:`nsfem.export.vtu.frame_size`, and the .pvd: 100 bytes a file) of ``n_times`` output times,
     and with ``sensors`` sensors.csv (t and each sensor as a float's repr and a separator: 25 bytes
-    at most); the plots are a few files of 100 kB or less and left out."""
+    at most), and with ``bearing_columns`` force columns bearings.csv (likewise); the plots are a few files
+    of 100 kB or less and left out."""
     nbytes = output_bytes(system, t_end, output_dt) + 8.0 * model.n_full * system.n
     files = 1
-    if sensors:
-        files += 1
-        nbytes += 25.0 * n_times * (sensors + 1)
+    for columns in (sensors, bearing_columns):
+        if columns:
+            files += 1
+            nbytes += 25.0 * n_times * (columns + 1)
     if vtu_every:
         from .export.vtu import frame_size
 
@@ -325,8 +327,10 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
             warn(text)
     if out_dir is not None:  # after the refusals above: no warning for a run refused anyway
         n_times = output_times(sim.t_end, sim.output_dt).size
+        from .analysis.reactions import bearing_columns
+
         files, nbytes = output_size(model, system, sim.t_end, sim.output_dt, scene.output.vtu_every, n_times,
-                                    len(scene.sensors))
+                                    len(scene.sensors), len(bearing_columns(model)[0]))
         from .outdir import replaced_bytes
 
         free = free_bytes(out_dir)  # and the room of the earlier run's files this one replaces

@@ -3529,3 +3529,61 @@ def test_a_speed_sweep_of_a_tabled_bearing_builds_a_model_per_speed(tmp_path):
     p = plan(tmp_path / "b.toml", ["rotation.speed_hz=10:40:2"])
     assert p.model_group(0) != p.model_group(1)
     assert [p.scene(i).stack.bearings[0].K[0][0] for i in (0, 1)] == [1.8e6, 3.6e6]   # 1e6 + 0.8 (2e6), 3e6 + 0.6e6
+
+
+# --- issue 35: damped modes at speed (modes --speed, --png) and bearing forces of a run ---
+MODES_SPEED_CASES = [
+    (["modes", *ROSS, "--speed", "nan"], "error", "--speed"),
+    (["modes", *ROSS, "--speed", "-1"], "error", "--speed"),
+    (["modes", *ROSS, "--speed", "inf"], "error", "--speed"),
+    (["modes", *ROSS, "--speed", "1e300"], "error", "--speed"),            # beyond the bar wave speed
+    (["modes", *ROSS, "--png", "orbits.png"], "error", "--speed"),         # orbits of damped modes only
+    (["modes", *ROSS, "--speed", "10", "--png", "orbits.txt"], "error", "--png"),
+    (["modes", *ROSS, "--speed", "10", "--count", "0"], "error", "--count"),
+    (["modes", *ROSS, "--speed", "10", "--set", "rotation.frame=\"rotating\""], "error", "bearing.0"),  # anisotropic
+    (["modes", *ROSS, "--speed", "10"], "ok", ""),
+    (["modes", *RUB, "--speed", "0", "--contact", "closed"], "ok", ""),
+    # a growing mode (cross-coupled bearings) and modes beyond a reduction's trust are said, not hidden
+    (["modes", *ROSS, "--speed", "50", "--set", "bearing.0.kyz=5e5", "--set", "bearing.0.kzy=-5e5"], "ok",
+     "unstable at 50 Hz"),
+    (["modes", *ROSS, "--speed", "50", "--count", "30"], "ok", "not converged in the reduction"),
+]
+
+
+@pytest.mark.parametrize("argv,outcome,text", MODES_SPEED_CASES)
+def test_modes_speed_reproductions(argv, outcome, text, tmp_path):
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == (0 if outcome == "ok" else cli.EXIT_ERROR), stderr
+    assert text in stderr
+
+
+@settings(max_examples=10, deadline=None, derandomize=True, database=None,   # a modes --speed is 0.2 s
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(speed=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(0.0, 200.0)),
+       count=st.integers(-2, 30), png=st.sampled_from([None, "o.png", "o.npz", "sub"]))
+def test_modes_speed_either_answers_aligned_lists_or_one_line(speed, count, png, tmp_path):
+    """Any --speed, --count and --png: exit 0 with the four lists aligned, ascending damped frequencies and
+    the log decrements those of the damping ratios, or exit 2 with one line; no file but the PNG asked for."""
+    root = Path(tempfile.mkdtemp(dir=tmp_path))
+    (root / "sub").mkdir()
+    (root / "sub" / "mine.txt").write_text("the user's")   # a folder named as --png: refused, kept
+    argv = ["modes", *ROSS, "--json", "--speed", repr(speed), "--count", str(count)] + (["--png", png] if png else [])
+    code, stdout, _ = check_invocation(argv, root)
+    if code == 0:
+        out = json.loads(stdout)
+        f, z, d = (np.array(out[k], dtype=float) for k in ("frequencies_hz", "damping_ratios", "log_decrements"))
+        assert len(out["whirl"]) == f.size == z.size == d.size <= count
+        assert np.all(np.diff(f) >= 0) and np.all(f > 0)
+        assert d == pytest.approx(2 * np.pi * z / np.sqrt(1 - z**2), rel=1e-9, abs=1e-12)
+        assert sorted(p.name for p in root.iterdir()) == sorted(["sub"] + ([png] if png else []))
+
+
+def test_bearing_forces_of_a_run_in_a_folder_that_refuses_bearings_csv(tmp_path):
+    """bearings.csv is claimed with the run's files: a folder of that name where it goes is refused before the
+    run, naming it, and nothing is written."""
+    out = tmp_path / "out"
+    (out / "bearings.csv").mkdir(parents=True)
+    (out / "bearings.csv" / "mine.txt").write_text("the user's")
+    code, _, stderr = check_invocation(["run", *ROSS, *CHEAP[2:], "--out", "out"], tmp_path)
+    assert code == cli.EXIT_ERROR and "bearings.csv" in stderr, stderr
+    assert sorted(p.name for p in out.iterdir()) == ["bearings.csv"]

@@ -300,8 +300,8 @@ def shown_branches(res: CampbellResult) -> np.ndarray:
 
 
 def branches_json(res: CampbellResult, whirl_names: dict | None = None) -> list[dict]:
-    """The diagram's branches (:func:`shown_branches`) for the JSON: damped frequency [Hz] and damping
-    ratio per speed (null where the branch does not exist), and with ``whirl_names`` (inertial frame) the
+    """The diagram's branches (:func:`shown_branches`) for the JSON: damped frequency [Hz], damping ratio
+    and logarithmic decrement per speed (null where the branch does not exist), and with ``whirl_names`` (inertial frame) the
     branch's whirl label."""
     B = res.branches
     out = []
@@ -310,6 +310,9 @@ def branches_json(res: CampbellResult, whirl_names: dict | None = None) -> list[
         row = {"whirl": whirl_names[int(B.label[b])]} if whirl_names else {}
         row["frequencies_hz"] = [float(x) if np.isfinite(x) else None for x in f]
         row["damping_ratio"] = [float(x) if np.isfinite(x) else None for x in z]
+        # 2 pi zeta / sqrt(1 - zeta^2) (:func:`.damped.log_decrement`); a branch root has zeta < 1 (it oscillates)
+        row["log_decrement"] = [float(2 * math.pi * x / math.sqrt(1 - x * x)) if np.isfinite(x) and abs(x) < 1 else None
+                                for x in z]
         out.append(row)
     return out
 

@@ -46,6 +46,57 @@ def bearing_reactions(model, q_full: np.ndarray, omega: float = 0.0, frame: str 
     return out
 
 
+def bearing_force_histories(model, basis: np.ndarray, t: np.ndarray, q: np.ndarray, v: np.ndarray,
+                            frame: str = "inertial", speed_hz: float = 0.0, phase_deg: float = 0.0) -> np.ndarray:
+    """The force of each bearing on the shaft over time, (len(t), n_bearings, 3) [N] along (x, y, z) of the
+    inertial frame (a bearing is fixed in space): -K u - C u' laterally, -kxx U axially, from reduced
+    coordinates q, v (n, len(t)) with q_full = basis q. A run in the rotating frame is turned into the inertial
+    one first: u = R(theta) u_r, u' = R(theta) (u_r' + Omega J u_r), theta = Omega t + phi."""
+    t = np.asarray(t, dtype=float)
+    out = np.zeros((t.size, len(model.stack.bearings), 3))
+    omega = 2 * math.pi * speed_hz
+    theta = omega * t + math.radians(phase_deg)
+    for i, b in enumerate(model.stack.bearings):
+        seg = model.stack.carrier(b.x)
+        rows = basis[[model.dof(seg, "V", b.x), model.dof(seg, "W", b.x)]]
+        u, du = rows @ q, rows @ v   # (2, times)
+        if frame == "rotating" and omega:
+            du = du + omega * (QUARTER_TURN @ u)
+            c, s_ = np.cos(theta), np.sin(theta)
+            u = np.array([c * u[0] - s_ * u[1], s_ * u[0] + c * u[1]])
+            du = np.array([c * du[0] - s_ * du[1], s_ * du[0] + c * du[1]])
+        out[:, i, 1:] = -(np.asarray(b.K, dtype=float) @ u + np.asarray(b.C, dtype=float) @ du).T
+        if b.kxx:
+            out[:, i, 0] = -b.kxx * (basis[model.dof(seg, "U", b.x)] @ q)
+    return out
+
+
+def bearing_names(model) -> list[str]:
+    """Each bearing's name: its label, else ``bearing.<index>``."""
+    return [b.label or f"bearing.{i}" for i, b in enumerate(model.stack.bearings)]
+
+
+def bearing_columns(model) -> tuple[list[str], np.ndarray]:
+    """(column names, (bearing, axis) index pairs) of bearings.csv: per bearing with lateral stiffness or
+    damping ``<name>.Fy``, ``<name>.Fz``, and with an axial spring (kxx) ``<name>.Fx`` [N]."""
+    names, index = [], []
+    for i, (b, name) in enumerate(zip(model.stack.bearings, bearing_names(model))):
+        lateral = bool(np.any(np.asarray(b.K)) or np.any(np.asarray(b.C)))
+        for k, axis in ((1, "y"), (2, "z")) * lateral + ((0, "x"),) * bool(b.kxx):
+            names.append(f"{name}.F{axis}")
+            index.append((i, k))
+    return names, np.array(index, dtype=int).reshape(-1, 2)
+
+
+def write_bearings_csv(path, t: np.ndarray, columns: list[str], index: np.ndarray, forces: np.ndarray):
+    """bearings.csv: a column ``t`` [s], then one per bearing force component [N] (written atomically)."""
+    from ..atomic import write_text_atomic
+
+    values = forces[:, index[:, 0], index[:, 1]]
+    rows = [",".join(repr(float(x)) for x in (ti, *vals)) for ti, vals in zip(t, values)]
+    return write_text_atomic(path, "\n".join([",".join(["t", *columns]), *rows]) + "\n")
+
+
 def constraint_rows(model):
     """(C, labels): the support and junction rows C q_full = 0 and per row the support index it belongs to
     (None for a junction's or a crack hinge's row), in the order of
@@ -113,5 +164,5 @@ def disk_deflections(model, q_full: np.ndarray) -> list[dict]:
     return out
 
 
-__all__ = ["bearing_reactions", "constraint_rows", "disk_deflections", "lateral_total", "node_lateral",
+__all__ = ["bearing_columns", "bearing_force_histories", "bearing_names", "write_bearings_csv", "bearing_reactions", "constraint_rows", "disk_deflections", "lateral_total", "node_lateral",
            "shaft_deflection", "support_reactions"]
