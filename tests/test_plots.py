@@ -1025,3 +1025,29 @@ def test_save_lays_a_figure_out_once_and_draws_it_once(tmp_path, monkeypatch):
         assert len(draws) == 1
         draw(kw, tight).savefig(theirs, format="png", dpi=dpi)
         assert np.array_equal(np.asarray(Image.open(ours)), np.asarray(Image.open(theirs)))
+
+
+# --- issue 35: bearings.png reads (units, legends outside the bands, round-off drawn as zero) ---
+def test_bearings_plot_has_units_legends_off_the_data_and_draws_round_off_as_zero(saved_figures, tmp_path):
+    """Two lateral bearings carrying 150 N +- 20 N at 26 Hz over 8 s and a thrust bearing whose axial force is
+    1e-11 N of round-off (critical_speed's): every axis has its unit, no legend crosses the bands, and the thrust
+    bearing's line is the zero it is (1e-11 N is 7e-14 of the largest force, far below ROUND_OFF)."""
+    from nsfem.plot.bearings import ROUND_OFF, bearings_plot
+
+    t = np.arange(0.0, 8.0 + 5e-4, 1e-3)
+    F = np.zeros((t.size, 3, 3))
+    for b in (0, 1):
+        F[:, b, 1] = 20.0 * np.sin(2 * np.pi * 26.0 * t)
+        F[:, b, 2] = 150.0 + 20.0 * np.cos(2 * np.pi * 26.0 * t)
+    F[:, 2, 0] = 1e-11 * np.sin(2 * np.pi * 26.0 * t)
+    assert 1e-11 < ROUND_OFF * 170.0
+    index = np.array([[0, 1], [0, 2], [1, 1], [1, 2], [2, 0]])
+    bearings_plot(tmp_path / "bearings.png", t, F, ["bearing.0", "bearing.1", "bearing.2"], index, 26.0, "t")
+    (_, axes, legends, fig), = saved_figures
+    assert axes == [] and legends == []
+    labels = [text.get_text() for ax in fig.axes if ax.get_legend() for text in ax.get_legend().get_texts()]
+    assert "Fx (round-off: 0)" in labels and labels.count("Fy") == 2
+    thrust = [ax for ax in fig.axes if ax.get_ylabel() == "bearing.2 force [N]"]
+    assert thrust and all(np.all(p.vertices[:, 1] == 0.0) for ax in thrust for c in ax.collections
+                          for p in c.get_paths()) and all(np.all(line.get_ydata() == 0.0) for ax in thrust
+                                                          for line in ax.get_lines() if len(line.get_ydata()))

@@ -12,6 +12,8 @@ from .common import dominant_period, figure, long_signal, save, zoom_panel, zoom
 
 #: up to this many bearings get a row each; the rest are left to bearings.csv
 MAX_ROWS = 6
+#: a force whose largest value is below this share of the largest bearing force is drawn as zero
+ROUND_OFF = 1e-9
 
 
 def bearings_plot(path: str | Path, t: np.ndarray, forces: np.ndarray, names: list[str], index: np.ndarray,
@@ -25,22 +27,34 @@ def bearings_plot(path: str | Path, t: np.ndarray, forces: np.ndarray, names: li
     if period is None and t.size > 2:
         period = dominant_period(t, forces[:, index[0, 0], index[0, 1]]) if len(index) else None
     span = zoom_span(t, period)
+    with np.errstate(invalid="ignore"):
+        largest = float(np.nanmax(np.abs(forces), initial=0.0)) if forces.size else 0.0
     for r in range(rows):
         ax, zoom = axes[r, 0], None
         if span:
             ax, zoom = zoom_panel(ax, width=0.3)
         for k in index[index[:, 0] == r, 1]:
             name, colour = "xyz"[k], f"C{(k + 2) % 3}"
-            long_signal(ax, t, forces[:, r, k], period=period, zoom=zoom, span=span, color=colour, label=f"F{name}")
+            f = forces[:, r, k]
+            label = f"F{name}"
+            # a force below ROUND_OFF of the largest is the solver's round-off (a thrust bearing without axial
+            # load: 1e-11 N beside 170 N), not a signal: drawn as the zero it is, and said so
+            if np.nanmax(np.abs(f), initial=0.0) < ROUND_OFF * largest:
+                f, label = np.zeros_like(f), f"F{name} (round-off: 0)"
+            long_signal(ax, t, f, period=period, zoom=zoom, span=span, color=colour, label=label)
         for a in (ax, zoom):
             if a is not None:
-                a.set_ylabel(f"{names[r]} [N]")
+                a.set_ylabel(f"{names[r]} force [N]")
                 a.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=7, ncol=3)
-        if r == rows - 1:
-            for a in (ax, zoom):
-                if a is not None:
-                    a.set_xlabel("t [s]")
+        # above the panel, outside the data (the bands fill the axes)
+        ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), fontsize=7, ncol=3, frameon=False,
+                  borderaxespad=0.2)
+        for a in (ax, zoom):
+            if a is not None:
+                if r == rows - 1:
+                    a.set_xlabel("time [s]")
+                else:   # the rows share the time axis: its numbers once, under the last row
+                    a.tick_params(labelbottom=False)
     more = f" (first {MAX_ROWS} of {len(names)}; all in bearings.csv)" if len(names) > MAX_ROWS else ""
     fig.suptitle(f"{title}\nbearing forces on the shaft, inertial frame{more}", fontsize=9)
     fig.tight_layout()
