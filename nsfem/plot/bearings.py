@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import dominant_period, figure, long_signal, save, zoom_panel, zoom_span
+from .common import dominant_period, figure, label_row, long_signal, save, zoom_panel, zoom_span
 
 #: up to this many bearings get a row each; the rest are left to bearings.csv
 MAX_ROWS = 6
@@ -42,19 +42,10 @@ def bearings_plot(path: str | Path, t: np.ndarray, forces: np.ndarray, names: li
             if np.nanmax(np.abs(f), initial=0.0) < ROUND_OFF * largest:
                 f, label = np.zeros_like(f), f"F{name} (round-off: 0)"
             long_signal(ax, t, f, period=period, zoom=zoom, span=span, color=colour, label=label)
-        for a in (ax, zoom):
-            if a is not None:
-                a.set_ylabel(f"{names[r]} force [N]")
-                a.grid(alpha=0.3)
+        label_row(ax, zoom, f"{names[r]} force [N]", r == rows - 1)
         # above the panel, outside the data (the bands fill the axes)
         ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), fontsize=7, ncol=3, frameon=False,
                   borderaxespad=0.2)
-        for a in (ax, zoom):
-            if a is not None:
-                if r == rows - 1:
-                    a.set_xlabel("time [s]")
-                else:   # the rows share the time axis: its numbers once, under the last row
-                    a.tick_params(labelbottom=False)
     more = f" (first {MAX_ROWS} of {len(names)}; all in bearings.csv)" if len(names) > MAX_ROWS else ""
     fig.suptitle(f"{title}\nbearing forces on the shaft, inertial frame{more}", fontsize=9)
     fig.tight_layout()

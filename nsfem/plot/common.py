@@ -159,6 +159,20 @@ def zoom_panel(ax, width: float = 0.32):
     return fig.add_subplot(spec[0]), fig.add_subplot(spec[1])
 
 
+def label_row(ax, zoom, ylabel: str, last: bool) -> None:
+    """Label one row of stacked time panels (``ax`` and its ``zoom``, or None): ``ylabel``, a grid, and the
+    shared time axis numbered and named under the ``last`` row only."""
+    for a in (ax, zoom):
+        if a is None:
+            continue
+        a.set_ylabel(ylabel)
+        a.grid(True, alpha=0.3)
+        if last:
+            a.set_xlabel("time [s]")
+        else:
+            a.tick_params(labelbottom=False)
+
+
 def long_signal(ax, t: np.ndarray, y: np.ndarray, *, period: float | None = None, zoom=None,
                 span: tuple[float, float] | None = None, color=None, label: str | None = None, lw: float = 0.8,
                 dense: bool | None = None, **line_kw) -> list:

@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .common import dominant_period, figure, key_label, long_signal, save, zoom_panel, zoom_span
+from .common import dominant_period, figure, key_label, label_row, long_signal, save, zoom_panel, zoom_span
 
 
 def fit_plot(path: str | Path, t: np.ndarray, measured: np.ndarray, fitted: np.ndarray, names: Sequence[str],
@@ -30,14 +30,7 @@ def fit_plot(path: str | Path, t: np.ndarray, measured: np.ndarray, fitted: np.n
                     label="measured", ls="none", marker=".", ms=2.5)
         long_signal(ax, t, 1e6 * fitted[:, k], period=period, zoom=zoom, span=span, color="tab:red",
                     label="fitted", lw=1.0)
-        for a in (ax, zoom):
-            if a is not None:
-                a.set_ylabel(f"{name} [µm]")
-                a.grid(True, alpha=0.3)
-                if k < n - 1:
-                    a.tick_params(labelbottom=False)
-                else:
-                    a.set_xlabel("time [s]")
+        label_row(ax, zoom, f"{name} [µm]", k == n - 1)
         if k == 0:
             ax.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, frameon=False,
                       borderaxespad=0.2)

@@ -9,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .common import dominant_period, figure, long_signal, save, zoom_panel, zoom_span
+from .common import dominant_period, figure, label_row, long_signal, save, zoom_panel, zoom_span
 
 #: an amplitude spectrum is drawn down to this fraction of its peak (6 decades: 12 of power, the PSD's range)
 SPECTRUM_DECADES = 6
@@ -87,15 +87,7 @@ def sensors_plot(path: str | Path, t: np.ndarray, values: np.ndarray, sensors, s
             handles += long_signal(ax, t, 1e6 * values[:, k], period=period, zoom=zoom, span=span,
                                    color=colors[k], label=f"{s.name} ({s.direction}, {s.frame}, x = {s.x:g} m)")
         name = sensors[r].name if rows > 1 else "displacement"
-        for a in (ax, zoom):
-            if a is None:
-                continue
-            a.set_ylabel(f"{name} [µm]")
-            a.grid(True, alpha=0.3)
-            if r < rows - 1:
-                a.tick_params(labelbottom=False)
-            else:
-                a.set_xlabel("time [s]")
+        label_row(ax, zoom, f"{name} [µm]", r == rows - 1)
     mains[0].set_xlim(t[0], t[-1])
     mains[0].set_title("the run" + (" (bands: envelopes)" if any(a.collections for a in mains) else "")
                        + ("; shaded: zoomed on the right" if span else ""), fontsize=8)
