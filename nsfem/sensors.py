@@ -23,6 +23,7 @@ import scipy.sparse as sp
 
 from .atomic import write_text_atomic
 from .errors import SceneError
+from .fem import timoshenko
 
 DIRECTIONS = ("+y", "+z", "-y", "-z")
 SENSOR_FRAMES = ("inertial", "rotating")
@@ -77,14 +78,19 @@ def sensors_from_scene(tree: dict, stack) -> tuple[Sensor, ...]:
 
 def hermite_row(model, segment: str, field: str, x: float) -> sp.csr_matrix:
     """1 x n_full row that reads field V or W at x: the cubic Hermite interpolation of the element's
-    end values and slopes (exact for the finite-element field)."""
+    end values and slopes (exact for the finite-element field); with Timoshenko's shear the element's
+    displacement functions N_v of its end values and rotations (:func:`nsfem.fem.timoshenko.shape`)."""
     space = model.spaces[segment]
     order = np.argsort(space.x)                      # a line mesh's elements join neighbouring nodes
     nodes = np.asarray(space.x, dtype=float)[order]
     e = int(np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2))
     h = nodes[e + 1] - nodes[e]
     s = (x - nodes[e]) / h
-    weights = (1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3, h * (s**3 - s**2))
+    if space.phi:
+        k = min(order[e], order[e + 1])                 # the element's index in the segment's assembly
+        weights = timoshenko.shape(np.array([s]), np.array([h]), space.shear(field)[k:k + 1])[0].ravel()
+    else:
+        weights = (1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3, h * (s**3 - s**2))
     nd = space.bending.nodal_dofs
     a, b = order[e], order[e + 1]
     local = (nd[0, a], nd[1, a], nd[0, b], nd[1, b])

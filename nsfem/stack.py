@@ -28,7 +28,9 @@ FIELDS = ("U", "V", "W")
 SUPPORT_DOFS = ("U", "V", "W", "V'", "W'")
 NORMALS = ("+x", "-x", "+y", "-y", "+z", "-z")
 WEIGHTINGS = ("dirac", "hat")
-THEORIES = ("euler-bernoulli", "rayleigh")
+THEORIES = ("euler-bernoulli", "rayleigh", "timoshenko")
+#: Poisson's ratio of the default shear modulus G = E / (2 (1 + nu))
+DEFAULT_POISSON = 0.3
 
 
 SECTIONS = ("rectangle", "circle")
@@ -54,6 +56,13 @@ class Segment:
     rho: float = 7500.0
     section: str = "rectangle"
     inner: float = 0.0
+    #: shear modulus [Pa] (None: E / (2 (1 + 0.3))); only the Timoshenko theory uses it
+    G: float | None = None
+
+    @property
+    def shear_modulus(self) -> float:
+        """G, or E / (2 (1 + :data:`DEFAULT_POISSON`)) when the segment gives none."""
+        return self.E / (2.0 * (1.0 + DEFAULT_POISSON)) if self.G is None else self.G
 
     @property
     def length(self) -> float:
@@ -330,6 +339,8 @@ class BeamStack:
             for attr in ("width", "height", "E", "rho"):
                 if getattr(s, attr) <= 0:
                     raise SceneError(f"{key}.{attr}", f"must be positive, got {getattr(s, attr)}")
+            if s.G is not None:
+                self._check_shear_modulus(f"{key}.G", s)
             if not s.start < s.end:
                 raise SceneError(f"{key}.end", f"must exceed start ({s.start}), got {s.end}")
             if s.section not in SECTIONS:
@@ -369,6 +380,16 @@ class BeamStack:
         for i, k in enumerate(self.cracks):
             self._check_crack(k.label or f"crack.{i}", k)
         return self
+
+    @staticmethod
+    def _check_shear_modulus(key: str, s: Segment) -> None:
+        G = s.G
+        if not (isinstance(G, (int, float)) and math.isfinite(G)) or G <= 0:
+            raise SceneError(key, f"must be a positive finite number [Pa], got {G}")
+        nu = s.E / (2.0 * G) - 1.0
+        if not 0.0 <= nu <= 0.5:
+            raise SceneError(key, f"G = {G:g} Pa with E = {s.E:g} Pa gives Poisson's ratio E / (2 G) - 1 = {nu:.4g}, "
+                             "outside [0, 0.5] where the shear coefficients hold (G from E / 3 to E / 2)")
 
     def _check_crack(self, key: str, k: Crack) -> None:
         if len(k.segments) != 2:

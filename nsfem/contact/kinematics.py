@@ -5,7 +5,8 @@ paper section 2.2) or averaged with a hat weight Lambda_k of unit integral whose
 reaches the neighbouring contact points (eq. 19). Obstacles: g = clearance - n.u at the
 centroid of the carrying segment (n one of +-x, +-y, +-z, or at an angle in the y-z plane for a
 stator's facet, in the frame of the coordinates). Crack faces: the axial opening -(y dV' + z dW') of a
-face point (y, z) from the hinge's centre, d the jump of the slopes across the crack.
+face point (y, z) from the hinge's centre, d the jump of the slopes across the crack (with Timoshenko's
+shear: of the sections' rotations, the second nodal dof, which turn the faces).
 
 Tangential rows and friction cones are built on the same helpers (later issue).
 
@@ -55,7 +56,7 @@ def point_row(model: FEModel, segment: str, fld: str, c: Contact) -> dict[int, f
 
         vec = asm(hat, space.axial)
     else:  # closed-form Hermite shape functions, exact quadrature: the hat's kinks are nodes
-        vec = hermite.assemble_weighted(space.x, weight, slope)
+        vec = hermite.assemble_weighted(space.x, weight, slope, phi=space.shear(fld))
     nz = np.flatnonzero(vec)
     return {int(space.dofs[fld][i]): float(vec[i]) for i in nz}
 

@@ -25,13 +25,15 @@ from skfem import Basis, ElementLineHermite, ElementLineP1, ElementLineP2, MeshL
 from ..errors import SceneError
 from ..mesh import StackMesh, generate, read
 from ..stack import BeamStack
-from . import components, forms, hermite
+from . import components, forms, hermite, timoshenko
 from .constraints import constraint_basis, project
 
 if TYPE_CHECKING:
     from ..scene import MeshOptions, Scene
 
 AXIAL_ELEMENTS = {"P1": ElementLineP1, "P2": ElementLineP2}
+#: beam theories whose sections carry rotary inertia and the spin's gyroscopic couple
+ROTARY_THEORIES = ("rayleigh", "timoshenko")
 
 
 @dataclass
@@ -43,6 +45,12 @@ class SegmentSpace:
     bending: Basis
     dofs: dict[str, np.ndarray]  # "U", "V", "W" -> global indices in basis order
     unit: dict[str, sp.csr_matrix] = field(default_factory=dict)  # unit-coefficient matrices
+    #: Timoshenko's shear parameter Phi per element of the V and W planes (zeros: no shear, Hermite elements)
+    phi: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def shear(self, fld: str) -> np.ndarray:
+        """Phi per element of bending field V or W (zeros without shear)."""
+        return self.phi.get(fld, np.zeros(self.x.size - 1))
 
     def node(self, x: float) -> int:
         i = int(np.argmin(np.abs(self.x - x)))
@@ -110,7 +118,12 @@ class FEModel:
 
 
 def segment_spaces(stack: BeamStack, mesh: StackMesh, axial: str) -> dict[str, SegmentSpace]:
-    """Bases, dof numbering and unit matrices for every segment."""
+    """Bases, dof numbering and unit matrices for every segment.
+
+    The bending unit matrices are per plane (``mass_V``, ``rotary_V``, ``bend_V``, likewise W): int N_v N_v,
+    int N_psi N_psi and the stiffness per E I; without shear (euler-bernoulli, rayleigh) the Hermite
+    ``bending_mass``, ``bending_stretch``, ``bending_bend`` for both planes, with Timoshenko's the
+    interdependent element of :mod:`nsfem.fem.timoshenko` with the plane's Phi."""
     spaces, offset = {}, 0
     for s in stack.segments:
         x = np.asarray(mesh.nodes[s.name], dtype=float)
@@ -132,21 +145,33 @@ def segment_spaces(stack: BeamStack, mesh: StackMesh, axial: str) -> dict[str, S
             "bending_stretch": hermite.assemble(m.p[0], hermite.element_stretch),
             "bending_bend": hermite.assemble(m.p[0], hermite.element_bend),
         }
-        spaces[s.name] = SegmentSpace(x, ba, bb, dofs, unit)
+        phi = {}
+        for fld in ("V", "W"):
+            if stack.theory == "timoshenko":
+                h = np.diff(m.p[0])
+                phi[fld] = timoshenko.section_phi(s, h)[fld]
+                unit[f"mass_{fld}"] = hermite.assemble_local(m.p[0], timoshenko.element_mass(h, phi[fld]))
+                unit[f"rotary_{fld}"] = hermite.assemble_local(m.p[0], timoshenko.element_rotary(h, phi[fld]))
+                unit[f"bend_{fld}"] = hermite.assemble_local(m.p[0], timoshenko.element_stiffness(h, phi[fld]))
+            else:
+                unit[f"mass_{fld}"], unit[f"rotary_{fld}"], unit[f"bend_{fld}"] = (
+                    unit["bending_mass"], unit["bending_stretch"], unit["bending_bend"])
+        spaces[s.name] = SegmentSpace(x, ba, bb, dofs, unit, phi)
     return spaces
 
 
 def mass_stiffness(stack: BeamStack, spaces: dict[str, SegmentSpace]) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-    """Block-diagonal full mass and stiffness: rhoA, EA, E I_z (V), E I_y (W) per segment."""
+    """Block-diagonal full mass and stiffness: rhoA, EA, E I_z (V), E I_y (W) per segment (rho I_z, rho I_y
+    on the rotations with rotary inertia: rayleigh and timoshenko)."""
     Ms, Ks = [], []
-    rotary = stack.theory == "rayleigh"
+    rotary = stack.theory in ROTARY_THEORIES
     for s in stack.segments:
         u = spaces[s.name].unit
         rA = s.rho * s.area
-        mV = rA * u["bending_mass"] + (s.rho * s.I_z * u["bending_stretch"] if rotary else 0)
-        mW = rA * u["bending_mass"] + (s.rho * s.I_y * u["bending_stretch"] if rotary else 0)
+        mV = rA * u["mass_V"] + (s.rho * s.I_z * u["rotary_V"] if rotary else 0)
+        mW = rA * u["mass_W"] + (s.rho * s.I_y * u["rotary_W"] if rotary else 0)
         Ms += [rA * u["axial_mass"], mV, mW]
-        Ks += [s.E * s.area * u["axial_stretch"], s.E * s.I_z * u["bending_bend"], s.E * s.I_y * u["bending_bend"]]
+        Ks += [s.E * s.area * u["axial_stretch"], s.E * s.I_z * u["bend_V"], s.E * s.I_y * u["bend_W"]]
     return sp.block_diag(Ms, format="csr"), sp.block_diag(Ks, format="csr")
 
 

@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from . import timoshenko
+
 
 def element_mass(h: np.ndarray) -> np.ndarray:
     """int N_i N_j dx over elements of lengths h: (len(h), 4, 4)."""
@@ -61,8 +63,14 @@ def _element_dofs(n_nodes: int) -> np.ndarray:
 def assemble(x: np.ndarray, element) -> sp.csr_matrix:
     """The global matrix of ``element`` (:func:`element_mass`, :func:`element_stretch`, :func:`element_bend`) on nodes x."""
     x = np.asarray(x, dtype=float)
+    return assemble_local(x, element(np.diff(x)))
+
+
+def assemble_local(x: np.ndarray, Ke: np.ndarray) -> sp.csr_matrix:
+    """The global matrix on nodes x of element matrices Ke (elements, 4, 4) in the dof order value, slope
+    (or rotation) per node."""
+    x = np.asarray(x, dtype=float)
     dofs = _element_dofs(x.size)
-    Ke = element(np.diff(x))
     rows = np.repeat(dofs, 4, axis=1).ravel()
     cols = np.tile(dofs, (1, 4)).ravel()
     n = 2 * x.size
@@ -82,15 +90,22 @@ def shape(xi: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return value, slope
 
 
-def assemble_weighted(x: np.ndarray, weight, slope: bool = False, points: int = 3) -> np.ndarray:
+def assemble_weighted(x: np.ndarray, weight, slope: bool = False, points: int = 3,
+                      phi: np.ndarray | None = None) -> np.ndarray:
     """int weight(x) N_i(x) dx (or N_i'(x) with ``slope``) over the nodes x by Gauss-Legendre
     quadrature on each element: exact for a weight that is a polynomial of degree up to
-    2 points - 4 on every element (a hat whose kinks are nodes, with the default 3 points)."""
+    2 points - 4 on every element (a hat whose kinks are nodes, with the default 3 points).
+
+    With Timoshenko's shear parameters ``phi`` per element the functions are the interdependent ones
+    (:func:`nsfem.fem.timoshenko.shape`): N_v, and with ``slope`` the rotation's N_psi."""
     x = np.asarray(x, dtype=float)
     h = np.diff(x)
     g, wg = np.polynomial.legendre.leggauss(points)
     xi, wg = (g + 1) / 2, wg / 2
-    value, d = shape(xi, h)
+    if phi is None or not np.any(phi):
+        value, d = shape(xi, h)
+    else:
+        value, d = timoshenko.shape(xi, h, phi)
     at = x[:-1, None] + h[:, None] * xi[None, :]           # (elements, points)
     f = weight(at) * wg[None, :] * h[:, None]
     local = np.einsum("eiq,eq->ei", d if slope else value, f)

@@ -38,8 +38,8 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from . import components, hermite
-from .assemble import FEModel
+from . import components, hermite, timoshenko
+from .assemble import ROTARY_THEORIES, FEModel, SegmentSpace
 from .constraints import project
 
 
@@ -122,36 +122,41 @@ def full_operators(model: FEModel) -> RotorOperators:
         cols[name].append(c[A.col])
         vals[name].append(A.data)
 
+    rotary = model.stack.theory in ROTARY_THEORIES
     for s in model.stack.segments:
         space = model.spaces[s.name]
-        Mb = space.unit["bending_mass"]
-        load = hermite.assemble_weighted(space.x, np.ones_like)  # int N dx, exact quadrature
+        u = space.unit
+        # int N_v N_v per plane (with shear the planes' Phi differ for a rectangle) and int N_v dx
+        MV, MW = u.get("mass_V", u["bending_mass"]), u.get("mass_W", u["bending_mass"])
+        # a coupling of the planes (Coriolis, circulatory, the spin's couple) integrates V's functions against
+        # W's: int N_v^V N_v^W, either plane's own when their Phi agree (circles, squares, no shear)
+        Mx = mixed_mass(space) if space.phi else MV
+        loadV, loadW = (hermite.assemble_weighted(space.x, np.ones_like, phi=space.shear(f)) for f in ("V", "W"))
         V, W = space.dofs["V"], space.dofs["W"]
         rA = s.rho * s.area
         yc, zc = s.offset
-        put("G1", W, V, 2 * rA * Mb)
-        put("G1", V, W, -2 * rA * Mb)
-        put("Kc1", V, V, -rA * Mb)
-        put("Kc1", W, W, -rA * Mb)
-        if model.stack.theory == "rayleigh":
-            S = space.unit["bending_stretch"]
-            put("Kc1", V, V, s.rho * s.I_z * S)
-            put("Kc1", W, W, s.rho * s.I_y * S)
-        put("De1", V, V, Mb)
-        put("De1", W, W, Mb)
-        put("P1", W, V, Mb)
-        put("P1", V, W, -Mb)
-        vec["fc1"][V] += rA * yc * load
-        vec["fc1"][W] += rA * zc * load
-        vec["fd1"][V] += zc * load
-        vec["fd1"][W] += -yc * load
-        vec["Fy"][V] += rA * load
-        vec["Fz"][W] += rA * load
-        if model.stack.theory == "rayleigh":
-            # the spin of the sections: polar inertia rho (I_y + I_z) per length, on the slopes
-            Ip = s.rho * (s.I_y + s.I_z) * space.unit["bending_stretch"]
-            put("Gp1", V, W, Ip)
-            put("Gp1", W, V, -Ip)
+        put("G1", W, V, 2 * rA * Mx.T)
+        put("G1", V, W, -2 * rA * Mx)
+        put("Kc1", V, V, -rA * MV)
+        put("Kc1", W, W, -rA * MW)
+        if rotary:
+            put("Kc1", V, V, s.rho * s.I_z * u.get("rotary_V", u["bending_stretch"]))
+            put("Kc1", W, W, s.rho * s.I_y * u.get("rotary_W", u["bending_stretch"]))
+        put("De1", V, V, MV)
+        put("De1", W, W, MW)
+        put("P1", W, V, Mx.T)
+        put("P1", V, W, -Mx)
+        vec["fc1"][V] += rA * yc * loadV
+        vec["fc1"][W] += rA * zc * loadW
+        vec["fd1"][V] += zc * loadV
+        vec["fd1"][W] += -yc * loadW
+        vec["Fy"][V] += rA * loadV
+        vec["Fz"][W] += rA * loadW
+        if rotary:
+            # the spin of the sections: polar inertia rho (I_y + I_z) per length, on the rotations
+            R = mixed_rotary(space) if space.phi else u["bending_stretch"]
+            put("Gp1", V, W, s.rho * (s.I_y + s.I_z) * R)
+            put("Gp1", W, V, -s.rho * (s.I_y + s.I_z) * R.T)
     mats = {k: sp.csr_matrix((np.concatenate(vals[k]), (np.concatenate(rows[k]), np.concatenate(cols[k]))),
                              shape=(n, n)) if vals[k] else sp.csr_matrix((n, n)) for k in rows}
     dof = model.dof
@@ -170,6 +175,27 @@ def full_operators(model: FEModel) -> RotorOperators:
     return RotorOperators(model.M_full, model.K_full, **mats, **vec, Kb=Kb, Kbc=Kbc, Cb=Cb, CbJ=(Cb @ J).tocsr(),
                           MJ=(model.M_full @ J).tocsr(), KJ=((model.K_full - Kb) @ J).tocsr(), fu1=fu1, fq1=fq1,
                           bearing_change=bearing_change(model, Kb, Kbc, Cb, J) if model.stack.speed_dependent else None)
+
+
+def _mixed(space: SegmentSpace, which: int) -> sp.csr_matrix:
+    """int N^V N^W dx (rows V, columns W) of the displacement (``which`` 0) or rotation (1) functions of the
+    two planes, each with its own Phi (Gauss-Legendre with 4 points: exact for the cubics' products)."""
+    h = np.diff(space.x)
+    g, wg = np.polynomial.legendre.leggauss(4)
+    xi, wg = (g + 1) / 2, wg / 2
+    a = timoshenko.shape(xi, h, space.shear("V"))[which]
+    b = timoshenko.shape(xi, h, space.shear("W"))[which]
+    return hermite.assemble_local(space.x, np.einsum("eiq,ejq,q,e->eij", a, b, wg, h))
+
+
+def mixed_mass(space: SegmentSpace) -> sp.csr_matrix:
+    """int N_v^V N_v^W dx: the planes' displacement functions' cross integral (rows V, columns W)."""
+    return _mixed(space, 0)
+
+
+def mixed_rotary(space: SegmentSpace) -> sp.csr_matrix:
+    """int N_psi^V N_psi^W dx: the planes' rotation functions' cross integral (rows V, columns W)."""
+    return _mixed(space, 1)
 
 
 def bearing_change(model: FEModel, Kb, Kbc, Cb, J) -> Callable[[float], tuple]:

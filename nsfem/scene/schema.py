@@ -164,6 +164,8 @@ _STEP = {
     "height": Key("float?", None, "rectangle: height h along z [m] (left out: the shaft's)", check=_positive),
     "E": Key("float?", None, "Young's modulus [Pa] (left out: the shaft's)", check=_material),
     "rho": Key("float?", None, "density [kg/m^3] (left out: the shaft's)", check=_material),
+    "G": Key("float?", None, "shear modulus [Pa] (left out: the shaft's if the step keeps its E, else "
+             "E / (2 (1 + 0.3)))", check=_material),
 }
 _SHAFT = {
     "length": Key("float", 1.0, "shaft length [m]", check=_positive),
@@ -172,6 +174,8 @@ _SHAFT = {
              check=_material),
     "rho": Key("float", 7850.0, "density [kg/m^3] (steel; the paper's shaft states 7500; 1e-100 to 1e100)",
                check=_material),
+    "G": Key("float?", None, "shear modulus [Pa] for theory = \"timoshenko\" (left out: E / (2 (1 + 0.3)); "
+             "E / (2 G) - 1 must lie in [0, 0.5])", check=_material),
     "supports": Key("str", "pinned-pinned", "end conditions; pinned-pinned fixes U at x = 0 only. A rotor scene "
                     "(one with [[bearing]]) has none unless it says so: its default is free-free, the bearings "
                     "hold it", SUPPORTS),
@@ -206,6 +210,8 @@ _SEGMENT = {
     "offset": Key("floats", [0.0, 0.0], "centroid offset (y_c, z_c) from the rotation axis [m]", length=2),
     "E": Key("float", 2.1e11, "Young's modulus [Pa] (1e-100 to 1e100)", check=_material),
     "rho": Key("float", 7850.0, "density [kg/m^3] (steel; 1e-100 to 1e100)", check=_material),
+    "G": Key("float?", None, "shear modulus [Pa] for theory = \"timoshenko\" (left out: E / (2 (1 + 0.3)))",
+             check=_material),
 }
 _JUNCTION = {
     "x": Key("float", 0.0, "position [m]; an end of the master and of every slave"),
@@ -338,8 +344,10 @@ SCHEMA: dict[str, Any] = {
     "delamination": [_DELAMINATION],
     "obstacle": [_OBSTACLE],
     "beam": {
-        "theory": Key("str", "euler-bernoulli", "euler-bernoulli, or rayleigh (adds the shaft's rotary inertia and "
-                      "gyroscopic moments); a rotor left at the default gets a note", THEORIES),
+        "theory": Key("str", "euler-bernoulli", "euler-bernoulli, rayleigh (adds the shaft's rotary inertia and "
+                      "gyroscopic moments) or timoshenko (rayleigh and shear deformation, ROSS's default; the "
+                      "second dof of a node is then the section's rotation); a rotor left at the default gets a "
+                      "note", THEORIES),
     },
     "rotation": {
         "speed_hz": Key("float", 0.0, "rotation speed [Hz] (0 = not rotating)", check=_nonneg),

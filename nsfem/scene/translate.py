@@ -97,18 +97,30 @@ def shaft_steps(sh: dict) -> list[tuple[float, float, dict, dict]]:
         if c["start"] < a["end"]:
             raise SceneError(f"shaft.step.{j}.start", f"step {j} [{c['start']}, {c['end']}] overlaps step {i} "
                              f"[{a['start']}, {a['end']}]")
-    base_mat = dict(E=sh["E"], rho=sh["rho"])
+    base_mat = dict(E=sh["E"], rho=sh["rho"], G=shear_modulus(sh["E"], sh["G"], "shaft.G"))
     pieces, cursor = [], 0.0
     for i, st in steps:
         if st["start"] > cursor:
             pieces.append((cursor, st["start"], section(sh, "shaft"), base_mat))
         table = {**sh, **{k: st[k] for k in own if st[k] is not None}}
         mat = {k: sh[k] if st[k] is None else st[k] for k in ("E", "rho")}
+        G = st["G"] if st["G"] is not None else (sh["G"] if st["E"] is None else None)
+        mat["G"] = shear_modulus(mat["E"], G, f"shaft.step.{i}.G")
         pieces.append((st["start"], st["end"], section(table, f"shaft.step.{i}"), mat))
         cursor = st["end"]
     if cursor < L:
         pieces.append((cursor, L, section(sh, "shaft"), base_mat))
     return pieces
+
+
+def shear_modulus(E: float, G: float | None, key: str) -> float | None:
+    """G as given (None: the segment's default E / (2 (1 + 0.3))), checked against E: Poisson's ratio
+    E / (2 G) - 1 within [0, 0.5], where the sections' shear coefficients hold."""
+    if G is not None and not 0.0 <= E / (2.0 * G) - 1.0 <= 0.5:
+        raise SceneError(key, f"G = {G:g} Pa with E = {E:g} Pa gives Poisson's ratio E / (2 G) - 1 = "
+                         f"{E / (2.0 * G) - 1.0:.4g}, outside [0, 0.5] where the shear coefficients hold "
+                         "(G from E / 3 to E / 2)")
+    return G
 
 
 def stepped_stack(tree: dict) -> BeamStack:
@@ -144,7 +156,7 @@ def high_level_stack(tree: dict) -> BeamStack:
     L = sh["length"]
     sec = section(sh, "shaft")
     b, h = sec["width"], sec["height"]
-    mat = dict(E=sh["E"], rho=sh["rho"])
+    mat = dict(E=sh["E"], rho=sh["rho"], G=shear_modulus(sh["E"], sh["G"], "shaft.G"))
     if tree["delamination"] and sh["section"] != "rectangle":
         raise SceneError("delamination.0", "a delamination splits a rectangular section into two layers; "
                          "use shaft.section = \"rectangle\"")
@@ -253,7 +265,8 @@ def high_level_stack(tree: dict) -> BeamStack:
 def low_level_stack(tree: dict) -> BeamStack:
     """Build a BeamStack from ``[[segment]]``, ``[[junction]]``, ``[[support]]``, ``[[contact]]``."""
     segs = tuple(Segment(s["name"] or f"segment_{i}", s["start"], s["end"], offset=tuple(s["offset"]), E=s["E"],
-                         rho=s["rho"], **section(s, f"segment.{i}")) for i, s in enumerate(tree["segment"]))
+                         rho=s["rho"], G=shear_modulus(s["E"], s["G"], f"segment.{i}.G"),
+                         **section(s, f"segment.{i}")) for i, s in enumerate(tree["segment"]))
     juns = tuple(Junction(j["x"], j["master"], tuple(j["slaves"])) for j in tree["junction"])
     sups = tuple(Support(s["segment"], s["x"], tuple(s["fix"])) for s in tree["support"])
     cons = []
