@@ -29,6 +29,8 @@ SUPPORT_DOFS = ("U", "V", "W", "V'", "W'")
 NORMALS = ("+x", "-x", "+y", "-y", "+z", "-z")
 WEIGHTINGS = ("dirac", "hat")
 THEORIES = ("euler-bernoulli", "rayleigh", "timoshenko")
+#: Shear coefficients of a circle (Timoshenko theory): Cowper's (ROSS's default) or Hutchinson's
+SHEAR_COEFFICIENTS = ("cowper", "hutchinson")
 #: Poisson's ratio of the default shear modulus G = E / (2 (1 + nu))
 DEFAULT_POISSON = 0.3
 
@@ -259,6 +261,8 @@ class BeamStack:
     supports: tuple[Support, ...] = ()
     contacts: tuple[Contact, ...] = ()
     theory: str = "euler-bernoulli"
+    #: a circle's shear coefficient with theory = "timoshenko" (:data:`SHEAR_COEFFICIENTS`)
+    shear_coefficient: str = "cowper"
     disks: tuple[Disk, ...] = ()
     bearings: tuple[Bearing, ...] = ()
     unbalances: tuple[Unbalance, ...] = ()
@@ -327,6 +331,9 @@ class BeamStack:
             raise SceneError("segment", "a beam stack needs at least one segment")
         if self.theory not in THEORIES:
             raise SceneError("beam.theory", f"unknown theory {self.theory!r} (use {' | '.join(THEORIES)})")
+        if self.shear_coefficient not in SHEAR_COEFFICIENTS:
+            raise SceneError("beam.shear_coefficient", f"unknown shear coefficient {self.shear_coefficient!r} "
+                             f"(use {' | '.join(SHEAR_COEFFICIENTS)})")
         names = [s.name for s in self.segments]
         for i, s in enumerate(self.segments):
             key = f"segment.{i}"

@@ -158,7 +158,9 @@ NOTE_CASES = [
     pytest.param({"shaft": {"length": 1.0}, "delamination": [{}]}, [], id="papers-beam-without-section"),
     pytest.param({**rotor(), "beam": {}}, ['beam.theory: euler-bernoulli by default: the shaft has no rotary inertia '
                                            'and no gyroscopic moments of its own (its disks keep theirs); theory = '
-                                           '"rayleigh" adds them'], id="rotor-without-beam-theory"),
+                                           '"rayleigh" adds them, "timoshenko" (ROSS\'s default) adds shear '
+                                           'deformation too'],
+                 id="rotor-without-beam-theory"),
 ]
 
 

@@ -237,7 +237,7 @@ CASES = [
     pytest.param(["mesh.axial=P3"], "mesh.axial", "unknown value", id="name-mesh.axial"),
     pytest.param(["delamination.0.weighting=gauss"], "delamination.0.weighting", "unknown value",
                  id="name-weighting"),
-    pytest.param(["beam.theory=timoshenko"], "beam.theory", "unknown value", id="name-beam.theory"),
+    pytest.param(["beam.theory=timoshenk"], "beam.theory", "unknown value", id="name-beam.theory"),
     pytest.param(["initial.state=moving"], "initial.state", "unknown value", id="name-initial.state"),
     pytest.param(['output.plots=["phase", "bode"]'], "output.plots", "unknown entry", id="name-output.plots"),
     # NaN / inf examples named in the contract (every numeric key is covered below too)

@@ -149,7 +149,7 @@ def segment_spaces(stack: BeamStack, mesh: StackMesh, axial: str) -> dict[str, S
         for fld in ("V", "W"):
             if stack.theory == "timoshenko":
                 h = np.diff(m.p[0])
-                phi[fld] = timoshenko.section_phi(s, h)[fld]
+                phi[fld] = timoshenko.section_phi(s, h, stack.shear_coefficient)[fld]
                 unit[f"mass_{fld}"] = hermite.assemble_local(m.p[0], timoshenko.element_mass(h, phi[fld]))
                 unit[f"rotary_{fld}"] = hermite.assemble_local(m.p[0], timoshenko.element_rotary(h, phi[fld]))
                 unit[f"bend_{fld}"] = hermite.assemble_local(m.p[0], timoshenko.element_stiffness(h, phi[fld]))

@@ -118,15 +118,15 @@ def element_stiffness(h: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return (one + h * lin + h * h * (sq + p * shear)) / (h**3 * (1 + p))
 
 
-def section_phi(segment, h: np.ndarray) -> dict[str, np.ndarray]:
+def section_phi(segment, h: np.ndarray, method: str = "cowper") -> dict[str, np.ndarray]:
     """Phi per element of a segment for V (bending with I_z) and W (with I_y)."""
-    G, kappa = segment.shear_modulus, kappa_of(segment)
+    G, kappa = segment.shear_modulus, kappa_of(segment, method)
     return {"V": shear_parameter(segment.E, segment.I_z, kappa, G, segment.area, h),
             "W": shear_parameter(segment.E, segment.I_y, kappa, G, segment.area, h)}
 
 
-def kappa_of(segment) -> float:
+def kappa_of(segment, method: str = "cowper") -> float:
     """The shear coefficient of a segment's section and material."""
     return shear_coefficient(segment.section, poisson(segment.E, segment.shear_modulus), segment.width,
-                             segment.inner)
+                             segment.inner, method)
 

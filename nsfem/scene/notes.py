@@ -59,7 +59,35 @@ def beam_notes(raw: dict) -> list[str]:
     if not any(raw.get(t) for t in ROTOR_TABLES) or (isinstance(beam, dict) and "theory" in beam):
         return []
     return ["beam.theory: euler-bernoulli by default: the shaft has no rotary inertia and no gyroscopic moments of "
-            "its own (its disks keep theirs); theory = \"rayleigh\" adds them"]
+            "its own (its disks keep theirs); theory = \"rayleigh\" adds them, \"timoshenko\" (ROSS's default) "
+            "adds shear deformation too"]
+
+
+#: A span (between the places that hold the shaft, or the whole shaft) shorter than this many section depths
+#: is stubby: shear deformation moves its frequencies by a percent or more
+STUBBY = 10.0
+
+
+def shear_notes(stack: BeamStack) -> list[str]:
+    """A stubby span (length below :data:`STUBBY` times its deepest section) of a model without shear
+    (euler-bernoulli, rayleigh): its frequencies are too high by the shear deformation left out. The spans run
+    between the bearings and the supports that hold V or W (with fewer than two, the whole shaft)."""
+    if stack.theory == "timoshenko":
+        return []
+    lo, hi = min(s.start for s in stack.segments), max(s.end for s in stack.segments)
+    held = sorted({b.x for b in stack.bearings if any(any(r) for r in b.K)}
+                  | {p.x for p in stack.supports if set(p.fix) & {"V", "W"}})
+    ends = list(zip(held, held[1:])) if len(held) > 1 else [(lo, hi)]
+    out = []
+    for a, b in ends:
+        depth = max((max(s.width, s.height) for s in stack.segments if s.start < b and s.end > a), default=0.0)
+        if b > a and depth > 0 and (b - a) / depth < STUBBY:
+            what = f"the span x = {a:g} to {b:g} m" if len(held) > 1 else "the shaft"
+            out.append(f"beam.theory: {stack.theory} on a stubby rotor: {what} is {(b - a) / depth:.3g} section "
+                       f"depths long (< {STUBBY:g}); shear deformation is left out (frequencies too high); "
+                       "theory = \"timoshenko\" adds it")
+            break
+    return out
 
 
 def disk_notes(tree: dict) -> list[str]:
@@ -101,4 +129,4 @@ def scene_notes(raw: dict, tree: dict, stack: BeamStack) -> tuple[str, ...]:
     """The notes on a scene: ``raw`` as its file and overrides give it, ``tree`` validated with every default,
     ``stack`` its translation. Rigid motions that nothing restrains are not notes: the model says them exactly
     (:func:`nsfem.analysis.rigid_motion.free_motions`), once, where they matter (run, modes, stationary)."""
-    return tuple(section_notes(raw) + beam_notes(raw) + disk_notes(tree) + bearing_notes(tree))
+    return tuple(section_notes(raw) + beam_notes(raw) + shear_notes(stack) + disk_notes(tree) + bearing_notes(tree))

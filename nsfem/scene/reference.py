@@ -83,6 +83,9 @@ def scene_reference() -> str:
             "delaminated beams are its default square) | `section`, its size |",
             "| `beam.theory: euler-bernoulli by default` | a rotor without `[beam] theory`: the shaft has no "
             "rotary inertia or gyroscopic moments of its own (ROSS's elements have both) | `theory` |",
+            "| `beam.theory: ... on a stubby rotor` | euler-bernoulli or rayleigh where a span between the places "
+            "that hold the shaft (bearings, supports; else the whole shaft) is shorter than 10 section depths: "
+            "shear deformation is left out | `theory = \"timoshenko\"` |",
             "| `disk.<i>: given by its mass, its polar_inertia ... is 0` | a disk with `mass` and without an inertia: "
             "a point mass, no gyroscopic moment or rotary inertia | `polar_inertia`, `diametral_inertia` (0 if "
             "meant), or the geometry |",

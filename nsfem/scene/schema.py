@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from ..stack import CRACK_SIDES, NORMALS, SECTIONS, SUPPORT_DOFS, THEORIES, WEIGHTINGS
+from ..stack import CRACK_SIDES, NORMALS, SECTIONS, SHEAR_COEFFICIENTS, SUPPORT_DOFS, THEORIES, WEIGHTINGS
 
 
 #: The axes, said wherever a key could be read in another program's axes (ROSS's x is horizontal).
@@ -348,6 +348,9 @@ SCHEMA: dict[str, Any] = {
                       "gyroscopic moments) or timoshenko (rayleigh and shear deformation, ROSS's default; the "
                       "second dof of a node is then the section's rotation); a rotor left at the default gets a "
                       "note", THEORIES),
+        "shear_coefficient": Key("str", "cowper", "timoshenko: a circle's shear coefficient, cowper (ROSS's "
+                                 "default) or hutchinson (2001); rectangles use Cowper's 10 (1 + nu) / (12 + 11 nu)",
+                                 SHEAR_COEFFICIENTS),
     },
     "rotation": {
         "speed_hz": Key("float", 0.0, "rotation speed [Hz] (0 = not rotating)", check=_nonneg),

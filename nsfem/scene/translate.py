@@ -145,7 +145,8 @@ def stepped_stack(tree: dict) -> BeamStack:
         seg = next(s for s in segments if s.start <= x <= s.end)
         contacts.append(Contact("obstacle", x, (seg.name,), "dirac", None, o["normal"], o["clearance"],
                                 o["friction"], o["friction_directions"], o["restitution"], label=f"obstacle.{i}"))
-    return BeamStack(segments, junctions, supports, tuple(contacts), tree["beam"]["theory"])
+    return BeamStack(segments, junctions, supports, tuple(contacts), tree["beam"]["theory"],
+                     shear_coefficient=tree["beam"]["shear_coefficient"])
 
 
 def high_level_stack(tree: dict) -> BeamStack:
@@ -259,7 +260,8 @@ def high_level_stack(tree: dict) -> BeamStack:
             seg = up if o["normal"] == "+z" else lo
         contacts.append(Contact("obstacle", x, (seg.name,), "dirac", None, o["normal"], o["clearance"],
                                 o["friction"], o["friction_directions"], o["restitution"], label=key))
-    return BeamStack(tuple(segments), tuple(junctions), tuple(supports), tuple(contacts), tree["beam"]["theory"])
+    return BeamStack(tuple(segments), tuple(junctions), tuple(supports), tuple(contacts), tree["beam"]["theory"],
+                     shear_coefficient=tree["beam"]["shear_coefficient"])
 
 
 def low_level_stack(tree: dict) -> BeamStack:
@@ -277,7 +279,8 @@ def low_level_stack(tree: dict) -> BeamStack:
         cons.append(Contact(c["kind"], c["x"], tuple(c["segments"]), c["weighting"], tuple(ext) if ext else None,
                             c["normal"], c["clearance"], c["friction"], c["friction_directions"],
                             c["restitution"], label=f"contact.{i}"))
-    return BeamStack(segs, juns, sups, tuple(cons), tree["beam"]["theory"])
+    return BeamStack(segs, juns, sups, tuple(cons), tree["beam"]["theory"],
+                     shear_coefficient=tree["beam"]["shear_coefficient"])
 
 
 def disk_inertia(d: dict, key: str) -> tuple[float, float, float]:
