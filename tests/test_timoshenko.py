@@ -1,0 +1,163 @@
+"""Timoshenko beam elements (issue 35 item 1): closed forms, ROSS 2.3.0 with shear on, the pipeline."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg as sl
+
+from nsfem.fem import hermite, timoshenko
+from nsfem.fem.assemble import assemble
+from nsfem.mesh import generate
+from nsfem.stack import BeamStack, Segment, Support
+
+E, RHO = 2.1e11, 7850.0
+G = E / 2.6                                   # the default shear modulus: nu = 0.3
+KAPPA = 6 * 1.3 / (7 + 6 * 0.3)            # Cowper's for a solid circle (ROSS's default)
+THEORIES = ("euler-bernoulli", "rayleigh", "timoshenko")
+
+
+def pinned_beam(theory: str, diameter: float, length: float = 1.0) -> BeamStack:
+    seg = Segment("s", 0.0, length, diameter, diameter, E=E, rho=RHO, section="circle")
+    return BeamStack((seg,), supports=(Support("s", 0.0, ("U", "V", "W")), Support("s", length, ("V", "W"))),
+                     theory=theory).validate()
+
+
+def plane_frequencies(theory: str, diameter: float, elements: int, count: int = 3) -> np.ndarray:
+    """The lowest circular frequencies of the V plane of a pinned-pinned shaft (the W plane repeats them)."""
+    stack = pinned_beam(theory, diameter)
+    model = assemble(stack, generate(stack, elements))
+    held = {model.dof("s", "V", 0.0), model.dof("s", "V", 1.0)}
+    keep = np.array([i for i in model.spaces["s"].dofs["V"] if i not in held])
+    K, M = (A[keep][:, keep].toarray() for A in (model.K_full, model.M_full))
+    return np.sqrt(sl.eigh(K, M, eigvals_only=True)[:count])
+
+
+def exact_frequencies(theory: str, diameter: float, count: int = 3, length: float = 1.0) -> np.ndarray:
+    """The pinned-pinned spectrum in closed form. With v = V sin(k x), psi = Psi cos(k x), k = n pi / L,
+    Timoshenko's equations give the quadratic in w^2
+        rho^2 I / (kappa G) w^4 - (rho A + rho I (1 + E / (kappa G)) k^2) w^2 + E I k^4 = 0,
+    both of whose roots are modes, and n = 0 gives the thickness-shear mode v = 0, psi = const at
+    w^2 = kappa G A / (rho I). Rayleigh: w^2 = E I k^4 / (rho A + rho I k^2); Euler-Bernoulli:
+    w^2 = E I k^4 / (rho A)."""
+    A, I = math.pi * diameter**2 / 4, math.pi * diameter**4 / 64
+    out = []
+    for n in range(1, count + 1):
+        k = n * math.pi / length
+        if theory == "euler-bernoulli":
+            out.append(E * I * k**4 / (RHO * A))
+        elif theory == "rayleigh":
+            out.append(E * I * k**4 / (RHO * A + RHO * I * k**2))
+        else:
+            a, b, c = RHO**2 * I / (KAPPA * G), -(RHO * A + RHO * I * (1 + E / (KAPPA * G)) * k**2), E * I * k**4
+            d = math.sqrt(b * b - 4 * a * c)
+            out += [2 * c / (-b + d), (-b + d) / (2 * a)]     # the lower root written without cancellation
+    if theory == "timoshenko":
+        out.append(KAPPA * G * A / (RHO * I))
+    return np.sqrt(np.sort(out)[:count])
+
+
+def lower_branch(theory: str, diameter: float, n: int) -> float:
+    """The n-th flexural (lower-branch) frequency alone."""
+    A, I = math.pi * diameter**2 / 4, math.pi * diameter**4 / 64
+    k = n * math.pi
+    if theory != "timoshenko":
+        return math.sqrt(E * I * k**4 / (RHO * A + (RHO * I * k**2 if theory == "rayleigh" else 0.0)))
+    a, b, c = RHO**2 * I / (KAPPA * G), -(RHO * A + RHO * I * (1 + E / (KAPPA * G)) * k**2), E * I * k**4
+    return math.sqrt(2 * c / (-b + math.sqrt(b * b - 4 * a * c)))
+
+
+@pytest.mark.parametrize("slenderness", [5, 10, 20, 50])
+def test_pinned_pinned_frequencies_converge_to_the_closed_forms(slenderness):
+    """L / r = 5 ... 50 (r = D / 4, the solid circle's radius of gyration), modes 1 to 3 of each theory.
+
+    Ritz: each finite-element frequency lies above the exact one (to round-off, 1e-12 relative). The
+    cubic Hermite element's frequency error falls as h^4; the interdependent Timoshenko element's as h^2
+    wherever shear matters (its shear strain is constant on an element: the shear energy's error is
+    O(h^2)), towards h^4 for a slender shaft where bending dominates. So the observed order between 8, 16
+    and 32 elements lies in [1.9, 4.2], and the error at 32 elements is within the Richardson estimate
+    (f16 - f32) / (2^p - 1) of order p >= 1.9 (slack 1.3 for the pre-asymptotic terms)."""
+    D = 4.0 / slenderness
+    for theory in THEORIES:
+        exact = exact_frequencies(theory, D)
+        f8, f16, f32 = (plane_frequencies(theory, D, n) for n in (8, 16, 32))
+        assert np.all(f32 >= exact * (1 - 1e-12)), (theory, f32 / exact - 1)
+        order = np.log2((f8 - f16) / (f16 - f32))
+        assert np.all((order > 1.9) & (order < 4.2)), (theory, order)
+        assert np.all(f32 - exact <= 1.3 * (f16 - f32) / (2**1.9 - 1)), (theory, f32 / exact - 1)
+    # a pre-set rate: the Timoshenko element converges at h^2 on the stubby shaft, its error quartering
+    if slenderness <= 20:
+        e16, e32 = (plane_frequencies("timoshenko", D, n)[0] / exact_frequencies("timoshenko", D)[0] - 1
+                    for n in (16, 32))
+        assert 3.6 < e16 / e32 < 4.4
+
+
+@pytest.mark.parametrize("slenderness", [5, 10, 20, 50])
+def test_shear_and_rotary_inertia_lower_each_flexural_mode(slenderness):
+    """EB > Rayleigh > Timoshenko for each flexural mode, in closed form and in the model (64 elements:
+    each model frequency within 1e-3 of its closed form, far below the gaps: rotary inertia lowers mode n
+    by (n pi r / L)^2 / 2, 2e-5 for n = 1 at L / r = 50; shear by about E / (kappa G) as much again)."""
+    D = 4.0 / slenderness
+    for n in (1, 2, 3):
+        eb, ra, ti = (lower_branch(t, D, n) for t in THEORIES)
+        assert eb > ra > ti
+    fe = {t: plane_frequencies(t, D, 64) for t in ("euler-bernoulli", "rayleigh")}
+    assert np.all(fe["euler-bernoulli"] > fe["rayleigh"])
+    if slenderness > 5:          # at L / r = 5 the thickness-shear mode lies below the second flexural one
+        fe_t = plane_frequencies("timoshenko", D, 64)
+        assert np.all(fe["rayleigh"] > fe_t)
+        assert fe_t == pytest.approx([lower_branch("timoshenko", D, n) for n in (1, 2, 3)], rel=1e-3)
+
+
+def test_element_matrices_are_their_definitions_and_hermites_without_shear():
+    """The closed-form stiffness is the quadrature of E I int psi'^2 + kappa G A int (v' - psi)^2 (per E I,
+    with kappa G A / (E I) = 12 / (Phi h^2)), to round-off; Phi = 0 gives the Hermite element (mass and
+    stiffness to a few eps of their entries)."""
+    h, phi = np.array([0.05, 0.3, 1.7]), np.array([0.01, 0.4, 3.0])
+    g, wg = np.polynomial.legendre.leggauss(6)
+    xi, wg = (g + 1) / 2, wg / 2
+    eps = 1e-7
+    v, psi = timoshenko.shape(xi, h, phi)
+    # derivatives of the explicit polynomials: d/dx = (1/h) d/dxi, by the exact difference of a cubic
+    vp = (timoshenko.shape(xi + eps, h, phi)[0] - timoshenko.shape(xi - eps, h, phi)[0]) / (2 * eps * h[:, None, None])
+    pp = (timoshenko.shape(xi + eps, h, phi)[1] - timoshenko.shape(xi - eps, h, phi)[1]) / (2 * eps * h[:, None, None])
+    gamma = vp - psi
+    bend = np.einsum("eiq,ejq,q,e->eij", pp, pp, wg, h)
+    shear = np.einsum("eiq,ejq,q,e->eij", gamma, gamma, wg, h) * (12 / (phi * h**2))[:, None, None]
+    K = timoshenko.element_stiffness(h, phi)
+    # central differences of polynomials of degree <= 3 carry eps^2 |f'''| ~ 1e-14 of truncation plus
+    # 1e-16 / 1e-7 = 1e-9 of round-off relative to the entries
+    np.testing.assert_allclose(bend + shear, K, rtol=1e-7, atol=1e-7 * np.abs(K).max())
+    # the shear strain is constant on each element: the element solves the static beam exactly
+    assert np.ptp(gamma, axis=2).max() < 1e-6
+    z = np.zeros(3)
+    np.testing.assert_allclose(timoshenko.element_mass(h, z), hermite.element_mass(h), rtol=1e-14, atol=1e-17)
+    np.testing.assert_allclose(timoshenko.element_rotary(h, z), hermite.element_stretch(h), rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(timoshenko.element_stiffness(h, z), hermite.element_bend(h), rtol=1e-14)
+
+
+@pytest.mark.parametrize("section", ["circle", "rectangle"])
+def test_one_element_cantilever_tip_deflection_is_exact(section):
+    """A cantilever under a tip force P: w = P L^3 / (3 E I) + P L / (kappa G A), bending and shear, with ONE
+    element (the interdependent element is the static solution for end loads): to round-off (the 2 x 2
+    solve's condition ~ (L / h_section)^2 ~ 1e3, times eps: 1e-12 relative). The rectangle bends W with I_y
+    and V with I_z, kappa Cowper's 10 (1 + nu) / (12 + 11 nu)."""
+    L, P, Gs = 0.4, 1e3, 7.9e10
+    seg = (Segment("s", 0.0, L, 0.08, 0.08, E=E, rho=RHO, section="circle", G=Gs) if section == "circle" else
+           Segment("s", 0.0, L, 0.06, 0.1, E=E, rho=RHO, G=Gs))
+    stack = BeamStack((seg,), supports=(Support("s", 0.0, ("U", "V", "W", "V'", "W'")),),
+                      theory="timoshenko").validate()
+    model = assemble(stack, generate(stack, 1))
+    nu = E / (2 * Gs) - 1
+    kappa = 10 * (1 + nu) / (12 + 11 * nu) if section == "rectangle" else 6 * (1 + nu) / (7 + 6 * nu)
+    for fld, I in (("V", seg.I_z), ("W", seg.I_y)):
+        f = np.zeros(model.n_full)
+        f[model.dof("s", fld, L)] = P
+        K = (model.T.T @ model.K_full @ model.T).toarray()
+        q = model.T @ np.linalg.solve(K, model.T.T @ f)
+        want = P * L**3 / (3 * E * I) + P * L / (kappa * Gs * seg.area)
+        assert q[model.dof("s", fld, L)] == pytest.approx(want, rel=1e-12)
+        # the tip rotation: bending alone, P L^2 / (2 E I) (shear does not turn the sections)
+        assert q[model.dof("s", fld + "'", L)] == pytest.approx(P * L**2 / (2 * E * I), rel=1e-12)
