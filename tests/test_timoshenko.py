@@ -161,3 +161,73 @@ def test_one_element_cantilever_tip_deflection_is_exact(section):
         assert q[model.dof("s", fld, L)] == pytest.approx(want, rel=1e-12)
         # the tip rotation: bending alone, P L^2 / (2 E I) (shear does not turn the sections)
         assert q[model.dof("s", fld + "'", L)] == pytest.approx(P * L**2 / (2 * E * I), rel=1e-12)
+
+
+# ---------------------------------------------------------------- ROSS 2.3.0 with shear on
+#: ROSS 2.3.0's rotor3 of ross/tests/test_rotor_assembly.py (6 ShaftElements of 0.25 m with its defaults: shear
+#: on with Cowper's kappa = 0.886306356763, phi = 0.0879556650246; disks from geometry at nodes 2 (outer 0.28 m)
+#: and 4 (outer 0.35 m), bearings kxx = 1e6, kyy = 8e5 N/m at nodes 0 and 6, steel E 211e9, G_s 81.2e9, rho
+#: 7810): the lowest 8 lateral wd [rad/s] of run_modal at each speed, and the speeds where a root's wd equals
+#: the speed (brentq). How: /work/rossvenv/bin/python studies/ross_timoshenko.py (printed with repr).
+ROSS_ROTOR3_WD = {
+    0.0: [82.65303733556736, 86.65811435148956, 254.52047828237409, 274.3128539134222, 679.4890323815636,
+          716.7863122127058, 1032.3915317624628, 1066.1562003864751],
+    100.0: [82.63352553572449, 86.67069274911151, 253.18588892543863, 275.5338486568403, 664.9017383992654,
+            731.0115791131321, 1031.403702799227, 1066.870278983818],
+    300.0: [82.4813272311157, 86.76734307323554, 245.4909284380595, 282.33294698788984, 614.055362770479,
+            779.0777833453193, 1024.5776213193353, 1071.517438161316],
+    1000.0: [81.03348804246193, 87.57329570388161, 208.04894105692776, 311.0646853482717, 457.9966828374221,
+             913.4156819295066, 978.9693924212336, 1093.8325576186828],
+}
+ROSS_ROTOR3_CRITICAL = [82.63969961116351, 86.6675733115961, 247.85538666106342, 281.59892942150486]
+#: ross.rotor_example() as shipped (shear on, the same element; both disks 0.28 m), wd at 0 and 500 rad/s
+ROSS_EXAMPLE_WD = {
+    0.0: [91.79655317547751, 96.28899976985788, 274.5659451261476, 296.50048531755726, 722.8978749492842,
+          765.0004291608805, 1069.6595997887705, 1103.628982710992],
+    500.0: [91.56035074098234, 96.45663974846025, 265.40599986987934, 305.3534547593894, 658.346552303948,
+            821.3253588409547, 1062.9206562893698, 1107.6454643694356],
+}
+#: ross_example on ROSS's mesh with its shear: theory = "timoshenko" is the only change (the scene has G_s)
+ROSS_MESH = ["mesh.elements=6", "reduction.method=none", "beam.theory=timoshenko"]
+
+
+def _whirl(overrides, speeds_rad):
+    from nsfem.analysis.campbell import campbell
+    from nsfem.fem.assemble import build_model
+    from nsfem.fem.components import lateral_turn
+    from nsfem.fem.rotating import rotor_operators
+    from nsfem.scene import load_scene
+
+    model = build_model(load_scene("ross_example", overrides))
+    ops = rotor_operators(model)
+    turn = lateral_turn(model.spaces, model.n_full)
+    res = campbell(ops, np.asarray(speeds_rad) / (2 * math.pi), 9, frame="inertial", turn=turn)
+    lateral = [w != 2 for w in res.whirl]                # our model has the thrust bearing's axial mode too
+    return [2 * math.pi * f[k][:8] for f, k in zip(res.frequencies_hz, lateral)], ops, turn
+
+
+@pytest.mark.parametrize("rotor, overrides, table", [
+    ("rotor3", ["disk.1.outer_diameter=0.35"], ROSS_ROTOR3_WD),
+    ("rotor_example", [], ROSS_EXAMPLE_WD)])
+def test_whirl_frequencies_match_ross_with_shear(rotor, overrides, table):
+    """The same element (interdependent Timoshenko, Cowper's kappa, consistent mass) on ROSS's mesh: the
+    whirl frequencies agree to the eigen solvers' round-off (measured 1.5e-11 over the 8 modes and speeds; 1e-9
+    leaves room for other BLAS kernels); Hutchinson's kappa instead of Cowper's moves them by up to 1.9e-3,
+    shear left out (rayleigh) by up to 8e-3."""
+    speeds = sorted(table)
+    got, _, _ = _whirl(ROSS_MESH + overrides, speeds)
+    for s, g in zip(speeds, got):
+        np.testing.assert_allclose(g, table[s], rtol=1e-9)
+    other, _, _ = _whirl(ROSS_MESH + overrides + ["beam.shear_coefficient=hutchinson"], speeds[:1])
+    assert np.abs(other[0] / table[speeds[0]] - 1).max() > 1e-4     # the comparison can tell kappas apart
+
+
+def test_critical_speeds_match_ross_with_shear():
+    """Undamped critical speeds (the Hermitian pencil K0 x = Omega^2 (M - i Gp1) x) against ROSS's crossings of
+    wd with the speed (brentq to 1e-12 rad/s): both exact for the same model, so round-off, 1e-9."""
+    from nsfem.analysis.whirl import critical_speeds
+
+    _, ops, turn = _whirl(ROSS_MESH + ["disk.1.outer_diameter=0.35"], [0.0])
+    speeds, whirl = critical_speeds(ops, turn, max_hz=60.0)
+    np.testing.assert_allclose(2 * math.pi * speeds, ROSS_ROTOR3_CRITICAL, rtol=1e-9)
+    assert list(whirl) == [-1, 1, -1, 1]                 # anisotropic bearings: backward and forward alike
