@@ -231,3 +231,138 @@ def test_critical_speeds_match_ross_with_shear():
     speeds, whirl = critical_speeds(ops, turn, max_hz=60.0)
     np.testing.assert_allclose(2 * math.pi * speeds, ROSS_ROTOR3_CRITICAL, rtol=1e-9)
     assert list(whirl) == [-1, 1, -1, 1]                 # anisotropic bearings: backward and forward alike
+
+
+# ---------------------------------------------------------------- between the nodes: sensors and hat weights
+def test_sensor_between_nodes_reads_the_static_solution():
+    """A sensor reads the element's displacement functions N_v between nodes; on the one-element cantilever
+    under a tip force they are the exact static solution w(x) = P x^2 (3 L - x) / (6 E I) + P x / (kappa G A)
+    (a Hermite cubic of the nodal values would miss the shear part's linear growth): to round-off."""
+    from nsfem.sensors import hermite_row
+
+    L, P = 0.4, 1e3
+    seg = Segment("s", 0.0, L, 0.08, 0.08, E=E, rho=RHO, section="circle")
+    stack = BeamStack((seg,), supports=(Support("s", 0.0, ("U", "V", "W", "V'", "W'")),),
+                      theory="timoshenko").validate()
+    model = assemble(stack, generate(stack, 1))
+    f = np.zeros(model.n_full)
+    f[model.dof("s", "W", L)] = P
+    K = (model.T.T @ model.K_full @ model.T).toarray()
+    q = model.T @ np.linalg.solve(K, model.T.T @ f)
+    for x in (0.05, 0.17, 0.33):
+        want = P * x**2 * (3 * L - x) / (6 * E * seg.I_y) + P * x / (KAPPA * G * seg.area)
+        assert float((hermite_row(model, "s", "W", x) @ q)[0]) == pytest.approx(want, rel=1e-12)
+
+
+def test_hat_weights_reproduce_rigid_motions_with_shear():
+    """The hat-weighted average of a rigid motion (v = a + b x, psi = b: no shear strain) is its value at the
+    hat's centroid; the interdependent functions reproduce rigid motions exactly, so to round-off."""
+    x = np.linspace(0.0, 1.0, 11)
+    phi = np.full(10, 0.7)
+    a, b, lo, mid, hi = 0.3, -1.2, 0.2, 0.5, 0.8
+
+    def hat(s):
+        return np.where((s >= lo) & (s <= hi), np.minimum((s - lo) / (mid - lo), (hi - s) / (hi - mid)), 0.0) / 0.3
+
+    q = np.empty(22)
+    q[0::2], q[1::2] = a + b * x, b
+    assert hermite.assemble_weighted(x, hat, phi=phi) @ q == pytest.approx(a + b * mid, rel=1e-14)
+    assert hermite.assemble_weighted(x, hat, slope=True, phi=phi) @ q == pytest.approx(b, rel=1e-14)
+
+
+# ---------------------------------------------------------------- the pipeline
+def _cli(argv, tmp_path):
+    import contextlib
+    import io
+    import json
+    import os
+
+    from nsfem import cli
+
+    out, err = io.StringIO(), io.StringIO()
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = cli.main(argv)
+    finally:
+        os.chdir(cwd)
+    assert code == 0, err.getvalue()
+    return json.loads(out.getvalue()) if "--json" in argv else None, err.getvalue()
+
+
+SS_SCENE = """
+[shaft]
+length = 0.5
+section = "circle"
+diameter = 0.1
+supports = "pinned-pinned"
+[beam]
+theory = "{theory}"
+[rotation]
+gravity = 9.81
+[reduction]
+method = "none"
+[mesh]
+elements = 10
+"""
+
+
+def test_stationary_sag_of_a_stubby_shaft_has_its_shear_part(tmp_path):
+    """nsfem stationary on a pinned-pinned shaft (L / D = 5) under its weight q = rho A g: the midspan sag is
+    5 q L^4 / (384 E I) + q L^2 / (8 kappa G A) (shear adds 7 % here). The interdependent element with its
+    consistent load is exact at the nodes for a uniform load: round-off (1e-10). Without shear the scene gets
+    the stubby-rotor note, and its sag is the bending part alone."""
+    scene = tmp_path / "ss.toml"
+    L, D = 0.5, 0.1
+    A, I = math.pi * D**2 / 4, math.pi * D**4 / 64
+    q = 7850.0 * A * 9.81                                # the shaft's default rho and E
+    bending, shear = 5 * q * L**4 / (384 * E * I), q * L**2 / (8 * KAPPA * G * A)
+    for theory, want in (("timoshenko", bending + shear), ("euler-bernoulli", bending)):
+        scene.write_text(SS_SCENE.format(theory=theory))
+        out, err = _cli(["stationary", str(scene), "--json"], tmp_path)
+        sag = out["max_deflection"]
+        assert sag["x_m"] == pytest.approx(L / 2) and sag["deflection_m"][1] == pytest.approx(-want, rel=1e-10)
+        stubby = [n for n in out["notes"] if "stubby" in n]
+        assert bool(stubby) == (theory != "timoshenko"), out["notes"]
+    assert shear / bending > 0.05
+
+
+TINY = ["--set", "simulation.t_end=0.004", "--set", "simulation.output_dt=0.001", "--set", "output.plots=[]"]
+SHEAR = ["--set", "beam.theory=\"timoshenko\""]
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "rub", "--method", "exact", "--set", "mesh.elements=8", "--set", "reduction.modes=6",
+     "--set", "output.vtu_every=1"],
+    ["run", "rub", "--method", "rk", "--set", "mesh.elements=8", "--set", "reduction.modes=6",
+     "--set", "output.vtu_every=0"],
+    ["run", "crack", "--method", "exact", "--set", "mesh.elements=10", "--set", "output.vtu_every=1"],
+], ids=["rub-exact-vtu", "rub-rk", "crack-exact-vtu"])
+def test_runs_with_shear_write_sensors_and_vtu(argv, tmp_path):
+    """A ring contact (rub) with the exact and rk integrators and a breathing crack, with Timoshenko elements:
+    each run finishes, its sensors.csv has finite readings and its VTU frames (when asked) exist."""
+    _, err = _cli([*argv, *SHEAR, *TINY, "--out", "out"], tmp_path)
+    csv = np.loadtxt(tmp_path / "out" / "sensors.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert csv.shape[0] >= 4 and np.all(np.isfinite(csv))
+    if "output.vtu_every=1" in argv:
+        assert (tmp_path / "out" / "nsfem.pvd").exists() and any((tmp_path / "out" / "vtu").iterdir())
+
+
+def test_modes_campbell_response_with_shear(tmp_path):
+    """modes (at rest and at speed), campbell and response of ross_example with shear on its own mesh: the
+    modes are ROSS's with shear (rotor_example, 1e-9) and the 1x response peaks near the first critical
+    speeds (82-97 rad/s: the rotor_example's first two wd at rest, 14.6-15.3 Hz)."""
+    base = ["ross_example", *SHEAR, "--set", "mesh.elements=6", "--set", "reduction.method=\"none\""]
+    out, _ = _cli(["modes", *base, "--json", "--count", "9"], tmp_path)
+    f = np.array(out["frequencies_hz"])
+    lateral = np.sort(2 * math.pi * f)
+    assert any(abs(w / ROSS_EXAMPLE_WD[0.0][0] - 1) < 1e-9 for w in lateral)
+    out, _ = _cli(["modes", *base, "--json", "--speed", str(500 / (2 * math.pi)), "--count", "9"], tmp_path)
+    got = 2 * math.pi * np.array(out["frequencies_hz"])
+    assert any(abs(w / ROSS_EXAMPLE_WD[500.0][0] - 1) < 1e-9 for w in got)
+    out, _ = _cli(["campbell", *base, "--json", "--speeds", "0:30:4"], tmp_path)
+    assert out["speeds_hz"][-1] == pytest.approx(30.0)
+    out, _ = _cli(["response", *base, "--json", "--speeds", "10:20:41"], tmp_path)
+    peak = max(out["peaks"], key=lambda p: p["amplitude_m"])
+    assert 14.0 < peak["speed_hz"] < 16.0
