@@ -3587,3 +3587,60 @@ def test_bearing_forces_of_a_run_in_a_folder_that_refuses_bearings_csv(tmp_path)
     code, _, stderr = check_invocation(["run", *ROSS, *CHEAP[2:], "--out", "out"], tmp_path)
     assert code == cli.EXIT_ERROR and "bearings.csv" in stderr, stderr
     assert sorted(p.name for p in out.iterdir()) == ["bearings.csv"]
+
+
+# --- issue 35: timoshenko (shear modulus G, beam theory, shear coefficient) ---
+SHEAR_MODES = ["modes", "ross_example", "--set", "mesh.elements=6", "--set", "reduction.method=\"none\"",
+               "--set", "beam.theory=\"timoshenko\""]
+SHEAR_CASES = [
+    (["--set", "shaft.G=0"], "shaft.G"),
+    (["--set", "shaft.G=-8e10"], "shaft.G"),
+    (["--set", "shaft.G=nan"], "shaft.G"),
+    (["--set", "shaft.G=inf"], "shaft.G"),
+    (["--set", "shaft.G=1e10"], "shaft.G"),                 # nu = 9.55: not a material
+    (["--set", "shaft.G=2e11"], "shaft.G"),                 # nu < 0: outside the shear coefficients' range
+    (["--set", "shaft.G=\"hard\""], "shaft.G"),
+    (["--set", "beam.theory=\"timoshenk\""], "beam.theory"),
+    (["--set", "beam.theory=\"Timoshenko\""], "beam.theory"),
+    (["--set", "beam.shear_coefficient=\"cowpr\""], "beam.shear_coefficient"),
+    (["--set", "shaft.step=[{start=0.2, end=0.4, diameter=0.06, G=-1.0}]"], "shaft.step.0.G"),
+    (["--set", "shaft.step=[{start=0.2, end=0.4, E=1e9, G=8.12e10}]"], "shaft.step.0.G"),
+]
+
+
+@pytest.mark.parametrize("extra, key", SHEAR_CASES, ids=[" ".join(c[0][1::2]) for c in SHEAR_CASES])
+def test_bad_shear_input_is_one_line_naming_the_key(extra, key, tmp_path):
+    """Each bad G (not positive, not finite, not a number, a Poisson's ratio E / (2 G) - 1 outside [0, 0.5]
+    against its own E, a step's against the step's E) and a misspelt theory or shear coefficient: exit 2,
+    one line naming the key."""
+    code, _, stderr = check_invocation([*SHEAR_MODES, *extra], tmp_path)
+    assert code == cli.EXIT_ERROR and key in stderr, stderr
+
+
+def test_bad_segment_shear_modulus_names_the_segment(tmp_path):
+    """The low-level [[segment]] takes G too, checked against its own E."""
+    (tmp_path / "s.toml").write_text('[beam]\ntheory = "timoshenko"\n[[segment]]\nname = "a"\nstart = 0.0\n'
+                                     'end = 1.0\nE = 2e11\nG = 5e10\n[[support]]\nsegment = "a"\nx = 0.0\n'
+                                     'fix = ["U", "V", "W", "V\'", "W\'"]\n')
+    code, _, stderr = check_invocation(["modes", "s.toml"], tmp_path)
+    assert code == cli.EXIT_ERROR and "segment.0.G" in stderr and "Poisson" in stderr, stderr
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,   # a 6-element modes is 0.1 s
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(G=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(7.1e10, 1.05e11)),
+       theory=st.sampled_from(["timoshenko", "rayleigh", "euler-bernoulli", "timo"]))
+def test_any_shear_modulus_either_answers_or_one_line(G, theory, tmp_path):
+    """Any G with any theory: exit 0 with ascending positive frequencies (a G in [E / 3, E / 2]) or exit 2 with
+    one line naming shaft.G or beam.theory."""
+    root = Path(tempfile.mkdtemp(dir=tmp_path))
+    argv = ["modes", "ross_example", "--set", "mesh.elements=6", "--set", "reduction.method=\"none\"", "--json",
+            "--set", f"beam.theory=\"{theory}\"", "--set", f"shaft.G={G!r}"]
+    code, stdout, stderr = check_invocation(argv, root)
+    ok = math.isfinite(G) and 2.11e11 / 3 <= G <= 2.11e11 / 2 and theory != "timo"
+    assert (code == 0) == ok, (G, theory, stderr)
+    if code == 0:
+        f = np.array(json.loads(stdout)["frequencies_hz"])
+        assert np.all(f > 0) and np.all(np.diff(f) >= 0)
+    else:
+        assert ("shaft.G" in stderr) or ("beam.theory" in stderr), stderr
