@@ -4,7 +4,10 @@ An open crack of depth ``a`` starting from one face of the section is a rotation
 two sides of the shaft: the relative slope theta = c M for a bending moment M. The crack has two axes:
 the moment that opens it (the face it starts from in tension) and the moment about the perpendicular
 axis (stress varying along the crack front). Both compliances are diagonal in these axes (the crack is
-symmetric about its depth direction, so the cross term integrates to zero).
+symmetric about its depth direction, so the cross term integrates to zero). With Timoshenko elements the
+hinge joins the second nodal dofs, the sections' rotations psi: the crack's energy release turns the
+sections on either side against each other (theta is their relative rotation, the faces' tilt), while
+the shear strain v' - psi stays each side's, so the same compliance applies unchanged.
 
 Sources and what is taken from each:
 
