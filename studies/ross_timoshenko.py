@@ -25,16 +25,13 @@ def rotor3(shear=True):
 
 
 def lateral_wd(rotor, speed, count=8):
+    """The lowest ``count`` damped frequencies [rad/s] of run_modal whose mode moves a node laterally (ROSS's
+    6 dofs per node: x, y, z, alpha, beta, theta; its axial and torsional modes left out)."""
     m = rotor.run_modal(speed, num_modes=2 * count + 8)
-    wd = np.asarray(m.wd)
-    # the torsional mode and axial: ROSS's modes include them; keep lateral ones by their shape
-    keep = []
-    for i, w in enumerate(wd):
-        ev = m.evectors[:, i]
-        lat = np.linalg.norm(ev[rotor.number_dof * 0 + np.r_[[k for n in range(rotor.nodes[-1] + 1)
-                                                                  for k in (n * 6, n * 6 + 1)]]])
-        if lat > 1e-6 * np.linalg.norm(ev):
-            keep.append(w)
+    nodes = rotor.nodes[-1] + 1
+    lateral = np.r_[[6 * n + k for n in range(nodes) for k in (0, 1)]]
+    keep = [w for i, w in enumerate(np.asarray(m.wd))
+            if np.linalg.norm(m.evectors[lateral, i]) > 1e-6 * np.linalg.norm(m.evectors[:, i])]
     return np.array(keep[:count])
 
 
@@ -46,5 +43,7 @@ if __name__ == "__main__":
     for speed in (0.0, 100.0, 300.0, 1000.0):
         print(speed, repr(lateral_wd(r, speed).tolist()))
     for k in range(4):
-        f = lambda s: lateral_wd(r, s)[k] - s
-        print("critical", k, repr(brentq(f, 50.0, 400.0, xtol=1e-12)))
+        print("critical", k, repr(brentq(lambda s, k=k: lateral_wd(r, s)[k] - s, 50.0, 400.0, xtol=1e-12)))
+    example = rs.rotor_example()               # as shipped: shear on, the same element
+    for speed in (0.0, 500.0):
+        print("rotor_example", speed, repr(lateral_wd(example, speed).tolist()))
