@@ -132,6 +132,10 @@ def test_element_matrices_are_their_definitions_and_hermites_without_shear():
     np.testing.assert_allclose(bend + shear, K, rtol=1e-7, atol=1e-7 * np.abs(K).max())
     # the shear strain is constant on each element: the element solves the static beam exactly
     assert np.ptp(gamma, axis=2).max() < 1e-6
+    # the planes' cross integral is the plane's own when their Phi agree, and symmetric under exchange
+    np.testing.assert_allclose(timoshenko.element_cross(h, phi, phi), timoshenko.element_mass(h, phi), rtol=1e-15)
+    np.testing.assert_allclose(timoshenko.element_cross(h, phi, 2 * phi, rotation=True),
+                               np.swapaxes(timoshenko.element_cross(h, 2 * phi, phi, rotation=True), 1, 2), rtol=1e-15)
     z = np.zeros(3)
     np.testing.assert_allclose(timoshenko.element_mass(h, z), hermite.element_mass(h), rtol=1e-14, atol=1e-17)
     np.testing.assert_allclose(timoshenko.element_rotary(h, z), hermite.element_stretch(h), rtol=1e-13, atol=1e-15)

@@ -127,7 +127,7 @@ def full_operators(model: FEModel) -> RotorOperators:
         space = model.spaces[s.name]
         u = space.unit
         # int N_v N_v per plane (with shear the planes' Phi differ for a rectangle) and int N_v dx
-        MV, MW = u.get("mass_V", u["bending_mass"]), u.get("mass_W", u["bending_mass"])
+        MV, MW = u["mass_V"], u["mass_W"]
         # a coupling of the planes (Coriolis, circulatory, the spin's couple) integrates V's functions against
         # W's: int N_v^V N_v^W, either plane's own when their Phi agree (circles, squares, no shear)
         Mx = mixed_mass(space) if space.phi else MV
@@ -140,8 +140,8 @@ def full_operators(model: FEModel) -> RotorOperators:
         put("Kc1", V, V, -rA * MV)
         put("Kc1", W, W, -rA * MW)
         if rotary:
-            put("Kc1", V, V, s.rho * s.I_z * u.get("rotary_V", u["bending_stretch"]))
-            put("Kc1", W, W, s.rho * s.I_y * u.get("rotary_W", u["bending_stretch"]))
+            put("Kc1", V, V, s.rho * s.I_z * u["rotary_V"])
+            put("Kc1", W, W, s.rho * s.I_y * u["rotary_W"])
         put("De1", V, V, MV)
         put("De1", W, W, MW)
         put("P1", W, V, Mx.T)
@@ -154,7 +154,7 @@ def full_operators(model: FEModel) -> RotorOperators:
         vec["Fz"][W] += rA * loadW
         if rotary:
             # the spin of the sections: polar inertia rho (I_y + I_z) per length, on the rotations
-            R = mixed_rotary(space) if space.phi else u["bending_stretch"]
+            R = mixed_mass(space, rotation=True) if space.phi else u["rotary_V"]
             put("Gp1", V, W, s.rho * (s.I_y + s.I_z) * R)
             put("Gp1", W, V, -s.rho * (s.I_y + s.I_z) * R.T)
     mats = {k: sp.csr_matrix((np.concatenate(vals[k]), (np.concatenate(rows[k]), np.concatenate(cols[k]))),
@@ -177,25 +177,12 @@ def full_operators(model: FEModel) -> RotorOperators:
                           bearing_change=bearing_change(model, Kb, Kbc, Cb, J) if model.stack.speed_dependent else None)
 
 
-def _mixed(space: SegmentSpace, which: int) -> sp.csr_matrix:
-    """int N^V N^W dx (rows V, columns W) of the displacement (``which`` 0) or rotation (1) functions of the
-    two planes, each with its own Phi (Gauss-Legendre with 4 points: exact for the cubics' products)."""
-    h = np.diff(space.x)
-    g, wg = np.polynomial.legendre.leggauss(4)
-    xi, wg = (g + 1) / 2, wg / 2
-    a = timoshenko.shape(xi, h, space.shear("V"))[which]
-    b = timoshenko.shape(xi, h, space.shear("W"))[which]
-    return hermite.assemble_local(space.x, np.einsum("eiq,ejq,q,e->eij", a, b, wg, h))
-
-
-def mixed_mass(space: SegmentSpace) -> sp.csr_matrix:
-    """int N_v^V N_v^W dx: the planes' displacement functions' cross integral (rows V, columns W)."""
-    return _mixed(space, 0)
-
-
-def mixed_rotary(space: SegmentSpace) -> sp.csr_matrix:
-    """int N_psi^V N_psi^W dx: the planes' rotation functions' cross integral (rows V, columns W)."""
-    return _mixed(space, 1)
+def mixed_mass(space: SegmentSpace, rotation: bool = False) -> sp.csr_matrix:
+    """int N^V N^W dx (rows V, columns W) of the two planes' displacement functions (or with ``rotation`` their
+    rotation functions), each plane with its own Phi (:func:`nsfem.fem.timoshenko.element_cross`)."""
+    x = space.x - space.x[0]                    # local coordinates, as the unit matrices
+    return hermite.assemble_local(x, timoshenko.element_cross(np.diff(x), space.shear("V"), space.shear("W"),
+                                                              rotation))
 
 
 def bearing_change(model: FEModel, Kb, Kbc, Cb, J) -> Callable[[float], tuple]:

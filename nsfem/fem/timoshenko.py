@@ -92,9 +92,9 @@ def shape(xi: np.ndarray, h: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, n
     return value, rotation
 
 
-def _gram(h: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """int f_i f_j dx over each element from f (elements, 4, points) at the Gauss points."""
-    return np.einsum("eiq,ejq,q,e->eij", f, f, _WEIGHT, np.asarray(h, dtype=float))
+def _gram(h: np.ndarray, f: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
+    """int f_i g_j dx (g = f by default) over each element from f, g (elements, 4, points) at the Gauss points."""
+    return np.einsum("eiq,ejq,q,e->eij", f, f if g is None else g, _WEIGHT, np.asarray(h, dtype=float))
 
 
 def element_mass(h: np.ndarray, phi: np.ndarray) -> np.ndarray:
@@ -105,6 +105,13 @@ def element_mass(h: np.ndarray, phi: np.ndarray) -> np.ndarray:
 def element_rotary(h: np.ndarray, phi: np.ndarray) -> np.ndarray:
     """int N_psi N_psi dx: (len(h), 4, 4)."""
     return _gram(h, shape(_XI, h, phi)[1])
+
+
+def element_cross(h: np.ndarray, phi_a: np.ndarray, phi_b: np.ndarray, rotation: bool = False) -> np.ndarray:
+    """int N^a N^b dx of two planes' functions with their own Phi (displacement N_v, or with ``rotation``
+    N_psi): the integral of a coupling of the planes, e.g. a rectangle's Coriolis term. (len(h), 4, 4)."""
+    k = 1 if rotation else 0
+    return _gram(h, shape(_XI, h, phi_a)[k], shape(_XI, h, phi_b)[k])
 
 
 def element_stiffness(h: np.ndarray, phi: np.ndarray) -> np.ndarray:
