@@ -355,8 +355,9 @@ def test_runs_with_shear_write_sensors_and_vtu(argv, tmp_path):
 
 def test_modes_campbell_response_with_shear(tmp_path):
     """modes (at rest and at speed), campbell and response of ross_example with shear on its own mesh: the
-    modes are ROSS's with shear (rotor_example, 1e-9) and the 1x response peaks near the first critical
-    speeds (82-97 rad/s: the rotor_example's first two wd at rest, 14.6-15.3 Hz)."""
+    modes and Campbell's frequencies at rest are ROSS's with shear (rotor_example, 1e-9: round-off), the
+    first undamped critical speed is a whirl frequency at that speed (1e-9: both solves' round-off), and the
+    1x response peaks near the first critical speeds (the first two wd at rest: 14.6 and 15.3 Hz)."""
     base = ["ross_example", *SHEAR, "--set", "mesh.elements=6", "--set", "reduction.method=\"none\""]
     out, _ = _cli(["modes", *base, "--json", "--count", "9"], tmp_path)
     f = np.array(out["frequencies_hz"])
@@ -365,8 +366,13 @@ def test_modes_campbell_response_with_shear(tmp_path):
     out, _ = _cli(["modes", *base, "--json", "--speed", str(500 / (2 * math.pi)), "--count", "9"], tmp_path)
     got = 2 * math.pi * np.array(out["frequencies_hz"])
     assert any(abs(w / ROSS_EXAMPLE_WD[500.0][0] - 1) < 1e-9 for w in got)
-    out, _ = _cli(["campbell", *base, "--json", "--speeds", "0:30:4"], tmp_path)
-    assert out["speeds_hz"][-1] == pytest.approx(30.0)
+    out, _ = _cli(["campbell", *base, "--json", "--speeds", "0:30:4", "--count", "9"], tmp_path)
+    at_rest = [f for f, w in zip(out["frequencies_hz"][0], out["whirl"][0]) if w != "axial"]
+    np.testing.assert_allclose(2 * math.pi * np.array(at_rest[:6]), ROSS_EXAMPLE_WD[0.0][:6], rtol=1e-9)
+    # each undamped critical speed is a whirl frequency of the rotor spinning at it (its own 1x crossing)
+    crit = out["undamped_critical_speeds_hz"]["open"][0]
+    spun, _ = _cli(["modes", *base, "--json", "--speed", repr(crit), "--count", "4"], tmp_path)
+    assert min(abs(f / crit - 1) for f in spun["frequencies_hz"]) < 1e-9
     out, _ = _cli(["response", *base, "--json", "--speeds", "10:20:41"], tmp_path)
     peak = max(out["peaks"], key=lambda p: p["amplitude_m"])
     assert 14.0 < peak["speed_hz"] < 16.0
