@@ -478,3 +478,17 @@ def test_rectangle_bends_each_plane_with_its_own_phi():
         a_, b_, c_ = RHO**2 * I / (kappa * G), -(RHO * A + RHO * I * (1 + E / (kappa * G)) * k**2), E * I * k**4
         exact = math.sqrt(2 * c_ / (-b_ + math.sqrt(b_ * b_ - 4 * a_ * c_)))
         assert 0 <= w / exact - 1 < 2e-4, (fld, w / exact - 1)
+
+
+@pytest.mark.parametrize("diameter, theory, noted", [(0.2, "rayleigh", True), (0.2, "euler-bernoulli", True),
+                                                     (0.2, "timoshenko", False), (0.14, "rayleigh", False)])
+def test_a_stubby_span_without_shear_gets_a_note(diameter, theory, noted):
+    """ross_example's bearing span of 1.5 m: 7.5 diameters of 0.2 m is stubby (< 10) and gets the note
+    without shear; 10.7 diameters of 0.14 m is not; timoshenko has the shear."""
+    from nsfem.scene import load_scene
+
+    notes = load_scene("ross_example", [f"shaft.diameter={diameter}", f"beam.theory=\"{theory}\""]).notes
+    stubby = [n for n in notes if "stubby" in n]
+    assert bool(stubby) == noted, notes
+    if noted:
+        assert "x = 0 to 1.5 m is 7.5 section depths" in stubby[0] and "timoshenko" in stubby[0]
