@@ -21,7 +21,7 @@ the first two by Gauss-Legendre quadrature of the explicit polynomials in local 
 
 The shear coefficient kappa (:func:`shear_coefficient`): Cowper's (1966), as ROSS 2.3.0's default
 ``ShaftElement(shear_method_calc="cowper")`` evaluates it for solid and hollow circles (Hutchinson's 2001
-form, ROSS's other choice, is available), and Cowper's 10 (1 + nu) / (12 + 11 nu) for rectangles, with
+form, ROSS's other choice, is available: Hutchinson's own, with (1 + nu)^2 where ROSS has (1 + nu)), and Cowper's 10 (1 + nu) / (12 + 11 nu) for rectangles, with
 nu = E / (2 G) - 1.
 
 >>> import numpy as np
@@ -50,9 +50,11 @@ def shear_coefficient(section: str, nu: float, outer: float = 1.0, inner: float 
                       method: str = "cowper") -> float:
     """kappa of a section with Poisson's ratio ``nu``.
 
-    Circle of diameters ``outer`` and ``inner`` (r = inner / outer), in the forms ROSS 2.3.0 evaluates:
-    Cowper (1966, ROSS's default) 6 (1 + r^2)^2 (1 + nu) / ((1 + r^2)^2 (7 + 6 nu) + r^2 (20 + 12 nu)), or
-    Hutchinson (2001) 6 (1 + r^2)^2 (1 + nu) / ((1 + r^2)^2 (7 + 12 nu + 4 nu^2) + 4 r^2 (5 + 6 nu + 2 nu^2)).
+    Circle of diameters ``outer`` and ``inner`` (r = inner / outer): Cowper (1966, ROSS 2.3.0's default, the
+    form ROSS evaluates) 6 (1 + r^2)^2 (1 + nu) / ((1 + r^2)^2 (7 + 6 nu) + r^2 (20 + 12 nu)), or Hutchinson
+    (2001) 6 (1 + r^2)^2 (1 + nu)^2 / ((1 + r^2)^2 (7 + 12 nu + 4 nu^2) + 4 r^2 (5 + 6 nu + 2 nu^2)), solid
+    6 (1 + nu)^2 / (7 + 12 nu + 4 nu^2). ROSS 2.3.0's ``shear_method_calc="hutchinson"`` has (1 + nu) in
+    place of (1 + nu)^2 (0.71 instead of 0.925 for a solid circle at nu = 0.3): not Hutchinson's.
     Rectangle: Cowper's 10 (1 + nu) / (12 + 11 nu) (either method).
 
     >>> round(shear_coefficient("circle", 0.3), 12) == round(6 * 1.3 / (7 + 1.8), 12)
@@ -63,8 +65,8 @@ def shear_coefficient(section: str, nu: float, outer: float = 1.0, inner: float 
     r2 = (inner / outer) ** 2
     r12 = (1.0 + r2) ** 2
     if method == "hutchinson":
-        return 6.0 * r12 * (1.0 + nu) / (r12 * (7.0 + 12.0 * nu + 4.0 * nu * nu)
-                                        + 4.0 * r2 * (5.0 + 6.0 * nu + 2.0 * nu * nu))
+        return 6.0 * r12 * (1.0 + nu) ** 2 / (r12 * (7.0 + 12.0 * nu + 4.0 * nu * nu)
+                                             + 4.0 * r2 * (5.0 + 6.0 * nu + 2.0 * nu * nu))
     return 6.0 * r12 * (1.0 + nu) / (r12 * (7.0 + 6.0 * nu) + r2 * (20.0 + 12.0 * nu))
 
 
