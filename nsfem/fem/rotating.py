@@ -4,7 +4,8 @@ Assembled once per model and scaled per speed Omega [rad/s]:
 
 - Coriolis        G = Omega G1,   G1 = 2 int rhoA (N_W N_V^T - N_V N_W^T) dx   (skew)
 - centrifugal     Kc = Omega^2 Kc1,  Kc1 = -int rhoA (N_V N_V^T + N_W N_W^T) dx   (nsd, eq. 25)
-  [+ int rho (I_z N_V' N_V'^T + I_y N_W' N_W'^T) dx for Rayleigh beams]
+  [+ int rho (I_z N_V' N_V'^T + I_y N_W' N_W'^T) dx for Rayleigh beams; Timoshenko's use their rotation
+  functions N_psi here and their displacement functions N_v for N (:mod:`nsfem.fem.timoshenko`)]
 - external damping (c_e per unit length, on the inertial lateral velocity):
   D_e = c_e De1, De1 = int (N_V N_V^T + N_W N_W^T) dx;  circulatory P = Omega c_e P1,
   P1 = int (N_W N_V^T - N_V N_W^T) dx (skew);  drag load Omega c_e fd1, fd1 = int (z_c N_V - y_c N_W)
