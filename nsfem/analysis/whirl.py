@@ -103,8 +103,10 @@ def cross_coupled_critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz
     from scipy.optimize import brentq
 
     # undamped: the bearings' damping leaves (linear_system adds C_b whenever it has entries), as in
-    # _hermitian_critical_speeds, so that a vanishing cross coupling gives the same speeds
-    ops = replace(ops, Cb=sp.csr_matrix(ops.Cb.shape))
+    # _hermitian_critical_speeds, so that a vanishing cross coupling gives the same speeds; speed-dependent
+    # bearings keep the coefficients ops was assembled with (the scene's speed, as the Hermitian pencil's: the
+    # undamped critical speeds are solved for, not followed in speed), so no speed outside their table is read
+    ops = replace(ops, Cb=sp.csr_matrix(ops.Cb.shape), bearing_change=None)
     base, _ = _hermitian_critical_speeds(replace(ops, Kbc=ops.Kbc * 0.0), turn, max_hz, False)
     top = 1.3 * float(base[min(count, base.size) - 1]) if base.size else 1.0
     top = top if max_hz is None else min(top, max_hz)
