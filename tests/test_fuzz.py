@@ -3327,7 +3327,8 @@ def test_issue34_modes_of_retainer_drop_does_not_warn_about_the_scene_itself(tmp
     assert code == 0 and err.count("free rigid motion") == 1 and "axial" in err and "x-z" not in err
 
 
-@pytest.mark.parametrize("name", ["default", "crack", "critical_speed", "retainer_drop", "ross_example", "rub"])
+@pytest.mark.parametrize("name", ["default", "crack", "critical_speed", "retainer_drop", "ross_example", "rub",
+                                  "stepped_rotor"])
 def test_issue34_shipped_scenes_have_no_notes_and_modes_no_warning(tmp_path, name):
     """A shipped scene states what it means: no note at load, no warning from `modes`."""
     from nsfem import load_scene
