@@ -227,4 +227,4 @@ def _log_dec_bands(fig, ax, drawn) -> None:
     from matplotlib.cm import ScalarMappable
 
     bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, extend="both", pad=0.02, fraction=0.05)
-    bar.set_label(f"log dec (below 0, {UNSTABLE_COLOUR}: unstable)")
+    bar.set_label(f"log dec [-] (below 0, {UNSTABLE_COLOUR}: unstable)")
