@@ -416,7 +416,8 @@ def test_figure_colours_branches_by_log_dec_and_draws_an_unstable_branch_red(mon
     # the legend lists each damped critical speed with its log dec
     texts = [t.get_text() for t in fig.legends[0].get_texts()]
     for c in rep["critical_speeds"]["open"]:
-        assert any(t.startswith(f"{c['speed_hz']:.2f} Hz: log dec {c['log_decrement']:.3g}") for t in texts), texts
+        assert any(t.startswith(f"{c['speed_hz']:.2f} Hz ({c['whirl']}") and f"): log dec {c['log_decrement']:.3g}" in t
+                   for t in texts), texts
     # written through the real save: a PNG
     monkeypatch.undo()
     path = report_plot(tmp_path / "written.png", rep, scene.title)

@@ -46,6 +46,7 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
     ``resonances`` maps "open"/"closed" to gravity-resonance speeds (undamped). ``bands``: (low, high)
     speed intervals shaded (divergence or instability)."""
     from ..analysis.campbell import crossing_log_decrement, shown_branches
+    from ..analysis.whirl import WHIRL_NAMES
 
     inertial = open_res.whirl is not None
     s = np.asarray(open_res.speeds_hz, dtype=float)
@@ -91,8 +92,8 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
         ax.plot(crit, crit, "o", color="k", ms=6, label="critical speeds (1x crossings of damped branches)", zorder=4)
         dec = [crossing_log_decrement(c, open_res.resolution_per_s) for c in listed]
         if len(listed) <= LISTED_CRITICAL:
-            entries = [f"{c.speed_hz:.2f} Hz: log dec {d:.3g}" + (" (unstable)" if d < 0 else "")
-                       for c, d in zip(listed, dec)]
+            entries = [f"{c.speed_hz:.2f} Hz ({WHIRL_NAMES[int(c.whirl)]}): log dec {d:.3g}"
+                       + (" (unstable)" if d < 0 else "") for c, d in zip(listed, dec)]
         else:
             entries = [f"{len(listed)} critical speeds: log dec {min(dec):.3g} to {max(dec):.3g}"]
         entries.insert(0, "critical speeds' log decrements:")
@@ -216,7 +217,8 @@ def _log_dec_bands(fig, ax, drawn) -> None:
     with a growing end is unstable) and the colour bar."""
     from matplotlib.collections import LineCollection
 
-    cmap, norm = log_dec_norm(np.concatenate([d for _, _, d in drawn]) if drawn else [])
+    every = np.concatenate([d for _, _, d in drawn]) if drawn else np.zeros(0)
+    cmap, norm = log_dec_norm(every)
     for x, y, d in drawn:
         seg = np.stack([np.column_stack([x[:-1], y[:-1]]), np.column_stack([x[1:], y[1:]])], axis=1)
         ok = np.isfinite(seg).all(axis=(1, 2)) & np.isfinite(d[:-1]) & np.isfinite(d[1:])
@@ -227,4 +229,6 @@ def _log_dec_bands(fig, ax, drawn) -> None:
     from matplotlib.cm import ScalarMappable
 
     bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, extend="both", pad=0.02, fraction=0.05)
-    bar.set_label(f"log dec [-] (below 0, {UNSTABLE_COLOUR}: unstable)")
+    undamped = not np.any(np.abs(every[np.isfinite(every)]) > 0)
+    bar.set_label(f"log dec [-] (below 0, {UNSTABLE_COLOUR}: unstable)" + ("; every branch 0: undamped" if undamped
+                                                                            else ""))
