@@ -142,7 +142,8 @@ def test_runup_reference_rotor_at_constant_speed_is_rosss():
     response, complex, with the same phase convention (y = Re(Z e^{i Omega t}), the unbalance along +y at t = 0):
     the same elements and loads solved by two codes, to round-off (a harmonic solve of a 55-dof system, amplified
     near the 38.5 Hz resonance by its 1 / (2 zeta) = 38: measured 2e-14 to 1.2e-11 relative, the largest at the
-    resonance; 1e-9 leaves room for other BLAS kernels). This pins the pair's conventions (axes, unbalance phase, sense of rotation) for the run-up's check."""
+    resonance; 1e-9 leaves room for other BLAS kernels). This pins the pair's conventions (axes, unbalance phase,
+    sense of rotation) for the run-up's check."""
     from nsfem.analysis.response import harmonic_response
     from nsfem.fem.rotating import rotor_operators
 

@@ -2,7 +2,7 @@
 line, the critical speeds where it crosses the branches (or the gravity resonances), the run speed, the bands.
 
 Each branch is drawn twice: a broad band coloured by its logarithmic decrement at each speed (the colour bar "log
-dec": a sequential map from 0, undamped, to the largest decrement drawn; a growing mode, log dec < 0, in
+dec": a sequential map from 0, undamped, to the 95th percentile of the decrements drawn; a growing mode, log dec < 0, in
 :data:`UNSTABLE_COLOUR` whatever its value), and over it a thin dark line in the style of its whirl (inertial
 frame) or contact state (rotating frame). Each damped critical speed is listed in the legend with its log dec."""
 
@@ -16,9 +16,9 @@ import numpy as np
 
 from .common import figure, save
 
-#: whirl code -> (legend name, colour, line style) of a branch (nsfem.analysis.whirl codes)
-WHIRL_STYLE = {1: ("forward whirl", "tab:blue", "-"), -1: ("backward whirl", "tab:orange", "--"),
-               0: ("planar (no whirl)", "tab:gray", "-."), 2: ("axial", "tab:green", ":")}
+#: whirl code -> (legend name, line style) of a branch's line (nsfem.analysis.whirl codes; its colour is its log dec)
+WHIRL_STYLE = {1: ("forward whirl", "-"), -1: ("backward whirl", "--"), 0: ("planar (no whirl)", "-."),
+               2: ("axial", ":")}
 #: colour map of the log decrements >= 0, and the colour of a growing mode (log dec < 0)
 LOG_DEC_MAP = "viridis_r"
 UNSTABLE_COLOUR = "red"
@@ -74,11 +74,8 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
             if not np.any(np.isfinite(y)):
                 continue
             fmax = max(fmax, float(np.nanmax(y)))
-            if inertial:
-                text, color, style = WHIRL_STYLE[int(B.label[b])]
-            else:
-                text, color, style = (f"contacts {name}", "tab:blue" if name == "open" else "tab:orange",
-                                      "-" if name == "open" else "--")
+            text, style = WHIRL_STYLE[int(B.label[b])] if inertial else (f"contacts {name}",
+                                                                          "-" if name == "open" else "--")
             ax.plot(x, y, style, color="k", lw=0.9, label=None if text in labelled else text, zorder=3)
             labelled.add(text)
             drawn.append((x, y, d))
