@@ -334,3 +334,91 @@ def test_text_of_a_rotor_without_contacts_has_no_closed_rows_and_says_none(capsy
     assert cli.main(["campbell", "ross_example", "--speeds", "0:60:7", "--count", "4", "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
     assert rep["critical_speeds_hz"]["closed"] == rep["critical_speeds_hz"]["open"]
+
+
+# --- issue 35: Campbell by log decrement (JSON log_decrements, the figure coloured by them) ---
+def test_json_log_decrements_are_those_of_the_state_space_roots(critical):
+    """``log_decrements`` (aligned with ``frequencies_hz``) at a speed are -2 pi Re(s) / Im(s) of the roots of the
+    damped eigenproblem there: nsfem.analysis.damped's modes (the same roots, ``modes --speed``) and, independently,
+    the companion pencil solved by QZ. Tolerances: both solves resolve a root to a few eps x cond of this 80-state
+    pencil (measured 3e-15 to 7e-11 of |s|, test above); the log dec's error is 2 pi |ds| / Im s <= 2 pi 1e-10 |s|
+    / Im s, about 1e-8 absolute for these roots (|s| / Im s <= 2 at the 0.86-damped one; measured against QZ 1.6e-9
+    and 9.9e-9; against damped_modes, which solves the same system, 0): 1e-6 abs leaves room for other BLAS
+    kernels; the frequencies to 1e-9 relative for the same reason."""
+    from nsfem.analysis.damped import damped_modes
+    from nsfem.analysis.modes import contact_basis
+
+    scene, model, red, rep = critical
+    damp = scene.damping
+    ops = rotor_operators(model, contact_basis(model, "open", red))
+    D = np.array(rep["log_decrements"], dtype=float)
+    F = np.array(rep["frequencies_hz"], dtype=float)
+    assert D.shape == F.shape and np.array_equal(np.isnan(D), np.isnan(F))
+    for i in (12, 40):  # 57.6 and 192.1 Hz: between critical speeds
+        speed = rep["speeds_hz"][i]
+        modes = damped_modes(model, ops, speed, 6, damp.rayleigh, damp.external, "inertial")
+        assert modes.frequencies_hz == pytest.approx(F[i], rel=1e-9)
+        assert modes.log_decrements == pytest.approx(D[i], abs=1e-6)
+        lam = direct_eigenvalues(linear_system(ops, speed, 0.0, 0.0, damp.rayleigh, damp.external, "inertial"))
+        lam = lam[lam.imag > 0]
+        for f, d in zip(F[i], D[i]):
+            s = lam[np.argmin(np.abs(lam.imag / (2 * math.pi) - f))]
+            assert d == pytest.approx(-2 * math.pi * s.real / abs(s.imag), abs=1e-6)
+    # each damped critical speed carries its crossing root's log dec, consistent with its damping ratio
+    for c in rep["critical_speeds"]["open"]:
+        z = c["damping_ratio"]
+        assert c["log_decrement"] == pytest.approx(2 * math.pi * z / math.sqrt(1 - z * z), rel=1e-12, abs=1e-15)
+
+
+def _bands(ax):
+    """The coloured LineCollections of the branches: (segments, RGBA colours)."""
+    from matplotlib.collections import LineCollection
+
+    out = [(c.get_segments(), c.get_colors() if len(c.get_array()) == 0 else c.to_rgba(c.get_array()))
+           for c in ax.collections if isinstance(c, LineCollection)]
+    return [(np.array(s), np.array(col)) for s, col in out]
+
+
+def test_figure_colours_branches_by_log_dec_and_draws_an_unstable_branch_red(monkeypatch, tmp_path):
+    """ross_example with a strong cross-coupled bearing (kyz = -kzy = 5e6 N/m: a circulatory force that feeds forward
+    whirl) has a growing forward branch: the figure has a "log dec" colour bar, is written, and draws the branch's
+    segments where its log dec < 0 in the unstable colour, stable segments never in it."""
+    from matplotlib.colors import to_rgba
+
+    from nsfem.plot.campbell import UNSTABLE_COLOUR, report_plot
+
+    scene = load_scene("ross_example", ["bearing.0.kyz=5e6", "bearing.0.kzy=-5e6", "bearing.0.cyy=200",
+                                        "bearing.0.czz=200", "reduction.modes=12"])
+    model = build_model(scene)
+    rep = campbell_report(scene, model, np.linspace(0.0, 60.0, 13), 4, scene_reduction(scene.reduction, model))
+    D = np.array(rep["log_decrements"], dtype=float)
+    assert np.nanmin(D) < -1e-3 and np.nanmax(D) > 0  # the case: a growing and a decaying mode
+    fig = _figure(monkeypatch, lambda: report_plot(tmp_path / "c.png", rep, scene.title))
+    bar = [a for a in fig.axes if "log dec" in a.get_ylabel()]
+    assert len(bar) == 1
+    red = np.array(to_rgba(UNSTABLE_COLOUR))
+    res = rep["_results"]["open"]
+    B = res.branches
+    unstable_points = [(s, f) for b in shown_branches(res) for s, f, lam in
+                       zip(B.speeds_hz, B.frequencies_hz[b], B.eigenvalues[b]) if lam.real > res.resolution_per_s]
+    assert unstable_points
+    segs = np.concatenate([s for s, _ in _bands(fig.axes[0])])
+    cols = np.concatenate([c for _, c in _bands(fig.axes[0])])
+    is_red = np.all(np.isclose(cols, red), axis=1)
+    for s, f in unstable_points:   # every segment ending on a growing root is red
+        ends = np.any(np.all(np.isclose(segs, [s, f], rtol=1e-12, atol=0), axis=2), axis=1)
+        assert ends.any() and is_red[ends].all(), (s, f)
+    # and no segment between two decaying roots is
+    stable = [(s, f) for b in shown_branches(res) for s, f, lam in
+              zip(B.speeds_hz, B.frequencies_hz[b], B.eigenvalues[b]) if lam.real < -res.resolution_per_s]
+    for k in np.flatnonzero(is_red):
+        assert not all(any(np.allclose(p, q, rtol=1e-12, atol=0) for q in stable) for p in segs[k])
+    # the legend lists each damped critical speed with its log dec
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    for c in rep["critical_speeds"]["open"]:
+        assert any(t.startswith(f"{c['speed_hz']:.2f} Hz ({c['whirl']}") and f"): log dec {c['log_decrement']:.3g}" in t
+                   for t in texts), texts
+    # written through the real save: a PNG
+    monkeypatch.undo()
+    path = report_plot(tmp_path / "written.png", rep, scene.title)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -3327,7 +3327,8 @@ def test_issue34_modes_of_retainer_drop_does_not_warn_about_the_scene_itself(tmp
     assert code == 0 and err.count("free rigid motion") == 1 and "axial" in err and "x-z" not in err
 
 
-@pytest.mark.parametrize("name", ["default", "crack", "critical_speed", "retainer_drop", "ross_example", "rub"])
+@pytest.mark.parametrize("name", ["default", "crack", "critical_speed", "retainer_drop", "ross_example", "rub",
+                                  "stepped_rotor"])
 def test_issue34_shipped_scenes_have_no_notes_and_modes_no_warning(tmp_path, name):
     """A shipped scene states what it means: no note at load, no warning from `modes`."""
     from nsfem import load_scene
@@ -3644,3 +3645,51 @@ def test_any_shear_modulus_either_answers_or_one_line(G, theory, tmp_path):
         assert np.all(f > 0) and np.all(np.diff(f) >= 0)
     else:
         assert ("shaft.G" in stderr) or ("beam.theory" in stderr), stderr
+
+
+# --- issue 35: Campbell by log decrement, tables not reaching 0 Hz (stepped_rotor's bearings) ---
+@settings(max_examples=8, deadline=None, derandomize=True, database=None,   # a campbell of ROSS: about 0.3 s
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(q=st.one_of(st.just(0.0), st.floats(-2e7, 2e7)), c=st.one_of(st.just(0.0), st.floats(0.0, 1e5)),
+       png=st.sampled_from([None, "c.png"]))
+def test_campbell_log_decrements_are_aligned_and_the_figure_drawn_for_any_cross_coupling(q, c, png, tmp_path):
+    """Any bearing cross coupling and damping (stable, growing, undamped): exit 0 with ``log_decrements`` aligned
+    with ``frequencies_hz`` (null exactly where they are) and each critical speed's log dec that of its damping
+    ratio (growing: negative), the PNG written if asked; or exit 2 with one line."""
+    root = Path(tempfile.mkdtemp(dir=tmp_path))
+    argv = ["campbell", *ROSS, "--speeds", "0:40:5", "--count", "4", "--json", "--set", f"bearing.0.kyz={q!r}",
+            "--set", f"bearing.0.kzy={-q!r}", "--set", f"bearing.0.cyy={c!r}", "--set", f"bearing.0.czz={c!r}"]
+    code, stdout, _ = check_invocation(argv + (["--png", png] if png else []), root)
+    if code == 0:
+        out = json.loads(stdout)
+        for f_key, d_key in (("frequencies_hz", "log_decrements"), ("frequencies_closed_hz", "log_decrements_closed")):
+            F = np.array(out[f_key], dtype=float)
+            D = np.array(out[d_key], dtype=float)
+            assert F.shape == D.shape and np.array_equal(np.isnan(F), np.isnan(D))
+        for crit in out["critical_speeds"]["open"]:
+            z = crit["damping_ratio"]
+            assert crit["log_decrement"] == pytest.approx(2 * np.pi * z / np.sqrt(1 - z * z), rel=1e-9, abs=1e-12)
+        # the PNG asked for, else the scene's own out/campbell.png (ross_example lists campbell in output.plots)
+        assert sorted(p.name for p in root.iterdir()) == ([png] if png else ["out"])
+
+
+TABLE_FROM_10 = TABLE_SCENE.replace("speeds_hz = [0.0, 25.0, 50.0]", "speeds_hz = [10.0, 25.0, 50.0]").replace(
+    "[rotation]\n", "[rotation]\nspeed_hz = 30.0\n")
+
+
+@pytest.mark.parametrize("argv", [
+    ["campbell", "t.toml", "--speeds", "10:40:4", "--count", "2", "--set", "mesh.elements=8", "--set",
+     "bearing.1.kyz=5e5", "--set", "bearing.1.kzy=-5e5"],                   # undamped crossings, onset read 0 Hz
+    ["stationary", "t.toml"],                                                          # the rest system read 0 Hz
+    ["run", "t.toml", "--set", "simulation.t_end=0.01", "--set", "output.vtu_every=0", "--set", "output.plots=[]"],
+])
+def test_issue35_a_table_from_10_hz_is_never_read_at_0_hz(argv, tmp_path):
+    """A bearing table starting above 0 Hz (a journal bearing has no film at rest): campbell of a cross-coupled
+    rotor (its undamped crossings and, unstable from the table's first speed on, its instability onset searched
+    from 0 Hz) and stationary/run at the table's speeds refused it, '0 Hz lies outside the bearing's table', where
+    nothing asks for 0 Hz; now they answer (an explicit speed outside the table is still refused)."""
+    (tmp_path / "t.toml").write_text(TABLE_FROM_10)
+    code, _, err = check_invocation(argv, tmp_path)
+    assert code == 0 and "outside" not in err, err
+    code, _, err = check_invocation(["campbell", "t.toml", "--speeds", "0:40:5"], tmp_path)
+    assert code == cli.EXIT_ERROR and "bearing.0.speeds_hz: 0 Hz lies outside" in err, err

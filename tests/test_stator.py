@@ -159,7 +159,8 @@ def test_shipped_rub_scene_is_the_closed_form():
     assert total == pytest.approx(N, rel=2 * (1 / math.cos(math.pi / ring["facets"]) - 1) + 1e-3)
 
 
-@pytest.mark.parametrize("name", ["default", "ross_example", "rub", "critical_speed", "retainer_drop", "crack"])
+@pytest.mark.parametrize("name", ["default", "ross_example", "rub", "critical_speed", "retainer_drop", "crack",
+                                  "stepped_rotor"])
 def test_shipped_scenes_run(name, tmp_path):
     from nsfem import load_scene
 

@@ -89,6 +89,8 @@ class CampbellResult:
     growth_per_s: np.ndarray  # (speeds,): max Re(lambda) over the reported and real roots (growth_rate)
     whirl: np.ndarray | None = None  # inertial frame: (speeds, count) +1 forward, -1 backward, 0 planar
     branches: Branches | None = None  # the roots followed in speed (one mode per branch)
+    log_decrements: np.ndarray | None = None  # (speeds, count) -2 pi Re / Im of each frequency's root; nan as it
+    resolution_per_s: float = 0.0  # real parts below this are round-off (sqrt(eps) omega_max, :func:`growth_rate`)
 
 
 def state_eigenvalues(system: LinearSystem, count: int, vectors: bool = False):
@@ -223,6 +225,17 @@ def frequencies_of(lam: np.ndarray, count: int) -> np.ndarray:
     return out
 
 
+def log_decrements_of(lam: np.ndarray, count: int, resolution: float = 0.0) -> np.ndarray:
+    """Logarithmic decrements -2 pi Re(lambda) / Im(lambda) of the roots :func:`frequencies_of` reports, aligned
+    with its frequencies (negative: the mode grows); nan where it has none. A real part within ``resolution`` (the
+    roots' round-off, sqrt(eps) omega_max: :func:`growth_rate`) is 0, as in :func:`.damped.damped_modes`."""
+    pick = lam[_oscillating(lam, count)]
+    re = np.where(np.abs(pick.real) <= resolution, 0.0, pick.real)
+    out = np.full(count, np.nan)
+    out[: pick.size] = -2 * math.pi * re / pick.imag + 0.0  # (no -0.0)
+    return out
+
+
 def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0), external: float = 0.0,
              frame: str = "rotating", turn: sp.spmatrix | None = None) -> CampbellResult:
     """Natural frequencies at each speed (damping as given, no gravity needed): in the rotating frame,
@@ -238,6 +251,8 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
     F = np.full((len(speeds), count), np.nan)
     W = np.zeros((len(speeds), count)) if frame == "inertial" else None
     growth = np.zeros(len(speeds))
+    D = np.full((len(speeds), count), np.nan)
+    resolution = 0.0
     roots = []
     for i, s in enumerate(speeds):
         system = linear_system(ops, s, 0.0, 0.0, rayleigh, external, frame)
@@ -247,9 +262,12 @@ def campbell(ops: RotorOperators, speeds_hz, count: int = 6, rayleigh=(0.0, 0.0)
             W[i, : len(pick)] = _whirl(X[:, pick], ops, turn, s)
         roots.append(_tracked_roots(lam, X, TRACKED * count, ops, turn, s))
         F[i] = frequencies_of(lam, count)
-        growth[i] = growth_rate(lam, count, _omega_max(system.M, system.Q))
+        omega_max = _omega_max(system.M, system.Q)
+        resolution = max(resolution, math.sqrt(np.finfo(float).eps) * omega_max)
+        D[i] = log_decrements_of(lam, count, math.sqrt(np.finfo(float).eps) * omega_max)
+        growth[i] = growth_rate(lam, count, omega_max)
     follow = root_function(ops, count, rayleigh, external, frame, turn)
-    return CampbellResult(speeds, F, growth, W, track(speeds, roots, ops.M, follow))
+    return CampbellResult(speeds, F, growth, W, track(speeds, roots, ops.M, follow), D, resolution)
 
 
 #: campbell follows this many times ``count`` roots per speed as branches
@@ -490,8 +508,8 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
     if rot.frame == "inertial":
         from .whirl import inertial_report
 
-        return table_warning(inertial_report(model, ops, rot, damp, speeds_hz, count, reduction), model.stack, rot,
-                             "undamped_critical_speeds_hz")
+        rep = with_log_decrements(inertial_report(model, ops, rot, damp, speeds_hz, count, reduction))
+        return table_warning(rep, model.stack, rot, "undamped_critical_speeds_hz")
     speeds = default_speeds(ops["open"], rot.speed_hz) if speeds_hz is None else np.asarray(speeds_hz)
     res = {c: campbell(o, speeds, count, damp.rayleigh, damp.external) for c, o in ops.items()}
     grav = {c: gravity_resonances(o, rot.phase_deg) for c, o in ops.items()}
@@ -523,7 +541,31 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
         "warnings": [],
         "_results": res, "_bands": divergence_bands(div["open"]), "_critical": {c: [] for c in res},
     }
-    return table_warning(out, model.stack, rot, "gravity_resonances_hz and instability_hz")
+    return table_warning(with_log_decrements(out), model.stack, rot, "gravity_resonances_hz and instability_hz")
+
+
+def crossing_log_decrement(crossing, resolution: float = 0.0) -> float:
+    """The log decrement of a damped critical speed (:class:`.branches.Crossing`): -2 pi Re / Im of its root, 0 for a
+    real part within ``resolution`` (round-off)."""
+    lam = crossing.eigenvalue
+    return float(-2 * math.pi * (0.0 if abs(lam.real) <= resolution else lam.real) / lam.imag) + 0.0
+
+
+def with_log_decrements(report: dict) -> dict:
+    """``report`` (:func:`campbell_report`, its "_results" and "_critical" still in it) with ``log_decrements`` and
+    ``log_decrements_closed`` aligned with ``frequencies_hz`` and ``frequencies_closed_hz`` (speeds x count,
+    -2 pi Re(lambda) / Im(lambda) of each frequency's root, null where the frequency is), and each damped critical
+    speed's ``log_decrement`` (of the crossing root)."""
+    def clean(row):
+        return [float(x) if np.isfinite(x) else None for x in row]
+
+    for key, c in (("log_decrements", "open"), ("log_decrements_closed", "closed")):
+        report[key] = [clean(row) for row in report["_results"][c].log_decrements]
+    for c, found in report.get("critical_speeds", {}).items():
+        res = report["_results"][c].resolution_per_s
+        for entry, x in zip(found, report["_critical"][c]):
+            entry["log_decrement"] = crossing_log_decrement(x, res)
+    return report
 
 
 def table_speeds(stack, n: int = 61) -> np.ndarray:

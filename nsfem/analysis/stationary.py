@@ -279,7 +279,10 @@ def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0:
             loads.append("external-damping drag")
     elif rotation.gravity:
         loads.append("gravity")
-    rest = rotor_system(full, replace(rotation, speed_hz=0.0), damping) if rotation.speed_hz else system_full
+    # Q at rest with the bearings' coefficients of the speed (a table is not read at 0 Hz: it may not reach it, and
+    # Q - Q_rest is the speed's forces on the rotor, the bearings' own change with speed being in their reactions)
+    rest = (rotor_system(replace(full, bearing_change=None), replace(rotation, speed_hz=0.0), damping)
+            if rotation.speed_hz else system_full)
     st.parts = rotor_parts(model, st, system_full, reduction.T, rotation, rest.Q)
     st.wall_s = time.perf_counter() - t0
     st.info = {"speed_hz": rotation.speed_hz, "loads": loads, "ndof_full": model.n, "ndof": reduction.ndof,

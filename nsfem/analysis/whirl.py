@@ -103,8 +103,10 @@ def cross_coupled_critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz
     from scipy.optimize import brentq
 
     # undamped: the bearings' damping leaves (linear_system adds C_b whenever it has entries), as in
-    # _hermitian_critical_speeds, so that a vanishing cross coupling gives the same speeds
-    ops = replace(ops, Cb=sp.csr_matrix(ops.Cb.shape))
+    # _hermitian_critical_speeds, so that a vanishing cross coupling gives the same speeds; speed-dependent
+    # bearings keep the coefficients ops was assembled with (the scene's speed, as the Hermitian pencil's: the
+    # undamped critical speeds are solved for, not followed in speed), so no speed outside their table is read
+    ops = replace(ops, Cb=sp.csr_matrix(ops.Cb.shape), bearing_change=None)
     base, _ = _hermitian_critical_speeds(replace(ops, Kbc=ops.Kbc * 0.0), turn, max_hz, False)
     top = 1.3 * float(base[min(count, base.size) - 1]) if base.size else 1.0
     top = top if max_hz is None else min(top, max_hz)
@@ -139,13 +141,16 @@ def cross_coupled_critical_speeds(ops: RotorOperators, turn: sp.spmatrix, max_hz
 
 
 def instability_onsets(ops: RotorOperators, speeds_hz: np.ndarray, growth: np.ndarray, count: int,
-                       rayleigh=(0.0, 0.0), external: float = 0.0, frame: str = "inertial") -> np.ndarray:
+                       rayleigh=(0.0, 0.0), external: float = 0.0, frame: str = "inertial",
+                       lowest_hz: float = 0.0) -> np.ndarray:
     """Speeds [Hz] where the growth rate turns positive between grid points (internal damping, cross-
     coupled bearings), each refined by bisection to 1e-6 of the speed.
 
     The grid's growth rates are clipped at their round-off resolution (:func:`growth_rate`); the
     bisection instead follows the root that grows at the bracket's unstable end, a simple root whose
-    real part is accurate to round-off, and finds where that real part changes sign."""
+    real part is accurate to round-off, and finds where that real part changes sign. ``lowest_hz``: the lowest
+    speed the model is defined at (speed-dependent bearings: their tables' start); a rotor unstable there is
+    reported unstable from there on."""
     def roots(speed):
         return state_eigenvalues(linear_system(ops, speed, 0.0, 0.0, rayleigh, external, frame), count)
 
@@ -161,10 +166,10 @@ def instability_onsets(ops: RotorOperators, speeds_hz: np.ndarray, growth: np.nd
         # unstable from the grid's first speed on: from rest (a bearing's cross coupling), or from
         # some speed below the grid
         first = float(speeds_hz[0])
-        if first == 0.0 or grows(0.0):
-            out.append(0.0)
+        if first <= lowest_hz or grows(lowest_hz):
+            out.append(max(lowest_hz, 0.0) if first > lowest_hz else first)
         else:
-            brackets.insert(0, (0.0, first))
+            brackets.insert(0, (lowest_hz, first))
     for a, b in brackets:
         lam = roots(b)
         track = lam[np.argmax(lam.real)]
@@ -215,7 +220,9 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
             res[c], onsets[c], damped[c] = res[same[0]], onsets[same[0]], damped[same[0]]
             continue
         res[c] = campbell(o, speeds, count, *rd, frame="inertial", turn=turn)
-        onsets[c] = instability_onsets(o, speeds, res[c].growth_per_s, count, *rd)
+        # (a bearing table starting above 0 Hz: nothing is known below its first row)
+        lowest = max((b.table[0][0] for b in model.stack.bearings if b.table), default=0.0)
+        onsets[c] = instability_onsets(o, speeds, res[c].growth_per_s, count, *rd, lowest_hz=lowest)
         damped[c] = damped_critical_speeds(o, res[c], count, *rd, turn=turn)
 
     warnings = reduction_warnings(model, damped["open"], count, rd, reduction)
