@@ -186,3 +186,112 @@ def rotor_system(ops: RotorOperators, rotation: Rotation, damping: Damping,
     """The system of ``[rotation]`` and ``[damping]`` on ``ops`` (the speed overridable)."""
     return linear_system(ops, rotation.speed_hz if speed_hz is None else speed_hz, rotation.gravity,
                          rotation.phase_deg, damping.rayleigh, damping.external, rotation.frame)
+
+
+@dataclass(frozen=True)
+class SpeedSchedule:
+    """A run-up or coast-down (inertial frame; docs/theory.md, "Run-up and coast-down"): the parts of the
+    equations that follow the speed profile Omega(t) on top of a system's constant-speed values at
+    Omega_0 = Omega(0):
+
+        C(t) = C + (Omega(t) - Omega_0) C1                    (C1 = Gp1: the gyroscopic couple)
+        Q(t) = Q + (Omega(t) - Omega_0) Q1 + Omega'(t) Kst    (Q1 = -(alpha M J + beta (K0 - Kb) J))
+        f(t) = f_s + Omega^2 (cos psi u + sin psi w) - Omega' (-sin psi u + cos psi w),  psi = theta(t) + phi
+
+    ``profile`` gives Omega(t), Omega'(t) and theta(t) (a :class:`~nsfem.scene.parts.Rotation`: ``omega_at``,
+    ``acceleration_at``, ``angle_at``); u, w: the unbalance per Omega^2 along its rotating direction and a
+    quarter turn ahead (phi = 0); f_s the load that does not turn (gravity). The unbalance's load is
+    -m r'' of its mass at e (cos psi, sin psi): the centripetal part and, while the speed changes, a
+    tangential part against the acceleration."""
+
+    profile: object
+    C1: np.ndarray
+    Q1: np.ndarray
+    Kst: np.ndarray
+    u: np.ndarray
+    w: np.ndarray
+    f_s: np.ndarray
+    phase: float = 0.0
+
+    @property
+    def omega0(self) -> float:
+        return float(self.profile.omega_at(0.0))
+
+    def speed(self, t) -> tuple:
+        """(Omega, Omega', psi) at ``t`` (scalars or arrays)."""
+        p = self.profile
+        return p.omega_at(t), p.acceleration_at(t), p.angle_at(t) + self.phase
+
+    def load(self, t) -> np.ndarray:
+        """f(t), shape (n,) for a scalar t or (n, len(t))."""
+        t = np.asarray(t, dtype=float)
+        om, al, psi = self.speed(t)
+        c, s = np.cos(psi), np.sin(psi)
+        return (np.multiply.outer(self.f_s, np.ones_like(t)) + np.multiply.outer(self.u, om * om * c + al * s)
+                + np.multiply.outer(self.w, om * om * s - al * c))
+
+    def matrices(self, t: float, C: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(C(t), Q(t)) from the constant-speed ``C`` and ``Q`` at Omega_0."""
+        om, al, _ = self.speed(float(t))
+        d = float(om) - self.omega0
+        return C + d * self.C1, Q + d * self.Q1 + float(al) * self.Kst
+
+    def force(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The change of the speed-dependent forces from their values at Omega_0 at a state (q, v):
+        -(Omega - Omega_0) (C1 v + Q1 q) - Omega' Kst q (the loads not included: :meth:`load`)."""
+        om, al, _ = self.speed(float(t))
+        d = float(om) - self.omega0
+        return -d * (self.C1 @ v + self.Q1 @ q) - float(al) * (self.Kst @ q)
+
+    def with_basis(self, T: np.ndarray) -> SpeedSchedule:
+        """The schedule in the coordinates q of q_old = T q."""
+        from dataclasses import replace
+
+        def mat(A):
+            return T.T @ A @ T
+        return replace(self, C1=mat(self.C1), Q1=mat(self.Q1), Kst=mat(self.Kst), u=T.T @ self.u, w=T.T @ self.w,
+                       f_s=T.T @ self.f_s)
+
+
+def spin_acceleration(model, basis) -> sp.csr_matrix:
+    """Kst: the couple per unit spin acceleration, Omega' Kst q on the left-hand side (inertial frame), in
+    ``basis`` (q_full = basis q).
+
+    A section (or disk) tilted by the slopes V' (a turn about z, the first angle) and then W' (about the
+    turned y, the second) and spun by the third angle at Omega has, to second order, the kinetic energy
+    I_p (Omega^2 / 2 + Omega V'_dot W') (Lalanne & Ferraris's convention, their psi = V', theta = W'). Its
+    Lagrange equations give the gyroscopic couple Omega Gp1 (I_p on (V', W'), -I_p on (W', V')) and, from
+    d/dt (I_p Omega W') in the V' equation, I_p Omega' W': Kst is Gp1's (V', W') block alone (one entry per
+    disk, not Gp1's skew pair)."""
+    from .fem.constraints import project
+    from .fem.rotating import full_operators
+
+    Gp = full_operators(model).Gp1
+    rows = np.zeros(model.n_full)
+    for space in model.spaces.values():
+        rows[space.dofs["V"]] = 1.0
+    Kst = (sp.diags(rows) @ Gp).tocsr()
+    Kst.eliminate_zeros()
+    return project(basis, Kst) if Kst.nnz else sp.csr_matrix((basis.shape[1], basis.shape[1]))
+
+
+def speed_schedule(model, basis, ops: RotorOperators, rotation: Rotation, damping: Damping,
+                   gravity_load: np.ndarray | None) -> SpeedSchedule:
+    """The :class:`SpeedSchedule` of ``rotation``'s ramp on ``ops`` (expressed in ``basis``). Refuses what a
+    run-up does not carry: the rotating frame, bearings with speed tables."""
+    if rotation.frame != "inertial":
+        raise SceneError("rotation.ramp_to_hz", "a run-up is built in the inertial frame; set rotation.frame = "
+                         "\"inertial\"")
+    if ops.bearing_change is not None:
+        raise SceneError("rotation.ramp_to_hz", "bearings with coefficients tabulated against speed are read at one "
+                         "speed; a run-up through their table is not modelled (give constant coefficients, or run "
+                         "constant speeds)")
+    from .fem.constraints import dense
+
+    alpha, beta = damping.rayleigh
+    Q1 = -(alpha * dense(ops.MJ) + beta * dense(ops.KJ))
+    n = ops.n
+    return SpeedSchedule(rotation, dense(ops.Gp1), Q1, dense(spin_acceleration(model, basis)),
+                         np.asarray(ops.fu1, dtype=float), np.asarray(ops.fq1, dtype=float),
+                         np.zeros(n) if gravity_load is None else np.asarray(gravity_load, dtype=float),
+                         math.radians(rotation.phase_deg))

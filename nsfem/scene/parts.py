@@ -15,20 +15,92 @@ it needs. Their fields are the table's keys, lists as tuples. The geometry table
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+
+from ..errors import SceneError
 
 
 @dataclass(frozen=True)
 class Rotation:
     """``[rotation]``: speed [Hz], gravity [m/s^2] along inertial -Z, the rotating frame's angle at
-    t = 0 [deg] and the frame of the coordinates (``rotating`` or ``inertial``)."""
+    t = 0 [deg], the frame of the coordinates (``rotating`` or ``inertial``) and a run-up or coast-down:
+    the speed ramps linearly from ``speed_hz`` to ``ramp_to_hz`` over ``ramp_s`` seconds and stays there
+    (``ramp_to_hz`` None: constant speed, the special case every method integrates).
+
+    The speed profile Omega(t) [rad/s], its rate and the rotation angle theta(t) = int_0^t Omega (the
+    phase not included) are :meth:`omega_at`, :meth:`acceleration_at` and :meth:`angle_at`.
+
+    >>> r = Rotation(10.0, 0.0, 0.0, "inertial", ramp_to_hz=30.0, ramp_s=2.0)
+    >>> r.speed_at(1.0), r.speed_at(5.0), round(r.angle_at(2.0) / (2 * math.pi), 12)
+    (20.0, 30.0, 40.0)
+    """
 
     speed_hz: float
     gravity: float
     phase_deg: float
     frame: str
+    ramp_to_hz: float | None = None
+    ramp_s: float = 0.0
+
+    def __post_init__(self):
+        for key in ("speed_hz", "ramp_to_hz", "ramp_s"):
+            value = getattr(self, key)
+            if value is not None and not (math.isfinite(value) and value >= 0.0):
+                raise SceneError(f"rotation.{key}", f"must be a finite number >= 0, got {value}")
+        if self.ramp_to_hz is None:
+            if self.ramp_s:
+                raise SceneError("rotation.ramp_s", f"{self.ramp_s:g} s given without rotation.ramp_to_hz (the "
+                                 "speed the ramp ends at)")
+            return
+        if not self.ramp_s > 0.0:
+            raise SceneError("rotation.ramp_s", f"must be > 0 with rotation.ramp_to_hz = {self.ramp_to_hz:g} (the "
+                             f"ramp's duration in seconds), got {self.ramp_s:g}")
+        if self.frame != "inertial":
+            raise SceneError("rotation.ramp_to_hz", "a run-up or coast-down is built in the inertial frame (its "
+                             "spin-acceleration terms; docs/theory.md, \"Run-up and coast-down\"); set "
+                             "rotation.frame = \"inertial\" (an axisymmetric rotor)")
+
+    @property
+    def ramped(self) -> bool:
+        """Whether the speed changes in time."""
+        return self.ramp_to_hz is not None and self.ramp_to_hz != self.speed_hz
+
+    @property
+    def alpha(self) -> float:
+        """The ramp's angular acceleration [rad/s^2] (negative: coast-down; 0 at constant speed)."""
+        if not self.ramped:
+            return 0.0
+        return 2.0 * math.pi * (self.ramp_to_hz - self.speed_hz) / self.ramp_s
+
+    def speed_at(self, t):
+        """Omega(t) / (2 pi) [Hz] at the times ``t`` (scalar or array)."""
+        return self.omega_at(t) / (2.0 * math.pi)
+
+    def omega_at(self, t):
+        """Omega(t) [rad/s]: linear over [0, ramp_s] from speed_hz to ramp_to_hz, constant after."""
+        w0 = 2.0 * math.pi * self.speed_hz
+        if not self.ramped:
+            return w0 + 0.0 * np.asarray(t, dtype=float)
+        return w0 + self.alpha * np.clip(np.asarray(t, dtype=float), 0.0, self.ramp_s)
+
+    def acceleration_at(self, t):
+        """Omega'(t) [rad/s^2]: the ramp's alpha on [0, ramp_s), 0 after."""
+        t = np.asarray(t, dtype=float)
+        return np.where(t < self.ramp_s, self.alpha, 0.0) if self.ramped else 0.0 * t
+
+    def angle_at(self, t):
+        """theta(t) = int_0^t Omega [rad] (without ``phase_deg``), in closed form."""
+        t = np.asarray(t, dtype=float)
+        w0 = 2.0 * math.pi * self.speed_hz
+        if not self.ramped:
+            return w0 * t
+        s = np.clip(t, 0.0, self.ramp_s)
+        return w0 * t + self.alpha * (s * s / 2.0 + s * (t - s))
 
 
 @dataclass(frozen=True)
