@@ -78,29 +78,34 @@ class Rotation:
         return 2.0 * math.pi * (self.ramp_to_hz - self.speed_hz) / self.ramp_s
 
     def speed_at(self, t):
-        """Omega(t) / (2 pi) [Hz] at the times ``t`` (scalar or array)."""
-        return self.omega_at(t) / (2.0 * math.pi)
+        """Omega(t) / (2 pi) [Hz] at the times ``t`` (a float for a scalar, else an array): linear over
+        [0, ramp_s] from speed_hz to ramp_to_hz, constant after."""
+        t = np.asarray(t, dtype=float)
+        out = self.speed_hz + 0.0 * t
+        if self.ramped:
+            out = out + (self.ramp_to_hz - self.speed_hz) * (np.clip(t, 0.0, self.ramp_s) / self.ramp_s)
+        return float(out) if out.ndim == 0 else out
 
     def omega_at(self, t):
-        """Omega(t) [rad/s]: linear over [0, ramp_s] from speed_hz to ramp_to_hz, constant after."""
-        w0 = 2.0 * math.pi * self.speed_hz
-        if not self.ramped:
-            return w0 + 0.0 * np.asarray(t, dtype=float)
-        return w0 + self.alpha * np.clip(np.asarray(t, dtype=float), 0.0, self.ramp_s)
+        """Omega(t) [rad/s] (:meth:`speed_at`)."""
+        return 2.0 * math.pi * self.speed_at(t)
 
     def acceleration_at(self, t):
         """Omega'(t) [rad/s^2]: the ramp's alpha on [0, ramp_s), 0 after."""
         t = np.asarray(t, dtype=float)
-        return np.where(t < self.ramp_s, self.alpha, 0.0) if self.ramped else 0.0 * t
+        out = np.where(t < self.ramp_s, self.alpha, 0.0) if self.ramped else 0.0 * t
+        return float(out) if out.ndim == 0 else out
 
     def angle_at(self, t):
         """theta(t) = int_0^t Omega [rad] (without ``phase_deg``), in closed form."""
         t = np.asarray(t, dtype=float)
         w0 = 2.0 * math.pi * self.speed_hz
-        if not self.ramped:
-            return w0 * t
-        s = np.clip(t, 0.0, self.ramp_s)
-        return w0 * t + self.alpha * (s * s / 2.0 + s * (t - s))
+        if self.ramped:
+            s = np.clip(t, 0.0, self.ramp_s)
+            out = w0 * t + self.alpha * (s * s / 2.0 + s * (t - s))
+        else:
+            out = w0 * t
+        return float(out) if out.ndim == 0 else out
 
 
 @dataclass(frozen=True)
