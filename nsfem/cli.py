@@ -28,6 +28,7 @@ SHIPPED_SCENES = {
     "rub": "Jeffcott rotor rubbing a rigid stator ring with friction (full annular rub)",
     "crack": "Jeffcott rotor with a breathing transverse crack under its weight (2x response)",
     "retainer_drop": "spinning rotor dropping onto its retainer bearings (two rings, friction, impacts)",
+    "runup": "Jeffcott rotor run up through its critical speed, rubbing an elastic seal on the way",
 }
 
 

@@ -311,6 +311,9 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
         raise NsfemError(f"simulation.method {method!r} is not available in this version (available: "
                          f"{', '.join(known)})")
     output_times(sim.t_end, sim.output_dt)  # validate before building anything
+    if scene.rotation.ramped and method == "exact":
+        raise SceneError("rotation.ramp_to_hz", "the exact method integrates constant speeds (its phases are "
+                         "closed-form exponentials); use method = rk, penalty or moreau")
     model = build_model(scene) if model is None else model
     red = scene_reduction(scene.reduction, model) if reduction is None else reduction
     rot, damp = scene.rotation, scene.damping
@@ -351,7 +354,8 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     if warn is not None and system.n <= GROWTH_CHECK_MAX_DOF:
         rate = growth_rate(system)
         if rate > 0.0:
-            warn(f"the structure without contact forces is unstable at {rot.speed_hz:g} Hz: its "
+            warn(f"the structure without contact forces is unstable at {rot.speed_hz:g} Hz"
+                 f"{' (the run-up starts there)' if rot.ramped else ''}: its "
                  f"fastest-growing mode grows at {rate:.3g} 1/s (x10 every {math.log(10) / rate:.3g} s); unless the "
                  "contacts or damping hold it, displacements soon exceed the linear model's range")
     from .contact.tally import system_parts
@@ -359,6 +363,8 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     info = {"ndof_full": model.n, "reduction": red.info, "title": scene.title,
             "speed_hz": rot.speed_hz, "contacts": list(system.model_contacts.labels),
             "frame": rot.frame, "phase_deg": rot.phase_deg,
+            # a run-up: speed_hz stays the initial speed (nsfem.scene.parts.Rotation's profile)
+            **({"ramp_to_hz": rot.ramp_to_hz, "ramp_s": rot.ramp_s} if rot.ramp_to_hz is not None else {}),
             # the contact parts and, with elastic rings, the rigid contacts' rows: read by nsfem.contact.tally
             "parts": [p.record() for p in system_parts(system)]}
     if system.info.get("contact_index") is not None:
@@ -390,4 +396,5 @@ def sensor_signals(result: Result, system: ContactSystem) -> np.ndarray:
     if not sensors:
         return np.zeros((result.t.size, 0))
     return read(sensors, system.info["model"], dense(system.info["reduction"].T), result.t, result.q,
-                result.info.get("frame", "rotating"), result.info.get("speed_hz", 0.0), result.info.get("phase_deg", 0.0))
+                result.info.get("frame", "rotating"), result.info.get("speed_hz", 0.0), result.info.get("phase_deg", 0.0),
+                result.info.get("ramp_to_hz"), result.info.get("ramp_s", 0.0))
