@@ -243,6 +243,22 @@ class SpeedSchedule:
         d = float(om) - self.omega0
         return -d * (self.C1 @ v + self.Q1 @ q) - float(al) * (self.Kst @ q)
 
+    def fastest_rate(self, M: np.ndarray, C: np.ndarray, Q: np.ndarray) -> float:
+        """The largest |eigenvalue| [1/s] of the free structure over the profile (at its two end speeds, where the
+        gyroscopic splitting is widest) or its fastest speed: what a sampling of the motion must resolve."""
+        import scipy.linalg as sla
+
+        p = self.profile
+        times = (0.0, float(getattr(p, "ramp_s", 0.0)))
+        n = M.shape[0]
+        rate = max(abs(float(p.omega_at(t))) for t in times)
+        for t in times:
+            Ct, Qt = self.matrices(t, C, Q)
+            A = np.block([[np.zeros((n, n)), np.eye(n)], [-sla.solve(M, Qt), -sla.solve(M, Ct)]])
+            lam = np.linalg.eigvals(A)
+            rate = max(rate, float(np.max(np.abs(lam[np.isfinite(lam)]), initial=0.0)))
+        return rate
+
     def with_basis(self, T: np.ndarray) -> SpeedSchedule:
         """The schedule in the coordinates q of q_old = T q."""
         from dataclasses import replace

@@ -441,7 +441,13 @@ class EventDriven(Integrator):
             nseg = max(1, math.ceil((t1 - t0) / (16.0 * step)))
             gx, gw = _gauss(_gauss_nodes(((t1 - t0) / nseg) / step * math.pi / 2.0))
         else:  # rk's dense output: 4 nodes per sampling step
-            step = phase.max_step(t1 - t0)
+            rate = None
+            if sysm.schedule is not None:   # a run-up's modes move with the speed: sampled for the fastest of the ramp
+                rate = self.__dict__.get("_schedule_rate")
+                if rate is None:
+                    rate = self._schedule_rate = sysm.schedule.fastest_rate(sysm.M, sysm.C, sysm.Q)
+                rate = max(rate, phase.config.fastest_rate())
+            step = phase.max_step(t1 - t0, rate)
             nseg = max(1, math.ceil((t1 - t0) / step))
             gx, gw = _GX, _GW
         edges = np.linspace(t0, t1, nseg + 1)
@@ -863,6 +869,7 @@ class RungeKutta(EventDriven):
 
     def run(self, t_end, output_dt, q0=None, v0=None):
         self._carry = None
+        self.__dict__.pop("_schedule_rate", None)
         return super().run(t_end, output_dt, q0, v0)
 
     def _advance(self, phase, rows, t0, t1):
