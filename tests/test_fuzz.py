@@ -3587,3 +3587,60 @@ def test_bearing_forces_of_a_run_in_a_folder_that_refuses_bearings_csv(tmp_path)
     code, _, stderr = check_invocation(["run", *ROSS, *CHEAP[2:], "--out", "out"], tmp_path)
     assert code == cli.EXIT_ERROR and "bearings.csv" in stderr, stderr
     assert sorted(p.name for p in out.iterdir()) == ["bearings.csv"]
+
+
+# --- issue 35: run-up and coast-down ([rotation] ramp_to_hz, ramp_s) ---
+RUNUP = ["runup", "--set", "simulation.t_end=0.02", "--set", "stator.0.clearance=0.05", "--out", "out"]
+
+RUNUP_CASES = [
+    # (extra --set values, method or None, the words of the one-line error)
+    (["rotation.ramp_s=0"], None, "rotation.ramp_s: must be > 0 with rotation.ramp_to_hz"),
+    (["rotation.ramp_s=-1"], None, "rotation.ramp_s"),
+    (["rotation.ramp_to_hz=-5"], None, "rotation.ramp_to_hz"),
+    (["rotation.ramp_to_hz=nan"], None, "rotation.ramp_to_hz: must be finite"),
+    (["rotation.ramp_to_hz=inf"], None, "rotation.ramp_to_hz: must be finite"),
+    (["rotation.ramp_to_hz=\"fast\""], None, "rotation.ramp_to_hz: must be a number"),
+    (["rotation.ramp_to_hz=1e9"], None, "rotation.ramp_to_hz: 1e+09 Hz spins the outermost fibre"),
+    (["rotation.frame=\"rotating\""], None, "rotation.ramp_to_hz: a run-up or coast-down is built in the inertial"),
+    ([], "exact", "rotation.ramp_to_hz: the exact method integrates constant speeds"),
+    (["stator.0.stiffness=0", "stator.0.damping=0"], "rk", "rotation.ramp_to_hz: rk integrates a run-up of a rotor whose contacts are "
+     "elastic rings"),
+    (["stator.0.friction=0.1"], "rk", "stator.0.friction: friction against the shaft surface"),
+]
+
+
+@pytest.mark.parametrize("sets,method,text", RUNUP_CASES)
+def test_runup_reproductions(sets, method, text, tmp_path):
+    argv = ["run", *RUNUP, *[a for s in sets for a in ("--set", s)]] + (["--method", method] if method else [])
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == cli.EXIT_ERROR and text in stderr, stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_ramp_s_without_ramp_to_hz_is_refused(tmp_path):
+    code, _, stderr = check_invocation(["run", "critical_speed", "--set", "rotation.ramp_s=2", "--out", "out"],
+                                       tmp_path)
+    assert code == cli.EXIT_ERROR and "rotation.ramp_s: 2 s given without rotation.ramp_to_hz" in stderr
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(start=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(0.0, 60.0)),
+       end=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(0.0, 60.0)),
+       ramp=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-1.0, 3.0)),
+       method=st.sampled_from(["rk", "penalty", "moreau", "exact"]))
+def test_any_ramp_runs_or_is_refused_in_one_line(start, end, ramp, method, tmp_path):
+    """Any speeds and duration and any method: exit 0 with run info whose profile is the scene's (speed_hz the
+    initial speed, ramp_to_hz and ramp_s), or exit 2 with one line before anything is written."""
+    root = Path(tempfile.mkdtemp(dir=tmp_path))
+    argv = ["run", "runup", "--set", "simulation.t_end=0.005", "--set", "simulation.output_dt=1e-3",
+            "--set", "stator.0.clearance=0.05", "--set", f"rotation.speed_hz={start!r}",
+            "--set", f"rotation.ramp_to_hz={end!r}", "--set", f"rotation.ramp_s={ramp!r}", "--method", method,
+            "--set", "simulation.moreau_step=1e-4", "--out", "out", "--json"]
+    code, stdout, _ = check_invocation(argv, root)
+    if code == 0:
+        out = json.loads(stdout)
+        assert method != "exact" or end == start
+        assert out["completed"] and out["speed_hz"] == start
+    else:
+        assert not (root / "out").exists()
