@@ -283,8 +283,9 @@ def test_slow_ramp_envelope_is_the_harmonic_response():
 
 
 def test_runup_scene_rubs_near_the_critical_speed():
-    """The shipped scene: the seal is touched first near the critical speed (between the 28.0 Hz critical speed's
-    half-power band's lower end and the passage peak), not before 27 Hz."""
+    """The shipped scene: the seal (2 mm) is touched first during the passage, past the 25.63 Hz critical speed and
+    before the free passage's peak (2.36 mm at 28.96 Hz, the seal left out), where the free whirl grows through
+    2 mm: between 27 and 29.5 Hz."""
     from nsfem import load_scene
     from nsfem.simulate import run_scene
 
