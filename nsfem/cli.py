@@ -499,6 +499,12 @@ def cmd_stationary(args) -> int:
         print(f"nsfem stationary: warning: {w}", file=sys.stderr)
     payload["warnings"] = info["warnings"]
     payload["notes"] = list(scene.notes)
+    rot = scene.rotation
+    if rot.ramped:   # one speed: the ramp's start, said
+        ramp = (f"a run-up scene ({rot.speed_hz:g} -> {rot.ramp_to_hz:g} Hz in {rot.ramp_s:g} s): the stationary "
+                f"state at rotation.speed_hz = {rot.speed_hz:g} Hz, the ramp's start")
+        payload["notes"].append(ramp)
+        print(f"nsfem stationary: note: {ramp}", file=sys.stderr)
     loads = " + ".join(info["loads"]) or "none"
     lines = [scene.title, f"speed {info['speed_hz']:g} Hz, constant loads: {loads}; {info['ndof']} dofs "
              f"({info['reduction']['method']}; full model {info['ndof_full']})",
