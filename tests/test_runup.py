@@ -301,3 +301,34 @@ def test_exact_refuses_a_ramp():
     sysm, prof, q0, v0 = jeffcott(5.0)
     with pytest.raises(NsfemError, match="exact method integrates constant speeds.*rk, penalty or moreau"):
         integrate(sysm, 0.1, "exact", 1e-3, q0, v0)
+
+
+def test_sensors_in_the_other_frame_turn_by_the_integral_of_the_speed():
+    """A probe on the shaft (rotating frame) of a run-up computed in the inertial frame reads the whirl turned
+    back by theta(t) = int Omega, not by Omega_0 t: the synchronous whirl of a slow ramp is a slowly varying
+    reading there (its 1x is gone), which Omega_0 t would leave spinning at Omega - Omega_0."""
+    from dataclasses import replace
+
+    from nsfem import load_scene
+    from nsfem.fem.constraints import dense
+    from nsfem.sensors import read
+    from nsfem.simulate import run_scene
+
+    scene = load_scene("runup", ["stator.0.clearance=0.05", "bearing.0.cyy=400", "bearing.0.czz=400"])
+    result, system = run_scene(scene)
+    rot = scene.rotation
+    shaft = tuple(replace(s, frame="rotating") for s in scene.sensors)
+    T = dense(system.info["reduction"].T)
+    model = system.info["model"]
+    late = result.t >= 0.4       # past the start's free vibration (e^{-13})
+    turned = read(shaft, model, T, result.t, result.q, "inertial", rot.speed_hz, 0.0, rot.ramp_to_hz, rot.ramp_s)
+    fixed = read(shaft, model, T, result.t, result.q, "inertial", rot.speed_hz, 0.0)   # Omega_0 t: wrong
+    casing = read(scene.sensors, model, T, result.t, result.q, "inertial", rot.speed_hz, 0.0)
+    radius = np.hypot(casing[late, 0], casing[late, 1])
+    # a turn keeps the radius (round-off) ...
+    assert np.allclose(np.hypot(turned[late, 0], turned[late, 1]), radius, rtol=1e-12, atol=0.0)
+    # ... and the shaft probe's reading changes between samples by a small part of the radius (1 ms steps,
+    # the response's phase moves by Omega' tau_g dt < 1e-2 rad), the wrongly turned one by (Omega - Omega_0) dt
+    step = np.abs(np.diff(turned[late, 0]))
+    assert step.max() < 3e-2 * radius.max()
+    assert np.abs(np.diff(fixed[late, 0])).max() > 5 * step.max()
