@@ -358,6 +358,13 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
                  f"{' (the run-up starts there)' if rot.ramped else ''}: its "
                  f"fastest-growing mode grows at {rate:.3g} 1/s (x10 every {math.log(10) / rate:.3g} s); unless the "
                  "contacts or damping hold it, displacements soon exceed the linear model's range")
+        if rot.ramped and rate <= 0.0:   # a run-up into an unstable speed: said with the speed and when it comes
+            end = growth_rate(ContactSystem.from_model(model, red, rot, damp, rot.ramp_to_hz))
+            if end > 0.0:
+                warn(f"the run-up reaches speeds where the structure without contact forces is unstable: at "
+                     f"rotation.ramp_to_hz = {rot.ramp_to_hz:g} Hz (reached at t = {rot.ramp_s:g} s) its fastest-growing mode "
+                     f"grows at {end:.3g} 1/s; unless the contacts or damping hold it, displacements soon exceed the "
+                     "linear model's range")
     from .contact.tally import system_parts
 
     info = {"ndof_full": model.n, "reduction": red.info, "title": scene.title,

@@ -3644,3 +3644,13 @@ def test_any_ramp_runs_or_is_refused_in_one_line(start, end, ramp, method, tmp_p
         assert out["completed"] and out["speed_hz"] == start
     else:
         assert not (root / "out").exists()
+
+
+def test_runup_into_an_unstable_speed_warns(tmp_path):
+    """Internal damping (beta = 1e-3 s) makes the rotor unstable above its onset: a run-up that reaches 300 Hz
+    from a stable 18 Hz says so before the run, naming the speed (exit 0)."""
+    argv = ["run", "runup", "--set", "damping.rayleigh=[0,1e-3]", "--set", "stator.0.clearance=0.05",
+            "--set", "rotation.ramp_to_hz=300", "--set", "simulation.t_end=0.01", "--out", "out"]
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == 0 and "the run-up reaches speeds where the structure without contact forces is unstable: at " \
+        "rotation.ramp_to_hz = 300 Hz" in stderr, stderr
