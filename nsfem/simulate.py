@@ -362,8 +362,8 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
             end = growth_rate(ContactSystem.from_model(model, red, rot, damp, rot.ramp_to_hz))
             if end > 0.0:
                 warn(f"the run-up reaches speeds where the structure without contact forces is unstable: at "
-                     f"rotation.ramp_to_hz = {rot.ramp_to_hz:g} Hz (reached at t = {rot.ramp_s:g} s) its fastest-growing mode "
-                     f"grows at {end:.3g} 1/s; unless the contacts or damping hold it, displacements soon exceed the "
+                     f"rotation.ramp_to_hz = {rot.ramp_to_hz:g} Hz (reached at t = {rot.ramp_s:g} s) its "
+                     f"fastest-growing mode grows at {end:.3g} 1/s; unless the contacts or damping hold it, displacements soon exceed the "
                      "linear model's range")
     from .contact.tally import system_parts
 
@@ -403,5 +403,5 @@ def sensor_signals(result: Result, system: ContactSystem) -> np.ndarray:
     if not sensors:
         return np.zeros((result.t.size, 0))
     return read(sensors, system.info["model"], dense(system.info["reduction"].T), result.t, result.q,
-                result.info.get("frame", "rotating"), result.info.get("speed_hz", 0.0), result.info.get("phase_deg", 0.0),
-                result.info.get("ramp_to_hz"), result.info.get("ramp_s", 0.0))
+                result.info.get("frame", "rotating"), result.info.get("speed_hz", 0.0),
+                result.info.get("phase_deg", 0.0), result.info.get("ramp_to_hz"), result.info.get("ramp_s", 0.0))

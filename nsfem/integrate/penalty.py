@@ -173,7 +173,7 @@ class Penalty(Integrator):
         if system.rings:
             raise NsfemError(f"penalty: {system.rings[0].label} is an elastic ring, a spring-damper already, which "
                              "the penalty method (a regularization of rigid contacts) does not carry: run this "
-                             f"scene with method {'rk or moreau' if system.schedule is not None else 'exact, rk or moreau'}")
+                             f"scene with method {'exact, ' if system.schedule is None else ''}rk or moreau")
         if options:
             raise NsfemError(f"penalty: unknown option(s) {', '.join(sorted(options))} (known: solver, stiffness, "
                              "factor, damping, damping_ratio, restitution_rule, rtol, atol, max_step, "
