@@ -363,8 +363,8 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
             if end > 0.0:
                 warn(f"the run-up reaches speeds where the structure without contact forces is unstable: at "
                      f"rotation.ramp_to_hz = {rot.ramp_to_hz:g} Hz (reached at t = {rot.ramp_s:g} s) its "
-                     f"fastest-growing mode grows at {end:.3g} 1/s; unless the contacts or damping hold it, displacements soon exceed the "
-                     "linear model's range")
+                     f"fastest-growing mode grows at {end:.3g} 1/s; unless the contacts or damping hold it, "
+                     "displacements soon exceed the linear model's range")
     from .contact.tally import system_parts
 
     info = {"ndof_full": model.n, "reduction": red.info, "title": scene.title,

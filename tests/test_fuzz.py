@@ -3603,8 +3603,8 @@ RUNUP_CASES = [
     (["rotation.ramp_to_hz=1e9"], None, "rotation.ramp_to_hz: 1e+09 Hz spins the outermost fibre"),
     (["rotation.frame=\"rotating\""], None, "rotation.ramp_to_hz: a run-up or coast-down is built in the inertial"),
     ([], "exact", "rotation.ramp_to_hz: the exact method integrates constant speeds"),
-    (["stator.0.stiffness=0", "stator.0.damping=0"], "rk", "rotation.ramp_to_hz: rk integrates a run-up of a rotor whose contacts are "
-     "elastic rings"),
+    (["stator.0.stiffness=0", "stator.0.damping=0"], "rk",
+     "rotation.ramp_to_hz: rk integrates a run-up of a rotor whose contacts are elastic rings"),
     (["stator.0.friction=0.1"], "rk", "stator.0.friction: friction against the shaft surface"),
 ]
 
