@@ -212,6 +212,9 @@ class SpeedSchedule:
     w: np.ndarray
     f_s: np.ndarray
     phase: float = 0.0
+    #: per rigid contact, its moving surface's slip velocity per unit Omega (``ContactSet.wS`` at Omega = 1 rad/s):
+    #: friction against the shaft surface follows Omega(t) (None: no friction at a moving surface)
+    surface: tuple | None = None
 
     @property
     def omega0(self) -> float:
@@ -258,6 +261,15 @@ class SpeedSchedule:
             lam = np.linalg.eigvals(A)
             rate = max(rate, float(np.max(np.abs(lam[np.isfinite(lam)]), initial=0.0)))
         return rate
+
+    def contacts_at(self, t: float, contacts):
+        """``contacts`` (a ContactSet) with its moving surfaces at Omega(t)."""
+        from dataclasses import replace
+
+        if self.surface is None:
+            return contacts
+        om = float(self.profile.omega_at(t))
+        return replace(contacts, wS=tuple(om * w for w in self.surface))
 
     def with_basis(self, T: np.ndarray) -> SpeedSchedule:
         """The schedule in the coordinates q of q_old = T q."""

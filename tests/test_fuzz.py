@@ -3605,7 +3605,9 @@ RUNUP_CASES = [
     ([], "exact", "rotation.ramp_to_hz: the exact method integrates constant speeds"),
     (["stator.0.stiffness=0", "stator.0.damping=0"], "rk",
      "rotation.ramp_to_hz: rk integrates a run-up of a rotor whose contacts are elastic rings"),
-    (["stator.0.friction=0.1"], "rk", "stator.0.friction: friction against the shaft surface"),
+    (["stator.0.friction=0.1"], "rk", "stator.0.friction: an elastic ring's friction against the shaft surface"),
+    (["stator.0.stiffness=0", "stator.0.damping=0", "stator.0.friction=0.1"], "exact",
+     "rotation.ramp_to_hz: the exact method integrates constant speeds"),
 ]
 
 

@@ -332,3 +332,21 @@ def test_sensors_in_the_other_frame_turn_by_the_integral_of_the_speed():
     step = np.abs(np.diff(turned[late, 0]))
     assert step.max() < 3e-2 * radius.max()
     assert np.abs(np.diff(fixed[late, 0])).max() > 5 * step.max()
+
+
+def test_friction_on_the_seal_follows_the_speed():
+    """A rigid frictional seal in a run-up from rest (moreau): the shaft surface slides at Omega(t) R, so friction
+    takes the drive's work through it (work_spin_J > 0), which a surface frozen at Omega_0 = 0 would never do; the
+    balance closes to round-off (moreau's theta = 1/2 balance is exact per step: 1e-9 covers the sums)."""
+    from nsfem import load_scene
+    from nsfem.simulate import run_scene
+
+    scene = load_scene("runup", ["stator.0.stiffness=0", "stator.0.damping=0", "stator.0.friction=0.1",
+                                 "rotation.speed_hz=0", "stator.0.clearance=1.2e-3", "simulation.method=\"moreau\""])
+    result, _ = run_scene(scene)
+    e = result.energy
+    assert result.impacts and e["work_spin_J"] > 0.1 * e["work_external_J"]
+    assert e["relative_residual"] < 1e-9
+    # the friction force on a sliding contact opposes the surface's motion (+t, the sense of rotation)
+    sliding = result.state == 2
+    assert np.all(result.tangential_force[:, 0][sliding] <= 0.0)

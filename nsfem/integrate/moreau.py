@@ -141,6 +141,7 @@ class MoreauJean(Integrator):
         sysm, th = self.system, self.theta
         cs = sysm.contacts
         n, m = sysm.n, cs.m
+        self._contacts_now = None
         t_out = output_times(t_end, output_dt)
         q, v = initial_state(sysm, q0, v0)
         h_req = output_dt / 10 if self.step is None else self.step
@@ -200,6 +201,8 @@ class MoreauJean(Integrator):
                         t_th = t + th * h
                         f_step = f_th + sched.force(t_th, q, v) - sched.force(t_mid, q, v)
                     v_free = Av @ v + Aq @ q + G @ (f_step + f_r)
+                    if sched is not None and sched.surface is not None:   # friction's moving surface at Omega(t)
+                        self._contacts_now = sched.contacts_at(t + h, cs)
                     v_new, impulse, forces, state, imp, n_piv = self._contact_step(Wf, q, v, v_free, h, t + h,
                                                                                    frictional)
                     pivots += n_piv
@@ -276,7 +279,8 @@ class MoreauJean(Integrator):
         state (m,), impact record or None, Lemke pivots).
         """
         sysm = self.system
-        cs = sysm.contacts
+        cs = self.__dict__.get("_contacts_now")   # a run-up's: its moving surfaces at Omega(t)
+        cs = sysm.contacts if cs is None else cs
         m = cs.m
         nf, tf, state = np.zeros(m), np.zeros((m, 2)), np.zeros(m, dtype=np.int8)
         if m == 0:

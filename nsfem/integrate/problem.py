@@ -17,7 +17,7 @@ that tests can use systems with closed-form answers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -160,17 +160,21 @@ class ContactSystem:
 
         ops = rotor_operators(model, reduction.T)
         lin = rotor_system(ops, rotation, damping, speed_hz)
-        schedule = None
-        if speed_hz is None and getattr(rotation, "ramped", False):
-            for c in model.stack.contacts:
-                if c.friction > 0.0:
-                    raise SceneError(f"{c.table_key or c.label}.friction", "friction against the shaft surface, "
-                                     "which slides at Omega(t) r in a run-up, is not modelled for a changing speed; "
-                                     "set it to 0 for the run-up, or run constant speeds")
-            schedule = speed_schedule(model, reduction.T, ops, rotation, damping, lin.f0)
         spin = 2.0 * np.pi * (rotation.speed_hz if speed_hz is None else speed_hz)
         full = ContactSet.from_model(model, reduction, omega=spin, frame=rotation.frame)
         rigid, rings = split_rings(full, model.stack.contacts, spin, rotation.frame == "rotating")
+        schedule = None
+        if speed_hz is None and getattr(rotation, "ramped", False):
+            for c in model.stack.contacts:
+                if c.friction > 0.0 and c.stiffness > 0.0:
+                    raise SceneError(f"{c.table_key or c.label}.friction", "an elastic ring's friction against the "
+                                     "shaft surface, which slides at Omega(t) r in a run-up, is not modelled for a "
+                                     "changing speed; set it to 0, or make the stator rigid (stiffness = 0) and run "
+                                     "method = moreau")
+            schedule = speed_schedule(model, reduction.T, ops, rotation, damping, lin.f0)
+            if any(c.friction > 0.0 for c in model.stack.contacts):   # the moving surfaces' speed per unit Omega
+                unit = ContactSet.from_model(model, reduction, omega=1.0, frame=rotation.frame)
+                schedule = replace(schedule, surface=(unit.subset(rigid) if rings else unit).wS)
         info = {"model": model, "reduction": reduction, "ndof_full": model.n,
                 "omega2_ref": omega2_ref(model.K, model.M)}
         if rings:
