@@ -190,19 +190,23 @@ def rotor_system(ops: RotorOperators, rotation: Rotation, damping: Damping,
 
 @dataclass(frozen=True)
 class SpeedSchedule:
-    """A run-up or coast-down (inertial frame; docs/theory.md, "Run-up and coast-down"): the parts of the
-    equations that follow the speed profile Omega(t) on top of a system's constant-speed values at
-    Omega_0 = Omega(0):
+    """A run-up or coast-down (docs/theory.md, "Run-up and coast-down"): the parts of the equations that follow
+    the speed profile Omega(t) on top of a system's constant-speed values at Omega_0 = Omega(0):
 
-        C(t) = C + (Omega(t) - Omega_0) C1                    (C1 = Gp1: the gyroscopic couple)
-        Q(t) = Q + (Omega(t) - Omega_0) Q1 + Omega'(t) Kst    (Q1 = -(alpha M J + beta (K0 - Kb) J))
-        f(t) = f_s + Omega^2 (cos psi u + sin psi w) - Omega' (-sin psi u + cos psi w),  psi = theta(t) + phi
+        C(t) = C + (Omega - Omega_0) C1
+        Q(t) = Q + (Omega - Omega_0) Q1 + (Omega^2 - Omega_0^2) Q2 + Omega' Kst
+        f(t) = f_s + Omega f1 + Omega^2 f2 + Omega' fa + cos psi gc + sin psi gs
+               + Omega^2 (cos psi u + sin psi w) - Omega' (-sin psi u + cos psi w),   psi = theta(t) + phi
+
+    Inertial frame: C1 = Gp1 (gyroscopic), Q1 = -(alpha M J + beta (K0 - Kb) J), Kst the spin-acceleration couple,
+    u, w the unbalance per Omega^2 along its rotating direction and a quarter turn ahead (its load is -m r'' of
+    its mass: centripetal, and tangential against the acceleration), f_s gravity. Rotating frame: C1 = G1
+    (Coriolis), Q1 = c_e P1 + C_b J, Q2 = Kc1 (centrifugal), Kst = G1 / 2 (the Euler force -rho A Omega' x r),
+    f1 = c_e fd1, f2 = fc1 + fu1, fa = fe1 - fq1 (the Euler force on the centroids' offsets and on the unbalance
+    mass), gravity turning by psi (gc = -g Fz, gs = -g Fy). Absent parts are None.
 
     ``profile`` gives Omega(t), Omega'(t) and theta(t) (a :class:`~nsfem.scene.parts.Rotation`: ``omega_at``,
-    ``acceleration_at``, ``angle_at``); u, w: the unbalance per Omega^2 along its rotating direction and a
-    quarter turn ahead (phi = 0); f_s the load that does not turn (gravity). The unbalance's load is
-    -m r'' of its mass at e (cos psi, sin psi): the centripetal part and, while the speed changes, a
-    tangential part against the acceleration."""
+    ``acceleration_at``, ``angle_at``)."""
 
     profile: object
     C1: np.ndarray
@@ -215,6 +219,12 @@ class SpeedSchedule:
     #: per rigid contact, its moving surface's slip velocity per unit Omega (``ContactSet.wS`` at Omega = 1 rad/s):
     #: friction against the shaft surface follows Omega(t) (None: no friction at a moving surface)
     surface: tuple | None = None
+    Q2: np.ndarray | None = None
+    f1: np.ndarray | None = None
+    f2: np.ndarray | None = None
+    fa: np.ndarray | None = None
+    gc: np.ndarray | None = None
+    gs: np.ndarray | None = None
 
     @property
     def omega0(self) -> float:
@@ -230,21 +240,45 @@ class SpeedSchedule:
         t = np.asarray(t, dtype=float)
         om, al, psi = self.speed(t)
         c, s = np.cos(psi), np.sin(psi)
-        return (np.multiply.outer(self.f_s, np.ones_like(t)) + np.multiply.outer(self.u, om * om * c + al * s)
-                + np.multiply.outer(self.w, om * om * s - al * c))
+        out = (np.multiply.outer(self.f_s, np.ones_like(t)) + np.multiply.outer(self.u, om * om * c + al * s)
+               + np.multiply.outer(self.w, om * om * s - al * c))
+        for vec, coef in ((self.f1, om), (self.f2, om * om), (self.fa, al), (self.gc, c), (self.gs, s)):
+            if vec is not None:
+                out = out + np.multiply.outer(vec, coef)
+        return out
+
+    def _changes(self, t) -> tuple[float, float, float]:
+        om, al, _ = self.speed(float(t))
+        om0 = self.omega0
+        return float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
 
     def matrices(self, t: float, C: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(C(t), Q(t)) from the constant-speed ``C`` and ``Q`` at Omega_0."""
-        om, al, _ = self.speed(float(t))
-        d = float(om) - self.omega0
-        return C + d * self.C1, Q + d * self.Q1 + float(al) * self.Kst
+        d1, d2, al = self._changes(t)
+        Qt = Q + d1 * self.Q1 + al * self.Kst
+        return C + d1 * self.C1, Qt if self.Q2 is None else Qt + d2 * self.Q2
 
     def force(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The change of the speed-dependent forces from their values at Omega_0 at a state (q, v):
-        -(Omega - Omega_0) (C1 v + Q1 q) - Omega' Kst q (the loads not included: :meth:`load`)."""
-        om, al, _ = self.speed(float(t))
-        d = float(om) - self.omega0
-        return -d * (self.C1 @ v + self.Q1 @ q) - float(al) * (self.Kst @ q)
+        """The change of the speed-dependent forces from their values at Omega_0 at a state (q, v) (the loads not
+        included: :meth:`load`)."""
+        d1, d2, al = self._changes(t)
+        out = -d1 * (self.C1 @ v + self.Q1 @ q) - al * (self.Kst @ q)
+        return out if self.Q2 is None else out - d2 * (self.Q2 @ q)
+
+    def powers(self, t, q: np.ndarray, v: np.ndarray) -> tuple:
+        """(circulatory, drive): the power of the changes' forces on the structure's motion at times ``t``
+        (states as columns, or one state): the circulatory change (Omega - Omega_0) q'^T Q1 q, booked with the
+        circulatory work (a left-hand-side force), and the drive's, -q'^T (Omega' Kst + (Omega^2 - Omega_0^2) Q2) q
+        (the speed held by the drive: its work on the lateral motion; the gyroscopic change does none)."""
+        om, al, _ = self.speed(t)
+        om0 = self.omega0
+        d1, d2 = om - om0, om * om - om0 * om0
+
+        def form(A):
+            return np.einsum("i...,i...->...", v, A @ q)
+        circ = d1 * form(self.Q1)
+        drive = -al * form(self.Kst) - (d2 * form(self.Q2) if self.Q2 is not None else 0.0)
+        return circ, drive
 
     def fastest_rate(self, M: np.ndarray, C: np.ndarray, Q: np.ndarray) -> float:
         """The largest |eigenvalue| [1/s] of the free structure over the profile (at its two end speeds, where the
@@ -271,15 +305,6 @@ class SpeedSchedule:
         om = float(self.profile.omega_at(t))
         return replace(contacts, wS=tuple(om * w for w in self.surface))
 
-    def with_basis(self, T: np.ndarray) -> SpeedSchedule:
-        """The schedule in the coordinates q of q_old = T q."""
-        from dataclasses import replace
-
-        def mat(A):
-            return T.T @ A @ T
-        return replace(self, C1=mat(self.C1), Q1=mat(self.Q1), Kst=mat(self.Kst), u=T.T @ self.u, w=T.T @ self.w,
-                       f_s=T.T @ self.f_s)
-
 
 def spin_acceleration(model, basis) -> sp.csr_matrix:
     """Kst: the couple per unit spin acceleration, Omega' Kst q on the left-hand side (inertial frame), in
@@ -303,13 +328,34 @@ def spin_acceleration(model, basis) -> sp.csr_matrix:
     return project(basis, Kst) if Kst.nnz else sp.csr_matrix((basis.shape[1], basis.shape[1]))
 
 
+def euler_load(model, basis) -> np.ndarray:
+    """fe1 = int rho A (z_c N_V - y_c N_W) dx + m (z_c, -y_c) per disk, in ``basis``: the Euler force -rho A Omega' x r
+    on the sections' centroid offsets per unit Omega' (rotating frame)."""
+    from .fem import hermite
+    from .fem.components import _node
+
+    stack = model.stack
+    out = np.zeros(model.n_full)
+    for s in stack.segments:
+        yc, zc = s.offset
+        if not (yc or zc):
+            continue
+        space = model.spaces[s.name]
+        load = hermite.assemble_weighted(space.x, np.ones_like)
+        out[space.dofs["V"]] += s.rho * s.area * zc * load
+        out[space.dofs["W"]] += -s.rho * s.area * yc * load
+    for d in stack.disks:
+        yc, zc = stack.segment(stack.carrier(d.x)).offset
+        v, w = _node(stack, model.dof, d.x, ("V", "W"))
+        out[v] += d.mass * zc
+        out[w] += -d.mass * yc
+    return np.asarray(basis.T @ out).ravel()
+
+
 def speed_schedule(model, basis, ops: RotorOperators, rotation: Rotation, damping: Damping,
                    gravity_load: np.ndarray | None) -> SpeedSchedule:
-    """The :class:`SpeedSchedule` of ``rotation``'s ramp on ``ops`` (expressed in ``basis``). Refuses what a
-    run-up does not carry: the rotating frame, bearings with speed tables."""
-    if rotation.frame != "inertial":
-        raise SceneError("rotation.ramp_to_hz", "a run-up is built in the inertial frame; set rotation.frame = "
-                         "\"inertial\"")
+    """The :class:`SpeedSchedule` of ``rotation``'s ramp on ``ops`` (expressed in ``basis``) in its frame. Refuses
+    what a run-up does not carry: bearings with speed tables."""
     if ops.bearing_change is not None:
         raise SceneError("rotation.ramp_to_hz", "bearings with coefficients tabulated against speed are read at one "
                          "speed; a run-up through their table is not modelled (give constant coefficients, or run "
@@ -317,9 +363,21 @@ def speed_schedule(model, basis, ops: RotorOperators, rotation: Rotation, dampin
     from .fem.constraints import dense
 
     alpha, beta = damping.rayleigh
-    Q1 = -(alpha * dense(ops.MJ) + beta * dense(ops.KJ))
     n = ops.n
-    return SpeedSchedule(rotation, dense(ops.Gp1), Q1, dense(spin_acceleration(model, basis)),
-                         np.asarray(ops.fu1, dtype=float), np.asarray(ops.fq1, dtype=float),
-                         np.zeros(n) if gravity_load is None else np.asarray(gravity_load, dtype=float),
-                         math.radians(rotation.phase_deg))
+    phase = math.radians(rotation.phase_deg)
+    zero = np.zeros(n)
+    if rotation.frame == "inertial":
+        Q1 = -(alpha * dense(ops.MJ) + beta * dense(ops.KJ))
+        return SpeedSchedule(rotation, dense(ops.Gp1), Q1, dense(spin_acceleration(model, basis)),
+                             np.asarray(ops.fu1, dtype=float), np.asarray(ops.fq1, dtype=float),
+                             zero if gravity_load is None else np.asarray(gravity_load, dtype=float), phase)
+    ce = damping.external
+    G1 = dense(ops.G1)
+    Q1 = dense(ops.CbJ) + (ce * dense(ops.P1) if ce else 0.0)
+    g = rotation.gravity
+    return SpeedSchedule(rotation, G1, Q1, 0.5 * G1, zero, zero, zero, phase, Q2=dense(ops.Kc1),
+                         f1=ce * np.asarray(ops.fd1, dtype=float) if ce else None,
+                         f2=np.asarray(ops.fc1 + ops.fu1, dtype=float),
+                         fa=euler_load(model, basis) - np.asarray(ops.fq1, dtype=float),
+                         gc=-g * np.asarray(ops.Fz, dtype=float) if g else None,
+                         gs=-g * np.asarray(ops.Fy, dtype=float) if g else None)

@@ -465,12 +465,10 @@ class EventDriven(Integrator):
             energy["dissipated_damping_J"] += float(np.sum(w * np.einsum("it,it->t", v, D @ v)))
         if np.any(P):
             energy["work_circulatory_J"] += float(np.sum(w * np.einsum("it,it->t", v, P @ q)))
-        if sysm.schedule is not None:   # a run-up: Q(t) - Q(0) = (Omega - Omega_0) Q1 + Omega' Kst
-            om, al, _ = sysm.schedule.speed(ts)
-            sch = sysm.schedule
-            energy["work_circulatory_J"] += float(np.sum(w * (om - sch.omega0) * np.einsum("it,it->t", v, sch.Q1 @ q)))
-            # the spin-acceleration couple is the drive's: its work on the lateral motion
-            energy["work_spin_J"] -= float(np.sum(w * al * np.einsum("it,it->t", v, sch.Kst @ q)))
+        if sysm.schedule is not None:   # a run-up: the work of Q(t) - Q(0) (SpeedSchedule.powers)
+            circ, drive = sysm.schedule.powers(ts, q, v)
+            energy["work_circulatory_J"] += float(np.sum(w * circ))
+            energy["work_spin_J"] += float(np.sum(w * drive))
         for i, reg, sgn in mode.ring:
             ring = sysm.rings[i]
             u, du = ring.P @ q, ring.P @ v

@@ -214,11 +214,10 @@ class MoreauJean(Integrator):
                         energy["dissipated_damping_J"] += h * float(v_th @ D @ v_th)
                     if circulatory:
                         energy["work_circulatory_J"] += h * float(v_th @ P @ (q + th * h * v_th))
-                    if sched is not None:   # Q(t) - Q(0): circulatory (Q1) and the drive's couple (Kst)
-                        om, al, _ = sched.speed(t_th)
-                        q_th = q + th * h * v_th
-                        energy["work_circulatory_J"] += h * (float(om) - sched.omega0) * float(v_th @ sched.Q1 @ q_th)
-                        energy["work_spin_J"] -= h * float(al) * float(v_th @ sched.Kst @ q_th)
+                    if sched is not None:   # Q(t) - Q(0): circulatory and the drive's (SpeedSchedule.powers)
+                        circ, drive = sched.powers(t_th, q + th * h * v_th, v_th)
+                        energy["work_circulatory_J"] += h * float(circ)
+                        energy["work_spin_J"] += h * float(drive)
                     if rings:
                         _ring_work(rings, engaged, latent, q, q_new, v_th, h, th, energy)
                     dv = v_new - v

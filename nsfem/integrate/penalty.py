@@ -250,6 +250,8 @@ class Penalty(Integrator):
 
         if sched is not None:   # a run-up: M^-1 of the speed-dependent parts (nsfem.system.SpeedSchedule)
             MC1, MQ1, MKst = Minv @ sched.C1, Minv @ sched.Q1, Minv @ sched.Kst
+            Q2 = np.zeros((n, n)) if sched.Q2 is None else sched.Q2
+            MQ2 = Minv @ Q2
             om0 = sched.omega0
 
         def fun(t, x):
@@ -258,11 +260,11 @@ class Penalty(Integrator):
             f, w_circ, w_drive = f0, v @ P @ q, 0.0
             if sched is not None:
                 om, al, _ = sched.speed(t)
-                dw, al = float(om) - om0, float(al)
+                dw, d2, al = float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
                 f = sched.load(t)
-                acc = acc + Minv @ (f - f0) - dw * (MC1 @ v + MQ1 @ q) - al * (MKst @ q)
-                w_circ += dw * (v @ sched.Q1 @ q)
-                w_drive = -al * (v @ sched.Kst @ q)
+                acc = acc + Minv @ (f - f0) - dw * (MC1 @ v + MQ1 @ q) - (al * MKst + d2 * MQ2) @ q
+                circ, w_drive = sched.powers(t, q, v)
+                w_circ += float(circ)
             elif harmonic:
                 co, si = math.cos(w * t), math.sin(w * t)
                 acc = acc + bc * co + bs * si
@@ -281,12 +283,13 @@ class Penalty(Integrator):
             Jx[2 * n + 3, n:2 * n] = J @ (self.c_p * g + 2 * d * gd)
             if sched is not None:
                 om, al, _ = sched.speed(t)
-                dw, al = float(om) - om0, float(al)
-                Jx[n:2 * n, :n] -= dw * MQ1 + al * MKst
+                dw, d2, al = float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
+                Jx[n:2 * n, :n] -= dw * MQ1 + al * MKst + d2 * MQ2
                 Jx[n:2 * n, n:2 * n] -= dw * MC1
                 Jx[2 * n + 2, :n] += dw * (sched.Q1.T @ v)
                 Jx[2 * n + 2, n:2 * n] += dw * (sched.Q1 @ q)
-                Jx[2 * n + 4, :n], Jx[2 * n + 4, n:2 * n] = -al * (sched.Kst.T @ v), -al * (sched.Kst @ q)
+                Kd = al * sched.Kst + d2 * Q2
+                Jx[2 * n + 4, :n], Jx[2 * n + 4, n:2 * n] = -(Kd.T @ v), -(Kd @ q)
             return Jx
 
         self._cache[active] = (fun, jac)

@@ -129,10 +129,12 @@ class ContactSystem:
             if ring.P.shape != (2, n):
                 raise NsfemError(f"contact system: ring {ring.label} maps {ring.P.shape[1]} coordinates, not {n}")
         if schedule is not None:
-            for name in ("C1", "Q1", "Kst"):
-                square(getattr(schedule, name), f"schedule.{name}")
-            for name in ("u", "w", "f_s"):
-                vec(getattr(schedule, name), f"schedule.{name}")
+            for name in ("C1", "Q1", "Kst", "Q2"):
+                if getattr(schedule, name) is not None:
+                    square(getattr(schedule, name), f"schedule.{name}")
+            for name in ("u", "w", "f_s", "f1", "f2", "fa", "gc", "gs"):
+                if getattr(schedule, name) is not None:
+                    vec(getattr(schedule, name), f"schedule.{name}")
         return cls(M, C, Q, vec(f0, "f0"), vec(fc, "fc"), vec(fs, "fs"), float(omega), cs, dict(info or {}), rings,
                    schedule)
 
@@ -166,6 +168,12 @@ class ContactSystem:
         schedule = None
         if speed_hz is None and getattr(rotation, "ramped", False):
             for c in model.stack.contacts:
+                if rotation.frame == "rotating" and c.angle is not None and (c.stiffness > 0.0 or c.friction > 0.0):
+                    what = "an elastic ring, whose law turns with the frame" if c.stiffness > 0.0 else \
+                        "friction against a stator, whose surface slides at Omega(t) r and turns with the frame"
+                    raise SceneError(f"{c.table_key}.{'stiffness' if c.stiffness > 0.0 else 'friction'}",
+                                     f"a run-up in the rotating frame does not carry {what}; run it in the "
+                                     "inertial frame (rotation.frame = \"inertial\", an axisymmetric rotor)")
                 if c.friction > 0.0 and c.stiffness > 0.0:
                     raise SceneError(f"{c.table_key or c.label}.friction", "an elastic ring's friction against the "
                                      "shaft surface, which slides at Omega(t) r in a run-up, is not modelled for a "

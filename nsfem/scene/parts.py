@@ -60,10 +60,6 @@ class Rotation:
         if not self.ramp_s > 0.0:
             raise SceneError("rotation.ramp_s", f"must be > 0 with rotation.ramp_to_hz = {self.ramp_to_hz:g} (the "
                              f"ramp's duration in seconds), got {self.ramp_s:g}")
-        if self.ramped and self.frame != "inertial":
-            raise SceneError("rotation.ramp_to_hz", "a run-up or coast-down is built in the inertial frame (its "
-                             "spin-acceleration terms; docs/theory.md, \"Run-up and coast-down\"); set "
-                             "rotation.frame = \"inertial\" (an axisymmetric rotor)")
 
     @property
     def ramped(self) -> bool:
