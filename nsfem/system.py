@@ -225,6 +225,9 @@ class SpeedSchedule:
     fa: np.ndarray | None = None
     gc: np.ndarray | None = None
     gs: np.ndarray | None = None
+    #: rotating frame: the part of the inertial frame's spin-acceleration couple that is not axisymmetric (Lalanne's
+    #: S = (Kst + Kst^T) / 2), seen from the turning frame: Omega' (cos^2 psi S0 + cos psi sin psi S1 + sin^2 psi S2)
+    Kst_turn: tuple | None = None
 
     @property
     def omega0(self) -> float:
@@ -252,17 +255,26 @@ class SpeedSchedule:
         om0 = self.omega0
         return float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
 
+    def spin_couple(self, t: float) -> np.ndarray:
+        """Kst at ``t`` (its turning part in the rotating frame at psi(t))."""
+        if self.Kst_turn is None:
+            return self.Kst
+        _, _, psi = self.speed(float(t))
+        c, s = math.cos(float(psi)), math.sin(float(psi))
+        S0, S1, S2 = self.Kst_turn
+        return self.Kst + c * c * S0 + c * s * S1 + s * s * S2
+
     def matrices(self, t: float, C: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(C(t), Q(t)) from the constant-speed ``C`` and ``Q`` at Omega_0."""
         d1, d2, al = self._changes(t)
-        Qt = Q + d1 * self.Q1 + al * self.Kst
+        Qt = Q + d1 * self.Q1 + al * self.spin_couple(t)
         return C + d1 * self.C1, Qt if self.Q2 is None else Qt + d2 * self.Q2
 
     def force(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The change of the speed-dependent forces from their values at Omega_0 at a state (q, v) (the loads not
         included: :meth:`load`)."""
         d1, d2, al = self._changes(t)
-        out = -d1 * (self.C1 @ v + self.Q1 @ q) - al * (self.Kst @ q)
+        out = -d1 * (self.C1 @ v + self.Q1 @ q) - al * (self.spin_couple(t) @ q)
         return out if self.Q2 is None else out - d2 * (self.Q2 @ q)
 
     def powers(self, t, q: np.ndarray, v: np.ndarray) -> tuple:
@@ -270,7 +282,7 @@ class SpeedSchedule:
         (states as columns, or one state): the circulatory change (Omega - Omega_0) q'^T Q1 q, booked with the
         circulatory work (a left-hand-side force), and the drive's, -q'^T (Omega' Kst + (Omega^2 - Omega_0^2) Q2) q
         (the speed held by the drive: its work on the lateral motion; the gyroscopic change does none)."""
-        om, al, _ = self.speed(t)
+        om, al, psi = self.speed(t)
         om0 = self.omega0
         d1, d2 = om - om0, om * om - om0 * om0
 
@@ -278,6 +290,10 @@ class SpeedSchedule:
             return np.einsum("i...,i...->...", v, A @ q)
         circ = d1 * form(self.Q1)
         drive = -al * form(self.Kst) - (d2 * form(self.Q2) if self.Q2 is not None else 0.0)
+        if self.Kst_turn is not None:
+            c, s = np.cos(psi), np.sin(psi)
+            S0, S1, S2 = self.Kst_turn
+            drive = drive - al * (c * c * form(S0) + c * s * form(S1) + s * s * form(S2))
         return circ, drive
 
     def fastest_rate(self, M: np.ndarray, C: np.ndarray, Q: np.ndarray) -> float:
@@ -328,6 +344,27 @@ def spin_acceleration(model, basis) -> sp.csr_matrix:
     return project(basis, Kst) if Kst.nnz else sp.csr_matrix((basis.shape[1], basis.shape[1]))
 
 
+def spin_acceleration_turning(model, basis) -> tuple | None:
+    """(S0, S1, S2) in ``basis``: Lalanne's couple Kst = Gp1 / 2 + S has a part S = (Kst + Kst^T) / 2 that is not
+    axisymmetric; with q_inertial = R(psi) q_rotating, R = cos psi + sin psi J on the lateral pairs, the rotating
+    frame sees R^T S R = cos^2 psi S + cos psi sin psi (S J + J^T S) + sin^2 psi J^T S J (the axisymmetric Gp1 / 2
+    is in the Euler force G1 / 2). None without polar inertia."""
+    from .fem.components import lateral_turn
+    from .fem.constraints import dense
+
+    I = sp.identity(model.n_full, format="csr")
+    K = spin_acceleration(model, I)
+    if not K.nnz:
+        return None
+    S = 0.5 * (K + K.T)
+    J = lateral_turn(model.spaces, model.n_full)
+    B = basis if not sp.issparse(basis) else basis.tocsr()
+
+    def proj(A):
+        return dense(B.T @ (A @ B))
+    return proj(S), proj(S @ J + J.T @ S), proj(J.T @ S @ J)
+
+
 def euler_load(model, basis) -> np.ndarray:
     """fe1 = int rho A (z_c N_V - y_c N_W) dx + m (z_c, -y_c) per disk, in ``basis``: the Euler force -rho A Omega' x r
     on the sections' centroid offsets per unit Omega' (rotating frame)."""
@@ -376,6 +413,7 @@ def speed_schedule(model, basis, ops: RotorOperators, rotation: Rotation, dampin
     Q1 = dense(ops.CbJ) + (ce * dense(ops.P1) if ce else 0.0)
     g = rotation.gravity
     return SpeedSchedule(rotation, G1, Q1, 0.5 * G1, zero, zero, zero, phase, Q2=dense(ops.Kc1),
+                         Kst_turn=spin_acceleration_turning(model, basis),
                          f1=ce * np.asarray(ops.fd1, dtype=float) if ce else None,
                          f2=np.asarray(ops.fc1 + ops.fu1, dtype=float),
                          fa=euler_load(model, basis) - np.asarray(ops.fq1, dtype=float),

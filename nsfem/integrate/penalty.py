@@ -262,7 +262,8 @@ class Penalty(Integrator):
                 om, al, _ = sched.speed(t)
                 dw, d2, al = float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
                 f = sched.load(t)
-                acc = acc + Minv @ (f - f0) - dw * (MC1 @ v + MQ1 @ q) - (al * MKst + d2 * MQ2) @ q
+                acc = acc + Minv @ (f - f0) - dw * (MC1 @ v + MQ1 @ q) - d2 * (MQ2 @ q)
+                acc = acc - al * (MKst @ q if sched.Kst_turn is None else Minv @ (sched.spin_couple(t) @ q))
                 circ, w_drive = sched.powers(t, q, v)
                 w_circ += float(circ)
             elif harmonic:
@@ -284,11 +285,12 @@ class Penalty(Integrator):
             if sched is not None:
                 om, al, _ = sched.speed(t)
                 dw, d2, al = float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
-                Jx[n:2 * n, :n] -= dw * MQ1 + al * MKst + d2 * MQ2
+                Kt = sched.spin_couple(t)
+                Jx[n:2 * n, :n] -= dw * MQ1 + al * (MKst if sched.Kst_turn is None else Minv @ Kt) + d2 * MQ2
                 Jx[n:2 * n, n:2 * n] -= dw * MC1
                 Jx[2 * n + 2, :n] += dw * (sched.Q1.T @ v)
                 Jx[2 * n + 2, n:2 * n] += dw * (sched.Q1 @ q)
-                Kd = al * sched.Kst + d2 * Q2
+                Kd = al * Kt + d2 * Q2
                 Jx[2 * n + 4, :n], Jx[2 * n + 4, n:2 * n] = -(Kd.T @ v), -(Kd @ q)
             return Jx
 
