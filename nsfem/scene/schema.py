@@ -349,7 +349,7 @@ SCHEMA: dict[str, Any] = {
         "frame": Key("str", "rotating", "frame of the coordinates: rotating with the shaft (any rotor, isotropic "
                      "bearings) or inertial (axisymmetric rotors, any bearings)", FRAMES),
         "ramp_to_hz": Key("float?", None, "run-up or coast-down: the speed [Hz] reached linearly from speed_hz "
-                          "over ramp_s, kept after (inertial frame; methods rk, penalty, moreau)", check=_nonneg),
+                          "over ramp_s, kept after (methods rk, penalty, moreau)", check=_nonneg),
         "ramp_s": Key("float", 0.0, "duration of the ramp to ramp_to_hz [s] (> 0 with ramp_to_hz)",
                       check=_nonneg),
     },
