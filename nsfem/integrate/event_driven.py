@@ -850,8 +850,8 @@ class RungeKutta(EventDriven):
         if system.schedule is not None and system.contacts.m:
             raise NsfemError(f"rotation.ramp_to_hz: rk integrates a run-up of a rotor whose contacts are elastic rings "
                              f"(stator stiffness > 0) or none; {system.contacts.labels[0]} is a rigid contact, whose "
-                             "constraint forces its events read at constant speed: use method = penalty or moreau, "
-                             "or give the stator a stiffness")
+                             "constraint forces its events read at constant speed: use method = penalty or moreau "
+                             "(a stator may instead be given a stiffness)")
         if system.schedule is not None and any(r.friction for r in system.rings):
             raise NsfemError(f"rotation.ramp_to_hz: {system.rings[0].label} has friction against the shaft surface, "
                              "which slides at Omega(t) r in a run-up: not modelled for a changing speed; set its "
