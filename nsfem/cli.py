@@ -719,6 +719,8 @@ def _run(args, scene, out_dir, written: set) -> int:
                "integration_wall_s": result.wall_s, "outputs": outputs,
                "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings,
                "interrupted": bool(interrupted), "core": event_core.name(), "notes": list(scene.notes)}
+    if scene.rotation.ramped:   # a run-up: speed_hz is its start
+        payload.update(ramp_to_hz=scene.rotation.ramp_to_hz, ramp_s=scene.rotation.ramp_s)
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts"

@@ -3645,6 +3645,7 @@ def test_any_ramp_runs_or_is_refused_in_one_line(start, end, ramp, method, tmp_p
         out = json.loads(stdout)
         assert method != "exact" or end == start
         assert out["completed"] and out["speed_hz"] == start
+        assert end == start or (out["ramp_to_hz"], out["ramp_s"]) == (end, ramp)
     else:
         assert not (root / "out").exists()
 
