@@ -501,7 +501,7 @@ def cmd_stationary(args) -> int:
     payload["notes"] = list(scene.notes)
     rot = scene.rotation
     if rot.ramped:   # one speed: the ramp's start, said
-        ramp = (f"a run-up scene ({rot.speed_hz:g} -> {rot.ramp_to_hz:g} Hz in {rot.ramp_s:g} s): the stationary "
+        ramp = (f"a run-up scene ({rot.describe()}): the stationary "
                 f"state at rotation.speed_hz = {rot.speed_hz:g} Hz, the ramp's start")
         payload["notes"].append(ramp)
         print(f"nsfem stationary: note: {ramp}", file=sys.stderr)
@@ -720,7 +720,7 @@ def _run(args, scene, out_dir, written: set) -> int:
                "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings,
                "interrupted": bool(interrupted), "core": event_core.name(), "notes": list(scene.notes)}
     if scene.rotation.ramped:   # a run-up: speed_hz is its start
-        payload.update(ramp_to_hz=scene.rotation.ramp_to_hz, ramp_s=scene.rotation.ramp_s)
+        payload.update(scene.rotation.record())
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts"

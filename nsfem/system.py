@@ -302,7 +302,7 @@ class SpeedSchedule:
         import scipy.linalg as sla
 
         p = self.profile
-        times = (0.0, float(getattr(p, "ramp_s", 0.0)))
+        times = tuple(float(x) for x in getattr(p, "knots", ((0.0,),))[0])[:64]
         n = M.shape[0]
         rate = max(abs(float(p.omega_at(t))) for t in times)
         for t in times:

@@ -3590,6 +3590,11 @@ def test_bearing_forces_of_a_run_in_a_folder_that_refuses_bearings_csv(tmp_path)
 
 
 # --- issue 35: run-up and coast-down ([rotation] ramp_to_hz, ramp_s) ---
+import re  # noqa: E402
+
+import nsfem  # noqa: E402
+
+RUNUP_TOML = Path(nsfem.__file__).parent / "scenes" / "runup.toml"
 RUNUP = ["runup", "--set", "simulation.t_end=0.02", "--set", "stator.0.clearance=0.05", "--out", "out"]
 
 RUNUP_CASES = [
@@ -3658,3 +3663,46 @@ def test_runup_into_an_unstable_speed_warns(tmp_path):
     code, _, stderr = check_invocation(argv, tmp_path)
     assert code == 0 and "the run-up reaches speeds where the structure without contact forces is unstable: at " \
         "rotation.ramp_to_hz = 300 Hz" in stderr, stderr
+
+
+RUNUP_TABLE_CASES = [
+    (["rotation.speed_table_s=[0,1]", "rotation.speed_table_hz=[18]"], "rotation.speed_table_hz: the table needs "
+     "as many speeds as times"),
+    (["rotation.speed_table_s=[0.1,1]", "rotation.speed_table_hz=[18,30]"], "rotation.speed_table_s.0: the table "
+     "starts at t = 0"),
+    (["rotation.speed_table_s=[0,1,1]", "rotation.speed_table_hz=[18,30,20]"], "rotation.speed_table_s.2: the "
+     "times must increase strictly"),
+    (["rotation.speed_table_s=[0,1]", "rotation.speed_table_hz=[18,-3]"], "rotation.speed_table_hz.1: must be >= 0"),
+    (["rotation.speed_table_s=[0,nan]", "rotation.speed_table_hz=[18,20]"], "rotation.speed_table_s.1: must be "
+     "finite"),
+    (["rotation.speed_table_s=[0,1]", "rotation.speed_table_hz=[20,30]"], "rotation.speed_hz: 18 Hz differs from "
+     "the table's first speed"),
+    (["rotation.speed_table_s=[0,1]", "rotation.speed_table_hz=[18,1e9]"], "rotation.speed_table_hz.1: 1e+09 Hz"),
+]
+
+
+@pytest.mark.parametrize("sets,text", RUNUP_TABLE_CASES)
+def test_runup_table_reproductions(sets, text, tmp_path):
+    """A speed table beside the scene's ramp is refused first; without the ramp, each bad table in one line."""
+    base = ["run", "runup", "--set", "simulation.t_end=0.02", "--set", "stator.0.clearance=0.05", "--out", "out"]
+    code, _, stderr = check_invocation(base + [a for s in sets for a in ("--set", s)], tmp_path)
+    # (a key's own check, finite, within the speed limit, comes first)
+    assert code == cli.EXIT_ERROR and ("give a ramp (ramp_to_hz, ramp_s) or a speed table" in stderr
+                                       or text in stderr), stderr
+    (tmp_path / "r.toml").write_text(re.sub(r"ramp_to_hz = .*\nramp_s = .*\n", "", RUNUP_TOML.read_text()))
+    code, _, stderr = check_invocation(["run", "r.toml", *base[2:], *[a for s in sets for a in ("--set", s)]],
+                                       tmp_path)
+    assert code == cli.EXIT_ERROR and text in stderr, stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_runup_table_runs(tmp_path):
+    (tmp_path / "r.toml").write_text(re.sub(r"ramp_to_hz = .*\nramp_s = .*\n", "", RUNUP_TOML.read_text()))
+    argv = ["run", "r.toml", "--set", "rotation.speed_table_s=[0,0.01,0.02]", "--set",
+            "rotation.speed_table_hz=[18,30,0]", "--set", "simulation.t_end=0.03", "--out", "out", "--json"]
+    code, stdout, stderr = check_invocation(argv, tmp_path)
+    assert code == 0, stderr
+    out = json.loads(stdout)
+    assert out["speed_table_hz"] == [18.0, 30.0, 0.0] and out["speed_hz"] == 18.0
+    code, _, stderr = check_invocation(argv[:-1] + ["--method", "exact"], tmp_path)
+    assert code == cli.EXIT_ERROR and "rotation.speed_table_s: the exact method integrates constant speeds" in stderr

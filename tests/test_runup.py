@@ -424,3 +424,41 @@ def test_frames_agree_for_a_tilting_disk(tmp_path):
     c, _ = _frame_run(path, "rotating", extra, schedule=lambda s: replace(s, Kst_turn=None))
     d, _ = _frame_run(path, "inertial", extra, schedule=lambda s: replace(s, Kst=0.0 * s.Kst))
     assert np.abs(a - c).max() > 1e-3 * scale and np.abs(a - d).max() > 1e-3 * scale
+
+
+# --- a speed table --------------------------------------------------------------------------------
+def test_speed_table_profile_is_piecewise_linear_and_its_integral():
+    """Between knots the speed is linear, its rate the segment's slope, the angle the exact integral (the
+    trapezoid rule is exact for linear pieces; checked against a fine Simpson sum to its O(h^4) = 1e-12)."""
+    from scipy.integrate import simpson
+
+    rot = Rotation(10.0, 0.0, 0.0, "inertial", speed_table_s=(0.0, 0.5, 1.5, 2.0), speed_table_hz=(10, 30, 30, 0))
+    assert rot.speed_at(0.25) == 20.0 and rot.speed_at(1.0) == 30.0 and rot.speed_at(9.0) == 0.0
+    assert rot.acceleration_at(0.1) == pytest.approx(2 * math.pi * 40.0, rel=1e-15)
+    assert rot.acceleration_at(1.0) == 0.0 and rot.acceleration_at(1.75) == pytest.approx(-2 * math.pi * 60.0)
+    t = np.linspace(0.0, 2.5, 25001)
+    ref = simpson(rot.omega_at(t), x=t)
+    assert abs(rot.angle_at(2.5) - ref) <= 1e-12 * ref
+    # a table of two knots is the ramp
+    ramp = Rotation(10.0, 0.0, 0.0, "inertial", ramp_to_hz=30.0, ramp_s=0.5)
+    two = Rotation(10.0, 0.0, 0.0, "inertial", speed_table_s=(0.0, 0.5), speed_table_hz=(10.0, 30.0))
+    tt = np.linspace(-0.1, 1.0, 12)
+    for f in ("speed_at", "acceleration_at", "angle_at"):
+        assert np.array_equal(getattr(ramp, f)(tt), getattr(two, f)(tt))
+
+
+def test_speed_table_run_up_and_down(tmp_path):
+    """The Jeffcott rotor run up through its critical speed and back down by a table: nsfem (rk) against the
+    direct solve as for the ramp (1e-7)."""
+    prof = Rotation(F_A, 0.0, 0.0, "inertial", speed_table_s=(0.0, 1.2, 1.6, 2.8),
+                    speed_table_hz=(F_A, F_B, F_B, F_A))
+    Z2 = np.zeros((2, 2))
+    sched = SpeedSchedule(prof, Z2, Z2, Z2, np.array([ECC, 0.0]), np.array([0.0, ECC]), np.zeros(2))
+    w = 2 * math.pi * F_A
+    sysm = ContactSystem.from_arrays(M=np.eye(2), Q=W0**2 * np.eye(2), C=2 * ZETA * W0 * np.eye(2), omega=w,
+                                     schedule=sched)
+    z0 = ECC * w * w / (W0**2 - w * w + 2j * ZETA * W0 * w)
+    q0, v0 = np.array([z0.real, z0.imag]), np.array([(1j * w * z0).real, (1j * w * z0).imag])
+    res = integrate(sysm, 2.8, "rk", 1e-3, q0, v0, rtol=1e-10, atol=1e-16)
+    ref = direct(prof, q0, v0, res.t)
+    assert np.max(np.abs(whirl(res) - ref)) <= 1e-7 * ref.max()

@@ -493,7 +493,7 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
         return table_warning(inertial_report(model, ops, rot, damp, speeds_hz, count, reduction), model.stack, rot,
                              "undamped_critical_speeds_hz")
     # (a run-up's diagram spans its ramp too)
-    top = max(rot.speed_hz, getattr(rot, "ramp_to_hz", None) or 0.0)
+    top = getattr(rot, "max_speed_hz", rot.speed_hz)
     speeds = default_speeds(ops["open"], top) if speeds_hz is None else np.asarray(speeds_hz)
     res = {c: campbell(o, speeds, count, damp.rayleigh, damp.external) for c, o in ops.items()}
     grav = {c: gravity_resonances(o, rot.phase_deg) for c, o in ops.items()}

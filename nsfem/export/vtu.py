@@ -625,9 +625,11 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     faces = crack_faces(model)
     omega = 2.0 * math.pi * float(result.info.get("speed_hz", 0.0)) if turn else 0.0
     # a run-up's frame turns by the integral of its speed (nsfem.sensors.frame_angle)
-    ramp = (result.info["ramp_to_hz"], float(result.info.get("ramp_s", 0.0))) \
-        if turn and result.info.get("ramp_to_hz") is not None else None
-    from ..sensors import frame_angle
+    from ..sensors import frame_angle, speed_table
+
+    table = speed_table(result.info)
+    ramp = (result.info.get("ramp_to_hz"), float(result.info.get("ramp_s", 0.0)), table) \
+        if turn and (result.info.get("ramp_to_hz") is not None or table is not None) else None
     if phase_deg is None:
         phase_deg = float(result.info.get("phase_deg", 0.0))
     phase = math.radians(phase_deg) if turn else 0.0

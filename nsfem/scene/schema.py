@@ -352,6 +352,9 @@ SCHEMA: dict[str, Any] = {
                           "over ramp_s, kept after (methods rk, penalty, moreau)", check=_nonneg),
         "ramp_s": Key("float", 0.0, "duration of the ramp to ramp_to_hz [s] (> 0 with ramp_to_hz)",
                       check=_nonneg),
+        "speed_table_s": Key("floats", [], "instead of a ramp, a piecewise-linear speed: its times [s] (from 0, "
+                             "increasing; the last speed kept after)"),
+        "speed_table_hz": Key("floats", [], "the table's speeds [Hz] (>= 0; the first is speed_hz)"),
     },
     "damping": {
         "rayleigh": Key("floats", [0.0, 0.0], "internal Rayleigh damping [alpha 1/s, beta s]", length=2,
