@@ -3590,8 +3590,6 @@ def test_bearing_forces_of_a_run_in_a_folder_that_refuses_bearings_csv(tmp_path)
 
 
 # --- issue 35: run-up and coast-down ([rotation] ramp_to_hz, ramp_s) ---
-import re  # noqa: E402
-
 import nsfem  # noqa: E402
 
 RUNUP_TOML = Path(nsfem.__file__).parent / "scenes" / "runup.toml"
