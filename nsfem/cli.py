@@ -29,6 +29,7 @@ SHIPPED_SCENES = {
     "crack": "Jeffcott rotor with a breathing transverse crack under its weight (2x response)",
     "retainer_drop": "spinning rotor dropping onto its retainer bearings (two rings, friction, impacts)",
     "stepped_rotor": "stepped compressor rotor, three impellers, plain journal bearings tabled against speed",
+    "runup": "Jeffcott rotor run up through its critical speed, rubbing an elastic seal on the way",
 }
 
 
@@ -499,6 +500,12 @@ def cmd_stationary(args) -> int:
         print(f"nsfem stationary: warning: {w}", file=sys.stderr)
     payload["warnings"] = info["warnings"]
     payload["notes"] = list(scene.notes)
+    rot = scene.rotation
+    if rot.ramped:   # one speed: the ramp's start, said
+        ramp = (f"a run-up scene ({rot.describe()}): the stationary "
+                f"state at rotation.speed_hz = {rot.speed_hz:g} Hz, the ramp's start")
+        payload["notes"].append(ramp)
+        print(f"nsfem stationary: note: {ramp}", file=sys.stderr)
     loads = " + ".join(info["loads"]) or "none"
     lines = [scene.title, f"speed {info['speed_hz']:g} Hz, constant loads: {loads}; {info['ndof']} dofs "
              f"({info['reduction']['method']}; full model {info['ndof_full']})",
@@ -590,7 +597,8 @@ def cmd_run(args) -> int:
     out_dir = Path(args.out or scene.output.dir)
     what = "--out" if args.out else "output.dir"
     files = _run_files(scene)
-    _check_run_targets(out_dir, scene.output, scene.sensors, what, files["series"], bool(scene.stack.bearings))
+    _check_run_targets(out_dir, scene.output, scene.sensors, what, files["series"], bool(scene.stack.bearings),
+                       scene.rotation.ramped)
     with claim(out_dir, "run", files, what) as written:
         return _run(args, scene, out_dir, written)
 
@@ -604,7 +612,7 @@ def _run_files(scene) -> dict[str, list[str]]:
     out = scene.output
     run = ["result.npz"] + [f"{n}.png" for n in out.plots]
     if scene.sensors:
-        run += ["sensors.csv", "sensors.png"]
+        run += ["sensors.csv", "sensors.png"] + (["runup.png"] if scene.rotation.ramped else [])
     if scene.stack.bearings:
         run += ["bearings.csv", "bearings.png"]
     sim = scene.simulation
@@ -686,6 +694,10 @@ def _run(args, scene, out_dir, written: set) -> int:
 
                 outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
                                                 scene.rotation.speed_hz, scene.title, stator_rings(system))))
+            if scene.rotation.ramped and result.t.size > 1:   # a run-up: amplitude against speed, steady beside
+                from .plot.runup import scene_runup_plot
+
+                outputs.append(str(scene_runup_plot(out_dir / "runup.png", scene, result, system, values)))
         if scene.stack.bearings:
             outputs += _bearing_outputs(result, system, scene, out_dir, extra)
         if result.completed and scene.output.vtu_every:   # last: the longest to write (Ctrl-C there keeps the rest)
@@ -708,6 +720,8 @@ def _run(args, scene, out_dir, written: set) -> int:
                "integration_wall_s": result.wall_s, "outputs": outputs,
                "energy_terms": result.energy, "speed_hz": scene.rotation.speed_hz, "warnings": warnings,
                "interrupted": bool(interrupted), "core": event_core.name(), "notes": list(scene.notes)}
+    if scene.rotation.ramped:   # a run-up: speed_hz is its start
+        payload.update(scene.rotation.record())
     lines = [scene.title, f"{method}: {result.t_end:g} s simulated in {result.wall_s:.3g} s "
              f"({system.n} dofs; full model {summary['ndof_full']}), {summary['events']} events, "
              f"{summary['impacts']} impacts"
@@ -785,10 +799,12 @@ def _check_png(png: str | None) -> None:
                          "file, scene or data named there would be replaced by it)")
 
 
-def _check_run_targets(out_dir, output, sensors, what: str, frames=(), bearings: bool = False) -> None:
+def _check_run_targets(out_dir, output, sensors, what: str, frames=(), bearings: bool = False,
+                       ramp: bool = False) -> None:
     """Refuse, before the run, an output folder or file that cannot be written (``output``: the
     scene's :class:`~nsfem.scene.Output`, ``sensors`` its sensors, ``frames`` the series' names,
-    ``bearings``: the scene has bearings, whose forces go to bearings.csv)."""
+    ``bearings``: the scene has bearings, whose forces go to bearings.csv; ``ramp``: a run-up, whose
+    sensors go to runup.png too)."""
     from .atomic import check_file, check_folder
 
     check_folder(out_dir, what)
@@ -797,7 +813,7 @@ def _check_run_targets(out_dir, output, sensors, what: str, frames=(), bearings:
         names.append("nsfem.pvd")
         _check_frames_folder(out_dir, what, frames)
     if sensors:
-        names += ["sensors.csv", "sensors.png"]
+        names += ["sensors.csv", "sensors.png"] + (["runup.png"] if ramp else [])
     if bearings:
         names += ["bearings.csv", "bearings.png"]
     for name in names:

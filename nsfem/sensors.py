@@ -98,16 +98,41 @@ def hermite_row(model, segment: str, field: str, x: float) -> sp.csr_matrix:
     return sp.csr_matrix((weights, (np.zeros(4, dtype=int), cols)), shape=(1, model.n_full))
 
 
+def speed_table(info: dict) -> tuple | None:
+    """(times, speeds) of a run's speed table from its info (None: no table)."""
+    if info.get("speed_table_s"):
+        return tuple(info["speed_table_s"]), tuple(info["speed_table_hz"])
+    return None
+
+
+def frame_angle(t, speed_hz: float, phase_deg: float = 0.0, ramp_to_hz: float | None = None,
+                ramp_s: float = 0.0, table: tuple | None = None) -> np.ndarray:
+    """The rotating frame's angle theta(t) + phi [rad] at the times ``t``: Omega t + phi at constant speed,
+    the integral of a run-up's Omega(t) (``ramp_to_hz``, ``ramp_s``, or ``table`` = (times, speeds):
+    :class:`~nsfem.scene.parts.Rotation`)."""
+    from .scene.parts import Rotation
+
+    if table is not None:
+        ramp = Rotation(float(table[1][0]), 0.0, phase_deg, "inertial", speed_table_s=table[0],
+                        speed_table_hz=table[1])
+    else:
+        ramp = Rotation(speed_hz, 0.0, phase_deg, "inertial", ramp_to_hz, ramp_s if ramp_to_hz is not None else 0.0)
+    return np.asarray(ramp.angle_at(np.asarray(t, dtype=float)), dtype=float) + math.radians(phase_deg)
+
+
 def read(sensors, model, basis, t: np.ndarray, q: np.ndarray, frame: str, speed_hz: float,
-         phase_deg: float = 0.0) -> np.ndarray:
+         phase_deg: float = 0.0, ramp_to_hz: float | None = None, ramp_s: float = 0.0,
+         table: tuple | None = None) -> np.ndarray:
     """Sensor signals (len(t), len(sensors)) from reduced coordinates q (n, len(t)) with q_full = basis q,
-    computed in the scene's ``frame``; a sensor in the other frame sees them turned by Omega t + phi."""
+    computed in the scene's ``frame``; a sensor in the other frame sees them turned by theta(t) + phi
+    (:func:`frame_angle`: Omega t + phi, or a run-up's integral of Omega(t))."""
     out = np.empty((np.size(t), len(sensors)))
-    theta = 2 * math.pi * speed_hz * np.asarray(t, dtype=float) + math.radians(phase_deg)
+    theta = frame_angle(t, speed_hz, phase_deg, ramp_to_hz, ramp_s, table)
+    spinning = bool(speed_hz) or bool(ramp_to_hz) or (table is not None and any(table[1]))
     for k, s in enumerate(sensors):
         v, w = ((hermite_row(model, s.segment, f, s.x) @ basis) @ q for f in ("V", "W"))
         v, w = np.ravel(v), np.ravel(w)
-        if s.frame != frame and speed_hz:
+        if s.frame != frame and spinning:
             # rotating -> inertial turns by +theta, inertial -> rotating by -theta
             sign = 1.0 if frame == "rotating" else -1.0
             c, sn = np.cos(theta), sign * np.sin(theta)

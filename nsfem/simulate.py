@@ -311,6 +311,10 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
         raise NsfemError(f"simulation.method {method!r} is not available in this version (available: "
                          f"{', '.join(known)})")
     output_times(sim.t_end, sim.output_dt)  # validate before building anything
+    if scene.rotation.ramped and method == "exact":
+        key = "rotation.speed_table_s" if scene.rotation.speed_table_s else "rotation.ramp_to_hz"
+        raise SceneError(key, "the exact method integrates constant speeds (its phases are "
+                         "closed-form exponentials); use method = rk, penalty or moreau")
     model = build_model(scene) if model is None else model
     red = scene_reduction(scene.reduction, model) if reduction is None else reduction
     rot, damp = scene.rotation, scene.damping
@@ -351,14 +355,27 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     if warn is not None and system.n <= GROWTH_CHECK_MAX_DOF:
         rate = growth_rate(system)
         if rate > 0.0:
-            warn(f"the structure without contact forces is unstable at {rot.speed_hz:g} Hz: its "
+            warn(f"the structure without contact forces is unstable at {rot.speed_hz:g} Hz"
+                 f"{' (the run-up starts there)' if rot.ramped else ''}: its "
                  f"fastest-growing mode grows at {rate:.3g} 1/s (x10 every {math.log(10) / rate:.3g} s); unless the "
                  "contacts or damping hold it, displacements soon exceed the linear model's range")
+        if rot.ramped and rate <= 0.0:   # a run-up into an unstable speed: said with the speed and when it comes
+            top = rot.max_speed_hz
+            end = growth_rate(ContactSystem.from_model(model, red, rot, damp, top))
+            if end > 0.0:
+                ts, hz = rot.knots
+                key = "rotation.ramp_to_hz" if rot.ramp_to_hz is not None else "the speed table's top"
+                warn(f"the run-up reaches speeds where the structure without contact forces is unstable: at "
+                     f"{key} = {top:g} Hz (reached at t = {float(ts[int(hz.argmax())]):g} s) its "
+                     f"fastest-growing mode grows at {end:.3g} 1/s; unless the contacts or damping hold it, "
+                     "displacements soon exceed the linear model's range")
     from .contact.tally import system_parts
 
     info = {"ndof_full": model.n, "reduction": red.info, "title": scene.title,
             "speed_hz": rot.speed_hz, "contacts": list(system.model_contacts.labels),
             "frame": rot.frame, "phase_deg": rot.phase_deg,
+            # a run-up: speed_hz stays the initial speed (nsfem.scene.parts.Rotation's profile)
+            **rot.record(),
             # the contact parts and, with elastic rings, the rigid contacts' rows: read by nsfem.contact.tally
             "parts": [p.record() for p in system_parts(system)]}
     if system.info.get("contact_index") is not None:
@@ -384,10 +401,12 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
 def sensor_signals(result: Result, system: ContactSystem) -> np.ndarray:
     """The signals (len(result.t), sensors) of the sensors ``run_scene`` put on ``system``."""
     from .fem.constraints import dense
-    from .sensors import read
+    from .sensors import read, speed_table
 
     sensors = system.info.get("sensors", ())
     if not sensors:
         return np.zeros((result.t.size, 0))
     return read(sensors, system.info["model"], dense(system.info["reduction"].T), result.t, result.q,
-                result.info.get("frame", "rotating"), result.info.get("speed_hz", 0.0), result.info.get("phase_deg", 0.0))
+                result.info.get("frame", "rotating"), result.info.get("speed_hz", 0.0),
+                result.info.get("phase_deg", 0.0), result.info.get("ramp_to_hz"), result.info.get("ramp_s", 0.0),
+                speed_table(result.info))

@@ -186,3 +186,236 @@ def rotor_system(ops: RotorOperators, rotation: Rotation, damping: Damping,
     """The system of ``[rotation]`` and ``[damping]`` on ``ops`` (the speed overridable)."""
     return linear_system(ops, rotation.speed_hz if speed_hz is None else speed_hz, rotation.gravity,
                          rotation.phase_deg, damping.rayleigh, damping.external, rotation.frame)
+
+
+@dataclass(frozen=True)
+class SpeedSchedule:
+    """A run-up or coast-down (docs/theory.md, "Run-up and coast-down"): the parts of the equations that follow
+    the speed profile Omega(t) on top of a system's constant-speed values at Omega_0 = Omega(0):
+
+        C(t) = C + (Omega - Omega_0) C1
+        Q(t) = Q + (Omega - Omega_0) Q1 + (Omega^2 - Omega_0^2) Q2 + Omega' Kst
+        f(t) = f_s + Omega f1 + Omega^2 f2 + Omega' fa + cos psi gc + sin psi gs
+               + Omega^2 (cos psi u + sin psi w) - Omega' (-sin psi u + cos psi w),   psi = theta(t) + phi
+
+    Inertial frame: C1 = Gp1 (gyroscopic), Q1 = -(alpha M J + beta (K0 - Kb) J), Kst the spin-acceleration couple,
+    u, w the unbalance per Omega^2 along its rotating direction and a quarter turn ahead (its load is -m r'' of
+    its mass: centripetal, and tangential against the acceleration), f_s gravity. Rotating frame: C1 = G1
+    (Coriolis), Q1 = c_e P1 + C_b J, Q2 = Kc1 (centrifugal), Kst = G1 / 2 (the Euler force -rho A Omega' x r),
+    f1 = c_e fd1, f2 = fc1 + fu1, fa = fe1 - fq1 (the Euler force on the centroids' offsets and on the unbalance
+    mass), gravity turning by psi (gc = -g Fz, gs = -g Fy). Absent parts are None.
+
+    ``profile`` gives Omega(t), Omega'(t) and theta(t) (a :class:`~nsfem.scene.parts.Rotation`: ``omega_at``,
+    ``acceleration_at``, ``angle_at``)."""
+
+    profile: object
+    C1: np.ndarray
+    Q1: np.ndarray
+    Kst: np.ndarray
+    u: np.ndarray
+    w: np.ndarray
+    f_s: np.ndarray
+    phase: float = 0.0
+    #: per rigid contact, its moving surface's slip velocity per unit Omega (``ContactSet.wS`` at Omega = 1 rad/s):
+    #: friction against the shaft surface follows Omega(t) (None: no friction at a moving surface)
+    surface: tuple | None = None
+    Q2: np.ndarray | None = None
+    f1: np.ndarray | None = None
+    f2: np.ndarray | None = None
+    fa: np.ndarray | None = None
+    gc: np.ndarray | None = None
+    gs: np.ndarray | None = None
+    #: rotating frame: the part of the inertial frame's spin-acceleration couple that is not axisymmetric (Lalanne's
+    #: S = (Kst + Kst^T) / 2), seen from the turning frame: Omega' (cos^2 psi S0 + cos psi sin psi S1 + sin^2 psi S2)
+    Kst_turn: tuple | None = None
+
+    @property
+    def omega0(self) -> float:
+        return float(self.profile.omega_at(0.0))
+
+    def speed(self, t) -> tuple:
+        """(Omega, Omega', psi) at ``t`` (scalars or arrays)."""
+        p = self.profile
+        return p.omega_at(t), p.acceleration_at(t), p.angle_at(t) + self.phase
+
+    def load(self, t) -> np.ndarray:
+        """f(t), shape (n,) for a scalar t or (n, len(t))."""
+        t = np.asarray(t, dtype=float)
+        om, al, psi = self.speed(t)
+        c, s = np.cos(psi), np.sin(psi)
+        out = (np.multiply.outer(self.f_s, np.ones_like(t)) + np.multiply.outer(self.u, om * om * c + al * s)
+               + np.multiply.outer(self.w, om * om * s - al * c))
+        for vec, coef in ((self.f1, om), (self.f2, om * om), (self.fa, al), (self.gc, c), (self.gs, s)):
+            if vec is not None:
+                out = out + np.multiply.outer(vec, coef)
+        return out
+
+    def _changes(self, t) -> tuple[float, float, float]:
+        om, al, _ = self.speed(float(t))
+        om0 = self.omega0
+        return float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
+
+    def spin_couple(self, t: float) -> np.ndarray:
+        """Kst at ``t`` (its turning part in the rotating frame at psi(t))."""
+        if self.Kst_turn is None:
+            return self.Kst
+        _, _, psi = self.speed(float(t))
+        c, s = math.cos(float(psi)), math.sin(float(psi))
+        S0, S1, S2 = self.Kst_turn
+        return self.Kst + c * c * S0 + c * s * S1 + s * s * S2
+
+    def matrices(self, t: float, C: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(C(t), Q(t)) from the constant-speed ``C`` and ``Q`` at Omega_0."""
+        d1, d2, al = self._changes(t)
+        Qt = Q + d1 * self.Q1 + al * self.spin_couple(t)
+        return C + d1 * self.C1, Qt if self.Q2 is None else Qt + d2 * self.Q2
+
+    def force(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The change of the speed-dependent forces from their values at Omega_0 at a state (q, v) (the loads not
+        included: :meth:`load`)."""
+        d1, d2, al = self._changes(t)
+        out = -d1 * (self.C1 @ v + self.Q1 @ q) - al * (self.spin_couple(t) @ q)
+        return out if self.Q2 is None else out - d2 * (self.Q2 @ q)
+
+    def powers(self, t, q: np.ndarray, v: np.ndarray) -> tuple:
+        """(circulatory, drive): the power of the changes' forces on the structure's motion at times ``t``
+        (states as columns, or one state): the circulatory change (Omega - Omega_0) q'^T Q1 q, booked with the
+        circulatory work (a left-hand-side force), and the drive's, -q'^T (Omega' Kst + (Omega^2 - Omega_0^2) Q2) q
+        (the speed held by the drive: its work on the lateral motion; the gyroscopic change does none)."""
+        om, al, psi = self.speed(t)
+        om0 = self.omega0
+        d1, d2 = om - om0, om * om - om0 * om0
+
+        def form(A):
+            return np.einsum("i...,i...->...", v, A @ q)
+        circ = d1 * form(self.Q1)
+        drive = -al * form(self.Kst) - (d2 * form(self.Q2) if self.Q2 is not None else 0.0)
+        if self.Kst_turn is not None:
+            c, s = np.cos(psi), np.sin(psi)
+            S0, S1, S2 = self.Kst_turn
+            drive = drive - al * (c * c * form(S0) + c * s * form(S1) + s * s * form(S2))
+        return circ, drive
+
+    def fastest_rate(self, M: np.ndarray, C: np.ndarray, Q: np.ndarray) -> float:
+        """The largest |eigenvalue| [1/s] of the free structure over the profile (at its two end speeds, where the
+        gyroscopic splitting is widest) or its fastest speed: what a sampling of the motion must resolve."""
+        import scipy.linalg as sla
+
+        p = self.profile
+        times = tuple(float(x) for x in getattr(p, "knots", ((0.0,),))[0])[:64]
+        n = M.shape[0]
+        rate = max(abs(float(p.omega_at(t))) for t in times)
+        for t in times:
+            Ct, Qt = self.matrices(t, C, Q)
+            A = np.block([[np.zeros((n, n)), np.eye(n)], [-sla.solve(M, Qt), -sla.solve(M, Ct)]])
+            lam = np.linalg.eigvals(A)
+            rate = max(rate, float(np.max(np.abs(lam[np.isfinite(lam)]), initial=0.0)))
+        return rate
+
+    def contacts_at(self, t: float, contacts):
+        """``contacts`` (a ContactSet) with its moving surfaces at Omega(t)."""
+        from dataclasses import replace
+
+        if self.surface is None:
+            return contacts
+        om = float(self.profile.omega_at(t))
+        return replace(contacts, wS=tuple(om * w for w in self.surface))
+
+
+def spin_acceleration(model, basis) -> sp.csr_matrix:
+    """Kst: the couple per unit spin acceleration, Omega' Kst q on the left-hand side (inertial frame), in
+    ``basis`` (q_full = basis q).
+
+    A section (or disk) tilted by the slopes V' (a turn about z, the first angle) and then W' (about the
+    turned y, the second) and spun by the third angle at Omega has, to second order, the kinetic energy
+    I_p (Omega^2 / 2 + Omega V'_dot W') (Lalanne & Ferraris's convention, their psi = V', theta = W'). Its
+    Lagrange equations give the gyroscopic couple Omega Gp1 (I_p on (V', W'), -I_p on (W', V')) and, from
+    d/dt (I_p Omega W') in the V' equation, I_p Omega' W': Kst is Gp1's (V', W') block alone (one entry per
+    disk, not Gp1's skew pair)."""
+    from .fem.constraints import project
+    from .fem.rotating import full_operators
+
+    Gp = full_operators(model).Gp1
+    rows = np.zeros(model.n_full)
+    for space in model.spaces.values():
+        rows[space.dofs["V"]] = 1.0
+    Kst = (sp.diags(rows) @ Gp).tocsr()
+    Kst.eliminate_zeros()
+    return project(basis, Kst) if Kst.nnz else sp.csr_matrix((basis.shape[1], basis.shape[1]))
+
+
+def spin_acceleration_turning(model, basis) -> tuple | None:
+    """(S0, S1, S2) in ``basis``: Lalanne's couple Kst = Gp1 / 2 + S has a part S = (Kst + Kst^T) / 2 that is not
+    axisymmetric; with q_inertial = R(psi) q_rotating, R = cos psi + sin psi J on the lateral pairs, the rotating
+    frame sees R^T S R = cos^2 psi S + cos psi sin psi (S J + J^T S) + sin^2 psi J^T S J (the axisymmetric Gp1 / 2
+    is in the Euler force G1 / 2). None without polar inertia."""
+    from .fem.components import lateral_turn
+    from .fem.constraints import dense
+
+    I = sp.identity(model.n_full, format="csr")
+    K = spin_acceleration(model, I)
+    if not K.nnz:
+        return None
+    S = 0.5 * (K + K.T)
+    J = lateral_turn(model.spaces, model.n_full)
+    B = basis if not sp.issparse(basis) else basis.tocsr()
+
+    def proj(A):
+        return dense(B.T @ (A @ B))
+    return proj(S), proj(S @ J + J.T @ S), proj(J.T @ S @ J)
+
+
+def euler_load(model, basis) -> np.ndarray:
+    """fe1 = int rho A (z_c N_V - y_c N_W) dx + m (z_c, -y_c) per disk, in ``basis``: the Euler force -rho A Omega' x r
+    on the sections' centroid offsets per unit Omega' (rotating frame)."""
+    from .fem import hermite
+    from .fem.components import _node
+
+    stack = model.stack
+    out = np.zeros(model.n_full)
+    for s in stack.segments:
+        yc, zc = s.offset
+        if not (yc or zc):
+            continue
+        space = model.spaces[s.name]
+        load = hermite.assemble_weighted(space.x, np.ones_like)
+        out[space.dofs["V"]] += s.rho * s.area * zc * load
+        out[space.dofs["W"]] += -s.rho * s.area * yc * load
+    for d in stack.disks:
+        yc, zc = stack.segment(stack.carrier(d.x)).offset
+        v, w = _node(stack, model.dof, d.x, ("V", "W"))
+        out[v] += d.mass * zc
+        out[w] += -d.mass * yc
+    return np.asarray(basis.T @ out).ravel()
+
+
+def speed_schedule(model, basis, ops: RotorOperators, rotation: Rotation, damping: Damping,
+                   gravity_load: np.ndarray | None) -> SpeedSchedule:
+    """The :class:`SpeedSchedule` of ``rotation``'s ramp on ``ops`` (expressed in ``basis``) in its frame. Refuses
+    what a run-up does not carry: bearings with speed tables."""
+    if ops.bearing_change is not None:
+        raise SceneError("rotation.ramp_to_hz", "bearings with coefficients tabulated against speed are read at one "
+                         "speed; a run-up through their table is not modelled (give constant coefficients, or run "
+                         "constant speeds)")
+    from .fem.constraints import dense
+
+    alpha, beta = damping.rayleigh
+    n = ops.n
+    phase = math.radians(rotation.phase_deg)
+    zero = np.zeros(n)
+    if rotation.frame == "inertial":
+        Q1 = -(alpha * dense(ops.MJ) + beta * dense(ops.KJ))
+        return SpeedSchedule(rotation, dense(ops.Gp1), Q1, dense(spin_acceleration(model, basis)),
+                             np.asarray(ops.fu1, dtype=float), np.asarray(ops.fq1, dtype=float),
+                             zero if gravity_load is None else np.asarray(gravity_load, dtype=float), phase)
+    ce = damping.external
+    G1 = dense(ops.G1)
+    Q1 = dense(ops.CbJ) + (ce * dense(ops.P1) if ce else 0.0)
+    g = rotation.gravity
+    return SpeedSchedule(rotation, G1, Q1, 0.5 * G1, zero, zero, zero, phase, Q2=dense(ops.Kc1),
+                         Kst_turn=spin_acceleration_turning(model, basis),
+                         f1=ce * np.asarray(ops.fd1, dtype=float) if ce else None,
+                         f2=np.asarray(ops.fc1 + ops.fu1, dtype=float),
+                         fa=euler_load(model, basis) - np.asarray(ops.fq1, dtype=float),
+                         gc=-g * np.asarray(ops.Fz, dtype=float) if g else None,
+                         gs=-g * np.asarray(ops.Fy, dtype=float) if g else None)

@@ -3328,7 +3328,7 @@ def test_issue34_modes_of_retainer_drop_does_not_warn_about_the_scene_itself(tmp
 
 
 @pytest.mark.parametrize("name", ["default", "crack", "critical_speed", "retainer_drop", "ross_example", "rub",
-                                  "stepped_rotor"])
+                                  "stepped_rotor", "runup"])
 def test_issue34_shipped_scenes_have_no_notes_and_modes_no_warning(tmp_path, name):
     """A shipped scene states what it means: no note at load, no warning from `modes`."""
     from nsfem import load_scene
@@ -3693,3 +3693,120 @@ def test_issue35_a_table_from_10_hz_is_never_read_at_0_hz(argv, tmp_path):
     assert code == 0 and "outside" not in err, err
     code, _, err = check_invocation(["campbell", "t.toml", "--speeds", "0:40:5"], tmp_path)
     assert code == cli.EXIT_ERROR and "bearing.0.speeds_hz: 0 Hz lies outside" in err, err
+
+
+# --- issue 35: run-up and coast-down ([rotation] ramp_to_hz, ramp_s) ---
+import nsfem  # noqa: E402
+
+RUNUP_TOML = Path(nsfem.__file__).parent / "scenes" / "runup.toml"
+RUNUP = ["runup", "--set", "simulation.t_end=0.02", "--set", "stator.0.clearance=0.05", "--out", "out"]
+
+RUNUP_CASES = [
+    # (extra --set values, method or None, the words of the one-line error)
+    (["rotation.ramp_s=0"], None, "rotation.ramp_s: must be > 0 with rotation.ramp_to_hz"),
+    (["rotation.ramp_s=-1"], None, "rotation.ramp_s"),
+    (["rotation.ramp_to_hz=-5"], None, "rotation.ramp_to_hz"),
+    (["rotation.ramp_to_hz=nan"], None, "rotation.ramp_to_hz: must be finite"),
+    (["rotation.ramp_to_hz=inf"], None, "rotation.ramp_to_hz: must be finite"),
+    (["rotation.ramp_to_hz=\"fast\""], None, "rotation.ramp_to_hz: must be a number"),
+    (["rotation.ramp_to_hz=1e9"], None, "rotation.ramp_to_hz: 1e+09 Hz spins the outermost fibre"),
+    (["rotation.frame=\"rotating\""], None, "stator.0.stiffness: a run-up in the rotating frame does not carry an "
+     "elastic ring"),
+    ([], "exact", "rotation.ramp_to_hz: the exact method integrates constant speeds"),
+    (["stator.0.stiffness=0", "stator.0.damping=0"], "rk",
+     "rotation.ramp_to_hz: rk integrates a run-up of a rotor whose contacts are elastic rings"),
+    (["stator.0.friction=0.1"], "rk", "stator.0.friction: an elastic ring's friction against the shaft surface"),
+    (["stator.0.stiffness=0", "stator.0.damping=0", "stator.0.friction=0.1"], "exact",
+     "rotation.ramp_to_hz: the exact method integrates constant speeds"),
+]
+
+
+@pytest.mark.parametrize("sets,method,text", RUNUP_CASES)
+def test_runup_reproductions(sets, method, text, tmp_path):
+    argv = ["run", *RUNUP, *[a for s in sets for a in ("--set", s)]] + (["--method", method] if method else [])
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == cli.EXIT_ERROR and text in stderr, stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_ramp_s_without_ramp_to_hz_is_refused(tmp_path):
+    code, _, stderr = check_invocation(["run", "critical_speed", "--set", "rotation.ramp_s=2", "--out", "out"],
+                                       tmp_path)
+    assert code == cli.EXIT_ERROR and "rotation.ramp_s: 2 s given without rotation.ramp_to_hz" in stderr
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(start=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(0.0, 60.0)),
+       end=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(0.0, 60.0)),
+       ramp=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-1.0, 3.0)),
+       method=st.sampled_from(["rk", "penalty", "moreau", "exact"]))
+def test_any_ramp_runs_or_is_refused_in_one_line(start, end, ramp, method, tmp_path):
+    """Any speeds and duration and any method: exit 0 with run info whose profile is the scene's (speed_hz the
+    initial speed, ramp_to_hz and ramp_s), or exit 2 with one line before anything is written."""
+    root = Path(tempfile.mkdtemp(dir=tmp_path))
+    argv = ["run", "runup", "--set", "simulation.t_end=0.005", "--set", "simulation.output_dt=1e-3",
+            "--set", "stator.0.clearance=0.05", "--set", f"rotation.speed_hz={start!r}",
+            "--set", f"rotation.ramp_to_hz={end!r}", "--set", f"rotation.ramp_s={ramp!r}", "--method", method,
+            "--set", "simulation.moreau_step=1e-4", "--out", "out", "--json"]
+    code, stdout, _ = check_invocation(argv, root)
+    if code == 0:
+        out = json.loads(stdout)
+        assert method != "exact" or end == start
+        assert out["completed"] and out["speed_hz"] == start
+        assert end == start or (out["ramp_to_hz"], out["ramp_s"]) == (end, ramp)
+    else:
+        assert not (root / "out").exists()
+
+
+def test_runup_into_an_unstable_speed_warns(tmp_path):
+    """Internal damping (beta = 1e-3 s) makes the rotor unstable above its onset: a run-up that reaches 300 Hz
+    from a stable 18 Hz says so before the run, naming the speed (exit 0)."""
+    argv = ["run", "runup", "--set", "damping.rayleigh=[0,1e-3]", "--set", "stator.0.clearance=0.05",
+            "--set", "rotation.ramp_to_hz=300", "--set", "simulation.t_end=0.01", "--out", "out"]
+    code, _, stderr = check_invocation(argv, tmp_path)
+    assert code == 0 and "the run-up reaches speeds where the structure without contact forces is unstable: at " \
+        "rotation.ramp_to_hz = 300 Hz" in stderr, stderr
+
+
+RUNUP_TABLE_CASES = [
+    (["rotation.speed_table_s=[0,1]", "rotation.speed_table_hz=[18]"], "rotation.speed_table_hz: the table needs "
+     "as many speeds as times"),
+    (["rotation.speed_table_s=[0.1,1]", "rotation.speed_table_hz=[18,30]"], "rotation.speed_table_s.0: the table "
+     "starts at t = 0"),
+    (["rotation.speed_table_s=[0,1,1]", "rotation.speed_table_hz=[18,30,20]"], "rotation.speed_table_s.2: the "
+     "times must increase strictly"),
+    (["rotation.speed_table_s=[0,1]", "rotation.speed_table_hz=[18,-3]"], "rotation.speed_table_hz.1: must be >= 0"),
+    (["rotation.speed_table_s=[0,nan]", "rotation.speed_table_hz=[18,20]"], "rotation.speed_table_s.1: must be "
+     "finite"),
+    (["rotation.speed_table_s=[0,1]", "rotation.speed_table_hz=[20,30]"], "rotation.speed_hz: 18 Hz differs from "
+     "the table's first speed"),
+    (["rotation.speed_table_s=[0,1]", "rotation.speed_table_hz=[18,1e9]"], "rotation.speed_table_hz.1: 1e+09 Hz"),
+]
+
+
+@pytest.mark.parametrize("sets,text", RUNUP_TABLE_CASES)
+def test_runup_table_reproductions(sets, text, tmp_path):
+    """A speed table beside the scene's ramp is refused first; without the ramp, each bad table in one line."""
+    base = ["run", "runup", "--set", "simulation.t_end=0.02", "--set", "stator.0.clearance=0.05", "--out", "out"]
+    code, _, stderr = check_invocation(base + [a for s in sets for a in ("--set", s)], tmp_path)
+    # (a key's own check, finite, within the speed limit, comes first)
+    assert code == cli.EXIT_ERROR and ("give a ramp (ramp_to_hz, ramp_s) or a speed table" in stderr
+                                       or text in stderr), stderr
+    (tmp_path / "r.toml").write_text(re.sub(r"ramp_to_hz = .*\nramp_s = .*\n", "", RUNUP_TOML.read_text()))
+    code, _, stderr = check_invocation(["run", "r.toml", *base[2:], *[a for s in sets for a in ("--set", s)]],
+                                       tmp_path)
+    assert code == cli.EXIT_ERROR and text in stderr, stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_runup_table_runs(tmp_path):
+    (tmp_path / "r.toml").write_text(re.sub(r"ramp_to_hz = .*\nramp_s = .*\n", "", RUNUP_TOML.read_text()))
+    argv = ["run", "r.toml", "--set", "rotation.speed_table_s=[0,0.01,0.02]", "--set",
+            "rotation.speed_table_hz=[18,30,0]", "--set", "simulation.t_end=0.03", "--out", "out", "--json"]
+    code, stdout, stderr = check_invocation(argv, tmp_path)
+    assert code == 0, stderr
+    out = json.loads(stdout)
+    assert out["speed_table_hz"] == [18.0, 30.0, 0.0] and out["speed_hz"] == 18.0
+    code, _, stderr = check_invocation(argv[:-1] + ["--method", "exact"], tmp_path)
+    assert code == cli.EXIT_ERROR and "rotation.speed_table_s: the exact method integrates constant speeds" in stderr

@@ -510,7 +510,9 @@ def campbell_report(scene: Scene, model, speeds_hz=None, count: int = 6, reducti
 
         rep = with_log_decrements(inertial_report(model, ops, rot, damp, speeds_hz, count, reduction))
         return table_warning(rep, model.stack, rot, "undamped_critical_speeds_hz")
-    speeds = default_speeds(ops["open"], rot.speed_hz) if speeds_hz is None else np.asarray(speeds_hz)
+    # (a run-up's diagram spans its ramp too)
+    top = getattr(rot, "max_speed_hz", rot.speed_hz)
+    speeds = default_speeds(ops["open"], top) if speeds_hz is None else np.asarray(speeds_hz)
     res = {c: campbell(o, speeds, count, damp.rayleigh, damp.external) for c, o in ops.items()}
     grav = {c: gravity_resonances(o, rot.phase_deg) for c, o in ops.items()}
     div = {c: divergence_speeds(o) for c, o in ops.items()}  # all: bands need every root

@@ -208,7 +208,8 @@ def inertial_report(model, ops: dict, rot: Rotation, damp: Damping, speeds_hz, c
     if speeds_hz is None:
         # past the second forward critical speed (the first of the second mode pair)
         c = crit["open"][0][crit["open"][1] == 1]
-        stop = max(1.23 * (c[min(1, len(c) - 1)] if len(c) else 0.0), 2.0 * rot.speed_hz, 1.0)
+        top = getattr(rot, "max_speed_hz", rot.speed_hz)   # a run-up: over its ramp too
+        stop = max(1.23 * (c[min(1, len(c) - 1)] if len(c) else 0.0), 2.0 * top, 1.0)
         speeds = np.linspace(0.0, stop, 61)
     else:
         speeds = np.asarray(speeds_hz, dtype=float)

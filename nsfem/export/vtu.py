@@ -601,7 +601,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     tuple ``(model, T)`` with q_full = T q (e.g. a rebuilt model and the results file's
     ``basis``). Every ``every``-th output time is written (indices 0, every, 2 every, ...).
     ``frame`` (:func:`series_frame`): None writes the run's frame; ``"inertial"`` turns a rotating-frame
-    run's points and displacements about x by Omega t + phase (Omega = 2 pi ``result.info["speed_hz"]``;
+    run's points and displacements about x by Omega t + phase (Omega = 2 pi ``result.info["speed_hz"]``; a run-up's
+    theta(t), the integral of its speed;
     ``phase_deg`` as ``rotation.phase_deg``, the frame in which gravity points along -z, by default the
     run's, ``result.info["phase_deg"]``). A model with disks, stators, cracks or bearings gets their parts too
     (:func:`disk_geometry`, :func:`stator_geometry`, :func:`crack_geometry`, :func:`bearing_points`; the
@@ -623,6 +624,12 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
     cpoints, cpolys, _ = crack_geometry(model)
     faces = crack_faces(model)
     omega = 2.0 * math.pi * float(result.info.get("speed_hz", 0.0)) if turn else 0.0
+    # a run-up's frame turns by the integral of its speed (nsfem.sensors.frame_angle)
+    from ..sensors import frame_angle, speed_table
+
+    table = speed_table(result.info)
+    ramp = (result.info.get("ramp_to_hz"), float(result.info.get("ramp_s", 0.0)), table) \
+        if turn and (result.info.get("ramp_to_hz") is not None or table is not None) else None
     if phase_deg is None:
         phase_deg = float(result.info.get("phase_deg", 0.0))
     phase = math.radians(phase_deg) if turn else 0.0
@@ -658,7 +665,8 @@ def write_series(result, system_or_model_and_T, out_dir, every: int = 10, frame:
             bpos, bdisp, bdata = bearing_points(model, q_full, dof)
             p, dp, sp_, kp = points, dpoints, spoints, cpoints
             if turn:
-                R = rotation(omega * float(result.t[i]) + phase)
+                R = rotation(omega * float(result.t[i]) + phase if ramp is None
+                             else float(frame_angle(result.t[i], omega / (2.0 * math.pi), 0.0, *ramp)) + phase)
                 p, u, cpos, cdisp, tf, dp, du, sp_, kp, ku, bpos, bdisp = (
                     a @ R.T for a in (points, u, cpos, cdisp, tf, dpoints, du, spoints, cpoints, ku, bpos, bdisp))
             files.append(f"{prefix}_{i:05d}.vtu")

@@ -441,7 +441,13 @@ class EventDriven(Integrator):
             nseg = max(1, math.ceil((t1 - t0) / (16.0 * step)))
             gx, gw = _gauss(_gauss_nodes(((t1 - t0) / nseg) / step * math.pi / 2.0))
         else:  # rk's dense output: 4 nodes per sampling step
-            step = phase.max_step(t1 - t0)
+            rate = None
+            if sysm.schedule is not None:   # a run-up's modes move with the speed: sampled for the fastest of the ramp
+                rate = self.__dict__.get("_schedule_rate")
+                if rate is None:
+                    rate = self._schedule_rate = sysm.schedule.fastest_rate(sysm.M, sysm.C, sysm.Q)
+                rate = max(rate, phase.config.fastest_rate())
+            step = phase.max_step(t1 - t0, rate)
             nseg = max(1, math.ceil((t1 - t0) / step))
             gx, gw = _GX, _GW
         edges = np.linspace(t0, t1, nseg + 1)
@@ -459,6 +465,10 @@ class EventDriven(Integrator):
             energy["dissipated_damping_J"] += float(np.sum(w * np.einsum("it,it->t", v, D @ v)))
         if np.any(P):
             energy["work_circulatory_J"] += float(np.sum(w * np.einsum("it,it->t", v, P @ q)))
+        if sysm.schedule is not None:   # a run-up: the work of Q(t) - Q(0) (SpeedSchedule.powers)
+            circ, drive = sysm.schedule.powers(ts, q, v)
+            energy["work_circulatory_J"] += float(np.sum(w * circ))
+            energy["work_spin_J"] += float(np.sum(w * drive))
         for i, reg, sgn in mode.ring:
             ring = sysm.rings[i]
             u, du = ring.P @ q, ring.P @ v
@@ -820,6 +830,12 @@ class Exact(EventDriven):
     name = "exact"
     round_rings = True
 
+    def __init__(self, system, **options):
+        if system.schedule is not None:
+            raise NsfemError("rotation.ramp_to_hz: the exact method integrates constant speeds (its phases are "
+                             "closed-form exponentials); use method = rk, penalty or moreau")
+        super().__init__(system, **options)
+
     def _advance(self, phase, rows, t0, t1):
         return first_event(phase, rows, t0, t1, getattr(self, "_report", None)), phase.xi
 
@@ -831,6 +847,15 @@ class RungeKutta(EventDriven):
 
     def __init__(self, system, solver: str = "DOP853", rtol: float = 1e-8, atol: float = 1e-12, **options):
         super().__init__(system, **options)
+        if system.schedule is not None and system.contacts.m:
+            raise NsfemError(f"rotation.ramp_to_hz: rk integrates a run-up of a rotor whose contacts are elastic rings "
+                             f"(stator stiffness > 0) or none; {system.contacts.labels[0]} is a rigid contact, whose "
+                             "constraint forces its events read at constant speed: use method = penalty or moreau "
+                             "(a stator may instead be given a stiffness)")
+        if system.schedule is not None and any(r.friction for r in system.rings):
+            raise NsfemError(f"rotation.ramp_to_hz: {system.rings[0].label} has friction against the shaft surface, "
+                             "which slides at Omega(t) r in a run-up: not modelled for a changing speed; set its "
+                             "friction to 0")
         if solver not in ("DOP853", "RK45"):
             raise NsfemError(f"rk solver must be DOP853 or RK45, got {solver!r}")
         if not (0 < rtol < 1) or not (atol > 0):
@@ -842,6 +867,7 @@ class RungeKutta(EventDriven):
 
     def run(self, t_end, output_dt, q0=None, v0=None):
         self._carry = None
+        self.__dict__.pop("_schedule_rate", None)
         return super().run(t_end, output_dt, q0, v0)
 
     def _advance(self, phase, rows, t0, t1):
@@ -856,9 +882,20 @@ class RungeKutta(EventDriven):
             return first_event(phase, rows, t0, t1), phase.xi
 
         Ax, Af = A_aug[:r2, :r2], A_aug[:r2, r2:]
+        sched = self.system.schedule
 
-        def rhs(t, x):
-            return Ax @ x + Af @ harm(t)
+        if sched is None:
+            def rhs(t, x):
+                return Ax @ x + Af @ harm(t)
+        else:   # a run-up: the speed's change from Omega_0 as a force on the configuration's equations
+            B = phase.config.B
+            Pq, Pv = phase.q_map(), phase.v_map()
+            steady = self.system.steady_load
+
+            def rhs(t, x):
+                xi = np.concatenate([x, harm(t)])
+                p = sched.load(t) - steady(t) + sched.force(t, Pq @ xi, Pv @ xi)
+                return Ax @ x + Af @ harm(t) + B @ p
 
         H = rows.H
         Hd = H @ A_aug

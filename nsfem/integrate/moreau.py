@@ -114,16 +114,20 @@ class MoreauJean(Integrator):
         self.step, self.theta, self.progress = step, theta, progress
         self._W: dict[float, tuple] = {}
 
-    def iteration_matrix(self, h: float, rings: tuple = ()) -> tuple[Factorization, np.ndarray, np.ndarray,
-                                                                       np.ndarray, np.ndarray]:
+    def iteration_matrix(self, h: float, rings: tuple = (), speed: tuple | None = None
+                         ) -> tuple[Factorization, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """W = M + h theta C + h^2 theta^2 Q factorized, and the free-velocity maps of step h
         (cached per step size and engaged rings): v_free = A_v v + A_q q + G (f_theta + f_r) with G = h W^-1,
         A_v = I - G (C + h theta Q), A_q = -G Q. ``rings``: engaged elastic rings (ring, region, s), whose
-        force law on that region adds to C, Q and f_r (implicit like the structure's)."""
-        key = (h, rings)
+        force law on that region adds to C, Q and f_r (implicit like the structure's). ``speed``: a run-up's
+        (t, C(t), Q(t)) to take instead of the constant-speed C and Q (cached for the latest t only)."""
+        key = (h, rings) if speed is None else (h, rings, speed[0])
+        if speed is not None and key not in self._W:
+            for old in [k for k in self._W if len(k) == 3 and k[2] != speed[0]]:
+                del self._W[old]
         if key not in self._W:
             s, th = self.system, self.theta
-            C, Q, fr = s.C, s.Q, np.zeros(s.n)
+            (C, Q), fr = ((s.C, s.Q) if speed is None else speed[1:]), np.zeros(s.n)
             for i, region, sgn in rings:
                 Kr, Cr, f = s.rings[i].terms(region, sgn)
                 C, Q, fr = C + Cr, Q + Kr, fr + f
@@ -137,6 +141,7 @@ class MoreauJean(Integrator):
         sysm, th = self.system, self.theta
         cs = sysm.contacts
         n, m = sysm.n, cs.m
+        self._contacts_now = None
         t_out = output_times(t_end, output_dt)
         q, v = initial_state(sysm, q0, v0)
         h_req = output_dt / 10 if self.step is None else self.step
@@ -169,6 +174,8 @@ class MoreauJean(Integrator):
         completed, failure = True, None
         h_full = output_dt / per_output
         harmonic, damped, circulatory = sysm.harmonic, bool(np.any(D)), bool(np.any(P))
+        sched = sysm.schedule
+        harmonic = harmonic or sched is not None
         try:
             for i in range(1, n_out):
                 t0, span = float(t_out[i - 1]), float(t_out[i] - t_out[i - 1])
@@ -178,14 +185,24 @@ class MoreauJean(Integrator):
                     k_sub = max(1, math.ceil(span / h_req - 1e-9))
                     h = span / k_sub
                 f_next = sysm.load(t0) if harmonic else sysm.f0
+                speed = None
+                if sched is not None:   # a run-up: C and Q at the interval's middle, the rest of their change explicit
+                    t_mid = t0 + 0.5 * span
+                    speed = (t_mid, *sched.matrices(t_mid, sysm.C, sysm.Q))
                 for j in range(k_sub):
                     t = t0 + j * h
                     f_prev = f_next
                     f_next = sysm.load(t0 + (j + 1) * h) if harmonic else sysm.f0
                     f_th = (1 - th) * f_prev + th * f_next
                     engaged, latent = ring_states(rings, q, v, t) if rings else ((), ())
-                    Wf, Av, Aq, G, f_r = self.iteration_matrix(h, engaged)
-                    v_free = Av @ v + Aq @ q + G @ (f_th + f_r)
+                    Wf, Av, Aq, G, f_r = self.iteration_matrix(h, engaged, speed)
+                    f_step = f_th
+                    if sched is not None:
+                        t_th = t + th * h
+                        f_step = f_th + sched.force(t_th, q, v) - sched.force(t_mid, q, v)
+                    v_free = Av @ v + Aq @ q + G @ (f_step + f_r)
+                    if sched is not None and sched.surface is not None:   # friction's moving surface at Omega(t)
+                        self._contacts_now = sched.contacts_at(t + h, cs)
                     v_new, impulse, forces, state, imp, n_piv = self._contact_step(Wf, q, v, v_free, h, t + h,
                                                                                    frictional)
                     pivots += n_piv
@@ -197,6 +214,10 @@ class MoreauJean(Integrator):
                         energy["dissipated_damping_J"] += h * float(v_th @ D @ v_th)
                     if circulatory:
                         energy["work_circulatory_J"] += h * float(v_th @ P @ (q + th * h * v_th))
+                    if sched is not None:   # Q(t) - Q(0): circulatory and the drive's (SpeedSchedule.powers)
+                        circ, drive = sched.powers(t_th, q + th * h * v_th, v_th)
+                        energy["work_circulatory_J"] += h * float(circ)
+                        energy["work_spin_J"] += h * float(drive)
                     if rings:
                         _ring_work(rings, engaged, latent, q, q_new, v_th, h, th, energy)
                     dv = v_new - v
@@ -257,7 +278,8 @@ class MoreauJean(Integrator):
         state (m,), impact record or None, Lemke pivots).
         """
         sysm = self.system
-        cs = sysm.contacts
+        cs = self.__dict__.get("_contacts_now")   # a run-up's: its moving surfaces at Omega(t)
+        cs = sysm.contacts if cs is None else cs
         m = cs.m
         nf, tf, state = np.zeros(m), np.zeros((m, 2)), np.zeros(m, dtype=np.int8)
         if m == 0:

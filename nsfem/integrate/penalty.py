@@ -173,7 +173,7 @@ class Penalty(Integrator):
         if system.rings:
             raise NsfemError(f"penalty: {system.rings[0].label} is an elastic ring, a spring-damper already, which "
                              "the penalty method (a regularization of rigid contacts) does not carry: run this "
-                             "scene with method exact, rk or moreau")
+                             f"scene with method {'exact, ' if system.schedule is None else ''}rk or moreau")
         if options:
             raise NsfemError(f"penalty: unknown option(s) {', '.join(sorted(options))} (known: solver, stiffness, "
                              "factor, damping, damping_ratio, restitution_rule, rtol, atol, max_step, "
@@ -238,7 +238,8 @@ class Penalty(Integrator):
         D = 0.5 * (sysm.C + sysm.C.T)
         P = 0.5 * (sysm.Q - sysm.Q.T)
         harmonic, w = sysm.harmonic, sysm.omega
-        A = np.zeros((2 * n + 4, 2 * n + 4))
+        sched = sysm.schedule
+        A = np.zeros((2 * n + 5, 2 * n + 5))
         A[:n, n:2 * n] = np.eye(n)
         A[n:2 * n, :n], A[n:2 * n, n:2 * n] = -Kq, -Cv
         if not np.all(np.isfinite(A)):
@@ -247,16 +248,30 @@ class Penalty(Integrator):
 
         f0, fc, fs, jN = sysm.f0, sysm.fc, sysm.fs, cs.jN[idx]
 
+        if sched is not None:   # a run-up: M^-1 of the speed-dependent parts (nsfem.system.SpeedSchedule)
+            MC1, MQ1, MKst = Minv @ sched.C1, Minv @ sched.Q1, Minv @ sched.Kst
+            Q2 = np.zeros((n, n)) if sched.Q2 is None else sched.Q2
+            MQ2 = Minv @ Q2
+            om0 = sched.omega0
+
         def fun(t, x):
             q, v = x[:n], x[n:2 * n]
             acc = b0 - Kq @ q - Cv @ v
-            f = f0
-            if harmonic:
+            f, w_circ, w_drive = f0, v @ P @ q, 0.0
+            if sched is not None:
+                om, al, _ = sched.speed(t)
+                dw, d2, al = float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
+                f = sched.load(t)
+                acc = acc + Minv @ (f - f0) - dw * (MC1 @ v + MQ1 @ q) - d2 * (MQ2 @ q)
+                acc = acc - al * (MKst @ q if sched.Kst_turn is None else Minv @ (sched.spin_couple(t) @ q))
+                circ, w_drive = sched.powers(t, q, v)
+                w_circ += float(circ)
+            elif harmonic:
                 co, si = math.cos(w * t), math.sin(w * t)
                 acc = acc + bc * co + bs * si
                 f = f0 + fc * co + fs * si
             g, gd = J.T @ q + jN, J.T @ v
-            return np.concatenate([v, acc, [f @ v, v @ D @ v, v @ P @ q, gd @ (self.c_p * g + d * gd)]])
+            return np.concatenate([v, acc, [f @ v, v @ D @ v, w_circ, gd @ (self.c_p * g + d * gd), w_drive]])
 
         def jac(t, x):
             q, v = x[:n], x[n:2 * n]
@@ -267,6 +282,16 @@ class Penalty(Integrator):
             Jx[2 * n + 2, :n], Jx[2 * n + 2, n:2 * n] = -P @ v, P @ q
             Jx[2 * n + 3, :n] = J @ (self.c_p * gd)
             Jx[2 * n + 3, n:2 * n] = J @ (self.c_p * g + 2 * d * gd)
+            if sched is not None:
+                om, al, _ = sched.speed(t)
+                dw, d2, al = float(om) - om0, float(om) ** 2 - om0 ** 2, float(al)
+                Kt = sched.spin_couple(t)
+                Jx[n:2 * n, :n] -= dw * MQ1 + al * (MKst if sched.Kst_turn is None else Minv @ Kt) + d2 * MQ2
+                Jx[n:2 * n, n:2 * n] -= dw * MC1
+                Jx[2 * n + 2, :n] += dw * (sched.Q1.T @ v)
+                Jx[2 * n + 2, n:2 * n] += dw * (sched.Q1 @ q)
+                Kd = al * Kt + d2 * Q2
+                Jx[2 * n + 4, :n], Jx[2 * n + 4, n:2 * n] = -(Kd.T @ v), -(Kd @ q)
             return Jx
 
         self._cache[active] = (fun, jac)
@@ -294,8 +319,8 @@ class Penalty(Integrator):
         t_out = output_times(t_end, output_dt)
         q, v = initial_state(sysm, q0, v0)
         wall0 = time.perf_counter()
-        X = np.zeros((2 * n + 4, len(t_out)))
-        x = np.concatenate([q, v, np.zeros(4)])
+        X = np.zeros((2 * n + 5, len(t_out)))
+        x = np.concatenate([q, v, np.zeros(5)])
         X[:, 0] = x
         filled = 1
         events: list = []
@@ -372,9 +397,9 @@ class Penalty(Integrator):
         K = 0.5 * (sysm.Q + sysm.Q.T)
         E = 0.5 * (np.einsum("it,it->t", v, sysm.M @ v) + np.einsum("it,it->t", q, K @ q)
                    + self.c_p * np.sum(np.minimum(gap, 0.0) ** 2, axis=0))
-        w_ext, d_damp, w_circ, w_contact = X[2 * n:, -1]
+        w_ext, d_damp, w_circ, w_contact, w_drive = X[2 * n:, -1]
         energy = {"initial_J": float(E[0]), "work_external_J": float(w_ext), "dissipated_damping_J": float(d_damp),
-                  "work_circulatory_J": float(w_circ), "dissipated_friction_J": 0.0, "work_spin_J": 0.0,
+                  "work_circulatory_J": float(w_circ), "dissipated_friction_J": 0.0, "work_spin_J": float(w_drive),
                   "lost_in_impacts_J": float(w_contact - 0.5 * self.c_p * np.sum(np.minimum(gap[:, -1], 0.0) ** 2))}
         close_energy(energy, float(E[-1]), float(np.max(np.abs(E))))
         max_pen = max(max_pen, float(-gap.min(initial=0.0)))

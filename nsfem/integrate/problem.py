@@ -17,14 +17,14 @@ that tests can use systems with closed-form answers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..contact.set import ContactSet
-from ..errors import NsfemError
+from ..errors import NsfemError, SceneError
 from ..fem.constraints import dense
 
 if TYPE_CHECKING:
@@ -47,6 +47,9 @@ class ContactSystem:
     #: elastic stator rings (:mod:`nsfem.contact.ring`): force laws, not constraints; ``contacts`` holds the
     #: rigid contacts only (``info["contact_index"]``: their places in the model's contact list)
     rings: tuple = ()
+    #: a run-up or coast-down (:class:`~nsfem.system.SpeedSchedule`): the time-varying C(t), Q(t), f(t) that the
+    #: methods rk, penalty and moreau integrate; M, C, Q, f0, fc, fs are then the constant-speed values at t = 0
+    schedule: object = None
 
     @property
     def n(self) -> int:
@@ -72,7 +75,14 @@ class ContactSystem:
         return self.omega != 0.0 and (np.any(self.fc) or np.any(self.fs))
 
     def load(self, t):
-        """f(t) for a scalar t, shape (n,); for an array of times, shape (n, len(t))."""
+        """f(t) for a scalar t, shape (n,); for an array of times, shape (n, len(t)) (a run-up's schedule
+        included)."""
+        if self.schedule is not None:
+            return self.schedule.load(t)
+        return self.steady_load(t)
+
+    def steady_load(self, t):
+        """f0 + fc cos(omega t) + fs sin(omega t): the load at the constant speed omega (a run-up's at t = 0)."""
         t = np.asarray(t, dtype=float)
         out = np.multiply.outer(self.f0, np.ones_like(t))
         if self.harmonic:
@@ -82,7 +92,7 @@ class ContactSystem:
 
     @classmethod
     def from_arrays(cls, M, Q, C=None, f0=None, fc=None, fs=None, omega: float = 0.0,
-                    contacts: ContactSet | None = None, info=None, rings=()) -> ContactSystem:
+                    contacts: ContactSet | None = None, info=None, rings=(), schedule=None) -> ContactSystem:
         """Validate and build; missing parts are zero (C, loads) or no contacts; ``rings`` elastic stator
         rings (:class:`~nsfem.contact.ring.Ring`) in the same coordinates."""
         M = np.atleast_2d(np.asarray(dense(M), dtype=float))
@@ -118,7 +128,15 @@ class ContactSystem:
         for ring in rings:
             if ring.P.shape != (2, n):
                 raise NsfemError(f"contact system: ring {ring.label} maps {ring.P.shape[1]} coordinates, not {n}")
-        return cls(M, C, Q, vec(f0, "f0"), vec(fc, "fc"), vec(fs, "fs"), float(omega), cs, dict(info or {}), rings)
+        if schedule is not None:
+            for name in ("C1", "Q1", "Kst", "Q2"):
+                if getattr(schedule, name) is not None:
+                    square(getattr(schedule, name), f"schedule.{name}")
+            for name in ("u", "w", "f_s", "f1", "f2", "fa", "gc", "gs"):
+                if getattr(schedule, name) is not None:
+                    vec(getattr(schedule, name), f"schedule.{name}")
+        return cls(M, C, Q, vec(f0, "f0"), vec(fc, "fc"), vec(fs, "fs"), float(omega), cs, dict(info or {}), rings,
+                   schedule)
 
     @classmethod
     def from_scene(cls, scene: Scene, model=None, reduction=None, speed_hz: float | None = None) -> ContactSystem:
@@ -140,12 +158,31 @@ class ContactSystem:
         ``info`` keeps the model, the reduction and the map T (q_full = T q) for outputs.
         """
         from ..fem.rotating import rotor_operators
-        from ..system import rotor_system
+        from ..system import rotor_system, speed_schedule
 
-        lin = rotor_system(rotor_operators(model, reduction.T), rotation, damping, speed_hz)
+        ops = rotor_operators(model, reduction.T)
+        lin = rotor_system(ops, rotation, damping, speed_hz)
         spin = 2.0 * np.pi * (rotation.speed_hz if speed_hz is None else speed_hz)
         full = ContactSet.from_model(model, reduction, omega=spin, frame=rotation.frame)
         rigid, rings = split_rings(full, model.stack.contacts, spin, rotation.frame == "rotating")
+        schedule = None
+        if speed_hz is None and getattr(rotation, "ramped", False):
+            for c in model.stack.contacts:
+                if rotation.frame == "rotating" and c.angle is not None and (c.stiffness > 0.0 or c.friction > 0.0):
+                    what = "an elastic ring, whose law turns with the frame" if c.stiffness > 0.0 else \
+                        "friction against a stator, whose surface slides at Omega(t) r and turns with the frame"
+                    raise SceneError(f"{c.table_key}.{'stiffness' if c.stiffness > 0.0 else 'friction'}",
+                                     f"a run-up in the rotating frame does not carry {what}; run it in the "
+                                     "inertial frame (rotation.frame = \"inertial\", an axisymmetric rotor)")
+                if c.friction > 0.0 and c.stiffness > 0.0:
+                    raise SceneError(f"{c.table_key or c.label}.friction", "an elastic ring's friction against the "
+                                     "shaft surface, which slides at Omega(t) r in a run-up, is not modelled for a "
+                                     "changing speed; set it to 0, or make the stator rigid (stiffness = 0) and run "
+                                     "method = moreau")
+            schedule = speed_schedule(model, reduction.T, ops, rotation, damping, lin.f0)
+            if any(c.friction > 0.0 for c in model.stack.contacts):   # the moving surfaces' speed per unit Omega
+                unit = ContactSet.from_model(model, reduction, omega=1.0, frame=rotation.frame)
+                schedule = replace(schedule, surface=(unit.subset(rigid) if rings else unit).wS)
         info = {"model": model, "reduction": reduction, "ndof_full": model.n,
                 "omega2_ref": omega2_ref(model.K, model.M)}
         if rings:
@@ -153,7 +190,7 @@ class ContactSystem:
         # the rigid stators that the exact method makes round (:mod:`..integrate.round`)
         info["round_rings"] = tuple(sorted({c.table_key for c in model.stack.contacts if c.round}))
         return cls.from_arrays(lin.M, lin.Q, lin.C, lin.f0, lin.fc, lin.fs, lin.omega, full.subset(rigid) if rings
-                               else full, info, rings)
+                               else full, info, rings, schedule)
 
 
 def split_rings(cs: ContactSet, contacts, spin: float, rotating: bool) -> tuple[list[int], tuple]:

@@ -36,11 +36,12 @@ def psd_plot(result, system, path, x: float | None = None, field: str = "W",
     sensors = system.info.get("sensors", ()) if x is None else ()
     if sensors:
         # the first sensor, in its own frame: what the probe on the machine would give
-        from ..sensors import read
+        from ..sensors import read, speed_table
 
         s = sensors[0]
         w = read(sensors[:1], model, _dense(T), t, result.q[:, sel], frame, result.info.get("speed_hz", 0.0),
-                 result.info.get("phase_deg", 0.0))[:, 0]
+                 result.info.get("phase_deg", 0.0), result.info.get("ramp_to_hz"), result.info.get("ramp_s", 0.0),
+                 speed_table(result.info))[:, 0]
         pt = {"x": s.x, "segment": s.segment, "undamaged": True}
         field, frame, label = f"{s.direction} ({s.name})", s.frame, f"sensor {s.name} at x = {s.x:.4g} m"
     else:

@@ -224,8 +224,10 @@ def check_frame(tree: dict, stack: BeamStack) -> None:
     turns with respect to them; and friction at a stop fixed in space acts against a surface that
     slides past it at Omega r, which a point stop does not model."""
     rot = tree["rotation"]
-    check_frame_at_speed(rot["frame"], stack, rot["speed_hz"] > 0.0)
-    if rot["frame"] == "inertial" and rot["speed_hz"] > 0.0:
+    # a run-up from rest spins too
+    spinning = max(rot["speed_hz"], rot.get("ramp_to_hz") or 0.0, *(rot.get("speed_table_hz") or [0.0])) > 0.0
+    check_frame_at_speed(rot["frame"], stack, spinning)
+    if rot["frame"] == "inertial" and spinning:
         for c in stack.contacts:
             if c.friction > 0.0 and c.angle is None:   # (a stator's facet models the sliding surface)
                 raise SceneError(f"{c.label}.friction", "friction at a stop fixed in space acts against the shaft "

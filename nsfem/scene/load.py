@@ -141,6 +141,10 @@ def scene_from_tree(raw: dict, overrides: Iterable[str] = (), path: Path | None 
     check_components(tree, stack)
     check_frame(tree, stack)
     check_speed(tree["rotation"]["speed_hz"], stack)
+    if tree["rotation"].get("ramp_to_hz") is not None:
+        check_speed(tree["rotation"]["ramp_to_hz"], stack, "rotation.ramp_to_hz")
+    for k, v in enumerate(tree["rotation"].get("speed_table_hz") or ()):
+        check_speed(v, stack, f"rotation.speed_table_hz.{k}")
     check_mesh(tree["mesh"], stack, base)
     from ..sensors import sensors_from_scene
 

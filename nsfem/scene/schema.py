@@ -359,6 +359,13 @@ SCHEMA: dict[str, Any] = {
         "phase_deg": Key("float", 0.0, "angle of the rotating frame at t = 0 [deg]"),
         "frame": Key("str", "rotating", "frame of the coordinates: rotating with the shaft (any rotor, isotropic "
                      "bearings) or inertial (axisymmetric rotors, any bearings)", FRAMES),
+        "ramp_to_hz": Key("float?", None, "run-up or coast-down: the speed [Hz] reached linearly from speed_hz "
+                          "over ramp_s, kept after (methods rk, penalty, moreau)", check=_nonneg),
+        "ramp_s": Key("float", 0.0, "duration of the ramp to ramp_to_hz [s] (> 0 with ramp_to_hz)",
+                      check=_nonneg),
+        "speed_table_s": Key("floats", [], "instead of a ramp, a piecewise-linear speed: its times [s] (from 0, "
+                             "increasing; the last speed kept after)"),
+        "speed_table_hz": Key("floats", [], "the table's speeds [Hz] (>= 0; the first is speed_hz)"),
     },
     "damping": {
         "rayleigh": Key("floats", [0.0, 0.0], "internal Rayleigh damping [alpha 1/s, beta s]", length=2,
