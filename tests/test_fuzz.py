@@ -3693,3 +3693,47 @@ def test_issue35_a_table_from_10_hz_is_never_read_at_0_hz(argv, tmp_path):
     assert code == 0 and "outside" not in err, err
     code, _, err = check_invocation(["campbell", "t.toml", "--speeds", "0:40:5"], tmp_path)
     assert code == cli.EXIT_ERROR and "bearing.0.speeds_hz: 0 Hz lies outside" in err, err
+
+
+# --- issue 35: response above the structure's instability onset, campbell text log decs ---
+def test_issue35_response_above_the_oil_whip_onset_warns_and_marks_the_speeds(tmp_path):
+    """stepped_rotor's contact-free structure grows above its oil-whip onset (campbell: 136.518 Hz): a harmonic solve
+    there is no steady state. ``response --speeds 100:150:51`` (1 Hz steps) warns once (stderr and JSON), the onset
+    it names within one speed step of campbell's, marks exactly the speeds above it ``unstable`` and flags any peak
+    found there; the PNG (Bode/polar, unstable range shaded) is written."""
+    code, out, err = check_invocation(["response", "stepped_rotor", "--speeds", "100:150:51", "--json",
+                                       "--png", "r.png"], tmp_path)
+    assert code == 0, err
+    rep = json.loads(out)
+    said = [w for w in rep["warnings"] if "unstable" in w]
+    assert len(said) == 1 and err.count("structure is unstable") == 1, (rep["warnings"], err)
+    onset = rep["stable_below_hz"]
+    assert abs(onset - 136.518) <= 1.0, onset            # the grid step: 1 Hz
+    assert f"{onset:.4g} Hz" in said[0] and "1/s" in said[0]
+    s = np.array(rep["speeds_hz"])
+    assert rep["unstable"] == [bool(x >= onset) for x in s]
+    assert all(p["unstable"] == (p["speed_hz"] >= onset) for p in rep["peaks"])
+    assert (tmp_path / "r.png").is_file()
+
+
+def test_issue35_response_of_a_stable_rotor_marks_nothing(tmp_path):
+    """Below the onset (stepped_rotor 20-120 Hz): no warning, every speed stable, ``stable_below_hz`` null."""
+    code, out, err = check_invocation(["response", "stepped_rotor", "--speeds", "20:120:11", "--json"], tmp_path)
+    assert code == 0, err
+    rep = json.loads(out)
+    assert "unstable" not in err and rep["unstable"] == [False] * 11 and rep["stable_below_hz"] is None
+    assert not any(p["unstable"] for p in rep["peaks"])
+
+
+def test_issue35_campbell_text_prints_log_decrements_of_the_critical_speeds(tmp_path):
+    """The text of ``campbell`` gives each damped critical speed's log dec (what the figure's legend and ``modes
+    --speed`` print), the same number as its JSON ``log_decrement``."""
+    code, text, err = check_invocation(["campbell", *ROSS, "--speeds", "0:60:13", "--set", "bearing.0.cyy=2e3",
+                                        "--set", "bearing.0.czz=2e3"], tmp_path)
+    assert code == 0, err
+    code, out, err = check_invocation(["campbell", *ROSS, "--speeds", "0:60:13", "--set", "bearing.0.cyy=2e3",
+                                       "--set", "bearing.0.czz=2e3", "--json"], tmp_path)
+    crit = json.loads(out)["critical_speeds"]["open"]
+    assert crit and "log dec" in text
+    for c in crit:
+        assert f"log dec {c['log_decrement']:.3g}" in text, (c, text)
