@@ -3737,3 +3737,11 @@ def test_issue35_campbell_text_prints_log_decrements_of_the_critical_speeds(tmp_
     assert crit and "log dec" in text
     for c in crit:
         assert f"log dec {c['log_decrement']:.3g}" in text, (c, text)
+
+
+def test_issue35_stationary_note_points_a_linear_rotor_to_response(tmp_path):
+    """stationary of stepped_rotor (unbalance, anisotropic bearings, no contact) says where its steady 1x response
+    is: `nsfem response` (the harmonic solve), not a transient `nsfem sweep`."""
+    code, out, err = check_invocation(["stationary", "stepped_rotor", "--json"], tmp_path)
+    assert code == 0, err
+    assert "nsfem response" in json.loads(out)["note"]
