@@ -3745,3 +3745,20 @@ def test_issue35_stationary_note_points_a_linear_rotor_to_response(tmp_path):
     code, out, err = check_invocation(["stationary", "stepped_rotor", "--json"], tmp_path)
     assert code == 0, err
     assert "nsfem response" in json.loads(out)["note"]
+
+
+@pytest.mark.parametrize("q", [0.0, 5e6, -5e6])
+def test_issue35_response_unstable_speeds_are_campbells_growing_ones(q, tmp_path):
+    """Any cross coupling of ross_example's bearing (stable, growing from rest on): ``response``'s ``unstable`` flags
+    are exactly the speeds where ``campbell`` at the same speeds reports a positive growth rate, and it warns once
+    exactly when one is flagged."""
+    common = [*ROSS, "--speeds", "1:60:12", "--json", "--set", f"bearing.0.kyz={q!r}",
+              "--set", f"bearing.0.kzy={-q!r}"]
+    code, out, err = check_invocation(["response", *common], tmp_path)
+    assert code == 0, err
+    rep = json.loads(out)
+    code, out, err2 = check_invocation(["campbell", *common], tmp_path)
+    grows = [g > 0 for g in json.loads(out)["growth_rate_per_s"]["open"]]
+    assert rep["unstable"] == grows
+    assert err.count("structure is unstable") == (1 if any(grows) else 0)
+    assert (rep["stable_below_hz"] is None) == (not any(grows))

@@ -293,11 +293,11 @@ def unstable_warning(ranges, first_hz: float) -> str | None:
         return None
     parts = []
     for a, b, g in ranges:
-        where = (f"from {a:.4g} Hz" if a > first_hz else f"from {a:.4g} Hz (the first speed) or below") + (
-            f" to {b:.4g} Hz" if b is not None else " on")
+        where = f"from {a:.4g} Hz" + (f" to {b:.4g} Hz" if b is not None else " on") + (
+            "" if a > first_hz else " (from the first speed: it may start lower)")
         parts.append(f"{where} (growth up to {g:.3g} 1/s, amplitude x e every {1 / g:.3g} s)" if g > 0 else where)
-    return ("the contact-free structure is unstable " + "; ".join(parts) + ": free motion grows (internal damping "
-            "or cross-coupled bearings, campbell's instability onsets), so the harmonic solve there is no steady "
+    return ("the contact-free structure is unstable " + "; ".join(parts) + ": free motion grows (internal damping, "
+            "cross-coupled bearings or a divergence: campbell's instability onsets), so the harmonic solve there is no steady "
             "state; those speeds are marked 'unstable' and their peaks are no resonances to operate by")
 
 
