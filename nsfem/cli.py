@@ -461,7 +461,7 @@ def cmd_campbell(args) -> int:
              f"{rep['speeds_hz'][0]:g} to {rep['speeds_hz'][-1]:g} Hz, {rep['frame']} frame"]
     if inertial:
         lines += ["critical speeds [Hz] (1x crossings of the damped branches; b backward, f forward, p planar, "
-                  "b/p: branch backward, planar at that speed; damping ratio)",
+                  "b/p: branch backward, planar at that speed; log dec; damping ratio zeta)",
                   *rows(" " * 24, lambda c: map(_crossing, rep["critical_speeds"][c])),
                   "undamped critical speeds open: " + fmt(f"{x:.3f} ({w[0]})" for x, w in zip(
                       rep["undamped_critical_speeds_hz"]["open"], rep["undamped_critical_whirl"]["open"])),
@@ -476,10 +476,12 @@ def cmd_campbell(args) -> int:
 
 def _crossing(c: dict) -> str:
     """A damped critical speed for the text output: speed, branch label (/ the crossing's own whirl where it
-    differs), damping ratio to two decimals (0.00, never -0.00, for a round-off-sized one)."""
+    differs), log decrement to three significant digits (as the figure's legend; 0, never -0, for a round-off-sized
+    one) and damping ratio to two decimals (0.00, never -0.00)."""
     whirl = c["whirl"][0] + ("" if c["whirl_at_speed"] == c["whirl"] else "/" + c["whirl_at_speed"][0])
     ratio = f"{c['damping_ratio'] + 0.0:.2f}".replace("-0.00", "0.00")
-    return f"{c['speed_hz']:.3f} ({whirl}, {ratio})"
+    dec = f"log dec {c['log_decrement'] + 0.0:.3g}" if "log_decrement" in c else None
+    return f"{c['speed_hz']:.3f} ({whirl}, {dec + ', ' if dec else ''}zeta {ratio})"
 
 
 def cmd_stationary(args) -> int:
@@ -1025,14 +1027,19 @@ def cmd_response(args) -> int:
     for name, v in rep["sensors"].items():
         k = int(np.argmax(v["amplitude_m"]))
         lines.append(f"  {name}: largest 1x amplitude {v['amplitude_m'][k]:.4e} m at {speeds[k]:.6g} Hz "
-                     f"(phase lag {round(v['phase_deg'][k], 1) % 360.0:.1f} deg)")
+                     f"(phase lag {round(v['phase_deg'][k], 1) % 360.0:.1f} deg)"
+                     + (" where the structure is unstable: no steady state" if rep["unstable"][k] else ""))
     for p in rep["peaks"]:
         sm = "" if p["separation_margin"] is None else f", separation margin {p['separation_margin']:.1f} %"
         lines.append(f"  peak {p['sensor']}: {p['speed_hz']:.6g} Hz, {p['amplitude_m']:.4e} m, amplification "
                      f"factor {p['amplification_factor']:.3g} (half-power band {p['band_hz'][0]:.6g}-"
-                     f"{p['band_hz'][1]:.6g} Hz){sm}")
+                     f"{p['band_hz'][1]:.6g} Hz){sm}"
+                     + (" [structure unstable there: no steady state, not a resonance]" if p["unstable"] else ""))
     if not rep["peaks"]:
         lines.append("  no peak with its half-power band inside the speeds")
+    if rep["unstable_ranges_hz"]:
+        lines.append("  structure unstable (no steady state) " + ", ".join(
+            f"{a:.6g}-{b:.6g} Hz" if b is not None else f"from {a:.6g} Hz on" for a, b in rep["unstable_ranges_hz"]))
     lines += [f"wrote {o}" for o in outputs]
     _emit(args, payload, "\n".join(lines))
     return 0

@@ -4,7 +4,8 @@ test_campbell_references.py). Run it with ROSS's own interpreter:
     /work/rossvenv/bin/python studies/ross_stepped_rotor.py
 
 It reads the scene file itself (one source for both models) and builds ROSS's rotor of the same elements: 24
-ShaftElements of 50 mm (shear_effects=False, rotary_inertia=True, gyroscopic=True: nsfem's Rayleigh beam), the
+ShaftElements of 50 mm (shear_effects=True, rotary_inertia=True, gyroscopic=True: nsfem's Timoshenko beam with its default Cowper
+shear coefficient, ROSS's default too), the
 diameters of the [[shaft.step]] tables, DiskElement.from_geometry for each [[disk]], and per [[bearing]] a
 BearingElement at its node. Axes: nsfem's y, z are ROSS's x, y (kyz = ROSS's kxy, kzy = ROSS's kyx, likewise c).
 
@@ -63,7 +64,7 @@ def rotor_at(scene, speed_hz):
                 return st["diameter"]
         return sh["diameter"]
 
-    shaft = [rs.ShaftElement(L=h, idl=0.0, odl=diameter((i + 0.5) * h), material=steel, shear_effects=False,
+    shaft = [rs.ShaftElement(L=h, idl=0.0, odl=diameter((i + 0.5) * h), material=steel, shear_effects=True,
                              rotary_inertia=True, gyroscopic=True) for i in range(n_el)]
     disks = [rs.DiskElement.from_geometry(n=int(round(d["x"] / h)), material=rs.Material(
         name=f"disk_{i}", rho=d["rho"], E=sh["E"], Poisson=0.3), width=d["width"], i_d=d["inner_diameter"],

@@ -422,3 +422,29 @@ def test_figure_colours_branches_by_log_dec_and_draws_an_unstable_branch_red(mon
     monkeypatch.undo()
     path = report_plot(tmp_path / "written.png", rep, scene.title)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# --- issue 35 review: every line of the Campbell legend can be told apart ---
+@pytest.mark.slow   # stepped_rotor's campbell under pytest: 30-40 s on a loaded 2-core machine
+def test_campbell_legend_lines_are_distinct(monkeypatch):
+    """stepped_rotor has an axial branch (its thrust bearing): since the branches' lines are all black (their colour
+    is the log dec's band), the axial branch's line must not share the 1x line's style, or the legend cannot tell
+    the two apart (both were ':' black)."""
+    import nsfem.plot.campbell as pc
+
+    figs = []
+    monkeypatch.setattr(pc, "save", lambda fig, path: figs.append(fig) or path)
+    scene = load_scene("stepped_rotor")
+    model = build_model(scene)
+    rep = campbell_report(scene, model, None, 6, scene_reduction(scene.reduction, model))   # (61 speeds: 4 s)
+    pc.report_plot("unused.png", rep, scene.title, scene.rotation.speed_hz)
+    legend = figs[0].legends[0]
+    seen = {}
+    for handle, text in zip(legend.legend_handles, [t.get_text() for t in legend.get_texts()]):
+        if hasattr(handle, "get_linestyle") and handle.get_linestyle() not in ("None", "none", "") and text:
+            key = (str(handle.get_linestyle()), str(getattr(handle, "_unscaled_dash_pattern", "")),  # (a custom dash reads '--')
+                   handle.get_color() if hasattr(handle, "get_color") else None, getattr(handle, "get_marker",
+                                                                                        lambda: None)())
+            assert key not in seen, (text, seen.get(key))
+            seen[key] = text
+    assert "axial" in seen.values() and any(t.startswith("1x") for t in seen.values())

@@ -3810,3 +3810,72 @@ def test_runup_table_runs(tmp_path):
     assert out["speed_table_hz"] == [18.0, 30.0, 0.0] and out["speed_hz"] == 18.0
     code, _, stderr = check_invocation(argv[:-1] + ["--method", "exact"], tmp_path)
     assert code == cli.EXIT_ERROR and "rotation.speed_table_s: the exact method integrates constant speeds" in stderr
+
+
+# --- issue 35: response above the structure's instability onset, campbell text log decs ---
+def test_issue35_response_above_the_oil_whip_onset_warns_and_marks_the_speeds(tmp_path):
+    """stepped_rotor's contact-free structure grows above its oil-whip onset (campbell: 135.778 Hz): a harmonic solve
+    there is no steady state. ``response --speeds 100:150:51`` (1 Hz steps) warns once (stderr and JSON), the onset
+    it names within one speed step of campbell's, marks exactly the speeds above it ``unstable`` and flags any peak
+    found there; the PNG (Bode/polar, unstable range shaded) is written."""
+    code, out, err = check_invocation(["response", "stepped_rotor", "--speeds", "100:150:51", "--json",
+                                       "--png", "r.png"], tmp_path)
+    assert code == 0, err
+    rep = json.loads(out)
+    said = [w for w in rep["warnings"] if "unstable" in w]
+    assert len(said) == 1 and err.count("structure is unstable") == 1, (rep["warnings"], err)
+    onset = rep["stable_below_hz"]
+    assert abs(onset - 135.778) <= 1.0, onset            # the grid step: 1 Hz
+    assert f"{onset:.4g} Hz" in said[0] and "1/s" in said[0]
+    s = np.array(rep["speeds_hz"])
+    assert rep["unstable"] == [bool(x >= onset) for x in s]
+    assert all(p["unstable"] == (p["speed_hz"] >= onset) for p in rep["peaks"])
+    assert (tmp_path / "r.png").is_file()
+
+
+def test_issue35_response_of_a_stable_rotor_marks_nothing(tmp_path):
+    """Below the onset (stepped_rotor 20-120 Hz): no warning, every speed stable, ``stable_below_hz`` null."""
+    code, out, err = check_invocation(["response", "stepped_rotor", "--speeds", "20:120:11", "--json"], tmp_path)
+    assert code == 0, err
+    rep = json.loads(out)
+    assert "unstable" not in err and rep["unstable"] == [False] * 11 and rep["stable_below_hz"] is None
+    assert not any(p["unstable"] for p in rep["peaks"])
+
+
+def test_issue35_campbell_text_prints_log_decrements_of_the_critical_speeds(tmp_path):
+    """The text of ``campbell`` gives each damped critical speed's log dec (what the figure's legend and ``modes
+    --speed`` print), the same number as its JSON ``log_decrement``."""
+    code, text, err = check_invocation(["campbell", *ROSS, "--speeds", "0:60:13", "--set", "bearing.0.cyy=2e3",
+                                        "--set", "bearing.0.czz=2e3"], tmp_path)
+    assert code == 0, err
+    code, out, err = check_invocation(["campbell", *ROSS, "--speeds", "0:60:13", "--set", "bearing.0.cyy=2e3",
+                                       "--set", "bearing.0.czz=2e3", "--json"], tmp_path)
+    crit = json.loads(out)["critical_speeds"]["open"]
+    assert crit and "log dec" in text
+    for c in crit:
+        assert f"log dec {c['log_decrement']:.3g}" in text, (c, text)
+
+
+def test_issue35_stationary_note_points_a_linear_rotor_to_response(tmp_path):
+    """stationary of stepped_rotor (unbalance, anisotropic bearings, no contact) says where its steady 1x response
+    is: `nsfem response` (the harmonic solve), not a transient `nsfem sweep`."""
+    code, out, err = check_invocation(["stationary", "stepped_rotor", "--json"], tmp_path)
+    assert code == 0, err
+    assert "nsfem response" in json.loads(out)["note"]
+
+
+@pytest.mark.parametrize("q", [0.0, 5e6, -5e6])
+def test_issue35_response_unstable_speeds_are_campbells_growing_ones(q, tmp_path):
+    """Any cross coupling of ross_example's bearing (stable, growing from rest on): ``response``'s ``unstable`` flags
+    are exactly the speeds where ``campbell`` at the same speeds reports a positive growth rate, and it warns once
+    exactly when one is flagged."""
+    common = [*ROSS, "--speeds", "1:60:12", "--json", "--set", f"bearing.0.kyz={q!r}",
+              "--set", f"bearing.0.kzy={-q!r}"]
+    code, out, err = check_invocation(["response", *common], tmp_path)
+    assert code == 0, err
+    rep = json.loads(out)
+    code, out, err2 = check_invocation(["campbell", *common], tmp_path)
+    grows = [g > 0 for g in json.loads(out)["growth_rate_per_s"]["open"]]
+    assert rep["unstable"] == grows
+    assert err.count("structure is unstable") == (1 if any(grows) else 0)
+    assert (rep["stable_below_hz"] is None) == (not any(grows))

@@ -225,6 +225,82 @@ def orbits(res: Response, sensors) -> list[dict]:
     return out
 
 
+#: stability of the contact-free structure: the roots looked at per speed (as campbell's default count) and at most
+#: this many speeds evaluated (a longer list is sampled evenly and the boundaries refined by bisection)
+STABILITY_COUNT = 6
+STABILITY_GRID = 201
+
+
+def unstable_ranges(ops, speeds_hz, rotation, damping) -> tuple[np.ndarray, list[tuple[float, float | None, float]]]:
+    """Where the contact-free structure at each speed grows (the largest real part of its state roots, as
+    :func:`.campbell.growth_rate`, above round-off): a harmonic solve there is a particular solution, not a steady
+    state. Returns (unstable flag per speed, [(from_hz, to_hz or None: to the last speed, largest growth [1/s])]).
+
+    The growth is evaluated at the speeds (at most :data:`STABILITY_GRID` of them, evenly sampled beyond) and each
+    change of sign between two of them refined by bisection to 1e-6 of the speed, following the root that grows
+    at the unstable end (as :func:`.whirl.instability_onsets`); a speed is unstable when it lies in a range."""
+    from ..system import linear_system
+    from .campbell import _omega_max, growth_rate, state_eigenvalues
+
+    def roots(f):
+        system = linear_system(ops, f, 0.0, 0.0, damping.rayleigh, damping.external, rotation.frame)
+        return state_eigenvalues(system, STABILITY_COUNT), _omega_max(system.M, system.Q)
+
+    def growth(f):
+        lam, top = roots(f)
+        return growth_rate(lam, STABILITY_COUNT, top)
+
+    speeds = np.asarray(speeds_hz, dtype=float)
+    grid = speeds if speeds.size <= STABILITY_GRID else speeds[np.unique(
+        np.round(np.linspace(0, speeds.size - 1, STABILITY_GRID)).astype(int))]
+    g = np.array([growth(f) for f in grid])
+    up = g > 0.0
+
+    def boundary(a: float, b: float, b_grows: bool) -> float:
+        """The speed between a and b where the root growing at the unstable end crosses Re = 0."""
+        lam, _ = roots(b if b_grows else a)
+        track = lam[np.argmax(lam.real)]
+        while b - a > 1e-6 * b:
+            mid = 0.5 * (a + b)
+            lam, _ = roots(mid)
+            track = lam[np.argmin(np.abs(lam - track))]
+            if (track.real > 0.0) == b_grows:
+                b = mid
+            else:
+                a = mid
+        return 0.5 * (a + b)
+
+    ranges = []
+    start = float(grid[0]) if up[0] else None
+    for i in range(1, grid.size):
+        if up[i] and not up[i - 1]:
+            start = boundary(float(grid[i - 1]), float(grid[i]), True)
+        elif up[i - 1] and not up[i]:
+            end = boundary(float(grid[i - 1]), float(grid[i]), False)
+            ranges.append((start, end, float(np.max(g[(grid >= start) & (grid <= end)], initial=0.0))))
+            start = None
+    if start is not None:
+        ranges.append((start, None, float(np.max(g[grid >= start]))))
+    flags = np.zeros(speeds.size, dtype=bool)
+    for a, b, _ in ranges:
+        flags |= (speeds >= a) & ((speeds < b) if b is not None else True)
+    return flags, ranges
+
+
+def unstable_warning(ranges, first_hz: float) -> str | None:
+    """The one warning of :func:`response_report` naming the unstable speed ranges and their growth, or None."""
+    if not ranges:
+        return None
+    parts = []
+    for a, b, g in ranges:
+        where = f"from {a:.4g} Hz" + (f" to {b:.4g} Hz" if b is not None else " on") + (
+            "" if a > first_hz else " (from the first speed: it may start lower)")
+        parts.append(f"{where} (growth up to {g:.3g} 1/s, amplitude x e every {1 / g:.3g} s)" if g > 0 else where)
+    return ("the contact-free structure is unstable " + "; ".join(parts) + ": free motion grows (internal damping, "
+            "cross-coupled bearings or a divergence: campbell's instability onsets), so the harmonic solve there is no steady "
+            "state; those speeds are marked 'unstable' and their peaks are no resonances to operate by")
+
+
 def response_report(scene, model, speeds_hz, reduction) -> dict:
     """Everything ``nsfem response`` prints (checked scene: linear, with sensors and an unbalance)."""
     from ..fem.rotating import rotor_operators
@@ -236,14 +312,25 @@ def response_report(scene, model, speeds_hz, reduction) -> dict:
     if top and float(np.max(speeds_hz)) > 0.5 * top:
         warnings.append(f"speeds above {0.5 * top:.4g} Hz, half the reduced model's highest kept mode "
                         f"({top:.4g} Hz), lie outside its validity: raise reduction.modes")
+    unstable, ranges = unstable_ranges(ops, speeds_hz, scene.rotation, scene.damping)
+    said = unstable_warning(ranges, float(res.speeds_hz[0]))
+    if said:
+        warnings.append(said)
     amp, ph = res.amplitude_m, res.phase_deg
+    found = peaks(res, scene.rotation.speed_hz)
+    for p in found:
+        p["unstable"] = any(a <= p["speed_hz"] and (b is None or p["speed_hz"] < b) for a, b, _ in ranges)
     return {
         "frame": scene.rotation.frame, "ndof": ops.n, "ndof_full": model.n,
         "speeds_hz": res.speeds_hz.tolist(),
         "sensors": {n: {"amplitude_m": amp[:, k].tolist(), "phase_deg": ph[:, k].tolist()}
                     for k, n in enumerate(res.names)},
-        "peaks": peaks(res, scene.rotation.speed_hz),
+        "peaks": found,
         "orbits": orbits(res, scene.sensors),
+        "unstable": unstable.tolist(),
+        # the structure is stable at every speed below this one (None: at all the speeds)
+        "stable_below_hz": float(ranges[0][0]) if ranges else None,
+        "unstable_ranges_hz": [[a, b] for a, b, _ in ranges],
         "warnings": warnings,
         "_response": res,
     }

@@ -299,7 +299,9 @@ def rotor_stationary(model, reduction, rotation: Rotation, damping: Damping, t0:
         st.info["note"] = ("the unbalance is harmonic in the inertial frame and is not a stationary load; " +
                            ("rotation.frame = \"rotating\" makes it one (the bearings are isotropic)"
                             if all(b.isotropic for b in model.stack.bearings) else
-                            "its steady response is the 1x amplitude of the sensors in `nsfem sweep`"))
+                            ("its steady 1x response is `nsfem response` (a harmonic solve)" if not (
+                                model.stack.contacts or model.stack.cracks) else
+                             "its steady response is the 1x amplitude of the sensors in `nsfem sweep`")))
     return st
 
 

@@ -18,7 +18,7 @@ from .common import figure, save
 
 #: whirl code -> (legend name, line style) of a branch's line (nsfem.analysis.whirl codes; its colour is its log dec)
 WHIRL_STYLE = {1: ("forward whirl", "-"), -1: ("backward whirl", "--"), 0: ("planar (no whirl)", "-."),
-               2: ("axial", ":")}
+               2: ("axial", (0, (3, 1, 1, 1, 1, 1)))}   # (dash-dot-dot: the 1x line is the dotted one)
 #: colour map of the log decrements >= 0, and the colour of a growing mode (log dec < 0)
 LOG_DEC_MAP = "viridis_r"
 UNSTABLE_COLOUR = "red"
@@ -76,7 +76,7 @@ def campbell_plot(path: str | Path, open_res, closed_res=None, critical=(), unda
             fmax = max(fmax, float(np.nanmax(y)))
             text, style = WHIRL_STYLE[int(B.label[b])] if inertial else (f"contacts {name}",
                                                                           "-" if name == "open" else "--")
-            ax.plot(x, y, style, color="k", lw=0.9, label=None if text in labelled else text, zorder=3)
+            ax.plot(x, y, linestyle=style, color="k", lw=0.9, label=None if text in labelled else text, zorder=3)
             labelled.add(text)
             drawn.append((x, y, d))
     _log_dec_bands(fig, ax, drawn)
