@@ -9,7 +9,8 @@ sides), shear_effects as the scene's [beam] theory says (timoshenko: True, with 
 shear_coefficient, cowper by default, ROSS's default too; rayleigh: False), rotary_inertia=True, gyroscopic=True, the
 diameters of the [[shaft.step]] tables, DiskElement.from_geometry for each [[disk]], and per [[bearing]] a
 BearingElement at its node. `--theory rayleigh` runs the same rotor without shear (shear_effects=False) whatever
-the scene says: the numbers of the scene before it took shear (docs/validation.md compares the two). Axes: nsfem's y, z are ROSS's x, y (kyz = ROSS's kxy, kzy = ROSS's kyx, likewise c).
+the scene says: the numbers of the scene before it took shear (docs/validation.md compares the two). Axes: nsfem's
+y, z are ROSS's x, y (kyz = ROSS's kxy, kzy = ROSS's kyx, likewise c).
 
 Bearing tables: ROSS interpolates a coefficient table with a smoothing cubic spline (UnivariateSpline), nsfem
 linearly; the two differ between the table's speeds. So every ROSS number here is computed with constant-coefficient
