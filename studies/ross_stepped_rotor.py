@@ -4,10 +4,13 @@ test_campbell_references.py). Run it with ROSS's own interpreter:
     /work/rossvenv/bin/python studies/ross_stepped_rotor.py
 
 It reads the scene file itself (one source for both models) and builds ROSS's rotor of the same elements: 24
-ShaftElements of 50 mm (shear_effects=True, rotary_inertia=True, gyroscopic=True: nsfem's Timoshenko beam with its default Cowper
-shear coefficient, ROSS's default too), the
+ShaftElements of 50 mm of the scene's material (rho, E and G: Material(rho, E, G_s), so nu = E / (2 G) - 1 on both
+sides), shear_effects as the scene's [beam] theory says (timoshenko: True, with shear_method_calc = the scene's
+shear_coefficient, cowper by default, ROSS's default too; rayleigh: False), rotary_inertia=True, gyroscopic=True, the
 diameters of the [[shaft.step]] tables, DiskElement.from_geometry for each [[disk]], and per [[bearing]] a
-BearingElement at its node. Axes: nsfem's y, z are ROSS's x, y (kyz = ROSS's kxy, kzy = ROSS's kyx, likewise c).
+BearingElement at its node. `--theory rayleigh` runs the same rotor without shear (shear_effects=False) whatever
+the scene says: the numbers of the scene before it took shear (docs/validation.md compares the two). Axes: nsfem's
+y, z are ROSS's x, y (kyz = ROSS's kxy, kzy = ROSS's kyx, likewise c).
 
 Bearing tables: ROSS interpolates a coefficient table with a smoothing cubic spline (UnivariateSpline), nsfem
 linearly; the two differ between the table's speeds. So every ROSS number here is computed with constant-coefficient
@@ -56,7 +59,13 @@ def rotor_at(scene, speed_hz):
     sh = scene["shaft"]
     n_el = scene["mesh"]["elements"]
     h = sh["length"] / n_el
-    steel = rs.Material(name="steel_stepped", rho=sh["rho"], E=sh["E"], Poisson=0.3)
+    G = sh.get("G", sh["E"] / (2 * (1 + 0.3)))         # nsfem's default: nu = 0.3
+    steel = rs.Material(name="steel_stepped", rho=sh["rho"], E=sh["E"], G_s=G)
+    theory = scene.get("beam", {}).get("theory", "euler-bernoulli")
+    if theory not in ("rayleigh", "timoshenko"):
+        raise ValueError(f"beam.theory {theory!r}: ROSS's element has rotary inertia (rayleigh or timoshenko)")
+    shear = theory == "timoshenko"
+    method = scene.get("beam", {}).get("shear_coefficient", "cowper")
 
     def diameter(x):
         for st in sh.get("step", []):
@@ -64,8 +73,8 @@ def rotor_at(scene, speed_hz):
                 return st["diameter"]
         return sh["diameter"]
 
-    shaft = [rs.ShaftElement(L=h, idl=0.0, odl=diameter((i + 0.5) * h), material=steel, shear_effects=True,
-                             rotary_inertia=True, gyroscopic=True) for i in range(n_el)]
+    shaft = [rs.ShaftElement(L=h, idl=0.0, odl=diameter((i + 0.5) * h), material=steel, shear_effects=shear,
+                             shear_method_calc=method, rotary_inertia=True, gyroscopic=True) for i in range(n_el)]
     disks = [rs.DiskElement.from_geometry(n=int(round(d["x"] / h)), material=rs.Material(
         name=f"disk_{i}", rho=d["rho"], E=sh["E"], Poisson=0.3), width=d["width"], i_d=d["inner_diameter"],
         o_d=d["outer_diameter"]) for i, d in enumerate(scene["disk"])]
@@ -108,7 +117,9 @@ def main():
     if "--table" in sys.argv:
         return table()
     scene = tomllib.loads(SCENE.read_text())
-    out = {"source": "ROSS 2.3.0, studies/ross_stepped_rotor.py", "speeds": {}}
+    if "--theory" in sys.argv:
+        scene["beam"] = {**scene.get("beam", {}), "theory": sys.argv[sys.argv.index("--theory") + 1]}
+    out = {"source": "ROSS 2.3.0, studies/ross_stepped_rotor.py", "theory": scene["beam"]["theory"], "speeds": {}}
     for s in SPEEDS_HZ:
         wd, ld = lateral(scene, s)
         out["speeds"][f"{s:g}"] = {"frequencies_hz": wd[:MODES].tolist(), "log_decrements": ld[:MODES].tolist()}
