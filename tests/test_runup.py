@@ -509,3 +509,38 @@ def test_ross_runup_history_differs_by_the_kst_sign():
     assert np.max(np.hypot(*(flipped - ross_yz).T)) <= (ross_error + 1e-4) * peak
     # the bound lies below twice Kst's effect: nsfem's own sign cannot pass it
     assert ross_error + 1e-4 < 2 * ross["kst_effect"]["relative_to_peak"] - ross_error
+
+
+def test_runup_plot_legend_covers_no_data(tmp_path, monkeypatch):
+    """runup.png of the shipped scene's shape (a steady peak of 4 mm at 25.6 Hz near the left of an 18 -> 38 Hz
+    ramp, the run's amplitude up to 2.4 mm): no point of any curve lies under the legend's box."""
+    from types import SimpleNamespace
+
+    import nsfem.plot.runup as runup_mod
+
+    grabbed = {}
+    save = runup_mod.save
+
+    def keep(fig, path):
+        out = save(fig, path)
+        grabbed["fig"] = fig
+        return out
+    monkeypatch.setattr(runup_mod, "save", keep)
+    sensors = [SimpleNamespace(name="disk_y", x=0.4, direction="+y", frame="inertial", segment="shaft"),
+               SimpleNamespace(name="disk_z", x=0.4, direction="+z", frame="inertial", segment="shaft")]
+    sp = np.linspace(18.0, 38.0, 1001)
+    amp = np.where(sp < 27.5, 2.0e-3 * (sp - 18.0) / 9.5, 2.0e-3 + 3e-4 * np.sin(sp * 20))
+    th = 2 * np.pi * sp * 5
+    values = np.column_stack([amp * np.cos(th), amp * np.sin(th)])
+    grid = np.linspace(18.0, 38.0, 400)
+    steady = 4.0e-3 / np.sqrt(1 + ((grid - 25.6) / 0.7) ** 2)
+    runup_mod.runup_plot(tmp_path / "r.png", sp, values, sensors, grid, np.column_stack([steady, steady]),
+                         "title", rings=[(0.4, 2e-3)])
+    fig = grabbed["fig"]
+    ax = fig.axes[0]
+    legends = [a.get_legend() for a in fig.axes if a.get_legend() is not None] + list(fig.legends)
+    box = legends[0].get_window_extent(fig.canvas.get_renderer())
+    for line in ax.get_lines():
+        xy = ax.transData.transform(np.column_stack(line.get_data()))
+        inside = (xy[:, 0] > box.x0) & (xy[:, 0] < box.x1) & (xy[:, 1] > box.y0) & (xy[:, 1] < box.y1)
+        assert not inside.any(), line.get_label()
