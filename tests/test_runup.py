@@ -544,3 +544,22 @@ def test_runup_plot_legend_covers_no_data(tmp_path, monkeypatch):
         xy = ax.transData.transform(np.column_stack(line.get_data()))
         inside = (xy[:, 0] > box.x0) & (xy[:, 0] < box.x1) & (xy[:, 1] > box.y0) & (xy[:, 1] < box.y1)
         assert not inside.any(), line.get_label()
+
+
+def test_run_up_sensors_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
+    """sensors.png of the runup scene (18 -> 38 Hz in 1 s): its spectrum of the last half (0.5 - 1 s) marks 1x
+    as the band 28 -> 38 Hz the half sweeps, not the start speed 18 Hz (where the probes hold no line then)."""
+    import nsfem.plot.sensors as sensors_mod
+    from nsfem import cli
+
+    grabbed = {}
+    save = sensors_mod.save
+
+    def keep(fig, path):
+        grabbed["fig"] = fig
+        return save(fig, path)
+    monkeypatch.setattr(sensors_mod, "save", keep)
+    assert cli.main(["run", "runup", "--out", str(tmp_path), "--set", 'output.plots=["psd"]']) == 0
+    texts = [t.get_text() for ax in grabbed["fig"].axes for t in ax.texts]
+    assert not any(t.startswith("1x = 18 Hz") for t in texts)
+    assert "1x = 28 -> 38 Hz" in texts
