@@ -563,3 +563,22 @@ def test_run_up_sensors_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
     texts = [t.get_text() for ax in grabbed["fig"].axes for t in ax.texts]
     assert not any(t.startswith("1x = 18 Hz") for t in texts)
     assert "1x = 28 -> 38 Hz" in texts
+
+
+def test_run_up_psd_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
+    """psd.png of the runup scene (window 0.5 - 1 s, 28 -> 38 Hz): the rotation is marked as that band, not as
+    the start speed 18 Hz and its harmonics."""
+    import nsfem.plot.psd as psd_mod
+    from nsfem import cli
+
+    grabbed = {}
+    save = psd_mod.save
+
+    def keep(fig, path):
+        grabbed["fig"] = fig
+        return save(fig, path)
+    monkeypatch.setattr(psd_mod, "save", keep)
+    assert cli.main(["run", "runup", "--out", str(tmp_path), "--set", 'output.plots=["psd"]']) == 0
+    labels = [h.get_label() for ax in grabbed["fig"].axes for h in ax.get_legend_handles_labels()[0]]
+    assert not any("rotation 18 Hz" in lab for lab in labels)
+    assert any("28 -> 38 Hz" in lab for lab in labels)
