@@ -494,7 +494,7 @@ def _ross_runup(method: str, kst_scale: float, **options):
 @pytest.mark.slow
 def test_ross_runup_history_differs_by_the_kst_sign():
     """ROSS 2.3.0's Newmark run-up (20 -> 60 Hz in 1.5 s through 38.2 Hz, tests/data/ross_runup.json) against
-    nsfem's rk of the same rotor (about 8 minutes on a shared core: slow). ROSS's integration error: halving its
+    nsfem's rk of the same rotor (3 minutes alone, 8 on a shared core: slow). ROSS's integration error: halving its
     step moves the history by 8.3e-5 of the peak, so (second order) its own error is 4/3 of that, 1.1e-4. Kst's
     whole effect is 3.4e-4 of the peak (ROSS with Ksdt zeroed), three times ROSS's error, so the history decides
     the sign. With Kst negated nsfem reproduces ROSS within ROSS's error plus rk's (rtol 1e-8: measured 1.12e-4 in
