@@ -695,7 +695,8 @@ def _run(args, scene, out_dir, written: set) -> int:
                 from .plot.sensors import sensors_plot, stator_rings
 
                 outputs.append(str(sensors_plot(out_dir / "sensors.png", result.t, values, scene.sensors,
-                                                scene.rotation.speed_hz, scene.title, stator_rings(system))))
+                                                scene.rotation.speed_hz, scene.title, stator_rings(system),
+                                                scene.rotation.speed_at if scene.rotation.ramped else None)))
             if scene.rotation.ramped and result.t.size > 1:   # a run-up: amplitude against speed, steady beside
                 from .plot.runup import scene_runup_plot
 

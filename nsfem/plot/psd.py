@@ -52,12 +52,23 @@ def psd_plot(result, system, path, x: float | None = None, field: str = "W",
     dt, w = _uniform(t, w)
     f, P = welch_psd(w, dt, nperseg=nperseg or w.size)
     speed = _speed_hz(result, system)
+    band = _speed_band(result.info, t)
+    if band is not None:
+        speed = max(band)
     nyq = 0.5 / dt
     top = min(nyq, f_max if f_max else (10.0 * speed if speed > 0 else 250.0))
     keep = (f > 0) & (f <= top)
     fig, ax = figure(figsize=FIGSIZE)
     ax.semilogy(f[keep], P[keep], lw=1.2, color="tab:blue", label=label)
-    if speed > 0:
+    band = _speed_band(result.info, t)
+    if band is not None:    # a run-up: the speeds the window sweeps, and their harmonics' bands while apart
+        lo, hi = min(band), max(band)
+        last = max(1, min(int(top // hi), int(lo // (hi - lo))))
+        for h in range(1, last + 1):
+            ax.axvspan(h * lo, h * hi, color="tab:red", alpha=0.12, lw=0,
+                       label=f"rotation {band[0]:.4g} -> {band[1]:.4g} Hz" + (" and harmonics" if last > 1 else "")
+                       if h == 1 else None)
+    elif speed > 0:
         for h in range(1, int(top // speed) + 1):
             ax.axvline(h * speed, color="tab:red", ls=":", lw=0.9,
                        label=f"rotation {speed:g} Hz and harmonics" if h == 1 else None)
@@ -76,3 +87,21 @@ def psd_plot(result, system, path, x: float | None = None, field: str = "W",
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=3, frameon=False)
     fig.tight_layout()
     return save(fig, path)
+
+
+def _speed_band(info: dict, t: np.ndarray) -> tuple[float, float] | None:
+    """(speed at t[0], speed at t[-1]) [Hz] of a run-up's window (a ramp or a speed table in the run's info),
+    None at constant speed."""
+    from ..scene.parts import Rotation
+    from ..sensors import speed_table
+
+    table = speed_table(info)
+    if table is not None:
+        rot = Rotation(float(table[1][0]), 0.0, 0.0, "inertial", speed_table_s=table[0], speed_table_hz=table[1])
+    elif info.get("ramp_to_hz") is not None and info.get("ramp_s"):
+        rot = Rotation(float(info.get("speed_hz", 0.0)), 0.0, 0.0, "inertial", float(info["ramp_to_hz"]),
+                       float(info["ramp_s"]))
+    else:
+        return None
+    a, b = float(rot.speed_at(float(t[0]))), float(rot.speed_at(float(t[-1])))
+    return None if a == b else (a, b)

@@ -54,7 +54,8 @@ def runup_plot(path: str | Path, speeds_hz: np.ndarray, values: np.ndarray, sens
     ax.set_xlabel("rotor speed [Hz]")
     ax.set_ylabel("whirl amplitude [mm]")
     ax.grid(True, lw=0.3)
-    ax.legend(fontsize="small", loc="upper left")
+    # below the axes: a run-up's curves fill the plot anywhere a legend inside could sit
+    fig.legend(fontsize="small", loc="outside lower center", ncols=2)
     up = speeds[-1] >= speeds[0]
     ax.set_title((title + "\n" if title else "") + ("run-up" if up else "coast-down")
                  + f" {speeds[0]:g} -> {speeds[-1]:g} Hz", fontsize="medium")

@@ -42,7 +42,7 @@ def stator_rings(system) -> list[tuple[float, float]]:
 
 
 def sensors_plot(path: str | Path, t: np.ndarray, values: np.ndarray, sensors, speed_hz: float = 0.0,
-                 title: str = "", rings: Sequence[tuple[float, float]] = ()) -> Path:
+                 title: str = "", rings: Sequence[tuple[float, float]] = (), speed_at=None) -> Path:
     """Each signal against time in a row of its own (its own scale: a probe's static sag would flatten the
     others' vibration; more than :data:`MAX_ROWS` probes share one row), drawn as the run (its envelope where
     it is denser than the pixels) and the last periods (see :func:`nsfem.plot.common.long_signal`); their
@@ -66,6 +66,11 @@ def sensors_plot(path: str | Path, t: np.ndarray, values: np.ndarray, sensors, s
                              top=top)
     over_time = outer[0].subgridspec(rows, 1, hspace=0.12)
     below = outer[1].subgridspec(1, ncols, wspace=0.3)
+    band = None
+    if speed_at is not None:    # a run-up: the zoom's period at the end, the spectrum's 1x a band of speeds
+        half = float(t[0] + 0.5 * (t[-1] - t[0]))
+        band = (float(speed_at(half)), float(speed_at(float(t[-1]))))
+        speed_hz = band[1]
     period = 1.0 / speed_hz if speed_hz > 0 else None
     if period is None and len(sensors):
         period = dominant_period(t, values[:, 0])
@@ -97,7 +102,7 @@ def sensors_plot(path: str | Path, t: np.ndarray, values: np.ndarray, sensors, s
     fig.legend(handles, [h.get_label() for h in handles], loc="upper center",
                bbox_to_anchor=(0.5, 1.0 - (0.32 if title else 0.05) / height), ncol=min(len(sensors), 4),
                fontsize=7, frameon=False)
-    _spectra(fig.add_subplot(below[0]), t, values, sensors, colors, speed_hz)
+    _spectra(fig.add_subplot(below[0]), t, values, sensors, colors, speed_hz, band)
     for c, (i, j) in enumerate(pairs, start=1):
         _orbit(fig.add_subplot(below[c]), t, values, sensors[i], sensors[j], i, j, rings)
     if title:
@@ -105,8 +110,9 @@ def sensors_plot(path: str | Path, t: np.ndarray, values: np.ndarray, sensors, s
     return save(fig, path)
 
 
-def _spectra(ax, t, values, sensors, colors, speed_hz: float) -> None:
-    """Amplitude spectra (Hann window) of the last half, down to 10^-SPECTRUM_DECADES of the peak."""
+def _spectra(ax, t, values, sensors, colors, speed_hz: float, band: tuple | None = None) -> None:
+    """Amplitude spectra (Hann window) of the last half, down to 10^-SPECTRUM_DECADES of the peak; the 1x line at
+    ``speed_hz``, or for a run-up the ``band`` of speeds (Hz) the last half sweeps."""
     half = t >= t[0] + 0.5 * (t[-1] - t[0])
     n = int(np.count_nonzero(half))
     if n < 8:
@@ -126,8 +132,14 @@ def _spectra(ax, t, values, sensors, colors, speed_hz: float) -> None:
         if np.isfinite(amp[1:]).any():
             peak = max(peak, float(np.nanmax(np.where(np.isfinite(amp[1:]), amp[1:], np.nan))))
         ax.semilogy(f[1:], np.maximum(amp[1:], 1e-300), lw=0.8, color=colors[k])
-    right = min(f[-1], 10 * speed_hz if speed_hz > 0 else f[-1])
-    if speed_hz > 0:
+    top = max(band) if band is not None else speed_hz
+    right = min(f[-1], 10 * top if top > 0 else f[-1])
+    if band is not None and band[0] != band[1]:
+        lo, hi = min(band), max(band)
+        ax.axvspan(lo, hi, color="tab:red", alpha=0.12, lw=0)
+        ax.annotate(f"1x = {band[0]:.4g} -> {band[1]:.4g} Hz", (hi, 1.0), xycoords=("data", "axes fraction"),
+                    xytext=(3, -10), textcoords="offset points", color="tab:red", fontsize=7)
+    elif speed_hz > 0:
         ax.axvline(speed_hz, color="tab:red", ls=":", lw=0.9)
         ax.annotate(f"1x = {speed_hz:g} Hz", (speed_hz, 1.0), xycoords=("data", "axes fraction"),
                     xytext=(3, -10), textcoords="offset points", color="tab:red", fontsize=7)
