@@ -582,3 +582,17 @@ def test_run_up_psd_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
     labels = [h.get_label() for ax in grabbed["fig"].axes for h in ax.get_legend_handles_labels()[0]]
     assert not any("rotation 18 Hz" in lab for lab in labels)
     assert any("28 -> 38 Hz" in lab for lab in labels)
+
+
+def test_rk_finds_every_brief_contact_with_the_seal():
+    """rk's steps are held to the sampling step of the exact method's search: solve_ivp sees only sign changes
+    between its steps, and at rtol 1e-8 its steps on the runup scene were long enough to carry the disk into
+    the elastic seal and out again unseen (81 ring events instead of 135 by t = 0.6 s, energy residual 6e-3).
+    Energy is booked exactly at every event, so a missed engagement shows as a residual of the size of the seal's
+    spring energy; found events leave the integrator's own error, rtol 1e-8 accumulated over ~100 phases:
+    below 1e-6 (measured 3e-8)."""
+    from nsfem import load_scene
+    from nsfem.simulate import run_scene
+
+    res, _ = run_scene(load_scene("runup", ["simulation.t_end=0.6"]), "rk")
+    assert res.completed and abs(res.energy["relative_residual"]) < 1e-6

@@ -927,6 +927,11 @@ class RungeKutta(EventDriven):
             # a step, and solve_ivp sees only sign changes between steps)
             thr = np.where(armed, 0.0, np.minimum(-tol, h0 - tol))
             tol_d = 1e-11 * np.max(np.abs(Hd) @ np.abs(xis), axis=1) + 1e-300
+        # solve_ivp sees only sign changes between its steps: a row that dips below its threshold and comes
+        # back within one step is never seen (the runup scene's elastic seal at rtol 1e-8: 237 of 610 ring
+        # events found, energy residual 5.4e-3, the rub's closed share 18 % instead of 47 %). Its steps are
+        # held to exact's sampling step, 1/8 of the configuration's fastest period (:meth:`Phase.max_step`)
+        max_step = phase.max_step(t1 - t0)
         funcs, kinds = [], []
         for i in range(rows.size):
             def ev(t, x, i=i):
@@ -953,7 +958,7 @@ class RungeKutta(EventDriven):
                 funcs.append(top)
                 kinds.append(("top", int(i)))
             sol = solve_ivp(rhs, (t0, t1), xi0[:r2], method=self.solver, rtol=self.rtol, atol=self.atol,
-                            events=funcs or None, dense_output=True)
+                            events=funcs or None, dense_output=True, max_step=max_step)
             if sol.status == -1:
                 raise NsfemError(f"rk ({self.solver}) failed at t = {sol.t[-1]:.6g} s: {sol.message}")
             if sol.status != 1:
