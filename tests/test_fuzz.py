@@ -3909,5 +3909,5 @@ def test_issue35_a_ramp_runs_exactly_when_every_table_covers_it(lo, width):
         code, _, err = check_invocation(_table_argv(lo, hi, "out"), Path(d))
     inside = lo <= 18.0 and hi >= 38.0
     assert code == (0 if inside else 2), (lo, hi, err)
-    if not inside:
-        assert "bearing.0.speeds_hz" in err and "leave the bearing's table" in err
+    if not inside:   # refused at the scene's speed 18 Hz already, or by the ramp's range
+        assert "bearing.0.speeds_hz" in err and "table [" in err
