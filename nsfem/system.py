@@ -239,6 +239,8 @@ class SpeedSchedule:
             return None
         omegas, dK, dC, dCJ = self.bearing
         om = float(self.profile.omega_at(float(t)))
+        if len(omegas) == 1:
+            return dK[0] + (om * dCJ[0] if dCJ is not None else 0.0), dC[0]
         k = int(np.clip(np.searchsorted(omegas, om, side="right") - 1, 0, len(omegas) - 2))
         s = (om - omegas[k]) / (omegas[k + 1] - omegas[k])
         dQ = (1.0 - s) * dK[k] + s * dK[k + 1]
@@ -477,9 +479,7 @@ def bearing_schedule(model, ops: RotorOperators, rotation: Rotation) -> tuple:
                              f"bearing's table [{speeds[0]:g}, {speeds[-1]:g}] Hz (coefficients are not "
                              "extrapolated); extend the table or keep the ramp inside it")
         table.update(float(x) for x in speeds if lo < x < hi)
-    speeds = sorted(table | {lo, hi})
-    if len(speeds) == 1:
-        speeds = [lo, lo + 1.0]    # a constant speed: any second point (the change is read at lo only)
+    speeds = sorted(table | {lo, hi})   # one speed (a table of equal speeds): that change throughout
     rotating = rotation.frame != "inertial"
     dK, dC, dCJ = [], [], []
     for f in speeds:
