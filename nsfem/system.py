@@ -228,6 +228,25 @@ class SpeedSchedule:
     #: rotating frame: the part of the inertial frame's spin-acceleration couple that is not axisymmetric (Lalanne's
     #: S = (Kst + Kst^T) / 2), seen from the turning frame: Omega' (cos^2 psi S0 + cos psi sin psi S1 + sin^2 psi S2)
     Kst_turn: tuple | None = None
+    #: speed-dependent bearings: (omegas [rad/s], dK, dC, dCJ) with the changes of the bearings' stiffness (K_b +
+    #: K_c), damping C_b and (rotating frame) C_b J from their values at Omega_0, one (n, n) slice per table speed
+    #: (ascending): linear in Omega between them, so read by interpolation (None: constant bearings)
+    bearing: tuple | None = None
+
+    def bearing_at(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(dQ, dC): the bearings' change of Q and C from Omega_0 at ``t`` (dQ = dK + Omega dCJ); None without."""
+        if self.bearing is None:
+            return None
+        omegas, dK, dC, dCJ = self.bearing
+        om = float(self.profile.omega_at(float(t)))
+        if len(omegas) == 1:
+            return dK[0] + (om * dCJ[0] if dCJ is not None else 0.0), dC[0]
+        k = int(np.clip(np.searchsorted(omegas, om, side="right") - 1, 0, len(omegas) - 2))
+        s = (om - omegas[k]) / (omegas[k + 1] - omegas[k])
+        dQ = (1.0 - s) * dK[k] + s * dK[k + 1]
+        if dCJ is not None:
+            dQ = dQ + om * ((1.0 - s) * dCJ[k] + s * dCJ[k + 1])
+        return dQ, (1.0 - s) * dC[k] + s * dC[k + 1]
 
     @property
     def omega0(self) -> float:
@@ -268,20 +287,29 @@ class SpeedSchedule:
         """(C(t), Q(t)) from the constant-speed ``C`` and ``Q`` at Omega_0."""
         d1, d2, al = self._changes(t)
         Qt = Q + d1 * self.Q1 + al * self.spin_couple(t)
-        return C + d1 * self.C1, Qt if self.Q2 is None else Qt + d2 * self.Q2
+        Ct = C + d1 * self.C1
+        bearing = self.bearing_at(t)
+        if bearing is not None:
+            Qt, Ct = Qt + bearing[0], Ct + bearing[1]
+        return Ct, Qt if self.Q2 is None else Qt + d2 * self.Q2
 
     def force(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The change of the speed-dependent forces from their values at Omega_0 at a state (q, v) (the loads not
         included: :meth:`load`)."""
         d1, d2, al = self._changes(t)
         out = -d1 * (self.C1 @ v + self.Q1 @ q) - al * (self.spin_couple(t) @ q)
+        bearing = self.bearing_at(t)
+        if bearing is not None:
+            out = out - bearing[0] @ q - bearing[1] @ v
         return out if self.Q2 is None else out - d2 * (self.Q2 @ q)
 
     def powers(self, t, q: np.ndarray, v: np.ndarray) -> tuple:
         """(circulatory, drive): the power of the changes' forces on the structure's motion at times ``t``
         (states as columns, or one state): the circulatory change (Omega - Omega_0) q'^T Q1 q, booked with the
         circulatory work (a left-hand-side force), and the drive's, -q'^T (Omega' Kst + (Omega^2 - Omega_0^2) Q2) q
-        (the speed held by the drive: its work on the lateral motion; the gyroscopic change does none)."""
+        (the speed held by the drive: its work on the lateral motion; the gyroscopic change does none). Tabulated
+        bearings' changes from Omega_0, q'^T (dQ q + dC q') (their stiffness, cross coupling and damping read at
+        Omega(t)), are booked with the circulatory work too: the record's energy keeps the bearings at Omega_0."""
         om, al, psi = self.speed(t)
         om0 = self.omega0
         d1, d2 = om - om0, om * om - om0 * om0
@@ -294,6 +322,17 @@ class SpeedSchedule:
             c, s = np.cos(psi), np.sin(psi)
             S0, S1, S2 = self.Kst_turn
             drive = drive - al * (c * c * form(S0) + c * s * form(S1) + s * s * form(S2))
+        if self.bearing is not None:
+            ts = np.asarray(t, dtype=float)
+            if ts.ndim == 0:
+                dQ, dC = self.bearing_at(float(ts))
+                circ = circ + float(v @ (dQ @ q + dC @ v))
+            else:
+                extra = np.empty(ts.shape)
+                for i, ti in enumerate(ts):
+                    dQ, dC = self.bearing_at(float(ti))
+                    extra[i] = v[:, i] @ (dQ @ q[:, i] + dC @ v[:, i])
+                circ = circ + extra
         return circ, drive
 
     def fastest_rate(self, M: np.ndarray, C: np.ndarray, Q: np.ndarray) -> float:
@@ -392,12 +431,12 @@ def euler_load(model, basis) -> np.ndarray:
 def speed_schedule(model, basis, ops: RotorOperators, rotation: Rotation, damping: Damping,
                    gravity_load: np.ndarray | None) -> SpeedSchedule:
     """The :class:`SpeedSchedule` of ``rotation``'s ramp on ``ops`` (expressed in ``basis``) in its frame. Refuses
-    what a run-up does not carry: bearings with speed tables."""
-    if ops.bearing_change is not None:
-        raise SceneError("rotation.ramp_to_hz", "bearings with coefficients tabulated against speed are read at one "
-                         "speed; a run-up through their table is not modelled (give constant coefficients, or run "
-                         "constant speeds)")
+    what a run-up does not carry: a speed outside a bearing's table."""
     from .fem.constraints import dense
+
+    bearing = None
+    if ops.bearing_change is not None:
+        bearing = bearing_schedule(model, ops, rotation)
 
     alpha, beta = damping.rayleigh
     n = ops.n
@@ -407,7 +446,8 @@ def speed_schedule(model, basis, ops: RotorOperators, rotation: Rotation, dampin
         Q1 = -(alpha * dense(ops.MJ) + beta * dense(ops.KJ))
         return SpeedSchedule(rotation, dense(ops.Gp1), Q1, dense(spin_acceleration(model, basis)),
                              np.asarray(ops.fu1, dtype=float), np.asarray(ops.fq1, dtype=float),
-                             zero if gravity_load is None else np.asarray(gravity_load, dtype=float), phase)
+                             zero if gravity_load is None else np.asarray(gravity_load, dtype=float), phase,
+                             bearing=bearing)
     ce = damping.external
     G1 = dense(ops.G1)
     Q1 = dense(ops.CbJ) + (ce * dense(ops.P1) if ce else 0.0)
@@ -418,4 +458,33 @@ def speed_schedule(model, basis, ops: RotorOperators, rotation: Rotation, dampin
                          f2=np.asarray(ops.fc1 + ops.fu1, dtype=float),
                          fa=euler_load(model, basis) - np.asarray(ops.fq1, dtype=float),
                          gc=-g * np.asarray(ops.Fz, dtype=float) if g else None,
-                         gs=-g * np.asarray(ops.Fy, dtype=float) if g else None)
+                         gs=-g * np.asarray(ops.Fy, dtype=float) if g else None, bearing=bearing)
+
+
+def bearing_schedule(model, ops: RotorOperators, rotation: Rotation) -> tuple:
+    """SpeedSchedule.bearing: the tabulated bearings' changes (dK_b + dK_c, dC_b, C_b J or None in the inertial
+    frame) at every table speed inside the run's speed range (and its two ends), projected once to ``ops``' basis.
+    A run whose speeds leave a table is refused (one line naming the bearing, the key and both ranges)."""
+    from .fem.constraints import dense, project
+
+    hz = np.asarray(rotation.knots[1], dtype=float)
+    lo, hi = float(hz.min()), float(hz.max())
+    table = set()
+    for b in model.stack.bearings:
+        if not b.table:
+            continue
+        speeds = b.table[0]
+        if lo < speeds[0] or hi > speeds[-1]:
+            raise SceneError(f"{b.label or 'bearing'}.speeds_hz", f"the run's speeds [{lo:g}, {hi:g}] Hz leave the "
+                             f"bearing's table [{speeds[0]:g}, {speeds[-1]:g}] Hz (coefficients are not "
+                             "extrapolated); extend the table or keep the ramp inside it")
+        table.update(float(x) for x in speeds if lo < x < hi)
+    speeds = sorted(table | {lo, hi})   # one speed (a table of equal speeds): that change throughout
+    rotating = rotation.frame != "inertial"
+    dK, dC, dCJ = [], [], []
+    for f in speeds:
+        a, c, d, e = (d if ops.basis is None else project(ops.basis, d) for d in ops.bearing_change(f))
+        dK.append(dense(a + c))
+        dC.append(dense(d))
+        dCJ.append(dense(e))
+    return (2.0 * math.pi * np.array(speeds), np.array(dK), np.array(dC), np.array(dCJ) if rotating else None)

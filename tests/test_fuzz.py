@@ -3880,3 +3880,34 @@ def test_issue35_response_unstable_speeds_are_campbells_growing_ones(q, tmp_path
     assert rep["unstable"] == grows
     assert err.count("structure is unstable") == (1 if any(grows) else 0)
     assert (rep["stable_below_hz"] is None) == (not any(grows))
+
+
+# --- issue 35: bearing tables in a run-up ---
+# a run-up reads a tabulated bearing at Omega(t): the ramp's speeds (runup: 18 -> 38 Hz) must lie inside every
+# bearing's table, refused at loading (one line naming the bearing, its speeds_hz and both ranges) otherwise
+RUNUP_TABLE = ["runup", "--set", "simulation.t_end=0.002", "--set", "output.vtu_every=0", "--set", "output.plots=[]",
+               "--set", "stator.0.clearance=0.05"]
+
+
+def _table_argv(lo: float, hi: float, out: str) -> list[str]:
+    return ["run", *RUNUP_TABLE, "--out", out, "--set", f"bearing.0.speeds_hz=[{lo!r}, {hi!r}]",
+            "--set", "bearing.0.cyy=[40.0, 60.0]", "--set", "bearing.0.czz=[40.0, 60.0]"]
+
+
+def test_issue35_a_ramp_leaving_a_bearing_table_is_refused(tmp_path):
+    code, _, err = check_invocation(_table_argv(0.0, 30.0, "out"), tmp_path)
+    assert code == 2, err
+    line = [x for x in err.splitlines() if x.startswith("nsfem: error:")][0]
+    assert "bearing.0.speeds_hz" in line and "[18, 38] Hz" in line and "[0, 30] Hz" in line, line
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=list(HealthCheck))
+@given(lo=st.floats(0.0, 40.0), width=st.floats(1.0, 40.0))
+def test_issue35_a_ramp_runs_exactly_when_every_table_covers_it(lo, width):
+    hi = lo + width
+    with tempfile.TemporaryDirectory() as d:
+        code, _, err = check_invocation(_table_argv(lo, hi, "out"), Path(d))
+    inside = lo <= 18.0 and hi >= 38.0
+    assert code == (0 if inside else 2), (lo, hi, err)
+    if not inside:   # refused at the scene's speed 18 Hz already, or by the ramp's range
+        assert "bearing.0.speeds_hz" in err and "table [" in err

@@ -264,6 +264,9 @@ class Penalty(Integrator):
                 f = sched.load(t)
                 acc = acc + Minv @ (f - f0) - dw * (MC1 @ v + MQ1 @ q) - d2 * (MQ2 @ q)
                 acc = acc - al * (MKst @ q if sched.Kst_turn is None else Minv @ (sched.spin_couple(t) @ q))
+                bearing = sched.bearing_at(t)
+                if bearing is not None:   # tabulated bearings at Omega(t) (their power is in powers' circ)
+                    acc = acc - Minv @ (bearing[0] @ q + bearing[1] @ v)
                 circ, w_drive = sched.powers(t, q, v)
                 w_circ += float(circ)
             elif harmonic:
@@ -290,6 +293,13 @@ class Penalty(Integrator):
                 Jx[n:2 * n, n:2 * n] -= dw * MC1
                 Jx[2 * n + 2, :n] += dw * (sched.Q1.T @ v)
                 Jx[2 * n + 2, n:2 * n] += dw * (sched.Q1 @ q)
+                bearing = sched.bearing_at(t)
+                if bearing is not None:
+                    dQ, dC = bearing
+                    Jx[n:2 * n, :n] -= Minv @ dQ
+                    Jx[n:2 * n, n:2 * n] -= Minv @ dC
+                    Jx[2 * n + 2, :n] += dQ.T @ v
+                    Jx[2 * n + 2, n:2 * n] += dQ @ q + (dC + dC.T) @ v
                 Kd = al * Kt + d2 * Q2
                 Jx[2 * n + 4, :n], Jx[2 * n + 4, n:2 * n] = -(Kd.T @ v), -(Kd @ q)
             return Jx
