@@ -546,20 +546,27 @@ def test_runup_plot_legend_covers_no_data(tmp_path, monkeypatch):
         assert not inside.any(), line.get_label()
 
 
-def test_run_up_sensors_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
-    """sensors.png of the runup scene (18 -> 38 Hz in 1 s): its spectrum of the last half (0.5 - 1 s) marks 1x
-    as the band 28 -> 38 Hz the half sweeps, not the start speed 18 Hz (where the probes hold no line then)."""
-    import nsfem.plot.sensors as sensors_mod
+def _runup_figure(module, tmp_path, monkeypatch) -> dict:
+    """Run the runup scene with its psd plot, keeping the figure ``module``'s ``save`` writes: {"fig": figure}."""
     from nsfem import cli
 
     grabbed = {}
-    save = sensors_mod.save
+    save = module.save
 
     def keep(fig, path):
         grabbed["fig"] = fig
         return save(fig, path)
-    monkeypatch.setattr(sensors_mod, "save", keep)
+    monkeypatch.setattr(module, "save", keep)
     assert cli.main(["run", "runup", "--out", str(tmp_path), "--set", 'output.plots=["psd"]']) == 0
+    return grabbed
+
+
+def test_run_up_sensors_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
+    """sensors.png of the runup scene (18 -> 38 Hz in 1 s): its spectrum of the last half (0.5 - 1 s) marks 1x
+    as the band 28 -> 38 Hz the half sweeps, not the start speed 18 Hz (where the probes hold no line then)."""
+    import nsfem.plot.sensors as sensors_mod
+
+    grabbed = _runup_figure(sensors_mod, tmp_path, monkeypatch)
     texts = [t.get_text() for ax in grabbed["fig"].axes for t in ax.texts]
     assert not any(t.startswith("1x = 18 Hz") for t in texts)
     assert "1x = 28 -> 38 Hz" in texts
@@ -569,16 +576,8 @@ def test_run_up_psd_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
     """psd.png of the runup scene (window 0.5 - 1 s, 28 -> 38 Hz): the rotation is marked as that band, not as
     the start speed 18 Hz and its harmonics."""
     import nsfem.plot.psd as psd_mod
-    from nsfem import cli
 
-    grabbed = {}
-    save = psd_mod.save
-
-    def keep(fig, path):
-        grabbed["fig"] = fig
-        return save(fig, path)
-    monkeypatch.setattr(psd_mod, "save", keep)
-    assert cli.main(["run", "runup", "--out", str(tmp_path), "--set", 'output.plots=["psd"]']) == 0
+    grabbed = _runup_figure(psd_mod, tmp_path, monkeypatch)
     labels = [h.get_label() for ax in grabbed["fig"].axes for h in ax.get_legend_handles_labels()[0]]
     assert not any("rotation 18 Hz" in lab for lab in labels)
     assert any("28 -> 38 Hz" in lab for lab in labels)

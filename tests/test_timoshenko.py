@@ -261,6 +261,18 @@ def test_critical_speeds_match_ross_with_shear():
 
 
 # ---------------------------------------------------------------- between the nodes: sensors and hat weights
+def _tip_loaded_cantilever(L: float, P: float, elements: int, contacts=()):
+    """(model, segment, full displacement) of a clamped 80 mm Timoshenko rod of length L under a tip force P along z."""
+    seg = Segment("s", 0.0, L, 0.08, 0.08, E=E, rho=RHO, section="circle")
+    stack = BeamStack((seg,), supports=(Support("s", 0.0, ("U", "V", "W", "V'", "W'")),), contacts=tuple(contacts),
+                      theory="timoshenko").validate()
+    model = assemble(stack, generate(stack, elements))
+    f = np.zeros(model.n_full)
+    f[model.dof("s", "W", L)] = P
+    K = (model.T.T @ model.K_full @ model.T).toarray()
+    return model, seg, model.T @ np.linalg.solve(K, model.T.T @ f)
+
+
 def test_sensor_between_nodes_reads_the_static_solution():
     """A sensor reads the element's displacement functions N_v between nodes; on the one-element cantilever
     under a tip force they are the exact static solution w(x) = P x^2 (3 L - x) / (6 E I) + P x / (kappa G A)
@@ -268,14 +280,7 @@ def test_sensor_between_nodes_reads_the_static_solution():
     from nsfem.sensors import hermite_row
 
     L, P = 0.4, 1e3
-    seg = Segment("s", 0.0, L, 0.08, 0.08, E=E, rho=RHO, section="circle")
-    stack = BeamStack((seg,), supports=(Support("s", 0.0, ("U", "V", "W", "V'", "W'")),),
-                      theory="timoshenko").validate()
-    model = assemble(stack, generate(stack, 1))
-    f = np.zeros(model.n_full)
-    f[model.dof("s", "W", L)] = P
-    K = (model.T.T @ model.K_full @ model.T).toarray()
-    q = model.T @ np.linalg.solve(K, model.T.T @ f)
+    model, seg, q = _tip_loaded_cantilever(L, P, 1)
     for x in (0.05, 0.17, 0.33):
         want = P * x**2 * (3 * L - x) / (6 * E * seg.I_y) + P * x / (KAPPA * G * seg.area)
         assert float((hermite_row(model, "s", "W", x) @ q)[0]) == pytest.approx(want, rel=1e-12)
@@ -308,16 +313,9 @@ def test_hat_weighted_contact_reads_the_sheared_static_solution():
     from nsfem.stack import Contact
 
     L, P = 0.4, 1e3
-    seg = Segment("s", 0.0, L, 0.08, 0.08, E=E, rho=RHO, section="circle")
     a, mid, b = 0.13, 0.21, 0.27
     contact = Contact("obstacle", mid, ("s",), "hat", (a, b), clearance=1.0)
-    stack = BeamStack((seg,), supports=(Support("s", 0.0, ("U", "V", "W", "V'", "W'")),), contacts=(contact,),
-                      theory="timoshenko").validate()
-    model = assemble(stack, generate(stack, 4))
-    f = np.zeros(model.n_full)
-    f[model.dof("s", "W", L)] = P
-    K = (model.T.T @ model.K_full @ model.T).toarray()
-    q = model.T @ np.linalg.solve(K, model.T.T @ f)
+    model, seg, q = _tip_loaded_cantilever(L, P, 4, (contact,))
     g, wg = np.polynomial.legendre.leggauss(4)
     x = np.concatenate([lo + (hi - lo) * (g + 1) / 2 for lo, hi in ((a, mid), (mid, b))])
     w8 = np.concatenate([(hi - lo) * wg / 2 for lo, hi in ((a, mid), (mid, b))])
@@ -332,23 +330,14 @@ def test_hat_weighted_contact_reads_the_sheared_static_solution():
 
 # ---------------------------------------------------------------- the pipeline
 def _cli(argv, tmp_path):
-    import contextlib
-    import io
+    """``nsfem argv`` in ``tmp_path`` through test_fuzz's invocation check, which must succeed: (JSON or None, stderr)."""
     import json
-    import os
 
-    from nsfem import cli
+    from test_fuzz import check_invocation
 
-    out, err = io.StringIO(), io.StringIO()
-    cwd = os.getcwd()
-    os.chdir(tmp_path)
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            code = cli.main(argv)
-    finally:
-        os.chdir(cwd)
-    assert code == 0, err.getvalue()
-    return json.loads(out.getvalue()) if "--json" in argv else None, err.getvalue()
+    code, out, err = check_invocation(argv, tmp_path)
+    assert code == 0, err
+    return json.loads(out) if "--json" in argv else None, err
 
 
 SS_SCENE = """
