@@ -237,26 +237,37 @@ def test_shooting_period2_orbit_past_the_period_doubling():
 
 
 def test_shooting_near_grazing():
-    """d = 0.2. Just below w_g the impacting orbit (u ~ 1e-4) is violently unstable (Nordmark: mu ~ -1/u,
-    here -5.8e3), which the shooting must reproduce; just above, the orbit is the harmonic steady state without
-    impact whose smallest gap d - amplitude (4e-9 m at w_g (1 + 1e-8)) is recorded as grazing contact 0."""
+    """d = 0.2. Just below w_g the impacting orbit (u = 1.8e-3 at w_g (1 - 1e-3)) is violently unstable
+    (Nordmark: mu ~ -1/u, here -571), which the shooting must reproduce; just above, the orbit is the harmonic
+    steady state without impact whose smallest gap d - amplitude (4e-9 m at w_g (1 + 1e-8)) is recorded as
+    grazing contact 0."""
     (w_g,) = grazing_frequencies(OSC_GAP)
-    w = w_g * (1 - 1e-4)
+    w = w_g * (1 - 1e-3)
     p = period1_branch(OSC_GAP, w, -1)
     orbit = _shoot(OSC_GAP, w, p.x0, p.v0 + 1e-6, p.period)
     assert orbit.converged and orbit.events_per_period == 1
-    # S_21 ~ 1/u magnifies the state's error 1e-9 by 1/u = 5e3: 1e-5 relative
-    assert multiplier_error(orbit.multipliers, p.multipliers) <= 1e-5
+    # S_21 ~ 1/u magnifies the state's error 1e-9 by 1/u = 550: the largest multiplier to 1e-6 relative; the
+    # small one (-8.7e-4) is det M / mu_1 with det M = e^2 exp(-c T / m) (det S = e^2 whatever S_21): their product
+    mu = orbit.multipliers[np.argmax(np.abs(orbit.multipliers))]
+    assert abs(mu - p.multipliers[0]) <= 1e-6 * abs(p.multipliers[0])
+    assert abs(np.prod(orbit.multipliers) - np.prod(p.multipliers)) <= 1e-6 * abs(np.prod(p.multipliers))
     assert not orbit.stable and orbit.loss == "period-doubling"
 
     w = w_g * (1 + 1e-8)
     A, B = harmonic_coefficients(OSC_GAP, w)
-    orbit = _shoot(OSC_GAP, w, A - 1e-3, w * B, 2 * math.pi / w)
+    # started 1e-10 m inside the harmonic orbit: any start farther out than the gap (4.8e-9 m) would hit the stop
+    orbit = _shoot(OSC_GAP, w, A - 1e-10, w * B, 2 * math.pi / w)
     assert orbit.converged and orbit.events_per_period == 0
-    assert abs(orbit.q0[0] - A) <= 1e-9 and abs(orbit.v0[0] - w * B) <= 1e-9 * w
-    # no impact: the multipliers are exp(lambda T) of the free oscillator
+    assert abs(orbit.q0[0] - A) <= 1e-9 * OSC_GAP.d and abs(orbit.v0[0] - w * B) <= 1e-9 * OSC_GAP.d * w
+    # no impact: the multipliers are exp(lambda T) of the free oscillator (the monodromy is one-sided: no event)
     lam = np.linalg.eigvals(OSC_GAP.L)
     assert multiplier_error(orbit.multipliers, np.exp(lam * 2 * math.pi / w)) <= 1e-7
     graze = [g for g in orbit.grazing if g["contact"] == 0]
-    assert graze, orbit.grazing
-    assert graze[0]["gap_min"] == pytest.approx(harmonic_gap_min(OSC_GAP, w), abs=1e-9)
+    assert len(graze) == 1, orbit.grazing
+    # the gap's minimum located (not sampled): d - amplitude to the states' accuracy 1e-9 d; at the time of the
+    # harmonic maximum x_p = R cos(w t - psi), t = psi / w (mod T), which a gap error 2e-10 m fixes only to
+    # sqrt(2 * 2e-10 / (w^2 R)) = 2e-5 s: 1e-4 s
+    assert graze[0]["gap_min"] == pytest.approx(harmonic_gap_min(OSC_GAP, w), abs=1e-9 * OSC_GAP.d)
+    T = 2 * math.pi / w
+    t_max = math.atan2(B, A) / w % T
+    assert abs((graze[0]["t"] - t_max + T / 2) % T - T / 2) <= 1e-4
