@@ -12,13 +12,15 @@ A = F (k - m w^2) / D, B = F c w / D, D = (k - m w^2)^2 + (c w)^2) and E(s) = ex
 in closed form by Cayley-Hamilton: E(s) = e^{mu s} (cosh(r s) I + sinh(r s) / r (L - mu I)), mu = -c / 2m,
 r^2 = mu^2 - k/m (complex r for an underdamped oscillator; the result is real).
 
-Period-1 orbit, one impact per period at t = tau (phase phi = w tau) with approach velocity u = x'(tau-) > 0.
+Period-1 orbit, one impact per period at t = tau (phase phi = w tau) with approach velocity u = x'(tau-) > 0
+(the gap's rate g' = -u < 0 before the impact).
 Leaving the stop at (d, -e u) and arriving after T at (d, u), with p(tau + T) = p(tau):
 (I - E(T)) (d e1 - p(tau)) + u b = 0, b = e2 + e E(T) e2. Eliminating u (the cross product with b) leaves
 beta . (cos phi, sin phi) = alpha, alpha and beta fixed by (I - E)^T (b2, -b1): two phases
 phi = theta +- arccos(alpha / |beta|) (no root-find), then u = -(a . b) / |b|^2. A root is an orbit when u > 0
 and the flight stays off the stop: the gap over (tau, tau + T) is sampled on 2048 points and each interior
-local minimum refined by Brent's bounded minimization (the gap's minimum, ``gap_min``, must be > 0).
+local minimum refined by Brent's bounded minimization (the smallest interior minimum, ``gap_min``, must be > 0;
+the gap is 0 at both ends, rising after the impact and falling before the next, so a crossing makes one < 0).
 At alpha = +-|beta| the two roots merge: the fold (saddle-node) of Shaw & Holmes.
 
 Saltation matrix (derived). The impact surface h(y) = x - d, normal n = (1, 0); the jump R(y) = (x, -e x')
@@ -28,8 +30,10 @@ with f+ gives S = R_y + (f+ - R_y f-) n^T / (n . f-):
     S = [[-e, 0], [(a+ + e a-) / u, -e]],   a+ + e a- = (1 + e)(F cos phi - k d) / m   (the c terms cancel).
 The monodromy at the section t = 0 (0 < tau < T) is M = E(T - tau) S E(tau); its eigenvalues (the Floquet
 multipliers) are those of S E(T), det M = e^2 e^{-c T / m}. A multiplier through -1 (1 + tr M + det M = 0) is the
-period doubling; grazing (u -> 0, the harmonic steady state just touching the stop: its amplitude = d) makes
-S_21 ~ 1 / u blow up, Nordmark's square-root singularity: the impacting orbit is unstable next to grazing.
+period doubling. Grazing (u -> 0, the harmonic steady state just touching the stop: its amplitude = d) makes
+S_21 ~ 1 / u blow up (the square-root singularity of Nordmark's discontinuity map, seen at the fixed point whose
+u vanishes linearly in w_g - w): mu_1 ~ S_21 E_12(T), the impacting orbit is unstable next to grazing
+(unless E_12(T) = 0).
 
 Period-2 orbit (two impacts per 2T, at tau1 and tau2 = tau1 + T1, T2 = 2T - T1): the four conditions
 (d, u2) = p(tau2) + E(T1) ((d, -e u1) - p(tau1)), (d, u1) = p(tau1) + E(T2) ((d, -e u2) - p(tau2)) solved by
@@ -127,7 +131,7 @@ class Period1:
     w: float
     branch: int          # +1 or -1: the sign before arccos in phi = theta +- arccos(alpha / |beta|)
     phi: float           # impact phase w tau in [0, 2 pi)
-    tau: float           # impact time in [0, T)
+    tau: float           # impact time in [0, T); at tau = 0 (x0, v0) is the state just before the impact
     u: float             # approach velocity x'(tau-) [m/s]; > 0 for an orbit
     gap_min: float       # smallest gap over the open flight (tau, tau + T) [m]; > 0 for an orbit
     x0: float            # the state at the section t = 0 (mod T)
@@ -155,6 +159,8 @@ def period1_roots(osc: Oscillator, w: float) -> list[Period1]:
     rvec = (np.eye(2) - E).T @ np.array([b[1], -b[0]])
     # cross(a, b) = rvec . (d e1 - P c(phi)) = 0  <=>  (rvec P) . c(phi) = d rvec_1
     alpha, beta = osc.d * rvec[0], rvec @ P
+    if not np.any(beta):                             # F = 0: no forcing, no periodic impact motion
+        return []
     ratio = alpha / float(np.hypot(*beta))
     if abs(ratio) > 1.0:
         return []
@@ -281,14 +287,13 @@ def _period2_conditions(osc: Oscillator, w: float, z: np.ndarray) -> np.ndarray:
 
 def period2_orbit(osc: Oscillator, w: float, guess=None) -> Period2:
     """The period-2 orbit at w by Newton (scipy's fsolve) on the four impact conditions (module docstring) from
-    ``guess`` = (tau1, T1, u1, u2), or by default from the period-1 orbit (branch -1) with the flight times split
+    ``guess`` = (tau1, T1, u1, u2), or by default from each period-1 orbit at w with the flight times split
     into T (1 +- s) and the velocities into u (1 +- 0.2), s = 0.05, 0.1, 0.2: the first start that converges
     (conditions to 1e-12 of the velocity scale) off the period-1 orbit (|T1 - T| > 1e-6 T); ValueError if none."""
     w = check_frequency(w)
     T = 2.0 * math.pi / w
     if guess is None:
-        p1 = period1_branch(osc, w, -1)
-        starts = [[p1.tau, T * (1 + dT), p1.u * (1 + du), p1.u * (1 - du)]
+        starts = [[p1.tau, T * (1 + dT), p1.u * (1 + du), p1.u * (1 - du)] for p1 in period1_orbits(osc, w)
                   for dT in (-0.05, 0.05, -0.1, 0.1, -0.2, 0.2) for du in (0.2, -0.2)]
     else:
         starts = [guess]
@@ -299,7 +304,8 @@ def period2_orbit(osc: Oscillator, w: float, guess=None) -> Period2:
                 and (guess is not None or abs(z[1] - T) > 1e-6 * T)):
             break
     else:
-        raise ValueError(f"impact oscillator: Newton found no period-2 orbit at w = {w} from {len(starts)} start(s)")
+        raise ValueError(f"impact oscillator: Newton found no period-2 orbit at w = {w} from {len(starts)} start(s)"
+                         + ("" if starts else " (no period-1 orbit to start from)"))
     residual = float(np.abs(_period2_conditions(osc, w, z)).max())
     tau1, T1, u1, u2 = (float(v) for v in z)
     T2 = 2.0 * T - T1

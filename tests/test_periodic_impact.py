@@ -4,8 +4,8 @@ one-degree-of-freedom system), then used as the reference for nsfem.periodic's s
 
 The system: m = k = F = 1, c = 2 zeta with zeta = 0.05, e = 0.8, the stop at x = d (d = 0, and d = 0.2 where the
 harmonic steady state can graze it). Its numbers (closed form): period-1 multipliers at w = 2.5:
--0.14543 +- 0.69038 i (modulus 0.70553); the period doubling at w_pd = 2.658884546685 (d = 0); grazing at
-w_g = 2.448265 (d = 0.2).
+-0.14543 +- 0.69038 i (modulus 0.70553); the period-1 orbit (d = 0) is stable between its period doublings at
+w = 1.229735 and w_pd = 2.658884546685; grazing at w_g = 2.448265 (d = 0.2).
 """
 
 from __future__ import annotations
@@ -77,16 +77,19 @@ def test_period1_orbit_closes_with_one_impact(osc, w):
     assert abs(np.prod(p.multipliers) - osc.e ** 2 * math.exp(-osc.c * T / osc.m)) <= 1e-12
 
 
-def test_period_doubling_frequency_has_a_multiplier_at_minus_one():
-    """What the root must satisfy: the stable orbit below, a multiplier at -1 at w_pd (Brent to 1e-13 relative
-    in w, the multiplier moving ~10 per unit w: 1e-10), a real multiplier < -1 above."""
-    w_pd = period_doubling_frequency(OSC, 2.5, 2.75)
+@pytest.mark.parametrize("w_lo, w_hi, stable_side", [(1.2, 1.3, +1), (2.5, 2.75, -1)])
+def test_period_doubling_frequency_has_a_multiplier_at_minus_one(w_lo, w_hi, stable_side):
+    """What the root must satisfy: a multiplier at -1 at w_pd (Brent to 1e-13 relative in w, the multiplier moving
+    ~10 per unit w: 1e-10); 1 % to one side the orbit is stable, to the other a real multiplier is < -1. The
+    period-1 orbit (d = 0) is stable between the two period doublings, 1.22974 and 2.65888."""
+    w_pd = period_doubling_frequency(OSC, w_lo, w_hi)
     at = period1_branch(OSC, w_pd, -1)
     assert at.exists
     assert np.min(np.abs(at.multipliers + 1.0)) <= 1e-10
-    below, above = period1_branch(OSC, w_pd * 0.99, -1), period1_branch(OSC, w_pd * 1.01, -1)
-    assert np.abs(below.multipliers).max() < 1.0
-    assert above.multipliers[0].real < -1.0 and abs(above.multipliers[0].imag) == 0.0
+    inside, outside = (period1_branch(OSC, w_pd * (1 + 0.01 * side), -1) for side in (stable_side, -stable_side))
+    assert inside.exists and outside.exists
+    assert np.abs(inside.multipliers).max() < 1.0
+    assert outside.multipliers[0].real < -1.0 and abs(outside.multipliers[0].imag) == 0.0
 
 
 def test_grazing_frequency_and_nordmarks_singularity():
@@ -116,6 +119,9 @@ def test_bad_parameters_are_refused():
         period1_roots(OSC, 0.0)
     with pytest.raises(ValueError, match="no multiplier crosses -1"):
         period_doubling_frequency(OSC, 1.5, 2.0)
+    assert period1_roots(Oscillator(F=0.0), 2.0) == []                  # unforced: no periodic impact motion
+    with pytest.raises(ValueError, match="no period-1 orbit to start from"):
+        period2_orbit(OSC_GAP, 3.0)                                       # past grazing: nothing impacts
 
 
 # --- the closed form against brute force (the exact integrator) --------------------------------------------------
@@ -220,7 +226,7 @@ def test_shooting_verdict_turns_to_period_doubling_across_w_pd():
         orbit = _shoot(OSC, factor * w_pd, p.x0 + 1e-4, p.v0, p.period)
         assert orbit.converged and orbit.events_per_period == 1
         assert multiplier_error(orbit.multipliers, p.multipliers) <= 1e-7
-        assert orbit.stable is stable
+        assert bool(orbit.stable) == stable
         assert orbit.loss == (None if stable else "period-doubling")
 
 
