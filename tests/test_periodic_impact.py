@@ -92,6 +92,21 @@ def test_period_doubling_frequency_has_a_multiplier_at_minus_one(w_lo, w_hi, sta
     assert outside.multipliers[0].real < -1.0 and abs(outside.multipliers[0].imag) == 0.0
 
 
+def test_period2_orbit_branches_off_at_the_period_doubling_as_a_flip():
+    """The normal form of a supercritical flip (the period-2 orbit past w_pd, where the period-1 orbit is
+    unstable): the two impact velocities split like sqrt(w - w_pd) and the period-2 orbit's multiplier leaves +1
+    like (w - w_pd). Quartering the distance (2.5e-4 -> 6.25e-5 relative) halves the split and quarters 1 - mu,
+    up to the next order, O(sqrt(distance)) ~ 1e-2 relative (measured 2.3e-4 and 1.06e-2)."""
+    w_pd = period_doubling_frequency(OSC, 2.5, 2.75)
+    orbits = [period2_orbit(OSC, w_pd * (1 + delta)) for delta in (2.5e-4, 6.25e-5)]
+    assert all(p.exists and p.residual <= 1e-12 for p in orbits)
+    split = [abs(p.u[1] - p.u[0]) for p in orbits]
+    assert split[0] / split[1] == pytest.approx(2.0, rel=1e-2)
+    gap = [1.0 - p.multipliers[0].real for p in orbits]
+    assert all(abs(p.multipliers[0].imag) == 0.0 and 0 < g for p, g in zip(orbits, gap))
+    assert gap[0] / gap[1] == pytest.approx(4.0, rel=3e-2)
+
+
 def test_grazing_frequency_and_nordmarks_singularity():
     """At w_g the harmonic steady state's amplitude is d (round-off: 1e-12); below it the impacting orbit's
     approach velocity u -> 0 linearly in w_g - w, and its largest multiplier grows like 1/u (the saltation's
