@@ -38,6 +38,8 @@ class Flow:
     #: the configuration (:class:`~nsfem.integrate.configuration.Mode`) the flow started in (after the start's
     #: resolution), None without a recorded run
     start_mode: object = None
+    #: the recorded run (:attr:`~nsfem.integrate.event_driven.EventDriven.trace`), None without the Jacobian
+    trace: list | None = field(default=None, repr=False)
 
 
 def shifted(system, t0: float):
@@ -73,7 +75,7 @@ def flow(system, t0: float, q0, v0, period: float, *, jacobian: bool = True, out
     for e in graze:
         e["t"] += t0
     return Flow(float(t0), float(period), last["q"].copy(), last["v"].copy(), Phi, res, approx, graze,
-                trace[0]["after"])
+                trace[0]["after"], trace)
 
 
 def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
@@ -118,3 +120,52 @@ def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
         f_plus = state_rate(after, t)
         Phi = saltation(Dg, f_minus, f_plus, grad, rate) @ Phi
     return Phi, approx, graze
+
+
+#: a gap whose smallest value over an open phase is below this fraction of its range over the period is near grazing
+NEAR_GRAZING = 1e-3
+#: samples per phase at most when looking for a gap's minima (each refined on the closed form)
+_GRAZE_SAMPLES = 4096
+
+
+def near_grazing(fl: Flow, rel: float = NEAR_GRAZING) -> list[dict]:
+    """Gaps that come within ``rel`` of their range over the period to zero without closing: per contact and open
+    phase, the local minima of g(t) on a grid of the phase's sampling step (:meth:`Phase.max_step`), each refined
+    on the exact motion (bounded Brent to 1e-12 of the phase's length); [{"contact", "t", "gap_min"}], t from the
+    flow's t0. A gap that closes at an event is not grazing; a tangential touch the event search fired on is in
+    ``fl.grazing``."""
+    from scipy.optimize import minimize_scalar
+
+    if fl.trace is None:
+        raise ValueError("near_grazing needs a flow recorded with its Jacobian")
+    res = fl.result
+    m = res.gap.shape[0]
+    if not m or not res.t.size:
+        return []
+    span = np.ptp(res.gap, axis=1) if res.t.size > 1 else np.zeros(m)
+    out = []
+    for step in fl.trace[1:]:
+        phase, mode = step["phase"], step["mode"]
+        cs = phase.config.system.contacts
+        open_ = [k for k in range(min(cs.m, m)) if k not in mode.closed]
+        if not open_:
+            continue
+        t0, t1 = step["t0"], step["t1"]
+        if t1 <= t0:
+            continue
+        nsamp = int(min(_GRAZE_SAMPLES, max(16, np.ceil((t1 - t0) / phase.max_step(t1 - t0)))))
+        ts = np.linspace(t0, t1, nsamp + 1)
+        Pq = phase.q_map()
+        G = cs.JN[:, open_].T @ (Pq @ phase.xi(ts)) + cs.jN[open_][:, None]
+        for j, k in enumerate(open_):
+            g = G[j]
+            scale = max(float(span[k]), float(np.abs(g).max()))
+            for i in range(1, nsamp):
+                if not (g[i] <= g[i - 1] and g[i] <= g[i + 1]) or g[i] > rel * scale + 1e-300:
+                    continue
+                gap = lambda t, k=k: float(cs.JN[:, k] @ (Pq @ phase.xi(float(t))) + cs.jN[k])  # noqa: E731
+                r = minimize_scalar(gap, bounds=(ts[i - 1], ts[i + 1]), method="bounded",
+                                    options={"xatol": 1e-12 * (t1 - t0)})
+                if r.fun > 0.0:
+                    out.append({"contact": int(k), "t": float(r.x) + fl.t0, "gap_min": float(r.fun)})
+    return out

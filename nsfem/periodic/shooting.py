@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import NsfemError
 from ..result import Result
-from .flow import Flow, flow
+from .flow import Flow, flow, near_grazing
 
 
 #: Newton steps that may grow the residual before steps must make it fall
@@ -166,8 +166,15 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     if not converged:
         warnings.warn(f"periodic: shooting did not converge in {it} Newton steps (residual {res:.3g} > tol {tol:g}); "
                       "the orbit and its multipliers are of the last iterate", stacklevel=2)
+    grazing = [{"contact": c, "t": g["t"], "gap_min": 0.0} for g in fl.grazing for c in g["contacts"]]
+    grazing += near_grazing(fl)
+    if grazing:
+        worst = min(grazing, key=lambda g: g["gap_min"])
+        warnings.warn(f"periodic: the orbit grazes contact {system.contacts.labels[worst['contact']]} (smallest gap "
+                      f"{worst['gap_min']:.3g} m at t = {worst['t']:.6g} s without closing): near a grazing bifurcation "
+                      "the Floquet multipliers do not describe nearby motions that touch", stacklevel=2)
     return PeriodicOrbit(float(period_s), float(t0), q, v, converged, res, it, Mr, mu, stable, loss,
-                         len(fl.result.events), fl.result, fl.grazing, fl.approximations, Z, history)
+                         len(fl.result.events), fl.result, grazing, fl.approximations, Z, history)
 
 
 def _directions(system, fl: Flow) -> np.ndarray:
