@@ -58,6 +58,12 @@ def flow(system, t0: float, q0, v0, period: float, *, jacobian: bool = True, out
         raise NsfemError(f"periodic: the period must be finite and > 0, got {period}")
     if system.schedule is not None:
         raise NsfemError("periodic: a run-up has no periodic orbit (rotation.ramp_to_hz); orbits are at constant speed")
+    round_ = system.info.get("round_rings") or ()
+    if round_:
+        raise NsfemError(f"periodic: stator {round_[0]} has shape = \"round\": its turning facet keeps a state of its own "
+                         "(turn angle, wedge, distance) besides (q, q'), so its flow over a period is not a map of the "
+                         "state alone; set shape = \"polygon\" for orbits (256 facets keep the radius within "
+                         "7.5e-5 of the clearance)")
     sysm = shifted(system, float(t0))
     integ = Exact(sysm, zeno=zeno, progress=False)
     integ.trace = [] if jacobian else None
