@@ -50,38 +50,52 @@ def shifted(system, t0: float):
     return replace(system, fc=system.fc * c + system.fs * s, fs=system.fs * c - system.fc * s)
 
 
+class FlowMap:
+    """x0 -> the exact flow over ``period`` from t0 (a :class:`Flow`), for many starts of one system: the shooting
+    method's map. The configurations met (their eigen-decompositions) are kept from one start to the next."""
+
+    def __init__(self, system, t0: float, period: float, *, output_dt: float | None = None, zeno: float = 1e-8):
+        if not (np.isfinite(period) and period > 0):
+            raise NsfemError(f"periodic: the period must be finite and > 0, got {period}")
+        if not np.isfinite(t0):
+            raise NsfemError(f"periodic: t0 must be finite, got {t0}")
+        if system.schedule is not None:
+            raise NsfemError("periodic: a run-up has no periodic orbit (rotation.ramp_to_hz); orbits are at constant "
+                             "speed")
+        round_ = system.info.get("round_rings") or ()
+        if round_:
+            raise NsfemError(f"periodic: stator {round_[0]} has shape = \"round\": its turning facet keeps a state of "
+                             "its own (turn angle, wedge, distance) besides (q, q'), so its flow over a period is not a "
+                             "map of the state alone; set shape = \"polygon\" for orbits (256 facets keep the radius "
+                             "within 7.5e-5 of the clearance)")
+        self.system, self.t0, self.period = system, float(t0), float(period)
+        self.output_dt = period / 256 if output_dt is None else float(output_dt)
+        self._integrator = Exact(shifted(system, self.t0), zeno=zeno, progress=False)
+        self._integrator.keep_configurations = True
+
+    def __call__(self, q0, v0, jacobian: bool = True) -> Flow:
+        integ = self._integrator
+        integ.trace = [] if jacobian else None
+        with single_threaded_blas(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            res = integ.run(self.period, self.output_dt, q0, v0)
+        res.t = res.t + self.t0
+        t0 = self.t0
+        if not jacobian:
+            return Flow(t0, self.period, res.q[:, -1].copy(), res.v[:, -1].copy(), None, res)
+        trace, integ.trace = integ.trace, None
+        Phi, approx, graze = monodromy(trace)
+        for e in approx + graze:
+            e["t"] += t0
+        last = trace[-1]
+        return Flow(t0, self.period, last["q"].copy(), last["v"].copy(), Phi, res, approx, graze, trace[0]["after"],
+                    trace)
+
+
 def flow(system, t0: float, q0, v0, period: float, *, jacobian: bool = True, output_dt: float | None = None,
          zeno: float = 1e-8) -> Flow:
     """Integrate ``system`` exactly from (q0, q0') at t0 over ``period`` [s]; with ``jacobian`` the monodromy
     matrix (2n x 2n) through every event. Outputs at ``output_dt`` (default period / 256), times from t0."""
-    if not (np.isfinite(period) and period > 0):
-        raise NsfemError(f"periodic: the period must be finite and > 0, got {period}")
-    if system.schedule is not None:
-        raise NsfemError("periodic: a run-up has no periodic orbit (rotation.ramp_to_hz); orbits are at constant speed")
-    round_ = system.info.get("round_rings") or ()
-    if round_:
-        raise NsfemError(f"periodic: stator {round_[0]} has shape = \"round\": its turning facet keeps a state of its own "
-                         "(turn angle, wedge, distance) besides (q, q'), so its flow over a period is not a map of the "
-                         "state alone; set shape = \"polygon\" for orbits (256 facets keep the radius within "
-                         "7.5e-5 of the clearance)")
-    sysm = shifted(system, float(t0))
-    integ = Exact(sysm, zeno=zeno, progress=False)
-    integ.trace = [] if jacobian else None
-    dt = period / 256 if output_dt is None else float(output_dt)
-    with single_threaded_blas(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        res = integ.run(period, dt, q0, v0)
-    res.t = res.t + t0
-    if not jacobian:
-        return Flow(float(t0), float(period), res.q[:, -1].copy(), res.v[:, -1].copy(), None, res)
-    trace = integ.trace
-    Phi, approx, graze = monodromy(trace)
-    last = trace[-1]
-    for e in approx:
-        e["t"] += t0
-    for e in graze:
-        e["t"] += t0
-    return Flow(float(t0), float(period), last["q"].copy(), last["v"].copy(), Phi, res, approx, graze,
-                trace[0]["after"], trace)
+    return FlowMap(system, t0, period, output_dt=output_dt, zeno=zeno)(q0, v0, jacobian)
 
 
 def monodromy(trace: list) -> tuple[np.ndarray, list, list]:

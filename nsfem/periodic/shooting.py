@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import NsfemError
 from ..result import Result
-from .flow import Flow, flow, near_grazing
+from .flow import Flow, FlowMap, near_grazing
 
 
 #: Newton steps that may grow the residual before steps must make it fall
@@ -110,8 +110,10 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     w = 2.0 * math.pi / period_s
     scale = np.concatenate([np.ones(n), np.full(n, 1.0 / w)])
 
+    phi = FlowMap(system, t0, period_s, output_dt=output_dt)
+
     def run(q_, v_) -> tuple[Flow, float, np.ndarray]:
-        fl = flow(system, t0, q_, v_, period_s, output_dt=output_dt)
+        fl = phi(q_, v_)
         F = np.concatenate([fl.q - q_, fl.v - v_])
         size = max(float(np.abs(scale * np.concatenate([q_, v_])).max()), float(np.abs(scale * F).max()), 1e-300)
         return fl, float(np.abs(scale * F).max()) / size, F
