@@ -1,0 +1,2 @@
+"""Periodic orbits of the non-smooth rotor: shooting on the exact flow, Floquet multipliers with saltation
+matrices (issue 36; design.md section 9, ``nsfem periodic``)."""

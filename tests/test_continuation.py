@@ -1,0 +1,250 @@
+"""Pseudo-arclength continuation and the location of special points (nsfem.periodic.continuation,
+issue 36) on problems whose branches and bifurcations are known in closed form (Kuznetsov, "Elements
+of Applied Bifurcation Theory", 3rd ed., chapter 4: the fold, the logistic map's flip, the delayed
+logistic map's Neimark-Sacker bifurcation).
+
+Tolerances. Every point is corrected to max |r| <= TOL. A located special point lies within its
+``accuracy`` (the bisection's bracket, <= LOCATE) of the exact crossing along the branch, plus the
+corrector's error: u off the branch by at most TOL / |J_u| moves a multiplier by |dmu/du| TOL / |J_u|
+and so the crossing's p by that over |dmu/dp|; for the maps below |J_u| >= 1, |dmu/du| <= 2 p <= 7 and
+|dmu/dp| >= 1/2 on the branch near the crossing, so 20 TOL bounds it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from nsfem.errors import NsfemError
+from nsfem.periodic.continuation import Branch, continue_branch, critical_vector
+
+TOL = 1e-10           # the corrector's bound on max |r|
+LOCATE = 1e-8         # the bisection's bound on the bracket, in units of p
+SLACK = 20 * TOL      # the corrector's share of a located point's error (module docstring)
+
+
+def circle(u, p):
+    """x^2 + p^2 = 1: a closed branch with folds at p = -1 and p = 1."""
+    return np.array([u[0] ** 2 + p ** 2 - 1.0]), np.array([[2.0 * u[0]]]), np.array([2.0 * p])
+
+
+def logistic(u, p):
+    """Fixed points of x -> p x (1 - x): r = f - x; the branch x = 1 - 1/p."""
+    x = u[0]
+    return np.array([p * x * (1 - x) - x]), np.array([[p * (1 - 2 * x) - 1]]), np.array([x * (1 - x)])
+
+
+def logistic_multiplier(u, p):
+    """f'(x) = p (1 - 2 x): 2 - p on the branch, through -1 at p = 3 (period doubling)."""
+    return np.array([p * (1 - 2 * u[0])])
+
+
+def delayed_logistic(u, p):
+    """Fixed points of (x, y) -> (p x (1 - y), x): x = y = 1 - 1/p."""
+    x, y = u
+    r = np.array([p * x * (1 - y) - x, x - y])
+    return r, np.array([[p * (1 - y) - 1, -p * x], [1.0, -1.0]]), np.array([x * (1 - y), 0.0])
+
+
+def delayed_logistic_multipliers(u, p):
+    """Eigenvalues of the map's Jacobian; on the branch mu^2 - mu + p - 1 = 0, |mu|^2 = p - 1 for
+    p > 5/4: a complex pair through the unit circle at p = 2, mu = exp(+-i pi/3)."""
+    x, y = u
+    return np.linalg.eigvals(np.array([[p * (1 - y), -p * x], [1.0, 0.0]]))
+
+
+def saddle_node(u, p):
+    """Fixed points of x -> x + p - x^2: x = +-sqrt(p), a fold at p = 0 (x = 0, multiplier 1 - 2x = 1)."""
+    x = u[0]
+    return np.array([p - x * x]), np.array([[-2.0 * x]]), np.array([1.0])
+
+
+def saddle_node_multiplier(u, p):
+    return np.array([1.0 - 2.0 * u[0]])
+
+
+def kinds(branch: Branch) -> list[str]:
+    return [b["kind"] for b in branch.bifurcations]
+
+
+def assert_located(bif: dict, exact: float) -> None:
+    assert bif["accuracy"] <= LOCATE
+    assert abs(bif["value"] - exact) <= bif["accuracy"] + SLACK, (bif["value"], exact, bif["accuracy"])
+
+
+def test_a_circle_is_followed_through_both_folds_and_closes():
+    branch = continue_branch(circle, [-math.sqrt(1 - 0.81)], -0.9, 1.5, tol=TOL, locate_tol=LOCATE)
+    assert branch.stop == "closed", branch.reason
+    assert all(pt.converged for pt in branch.points)
+    on_circle = [abs(pt.u[0] ** 2 + pt.p ** 2 - 1) for pt in branch.points]
+    assert max(on_circle) <= TOL
+    # the branch turns in p: points beyond p = 0.9 on both halves of the circle, after the fold at 1
+    assert min(pt.p for pt in branch.points) < -0.95 and max(pt.p for pt in branch.points) > 0.95
+    assert kinds(branch) == ["fold", "fold"]
+    first, second = branch.bifurcations
+    # at a fold p is quadratic in the distance along the branch: within the accuracy too
+    assert_located(first, 1.0)
+    assert_located(second, -1.0)
+    for bif in branch.bifurcations:
+        assert bif["detected_by"] == "tangent" and bif["multipliers"] is None
+        assert abs(bif["u"][0]) <= math.sqrt(2 * (bif["accuracy"] + SLACK))   # x^2 = 1 - p^2 near p = +-1
+        i = bif["index"]     # between points i and i + 1: x changes sign at either fold
+        assert branch.points[i].u[0] * branch.points[i + 1].u[0] < 0
+
+
+def test_b_logistic_period_doubling_at_3():
+    branch = continue_branch(logistic, [1 - 1 / 2.1], 2.1, 3.3, tol=TOL, locate_tol=LOCATE,
+                             stability=logistic_multiplier)
+    assert branch.stop == "end", branch.reason
+    assert branch.points[-1].p == 3.3     # the last point exactly at p_end
+    for pt in branch.points:
+        assert abs(pt.p * pt.u[0] * (1 - pt.u[0]) - pt.u[0]) <= TOL
+        # stable (|2 - p| < 1) exactly for p < 3; no point lies within 1e-6 of p = 3
+        assert pt.stable == (pt.p < 3.0), pt.p
+        assert pt.multipliers.shape == (1,)
+    assert kinds(branch) == ["period-doubling"]
+    pd = branch.bifurcations[0]
+    assert_located(pd, 3.0)
+    assert abs(pd["multipliers"][0] + 1) <= pd["accuracy"] + SLACK    # mu = 2 - p
+    assert abs(pd["u"][0] - 2.0 / 3.0) <= 2 * (pd["accuracy"] + SLACK)   # x = 1 - 1/p, dx/dp = 1/9
+    i = pd["index"]
+    assert branch.points[i].p < 3.0 < branch.points[i + 1].p
+
+
+def test_c_delayed_logistic_neimark_sacker_at_2():
+    branch = continue_branch(delayed_logistic, [1 / 3, 1 / 3], 1.5, 2.5, tol=TOL, locate_tol=LOCATE,
+                             stability=delayed_logistic_multipliers)
+    assert branch.stop == "end", branch.reason
+    for pt in branch.points:
+        assert np.max(np.abs(delayed_logistic(pt.u, pt.p)[0])) <= TOL
+        assert pt.stable == (pt.p < 2.0), pt.p
+    assert kinds(branch) == ["neimark-sacker"]
+    ns = branch.bifurcations[0]
+    assert_located(ns, 2.0)
+    mu = ns["multipliers"]
+    # a conjugate pair; |mu|^2 = p - 1 moves by d|mu|/dp = 1/2 at p = 2; arg mu = pi/3 at p = 2 moves by
+    # d(arg)/dp = -1/sqrt(3) (tan(arg) = sqrt(4p - 5)): both within the located value's error
+    err = ns["accuracy"] + SLACK
+    assert abs(mu[0] - mu[1].conjugate()) <= 1e-12
+    assert np.all(np.abs(np.abs(mu) - 1) <= err)
+    assert abs(abs(np.angle(mu[0])) - math.pi / 3) <= 2 * err
+
+
+def test_d_saddle_node_is_one_fold_found_by_tangent_and_multiplier():
+    branch = continue_branch(saddle_node, [math.sqrt(0.5)], 0.5, -1.0, tol=TOL, locate_tol=LOCATE,
+                             stability=saddle_node_multiplier)
+    # down the stable branch x = sqrt(p), round the fold, up the unstable one x = -sqrt(p) and out
+    assert branch.stop == "left", branch.reason
+    assert branch.points[-1].p > 0.5 and branch.points[-1].u[0] < 0
+    for pt in branch.points:
+        assert abs(pt.p - pt.u[0] ** 2) <= TOL
+        # 1 - 2x in (-1, 1) for 0 < x < 1; a point within the corrector's error of x = 0 is marginal
+        assert pt.stable == (pt.u[0] > 0) or abs(pt.u[0]) <= 1e-6   # |1 - 2x| < 1 + unit_tol
+    assert kinds(branch) == ["fold"]          # recorded once
+    fold = branch.bifurcations[0]
+    assert_located(fold, 0.0)
+    assert abs(fold["multipliers"][0] - 1) <= 2 * math.sqrt(fold["accuracy"] + SLACK)   # 1 - 2x, x^2 = p
+
+
+def test_the_multiplier_alone_locates_a_fold_of_the_stability():
+    # r = x - p has no fold of the branch; its "multiplier" 1 + x (a real one through +1 at p = 0) makes the
+    # crossing a fold of the stability detected by the multipliers alone
+    branch = continue_branch(lambda u, p: (np.array([u[0] - p]), np.eye(1), np.array([-1.0])), [-0.5], -0.5, 0.5,
+                             tol=TOL, locate_tol=LOCATE, stability=lambda u, p: np.array([1.0 + u[0], 0.1]))
+    assert kinds(branch) == ["fold"] and branch.bifurcations[0]["detected_by"] == "multipliers"
+    assert_located(branch.bifurcations[0], 0.0)
+
+
+def test_stop_reasons_and_the_points_kept():
+    short = continue_branch(circle, [-0.6], -0.8, 0.8, max_steps=3, tol=TOL)
+    assert short.stop == "max_steps" and len(short.points) == 4 and "max_steps = 3" in short.reason
+
+    def breaks_above_half(u, p):
+        if p > 0.5:
+            raise NsfemError("the flow failed")
+        return circle(u, p)
+
+    broken = continue_branch(breaks_above_half, [-0.6], -0.8, 0.8, tol=TOL)
+    assert broken.stop == "failed" and "the flow failed" in broken.reason
+    assert broken.points and all(pt.converged and pt.p <= 0.5 for pt in broken.points)
+    min_step = 1.6 / 50 / 1000    # the default: step / 1000, step = |p_end - p0| / 50
+    # the last step tried (and failed) was shorter than 2 min_step: the last point is that close to 0.5
+    assert broken.points[-1].p > 0.5 - 2 * min_step
+
+    nowhere = continue_branch(lambda u, p: (np.array([u[0] ** 2 + 1]), np.array([[2 * u[0]]]), np.zeros(1)),
+                              [0.3], 0.0, 1.0, tol=TOL)
+    assert nowhere.stop == "failed" and len(nowhere.points) == 1 and not nowhere.points[0].converged
+    assert "did not converge" in nowhere.reason
+
+
+def test_steps_stay_bounded_and_arclength_adds_up():
+    branch = continue_branch(logistic, [0.5], 2.0, 3.5, tol=TOL, step=0.01, max_step=0.05)
+    p = np.array([pt.p for pt in branch.points])
+    s = np.array([pt.s for pt in branch.points])
+    assert np.all(np.diff(p) > 0)
+    # the corrected point lies within sqrt(2) ds of the previous one (module docstring); the arclength
+    # counts u by the whole range of p (u_scale = 1): ds >= |dp|
+    assert np.all(np.diff(s) <= math.sqrt(2) * 0.05 * (1 + 1e-12))
+    assert np.all(np.diff(s) >= np.abs(np.diff(p)) * (1 - 1e-12))
+    assert s[0] == 0.0
+
+
+def test_u_scale_lets_tiny_unknowns_follow_their_branch():
+    # the logistic branch in micrometres of x (u = 1e-6 x): with u_scale = 1e-6 the same points as unscaled
+    def small(u, p):
+        r, ju, jp = logistic(u * 1e6, p)
+        return r, ju * 1e6, jp
+
+    branch = continue_branch(small, [0.5e-6], 2.0, 3.5, tol=TOL, u_scale=1e-6, locate_tol=LOCATE,
+                             stability=lambda u, p: logistic_multiplier(u * 1e6, p))
+    assert branch.stop == "end" and kinds(branch) == ["period-doubling"]
+    assert_located(branch.bifurcations[0], 3.0)
+
+
+def test_critical_vector_is_the_eigenvector_of_the_multiplier_nearest_minus_one():
+    rng = np.random.default_rng(36)
+    a = rng.standard_normal((6, 6))
+    mu, v = critical_vector(a)
+    values = np.linalg.eigvals(a)
+    # the nearest to -1 of all eigenvalues, and an eigenvector of it (residual at round-off of |a| ~ 6)
+    assert abs(mu + 1) <= np.min(np.abs(values + 1)) + 1e-12
+    assert np.linalg.norm(a @ v - mu * v) <= 1e-12 * np.linalg.norm(a)
+    assert abs(np.linalg.norm(v) - 1) <= 1e-14
+    # a reflection's -1 is real with a real vector
+    mu, v = critical_vector([[0.0, 1.0], [1.0, 0.0]])
+    assert mu == -1 and v.dtype == float and abs(abs(v[0]) - abs(v[1])) <= 1e-15 and v[0] > 0
+    mu, _ = critical_vector(np.diag([0.5, 2.0]), target=1.0)
+    assert mu == 0.5
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(u0=[np.nan]), "u0[0]"),
+    (dict(u0=[[0.1]]), "1-D"),
+    (dict(u0=[]), "non-empty"),
+    (dict(p_end=-0.8), "p_end = p0"),
+    (dict(p_end=math.inf), "p_end"),
+    (dict(step=0.0), "step"),
+    (dict(step=-1.0), "step"),
+    (dict(step=1.0, max_step=0.5), "min_step <= step <= max_step"),
+    (dict(tol=0.0), "tol"),
+    (dict(max_steps=0), "max_steps"),
+    (dict(max_steps=2.5), "max_steps"),
+    (dict(u_scale=0.0), "u_scale"),
+    (dict(u_scale=[1.0, 2.0]), "u_scale"),
+    (dict(margin=-1.0), "margin"),
+    (dict(stability=3), "stability"),
+    (dict(residual=lambda u, p: (np.zeros(2), np.eye(2), np.zeros(2))), "shape (2,)"),
+    (dict(residual=lambda u, p: (np.zeros(1), np.eye(2), np.zeros(1))), "J_u of shape (2, 2)"),
+    (dict(residual=lambda u, p: (np.zeros(1), np.eye(1))), "tuple (r, J_u, J_p)"),
+    (dict(residual=lambda u, p: (np.full(1, np.nan), np.eye(1), np.zeros(1))), "not finite"),
+    (dict(stability=lambda u, p: np.zeros((2, 2))), "1-D array of multipliers"),
+])
+def test_e_bad_arguments_raise_one_line_errors_naming_them(kwargs, words):
+    args = dict(residual=circle, u0=[-0.6], p0=-0.8, p_end=0.8)
+    args.update(kwargs)
+    with pytest.raises(NsfemError) as info:
+        continue_branch(args.pop("residual"), args.pop("u0"), args.pop("p0"), args.pop("p_end"), **args)
+    message = str(info.value)
+    assert "\n" not in message and words in message, message
