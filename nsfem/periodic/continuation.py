@@ -78,6 +78,11 @@ GROW = 1.5
 #: returns real eigenvalues of a real matrix with Im exactly 0; a genuine pair near +-1 has
 #: |Im mu| ~ sqrt(distance to the collision), far above round-off
 REAL_TOL = 1e-7
+#: lengths below this share of |p_end - p0| (steps, locate_tol) are refused: the scaled unknowns are
+#: O(1), and steps near their round-off (2.2e-16) make no progress
+ROUNDOFF = 1e-12
+#: at most this many bisection steps (2^-60 of a chord: far below any locate_tol allowed)
+MAX_BISECTIONS = 60
 
 
 @dataclass
@@ -123,6 +128,11 @@ class _Point:
     multipliers: np.ndarray | None = None
 
 
+def _line(exc: Exception) -> str:
+    """An error's message on one line."""
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
 def _finite_float(name: str, value, *, positive: bool = False, allow_none: bool = False) -> float | None:
     if value is None and allow_none:
         return None
@@ -143,6 +153,7 @@ class _Scaled:
         self.residual, self.stability, self.m = residual, stability, m
         self.u_scale, self.p0, self.p_end, self.span = u_scale, p0, p_end, p_end - p0
         self.n_multipliers: int | None = None
+        self._last: tuple[bytes, tuple[np.ndarray, np.ndarray]] | None = None
 
     def z(self, u: np.ndarray, p: float) -> np.ndarray:
         return np.append(np.asarray(u, float) / self.u_scale, (p - self.p0) / self.span)
@@ -154,22 +165,29 @@ class _Scaled:
         return self.p_end if z[-1] == 1.0 else float(self.p0 + z[-1] * self.span)
 
     def evaluate(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """r (m,) and the scaled Jacobian (m, m+1) at z; _Failure when not finite or the residual fails."""
+        """r (m,) and the scaled Jacobian (m, m+1) at z; _Failure when not finite or the residual fails.
+        The last evaluation is kept: asked again at the same z, the residual is not called again."""
+        key = z.tobytes()
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
         u, p = self.u(z), self.p(z)
         try:
             out = self.residual(u.copy(), p)
         except _Contract:
             raise
         except (NsfemError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            raise _Failure(f"the residual failed at p = {p:.10g}: {exc}") from exc
+            raise _Failure(f"the residual failed at p = {p:.10g}: {_line(exc)}") from exc
         if not isinstance(out, tuple) or len(out) != 3:
             raise _Contract("continue_branch: residual(u, p) must return a tuple (r, J_u, J_p), got "
                             f"{type(out).__name__}")
         m = self.m
         try:
+            if any(np.iscomplexobj(a) for a in out):
+                raise TypeError("complex values")
             r, ju, jp = (np.asarray(a, dtype=float) for a in out)
         except (TypeError, ValueError) as exc:
-            raise _Contract(f"continue_branch: residual(u, p) must return real arrays (r, J_u, J_p): {exc}") from None
+            raise _Contract(f"continue_branch: residual(u, p) must return real arrays (r, J_u, J_p): "
+                            f"{_line(exc)}") from None
         for name, a, shape in (("r", r, (m,)), ("J_u", ju, (m, m)), ("J_p", jp, (m,))):
             if a.shape != shape:
                 raise _Contract(f"continue_branch: residual(u, p) returned {name} of shape {a.shape}, expected "
@@ -179,6 +197,7 @@ class _Scaled:
         jac = np.empty((m, m + 1))
         jac[:, :m] = ju * self.u_scale
         jac[:, m] = jp * self.span
+        self._last = (key, (r, jac))
         return r, jac
 
     def multipliers(self, z: np.ndarray) -> np.ndarray | None:
@@ -191,7 +210,7 @@ class _Scaled:
         except _Contract:
             raise
         except (NsfemError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            raise _Failure(f"the stability failed at p = {p:.10g}: {exc}") from exc
+            raise _Failure(f"the stability failed at p = {p:.10g}: {_line(exc)}") from exc
         try:
             mu = np.asarray(mu, dtype=complex)
         except (TypeError, ValueError):
@@ -307,7 +326,9 @@ def _bisect(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, span
     corrected points at the bracket's ends: the crossing lies on the branch between them)."""
     lo, hi, glo = 0.0, 1.0, g_a
     z_lo, z_hi = chord.a.z, chord.b.z
-    while (hi - lo) * chord.length > span_tol:
+    for _ in range(MAX_BISECTIONS):
+        if (hi - lo) * chord.length <= span_tol:
+            break
         mid = 0.5 * (lo + hi)
         try:
             pt = chord.point(mid, with_multipliers)
@@ -364,9 +385,11 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
                 return abs(mu) - 1.0
 
             g_a, g_b = abs(mu_a) - 1.0, abs(mu_b) - 1.0
-            if g_a * g_b > 0:     # the inside end within unit_tol outside the circle: the crossing is there
+            if g_a * g_b > 0:     # the inside end lies within unit_tol outside the circle: the crossing is
+                # there, or just beyond it by the linear extrapolation of |mu| - 1 (its accuracy)
                 inside_a = not _outside(np.array([mu_a]), unit_tol)[0]
-                pt, theta, half, mu = (a, 0.0, 0.0, mu_a) if inside_a else (b, 1.0, 0.0, mu_b)
+                pt, theta, mu = (a, 0.0, mu_a) if inside_a else (b, 1.0, mu_b)
+                half = abs(g_a if inside_a else g_b) / abs(g_b - g_a) * chord.length
             else:
                 pt, theta, half = _bisect(chord, modulus, g_a, locate_tol_z, True)
                 mu = _nearest(pt.multipliers, track[min(track, key=lambda k: abs(k - theta))])
@@ -395,10 +418,14 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     the same count at every point), or None. ``tol`` bounds max |r| at every point; ``step`` (the first
     step), ``max_step`` and ``min_step`` are lengths along the branch in units of p (defaults
     |p_end - p0| / 50, / 10 and step / 1000); ``u_scale`` (scalar or (m,)) is the size of u that counts as
-    much as the whole range of p; ``margin`` (default |p_end - p0| / 10) widens the range a folded branch
+    much as the whole range of p; ``max_steps`` counts the accepted steps (not the trial points of
+    the bisections); ``margin`` (default |p_end - p0| / 10) widens the range a folded branch
     may leave; ``locate_tol`` (default 1e-8 |p_end - p0|) the length, along the branch in units of p, to
     which special points are located; ``unit_tol`` the margin of the unit circle (stable when every
     |mu| < 1 + unit_tol). u0 is first corrected at p = p0.
+
+    ``stability`` is only called at a (u, p) where ``residual`` was just evaluated (a corrected point),
+    so a caller whose multipliers come with the Jacobian (an orbit's monodromy) may keep its last one.
     """
     if not callable(residual):
         raise NsfemError(f"continue_branch: residual must be callable, got {type(residual).__name__}")
@@ -418,16 +445,28 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     if p0 == p_end:
         raise NsfemError(f"continue_branch: p_end = p0 = {p0:g}: give a different end of the parameter range")
     span = abs(p_end - p0)
+    if not math.isfinite(span) or span <= ROUNDOFF * max(abs(p0), abs(p_end)):
+        raise NsfemError(f"continue_branch: the range p0 = {p0:g} to p_end = {p_end:g} must have a finite length "
+                         f"above the round-off of p")
     step = _finite_float("step", step, positive=True, allow_none=True) or span / 50
+    if step < ROUNDOFF * span:
+        raise NsfemError(f"continue_branch: step = {step:g} is below the round-off of the range "
+                         f"({ROUNDOFF:g} |p_end - p0| = {ROUNDOFF * span:g})")
     max_step = _finite_float("max_step", max_step, positive=True, allow_none=True) or max(span / 10, step)
-    min_step = _finite_float("min_step", min_step, positive=True, allow_none=True) or step / 1000
+    min_step = _finite_float("min_step", min_step, positive=True, allow_none=True) or max(step / 1000, ROUNDOFF * span)
     if not min_step <= step <= max_step:
         raise NsfemError(f"continue_branch: the steps must satisfy min_step <= step <= max_step, got {min_step:g}, "
                          f"{step:g}, {max_step:g}")
+    if min_step < ROUNDOFF * span:
+        raise NsfemError(f"continue_branch: min_step = {min_step:g} is below the round-off of the range "
+                         f"({ROUNDOFF:g} |p_end - p0| = {ROUNDOFF * span:g})")
     margin = span / 10 if margin is None else _finite_float("margin", margin)
     if margin < 0:
         raise NsfemError(f"continue_branch: margin must be >= 0, got {margin:g}")
     locate_tol = _finite_float("locate_tol", locate_tol, positive=True, allow_none=True) or 1e-8 * span
+    if locate_tol < ROUNDOFF * span:
+        raise NsfemError(f"continue_branch: locate_tol = {locate_tol:g} is below the round-off of the range "
+                         f"({ROUNDOFF:g} |p_end - p0| = {ROUNDOFF * span:g})")
     tol = _finite_float("tol", tol, positive=True)
     unit_tol = _finite_float("unit_tol", unit_tol)
     if unit_tol < 0:
@@ -444,7 +483,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
 
     problem = _Scaled(residual, stability, u0.size, scale, p0, p_end)
     ds, ds_max, ds_min, locate_z = step / span, max_step / span, min_step / span, locate_tol / span
-    lo_z, hi_z = min(0.0, 1.0) - margin / span, 1.0 + margin / span
+    lo_z, hi_z = -margin / span, 1.0 + margin / span     # z_p of min(p0, p_end) - margin, max + margin
 
     z0 = problem.z(u0, p0)
     e_p = np.zeros(u0.size + 1)
