@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from nsfem.errors import NsfemError
 from nsfem.periodic.continuation import Branch, continue_branch, critical_vector
 
@@ -155,6 +156,54 @@ def test_the_multiplier_alone_locates_a_fold_of_the_stability():
                              tol=TOL, locate_tol=LOCATE, stability=lambda u, p: np.array([1.0 + u[0], 0.1]))
     assert kinds(branch) == ["fold"] and branch.bifurcations[0]["detected_by"] == "multipliers"
     assert_located(branch.bifurcations[0], 0.0)
+
+
+def linear_map(p):
+    """x -> D(p) x, fixed point 0 for every p; multipliers 0.93 - p (through -1 at p = 1.93), a pair
+    (p - 0.55) exp(+-i) (through |mu| = 1 at 1.55) and p - 0.62 (through +1 at 1.62)."""
+    rho, c, s = p - 0.55, math.cos(1.0), math.sin(1.0)
+    d = np.zeros((4, 4))
+    d[0, 0] = 0.93 - p
+    d[1:3, 1:3] = rho * np.array([[c, -s], [s, c]])
+    d[3, 3] = p - 0.62
+    dd = np.zeros((4, 4))
+    dd[0, 0], dd[1:3, 1:3], dd[3, 3] = -1.0, [[c, -s], [s, c]], 1.0
+    return d, dd
+
+
+def test_several_crossings_between_two_points_are_located_each():
+    def residual(u, p):
+        d, dd = linear_map(p)
+        return (d - np.eye(4)) @ u, d - np.eye(4), dd @ u
+
+    # steps of 0.45: points at p = 1, 1.45, 1.9 and 2; the pair and the +1 crossing fall between 1.45 and 1.9
+    branch = continue_branch(residual, np.zeros(4), 1.0, 2.0, step=0.45, max_step=0.45, tol=TOL, locate_tol=LOCATE,
+                             stability=lambda u, p: np.linalg.eigvals(linear_map(p)[0]))
+    assert branch.stop == "end" and [pt.p for pt in branch.points] == pytest.approx([1.0, 1.45, 1.9, 2.0], abs=1e-12)
+    assert kinds(branch) == ["neimark-sacker", "fold", "period-doubling"]
+    # the branch is u = 0 with no error: the located p are the exact crossings to the bisection's accuracy
+    for bif, exact in zip(branch.bifurcations, (1.55, 1.62, 1.93)):
+        assert_located(bif, exact)
+        assert np.all(bif["u"] == 0)
+    assert [bif["index"] for bif in branch.bifurcations] == [1, 1, 2]
+    assert [pt.stable for pt in branch.points] == [True, True, False, False]
+
+
+def test_multipliers_whose_count_changes_count_the_missing_as_zero():
+    # r = x - p; a second multiplier appears at p = 0: 0.2 (no crossing: the missing one counts as 0,
+    # inside) on one branch, 1.5 (a real one through +1: located where it appears, within the step)
+    def appearing(second):
+        return lambda u, p: np.array([0.5]) if p < 0 else np.array([0.5, second])
+
+    def line(u, p):
+        return np.array([u[0] - p]), np.eye(1), np.array([-1.0])
+
+    quiet = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, stability=appearing(0.2))
+    assert quiet.stop == "end" and quiet.bifurcations == [] and all(pt.stable for pt in quiet.points)
+    loud = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, locate_tol=LOCATE, stability=appearing(1.5))
+    assert kinds(loud) == ["fold"]
+    assert_located(loud.bifurcations[0], 0.0)     # the jump of |mu| - 1 at p = 0 is a sign change there
+    assert [pt.stable for pt in loud.points] == [pt.p < 0 for pt in loud.points]
 
 
 def test_stop_reasons_and_the_points_kept():

@@ -3995,13 +3995,6 @@ def test_issue36_continuation_refuses_bad_arguments_in_one_line(changes, words):
     assert words in message, message
 
 
-def test_issue36_a_multiplier_count_changing_along_the_branch_is_refused():
-    counts = iter(range(1, 100))
-    with pytest.raises(NsfemError) as info:
-        _continue36(stability=lambda u, p: np.full(next(counts), 0.5))
-    assert "2 multipliers" in _one_line36(info.value) and "1 before" in str(info.value)
-
-
 def test_issue36_a_failing_residual_ends_the_branch_keeping_its_points():
     def fails_late(u, p):
         return _raises36(u, p) if p > 0.0 else _circle36(u, p)

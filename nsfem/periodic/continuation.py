@@ -29,14 +29,18 @@ u by u_scale as much as the whole range of p. With J = [J_u u_scale | J_p (p_end
 
 Special points between two consecutive points A and B, located by bisection along the chord AB (each
 trial point re-corrected onto the branch with the constraint d.(z - z_trial) = 0, d the chord's unit
-vector) until the bracket is shorter than ``locate_tol`` (in units of p; so the located p is within
-``locate_tol`` of the crossing, plus the corrector's error, about tol / |J|):
+vector) until the bracket's chord is shorter than ``locate_tol`` (in units of p). The crossing lies on
+the branch between the final bracket's corrected ends; a record's "accuracy" is the located point's
+largest distance to them (in units of p), so |p - p*| <= accuracy, plus the corrector's error (u off
+the branch by about tol / |J_u|, moving the test function accordingly):
 
 - fold of the branch: where the tangent's p component changes sign (Kuznetsov's test function
   psi = t_p, chapter 10);
 - with ``stability``: where a multiplier crosses the unit circle (|mu| = 1 exactly; a multiplier counts
   as outside when |mu| > 1 + unit_tol, which keeps neutral multipliers at |mu| = 1 +- round-off from
-  making false alarms). Multipliers of A and B are paired by the least total distance; each pair on
+  making false alarms). Multipliers of A and B are paired by the least sum of sqrt(distance) (where their
+  counts differ the missing ones are zeros: a direction held at one point, as an orbit's contact held
+  closed on its section, has multiplier 0 there); each pair on
   different sides is one crossing, followed through the bisection by continuity. Kinds: a real
   multiplier through +1 "fold", through -1 "period-doubling", a complex pair "neimark-sacker"
   (Kuznetsov chapter 4). A saddle-node (a fold of the branch with its multiplier through +1)
@@ -152,7 +156,6 @@ class _Scaled:
                  p0: float, p_end: float):
         self.residual, self.stability, self.m = residual, stability, m
         self.u_scale, self.p0, self.p_end, self.span = u_scale, p0, p_end, p_end - p0
-        self.n_multipliers: int | None = None
         self._last: tuple[bytes, tuple[np.ndarray, np.ndarray]] | None = None
 
     def z(self, u: np.ndarray, p: float) -> np.ndarray:
@@ -218,11 +221,6 @@ class _Scaled:
         if mu.ndim != 1 or mu.size == 0:
             raise _Contract(f"continue_branch: stability(u, p) must return a 1-D array of multipliers, got shape "
                             f"{mu.shape}")
-        if self.n_multipliers is None:
-            self.n_multipliers = mu.size
-        elif mu.size != self.n_multipliers:
-            raise _Contract(f"continue_branch: stability(u, p) returned {mu.size} multipliers at p = {p:.10g}, "
-                            f"{self.n_multipliers} before")
         if not np.all(np.isfinite(mu)):
             raise _Failure(f"the multipliers are not finite at p = {p:.10g}")
         return mu[np.argsort(-np.abs(mu), kind="stable")]
@@ -283,23 +281,37 @@ def _kind(mu: complex) -> str:
     return "fold" if mu.real > 0 else "period-doubling"
 
 
-def _crossings(ma: np.ndarray, mb: np.ndarray, unit_tol: float) -> list[tuple[complex, complex]]:
-    """Pairs (mu at A, mu at B) of the multipliers that changed side of the unit circle; one of each
-    complex-conjugate pair (the one with Im >= 0)."""
-    rows, cols = linear_sum_assignment(np.abs(ma[:, None] - mb[None, :]))
+def _padded(mu: np.ndarray, n: int) -> np.ndarray:
+    """mu with zeros appended up to n: a direction that is held at one point and free at another (an
+    orbit's contact held closed on its section) has multiplier 0 where it is held."""
+    return np.pad(mu, (0, max(0, n - mu.size)))
+
+
+def _paired(ma: np.ndarray, mb: np.ndarray) -> np.ndarray:
+    """For each multiplier of ma, the index of its partner in mb (same length): the pairs of least
+    sum of sqrt(distance). The concave cost prefers one large move and the others unchanged to several
+    moderate ones: where a held direction is freed (0 -> mu, the others continuous) it pairs the 0 with
+    the new mu (a plain sum of distances ties there: 0.5 -> 0.5, 0 -> 1.5 costs 1.5 as 0.5 -> 1.5, 0 -> 0.5)."""
+    rows, cols = linear_sum_assignment(np.sqrt(np.abs(ma[:, None] - mb[None, :])))
+    partner = np.empty(ma.size, dtype=int)
+    partner[rows] = cols
+    return partner
+
+
+def _crossings(ma: np.ndarray, mb: np.ndarray, unit_tol: float) -> list[tuple[int, int]]:
+    """Index pairs (at A, at B) of the multipliers (of equal length) that changed side of the unit
+    circle; one of each complex-conjugate pair (the one with Im >= 0 at B)."""
+    partner = _paired(ma, mb)
     out_a, out_b = _outside(ma, unit_tol), _outside(mb, unit_tol)
-    pairs = [(complex(ma[i]), complex(mb[j])) for i, j in zip(rows, cols) if out_a[i] != out_b[j]]
+    pairs = [(i, int(partner[i])) for i in range(ma.size) if out_a[i] != out_b[partner[i]]]
     kept = []
-    for a, b in pairs:
-        partner = any(abs(b.conjugate() - b2) <= 1e-9 * max(1.0, abs(b)) and b2.imag > 0 for _, b2 in pairs)
-        if b.imag < 0 and partner:
-            continue
-        kept.append((a, b))
+    for i, j in pairs:
+        b = complex(mb[j])
+        conjugate = any(abs(b.conjugate() - mb[j2]) <= 1e-9 * max(1.0, abs(b)) and mb[j2].imag > 0
+                        for _, j2 in pairs)
+        if not (b.imag < 0 and conjugate):
+            kept.append((i, j))
     return kept
-
-
-def _nearest(mu: np.ndarray, target: complex) -> complex:
-    return complex(mu[np.argmin(np.abs(mu - target))])
 
 
 class _Chord:
@@ -373,17 +385,21 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
         pt, theta, half = _bisect(chord, tp, tp(a, 0.0), locate_tol_z, with_mu)
         record("fold", pt, theta, half, "tangent")
     if with_mu:
-        for mu_a, mu_b in _crossings(a.multipliers, b.multipliers, unit_tol):
-            track = {0.0: mu_a, 1.0: mu_b}
+        n = max(a.multipliers.size, b.multipliers.size)
+        ma, mb = _padded(a.multipliers, n), _padded(b.multipliers, n)
+        for i, j in _crossings(ma, mb, unit_tol):
+            # the crossing multiplier followed by pairing each trial's multipliers with those of the
+            # nearest point known: theta -> (multipliers, the index of the followed one)
+            track = {0.0: (ma, i), 1.0: (mb, j)}
 
-            def modulus(pt: _Point, theta: float) -> float:
-                lo = max(k for k in track if k <= theta)
-                hi = min(k for k in track if k >= theta)
-                w = 0.0 if hi == lo else (theta - lo) / (hi - lo)
-                mu = _nearest(pt.multipliers, track[lo] + w * (track[hi] - track[lo]))
-                track[theta] = mu
-                return abs(mu) - 1.0
+            def followed(pt: _Point, theta: float) -> complex:
+                mu_ref, k = track[min(track, key=lambda key: abs(key - theta))]
+                mu = _padded(pt.multipliers, n)
+                k = int(_paired(mu_ref, mu)[k])
+                track[theta] = (mu, k)
+                return complex(mu[k])
 
+            mu_a, mu_b = complex(ma[i]), complex(mb[j])
             g_a, g_b = abs(mu_a) - 1.0, abs(mu_b) - 1.0
             if g_a * g_b > 0:     # the inside end lies within unit_tol outside the circle: the crossing is
                 # there, or just beyond it by the linear extrapolation of |mu| - 1 (its accuracy)
@@ -391,8 +407,9 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
                 pt, theta, mu = (a, 0.0, mu_a) if inside_a else (b, 1.0, mu_b)
                 half = abs(g_a if inside_a else g_b) / abs(g_b - g_a) * chord.length
             else:
-                pt, theta, half = _bisect(chord, modulus, g_a, locate_tol_z, True)
-                mu = _nearest(pt.multipliers, track[min(track, key=lambda k: abs(k - theta))])
+                pt, theta, half = _bisect(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a,
+                                          locate_tol_z, True)
+                mu = followed(pt, theta)
             kind = _kind(mu)
             if kind == "fold" and fold_by_tangent:
                 continue          # a saddle-node: recorded once, as the branch's fold
@@ -414,18 +431,20 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                     max_iter: int = 8) -> Branch:
     """Follow the branch of r(u, p) = 0 through (u0, p0) towards p_end by pseudo-arclength (Keller 1977).
 
-    residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)); stability(u, p) -> multipliers (complex array,
-    the same count at every point), or None. ``tol`` bounds max |r| at every point; ``step`` (the first
-    step), ``max_step`` and ``min_step`` are lengths along the branch in units of p (defaults
-    |p_end - p0| / 50, / 10 and step / 1000); ``u_scale`` (scalar or (m,)) is the size of u that counts as
-    much as the whole range of p; ``max_steps`` counts the accepted steps (not the trial points of
-    the bisections); ``margin`` (default |p_end - p0| / 10) widens the range a folded branch
-    may leave; ``locate_tol`` (default 1e-8 |p_end - p0|) the length, along the branch in units of p, to
-    which special points are located; ``unit_tol`` the margin of the unit circle (stable when every
-    |mu| < 1 + unit_tol). u0 is first corrected at p = p0.
-
-    ``stability`` is only called at a (u, p) where ``residual`` was just evaluated (a corrected point),
-    so a caller whose multipliers come with the Jacobian (an orbit's monodromy) may keep its last one.
+    - residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)), real; u0 is first corrected at p = p0;
+    - stability(u, p) -> multipliers (complex array; where their count changes along the branch, the
+      missing ones count as 0), or None; called only at a (u, p) where ``residual`` was just evaluated
+      (a corrected point), so a caller whose multipliers come with its Jacobian (an orbit's monodromy)
+      may keep its last one;
+    - ``tol`` bounds max |r| at every point (``max_iter`` Newton steps per correction);
+    - ``step`` (the first), ``max_step``, ``min_step``: lengths along the branch in units of p
+      (defaults |p_end - p0| / 50, / 10 and step / 1000); ``max_steps`` counts the accepted steps (not
+      the trial points of the bisections);
+    - ``u_scale`` (scalar or (m,)): the size of u that counts as much as the whole range of p;
+    - ``margin`` (default |p_end - p0| / 10) widens the range a folded branch may leave;
+    - ``locate_tol`` (default 1e-6 |p_end - p0|, about 17 halvings of the largest step): the length
+      along the branch, in units of p, to which special points are located;
+    - ``unit_tol``: the margin of the unit circle (a point is stable when every |mu| < 1 + unit_tol).
     """
     if not callable(residual):
         raise NsfemError(f"continue_branch: residual must be callable, got {type(residual).__name__}")
@@ -463,7 +482,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     margin = span / 10 if margin is None else _finite_float("margin", margin)
     if margin < 0:
         raise NsfemError(f"continue_branch: margin must be >= 0, got {margin:g}")
-    locate_tol = _finite_float("locate_tol", locate_tol, positive=True, allow_none=True) or 1e-8 * span
+    locate_tol = _finite_float("locate_tol", locate_tol, positive=True, allow_none=True) or 1e-6 * span
     if locate_tol < ROUNDOFF * span:
         raise NsfemError(f"continue_branch: locate_tol = {locate_tol:g} is below the round-off of the range "
                          f"({ROUNDOFF:g} |p_end - p0| = {ROUNDOFF * span:g})")
