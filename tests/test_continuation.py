@@ -266,3 +266,71 @@ def test_critical_vector_is_the_eigenvector_of_the_multiplier_nearest_minus_one(
     assert mu == -1 and v.dtype == float and abs(abs(v[0]) - abs(v[1])) <= 1e-15 and v[0] > 0
     mu, _ = critical_vector(np.diag([0.5, 2.0]), target=1.0)
     assert mu == 0.5
+
+
+# a shooting residual, as the lead's orbits use it: the forced Duffing oscillator
+# x'' + c x' + x + x^3 = F cos(w t) continued in the forcing amplitude F at w = 1.6 (above the linear
+# resonance: the hardening response curve folds twice, an S in F)
+DUFFING_C, DUFFING_W = 0.1, 1.6
+DUFFING_T = 2 * math.pi / DUFFING_W
+
+
+def _duffing_rhs(t, y, force):
+    """The state, its monodromy's columns and its sensitivity to F (variational equations)."""
+    x, v = y[0], y[1]
+    a = np.array([[0.0, 1.0], [-1.0 - 3.0 * x * x, -DUFFING_C]])
+    f = [v, -x - DUFFING_C * v - x ** 3 + force * math.cos(DUFFING_W * t)]
+    return np.concatenate([f, (a @ y[2:6].reshape(2, 2)).ravel(), a @ y[6:8] + [0.0, math.cos(DUFFING_W * t)]])
+
+
+class DuffingShooting:
+    """r(x0, F) = phi_T(x0; F) - x0, J_u = M - I, J_p = d phi_T / dF; stability: M's eigenvalues, kept
+    from the residual's last call (the module's contract: stability comes right after the residual)."""
+
+    def __init__(self):
+        self.last = None
+
+    def residual(self, u, p):
+        from scipy.integrate import solve_ivp
+        y0 = np.concatenate([u, np.eye(2).ravel(), np.zeros(2)])
+        y = solve_ivp(_duffing_rhs, (0.0, DUFFING_T), y0, args=(p,), method="DOP853", rtol=1e-10,
+                      atol=1e-11).y[:, -1]
+        self.last = (u.copy(), p, y[2:6].reshape(2, 2))
+        return y[:2] - u, self.last[2] - np.eye(2), y[6:8]
+
+    def stability(self, u, p):
+        assert np.array_equal(u, self.last[0]) and p == self.last[1]
+        return np.linalg.eigvals(self.last[2])
+
+
+def test_duffing_resonance_curve_by_shooting_folds_twice_with_a_saddle_between():
+    shooting = DuffingShooting()
+    branch = continue_branch(shooting.residual, [0.0, 0.0], 0.01, 1.5, step=0.1, max_step=0.3, tol=1e-9,
+                             locate_tol=1e-4, stability=shooting.stability)
+    assert branch.stop == "end", branch.reason
+    liouville = math.exp(-DUFFING_C * DUFFING_T)     # det M = exp(trace(A) T), trace A = -c
+    for pt in branch.points:
+        # rtol 1e-10 over one period: det M to ~1e-9 (measured 2e-10 at most)
+        assert abs(np.prod(pt.multipliers) - liouville) <= 1e-8
+    # det M < 1: a complex pair has |mu| = sqrt(det M) < 1, so no Neimark-Sacker; the folds of the S are
+    # saddle-nodes (a multiplier through +1, the other det M), each recorded once, by the tangent
+    folds = [b for b in branch.bifurcations if b["kind"] == "fold"]
+    assert "neimark-sacker" not in kinds(branch) and len(folds) == 2
+    assert all(b["detected_by"] == "tangent" for b in folds)
+    for fold, extremum in zip(folds, (max, min)):
+        i = fold["index"]
+        p_i, p_next = branch.points[i].p, branch.points[i + 1].p
+        # p is extremal at a fold: the located value beyond both neighbours (up to curvature x accuracy^2)
+        assert extremum(fold["value"], p_i, p_next) == fold["value"] or \
+            abs(fold["value"] - extremum(p_i, p_next)) <= fold["accuracy"] ** 2
+        # the largest multiplier is 1 at the fold (M - I singular): the located one, within its accuracy
+        # (4e-5) of the fold, is far nearer to 1 than those at the interval's ends (0.3 along the branch,
+        # 0.1 to 0.8 from 1); the other one is det M / mu
+        mu = fold["multipliers"]
+        ends = [abs(branch.points[k].multipliers[0] - 1) for k in (i, i + 1)]
+        assert abs(mu[0] - 1) < min(ends) / 10 and abs(mu[0].imag) == 0
+        assert abs(mu[0] * mu[1] - liouville) <= 1e-8
+    # each located crossing changes stability, and only those: stable, saddle, stable
+    changes = [i for i in range(len(branch.points) - 1) if branch.points[i].stable != branch.points[i + 1].stable]
+    assert changes == [b["index"] for b in branch.bifurcations]
+    assert branch.points[0].stable and branch.points[-1].stable

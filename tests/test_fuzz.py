@@ -3995,6 +3995,12 @@ def test_issue36_continuation_refuses_bad_arguments_in_one_line(changes, words):
     assert words in message, message
 
 
+def test_issue36_a_failing_stability_at_the_start_says_so():
+    branch = _continue36(stability=_raises36)
+    assert branch.stop == "failed" and branch.reason.startswith("at the start: the stability failed")
+    assert len(branch.points) == 1 and branch.points[0].converged and branch.points[0].multipliers is None
+
+
 def test_issue36_a_failing_residual_ends_the_branch_keeping_its_points():
     def fails_late(u, p):
         return _raises36(u, p) if p > 0.0 else _circle36(u, p)

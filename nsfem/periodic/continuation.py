@@ -109,8 +109,9 @@ class Branch:
     points: list[BranchPoint]
     bifurcations: list[dict] = field(default_factory=list)
     # {"kind": "fold" | "period-doubling" | "neimark-sacker", "value": p, "index": i (between points i
-    #  and i + 1), "u": u there, "multipliers": at the point or None, "accuracy": the bracket's half
-    #  length along the branch in units of p, "detected_by": "tangent" | "multipliers"}
+    #  and i + 1), "u": u there, "multipliers": at the point or None, "accuracy": the point's largest
+    #  distance (units of p) to the corrected ends of the final bracket, between which the crossing lies
+    #  on the branch, "detected_by": "tangent" | "multipliers"}
     stop: str = ""      # "end" | "left" | "closed" | "max_steps" | "failed"
     reason: str = ""    # one sentence: where and why the branch ended
 
@@ -513,10 +514,13 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         raise NsfemError(f"continue_branch: at the start (u0, p0 = {p0:g}): {exc}") from None
     try:
         a = _correct(problem, z0, e_p, 0.0, tol, max_iter)
-        a.multipliers = problem.multipliers(a.z)
     except _Failure as exc:
         start = BranchPoint(p0, u0, None, None, False, float(np.max(np.abs(r0))), 0.0)
         return Branch([start], [], "failed", f"the start at p = {p0:g} did not converge: {exc}")
+    try:
+        a.multipliers = problem.multipliers(a.z)
+    except _Failure as exc:
+        return Branch([_branch_point(problem, a, 0.0, tol, unit_tol)], [], "failed", f"at the start: {exc}")
     t = _tangent(a.jac, e_p)
     first_z = a.z
     points = [_branch_point(problem, a, 0.0, tol, unit_tol)]
