@@ -334,3 +334,66 @@ def test_duffing_resonance_curve_by_shooting_folds_twice_with_a_saddle_between()
     changes = [i for i in range(len(branch.points) - 1) if branch.points[i].stable != branch.points[i + 1].stable]
     assert changes == [b["index"] for b in branch.bifurcations]
     assert branch.points[0].stable and branch.points[-1].stable
+
+
+# the period-doubling cascade of the Henon map (x, y) -> (1 - a x^2 + y, b x), b = 0.3: closed forms
+# (fixed points and 2-cycles solve quadratics; their multipliers' trace and det are polynomials in a)
+HENON_B = 0.3
+HENON_PD1 = 3 * (1 - HENON_B) ** 2 / 4                            # the fixed point's mu = -1
+HENON_PD2 = ((1 + HENON_B) ** 2 + 4 * (1 - HENON_B) ** 2) / 4     # the 2-cycle's: 1 + tr + det = 0,
+# tr = 4 ((1 - b)^2 - a) + 2 b, det = b^2 (x1 + x2 = (1 - b) / a, x1 x2 = ((1 - b)^2 - a) / a^2)
+
+
+def henon(u, a):
+    """The map, its Jacobian and its derivative in a."""
+    x, y = u
+    return (np.array([1 - a * x * x + y, HENON_B * x]), np.array([[-2 * a * x, 1.0], [HENON_B, 0.0]]),
+            np.array([-x * x, 0.0]))
+
+
+def henon_iterate(u, a, k):
+    """The k-th iterate: r = H^k(u) - u, J_u = prod J - I, J_p by the chain rule; and prod J."""
+    m, dp = np.eye(2), np.zeros(2)
+    for _ in range(k):
+        u, j, ja = henon(u, a)
+        m, dp = j @ m, j @ dp + ja
+    return u, m, dp
+
+
+def henon_residual(k):
+    def residual(u, a):
+        end, m, dp = henon_iterate(u, a, k)
+        return end - u, m - np.eye(2), dp
+    return residual
+
+
+def henon_multipliers(k):
+    return lambda u, a: np.linalg.eigvals(henon_iterate(u, a, k)[1])
+
+
+def test_henon_cascade_switching_onto_the_doubled_branch_with_critical_vector():
+    x_fixed = lambda a: (-(1 - HENON_B) + math.sqrt((1 - HENON_B) ** 2 + 4 * a)) / (2 * a)   # noqa: E731
+    start = [x_fixed(0.1), HENON_B * x_fixed(0.1)]
+    fixed = continue_branch(henon_residual(1), start, 0.1, 0.6, tol=TOL, locate_tol=LOCATE,
+                            stability=henon_multipliers(1))
+    assert kinds(fixed) == ["period-doubling"]
+    pd = fixed.bifurcations[0]
+    # at the flip |dmu/da| = 1.1, |J_u| >= 0.51 (smallest singular value), |dmu/du| ~ 2 a: SLACK holds
+    assert_located(pd, HENON_PD1)
+    mu, v = critical_vector(henon_iterate(pd["u"], pd["value"], 1)[1])
+    assert abs(mu + 1) <= 1e-6 and v.dtype == float
+    # the 2-cycle branches off along v: x1,2 - x* ~ +-sqrt(4 (a - a1)) / (2 a); at a1 + 0.01 that is 0.26
+    a_start = pd["value"] + 0.01
+    cycle = continue_branch(henon_residual(2), pd["u"] + 0.2 * v, a_start, 1.1, tol=TOL, locate_tol=LOCATE,
+                            stability=henon_multipliers(2))
+    assert cycle.stop == "end", cycle.reason
+    for pt in cycle.points:
+        a = pt.p
+        spread = math.sqrt(4 * a - 3 * (1 - HENON_B) ** 2) / (2 * a)
+        centre = (1 - HENON_B) / (2 * a)
+        # on the 2-cycle (not the fixed point): x = centre +- spread, to the corrector's error TOL / |J_u|,
+        # |J_u| >= 0.043 (smallest singular value; at the branch's start a multiplier of H^2 is near +1)
+        assert min(abs(pt.u[0] - centre - spread), abs(pt.u[0] - centre + spread)) <= TOL / 0.04
+        assert pt.stable == (a < HENON_PD2)
+    assert kinds(cycle) == ["period-doubling"]
+    assert_located(cycle.bifurcations[0], HENON_PD2)
