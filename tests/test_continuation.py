@@ -4,7 +4,7 @@ of Applied Bifurcation Theory", 3rd ed., chapter 4: the fold, the logistic map's
 logistic map's Neimark-Sacker bifurcation).
 
 Tolerances. Every point is corrected to max |r| <= TOL. A located special point lies within its
-``accuracy`` (the bisection's bracket, <= LOCATE) of the exact crossing along the branch, plus the
+``accuracy`` (the final bracket, <= LOCATE) of the exact crossing along the branch, plus the
 corrector's error: u off the branch by at most TOL / |J_u| moves a multiplier by |dmu/du| TOL / |J_u|
 and so the crossing's p by that over |dmu/dp|; for the maps below |J_u| >= 1, |dmu/du| <= 2 p <= 7 and
 |dmu/dp| >= 1/2 on the branch near the crossing, so 20 TOL bounds it.
@@ -22,7 +22,7 @@ from nsfem.errors import NsfemError
 from nsfem.periodic.continuation import Branch, continue_branch, critical_vector
 
 TOL = 1e-10           # the corrector's bound on max |r|
-LOCATE = 1e-8         # the bisection's bound on the bracket, in units of p
+LOCATE = 1e-8         # the bound on the locating bracket, in units of p
 SLACK = 20 * TOL      # the corrector's share of a located point's error (module docstring)
 
 
@@ -181,7 +181,7 @@ def test_several_crossings_between_two_points_are_located_each():
                              stability=lambda u, p: np.linalg.eigvals(linear_map(p)[0]))
     assert branch.stop == "end" and [pt.p for pt in branch.points] == pytest.approx([1.0, 1.45, 1.9, 2.0], abs=1e-12)
     assert kinds(branch) == ["neimark-sacker", "fold", "period-doubling"]
-    # the branch is u = 0 with no error: the located p are the exact crossings to the bisection's accuracy
+    # the branch is u = 0 with no error: the located p are the exact crossings to the bracket's accuracy
     for bif, exact in zip(branch.bifurcations, (1.55, 1.62, 1.93)):
         assert_located(bif, exact)
         assert np.all(bif["u"] == 0)
