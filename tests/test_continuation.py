@@ -6,8 +6,9 @@ logistic map's Neimark-Sacker bifurcation).
 Tolerances. Every point is corrected to max |r| <= TOL. A located special point lies within its
 ``accuracy`` (the final bracket, <= LOCATE) of the exact crossing along the branch, plus the
 corrector's error: u off the branch by at most TOL / |J_u| moves a multiplier by |dmu/du| TOL / |J_u|
-and so the crossing's p by that over |dmu/dp|; for the maps below |J_u| >= 1, |dmu/du| <= 2 p <= 7 and
-|dmu/dp| >= 1/2 on the branch near the crossing, so 20 TOL bounds it.
+and so the crossing's p by that over |dmu/dp|; for the maps below the smallest singular value of J_u
+is >= 0.6 near the crossings, |dmu/du| <= 2 p <= 7 and |dmu/dp| >= 1/2, so 20 TOL bounds it (the
+fold of x + p - x^2 is located on t_p, and r = p - x^2 holds p within TOL of the branch).
 
 Bad arguments (one-line NsfemError naming them) are in test_fuzz.py, block "issue 36: continuation".
 """
@@ -18,6 +19,7 @@ import math
 
 import numpy as np
 import pytest
+
 from nsfem.errors import NsfemError
 from nsfem.periodic.continuation import Branch, continue_branch, critical_vector
 
@@ -144,6 +146,9 @@ def test_d_saddle_node_is_one_fold_found_by_tangent_and_multiplier():
         # 1 - 2x in (-1, 1) for 0 < x < 1; a point within the corrector's error of x = 0 is marginal
         assert pt.stable == (pt.u[0] > 0) or abs(pt.u[0]) <= 1e-6   # |1 - 2x| < 1 + unit_tol
     assert kinds(branch) == ["fold"]          # recorded once
+    # ... though the multiplier crossed +1 in the same interval: stability changes there and only there
+    changes = [i for i in range(len(branch.points) - 1) if branch.points[i].stable != branch.points[i + 1].stable]
+    assert changes == [branch.bifurcations[0]["index"]]
     fold = branch.bifurcations[0]
     assert_located(fold, 0.0)
     assert abs(fold["multipliers"][0] - 1) <= 2 * math.sqrt(fold["accuracy"] + SLACK)   # 1 - 2x, x^2 = p
