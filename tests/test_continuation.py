@@ -205,6 +205,11 @@ def test_multipliers_whose_count_changes_count_the_missing_as_zero():
 
     quiet = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, stability=appearing(0.2))
     assert quiet.stop == "end" and quiet.bifurcations == [] and all(pt.stable for pt in quiet.points)
+    # every direction held (no multiplier at all) up to p = 0: stable, then the free one appears outside
+    held = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, locate_tol=LOCATE,
+                           stability=lambda u, p: np.zeros(0) if p < 0 else np.array([1.5]))
+    assert kinds(held) == ["fold"] and [pt.stable for pt in held.points] == [pt.p < 0 for pt in held.points]
+    assert_located(held.bifurcations[0], 0.0)
     loud = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, locate_tol=LOCATE, stability=appearing(1.5))
     assert kinds(loud) == ["fold"]
     assert_located(loud.bifurcations[0], 0.0)     # the jump of |mu| - 1 at p = 0 is a sign change there

@@ -222,7 +222,7 @@ class _Scaled:
             mu = np.asarray(mu, dtype=complex)
         except (TypeError, ValueError):
             raise _Contract("continue_branch: stability(u, p) must return an array of multipliers") from None
-        if mu.ndim != 1 or mu.size == 0:
+        if mu.ndim != 1:
             raise _Contract(f"continue_branch: stability(u, p) must return a 1-D array of multipliers, got shape "
                             f"{mu.shape}")
         if not np.all(np.isfinite(mu)):
@@ -462,8 +462,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     """Follow the branch of r(u, p) = 0 through (u0, p0) towards p_end by pseudo-arclength (Keller 1977).
 
     - residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)), real; u0 is first corrected at p = p0;
-    - stability(u, p) -> multipliers (complex array; where their count changes along the branch, the
-      missing ones count as 0), or None; called only at a (u, p) where ``residual`` was just evaluated
+    - stability(u, p) -> multipliers (complex array, possibly empty; where their count changes along the
+      branch, the missing ones count as 0), or None; called only at a (u, p) where ``residual`` was just evaluated
       (a corrected point), so a caller whose multipliers come with its Jacobian (an orbit's monodromy)
       may keep its last one;
     - ``tol`` bounds max |r| at every point (``max_iter`` Newton steps per correction);
