@@ -360,7 +360,7 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
     in by a bracket of width span_tol rather than approached from one side."""
     lo, hi, glo, ghi = 0.0, 1.0, g_a, g_b
     pt_lo, pt_hi = chord.a, chord.b
-    kept, widths = 0, [1.0, 1.0]
+    kept, widths = 0, [math.inf, math.inf]
     half_tol = 0.5 * span_tol / chord.length
     if (g_a > 0) == (g_b > 0):     # no sign change to follow: the nearer end, to the chord's length
         return (chord.a, 0.0, chord.length) if abs(g_a) <= abs(g_b) else (chord.b, 1.0, chord.length)
