@@ -78,3 +78,35 @@ def test_branch_refuses_an_empty_range_and_a_start_that_is_no_orbit():
         orbit_branch(_system, _period, [0.0], [0.0], 2.5, 2.5)
     with pytest.raises(NsfemError, match="range"):
         orbit_branch(_system, _period, [0.0], [0.0], 2.5, float("nan"))
+
+
+def _resting_block(w):
+    """A block held on a frictionless floor by its load (the contact closed all period), forced along it."""
+    from nsfem.contact.set import ContactSet
+    from nsfem.integrate.problem import ContactSystem
+
+    cs = ContactSet.from_arrays([[0.0], [1.0]], [0.0], eps=0.0)
+    return ContactSystem.from_arrays(M=np.eye(2), Q=np.array([[4.0, 0.3], [0.3, 50.0]]), C=0.05 * np.eye(2),
+                                     f0=[0.0, -5.0], fc=[0.5, 0.0], omega=w, contacts=cs)
+
+
+def test_branch_of_an_orbit_with_a_contact_closed_at_the_section_is_the_constrained_harmonic_solution():
+    """The contact stays closed over the period (normal force 5 + 0.3 x > 0): the orbit is the harmonic solution
+    of the x equation alone, X = 0.5 / (4 - w^2 + 0.05 i w), its multipliers exp(lambda T) of x'' + 0.05 x' + 4 x.
+    The continuation runs Newton on all of (q, q'): the held gap's row of J_u must not be zero (it was: the
+    phase transition kept a closed gap's perturbation, so the corrector's system was singular and the branch
+    stopped at its first step)."""
+    x = 0.5 / (4.0 - 1.5 ** 2 + 0.05j * 1.5)
+    br = orbit_branch(_resting_block, _period, [x.real, 0.0], [(1.5j * x).real, 0.0], 1.5, 1.8, key="w", step=0.05)
+    assert br.stop == "end" and len(br.points) >= 4
+    lam = np.roots([1.0, 0.05, 4.0])
+    for pt in br.points:
+        w = pt["value"]
+        X = 0.5 / (4.0 - w * w + 0.05j * w)
+        # corrected to tol 1e-9 of the orbit's size; the state within that times cond(J_u) ~ 1 / (1 - |mu|) < 15
+        # (|mu| = exp(-0.025 T) >= 0.90): 1e-8 of |X|
+        assert abs(pt["q0"][0] - X.real) <= 1e-8 * abs(X) and abs(pt["q0"][1]) <= 1e-12
+        assert abs(pt["v0"][0] - (1j * w * X).real) <= 1e-8 * w * abs(X) and abs(pt["v0"][1]) <= 1e-12
+        mu = np.array([complex(*m) for m in pt["multipliers"]])
+        # the closed form's exponentials to round-off (|lambda T| ~ 8): 1e-12
+        assert np.abs(np.sort_complex(mu) - np.sort_complex(np.exp(lam * 2 * np.pi / w))).max() <= 1e-12

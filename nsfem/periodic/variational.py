@@ -2,12 +2,16 @@
 
 In a configuration (:class:`~nsfem.integrate.configuration.Configuration`) the motion is
 q = q_p + N y with G^T q_p + g0 = 0 and x = (y, y') obeying x' = A x + B (f(t) - Q q_p). The
-constraint values g0 of a phase are its closed gaps' constants and, for sticking contacts, the
-slip they hold, which is the slip of the state the phase starts from: a perturbation keeps
-G^T dq, so dq_p = P_G dq0 with P_G = pinv(G^T) G^T the projector on range(G), and
+constraint values g0 of a phase are its closed gaps' constants (fixed: the phase starts with
+those gaps at 0, a perturbation of them is dropped) and, for sticking and edge contacts, the slip
+they hold, which is the slip of the state the phase starts from (a perturbation keeps it). So
+dq_p = P_H dq0 with P_H = pinv(G^T) E G^T, E = diag(0 on the gap rows, 1 on the slip rows), and
 
-    dx(s) = e^{A s} (N^T dq0, N^T dv0) - (int_0^s e^{A sigma} d sigma) B Q P_G dq0,
-    dq(s) = P_G dq0 + N dy(s),   dv(s) = N dy'(s).
+    dx(s) = e^{A s} (N^T dq0, N^T dv0) - (int_0^s e^{A sigma} d sigma) B Q P_H dq0,
+    dq(s) = P_H dq0 + N dy(s),   dv(s) = N dy'(s).
+
+(Keeping a closed gap's perturbation instead would make the gap's row of Phi_T - I zero at a section
+where the contact stays closed: a singular Jacobian for a Newton on all of (q, q').)
 
 Both exponentials come from one matrix exponential, expm([[A, I], [0, 0]] s) (Van Loan), exact to
 round-off for any A (rigid-body coordinates and repeated eigenvalues included). Perturbations
@@ -22,19 +26,21 @@ import scipy.linalg as sla
 
 
 def constraint_projector(config) -> np.ndarray:
-    """P_G (n x n): dq_p = P_G dq0, the part of a displacement the configuration's constraint rows hold."""
+    """P_H (n x n): dq_p = P_H dq0, the part of a displacement the configuration's slip rows hold (sticking and
+    edge contacts keep the slip they start with; closed gaps are held at their constants, whatever the start)."""
     n = config.system.n
     if not config.G.shape[1]:
         return np.zeros((n, n))
-    return config.Gpinv @ config.G.T
+    held = np.array([kind != "normal" for kind, _, _ in config.rows], dtype=float)
+    return config.Gpinv @ (held[:, None] * config.G.T)
 
 
 def phase_transition(config, s: float) -> np.ndarray:
     """d(q(t0 + s), q'(t0 + s)) / d(q(t0), q'(t0)) of a phase of ``config`` (2n x 2n): eq. above, exact."""
     n, r = config.system.n, config.r
-    PG = constraint_projector(config)
+    PH = constraint_projector(config)
     Phi = np.zeros((2 * n, 2 * n))
-    Phi[:n, :n] = PG
+    Phi[:n, :n] = PH
     if not r:
         return Phi
     N = config.N
@@ -43,7 +49,7 @@ def phase_transition(config, s: float) -> np.ndarray:
     dx[:, :n] = eA[:, :r] @ N.T
     dx[:, n:] = eA[:, r:] @ N.T
     if config.G.shape[1]:
-        dx[:, :n] -= iA @ (config.B @ (config.Q @ PG))
+        dx[:, :n] -= iA @ (config.B @ (config.Q @ PH))
     Phi[:n] += N @ dx[:r]
     Phi[n:] = N @ dx[r:]
     return Phi
