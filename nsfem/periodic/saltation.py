@@ -18,12 +18,13 @@ and an impact change the vector field. A grazing event (h' = 0) has no saltation
 The impact's Dg is the derivative of LCP (30-32)'s solution with its outcome held: per contact
 with an impulse, Newton's law g'+ = -eps g'- (eps = 0 where the impact was plastic, settled or
 an accumulation closed it), and for frictional ones either sticking (slip'+ = 0, the tangential
-impulse free) or sliding with the impulse on the generator that opposes the slip after it;
-the impulses W Lambda then solve a linear system whose solution is linear in (q, q'-). The
-outcome is read from the velocities before and after the event, and the linearized map is checked
-to reproduce the impact: where it does not (an impulse inside a polygon facet, a sequence of
-impacts with restitution within a set), ``exact`` is False and the matrix is that of the outcome
-read.
+impulse free), sliding with the impulse on the generator that opposes the slip after it, or
+sliding with the impulse on a polygon facet (two generators oppose the slip alike: the slip after
+it lies along the facet's normal, its component along the facet held at 0, the impulse's position
+on the facet free); the impulses W Lambda then solve a linear system whose solution is linear in
+(q, q'-). The outcome is read from the velocities before and after the event, and the linearized
+map is checked to reproduce the impact: where it does not (a sequence of impacts with restitution
+within a set), ``exact`` is False and the matrix is that of the outcome read.
 """
 
 from __future__ import annotations
@@ -112,7 +113,21 @@ def impact_jacobian(system, q: np.ndarray, v_minus: np.ndarray, v_plus: np.ndarr
                     const.append(float(cs.wS[k][j]) if cs.moving[k] else 0.0)
                 continue
             B = cs.generators(k)
-            i = int(np.argmin(B.T @ s_plus))   # the generator most opposing the slip after the impulse
+            proj = B.T @ s_plus
+            i = int(np.argmin(proj))   # the generator most opposing the slip after the impulse
+            r = B.shape[1]
+            j = min(((i + 1) % r, (i - 1) % r), key=lambda j_: proj[j_]) if d == 2 and r >= 3 else i
+            if j != i and proj[j] - proj[i] <= OUTCOME_TOL * np.abs(s_plus).max():
+                # two generators oppose the slip alike: the impulse on their facet, the slip after it along the
+                # facet's normal (its component along the facet held at 0, the impulse's position on it free)
+                n_f, t_f, c, _ = cs.facet(k, i if j == (i + 1) % r else j)
+                cols.append(jn + cs.mu[k] * c * (cs.JS[k] @ n_f))
+                cols.append(cs.JS[k] @ t_f)
+                rows_v.append(cs.JS[k] @ t_f)
+                rows_q.append(np.zeros(n))
+                rhs_v.append(np.zeros(n))
+                const.append(0.0)
+                continue
             cols.append(jn + cs.mu[k] * (cs.JS[k] @ B[:, i]))
         else:
             cols.append(jn)
