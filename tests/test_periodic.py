@@ -201,6 +201,10 @@ def test_classify_names_the_loss_by_the_largest_multiplier():
     ({"period_s": 1.0, "tol": 0.0}, "tol"), ({"period_s": 1.0, "max_iter": 0}, "max_iter"),
     ({"period_s": 1.0, "q0": [0.0, 0.0, 0.0]}, "starting state"), ({"period_s": 1.0, "v0": [np.nan, 0.0]}, "starting state"),
     ({"period_s": 1.0, "t0": float("nan")}, "t0"),
+    # forced at omega = 7: 1 s is 1.114 forcing periods, x0 = phi_T(x0) there is no periodic orbit
+    ({"period_s": 1.0}, "not a multiple of the forcing period"),
+    ({"period_s": 0.5 * 2 * math.pi / 7.0}, "not a multiple of the forcing period"),
+    ({"period_s": 2 * math.pi / 7.0 * (1 + 1e-6)}, "not a multiple of the forcing period"),
 ])
 def test_bad_arguments_are_refused_in_one_line(kwargs, match):
     *_, system = _linear_system()

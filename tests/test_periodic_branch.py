@@ -78,6 +78,11 @@ def test_branch_refuses_an_empty_range_and_a_start_that_is_no_orbit():
         orbit_branch(_system, _period, [0.0], [0.0], 2.5, 2.5)
     with pytest.raises(NsfemError, match="range"):
         orbit_branch(_system, _period, [0.0], [0.0], 2.5, float("nan"))
+    # a period that is not the forcing's (the frequency w in Hz taken for rad/s) and a fractional multiple
+    with pytest.raises(NsfemError, match="not a multiple of the forcing period"):
+        orbit_branch(_system, lambda w: 1.0 / w, [0.0], [0.0], 2.5, 2.6)
+    with pytest.raises(NsfemError, match="multiple must be an integer"):
+        orbit_branch(_system, _period, [0.0], [0.0], 2.5, 2.6, multiple=1.5)
 
 
 def _resting_block(w):

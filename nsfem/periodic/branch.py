@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import NsfemError
 from .continuation import Branch, continue_branch, critical_vector
 from .flow import FlowMap
-from .shooting import admissible_directions, classify, periodic_orbit
+from .shooting import admissible_directions, check_forcing_multiple, classify, periodic_orbit
 
 #: the parameter step of J_p's central differences, relative to the continuation's range
 DP = 1e-6
@@ -112,6 +112,10 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     the doubled branch is followed too (``depth`` levels)."""
     if not (math.isfinite(p0) and math.isfinite(p_end)) or p0 == p_end:
         raise NsfemError(f"periodic: the continuation range {p0!r} to {p_end!r} must be finite and not empty")
+    if isinstance(multiple, bool) or not isinstance(multiple, (int, np.integer)) or multiple < 1:
+        raise NsfemError(f"periodic: multiple must be an integer >= 1, got {multiple!r}")
+    for p in (p0, p_end):   # the period a multiple of the forcing's along the range (its ends checked)
+        check_forcing_multiple(system_at(p), multiple * period_at(p))
     span = abs(p_end - p0)
     problem = _Problem(system_at, period_at, t0, DP * span, int(multiple))
     start = periodic_orbit(system_at(p0), multiple * period_at(p0), q0, v0, t0, tol=tol)

@@ -66,6 +66,27 @@ def classify(multipliers: np.ndarray, tol: float = 1e-6) -> tuple[bool, str | No
     return False, "fold" if m.real > 0 else "period-doubling"
 
 
+#: relative distance of period * omega / (2 pi) from an integer below which the period is a multiple of the forcing's
+#: (a period computed as K / speed_hz or 2 pi K / omega is one to ~1e-15)
+MULTIPLE_TOL = 1e-9
+
+
+def check_forcing_multiple(system, period_s: float) -> int:
+    """The number K of forcing periods in ``period_s`` (0 without harmonic forcing); NsfemError when the system is
+    forced harmonically and ``period_s`` is not K >= 1 forcing periods (the flow over it is then no map of a
+    periodic orbit: x0 = phi_T(x0) would not repeat)."""
+    if not system.harmonic:
+        return 0
+    T_f = 2.0 * math.pi / system.omega
+    k = period_s / T_f
+    K = round(k)
+    if K < 1 or abs(k - K) > MULTIPLE_TOL * max(1.0, k):
+        raise NsfemError(f"periodic: the period {period_s:.10g} s is not a multiple of the forcing period {T_f:.10g} s "
+                         f"(omega = {system.omega:.10g} rad/s: {k:.10g} periods); a periodic orbit of a forced system "
+                         "has a period of K forcing periods")
+    return int(K)
+
+
 def admissible_directions(system, mode) -> np.ndarray:
     """Orthonormal basis (2n x d) of the perturbations (dq, dq') that keep ``mode``: closed gaps and their rates,
     sticking slip rates held."""
@@ -112,6 +133,7 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
     if q.shape != (n,) or v.shape != (n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
         raise NsfemError(f"periodic: the starting state must be two finite vectors of length {n}")
+    check_forcing_multiple(system, period_s)
     w = 2.0 * math.pi / period_s
     scale = np.concatenate([np.ones(n), np.full(n, 1.0 / w)])
 
