@@ -50,9 +50,9 @@ def test_linear_monodromy_is_the_matrix_exponential_and_the_orbit_the_harmonic_s
     assert orbit.stable and orbit.loss is None
 
 
-def _fd_columns(system, q0, v0, T, Z, h=1e-4):
-    """Central differences of the flow along the columns of Z, the step h times the state's size."""
-    fl = flow(system, 0.0, q0, v0, T, jacobian=False)
+def _fd_columns(system, q0, v0, T, Z, h=1e-4, t0=0.0):
+    """Central differences of the flow from t0 along the columns of Z, the step h times the state's size."""
+    fl = flow(system, t0, q0, v0, T, jacobian=False)
     n = q0.size
     sx = max(np.abs(q0).max(), np.abs(fl.q).max())
     sv = max(np.abs(v0).max(), np.abs(fl.v).max(), 2 * math.pi / T * sx)
@@ -61,8 +61,8 @@ def _fd_columns(system, q0, v0, T, Z, h=1e-4):
     J = np.zeros((2 * n, Z.shape[1]))
     for j in range(Z.shape[1]):
         d = h * S * Z[:, j]
-        a = flow(system, 0.0, (x + d)[:n], (x + d)[n:], T, jacobian=False)
-        b = flow(system, 0.0, (x - d)[:n], (x - d)[n:], T, jacobian=False)
+        a = flow(system, t0, (x + d)[:n], (x + d)[n:], T, jacobian=False)
+        b = flow(system, t0, (x - d)[:n], (x - d)[n:], T, jacobian=False)
         J[:, j] = (np.concatenate([a.q - b.q, a.v - b.v])) / (2 * h)
     return J, S
 
@@ -102,6 +102,15 @@ def _sticking_block():
                                      fc=[3.0, 0.0], omega=1.5, contacts=cs)
 
 
+def _belt(mu):
+    """A mass pressed on a belt that moves along x at 0.5 m/s, its slip rate also 0.3 times the normal
+    displacement (a moving surface: JSq, wS, as a stator rubbed by a spinning shaft): sliding, reversing, lifting."""
+    cs = ContactSet.from_arrays([[0.0], [1.0]], [0.05], mu=mu, eps=0.0, JS=[np.array([[1.0], [0.0]])], r=2,
+                                JSq=[np.array([[0.0], [0.3]])], wS=[np.array([0.5])])
+    return ContactSystem.from_arrays(M=np.eye(2), Q=np.array([[3.0, 0.4], [0.4, 20.0]]), C=0.1 * np.eye(2),
+                                     f0=[0.0, -1.0], fc=[0.5, 1.5], fs=[0.3, 0.0], omega=2.0, contacts=cs)
+
+
 CASES = {
     # name: (system, q0, v0, omega, the event kinds the period must contain)
     "impacts with restitution": (_impact_oscillator(0.8), [0.0], [0.0], 2.4, {"close"}),
@@ -111,6 +120,7 @@ CASES = {
     # after it alike): the slip after it is held along the facet's normal (was an approximation, error 1.1)
     "impulse on a cone facet": (_plane(0.6, 4, 1.0), [0.05, 0.0, 0.0], [0.1, 0.0, 0.0], 2.5, {"close", "turn"}),
     "two stops": (_two_stops(), [0.0, 0.0], [0.0, 0.0], 2.2, {"close"}),
+    "moving surface": (_belt(0.2), [0.0, 0.0], [0.0, 0.0], 2.0, {"close", "turn", "release"}),
     "slip reversals": (_sliding_block(), [0.0, 0.0], [0.3, 0.0], 1.5, {"turn"}),
     "stick and slip": (_sticking_block(), [0.0, 0.0], [0.3, 0.0], 1.5, {"turn", "slip"}),
 }
@@ -127,6 +137,32 @@ def test_monodromy_equals_central_differences_of_the_flow_across_events(name):
     assert not fl.approximations    # every saltation matrix formed exactly
     Z = admissible_directions(system, fl.start_mode)
     J, S = _fd_columns(system, q0, v0, T, Z)
+    P = fl.monodromy @ (S[:, None] * Z)
+    assert np.abs(P - J).max() <= 1e-5 * np.abs(J).max()
+
+
+@pytest.mark.parametrize("mu, r, press, kind, held", [
+    (1.0, 4, 1.0, "slide", 2),   # closed, force on a generator: gap and gap rate held
+    (1.0, 8, 1.0, "edge", 3),    # closed, force on a facet: and the slip rate along the facet
+    (0.8, 4, 3.0, "stick", 4),   # closed and sticking: and both slip rates
+])
+def test_monodromy_on_the_admissible_directions_of_a_section_in_a_contact_mode(mu, r, press, kind, held):
+    """The section inside a slide, edge or stick phase (t0 there): the admissible directions are 2n minus the
+    held rows, and along each of them the monodromy equals central differences of the flow (the perturbed starts
+    stay in the section's mode: a direction that left it would change the mode and the difference by O(1));
+    tolerance as in the cases above."""
+    system = _plane(mu, r, press)
+    T = 2 * math.pi / 2.5
+    run = flow(system, 0.0, [0.05, 0.0, 0.0], [0.1, 0.0, 0.0], 3 * T)
+    phases = [s for s in run.trace[1:] if getattr(s["mode"], kind) and s["t1"] - s["t0"] > 0.05]
+    assert phases, kind
+    t0 = 0.5 * (phases[0]["t0"] + phases[0]["t1"])
+    q0, v0 = phases[0]["phase"].state_at(t0)
+    fl = flow(system, t0, q0, v0, T)
+    assert getattr(fl.start_mode, kind)
+    Z = admissible_directions(system, fl.start_mode)
+    assert Z.shape == (6, 6 - held) and np.abs(Z.T @ Z - np.eye(6 - held)).max() <= 1e-14
+    J, S = _fd_columns(system, q0, v0, T, Z, t0=t0, h=1e-5)
     P = fl.monodromy @ (S[:, None] * Z)
     assert np.abs(P - J).max() <= 1e-5 * np.abs(J).max()
 
