@@ -4057,3 +4057,80 @@ def test_issue36_critical_vector_refuses_bad_matrices_in_one_line(matrix, target
     with pytest.raises(NsfemError) as info:
         critical_vector(matrix, target)
     assert words in _one_line36(info.value)
+
+
+# --- issue 36: periodic orbits (shooting, orbit branches) ---
+# nsfem.periodic.periodic_orbit and orbit_branch (library functions): a bad argument raises one NsfemError of one
+# line naming it before any flow is integrated (was: TypeError, ValueError, OverflowError tracebacks from int() and
+# math.isfinite of None, NaN, inf or text); anything else returns an orbit (converged or said not to be)
+from nsfem.integrate.problem import ContactSystem as _System36  # noqa: E402
+from nsfem.periodic import orbit_branch as _orbit_branch36  # noqa: E402
+from nsfem.periodic import periodic_orbit as _periodic_orbit36  # noqa: E402
+
+
+def _forced36(w: float = 7.0):
+    """Two masses on springs, forced at w: no contact, the orbit is the harmonic solution (one Newton step)."""
+    K = np.array([[3.0, -1.0], [-1.0, 2.0]]) * 100.0
+    return _System36.from_arrays(M=np.diag([1.0, 2.0]), Q=K, C=0.02 * K, fc=[1.0, 0.0], fs=[0.0, 0.5], omega=w)
+
+
+_T36 = 2 * math.pi / 7.0
+
+PERIODIC_CASES = [
+    ({"max_iter": None}, "max_iter"), ({"max_iter": "3"}, "max_iter"), ({"max_iter": math.nan}, "max_iter"),
+    ({"max_iter": 2.5}, "max_iter"), ({"attempts": math.nan}, "attempts"), ({"attempts": 0}, "attempts"),
+    ({"settle_periods": math.inf}, "settle_periods"), ({"settle_periods": -1}, "settle_periods"),
+    ({"t0": "a"}, "t0"), ({"t0": None}, "t0"), ({"t0": math.inf}, "t0"),
+    ({"tol": None}, "tol"), ({"tol": "1e-9"}, "tol"), ({"tol": 0.1}, "tol"),
+    ({"q0": "ab"}, "starting state"), ({"v0": [1j, 0.0]}, "starting state"), ({"q0": [[0.0, 0.0]]}, "starting state"),
+    ({"output_dt": 0.0}, "output_dt"), ({"output_dt": math.nan}, "output_dt"), ({"output_dt": 10 * _T36}, "output_dt"),
+    ({"period_s": None}, "period"), ({"period_s": "1"}, "period"), ({"period_s": True}, "period"),
+    ({"period_s": 1.0}, "not a multiple of the forcing period"),
+]
+
+
+@pytest.mark.parametrize("changes, words", PERIODIC_CASES)
+def test_issue36_periodic_orbit_refuses_bad_arguments_in_one_line(changes, words):
+    with pytest.raises(NsfemError) as info:
+        _periodic_orbit36(_forced36(), **{"period_s": _T36, **changes})
+    message = _one_line36(info.value)
+    assert message.startswith("periodic: ") and words in message, message
+
+
+BRANCH_CASES = [
+    ({"p0": "7"}, "range"), ({"p_end": None}, "range"), ({"p_end": 7.0}, "range"), ({"p_end": math.nan}, "range"),
+    ({"depth": "x"}, "depth"), ({"depth": -1}, "depth"), ({"multiple": 1.5}, "multiple"), ({"multiple": 0}, "multiple"),
+    ({"t0": math.nan}, "t0"), ({"system_at": 3}, "functions"),
+    ({"period_at": lambda w: 1.0 / w}, "not a multiple of the forcing period"),
+]
+
+
+@pytest.mark.parametrize("changes, words", BRANCH_CASES)
+def test_issue36_orbit_branch_refuses_bad_arguments_in_one_line(changes, words):
+    args = {"system_at": _forced36, "period_at": lambda w: 2 * math.pi / w, "q0": [0.0, 0.0], "v0": [0.0, 0.0],
+            "p0": 7.0, "p_end": 7.5, **changes}
+    with pytest.raises(NsfemError) as info:
+        _orbit_branch36(**args)
+    message = _one_line36(info.value)
+    assert message.startswith("periodic: ") and words in message, message
+
+
+_JUNK36 = st.one_of(st.none(), st.booleans(), st.text(max_size=3), st.integers(-3, 40),
+                    st.floats(allow_nan=True, allow_infinity=True), st.lists(st.floats(-1.0, 1.0), max_size=3))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data(), keys=st.lists(st.sampled_from(["period_s", "t0", "tol", "max_iter", "attempts",
+                                                      "settle_periods", "output_dt", "q0", "v0"]),
+                                     min_size=1, max_size=3, unique=True))
+def test_issue36_periodic_orbit_raises_one_line_or_returns_an_orbit(data, keys):
+    """Property: whatever junk the arguments get, one NsfemError of one line or an orbit whose converged flag
+    is its residual's verdict (no other exception)."""
+    changes = {key: data.draw(_JUNK36, label=key) for key in keys}
+    args = {"period_s": _T36, **changes}
+    try:
+        orbit = _periodic_orbit36(_forced36(), **args)
+    except NsfemError as exc:
+        _one_line36(exc)
+        return
+    assert orbit.converged == (orbit.residual <= float(args.get("tol", 1e-9)))

@@ -22,7 +22,8 @@ import numpy as np
 from ..errors import NsfemError
 from .continuation import Branch, continue_branch, critical_vector
 from .flow import FlowMap
-from .shooting import admissible_directions, check_forcing_multiple, classify, periodic_orbit
+from .shooting import (admissible_directions, check_forcing_multiple, classify, periodic_orbit, real_number,
+                       whole_number)
 
 #: the parameter step of J_p's central differences, relative to the continuation's range
 DP = 1e-6
@@ -110,10 +111,18 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     ``system_at(p)``: the ContactSystem at parameter p; ``period_at(p)``: the forcing period there [s]. The start is
     first made an orbit at p0 (:func:`.shooting.periodic_orbit`). With ``switch``, at each located period doubling
     the doubled branch is followed too (``depth`` levels)."""
-    if not (math.isfinite(p0) and math.isfinite(p_end)) or p0 == p_end:
+    try:
+        p0, p_end = real_number("the continuation's start", p0), real_number("the continuation's end", p_end)
+    except NsfemError:
+        raise NsfemError(f"periodic: the continuation range {p0!r} to {p_end!r} must be finite and not empty") \
+            from None
+    if p0 == p_end:
         raise NsfemError(f"periodic: the continuation range {p0!r} to {p_end!r} must be finite and not empty")
-    if isinstance(multiple, bool) or not isinstance(multiple, (int, np.integer)) or multiple < 1:
+    if not (isinstance(multiple, (int, np.integer)) and not isinstance(multiple, bool) and multiple >= 1):
         raise NsfemError(f"periodic: multiple must be an integer >= 1, got {multiple!r}")
+    t0, depth = real_number("t0", t0), whole_number("depth", depth, 0)
+    if not callable(system_at) or not callable(period_at):
+        raise NsfemError("periodic: system_at and period_at must be functions of the parameter")
     for p in (p0, p_end):   # the period a multiple of the forcing's along the range (its ends checked)
         check_forcing_multiple(system_at(p), multiple * period_at(p))
     span = abs(p_end - p0)

@@ -12,6 +12,7 @@ impact or the held contact: their multipliers are 0).
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from dataclasses import dataclass, field
 
@@ -64,6 +65,31 @@ def classify(multipliers: np.ndarray, tol: float = 1e-6) -> tuple[bool, str | No
     if abs(m.imag) > tol * abs(m):
         return False, "neimark-sacker"
     return False, "fold" if m.real > 0 else "period-doubling"
+
+
+def real_number(name: str, value, *, positive: bool = False) -> float:
+    """``value`` as a finite float (> 0 with ``positive``); NsfemError naming ``name`` otherwise."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.floating, np.integer)) \
+            or not math.isfinite(value) or (positive and value <= 0):
+        raise NsfemError(f"periodic: {name} must be a finite number{' > 0' if positive else ''}, got {value!r}")
+    return float(value)
+
+
+def whole_number(name: str, value, minimum: int) -> int:
+    """``value`` as an int >= ``minimum`` (an integral float accepted); NsfemError naming ``name`` otherwise."""
+    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, (numbers.Real, np.floating, np.integer)) \
+        and math.isfinite(value) and float(value).is_integer() and value >= minimum
+    if not ok:
+        raise NsfemError(f"periodic: {name} must be a whole number >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _vector(x, n: int) -> np.ndarray:
+    try:
+        return np.array(x, dtype=float)
+    except (TypeError, ValueError):
+        raise NsfemError(f"periodic: the starting state must be two finite vectors of length {n}, got "
+                         f"{type(x).__name__} {str(x)[:40]!r}") from None
 
 
 #: relative distance of period * omega / (2 pi) from an integer below which the period is a multiple of the forcing's
@@ -119,18 +145,18 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     residual |phi_T(x0) - x0| / |x0| (in (q, q' / w)) fell below ``tol``; the multipliers and the verdict are those
     of the best iterate either way."""
     n = system.n
-    if not (isinstance(period_s, (int, float)) and math.isfinite(period_s) and period_s > 0):
-        raise NsfemError(f"periodic: the period must be finite and > 0, got {period_s!r}")
-    if not (math.isfinite(t0)):
-        raise NsfemError(f"periodic: t0 must be finite, got {t0!r}")
+    period_s = real_number("the period", period_s, positive=True)
+    t0 = real_number("t0", t0)
+    tol = real_number("tol", tol)
     if not (0 < tol < 1e-2):
         raise NsfemError(f"periodic: tol must lie in (0, 1e-2), got {tol}")
-    if int(max_iter) < 1:
-        raise NsfemError(f"periodic: max_iter must be >= 1, got {max_iter}")
-    if int(attempts) < 1 or int(settle_periods) < 0:
-        raise NsfemError(f"periodic: attempts must be >= 1 and settle_periods >= 0, got {attempts}, {settle_periods}")
-    q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
-    v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
+    max_iter = whole_number("max_iter", max_iter, 1)
+    attempts, settle_periods = whole_number("attempts", attempts, 1), whole_number("settle_periods", settle_periods, 0)
+    if output_dt is not None:
+        output_dt = real_number("output_dt", output_dt, positive=True)
+        if output_dt > period_s:
+            raise NsfemError(f"periodic: output_dt must lie in (0, the period {period_s:g} s], got {output_dt:g}")
+    q, v = (np.zeros(n) if x is None else _vector(x, n) for x in (q0, v0))
     if q.shape != (n,) or v.shape != (n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
         raise NsfemError(f"periodic: the starting state must be two finite vectors of length {n}")
     check_forcing_multiple(system, period_s)
@@ -179,9 +205,9 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
         return best, it, history
 
     it, history, best = 0, [], None
-    for attempt in range(int(attempts)):
+    for attempt in range(attempts):
         if attempt:   # Newton failed from here: the transient goes on from its start for settle_periods first
-            for _ in range(int(settle_periods)):
+            for _ in range(settle_periods):
                 f = phi(q, v, jacobian=False)
                 q, v = f.q, f.v
             first = run(q, v)
