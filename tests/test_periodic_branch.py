@@ -115,3 +115,30 @@ def test_branch_of_an_orbit_with_a_contact_closed_at_the_section_is_the_constrai
         mu = np.array([complex(*m) for m in pt["multipliers"]])
         # the closed form's exponentials to round-off (|lambda T| ~ 8): 1e-12
         assert np.abs(np.sort_complex(mu) - np.sort_complex(np.exp(lam * 2 * np.pi / w))).max() <= 1e-12
+
+
+def test_shipped_rub_continued_in_speed_in_the_rotating_frame_stays_a_stationary_full_annular_rub():
+    """The shipped rub in the rotating frame: the full annular rub is a stationary state, one facet closed and
+    sliding the whole period. Continued from 22.4 to 23 Hz (step 0.2 Hz, 8 steps allowed: 3 suffice), every point is
+    a fixed point of the exact flow with zero velocity (stationary: q' = 0 to the corrector's tol 1e-9 of the
+    orbit's velocity scale w |q| times cond(J_u) ~ 1 / (1 - |mu|) = 4, |mu| <= 0.75: 1e-8) and stable. Before the closed gap's row of Phi_T - I was made regular the
+    corrector's system was singular there and the steps shrank to 1e-3 Hz (stopped at 22.417 Hz)."""
+    from nsfem.integrate.problem import ContactSystem
+    from nsfem.periodic import flow, periodic_orbit
+    from nsfem.scene.load import load_scene
+
+    def system_at(p):
+        return ContactSystem.from_scene(load_scene("rub", [f"rotation.speed_hz={p}"]))
+
+    s = system_at(22.4)
+    T = 1 / 22.4
+    start = flow(s, 0.0, None, None, 40 * T, jacobian=False)
+    orbit = periodic_orbit(s, T, start.q, start.v)
+    assert orbit.converged
+    br = orbit_branch(system_at, lambda p: 1.0 / p, orbit.q0, orbit.v0, 22.4, 23.0, key="speed_hz", step=0.2,
+                      max_steps=8)
+    assert br.stop == "end", br.reason
+    for pt in br.points:
+        size = np.abs(pt["q0"]).max()
+        assert np.abs(pt["v0"]).max() <= 1e-8 * 2 * np.pi * pt["value"] * size
+        assert pt["stable"] and pt["converged"]
