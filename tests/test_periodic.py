@@ -222,6 +222,20 @@ def test_crack_orbit_converges_and_nearby_transients_approach_it_at_its_multipli
     assert abs(rate - abs(w[j])) <= 0.1 * abs(w[j])
 
 
+def test_orbit_with_simultaneous_closings_warns_that_its_monodromy_is_approximate():
+    """Two stops closed at once by a symmetric motion (both rows fire at one time): the flow is not differentiable
+    there (perturbations split the closings), the monodromy uses one row's time shift and lists the event in
+    ``approximations``; the orbit must say so in a warning, not only in a field."""
+    K = np.array([[2.0, -1.0], [-1.0, 2.0]]) * 4
+    cs = ContactSet.from_arrays(np.array([[-1.0, 0.0], [0.0, -1.0]]), [0.3, 0.3], eps=0.0)
+    system = ContactSystem.from_arrays(M=np.eye(2), Q=K, C=0.05 * K, fc=[2.0, 2.0], omega=2.2, contacts=cs)
+    T = 2 * math.pi / 2.2
+    start = flow(system, 0.0, [0.0, 0.0], [0.0, 0.0], 20 * T, jacobian=False)
+    with pytest.warns(UserWarning, match="no exact saltation matrix.*2 event rows at once"):
+        orbit = periodic_orbit(system, T, start.q, start.v)
+    assert orbit.converged and orbit.approximations
+
+
 def test_classify_names_the_loss_by_the_largest_multiplier():
     assert classify(np.array([0.5, 0.3j])) == (True, None)
     assert classify(np.array([1.2, 0.5])) == (False, "fold")

@@ -232,6 +232,11 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     if not converged:
         warnings.warn(f"periodic: shooting did not converge in {it} Newton steps (residual {res:.3g} > tol {tol:g}); "
                       "the orbit and its multipliers are of the last iterate", stacklevel=2)
+    if fl.approximations:
+        first = fl.approximations[0]
+        warnings.warn(f"periodic: {len(fl.approximations)} event(s) of the orbit have no exact saltation matrix (the "
+                      f"first at t = {first['t']:.6g} s: {first['why']}); the Floquet multipliers and the verdict "
+                      "are those of an approximate monodromy matrix", stacklevel=2)
     grazing = [{"contact": c, "t": g["t"], "gap_min": 0.0} for g in fl.grazing for c in g["contacts"]]
     grazing += near_grazing(fl)
     if grazing:
