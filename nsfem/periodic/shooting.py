@@ -2,7 +2,8 @@
 
 Newton on F(x0) = phi_T(x0) - x0, x = (q, q'), with the Jacobian Phi_T - I from the monodromy
 matrix (:mod:`.flow`: phase exponentials and saltation matrices). Contacts closed at the section
-hold their gaps and gap rates (sticking ones their slip rates): the unknowns are the admissible
+hold their gaps and gap rates (sticking ones their slip rates, ones whose force is on a cone's facet
+their slip rate along it): the unknowns are the admissible
 directions Z there (an orthonormal basis), the step the least-squares solution of
 (Phi_T - I) Z dz = -F in the norm (q, q' / w), w = 2 pi / T. The Floquet multipliers are the
 eigenvalues of Z^T Phi_T Z (the directions off the held constraints are removed by the plastic
