@@ -4134,3 +4134,21 @@ def test_issue36_periodic_orbit_raises_one_line_or_returns_an_orbit(data, keys):
         _one_line36(exc)
         return
     assert orbit.converged == (orbit.residual <= float(args.get("tol", 1e-9)))
+
+
+FLOW_CASES = [
+    ((0.0, None, None, "1"), {}, "period"), ((None, None, None, _T36), {}, "t0"),
+    ((0.0, "ab", None, _T36), {}, "starting state"), ((0.0, None, None, _T36), {"output_dt": "x"}, "output_dt"),
+    ((0.0, None, None, _T36), {"output_dt": 2 * _T36}, "output_dt"), ((0.0, None, None, _T36), {"zeno": None}, "zeno"),
+    ((0.0, None, None, math.inf), {}, "period"),
+]
+
+
+@pytest.mark.parametrize("args, kwargs, words", FLOW_CASES)
+def test_issue36_flow_refuses_bad_arguments_in_one_line(args, kwargs, words):
+    from nsfem.periodic import flow
+
+    with pytest.raises(NsfemError) as info:
+        flow(_forced36(), *args, **kwargs)
+    message = _one_line36(info.value)
+    assert message.startswith("periodic: ") and words in message, message

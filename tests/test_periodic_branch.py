@@ -121,8 +121,9 @@ def test_shipped_rub_continued_in_speed_in_the_rotating_frame_stays_a_stationary
     """The shipped rub in the rotating frame: the full annular rub is a stationary state, one facet closed and
     sliding the whole period. Continued from 22.4 to 23 Hz (step 0.2 Hz, 8 steps allowed: 3 suffice), every point is
     a fixed point of the exact flow with zero velocity (stationary: q' = 0 to the corrector's tol 1e-9 of the
-    orbit's velocity scale w |q| times cond(J_u) ~ 1 / (1 - |mu|) = 4, |mu| <= 0.75: 1e-8) and stable. Before the closed gap's row of Phi_T - I was made regular the
-    corrector's system was singular there and the steps shrank to 1e-3 Hz (stopped at 22.417 Hz)."""
+    orbit's velocity scale w |q| times cond(J_u) ~ 1 / (1 - |mu|) = 4, |mu| <= 0.75: 1e-8) and stable. Before the
+    closed gap's row of Phi_T - I was made regular the corrector's system was singular there and the steps shrank
+    to 1e-3 Hz (stopped at 22.417 Hz)."""
     from nsfem.integrate.problem import ContactSystem
     from nsfem.periodic import flow, periodic_orbit
     from nsfem.scene.load import load_scene

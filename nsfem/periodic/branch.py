@@ -22,8 +22,8 @@ import numpy as np
 from ..errors import NsfemError
 from .continuation import Branch, continue_branch, critical_vector
 from .flow import FlowMap
-from .shooting import (admissible_directions, check_forcing_multiple, classify, periodic_orbit, real_number,
-                       whole_number)
+from .arguments import real_number, whole_number
+from .shooting import admissible_directions, check_forcing_multiple, classify, periodic_orbit
 
 #: the parameter step of J_p's central differences, relative to the continuation's range
 DP = 1e-6

@@ -16,6 +16,7 @@ from ..errors import NsfemError
 from ..integrate.base import single_threaded_blas
 from ..integrate.event_driven import Exact
 from ..result import Result
+from .arguments import real_number, vector
 from .saltation import impact_jacobian, row_gradient, saltation
 from .variational import phase_transition, state_rate
 
@@ -55,10 +56,12 @@ class FlowMap:
     method's map. The configurations met (their eigen-decompositions) are kept from one start to the next."""
 
     def __init__(self, system, t0: float, period: float, *, output_dt: float | None = None, zeno: float = 1e-8):
-        if not (np.isfinite(period) and period > 0):
-            raise NsfemError(f"periodic: the period must be finite and > 0, got {period}")
-        if not np.isfinite(t0):
-            raise NsfemError(f"periodic: t0 must be finite, got {t0}")
+        period, t0 = real_number("the period", period, positive=True), real_number("t0", t0)
+        if output_dt is not None:
+            output_dt = real_number("output_dt", output_dt, positive=True)
+            if output_dt > period:
+                raise NsfemError(f"periodic: output_dt must lie in (0, the period {period:g} s], got {output_dt:g}")
+        zeno = real_number("zeno", zeno, positive=True)
         if system.schedule is not None:
             raise NsfemError("periodic: a run-up has no periodic orbit (rotation.ramp_to_hz); orbits are at constant "
                              "speed")
@@ -74,6 +77,8 @@ class FlowMap:
         self._integrator.keep_configurations = True
 
     def __call__(self, q0, v0, jacobian: bool = True) -> Flow:
+        n = self.system.n
+        q0, v0 = (None if x is None else vector(x, n) for x in (q0, v0))
         integ = self._integrator
         integ.trace = [] if jacobian else None
         with single_threaded_blas(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):

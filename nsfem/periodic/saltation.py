@@ -60,7 +60,8 @@ def row_gradient(config, mode, i: int) -> np.ndarray | None:
     Rq, Rv, Rf = R[i, :n], R[i, n:2 * n], R[i, 2 * n:2 * n + nf]
     gq, gv = Rq.copy(), Rv.copy()
     if nf and np.any(Rf):
-        # lam = Wpinv (Rx (N^T q, N^T q') + Rphi (f(t) - Q P_H q)): the constraint forces of the state (P_H: variational)
+        # lam = Wpinv (Rx (N^T q, N^T q') + Rphi (f(t) - Q P_H q)): the constraint forces of the state
+        # (P_H: variational.constraint_projector)
         lam_q = config.Wpinv @ (config.Rx[:, :r] @ config.N.T - config.Rphi @ (config.Q @ constraint_projector(config)))
         lam_v = config.Wpinv @ (config.Rx[:, r:] @ config.N.T)
         gq += Rf @ lam_q

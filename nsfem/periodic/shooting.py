@@ -13,7 +13,6 @@ impact or the held contact: their multipliers are 0).
 from __future__ import annotations
 
 import math
-import numbers
 import warnings
 from dataclasses import dataclass, field
 
@@ -21,6 +20,7 @@ import numpy as np
 
 from ..errors import NsfemError
 from ..result import Result
+from .arguments import real_number, vector, whole_number
 from .flow import Flow, FlowMap, near_grazing
 
 
@@ -66,31 +66,6 @@ def classify(multipliers: np.ndarray, tol: float = 1e-6) -> tuple[bool, str | No
     if abs(m.imag) > tol * abs(m):
         return False, "neimark-sacker"
     return False, "fold" if m.real > 0 else "period-doubling"
-
-
-def real_number(name: str, value, *, positive: bool = False) -> float:
-    """``value`` as a finite float (> 0 with ``positive``); NsfemError naming ``name`` otherwise."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.floating, np.integer)) \
-            or not math.isfinite(value) or (positive and value <= 0):
-        raise NsfemError(f"periodic: {name} must be a finite number{' > 0' if positive else ''}, got {value!r}")
-    return float(value)
-
-
-def whole_number(name: str, value, minimum: int) -> int:
-    """``value`` as an int >= ``minimum`` (an integral float accepted); NsfemError naming ``name`` otherwise."""
-    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, (numbers.Real, np.floating, np.integer)) \
-        and math.isfinite(value) and float(value).is_integer() and value >= minimum
-    if not ok:
-        raise NsfemError(f"periodic: {name} must be a whole number >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def _vector(x, n: int) -> np.ndarray:
-    try:
-        return np.array(x, dtype=float)
-    except (TypeError, ValueError):
-        raise NsfemError(f"periodic: the starting state must be two finite vectors of length {n}, got "
-                         f"{type(x).__name__} {str(x)[:40]!r}") from None
 
 
 #: relative distance of period * omega / (2 pi) from an integer below which the period is a multiple of the forcing's
@@ -153,18 +128,13 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
         raise NsfemError(f"periodic: tol must lie in (0, 1e-2), got {tol}")
     max_iter = whole_number("max_iter", max_iter, 1)
     attempts, settle_periods = whole_number("attempts", attempts, 1), whole_number("settle_periods", settle_periods, 0)
-    if output_dt is not None:
-        output_dt = real_number("output_dt", output_dt, positive=True)
-        if output_dt > period_s:
-            raise NsfemError(f"periodic: output_dt must lie in (0, the period {period_s:g} s], got {output_dt:g}")
-    q, v = (np.zeros(n) if x is None else _vector(x, n) for x in (q0, v0))
+    q, v = (np.zeros(n) if x is None else vector(x, n) for x in (q0, v0))
     if q.shape != (n,) or v.shape != (n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
         raise NsfemError(f"periodic: the starting state must be two finite vectors of length {n}")
     check_forcing_multiple(system, period_s)
+    phi = FlowMap(system, t0, period_s, output_dt=output_dt)   # (output_dt checked there)
     w = 2.0 * math.pi / period_s
     scale = np.concatenate([np.ones(n), np.full(n, 1.0 / w)])
-
-    phi = FlowMap(system, t0, period_s, output_dt=output_dt)
 
     def run(q_, v_) -> tuple[Flow, float, np.ndarray]:
         fl = phi(q_, v_)
