@@ -87,6 +87,12 @@ class EventDriven(Integrator):
         self._systems: dict = {}
         #: the round rings (:mod:`.round`) and the system of the fixed polygon they turn
         self._rings, self._polygon = (), system
+        #: a list to record the run in (None: not recorded): one dict per phase (``phase``, ``rows``, ``mode``,
+        #: ``t0``, ``t1``, the state at its end ``q``, ``v``; at an event also ``event``, the velocity after it
+        #: ``v_plus``, the mode after it ``after``, the impact record ``impact`` and the ``system`` it was resolved
+        #: in), after one dict for the start (``start``: ``q``, ``v`` given, ``v_plus``, ``impact``). What the
+        #: periodic orbits' monodromy matrix is formed from (:mod:`nsfem.periodic`)
+        self.trace: list | None = None
 
     def configuration(self, mode: Mode) -> Configuration:
         mode = mode.dynamics
@@ -186,6 +192,7 @@ class EventDriven(Integrator):
         ring_load = (lambda v_, q_: generalized_force(rings, q_, v_)) if rings else None
         phase, phase_integrated = None, False
         try:
+            v_start = v
             mode, v, imp = resolve(sysm, Mf, 0.0, q, v, Mode(), memory,
                                    extra_load=None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))
             mode = with_rings(mode, *initial_rings(rings, q, v))
@@ -195,6 +202,10 @@ class EventDriven(Integrator):
             if imp:
                 impacts.append(imp)
                 _impact_energy(energy, imp)
+            trace = self.trace
+            if trace is not None:
+                trace.append({"start": True, "q": q, "v": v_start, "v_plus": v, "impact": imp, "after": mode,
+                              "system": sysm})
             while True:
                 phase = self._phase(mode, t, q, v)
                 phase_integrated = False
@@ -237,6 +248,9 @@ class EventDriven(Integrator):
                     closed_time += t_next - t
                 covered = t_next
                 q, v = q_end, v_end
+                if trace is not None:
+                    trace.append({"phase": phase, "rows": rows, "mode": mode, "t0": t, "t1": t_next, "q": q, "v": v,
+                                  "event": ev})
                 check_state(t_next, q, v, mode, sysm)
                 progress(t_next, len(events))
                 if ev is None:
@@ -304,6 +318,8 @@ class EventDriven(Integrator):
                 if imp:
                     impacts.append(imp)
                     _impact_energy(energy, imp)
+                if trace is not None:
+                    trace[-1].update(v_plus=v, after=mode, impact=imp, system=sysm, before=before)
                 events.append({"t": t_next, "kinds": sorted({rows.kinds[i] for i in ev.rows}),
                                "contacts": sorted({int(rows.contacts[i]) for i in ev.rows}),
                                "graze": bool(any(ev.graze)), "impact": imp is not None,

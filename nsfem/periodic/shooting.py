@@ -1,0 +1,150 @@
+"""Periodic orbits by shooting on the exact flow, and their Floquet multipliers.
+
+Newton on F(x0) = phi_T(x0) - x0, x = (q, q'), with the Jacobian Phi_T - I from the monodromy
+matrix (:mod:`.flow`: phase exponentials and saltation matrices). Contacts closed at the section
+hold their gaps and gap rates (sticking ones their slip rates): the unknowns are the admissible
+directions Z there (an orthonormal basis), the step the least-squares solution of
+(Phi_T - I) Z dz = -F in the norm (q, q' / w), w = 2 pi / T. The Floquet multipliers are the
+eigenvalues of Z^T Phi_T Z (the directions off the held constraints are removed by the plastic
+impact or the held contact: their multipliers are 0).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import NsfemError
+from ..result import Result
+from .flow import Flow, flow
+
+
+@dataclass
+class PeriodicOrbit:
+    """A periodic orbit of period ``period_s`` through (q0, q0') at t0 (mod the period), with its stability."""
+
+    period_s: float
+    t0: float
+    q0: np.ndarray
+    v0: np.ndarray
+    converged: bool
+    residual: float
+    iterations: int
+    monodromy: np.ndarray
+    multipliers: np.ndarray
+    stable: bool
+    loss: str | None
+    events_per_period: int
+    result: Result
+    grazing: list = field(default_factory=list)
+    #: events whose saltation matrix is approximate (see :class:`.flow.Flow`)
+    approximations: list = field(default_factory=list)
+    #: the admissible directions at the section (2n x d, orthonormal): monodromy = Z^T Phi_T Z
+    directions: np.ndarray | None = None
+
+
+def classify(multipliers: np.ndarray, tol: float = 1e-6) -> tuple[bool, str | None]:
+    """(stable, the kind of loss): stable when every |mu| <= 1 + tol; otherwise the multiplier of largest modulus
+    names it: real and positive 'fold', real and negative 'period-doubling', a complex pair 'neimark-sacker'."""
+    mu = np.asarray(multipliers, dtype=complex).ravel()
+    if not np.all(np.isfinite(mu)):
+        raise NsfemError("periodic: a Floquet multiplier is not finite")
+    if mu.size == 0 or np.abs(mu).max() <= 1.0 + tol:
+        return True, None
+    m = mu[np.argmax(np.abs(mu))]
+    if abs(m.imag) > tol * abs(m):
+        return False, "neimark-sacker"
+    return False, "fold" if m.real > 0 else "period-doubling"
+
+
+def admissible_directions(system, mode) -> np.ndarray:
+    """Orthonormal basis (2n x d) of the perturbations (dq, dq') that keep ``mode``: closed gaps and their rates,
+    sticking slip rates held."""
+    n, cs = system.n, system.contacts
+    rows = []
+    for k in mode.closed:
+        rows.append(np.concatenate([cs.JN[:, k], np.zeros(n)]))
+        rows.append(np.concatenate([np.zeros(n), cs.JN[:, k]]))
+    for k in mode.stick:
+        for j in range(cs.JS[k].shape[1]):
+            rows.append(np.concatenate([cs.JSq[k][:, j] if cs.moving[k] else np.zeros(n), cs.JS[k][:, j]]))
+    for k, i in mode.edge:
+        t = cs.JS[k] @ cs.facet(k, i)[1]
+        rows.append(np.concatenate([np.zeros(n), t]))
+    if not rows:
+        return np.eye(2 * n)
+    C = np.array(rows)
+    _, s, Vt = np.linalg.svd(C)
+    rank = int(np.sum(s > 1e-10 * s[0]))
+    return Vt[rank:].T
+
+
+def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *, tol: float = 1e-9,
+                   max_iter: int = 25, output_dt: float | None = None) -> PeriodicOrbit:
+    """The periodic orbit of ``system`` with period ``period_s`` near (q0, q0') at t0 (module docstring).
+
+    ``converged`` says whether the residual |phi_T(x0) - x0| / |x0| (in (q, q' / w)) fell below ``tol``; the
+    multipliers and the verdict are those of the last iterate either way."""
+    n = system.n
+    if not (isinstance(period_s, (int, float)) and math.isfinite(period_s) and period_s > 0):
+        raise NsfemError(f"periodic: the period must be finite and > 0, got {period_s!r}")
+    if not (math.isfinite(t0)):
+        raise NsfemError(f"periodic: t0 must be finite, got {t0!r}")
+    if not (0 < tol < 1e-2):
+        raise NsfemError(f"periodic: tol must lie in (0, 1e-2), got {tol}")
+    if int(max_iter) < 1:
+        raise NsfemError(f"periodic: max_iter must be >= 1, got {max_iter}")
+    q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
+    v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
+    if q.shape != (n,) or v.shape != (n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        raise NsfemError(f"periodic: the starting state must be two finite vectors of length {n}")
+    w = 2.0 * math.pi / period_s
+    scale = np.concatenate([np.ones(n), np.full(n, 1.0 / w)])
+
+    def run(q_, v_) -> tuple[Flow, float, np.ndarray]:
+        fl = flow(system, t0, q_, v_, period_s, output_dt=output_dt)
+        F = np.concatenate([fl.q - q_, fl.v - v_])
+        size = max(float(np.abs(scale * np.concatenate([q_, v_])).max()), float(np.abs(scale * F).max()), 1e-300)
+        return fl, float(np.abs(scale * F).max()) / size, F
+
+    fl, res, F = run(q, v)
+    it = 0
+    while res > tol and it < max_iter:
+        it += 1
+        Z = _directions(system, fl)
+        J = (fl.monodromy - np.eye(2 * n)) @ Z
+        dz = np.linalg.lstsq(scale[:, None] * J, -scale * F, rcond=None)[0]
+        dx = Z @ dz
+        step, accepted = 1.0, False
+        for _ in range(12):
+            try:   # (a step may land inside a stop: shorter ones then)
+                trial = run(q + step * dx[:n], v + step * dx[n:])
+            except NsfemError:
+                trial = None
+            if trial is not None and (trial[1] < res or trial[1] <= tol):
+                accepted = True
+                break
+            step *= 0.5
+        if not accepted:
+            break
+        q, v = q + step * dx[:n], v + step * dx[n:]
+        fl, res, F = trial
+    Z = _directions(system, fl)
+    Mr = Z.T @ fl.monodromy @ Z
+    mu = np.linalg.eigvals(Mr) if Mr.size else np.zeros(0, dtype=complex)
+    mu = mu[np.argsort(-np.abs(mu), kind="stable")]
+    stable, loss = classify(mu)
+    converged = res <= tol
+    if not converged:
+        warnings.warn(f"periodic: shooting did not converge in {it} Newton steps (residual {res:.3g} > tol {tol:g}); "
+                      "the orbit and its multipliers are of the last iterate", stacklevel=2)
+    return PeriodicOrbit(float(period_s), float(t0), q, v, converged, res, it, Mr, mu, stable, loss,
+                         len(fl.result.events), fl.result, fl.grazing, fl.approximations, Z)
+
+
+def _directions(system, fl: Flow) -> np.ndarray:
+    """The admissible directions at the section of a flow: of the mode it started in."""
+    return admissible_directions(system, fl.start_mode)
