@@ -29,8 +29,11 @@ if TYPE_CHECKING:
     from ..integrate import ContactSystem
     from ..scene import Scene
 
-#: orbit periods of the transient before the shooting, by default (without ``start``)
-TRANSIENT_PERIODS = 10
+#: orbit periods of the transient before the shooting, by default (without ``start``): the shipped crack scene's
+#: shooting (its 2x resonance decays slowly, 1.6 % damping) does not converge from 10, 20 or 30 periods (Newton
+#: stalls at residuals of 4e-2 to 5e-3: the events' sequence is not yet the orbit's) and does from 40 (19 Newton
+#: steps), 50 (15) and 80 (3); the transient costs about 6 ms a period there
+TRANSIENT_PERIODS = 50
 #: at most this many orbit periods of transient (the search cost of the exact method is checked besides)
 TRANSIENT_PERIODS_MAX = 100_000
 #: the largest subharmonic order K of ``multiple``
@@ -75,6 +78,8 @@ class SceneOrbit:
 
     def verdict(self) -> str:
         """'stable' or 'unstable (<kind of loss>)' in words."""
+        if not self.orbit.converged:
+            return "none: the shooting did not converge (the multipliers are the last iterate's)"
         if self.orbit.stable:
             return "stable"
         kind = {"fold": "fold (a multiplier through +1)", "period-doubling": "period doubling (a multiplier "
@@ -188,7 +193,11 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
         except ImportError:
             raise NsfemError("nsfem periodic: not yet: the shooting on the exact flow (nsfem.periodic.shooting) "
                              "is not in this version") from None
-    orbit = shoot(system, period, q0, v0, t0, tol=tol, output_dt=dt)
+    import warnings as python_warnings
+
+    with python_warnings.catch_warnings():   # a shooting that does not converge: said once, by describe()
+        python_warnings.simplefilter("ignore")
+        orbit = shoot(system, period, q0, v0, t0, tol=tol, output_dt=dt)
     orbit.result.info.update(info)
     so = describe(scene, system, orbit, multiple, forcing, transient_periods, origin, say)
     so.wall_s = time.perf_counter() - t_wall
@@ -269,18 +278,31 @@ def describe(scene: "Scene", system: "ContactSystem", orbit, multiple: int, forc
     amplitudes = {s.name: half_peak_to_peak(signals[:, k]) for k, s in enumerate(sensors)}
     labels = list(system.model_contacts.labels)
     sequence = contact_sequence(res.events, labels, t0 - offset)
-    grazing = [{**g, "contact": labels[g["contact"]] if isinstance(g.get("contact"), (int, np.integer))
-                and 0 <= g["contact"] < len(labels) else g.get("contact")} for g in (orbit.grazing or [])]
+    grazing = [_named_grazing(g, labels, t0 - offset) for g in (orbit.grazing or [])]
     if not orbit.converged:
         warn(f"the shooting did not converge in {orbit.iterations} iterations (residual {orbit.residual:.2e}): "
              "the state is not a periodic orbit; a longer transient (--transient) or a start nearer to it may help")
     if grazing:
         g = grazing[0]
-        warn(f"grazing: the gap of {g['contact']} comes within {g.get('gap_min', 0.0):.3g} m of zero without "
-             f"closing (t = {g.get('t', float('nan')):.6g} s): the orbit is near a grazing bifurcation, where its "
-             "multipliers jump" + (f" ({len(grazing)} such contacts)" if len(grazing) > 1 else ""))
+        near = f" within {g['gap_min_m']:.3g} m" if "gap_min_m" in g else ""
+        warn(f"grazing: the gap of {', '.join(g['contacts'])} comes{near} to zero without closing "
+             f"({1e3 * g['t_s']:.4g} ms after the section): the orbit is at a grazing bifurcation, where its "
+             "multipliers jump: they hold on this side of it only" + (f" ({len(grazing)} grazings per period)"
+                                                                     if len(grazing) > 1 else ""))
     return SceneOrbit(orbit, system, multiple, forcing, transient_periods, start, t, signals, sensors, amplitudes,
                       sequence, grazing)
+
+
+def _named_grazing(g: dict, labels: list[str], t0: float) -> dict:
+    """A grazing record of the shooting ({"t", "contacts" or "contact", maybe "gap_min"}) as the JSON has it:
+    {"t_s": time after the section, "contacts": labels, "gap_min_m" where known}."""
+    ks = g.get("contacts", [g["contact"]] if "contact" in g else [])
+    out = {"t_s": float(g.get("t", t0)) - t0,
+           "contacts": [labels[int(k)] if isinstance(k, (int, np.integer)) and 0 <= k < len(labels) else str(k)
+                        for k in ks]}
+    if g.get("gap_min") is not None:
+        out["gap_min_m"] = float(g["gap_min"])
+    return out
 
 
 def half_peak_to_peak(y: np.ndarray) -> float:
