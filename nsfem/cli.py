@@ -1145,17 +1145,15 @@ def _periodic(args, scene, out_dir) -> int:
         print(printable(f"nsfem periodic: warning: {text}"), file=sys.stderr)
 
     so = orbit_of_scene(scene, args.multiple, args.start, args.transient, args.tol, warn=warn, progress=True)
-    outputs = [str(p) for p in write_orbit(so, scene, out_dir)]
     o = so.orbit
     payload = {"title": scene.title, **so.to_json(), "speed_hz": scene.rotation.speed_hz,
-               "frame": scene.rotation.frame, "wall_s": time.perf_counter() - t0, "outputs": outputs,
-               "warnings": warnings, "notes": list(scene.notes)}
+               "frame": scene.rotation.frame, "warnings": warnings, "notes": list(scene.notes)}
+    outputs = [str(out_dir / "periodic.json")] + [str(p) for p in write_orbit(so, scene, out_dir, payload)]
     from .atomic import write_text_atomic
     from .jsonio import as_text, dumps
 
-    path = write_text_atomic(out_dir / "periodic.json", dumps(payload, as_text) + "\n")
-    outputs.insert(0, str(path))
-    payload["outputs"] = outputs
+    payload.update(outputs=outputs, wall_s=time.perf_counter() - t0)   # periodic.json last: it lists the others
+    write_text_atomic(out_dir / "periodic.json", dumps(payload, as_text) + "\n")
     import numpy as np
 
     mu = np.asarray(o.multipliers, dtype=complex)
