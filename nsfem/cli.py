@@ -89,8 +89,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--png", metavar="FILE", help="write the Bode plot (left) and the polar plot (right) to this "
                    "one file")
 
-    from .periodic.scene import TOL_RANGE, TRANSIENT_PERIODS
-
+    # (the numbers of nsfem.periodic.scene, not imported here: the parser is built by every command; test_cli
+    # checks that they agree)
     p = sub.add_parser("periodic", help="periodic orbit by shooting on the exact flow: Floquet multipliers, "
                        "stability, amplitudes")
     _scene_args(p)
@@ -103,11 +103,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--start", metavar="FILE", help="start the shooting from a saved state: a run's result.npz "
                    "(its last output) or an orbit.npz of nsfem periodic (default: the last state of a transient "
                    "from the scene's initial state)")
-    p.add_argument("--transient", type=int, metavar="N", help=f"orbit periods integrated with the exact method "
-                   f"before the shooting (default {TRANSIENT_PERIODS}; 0: shoot from the scene's initial state; not "
-                   "with --start)")
+    p.add_argument("--transient", type=int, metavar="N", help="orbit periods integrated with the exact method "
+                   "before the shooting (default 50; 0: shoot from the scene's initial state; not with --start)")
     p.add_argument("--tol", type=float, default=1e-9, help="the shooting's tolerance on |phi_T(x0) - x0| / |x0| "
-                   f"(default 1e-9, from {TOL_RANGE[0]:g} to {TOL_RANGE[1]:g})")
+                   "(default 1e-9, from 1e-14 to 0.001)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: <output.dir>/periodic): periodic.json, "
                    "orbit.npz, orbit.png and floquet.png (unless output.plots is empty), nsfem.pvd with the VTU "
                    "frames of one period in DIR/vtu/ (unless output.vtu_every = 0)")

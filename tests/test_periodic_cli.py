@@ -162,3 +162,14 @@ def test_continue_is_parsed_then_refused(tmp_path):
     assert parse_continuation("stator.0.friction=0.3:0.1") == ("stator.0.friction", 0.3, 0.1)
     code, _, err = check_invocation(["periodic", "crack", "--continue", "rotation.speed_hz=10:14"], tmp_path)
     assert code == 2 and "not yet" in err and "rotation.speed_hz" in err
+
+
+def test_the_help_says_the_defaults_and_ranges_the_scene_layer_uses(capsys):
+    """cli.py writes them out (it does not import nsfem.periodic to build its parser): they must agree."""
+    from nsfem.periodic import scene as ps
+
+    with pytest.raises(SystemExit):
+        cli.main(["periodic", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"default {ps.TRANSIENT_PERIODS};" in text
+    assert f"from {ps.TOL_RANGE[0]:g} to {ps.TOL_RANGE[1]:g}" in text
