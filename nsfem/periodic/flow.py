@@ -79,7 +79,6 @@ def flow(system, t0: float, q0, v0, period: float, *, jacobian: bool = True, out
 def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
     """(the product of the transition and saltation matrices along a recorded run, approximations, grazings)."""
     start = trace[0]
-    n = start["q"].size
     approx, graze = [], []
     Phi, exact = impact_jacobian(start["system"], start["q"], start["v"], start["v_plus"], start["impact"])
     if not exact:

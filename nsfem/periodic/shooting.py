@@ -22,6 +22,10 @@ from ..result import Result
 from .flow import Flow, flow
 
 
+#: Newton steps that may grow the residual before steps must make it fall
+FREE = 3
+
+
 @dataclass
 class PeriodicOrbit:
     """A periodic orbit of period ``period_s`` through (q0, q0') at t0 (mod the period), with its stability."""
@@ -44,6 +48,8 @@ class PeriodicOrbit:
     approximations: list = field(default_factory=list)
     #: the admissible directions at the section (2n x d, orthonormal): monodromy = Z^T Phi_T Z
     directions: np.ndarray | None = None
+    #: the residual after each Newton step (the first: of the start)
+    history: list = field(default_factory=list)
 
 
 def classify(multipliers: np.ndarray, tol: float = 1e-6) -> tuple[bool, str | None]:
@@ -110,28 +116,47 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
         size = max(float(np.abs(scale * np.concatenate([q_, v_])).max()), float(np.abs(scale * F).max()), 1e-300)
         return fl, float(np.abs(scale * F).max()) / size, F
 
-    fl, res, F = run(q, v)
-    it = 0
-    while res > tol and it < max_iter:
-        it += 1
-        Z = _directions(system, fl)
-        J = (fl.monodromy - np.eye(2 * n)) @ Z
-        dz = np.linalg.lstsq(scale[:, None] * J, -scale * F, rcond=None)[0]
-        dx = Z @ dz
-        step, accepted = 1.0, False
-        for _ in range(12):
-            try:   # (a step may land inside a stop: shorter ones then)
-                trial = run(q + step * dx[:n], v + step * dx[n:])
-            except NsfemError:
+    first = run(q, v)
+
+    def newton(q, v, fl, res, F, free: int):
+        """Newton's full step first, a step that grows the residual accepted up to ``free`` times (the residual of
+        a non-smooth map may grow on the way: an event added or lost), then halved steps until it falls."""
+        history, best, it = [res], (res, q, v, fl), 0
+        while res > tol and it < max_iter:
+            it += 1
+            Z = _directions(system, fl)
+            J = (fl.monodromy - np.eye(2 * n)) @ Z
+            dz = np.linalg.lstsq(scale[:, None] * J, -scale * F, rcond=None)[0]
+            dx = Z @ dz
+            step, trial = 1.0, None
+            for _ in range(12):
+                try:   # (a step may land inside a stop: shorter ones then)
+                    trial = run(q + step * dx[:n], v + step * dx[n:])
+                except NsfemError:
+                    trial = None
+                if trial is not None and (trial[1] < res or free > 0):
+                    break
                 trial = None
-            if trial is not None and (trial[1] < res or trial[1] <= tol):
-                accepted = True
+                step *= 0.5
+            if trial is None:
                 break
-            step *= 0.5
-        if not accepted:
-            break
-        q, v = q + step * dx[:n], v + step * dx[n:]
-        fl, res, F = trial
+            if trial[1] >= res:
+                free -= 1
+            q, v = q + step * dx[:n], v + step * dx[n:]
+            fl, res, F = trial
+            history.append(res)
+            if res < best[0]:
+                best = (res, q, v, fl)
+        return best, it, history
+
+    best, it, history = newton(q, v, *first, free=FREE)
+    if best[0] > tol and FREE:   # the monotone path from the start instead
+        again, it2, history2 = newton(q, v, *first, free=0)
+        it += it2
+        history += history2
+        if again[0] < best[0]:
+            best = again
+    res, q, v, fl = best
     Z = _directions(system, fl)
     Mr = Z.T @ fl.monodromy @ Z
     mu = np.linalg.eigvals(Mr) if Mr.size else np.zeros(0, dtype=complex)
@@ -142,7 +167,7 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
         warnings.warn(f"periodic: shooting did not converge in {it} Newton steps (residual {res:.3g} > tol {tol:g}); "
                       "the orbit and its multipliers are of the last iterate", stacklevel=2)
     return PeriodicOrbit(float(period_s), float(t0), q, v, converged, res, it, Mr, mu, stable, loss,
-                         len(fl.result.events), fl.result, fl.grazing, fl.approximations, Z)
+                         len(fl.result.events), fl.result, fl.grazing, fl.approximations, Z, history)
 
 
 def _directions(system, fl: Flow) -> np.ndarray:
