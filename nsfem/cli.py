@@ -104,7 +104,7 @@ def parser() -> argparse.ArgumentParser:
                    "(its last output) or an orbit.npz of nsfem periodic (default: the last state of a transient "
                    "from the scene's initial state)")
     p.add_argument("--transient", type=int, metavar="N", help="orbit periods integrated with the exact method "
-                   "before the shooting (default 50; 0: shoot from the scene's initial state; not with --start)")
+                   "before the shooting (default 10; 0: shoot from the scene's initial state; not with --start)")
     p.add_argument("--tol", type=float, default=1e-9, help="the shooting's tolerance on |phi_T(x0) - x0| / |x0| "
                    "(default 1e-9, from 1e-14 to 0.001)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: <output.dir>/periodic): periodic.json, "

@@ -29,11 +29,11 @@ if TYPE_CHECKING:
     from ..integrate import ContactSystem
     from ..scene import Scene
 
-#: orbit periods of the transient before the shooting, by default (without ``start``): the shipped crack scene's
-#: shooting (its 2x resonance decays slowly, 1.6 % damping) does not converge from 10, 20 or 30 periods (Newton
-#: stalls at residuals of 4e-2 to 5e-3: the events' sequence is not yet the orbit's) and does from 40 (19 Newton
-#: steps), 50 (15) and 80 (3); the transient costs about 6 ms a period there
-TRANSIENT_PERIODS = 50
+#: orbit periods of the transient before the shooting, by default (without ``start``): on the shipped crack scene
+#: (a sharp 2x resonance, 1.6 % damping) the shooting fails from its initial state (residual 0.97 after 4 Newton
+#: steps) and converges from a transient of 2, 10 or 50 periods in 6, 6 and 4 steps; the transient costs about
+#: 6 ms a period there
+TRANSIENT_PERIODS = 10
 #: at most this many orbit periods of transient (the search cost of the exact method is checked besides)
 TRANSIENT_PERIODS_MAX = 100_000
 #: the largest subharmonic order K of ``multiple``
