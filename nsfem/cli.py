@@ -1144,9 +1144,11 @@ def _periodic(args, scene, out_dir) -> int:
         print(printable(f"nsfem periodic: warning: {text}"), file=sys.stderr)
 
     so = orbit_of_scene(scene, args.multiple, args.start, args.transient, args.tol, warn=warn, progress=True)
+    for note in so.notes:
+        print(printable(f"nsfem periodic: note: {note}"), file=sys.stderr)
     o = so.orbit
     payload = {"title": scene.title, **so.to_json(), "speed_hz": scene.rotation.speed_hz,
-               "frame": scene.rotation.frame, "warnings": warnings, "notes": list(scene.notes)}
+               "frame": scene.rotation.frame, "warnings": warnings, "notes": list(scene.notes) + so.notes}
     outputs = [str(out_dir / "periodic.json")] + [str(p) for p in write_orbit(so, scene, out_dir, payload)]
     from .atomic import write_text_atomic
     from .jsonio import as_text, dumps

@@ -123,6 +123,25 @@ def test_the_crack_transient_ends_on_the_orbit():
         assert half_peak_to_peak(signals[last, k]) == pytest.approx(so.amplitudes[s.name], rel=2e-3)
 
 
+def test_the_rub_orbit_is_the_stationary_full_annular_rub():
+    """The shipped rub scene (rotating frame, no gravity: no time-dependent load there) has as orbit of one
+    revolution its stationary state (LCP 28): the section state is it, at rest in the rotating frame, and the
+    casing probes at the disk see the whirl circle of the disk's deflection; a note says why."""
+    from nsfem.analysis.stationary import scene_stationary
+
+    scene = load_scene("rub")
+    so = orbit_of_scene(scene)
+    st = scene_stationary(scene)
+    # both solve to round-off (the LCP's certificate, the shooting's residual 1e-9 relative at most)
+    assert np.abs(so.orbit.q0 - st.q).max() <= 1e-9 * np.abs(st.q).max()
+    assert np.abs(so.orbit.v0).max() <= 1e-9 * 2 * math.pi * scene.rotation.speed_hz * np.abs(st.q).max()
+    assert so.orbit.converged and so.orbit.stable and "no time-dependent load" in so.notes[0]
+    (disk,) = st.parts["disks"]
+    for s in scene.sensors:   # a circle sampled 256 times a turn: its radius to h^4 / 24 = 1.5e-8
+        assert s.frame == "inertial" and s.x == disk["x_m"]
+        assert so.amplitudes[s.name] == pytest.approx(disk["magnitude_m"], rel=2e-8)
+
+
 def _spy_figures(monkeypatch) -> dict:
     from matplotlib.figure import Figure
 

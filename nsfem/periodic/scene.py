@@ -69,7 +69,9 @@ class SceneOrbit:
     amplitudes: dict[str, float]
     contact_sequence: list[dict]
     grazing: list[dict]
+    approximations: list[dict] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
     wall_s: float = 0.0
 
     @property
@@ -98,7 +100,8 @@ class SceneOrbit:
                 "iterations": int(o.iterations), "t0_s": float(o.t0), "multiple": self.multiple,
                 "forcing_period_s": self.forcing_period_s, "transient_periods": self.transient_periods,
                 "start": self.start, "grazing": self.grazing, "contact_sequence": self.contact_sequence,
-                "ndof": int(self.system.n), "warnings": list(self.warnings)}
+                "approximations": self.approximations, "ndof": int(self.system.n),
+                "warnings": list(self.warnings), "notes": list(self.notes)}
 
 
 def check_options(multiple, transient_periods, tol, output_dt) -> None:
@@ -282,6 +285,12 @@ def describe(scene: "Scene", system: "ContactSystem", orbit, multiple: int, forc
     if not orbit.converged:
         warn(f"the shooting did not converge in {orbit.iterations} iterations (residual {orbit.residual:.2e}): "
              "the state is not a periodic orbit; a longer transient (--transient) or a start nearer to it may help")
+    approximations = [{"t_s": float(a.get("t", t0 - offset)) - (t0 - offset), "why": str(a.get("why", ""))}
+                      for a in (getattr(orbit, "approximations", None) or [])]
+    if approximations:
+        whys = sorted({a["why"] for a in approximations})
+        warn(f"the monodromy matrix is approximate at {len(approximations)} event(s) of the period ("
+             + "; ".join(whys) + "): the multipliers near the unit circle are uncertain there")
     if grazing:
         g = grazing[0]
         near = f" within {g['gap_min_m']:.3g} m" if "gap_min_m" in g else ""
@@ -289,8 +298,13 @@ def describe(scene: "Scene", system: "ContactSystem", orbit, multiple: int, forc
              f"({1e3 * g['t_s']:.4g} ms after the section): the orbit is at a grazing bifurcation, where its "
              "multipliers jump: they hold on this side of it only" + (f" ({len(grazing)} grazings per period)"
                                                                      if len(grazing) > 1 else ""))
+    notes = []
+    if not system.harmonic:
+        notes.append(f"no time-dependent load in the {rot.frame} frame (the unbalance and gravity are constant "
+                     "there): the period of one revolution is kept, and an orbit through an equilibrium is that "
+                     "equilibrium (nsfem stationary), a whirl of another period is not found")
     return SceneOrbit(orbit, system, multiple, forcing, transient_periods, start, t, signals, sensors, amplitudes,
-                      sequence, grazing)
+                      sequence, grazing, approximations, notes=notes)
 
 
 def _named_grazing(g: dict, labels: list[str], t0: float) -> dict:
