@@ -3974,6 +3974,7 @@ PERIODIC_REPRODUCTIONS = [
     (["--start", "."], "--start", "is a folder"),
     (["--start", "scene.toml"], "--start", "not a results file"),
     (["--start", "scene.toml", "--transient", "5"], "--transient with --start", "one of them"),
+    (["--out", "scene.toml"], "--out", "scene.toml"),
 ]
 
 

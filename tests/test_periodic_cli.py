@@ -72,6 +72,19 @@ def test_a_linear_orbits_amplitudes_are_nsfem_responses(linear_orbit):
         assert so.amplitudes[s.name] == pytest.approx(want, rel=2e-8)
 
 
+def test_a_linear_subharmonic_is_the_harmonic_steady_state_too(linear_orbit):
+    """--multiple 2 on a linear scene: the orbit of period 2 T is the unique steady state, of period T."""
+    scene, so1 = linear_orbit
+    so2 = orbit_of_scene(scene, multiple=2, transient_periods=0)
+    assert so2.period_s == pytest.approx(2 * so1.period_s, rel=1e-15) and so2.orbit.converged
+    q, v = harmonic_state(so2.system, 0.0)
+    assert np.abs(so2.orbit.q0 - q).max() <= 1e-8 * np.abs(q).max()   # as for K = 1: round-off only
+    # each multiplier is that of one forcing period squared (the same exponentials over twice the time); the
+    # eigenvalues of the non-normal monodromy carry its round-off times its condition: 1e-8 of the largest
+    mu1, mu2 = np.sort_complex(so1.orbit.multipliers ** 2), np.sort_complex(so2.orbit.multipliers)
+    assert np.abs(mu1 - mu2).max() <= 1e-8 * np.abs(mu1).max()
+
+
 def test_half_peak_to_peak_of_sampled_sinusoids():
     """The parabola refinement's error bound, h^4 / 24 of the amplitude (h: the sample spacing in phase),
     over phases of the samples; and a kink (an impact) keeps its sample."""
@@ -140,6 +153,26 @@ def test_the_rub_orbit_is_the_stationary_full_annular_rub():
     for s in scene.sensors:   # a circle sampled 256 times a turn: its radius to h^4 / 24 = 1.5e-8
         assert s.frame == "inertial" and s.x == disk["x_m"]
         assert so.amplitudes[s.name] == pytest.approx(disk["magnitude_m"], rel=2e-8)
+
+
+def test_a_start_from_a_run_and_from_an_orbit(tmp_path, capsys):
+    """--start: a run's last state at t = 0.5 s (the section then at 0.5 s modulo T) and the orbit.npz of the
+    orbit found from it, which is the orbit already (no Newton step)."""
+    run_dir, p1, p2 = tmp_path / "run", tmp_path / "p1", tmp_path / "p2"
+    quiet = ["--set", "output.vtu_every=0", "--set", "output.plots=[]"]
+    assert cli.main(["run", "crack", *quiet, "--set", "simulation.t_end=0.5", "--out", str(run_dir)]) == 0
+    capsys.readouterr()
+    assert cli.main(["periodic", "crack", *quiet, "--start", str(run_dir / "result.npz"), "--out", str(p1),
+                     "--json"]) == 0
+    first = json.loads(capsys.readouterr().out)
+    assert first["converged"] and first["transient_periods"] == 0 and "result.npz" in first["start"]
+    assert first["t0_s"] == pytest.approx(math.fmod(0.5, 1 / 12.4), abs=1e-15)
+    assert cli.main(["periodic", "crack", *quiet, "--start", str(p1 / "orbit.npz"), "--out", str(p2), "--json"]) == 0
+    second = json.loads(capsys.readouterr().out)
+    assert second["converged"] and second["iterations"] == 0 and second["t0_s"] == first["t0_s"]
+    # the same orbit: its amplitudes to the shooting's tolerance (1e-9 relative residual)
+    for name, a in first["amplitudes"].items():
+        assert second["amplitudes"][name] == pytest.approx(a, rel=1e-8)
 
 
 def _spy_figures(monkeypatch) -> dict:
