@@ -3997,3 +3997,150 @@ def test_issue36_periodic_refuses_a_start_of_another_model(saved_result, tmp_pat
     code, _, err = check_invocation([*PERIODIC, "--out", "o", "--start", str(saved_result)], tmp_path)
     assert code == 2 and "--start" in err and "coordinates" in err, err
     assert not (tmp_path / "o").exists()
+
+
+# --- issue 36: continuation ---
+# nsfem.periodic.continuation.continue_branch and critical_vector (library functions, no command yet): a bad
+# argument or a residual/stability breaking its contract raises one NsfemError of one line naming it, before
+# any continuation; anything else returns a Branch that says why it stopped (never another exception)
+from nsfem.periodic.continuation import Branch, continue_branch, critical_vector  # noqa: E402
+
+
+def _circle36(u, p):
+    return np.array([u[0] ** 2 + p ** 2 - 1.0]), np.array([[2.0 * u[0]]]), np.array([2.0 * p])
+
+
+def _raises36(u, p):
+    raise NsfemError("the flow failed\nover two lines")
+
+
+_RESIDUALS36 = {
+    "circle": _circle36,
+    "r too long": lambda u, p: (np.zeros(2), np.eye(2), np.zeros(2)),
+    "J_u too small": lambda u, p: (np.zeros(1), np.eye(2), np.zeros(1)),
+    "pair": lambda u, p: (np.zeros(1), np.eye(1)),
+    "nan": lambda u, p: (np.full(1, np.nan), np.eye(1), np.zeros(1)),
+    "complex": lambda u, p: (np.zeros(1, complex), np.eye(1), np.zeros(1)),
+    "text": lambda u, p: ("r", "J", "p"),
+    "raises": _raises36,
+    "not callable": 3,
+}
+
+CONTINUATION_CASES = [   # (the arguments changed from a valid circle branch, words of the one-line error)
+    (dict(u0=[np.nan]), "u0[0]"),
+    (dict(u0=[[0.1]]), "1-D"),
+    (dict(u0=[]), "non-empty"),
+    (dict(u0="abc"), "u0"),
+    (dict(p_end=-0.8), "p_end = p0"),
+    (dict(p_end=math.inf), "p_end"),
+    (dict(p0=-1e308, p_end=1e308), "finite length"),
+    (dict(step=0.0), "step"),
+    (dict(step=-1.0), "step"),
+    (dict(step=1.0, max_step=0.5), "min_step <= step <= max_step"),
+    (dict(step=1e-14), "round-off"),
+    (dict(locate_tol=1e-20), "locate_tol"),
+    (dict(tol=0.0), "tol"),
+    (dict(tol="tiny"), "tol"),
+    (dict(max_steps=0), "max_steps"),
+    (dict(max_steps=2.5), "max_steps"),
+    (dict(max_iter=True), "max_iter"),
+    (dict(u_scale=0.0), "u_scale"),
+    (dict(u_scale=[1.0, 2.0]), "u_scale"),
+    (dict(margin=-1.0), "margin"),
+    (dict(unit_tol=-1e-6), "unit_tol"),
+    (dict(stability=3), "stability"),
+    (dict(residual=3), "residual must be callable"),
+    (dict(residual=_RESIDUALS36["r too long"]), "r of shape (2,)"),
+    (dict(residual=_RESIDUALS36["J_u too small"]), "J_u of shape (2, 2)"),
+    (dict(residual=_RESIDUALS36["pair"]), "tuple (r, J_u, J_p)"),
+    (dict(residual=_RESIDUALS36["nan"]), "not finite"),
+    (dict(residual=_RESIDUALS36["complex"]), "real arrays"),
+    (dict(residual=_RESIDUALS36["raises"]), "the flow failed over two lines"),
+    (dict(stability=lambda u, p: np.zeros((2, 2))), "1-D array of multipliers"),
+    (dict(stability=lambda u, p: np.zeros(0)), "1-D array of multipliers"),
+]
+
+
+def _continue36(**changes) -> Branch:
+    args = dict(residual=_circle36, u0=[-0.6], p0=-0.8, p_end=0.8, max_steps=4)
+    args.update(changes)
+    return continue_branch(args.pop("residual"), args.pop("u0"), args.pop("p0"), args.pop("p_end"), **args)
+
+
+def _one_line36(exc: NsfemError) -> str:
+    message = str(exc)
+    assert message and "\n" not in message, repr(message)
+    return message
+
+
+@pytest.mark.parametrize("changes, words", CONTINUATION_CASES)
+def test_issue36_continuation_refuses_bad_arguments_in_one_line(changes, words):
+    with pytest.raises(NsfemError) as info:
+        _continue36(**changes)
+    message = _one_line36(info.value)
+    assert words in message, message
+
+
+def test_issue36_a_failing_stability_at_the_start_says_so():
+    branch = _continue36(stability=_raises36)
+    assert branch.stop == "failed" and branch.reason.startswith("at the start: the stability failed")
+    assert len(branch.points) == 1 and branch.points[0].converged and branch.points[0].multipliers is None
+
+
+def test_issue36_a_failing_residual_ends_the_branch_keeping_its_points():
+    def fails_late(u, p):
+        return _raises36(u, p) if p > 0.0 else _circle36(u, p)
+
+    branch = _continue36(residual=fails_late, max_steps=200)
+    assert branch.stop == "failed" and "the flow failed over two lines" in branch.reason
+    assert "\n" not in branch.reason and all(pt.converged and pt.p <= 0.0 for pt in branch.points)
+
+
+_number36 = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-3, 3), st.just("x"))
+
+
+_HOSTILE36 = {   # each argument's strategy: hostile values mixed with valid ones
+    "residual": st.sampled_from(sorted(_RESIDUALS36)).map(_RESIDUALS36.get),
+    "u0": st.one_of(st.lists(st.floats(-1.0, 1.0), min_size=1, max_size=1),
+                    st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=2), st.just([[0.1]])),
+    "p0": st.one_of(st.floats(-0.99, 0.99), _number36),
+    "p_end": st.one_of(st.floats(-2.0, 2.0), _number36),
+    "step": st.one_of(st.none(), st.floats(1e-3, 0.5), _number36),
+    "tol": st.one_of(st.floats(1e-12, 1e-6), _number36),
+    "max_steps": st.one_of(st.integers(-1, 6), st.floats(0, 4)),
+    "u_scale": st.one_of(st.floats(0.1, 10.0), _number36, st.lists(st.floats(), max_size=2)),
+    "stability": st.sampled_from([None, "unit", "bad"]).map(
+        {None: None, "unit": lambda u, p: np.array([0.5, -2.0 + 0j]), "bad": lambda u, p: "mu"}.get),
+}
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data(), keys=st.lists(st.sampled_from(sorted(_HOSTILE36)), max_size=3, unique=True))
+def test_issue36_continuation_raises_one_line_or_returns_an_honest_branch(data, keys):
+    changes = {key: data.draw(_HOSTILE36[key], label=key) for key in keys}
+    try:
+        branch = _continue36(**changes)
+    except NsfemError as exc:
+        assert _one_line36(exc).startswith("continue_branch: "), str(exc)
+        return
+    assert branch.stop in ("end", "left", "closed", "max_steps", "failed") and branch.reason
+    assert "\n" not in branch.reason and len(branch.points) <= changes.get("max_steps", 4) + 1
+    # every point but an unconverged start (stop "failed") solves r(u, p) = 0 to tol
+    tol, residual = float(changes.get("tol", 1e-9)), changes.get("residual", _circle36)
+    for pt in branch.points:
+        assert pt.converged or (branch.stop == "failed" and len(branch.points) == 1)
+        if pt.converged:
+            assert np.max(np.abs(residual(pt.u, pt.p)[0])) <= tol
+
+
+@pytest.mark.parametrize("matrix, target, words", [
+    ([[1.0, 2.0]], -1.0, "square"),
+    ([], -1.0, "square"),
+    ([[np.nan]], -1.0, "finite"),
+    ([[1.0]], np.inf, "finite"),
+    ([["a"]], -1.0, "numbers"),
+])
+def test_issue36_critical_vector_refuses_bad_matrices_in_one_line(matrix, target, words):
+    with pytest.raises(NsfemError) as info:
+        critical_vector(matrix, target)
+    assert words in _one_line36(info.value)

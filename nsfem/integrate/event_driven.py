@@ -93,6 +93,9 @@ class EventDriven(Integrator):
         #: in), after one dict for the start (``start``: ``q``, ``v`` given, ``v_plus``, ``impact``). What the
         #: periodic orbits' monodromy matrix is formed from (:mod:`nsfem.periodic`)
         self.trace: list | None = None
+        #: keep the configurations (their decompositions) from one run to the next of the same system (the runs of
+        #: a shooting method); never with round rings (their turns make the configurations)
+        self.keep_configurations = False
 
     def configuration(self, mode: Mode) -> Configuration:
         mode = mode.dynamics
@@ -158,7 +161,8 @@ class EventDriven(Integrator):
         self.system = self._polygon
         self._rings = round_rings(self.system.contacts, self.system.info.get("round_rings", ())) \
             if self.round_rings else ()
-        self._cache, self._systems, self._gaps = {}, {}, {}
+        if not (self.keep_configurations and not self._rings):
+            self._cache, self._systems, self._gaps = {}, {}, {}
         sysm = self.system
         cs = sysm.contacts
         n, m = sysm.n, cs.m

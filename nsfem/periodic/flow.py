@@ -38,6 +38,8 @@ class Flow:
     #: the configuration (:class:`~nsfem.integrate.configuration.Mode`) the flow started in (after the start's
     #: resolution), None without a recorded run
     start_mode: object = None
+    #: the recorded run (:attr:`~nsfem.integrate.event_driven.EventDriven.trace`), None without the Jacobian
+    trace: list | None = field(default=None, repr=False)
 
 
 def shifted(system, t0: float):
@@ -48,32 +50,52 @@ def shifted(system, t0: float):
     return replace(system, fc=system.fc * c + system.fs * s, fs=system.fs * c - system.fc * s)
 
 
+class FlowMap:
+    """x0 -> the exact flow over ``period`` from t0 (a :class:`Flow`), for many starts of one system: the shooting
+    method's map. The configurations met (their eigen-decompositions) are kept from one start to the next."""
+
+    def __init__(self, system, t0: float, period: float, *, output_dt: float | None = None, zeno: float = 1e-8):
+        if not (np.isfinite(period) and period > 0):
+            raise NsfemError(f"periodic: the period must be finite and > 0, got {period}")
+        if not np.isfinite(t0):
+            raise NsfemError(f"periodic: t0 must be finite, got {t0}")
+        if system.schedule is not None:
+            raise NsfemError("periodic: a run-up has no periodic orbit (rotation.ramp_to_hz); orbits are at constant "
+                             "speed")
+        round_ = system.info.get("round_rings") or ()
+        if round_:
+            raise NsfemError(f"periodic: stator {round_[0]} has shape = \"round\": its turning facet keeps a state of "
+                             "its own (turn angle, wedge, distance) besides (q, q'), so its flow over a period is not a "
+                             "map of the state alone; set shape = \"polygon\" for orbits (256 facets keep the radius "
+                             "within 7.5e-5 of the clearance)")
+        self.system, self.t0, self.period = system, float(t0), float(period)
+        self.output_dt = period / 256 if output_dt is None else float(output_dt)
+        self._integrator = Exact(shifted(system, self.t0), zeno=zeno, progress=False)
+        self._integrator.keep_configurations = True
+
+    def __call__(self, q0, v0, jacobian: bool = True) -> Flow:
+        integ = self._integrator
+        integ.trace = [] if jacobian else None
+        with single_threaded_blas(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            res = integ.run(self.period, self.output_dt, q0, v0)
+        res.t = res.t + self.t0
+        t0 = self.t0
+        if not jacobian:
+            return Flow(t0, self.period, res.q[:, -1].copy(), res.v[:, -1].copy(), None, res)
+        trace, integ.trace = integ.trace, None
+        Phi, approx, graze = monodromy(trace)
+        for e in approx + graze:
+            e["t"] += t0
+        last = trace[-1]
+        return Flow(t0, self.period, last["q"].copy(), last["v"].copy(), Phi, res, approx, graze, trace[0]["after"],
+                    trace)
+
+
 def flow(system, t0: float, q0, v0, period: float, *, jacobian: bool = True, output_dt: float | None = None,
          zeno: float = 1e-8) -> Flow:
     """Integrate ``system`` exactly from (q0, q0') at t0 over ``period`` [s]; with ``jacobian`` the monodromy
     matrix (2n x 2n) through every event. Outputs at ``output_dt`` (default period / 256), times from t0."""
-    if not (np.isfinite(period) and period > 0):
-        raise NsfemError(f"periodic: the period must be finite and > 0, got {period}")
-    if system.schedule is not None:
-        raise NsfemError("periodic: a run-up has no periodic orbit (rotation.ramp_to_hz); orbits are at constant speed")
-    sysm = shifted(system, float(t0))
-    integ = Exact(sysm, zeno=zeno, progress=False)
-    integ.trace = [] if jacobian else None
-    dt = period / 256 if output_dt is None else float(output_dt)
-    with single_threaded_blas(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        res = integ.run(period, dt, q0, v0)
-    res.t = res.t + t0
-    if not jacobian:
-        return Flow(float(t0), float(period), res.q[:, -1].copy(), res.v[:, -1].copy(), None, res)
-    trace = integ.trace
-    Phi, approx, graze = monodromy(trace)
-    last = trace[-1]
-    for e in approx:
-        e["t"] += t0
-    for e in graze:
-        e["t"] += t0
-    return Flow(float(t0), float(period), last["q"].copy(), last["v"].copy(), Phi, res, approx, graze,
-                trace[0]["after"])
+    return FlowMap(system, t0, period, output_dt=output_dt, zeno=zeno)(q0, v0, jacobian)
 
 
 def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
@@ -118,3 +140,52 @@ def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
         f_plus = state_rate(after, t)
         Phi = saltation(Dg, f_minus, f_plus, grad, rate) @ Phi
     return Phi, approx, graze
+
+
+#: a gap whose smallest value over an open phase is below this fraction of its range over the period is near grazing
+NEAR_GRAZING = 1e-3
+#: samples per phase at most when looking for a gap's minima (each refined on the closed form)
+_GRAZE_SAMPLES = 4096
+
+
+def near_grazing(fl: Flow, rel: float = NEAR_GRAZING) -> list[dict]:
+    """Gaps that come within ``rel`` of their range over the period to zero without closing: per contact and open
+    phase, the local minima of g(t) on a grid of the phase's sampling step (:meth:`Phase.max_step`), each refined
+    on the exact motion (bounded Brent to 1e-12 of the phase's length); [{"contact", "t", "gap_min"}], t from the
+    flow's t0. A gap that closes at an event is not grazing; a tangential touch the event search fired on is in
+    ``fl.grazing``."""
+    from scipy.optimize import minimize_scalar
+
+    if fl.trace is None:
+        raise ValueError("near_grazing needs a flow recorded with its Jacobian")
+    res = fl.result
+    m = res.gap.shape[0]
+    if not m or not res.t.size:
+        return []
+    span = np.ptp(res.gap, axis=1) if res.t.size > 1 else np.zeros(m)
+    out = []
+    for step in fl.trace[1:]:
+        phase, mode = step["phase"], step["mode"]
+        cs = phase.config.system.contacts
+        open_ = [k for k in range(min(cs.m, m)) if k not in mode.closed]
+        if not open_:
+            continue
+        t0, t1 = step["t0"], step["t1"]
+        if t1 <= t0:
+            continue
+        nsamp = int(min(_GRAZE_SAMPLES, max(16, np.ceil((t1 - t0) / phase.max_step(t1 - t0)))))
+        ts = np.linspace(t0, t1, nsamp + 1)
+        Pq = phase.q_map()
+        G = cs.JN[:, open_].T @ (Pq @ phase.xi(ts)) + cs.jN[open_][:, None]
+        for j, k in enumerate(open_):
+            g = G[j]
+            scale = max(float(span[k]), float(np.abs(g).max()))
+            for i in range(1, nsamp):
+                if not (g[i] <= g[i - 1] and g[i] <= g[i + 1]) or g[i] > rel * scale + 1e-300:
+                    continue
+                gap = lambda t, k=k: float(cs.JN[:, k] @ (Pq @ phase.xi(float(t))) + cs.jN[k])  # noqa: E731
+                r = minimize_scalar(gap, bounds=(ts[i - 1], ts[i + 1]), method="bounded",
+                                    options={"xatol": 1e-12 * (t1 - t0)})
+                if r.fun > 0.0:
+                    out.append({"contact": int(k), "t": float(r.x) + fl.t0, "gap_min": float(r.fun)})
+    return out

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import NsfemError
 from ..result import Result
-from .flow import Flow, flow
+from .flow import Flow, FlowMap, near_grazing
 
 
 #: Newton steps that may grow the residual before steps must make it fall
@@ -89,11 +89,14 @@ def admissible_directions(system, mode) -> np.ndarray:
 
 
 def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *, tol: float = 1e-9,
-                   max_iter: int = 25, output_dt: float | None = None) -> PeriodicOrbit:
+                   max_iter: int = 25, output_dt: float | None = None, attempts: int = 3,
+                   settle_periods: int = 20) -> PeriodicOrbit:
     """The periodic orbit of ``system`` with period ``period_s`` near (q0, q0') at t0 (module docstring).
 
-    ``converged`` says whether the residual |phi_T(x0) - x0| / |x0| (in (q, q' / w)) fell below ``tol``; the
-    multipliers and the verdict are those of the last iterate either way."""
+    Where Newton fails from (q0, q0') (a start too far for a non-smooth map), the transient goes on from there for
+    ``settle_periods`` periods and Newton starts again, ``attempts`` times in all. ``converged`` says whether the
+    residual |phi_T(x0) - x0| / |x0| (in (q, q' / w)) fell below ``tol``; the multipliers and the verdict are those
+    of the best iterate either way."""
     n = system.n
     if not (isinstance(period_s, (int, float)) and math.isfinite(period_s) and period_s > 0):
         raise NsfemError(f"periodic: the period must be finite and > 0, got {period_s!r}")
@@ -103,6 +106,8 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
         raise NsfemError(f"periodic: tol must lie in (0, 1e-2), got {tol}")
     if int(max_iter) < 1:
         raise NsfemError(f"periodic: max_iter must be >= 1, got {max_iter}")
+    if int(attempts) < 1 or int(settle_periods) < 0:
+        raise NsfemError(f"periodic: attempts must be >= 1 and settle_periods >= 0, got {attempts}, {settle_periods}")
     q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
     v = np.zeros(n) if v0 is None else np.asarray(v0, dtype=float).copy()
     if q.shape != (n,) or v.shape != (n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
@@ -110,8 +115,10 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     w = 2.0 * math.pi / period_s
     scale = np.concatenate([np.ones(n), np.full(n, 1.0 / w)])
 
+    phi = FlowMap(system, t0, period_s, output_dt=output_dt)
+
     def run(q_, v_) -> tuple[Flow, float, np.ndarray]:
-        fl = flow(system, t0, q_, v_, period_s, output_dt=output_dt)
+        fl = phi(q_, v_)
         F = np.concatenate([fl.q - q_, fl.v - v_])
         size = max(float(np.abs(scale * np.concatenate([q_, v_])).max()), float(np.abs(scale * F).max()), 1e-300)
         return fl, float(np.abs(scale * F).max()) / size, F
@@ -149,13 +156,24 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
                 best = (res, q, v, fl)
         return best, it, history
 
-    best, it, history = newton(q, v, *first, free=FREE)
-    if best[0] > tol and FREE:   # the monotone path from the start instead
-        again, it2, history2 = newton(q, v, *first, free=0)
-        it += it2
-        history += history2
-        if again[0] < best[0]:
-            best = again
+    it, history, best = 0, [], None
+    for attempt in range(int(attempts)):
+        if attempt:   # Newton failed from here: the transient goes on from its start for settle_periods first
+            for _ in range(int(settle_periods)):
+                f = phi(q, v, jacobian=False)
+                q, v = f.q, f.v
+            first = run(q, v)
+        found, k, h = newton(q, v, *first, free=FREE)
+        it, history = it + k, history + h
+        if found[0] > tol and FREE:   # the monotone path from the same start instead
+            again, k, h = newton(q, v, *first, free=0)
+            it, history = it + k, history + h
+            if again[0] < found[0]:
+                found = again
+        if best is None or found[0] < best[0]:
+            best = found
+        if best[0] <= tol:
+            break
     res, q, v, fl = best
     Z = _directions(system, fl)
     Mr = Z.T @ fl.monodromy @ Z
@@ -166,8 +184,15 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     if not converged:
         warnings.warn(f"periodic: shooting did not converge in {it} Newton steps (residual {res:.3g} > tol {tol:g}); "
                       "the orbit and its multipliers are of the last iterate", stacklevel=2)
+    grazing = [{"contact": c, "t": g["t"], "gap_min": 0.0} for g in fl.grazing for c in g["contacts"]]
+    grazing += near_grazing(fl)
+    if grazing:
+        worst = min(grazing, key=lambda g: g["gap_min"])
+        warnings.warn(f"periodic: the orbit grazes contact {system.contacts.labels[worst['contact']]} (smallest gap "
+                      f"{worst['gap_min']:.3g} m at t = {worst['t']:.6g} s without closing): near a grazing bifurcation "
+                      "the Floquet multipliers do not describe nearby motions that touch", stacklevel=2)
     return PeriodicOrbit(float(period_s), float(t0), q, v, converged, res, it, Mr, mu, stable, loss,
-                         len(fl.result.events), fl.result, fl.grazing, fl.approximations, Z, history)
+                         len(fl.result.events), fl.result, grazing, fl.approximations, Z, history)
 
 
 def _directions(system, fl: Flow) -> np.ndarray:

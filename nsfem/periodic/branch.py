@@ -1,0 +1,172 @@
+"""Branches of periodic orbits over a parameter: pseudo-arclength continuation of the shooting problem, the
+stability along it, its bifurcations, and the switch onto the period-doubled branch.
+
+The unknowns are the section state u = (q, q') and the parameter p (a rotor speed, a clearance...). The
+residual r(u, p) = phi_T(p)(u; p) - u with J_u = Phi_T - I (the monodromy matrix of :mod:`.flow`: exact) and
+J_p by central differences in p (each a flow of the system at p +- h; h = 1e-6 of the range: the flow's event
+times are located to ~1e-13 s, so the difference's noise stays near 1e-7 relative, its truncation h^2 below);
+:func:`.continuation.continue_branch` follows the branch through folds and locates where a multiplier leaves the
+unit circle. At a period doubling the doubled orbit (period 2 T) branches off along the eigenvector of the
+multiplier -1: :func:`doubled_start` solves for it a little past the bifurcation, and the doubled branch is
+continued like the first.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..errors import NsfemError
+from .continuation import Branch, continue_branch, critical_vector
+from .flow import FlowMap
+from .shooting import admissible_directions, classify, periodic_orbit
+
+#: the parameter step of J_p's central differences, relative to the continuation's range
+DP = 1e-6
+
+
+@dataclass
+class OrbitBranch:
+    """A branch of periodic orbits: per point the parameter value, the orbit's section state and stability; the
+    bifurcations located on it; the period-doubled branches switched onto (each an :class:`OrbitBranch`)."""
+
+    key: str
+    multiple: int
+    points: list[dict]
+    bifurcations: list[dict]
+    stop: str
+    reason: str
+    doubled: list = field(default_factory=list)
+
+    def summary(self) -> dict:
+        """The JSON of ``nsfem periodic --continue`` (design section 9): ``branch`` and ``bifurcations``."""
+        return {"branch": [{k: v for k, v in p.items() if k not in ("q0", "v0")} for p in self.points],
+                "bifurcations": [{k: v for k, v in b.items() if k not in ("q0", "v0")} for b in self.bifurcations],
+                "stop": self.stop, "reason": self.reason,
+                "doubled_branches": [d.summary() for d in self.doubled]}
+
+
+class _Problem:
+    """The shooting residual of a family of systems, the monodromy of the last point kept for its stability."""
+
+    def __init__(self, system_at: Callable, period_at: Callable, t0: float, dp: float, multiple: int):
+        self.system_at, self.period_at, self.t0, self.dp, self.multiple = system_at, period_at, t0, dp, multiple
+        self._maps: dict = {}
+        self.last = None
+
+    def flow_map(self, p: float) -> FlowMap:
+        fm = self._maps.get(p)
+        if fm is None:
+            if len(self._maps) > 8:   # the recent parameter values only (each keeps its configurations)
+                self._maps.pop(next(iter(self._maps)))
+            fm = self._maps[p] = FlowMap(self.system_at(p), self.t0, self.multiple * self.period_at(p))
+        return fm
+
+    def residual(self, u: np.ndarray, p: float):
+        n = u.size // 2
+        fl = self.flow_map(p)(u[:n], u[n:])
+        r = np.concatenate([fl.q, fl.v]) - u
+        ends = []
+        for s in (1.0, -1.0):
+            f = self.flow_map(p + s * self.dp)(u[:n], u[n:], jacobian=False)
+            ends.append(np.concatenate([f.q, f.v]))
+        Jp = (ends[0] - ends[1]) / (2.0 * self.dp)
+        self.last = (p, u.copy(), fl)
+        return r, fl.monodromy - np.eye(u.size), Jp
+
+    def multipliers(self, u: np.ndarray, p: float) -> np.ndarray:
+        _, _, fl = self.last
+        Z = admissible_directions(fl.trace[0]["system"], fl.start_mode)
+        mu = np.linalg.eigvals(Z.T @ fl.monodromy @ Z) if Z.shape[1] else np.zeros(0, complex)
+        return mu[np.argsort(-np.abs(mu), kind="stable")]
+
+
+def _points(problem: _Problem, branch: Branch, key: str) -> list[dict]:
+    out = []
+    for bp in branch.points:
+        n = bp.u.size // 2
+        mu = np.zeros(0, complex) if bp.multipliers is None else np.asarray(bp.multipliers)
+        stable, loss = classify(mu) if mu.size else (True, None)
+        out.append({"value": float(bp.p), key: float(bp.p),
+                    "period_s": float(problem.multiple * problem.period_at(bp.p)), "converged": bool(bp.converged),
+                    "multipliers": [[float(m.real), float(m.imag)] for m in mu], "stable": stable, "loss": loss,
+                    "amplitude_max_m": float(np.abs(bp.u[:n]).max()), "q0": bp.u[:n].copy(), "v0": bp.u[n:].copy()})
+    return out
+
+
+def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[float], float], q0, v0, p0: float,
+                 p_end: float, *, key: str = "p", multiple: int = 1, t0: float = 0.0, tol: float = 1e-9,
+                 step: float | None = None, max_steps: int = 100, switch: bool = True, depth: int = 1
+                 ) -> OrbitBranch:
+    """Continue the orbit through (q0, q0') at p0 (period ``multiple`` T(p0)) towards p_end.
+
+    ``system_at(p)``: the ContactSystem at parameter p; ``period_at(p)``: the forcing period there [s]. The start is
+    first made an orbit at p0 (:func:`.shooting.periodic_orbit`). With ``switch``, at each located period doubling
+    the doubled branch is followed too (``depth`` levels)."""
+    if not (math.isfinite(p0) and math.isfinite(p_end)) or p0 == p_end:
+        raise NsfemError(f"periodic: the continuation range {p0!r} to {p_end!r} must be finite and not empty")
+    span = abs(p_end - p0)
+    problem = _Problem(system_at, period_at, t0, DP * span, int(multiple))
+    start = periodic_orbit(system_at(p0), multiple * period_at(p0), q0, v0, t0, tol=tol)
+    if not start.converged:
+        raise NsfemError(f"periodic: no orbit at {key} = {p0:g} to start the continuation from (residual "
+                         f"{start.residual:.3g} > tol {tol:g})")
+    u0 = np.concatenate([start.q0, start.v0])
+    w = 2 * math.pi / (multiple * period_at(p0))
+    n = u0.size // 2
+    size_q = max(float(np.abs(start.q0).max()), 1e-12)
+    u_scale = np.concatenate([np.full(n, size_q), np.full(n, max(float(np.abs(start.v0).max()), w * size_q))])
+    br = continue_branch(problem.residual, u0, p0, p_end, step=step, max_steps=max_steps, tol=tol * size_q,
+                         stability=problem.multipliers, u_scale=u_scale)
+    bif = []
+    for b in br.bifurcations:
+        u = np.asarray(b["u"])
+        bif.append({"kind": b["kind"], "value": float(b["value"]), "index": int(b["index"]),
+                    "q0": u[:n].copy(), "v0": u[n:].copy()})
+    out = OrbitBranch(key, int(multiple), _points(problem, br, key), bif, br.stop, br.reason)
+    if switch and depth > 0:
+        for b in bif:
+            if b["kind"] != "period-doubling":
+                continue
+            try:
+                q, v, p = doubled_start(system_at, period_at, b, p_end, multiple=multiple, t0=t0, tol=tol)
+                out.doubled.append(orbit_branch(system_at, period_at, q, v, p, p_end, key=key,
+                                                multiple=2 * multiple, t0=t0, tol=tol, step=step,
+                                                max_steps=max_steps, switch=switch, depth=depth - 1))
+            except NsfemError as exc:
+                b["switch_failed"] = str(exc)
+    return out
+
+
+def doubled_start(system_at, period_at, bif: dict, p_end: float, *, multiple: int = 1, t0: float = 0.0,
+                  tol: float = 1e-9, offset: float = 1e-3) -> tuple[np.ndarray, np.ndarray, float]:
+    """(q0, q0', p): an orbit of period 2 ``multiple`` T just past the period doubling ``bif`` (towards p_end, a
+    fraction ``offset`` of the way), started from the bifurcating orbit plus its multiplier -1's eigenvector
+    (scaled to sqrt(offset) of the orbit: the doubled orbit's distance grows like the square root of the
+    parameter's distance past a flip), and checked to be a genuine period-2 orbit (not the period-1 one)."""
+    p_star = float(bif["value"])
+    p = p_star + offset * (p_end - p_star)
+    T = multiple * period_at(p_star)
+    q, v = np.asarray(bif["q0"]), np.asarray(bif["v0"])
+    n = q.size
+    fl = FlowMap(system_at(p_star), t0, T)(q, v)
+    Z = admissible_directions(fl.trace[0]["system"], fl.start_mode)
+    mu, vec = critical_vector(Z.T @ fl.monodromy @ Z, -1.0)
+    d = np.real(Z @ vec)
+    size = max(float(np.abs(q).max()), 1e-12)
+    d *= math.sqrt(offset) * size / max(float(np.abs(d[:n]).max()), 1e-300)
+    for sign in (1.0, -1.0):
+        try:
+            orb = periodic_orbit(system_at(p), 2 * multiple * period_at(p), q + sign * d[:n], v + sign * d[n:], t0,
+                                 tol=tol, attempts=1)
+        except NsfemError:
+            continue
+        if not orb.converged:
+            continue
+        half = FlowMap(system_at(p), t0, multiple * period_at(p))(orb.q0, orb.v0, jacobian=False)
+        if np.abs(half.q - orb.q0).max() > 1e3 * tol * size:   # a genuine period-2 orbit
+            return orb.q0, orb.v0, p
+    raise NsfemError(f"periodic: no period-doubled orbit found past the period doubling at {p_star:g}")

@@ -1,0 +1,604 @@
+"""Pseudo-arclength continuation of a branch of solutions of r(u, p) = 0, with its folds and the points
+where its stability changes.
+
+Generic: it knows nothing of rotors. For periodic orbits the residual is the shooting residual
+r(x0, p) = phi_T(x0; p) - x0 with J_u = monodromy - I, and ``stability`` returns the monodromy's
+eigenvalues (the Floquet multipliers); any map's fixed points fit the same mould.
+
+Method (Keller 1977, "Numerical solution of bifurcation and nonlinear eigenvalue problems"; Kuznetsov,
+"Elements of Applied Bifurcation Theory", 3rd ed. 2004, chapter 10). The unknowns are scaled,
+z = (u / u_scale, (p - p0) / (p_end - p0)), so that p_end is z_p = 1 and arclength counts a change of
+u by u_scale as much as the whole range of p. With J = [J_u u_scale | J_p (p_end - p0)] (m x (m+1)):
+
+- tangent: the null vector of J, from the bordered system [[J], [t_prev^T]] t = [0, 1] (normalised;
+  its sign continues the previous direction, t.t_prev > 0); the first one points to p_end;
+- predictor z + ds t; corrector: Newton on the bordered system
+  [[J_u, J_p], [t_u^T, t_p]] dz = -[r, t.(z - z_pred)], regular at folds of the branch (where J_u
+  alone is singular), so folds pass naturally;
+- step control: a failed correction (no convergence in ``max_iter`` Newton steps, a non-finite
+  residual, an error of the residual or the stability, a corrector that moved farther than the step,
+  or a tangent turned by more than 45 degrees) halves ds; a step that converged in at most 2
+  iterations with the tangent turned by less than 10 degrees grows it by 1.5; ds is bounded by
+  ``max_step`` and ``min_step``, lengths in units of p (the predictor changes p by at most
+  ``max_step`` and u by at most ``max_step / |p_end - p0|`` times u_scale; the corrected point lies
+  within sqrt(2) ds of the previous one);
+- the branch stops at p_end (the last point corrected at p = p_end exactly), when it leaves
+  [min(p0, p_end) - margin, max(p0, p_end) + margin] after folding back, when it returns to its first
+  point (a closed branch), after ``max_steps`` steps, or when a correction fails at ``min_step``;
+  :attr:`Branch.stop` and :attr:`Branch.reason` say which and where.
+
+Special points between two consecutive points A and B, located by bisection along the chord AB (each
+trial point re-corrected onto the branch with the constraint d.(z - z_trial) = 0, d the chord's unit
+vector) until the bracket's chord is shorter than ``locate_tol`` (in units of p). The crossing lies on
+the branch between the final bracket's corrected ends; a record's "accuracy" is the located point's
+largest distance to them (in units of p), so |p - p*| <= accuracy, plus the corrector's error (u off
+the branch by about tol / |J_u|, moving the test function accordingly):
+
+- fold of the branch: where the tangent's p component changes sign (Kuznetsov's test function
+  psi = t_p, chapter 10);
+- with ``stability``: where a multiplier crosses the unit circle (|mu| = 1 exactly; a multiplier counts
+  as outside when |mu| > 1 + unit_tol, which keeps neutral multipliers at |mu| = 1 +- round-off from
+  making false alarms). Multipliers of A and B are paired by the least sum of sqrt(distance) (where their
+  counts differ the missing ones are zeros: a direction held at one point, as an orbit's contact held
+  closed on its section, has multiplier 0 there); each pair on
+  different sides is one crossing, followed through the bisection by continuity. Kinds: a real
+  multiplier through +1 "fold", through -1 "period-doubling", a complex pair "neimark-sacker"
+  (Kuznetsov chapter 4). A saddle-node (a fold of the branch with its multiplier through +1)
+  is recorded once, as the tangent's fold.
+
+:func:`critical_vector` gives the eigenvector of the multiplier closest to -1 (or any target) of a
+monodromy-like matrix, for starting the doubled orbit at u + h v after a period doubling.
+
+>>> import numpy as np
+>>> def circle(u, p):   # x^2 + p^2 = 1
+...     return np.array([u[0] ** 2 + p ** 2 - 1]), np.array([[2 * u[0]]]), np.array([2 * p])
+>>> b = continue_branch(circle, [-0.6], -0.8, 0.8, step=0.05)
+>>> b.stop, b.points[-1].p, [round(x["value"], 6) for x in b.bifurcations]
+('end', 0.8, [])
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from ..errors import NsfemError
+
+Residual = Callable[[np.ndarray, float], tuple]
+Stability = Callable[[np.ndarray, float], np.ndarray]
+
+#: a correction whose tangent turned by more than this is refused (the step halved): the corrector
+#: may have jumped to another branch
+MAX_TURN_COS = math.cos(math.radians(45.0))
+#: a step converged in at most GROW_ITERATIONS Newton steps with a turn below this grows by GROW
+EASY_TURN_COS = math.cos(math.radians(10.0))
+GROW_ITERATIONS = 2
+GROW = 1.5
+#: a multiplier is real (for the kind of a crossing) when |Im mu| <= REAL_TOL max(1, |mu|): LAPACK
+#: returns real eigenvalues of a real matrix with Im exactly 0; a genuine pair near +-1 has
+#: |Im mu| ~ sqrt(distance to the collision), far above round-off
+REAL_TOL = 1e-7
+#: lengths below this share of |p_end - p0| (steps, locate_tol) are refused: the scaled unknowns are
+#: O(1), and steps near their round-off (2.2e-16) make no progress
+ROUNDOFF = 1e-12
+#: at most this many bisection steps (2^-60 of a chord: far below any locate_tol allowed)
+MAX_BISECTIONS = 60
+
+
+@dataclass
+class BranchPoint:
+    """One point of a branch: the parameter, the unknowns, their stability."""
+
+    p: float                          # the parameter
+    u: np.ndarray                     # the unknowns (for an orbit: the section state)
+    multipliers: np.ndarray | None    # complex, sorted by modulus, largest first (None without stability)
+    stable: bool | None               # every |mu| < 1 + unit_tol (None without stability)
+    converged: bool                   # max |r(u, p)| <= tol
+    residual: float = math.nan        # max |r(u, p)| at the point
+    s: float = 0.0                    # arclength from the first point, in units of p (along the chords)
+
+
+@dataclass
+class Branch:
+    """A continued branch, its special points and why it ended."""
+
+    points: list[BranchPoint]
+    bifurcations: list[dict] = field(default_factory=list)
+    # {"kind": "fold" | "period-doubling" | "neimark-sacker", "value": p, "index": i (between points i
+    #  and i + 1), "u": u there, "multipliers": at the point or None, "accuracy": the point's largest
+    #  distance (units of p) to the corrected ends of the final bracket, between which the crossing lies
+    #  on the branch, "detected_by": "tangent" | "multipliers"}
+    stop: str = ""      # "end" | "left" | "closed" | "max_steps" | "failed"
+    reason: str = ""    # one sentence: where and why the branch ended
+
+
+class _Failure(Exception):
+    """A point could not be computed (no convergence, non-finite values, an error of a callable)."""
+
+
+class _Contract(NsfemError):
+    """A callable broke its contract (shapes, types): a programming error, never retried."""
+
+
+@dataclass
+class _Point:
+    z: np.ndarray
+    jac: np.ndarray          # (m, m+1) scaled [J_u u_scale | J_p (p_end - p0)] at z
+    rmax: float
+    iterations: int
+    multipliers: np.ndarray | None = None
+
+
+def _line(exc: Exception) -> str:
+    """An error's message on one line."""
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _finite_float(name: str, value, *, positive: bool = False, allow_none: bool = False) -> float | None:
+    if value is None and allow_none:
+        return None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise NsfemError(f"continue_branch: {name} must be a number, got {value!r}") from None
+    if not math.isfinite(x) or (positive and x <= 0):
+        raise NsfemError(f"continue_branch: {name} must be a finite number{' > 0' if positive else ''}, got {x!r}")
+    return x
+
+
+class _Scaled:
+    """The residual and the stability in scaled unknowns z = (u / u_scale, (p - p0) / (p_end - p0))."""
+
+    def __init__(self, residual: Residual, stability: Stability | None, m: int, u_scale: np.ndarray,
+                 p0: float, p_end: float):
+        self.residual, self.stability, self.m = residual, stability, m
+        self.u_scale, self.p0, self.p_end, self.span = u_scale, p0, p_end, p_end - p0
+        self._last: tuple[bytes, tuple[np.ndarray, np.ndarray]] | None = None
+
+    def z(self, u: np.ndarray, p: float) -> np.ndarray:
+        return np.append(np.asarray(u, float) / self.u_scale, (p - self.p0) / self.span)
+
+    def u(self, z: np.ndarray) -> np.ndarray:
+        return z[:-1] * self.u_scale
+
+    def p(self, z: np.ndarray) -> float:
+        return self.p_end if z[-1] == 1.0 else float(self.p0 + z[-1] * self.span)
+
+    def evaluate(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """r (m,) and the scaled Jacobian (m, m+1) at z; _Failure when not finite or the residual fails.
+        The last evaluation is kept: asked again at the same z, the residual is not called again."""
+        key = z.tobytes()
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        u, p = self.u(z), self.p(z)
+        try:
+            out = self.residual(u.copy(), p)
+        except _Contract:
+            raise
+        except (NsfemError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            raise _Failure(f"the residual failed at p = {p:.10g}: {_line(exc)}") from exc
+        if not isinstance(out, tuple) or len(out) != 3:
+            raise _Contract("continue_branch: residual(u, p) must return a tuple (r, J_u, J_p), got "
+                            f"{type(out).__name__}")
+        m = self.m
+        try:
+            if any(np.iscomplexobj(a) for a in out):
+                raise TypeError("complex values")
+            r, ju, jp = (np.asarray(a, dtype=float) for a in out)
+        except (TypeError, ValueError) as exc:
+            raise _Contract(f"continue_branch: residual(u, p) must return real arrays (r, J_u, J_p): "
+                            f"{_line(exc)}") from None
+        for name, a, shape in (("r", r, (m,)), ("J_u", ju, (m, m)), ("J_p", jp, (m,))):
+            if a.shape != shape:
+                raise _Contract(f"continue_branch: residual(u, p) returned {name} of shape {a.shape}, expected "
+                                f"{shape} for {m} unknowns")
+        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(ju)) and np.all(np.isfinite(jp))):
+            raise _Failure(f"the residual or its Jacobian is not finite at p = {p:.10g}")
+        jac = np.empty((m, m + 1))
+        jac[:, :m] = ju * self.u_scale
+        jac[:, m] = jp * self.span
+        self._last = (key, (r, jac))
+        return r, jac
+
+    def multipliers(self, z: np.ndarray) -> np.ndarray | None:
+        """The stability's multipliers at z, sorted by modulus (largest first); None without stability."""
+        if self.stability is None:
+            return None
+        p = self.p(z)
+        try:
+            mu = self.stability(self.u(z).copy(), p)
+        except _Contract:
+            raise
+        except (NsfemError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            raise _Failure(f"the stability failed at p = {p:.10g}: {_line(exc)}") from exc
+        try:
+            mu = np.asarray(mu, dtype=complex)
+        except (TypeError, ValueError):
+            raise _Contract("continue_branch: stability(u, p) must return an array of multipliers") from None
+        if mu.ndim != 1 or mu.size == 0:
+            raise _Contract(f"continue_branch: stability(u, p) must return a 1-D array of multipliers, got shape "
+                            f"{mu.shape}")
+        if not np.all(np.isfinite(mu)):
+            raise _Failure(f"the multipliers are not finite at p = {p:.10g}")
+        return mu[np.argsort(-np.abs(mu), kind="stable")]
+
+
+def _tangent(jac: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """Unit null vector of jac (m, m+1), oriented so that t . previous > 0 (Keller's bordered system;
+    the smallest right singular vector where the bordered matrix is singular)."""
+    m = jac.shape[0]
+    rhs = np.zeros(m + 1)
+    rhs[m] = 1.0
+    t = None
+    try:
+        t = np.linalg.solve(np.vstack([jac, previous]), rhs)
+    except np.linalg.LinAlgError:
+        pass
+    if t is None or not np.all(np.isfinite(t)) or np.linalg.norm(t) == 0:
+        t = np.linalg.svd(jac)[2][-1]
+    t = t / np.linalg.norm(t)
+    return -t if t @ previous < 0 else t
+
+
+def _correct(problem: _Scaled, z0: np.ndarray, row: np.ndarray, level: float, tol: float,
+             max_iter: int) -> _Point:
+    """Newton on [r(z); row.z - level] = 0 from z0 (the bordered system); _Failure if it does not
+    reach max |r| <= tol in max_iter steps."""
+    z = z0.copy()
+    fixed_p = not np.any(row[:-1])    # a constraint on p alone: held exactly, not to round-off
+    first = None
+    for k in range(max_iter + 1):
+        r, jac = problem.evaluate(z)
+        rmax = float(np.max(np.abs(r))) if r.size else 0.0
+        if rmax <= tol:
+            return _Point(z, jac, rmax, k)
+        first = rmax if first is None else first
+        if k == max_iter or rmax > 1e6 * max(first, tol):
+            break
+        try:
+            dz = np.linalg.solve(np.vstack([jac, row]), -np.append(r, row @ z - level))
+        except np.linalg.LinAlgError:
+            break
+        if not np.all(np.isfinite(dz)):
+            break
+        z = z + dz
+        if fixed_p:
+            z[-1] = level / row[-1]
+    raise _Failure(f"the corrector did not converge at p = {problem.p(z):.10g} (max |r| = {rmax:.3g} > tol = "
+                   f"{tol:.3g} after {k} Newton steps)")
+
+
+def _outside(mu: np.ndarray, unit_tol: float) -> np.ndarray:
+    return np.abs(mu) > 1.0 + unit_tol
+
+
+def _kind(mu: complex) -> str:
+    if abs(mu.imag) > REAL_TOL * max(1.0, abs(mu)):
+        return "neimark-sacker"
+    return "fold" if mu.real > 0 else "period-doubling"
+
+
+def _padded(mu: np.ndarray, n: int) -> np.ndarray:
+    """mu with zeros appended up to n: a direction that is held at one point and free at another (an
+    orbit's contact held closed on its section) has multiplier 0 where it is held."""
+    return np.pad(mu, (0, max(0, n - mu.size)))
+
+
+def _paired(ma: np.ndarray, mb: np.ndarray) -> np.ndarray:
+    """For each multiplier of ma, the index of its partner in mb (same length): the pairs of least
+    sum of sqrt(distance). The concave cost prefers one large move and the others unchanged to several
+    moderate ones: where a held direction is freed (0 -> mu, the others continuous) it pairs the 0 with
+    the new mu (a plain sum of distances ties there: 0.5 -> 0.5, 0 -> 1.5 costs 1.5 as 0.5 -> 1.5, 0 -> 0.5)."""
+    rows, cols = linear_sum_assignment(np.sqrt(np.abs(ma[:, None] - mb[None, :])))
+    partner = np.empty(ma.size, dtype=int)
+    partner[rows] = cols
+    return partner
+
+
+def _crossings(ma: np.ndarray, mb: np.ndarray, unit_tol: float) -> list[tuple[int, int]]:
+    """Index pairs (at A, at B) of the multipliers (of equal length) that changed side of the unit
+    circle; one of each complex-conjugate pair (the one with Im >= 0 at B)."""
+    partner = _paired(ma, mb)
+    out_a, out_b = _outside(ma, unit_tol), _outside(mb, unit_tol)
+    pairs = [(i, int(partner[i])) for i in range(ma.size) if out_a[i] != out_b[partner[i]]]
+    kept = []
+    for i, j in pairs:
+        b = complex(mb[j])
+        conjugate = any(abs(b.conjugate() - mb[j2]) <= 1e-9 * max(1.0, abs(b)) and mb[j2].imag > 0
+                        for _, j2 in pairs)
+        if not (b.imag < 0 and conjugate):
+            kept.append((i, j))
+    return kept
+
+
+class _Chord:
+    """Trial points between two branch points A and B, re-corrected onto the branch."""
+
+    def __init__(self, problem: _Scaled, a: _Point, b: _Point, tol: float, max_iter: int):
+        self.problem, self.a, self.b, self.tol, self.max_iter = problem, a, b, tol, max_iter
+        chord = b.z - a.z
+        self.length = float(np.linalg.norm(chord))
+        self.d = chord / self.length
+
+    def point(self, theta: float, with_multipliers: bool) -> _Point:
+        zt = self.a.z + theta * (self.b.z - self.a.z)
+        pt = _correct(self.problem, zt, self.d, float(self.d @ zt), self.tol, self.max_iter)
+        if with_multipliers:
+            pt.multipliers = self.problem.multipliers(pt.z)
+        return pt
+
+
+def _bisect(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, span_tol: float,
+            with_multipliers: bool) -> tuple[_Point, float, float]:
+    """Bisection of the sign change of g along the chord (g(A) = g_a, g(B) of the other sign):
+    (the point at the final bracket's middle, its theta, its largest distance, in scaled z, to the
+    corrected points at the bracket's ends: the crossing lies on the branch between them)."""
+    lo, hi, glo = 0.0, 1.0, g_a
+    z_lo, z_hi = chord.a.z, chord.b.z
+    for _ in range(MAX_BISECTIONS):
+        if (hi - lo) * chord.length <= span_tol:
+            break
+        mid = 0.5 * (lo + hi)
+        try:
+            pt = chord.point(mid, with_multipliers)
+            val = g(pt, mid)
+        except _Failure:
+            break
+        if val == 0.0:
+            return pt, mid, 0.0
+        if (val > 0) == (glo > 0):
+            lo, glo, z_lo = mid, val, pt.z
+        else:
+            hi, z_hi = mid, pt.z
+    mid = 0.5 * (lo + hi)
+    try:
+        pt = chord.point(mid, with_multipliers)
+    except _Failure:    # keep the nearer end of the bracket
+        pt, mid = (chord.a, 0.0) if mid < 0.5 else (chord.b, 1.0)
+    half = max(float(np.linalg.norm(pt.z - z_lo)), float(np.linalg.norm(pt.z - z_hi)))
+    return pt, mid, half
+
+
+def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: np.ndarray, index: int,
+                    tol: float, max_iter: int, locate_tol_z: float, unit_tol: float) -> list[dict]:
+    """The folds and stability changes between consecutive points a and b, located."""
+    chord = _Chord(problem, a, b, tol, max_iter)
+    if chord.length == 0:
+        return []
+    found: list[tuple[float, dict]] = []
+    scale = abs(problem.span)
+
+    def record(kind: str, pt: _Point, theta: float, half: float, how: str) -> None:
+        found.append((theta, {"kind": kind, "value": problem.p(pt.z), "index": index, "u": problem.u(pt.z),
+                              "multipliers": pt.multipliers, "accuracy": half * scale, "detected_by": how}))
+
+    with_mu = a.multipliers is not None
+    fold_by_tangent = ta[-1] * tb[-1] < 0
+    if fold_by_tangent:
+        # tangents re-oriented by the chord, so that the sign of t_p means the same at every trial point
+        def tp(pt: _Point, _theta: float) -> float:
+            return float(_tangent(pt.jac, chord.d)[-1])
+
+        pt, theta, half = _bisect(chord, tp, tp(a, 0.0), locate_tol_z, with_mu)
+        record("fold", pt, theta, half, "tangent")
+    if with_mu:
+        n = max(a.multipliers.size, b.multipliers.size)
+        ma, mb = _padded(a.multipliers, n), _padded(b.multipliers, n)
+        for i, j in _crossings(ma, mb, unit_tol):
+            # the crossing multiplier followed by pairing each trial's multipliers with those of the
+            # nearest point known: theta -> (multipliers, the index of the followed one)
+            track = {0.0: (ma, i), 1.0: (mb, j)}
+
+            def followed(pt: _Point, theta: float) -> complex:
+                mu_ref, k = track[min(track, key=lambda key: abs(key - theta))]
+                mu = _padded(pt.multipliers, n)
+                k = int(_paired(mu_ref, mu)[k])
+                track[theta] = (mu, k)
+                return complex(mu[k])
+
+            mu_a, mu_b = complex(ma[i]), complex(mb[j])
+            g_a, g_b = abs(mu_a) - 1.0, abs(mu_b) - 1.0
+            if g_a * g_b > 0:     # the inside end lies within unit_tol outside the circle: the crossing is
+                # there, or just beyond it by the linear extrapolation of |mu| - 1 (its accuracy)
+                inside_a = not _outside(np.array([mu_a]), unit_tol)[0]
+                pt, theta, mu = (a, 0.0, mu_a) if inside_a else (b, 1.0, mu_b)
+                half = abs(g_a if inside_a else g_b) / abs(g_b - g_a) * chord.length
+            else:
+                pt, theta, half = _bisect(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a,
+                                          locate_tol_z, True)
+                mu = followed(pt, theta)
+            kind = _kind(mu)
+            if kind == "fold" and fold_by_tangent:
+                continue          # a saddle-node: recorded once, as the branch's fold
+            record(kind, pt, theta, half, "multipliers")
+    return [d for _, d in sorted(found, key=lambda x: x[0])]
+
+
+def _branch_point(problem: _Scaled, pt: _Point, s: float, tol: float, unit_tol: float) -> BranchPoint:
+    mu = pt.multipliers
+    stable = None if mu is None else bool(np.all(np.abs(mu) < 1.0 + unit_tol))
+    return BranchPoint(p=problem.p(pt.z), u=problem.u(pt.z), multipliers=mu, stable=stable,
+                       converged=pt.rmax <= tol, residual=pt.rmax, s=s)
+
+
+def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: float | None = None,
+                    max_steps: int = 200, tol: float = 1e-9, stability: Stability | None = None,
+                    u_scale=1.0, max_step: float | None = None, min_step: float | None = None,
+                    margin: float | None = None, locate_tol: float | None = None, unit_tol: float = 1e-6,
+                    max_iter: int = 8) -> Branch:
+    """Follow the branch of r(u, p) = 0 through (u0, p0) towards p_end by pseudo-arclength (Keller 1977).
+
+    - residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)), real; u0 is first corrected at p = p0;
+    - stability(u, p) -> multipliers (complex array; where their count changes along the branch, the
+      missing ones count as 0), or None; called only at a (u, p) where ``residual`` was just evaluated
+      (a corrected point), so a caller whose multipliers come with its Jacobian (an orbit's monodromy)
+      may keep its last one;
+    - ``tol`` bounds max |r| at every point (``max_iter`` Newton steps per correction);
+    - ``step`` (the first), ``max_step``, ``min_step``: lengths along the branch in units of p
+      (defaults |p_end - p0| / 50, / 10 and step / 1000); ``max_steps`` counts the accepted steps (not
+      the trial points of the bisections);
+    - ``u_scale`` (scalar or (m,)): the size of u that counts as much as the whole range of p;
+    - ``margin`` (default |p_end - p0| / 10) widens the range a folded branch may leave;
+    - ``locate_tol`` (default 1e-6 |p_end - p0|, about 17 halvings of the largest step): the length
+      along the branch, in units of p, to which special points are located;
+    - ``unit_tol``: the margin of the unit circle (a point is stable when every |mu| < 1 + unit_tol).
+    """
+    if not callable(residual):
+        raise NsfemError(f"continue_branch: residual must be callable, got {type(residual).__name__}")
+    if stability is not None and not callable(stability):
+        raise NsfemError(f"continue_branch: stability must be callable or None, got {type(stability).__name__}")
+    try:
+        u0 = np.array(u0, dtype=float)
+    except (TypeError, ValueError):
+        raise NsfemError("continue_branch: u0 must be an array of numbers") from None
+    if u0.ndim != 1 or u0.size == 0:
+        raise NsfemError(f"continue_branch: u0 must be a non-empty 1-D array, got shape {u0.shape}")
+    if not np.all(np.isfinite(u0)):
+        bad = int(np.flatnonzero(~np.isfinite(u0))[0])
+        raise NsfemError(f"continue_branch: u0[{bad}] = {u0[bad]!r} is not finite")
+    p0 = _finite_float("p0", p0)
+    p_end = _finite_float("p_end", p_end)
+    if p0 == p_end:
+        raise NsfemError(f"continue_branch: p_end = p0 = {p0:g}: give a different end of the parameter range")
+    span = abs(p_end - p0)
+    if not math.isfinite(span) or span <= ROUNDOFF * max(abs(p0), abs(p_end)):
+        raise NsfemError(f"continue_branch: the range p0 = {p0:g} to p_end = {p_end:g} must have a finite length "
+                         f"above the round-off of p")
+    step = _finite_float("step", step, positive=True, allow_none=True) or span / 50
+    if step < ROUNDOFF * span:
+        raise NsfemError(f"continue_branch: step = {step:g} is below the round-off of the range "
+                         f"({ROUNDOFF:g} |p_end - p0| = {ROUNDOFF * span:g})")
+    max_step = _finite_float("max_step", max_step, positive=True, allow_none=True) or max(span / 10, step)
+    min_step = _finite_float("min_step", min_step, positive=True, allow_none=True) or max(step / 1000, ROUNDOFF * span)
+    if not min_step <= step <= max_step:
+        raise NsfemError(f"continue_branch: the steps must satisfy min_step <= step <= max_step, got {min_step:g}, "
+                         f"{step:g}, {max_step:g}")
+    if min_step < ROUNDOFF * span:
+        raise NsfemError(f"continue_branch: min_step = {min_step:g} is below the round-off of the range "
+                         f"({ROUNDOFF:g} |p_end - p0| = {ROUNDOFF * span:g})")
+    margin = span / 10 if margin is None else _finite_float("margin", margin)
+    if margin < 0:
+        raise NsfemError(f"continue_branch: margin must be >= 0, got {margin:g}")
+    locate_tol = _finite_float("locate_tol", locate_tol, positive=True, allow_none=True) or 1e-6 * span
+    if locate_tol < ROUNDOFF * span:
+        raise NsfemError(f"continue_branch: locate_tol = {locate_tol:g} is below the round-off of the range "
+                         f"({ROUNDOFF:g} |p_end - p0| = {ROUNDOFF * span:g})")
+    tol = _finite_float("tol", tol, positive=True)
+    unit_tol = _finite_float("unit_tol", unit_tol)
+    if unit_tol < 0:
+        raise NsfemError(f"continue_branch: unit_tol must be >= 0, got {unit_tol:g}")
+    for name, value in (("max_steps", max_steps), ("max_iter", max_iter)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise NsfemError(f"continue_branch: {name} must be a positive integer, got {value!r}")
+    try:
+        scale = np.broadcast_to(np.asarray(u_scale, dtype=float), u0.shape).copy()
+    except (TypeError, ValueError):
+        raise NsfemError(f"continue_branch: u_scale must be a number or an array of {u0.size} numbers") from None
+    if not np.all(np.isfinite(scale) & (scale > 0)):
+        raise NsfemError("continue_branch: u_scale must be finite and > 0")
+
+    problem = _Scaled(residual, stability, u0.size, scale, p0, p_end)
+    ds, ds_max, ds_min, locate_z = step / span, max_step / span, min_step / span, locate_tol / span
+    lo_z, hi_z = -margin / span, 1.0 + margin / span     # z_p of min(p0, p_end) - margin, max + margin
+
+    z0 = problem.z(u0, p0)
+    e_p = np.zeros(u0.size + 1)
+    e_p[-1] = 1.0
+    try:
+        r0, _ = problem.evaluate(z0)
+    except _Failure as exc:
+        raise NsfemError(f"continue_branch: at the start (u0, p0 = {p0:g}): {exc}") from None
+    try:
+        a = _correct(problem, z0, e_p, 0.0, tol, max_iter)
+    except _Failure as exc:
+        start = BranchPoint(p0, u0, None, None, False, float(np.max(np.abs(r0))), 0.0)
+        return Branch([start], [], "failed", f"the start at p = {p0:g} did not converge: {exc}")
+    try:
+        a.multipliers = problem.multipliers(a.z)
+    except _Failure as exc:
+        return Branch([_branch_point(problem, a, 0.0, tol, unit_tol)], [], "failed", f"at the start: {exc}")
+    t = _tangent(a.jac, e_p)
+    first_z = a.z
+    points = [_branch_point(problem, a, 0.0, tol, unit_tol)]
+    bifurcations: list[dict] = []
+    s = 0.0
+    while True:
+        if len(points) - 1 >= max_steps:
+            return Branch(points, bifurcations, "max_steps",
+                          f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
+        # predictor-corrector, the step halved until a correction succeeds
+        failure = ""
+        while True:
+            z_pred = a.z + ds * t
+            try:
+                b = _correct(problem, z_pred, t, float(t @ z_pred), tol, max_iter)
+                tb = _tangent(b.jac, t)
+                if np.linalg.norm(b.z - z_pred) > ds:
+                    raise _Failure(f"the corrector moved farther than the step from the predictor at p = "
+                                   f"{problem.p(b.z):.10g}")
+                if tb @ t < MAX_TURN_COS:
+                    raise _Failure(f"the tangent turned by {math.degrees(math.acos(max(-1.0, tb @ t))):.0f} "
+                                   f"degrees in one step at p = {problem.p(b.z):.10g}")
+                if b.z[-1] >= 1.0 > a.z[-1]:     # passed p_end: the last point exactly at p_end
+                    theta = (1.0 - a.z[-1]) / (b.z[-1] - a.z[-1])
+                    b = _correct(problem, a.z + theta * (b.z - a.z), e_p, 1.0, tol, max_iter)
+                    tb = _tangent(b.jac, t)
+                b.multipliers = problem.multipliers(b.z)
+                break
+            except _Failure as exc:
+                failure = str(exc)
+                ds *= 0.5
+                if ds < ds_min:
+                    return Branch(points, bifurcations, "failed",
+                                  f"no correction from p = {points[-1].p:.10g} with steps down to min_step = "
+                                  f"{min_step:g}: {failure}")
+        chord = float(np.linalg.norm(b.z - a.z))
+        s += chord * span
+        bifurcations += _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
+        points.append(_branch_point(problem, b, s, tol, unit_tol))
+        if b.z[-1] >= 1.0:
+            return Branch(points, bifurcations, "end", f"reached p_end = {p_end:g}")
+        if not lo_z <= b.z[-1] <= hi_z:
+            return Branch(points, bifurcations, "left",
+                          f"the branch folded back and left [{min(p0, p_end) - margin:g}, {max(p0, p_end) + margin:g}]"
+                          f" at p = {points[-1].p:.10g}")
+        if len(points) > 3 and s > 3 * chord * span:
+            w = b.z - a.z
+            x = float(np.clip((first_z - a.z) @ w / (w @ w), 0.0, 1.0))
+            if np.linalg.norm(a.z + x * w - first_z) < 0.25 * chord:
+                return Branch(points, bifurcations, "closed",
+                              f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
+                              "in units of p: a closed branch")
+        if b.iterations <= GROW_ITERATIONS and tb @ t > EASY_TURN_COS:
+            ds = min(ds * GROW, ds_max)
+        a, t = b, tb
+
+
+def critical_vector(monodromy, target: complex = -1.0) -> tuple[complex, np.ndarray]:
+    """The eigenvalue of a square matrix closest to ``target`` (-1: the period-doubling multiplier) and
+    its eigenvector, unit 2-norm, its largest component real and positive (so real for a real
+    eigenvalue of a real matrix). A branch switch starts the doubled orbit from u + h v."""
+    try:
+        a = np.asarray(monodromy, dtype=complex)
+        target = complex(target)
+    except (TypeError, ValueError):
+        raise NsfemError("critical_vector: the matrix and the target must be numbers") from None
+    if a.ndim != 2 or a.shape[0] != a.shape[1] or a.size == 0:
+        raise NsfemError(f"critical_vector: the matrix must be square and non-empty, got shape {a.shape}")
+    if not (np.all(np.isfinite(a)) and np.isfinite(target)):
+        raise NsfemError("critical_vector: the matrix and the target must be finite")
+    real = not np.any(a.imag)
+    values, vectors = np.linalg.eig(a.real if real else a)
+    k = int(np.argmin(np.abs(values - target)))
+    v = vectors[:, k]
+    big = int(np.argmax(np.abs(v)))
+    v = v * (abs(v[big]) / v[big])
+    v = v / np.linalg.norm(v)
+    mu = complex(values[k])
+    if real and mu.imag == 0.0:
+        return mu, v.real.copy()
+    return mu, v

@@ -1,0 +1,138 @@
+"""A periodic orbit by shooting against the transient that reaches it (issue 36 goal: at least 10x faster).
+
+For each scene (the shipped ``rub``, ``crack`` and the paper's delaminated shaft ``default``, and the rub in the
+inertial frame, where the synchronous rub is an orbit with 64 facet passages per revolution) both start from the
+scene's initial state at t = 0:
+
+- **transient**: the exact flow period after period (one :class:`nsfem.periodic.flow.FlowMap`: configurations kept,
+  no Jacobian) until the state at the section is within ``--accuracy`` of the orbit (in (q, q' / w), relative to the
+  orbit's size); the orbit itself from a tight shooting (tol 1e-12) beforehand;
+- **shooting**: ``--lead`` periods of transient (a start near the orbit) then :func:`nsfem.periodic.periodic_orbit`
+  to tol = accuracy / 10; its distance to the reference orbit is checked to be within the accuracy.
+
+Both are timed side by side in one process (best of ``--repeat``, single-threaded BLAS as the integrators use); the
+ratio is transient / shooting. A transient that has not reached the accuracy after ``--max-periods`` is reported
+as a lower bound (``>``).
+
+    python studies/periodic.py [--quick] [--json] [--accuracy 1e-6] [--lead 10] [--repeat 3]
+
+``--quick``: accuracy 1e-4, one repeat, at most 400 periods. Writes periodic.json/.csv into studies/out/periodic.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from study_io import machine, write_outputs
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from nsfem.fem.assemble import build_model  # noqa: E402
+from nsfem.integrate.problem import ContactSystem  # noqa: E402
+from nsfem.periodic import periodic_orbit  # noqa: E402
+from nsfem.periodic.flow import FlowMap  # noqa: E402
+from nsfem.reduce import scene_reduction  # noqa: E402
+from nsfem.scene.load import load_scene  # noqa: E402
+from nsfem.simulate import initial_state  # noqa: E402
+
+#: name -> (scene, --set overrides)
+SCENES = {
+    "rub": ("rub", []),
+    "rub_inertial": ("rub", ["rotation.frame=inertial"]),
+    "crack": ("crack", []),
+    "delamination": ("default", []),
+}
+
+
+def build(scene_name: str, overrides: list[str]):
+    scene = load_scene(scene_name, overrides)
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
+    q0, v0 = initial_state(scene, model, red, system)
+    return system, 1.0 / scene.rotation.speed_hz, q0, v0
+
+
+def distance(q, v, orbit, w: float) -> float:
+    """|x - x*| in (q, q' / w) over the orbit's size in the same norm."""
+    size = max(float(np.abs(orbit.q0).max()), float(np.abs(orbit.v0).max()) / w, 1e-300)
+    return max(float(np.abs(q - orbit.q0).max()), float(np.abs(v - orbit.v0).max()) / w) / size
+
+
+def transient(system, T, q0, v0, orbit, accuracy, max_periods):
+    phi = FlowMap(system, 0.0, T)
+    w = 2 * math.pi / T
+    q, v = q0, v0
+    t = time.perf_counter()
+    for k in range(1, max_periods + 1):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+        if distance(q, v, orbit, w) <= accuracy:
+            return time.perf_counter() - t, k, True
+    return time.perf_counter() - t, max_periods, False
+
+
+def shooting(system, T, q0, v0, accuracy, lead):
+    t = time.perf_counter()
+    phi = FlowMap(system, 0.0, T)
+    q, v = q0, v0
+    for _ in range(lead):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+    orbit = periodic_orbit(system, T, q, v, tol=accuracy / 10)
+    return time.perf_counter() - t, orbit
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="accuracy 1e-4, one repeat, at most 400 periods")
+    ap.add_argument("--json", action="store_true", help="print the JSON payload")
+    ap.add_argument("--accuracy", type=float, default=1e-6, help="relative distance to the orbit both must reach")
+    ap.add_argument("--lead", type=int, default=10, help="transient periods before shooting")
+    ap.add_argument("--repeat", type=int, default=3, help="timings per method (best kept)")
+    ap.add_argument("--max-periods", type=int, default=3000, help="transient periods at most")
+    ap.add_argument("--scenes", nargs="*", default=list(SCENES), choices=list(SCENES), help="scenes to run")
+    ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "periodic"), help="output folder")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.accuracy, args.repeat, args.max_periods = 1e-4, 1, 400
+    rows = []
+    for name in args.scenes:
+        system, T, q0, v0 = build(*SCENES[name])
+        _, start = shooting(system, T, q0, v0, 1e-11, args.lead)   # the reference orbit
+        ref = periodic_orbit(system, T, start.q0, start.v0, tol=1e-12)
+        w = 2 * math.pi / T
+        t_tr = min(transient(system, T, q0, v0, ref, args.accuracy, args.max_periods) for _ in range(args.repeat))
+        runs = [shooting(system, T, q0, v0, args.accuracy, args.lead) for _ in range(args.repeat)]
+        t_sh, orbit = min(runs, key=lambda r: r[0])
+        err = distance(orbit.q0, orbit.v0, ref, w)
+        row = {"scene": name, "ndof": system.n, "period_s": T, "events_per_period": orbit.events_per_period,
+               "largest_multiplier": float(abs(orbit.multipliers[0])) if orbit.multipliers.size else 0.0,
+               "stable": orbit.stable, "accuracy": args.accuracy,
+               "transient_s": t_tr[0], "transient_periods": t_tr[1], "transient_reached": t_tr[2],
+               "shooting_s": t_sh, "newton_steps": orbit.iterations, "shooting_error": err,
+               "shooting_ok": bool(orbit.converged and err <= args.accuracy),
+               "ratio": t_tr[0] / t_sh}
+        rows.append(row)
+        bound = "" if t_tr[2] else ">"
+        print(f"{name:13s} n={system.n:3d} events/period {orbit.events_per_period:3d} |mu|max "
+              f"{row['largest_multiplier']:.4f}  transient {t_tr[0]:7.3f} s ({bound}{t_tr[1]} periods)  shooting "
+              f"{t_sh:6.3f} s ({orbit.iterations} Newton steps, error {err:.1e})  ratio {bound}{row['ratio']:.1f}x",
+              flush=True)
+    payload = {"machine": machine(), "accuracy": args.accuracy, "lead_periods": args.lead, "rows": rows}
+    write_outputs(Path(args.out), "periodic", rows, payload)
+    if args.json:
+        print(json.dumps(payload, indent=1))
+    return payload
+
+
+if __name__ == "__main__":
+    main()

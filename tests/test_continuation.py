@@ -1,0 +1,336 @@
+"""Pseudo-arclength continuation and the location of special points (nsfem.periodic.continuation,
+issue 36) on problems whose branches and bifurcations are known in closed form (Kuznetsov, "Elements
+of Applied Bifurcation Theory", 3rd ed., chapter 4: the fold, the logistic map's flip, the delayed
+logistic map's Neimark-Sacker bifurcation).
+
+Tolerances. Every point is corrected to max |r| <= TOL. A located special point lies within its
+``accuracy`` (the bisection's bracket, <= LOCATE) of the exact crossing along the branch, plus the
+corrector's error: u off the branch by at most TOL / |J_u| moves a multiplier by |dmu/du| TOL / |J_u|
+and so the crossing's p by that over |dmu/dp|; for the maps below |J_u| >= 1, |dmu/du| <= 2 p <= 7 and
+|dmu/dp| >= 1/2 on the branch near the crossing, so 20 TOL bounds it.
+
+Bad arguments (one-line NsfemError naming them) are in test_fuzz.py, block "issue 36: continuation".
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from nsfem.errors import NsfemError
+from nsfem.periodic.continuation import Branch, continue_branch, critical_vector
+
+TOL = 1e-10           # the corrector's bound on max |r|
+LOCATE = 1e-8         # the bisection's bound on the bracket, in units of p
+SLACK = 20 * TOL      # the corrector's share of a located point's error (module docstring)
+
+
+def circle(u, p):
+    """x^2 + p^2 = 1: a closed branch with folds at p = -1 and p = 1."""
+    return np.array([u[0] ** 2 + p ** 2 - 1.0]), np.array([[2.0 * u[0]]]), np.array([2.0 * p])
+
+
+def logistic(u, p):
+    """Fixed points of x -> p x (1 - x): r = f - x; the branch x = 1 - 1/p."""
+    x = u[0]
+    return np.array([p * x * (1 - x) - x]), np.array([[p * (1 - 2 * x) - 1]]), np.array([x * (1 - x)])
+
+
+def logistic_multiplier(u, p):
+    """f'(x) = p (1 - 2 x): 2 - p on the branch, through -1 at p = 3 (period doubling)."""
+    return np.array([p * (1 - 2 * u[0])])
+
+
+def delayed_logistic(u, p):
+    """Fixed points of (x, y) -> (p x (1 - y), x): x = y = 1 - 1/p."""
+    x, y = u
+    r = np.array([p * x * (1 - y) - x, x - y])
+    return r, np.array([[p * (1 - y) - 1, -p * x], [1.0, -1.0]]), np.array([x * (1 - y), 0.0])
+
+
+def delayed_logistic_multipliers(u, p):
+    """Eigenvalues of the map's Jacobian; on the branch mu^2 - mu + p - 1 = 0, |mu|^2 = p - 1 for
+    p > 5/4: a complex pair through the unit circle at p = 2, mu = exp(+-i pi/3)."""
+    x, y = u
+    return np.linalg.eigvals(np.array([[p * (1 - y), -p * x], [1.0, 0.0]]))
+
+
+def saddle_node(u, p):
+    """Fixed points of x -> x + p - x^2: x = +-sqrt(p), a fold at p = 0 (x = 0, multiplier 1 - 2x = 1)."""
+    x = u[0]
+    return np.array([p - x * x]), np.array([[-2.0 * x]]), np.array([1.0])
+
+
+def saddle_node_multiplier(u, p):
+    return np.array([1.0 - 2.0 * u[0]])
+
+
+def kinds(branch: Branch) -> list[str]:
+    return [b["kind"] for b in branch.bifurcations]
+
+
+def assert_located(bif: dict, exact: float) -> None:
+    assert bif["accuracy"] <= LOCATE
+    assert abs(bif["value"] - exact) <= bif["accuracy"] + SLACK, (bif["value"], exact, bif["accuracy"])
+
+
+def test_a_circle_is_followed_through_both_folds_and_closes():
+    branch = continue_branch(circle, [-math.sqrt(1 - 0.81)], -0.9, 1.5, tol=TOL, locate_tol=LOCATE)
+    assert branch.stop == "closed", branch.reason
+    assert all(pt.converged for pt in branch.points)
+    on_circle = [abs(pt.u[0] ** 2 + pt.p ** 2 - 1) for pt in branch.points]
+    assert max(on_circle) <= TOL
+    # the branch turns in p: points beyond p = 0.9 on both halves of the circle, after the fold at 1
+    assert min(pt.p for pt in branch.points) < -0.95 and max(pt.p for pt in branch.points) > 0.95
+    assert kinds(branch) == ["fold", "fold"]
+    first, second = branch.bifurcations
+    # at a fold p is quadratic in the distance along the branch: within the accuracy too
+    assert_located(first, 1.0)
+    assert_located(second, -1.0)
+    for bif in branch.bifurcations:
+        assert bif["detected_by"] == "tangent" and bif["multipliers"] is None
+        assert abs(bif["u"][0]) <= math.sqrt(2 * (bif["accuracy"] + SLACK))   # x^2 = 1 - p^2 near p = +-1
+        i = bif["index"]     # between points i and i + 1: x changes sign at either fold
+        assert branch.points[i].u[0] * branch.points[i + 1].u[0] < 0
+
+
+def test_b_logistic_period_doubling_at_3():
+    branch = continue_branch(logistic, [1 - 1 / 2.1], 2.1, 3.3, tol=TOL, locate_tol=LOCATE,
+                             stability=logistic_multiplier)
+    assert branch.stop == "end", branch.reason
+    assert branch.points[-1].p == 3.3     # the last point exactly at p_end
+    for pt in branch.points:
+        assert abs(pt.p * pt.u[0] * (1 - pt.u[0]) - pt.u[0]) <= TOL
+        # stable (|2 - p| < 1) exactly for p < 3; no point lies within 1e-6 of p = 3
+        assert pt.stable == (pt.p < 3.0), pt.p
+        assert pt.multipliers.shape == (1,)
+    assert kinds(branch) == ["period-doubling"]
+    pd = branch.bifurcations[0]
+    assert_located(pd, 3.0)
+    assert abs(pd["multipliers"][0] + 1) <= pd["accuracy"] + SLACK    # mu = 2 - p
+    assert abs(pd["u"][0] - 2.0 / 3.0) <= 2 * (pd["accuracy"] + SLACK)   # x = 1 - 1/p, dx/dp = 1/9
+    i = pd["index"]
+    assert branch.points[i].p < 3.0 < branch.points[i + 1].p
+
+
+def test_c_delayed_logistic_neimark_sacker_at_2():
+    branch = continue_branch(delayed_logistic, [1 / 3, 1 / 3], 1.5, 2.5, tol=TOL, locate_tol=LOCATE,
+                             stability=delayed_logistic_multipliers)
+    assert branch.stop == "end", branch.reason
+    for pt in branch.points:
+        assert np.max(np.abs(delayed_logistic(pt.u, pt.p)[0])) <= TOL
+        assert pt.stable == (pt.p < 2.0), pt.p
+    assert kinds(branch) == ["neimark-sacker"]
+    ns = branch.bifurcations[0]
+    assert_located(ns, 2.0)
+    mu = ns["multipliers"]
+    # a conjugate pair; |mu|^2 = p - 1 moves by d|mu|/dp = 1/2 at p = 2; arg mu = pi/3 at p = 2 moves by
+    # d(arg)/dp = -1/sqrt(3) (tan(arg) = sqrt(4p - 5)): both within the located value's error
+    err = ns["accuracy"] + SLACK
+    assert abs(mu[0] - mu[1].conjugate()) <= 1e-12
+    assert np.all(np.abs(np.abs(mu) - 1) <= err)
+    assert abs(abs(np.angle(mu[0])) - math.pi / 3) <= 2 * err
+
+
+def test_d_saddle_node_is_one_fold_found_by_tangent_and_multiplier():
+    branch = continue_branch(saddle_node, [math.sqrt(0.5)], 0.5, -1.0, tol=TOL, locate_tol=LOCATE,
+                             stability=saddle_node_multiplier)
+    # down the stable branch x = sqrt(p), round the fold, up the unstable one x = -sqrt(p) and out
+    assert branch.stop == "left", branch.reason
+    assert branch.points[-1].p > 0.5 and branch.points[-1].u[0] < 0
+    for pt in branch.points:
+        assert abs(pt.p - pt.u[0] ** 2) <= TOL
+        # 1 - 2x in (-1, 1) for 0 < x < 1; a point within the corrector's error of x = 0 is marginal
+        assert pt.stable == (pt.u[0] > 0) or abs(pt.u[0]) <= 1e-6   # |1 - 2x| < 1 + unit_tol
+    assert kinds(branch) == ["fold"]          # recorded once
+    fold = branch.bifurcations[0]
+    assert_located(fold, 0.0)
+    assert abs(fold["multipliers"][0] - 1) <= 2 * math.sqrt(fold["accuracy"] + SLACK)   # 1 - 2x, x^2 = p
+
+
+def test_the_multiplier_alone_locates_a_fold_of_the_stability():
+    # r = x - p has no fold of the branch; its "multiplier" 1 + x (a real one through +1 at p = 0) makes the
+    # crossing a fold of the stability detected by the multipliers alone
+    branch = continue_branch(lambda u, p: (np.array([u[0] - p]), np.eye(1), np.array([-1.0])), [-0.5], -0.5, 0.5,
+                             tol=TOL, locate_tol=LOCATE, stability=lambda u, p: np.array([1.0 + u[0], 0.1]))
+    assert kinds(branch) == ["fold"] and branch.bifurcations[0]["detected_by"] == "multipliers"
+    assert_located(branch.bifurcations[0], 0.0)
+
+
+def linear_map(p):
+    """x -> D(p) x, fixed point 0 for every p; multipliers 0.93 - p (through -1 at p = 1.93), a pair
+    (p - 0.55) exp(+-i) (through |mu| = 1 at 1.55) and p - 0.62 (through +1 at 1.62)."""
+    rho, c, s = p - 0.55, math.cos(1.0), math.sin(1.0)
+    d = np.zeros((4, 4))
+    d[0, 0] = 0.93 - p
+    d[1:3, 1:3] = rho * np.array([[c, -s], [s, c]])
+    d[3, 3] = p - 0.62
+    dd = np.zeros((4, 4))
+    dd[0, 0], dd[1:3, 1:3], dd[3, 3] = -1.0, [[c, -s], [s, c]], 1.0
+    return d, dd
+
+
+def test_several_crossings_between_two_points_are_located_each():
+    def residual(u, p):
+        d, dd = linear_map(p)
+        return (d - np.eye(4)) @ u, d - np.eye(4), dd @ u
+
+    # steps of 0.45: points at p = 1, 1.45, 1.9 and 2; the pair and the +1 crossing fall between 1.45 and 1.9
+    branch = continue_branch(residual, np.zeros(4), 1.0, 2.0, step=0.45, max_step=0.45, tol=TOL, locate_tol=LOCATE,
+                             stability=lambda u, p: np.linalg.eigvals(linear_map(p)[0]))
+    assert branch.stop == "end" and [pt.p for pt in branch.points] == pytest.approx([1.0, 1.45, 1.9, 2.0], abs=1e-12)
+    assert kinds(branch) == ["neimark-sacker", "fold", "period-doubling"]
+    # the branch is u = 0 with no error: the located p are the exact crossings to the bisection's accuracy
+    for bif, exact in zip(branch.bifurcations, (1.55, 1.62, 1.93)):
+        assert_located(bif, exact)
+        assert np.all(bif["u"] == 0)
+    assert [bif["index"] for bif in branch.bifurcations] == [1, 1, 2]
+    assert [pt.stable for pt in branch.points] == [True, True, False, False]
+
+
+def test_multipliers_whose_count_changes_count_the_missing_as_zero():
+    # r = x - p; a second multiplier appears at p = 0: 0.2 (no crossing: the missing one counts as 0,
+    # inside) on one branch, 1.5 (a real one through +1: located where it appears, within the step)
+    def appearing(second):
+        return lambda u, p: np.array([0.5]) if p < 0 else np.array([0.5, second])
+
+    def line(u, p):
+        return np.array([u[0] - p]), np.eye(1), np.array([-1.0])
+
+    quiet = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, stability=appearing(0.2))
+    assert quiet.stop == "end" and quiet.bifurcations == [] and all(pt.stable for pt in quiet.points)
+    loud = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, locate_tol=LOCATE, stability=appearing(1.5))
+    assert kinds(loud) == ["fold"]
+    assert_located(loud.bifurcations[0], 0.0)     # the jump of |mu| - 1 at p = 0 is a sign change there
+    assert [pt.stable for pt in loud.points] == [pt.p < 0 for pt in loud.points]
+
+
+def test_stop_reasons_and_the_points_kept():
+    short = continue_branch(circle, [-0.6], -0.8, 0.8, max_steps=3, tol=TOL)
+    assert short.stop == "max_steps" and len(short.points) == 4 and "max_steps = 3" in short.reason
+
+    def breaks_above_half(u, p):
+        if p > 0.5:
+            raise NsfemError("the flow failed")
+        return circle(u, p)
+
+    broken = continue_branch(breaks_above_half, [-0.6], -0.8, 0.8, tol=TOL)
+    assert broken.stop == "failed" and "the flow failed" in broken.reason
+    assert broken.points and all(pt.converged and pt.p <= 0.5 for pt in broken.points)
+    min_step = 1.6 / 50 / 1000    # the default: step / 1000, step = |p_end - p0| / 50
+    # the last step tried (and failed) was shorter than 2 min_step: the last point is that close to 0.5
+    assert broken.points[-1].p > 0.5 - 2 * min_step
+
+    nowhere = continue_branch(lambda u, p: (np.array([u[0] ** 2 + 1]), np.array([[2 * u[0]]]), np.zeros(1)),
+                              [0.3], 0.0, 1.0, tol=TOL)
+    assert nowhere.stop == "failed" and len(nowhere.points) == 1 and not nowhere.points[0].converged
+    assert "did not converge" in nowhere.reason
+
+
+def test_steps_stay_bounded_and_arclength_adds_up():
+    branch = continue_branch(logistic, [0.5], 2.0, 3.5, tol=TOL, step=0.01, max_step=0.05)
+    p = np.array([pt.p for pt in branch.points])
+    s = np.array([pt.s for pt in branch.points])
+    assert np.all(np.diff(p) > 0)
+    # the corrected point lies within sqrt(2) ds of the previous one (module docstring); the arclength
+    # counts u by the whole range of p (u_scale = 1): ds >= |dp|
+    assert np.all(np.diff(s) <= math.sqrt(2) * 0.05 * (1 + 1e-12))
+    assert np.all(np.diff(s) >= np.abs(np.diff(p)) * (1 - 1e-12))
+    assert s[0] == 0.0
+
+
+def test_u_scale_lets_tiny_unknowns_follow_their_branch():
+    # the logistic branch in micrometres of x (u = 1e-6 x): with u_scale = 1e-6 the same points as unscaled
+    def small(u, p):
+        r, ju, jp = logistic(u * 1e6, p)
+        return r, ju * 1e6, jp
+
+    branch = continue_branch(small, [0.5e-6], 2.0, 3.5, tol=TOL, u_scale=1e-6, locate_tol=LOCATE,
+                             stability=lambda u, p: logistic_multiplier(u * 1e6, p))
+    assert branch.stop == "end" and kinds(branch) == ["period-doubling"]
+    assert_located(branch.bifurcations[0], 3.0)
+
+
+def test_critical_vector_is_the_eigenvector_of_the_multiplier_nearest_minus_one():
+    rng = np.random.default_rng(36)
+    a = rng.standard_normal((6, 6))
+    mu, v = critical_vector(a)
+    values = np.linalg.eigvals(a)
+    # the nearest to -1 of all eigenvalues, and an eigenvector of it (residual at round-off of |a| ~ 6)
+    assert abs(mu + 1) <= np.min(np.abs(values + 1)) + 1e-12
+    assert np.linalg.norm(a @ v - mu * v) <= 1e-12 * np.linalg.norm(a)
+    assert abs(np.linalg.norm(v) - 1) <= 1e-14
+    # a reflection's -1 is real with a real vector
+    mu, v = critical_vector([[0.0, 1.0], [1.0, 0.0]])
+    assert mu == -1 and v.dtype == float and abs(abs(v[0]) - abs(v[1])) <= 1e-15 and v[0] > 0
+    mu, _ = critical_vector(np.diag([0.5, 2.0]), target=1.0)
+    assert mu == 0.5
+
+
+# a shooting residual, as the lead's orbits use it: the forced Duffing oscillator
+# x'' + c x' + x + x^3 = F cos(w t) continued in the forcing amplitude F at w = 1.6 (above the linear
+# resonance: the hardening response curve folds twice, an S in F)
+DUFFING_C, DUFFING_W = 0.1, 1.6
+DUFFING_T = 2 * math.pi / DUFFING_W
+
+
+def _duffing_rhs(t, y, force):
+    """The state, its monodromy's columns and its sensitivity to F (variational equations)."""
+    x, v = y[0], y[1]
+    a = np.array([[0.0, 1.0], [-1.0 - 3.0 * x * x, -DUFFING_C]])
+    f = [v, -x - DUFFING_C * v - x ** 3 + force * math.cos(DUFFING_W * t)]
+    return np.concatenate([f, (a @ y[2:6].reshape(2, 2)).ravel(), a @ y[6:8] + [0.0, math.cos(DUFFING_W * t)]])
+
+
+class DuffingShooting:
+    """r(x0, F) = phi_T(x0; F) - x0, J_u = M - I, J_p = d phi_T / dF; stability: M's eigenvalues, kept
+    from the residual's last call (the module's contract: stability comes right after the residual)."""
+
+    def __init__(self):
+        self.last = None
+
+    def residual(self, u, p):
+        from scipy.integrate import solve_ivp
+        y0 = np.concatenate([u, np.eye(2).ravel(), np.zeros(2)])
+        y = solve_ivp(_duffing_rhs, (0.0, DUFFING_T), y0, args=(p,), method="DOP853", rtol=1e-10,
+                      atol=1e-11).y[:, -1]
+        self.last = (u.copy(), p, y[2:6].reshape(2, 2))
+        return y[:2] - u, self.last[2] - np.eye(2), y[6:8]
+
+    def stability(self, u, p):
+        assert np.array_equal(u, self.last[0]) and p == self.last[1]
+        return np.linalg.eigvals(self.last[2])
+
+
+def test_duffing_resonance_curve_by_shooting_folds_twice_with_a_saddle_between():
+    shooting = DuffingShooting()
+    branch = continue_branch(shooting.residual, [0.0, 0.0], 0.01, 1.5, step=0.1, max_step=0.3, tol=1e-9,
+                             locate_tol=1e-4, stability=shooting.stability)
+    assert branch.stop == "end", branch.reason
+    liouville = math.exp(-DUFFING_C * DUFFING_T)     # det M = exp(trace(A) T), trace A = -c
+    for pt in branch.points:
+        # rtol 1e-10 over one period: det M to ~1e-9 (measured 2e-10 at most)
+        assert abs(np.prod(pt.multipliers) - liouville) <= 1e-8
+    # det M < 1: a complex pair has |mu| = sqrt(det M) < 1, so no Neimark-Sacker; the folds of the S are
+    # saddle-nodes (a multiplier through +1, the other det M), each recorded once, by the tangent
+    folds = [b for b in branch.bifurcations if b["kind"] == "fold"]
+    assert "neimark-sacker" not in kinds(branch) and len(folds) == 2
+    assert all(b["detected_by"] == "tangent" for b in folds)
+    for fold, extremum in zip(folds, (max, min)):
+        i = fold["index"]
+        p_i, p_next = branch.points[i].p, branch.points[i + 1].p
+        # p is extremal at a fold: the located value beyond both neighbours (up to curvature x accuracy^2)
+        assert extremum(fold["value"], p_i, p_next) == fold["value"] or \
+            abs(fold["value"] - extremum(p_i, p_next)) <= fold["accuracy"] ** 2
+        # the largest multiplier is 1 at the fold (M - I singular): the located one, within its accuracy
+        # (4e-5) of the fold, is far nearer to 1 than those at the interval's ends (0.3 along the branch,
+        # 0.1 to 0.8 from 1); the other one is det M / mu
+        mu = fold["multipliers"]
+        ends = [abs(branch.points[k].multipliers[0] - 1) for k in (i, i + 1)]
+        assert abs(mu[0] - 1) < min(ends) / 10 and abs(mu[0].imag) == 0
+        assert abs(mu[0] * mu[1] - liouville) <= 1e-8
+    # each located crossing changes stability, and only those: stable, saddle, stable
+    changes = [i for i in range(len(branch.points) - 1) if branch.points[i].stable != branch.points[i + 1].stable]
+    assert changes == [b["index"] for b in branch.bifurcations]
+    assert branch.points[0].stable and branch.points[-1].stable
