@@ -3987,6 +3987,19 @@ def test_issue36_periodic_reproductions(extra, names, reason, tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_issue36_periodic_refuses_a_round_ring_before_its_transient(tmp_path, monkeypatch):
+    """retainer_drop's rings are round (a turning facet with a state of its own): refused by the shooting's
+    map before any integration (the integrator is not called)."""
+    from nsfem.integrate import event_driven
+
+    def never(*args, **kwargs):
+        raise AssertionError("integrated before refusing")
+
+    monkeypatch.setattr(event_driven.Exact, "run", never)
+    code, _, err = check_invocation(["periodic", "retainer_drop", "--out", "o"], tmp_path)
+    assert code == 2 and 'shape = "round"' in err and "polygon" in err, err
+
+
 def test_issue36_periodic_refuses_a_run_up(tmp_path):
     code, _, err = check_invocation(["periodic", "runup", "--out", "o"], tmp_path)
     assert code == 2 and "rotation.ramp_to_hz" in err and "not periodic" in err, err
