@@ -239,3 +239,27 @@ def test_the_help_says_the_defaults_and_ranges_the_scene_layer_uses(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert f"default {ps.TRANSIENT_PERIODS};" in text
     assert f"from {ps.TOL_RANGE[0]:g} to {ps.TOL_RANGE[1]:g}" in text
+
+
+def test_an_interrupted_transient_keeps_the_folder_as_it_was(tmp_path, monkeypatch, capsys):
+    """Ctrl-C or SIGTERM during the transient (the integrator then returns its run so far, completed = False):
+    no shooting from a state at the wrong phase; exit 130, and the earlier orbit's files stay as they were."""
+    import nsfem.simulate as simulate
+
+    out = tmp_path / "p"
+    argv = ["periodic", "critical_speed", *sum((["--set", s] for s in LINEAR), []), "--set", "output.vtu_every=0",
+            "--out", str(out)]
+    assert cli.main([*argv, "--transient", "0"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    real = simulate.integrate_prepared
+
+    def interrupted(*args, **kwargs):
+        result, system = real(*args, **kwargs)
+        result.completed = False
+        return result, system
+
+    monkeypatch.setattr(simulate, "integrate_prepared", interrupted)
+    capsys.readouterr()
+    assert cli.main([*argv, "--transient", "3"]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before

@@ -190,6 +190,8 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
     elif transient_periods:
         res, _ = integrate_prepared(sized, system, info, "exact", q0, v0, t_end=transient_periods * period,
                                     output_dt=period, progress=progress)
+        if not res.completed:   # interrupted (Ctrl-C, SIGTERM): its last state is not at the section's phase
+            raise KeyboardInterrupt
         q0, v0 = res.q[:, -1].copy(), res.v[:, -1].copy()
         origin = f"a transient of {transient_periods} periods from the scene's initial state"
     else:
@@ -205,6 +207,8 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
     with python_warnings.catch_warnings():   # a shooting that does not converge: said once, by describe()
         python_warnings.simplefilter("ignore")
         orbit = shoot(system, period, q0, v0, t0, tol=tol, output_dt=dt)
+    if not getattr(orbit.result, "completed", True):   # a flow cut short by an interrupt is no period
+        raise KeyboardInterrupt
     orbit.result.info.update(info)
     so = describe(scene, system, orbit, multiple, forcing, transient_periods, origin, say)
     so.wall_s = time.perf_counter() - t_wall
