@@ -119,7 +119,7 @@ def check_options(multiple, transient_periods, tol, output_dt) -> None:
                          f"got {tol!r}")
     if output_dt is not None and not (isinstance(output_dt, (int, float)) and math.isfinite(output_dt)
                                       and output_dt > 0):
-        raise NsfemError(f"--output-dt must be a finite time step > 0 s, got {output_dt!r}")
+        raise NsfemError(f"periodic: output_dt must be a finite time step > 0 s, got {output_dt!r}")
 
 
 def check_scene(scene: "Scene") -> float:
@@ -161,7 +161,7 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
     forcing = check_scene(scene)
     period = multiple * forcing
     if output_dt is not None and output_dt > period:
-        raise NsfemError(f"--output-dt {output_dt:g} s exceeds the orbit's period {period:g} s")
+        raise NsfemError(f"periodic: output_dt {output_dt:g} s exceeds the orbit's period {period:g} s")
     dt = period / orbit_samples(scene, multiple, output_dt)
     saved = _saved_state(start) if start is not None else None
     warnings: list[str] = []
@@ -172,8 +172,9 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
             warn(text)
 
     t_wall = time.perf_counter()
-    # the run's checks (search cost, output size, damping) on the transient's span, or one period
-    sized = _with_simulation(scene, max(transient_periods, 1) * period, dt)
+    # the run's checks (search cost, output size, damping) on the transient's span (or one period), sampled once a
+    # period as the transient is (the orbit's own samples, one period of them, are few)
+    sized = _with_simulation(scene, max(transient_periods, 1) * period, period)
     system, info, q0, v0 = prepare_scene(sized, "exact", warn=say)
     if shoot is None:   # the shooting's own refusals (a round ring, ...) before the transient: its map's checks
         from .flow import FlowMap
