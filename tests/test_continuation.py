@@ -4,10 +4,11 @@ of Applied Bifurcation Theory", 3rd ed., chapter 4: the fold, the logistic map's
 logistic map's Neimark-Sacker bifurcation).
 
 Tolerances. Every point is corrected to max |r| <= TOL. A located special point lies within its
-``accuracy`` (the bisection's bracket, <= LOCATE) of the exact crossing along the branch, plus the
+``accuracy`` (the final bracket, <= LOCATE) of the exact crossing along the branch, plus the
 corrector's error: u off the branch by at most TOL / |J_u| moves a multiplier by |dmu/du| TOL / |J_u|
-and so the crossing's p by that over |dmu/dp|; for the maps below |J_u| >= 1, |dmu/du| <= 2 p <= 7 and
-|dmu/dp| >= 1/2 on the branch near the crossing, so 20 TOL bounds it.
+and so the crossing's p by that over |dmu/dp|; for the maps below the smallest singular value of J_u
+is >= 0.6 near the crossings, |dmu/du| <= 2 p <= 7 and |dmu/dp| >= 1/2, so 20 TOL bounds it (the
+fold of x + p - x^2 is located on t_p, and r = p - x^2 holds p within TOL of the branch).
 
 Bad arguments (one-line NsfemError naming them) are in test_fuzz.py, block "issue 36: continuation".
 """
@@ -18,11 +19,12 @@ import math
 
 import numpy as np
 import pytest
+
 from nsfem.errors import NsfemError
 from nsfem.periodic.continuation import Branch, continue_branch, critical_vector
 
 TOL = 1e-10           # the corrector's bound on max |r|
-LOCATE = 1e-8         # the bisection's bound on the bracket, in units of p
+LOCATE = 1e-8         # the bound on the locating bracket, in units of p
 SLACK = 20 * TOL      # the corrector's share of a located point's error (module docstring)
 
 
@@ -144,6 +146,9 @@ def test_d_saddle_node_is_one_fold_found_by_tangent_and_multiplier():
         # 1 - 2x in (-1, 1) for 0 < x < 1; a point within the corrector's error of x = 0 is marginal
         assert pt.stable == (pt.u[0] > 0) or abs(pt.u[0]) <= 1e-6   # |1 - 2x| < 1 + unit_tol
     assert kinds(branch) == ["fold"]          # recorded once
+    # ... though the multiplier crossed +1 in the same interval: stability changes there and only there
+    changes = [i for i in range(len(branch.points) - 1) if branch.points[i].stable != branch.points[i + 1].stable]
+    assert changes == [branch.bifurcations[0]["index"]]
     fold = branch.bifurcations[0]
     assert_located(fold, 0.0)
     assert abs(fold["multipliers"][0] - 1) <= 2 * math.sqrt(fold["accuracy"] + SLACK)   # 1 - 2x, x^2 = p
@@ -181,7 +186,7 @@ def test_several_crossings_between_two_points_are_located_each():
                              stability=lambda u, p: np.linalg.eigvals(linear_map(p)[0]))
     assert branch.stop == "end" and [pt.p for pt in branch.points] == pytest.approx([1.0, 1.45, 1.9, 2.0], abs=1e-12)
     assert kinds(branch) == ["neimark-sacker", "fold", "period-doubling"]
-    # the branch is u = 0 with no error: the located p are the exact crossings to the bisection's accuracy
+    # the branch is u = 0 with no error: the located p are the exact crossings to the bracket's accuracy
     for bif, exact in zip(branch.bifurcations, (1.55, 1.62, 1.93)):
         assert_located(bif, exact)
         assert np.all(bif["u"] == 0)
@@ -200,6 +205,11 @@ def test_multipliers_whose_count_changes_count_the_missing_as_zero():
 
     quiet = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, stability=appearing(0.2))
     assert quiet.stop == "end" and quiet.bifurcations == [] and all(pt.stable for pt in quiet.points)
+    # every direction held (no multiplier at all) up to p = 0: stable, then the free one appears outside
+    held = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, locate_tol=LOCATE,
+                           stability=lambda u, p: np.zeros(0) if p < 0 else np.array([1.5]))
+    assert kinds(held) == ["fold"] and [pt.stable for pt in held.points] == [pt.p < 0 for pt in held.points]
+    assert_located(held.bifurcations[0], 0.0)
     loud = continue_branch(line, [-0.5], -0.5, 0.5, tol=TOL, locate_tol=LOCATE, stability=appearing(1.5))
     assert kinds(loud) == ["fold"]
     assert_located(loud.bifurcations[0], 0.0)     # the jump of |mu| - 1 at p = 0 is a sign change there
@@ -334,3 +344,66 @@ def test_duffing_resonance_curve_by_shooting_folds_twice_with_a_saddle_between()
     changes = [i for i in range(len(branch.points) - 1) if branch.points[i].stable != branch.points[i + 1].stable]
     assert changes == [b["index"] for b in branch.bifurcations]
     assert branch.points[0].stable and branch.points[-1].stable
+
+
+# the period-doubling cascade of the Henon map (x, y) -> (1 - a x^2 + y, b x), b = 0.3: closed forms
+# (fixed points and 2-cycles solve quadratics; their multipliers' trace and det are polynomials in a)
+HENON_B = 0.3
+HENON_PD1 = 3 * (1 - HENON_B) ** 2 / 4                            # the fixed point's mu = -1
+HENON_PD2 = ((1 + HENON_B) ** 2 + 4 * (1 - HENON_B) ** 2) / 4     # the 2-cycle's: 1 + tr + det = 0,
+# tr = 4 ((1 - b)^2 - a) + 2 b, det = b^2 (x1 + x2 = (1 - b) / a, x1 x2 = ((1 - b)^2 - a) / a^2)
+
+
+def henon(u, a):
+    """The map, its Jacobian and its derivative in a."""
+    x, y = u
+    return (np.array([1 - a * x * x + y, HENON_B * x]), np.array([[-2 * a * x, 1.0], [HENON_B, 0.0]]),
+            np.array([-x * x, 0.0]))
+
+
+def henon_iterate(u, a, k):
+    """The k-th iterate: r = H^k(u) - u, J_u = prod J - I, J_p by the chain rule; and prod J."""
+    m, dp = np.eye(2), np.zeros(2)
+    for _ in range(k):
+        u, j, ja = henon(u, a)
+        m, dp = j @ m, j @ dp + ja
+    return u, m, dp
+
+
+def henon_residual(k):
+    def residual(u, a):
+        end, m, dp = henon_iterate(u, a, k)
+        return end - u, m - np.eye(2), dp
+    return residual
+
+
+def henon_multipliers(k):
+    return lambda u, a: np.linalg.eigvals(henon_iterate(u, a, k)[1])
+
+
+def test_henon_cascade_switching_onto_the_doubled_branch_with_critical_vector():
+    x_fixed = lambda a: (-(1 - HENON_B) + math.sqrt((1 - HENON_B) ** 2 + 4 * a)) / (2 * a)   # noqa: E731
+    start = [x_fixed(0.1), HENON_B * x_fixed(0.1)]
+    fixed = continue_branch(henon_residual(1), start, 0.1, 0.6, tol=TOL, locate_tol=LOCATE,
+                            stability=henon_multipliers(1))
+    assert kinds(fixed) == ["period-doubling"]
+    pd = fixed.bifurcations[0]
+    # at the flip |dmu/da| = 1.1, |J_u| >= 0.51 (smallest singular value), |dmu/du| ~ 2 a: SLACK holds
+    assert_located(pd, HENON_PD1)
+    mu, v = critical_vector(henon_iterate(pd["u"], pd["value"], 1)[1])
+    assert abs(mu + 1) <= 1e-6 and v.dtype == float
+    # the 2-cycle branches off along v: x1,2 - x* ~ +-sqrt(4 (a - a1)) / (2 a); at a1 + 0.01 that is 0.26
+    a_start = pd["value"] + 0.01
+    cycle = continue_branch(henon_residual(2), pd["u"] + 0.2 * v, a_start, 1.1, tol=TOL, locate_tol=LOCATE,
+                            stability=henon_multipliers(2))
+    assert cycle.stop == "end", cycle.reason
+    for pt in cycle.points:
+        a = pt.p
+        spread = math.sqrt(4 * a - 3 * (1 - HENON_B) ** 2) / (2 * a)
+        centre = (1 - HENON_B) / (2 * a)
+        # on the 2-cycle (not the fixed point): x = centre +- spread, to the corrector's error TOL / |J_u|,
+        # |J_u| >= 0.043 (smallest singular value; at the branch's start a multiplier of H^2 is near +1)
+        assert min(abs(pt.u[0] - centre - spread), abs(pt.u[0] - centre + spread)) <= TOL / 0.04
+        assert pt.stable == (a < HENON_PD2)
+    assert kinds(cycle) == ["period-doubling"]
+    assert_located(cycle.bifurcations[0], HENON_PD2)

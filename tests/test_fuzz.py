@@ -4070,7 +4070,6 @@ CONTINUATION_CASES = [   # (the arguments changed from a valid circle branch, wo
     (dict(residual=_RESIDUALS36["complex"]), "real arrays"),
     (dict(residual=_RESIDUALS36["raises"]), "the flow failed over two lines"),
     (dict(stability=lambda u, p: np.zeros((2, 2))), "1-D array of multipliers"),
-    (dict(stability=lambda u, p: np.zeros(0)), "1-D array of multipliers"),
 ]
 
 

@@ -56,6 +56,8 @@ class _Problem:
         self.system_at, self.period_at, self.t0, self.dp, self.multiple = system_at, period_at, t0, dp, multiple
         self._maps: dict = {}
         self.last = None
+        #: the residual's rows are divided by these (the orbit's size in q, in q'): a tolerance relative to it
+        self.weights = None
 
     def flow_map(self, p: float) -> FlowMap:
         fm = self._maps.get(p)
@@ -75,7 +77,8 @@ class _Problem:
             ends.append(np.concatenate([f.q, f.v]))
         Jp = (ends[0] - ends[1]) / (2.0 * self.dp)
         self.last = (p, u.copy(), fl)
-        return r, fl.monodromy - np.eye(u.size), Jp
+        D = self.weights
+        return D * r, D[:, None] * (fl.monodromy - np.eye(u.size)), D * Jp
 
     def multipliers(self, u: np.ndarray, p: float) -> np.ndarray:
         _, _, fl = self.last
@@ -99,7 +102,8 @@ def _points(problem: _Problem, branch: Branch, key: str) -> list[dict]:
 
 def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[float], float], q0, v0, p0: float,
                  p_end: float, *, key: str = "p", multiple: int = 1, t0: float = 0.0, tol: float = 1e-9,
-                 step: float | None = None, max_steps: int = 100, switch: bool = True, depth: int = 1
+                 step: float | None = None, max_steps: int = 100, switch: bool = True, depth: int = 1,
+                 max_iter: int = 20
                  ) -> OrbitBranch:
     """Continue the orbit through (q0, q0') at p0 (period ``multiple`` T(p0)) towards p_end.
 
@@ -119,8 +123,9 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     n = u0.size // 2
     size_q = max(float(np.abs(start.q0).max()), 1e-12)
     u_scale = np.concatenate([np.full(n, size_q), np.full(n, max(float(np.abs(start.v0).max()), w * size_q))])
-    br = continue_branch(problem.residual, u0, p0, p_end, step=step, max_steps=max_steps, tol=tol * size_q,
-                         stability=problem.multipliers, u_scale=u_scale)
+    problem.weights = 1.0 / u_scale
+    br = continue_branch(problem.residual, u0, p0, p_end, step=step, max_steps=max_steps, tol=tol,
+                         stability=problem.multipliers, u_scale=u_scale, max_iter=max_iter)
     bif = []
     for b in br.bifurcations:
         u = np.asarray(b["u"])

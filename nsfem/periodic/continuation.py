@@ -27,12 +27,14 @@ u by u_scale as much as the whole range of p. With J = [J_u u_scale | J_p (p_end
   point (a closed branch), after ``max_steps`` steps, or when a correction fails at ``min_step``;
   :attr:`Branch.stop` and :attr:`Branch.reason` say which and where.
 
-Special points between two consecutive points A and B, located by bisection along the chord AB (each
-trial point re-corrected onto the branch with the constraint d.(z - z_trial) = 0, d the chord's unit
-vector) until the bracket's chord is shorter than ``locate_tol`` (in units of p). The crossing lies on
-the branch between the final bracket's corrected ends; a record's "accuracy" is the located point's
-largest distance to them (in units of p), so |p - p*| <= accuracy, plus the corrector's error (u off
-the branch by about tol / |J_u|, moving the test function accordingly):
+Special points between two consecutive points A and B, located along the chord AB by bracketing the sign
+change of a test function (regula falsi, Illinois variant, with bisection steps whenever the bracket
+does not halve in two; each trial point re-corrected onto the branch with the constraint
+d.(z - z_trial) = 0, d the chord's unit vector) until the bracket's chord is shorter than
+``locate_tol`` (in units of p). The crossing lies on the branch between the final bracket's corrected
+ends; the located point is the end with the smaller |test function|, its "accuracy" the distance to the
+other end (in units of p), so |p - p*| <= accuracy, plus the corrector's error (u off the branch by
+about tol / |J_u|, moving the test function accordingly):
 
 - fold of the branch: where the tangent's p component changes sign (Kuznetsov's test function
   psi = t_p, chapter 10);
@@ -41,7 +43,7 @@ the branch by about tol / |J_u|, moving the test function accordingly):
   making false alarms). Multipliers of A and B are paired by the least sum of sqrt(distance) (where their
   counts differ the missing ones are zeros: a direction held at one point, as an orbit's contact held
   closed on its section, has multiplier 0 there); each pair on
-  different sides is one crossing, followed through the bisection by continuity. Kinds: a real
+  different sides is one crossing, followed through the trial points by the same pairing. Kinds: a real
   multiplier through +1 "fold", through -1 "period-doubling", a complex pair "neimark-sacker"
   (Kuznetsov chapter 4). A saddle-node (a fold of the branch with its multiplier through +1)
   is recorded once, as the tangent's fold.
@@ -85,8 +87,9 @@ REAL_TOL = 1e-7
 #: lengths below this share of |p_end - p0| (steps, locate_tol) are refused: the scaled unknowns are
 #: O(1), and steps near their round-off (2.2e-16) make no progress
 ROUNDOFF = 1e-12
-#: at most this many bisection steps (2^-60 of a chord: far below any locate_tol allowed)
-MAX_BISECTIONS = 60
+#: at most this many trial points per special point (the bracket at least halves every three: 2^-33 of
+#: the chord at worst, 1e-10; a smooth test function takes 5 to 10)
+MAX_TRIALS = 100
 
 
 @dataclass
@@ -109,9 +112,9 @@ class Branch:
     points: list[BranchPoint]
     bifurcations: list[dict] = field(default_factory=list)
     # {"kind": "fold" | "period-doubling" | "neimark-sacker", "value": p, "index": i (between points i
-    #  and i + 1), "u": u there, "multipliers": at the point or None, "accuracy": the point's largest
-    #  distance (units of p) to the corrected ends of the final bracket, between which the crossing lies
-    #  on the branch, "detected_by": "tangent" | "multipliers"}
+    #  and i + 1), "u": u there, "multipliers": at the point or None, "accuracy": its distance (units
+    #  of p) to the other end of the final bracket (the crossing lies on the branch between them),
+    #  "detected_by": "tangent" | "multipliers"}
     stop: str = ""      # "end" | "left" | "closed" | "max_steps" | "failed"
     reason: str = ""    # one sentence: where and why the branch ended
 
@@ -219,7 +222,7 @@ class _Scaled:
             mu = np.asarray(mu, dtype=complex)
         except (TypeError, ValueError):
             raise _Contract("continue_branch: stability(u, p) must return an array of multipliers") from None
-        if mu.ndim != 1 or mu.size == 0:
+        if mu.ndim != 1:
             raise _Contract(f"continue_branch: stability(u, p) must return a 1-D array of multipliers, got shape "
                             f"{mu.shape}")
         if not np.all(np.isfinite(mu)):
@@ -316,57 +319,83 @@ def _crossings(ma: np.ndarray, mb: np.ndarray, unit_tol: float) -> list[tuple[in
 
 
 class _Chord:
-    """Trial points between two branch points A and B, re-corrected onto the branch."""
+    """Trial points between two branch points A and B (tangents ta, tb), re-corrected onto the branch in
+    the hyperplane across the chord at theta. Newton starts from the cubic Hermite curve through A and B
+    with their tangents (its offset from the chord, across it; on the chord itself where a tangent is
+    nearly across the chord): one or two Newton steps fewer than from the chord on a curved branch."""
 
-    def __init__(self, problem: _Scaled, a: _Point, b: _Point, tol: float, max_iter: int):
+    def __init__(self, problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: np.ndarray, tol: float,
+                 max_iter: int):
         self.problem, self.a, self.b, self.tol, self.max_iter = problem, a, b, tol, max_iter
         chord = b.z - a.z
         self.length = float(np.linalg.norm(chord))
-        self.d = chord / self.length
+        self.d = chord / self.length if self.length > 0 else chord
+        slopes = []     # d(offset)/d(distance along the chord) at A and B
+        for t in (ta, tb):
+            along = float(t @ self.d)
+            slopes.append((t - along * self.d) / along if along > 0.5 else np.zeros_like(t))
+        self.slopes = slopes
 
     def point(self, theta: float, with_multipliers: bool) -> _Point:
         zt = self.a.z + theta * (self.b.z - self.a.z)
-        pt = _correct(self.problem, zt, self.d, float(self.d @ zt), self.tol, self.max_iter)
+        guess = zt + self.length * ((theta ** 3 - 2 * theta ** 2 + theta) * self.slopes[0]
+                                    + (theta ** 3 - theta ** 2) * self.slopes[1])
+        pt = _correct(self.problem, guess, self.d, float(self.d @ zt), self.tol, self.max_iter)
         if with_multipliers:
             pt.multipliers = self.problem.multipliers(pt.z)
         return pt
 
 
-def _bisect(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, span_tol: float,
+def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b: float, span_tol: float,
             with_multipliers: bool) -> tuple[_Point, float, float]:
-    """Bisection of the sign change of g along the chord (g(A) = g_a, g(B) of the other sign):
-    (the point at the final bracket's middle, its theta, its largest distance, in scaled z, to the
-    corrected points at the bracket's ends: the crossing lies on the branch between them)."""
-    lo, hi, glo = 0.0, 1.0, g_a
-    z_lo, z_hi = chord.a.z, chord.b.z
-    for _ in range(MAX_BISECTIONS):
-        if (hi - lo) * chord.length <= span_tol:
+    """The sign change of g along the chord (g(A) = g_a and g(B) = g_b of opposite signs), bracketed until
+    the bracket's chord is at most span_tol: (the bracket's end with the smaller |g|, its theta, its
+    distance in scaled z to the other end; the crossing lies on the branch between them).
+
+    Regula falsi with the Illinois modification (the end kept twice has its g halved) converges
+    superlinearly on a smooth g; a step that leaves the bracket more than half its width of two steps
+    before is followed by a bisection, so the bracket at least halves every three steps (a test
+    function with a jump, as a multiplier appearing, is located by bisection then). A trial point within
+    span_tol / 2 of an end is moved to span_tol / 2 from it, so that a crossing next to an end is closed
+    in by a bracket of width span_tol rather than approached from one side."""
+    lo, hi, glo, ghi = 0.0, 1.0, g_a, g_b
+    pt_lo, pt_hi = chord.a, chord.b
+    kept, widths = 0, [math.inf, math.inf]
+    half_tol = 0.5 * span_tol / chord.length
+    if (g_a > 0) == (g_b > 0):     # no sign change to follow: the nearer end, to the chord's length
+        return (chord.a, 0.0, chord.length) if abs(g_a) <= abs(g_b) else (chord.b, 1.0, chord.length)
+    for _ in range(MAX_TRIALS):
+        width = hi - lo
+        if width * chord.length <= span_tol:
             break
-        mid = 0.5 * (lo + hi)
+        if width > 0.5 * widths[-2]:
+            theta = 0.5 * (lo + hi)
+        else:
+            theta = lo - glo * width / (ghi - glo)
+            theta = min(max(theta, lo + min(half_tol, 0.25 * width)), hi - min(half_tol, 0.25 * width))
+        widths.append(width)
         try:
-            pt = chord.point(mid, with_multipliers)
-            val = g(pt, mid)
+            pt = chord.point(theta, with_multipliers)
+            val = g(pt, theta)
         except _Failure:
             break
         if val == 0.0:
-            return pt, mid, 0.0
+            return pt, theta, 0.0
         if (val > 0) == (glo > 0):
-            lo, glo, z_lo = mid, val, pt.z
+            lo, glo, pt_lo = theta, val, pt
+            ghi, kept = (0.5 * ghi, kept) if kept == 1 else (ghi, 1)
         else:
-            hi, z_hi = mid, pt.z
-    mid = 0.5 * (lo + hi)
-    try:
-        pt = chord.point(mid, with_multipliers)
-    except _Failure:    # keep the nearer end of the bracket
-        pt, mid = (chord.a, 0.0) if mid < 0.5 else (chord.b, 1.0)
-    half = max(float(np.linalg.norm(pt.z - z_lo)), float(np.linalg.norm(pt.z - z_hi)))
-    return pt, mid, half
+            hi, ghi, pt_hi = theta, val, pt
+            glo, kept = (0.5 * glo, kept) if kept == -1 else (glo, -1)
+    if abs(glo) <= abs(ghi):
+        return pt_lo, lo, float(np.linalg.norm(pt_hi.z - pt_lo.z))
+    return pt_hi, hi, float(np.linalg.norm(pt_hi.z - pt_lo.z))
 
 
 def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: np.ndarray, index: int,
                     tol: float, max_iter: int, locate_tol_z: float, unit_tol: float) -> list[dict]:
     """The folds and stability changes between consecutive points a and b, located."""
-    chord = _Chord(problem, a, b, tol, max_iter)
+    chord = _Chord(problem, a, ta, b, tb, tol, max_iter)
     if chord.length == 0:
         return []
     found: list[tuple[float, dict]] = []
@@ -383,7 +412,7 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
         def tp(pt: _Point, _theta: float) -> float:
             return float(_tangent(pt.jac, chord.d)[-1])
 
-        pt, theta, half = _bisect(chord, tp, tp(a, 0.0), locate_tol_z, with_mu)
+        pt, theta, half = _locate(chord, tp, tp(a, 0.0), tp(b, 1.0), locate_tol_z, with_mu)
         record("fold", pt, theta, half, "tangent")
     if with_mu:
         n = max(a.multipliers.size, b.multipliers.size)
@@ -408,7 +437,7 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
                 pt, theta, mu = (a, 0.0, mu_a) if inside_a else (b, 1.0, mu_b)
                 half = abs(g_a if inside_a else g_b) / abs(g_b - g_a) * chord.length
             else:
-                pt, theta, half = _bisect(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a,
+                pt, theta, half = _locate(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a, g_b,
                                           locate_tol_z, True)
                 mu = followed(pt, theta)
             kind = _kind(mu)
@@ -433,14 +462,14 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     """Follow the branch of r(u, p) = 0 through (u0, p0) towards p_end by pseudo-arclength (Keller 1977).
 
     - residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)), real; u0 is first corrected at p = p0;
-    - stability(u, p) -> multipliers (complex array; where their count changes along the branch, the
-      missing ones count as 0), or None; called only at a (u, p) where ``residual`` was just evaluated
+    - stability(u, p) -> multipliers (complex array, possibly empty; where their count changes along the
+      branch, the missing ones count as 0), or None; called only at a (u, p) where ``residual`` was just evaluated
       (a corrected point), so a caller whose multipliers come with its Jacobian (an orbit's monodromy)
       may keep its last one;
     - ``tol`` bounds max |r| at every point (``max_iter`` Newton steps per correction);
     - ``step`` (the first), ``max_step``, ``min_step``: lengths along the branch in units of p
       (defaults |p_end - p0| / 50, / 10 and step / 1000); ``max_steps`` counts the accepted steps (not
-      the trial points of the bisections);
+      the trial points that locate special points);
     - ``u_scale`` (scalar or (m,)): the size of u that counts as much as the whole range of p;
     - ``margin`` (default |p_end - p0| / 10) widens the range a folded branch may leave;
     - ``locate_tol`` (default 1e-6 |p_end - p0|, about 17 halvings of the largest step): the length
