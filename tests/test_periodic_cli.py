@@ -49,6 +49,16 @@ def test_a_linear_orbit_is_the_harmonic_steady_state(linear_orbit):
     # damped (Rayleigh alpha = 1 1/s on top of the bearings): every multiplier inside the unit circle
     assert np.abs(o.multipliers).max() < 1.0 and o.stable and o.loss is None
     assert so.verdict() == "stable" and o.events_per_period == 0 and so.contact_sequence == []
+    assert so.on_unit_circle() == 0
+
+
+def test_an_undamped_orbit_is_marginally_stable():
+    """Without damping (critical_speed's axial modes: a thrust spring, no damper, no Rayleigh damping) the
+    multipliers of those modes are exp(i w T) exactly, |mu| = 1: the verdict says so."""
+    scene = load_scene("critical_speed", ["mesh.elements=10", "reduction.modes=16"])
+    so = orbit_of_scene(scene, transient_periods=0)
+    assert so.orbit.stable and so.on_unit_circle() >= 2
+    assert so.verdict().startswith("stable, marginally") and so.to_json()["on_unit_circle"] == so.on_unit_circle()
 
 
 def test_a_linear_orbits_amplitudes_are_nsfem_responses(linear_orbit):

@@ -42,6 +42,9 @@ MULTIPLE_MAX = 64
 SAMPLES_PER_REVOLUTION = 256
 #: VTU frames per forcing period of the orbit's series
 FRAMES_PER_REVOLUTION = 32
+#: a multiplier this close to the unit circle in modulus is on it (the tolerance of
+#: :func:`nsfem.periodic.shooting.classify`'s verdict)
+UNIT_CIRCLE_TOL = 1e-6
 #: the shooting's tolerance on |phi(x0) - x0| / |x0| (dimensionless): from round-off (1e-14) to a coarse 1e-3
 TOL_RANGE = (1e-14, 1e-3)
 
@@ -83,10 +86,16 @@ class SceneOrbit:
         if not self.orbit.converged:
             return "none: the shooting did not converge (the multipliers are the last iterate's)"
         if self.orbit.stable:
-            return "stable"
+            k = self.on_unit_circle()
+            return (f"stable, marginally: {k} multiplier(s) on the unit circle (|mu| within {UNIT_CIRCLE_TOL:g} of 1: "
+                    "motions that neither grow nor decay, e.g. undamped modes)") if k else "stable"
         kind = {"fold": "fold (a multiplier through +1)", "period-doubling": "period doubling (a multiplier "
                 "through -1)", "neimark-sacker": "Neimark-Sacker (a complex pair outside the unit circle)"}
         return f"unstable: {kind.get(self.orbit.loss, self.orbit.loss or 'a multiplier outside the unit circle')}"
+
+    def on_unit_circle(self) -> int:
+        """How many multipliers lie on the unit circle (| |mu| - 1 | <= :data:`UNIT_CIRCLE_TOL`)."""
+        return int(np.sum(np.abs(np.abs(np.asarray(self.orbit.multipliers, dtype=complex)) - 1.0) <= UNIT_CIRCLE_TOL))
 
     def to_json(self) -> dict:
         """The ``nsfem periodic`` JSON keys (design section 9, and the additions of issue 36)."""
@@ -95,7 +104,7 @@ class SceneOrbit:
         return {"period_s": float(o.period_s), "converged": bool(o.converged), "residual": float(o.residual),
                 "multipliers": [[float(z.real), float(z.imag)] for z in mu],
                 "multiplier_moduli": [float(abs(z)) for z in mu],
-                "stable": bool(o.stable), "loss": o.loss, "events_per_period": int(o.events_per_period),
+                "stable": bool(o.stable), "loss": o.loss, "on_unit_circle": self.on_unit_circle(), "events_per_period": int(o.events_per_period),
                 "amplitudes": {k: float(v) for k, v in self.amplitudes.items()},
                 "iterations": int(o.iterations), "t0_s": float(o.t0), "multiple": self.multiple,
                 "forcing_period_s": self.forcing_period_s, "transient_periods": self.transient_periods,
