@@ -145,7 +145,7 @@ def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
 #: a gap whose smallest value over an open phase is below this fraction of its range over the period is near grazing
 NEAR_GRAZING = 1e-3
 #: samples per phase at most when looking for a gap's minima (each refined on the closed form)
-_GRAZE_SAMPLES = 4096
+_GRAZE_SAMPLES = 512
 
 
 def near_grazing(fl: Flow, rel: float = NEAR_GRAZING) -> list[dict]:
