@@ -34,6 +34,16 @@ facet (whose normal does not turn) lacks. The slip's sign does not change for sm
 With dq = Z y (Z an orthonormal basis of G^T's null space) and L one of W^T's (L^T W = 0: the rows free of
 dN), (L^T M Z) y'' + (L^T C Z) y' + (L^T K Z) y = 0, n - 1 coordinates: 2 (n - 1) eigenvalues lambda.
 
+*Elastic round ring* (a mount of radial stiffness k_s and damping c_s, no impacts): the ring pushes while
+|u| = r > c with N = k_s (r - c) + c_s r', the same F; no constraint. At rest in the rotating frame (r' = 0),
+(r I + k_s (r - c) H (I + mu s J)) n = b gives r by bracketing (c < r < |b|). A perturbation changes N by
+k_s n.du + c_s n.du' (dr = n.du; dr' = n.du' + u'.dn = n.du' at rest) and turns n and t as above, with r for c:
+
+    dF = -(K_ring du + C_ring du'),  K_ring = k_s (n + mu s t) n^T + (N / r) (t - mu s n) t^T,
+                                     C_ring = c_s (n + mu s t) n^T,
+
+and M dq'' + (C + D^T C_ring D) dq' + (Q + D^T K_ring D) dq = 0: 2 n eigenvalues.
+
 *Inertial frame.* x_inertial(t) = R(Omega t) x_rotating(t) with R the frame's turn of every lateral pair
 (displacements and slopes), R(T) = I for T = 1 / speed: the inertial orbit's monodromy matrix is
 R(T) exp(A T) R(0)^-1 = exp(A T), its multipliers exp(lambda T).
@@ -121,6 +131,35 @@ def held_pencil(M, C, Q, D, rub: RoundRub, c: float, mu: float) -> tuple[np.ndar
     L = sla.null_space(W[None, :])
     K = Q + D.T @ geometric_stiffness(rub, c, mu) @ D
     return L.T @ M @ Z, L.T @ C @ Z, L.T @ K @ Z
+
+
+def elastic_rub(Q: np.ndarray, f0: np.ndarray, D: np.ndarray, c: float, mu: float, s: float,
+                stiffness: float) -> RoundRub:
+    """The stationary rub on an elastic round ring of radial stiffness k_s (module docstring): the disk at
+    r = c + N / k_s; r by Brent's method."""
+    b = D @ np.linalg.solve(Q, f0)
+    H = D @ np.linalg.solve(Q, D.T)
+    turn = np.eye(2) + mu * s * QUARTER
+
+    def normal(r: float) -> np.ndarray:
+        return np.linalg.solve(r * np.eye(2) + stiffness * (r - c) * H @ turn, b)
+
+    if np.linalg.norm(b) <= c:
+        raise ValueError(f"the free whirl {np.linalg.norm(b):.3g} m stays inside the clearance {c:.3g} m: no rub")
+    r = brentq(lambda r_: np.linalg.norm(normal(r_)) - 1.0, c, np.linalg.norm(b), xtol=1e-15 * c, rtol=1e-15)
+    n = normal(r)
+    n /= np.linalg.norm(n)
+    N = stiffness * (r - c)
+    q = np.linalg.solve(Q, f0 - N * (D.T @ (turn @ n)))
+    return RoundRub(q, float(N), n, QUARTER @ n, float(s))
+
+
+def elastic_ring_operators(rub: RoundRub, radius: float, mu: float, stiffness: float, damping: float
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """(K_ring, C_ring) (2 x 2 on u, u'): the elastic round ring's force linearized at the rub, radius r = |u|
+    (module docstring)."""
+    along = np.outer(rub.n + mu * rub.s * rub.t, rub.n)
+    return stiffness * along + geometric_stiffness(rub, radius, mu), damping * along
 
 
 def corner_terms(M: np.ndarray, D: np.ndarray, rub: RoundRub, omega: float, c: float, facets: int
