@@ -1,4 +1,4 @@
-"""The synchronous full annular rub on a round rigid ring: a reference for the periodic-orbit code (issue 36).
+"""The synchronous full annular rub on a round ring: a reference for the periodic-orbit code (issue 36).
 
 Plain NumPy/SciPy from a system's matrices (no nsfem contact or integrator code), in the rotating
 frame, where the synchronous rub of an axisymmetric rotor is a state at rest:
@@ -44,9 +44,10 @@ k_s n.du + c_s n.du' (dr = n.du; dr' = n.du' + u'.dn = n.du' at rest) and turns 
 
 and M dq'' + (C + D^T C_ring D) dq' + (Q + D^T K_ring D) dq = 0: 2 n eigenvalues.
 
-*Inertial frame.* x_inertial(t) = R(Omega t) x_rotating(t) with R the frame's turn of every lateral pair
-(displacements and slopes), R(T) = I for T = 1 / speed: the inertial orbit's monodromy matrix is
-R(T) exp(A T) R(0)^-1 = exp(A T), its multipliers exp(lambda T).
+*Inertial frame.* q_inertial = R q and q'_inertial = R (q' + Omega J q) with R = exp(Omega t J) the frame's turn
+of every lateral pair (displacements and slopes): x_inertial = P(t) x_rotating, P = [[R, 0], [Omega J R, R]],
+and P(T) = P(0) for T = 1 / speed. The inertial orbit's monodromy matrix is P(0) exp(A T) P(0)^-1: its
+multipliers are exp(lambda T).
 """
 
 from __future__ import annotations
