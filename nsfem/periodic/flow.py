@@ -16,7 +16,7 @@ from ..errors import NsfemError
 from ..integrate.base import single_threaded_blas
 from ..integrate.event_driven import Exact
 from ..result import Result
-from .saltation import impact_jacobian, row_gradient, saltation
+from .saltation import impact_jacobian, row_coefficients, row_gradient, saltation
 from .variational import phase_transition, state_rate
 
 
@@ -125,8 +125,14 @@ def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
             Phi = Dg @ Phi
             continue
         i = rows[0]
-        grad = row_gradient(phase.config, step["mode"], i)
-        rate = float(step["rows"].Hd[i] @ phase.xi(float(t)))
+        rows_ = step["rows"]
+        # row i of the phase's rows is row i of the configuration's only where the phase searched the
+        # configuration's own rows: a closed round ring swaps its other facets' gap rows for its wedge rows
+        own = rows_.H.shape[0] == row_coefficients(phase.config, step["mode"]).shape[0]
+        grad = row_gradient(phase.config, step["mode"], i) if own else None
+        rate = 0.0
+        if grad is not None:   # (Hd is not cached for every phase's rows: formed as the event search does)
+            rate = float((rows_.Hd[i] if rows_.Hd is not None else rows_.H[i] @ phase.A_aug) @ phase.xi(float(t)))
         if grad is None or after is None or rate == 0.0:
             Phi = Dg @ Phi
             if grad is None:
