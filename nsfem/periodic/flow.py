@@ -80,6 +80,8 @@ class FlowMap:
             res = integ.run(self.period, self.output_dt, q0, v0)
         res.t = res.t + self.t0
         t0 = self.t0
+        for e in res.events + res.impacts:   # every time of the flow on the forcing's clock
+            e["t"] += t0
         if not jacobian:
             return Flow(t0, self.period, res.q[:, -1].copy(), res.v[:, -1].copy(), None, res)
         trace, integ.trace = integ.trace, None
