@@ -89,6 +89,28 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--png", metavar="FILE", help="write the Bode plot (left) and the polar plot (right) to this "
                    "one file")
 
+    # (the numbers of nsfem.periodic.scene, not imported here: the parser is built by every command; test_cli
+    # checks that they agree)
+    p = sub.add_parser("periodic", help="periodic orbit by shooting on the exact flow: Floquet multipliers, "
+                       "stability, amplitudes")
+    _scene_args(p)
+    p.add_argument("--multiple", type=int, default=1, metavar="K", help="the orbit's period in forcing periods "
+                   "(one forcing period is 1 / rotation.speed_hz): 1 (default) a synchronous orbit, K > 1 a "
+                   "subharmonic of order K")
+    p.add_argument("--continue", dest="continuation", metavar="KEY=LOW:HIGH", help="follow the orbit's branch "
+                   "over a numeric scene key, e.g. rotation.speed_hz=20:30 (not available in this version: the "
+                   "key and range are checked, then refused)")
+    p.add_argument("--start", metavar="FILE", help="start the shooting from a saved state: a run's result.npz "
+                   "(its last output) or an orbit.npz of nsfem periodic (default: the last state of a transient "
+                   "from the scene's initial state)")
+    p.add_argument("--transient", type=int, metavar="N", help="orbit periods integrated with the exact method "
+                   "before the shooting (default 10; 0: shoot from the scene's initial state; not with --start)")
+    p.add_argument("--tol", type=float, default=1e-9, help="the shooting's tolerance on |phi_T(x0) - x0| / |x0| "
+                   "(default 1e-9, from 1e-14 to 0.001)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: <output.dir>/periodic): periodic.json, "
+                   "orbit.npz, orbit.png and floquet.png (unless output.plots is empty), nsfem.pvd with the VTU "
+                   "frames of one period in DIR/vtu/ (unless output.vtu_every = 0)")
+
     p = sub.add_parser("stationary", help="stationary contact state (LCP 28)")
     _scene_args(p)
 
@@ -1046,8 +1068,122 @@ def cmd_response(args) -> int:
     return 0
 
 
+def cmd_periodic(args) -> int:
+    """``nsfem periodic``: the scene's periodic orbit (:func:`nsfem.periodic.scene.orbit_of_scene`); its JSON,
+    orbit.npz, figures and VTU series of one period in the output folder."""
+    from pathlib import Path
+
+    from .outdir import claim
+    from .periodic.scene import check_continuation, check_options, check_scene, parse_continuation
+
+    check_options(args.multiple, args.transient, args.tol, None)
+    if args.start is not None and args.transient:
+        raise NsfemError("--transient with --start: the saved state is the shooting's starting guess already; "
+                         "give one of them")
+    continuation = parse_continuation(args.continuation) if args.continuation is not None else None
+    scene = _scene(args, "periodic")
+    check_scene(scene)
+    if continuation is not None:
+        from .scene import load_scene
+
+        check_continuation(scene, *continuation, lambda extra: load_scene(args.scene, [*args.overrides, *extra]))
+        raise NsfemError(f"--continue {continuation[0]}: not yet: continuation along a branch is not available in "
+                         "this version; compute single orbits at values of the key (--set KEY=VALUE)")
+    if args.start is not None:
+        from .periodic.scene import _saved_state
+
+        _saved_state(args.start)   # a missing or foreign file: one line before anything is built
+    out_dir = Path(args.out) if args.out else scene.output.dir / "periodic"
+    what = "--out" if args.out else "output.dir"
+    files = _periodic_files(scene, args.multiple)
+    _check_periodic_targets(out_dir, files, what)
+    with claim(out_dir, "periodic", files, what, inputs=[args.start] if args.start else ()):
+        return _periodic(args, scene, out_dir)
+
+
+#: the files of nsfem periodic besides the VTU series
+PERIODIC_FILES = ("periodic.json", "orbit.npz")
+PERIODIC_PLOTS = ("orbit.png", "floquet.png")
+
+
+def _periodic_files(scene, multiple: int) -> dict[str, list[str]]:
+    """The names ``nsfem periodic`` may write for ``scene`` (:func:`nsfem.outdir.claim`)."""
+    from .export.vtu import series_files
+    from .periodic.scene import orbit_samples, vtu_every
+
+    names = list(PERIODIC_FILES) + (list(PERIODIC_PLOTS) if scene.output.plots else [])
+    series = []
+    if scene.output.vtu_every:
+        samples = orbit_samples(scene, multiple)
+        series = series_files(samples + 1, vtu_every(samples, multiple))
+    return {"periodic": names, "series": series}
+
+
+def _check_periodic_targets(out_dir, files: dict, what: str) -> None:
+    """Refuse, before any computation, an output folder or file of ``nsfem periodic`` that cannot be written."""
+    from .atomic import check_file, check_folder
+
+    check_folder(out_dir, what)
+    for name in files["periodic"]:
+        check_file(out_dir / name, what)
+    if files["series"]:
+        check_file(out_dir / "nsfem.pvd", what)
+        _check_frames_folder(out_dir, what, files["series"])
+
+
+def _periodic(args, scene, out_dir) -> int:
+    """``nsfem periodic`` in its claimed folder ``out_dir``."""
+    from .periodic.output import write_orbit
+    from .periodic.scene import orbit_of_scene
+
+    t0 = time.perf_counter()
+    warnings: list[str] = []
+
+    def warn(text: str) -> None:
+        warnings.append(text)
+        print(printable(f"nsfem periodic: warning: {text}"), file=sys.stderr)
+
+    so = orbit_of_scene(scene, args.multiple, args.start, args.transient, args.tol, warn=warn, progress=True)
+    for note in so.notes:
+        print(printable(f"nsfem periodic: note: {note}"), file=sys.stderr)
+    o = so.orbit
+    payload = {"title": scene.title, **so.to_json(), "speed_hz": scene.rotation.speed_hz,
+               "frame": scene.rotation.frame, "warnings": warnings, "notes": list(scene.notes) + so.notes}
+    outputs = [str(out_dir / "periodic.json")] + [str(p) for p in write_orbit(so, scene, out_dir, payload)]
+    from .atomic import write_text_atomic
+    from .jsonio import as_text, dumps
+
+    payload.update(outputs=outputs, wall_s=time.perf_counter() - t0)   # periodic.json last: it lists the others
+    write_text_atomic(out_dir / "periodic.json", dumps(payload, as_text) + "\n")
+    import numpy as np
+
+    mu = np.asarray(o.multipliers, dtype=complex)
+    impacts = sum(1 for e in so.contact_sequence if e["impact"])
+    lines = [scene.title,
+             f"orbit of period {o.period_s:.6g} s ({so.multiple} x the forcing period 1 / {scene.rotation.speed_hz:g} "
+             f"Hz, {scene.rotation.frame} frame; {so.system.n} dofs), section t0 = {o.t0:.6g} s, from {so.start}",
+             f"shooting {'converged' if o.converged else 'NOT converged'} in {o.iterations} iterations, residual "
+             f"{o.residual:.2e}",
+             f"events per period {o.events_per_period} ({impacts} impacts)"
+             + (": " + ", ".join(f"{'+'.join(e['kinds'])} {','.join(e['contacts'])} at {1e3 * e['t_s']:.4g} ms"
+                                 for e in so.contact_sequence[:6]) + (" ..." if len(so.contact_sequence) > 6 else "")
+                if so.contact_sequence else ""),
+             f"Floquet multipliers ({mu.size}, largest modulus first):"]
+    lines += [f"  {z.real:+.6f} {z.imag:+.6f}i   |mu| {abs(z):.6f}" for z in mu[:6]]
+    if mu.size > 6:
+        lines.append(f"  ... {mu.size - 6} more, |mu| <= {abs(mu[6]):.6f}")
+    lines.append(f"verdict: {so.verdict()}")
+    if so.amplitudes:
+        lines.append("amplitudes (half the peak-to-peak over the period): " + ", ".join(
+            f"{k} {v:.4e} m" for k, v in so.amplitudes.items()))
+    lines.append("wrote " + ", ".join(outputs))
+    _emit(args, payload, "\n".join(lines))
+    return 0
+
+
 COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run,
-            "sweep": cmd_sweep, "response": cmd_response, "fit": cmd_fit, "export": cmd_export, "render": cmd_render}
+            "sweep": cmd_sweep, "response": cmd_response, "fit": cmd_fit, "export": cmd_export, "render": cmd_render,
+            "periodic": cmd_periodic}
 
 
 #: the variables by which a user sets the BLAS threads (OpenBLAS reads the first it finds; MKL its own)

@@ -10,7 +10,7 @@
 * **manifest** (``.nsfem-files.json``): the files nsfem wrote there, by kind (``run``: result.npz,
   plots, sensors, render.png; ``series``: the .pvd and its frames, ``vtu/...``: the files of the
   subfolders in :data:`SUBFOLDERS` are listed by their path in the folder; ``fit``: fit.json,
-  evaluations.csv and its plots). A command replaces its kinds: once its first file is written the
+  evaluations.csv and its plots; ``periodic``: periodic.json, orbit.npz and its plots). A command replaces its kinds: once its first file is written the
   files of those kinds that it will not rewrite are removed (and the old .pvd, whose frames are
   about to be replaced), at the end those it did not rewrite after all (an interrupted run). Only
   files named in a manifest are ever removed: a user's own files in the folder are left alone.
@@ -59,7 +59,8 @@ MANIFEST = ".nsfem-files.json"
 #: :data:`nsfem.export.vtu.SUBFOLDER`); the manifest names their files ``<subfolder>/<name>``
 SUBFOLDERS = ("vtu",)
 #: the kinds of output each command replaces
-REPLACES = {"run": ("run", "series"), "export": ("series",), "fit": ("fit",), "sweep": (), "render": ()}
+REPLACES = {"run": ("run", "series"), "export": ("series",), "fit": ("fit",), "sweep": (), "render": (),
+            "periodic": ("periodic", "series")}
 
 
 class FolderBusy(NsfemError):

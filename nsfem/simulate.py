@@ -293,17 +293,54 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
               warn=None, out_dir=None) -> tuple[Result, ContactSystem]:
     """Integrate a scene with its (or the given) method; returns the Result and the system.
 
-    ``warn(text)`` receives warnings before the integration starts (an unreduced model whose
-    fastest mode makes the run long) and after it (deflections beyond the linear model's range,
-    :mod:`nsfem.analysis.deflection`). ``out_dir``: the folder the caller writes the result and the
-    scene's VTU series into; their size is checked (:func:`check_output_size`) before integrating.
-    Bad sample counts and damping raise SceneError first. A run that stops early raises
+    The system, checks and initial state are :func:`prepare_scene`'s; then the integration and, with
+    ``warn``, the check of the deflections. A run that stops early raises
     :class:`~nsfem.errors.IntegrationError` whose ``result`` holds it up to there."""
+    sim = scene.simulation
+    method = method or sim.method
+    system, info, q0, v0 = prepare_scene(scene, method, model, reduction, warn, out_dir)
+    return integrate_prepared(scene, system, info, method, q0, v0, progress=progress, warn=warn)
+
+
+def integrate_prepared(scene: Scene, system: ContactSystem, info: dict, method: str, q0, v0,
+                       t_end: float | None = None, output_dt: float | None = None, progress: bool | None = False,
+                       warn=None) -> tuple[Result, ContactSystem]:
+    """Integrate a :func:`prepared <prepare_scene>` scene from (q0, v0) to ``t_end`` (default the scene's
+    simulation.t_end), outputs every ``output_dt`` (default the scene's); ``info`` goes into the Result's."""
+    sim = scene.simulation
+    t_end = sim.t_end if t_end is None else t_end
+    output_dt = sim.output_dt if output_dt is None else output_dt
+    try:
+        result = integrate(system, t_end, method, output_dt, q0, v0, progress=progress,
+                           **integrator_options(sim, method))
+    except IntegrationError as exc:
+        exc.result.info.update(info)
+        exc.system = system
+        raise
+    result.info.update(info)
+    if warn is not None:
+        from .analysis.deflection import result_warning
+
+        text = result_warning(result, system.info["model"], system.info["reduction"].T)
+        if text:
+            warn(text)
+    return result, system
+
+
+def prepare_scene(scene: Scene, method: str, model=None, reduction=None, warn=None,
+                  out_dir=None) -> tuple[ContactSystem, dict, np.ndarray, np.ndarray]:
+    """(system, info, q0, v0) of a scene about to be integrated with ``method``: the checks of a run
+    (:func:`run_scene`) before any integration, the ContactSystem of its model and reduction, the
+    Result info a run records and the scene's initial state.
+
+    ``warn(text)`` receives the warnings known before integrating (an unreduced model whose fastest mode
+    makes the run long, a structure unstable without its contacts). ``out_dir``: the folder the caller
+    writes the result and the scene's VTU series into; their size is checked (:func:`check_output_size`).
+    Bad sample counts and damping raise SceneError first."""
     from .fem.assemble import build_model
     from .reduce import scene_reduction
 
     sim = scene.simulation
-    method = method or sim.method
     from .integrate.base import EXTRA_METHODS
 
     known = ("exact", "rk", *EXTRA_METHODS)
@@ -381,21 +418,7 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
     if system.info.get("contact_index") is not None:
         info["contact_index"] = [int(k) for k in system.info["contact_index"]]
     system.info["sensors"] = scene.sensors
-    try:
-        result = integrate(system, sim.t_end, method, sim.output_dt, q0, v0, progress=progress,
-                           **integrator_options(sim, method))
-    except IntegrationError as exc:
-        exc.result.info.update(info)
-        exc.system = system
-        raise
-    result.info.update(info)
-    if warn is not None:
-        from .analysis.deflection import result_warning
-
-        text = result_warning(result, model, red.T)
-        if text:
-            warn(text)
-    return result, system
+    return system, info, q0, v0
 
 
 def sensor_signals(result: Result, system: ContactSystem) -> np.ndarray:

@@ -14,9 +14,9 @@ Both are timed side by side in one process (best of ``--repeat``, single-threade
 ratio is transient / shooting. A transient that has not reached the accuracy after ``--max-periods`` is reported
 as a lower bound (``>``).
 
-    python studies/periodic.py [--quick] [--json] [--accuracy 1e-6] [--lead 10] [--repeat 3]
+    python studies/periodic.py [--quick] [--json] [--accuracy 1e-4 1e-6 1e-8] [--lead 3] [--repeat 3]
 
-``--quick``: accuracy 1e-4, one repeat, at most 400 periods. Writes periodic.json/.csv into studies/out/periodic.
+``--quick``: accuracies 1e-4 and 1e-6, one repeat, at most 400 periods. Writes periodic.json/.csv into studies/out/periodic.
 """
 
 from __future__ import annotations
@@ -93,41 +93,43 @@ def shooting(system, T, q0, v0, accuracy, lead):
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="accuracy 1e-4, one repeat, at most 400 periods")
+    ap.add_argument("--quick", action="store_true", help="accuracies 1e-4 and 1e-6, one repeat, at most 400 periods")
     ap.add_argument("--json", action="store_true", help="print the JSON payload")
-    ap.add_argument("--accuracy", type=float, default=1e-6, help="relative distance to the orbit both must reach")
-    ap.add_argument("--lead", type=int, default=10, help="transient periods before shooting")
+    ap.add_argument("--accuracy", type=float, nargs="+", default=[1e-4, 1e-6, 1e-8],
+                    help="relative distances to the orbit both must reach (one row per scene and accuracy)")
+    ap.add_argument("--lead", type=int, default=3, help="transient periods before shooting")
     ap.add_argument("--repeat", type=int, default=3, help="timings per method (best kept)")
     ap.add_argument("--max-periods", type=int, default=3000, help="transient periods at most")
     ap.add_argument("--scenes", nargs="*", default=list(SCENES), choices=list(SCENES), help="scenes to run")
     ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "periodic"), help="output folder")
     args = ap.parse_args(argv)
     if args.quick:
-        args.accuracy, args.repeat, args.max_periods = 1e-4, 1, 400
+        args.accuracy, args.repeat, args.max_periods = [1e-4, 1e-6], 1, 400
     rows = []
     for name in args.scenes:
         system, T, q0, v0 = build(*SCENES[name])
         _, start = shooting(system, T, q0, v0, 1e-11, args.lead)   # the reference orbit
         ref = periodic_orbit(system, T, start.q0, start.v0, tol=1e-12)
         w = 2 * math.pi / T
-        t_tr = min(transient(system, T, q0, v0, ref, args.accuracy, args.max_periods) for _ in range(args.repeat))
-        runs = [shooting(system, T, q0, v0, args.accuracy, args.lead) for _ in range(args.repeat)]
-        t_sh, orbit = min(runs, key=lambda r: r[0])
-        err = distance(orbit.q0, orbit.v0, ref, w)
-        row = {"scene": name, "ndof": system.n, "period_s": T, "events_per_period": orbit.events_per_period,
-               "largest_multiplier": float(abs(orbit.multipliers[0])) if orbit.multipliers.size else 0.0,
-               "stable": orbit.stable, "accuracy": args.accuracy,
-               "transient_s": t_tr[0], "transient_periods": t_tr[1], "transient_reached": t_tr[2],
-               "shooting_s": t_sh, "newton_steps": orbit.iterations, "shooting_error": err,
-               "shooting_ok": bool(orbit.converged and err <= args.accuracy),
-               "ratio": t_tr[0] / t_sh}
-        rows.append(row)
-        bound = "" if t_tr[2] else ">"
-        print(f"{name:13s} n={system.n:3d} events/period {orbit.events_per_period:3d} |mu|max "
-              f"{row['largest_multiplier']:.4f}  transient {t_tr[0]:7.3f} s ({bound}{t_tr[1]} periods)  shooting "
-              f"{t_sh:6.3f} s ({orbit.iterations} Newton steps, error {err:.1e})  ratio {bound}{row['ratio']:.1f}x",
-              flush=True)
-    payload = {"machine": machine(), "accuracy": args.accuracy, "lead_periods": args.lead, "rows": rows}
+        for accuracy in args.accuracy:
+            t_tr = min(transient(system, T, q0, v0, ref, accuracy, args.max_periods) for _ in range(args.repeat))
+            runs = [shooting(system, T, q0, v0, accuracy, args.lead) for _ in range(args.repeat)]
+            t_sh, orbit = min(runs, key=lambda r: r[0])
+            err = distance(orbit.q0, orbit.v0, ref, w)
+            row = {"scene": name, "ndof": system.n, "period_s": T, "events_per_period": orbit.events_per_period,
+                   "largest_multiplier": float(abs(orbit.multipliers[0])) if orbit.multipliers.size else 0.0,
+                   "stable": orbit.stable, "accuracy": accuracy,
+                   "transient_s": t_tr[0], "transient_periods": t_tr[1], "transient_reached": t_tr[2],
+                   "shooting_s": t_sh, "newton_steps": orbit.iterations, "shooting_error": err,
+                   "shooting_ok": bool(orbit.converged and err <= accuracy),
+                   "ratio": t_tr[0] / t_sh}
+            rows.append(row)
+            bound = "" if t_tr[2] else ">"
+            print(f"{name:13s} n={system.n:3d} acc {accuracy:.0e} events/period {orbit.events_per_period:3d} |mu|max "
+                  f"{row['largest_multiplier']:.4f}  transient {t_tr[0]:7.3f} s ({bound}{t_tr[1]} periods)  shooting "
+                  f"{t_sh:6.3f} s ({orbit.iterations} Newton steps, error {err:.1e})  ratio {bound}{row['ratio']:.1f}x",
+                  flush=True)
+    payload = {"machine": machine(), "accuracies": args.accuracy, "lead_periods": args.lead, "rows": rows}
     write_outputs(Path(args.out), "periodic", rows, payload)
     if args.json:
         print(json.dumps(payload, indent=1))

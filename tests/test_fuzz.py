@@ -3913,6 +3913,105 @@ def test_issue35_a_ramp_runs_exactly_when_every_table_covers_it(lo, width):
         assert "bearing.0.speeds_hz" in err and "table [" in err
 
 
+# --- issue 36: periodic ---
+# nsfem periodic refuses, in one line naming the option or key and before any integration: a bad --multiple,
+# --transient or --tol, a --continue that is not KEY=LOW:HIGH of a numeric key with two finite different ends
+# (a good one: "not yet"), a rotor at rest (nsfem stationary answers it), a run-up, a --start that is missing,
+# a folder, not a results file or of another model, and --transient together with --start.
+PERIODIC = ["periodic", "crack", "--set", "output.vtu_every=0", "--set", "output.plots=[]"]
+
+
+def _a_number(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=list(HealthCheck))
+@given(option=st.sampled_from(["--multiple", "--transient", "--tol"]),
+       value=st.one_of(st.integers(-10**6, 0), st.integers(10**5 + 1, 10**9),
+                       st.floats(allow_nan=True, allow_infinity=True).filter(lambda x: not 1e-14 <= x <= 1e-3),
+                       st.text(max_size=6).filter(lambda s: not _a_number(s))))
+def test_issue36_periodic_options_out_of_range_are_refused_by_name(option, value):
+    if option == "--transient" and isinstance(value, int) and value == 0:
+        value = -1   # 0 transient periods is valid (shoot from the scene's initial state)
+    if option == "--multiple" and isinstance(value, int) and 1 <= value <= 64:
+        value = 0
+    with tempfile.TemporaryDirectory() as d:
+        code, _, err = check_invocation([*PERIODIC, "--out", "o", option, str(value)], Path(d))
+        assert code == 2 and option in err, (option, value, err)
+        assert not (Path(d) / "o").exists()
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=list(HealthCheck))
+@given(key=st.sampled_from(["rotation.speed_hz", "disk.0.mass", "rotation.frame", "disk.7.mass", "nokey", "",
+                            "crack.0", "sensor.0.name"]),
+       low=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=4)),
+       high=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=4)),
+       sep=st.sampled_from([":", "::", ",", ""]))
+def test_issue36_continue_is_always_one_line_and_never_runs(key, low, high, sep):
+    """Whatever --continue says, the command ends with one line (a refusal of the text or the key, or "not
+    yet" for a good one) before any integration, writing nothing."""
+    with tempfile.TemporaryDirectory() as d:
+        code, out, err = check_invocation([*PERIODIC, "--out", "o", "--continue", f"{key}={low}{sep}{high}"],
+                                          Path(d))
+        assert code == 2 and "--continue" in err and out == "", err
+        assert not (Path(d) / "o").exists()
+
+
+PERIODIC_REPRODUCTIONS = [
+    (["--set", "rotation.speed_hz=0"], "rotation.speed_hz", "nsfem stationary"),
+    (["--multiple", "0"], "--multiple", "from 1 to 64"),
+    (["--tol", "nan"], "--tol", "must lie in"),
+    (["--transient", "-3"], "--transient", "from 0"),
+    (["--continue", "rotation.speed_hz=12:12"], "--continue rotation.speed_hz", "same value"),
+    (["--continue", "rotation.frame=1:2"], "--continue rotation.frame", "not a number"),
+    (["--continue", "rotation.speed_hz=-5:12"], "--continue rotation.speed_hz", "must be >= 0"),
+    (["--continue", "rotation.speed_hz=10:14"], "--continue rotation.speed_hz", "not yet"),
+    (["--start", "missing.npz"], "--start", "does not exist"),
+    (["--start", "."], "--start", "is a folder"),
+    (["--start", "scene.toml"], "--start", "not a results file"),
+    (["--start", "scene.toml", "--transient", "5"], "--transient with --start", "one of them"),
+    (["--out", "scene.toml"], "--out", "scene.toml"),
+]
+
+
+@pytest.mark.parametrize("extra,names,reason", PERIODIC_REPRODUCTIONS)
+def test_issue36_periodic_reproductions(extra, names, reason, tmp_path):
+    (tmp_path / "scene.toml").write_text("title = 'not a result'\n")
+    code, _, err = check_invocation([*PERIODIC, "--out", "o", *extra], tmp_path)
+    line = [x for x in err.splitlines() if x.startswith("nsfem: error:")]
+    assert code == 2 and names in line[0] and reason in line[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_issue36_periodic_refuses_a_round_ring_before_its_transient(tmp_path, monkeypatch):
+    """retainer_drop's rings are round (a turning facet with a state of its own): refused by the shooting's
+    map before any integration (the integrator is not called)."""
+    from nsfem.integrate import event_driven
+
+    def never(*args, **kwargs):
+        raise AssertionError("integrated before refusing")
+
+    monkeypatch.setattr(event_driven.Exact, "run", never)
+    code, _, err = check_invocation(["periodic", "retainer_drop", "--out", "o"], tmp_path)
+    assert code == 2 and 'shape = "round"' in err and "polygon" in err, err
+
+
+def test_issue36_periodic_refuses_a_run_up(tmp_path):
+    code, _, err = check_invocation(["periodic", "runup", "--out", "o"], tmp_path)
+    assert code == 2 and "rotation.ramp_to_hz" in err and "not periodic" in err, err
+
+
+def test_issue36_periodic_refuses_a_start_of_another_model(saved_result, tmp_path):
+    """A results file of the default scene (its reduced coordinates) cannot start the crack scene's orbit."""
+    code, _, err = check_invocation([*PERIODIC, "--out", "o", "--start", str(saved_result)], tmp_path)
+    assert code == 2 and "--start" in err and "coordinates" in err, err
+    assert not (tmp_path / "o").exists()
+
+
 # --- issue 36: continuation ---
 # nsfem.periodic.continuation.continue_branch and critical_vector (library functions, no command yet): a bad
 # argument or a residual/stability breaking its contract raises one NsfemError of one line naming it, before

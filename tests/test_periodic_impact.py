@@ -292,3 +292,23 @@ def test_shooting_near_grazing():
     T = 2 * math.pi / w
     t_max = math.atan2(B, A) / w % T
     assert abs((graze[0]["t"] - t_max + T / 2) % T - T / 2) <= 1e-4
+
+
+def test_a_section_on_the_impact_moves_off_it():
+    """The section put at the impact's time (the map is not smooth there: the impact falls before or after the
+    section with the perturbation): the shooting moves its section to the middle of the flight, where the state
+    is the closed form's at that time; the multipliers do not depend on the section."""
+    from nsfem.periodic import periodic_orbit
+
+    w = 2.0
+    p = period1_branch(OSC, w, -1)
+    T = 2 * math.pi / w
+    x = orbit_state(OSC, w, [(p.tau, p.u)], T, np.array([p.tau - 1e-9]))[0]
+    orbit = periodic_orbit(impact_system(OSC, w), T, [x[0] - 1e-6], [x[1]], t0=p.tau - 1e-9, tol=1e-10)
+    assert orbit.converged and orbit.events_per_period == 1
+    # moved by about half a period (the flight is the whole period but the impact)
+    assert abs(((orbit.t0 - p.tau) % T) - T / 2) <= 1e-3 * T
+    ref = orbit_state(OSC, w, [(p.tau, p.u)], T, np.array([orbit.t0]))[0]
+    size = abs(p.x0) + abs(p.v0) / w
+    assert abs(orbit.q0[0] - ref[0]) + abs(orbit.v0[0] - ref[1]) / w <= 1e-8 * size
+    assert multiplier_error(orbit.multipliers, p.multipliers) <= 1e-7

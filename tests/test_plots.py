@@ -645,12 +645,30 @@ def _case_fit(out):
     return []
 
 
+def _case_periodic(out):
+    """orbit.png with a probe pair at a ring (its clearance circle), a lone probe and two contacts; floquet.png
+    with multipliers inside and outside the unit circle."""
+    from nsfem.plot.periodic import floquet_plot, orbit_plot
+    from nsfem.sensors import Sensor
+
+    t = np.linspace(0.0, 1 / 20.0, 257)
+    w = 2 * np.pi * 20.0
+    values = 1e-4 * np.column_stack([np.cos(w * t), np.sin(w * t), 0.5 * np.cos(2 * w * t)])
+    sensors = [Sensor("a_y", 0.5, "+y", "inertial", "s"), Sensor("a_z", 0.5, "+z", "inertial", "s"),
+               Sensor("b_y", 0.2, "-y", "rotating", "s")]
+    gap = np.vstack([np.maximum(0.0, 1e-5 * np.cos(w * t)), 2e-5 + 1e-5 * np.sin(w * t)])
+    force = np.vstack([np.where(gap[0] == 0.0, 10.0, 0.0), np.zeros_like(t)])
+    orbit_plot(out / "orbit.png", t, values, sensors, gap, force, ["ring.0.0", "ring.0.1"], [(0.5, 1.2e-4)], "orbit")
+    floquet_plot(out / "floquet.png", np.array([1.2, 0.5 + 0.5j, 0.5 - 0.5j, -0.3, 0.0]), "unstable: fold", "mu")
+    return []
+
+
 #: name -> draw(out_dir) -> the skip warnings of write_plots; each PNG it saves is checked
 PLOT_CASES = {
     "delamination": _case_delamination, "stop": _case_stop, "crack": _case_crack,
     "ring+sensors": _case_ring_and_sensors, "long sensor record": _case_long_sensor_record,
     "campbell": _case_campbell, "resonance": _case_resonance, "fit": _case_fit,
-    "portrait about its mean": lambda out: _portrait_case(out),
+    "portrait about its mean": lambda out: _portrait_case(out), "periodic": _case_periodic,
 }
 #: the PNGs each case must produce (a run plot without data may be skipped, with a reason, where listed)
 EXPECTED = {
@@ -663,6 +681,7 @@ EXPECTED = {
     "resonance": {"resonance.png", "resonance_rotor.png"},
     "fit": {"fit.png", "fit_long.png", "landscape.png", "landscape1.png"},
     "portrait about its mean": {"phase.png", "psd.png"},
+    "periodic": {"orbit.png", "floquet.png"},
 }
 
 

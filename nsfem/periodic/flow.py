@@ -17,7 +17,7 @@ from ..integrate.base import single_threaded_blas
 from ..integrate.event_driven import Exact
 from ..result import Result
 from .arguments import real_number, vector
-from .saltation import impact_jacobian, row_gradient, saltation
+from .saltation import impact_jacobian, row_coefficients, row_gradient, saltation
 from .variational import phase_transition, state_rate
 
 
@@ -85,6 +85,8 @@ class FlowMap:
             res = integ.run(self.period, self.output_dt, q0, v0)
         res.t = res.t + self.t0
         t0 = self.t0
+        for e in res.events + res.impacts:   # every time of the flow on the forcing's clock
+            e["t"] += t0
         if not jacobian:
             return Flow(t0, self.period, res.q[:, -1].copy(), res.v[:, -1].copy(), None, res)
         trace, integ.trace = integ.trace, None
@@ -130,8 +132,14 @@ def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
             Phi = Dg @ Phi
             continue
         i = rows[0]
-        grad = row_gradient(phase.config, step["mode"], i)
-        rate = float(step["rows"].Hd[i] @ phase.xi(float(t)))
+        rows_ = step["rows"]
+        # row i of the phase's rows is row i of the configuration's only where the phase searched the
+        # configuration's own rows: a closed round ring swaps its other facets' gap rows for its wedge rows
+        own = rows_.H.shape[0] == row_coefficients(phase.config, step["mode"]).shape[0]
+        grad = row_gradient(phase.config, step["mode"], i) if own else None
+        rate = 0.0
+        if grad is not None:   # (Hd is not cached for every phase's rows: formed as the event search does)
+            rate = float((rows_.Hd[i] if rows_.Hd is not None else rows_.H[i] @ phase.A_aug) @ phase.xi(float(t)))
         if grad is None or after is None or rate == 0.0:
             Phi = Dg @ Phi
             if grad is None:
@@ -150,7 +158,7 @@ def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
 #: a gap whose smallest value over an open phase is below this fraction of its range over the period is near grazing
 NEAR_GRAZING = 1e-3
 #: samples per phase at most when looking for a gap's minima (each refined on the closed form)
-_GRAZE_SAMPLES = 4096
+_GRAZE_SAMPLES = 512
 
 
 def near_grazing(fl: Flow, rel: float = NEAR_GRAZING) -> list[dict]:

@@ -1,0 +1,434 @@
+"""A scene's periodic orbit (``nsfem periodic``): the layer between a scene and the shooting of
+:mod:`nsfem.periodic.shooting`.
+
+The scene's system is built and checked as ``nsfem run`` builds it (:func:`nsfem.simulate.prepare_scene`:
+its frame, reduction, damping and the exact method's requirements); the forcing period is one revolution,
+T = 1 / rotation.speed_hz (the unbalance turns at the speed in the inertial frame, gravity in the rotating
+one); the orbit's period is K T (``multiple`` K: a subharmonic). The shooting starts from the last state of a
+transient of ``transient_periods`` orbit periods with the exact method from the scene's ``[initial]`` state, or
+from a saved state (``start``: a run's ``result.npz``, its last output; or an ``orbit.npz`` of this command).
+
+>>> from nsfem import load_scene
+>>> from nsfem.periodic.scene import orbit_of_scene
+>>> so = orbit_of_scene(load_scene("crack"))              # doctest: +SKIP
+>>> so.orbit.stable, so.amplitudes["disk_z"]              # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from ..errors import NsfemError, SceneError
+
+if TYPE_CHECKING:
+    from ..integrate import ContactSystem
+    from ..scene import Scene
+
+#: orbit periods of the transient before the shooting, by default (without ``start``): on the shipped crack scene
+#: (a sharp 2x resonance, 1.6 % damping) the shooting converges from a transient of 2, 10 or 50 periods in 6, 6
+#: and 4 Newton steps, from the initial state itself in 9 (the shooting lets a transient go on where Newton
+#: fails); the transient costs about 6 ms a period there
+TRANSIENT_PERIODS = 10
+#: at most this many orbit periods of transient (the search cost of the exact method is checked besides)
+TRANSIENT_PERIODS_MAX = 100_000
+#: the largest subharmonic order K of ``multiple``
+MULTIPLE_MAX = 64
+#: samples per forcing period at least over the orbit (histories, amplitudes, figures)
+SAMPLES_PER_REVOLUTION = 256
+#: VTU frames per forcing period of the orbit's series
+FRAMES_PER_REVOLUTION = 32
+#: a multiplier this close to the unit circle in modulus is on it (the tolerance of
+#: :func:`nsfem.periodic.shooting.classify`'s verdict)
+UNIT_CIRCLE_TOL = 1e-6
+#: the shooting's tolerance on |phi(x0) - x0| / |x0| (dimensionless): from round-off (1e-14) to a coarse 1e-3
+TOL_RANGE = (1e-14, 1e-3)
+
+
+@dataclass
+class SceneOrbit:
+    """A scene's periodic orbit and what ``nsfem periodic`` reports of it.
+
+    ``orbit``: the shooting's :class:`~nsfem.periodic.shooting.PeriodicOrbit`; ``t`` (K,) the output times
+    over one period [s], from the section t0; ``signals`` (K, sensors) the scene's sensors over it [m];
+    ``amplitudes`` {sensor: half the peak-to-peak over the period [m]}; ``contact_sequence`` the events over
+    one period in order ({"t_s": time after t0, "kinds", "contacts" (labels), "closed": the closed contacts
+    after it}); ``start`` what the shooting started from; ``warnings`` the results outside the model's validity
+    or the shooting's (not converged, grazing)."""
+
+    orbit: object
+    system: "ContactSystem"
+    multiple: int
+    forcing_period_s: float
+    transient_periods: int
+    start: str
+    t: np.ndarray
+    signals: np.ndarray
+    sensors: tuple
+    amplitudes: dict[str, float]
+    contact_sequence: list[dict]
+    grazing: list[dict]
+    approximations: list[dict] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    wall_s: float = 0.0
+
+    @property
+    def period_s(self) -> float:
+        return float(self.orbit.period_s)
+
+    def verdict(self) -> str:
+        """'stable' or 'unstable (<kind of loss>)' in words."""
+        if not self.orbit.converged:
+            return "none: the shooting did not converge (the multipliers are the last iterate's)"
+        if self.orbit.stable:
+            k = self.on_unit_circle()
+            return (f"stable, marginally: {k} multiplier(s) on the unit circle (|mu| within {UNIT_CIRCLE_TOL:g} of 1: "
+                    "motions that neither grow nor decay, e.g. undamped modes)") if k else "stable"
+        kind = {"fold": "fold (a multiplier through +1)", "period-doubling": "period doubling (a multiplier "
+                "through -1)", "neimark-sacker": "Neimark-Sacker (a complex pair outside the unit circle)"}
+        return f"unstable: {kind.get(self.orbit.loss, self.orbit.loss or 'a multiplier outside the unit circle')}"
+
+    def on_unit_circle(self) -> int:
+        """How many multipliers lie on the unit circle (| |mu| - 1 | <= :data:`UNIT_CIRCLE_TOL`)."""
+        return int(np.sum(np.abs(np.abs(np.asarray(self.orbit.multipliers, dtype=complex)) - 1.0) <= UNIT_CIRCLE_TOL))
+
+    def to_json(self) -> dict:
+        """The ``nsfem periodic`` JSON keys (design section 9, and the additions of issue 36)."""
+        o = self.orbit
+        mu = np.asarray(o.multipliers, dtype=complex)
+        return {"period_s": float(o.period_s), "converged": bool(o.converged), "residual": float(o.residual),
+                "multipliers": [[float(z.real), float(z.imag)] for z in mu],
+                "multiplier_moduli": [float(abs(z)) for z in mu],
+                "stable": bool(o.stable), "loss": o.loss, "on_unit_circle": self.on_unit_circle(), "events_per_period": int(o.events_per_period),
+                "amplitudes": {k: float(v) for k, v in self.amplitudes.items()},
+                "iterations": int(o.iterations), "t0_s": float(o.t0), "multiple": self.multiple,
+                "forcing_period_s": self.forcing_period_s, "transient_periods": self.transient_periods,
+                "start": self.start, "grazing": self.grazing, "contact_sequence": self.contact_sequence,
+                "approximations": self.approximations, "ndof": int(self.system.n),
+                "warnings": list(self.warnings), "notes": list(self.notes)}
+
+
+def check_options(multiple, transient_periods, tol, output_dt) -> None:
+    """Refuse bad orbit options before any computation (one line naming the option, its value, the reason)."""
+    if isinstance(multiple, bool) or not isinstance(multiple, (int, np.integer)) or not 1 <= multiple <= MULTIPLE_MAX:
+        raise NsfemError(f"--multiple must be an integer from 1 to {MULTIPLE_MAX} (the orbit's period in forcing "
+                         f"periods), got {multiple!r}")
+    if transient_periods is not None and (isinstance(transient_periods, bool) or not isinstance(
+            transient_periods, (int, np.integer)) or not 0 <= transient_periods <= TRANSIENT_PERIODS_MAX):
+        raise NsfemError(f"--transient must be an integer from 0 to {TRANSIENT_PERIODS_MAX} (orbit periods "
+                         f"integrated before the shooting), got {transient_periods!r}")
+    lo, hi = TOL_RANGE
+    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and lo <= tol <= hi):
+        raise NsfemError(f"--tol must lie in [{lo:g}, {hi:g}] (the shooting's residual |phi(x0) - x0| / |x0|), "
+                         f"got {tol!r}")
+    if output_dt is not None and not (isinstance(output_dt, (int, float)) and math.isfinite(output_dt)
+                                      and output_dt > 0):
+        raise NsfemError(f"periodic: output_dt must be a finite time step > 0 s, got {output_dt!r}")
+
+
+def check_scene(scene: "Scene") -> float:
+    """The forcing period T = 1 / rotation.speed_hz [s] of a scene that can have a periodic orbit; a run-up
+    or a rotor at rest refused (one line naming the key)."""
+    rot = scene.rotation
+    if rot.ramped:
+        key = "rotation.speed_table_s" if rot.speed_table_s else "rotation.ramp_to_hz"
+        raise SceneError(key, "a run-up changes the speed, so its response is not periodic; a periodic orbit is at "
+                         "one speed: remove the ramp (nsfem periodic reads rotation.speed_hz)")
+    if not rot.speed_hz > 0:
+        raise SceneError("rotation.speed_hz", f"{rot.speed_hz:g} Hz: a rotor at rest has no periodic forcing, its "
+                         "steady state is an equilibrium: nsfem stationary answers that one")
+    return 1.0 / rot.speed_hz
+
+
+def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None = None,
+                   transient_periods: int | None = None, tol: float = 1e-9, output_dt: float | None = None,
+                   warn: Callable[[str], None] | None = None, progress: bool | None = False,
+                   shoot: Callable | None = None) -> SceneOrbit:
+    """The periodic orbit of ``scene`` of period ``multiple`` forcing periods (see the module's docstring).
+
+    ``transient_periods`` (default :data:`TRANSIENT_PERIODS` without ``start``, 0 with it; a transient from a
+    saved state is refused: the state is a starting guess already); ``tol`` the shooting's tolerance;
+    ``output_dt`` the sampling of the period's histories (default: at least :data:`SAMPLES_PER_REVOLUTION`
+    samples per forcing period, finer when the scene's simulation.output_dt is); ``warn(text)`` receives the
+    warnings (a run's checks, not converged, grazing, an unstable orbit's meaning). ``shoot``: the shooting
+    function (default :func:`nsfem.periodic.shooting.periodic_orbit`)."""
+    import time
+
+    from ..simulate import integrate_prepared, prepare_scene
+
+    check_options(multiple, transient_periods, tol, output_dt)
+    if start is not None and transient_periods:
+        raise NsfemError("--transient with --start: the saved state is the shooting's starting guess already; "
+                         "give one of them")
+    transient_periods = (0 if start is not None else TRANSIENT_PERIODS) if transient_periods is None \
+        else int(transient_periods)
+    forcing = check_scene(scene)
+    period = multiple * forcing
+    if output_dt is not None and output_dt > period:
+        raise NsfemError(f"periodic: output_dt {output_dt:g} s exceeds the orbit's period {period:g} s")
+    dt = period / orbit_samples(scene, multiple, output_dt)
+    saved = _saved_state(start) if start is not None else None
+    warnings: list[str] = []
+
+    def say(text: str) -> None:
+        warnings.append(text)
+        if warn is not None:
+            warn(text)
+
+    t_wall = time.perf_counter()
+    # the run's checks (search cost, output size, damping) on the transient's span (or one period), sampled once a
+    # period as the transient is (the orbit's own samples, one period of them, are few)
+    sized = _with_simulation(scene, max(transient_periods, 1) * period, period)
+    system, info, q0, v0 = prepare_scene(sized, "exact", warn=say)
+    if shoot is None:   # the shooting's own refusals (a round ring, ...) before the transient: its map's checks
+        from .flow import FlowMap
+
+        FlowMap(system, 0.0, period)
+    t0 = 0.0
+    if saved is not None:
+        q0, v0, t_saved, what = saved
+        if q0.shape != (system.n,):
+            raise NsfemError(f"--start: {start} holds states of {q0.size} coordinates, this scene's system has "
+                             f"{system.n} (another scene, mesh or reduction)")
+        t0 = math.fmod(t_saved, forcing)   # the forcing's phase at the saved time
+        origin = f"{what} {start} (t = {t_saved:.6g} s)"
+    elif transient_periods:
+        res, _ = integrate_prepared(sized, system, info, "exact", q0, v0, t_end=transient_periods * period,
+                                    output_dt=period, progress=progress)
+        if not res.completed:   # interrupted (Ctrl-C, SIGTERM): its last state is not at the section's phase
+            raise KeyboardInterrupt
+        q0, v0 = res.q[:, -1].copy(), res.v[:, -1].copy()
+        origin = f"a transient of {transient_periods} periods from the scene's initial state"
+    else:
+        origin = "the scene's initial state"
+    if shoot is None:
+        try:
+            from .shooting import periodic_orbit as shoot
+        except ImportError:
+            raise NsfemError("nsfem periodic: not yet: the shooting on the exact flow (nsfem.periodic.shooting) "
+                             "is not in this version") from None
+    import warnings as python_warnings
+
+    with python_warnings.catch_warnings():   # a shooting that does not converge: said once, by describe()
+        python_warnings.simplefilter("ignore")
+        orbit = shoot(system, period, q0, v0, t0, tol=tol, output_dt=dt)
+    if not getattr(orbit.result, "completed", True):   # a flow cut short by an interrupt is no period
+        raise KeyboardInterrupt
+    orbit.result.info.update(info)
+    so = describe(scene, system, orbit, multiple, forcing, transient_periods, origin, say)
+    so.wall_s = time.perf_counter() - t_wall
+    return so
+
+
+def orbit_samples(scene: "Scene", multiple: int, output_dt: float | None = None) -> int:
+    """Output intervals over the orbit's period K T: ``output_dt`` rounded to a whole number of them, by
+    default at least :data:`SAMPLES_PER_REVOLUTION` per forcing period, finer where the scene's
+    simulation.output_dt is."""
+    period = multiple / scene.rotation.speed_hz
+    if output_dt is not None:
+        return max(1, math.ceil(period / output_dt - 1e-9))
+    return max(SAMPLES_PER_REVOLUTION * multiple, math.ceil(period / scene.simulation.output_dt - 1e-9))
+
+
+def vtu_every(samples: int, multiple: int) -> int:
+    """Every how many outputs of the orbit a VTU frame is written: :data:`FRAMES_PER_REVOLUTION` a forcing
+    period (more where the outputs are fewer)."""
+    return max(1, samples // (FRAMES_PER_REVOLUTION * multiple))
+
+
+def _with_simulation(scene: "Scene", t_end: float, output_dt: float) -> "Scene":
+    """``scene`` with simulation.t_end and output_dt replaced (the typed part only; the tree is the user's)."""
+    import copy
+    from dataclasses import replace
+
+    out = copy.copy(scene)
+    out.simulation = replace(scene.simulation, t_end=t_end, output_dt=min(output_dt, t_end))
+    return out
+
+
+def _saved_state(path) -> tuple[np.ndarray, np.ndarray, float, str]:
+    """(q, v, t, what) of a saved state: an orbit.npz's section state (q0, v0, t0) or a results file's last
+    output (q[:, -1], v[:, -1], t[-1]); any other file refused in one line."""
+    import zipfile
+
+    path = Path(path)
+    if path.is_dir():
+        raise NsfemError(f"--start: {path} is a folder; give its result.npz or orbit.npz")
+    if not path.is_file():
+        raise NsfemError(f"--start: {path} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as r:
+            if "q0" in r.files and "v0" in r.files:
+                q, v, t, what = r["q0"], r["v0"], float(np.ravel(r["t0"])[0]), "the orbit in"
+            else:
+                q, v, t, what = r["q"][:, -1], r["v"][:, -1], float(r["t"][-1]), "the last output of"
+    except (OSError, ValueError, KeyError, IndexError, EOFError, zipfile.BadZipFile):
+        raise NsfemError(f"--start: {path} is not a results file of nsfem run nor an orbit.npz of nsfem "
+                         "periodic") from None
+    q, v = np.asarray(q, dtype=float).ravel(), np.asarray(v, dtype=float).ravel()
+    if q.shape != v.shape or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v)) and math.isfinite(t)):
+        raise NsfemError(f"--start: {path} holds a state that is not finite or whose q and v differ in size")
+    return q, v, t, what
+
+
+def describe(scene: "Scene", system: "ContactSystem", orbit, multiple: int, forcing: float,
+             transient_periods: int, start: str, warn: Callable[[str], None]) -> SceneOrbit:
+    """The report of an orbit of ``scene``'s ``system``: sensor signals and amplitudes over the period, the
+    contact sequence, grazing by label; warnings for a shooting that did not converge and for grazing."""
+    from ..fem.constraints import dense
+    from ..sensors import read
+
+    res = orbit.result
+    t = np.asarray(res.t, dtype=float)
+    t0 = float(orbit.t0)
+    # a flow's times counted from its start (0) rather than from t0: shifted to the forcing's time
+    offset = t0 if t.size and abs(t[0] - t0) > 1e-9 * orbit.period_s else 0.0
+    t = t + offset
+    rot = scene.rotation
+    sensors = tuple(scene.sensors)
+    if sensors:
+        signals = read(sensors, system.info["model"], dense(system.info["reduction"].T), t, res.q, rot.frame,
+                       rot.speed_hz, rot.phase_deg)
+    else:
+        signals = np.zeros((t.size, 0))
+    amplitudes = {s.name: half_peak_to_peak(signals[:, k]) for k, s in enumerate(sensors)}
+    labels = list(system.model_contacts.labels)
+    sequence = contact_sequence(res.events, labels, t0 - offset)
+    grazing = [_named_grazing(g, labels, t0 - offset) for g in (orbit.grazing or [])]
+    if not orbit.converged:
+        warn(f"the shooting did not converge in {orbit.iterations} iterations (residual {orbit.residual:.2e}): "
+             "the state is not a periodic orbit; a longer transient (--transient) or a start nearer to it may help")
+    approximations = [{"t_s": float(a.get("t", t0 - offset)) - (t0 - offset), "why": str(a.get("why", ""))}
+                      for a in (getattr(orbit, "approximations", None) or [])]
+    if approximations:
+        whys = sorted({a["why"] for a in approximations})
+        warn(f"the monodromy matrix is approximate at {len(approximations)} event(s) of the period ("
+             + "; ".join(whys) + "): the multipliers near the unit circle are uncertain there")
+    if grazing:
+        g = grazing[0]
+        near = f" within {g['gap_min_m']:.3g} m" if "gap_min_m" in g else ""
+        warn(f"grazing: the gap of {', '.join(g['contacts'])} comes{near} to zero without closing "
+             f"({1e3 * g['t_s']:.4g} ms after the section): the orbit is at a grazing bifurcation, where its "
+             "multipliers jump: they hold on this side of it only" + (f" ({len(grazing)} grazings per period)"
+                                                                     if len(grazing) > 1 else ""))
+    notes = []
+    if not system.harmonic:
+        notes.append(f"no time-dependent load in the {rot.frame} frame (the unbalance and gravity are constant "
+                     "there): the period of one revolution is kept, and an orbit through an equilibrium is that "
+                     "equilibrium (nsfem stationary), a whirl of another period is not found")
+    return SceneOrbit(orbit, system, multiple, forcing, transient_periods, start, t, signals, sensors, amplitudes,
+                      sequence, grazing, approximations, notes=notes)
+
+
+def _named_grazing(g: dict, labels: list[str], t0: float) -> dict:
+    """A grazing record of the shooting ({"t", "contacts" or "contact", maybe "gap_min"}) as the JSON has it:
+    {"t_s": time after the section, "contacts": labels, "gap_min_m" where known}."""
+    ks = g.get("contacts", [g["contact"]] if "contact" in g else [])
+    out = {"t_s": float(g.get("t", t0)) - t0,
+           "contacts": [labels[int(k)] if isinstance(k, (int, np.integer)) and 0 <= k < len(labels) else str(k)
+                        for k in ks]}
+    if g.get("gap_min") is not None:
+        out["gap_min_m"] = float(g["gap_min"])
+    return out
+
+
+def half_peak_to_peak(y: np.ndarray) -> float:
+    """Half the peak-to-peak of a periodic signal sampled uniformly over one period (the first sample
+    repeated at the end or not): its extremes refined by a parabola through the extreme sample and its two
+    neighbours (periodic), kept when its vertex lies between them: a smooth peak sampled 256 times a
+    revolution is then found to about (2 pi / 256)^4 / 24 = 1.5e-8 of its amplitude instead of
+    (pi / 256)^2 / 2 = 7.5e-5; a kink (an impact) keeps its sample."""
+    y = np.asarray(y, dtype=float)
+    if y.size < 3:
+        return float(0.5 * (y.max(initial=0.0) - y.min(initial=0.0))) if y.size else 0.0
+    if y[-1] == y[0]:
+        y = y[:-1]
+    return 0.5 * (_extreme(y, 1.0) + _extreme(y, -1.0))
+
+
+def _extreme(y: np.ndarray, sign: float) -> float:
+    """sign * (the maximum of sign * y), refined (:func:`half_peak_to_peak`)."""
+    s = sign * y
+    k = int(np.argmax(s))
+    a, b, c = s[k - 1], s[k], s[(k + 1) % s.size]
+    curvature = a - 2.0 * b + c
+    if curvature < 0.0:
+        offset = 0.5 * (a - c) / curvature
+        if abs(offset) <= 1.0:
+            return float(b - 0.25 * (a - c) * offset)
+    return float(b)
+
+
+def contact_sequence(events: list[dict], labels: list[str], t0: float) -> list[dict]:
+    """The events of one period in order: time after the section ``t0`` (in the events' clock), kinds,
+    contacts (by label), whether it is an impact, and the contacts closed and sticking after it (labels)."""
+    def named(ks) -> list[str]:
+        return [labels[int(k)] if 0 <= int(k) < len(labels) else str(k) for k in ks]
+
+    out = []
+    for e in events:
+        after = e.get("after", {})
+        out.append({"t_s": float(e["t"]) - t0,
+                    "kinds": list(e.get("kinds", [])), "contacts": named(e.get("contacts", [])),
+                    "impact": bool(e.get("impact", False)), "closed": named(after.get("closed", [])),
+                    "stick": named(k for k in after.get("stick", []) if isinstance(k, (int, np.integer)))})
+    return out
+
+
+def parse_continuation(text: str) -> tuple[str, float, float]:
+    """(key, low, high) of ``--continue KEY=LOW:HIGH``: two finite ends that differ (either order: the
+    branch is followed from LOW towards HIGH); one line naming the problem otherwise.
+
+    >>> parse_continuation("rotation.speed_hz=30:20")
+    ('rotation.speed_hz', 30.0, 20.0)
+    """
+    key, sep, rng = text.partition("=")
+    lo, colon, hi = rng.partition(":")
+    key = key.strip()
+    if not sep or not colon or not key or ":" in hi:
+        raise NsfemError(f"--continue {text.strip()!r}: give KEY=LOW:HIGH (e.g. rotation.speed_hz=20:30)")
+    ends = []
+    for name, part in (("LOW", lo), ("HIGH", hi)):
+        try:
+            v = float(part)
+        except ValueError:
+            v = math.nan
+        if not math.isfinite(v):
+            raise NsfemError(f"--continue {key}: {name} must be a finite number, got {part.strip()!r}")
+        ends.append(v)
+    if ends[0] == ends[1]:
+        raise NsfemError(f"--continue {key}: LOW and HIGH are the same value ({lo.strip()}); a branch needs a range")
+    return key, ends[0], ends[1]
+
+
+def check_continuation(scene: "Scene", key: str, low: float, high: float, load) -> None:
+    """Refuse a continuation key that is not a number of ``scene`` (a missing item, a string, a list, a
+    switch) and ends at which the scene is not valid: ``load(overrides)`` loads the scene with extra
+    ``--set`` overrides (each end is loaded once; its error is the line)."""
+    from ..scene.overrides import missing_item
+
+    item = missing_item(scene, key)
+    if item is not None:
+        raise NsfemError(f"--continue {key}: the scene has no {item} (continue a key of an item the scene has)")
+    node = dict(scene)
+    for part in key.split("."):
+        if isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        elif isinstance(node, dict) and part in node:
+            node = node[part]
+        else:
+            raise NsfemError(f"--continue {key}: not a key of the scene (give a dotted key such as "
+                             "rotation.speed_hz or stator.0.friction)")
+    if isinstance(node, bool) or not isinstance(node, (int, float)):
+        what = "a table" if isinstance(node, dict) else "a list" if isinstance(node, list) else repr(node)
+        raise NsfemError(f"--continue {key}: its value is {what}, not a number; a branch follows a numeric key")
+    for end in (low, high):
+        try:
+            load([f"{key}={end!r}"])
+        except NsfemError as exc:
+            raise NsfemError(f"--continue {key}={low!r}:{high!r}: at {end!r}: {exc}") from None
