@@ -143,3 +143,27 @@ def test_shipped_rub_continued_in_speed_in_the_rotating_frame_stays_a_stationary
         size = np.abs(pt["q0"]).max()
         assert np.abs(pt["v0"]).max() <= 1e-8 * 2 * np.pi * pt["value"] * size
         assert pt["stable"] and pt["converged"]
+
+
+def test_branch_started_with_its_section_on_the_impact_runs_at_the_section_the_shooting_moved_to():
+    """The start's section 1e-6 T before the impact: periodic_orbit moves the section off the event (to the middle
+    of the impact-free stretch) and returns the orbit there. The branch must go on at that section (it went on at
+    the given one with the moved section's state: the first flow started 0.67 m inside the stop, and the branch
+    failed at its start); every point is then the closed-form orbit at the branch's t0, to 1e-8 of its size
+    (Newton's tol 1e-9 times cond(J) <= 10)."""
+    w0 = 2.55
+    p = period1_branch(OSC, w0, -1)
+    T = 2 * math.pi / w0
+    t_near = p.tau - 1e-6 * T
+    (x, u), = orbit_state(OSC, w0, [(p.tau, p.u)], T, np.array([t_near]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        br = orbit_branch(_system, _period, [x], [u], w0, 2.6, key="w", step=0.02, t0=t_near, switch=False)
+    assert br.stop == "end", br.reason
+    assert abs((br.t0 - t_near) % T) > 0.1 * T    # moved off the impact
+    for pt in br.points:
+        w = pt["value"]
+        ref = period1_branch(OSC, w, -1)
+        (xr, vr), = orbit_state(OSC, w, [(ref.tau, ref.u)], 2 * math.pi / w, np.array([br.t0]))
+        size = abs(xr) + abs(vr) / w
+        assert abs(pt["q0"][0] - xr) + abs(pt["v0"][0] - vr) / w <= 1e-8 * size

@@ -41,12 +41,14 @@ class OrbitBranch:
     stop: str
     reason: str
     doubled: list = field(default_factory=list)
+    #: the section's time [s] (mod the period) of every point: the start's, moved by the shooting off an event
+    t0: float = 0.0
 
     def summary(self) -> dict:
         """The JSON of ``nsfem periodic --continue`` (design section 9): ``branch`` and ``bifurcations``."""
         return {"branch": [{k: v for k, v in p.items() if k not in ("q0", "v0")} for p in self.points],
                 "bifurcations": [{k: v for k, v in b.items() if k not in ("q0", "v0")} for b in self.bifurcations],
-                "stop": self.stop, "reason": self.reason,
+                "stop": self.stop, "reason": self.reason, "t0_s": self.t0,
                 "doubled_branches": [d.summary() for d in self.doubled]}
 
 
@@ -128,11 +130,12 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     for p in (p0, p_end):   # the period a multiple of the forcing's along the range (its ends checked)
         check_forcing_multiple(system_at(p), multiple * period_at(p))
     span = abs(p_end - p0)
-    problem = _Problem(system_at, period_at, t0, DP * span, int(multiple))
     start = periodic_orbit(system_at(p0), multiple * period_at(p0), q0, v0, t0, tol=tol)
     if not start.converged:
         raise NsfemError(f"periodic: no orbit at {key} = {p0:g} to start the continuation from (residual "
                          f"{start.residual:.3g} > tol {tol:g})")
+    t0 = start.t0   # (the shooting moves a section that lies on an event: the branch's sections are the orbit's)
+    problem = _Problem(system_at, period_at, t0, DP * span, int(multiple))
     u0 = np.concatenate([start.q0, start.v0])
     w = 2 * math.pi / (multiple * period_at(p0))
     n = u0.size // 2
@@ -146,15 +149,15 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
         u = np.asarray(b["u"])
         bif.append({"kind": b["kind"], "value": float(b["value"]), "index": int(b["index"]),
                     "q0": u[:n].copy(), "v0": u[n:].copy()})
-    out = OrbitBranch(key, int(multiple), _points(problem, br, key), bif, br.stop, br.reason)
+    out = OrbitBranch(key, int(multiple), _points(problem, br, key), bif, br.stop, br.reason, t0=t0)
     if switch and depth > 0:
         for b in bif:
             if b["kind"] != "period-doubling":
                 continue
             try:
-                q, v, p = doubled_start(system_at, period_at, b, p_end, multiple=multiple, t0=t0, tol=tol)
+                q, v, p, t_d = doubled_start(system_at, period_at, b, p_end, multiple=multiple, t0=t0, tol=tol)
                 out.doubled.append(orbit_branch(system_at, period_at, q, v, p, p_end, key=key,
-                                                multiple=2 * multiple, t0=t0, tol=tol, step=step,
+                                                multiple=2 * multiple, t0=t_d, tol=tol, step=step,
                                                 max_steps=max_steps, switch=switch, depth=depth - 1))
             except NsfemError as exc:
                 b["switch_failed"] = str(exc)
@@ -162,8 +165,8 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
 
 
 def doubled_start(system_at, period_at, bif: dict, p_end: float, *, multiple: int = 1, t0: float = 0.0,
-                  tol: float = 1e-9, offset: float = 1e-3) -> tuple[np.ndarray, np.ndarray, float]:
-    """(q0, q0', p): an orbit of period 2 ``multiple`` T just past the period doubling ``bif`` (towards p_end, a
+                  tol: float = 1e-9, offset: float = 1e-3) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(q0, q0', p, t0): an orbit of period 2 ``multiple`` T just past the period doubling ``bif`` (towards p_end, a
     fraction ``offset`` of the way), started from the bifurcating orbit plus its multiplier -1's eigenvector
     (scaled to sqrt(offset) of the orbit: the doubled orbit's distance grows like the square root of the
     parameter's distance past a flip), and checked to be a genuine period-2 orbit (not the period-1 one)."""
@@ -186,7 +189,7 @@ def doubled_start(system_at, period_at, bif: dict, p_end: float, *, multiple: in
             continue
         if not orb.converged:
             continue
-        half = FlowMap(system_at(p), t0, multiple * period_at(p))(orb.q0, orb.v0, jacobian=False)
+        half = FlowMap(system_at(p), orb.t0, multiple * period_at(p))(orb.q0, orb.v0, jacobian=False)
         if np.abs(half.q - orb.q0).max() > 1e3 * tol * size:   # a genuine period-2 orbit
-            return orb.q0, orb.v0, p
+            return orb.q0, orb.v0, p, orb.t0
     raise NsfemError(f"periodic: no period-doubled orbit found past the period doubling at {p_star:g}")
