@@ -17,6 +17,8 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from nsfem.contact.set import ContactSet
 from nsfem.errors import NsfemError
@@ -163,6 +165,48 @@ def test_monodromy_on_the_admissible_directions_of_a_section_in_a_contact_mode(m
     Z = admissible_directions(system, fl.start_mode)
     assert Z.shape == (6, 6 - held) and np.abs(Z.T @ Z - np.eye(6 - held)).max() <= 1e-14
     J, S = _fd_columns(system, q0, v0, T, Z, t0=t0, h=1e-5)
+    P = fl.monodromy @ (S[:, None] * Z)
+    assert np.abs(P - J).max() <= 1e-5 * np.abs(J).max()
+
+
+def _random_plane(seed: int):
+    """A random 3-dof mass (SPD stiffness, stiffness-proportional damping) over a plane z >= 0 with friction
+    mu in {0, 0.2, 0.6} on a cone of r in {2, 4, 8} generators, restitution 0 or 0.5, pressed down and forced
+    harmonically in all three directions: closings, accumulations, releases, stick-slip, turns, vertices."""
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(3, 3))
+    K = A @ A.T + 3 * np.eye(3)
+    cs = ContactSet.from_arrays([[0.0], [0.0], [1.0]], [0.05], mu=rng.choice([0.0, 0.2, 0.6]),
+                                eps=rng.choice([0.0, 0.5]), JS=[np.array([[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]])],
+                                r=int(rng.choice([2, 4, 8])))
+    w = rng.uniform(1.5, 3.0)
+    system = ContactSystem.from_arrays(M=np.diag(rng.uniform(0.5, 2.0, 3)), Q=K, C=rng.uniform(0.01, 0.1) * K,
+                                       f0=[0.0, 0.0, -rng.uniform(0.0, 2.0)], fc=rng.normal(size=3),
+                                       fs=rng.normal(size=3), omega=w, contacts=cs)
+    return system, w, rng.normal(size=3) * 0.1
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None)
+@given(seed=st.integers(0, 2 ** 32 - 1))
+def test_monodromy_equals_central_differences_on_random_frictional_systems(seed):
+    """Property: wherever the perturbed flows meet the same events as the flow (no grazing, no event gained or
+    lost within the step) and every saltation matrix is exact, the monodromy along the admissible directions
+    equals central differences with h = 1e-6 of the state's size: truncation h^2 ~ 1e-12, event times (~1e-13 s)
+    over h ~ 1e-7; 1e-5 (measured <= 2e-8 on 40 seeds)."""
+    system, w, v0 = _random_plane(seed)
+    T = 2 * math.pi / w
+    q0 = np.zeros(3)
+    fl = flow(system, 0.0, q0, v0, T)
+    assume(not fl.approximations and not fl.grazing)
+    Z = admissible_directions(system, fl.start_mode)
+    J, S = _fd_columns(system, q0, v0, T, Z, h=1e-6)
+    signature = [(tuple(e["kinds"]), tuple(e["contacts"])) for e in fl.result.events]
+    x = np.concatenate([q0, v0])
+    for j in range(Z.shape[1]):   # the perturbed flows' events are the flow's (else the difference is no derivative)
+        for sign in (1.0, -1.0):
+            y = x + sign * 1e-6 * S * Z[:, j]
+            other = flow(system, 0.0, y[:3], y[3:], T, jacobian=False)
+            assume([(tuple(e["kinds"]), tuple(e["contacts"])) for e in other.result.events] == signature)
     P = fl.monodromy @ (S[:, None] * Z)
     assert np.abs(P - J).max() <= 1e-5 * np.abs(J).max()
 
