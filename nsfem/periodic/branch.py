@@ -99,9 +99,7 @@ def _points(problem: _Problem, branch: Branch, key: str) -> list[dict]:
         out.append({"value": float(bp.p), key: float(bp.p),
                     "period_s": float(problem.multiple * problem.period_at(bp.p)), "converged": bool(bp.converged),
                     "multipliers": [[float(m.real), float(m.imag)] for m in mu], "stable": stable, "loss": loss,
-                    # the largest |q_i| at the section: generalized coordinates (a reduced model's modal ones are no
-                    # lengths), not an amplitude in m; sensors' amplitudes are the command's (from q0, v0)
-                    "section_q_max": float(np.abs(bp.u[:n]).max()), "q0": bp.u[:n].copy(), "v0": bp.u[n:].copy()})
+                    "amplitude_max_m": float(np.abs(bp.u[:n]).max()), "q0": bp.u[:n].copy(), "v0": bp.u[n:].copy()})
     return out
 
 
