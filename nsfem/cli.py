@@ -128,6 +128,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--out", metavar="DIR", help="sweep folder (default: <output.dir>/sweep-<swept keys>); a rerun "
                    "resumes it")
+    p.add_argument("--steady", choices=("transient", "periodic"), default="transient", help="the steady state each "
+                   "value records: transient (default: a run, the 1x fit over its last half) or periodic (the "
+                   "periodic orbit by shooting on the exact flow, the 1x fit over its period, plus its stability: "
+                   "columns stable, largest_multiplier, events_per_period, converged)")
 
     p = sub.add_parser("fit", help="estimate scene keys from measured sensor signals (--vary KEY=LOW:HIGH)")
     _scene_args(p)
@@ -351,7 +355,7 @@ def cmd_sweep(args) -> int:
     try:
         with sigterm_as_interrupt():   # finished rows kept
             res = run_sweep(args.scene, args.overrides, args.out, method=args.method, workers=args.workers,
-                            scheduler=args.scheduler, progress=progress)
+                            scheduler=args.scheduler, progress=progress, steady=args.steady)
     except SweepInterrupted as exc:
         res, interrupted = exc.result, True
     payload = {**res.to_json(), "notes": list(notes)}
