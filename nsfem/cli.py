@@ -1102,9 +1102,12 @@ def cmd_periodic(args) -> int:
         check_continuation(scene, key, low, high, lambda extra: load_scene(args.scene, [*args.overrides, *extra]))
         if key == SPEED_KEY:
             check_speeds(scene, *sorted((low, high)))
-    elif args.steps != 100 or args.step is not None:
-        raise NsfemError(f"{'--steps' if args.steps != 100 else '--step'} is an option of --continue KEY=LOW:HIGH "
-                         "(the continuation's steps); a single orbit has none")
+    else:
+        from .periodic.scene_branch import STEPS
+
+        if args.steps != STEPS or args.step is not None:
+            raise NsfemError(f"{'--steps' if args.steps != STEPS else '--step'} is an option of --continue "
+                             "KEY=LOW:HIGH (the continuation's steps); a single orbit has none")
     if args.start is not None:
         from .periodic.scene import _saved_state
 

@@ -210,7 +210,8 @@ def test_the_help_says_the_steps_the_library_uses(capsys):
 def test_sweep_steady_periodic_is_nsfem_response(tmp_path):
     """sweep --steady periodic on the linear scene: per speed, the 1x fit over exactly one period of the orbit is
     the harmonic response (a Fourier coefficient over a whole period of uniform samples of a sinusoid: exact up to
-    the orbit's 1e-8); phases likewise (1e-6 rad); the stability columns; a transient sweep refused in its folder."""
+    the orbit's 1e-8); phases likewise (1e-6 rad); the stability columns; a rerun resumes every value; a transient
+    sweep is refused in its folder."""
     from nsfem.analysis.response import response_report
     from nsfem.errors import NsfemError
     from nsfem.fem.assemble import build_model
@@ -231,6 +232,8 @@ def test_sweep_steady_periodic_is_nsfem_response(tmp_path):
             assert r[f"amplitude_{name}_m"] == pytest.approx(rep["sensors"][name]["amplitude_m"][k], rel=1e-8)
             dphi = (r[f"phase_{name}_deg"] - rep["sensors"][name]["phase_deg"][k] + 180.0) % 360.0 - 180.0
             assert abs(math.radians(dphi)) <= 1e-6
+    again = run_sweep("critical_speed", overrides, tmp_path / "s", workers=1, steady="periodic", plot=False)
+    assert again.info["resumed"] == 3 and again.info["executed"] == 0 and again.runs == res.runs
     header = (tmp_path / "s" / "sweep.csv").read_text().splitlines()[0].split(",")
     assert {"stable", "largest_multiplier", "events_per_period", "converged"} <= set(header)
     with pytest.raises(NsfemError, match="another sweep"):
