@@ -238,3 +238,14 @@ def test_sweep_steady_periodic_is_nsfem_response(tmp_path):
     assert {"stable", "largest_multiplier", "events_per_period", "converged"} <= set(header)
     with pytest.raises(NsfemError, match="another sweep"):
         run_sweep("critical_speed", overrides, tmp_path / "s", workers=1, plot=False)
+
+
+def test_a_speed_range_ending_at_a_bearing_tables_end_is_named():
+    """stepped_rotor's bearing tables end at 150 Hz: the continuation steps a little past its range's ends, so a
+    range ending there is warned about (naming the table); one inside it is not."""
+    from nsfem.periodic.scene_branch import table_edge
+
+    scene = load_scene("stepped_rotor")
+    assert table_edge(scene, 140.0, 150.0) == ("bearing.0.speeds_hz", 150.0)
+    assert table_edge(scene, 10.0, 40.0) == ("bearing.0.speeds_hz", 10.0)
+    assert table_edge(scene, 140.0, 149.0) is None

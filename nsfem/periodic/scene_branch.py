@@ -144,6 +144,17 @@ def check_speeds(scene: "Scene", low: float, high: float) -> None:
     check_frame_at_speed(scene.rotation.frame, scene.stack)
 
 
+def table_edge(scene: "Scene", low: float, high: float) -> tuple[str, float] | None:
+    """(the key of a bearing table, the range's end) where an end of [low, high] is an end of that table."""
+    for b in scene.stack.bearings:
+        if b.table:
+            lo, hi = b.table[0][0], b.table[0][-1]
+            for end in (low, high):
+                if end in (lo, hi):
+                    return f"{b.label or 'bearing'}.speeds_hz", end
+    return None
+
+
 def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multiple: int = 1, start=None,
                     transient_periods: int | None = None, tol: float = 1e-9, steps: int = STEPS,
                     step: float | None = None, load: Callable[[list[str]], "Scene"] | None = None,
@@ -190,6 +201,12 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
         if warn is not None:
             warn(text)
 
+    if key == SPEED_KEY:
+        edge = table_edge(scene, a, b)
+        if edge is not None:
+            say(f"{edge[0]}: the range's end {edge[1]:g} Hz is the end of the bearing's table: the continuation "
+                "steps a little past its ends (predictor, difference quotients), where the table has no "
+                "coefficients, so that side stops just short of it; extend the table beyond the range")
     so = orbit_of_scene(scene0, multiple, start, transient_periods, tol, warn=say,
                         progress=bool(progress))
     if not so.orbit.converged:
