@@ -4252,3 +4252,17 @@ def test_issue36_sweep_steady_reproductions(extra, names, reason, tmp_path, monk
     line = [x for x in err.splitlines() if x.startswith("nsfem: error:")]
     assert code == 2 and names in line[0] and reason in line[0], err
     assert not (tmp_path / "s").exists()
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=list(HealthCheck))
+@given(steady=st.text(min_size=1, max_size=8).filter(lambda s: s not in ("transient", "periodic")),
+       method=st.sampled_from(["rk", "penalty", "moreau"]))
+def test_issue36_sweep_steady_is_refused_by_name_unless_known(steady, method):
+    """An unknown --steady, or --steady periodic with an integrator other than exact: one line naming the option,
+    before anything runs (the sweep folder is not created)."""
+    with tempfile.TemporaryDirectory() as d:
+        for extra, name in ((["--steady", steady], "--steady"), (["--steady", "periodic", "--method", method],
+                                                                  f"--method {method}")):
+            code, _, err = check_invocation([*STEADY36, "--set", "rotation.speed_hz=20:30:2", *extra], Path(d))
+            assert code == 2 and name in err, (extra, err)
+            assert not (Path(d) / "s").exists()
