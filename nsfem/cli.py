@@ -98,8 +98,13 @@ def parser() -> argparse.ArgumentParser:
                    "(one forcing period is 1 / rotation.speed_hz): 1 (default) a synchronous orbit, K > 1 a "
                    "subharmonic of order K")
     p.add_argument("--continue", dest="continuation", metavar="KEY=LOW:HIGH", help="follow the orbit's branch "
-                   "over a numeric scene key, e.g. rotation.speed_hz=20:30 (not available in this version: the "
-                   "key and range are checked, then refused)")
+                   "over a numeric scene key by pseudo-arclength, e.g. rotation.speed_hz=20:30, from the orbit at the "
+                   "scene's value (or at the nearer end): stability and bifurcations along it; writes branch.json, "
+                   "branch.npz and branch.png")
+    p.add_argument("--steps", type=int, default=100, metavar="N", help="with --continue: at most N continuation "
+                   "steps in each direction (default 100, at most 10000)")
+    p.add_argument("--step", type=float, metavar="DP", help="with --continue: the first step, in the key's unit "
+                   "(default a fiftieth of the range; the steps then adapt)")
     p.add_argument("--start", metavar="FILE", help="start the shooting from a saved state: a run's result.npz "
                    "(its last output) or an orbit.npz of nsfem periodic (default: the last state of a transient "
                    "from the scene's initial state)")
@@ -123,6 +128,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask scheduler, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--out", metavar="DIR", help="sweep folder (default: <output.dir>/sweep-<swept keys>); a rerun "
                    "resumes it")
+    p.add_argument("--steady", choices=("transient", "periodic"), default="transient", help="the steady state each "
+                   "value records: transient (default: a run, the 1x fit over its last half) or periodic (the "
+                   "periodic orbit by shooting on the exact flow, the 1x fit over its period, plus its stability: "
+                   "columns stable, largest_multiplier, events_per_period, converged)")
 
     p = sub.add_parser("fit", help="estimate scene keys from measured sensor signals (--vary KEY=LOW:HIGH)")
     _scene_args(p)
@@ -346,7 +355,7 @@ def cmd_sweep(args) -> int:
     try:
         with sigterm_as_interrupt():   # finished rows kept
             res = run_sweep(args.scene, args.overrides, args.out, method=args.method, workers=args.workers,
-                            scheduler=args.scheduler, progress=progress)
+                            scheduler=args.scheduler, progress=progress, steady=args.steady)
     except SweepInterrupted as exc:
         res, interrupted = exc.result, True
     payload = {**res.to_json(), "notes": list(notes)}
@@ -1084,17 +1093,32 @@ def cmd_periodic(args) -> int:
     scene = _scene(args, "periodic")
     check_scene(scene)
     if continuation is not None:
+        from .periodic.scene_branch import SPEED_KEY, check_branch_options, check_key, check_speeds
         from .scene import load_scene
 
-        check_continuation(scene, *continuation, lambda extra: load_scene(args.scene, [*args.overrides, *extra]))
-        raise NsfemError(f"--continue {continuation[0]}: not yet: continuation along a branch is not available in "
-                         "this version; compute single orbits at values of the key (--set KEY=VALUE)")
+        key, low, high = continuation
+        check_branch_options(args.steps, args.step, low, high)
+        check_key(key)
+        check_continuation(scene, key, low, high, lambda extra: load_scene(args.scene, [*args.overrides, *extra]))
+        if key == SPEED_KEY:
+            check_speeds(scene, *sorted((low, high)))
+    else:
+        from .periodic.scene_branch import STEPS
+
+        if args.steps != STEPS or args.step is not None:
+            raise NsfemError(f"{'--steps' if args.steps != STEPS else '--step'} is an option of --continue "
+                             "KEY=LOW:HIGH (the continuation's steps); a single orbit has none")
     if args.start is not None:
         from .periodic.scene import _saved_state
 
         _saved_state(args.start)   # a missing or foreign file: one line before anything is built
     out_dir = Path(args.out) if args.out else scene.output.dir / "periodic"
     what = "--out" if args.out else "output.dir"
+    if continuation is not None:
+        names = list(BRANCH_FILES) + (["branch.png"] if scene.output.plots else [])
+        _check_periodic_targets(out_dir, {"periodic": names, "series": []}, what)
+        with claim(out_dir, "branch", {"branch": names}, what, inputs=[args.start] if args.start else ()):
+            return _periodic_branch(args, scene, continuation, out_dir)
     files = _periodic_files(scene, args.multiple)
     _check_periodic_targets(out_dir, files, what)
     with claim(out_dir, "periodic", files, what, inputs=[args.start] if args.start else ()):
@@ -1179,6 +1203,96 @@ def _periodic(args, scene, out_dir) -> int:
     lines.append("wrote " + ", ".join(outputs))
     _emit(args, payload, "\n".join(lines))
     return 0
+
+
+#: the files of nsfem periodic --continue besides branch.png
+BRANCH_FILES = ("branch.json", "branch.npz")
+#: branch.json is rewritten at most this often [s] while a branch is followed (each point's flows take longer)
+BRANCH_WRITE_EVERY = 1.0
+
+
+def _periodic_branch(args, scene, continuation, out_dir) -> int:
+    """``nsfem periodic --continue KEY=LOW:HIGH`` in its claimed folder ``out_dir``: the branch
+    (:func:`nsfem.periodic.scene_branch.branch_of_scene`), branch.json rewritten as points come (an interrupt
+    leaves the points so far), then branch.npz, branch.png and branch.json."""
+    from .atomic import write_text_atomic
+    from .jsonio import as_text, dumps
+    from .periodic.output import save_branch
+    from .periodic.scene_branch import branch_of_scene
+    from .scene import load_scene
+
+    key, low, high = continuation
+    t0 = time.perf_counter()
+    warnings: list[str] = []
+    last = [0.0]
+
+    def warn(text: str) -> None:
+        warnings.append(text)
+        print(printable(f"nsfem periodic: warning: {text}"), file=sys.stderr)
+
+    def progress(text: str) -> None:
+        print(printable(f"nsfem periodic: {text}"), file=sys.stderr)
+
+    def payload_of(sb) -> dict:
+        return {"title": scene.title, **sb.to_json(), "frame": scene.rotation.frame,
+                "start": sb.start.start if sb.start is not None else None, "warnings": warnings,
+                "notes": list(scene.notes), "wall_s": time.perf_counter() - t0}
+
+    def on_point(sb) -> None:   # the points so far, at most once a BRANCH_WRITE_EVERY
+        if time.perf_counter() - last[0] >= BRANCH_WRITE_EVERY:
+            write_text_atomic(out_dir / "branch.json", dumps({**payload_of(sb), "stop": "running"}, as_text) + "\n")
+            last[0] = time.perf_counter()
+
+    sb = branch_of_scene(scene, key, low, high, multiple=args.multiple, start=args.start,
+                         transient_periods=args.transient, tol=args.tol, steps=args.steps, step=args.step,
+                         load=lambda extra: load_scene(args.scene, [*args.overrides, *extra]), warn=warn,
+                         progress=progress, on_point=on_point)
+    payload = payload_of(sb)
+    outputs = [str(out_dir / "branch.json"), str(save_branch(out_dir / "branch.npz", sb, payload))]
+    if scene.output.plots and sb.points:
+        from .plot.periodic import branch_plot
+
+        outputs.append(str(branch_plot(out_dir / "branch.png", key, sb.points, [s.name for s in sb.sensors],
+                                       sb.bifurcations, sb.doubled, scene.title)))
+    payload.update(outputs=outputs, wall_s=time.perf_counter() - t0)   # branch.json last: it lists the others
+    write_text_atomic(out_dir / "branch.json", dumps(payload, as_text) + "\n")
+    _emit(args, payload, "\n".join(branch_lines(scene.title, sb, outputs)))
+    if sb.interrupted:
+        print("nsfem: interrupted (the points so far are written)", file=sys.stderr)
+        return 130
+    return 0
+
+
+def branch_lines(title: str, sb, outputs) -> list[str]:
+    """The text report of a branch: a table of its points (value, period, stability, largest |mu|, events,
+    amplitudes in µm), its bifurcations and the doubled branches, why each side stopped, the files."""
+    names = [s.name for s in sb.sensors]
+    lines = [title, f"branch of period-{sb.multiple} orbits over {sb.key} from {sb.start_value:g} "
+             f"(the scene's value {sb.scene_value:g}) towards {sb.low:g} and {sb.high:g}: {len(sb.points)} points"]
+    head = f"{sb.key:>20} {'period [s]':>11} {'stable':>8} {'max|mu|':>9} {'events':>6}" + "".join(
+        f" {n + ' [um]':>14}" for n in names)
+    lines.append(head)
+
+    def row(p: dict) -> str:
+        return (f"{p['value']:>20.10g} {p['period_s']:>11.6g} {('yes' if p['stable'] else 'NO'):>8} "
+                f"{p['largest_multiplier']:>9.6f} {p['events_per_period']:>6d}"
+                + "".join(f" {1e6 * p['amplitudes'][n]:>14.6g}" for n in names)
+                + ("" if p["converged"] else "  (not converged)"))
+
+    lines += [row(p) for p in sb.points]
+    if sb.bifurcations:
+        lines.append("bifurcations: " + ", ".join(f"{b['kind']} at {sb.key} = {b['value']:.10g}"
+                                                  for b in sb.bifurcations))
+    else:
+        lines.append("bifurcations: none found")
+    for d in sb.doubled:
+        lines.append(f"period-{d['multiple']} (doubled) branch: {len(d['points'])} points")
+        lines += [row(p) for p in d["points"]]
+    lines += [f"towards {s['towards']:g}: {s['reason']}" for s in sb.sides]
+    if sb.interrupted:
+        lines.append("interrupted: the points so far are written")
+    lines.append("wrote " + ", ".join(outputs))
+    return lines
 
 
 COMMANDS = {"modes": cmd_modes, "campbell": cmd_campbell, "stationary": cmd_stationary, "run": cmd_run,

@@ -60,7 +60,7 @@ MANIFEST = ".nsfem-files.json"
 SUBFOLDERS = ("vtu",)
 #: the kinds of output each command replaces
 REPLACES = {"run": ("run", "series"), "export": ("series",), "fit": ("fit",), "sweep": (), "render": (),
-            "periodic": ("periodic", "series")}
+            "periodic": ("periodic", "series"), "branch": ("branch",)}
 
 
 class FolderBusy(NsfemError):

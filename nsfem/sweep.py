@@ -193,16 +193,19 @@ def point_overrides(point: dict) -> list[str]:
     return [f"{k}={_num(v)}" for k, v in point.items()]
 
 
-def fingerprint(base, keys: Sequence[str], method: str) -> str:
+def fingerprint(base, keys: Sequence[str], method: str, steady: str = "transient") -> str:
     """Hash of what makes two sweeps' runs comparable: the validated scene (every default filled in,
     fixed overrides applied, ``[output]`` and the swept keys left out, the mesh file's bytes), the
-    swept keys and the method. Reordered or no-op ``--set`` flags give the same fingerprint."""
+    swept keys, the method and the steady state's kind (``steady``: a periodic sweep's rows are orbits, never
+    mixed with a transient sweep's). Reordered or no-op ``--set`` flags give the same fingerprint."""
     tree = json.loads(json.dumps(dict(base), default=str))
     tree.pop("output", None)
     for key in keys:
         _drop(tree, key)
-    blob = json.dumps({"scene": tree, "mesh": mesh_digest(base.mesh_file), "keys": list(keys), "method": method},
-                      sort_keys=True)
+    blob = {"scene": tree, "mesh": mesh_digest(base.mesh_file), "keys": list(keys), "method": method}
+    if steady != "transient":   # (a transient sweep's fingerprint as before: its folders resume)
+        blob["steady"] = steady
+    blob = json.dumps(blob, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -238,12 +241,16 @@ def write_json(path: Path, payload: Any) -> Path:
     return write_text_atomic(path, dumps(payload, as_text, indent=1) + "\n")
 
 
-def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: dict, fp: str) -> dict:
-    """One run of a sweep (a worker's task): integrate, save ``result.npz``, write ``record.json``.
+def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: dict, fp: str,
+              steady: str = "transient") -> dict:
+    """One run of a sweep (a worker's task): integrate, save ``result.npz``, write ``record.json``; with
+    ``steady="periodic"`` the periodic orbit instead (:func:`orbit_point`).
 
     ``shared`` is ``(model, reduction)`` or None (then built here). Any exception becomes the
     row's ``error``; the record is written last, so a run counts as done only once complete.
     """
+    if steady == "periodic":
+        return orbit_point(scene, shared, run_dir, point, fp)
     from .fem.constraints import dense
     from .simulate import run_scene
 
@@ -279,6 +286,55 @@ def run_point(scene, method: str, shared, run_dir: str, scene_text: str, point: 
     row["wall_s"] = time.perf_counter() - t0  # as nsfem run: the whole run (the shared model built before)
     row["warnings"] = warnings
     write_json(run_dir / "record.json", {"fingerprint": fp, "point": point, "row": row, "amplitudes": AMPLITUDE_FIT})
+    return row
+
+
+#: the steady states a sweep records: a transient's last half (``nsfem run``) or the periodic orbit
+STEADY = ("transient", "periodic")
+#: the columns of a periodic sweep besides the run keys (of the orbit's period) and the amplitudes
+PERIODIC_KEYS = ("stable", "largest_multiplier", "events_per_period", "converged")
+#: What a periodic sweep's amplitudes are (stamped on its records)
+AMPLITUDE_FIT_PERIODIC = "1x fit: c + a cos + b sin of the rotation angle over one period of the periodic orbit"
+
+
+def orbit_point(scene, shared, run_dir: str, point: dict, fp: str) -> dict:
+    """One value of ``nsfem sweep --steady periodic`` (a worker's task): the scene's periodic orbit
+    (:func:`nsfem.periodic.scene.orbit_of_scene`), saved as ``orbit.npz``; its row holds the run keys of one
+    period of the orbit, the sensors' 1x amplitude and phase lag fitted over exactly that period (exact for a
+    periodic signal sampled uniformly over its period: the same measure as a transient sweep's, without its
+    transient) and :data:`PERIODIC_KEYS`. A shooting that does not converge is a warning of its row (its
+    ``converged`` false), an error (refused scene, failed flow) the row's ``error``."""
+    from .analysis.harmonic import amplitude_phase, harmonic_fit
+    from .periodic.output import save_orbit
+    from .periodic.scene import orbit_of_scene
+
+    run_dir = Path(run_dir)
+    model, red = shared if shared is not None else (None, None)
+    warnings: list[str] = []
+    row = {**error_row(point, "exact", ""), **dict.fromkeys(PERIODIC_KEYS)}
+    t0 = time.perf_counter()
+    try:
+        so = orbit_of_scene(scene, warn=warnings.append, model=model, reduction=red)
+        o = so.orbit
+        path = save_orbit(run_dir / "orbit.npz", so, so.to_json())
+        summary = o.result.summary()
+        mu = np.abs(np.asarray(o.multipliers, dtype=complex))
+        row.update(summary, result=str(path), outputs=[str(path)], integration_wall_s=summary["wall_s"],
+                   stable=bool(o.stable), largest_multiplier=float(mu.max(initial=0.0)),
+                   events_per_period=int(o.events_per_period), converged=bool(o.converged), period_s=so.period_s,
+                   loss=o.loss, residual=float(o.residual))
+        if so.sensors:
+            f = scene.rotation.speed_hz
+            t, y = so.t[:-1], so.signals[:-1]   # one period, its end (the start again) left out
+            A, phi = amplitude_phase(harmonic_fit(t, y, f, math.radians(scene.rotation.phase_deg)))
+            for k, sensor in enumerate(so.sensors):
+                row[AMPLITUDE.format(sensor.name)], row[PHASE.format(sensor.name)] = float(A[k]), float(phi[k])
+    except Exception as exc:  # noqa: BLE001 - every failure is reported in its row
+        row["error"] = _message(exc)
+    row["wall_s"] = time.perf_counter() - t0
+    row["warnings"] = warnings
+    write_json(run_dir / "record.json", {"fingerprint": fp, "point": point, "row": row,
+                                         "amplitudes": AMPLITUDE_FIT_PERIODIC, "steady": "periodic"})
     return row
 
 
@@ -343,7 +399,7 @@ def current_amplitudes(rec: dict) -> bool:
     """Whether a run record's sensor amplitudes (if it has any) are of this version's definition
     (:data:`AMPLITUDE_FIT`); an older record's (half the peak-to-peak) would mix two measures in one table."""
     row = rec.get("row")
-    return rec.get("amplitudes") == AMPLITUDE_FIT or not any(str(k).startswith("amplitude_") for k in row or ())
+    return rec.get("amplitudes") in (AMPLITUDE_FIT, AMPLITUDE_FIT_PERIODIC) or not any(str(k).startswith("amplitude_") for k in row or ())
 
 
 def error_row(point: dict, method: str, error: str) -> dict:
@@ -459,7 +515,8 @@ def sensor_names(runs: Sequence[dict | None]) -> list[str]:
 def table_columns(axes: Sequence[Axis], runs: Sequence[dict | None] = ()) -> list[str]:
     """The swept keys, the run keys, each sensor's amplitude and phase the rows hold, error and result file."""
     sensors = [c for name in sensor_names(runs) for c in (AMPLITUDE.format(name), PHASE.format(name))]
-    return [a.key for a in axes] + list(RUN_KEYS) + sensors + ["error", "result"]
+    periodic = list(PERIODIC_KEYS) if any(r and "largest_multiplier" in r for r in runs) else []
+    return [a.key for a in axes] + list(RUN_KEYS) + periodic + sensors + ["error", "result"]
 
 
 def value_digits(values: Iterable) -> int:
@@ -501,6 +558,9 @@ def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
     sensors = sensor_names(shown)
     digits = {k: value_digits(r.get(k) for r in shown) for k in keys}
     head = list(keys)
+    periodic = any("largest_multiplier" in r for r in shown)
+    if periodic:
+        head += ["stable", "max |mu|", "events/period"]
     if contacts:
         head += ["events", "impacts", "closed [%]", "min gap [m]", "max gap [m]", "max force [N]"]
     for name in sensors:
@@ -511,6 +571,11 @@ def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
         if r.get("error"):
             rows.append((cells, f"failed: {' '.join(str(r['error']).split())}"))
             continue
+        if periodic:
+            stable = r.get("stable")
+            cells += ["-" if stable is None else ("yes" if stable else "NO")
+                      + ("" if r.get("converged", True) else " (not converged)"),
+                      _cell(r.get("largest_multiplier")), _cell(r.get("events_per_period"))]
         if contacts:
             closed = r.get("closed_fraction")
             cells += [_cell(r.get("events")), _cell(r.get("impacts")), _cell(None if closed is None else 100 * closed, 4),
@@ -526,7 +591,10 @@ def table_lines(keys: Sequence[str], runs: Sequence[dict | None]) -> list[str]:
         return "  " + "  ".join([c.ljust(w) for c, w in zip(cells, widths)] + ([tail] if tail else [])).rstrip()
 
     lines = []
-    if sensors:
+    if sensors and periodic:
+        lines.append("sensors: steady 1x amplitude [m], lag [deg]: a cos + b sin at the speed, fitted over one "
+                     "period of each periodic orbit")
+    elif sensors:
         lines.append("sensors: steady 1x amplitude [m], lag [deg]: a cos + b sin at the speed, fitted over whole "
                      "periods of each run's last half")
     elif not contacts:
@@ -581,6 +649,9 @@ def format_progress(k: int, n: int, row: dict, keys: Sequence[str], digits: dict
     if row.get("error"):
         return f"{head}: failed: {row['error']}"
     parts = [str(row["method"])]
+    if row.get("stable") is not None:   # a periodic orbit's
+        parts.append(("stable" if row["stable"] else "unstable") + f" (max |mu| {row['largest_multiplier']:.4g})"
+                     + ("" if row.get("converged", True) else ", NOT converged"))
     if row.get("min_gap_m") is not None:
         parts += [f"{row['events']} events", f"closed {100 * row['closed_fraction']:.1f} %"]
     amplitudes = [f"{name} {_cell(row.get(AMPLITUDE.format(name)), 4)} m" for name in sensor_names([row])]
@@ -620,6 +691,7 @@ class _Plan:
     scene_path: Any = None
     scenes: dict = field(default_factory=dict)
     raw: dict = field(default_factory=dict)
+    steady: str = "transient"
 
     def scene(self, i: int):
         """The scene of point ``i`` (loaded now unless checked before; NsfemError when refused)."""
@@ -663,9 +735,22 @@ def checked_points(axes: Sequence[Axis]) -> list[dict]:
     return out
 
 
-def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Plan:
+def check_steady(steady: str, method: str | None) -> None:
+    """Refuse an unknown ``--steady`` and a ``--method`` other than exact with ``--steady periodic`` (the orbit
+    is shot on the exact flow)."""
+    if steady not in STEADY:
+        raise NsfemError(f"--steady must be one of {', '.join(STEADY)}, got {steady!r}")
+    if steady == "periodic" and method not in (None, "exact"):
+        raise NsfemError(f"--method {method} with --steady periodic: the periodic orbit is shot on the exact flow "
+                         "(its monodromy matrix is the exact one's); leave --method out")
+
+
+def plan(scene_path, overrides: Sequence[str], method: str | None = None, steady: str = "transient") -> _Plan:
     """Validate everything (ranges, the scene with its fixed overrides, the points of
-    :func:`checked_points`) before any run; the other scenes are loaded as their runs are submitted."""
+    :func:`checked_points`) before any run; the other scenes are loaded as their runs are submitted.
+    ``steady="periodic"``: each value's periodic orbit instead of a run (:func:`orbit_point`): every checked
+    scene must have one (a constant speed > 0)."""
+    check_steady(steady, method)
     from .scene import METHODS, load_scene
     from .scene.overrides import missing_item
 
@@ -681,15 +766,23 @@ def plan(scene_path, overrides: Sequence[str], method: str | None = None) -> _Pl
     if method is not None and method not in METHODS:
         raise NsfemError(f"simulation.method {method!r} is not available (use {' | '.join(METHODS)})")
     points = sweep_values(axes)
-    method = method or base.simulation.method
+    method = "exact" if steady == "periodic" else method or base.simulation.method
     if any(a.key == "simulation.method" for a in axes):  # pragma: no cover - ranges are numbers
         raise NsfemError("simulation.method cannot be swept")
     keys = [a.key for a in axes]
     text = scene_source(scene_path)
-    p = _Plan(points, fixed, axes, method, text, fingerprint(base, keys, method), base, scene_path,
-              raw=tomllib.loads(text))
+    p = _Plan(points, fixed, axes, method, text, fingerprint(base, keys, method, steady), base, scene_path,
+              raw=tomllib.loads(text), steady=steady)
     index = {run_name(pt): i for i, pt in enumerate(points)}
     p.scenes = {index[run_name(pt)]: p.load(pt) for pt in checked_points(axes)}
+    if steady == "periodic":
+        from .periodic.scene import check_scene
+
+        for i, sc in p.scenes.items():
+            try:
+                check_scene(sc)
+            except NsfemError as exc:
+                raise NsfemError(f"--steady periodic at {run_name(points[i])}: {exc}") from None
     return p
 
 
@@ -710,11 +803,12 @@ def _check_folder(out: Path, p: _Plan, scene_path, write: bool = False) -> None:
         if not isinstance(theirs, dict) or theirs.get("fingerprint") != p.fp:
             theirs = theirs if isinstance(theirs, dict) else {}
             raise NsfemError(f"{out} holds another sweep (scene {theirs.get('scene')}, fixed {theirs.get('fixed')}, "
-                             f"swept {theirs.get('keys')}, method {theirs.get('method')}); its results would mix "
+                             f"swept {theirs.get('keys')}, method {theirs.get('method')}, steady "
+                             f"{theirs.get('steady', 'transient')}); its results would mix "
                              "with this one's: choose another --out or remove that folder")
     elif write:
         write_json(stamp, {"fingerprint": p.fp, "scene": str(scene_path or "(shipped scene)"), "fixed": p.fixed,
-                           "keys": [a.key for a in p.axes], "method": p.method})
+                           "keys": [a.key for a in p.axes], "method": p.method, "steady": p.steady})
 
 
 def local_workers(workers: int | None, n_runs: int) -> int:
@@ -856,7 +950,8 @@ def _release_signals(held: dict) -> None:
 
 def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | None = None, client=None,
               workers: int | None = None, scheduler: str | None = None,
-              progress: Callable[[str], None] | None = None, plot: bool = True) -> SweepResult:
+              progress: Callable[[str], None] | None = None, plot: bool = True,
+              steady: str = "transient") -> SweepResult:
     """Run a sweep; returns the rows of its folder in the order of the swept values with ``info``.
 
     ``client``: a ``distributed.Client`` to use; else ``scheduler`` (an address) or a
@@ -867,13 +962,14 @@ def run_sweep(scene_path, overrides: Sequence[str], out_dir=None, method: str | 
     built fails the rows of its values only. Ctrl-C cancels the pending runs, writes the table
     of the finished ones and raises :class:`SweepInterrupted` (a KeyboardInterrupt) carrying
     them. ``info``: ``executed``, ``resumed``, ``models_built``, ``workers``, ``wall_s``
-    (and ``interrupted``).
+    (and ``interrupted``). ``steady``: "transient" (each value's run, its last half's 1x amplitudes) or
+    "periodic" (each value's periodic orbit, :func:`orbit_point`).
     """
     if workers is not None and (scheduler or client is not None):
         raise NsfemError("--workers cannot be combined with --scheduler (the cluster has its own workers)")
     check_workers(workers)
     t0 = time.perf_counter()
-    p = plan(scene_path, overrides, method)
+    p = plan(scene_path, overrides, method, steady)
     # absolute: the workers (maybe started elsewhere) write there
     out = (Path(out_dir) if out_dir is not None else default_folder(p)).absolute()
     check_folder(out, "--out")  # tried, then left as it was: root passes permission bits everywhere
@@ -897,7 +993,8 @@ def _run_sweep(p: _Plan, out: Path, scene_path, client, workers: int | None, sch
     todo = [i for i, r in enumerate(done_rows) if r is None]
     resumed = len(p.points) - len(todo)
     res = SweepResult(p.axes, [], [], out, out / "sweep.csv", current={run_name(pt) for pt in p.points},
-                      info={"executed": 0, "resumed": resumed, "models_built": 0, "workers": 0, "wall_s": 0.0})
+                      info={"executed": 0, "resumed": resumed, "models_built": 0, "workers": 0, "wall_s": 0.0,
+                            "steady": p.steady})
     res.set_rows(folder_rows(out, p.fp, keys))  # earlier sweeps into this folder, this one's resumed runs
     res.set_rows((pt, None) for pt in p.points)
     say = progress or (lambda line: None)
@@ -1014,7 +1111,7 @@ def _run_sweep(p: _Plan, out: Path, scene_path, client, workers: int | None, sch
                 # a fresh key: the scheduler must never hand back a finished task of an earlier sweep
                 fut = cl.submit(run_point, scene, p.method, shared, str(out / run_name(p.points[i])),
                                 p.scene_text + "\n# overrides: " + " ".join(p.fixed + point_overrides(p.points[i])),
-                                p.points[i], p.fp, key=f"nsfem-run-{uuid.uuid4().hex}", pure=False)
+                                p.points[i], p.fp, p.steady, key=f"nsfem-run-{uuid.uuid4().hex}", pure=False)
                 futures[fut] = i
                 running.add(fut)
                 return True

@@ -3916,7 +3916,7 @@ def test_issue35_a_ramp_runs_exactly_when_every_table_covers_it(lo, width):
 # --- issue 36: periodic ---
 # nsfem periodic refuses, in one line naming the option or key and before any integration: a bad --multiple,
 # --transient or --tol, a --continue that is not KEY=LOW:HIGH of a numeric key with two finite different ends
-# (a good one: "not yet"), a rotor at rest (nsfem stationary answers it), a run-up, a --start that is missing,
+# (a good one runs: tests/test_periodic_continue.py), a rotor at rest (nsfem stationary answers it), a run-up, a --start that is missing,
 # a folder, not a results file or of another model, and --transient together with --start.
 PERIODIC = ["periodic", "crack", "--set", "output.vtu_every=0", "--set", "output.plots=[]"]
 
@@ -3952,8 +3952,22 @@ def test_issue36_periodic_options_out_of_range_are_refused_by_name(option, value
        high=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=4)),
        sep=st.sampled_from([":", "::", ",", ""]))
 def test_issue36_continue_is_always_one_line_and_never_runs(key, low, high, sep):
-    """Whatever --continue says, the command ends with one line (a refusal of the text or the key, or "not
-    yet" for a good one) before any integration, writing nothing."""
+    """Whatever --continue says, the command ends with one line (a refusal of the text or the key) before any
+    integration, writing nothing; a good one reaches the branch (here a stub refusing it in one line)."""
+    from nsfem.periodic import scene_branch
+
+    def stub(*args, **kwargs):
+        raise NsfemError("--continue: valid (the branch is not computed in this test)")
+
+    real = scene_branch.branch_of_scene
+    scene_branch.branch_of_scene = stub
+    try:
+        _continue_one_line(key, low, high, sep)
+    finally:
+        scene_branch.branch_of_scene = real
+
+
+def _continue_one_line(key, low, high, sep) -> None:
     with tempfile.TemporaryDirectory() as d:
         code, out, err = check_invocation([*PERIODIC, "--out", "o", "--continue", f"{key}={low}{sep}{high}"],
                                           Path(d))
@@ -3969,7 +3983,7 @@ PERIODIC_REPRODUCTIONS = [
     (["--continue", "rotation.speed_hz=12:12"], "--continue rotation.speed_hz", "same value"),
     (["--continue", "rotation.frame=1:2"], "--continue rotation.frame", "not a number"),
     (["--continue", "rotation.speed_hz=-5:12"], "--continue rotation.speed_hz", "must be >= 0"),
-    (["--continue", "rotation.speed_hz=10:14"], "--continue rotation.speed_hz", "not yet"),
+    (["--continue", "mesh.elements=10:14"], "--continue mesh.elements", "coordinates"),
     (["--start", "missing.npz"], "--start", "does not exist"),
     (["--start", "."], "--start", "is a folder"),
     (["--start", "scene.toml"], "--start", "not a results file"),
@@ -4156,6 +4170,102 @@ def test_issue36_critical_vector_refuses_bad_matrices_in_one_line(matrix, target
     with pytest.raises(NsfemError) as info:
         critical_vector(matrix, target)
     assert words in _one_line36(info.value)
+
+
+# --- issue 36: continue/steady ---
+# nsfem periodic --continue refuses, in one line naming the option or key and before any orbit is computed: a bad
+# --steps or --step, --steps/--step without --continue, a key of the mesh or the reduction (they change the
+# coordinates), a key that does not shape the orbit, speeds at or below 0 or beyond the model's limit; nsfem sweep
+# --steady periodic refuses another --steady, an integrator other than exact, a run-up and a rotor at rest.
+CONTINUE36 = ["periodic", "critical_speed", "--set", "mesh.elements=10", "--set", "reduction.modes=16",
+              "--set", "output.plots=[]", "--out", "o"]
+
+
+@pytest.fixture
+def no_branch36(monkeypatch):
+    """The branch must not be reached: any call fails the test."""
+    from nsfem.periodic import scene_branch
+
+    def never(*args, **kwargs):
+        raise AssertionError("the branch was computed before the refusal")
+
+    monkeypatch.setattr(scene_branch, "branch_of_scene", never)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=list(HealthCheck))
+@given(option=st.sampled_from(["--steps", "--step"]),
+       value=st.one_of(st.integers(-10**6, 0), st.integers(10**4 + 1, 10**9),
+                       st.floats(allow_nan=True, allow_infinity=True).filter(lambda x: not 0 < x <= 10),
+                       st.text(max_size=6).filter(lambda s: not _a_number(s))))
+def test_issue36_continue_options_out_of_range_are_refused_by_name(no_branch36, option, value):
+    if option == "--step" and isinstance(value, int) and 0 < value <= 10:
+        value = 0
+    with tempfile.TemporaryDirectory() as d:
+        code, out, err = check_invocation([*CONTINUE36, "--continue", "rotation.speed_hz=20:30", option, str(value)],
+                                          Path(d))
+        assert code == 2 and option in err and out == "", (option, value, err)
+        assert not (Path(d) / "o").exists()
+
+
+CONTINUE36_REPRODUCTIONS = [
+    (["--steps", "5"], "--steps", "option of --continue"),
+    (["--step", "0.5"], "--step", "option of --continue"),
+    (["--continue", "rotation.speed_hz=20:30", "--step", "20"], "--step", "at most the range's length 10"),
+    (["--continue", "rotation.speed_hz=20:30", "--steps", "2.5"], "--steps", "invalid int"),
+    (["--continue", "reduction.modes=10:20"], "--continue reduction.modes", "coordinates"),
+    (["--continue", "simulation.t_end=1:2"], "--continue simulation.t_end", "does not shape"),
+    (["--continue", "rotation.speed_hz=0:20"], "--continue rotation.speed_hz", "> 0 Hz"),
+    (["--continue", "rotation.speed_hz=20:1e9"], "rotation.speed_hz", "bar wave speed"),
+    (["--continue", "disk.3.mass=1:2"], "--continue disk.3.mass", "no disk.3"),
+]
+
+
+@pytest.mark.parametrize("extra,names,reason", CONTINUE36_REPRODUCTIONS)
+def test_issue36_continue_reproductions(no_branch36, extra, names, reason, tmp_path):
+    code, out, err = check_invocation([*CONTINUE36, *extra], tmp_path)
+    line = [x for x in err.splitlines() if x.startswith("nsfem: error:")]
+    assert code == 2 and names in line[0] and reason in line[0] and out == "", err
+    assert not (tmp_path / "o").exists()
+
+
+STEADY36 = ["sweep", "critical_speed", "--set", "mesh.elements=10", "--set", "reduction.modes=16", "--out", "s"]
+STEADY36_REPRODUCTIONS = [
+    (["--set", "rotation.speed_hz=20:30:2", "--steady", "harmonic"], "--steady", "invalid choice"),
+    (["--set", "rotation.speed_hz=20:30:2", "--steady", "periodic", "--method", "rk"], "--method rk",
+     "exact flow"),
+    (["--set", "rotation.speed_hz=0:30:2", "--steady", "periodic"], "rotation.speed_hz", "at rest"),
+    (["--set", "rotation.speed_hz=20:30:2", "--set", "rotation.ramp_to_hz=40", "--set", "rotation.ramp_s=1",
+      "--steady", "periodic"], "rotation.ramp_to_hz", "not periodic"),
+]
+
+
+@pytest.mark.parametrize("extra,names,reason", STEADY36_REPRODUCTIONS)
+def test_issue36_sweep_steady_reproductions(extra, names, reason, tmp_path, monkeypatch):
+    import nsfem.sweep as sweep
+
+    def never(*args, **kwargs):
+        raise AssertionError("a value was computed before the refusal")
+
+    monkeypatch.setattr(sweep, "orbit_point", never)
+    monkeypatch.setattr(sweep, "run_point", never)
+    code, out, err = check_invocation([*STEADY36, *extra], tmp_path)
+    line = [x for x in err.splitlines() if x.startswith("nsfem: error:")]
+    assert code == 2 and names in line[0] and reason in line[0], err
+    assert not (tmp_path / "s").exists()
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=list(HealthCheck))
+@given(steady=st.text(min_size=1, max_size=8).filter(lambda s: s not in ("transient", "periodic")),
+       method=st.sampled_from(["rk", "penalty", "moreau"]))
+def test_issue36_sweep_steady_is_refused_by_name_unless_known(steady, method):
+    """An unknown --steady, or --steady periodic with an integrator other than exact: one line naming the option,
+    before anything runs (the sweep folder is not created)."""
+    with tempfile.TemporaryDirectory() as d:
+        for extra, name in ((["--steady", steady], "--steady"), (["--steady", "periodic", "--method", method],
+                                                                  f"--method {method}")):
+            code, _, err = check_invocation([*STEADY36, "--set", "rotation.speed_hz=20:30:2", *extra], Path(d))
+            assert code == 2 and name in err, (extra, err)
+            assert not (Path(d) / "s").exists()
 
 
 # --- issue 36: periodic orbits (shooting, orbit branches) ---

@@ -232,12 +232,13 @@ def test_the_commands_outputs_agree(tmp_path, monkeypatch, capsys):
     assert times[0] == 0.0 and times[-1] == pytest.approx(1 / 26.0, rel=1e-12)
 
 
-def test_continue_is_parsed_then_refused(tmp_path):
+def test_continue_is_parsed(tmp_path):
+    """(The branch itself: tests/test_periodic_continue.py.)"""
     from tests.test_fuzz import check_invocation
 
     assert parse_continuation("stator.0.friction=0.3:0.1") == ("stator.0.friction", 0.3, 0.1)
-    code, _, err = check_invocation(["periodic", "crack", "--continue", "rotation.speed_hz=10:14"], tmp_path)
-    assert code == 2 and "not yet" in err and "rotation.speed_hz" in err
+    code, _, err = check_invocation(["periodic", "crack", "--continue", "rotation.speed_hz=10:10"], tmp_path)
+    assert code == 2 and "same value" in err and "rotation.speed_hz" in err
 
 
 def test_the_help_says_the_defaults_and_ranges_the_scene_layer_uses(capsys):

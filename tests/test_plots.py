@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -663,12 +664,30 @@ def _case_periodic(out):
     return []
 
 
+def _case_branch(out):
+    """branch.png: two sensors, a branch losing its stability at a period doubling (a bifurcation marked), a
+    doubled branch, over a key with its unit."""
+    from nsfem.plot.periodic import branch_plot
+
+    x = np.linspace(10.0, 20.0, 21)
+    pts = [{"value": v, "stable": v < 15.0, "multiple": 1, "amplitudes": {"a_y": 1e-5 * (1 + 0.1 * v),
+                                                                          "a_z": 2e-5 / (1 + (v - 14.0) ** 2)}}
+           for v in x]
+    doubled = [{"multiple": 2, "points": [{"value": v, "stable": True, "multiple": 2,
+                                           "amplitudes": {"a_y": 1e-5 * (1 + 0.1 * v) + 1e-6 * math.sqrt(v - 15.0),
+                                                          "a_z": 1e-5}} for v in x[10:]]}]
+    branch_plot(out / "branch.png", "rotation.speed_hz", pts, ["a_y", "a_z"],
+                [{"kind": "period-doubling", "value": 15.0}], doubled, "branch")
+    return []
+
+
 #: name -> draw(out_dir) -> the skip warnings of write_plots; each PNG it saves is checked
 PLOT_CASES = {
     "delamination": _case_delamination, "stop": _case_stop, "crack": _case_crack,
     "ring+sensors": _case_ring_and_sensors, "long sensor record": _case_long_sensor_record,
     "campbell": _case_campbell, "resonance": _case_resonance, "fit": _case_fit,
     "portrait about its mean": lambda out: _portrait_case(out), "periodic": _case_periodic,
+    "branch": _case_branch,
 }
 #: the PNGs each case must produce (a run plot without data may be skipped, with a reason, where listed)
 EXPECTED = {
@@ -682,6 +701,7 @@ EXPECTED = {
     "fit": {"fit.png", "fit_long.png", "landscape.png", "landscape1.png"},
     "portrait about its mean": {"phase.png", "psd.png"},
     "periodic": {"orbit.png", "floquet.png"},
+    "branch": {"branch.png"},
 }
 
 

@@ -98,6 +98,7 @@ def _points(problem: _Problem, branch: Branch, key: str) -> list[dict]:
         stable, loss = classify(mu) if mu.size else (True, None)
         out.append({"value": float(bp.p), key: float(bp.p),
                     "period_s": float(problem.multiple * problem.period_at(bp.p)), "converged": bool(bp.converged),
+                    "residual": float(bp.residual),
                     "multipliers": [[float(m.real), float(m.imag)] for m in mu], "stable": stable, "loss": loss,
                     "amplitude_max_m": float(np.abs(bp.u[:n]).max()), "q0": bp.u[:n].copy(), "v0": bp.u[n:].copy()})
     return out
@@ -106,13 +107,15 @@ def _points(problem: _Problem, branch: Branch, key: str) -> list[dict]:
 def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[float], float], q0, v0, p0: float,
                  p_end: float, *, key: str = "p", multiple: int = 1, t0: float = 0.0, tol: float = 1e-9,
                  step: float | None = None, max_steps: int = 100, switch: bool = True, depth: int = 1,
-                 max_iter: int = 20
+                 max_iter: int = 20, on_point: Callable[[object, int], None] | None = None
                  ) -> OrbitBranch:
     """Continue the orbit through (q0, q0') at p0 (period ``multiple`` T(p0)) towards p_end.
 
     ``system_at(p)``: the ContactSystem at parameter p; ``period_at(p)``: the forcing period there [s]. The start is
     first made an orbit at p0 (:func:`.shooting.periodic_orbit`). With ``switch``, at each located period doubling
-    the doubled branch is followed too (``depth`` levels)."""
+    the doubled branch is followed too (``depth`` levels). ``on_point(point, multiple)``: called with each
+    accepted :class:`~.continuation.BranchPoint` of this branch and of the doubled ones (``multiple``: its orbit's
+    period in forcing periods) as it is found."""
     try:
         p0, p_end = real_number("the continuation's start", p0), real_number("the continuation's end", p_end)
     except NsfemError:
@@ -141,7 +144,8 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     u_scale = np.concatenate([np.full(n, size_q), np.full(n, max(float(np.abs(start.v0).max()), w * size_q))])
     problem.weights = 1.0 / u_scale
     br = continue_branch(problem.residual, u0, p0, p_end, step=step, max_steps=max_steps, tol=tol,
-                         stability=problem.multipliers, u_scale=u_scale, max_iter=max_iter)
+                         stability=problem.multipliers, u_scale=u_scale, max_iter=max_iter,
+                         on_point=None if on_point is None else (lambda bp: on_point(bp, int(multiple))))
     bif = []
     for b in br.bifurcations:
         u = np.asarray(b["u"])
@@ -156,7 +160,8 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
                 q, v, p, t_d = doubled_start(system_at, period_at, b, p_end, multiple=multiple, t0=t0, tol=tol)
                 out.doubled.append(orbit_branch(system_at, period_at, q, v, p, p_end, key=key,
                                                 multiple=2 * multiple, t0=t_d, tol=tol, step=step,
-                                                max_steps=max_steps, switch=switch, depth=depth - 1))
+                                                max_steps=max_steps, switch=switch, depth=depth - 1,
+                                                on_point=on_point))
             except NsfemError as exc:
                 b["switch_failed"] = str(exc)
     return out

@@ -458,7 +458,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                     max_steps: int = 200, tol: float = 1e-9, stability: Stability | None = None,
                     u_scale=1.0, max_step: float | None = None, min_step: float | None = None,
                     margin: float | None = None, locate_tol: float | None = None, unit_tol: float = 1e-6,
-                    max_iter: int = 8) -> Branch:
+                    max_iter: int = 8, on_point: Callable[[BranchPoint], None] | None = None) -> Branch:
     """Follow the branch of r(u, p) = 0 through (u0, p0) towards p_end by pseudo-arclength (Keller 1977).
 
     - residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)), real; u0 is first corrected at p = p0;
@@ -474,7 +474,9 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     - ``margin`` (default |p_end - p0| / 10) widens the range a folded branch may leave;
     - ``locate_tol`` (default 1e-6 |p_end - p0|, about 17 halvings of the largest step): the length
       along the branch, in units of p, to which special points are located;
-    - ``unit_tol``: the margin of the unit circle (a point is stable when every |mu| < 1 + unit_tol).
+    - ``unit_tol``: the margin of the unit circle (a point is stable when every |mu| < 1 + unit_tol);
+    - ``on_point(point)``: called with each accepted :class:`BranchPoint` as it is added (the first one too), e.g.
+      to report progress or save the points so far.
     """
     if not callable(residual):
         raise NsfemError(f"continue_branch: residual must be callable, got {type(residual).__name__}")
@@ -529,6 +531,9 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         raise NsfemError(f"continue_branch: u_scale must be a number or an array of {u0.size} numbers") from None
     if not np.all(np.isfinite(scale) & (scale > 0)):
         raise NsfemError("continue_branch: u_scale must be finite and > 0")
+    if on_point is not None and not callable(on_point):
+        raise NsfemError(f"continue_branch: on_point must be callable or None, got {type(on_point).__name__}")
+    said = on_point if on_point is not None else (lambda point: None)
 
     problem = _Scaled(residual, stability, u0.size, scale, p0, p_end)
     ds, ds_max, ds_min, locate_z = step / span, max_step / span, min_step / span, locate_tol / span
@@ -553,6 +558,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     t = _tangent(a.jac, e_p)
     first_z = a.z
     points = [_branch_point(problem, a, 0.0, tol, unit_tol)]
+    said(points[-1])
     bifurcations: list[dict] = []
     s = 0.0
     while True:
@@ -589,6 +595,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         s += chord * span
         bifurcations += _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
         points.append(_branch_point(problem, b, s, tol, unit_tol))
+        said(points[-1])
         if b.z[-1] >= 1.0:
             return Branch(points, bifurcations, "end", f"reached p_end = {p_end:g}")
         if not lo_z <= b.z[-1] <= hi_z:

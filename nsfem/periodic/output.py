@@ -61,3 +61,33 @@ def write_orbit(so, scene, out_dir: str | Path, meta: dict | None = None) -> lis
         timed = replace(res, t=so.t)   # the forcing's clock: an inertial series turns by Omega t + phase
         written.append(write_series(timed, so.system, out, every=vtu_every(so.t.size - 1, so.multiple)))
     return written
+
+
+def save_branch(path: str | Path, sb, meta: dict) -> Path:
+    """branch.npz of a :class:`~nsfem.periodic.scene_branch.SceneBranch`: per point (the branch's, then each
+    doubled branch's) ``value``, ``q0``/``v0`` (points, n) the section states, ``period_s``, ``multiple``,
+    ``stable``, ``largest_multiplier``, ``amplitudes`` (points, sensors) [m], ``branch`` (0: the branch, k: the
+    k-th doubled one); ``sensors`` their names; ``meta`` the branch.json keys."""
+    rows = [(0, p) for p in sb.points] + [(k + 1, p) for k, d in enumerate(sb.doubled) for p in d["points"]]
+    names = [s.name for s in sb.sensors]
+    n = int(sb.start.system.n)
+
+    def column(get, dtype=float):
+        return np.array([get(p) for _, p in rows], dtype=dtype)
+
+    arrays = dict(value=column(lambda p: p["value"]),
+                  q0=np.array([p["q0"] for _, p in rows], dtype=float).reshape(len(rows), n),
+                  v0=np.array([p["v0"] for _, p in rows], dtype=float).reshape(len(rows), n),
+                  period_s=column(lambda p: p["period_s"]), multiple=column(lambda p: p["multiple"], int),
+                  stable=column(lambda p: p["stable"], bool), converged=column(lambda p: p["converged"], bool),
+                  largest_multiplier=column(lambda p: p["largest_multiplier"]),
+                  amplitudes=np.array([[p["amplitudes"].get(s, np.nan) for s in names] for _, p in rows],
+                                      dtype=float).reshape(len(rows), len(names)),
+                  branch=np.array([k for k, _ in rows], dtype=int), sensors=np.array(names, dtype=str),
+                  t0=np.array(float(sb.start.orbit.t0)), meta=np.array(dumps(meta)))
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+
+    return write_atomic(path, write)

@@ -148,7 +148,7 @@ def check_scene(scene: "Scene") -> float:
 def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None = None,
                    transient_periods: int | None = None, tol: float = 1e-9, output_dt: float | None = None,
                    warn: Callable[[str], None] | None = None, progress: bool | None = False,
-                   shoot: Callable | None = None) -> SceneOrbit:
+                   shoot: Callable | None = None, model=None, reduction=None) -> SceneOrbit:
     """The periodic orbit of ``scene`` of period ``multiple`` forcing periods (see the module's docstring).
 
     ``transient_periods`` (default :data:`TRANSIENT_PERIODS` without ``start``, 0 with it; a transient from a
@@ -156,7 +156,8 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
     ``output_dt`` the sampling of the period's histories (default: at least :data:`SAMPLES_PER_REVOLUTION`
     samples per forcing period, finer when the scene's simulation.output_dt is); ``warn(text)`` receives the
     warnings (a run's checks, not converged, grazing, an unstable orbit's meaning). ``shoot``: the shooting
-    function (default :func:`nsfem.periodic.shooting.periodic_orbit`)."""
+    function (default :func:`nsfem.periodic.shooting.periodic_orbit`). ``model``, ``reduction``: the scene's, when
+    built already (a sweep shares them between its values)."""
     import time
 
     from ..simulate import integrate_prepared, prepare_scene
@@ -184,7 +185,7 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
     # the run's checks (search cost, output size, damping) on the transient's span (or one period), sampled once a
     # period as the transient is (the orbit's own samples, one period of them, are few)
     sized = _with_simulation(scene, max(transient_periods, 1) * period, period)
-    system, info, q0, v0 = prepare_scene(sized, "exact", warn=say)
+    system, info, q0, v0 = prepare_scene(sized, "exact", model=model, reduction=reduction, warn=say)
     if shoot is None:   # the shooting's own refusals (a round ring, ...) before the transient: its map's checks
         from .flow import FlowMap
 

@@ -130,3 +130,92 @@ def floquet_plot(path: str | Path, multipliers: np.ndarray, verdict: str, title:
     ax.set_title(f"{title}\n{head}" if title else head, fontsize=8)
     ax.grid(True, alpha=0.3)
     return save(fig, path)
+
+
+#: axis labels of the keys a branch is commonly continued over, by the key's last part ("quantity [unit]")
+KEY_LABELS = {"speed_hz": "rotor speed [Hz]", "clearance": "clearance [m]", "friction": "friction coefficient [-]",
+              "restitution": "restitution coefficient [-]", "stiffness": "stiffness [N/m]",
+              "gravity": "gravity [m/s²]", "phase_deg": "phase [deg]", "magnitude": "unbalance [kg m]",
+              "external": "external damping [1/s]", "damping": "damping [N s/m]"}
+
+
+def key_label(key: str) -> str:
+    """The axis label of a scene key: "<quantity> [<unit>]" for the keys of :data:`KEY_LABELS`, else the key
+    with its unit read from a suffix (_hz, _s, _m, _deg) or "[scene unit]"."""
+    last = key.rsplit(".", 1)[-1]
+    if last in KEY_LABELS:
+        return f"{key}: {KEY_LABELS[last]}" if last != "speed_hz" else KEY_LABELS[last]
+    for suffix, unit in (("_hz", "Hz"), ("_s", "s"), ("_m", "m"), ("_deg", "deg")):
+        if last.endswith(suffix):
+            return f"{key} [{unit}]"
+    return f"{key} [scene unit]"
+
+
+def _runs(values: np.ndarray, stable: np.ndarray) -> list[tuple[int, int, bool]]:
+    """(first, last, stable) index runs of equal stability; consecutive runs share their boundary point so the
+    curve is drawn without a gap."""
+    out, i = [], 0
+    for j in range(1, values.size + 1):
+        if j == values.size or stable[j] != stable[i]:
+            out.append((i, min(j, values.size - 1), bool(stable[i])))
+            i = j
+    return out
+
+
+def branch_plot(path: str | Path, key: str, points: Sequence[dict], sensors: Sequence[str],
+                bifurcations: Sequence[dict] = (), doubled: Sequence[dict] = (), title: str = "") -> Path:
+    """The resonance curves of a branch of periodic orbits: per sensor (a panel each) its amplitude (half the
+    peak-to-peak over the period, in µm) against the key's value; stable parts solid, unstable dashed; the
+    period-doubled branches in another colour; each bifurcation marked on the branch and labelled by its kind.
+    ``points`` (and each doubled branch's "points") are dicts with "value", "stable", "amplitudes" {sensor: m}.
+    Without sensors the largest section coordinate is drawn instead (it has no unit of length: said in the
+    label). Returns the path."""
+    names = list(sensors) or [None]
+    fig, axes = figure(nrows=len(names), ncols=1, figsize=(8.4, 1.0 + 3.0 * len(names)), layout="constrained",
+                       squeeze=False, sharex=True)
+    marks = {"fold": "s", "period-doubling": "D", "neimark-sacker": "^"}
+
+    def curve(pts, name):
+        x = np.array([p["value"] for p in pts], dtype=float)
+        y = np.array([1e6 * p["amplitudes"][name] if name else p.get("amplitude_max_m", 0.0) for p in pts], float)
+        return x, y, np.array([bool(p["stable"]) for p in pts])
+
+    for ax, name in zip(axes[:, 0], names):
+        for pts, color, what in [(points, "tab:blue", f"period {points[0].get('multiple', 1) if points else 1}")] + [
+                (d["points"], "tab:orange", f"period {d['multiple']} (doubled)") for d in doubled if d["points"]]:
+            if not pts:
+                continue
+            x, y, st = curve(pts, name)
+            for i, j, s in _runs(x, st):
+                ax.plot(x[i:j + 1], y[i:j + 1], color=color, lw=1.5, ls="-" if s else "--",
+                        label=f"{what}, {'stable' if s else 'unstable'}")
+            ax.plot(x, y, ".", ms=3, color=color)
+        x, y, st = curve(points, name) if points else (np.zeros(0), np.zeros(0), np.zeros(0, bool))
+        for b in bifurcations:
+            yb = _at(x, y, st, float(b["value"]))
+            if yb is None:
+                continue
+            ax.plot([b["value"]], [yb], marks.get(b["kind"], "o"), ms=7, color="tab:red", zorder=4)
+            ax.annotate(f"{b['kind']} {b['value']:.6g}", (b["value"], yb), textcoords="offset points", xytext=(6, 6),
+                        fontsize=7, color="tab:red")
+        ax.set_ylabel(f"{name}: amplitude [µm]" if name else "largest section coordinate [model unit]")
+        ax.grid(True, alpha=0.3)
+        handles, labels = ax.get_legend_handles_labels()
+        seen = dict(zip(labels, handles))
+        if seen:
+            ax.legend(seen.values(), seen.keys(), fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    axes[-1, 0].set_xlabel(key_label(key))
+    head = "periodic orbits: solid stable, dashed unstable; red marks: bifurcations"
+    axes[0, 0].set_title(f"{title}\n{head}" if title else head, fontsize=8)
+    return save(fig, path)
+
+
+def _at(x: np.ndarray, y: np.ndarray, stable: np.ndarray, value: float) -> float | None:
+    """The curve's y at ``value`` between two consecutive points that bracket it (those whose stability differs
+    first), linearly; None where no pair brackets it."""
+    pairs = [i for i in range(x.size - 1) if min(x[i], x[i + 1]) <= value <= max(x[i], x[i + 1])]
+    if not pairs:
+        return None
+    i = next((i for i in pairs if stable[i] != stable[i + 1]), pairs[0])
+    s = 0.0 if x[i + 1] == x[i] else (value - x[i]) / (x[i + 1] - x[i])
+    return float(y[i] + s * (y[i + 1] - y[i]))

@@ -1,0 +1,251 @@
+"""nsfem periodic --continue (a scene's branch of periodic orbits, nsfem.periodic.scene_branch) and nsfem sweep
+--steady periodic (issue 36, items 2 and 3).
+
+References: on a linear scene every orbit is the harmonic steady state, so the branch over speed is ``nsfem
+response``'s resonance curve (and the section states the harmonic balance's, solved directly); a non-smooth
+branch (a rigid stop struck once a period) is checked by what each of its points must satisfy: the exact flow
+over one period returns to it."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from nsfem import cli, load_scene
+from nsfem.periodic.scene_branch import branch_of_scene
+from tests.test_periodic_cli import LINEAR, harmonic_state
+
+#: a rigid stop 20 um beside the linear scene's disk (restitution 0.5): struck once a period below 22 Hz
+STOP = [*LINEAR, "obstacle.0.x=0.5", "obstacle.0.normal=+y", "obstacle.0.clearance=2e-5",
+        "obstacle.0.restitution=0.5"]
+
+
+def _sets(overrides) -> list[str]:
+    return sum((["--set", s] for s in overrides), [])
+
+
+@pytest.fixture(scope="module")
+def linear_branch():
+    scene = load_scene("critical_speed", LINEAR)
+    return scene, branch_of_scene(scene, "rotation.speed_hz", 24.0, 28.0, transient_periods=0)
+
+
+def test_a_linear_branch_over_speed_is_nsfem_response(linear_branch):
+    """Each point of the branch is the harmonic steady state at its speed: its section state that of the harmonic
+    balance, its amplitudes those of nsfem response; no bifurcation; both sides reach their ends."""
+    from nsfem.analysis.response import response_report
+    from nsfem.integrate import ContactSystem
+
+    scene, sb = linear_branch
+    assert [s["stop"] for s in sb.sides] == ["end", "end"] and sb.stop == "end"
+    assert sb.bifurcations == [] and sb.doubled == []
+    values = [p["value"] for p in sb.points]
+    assert values[0] == 24.0 and values[-1] == 28.0 and 26.0 in values and np.all(np.diff(values) > 0)
+    model, red = sb.start.system.info["model"], sb.start.system.info["reduction"]
+    rep = response_report(scene, model, np.array(values), red)
+    for k, p in enumerate(sb.points):
+        assert p["converged"] and p["stable"] and p["events_per_period"] == 0
+        assert p["period_s"] == pytest.approx(1.0 / p["value"], rel=1e-15)
+        system = ContactSystem.from_scene(scene, model, red, speed_hz=p["value"])
+        q, v = harmonic_state(system, sb.start.orbit.t0)
+        # the corrector's tolerance (1e-9 of the orbit's size) bounds the distance to the fixed point, times the
+        # condition of (Phi - I) (~1e1 here: the multipliers' moduli are <= 0.984): within 1e-8 of its size
+        assert np.abs(p["q0"] - q).max() <= 1e-8 * np.abs(q).max()
+        assert np.abs(p["v0"] - v).max() <= 1e-8 * np.abs(v).max()
+        for name, a in p["amplitudes"].items():
+            # half the peak-to-peak, its extremes refined by a parabola through samples 2 pi / 256 apart: off by at
+            # most h^4 / 24 = 1.5e-8 of the amplitude (test_periodic_cli), plus the state's 1e-8
+            assert a == pytest.approx(rep["sensors"][name]["amplitude_m"][k], rel=3e-8)
+        # a damped linear system: every multiplier exp(lambda T) inside the unit circle
+        assert 0.0 < p["largest_multiplier"] < 1.0
+
+
+def test_the_branch_json_keeps_the_contract_keys(linear_branch):
+    """design.md section 9: ``branch`` (each point with the key's value, period_s, converged, residual,
+    multipliers, stable, amplitudes) and ``bifurcations``; strict JSON (no arrays, no NaN)."""
+    _, sb = linear_branch
+    payload = json.loads(json.dumps(sb.to_json(), allow_nan=False))
+    for p in payload["branch"]:
+        assert {"rotation.speed_hz", "period_s", "converged", "residual", "multipliers", "stable",
+                "amplitudes", "events_per_period"} <= set(p)
+        assert p["residual"] <= 1e-9 and all(len(z) == 2 for z in p["multipliers"])
+    assert payload["bifurcations"] == [] and payload["stop"] == "end"
+
+
+@pytest.fixture(scope="module")
+def stop_branch():
+    scene = load_scene("critical_speed", STOP)
+    return scene, branch_of_scene(scene, "rotation.speed_hz", 20.0, 22.0, transient_periods=0)
+
+
+def test_a_branch_with_an_impact_a_period_consists_of_orbits(stop_branch):
+    """The scene's speed (26 Hz) lies outside 20:22: the branch starts at the nearer end, 22 Hz, and runs to
+    20 Hz. Each point is an orbit: the exact flow over its period from its section state returns to it (the
+    corrector's tolerance, 1e-9 of its size, and the flow's event times, located to ~1e-13 s: 1e-8 of the size
+    is far above both), striking the stop once."""
+    from nsfem.integrate import ContactSystem
+    from nsfem.periodic.flow import flow
+
+    scene, sb = stop_branch
+    assert sb.start_value == 22.0 and sb.scene_value == 26.0 and [s["towards"] for s in sb.sides] == [20.0]
+    assert sb.stop == "end" and sb.points[0]["value"] == 20.0 and sb.points[-1]["value"] == 22.0
+    model, red = sb.start.system.info["model"], sb.start.system.info["reduction"]
+    for p in sb.points:
+        assert p["converged"] and p["events_per_period"] >= 1
+        fl = flow(ContactSystem.from_scene(scene, model, red, speed_hz=p["value"]), sb.start.orbit.t0, p["q0"],
+                  p["v0"], p["period_s"], jacobian=False)
+        assert np.abs(fl.q - p["q0"]).max() <= 1e-8 * np.abs(p["q0"]).max()
+        assert sum(1 for e in fl.result.events if e.get("impact")) == 1
+        # the disk cannot pass the stop: its y never exceeds the clearance by more than the impact's round-off
+        assert p["amplitudes"]["disk_y"] > 0.0
+
+
+def test_an_interrupted_branch_keeps_its_points(monkeypatch):
+    """Ctrl-C during the third point's report: the branch so far (two points, the start and one step) is returned,
+    marked interrupted."""
+    from nsfem.periodic import scene_branch
+
+    real, calls = scene_branch._Family.point, []
+
+    def point(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(scene_branch._Family, "point", point)
+    scene = load_scene("critical_speed", LINEAR)
+    sb = branch_of_scene(scene, "rotation.speed_hz", 25.0, 27.0, transient_periods=0)
+    assert sb.interrupted and sb.stop == "interrupted" and len(sb.points) == 2
+    # the side towards LOW is listed in reverse (the branch in order of its values): its start last
+    assert sb.points[-1]["value"] == 26.0 and sb.points[0]["value"] < 26.0
+
+
+def test_other_keys_reload_the_scene_at_each_value():
+    """A key other than the speed: the scene is loaded again at each value (``load``); a linear scene's branch
+    over rotation.phase_deg (the unbalance's angle) keeps every amplitude (the orbit turns with it) and its speed's
+    period."""
+    scene = load_scene("critical_speed", LINEAR)
+    sb = branch_of_scene(scene, "rotation.phase_deg", 0.0, 40.0, transient_periods=0, steps=4,
+                         load=lambda extra: load_scene("critical_speed", [*LINEAR, *extra]))
+    assert sb.start_value == 0.0 and sb.stop in ("end", "max_steps") and len(sb.points) >= 3
+    a0 = sb.points[0]["amplitudes"]
+    for p in sb.points:
+        assert p["period_s"] == pytest.approx(1 / 26.0, rel=1e-15) and p["converged"]
+        # an amplitude does not depend on the forcing's phase: only the orbit's own accuracy (1e-8) is left
+        for name, a in p["amplitudes"].items():
+            assert a == pytest.approx(a0[name], rel=3e-8)
+
+
+def test_a_key_other_than_the_speed_needs_a_loader():
+    scene = load_scene("critical_speed", LINEAR)
+    from nsfem.errors import NsfemError
+
+    with pytest.raises(NsfemError, match="give load"):
+        branch_of_scene(scene, "rotation.phase_deg", 0.0, 40.0)
+
+
+def test_cli_continue_writes_branch_json_npz_png_and_a_table(tmp_path, capsys):
+    from nsfem.plot.periodic import key_label
+
+    out = tmp_path / "b"
+    argv = ["periodic", "critical_speed", *_sets(STOP), "--continue", "rotation.speed_hz=21.5:22", "--out", str(out)]
+    assert cli.main([*argv, "--json", "--transient", "0"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["branch.json", "branch.npz",
+                                                                                   "branch.png"]
+    assert json.loads((out / "branch.json").read_text())["branch"] == payload["branch"]
+    with np.load(out / "branch.npz") as z:
+        assert np.array_equal(z["value"], [p["rotation.speed_hz"] for p in payload["branch"]])
+        assert z["q0"].shape == z["v0"].shape and z["q0"].shape[0] == len(payload["branch"])
+        assert list(z["sensors"]) == ["disk_y", "disk_z"]
+        assert np.array_equal(z["amplitudes"][:, 0], [p["amplitudes"]["disk_y"] for p in payload["branch"]])
+        assert json.loads(str(z["meta"]))["key"] == "rotation.speed_hz"
+    assert payload["bifurcations"] == [] and payload["stop"] == "end"
+    assert key_label("rotation.speed_hz") == "rotor speed [Hz]"
+    # the text: a row per point and the bifurcations' line
+    assert cli.main([*argv, "--transient", "0"]) == 0
+    text = capsys.readouterr().out
+    assert "bifurcations: none found" in text and sum(1 for ln in text.splitlines() if ln.strip().startswith(
+        ("21.", "22"))) == len(payload["branch"])
+
+
+def test_cli_interrupt_leaves_the_points_so_far(tmp_path, monkeypatch, capsys):
+    """Ctrl-C during a branch: exit 130, branch.json and branch.npz hold the points found so far (valid files),
+    stop "interrupted"."""
+    from nsfem.periodic import scene_branch
+
+    real, calls = scene_branch._Family.point, []
+
+    def point(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(scene_branch._Family, "point", point)
+    out = tmp_path / "b"
+    code = cli.main(["periodic", "critical_speed", *_sets(LINEAR), "--set", "output.plots=[]", "--continue",
+                     "rotation.speed_hz=25:27", "--transient", "0", "--out", str(out)])
+    assert code == 130 and "interrupted" in capsys.readouterr().err
+    payload = json.loads((out / "branch.json").read_text())
+    assert payload["stop"] == "interrupted" and len(payload["branch"]) == 3
+    with np.load(out / "branch.npz") as z:
+        assert z["value"].size == 3
+
+
+def test_the_help_says_the_steps_the_library_uses(capsys):
+    from nsfem.periodic import scene_branch
+
+    with pytest.raises(SystemExit):
+        cli.main(["periodic", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"(default {scene_branch.STEPS}, at most {scene_branch.STEPS_MAX})" in text
+    assert cli.parser().parse_args(["periodic"]).steps == scene_branch.STEPS
+
+
+def test_sweep_steady_periodic_is_nsfem_response(tmp_path):
+    """sweep --steady periodic on the linear scene: per speed, the 1x fit over exactly one period of the orbit is
+    the harmonic response (a Fourier coefficient over a whole period of uniform samples of a sinusoid: exact up to
+    the orbit's 1e-8); phases likewise (1e-6 rad); the stability columns; a rerun resumes every value; a transient
+    sweep is refused in its folder."""
+    from nsfem.analysis.response import response_report
+    from nsfem.errors import NsfemError
+    from nsfem.fem.assemble import build_model
+    from nsfem.reduce import scene_reduction
+    from nsfem.sweep import run_sweep
+
+    overrides = [*LINEAR, "output.plots=[]", "rotation.speed_hz=20:30:3"]
+    res = run_sweep("critical_speed", overrides, tmp_path / "s", workers=1, steady="periodic", plot=False)
+    assert res.info["steady"] == "periodic" and not res.failed
+    scene = load_scene("critical_speed", LINEAR)
+    model = build_model(scene)
+    speeds = np.array([r["rotation.speed_hz"] for r in res.runs], dtype=float)
+    rep = response_report(scene, model, speeds, scene_reduction(scene.reduction, model))
+    for k, r in enumerate(res.runs):
+        assert r["stable"] is True and r["converged"] is True and r["events_per_period"] == 0
+        assert 0.0 < r["largest_multiplier"] < 1.0 and r["method"] == "exact"
+        for name in ("disk_y", "disk_z"):
+            assert r[f"amplitude_{name}_m"] == pytest.approx(rep["sensors"][name]["amplitude_m"][k], rel=1e-8)
+            dphi = (r[f"phase_{name}_deg"] - rep["sensors"][name]["phase_deg"][k] + 180.0) % 360.0 - 180.0
+            assert abs(math.radians(dphi)) <= 1e-6
+    again = run_sweep("critical_speed", overrides, tmp_path / "s", workers=1, steady="periodic", plot=False)
+    assert again.info["resumed"] == 3 and again.info["executed"] == 0 and again.runs == res.runs
+    header = (tmp_path / "s" / "sweep.csv").read_text().splitlines()[0].split(",")
+    assert {"stable", "largest_multiplier", "events_per_period", "converged"} <= set(header)
+    with pytest.raises(NsfemError, match="another sweep"):
+        run_sweep("critical_speed", overrides, tmp_path / "s", workers=1, plot=False)
+
+
+def test_a_speed_range_ending_at_a_bearing_tables_end_is_named():
+    """stepped_rotor's bearing tables end at 150 Hz: the continuation steps a little past its range's ends, so a
+    range ending there is warned about (naming the table); one inside it is not."""
+    from nsfem.periodic.scene_branch import table_edge
+
+    scene = load_scene("stepped_rotor")
+    assert table_edge(scene, 140.0, 150.0) == ("bearing.0.speeds_hz", 150.0)
+    assert table_edge(scene, 10.0, 40.0) == ("bearing.0.speeds_hz", 10.0)
+    assert table_edge(scene, 140.0, 149.0) is None
