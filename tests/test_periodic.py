@@ -280,6 +280,20 @@ def test_orbit_with_simultaneous_closings_warns_that_its_monodromy_is_approximat
     assert orbit.converged and orbit.approximations
 
 
+def test_a_monodromy_that_overflows_is_refused_in_one_line(monkeypatch):
+    """A saltation matrix's 1 / h' overflowing (an event at a vanishing rate) left inf in the Jacobian: lstsq then
+    raised LinAlgError (a traceback); now the shooting says so in one NsfemError."""
+    import importlib
+
+    flow_module = importlib.import_module("nsfem.periodic.flow")   # (the package's name flow is the function)
+    *_, system = _linear_system()
+    original = flow_module.monodromy
+    monkeypatch.setattr(flow_module, "monodromy", lambda trace: (np.full_like(original(trace)[0], np.inf), [], []))
+    with pytest.raises(NsfemError, match="monodromy matrix overflowed") as info:
+        periodic_orbit(system, 2 * math.pi / 7.0)
+    assert "\n" not in str(info.value)
+
+
 def test_classify_names_the_loss_by_the_largest_multiplier():
     assert classify(np.array([0.5, 0.3j])) == (True, None)
     assert classify(np.array([1.2, 0.5])) == (False, "fold")

@@ -155,6 +155,9 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
 
     def run(q_, v_) -> tuple[Flow, float, np.ndarray]:
         fl = phi(q_, v_)
+        if not np.all(np.isfinite(fl.monodromy)):   # (an event met at a vanishing rate: its 1 / h' overflowed)
+            raise NsfemError("periodic: the monodromy matrix overflowed (an event met at a vanishing rate, "
+                             f"{len(fl.result.events)} events in the period): no Newton step from this state")
         F = np.concatenate([fl.q - q_, fl.v - v_])
         size = max(float(np.abs(scale * np.concatenate([q_, v_])).max()), float(np.abs(scale * F).max()), 1e-300)
         return fl, float(np.abs(scale * F).max()) / size, F
