@@ -4361,3 +4361,16 @@ def test_issue36_flow_refuses_bad_arguments_in_one_line(args, kwargs, words):
         flow(_forced36(), *args, **kwargs)
     message = _one_line36(info.value)
     assert message.startswith("periodic: ") and words in message, message
+
+
+@pytest.mark.parametrize("multipliers, tol, words", [
+    ([0.5], -1.0, "tol"), ([0.5], math.nan, "tol"), ([0.5], None, "tol"), ([0.5], 2.0, "tol"),
+    (["a"], 1e-6, "numbers"), ([math.inf], 1e-6, "not finite"),
+])
+def test_issue36_classify_refuses_bad_arguments_in_one_line(multipliers, tol, words):
+    from nsfem.periodic import classify
+
+    with pytest.raises(NsfemError) as info:
+        classify(multipliers, tol)
+    message = _one_line36(info.value)
+    assert message.startswith("periodic: ") and words in message, message

@@ -59,7 +59,13 @@ class PeriodicOrbit:
 def classify(multipliers: np.ndarray, tol: float = 1e-6) -> tuple[bool, str | None]:
     """(stable, the kind of loss): stable when every |mu| <= 1 + tol; otherwise the multiplier of largest modulus
     names it: real and positive 'fold', real and negative 'period-doubling', a complex pair 'neimark-sacker'."""
-    mu = np.asarray(multipliers, dtype=complex).ravel()
+    tol = real_number("classify's tol", tol)
+    if not 0.0 <= tol < 1.0:
+        raise NsfemError(f"periodic: classify's tol must lie in [0, 1), got {tol}")
+    try:
+        mu = np.asarray(multipliers, dtype=complex).ravel()
+    except (TypeError, ValueError):
+        raise NsfemError(f"periodic: the Floquet multipliers must be numbers, got {str(multipliers)[:40]!r}") from None
     if not np.all(np.isfinite(mu)):
         raise NsfemError("periodic: a Floquet multiplier is not finite")
     if mu.size == 0 or np.abs(mu).max() <= 1.0 + tol:
