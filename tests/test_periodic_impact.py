@@ -312,3 +312,22 @@ def test_a_section_on_the_impact_moves_off_it():
     size = abs(p.x0) + abs(p.v0) / w
     assert abs(orbit.q0[0] - ref[0]) + abs(orbit.v0[0] - ref[1]) / w <= 1e-8 * size
     assert multiplier_error(orbit.multipliers, p.multipliers) <= 1e-7
+
+
+def test_shooting_started_on_the_impact_moves_the_section_and_finds_the_closed_form_multipliers():
+    """The start exactly at the stop with the orbit's approach velocity u at t0 = tau (an impact of the start
+    itself, no event of the run): the map is one-sided there (a perturbation off the stop meets the impact later,
+    one into it penetrates) and the start's impact matrix alone has no time shift. The shooting claimed
+    convergence there with multipliers -0.836, 0.748 against the closed form's -0.320 +- 0.631 i, and from u 1 %
+    off it did not converge in 30 steps; the section now moves off the impact. Tolerances as above (1e-7)."""
+    from nsfem.periodic import flow, periodic_orbit
+
+    w = 2.55
+    p = period1_branch(OSC, w, -1)
+    for u in (p.u, 1.01 * p.u):
+        orbit = periodic_orbit(impact_system(OSC, w), p.period, q0=[OSC.d], v0=[u], t0=p.tau, tol=1e-9)
+        assert orbit.converged and orbit.events_per_period == 1
+        assert abs((orbit.t0 - p.tau + p.period / 2) % p.period - p.period / 2) > 1e-3 * p.period
+        assert multiplier_error(orbit.multipliers, p.multipliers) <= 1e-7
+    start = flow(impact_system(OSC, w), p.tau, [OSC.d], [p.u], p.period)
+    assert [a["why"] for a in start.approximations] == ["an impact at the start (the map is one-sided there)"]

@@ -112,6 +112,10 @@ def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
     Phi, exact = impact_jacobian(start["system"], start["q"], start["v"], start["v_plus"], start["impact"])
     if not exact:
         approx.append({"t": 0.0, "why": "the start's impact outcome is not reproduced by its linear map"})
+    elif start["impact"] is not None and np.any(start["v_plus"] != start["v"]):
+        # an impact at the start itself: a perturbation off the stop meets it later (a time shift the start has no
+        # event row for) and one into it penetrates: the map is one-sided there, its matrix the impact's alone
+        approx.append({"t": 0.0, "why": "an impact at the start (the map is one-sided there)"})
     steps = trace[1:]
     for j, step in enumerate(steps):
         phase = step["phase"]

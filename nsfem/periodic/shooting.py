@@ -150,7 +150,9 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     # there (a disk on a polygon's corner at t0: residual 6e-4 after 13 steps); the section moves to the middle of
     # the longest stretch of the period without events of the start's flow
     probe = phi(q, v, jacobian=False)
-    times = sorted(((e["t"] - t0) % period_s) for e in probe.result.events)
+    # (an impact of the start itself, the start on a stop with an approaching velocity, is no event of the run but
+    # lies on the section as well: its map is one-sided there)
+    times = sorted(((e["t"] - t0) % period_s) for e in probe.result.events + probe.result.impacts)
     if times and min(min(times), period_s - max(times)) < SECTION_MARGIN * period_s:
         gaps = [(b - a, a) for a, b in zip(times, times[1:] + [times[0] + period_s])]
         length, after = max(gaps)
