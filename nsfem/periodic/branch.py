@@ -100,7 +100,7 @@ def _points(problem: _Problem, branch: Branch, key: str) -> list[dict]:
                     "period_s": float(problem.multiple * problem.period_at(bp.p)), "converged": bool(bp.converged),
                     "residual": float(bp.residual),
                     "multipliers": [[float(m.real), float(m.imag)] for m in mu], "stable": stable, "loss": loss,
-                    "amplitude_max_m": float(np.abs(bp.u[:n]).max()), "q0": bp.u[:n].copy(), "v0": bp.u[n:].copy()})
+                    "section_q_max": float(np.abs(bp.u[:n]).max()), "q0": bp.u[:n].copy(), "v0": bp.u[n:].copy()})
     return out
 
 

@@ -376,5 +376,5 @@ class _Family:
             amplitudes = {s.name: half_peak_to_peak(signals[:, k]) for k, s in enumerate(scene.sensors)}
         return {"period_s": float(period), "residual": float(np.abs(F).max()) / size,
                 "events_per_period": len(res.events), "amplitudes": amplitudes, "multiple": int(multiple),
-                "amplitude_max_m": float(np.abs(q0).max(initial=0.0)),
+                "section_q_max": float(np.abs(q0).max(initial=0.0)),
                 "q0": q0, "v0": v0}

@@ -177,7 +177,7 @@ def branch_plot(path: str | Path, key: str, points: Sequence[dict], sensors: Seq
 
     def curve(pts, name):
         x = np.array([p["value"] for p in pts], dtype=float)
-        y = np.array([1e6 * p["amplitudes"][name] if name else p.get("amplitude_max_m", 0.0) for p in pts], float)
+        y = np.array([1e6 * p["amplitudes"][name] if name else p.get("section_q_max", 0.0) for p in pts], float)
         return x, y, np.array([bool(p["stable"]) for p in pts])
 
     for ax, name in zip(axes[:, 0], names):
