@@ -338,17 +338,18 @@ def _named_grazing(g: dict, labels: list[str], t0: float) -> dict:
     return out
 
 
-def half_peak_to_peak(y: np.ndarray) -> float:
-    """Half the peak-to-peak of a periodic signal sampled uniformly over one period (the first sample
-    repeated at the end or not): its extremes refined by a parabola through the extreme sample and its two
-    neighbours (periodic), kept when its vertex lies between them: a smooth peak sampled 256 times a
-    revolution is then found to about (2 pi / 256)^4 / 24 = 1.5e-8 of its amplitude instead of
-    (pi / 256)^2 / 2 = 7.5e-5; a kink (an impact) keeps its sample."""
+def half_peak_to_peak(y: np.ndarray, closed: bool = True) -> float:
+    """Half the peak-to-peak of a periodic signal sampled uniformly over one period, ``closed``: its first
+    sample repeated at the end (an orbit's outputs from t0 to t0 + T; the end is left out: it is the start
+    again up to the shooting's residual) or not (``closed=False``): its extremes refined by a parabola through
+    the extreme sample and its two neighbours (periodic), kept when its vertex lies between them: a smooth peak
+    sampled 256 times a revolution is then found to about (2 pi / 256)^4 / 24 = 1.5e-8 of its amplitude
+    instead of (pi / 256)^2 / 2 = 7.5e-5; a kink (an impact) keeps its sample."""
     y = np.asarray(y, dtype=float)
+    if closed and y.size > 1:
+        y = y[:-1]
     if y.size < 3:
         return float(0.5 * (y.max(initial=0.0) - y.min(initial=0.0))) if y.size else 0.0
-    if y[-1] == y[0]:
-        y = y[:-1]
     return 0.5 * (_extreme(y, 1.0) + _extreme(y, -1.0))
 
 
