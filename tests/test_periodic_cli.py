@@ -289,3 +289,25 @@ def test_half_peak_to_peak_does_not_guess_the_repeated_end():
         closed[-1] = closed[0] + 1e-14   # the period's end: the start again, up to a residual 5e-15 relative
         assert abs(half_peak_to_peak(closed) - 2.0) <= 2.0 * h**4 / 24, phase
         assert abs(half_peak_to_peak(closed[:-1], closed=False) - 2.0) <= 2.0 * h**4 / 24, phase
+
+
+#: critical_speed beside a rigid stop at the disk probes' x, 20 um along +y, struck once a period
+STOP = [*LINEAR, "obstacle.0.x=0.5", "obstacle.0.normal=+y", "obstacle.0.clearance=2e-5",
+        "obstacle.0.restitution=0.5", "output.vtu_every=0"]
+
+
+def test_an_impact_peak_is_the_stop_not_the_sample_before_it():
+    """review2: the probe at the stop reads y = 20 um at the impact (the gap, 20 um - y, is zero there): its
+    largest value over the period. Sampled 256 times a period the kink fell between samples, 0.2 um short of it
+    (1 % of the amplitude, the branch's disk_y curve jagged point to point). The amplitude is half of (the stop's
+    20 um - the smallest value): the event search closes the gap to round-off (1e-12 m of 2e-5) and the smooth
+    minimum is refined to 1.5e-8 of the amplitude (3e-13 m): 1e-11 m bounds both."""
+    from nsfem.periodic.scene import _extreme
+
+    for speed in (21.0, 20.4):
+        so = orbit_of_scene(load_scene("critical_speed", [*STOP, f"rotation.speed_hz={speed}"]))
+        assert so.orbit.converged and sum(e["impact"] for e in so.contact_sequence) == 1
+        y = so.signals[:-1, 0]
+        assert y.max() < 2e-5 - 1e-9   # the samples miss the kink: the case this test is about
+        low = -_extreme(y, -1.0)
+        assert abs(so.amplitudes["disk_y"] - 0.5 * (2e-5 - low)) <= 1e-11, (speed, so.amplitudes["disk_y"])

@@ -355,7 +355,7 @@ class _Family:
         from ..fem.constraints import dense
         from ..sensors import read
         from .flow import flow
-        from .scene import SAMPLES_PER_REVOLUTION, half_peak_to_peak
+        from .scene import SAMPLES_PER_REVOLUTION, half_peak_to_peak, impact_readings
 
         n = self.n
         q0, v0 = np.array(u[:n], dtype=float), np.array(u[n:], dtype=float)
@@ -369,11 +369,15 @@ class _Family:
         res = fl.result
         amplitudes = {}
         if scene.sensors:
-            t = t0 + (np.asarray(res.t, dtype=float) - float(res.t[0]))
+            offset = t0 - float(res.t[0])
+            t = np.asarray(res.t, dtype=float) + offset
             rot = scene.rotation
             signals = read(scene.sensors, system.info["model"], dense(system.info["reduction"].T), t, res.q,
                            rot.frame, self.speed_at(p), rot.phase_deg)
-            amplitudes = {s.name: half_peak_to_peak(signals[:, k]) for k, s in enumerate(scene.sensors)}
+            where, kinks = impact_readings(system, scene.sensors, t, res, offset, rot.frame, self.speed_at(p),
+                                           rot.phase_deg)
+            amplitudes = {s.name: half_peak_to_peak(signals[:, k], kinks=(where, kinks[:, k]))
+                          for k, s in enumerate(scene.sensors)}
         return {"period_s": float(period), "residual": float(np.abs(F).max()) / size,
                 "events_per_period": len(res.events), "amplitudes": amplitudes, "multiple": int(multiple),
                 "amplitude_max_m": float(np.abs(q0).max(initial=0.0)),
