@@ -265,6 +265,10 @@ def _saved_state(path) -> tuple[np.ndarray, np.ndarray, float, str]:
     try:
         with np.load(path, allow_pickle=False) as r:
             if "q0" in r.files and "v0" in r.files:
+                if r["q0"].ndim != 1:
+                    raise NsfemError(f"--start: {path} is a branch.npz (the section states of {len(r['q0'])} "
+                                     "orbits along a branch); give an orbit.npz of nsfem periodic or a run's "
+                                     "result.npz")
                 q, v, t, what = r["q0"], r["v0"], float(np.ravel(r["t0"])[0]), "the orbit in"
             else:
                 q, v, t, what = r["q"][:, -1], r["v"][:, -1], float(r["t"][-1]), "the last output of"
