@@ -273,3 +273,19 @@ def test_a_speed_range_ending_at_a_bearing_tables_end_is_named():
     assert table_edge(scene, 140.0, 150.0) == ("bearing.0.speeds_hz", 150.0)
     assert table_edge(scene, 10.0, 40.0) == ("bearing.0.speeds_hz", 10.0)
     assert table_edge(scene, 140.0, 149.0) is None
+
+
+def test_a_speed_outside_the_range_starts_at_the_nearer_end_without_a_loader():
+    """review2: branch_of_scene over the speed without ``load`` (the Python API's default: one model) found its
+    first orbit at the scene's own speed (26 Hz, period 1/26 s) when that lies outside the range, and reported it
+    as the start at 22 Hz. The start is the orbit at 22 Hz: its period 1/22 s and its flow over it returns to its
+    state (the shooting's 1e-9)."""
+    from nsfem.periodic.flow import flow
+
+    scene = load_scene("critical_speed", LINEAR)
+    sb = branch_of_scene(scene, "rotation.speed_hz", 21.5, 22.0, transient_periods=0, steps=2)
+    o = sb.start.orbit
+    assert sb.start_value == 22.0 and o.period_s == pytest.approx(1 / 22.0, rel=1e-15) and o.converged
+    assert sb.start.system.omega == pytest.approx(2 * np.pi * 22.0, rel=1e-15)
+    fl = flow(sb.start.system, o.t0, o.q0, o.v0, o.period_s, jacobian=False)
+    assert np.abs(fl.q - o.q0).max() <= 1e-8 * np.abs(o.q0).max()

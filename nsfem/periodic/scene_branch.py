@@ -181,9 +181,10 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
     check_key(key)
     check_scene(scene)
     a, b = sorted((float(low), float(high)))
+    at_speed = key == SPEED_KEY and load is None   # (one model: the scene is not loaded again)
     if key == SPEED_KEY:
         check_speeds(scene, a, b)
-        load = (lambda extra: scene) if load is None else load   # (one model: the scene is not loaded again)
+        load = (lambda extra: scene) if load is None else load
     elif load is None:
         raise NsfemError(f"branch_of_scene: continuing {key} loads the scene at each value: give load(overrides) -> "
                          "Scene, e.g. lambda extra: load_scene(PATH, [*overrides, *extra])")
@@ -192,7 +193,7 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
     value = scene_value(scene, key)
     inside = a <= value <= b
     p0 = value if inside else min((a, b), key=lambda e: abs(e - value))
-    scene0 = scene if inside else load([f"{key}={p0!r}"])
+    scene0 = scene if inside else _with_speed(scene, p0) if at_speed else load([f"{key}={p0!r}"])
     check_scene(scene0)
     warnings: list[str] = []
 
@@ -264,6 +265,17 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
                       for m, pts in doubled_found.items()]
     sb.wall_s = time.perf_counter() - t_wall
     return sb
+
+
+def _with_speed(scene: "Scene", speed_hz: float) -> "Scene":
+    """``scene`` at rotation.speed_hz = ``speed_hz`` (the typed part, which builds the system; the tree is the
+    user's)."""
+    import copy
+    from dataclasses import replace
+
+    out = copy.copy(scene)
+    out.rotation = replace(scene.rotation, speed_hz=float(speed_hz))
+    return out
 
 
 def _assemble(sb: SceneBranch, found: list[list[dict]], sides: list[float], p0: float) -> None:
