@@ -289,3 +289,42 @@ def test_a_speed_outside_the_range_starts_at_the_nearer_end_without_a_loader():
     assert sb.start.system.omega == pytest.approx(2 * np.pi * 22.0, rel=1e-15)
     fl = flow(sb.start.system, o.t0, o.q0, o.v0, o.period_s, jacobian=False)
     assert np.abs(fl.q - o.q0).max() <= 1e-8 * np.abs(o.q0).max()
+
+
+def test_a_doubled_branch_is_reported_at_its_own_section(monkeypatch):
+    """review2: a doubled branch's sections are at its own t0 (OrbitBranch.t0: the shooting moves a section
+    lying on an event), but its points' residual and amplitudes were computed by a flow from the first orbit's
+    t0. A doubled branch stood in here (no scene of ours period-doubles in a test's time): the linear scene's
+    orbit of period 2 T with its section a quarter period on; reported at its t0, its amplitudes are the single
+    orbit's (one orbit, sampled from another phase: the parabola's 1.5e-8 at most, 1e-7 taken); from the first
+    orbit's t0 they were a transient's, 11 % off."""
+    from nsfem.periodic import branch as branch_module
+    from nsfem.periodic.continuation import BranchPoint
+    from nsfem.periodic.shooting import periodic_orbit
+
+    real = branch_module.orbit_branch
+
+    def with_a_doubled_branch(system_at, period_at, q0, v0, p0, p_end, **kw):
+        br = real(system_at, period_at, q0, v0, p0, p_end, **kw)
+        T = period_at(p0)
+        start = br.points[0] if br.points[0]["value"] == p0 else br.points[-1]
+        t_d = br.t0 + T / 4   # its section: a quarter period on (the orbit's state there by a flow)
+        from nsfem.periodic.flow import flow
+
+        there = flow(system_at(p0), br.t0, start["q0"], start["v0"], T / 4, jacobian=False)
+        orb = periodic_orbit(system_at(p0), 2 * T, there.q, there.v, t_d)
+        u = np.concatenate([orb.q0, orb.v0])
+        bp = BranchPoint(p0, u, orb.multipliers, orb.stable, True, orb.residual)
+        kw["on_point"](bp, 2)
+        point = {"value": p0, kw["key"]: p0, "q0": orb.q0, "v0": orb.v0, "converged": True, "residual": orb.residual,
+                 "multipliers": [[float(z.real), float(z.imag)] for z in orb.multipliers]}
+        br.doubled.append(branch_module.OrbitBranch(kw["key"], 2, [point], [], "end", "", t0=orb.t0))
+        return br
+
+    monkeypatch.setattr(branch_module, "orbit_branch", with_a_doubled_branch)
+    scene = load_scene("critical_speed", LINEAR)
+    sb = branch_of_scene(scene, "rotation.speed_hz", 25.9, 26.0, transient_periods=0, steps=1)
+    (d,) = sb.doubled
+    (p,) = d["points"]
+    for name, a in sb.start.amplitudes.items():
+        assert p["amplitudes"][name] == pytest.approx(a, rel=1e-7), name

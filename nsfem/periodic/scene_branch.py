@@ -252,8 +252,9 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
             for bif in br.bifurcations:
                 sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end),
                                         **({"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {})})
-            for d in br.doubled:
-                sb.doubled.append(_doubled(d, family, so.orbit.t0, records))
+            for d in br.doubled:   # (at its own section: the shooting moves one lying on an event; the records
+                # of its points, made as they came at the first orbit's t0, hold only where that is the same)
+                sb.doubled.append(_doubled(d, family, d.t0, records if d.t0 == so.orbit.t0 else {}))
             if br.stop == "failed":
                 say(f"the branch towards {key} = {end:g} ended early: {br.reason}")
     except KeyboardInterrupt:
