@@ -311,3 +311,21 @@ def test_an_impact_peak_is_the_stop_not_the_sample_before_it():
         assert y.max() < 2e-5 - 1e-9   # the samples miss the kink: the case this test is about
         low = -_extreme(y, -1.0)
         assert abs(so.amplitudes["disk_y"] - 0.5 * (2e-5 - low)) <= 1e-11, (speed, so.amplitudes["disk_y"])
+
+
+def test_a_shooting_that_did_not_converge_gives_no_stability():
+    """review2: a shooting that did not converge has no orbit, so no verdict (the docs, and verdict() says so),
+    but periodic.json (and a periodic sweep's row) said "stable": true/false and a "loss" of its last iterate's
+    multipliers. They are null; converged is false and the warning says why."""
+    from nsfem.periodic.shooting import periodic_orbit
+
+    def one_step(*args, **kwargs):
+        return periodic_orbit(*args, **{**kwargs, "max_iter": 1, "attempts": 1})
+
+    warned = []
+    so = orbit_of_scene(load_scene("crack", ["output.vtu_every=0"]), transient_periods=0, shoot=one_step,
+                        warn=warned.append)
+    assert not so.orbit.converged   # one Newton step from the initial state: the case this test is about
+    j = so.to_json()
+    assert j["converged"] is False and j["stable"] is None and j["loss"] is None
+    assert so.verdict().startswith("none") and any("did not converge" in w for w in warned)

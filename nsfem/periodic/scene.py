@@ -104,7 +104,10 @@ class SceneOrbit:
         return {"period_s": float(o.period_s), "converged": bool(o.converged), "residual": float(o.residual),
                 "multipliers": [[float(z.real), float(z.imag)] for z in mu],
                 "multiplier_moduli": [float(abs(z)) for z in mu],
-                "stable": bool(o.stable), "loss": o.loss, "on_unit_circle": self.on_unit_circle(), "events_per_period": int(o.events_per_period),
+                # no orbit, no verdict: a shooting that did not converge has null stability (its iterate's
+                # multipliers are kept, for what they are)
+                "stable": bool(o.stable) if o.converged else None, "loss": o.loss if o.converged else None,
+                "on_unit_circle": self.on_unit_circle(), "events_per_period": int(o.events_per_period),
                 "amplitudes": {k: float(v) for k, v in self.amplitudes.items()},
                 "iterations": int(o.iterations), "t0_s": float(o.t0), "multiple": self.multiple,
                 "forcing_period_s": self.forcing_period_s, "transient_periods": self.transient_periods,
