@@ -329,3 +329,22 @@ def test_a_shooting_that_did_not_converge_gives_no_stability():
     j = so.to_json()
     assert j["converged"] is False and j["stable"] is None and j["loss"] is None
     assert so.verdict().startswith("none") and any("did not converge" in w for w in warned)
+
+
+def test_event_times_are_counted_from_the_section(tmp_path):
+    """review2: contact_sequence's t_s is the time after the section t0. With t0 = 0 (a transient of whole
+    periods) a time from the clock's zero passes as one: nothing checked it. The crack's orbit started from its
+    own state 96/256 of a period on (an orbit.npz of that section) has its events at the first orbit's times less
+    that shift, modulo the period; the event search places an event to ~1e-13 s (the shooting's two runs differ
+    by that), 1e-9 s is far above it and far below the 30 ms shift."""
+    scene = load_scene("crack", ["output.vtu_every=0"])
+    so = orbit_of_scene(scene)
+    T, k, res = so.period_s, 96, so.orbit.result
+    np.savez(tmp_path / "orbit.npz", q0=res.q[:, k], v0=res.v[:, k], t0=np.array(so.t[k]))
+    moved = orbit_of_scene(scene, start=tmp_path / "orbit.npz")
+    assert moved.orbit.converged and moved.orbit.t0 == pytest.approx(so.t[k], abs=1e-15)
+    expected = sorted((e["t_s"] - so.t[k]) % T for e in so.contact_sequence)
+    got = sorted(e["t_s"] for e in moved.contact_sequence)
+    assert all(0.0 <= t <= T for t in got)
+    assert np.abs(np.array(got) - np.array(expected)).max() <= 1e-9
+    assert moved.to_json()["t0_s"] == pytest.approx(so.t[k], abs=1e-15)
