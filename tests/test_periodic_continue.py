@@ -349,3 +349,31 @@ def test_a_periodic_sweep_rows_phase_is_the_lag_behind_the_unbalance(tmp_path):
         assert row[f"amplitude_{name}_m"] == pytest.approx(rep["sensors"][name]["amplitude_m"][0], rel=1e-8)
         dphi = (row[f"phase_{name}_deg"] - rep["sensors"][name]["phase_deg"][0] + 180.0) % 360.0 - 180.0
         assert abs(math.radians(dphi)) <= 1e-6, name
+
+
+def test_ctrl_c_inside_a_branch_flow_ends_the_branch(monkeypatch):
+    """review2: Ctrl-C inside one of the continuation's flows ended that flow early (the integrator's clean stop),
+    which the corrector took for a failed step: the branch went on, and the interrupt was lost. The signal raised
+    at the 5th flow of the branch (inside the integrator's loop) ends it: interrupted, its points so far kept."""
+    import signal
+
+    from nsfem.integrate import event_driven
+    from nsfem.periodic import branch as branch_module
+
+    real_resolve, real_branch, calls = event_driven.resolve, branch_module.orbit_branch, []
+
+    def resolve(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 5:
+            signal.raise_signal(signal.SIGINT)
+        return real_resolve(*args, **kwargs)
+
+    def orbit_branch(*args, **kwargs):
+        monkeypatch.setattr(event_driven, "resolve", resolve)
+        return real_branch(*args, **kwargs)
+
+    monkeypatch.setattr(branch_module, "orbit_branch", orbit_branch)
+    scene = load_scene("critical_speed", LINEAR)
+    sb = branch_of_scene(scene, "rotation.speed_hz", 25.0, 27.0, transient_periods=0, steps=20)
+    assert sb.interrupted and sb.stop == "interrupted"
+    assert len(calls) == 5   # stopped there, not after the branch's other flows

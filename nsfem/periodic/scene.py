@@ -16,10 +16,11 @@ from a saved state (``start``: a run's ``result.npz``, its last output; or an ``
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
@@ -218,7 +219,7 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
                              "is not in this version") from None
     import warnings as python_warnings
 
-    with python_warnings.catch_warnings():   # a shooting that does not converge: said once, by describe()
+    with python_warnings.catch_warnings(), interrupts_end_flows():   # (non-convergence: said once, by describe())
         python_warnings.simplefilter("ignore")
         orbit = shoot(system, period, q0, v0, t0, tol=tol, output_dt=dt)
     if not getattr(orbit.result, "completed", True):   # a flow cut short by an interrupt is no period
@@ -227,6 +228,37 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
     so = describe(scene, system, orbit, multiple, forcing, transient_periods, origin, say)
     so.wall_s = time.perf_counter() - t_wall
     return so
+
+
+class _Interrupted(BaseException):
+    """Ctrl-C or SIGTERM within :func:`interrupts_end_flows` (no KeyboardInterrupt: the integrator would catch it)."""
+
+
+@contextlib.contextmanager
+def interrupts_end_flows() -> Iterator[None]:
+    """Ctrl-C (SIGINT) and SIGTERM within the block end it with KeyboardInterrupt, even inside a flow: the exact
+    integrator ends a run cleanly on KeyboardInterrupt (completed = False), which a shooting or a continuation
+    would take for a failed step of theirs and go on. A signal whose handler is SIG_IGN stays ignored; outside
+    the main thread (a sweep's worker) the block runs as it is."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        raise _Interrupted
+
+    sigs = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) is not signal.SIG_IGN]
+    previous = {sig: signal.signal(sig, stop) for sig in sigs}
+    try:
+        yield
+    except _Interrupted:
+        raise KeyboardInterrupt from None
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def orbit_samples(scene: "Scene", multiple: int, output_dt: float | None = None) -> int:
@@ -350,8 +382,9 @@ def impact_readings(system: "ContactSystem", sensors, t: np.ndarray, res, offset
                     speed_hz: float, phase_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """(where (impacts,): the sample before each impact; (impacts, sensors) the probes' readings at them) of the
     impacts of ``res`` (a flow of ``system`` sampled at the times ``t`` = res.t + ``offset``, the forcing's
-    clock): the positions there, each by the exact flow from the sample before it. An impact's velocity jump is a kink of the signal, often its extreme (a probe at a
-    stop), which the samples straddle (:func:`half_peak_to_peak`)."""
+    clock): the positions there, each by the exact flow from the sample before it. An impact's velocity jump is
+    a kink of the signal, often its extreme (a probe at a stop), which the samples straddle
+    (:func:`half_peak_to_peak`)."""
     from ..fem.constraints import dense
     from ..sensors import read
     from .flow import flow

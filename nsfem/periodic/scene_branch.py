@@ -242,21 +242,25 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
             on_point(sb)
 
     from .branch import orbit_branch
+    from .scene import interrupts_end_flows
 
     try:
-        for k, end in enumerate(sides):
-            br = orbit_branch(family.system_at, family.period_at, so.orbit.q0, so.orbit.v0, p0, end, key=key,
-                              multiple=multiple, t0=float(so.orbit.t0), tol=tol, step=step, max_steps=steps,
-                              on_point=lambda bp, m, k=k: point(bp, m, k))
-            sb.sides.append({"towards": float(end), "stop": br.stop, "reason": br.reason})
-            for bif in br.bifurcations:
-                sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end),
-                                        **({"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {})})
-            for d in br.doubled:   # (at its own section: the shooting moves one lying on an event; the records
-                # of its points, made as they came at the first orbit's t0, hold only where that is the same)
-                sb.doubled.append(_doubled(d, family, d.t0, records if d.t0 == so.orbit.t0 else {}))
-            if br.stop == "failed":
-                say(f"the branch towards {key} = {end:g} ended early: {br.reason}")
+        # (Ctrl-C inside a flow too: the integrator ends it cleanly, which the corrector would take for a failed
+        # step and go on)
+        with interrupts_end_flows():
+            for k, end in enumerate(sides):
+                br = orbit_branch(family.system_at, family.period_at, so.orbit.q0, so.orbit.v0, p0, end, key=key,
+                                  multiple=multiple, t0=float(so.orbit.t0), tol=tol, step=step, max_steps=steps,
+                                  on_point=lambda bp, m, k=k: point(bp, m, k))
+                sb.sides.append({"towards": float(end), "stop": br.stop, "reason": br.reason})
+                for bif in br.bifurcations:
+                    failed = {"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {}
+                    sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end), **failed})
+                for d in br.doubled:   # (at its own section: the shooting moves one lying on an event; the records
+                    # of its points, made as they came at the first orbit's t0, hold only where that is the same)
+                    sb.doubled.append(_doubled(d, family, d.t0, records if d.t0 == so.orbit.t0 else {}))
+                if br.stop == "failed":
+                    say(f"the branch towards {key} = {end:g} ended early: {br.reason}")
     except KeyboardInterrupt:
         sb.interrupted = True
     sb.bifurcations.sort(key=lambda b: b["value"])
