@@ -320,9 +320,9 @@ def orbit_point(scene, shared, run_dir: str, point: dict, fp: str) -> dict:
         summary = o.result.summary()
         mu = np.abs(np.asarray(o.multipliers, dtype=complex))
         row.update(summary, result=str(path), outputs=[str(path)], integration_wall_s=summary["wall_s"],
-                   stable=bool(o.stable), largest_multiplier=float(mu.max(initial=0.0)),
+                   stable=bool(o.stable) if o.converged else None, largest_multiplier=float(mu.max(initial=0.0)),
                    events_per_period=int(o.events_per_period), converged=bool(o.converged), period_s=so.period_s,
-                   loss=o.loss, residual=float(o.residual))
+                   loss=o.loss if o.converged else None, residual=float(o.residual))
         if so.sensors:
             f = scene.rotation.speed_hz
             t, y = so.t[:-1], so.signals[:-1]   # one period, its end (the start again) left out

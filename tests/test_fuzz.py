@@ -4374,3 +4374,20 @@ def test_issue36_classify_refuses_bad_arguments_in_one_line(multipliers, tol, wo
         classify(multipliers, tol)
     message = _one_line36(info.value)
     assert message.startswith("periodic: ") and words in message, message
+
+
+# --- issue 36: review2 (periodic command) ---
+# nsfem periodic --start takes a run's result.npz or an orbit.npz; a branch.npz (section states of several
+# orbits, (points, n)) is refused as what it is, not as a state "of points x n coordinates" of another model.
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=list(HealthCheck))
+@given(points=st.integers(1, 4))
+def test_issue36_review2_a_branch_file_is_no_start(tmp_path_factory, points):
+    root = tmp_path_factory.mktemp("start")
+    n = 40   # critical_speed with the shipped mesh and reduction: any n, the file is refused for its shape
+    np.savez(root / "branch.npz", q0=np.zeros((points, n)), v0=np.zeros((points, n)), t0=np.array(0.0),
+             value=np.arange(points, dtype=float))
+    code, _, err = check_invocation(["periodic", "critical_speed", "--start", "branch.npz", "--out", "o"], root)
+    assert code == cli.EXIT_ERROR and "branch" in err and "orbit.npz" in err, err
+    assert not (root / "o").exists()

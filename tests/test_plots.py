@@ -1090,3 +1090,31 @@ def test_bearings_plot_has_units_legends_off_the_data_and_draws_round_off_as_zer
     assert thrust and all(np.all(p.vertices[:, 1] == 0.0) for ax in thrust for c in ax.collections
                           for p in c.get_paths()) and all(np.all(line.get_ydata() == 0.0) for ax in thrust
                                                           for line in ax.get_lines() if len(line.get_ydata()))
+
+
+def test_floquet_titles_fit_in_the_figure(saved_figures, tmp_path):
+    """review2: floquet.png's title holds the verdict, which for a marginally stable orbit (critical_speed: 14
+    multipliers on the unit circle) is a sentence of 150 characters: it ran off both sides of the 6 in figure,
+    the verdict unreadable. Every title's drawn extent lies inside the figure (to a pixel)."""
+    from nsfem.periodic.scene import SceneOrbit
+    from nsfem.plot.periodic import floquet_plot
+
+    class Orbit:   # what SceneOrbit.verdict reads: a converged orbit, stable, 14 multipliers with |mu| = 1
+        converged, stable, loss = True, True, None
+        multipliers = np.concatenate([np.exp(1j * np.linspace(0.1, 3.0, 14)), 0.3 * np.ones(4)])
+
+    so = SceneOrbit.__new__(SceneOrbit)
+    so.orbit = Orbit()
+    verdict = so.verdict()
+    assert len(verdict) > 120   # the long verdict this test is about
+    floquet_plot(tmp_path / "floquet.png", Orbit.multipliers, verdict,
+                 "A rotor on anisotropic bearings through its critical speeds: unbalance response")
+    (_, _, _, fig), = saved_figures
+    renderer = fig.canvas.get_renderer()
+    box = fig.bbox
+    texts = [ax.title for ax in fig.axes] + ([fig._suptitle] if fig._suptitle is not None else [])
+    for text in texts:
+        if not text.get_text():
+            continue
+        e = text.get_window_extent(renderer)
+        assert e.x0 >= box.x0 - 1 and e.x1 <= box.x1 + 1 and e.y1 <= box.y1 + 1, (text.get_text(), e, box)

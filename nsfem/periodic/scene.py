@@ -16,10 +16,11 @@ from a saved state (``start``: a run's ``result.npz``, its last output; or an ``
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
@@ -104,7 +105,10 @@ class SceneOrbit:
         return {"period_s": float(o.period_s), "converged": bool(o.converged), "residual": float(o.residual),
                 "multipliers": [[float(z.real), float(z.imag)] for z in mu],
                 "multiplier_moduli": [float(abs(z)) for z in mu],
-                "stable": bool(o.stable), "loss": o.loss, "on_unit_circle": self.on_unit_circle(), "events_per_period": int(o.events_per_period),
+                # no orbit, no verdict: a shooting that did not converge has null stability (its iterate's
+                # multipliers are kept, for what they are)
+                "stable": bool(o.stable) if o.converged else None, "loss": o.loss if o.converged else None,
+                "on_unit_circle": self.on_unit_circle(), "events_per_period": int(o.events_per_period),
                 "amplitudes": {k: float(v) for k, v in self.amplitudes.items()},
                 "iterations": int(o.iterations), "t0_s": float(o.t0), "multiple": self.multiple,
                 "forcing_period_s": self.forcing_period_s, "transient_periods": self.transient_periods,
@@ -215,7 +219,7 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
                              "is not in this version") from None
     import warnings as python_warnings
 
-    with python_warnings.catch_warnings():   # a shooting that does not converge: said once, by describe()
+    with python_warnings.catch_warnings(), interrupts_end_flows():   # (non-convergence: said once, by describe())
         python_warnings.simplefilter("ignore")
         orbit = shoot(system, period, q0, v0, t0, tol=tol, output_dt=dt)
     if not getattr(orbit.result, "completed", True):   # a flow cut short by an interrupt is no period
@@ -224,6 +228,37 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
     so = describe(scene, system, orbit, multiple, forcing, transient_periods, origin, say)
     so.wall_s = time.perf_counter() - t_wall
     return so
+
+
+class _Interrupted(BaseException):
+    """Ctrl-C or SIGTERM within :func:`interrupts_end_flows` (no KeyboardInterrupt: the integrator would catch it)."""
+
+
+@contextlib.contextmanager
+def interrupts_end_flows() -> Iterator[None]:
+    """Ctrl-C (SIGINT) and SIGTERM within the block end it with KeyboardInterrupt, even inside a flow: the exact
+    integrator ends a run cleanly on KeyboardInterrupt (completed = False), which a shooting or a continuation
+    would take for a failed step of theirs and go on. A signal whose handler is SIG_IGN stays ignored; outside
+    the main thread (a sweep's worker) the block runs as it is."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        raise _Interrupted
+
+    sigs = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) is not signal.SIG_IGN]
+    previous = {sig: signal.signal(sig, stop) for sig in sigs}
+    try:
+        yield
+    except _Interrupted:
+        raise KeyboardInterrupt from None
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def orbit_samples(scene: "Scene", multiple: int, output_dt: float | None = None) -> int:
@@ -265,6 +300,10 @@ def _saved_state(path) -> tuple[np.ndarray, np.ndarray, float, str]:
     try:
         with np.load(path, allow_pickle=False) as r:
             if "q0" in r.files and "v0" in r.files:
+                if r["q0"].ndim != 1:
+                    raise NsfemError(f"--start: {path} is a branch.npz (the section states of {len(r['q0'])} "
+                                     "orbits along a branch); give an orbit.npz of nsfem periodic or a run's "
+                                     "result.npz")
                 q, v, t, what = r["q0"], r["v0"], float(np.ravel(r["t0"])[0]), "the orbit in"
             else:
                 q, v, t, what = r["q"][:, -1], r["v"][:, -1], float(r["t"][-1]), "the last output of"
@@ -297,7 +336,8 @@ def describe(scene: "Scene", system: "ContactSystem", orbit, multiple: int, forc
                        rot.speed_hz, rot.phase_deg)
     else:
         signals = np.zeros((t.size, 0))
-    amplitudes = {s.name: half_peak_to_peak(signals[:, k]) for k, s in enumerate(sensors)}
+    where, kinks = impact_readings(system, sensors, t, res, offset, rot.frame, rot.speed_hz, rot.phase_deg)
+    amplitudes = {s.name: half_peak_to_peak(signals[:, k], kinks=(where, kinks[:, k])) for k, s in enumerate(sensors)}
     labels = list(system.model_contacts.labels)
     sequence = contact_sequence(res.events, labels, t0 - offset)
     grazing = [_named_grazing(g, labels, t0 - offset) for g in (orbit.grazing or [])]
@@ -338,24 +378,66 @@ def _named_grazing(g: dict, labels: list[str], t0: float) -> dict:
     return out
 
 
-def half_peak_to_peak(y: np.ndarray) -> float:
-    """Half the peak-to-peak of a periodic signal sampled uniformly over one period (the first sample
-    repeated at the end or not): its extremes refined by a parabola through the extreme sample and its two
-    neighbours (periodic), kept when its vertex lies between them: a smooth peak sampled 256 times a
-    revolution is then found to about (2 pi / 256)^4 / 24 = 1.5e-8 of its amplitude instead of
-    (pi / 256)^2 / 2 = 7.5e-5; a kink (an impact) keeps its sample."""
+def impact_readings(system: "ContactSystem", sensors, t: np.ndarray, res, offset: float, frame: str,
+                    speed_hz: float, phase_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """(where (impacts,): the sample before each impact; (impacts, sensors) the probes' readings at them) of the
+    impacts of ``res`` (a flow of ``system`` sampled at the times ``t`` = res.t + ``offset``, the forcing's
+    clock): the positions there, each by the exact flow from the sample before it. An impact's velocity jump is
+    a kink of the signal, often its extreme (a probe at a stop), which the samples straddle
+    (:func:`half_peak_to_peak`)."""
+    from ..fem.constraints import dense
+    from ..sensors import read
+    from .flow import flow
+
+    times = [float(e["t"]) + offset for e in res.events if e.get("impact")]
+    if not sensors or not times or t.size < 2:
+        return np.zeros(0, dtype=int), np.zeros((0, len(sensors)))
+    Q = np.empty((system.n, len(times)))
+    where = np.empty(len(times), dtype=int)
+    for j, te in enumerate(times):
+        k = where[j] = max(0, min(int(np.searchsorted(t, te, side="right")) - 1, t.size - 1))
+        span = te - t[k]
+        if span <= 1e-12 * (t[-1] - t[0]):   # a sample at the impact (position continuous through it)
+            Q[:, j] = res.q[:, k]
+        else:
+            Q[:, j] = flow(system, float(t[k]), res.q[:, k], res.v[:, k], span, jacobian=False, output_dt=span).q
+    return where, read(sensors, system.info["model"], dense(system.info["reduction"].T), np.array(times), Q, frame,
+                       speed_hz, phase_deg)
+
+
+def half_peak_to_peak(y: np.ndarray, closed: bool = True, kinks: tuple | None = None) -> float:
+    """Half the peak-to-peak of a periodic signal sampled uniformly over one period, ``closed``: its first
+    sample repeated at the end (an orbit's outputs from t0 to t0 + T; the end is left out: it is the start
+    again up to the shooting's residual) or not (``closed=False``): its extremes refined by a parabola through
+    the extreme sample and its two neighbours (periodic), kept when its vertex lies between them: a smooth peak
+    sampled 256 times a revolution is then found to about (2 pi / 256)^4 / 24 = 1.5e-8 of its amplitude
+    instead of (pi / 256)^2 / 2 = 7.5e-5. A kink (an impact) is missed by the samples either side of it (by
+    the velocity times the sample interval), and a parabola through samples either side of it is no peak's:
+    ``kinks`` = (where, values): the sample before each of the period's impacts and the signal's value there
+    (:func:`impact_readings`): those values are extremes where they exceed the samples', and no parabola
+    spans an impact."""
     y = np.asarray(y, dtype=float)
-    if y.size < 3:
-        return float(0.5 * (y.max(initial=0.0) - y.min(initial=0.0))) if y.size else 0.0
-    if y[-1] == y[0]:
+    where, values = (np.zeros(0, dtype=int), np.zeros(0)) if kinks is None else (
+        np.asarray(kinks[0], dtype=int).ravel(), np.asarray(kinks[1], dtype=float).ravel())
+    if closed and y.size > 1:
         y = y[:-1]
-    return 0.5 * (_extreme(y, 1.0) + _extreme(y, -1.0))
+    if y.size < 3:
+        y = np.concatenate([y, values])
+        return float(0.5 * (y.max(initial=0.0) - y.min(initial=0.0))) if y.size else 0.0
+    where = where % y.size
+    high, low = _extreme(y, 1.0, where), -_extreme(y, -1.0, where)
+    if values.size:
+        high, low = max(high, float(values.max())), min(low, float(values.min()))
+    return 0.5 * (high - low)
 
 
-def _extreme(y: np.ndarray, sign: float) -> float:
-    """sign * (the maximum of sign * y), refined (:func:`half_peak_to_peak`)."""
+def _extreme(y: np.ndarray, sign: float, kinks: np.ndarray = np.zeros(0, dtype=int)) -> float:
+    """sign * (the maximum of sign * y), refined (:func:`half_peak_to_peak`) unless a kink lies between the
+    samples k - 1 and k + 1 (``kinks``: the samples before them)."""
     s = sign * y
     k = int(np.argmax(s))
+    if np.any((kinks == k) | (kinks == (k - 1) % s.size)):
+        return float(s[k])
     a, b, c = s[k - 1], s[k], s[(k + 1) % s.size]
     curvature = a - 2.0 * b + c
     if curvature < 0.0:

@@ -181,9 +181,10 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
     check_key(key)
     check_scene(scene)
     a, b = sorted((float(low), float(high)))
+    at_speed = key == SPEED_KEY and load is None   # (one model: the scene is not loaded again)
     if key == SPEED_KEY:
         check_speeds(scene, a, b)
-        load = (lambda extra: scene) if load is None else load   # (one model: the scene is not loaded again)
+        load = (lambda extra: scene) if load is None else load
     elif load is None:
         raise NsfemError(f"branch_of_scene: continuing {key} loads the scene at each value: give load(overrides) -> "
                          "Scene, e.g. lambda extra: load_scene(PATH, [*overrides, *extra])")
@@ -192,7 +193,7 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
     value = scene_value(scene, key)
     inside = a <= value <= b
     p0 = value if inside else min((a, b), key=lambda e: abs(e - value))
-    scene0 = scene if inside else load([f"{key}={p0!r}"])
+    scene0 = scene if inside else _with_speed(scene, p0) if at_speed else load([f"{key}={p0!r}"])
     check_scene(scene0)
     warnings: list[str] = []
 
@@ -241,20 +242,25 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
             on_point(sb)
 
     from .branch import orbit_branch
+    from .scene import interrupts_end_flows
 
     try:
-        for k, end in enumerate(sides):
-            br = orbit_branch(family.system_at, family.period_at, so.orbit.q0, so.orbit.v0, p0, end, key=key,
-                              multiple=multiple, t0=float(so.orbit.t0), tol=tol, step=step, max_steps=steps,
-                              on_point=lambda bp, m, k=k: point(bp, m, k))
-            sb.sides.append({"towards": float(end), "stop": br.stop, "reason": br.reason})
-            for bif in br.bifurcations:
-                sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end),
-                                        **({"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {})})
-            for d in br.doubled:
-                sb.doubled.append(_doubled(d, family, so.orbit.t0, records))
-            if br.stop == "failed":
-                say(f"the branch towards {key} = {end:g} ended early: {br.reason}")
+        # (Ctrl-C inside a flow too: the integrator ends it cleanly, which the corrector would take for a failed
+        # step and go on)
+        with interrupts_end_flows():
+            for k, end in enumerate(sides):
+                br = orbit_branch(family.system_at, family.period_at, so.orbit.q0, so.orbit.v0, p0, end, key=key,
+                                  multiple=multiple, t0=float(so.orbit.t0), tol=tol, step=step, max_steps=steps,
+                                  on_point=lambda bp, m, k=k: point(bp, m, k))
+                sb.sides.append({"towards": float(end), "stop": br.stop, "reason": br.reason})
+                for bif in br.bifurcations:
+                    failed = {"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {}
+                    sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end), **failed})
+                for d in br.doubled:   # (at its own section: the shooting moves one lying on an event; the records
+                    # of its points, made as they came at the first orbit's t0, hold only where that is the same)
+                    sb.doubled.append(_doubled(d, family, d.t0, records if d.t0 == so.orbit.t0 else {}))
+                if br.stop == "failed":
+                    say(f"the branch towards {key} = {end:g} ended early: {br.reason}")
     except KeyboardInterrupt:
         sb.interrupted = True
     sb.bifurcations.sort(key=lambda b: b["value"])
@@ -264,6 +270,17 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
                       for m, pts in doubled_found.items()]
     sb.wall_s = time.perf_counter() - t_wall
     return sb
+
+
+def _with_speed(scene: "Scene", speed_hz: float) -> "Scene":
+    """``scene`` at rotation.speed_hz = ``speed_hz`` (the typed part, which builds the system; the tree is the
+    user's)."""
+    import copy
+    from dataclasses import replace
+
+    out = copy.copy(scene)
+    out.rotation = replace(scene.rotation, speed_hz=float(speed_hz))
+    return out
 
 
 def _assemble(sb: SceneBranch, found: list[list[dict]], sides: list[float], p0: float) -> None:
@@ -355,7 +372,7 @@ class _Family:
         from ..fem.constraints import dense
         from ..sensors import read
         from .flow import flow
-        from .scene import SAMPLES_PER_REVOLUTION, half_peak_to_peak
+        from .scene import SAMPLES_PER_REVOLUTION, half_peak_to_peak, impact_readings
 
         n = self.n
         q0, v0 = np.array(u[:n], dtype=float), np.array(u[n:], dtype=float)
@@ -369,11 +386,15 @@ class _Family:
         res = fl.result
         amplitudes = {}
         if scene.sensors:
-            t = t0 + (np.asarray(res.t, dtype=float) - float(res.t[0]))
+            offset = t0 - float(res.t[0])
+            t = np.asarray(res.t, dtype=float) + offset
             rot = scene.rotation
             signals = read(scene.sensors, system.info["model"], dense(system.info["reduction"].T), t, res.q,
                            rot.frame, self.speed_at(p), rot.phase_deg)
-            amplitudes = {s.name: half_peak_to_peak(signals[:, k]) for k, s in enumerate(scene.sensors)}
+            where, kinks = impact_readings(system, scene.sensors, t, res, offset, rot.frame, self.speed_at(p),
+                                           rot.phase_deg)
+            amplitudes = {s.name: half_peak_to_peak(signals[:, k], kinks=(where, kinks[:, k]))
+                          for k, s in enumerate(scene.sensors)}
         return {"period_s": float(period), "residual": float(np.abs(F).max()) / size,
                 "events_per_period": len(res.events), "amplitudes": amplitudes, "multiple": int(multiple),
                 "section_q_max": float(np.abs(q0).max(initial=0.0)),

@@ -4,6 +4,7 @@ contact forces) and floquet.png (the Floquet multipliers in the complex plane wi
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 from typing import Sequence
 
@@ -100,6 +101,10 @@ def _orbit(ax, y, z, sy, sz, rings) -> None:
     ax.grid(True, alpha=0.3)
 
 
+#: characters per line of floquet.png's title (8 pt on its 6 in width): the verdict runs to 150
+TITLE_WIDTH = 85
+
+
 def floquet_plot(path: str | Path, multipliers: np.ndarray, verdict: str, title: str = "", tol: float = 1e-6) -> Path:
     """The Floquet multipliers in the complex plane with the unit circle (stable: every one inside), each
     labelled with its modulus (the largest ones, up to eight labels); those beyond 1 + ``tol`` (the
@@ -126,8 +131,8 @@ def floquet_plot(path: str | Path, multipliers: np.ndarray, verdict: str, title:
     ax.axvline(0.0, color="0.8", lw=0.6, zorder=0)
     ax.set_xlabel("Re mu [-]")
     ax.set_ylabel("Im mu [-]")
-    head = f"Floquet multipliers ({mu.size}; dashed: the unit circle): {verdict}"
-    ax.set_title(f"{title}\n{head}" if title else head, fontsize=8)
+    head = textwrap.fill(f"Floquet multipliers ({mu.size}; dashed: the unit circle): {verdict}", TITLE_WIDTH)
+    ax.set_title(f"{textwrap.fill(title, TITLE_WIDTH)}\n{head}" if title else head, fontsize=8)
     ax.grid(True, alpha=0.3)
     return save(fig, path)
 
