@@ -153,7 +153,7 @@ def test_the_rub_orbit_is_the_stationary_full_annular_rub():
     from nsfem.analysis.stationary import scene_stationary
 
     scene = load_scene("rub")
-    so = orbit_of_scene(scene)
+    so = orbit_of_scene(scene, transient_periods=10)   # shot from a transient: independent of LCP 28
     st = scene_stationary(scene)
     # both solve to round-off (the LCP's certificate, the shooting's residual 1e-9 relative at most)
     assert np.abs(so.orbit.q0 - st.q).max() <= 1e-9 * np.abs(st.q).max()
@@ -163,6 +163,18 @@ def test_the_rub_orbit_is_the_stationary_full_annular_rub():
     for s in scene.sensors:   # a circle sampled 256 times a turn: its radius to h^4 / 24 = 1.5e-8
         assert s.frame == "inertial" and s.x == disk["x_m"]
         assert so.amplitudes[s.name] == pytest.approx(disk["magnitude_m"], rel=2e-8)
+
+
+def test_a_scene_without_periodic_forcing_starts_from_its_stationary_state():
+    """Without a time-dependent load in its frame (the rub in the rotating frame) the default start is the
+    stationary state (LCP 28): the orbit is found with no Newton step (its residual at round-off, 1e-9 at most);
+    an explicit --transient still runs the transient; a scene with periodic forcing (the crack: gravity turns in
+    the rotating frame) starts from the transient."""
+    so = orbit_of_scene(load_scene("rub"))
+    assert so.orbit.converged and so.orbit.iterations == 0 and so.orbit.residual <= 1e-9
+    assert "stationary" in so.to_json()["start"] and so.to_json()["transient_periods"] == 0
+    assert "transient" in orbit_of_scene(load_scene("rub"), transient_periods=2).to_json()["start"]
+    assert "transient" in orbit_of_scene(load_scene("crack")).to_json()["start"]
 
 
 def test_a_start_from_a_run_and_from_an_orbit(tmp_path, capsys):
