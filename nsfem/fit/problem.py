@@ -3,7 +3,6 @@ run of the scene at a point of the box (on a worker)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -13,6 +12,7 @@ import numpy as np
 from ..errors import IntegrationError, NsfemError
 from ..measurement import (MISFITS, Measurement, check_measurement, is_uniform, match_sensors,
                            read_measurement, sample)
+from ..scene.overrides import range_ends
 
 #: keys the fit sets itself
 FIT_KEYS = ("simulation.t_end", "simulation.output_dt")
@@ -91,15 +91,7 @@ def parse_vary(items: Sequence[str] | Mapping[str, tuple[float, float]]) -> tupl
         raise NsfemError("nsfem fit: nothing to vary; give at least one --vary KEY=LOW:HIGH")
     out: list[Parameter] = []
     for key, lo, hi in pairs:
-        ends = []
-        for name, text in (("LOW", lo), ("HIGH", hi)):
-            try:
-                v = float(text)
-            except ValueError:
-                v = math.nan
-            if not math.isfinite(v):
-                raise NsfemError(f"--vary {key}: {name} must be a finite number, got {text.strip()!r}")
-            ends.append(v)
+        ends = range_ends("--vary", key, lo, hi)
         if ends[0] >= ends[1]:
             raise NsfemError(f"--vary {key}: LOW must be below HIGH, got {lo.strip()}:{hi.strip()}")
         if any(p.key == key for p in out):

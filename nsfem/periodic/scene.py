@@ -502,15 +502,9 @@ def parse_continuation(text: str) -> tuple[str, float, float]:
     key = key.strip()
     if not sep or not colon or not key or ":" in hi:
         raise NsfemError(f"--continue {text.strip()!r}: give KEY=LOW:HIGH (e.g. rotation.speed_hz=20:30)")
-    ends = []
-    for name, part in (("LOW", lo), ("HIGH", hi)):
-        try:
-            v = float(part)
-        except ValueError:
-            v = math.nan
-        if not math.isfinite(v):
-            raise NsfemError(f"--continue {key}: {name} must be a finite number, got {part.strip()!r}")
-        ends.append(v)
+    from ..scene.overrides import range_ends
+
+    ends = range_ends("--continue", key, lo, hi)
     if ends[0] == ends[1]:
         raise NsfemError(f"--continue {key}: LOW and HIGH are the same value ({lo.strip()}); a branch needs a range")
     return key, ends[0], ends[1]

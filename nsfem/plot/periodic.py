@@ -3,7 +3,6 @@ contact forces) and floquet.png (the Floquet multipliers in the complex plane wi
 
 from __future__ import annotations
 
-import math
 import textwrap
 from pathlib import Path
 from typing import Sequence
@@ -11,7 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from .common import figure, save
-from .sensors import orbit_pairs
+from .sensors import finish_orbit_axes, orbit_pairs
 
 
 def orbit_plot(path: str | Path, t: np.ndarray, signals: np.ndarray, sensors, gap: np.ndarray,
@@ -87,18 +86,7 @@ def _orbit(ax, y, z, sy, sz, rings) -> None:
     z = 1e6 * (-1.0 if sz.direction[0] == "-" else 1.0) * np.asarray(z)
     ax.plot(y, z, lw=1.2, color="tab:blue")
     ax.plot(y[:1], z[:1], "o", ms=4, color="tab:red")
-    ring = [c for x, c in rings if math.isclose(x, sy.x, rel_tol=1e-9, abs_tol=1e-12)]
-    head = f"orbit at x = {sy.x:g} m ({sy.frame}), one period; dot: the section"
-    if ring:
-        a = np.linspace(0.0, 2.0 * np.pi, 361)
-        ax.plot(1e6 * ring[0] * np.cos(a), 1e6 * ring[0] * np.sin(a), color="0.3", lw=1.0, ls="--", zorder=1.5)
-        head += f"\ndashed: stator clearance {1e6 * ring[0]:.4g} µm"
-    ax.set_aspect("equal", adjustable="datalim")
-    inertial = sy.frame == "inertial"
-    ax.set_xlabel(("y, horizontal" if inertial else "y (rotating)") + " [µm]")
-    ax.set_ylabel(("z, vertical (up)" if inertial else "z (rotating)") + " [µm]")
-    ax.set_title(head, fontsize=8)
-    ax.grid(True, alpha=0.3)
+    finish_orbit_axes(ax, sy, rings, f"orbit at x = {sy.x:g} m ({sy.frame}), one period; dot: the section")
 
 
 #: characters per line of floquet.png's title (8 pt on its 6 in width): the verdict runs to 150

@@ -159,8 +159,13 @@ def _orbit(ax, t, values, sy, sz, i: int, j: int, rings) -> None:
     z = 1e6 * (-1.0 if sz.direction[0] == "-" else 1.0) * values[:, j]
     ax.plot(y, z, lw=0.5, color="tab:blue", alpha=0.35)
     ax.plot(y[half], z[half], lw=1.0, color="tab:blue")
+    finish_orbit_axes(ax, sy, rings, f"orbit at x = {sy.x:g} m ({sy.frame}); dark: last half")
+
+
+def finish_orbit_axes(ax, sy, rings, head: str) -> None:
+    """An orbit panel's frame: the stator ring's clearance circle at the probe's x (dashed), equal scales, the axes
+    named by the probe's frame in µm, the title ``head`` (plus the clearance)."""
     ring = [c for x, c in rings if math.isclose(x, sy.x, rel_tol=1e-9, abs_tol=1e-12)]
-    head = f"orbit at x = {sy.x:g} m ({sy.frame}); dark: last half"
     if ring:
         a = np.linspace(0.0, 2.0 * np.pi, 361)
         ax.plot(1e6 * ring[0] * np.cos(a), 1e6 * ring[0] * np.sin(a), color="0.3", lw=1.0, ls="--", zorder=1.5)

@@ -6,7 +6,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from ..errors import SceneError
+from ..errors import NsfemError, SceneError
 from .schema import MAX_NESTING, PATH_KEYS, SCHEMA
 
 
@@ -23,6 +23,24 @@ def parse_value(text: str) -> Any:
     except RecursionError:  # a value nested deeper than the parser's recursion limit
         raise SceneError("", f"the value is nested too deeply to parse (a scene needs at most {MAX_NESTING} "
                          "levels of tables and lists)") from None
+
+
+def range_ends(option: str, key: str, low: str, high: str) -> tuple[float, float]:
+    """The two ends of a ``KEY=LOW:HIGH`` option as finite numbers (``option`` names it in the error: one line).
+
+    >>> range_ends("--vary", "rotation.speed_hz", "10", " 2e1")
+    (10.0, 20.0)
+    """
+    ends = []
+    for name, text in (("LOW", low), ("HIGH", high)):
+        try:
+            v = float(text)
+        except ValueError:
+            v = float("nan")
+        if not (v == v and abs(v) != float("inf")):
+            raise NsfemError(f"{option} {key}: {name} must be a finite number, got {text.strip()!r}")
+        ends.append(v)
+    return ends[0], ends[1]
 
 
 def nesting_depth(value: Any) -> int:
