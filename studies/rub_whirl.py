@@ -11,13 +11,15 @@ The shipped ``rub`` (a 5 kg disk on a light shaft inside a rigid ring 0.1 mm awa
 2. **Continuation** on the exact flow (polygon of ``--facets`` facets, inertial frame,
    :func:`nsfem.periodic.branch.orbit_branch`) at ``--mu`` over ``--speeds``, started from the reference's state
    turned into the inertial frame: the branch's stability and the located Neimark-Sacker point, against the
-   reference's onset.
+   reference's onset; at ``--onset-facets`` (default 128) the onset by Brent's method on single orbits' largest
+   multiplier (the polygon's error is first order in 1 / F: the onsets' distance to the reference's halves).
 3. **Transient** (exact method) started on the branch's orbit just past the onset, a little perturbed: the growth
    of the deviation from the orbit and its spectrum (the whirl's frequency), against the reference eigenvalue.
 
-    python studies/rub_whirl.py [--quick] [--json] [--mu 0.55] [--facets 64] [--speeds 23:27]
+    python studies/rub_whirl.py [--quick] [--json] [--mu 0.55] [--facets 64] [--speeds 23:28]
+                                [--onset-facets 128] [--transient-hz 28] [--periods 1500]
 
-``--quick``: a coarser map, no transient. Writes rub_whirl.json/.csv into studies/out/rub_whirl and
+``--quick``: a coarser map, no onsets by single orbits, no transient. Writes rub_whirl.json/.csv into studies/out/rub_whirl and
 docs/figures/rub_whirl.png.
 """
 
@@ -186,6 +188,7 @@ def continuation(mu: float, facets: int, lo: float, hi: float, steps: int, say) 
             mu_ = np.array([complex(*m) for m in q_["multipliers"]])
             pts.append({"speed_hz": q_["rotation.speed_hz"], "stable": q_["stable"], "loss": q_["loss"],
                         "converged": q_["converged"], "max_modulus": float(np.abs(mu_).max()),
+                        "outside": int((np.abs(mu_) > 1.0 + 1e-6).sum()),
                         "rate_per_s": float(np.log(np.abs(mu_).max()) * q_["rotation.speed_hz"])})
         bifs += [{"kind": b["kind"], "value": b["value"]} for b in br.bifurcations]
         pieces.append({"from_hz": p, "to_hz": br.points[-1]["rotation.speed_hz"], "stop": br.stop,
@@ -194,7 +197,106 @@ def continuation(mu: float, facets: int, lo: float, hi: float, steps: int, say) 
             break
         p = br.points[-1]["rotation.speed_hz"]
     return {"mu": mu, "facets": facets, "points": pts, "bifurcations": bifs, "pieces": pieces,
-            "wall_s": time.perf_counter() - t}
+            "net_bifurcations": net_bifurcations(pts, bifs), "wall_s": time.perf_counter() - t}
+
+
+def net_bifurcations(points: list[dict], bifurcations: list[dict]) -> list[dict]:
+    """The bifurcations across which the count of multipliers outside the unit circle changes between the
+    neighbouring points: a crossing out and back in between two points (located twice, as a pair of the same
+    kind a few 1e-4 Hz apart, where the continuation paired the moving multipliers differently) drops out."""
+    f = np.array([p["speed_hz"] for p in points])
+    out = []
+    for b in bifurcations:
+        below, above = f < b["value"], f > b["value"]
+        if below.any() and above.any():
+            if points[int(np.flatnonzero(below)[-1])]["outside"] != points[int(np.flatnonzero(above)[0])]["outside"]:
+                out.append(b)
+    return out
+
+
+def orbit_onset(mu: float, facets: int, lo: float, hi: float, say) -> dict:
+    """The speed in [lo, hi] where the polygon orbit's largest multiplier reaches the unit circle, by Brent's method
+    on ln|mu_max| (each value a shooting from the reference, as :func:`transient`): a check of the continuation's
+    located point, and the onset at facet counts where a continuation is too long."""
+    from nsfem.periodic import periodic_orbit
+
+    rub_r, rub_i = Rub(mu, facets), Rub(mu, facets, "inertial")
+    t = time.perf_counter()
+    seen = []
+
+    def g(f: float) -> float:
+        ref = reference(rub_r, f)
+        t0, q, v = inertial_section(rub_i, ref, facets)
+        orbit = periodic_orbit(rub_i.system(f), 1.0 / f, q, v, t0=t0)
+        if not orbit.converged:
+            raise RuntimeError(f"no orbit at {f} Hz ({facets} facets): residual {orbit.residual:.3g}")
+        k = int(np.argmax(np.abs(orbit.multipliers)))
+        seen.append((f, orbit.multipliers[k]))
+        say(f"  {facets} facets, {f:.6f} Hz: largest multiplier {orbit.multipliers[k]:.6f} "
+            f"[{time.perf_counter() - t:.0f} s]")
+        return float(np.log(abs(orbit.multipliers[k])))
+
+    f = float(brentq(g, lo, hi, xtol=1e-4))
+    m = min(seen, key=lambda x: abs(x[0] - f))[1]
+    return {"mu": mu, "facets": facets, "onset_hz": f, "multiplier": [m.real, m.imag],
+            "argument_rad": float(np.angle(m)), "wall_s": time.perf_counter() - t}
+
+
+def transient(mu: float, facets: int, speed_hz: float, periods: int, say) -> dict:
+    """The exact flow from the branch's orbit at ``speed_hz`` (past the onset), its section state perturbed by 1e-4
+    of its size along the unstable multiplier's direction: the deviation from the orbit at a quarter of the span
+    (y + i z, inertial frame) over ``periods`` periods, its growth rate (a least-squares line through the log of
+    its envelope per period) and its dominant frequency (FFT of the last half; positive: forward)."""
+    from nsfem.periodic import periodic_orbit
+    from nsfem.periodic.flow import flow
+
+    rub_r, rub_i = Rub(mu, facets), Rub(mu, facets, "inertial")
+    ref = reference(rub_r, speed_hz)
+    t0, q, v = inertial_section(rub_i, ref, facets)
+    T = 1.0 / speed_hz
+    system = rub_i.system(speed_hz)
+    t = time.perf_counter()
+    orbit = periodic_orbit(system, T, q, v, t0=t0)
+    mods = np.abs(orbit.multipliers)
+    say(f"  orbit at {speed_hz:g} Hz: converged {orbit.converged}, largest |multiplier| {mods.max():.6f} "
+        f"({np.log(mods.max()) / T:+.4f} 1/s)")
+    samples = 4 * facets                                             # per period: 1.6e4 /s at 25 Hz (Nyquist 8 kHz)
+    base = flow(system, orbit.t0, orbit.q0, orbit.v0, T, jacobian=False, output_dt=T / samples).result
+    lam, V = np.linalg.eig(orbit.monodromy)
+    k = int(np.argmax(np.abs(lam)))
+    dx = orbit.directions @ np.real(V[:, k]) if orbit.directions.shape[1] == lam.size else np.real(V[:, k])
+    x0 = np.concatenate([orbit.q0, orbit.v0])
+    dx *= 1e-4 * np.abs(x0).max() / np.abs(dx).max()
+    n = system.n
+    run = flow(system, orbit.t0, orbit.q0 + dx[:n], orbit.v0 + dx[n:], periods * T, jacobian=False,
+               output_dt=T / samples).result
+    m = min(run.q.shape[1], samples * periods)
+    orbit_q = np.tile(base.q[:, :samples], periods)[:, :m]
+    dev = rub_i.probe @ (run.q[:, :m] - orbit_q)
+    z = dev[0] + 1j * dev[1]
+    env = np.abs(z[: samples * (m // samples)]).reshape(-1, samples).max(axis=1)
+    per = np.arange(env.size) * T
+    rate = float(np.polyfit(per[env.size // 4:], np.log(env[env.size // 4:]), 1)[0])
+    half = z[m // 2:] * np.hanning(m - m // 2)
+    spec = np.abs(np.fft.fft(half))
+    freq = np.fft.fftfreq(half.size, T / samples)
+    j = int(np.argmax(spec))
+    out = {"speed_hz": speed_hz, "periods": periods, "orbit_converged": bool(orbit.converged),
+           "largest_modulus": float(mods.max()), "orbit_rate_per_s": float(np.log(mods.max()) / T),
+           "transient_rate_per_s": rate, "whirl_hz": float(freq[j]),
+           "resolution_hz": float(1.0 / (half.size * T / samples)),
+           "reference_rate_per_s": ref["lam_max"].real, "reference_forward_hz": ref["sense"]["forward_hz"],
+           "reference_backward_hz": ref["sense"]["backward_hz"], "wall_s": time.perf_counter() - t}
+    radius = np.hypot(*(ref["D"] @ run.q[:, max(0, m - 10 * samples):m])) / ref["c"]
+    out.update(last10_radius_min=float(radius.min()), last10_radius_max=float(radius.max()),
+               last10_deviation_max=float(np.abs(z[max(0, m - 10 * samples):]).max()),
+               probe_orbit_max=float(np.abs(rub_i.probe @ base.q).max()))
+    say(f"  transient over {periods} periods: growth {rate:+.4f} 1/s (orbit's multiplier {out['orbit_rate_per_s']:+.4f}),"
+        f" whirl {freq[j]:+.2f} Hz (+- {out['resolution_hz']:.2f}; reference forward {out['reference_forward_hz']:.2f},"
+        f" backward {out['reference_backward_hz']:.2f} Hz) [{out['wall_s']:.0f} s]; last 10 periods: disk radius "
+        f"{out['last10_radius_min']:.5f}..{out['last10_radius_max']:.5f} c, deviation at x = 0.2 m "
+        f"{out['last10_deviation_max']:.3g} m (orbit {out['probe_orbit_max']:.3g} m)")
+    return out
 
 
 def figure(rows: list[dict], onsets: list[dict], branches: list[dict], mu_curve: float, path: Path) -> None:
@@ -219,7 +321,7 @@ def figure(rows: list[dict], onsets: list[dict], branches: list[dict], mu_curve:
         f = np.array([p["speed_hz"] for p in b["points"]])
         ax2.plot(f, [p["rate_per_s"] for p in b["points"]], "k.", ms=4,
                  label=f"exact flow, {b['facets']} facets, mu = {b['mu']:g}: ln|multiplier| / T")
-        for bif in b["bifurcations"]:
+        for bif in b["net_bifurcations"]:
             ax2.axvline(bif["value"], color="k", ls=":", lw=0.8)
     ax1.set_ylabel("normal force N [N] (round ring)")
     ax1.set_title("synchronous full annular rub: stable solid, unstable dashed, o = onset")
@@ -244,10 +346,30 @@ def main(argv=None) -> int:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--mu", type=float, default=0.55, help="the friction of the continuation")
     ap.add_argument("--facets", type=int, nargs="*", default=[64])
-    ap.add_argument("--speeds", default="23:27", help="the continuation's range LOW:HIGH [Hz]")
+    ap.add_argument("--speeds", default="23:28", help="the continuation's range LOW:HIGH [Hz]")
     ap.add_argument("--steps", type=int, default=30)
     ap.add_argument("--no-branch", action="store_true")
+    ap.add_argument("--onset-facets", type=int, nargs="*", default=None,
+                    help="facet counts whose onset is found by Brent's method on single orbits (default 128; quick: none)")
+    ap.add_argument("--onset-range", default="25.3:27", help="LOW:HIGH [Hz] bracketing those onsets")
+    ap.add_argument("--transient-hz", type=float, default=None,
+                    help="a transient at this speed past the onset (default 28; quick: none)")
+    ap.add_argument("--periods", type=int, default=1500)
     a = ap.parse_args(argv)
+    if not (math.isfinite(a.mu) and 0.0 < a.mu <= 2.0):
+        ap.error(f"--mu must be a friction coefficient in (0, 2], got {a.mu!r}")
+    if any(F < 8 for F in a.facets + (a.onset_facets or [])) or a.steps < 1 or a.periods < 8:
+        ap.error("--facets and --onset-facets must be at least 8, --steps at least 1, --periods at least 8")
+    for name in ("speeds", "onset_range"):
+        try:
+            lo_, hi_ = (float(x) for x in getattr(a, name).split(":"))
+        except ValueError:
+            ap.error(f"--{name.replace('_', '-')} must be LOW:HIGH in Hz, got {getattr(a, name)!r}")
+        if not (math.isfinite(lo_) and math.isfinite(hi_) and 16.0 <= lo_ < hi_ <= 60.0):
+            ap.error(f"--{name.replace('_', '-')} {getattr(a, name)}: need 16 <= LOW < HIGH <= 60 Hz (the rub exists "
+                     "from 15.67 Hz)")
+    if a.transient_hz is not None and not (math.isfinite(a.transient_hz) and 16.0 <= a.transient_hz <= 60.0):
+        ap.error(f"--transient-hz must be a speed in [16, 60] Hz, got {a.transient_hz!r}")
     say = (lambda s: print(s, file=sys.stderr)) if a.json else print
     mus = [0.1, 0.3, 0.5, 0.55, 0.6] if a.quick else [0.1, 0.2, 0.3, 0.4, 0.5, 0.52, 0.55, 0.58, 0.6]
     speeds = list(np.round(np.linspace(16.0, 40.0, 25 if a.quick else 97), 6))
@@ -266,9 +388,22 @@ def main(argv=None) -> int:
         for F in a.facets:
             say(f"continuation: {F} facets, mu {a.mu:g}, {lo:g}..{hi:g} Hz")
             branches.append(continuation(a.mu, F, lo, hi, a.steps, say))
-            say(f"  bifurcations {branches[-1]['bifurcations']}, {len(branches[-1]['pieces'])} pieces "
+            say(f"  bifurcations {branches[-1]['bifurcations']} (net: {branches[-1]['net_bifurcations']}), "
+                f"{len(branches[-1]['pieces'])} pieces "
                 f"({branches[-1]['wall_s']:.0f} s)")
-    payload = {"map": rows, "onsets": onsets, "branches": branches, "machine": machine(),
+    found = []
+    lo, hi = (float(x) for x in a.onset_range.split(":"))
+    for F in ([] if a.quick else [128]) if a.onset_facets is None else a.onset_facets:
+        say(f"onset by single orbits: {F} facets, mu {a.mu:g}")
+        found.append(orbit_onset(a.mu, F, lo, hi, say))
+        say(f"  {found[-1]['onset_hz']:.5f} Hz ({found[-1]['wall_s']:.0f} s)")
+    runs = []
+    if a.transient_hz is None and not a.quick:
+        a.transient_hz = 28.0
+    if a.transient_hz is not None:
+        say(f"transient: {a.facets[0]} facets, mu {a.mu:g}, {a.transient_hz:g} Hz")
+        runs.append(transient(a.mu, a.facets[0], a.transient_hz, a.periods, say))
+    payload = {"map": rows, "onsets": onsets, "branches": branches, "orbit_onsets": found, "transients": runs, "machine": machine(),
                "wall_s": time.perf_counter() - t}
     write_outputs(OUT, "rub_whirl", rows, payload)
     figure(rows, onsets, branches, a.mu, FIGURE)

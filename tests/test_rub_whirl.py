@@ -110,3 +110,33 @@ def test_friction_damps_the_disks_motion_along_the_ring():
         assert disk.size == 2
         rates.append(disk.real.max())
     assert rates[0] < 0.0 and rates[1] < rates[0] and rates[2] < rates[1]
+
+
+@pytest.mark.slow
+def test_polygon_orbit_loses_stability_past_the_reference_onset():
+    """The exact flow's orbit on 64 facets (inertial frame, shot from the round ring's state at a facet's middle):
+    stable at 26.5 Hz and unstable at 27.0 Hz by a complex pair (Neimark-Sacker), so its onset lies in between:
+    above the round ring's 25.13 Hz by the polygon's first-order error (the corners' plastic impacts damp the
+    disk's motion along the ring, 2 pi m_eff Omega / F, corner_terms; studies/rub_whirl.py measures 26.763 Hz at 64
+    facets and 26.024 Hz at 128: 1.63 and 0.89 Hz above, halving with 1 / F). The shooting's multipliers are exact
+    to ~1e-9 (tests/test_periodic_rub.py), far below the |mu| - 1 of -2.5e-3 and +1.1e-3 here."""
+    from nsfem.periodic import periodic_orbit
+
+    scene = load_scene("rub", ["stator.0.friction=0.55", "rotation.frame=inertial"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    T = np.asarray(red.T)
+    from nsfem.fem.components import lateral_turn
+    J = np.linalg.lstsq(T, lateral_turn(model.spaces, T.shape[0]) @ T, rcond=None)[0]
+    largest = {}
+    for f in (26.5, 27.0):
+        R, D, c, rub = _state(0.55, f)
+        w = R.omega
+        t0 = ((-math.atan2(rub.n[1], rub.n[0])) % (2.0 * math.pi / 64)) / w
+        q = sla.expm(w * t0 * J) @ rub.q
+        orbit = periodic_orbit(ContactSystem.from_scene(scene, model, red, speed_hz=f), 1.0 / f, q, w * J @ q, t0=t0)
+        assert orbit.converged and orbit.events_per_period == 64
+        largest[f] = orbit.multipliers[0]
+        assert orbit.stable == (f == 26.5)
+    assert abs(largest[26.5]) < 1.0 < abs(largest[27.0])
+    assert abs(largest[27.0].imag) > 1e-3 and _onset(0.55, 24.0, 28.0) < 26.5
