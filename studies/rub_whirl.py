@@ -299,7 +299,8 @@ def transient(mu: float, facets: int, speed_hz: float, periods: int, say) -> dic
     return out
 
 
-def figure(rows: list[dict], onsets: list[dict], branches: list[dict], mu_curve: float, path: Path) -> None:
+def figure(rows: list[dict], onsets: list[dict], branches: list[dict], mu_curve: float, path: Path,
+           orbit_onsets: list[dict] = ()) -> None:
     import matplotlib.pyplot as plt
 
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.5, 7.5), sharex=True)
@@ -323,13 +324,22 @@ def figure(rows: list[dict], onsets: list[dict], branches: list[dict], mu_curve:
                  label=f"exact flow, {b['facets']} facets, mu = {b['mu']:g}: ln|multiplier| / T")
         for bif in b["net_bifurcations"]:
             ax2.axvline(bif["value"], color="k", ls=":", lw=0.8)
+            ax2.plot(bif["value"], 0.0, "k^", label=f"{bif['kind']} located on {b['facets']} facets: "
+                                                    f"{bif['value']:.3f} Hz")
+    for o in orbit_onsets:
+        ax2.plot(o["onset_hz"], 0.0, "kx", ms=8, label=f"onset on {o['facets']} facets (single orbits): "
+                                                       f"{o['onset_hz']:.3f} Hz")
+    for o in onsets:
+        if o["mu"] == mu_curve and o.get("onset_hz") is not None:
+            ax2.plot(o["onset_hz"], 0.0, "ko", mfc="none", label=f"round ring's onset, mu = {o['mu']:g}: "
+                                                                 f"{o['onset_hz']:.3f} Hz")
     ax1.set_ylabel("normal force N [N] (round ring)")
     ax1.set_title("synchronous full annular rub: stable solid, unstable dashed, o = onset")
     ax1.legend(fontsize=7, ncol=2)
     ax2.axhline(0.0, color="grey", lw=0.5)
     ax2.set_xlabel("speed [Hz]")
-    ax2.set_ylabel("largest growth rate [1/s]")
-    ax2.set_ylim(-12, 8)
+    ax2.set_ylabel("largest growth rate [1/s]\n(round ring: max Re lambda)")
+    ax2.set_ylim(-8, 6)
     if branches:
         ax2.legend(fontsize=7)
     fig.tight_layout()
@@ -349,6 +359,7 @@ def main(argv=None) -> int:
     ap.add_argument("--speeds", default="23:28", help="the continuation's range LOW:HIGH [Hz]")
     ap.add_argument("--steps", type=int, default=30)
     ap.add_argument("--no-branch", action="store_true")
+    ap.add_argument("--replot", action="store_true", help="redraw the figure from the saved JSON only")
     ap.add_argument("--onset-facets", type=int, nargs="*", default=None,
                     help="facet counts whose onset is found by Brent's method on single orbits (default 128; quick: none)")
     ap.add_argument("--onset-range", default="25.3:27", help="LOW:HIGH [Hz] bracketing those onsets")
@@ -356,6 +367,10 @@ def main(argv=None) -> int:
                     help="a transient at this speed past the onset (default 28; quick: none)")
     ap.add_argument("--periods", type=int, default=1500)
     a = ap.parse_args(argv)
+    if a.replot:   # the figure again from the saved JSON (no computation)
+        d = json.loads((OUT / "rub_whirl.json").read_text())
+        figure(d["map"], d["onsets"], d["branches"], a.mu, FIGURE, d.get("orbit_onsets", []))
+        return 0
     if not (math.isfinite(a.mu) and 0.0 < a.mu <= 2.0):
         ap.error(f"--mu must be a friction coefficient in (0, 2], got {a.mu!r}")
     if any(F < 8 for F in a.facets + (a.onset_facets or [])) or a.steps < 1 or a.periods < 8:
@@ -406,7 +421,7 @@ def main(argv=None) -> int:
     payload = {"map": rows, "onsets": onsets, "branches": branches, "orbit_onsets": found, "transients": runs, "machine": machine(),
                "wall_s": time.perf_counter() - t}
     write_outputs(OUT, "rub_whirl", rows, payload)
-    figure(rows, onsets, branches, a.mu, FIGURE)
+    figure(rows, onsets, branches, a.mu, FIGURE, found)
     if a.json:
         print(json.dumps(payload))
     return 0

@@ -21,7 +21,9 @@ from scipy.optimize import brentq, linear_sum_assignment
 
 from nsfem import load_scene
 from nsfem.fem.assemble import build_model
+from nsfem.fem.components import lateral_turn
 from nsfem.integrate import ContactSystem
+from nsfem.periodic import periodic_orbit
 from nsfem.reduce import scene_reduction
 from rub_reference import eigenvalues, geometric_stiffness, held_pencil, ring_rows, round_rub
 
@@ -118,15 +120,12 @@ def test_polygon_orbit_loses_stability_past_the_reference_onset():
     stable at 26.5 Hz and unstable at 27.0 Hz by a complex pair (Neimark-Sacker), so its onset lies in between:
     above the round ring's 25.13 Hz by the polygon's first-order error (the corners' plastic impacts damp the
     disk's motion along the ring, 2 pi m_eff Omega / F, corner_terms; studies/rub_whirl.py measures 26.763 Hz at 64
-    facets and 26.024 Hz at 128: 1.63 and 0.89 Hz above, halving with 1 / F). The shooting's multipliers are exact
+    facets and 26.023 Hz at 128: 1.63 and 0.89 Hz above, halving with 1 / F). The shooting's multipliers are exact
     to ~1e-9 (tests/test_periodic_rub.py), far below the |mu| - 1 of -2.5e-3 and +1.1e-3 here."""
-    from nsfem.periodic import periodic_orbit
-
     scene = load_scene("rub", ["stator.0.friction=0.55", "rotation.frame=inertial"])
     model = build_model(scene)
     red = scene_reduction(scene.reduction, model)
     T = np.asarray(red.T)
-    from nsfem.fem.components import lateral_turn
     J = np.linalg.lstsq(T, lateral_turn(model.spaces, T.shape[0]) @ T, rcond=None)[0]
     largest = {}
     for f in (26.5, 27.0):
@@ -140,3 +139,22 @@ def test_polygon_orbit_loses_stability_past_the_reference_onset():
         assert orbit.stable == (f == 26.5)
     assert abs(largest[26.5]) < 1.0 < abs(largest[27.0])
     assert abs(largest[27.0].imag) > 1e-3 and _onset(0.55, 24.0, 28.0) < 26.5
+
+
+@pytest.mark.parametrize("argv", [["--mu", "nan"], ["--mu", "0"], ["--speeds", "30:20"], ["--speeds", "a"],
+                                  ["--onset-range", "10:27"], ["--facets", "4"], ["--transient-hz", "inf"],
+                                  ["--periods", "2"]])
+def test_study_refuses_bad_options_in_one_line(argv, capsys):
+    """studies/rub_whirl.py: each bad option is refused (exit 2) with one error line naming it, before any
+    computation (no output folder touched: the check runs before the map)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies"))
+    import rub_whirl
+
+    with pytest.raises(SystemExit) as exc:
+        rub_whirl.main(argv)
+    assert exc.value.code == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
+    assert len(err) == 1 and argv[0] in err[0]
