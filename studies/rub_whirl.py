@@ -19,8 +19,9 @@ The shipped ``rub`` (a 5 kg disk on a light shaft inside a rigid ring 0.1 mm awa
     python studies/rub_whirl.py [--quick] [--json] [--mu 0.55] [--facets 64] [--speeds 23:28]
                                 [--onset-facets 128] [--transient-hz 28] [--periods 1500]
 
-``--quick``: a coarser map, no onsets by single orbits, no transient. Writes rub_whirl.json/.csv into studies/out/rub_whirl and
-docs/figures/rub_whirl.png.
+``--quick``: a coarser map, the branch over 26.5:27 Hz only (around the 64-facet onset), no onsets by single
+orbits, no transient. Writes rub_whirl.json/.csv into studies/out/rub_whirl and the figure into
+docs/figures/rub_whirl.png (``--quick``: rub_whirl_quick.json/.csv/.png there); ``--replot`` redraws the figure from rub_whirl.json.
 """
 
 from __future__ import annotations
@@ -356,7 +357,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--mu", type=float, default=0.55, help="the friction of the continuation")
     ap.add_argument("--facets", type=int, nargs="*", default=[64])
-    ap.add_argument("--speeds", default="23:28", help="the continuation's range LOW:HIGH [Hz]")
+    ap.add_argument("--speeds", default=None, help="the continuation's range LOW:HIGH [Hz]")
     ap.add_argument("--steps", type=int, default=30)
     ap.add_argument("--no-branch", action="store_true")
     ap.add_argument("--replot", action="store_true", help="redraw the figure from the saved JSON only")
@@ -375,6 +376,8 @@ def main(argv=None) -> int:
         ap.error(f"--mu must be a friction coefficient in (0, 2], got {a.mu!r}")
     if any(F < 8 for F in a.facets + (a.onset_facets or [])) or a.steps < 1 or a.periods < 8:
         ap.error("--facets and --onset-facets must be at least 8, --steps at least 1, --periods at least 8")
+    if a.speeds is None:
+        a.speeds = "26.5:27" if a.quick else "23:28"
     for name in ("speeds", "onset_range"):
         try:
             lo_, hi_ = (float(x) for x in getattr(a, name).split(":"))
@@ -420,8 +423,8 @@ def main(argv=None) -> int:
         runs.append(transient(a.mu, a.facets[0], a.transient_hz, a.periods, say))
     payload = {"map": rows, "onsets": onsets, "branches": branches, "orbit_onsets": found, "transients": runs, "machine": machine(),
                "wall_s": time.perf_counter() - t}
-    write_outputs(OUT, "rub_whirl", rows, payload)
-    figure(rows, onsets, branches, a.mu, FIGURE, found)
+    write_outputs(OUT, "rub_whirl_quick" if a.quick else "rub_whirl", rows, payload)
+    figure(rows, onsets, branches, a.mu, OUT / "rub_whirl_quick.png" if a.quick else FIGURE, found)
     if a.json:
         print(json.dumps(payload))
     return 0
