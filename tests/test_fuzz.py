@@ -4391,3 +4391,39 @@ def test_issue36_review2_a_branch_file_is_no_start(tmp_path_factory, points):
     code, _, err = check_invocation(["periodic", "critical_speed", "--start", "branch.npz", "--out", "o"], root)
     assert code == cli.EXIT_ERROR and "branch" in err and "orbit.npz" in err, err
     assert not (root / "o").exists()
+
+
+# --- issue 36: rub whirl study (studies/rub_whirl.py's options) ---
+def _rub_whirl_main():
+    studies = str(Path(__file__).resolve().parents[1] / "studies")
+    if studies not in sys.path:
+        sys.path.insert(0, studies)
+    import rub_whirl
+
+    return rub_whirl.main
+
+
+def _refused_in_one_line(argv, capsys) -> str:
+    """The study's main(argv) exits 2 with one 'error:' line (argparse's), before any computation."""
+    with pytest.raises(SystemExit) as exc:
+        _rub_whirl_main()(argv)
+    assert exc.value.code == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
+    assert len(err) == 1
+    return err[0]
+
+
+@pytest.mark.parametrize("argv", [["--mu", "nan"], ["--mu", "0"], ["--speeds", "30:20"], ["--speeds", "a"],
+                                  ["--onset-range", "10:27"], ["--facets", "4"], ["--transient-hz", "inf"],
+                                  ["--periods", "2"]])
+def test_issue36_rub_whirl_study_refuses_bad_options(argv, capsys):
+    assert argv[0] in _refused_in_one_line(argv, capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(low=st.floats(allow_nan=True, allow_infinity=True), high=st.floats(allow_nan=True, allow_infinity=True))
+def test_issue36_rub_whirl_study_refuses_every_bad_speed_range(low, high, capsys):
+    """Property: a --speeds range outside 16 <= LOW < HIGH <= 60 Hz (or not finite) is refused naming --speeds."""
+    if math.isfinite(low) and math.isfinite(high) and 16.0 <= low < high <= 60.0:
+        return
+    assert "--speeds" in _refused_in_one_line(["--speeds", f"{low!r}:{high!r}"], capsys)
