@@ -19,7 +19,7 @@ layers touch.
 
     python studies/delamination_resonance.py [--quick] [--json] [--alphas 2 1 0.5] [--speeds 22.5:23.06:29]
 
-``--quick``: alphas 2 and 0.5, 15 speeds, a 20-revolution transient. Writes delamination_resonance.json/.csv into
+``--quick``: alphas 2 and 0.5, 15 speeds, 100-revolution transients. Writes delamination_resonance.json/.csv into
 studies/out/delamination_resonance and the figure docs/figures/delamination_resonance.png.
 """
 
@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
+import signal
 import sys
 import time
 import warnings
@@ -68,14 +68,51 @@ def settle(system, T: float, q, v, periods: int):
     return q, v
 
 
-def orbit_row(alpha: float, speed: float, start, lead: int, max_iter: int) -> tuple[dict, tuple]:
-    """One speed's orbit, started from ``start`` (q, v) or, if None, from ``lead`` revolutions of transient."""
+class _Budget(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise _Budget()
+
+
+def touching_row(alpha: float, speed: float, system, T: float, start, revolutions: int) -> dict:
+    """The motion where the layers touch: ``revolutions`` of transient from ``start``, the last half summarized."""
+    trans = transient(alpha, speed, start, revolutions, system=system)
+    last = trans[len(trans) // 2:]
+    return {"alpha_per_s": alpha, "speed_hz": speed, "converged": False, "stable": False, "loss": None,
+            "events_per_period": max(t["events"] for t in last), "largest_multiplier": None,
+            "gap_min_m": min(t["gap_min_m"] for t in last), "gap_mean_m": None,
+            "gap_max_m": max(t["gap_max_m"] for t in last),
+            "normal_force_max_N": max(t["normal_force_max_N"] for t in last),
+            "q_half_p2p": max(t["q_half_p2p"] for t in last), "grazing": 0, "iterations": 0, "wall_s": 0.0,
+            "warnings": [f"layers touch: no orbit shot; transient of {revolutions} revolutions, "
+                         f"{sum(t['events'] > 0 for t in last)} of its last {len(last)} with events"]}
+
+
+def orbit_row(alpha: float, speed: float, start, lead: int, max_iter: int, budget_s: float,
+              revolutions: int) -> tuple[dict, tuple | None]:
+    """One speed's synchronous orbit from ``start`` (q, v) (None: ``lead`` revolutions from the scene's start).
+    Shot when one revolution from the start is open and the shooting ends within ``budget_s`` with an open orbit;
+    else the layers touch and the row summarizes a transient (:func:`touching_row`)."""
     system, T, q0, v0 = build(alpha, speed)
     q, v = start if start is not None else settle(system, T, q0, v0, lead)
+    if FlowMap(system, 0.0, T)(q, v, jacobian=False).result.events:
+        return touching_row(alpha, speed, system, T, (q, v), revolutions), None
     t = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        o = periodic_orbit(system, T, q, v, tol=1e-9, max_iter=max_iter)
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, budget_s)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            o = periodic_orbit(system, T, q, v, tol=1e-9, max_iter=max_iter)
+    except _Budget:
+        o = None
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, old)
+    if o is None or not o.converged or o.events_per_period:
+        return touching_row(alpha, speed, system, T, (q, v), revolutions), None
     r = o.result
     mu = np.abs(o.multipliers)
     row = {"alpha_per_s": alpha, "speed_hz": speed, "converged": bool(o.converged), "stable": bool(o.stable),
@@ -86,23 +123,27 @@ def orbit_row(alpha: float, speed: float, start, lead: int, max_iter: int) -> tu
            "q_half_p2p": float(0.5 * (r.q.max(axis=1) - r.q.min(axis=1)).max()),
            "grazing": len(o.grazing or []), "iterations": int(o.iterations), "wall_s": time.perf_counter() - t,
            "warnings": [str(w.message).splitlines()[0] for w in caught]}
-    return row, ((o.q0, o.v0) if o.converged and o.events_per_period == 0 else None)
+    return row, (o.q0, o.v0)
 
 
-def branch(alpha: float, speeds: np.ndarray, lead: int, max_iter: int) -> list[dict]:
+def branch(alpha: float, speeds: np.ndarray, lead: int, max_iter: int, budget_s: float,
+           revolutions: int) -> list[dict]:
     """The synchronous orbits over ``speeds`` at one damping, each from the previous open orbit."""
     rows, start = [], None
     for s in speeds:
-        row, start = orbit_row(alpha, float(s), start, lead, max_iter)
+        row, nxt = orbit_row(alpha, float(s), start, lead, max_iter, budget_s, revolutions)
+        start = nxt if nxt is not None else start
         rows.append(row)
         print(f"alpha {alpha:g} speed {s:.4f}: converged {row['converged']} events {row['events_per_period']} "
-              f"gap_min {row['gap_min_m']:.3e} m |mu| {row['largest_multiplier']:.4f}", file=sys.stderr, flush=True)
+              f"gap_min {row['gap_min_m']:.3e} m |mu| {row['largest_multiplier']} force {row['normal_force_max_N']:.3g} N", file=sys.stderr, flush=True)
     return rows
 
 
-def transient(alpha: float, speed: float, start, periods: int) -> list[dict]:
+def transient(alpha: float, speed: float, start, periods: int, system=None) -> list[dict]:
     """Revolution by revolution from ``start``: the smallest gap, largest contact force and events of each."""
-    system, T, _, _ = build(alpha, speed)
+    if system is None:
+        system = build(alpha, speed)[0]
+    T = 1.0 / speed
     phi = FlowMap(system, 0.0, T)
     q, v = start
     out = []
@@ -111,7 +152,7 @@ def transient(alpha: float, speed: float, start, periods: int) -> list[dict]:
         r = f.result
         out.append({"revolution": k + 1, "gap_min_m": float(r.gap.min()), "gap_max_m": float(r.gap.max()),
                     "normal_force_max_N": float(r.normal_force.max()), "events": len(r.events),
-                    "q_norm": float(np.abs(f.q).max())})
+                    "q_half_p2p": float(0.5 * (r.q.max(axis=1) - r.q.min(axis=1)).max()) if r.q.size else 0.0})
         q, v = f.q, f.v
     return out
 
@@ -163,22 +204,23 @@ def parse_speeds(text: str) -> np.ndarray:
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="alphas 2 and 0.5, 15 speeds, 20-revolution transient")
+    ap.add_argument("--quick", action="store_true", help="alphas 2 and 0.5, 15 speeds, 100-revolution transients")
     ap.add_argument("--json", action="store_true", help="print the JSON payload")
     ap.add_argument("--alphas", type=float, nargs="+", default=[2.0, 1.0, 0.5], help="mass-proportional damping [1/s]")
     ap.add_argument("--speeds", default="22.5:23.06:29", help="LOW:HIGH:N speeds [Hz]")
     ap.add_argument("--lead", type=int, default=20, help="transient revolutions before the first shooting")
-    ap.add_argument("--max-iter", type=int, default=15, help="Newton steps per orbit")
-    ap.add_argument("--revolutions", type=int, default=60, help="the transient's length")
+    ap.add_argument("--max-iter", type=int, default=8, help="Newton steps per orbit")
+    ap.add_argument("--budget", type=float, default=30.0, help="seconds per shooting before the speed counts as touching")
+    ap.add_argument("--revolutions", type=int, default=200, help="the transients' length (revolutions)")
     ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "delamination_resonance"))
     ap.add_argument("--figure", default=str(ROOT / "docs" / "figures" / "delamination_resonance.png"))
     args = ap.parse_args(argv)
     if args.quick:
-        args.alphas, args.speeds, args.revolutions = [2.0, 0.5], "22.5:23.06:15", 20
+        args.alphas, args.speeds, args.revolutions = [2.0, 0.5], "22.5:23.06:15", 100
     speeds = parse_speeds(args.speeds)
     rows = []
     for alpha in args.alphas:
-        rows += branch(alpha, speeds, args.lead, args.max_iter)
+        rows += branch(alpha, speeds, args.lead, args.max_iter, args.budget, args.revolutions)
     # the transient: smallest damping, the speed of the smallest gap, from the nearest open orbit below it
     alpha = min(args.alphas)
     rs = [r for r in rows if r["alpha_per_s"] == alpha]
