@@ -18,7 +18,8 @@ A speed whose first revolution from the previous orbit meets contact, or whose s
 orbit within ``--budget`` seconds, counts as touching: its row summarizes the last half of a transient instead
 (``converged`` false; the shooting of the touching orbit at alpha 0.5, 22.78 Hz ran for more than 8 minutes).
 
-For the smallest damping it then integrates a transient at the speed of the smallest gap (from the neighbouring
+At 22.78 Hz it lowers the damping (2, 1.75, 1.5, 1.25, 1.15) and extrapolates the open orbits' smallest gap to
+zero: the damping below which the layers touch. For the smallest damping it then integrates a transient at the speed of the smallest gap (from the neighbouring
 open orbit) and records per revolution the smallest gap and the events, to show what the motion does once the
 layers touch.
 
@@ -180,6 +181,23 @@ def transient(alpha: float, speed: float, start, periods: int, system=None) -> l
     return out
 
 
+def threshold(speed: float, alphas: list[float], lead: int, max_iter: int, budget_s: float) -> list[dict]:
+    """The smallest gap of the orbit at ``speed`` as the damping falls (each shot from the previous open orbit),
+    and where a straight line through the last two open ones crosses zero (the damping at which the layers touch)."""
+    out, start = [], None
+    for a in alphas:
+        row, nxt = orbit_row(a, speed, start, lead, max_iter, budget_s, 40)
+        out.append({"alpha_per_s": a, "open": nxt is not None, "gap_min_m": row["gap_min_m"],
+                    "midspan_m": row["midspan_m"]})
+        start = nxt if nxt is not None else start
+    opened = [r for r in out if r["open"]]
+    if len(opened) >= 2:
+        (a1, g1), (a2, g2) = [(r["alpha_per_s"], r["gap_min_m"]) for r in opened[-2:]]
+        out.append({"alpha_per_s": a2 - g2 * (a2 - a1) / (g2 - g1), "open": None, "gap_min_m": 0.0,
+                    "midspan_m": None, "extrapolated": True})
+    return out
+
+
 def figure(rows: list[dict], trans: list[dict], trans_label: str, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
@@ -257,6 +275,8 @@ def main(argv=None) -> dict:
         trans = transient(alpha, worst["speed_hz"], (o.q0, o.v0), args.revolutions)
         label = (f"transient at {worst['speed_hz']:.3f} Hz, alpha {alpha:g} 1/s "
                  f"(from the orbit at {src['speed_hz']:.3f} Hz)")
+    thr = threshold(22.78, [2.0, 1.75, 1.5, 1.25, 1.15], args.lead, args.max_iter, args.budget)
+    print("threshold:", json.dumps(thr), file=sys.stderr)
     summary = []
     for a in args.alphas:
         rs = [r for r in rows if r["alpha_per_s"] == a]
@@ -267,7 +287,7 @@ def main(argv=None) -> dict:
                         "all_open_orbits_stable": all(r["stable"] for r in rs
                                                       if r["converged"] and r["events_per_period"] == 0)})
     payload = {"study": "delamination_resonance", "scene": "default", "speeds_hz": speeds.tolist(),
-               "rows": rows, "summary": summary, "transient": trans, "transient_label": label,
+               "rows": rows, "summary": summary, "threshold_22_78_hz": thr, "transient": trans, "transient_label": label,
                "machine": machine()}
     write_outputs(Path(args.out), "delamination_resonance", rows, payload)
     figure(rows, trans, label, Path(args.figure))
