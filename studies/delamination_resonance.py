@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from study_io import machine, write_outputs
+from study_io import machine, save_figure, write_outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -231,11 +231,7 @@ def figure(rows: list[dict], trans: list[dict], trans_label: str, path: Path) ->
         ax[2].set(xlabel="revolution", ylabel="smallest gap [mm]", title=trans_label)
         ax[2].grid(alpha=0.3)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(path)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def parse_speeds(text: str) -> np.ndarray:

@@ -37,7 +37,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import brentq
 
-from study_io import machine, write_outputs
+from study_io import machine, save_figure, write_outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -344,11 +344,7 @@ def figure(rows: list[dict], onsets: list[dict], branches: list[dict], mu_curve:
     if branches:
         ax2.legend(fontsize=7)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(path)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv=None) -> int:
