@@ -149,7 +149,7 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     # a section on an event (an impact, a corner passage) makes the map non-smooth at the orbit: Newton stalls
     # there (a disk on a polygon's corner at t0: residual 6e-4 after 13 steps); the section moves to the middle of
     # the longest stretch of the period without events of the start's flow
-    probe = phi(q, v, jacobian=False)
+    probe = phi(q, v)   # (with its monodromy: without a move it is the first Newton step's flow)
     # (an impact of the start itself, the start on a stop with an approaching velocity, is no event of the run but
     # lies on the section as well: its map is one-sided there)
     times = sorted(((e["t"] - t0) % period_s) for e in probe.result.events + probe.result.impacts)
@@ -160,9 +160,10 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
         moved = FlowMap(system, t0, shift)(q, v, jacobian=False)   # (its end state alone)
         q, v, t0 = moved.q, moved.v, t0 + shift
         phi = FlowMap(system, t0, period_s, output_dt=output_dt)
+        probe = None
 
-    def run(q_, v_) -> tuple[Flow, float, np.ndarray]:
-        fl = phi(q_, v_)
+    def run(q_, v_, fl: Flow | None = None) -> tuple[Flow, float, np.ndarray]:
+        fl = phi(q_, v_) if fl is None else fl
         if not np.all(np.isfinite(fl.monodromy)):   # (an event met at a vanishing rate: its 1 / h' overflowed)
             raise NsfemError("periodic: the monodromy matrix overflowed (an event met at a vanishing rate, "
                              f"{len(fl.result.events)} events in the period): no Newton step from this state")
@@ -170,7 +171,7 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
         size = max(float(np.abs(scale * np.concatenate([q_, v_])).max()), float(np.abs(scale * F).max()), 1e-300)
         return fl, float(np.abs(scale * F).max()) / size, F
 
-    first = run(q, v)
+    first = run(q, v, probe)
 
     def newton(q, v, fl, res, F, free: int):
         """Newton's full step first, a step that grows the residual accepted up to ``free`` times (the residual of
