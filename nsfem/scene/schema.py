@@ -308,7 +308,8 @@ _STATOR = {
                   check=_nonneg),
     "shape": Key("str", "polygon", "a rigid ring in the exact method: polygon (the `facets` fixed) or round (the "
                  "polygon turns with the contact point so that the touched facet stays tangent to the circle and a "
-                 "settled point is held, docs/theory.md); rk, moreau, penalty and elastic rings use the polygon",
+                 "settled point is held, docs/theory.md); rk, moreau, penalty and elastic rings use the polygon; "
+                 "`nsfem periodic` refuses round (its turns keep a state besides (q, q'))",
                  ("polygon", "round")),
 }
 _CRACK = {
