@@ -246,7 +246,8 @@ def _reference(sysm, ring, t_end):
                      dense_output=True)
 
 
-@pytest.mark.parametrize("mu", [0.0, 0.2])
+# the frictionless case passes the same regions as mu = 0.2 (which adds friction's): slow (20 s each on a shared core)
+@pytest.mark.parametrize("mu", [pytest.param(0.0, marks=pytest.mark.slow), 0.2])
 def test_ring_regions_and_events_against_an_independent_integration(mu):
     """The exact method's regions (edges, corners, latent releases with a strong damper) reproduce an
     independent integration of the force law to its accuracy (rtol 1e-11 on a 2e-4 m motion, through some 90

@@ -98,8 +98,14 @@ def test_lewis_closed_form_is_the_averaged_equation():
     assert np.max(np.abs(lewis(tau, alpha) - ref)) <= 1e-7 * ref.max()
 
 
-@pytest.mark.parametrize("rate", RATES_HZ_S)
-@pytest.mark.parametrize("method", ["rk", "penalty"])
+#: the penalty method's slower passages cost 20-40 s each on a shared core and check the same schedule and load
+#: as its fastest one and as rk's at every rate: slow
+PASSAGES = [("rk", rate) for rate in RATES_HZ_S] + [
+    pytest.param("penalty", rate, marks=pytest.mark.slow) if rate < max(RATES_HZ_S) else ("penalty", rate)
+    for rate in RATES_HZ_S]
+
+
+@pytest.mark.parametrize("method, rate", PASSAGES)
 def test_passage_matches_a_direct_solve(method, rate):
     """nsfem's run-up (schedule, unbalance at theta(t) with its tangential part) equals a direct solve of the
     Jeffcott equations. rk: DOP853 at rtol 1e-10; penalty: BDF at rtol 1e-8 (its order-5 error estimate
@@ -397,12 +403,13 @@ def test_rotating_and_inertial_frames_give_the_same_run_up(tmp_path):
     from dataclasses import replace
 
     path = _no_seal(tmp_path)
-    a, ra = _frame_run(path, "inertial")
-    b, rb = _frame_run(path, "rotating")
+    # the first 0.5 s of the ramp (18 -> 28 Hz, through the critical speed): each term above acts there already
+    a, ra = _frame_run(path, "inertial", ["simulation.t_end=0.5"])
+    b, rb = _frame_run(path, "rotating", ["simulation.t_end=0.5"])
     scale = np.abs(a).max()
     assert np.abs(a - b).max() <= 1e-7 * scale
     assert ra.energy["relative_residual"] < 1e-8 and rb.energy["relative_residual"] < 1e-8
-    c, _ = _frame_run(path, "rotating", schedule=lambda s: replace(s, Kst=0.0 * s.Kst))
+    c, _ = _frame_run(path, "rotating", ["simulation.t_end=0.5"], schedule=lambda s: replace(s, Kst=0.0 * s.Kst))
     assert np.abs(a - c).max() > 1e-3 * scale
 
 
@@ -546,39 +553,41 @@ def test_runup_plot_legend_covers_no_data(tmp_path, monkeypatch):
         assert not inside.any(), line.get_label()
 
 
-def _runup_figure(module, tmp_path, monkeypatch) -> dict:
-    """Run the runup scene with its psd plot, keeping the figure ``module``'s ``save`` writes: {"fig": figure}."""
+@pytest.fixture(scope="module")
+def runup_figures(tmp_path_factory) -> dict:
+    """One run of the runup scene with its psd plot, keeping the figures of sensors.png and psd.png: {name: figure}
+    (one run serves both tests: each took 15-40 s)."""
+    import nsfem.plot.psd as psd_mod
+    import nsfem.plot.sensors as sensors_mod
     from nsfem import cli
 
     grabbed = {}
-    save = module.save
-
-    def keep(fig, path):
-        grabbed["fig"] = fig
-        return save(fig, path)
-    monkeypatch.setattr(module, "save", keep)
-    assert cli.main(["run", "runup", "--out", str(tmp_path), "--set", 'output.plots=["psd"]']) == 0
+    mp = pytest.MonkeyPatch()
+    for name, module in (("sensors", sensors_mod), ("psd", psd_mod)):
+        def keep(fig, path, _save=module.save, _name=name):
+            grabbed[_name] = fig
+            return _save(fig, path)
+        mp.setattr(module, "save", keep)
+    try:
+        out = tmp_path_factory.mktemp("runup")
+        assert cli.main(["run", "runup", "--out", str(out), "--set", 'output.plots=["psd"]']) == 0
+    finally:
+        mp.undo()
     return grabbed
 
 
-def test_run_up_sensors_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
+def test_run_up_sensors_png_marks_the_speeds_it_sweeps(runup_figures):
     """sensors.png of the runup scene (18 -> 38 Hz in 1 s): its spectrum of the last half (0.5 - 1 s) marks 1x
     as the band 28 -> 38 Hz the half sweeps, not the start speed 18 Hz (where the probes hold no line then)."""
-    import nsfem.plot.sensors as sensors_mod
-
-    grabbed = _runup_figure(sensors_mod, tmp_path, monkeypatch)
-    texts = [t.get_text() for ax in grabbed["fig"].axes for t in ax.texts]
+    texts = [t.get_text() for ax in runup_figures["sensors"].axes for t in ax.texts]
     assert not any(t.startswith("1x = 18 Hz") for t in texts)
     assert "1x = 28 -> 38 Hz" in texts
 
 
-def test_run_up_psd_png_marks_the_speeds_it_sweeps(tmp_path, monkeypatch):
+def test_run_up_psd_png_marks_the_speeds_it_sweeps(runup_figures):
     """psd.png of the runup scene (window 0.5 - 1 s, 28 -> 38 Hz): the rotation is marked as that band, not as
     the start speed 18 Hz and its harmonics."""
-    import nsfem.plot.psd as psd_mod
-
-    grabbed = _runup_figure(psd_mod, tmp_path, monkeypatch)
-    labels = [h.get_label() for ax in grabbed["fig"].axes for h in ax.get_legend_handles_labels()[0]]
+    labels = [h.get_label() for ax in runup_figures["psd"].axes for h in ax.get_legend_handles_labels()[0]]
     assert not any("rotation 18 Hz" in lab for lab in labels)
     assert any("28 -> 38 Hz" in lab for lab in labels)
 
