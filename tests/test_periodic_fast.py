@@ -70,3 +70,48 @@ def test_stationary_start_needs_one_flow(monkeypatch):
     assert orbit.events_per_period == 0
     # the state comes back: the flow's end state is the start
     assert np.abs(orbit.result.q[:, -1] - q).max() <= 1e-12 * np.abs(q).max()
+
+
+def test_nested_single_threaded_blas_blocks():
+    """An inner single_threaded_blas block (a flow inside a shooting) keeps one thread and leaves the outer block's
+    limit in place; the outermost restores the counts before it, also when its body raises."""
+    from threadpoolctl import threadpool_info
+
+    from nsfem.integrate.base import single_threaded_blas
+
+    def counts():
+        return [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+
+    before = counts()
+    try:
+        with single_threaded_blas():
+            with single_threaded_blas():
+                assert set(counts()) <= {1}
+            assert set(counts()) <= {1}   # the inner block did not restore the outer's counts
+            raise KeyError("body")
+    except KeyError:
+        pass
+    assert counts() == before
+    with single_threaded_blas():   # and a block after a raising one limits again
+        assert set(counts()) <= {1}
+    assert counts() == before
+
+
+def test_inner_blas_block_skips_the_library_scan(monkeypatch):
+    """Only the outermost block limits the threads (threadpoolctl's scan of the loaded libraries): a shooting's
+    flows inside it pay no scan of their own."""
+    from nsfem.integrate import blas
+
+    calls = []
+    limits = blas.threadpool_limits
+
+    def counted(*args, **kwargs):
+        calls.append(kwargs)
+        return limits(*args, **kwargs)
+
+    monkeypatch.setattr(blas, "threadpool_limits", counted)
+    with blas.single_threaded_blas():
+        for _ in range(3):
+            with blas.single_threaded_blas():
+                pass
+    assert len(calls) == 1
