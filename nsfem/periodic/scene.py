@@ -275,7 +275,7 @@ def _stationary_start(scene: "Scene", system: "ContactSystem") -> np.ndarray | N
 
     With rigid contacts only, LCP 28 is solved on the system's own Q, f0 and contacts
     (:func:`nsfem.analysis.stationary.stationary`: the same matrices :func:`~nsfem.analysis.stationary.rotor_stationary`
-    assembles again, without its report of the rotor's parts: 2-4 ms on the shipped rub against 60-90 ms); elastic
+    assembles again, without its report of the rotor's parts: 6 ms of CPU on the shipped rub against 45 ms); elastic
     rings (their compliance) go through :func:`~nsfem.analysis.stationary.rotor_stationary`."""
     from ..analysis.stationary import rotor_stationary, stationary
     from ..integrate.base import initial_state, single_threaded_blas
