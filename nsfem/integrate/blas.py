@@ -16,15 +16,32 @@ scipy's) to one thread through threadpoolctl, and restores their counts afterwar
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Iterator
 
 from threadpoolctl import threadpool_limits
 
+#: per thread, how deep it is in single_threaded_blas blocks (an inner block changes nothing: threadpoolctl's scan
+#: of the loaded libraries costs ~0.4 ms a block, a tenth of a rub's equilibrium period)
+_depth = threading.local()
+
 
 @contextlib.contextmanager
 def single_threaded_blas() -> Iterator[None]:
-    """Run the body with one BLAS thread (see the module docstring)."""
+    """Run the body with one BLAS thread (see the module docstring); inside another such block, as it is."""
     import scipy.linalg  # noqa: F401  (load scipy's BLAS too, so that both are limited)
 
+    depth = getattr(_depth, "n", 0)
+    if depth:
+        _depth.n = depth + 1
+        try:
+            yield
+        finally:
+            _depth.n = depth
+        return
     with threadpool_limits(limits=1, user_api="blas"):
-        yield
+        _depth.n = 1
+        try:
+            yield
+        finally:
+            _depth.n = 0

@@ -269,17 +269,25 @@ def interrupts_end_flows() -> Iterator[None]:
 
 
 def _stationary_start(scene: "Scene", system: "ContactSystem") -> np.ndarray | None:
-    """The scene's stationary state (LCP 28, :func:`nsfem.analysis.stationary.rotor_stationary`) in the system's
-    coordinates as a start for the shooting, or None where it has none (a contact model it does not cover, no
-    solution, a state the exact flow's contacts refuse): the transient then starts the shooting."""
-    from ..analysis.stationary import rotor_stationary
-    from ..integrate.base import initial_state
+    """The scene's stationary state (LCP 28) in the system's coordinates as a start for the shooting, or None where
+    it has none (a contact model it does not cover, no solution, a state the exact flow's contacts refuse): the
+    transient then starts the shooting.
+
+    With rigid contacts only, LCP 28 is solved on the system's own Q, f0 and contacts
+    (:func:`nsfem.analysis.stationary.stationary`: the same matrices :func:`~nsfem.analysis.stationary.rotor_stationary`
+    assembles again, without its report of the rotor's parts: 6 ms of CPU on the shipped rub against 45 ms); elastic
+    rings (their compliance) go through :func:`~nsfem.analysis.stationary.rotor_stationary`."""
+    from ..analysis.stationary import rotor_stationary, stationary
+    from ..integrate.base import initial_state, single_threaded_blas
 
     model, reduction = system.info.get("model"), system.info.get("reduction")
     if model is None or reduction is None:
         return None
     try:
-        q = np.asarray(rotor_stationary(model, reduction, scene.rotation, scene.damping).q, dtype=float)
+        with single_threaded_blas():   # (small solves: a second BLAS thread only waits for a core)
+            q = rotor_stationary(model, reduction, scene.rotation, scene.damping).q if system.rings else \
+                stationary(system.Q, system.f0, system.contacts).q
+        q = np.asarray(q, dtype=float)
         if q.shape != (system.n,) or not np.all(np.isfinite(q)):
             return None
         initial_state(system, q, np.zeros(system.n))   # on or above every contact

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import NsfemError
+from ..integrate.base import single_threaded_blas
 from ..result import Result
 from .arguments import real_number, vector, whole_number
 from .flow import Flow, FlowMap, near_grazing
@@ -142,6 +143,14 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     if q.shape != (n,) or v.shape != (n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
         raise NsfemError(f"periodic: the starting state must be two finite vectors of length {n}")
     check_forcing_multiple(system, period_s)
+    with single_threaded_blas():   # (small products: a second thread waits for a core; see nsfem.integrate.blas)
+        return _shoot(system, period_s, q, v, t0, tol, max_iter, output_dt, attempts, settle_periods)
+
+
+def _shoot(system, period_s: float, q: np.ndarray, v: np.ndarray, t0: float, tol: float, max_iter: int,
+           output_dt: float | None, attempts: int, settle_periods: int) -> PeriodicOrbit:
+    """:func:`periodic_orbit` on validated arguments (its warnings name periodic_orbit's caller)."""
+    n = system.n
     phi = FlowMap(system, t0, period_s, output_dt=output_dt)   # (output_dt checked there)
     w = 2.0 * math.pi / period_s
     scale = np.concatenate([np.ones(n), np.full(n, 1.0 / w)])
@@ -231,19 +240,19 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     converged = res <= tol
     if not converged:
         warnings.warn(f"periodic: shooting did not converge in {it} Newton steps (residual {res:.3g} > tol {tol:g}); "
-                      "the orbit and its multipliers are of the last iterate", stacklevel=2)
+                      "the orbit and its multipliers are of the last iterate", stacklevel=3)
     if fl.approximations:
         first = fl.approximations[0]
         warnings.warn(f"periodic: {len(fl.approximations)} event(s) of the orbit have no exact saltation matrix (the "
                       f"first at t = {first['t']:.6g} s: {first['why']}); the Floquet multipliers and the verdict "
-                      "are those of an approximate monodromy matrix", stacklevel=2)
+                      "are those of an approximate monodromy matrix", stacklevel=3)
     grazing = [{"contact": c, "t": g["t"], "gap_min": 0.0} for g in fl.grazing for c in g["contacts"]]
     grazing += near_grazing(fl)
     if grazing:
         worst = min(grazing, key=lambda g: g["gap_min"])
         warnings.warn(f"periodic: the orbit grazes contact {system.contacts.labels[worst['contact']]} (smallest gap "
                       f"{worst['gap_min']:.3g} m at t = {worst['t']:.6g} s without closing): near a grazing bifurcation "
-                      "the Floquet multipliers do not describe nearby motions that touch", stacklevel=2)
+                      "the Floquet multipliers do not describe nearby motions that touch", stacklevel=3)
     return PeriodicOrbit(float(period_s), float(t0), q, v, converged, res, it, Mr, mu, stable, loss,
                          len(fl.result.events), fl.result, grazing, fl.approximations, Z, history)
 
