@@ -4427,3 +4427,61 @@ def test_issue36_rub_whirl_study_refuses_every_bad_speed_range(low, high, capsys
     if math.isfinite(low) and math.isfinite(high) and 16.0 <= low < high <= 60.0:
         return
     assert "--speeds" in _refused_in_one_line(["--speeds", f"{low!r}:{high!r}"], capsys)
+
+
+# --- issue 36: continuation on Dask ---
+# nsfem periodic --continue --workers N | --scheduler ADDRESS refuses, in one line naming the option and before any
+# orbit is computed (and before a local cluster starts): --workers outside 1..4 per core, --workers with
+# --scheduler, either without --continue (a single orbit is one computation), an empty address, and an address
+# where no Dask scheduler answers (the orbit not started: checked by failing the test if it is).
+@pytest.fixture
+def no_orbit36(monkeypatch):
+    """Neither the branch's start orbit nor a local cluster may be reached: any call fails the test."""
+    from nsfem import sweep
+    from nsfem.periodic import scene
+
+    def never(*args, **kwargs):
+        raise AssertionError("computed (or started a cluster) before the refusal")
+
+    monkeypatch.setattr(scene, "orbit_of_scene", never)
+    monkeypatch.setattr(sweep, "LocalCluster", never, raising=False)
+    import distributed
+
+    monkeypatch.setattr(distributed, "LocalCluster", never)
+
+
+DASK36_REPRODUCTIONS = [
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "0"], "--workers", "positive integer, got 0"),
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "-3"], "--workers", "positive integer, got -3"),
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "100000"], "--workers 100000", "per core"),
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "x"], "--workers", "invalid int"),
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--workers",
+     "cannot be combined with --scheduler"),
+    (["--workers", "2"], "--workers", "option of --continue"),
+    (["--workers", "1"], "--workers", "option of --continue"),
+    (["--scheduler", "tcp://127.0.0.1:1"], "--scheduler", "option of --continue"),
+    (["--continue", "rotation.speed_hz=25:27", "--scheduler", ""], "--scheduler", "an address"),
+    (["--continue", "rotation.speed_hz=25:27", "--scheduler", "nonsense"], "--scheduler nonsense",
+     "cannot connect to a Dask scheduler"),
+]
+
+
+@pytest.mark.parametrize("extra,names,reason", DASK36_REPRODUCTIONS)
+def test_issue36_dask_continue_reproductions(no_orbit36, extra, names, reason, tmp_path):
+    code, out, err = check_invocation([*CONTINUE36, *extra], tmp_path)
+    line = [x for x in err.splitlines() if x.startswith("nsfem: error:")]
+    assert code == 2 and names in line[0] and reason in line[0] and out == "", err
+    assert not (tmp_path / "o").exists()
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=list(HealthCheck))
+@given(workers=st.one_of(st.integers(-10**6, 0), st.integers(4 * (os.cpu_count() or 1) + 1, 10**9)),
+       continued=st.booleans())
+def test_issue36_dask_workers_out_of_range_are_refused_by_name(no_orbit36, workers, continued):
+    """Property: a --workers below 1 or above 4 per core, or any --workers without --continue, is refused naming
+    --workers, before anything is computed or started."""
+    extra = ["--continue", "rotation.speed_hz=25:27"] if continued else []
+    with tempfile.TemporaryDirectory() as d:
+        code, out, err = check_invocation([*CONTINUE36, *extra, "--workers", str(workers)], Path(d))
+        assert code == 2 and "--workers" in err and out == "", (workers, err)
+        assert not (Path(d) / "o").exists()

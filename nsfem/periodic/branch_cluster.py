@@ -12,7 +12,8 @@ the doubled branch, as :func:`.branch.orbit_branch` switches onto it). Each poin
 exactly as the serial path makes it (:func:`.scene_branch.point_record`) and streamed back through a
 ``distributed.Queue`` as it is found, so progress lines and the branch so far (``on_point``, an interrupt) come
 as they do in one process; the records a finished task returns are the ones kept. The sides are merged in their
-order, each with its doubled branches in the order of its bifurcations: the serial path's result.
+order, each with its doubled branches in the order of its bifurcations: the serial path's result. Ctrl-C on the
+client cancels the tasks; running ones end at their next point (a ``distributed.Event`` they look at).
 
 The cluster is the one ``nsfem sweep`` uses (:func:`nsfem.sweep._client`: a given client, one connected to a
 scheduler, or a LocalCluster of worker processes with one BLAS thread each), with its limits and its closing.
@@ -85,15 +86,26 @@ def close(cluster: tuple) -> None:
         _release_signals(held)
 
 
-def _stream(queue_name: str, tag: int) -> Callable[[int, dict], None]:
-    """On a worker: put (tag, sequence number, the record pickled) on the client's queue; best effort (a queue
-    gone only loses progress lines, the task's result keeps every record)."""
-    from distributed import Queue
+class BranchCancelled(Exception):
+    """Raised in a task whose branch was interrupted on the client (a running task cannot be stopped otherwise:
+    it would go on to its end on a cluster the client does not close)."""
 
-    queue = Queue(queue_name)
+
+def _stream(queue_name: str, tag: int) -> Callable[[int, dict], None]:
+    """On a worker: put(multiple, record) puts (tag, sequence number, multiple, the record pickled) on the client's
+    queue (best effort: a queue gone only loses progress lines, the task's result keeps every record), after
+    raising :class:`BranchCancelled` if the client has set the branch's stop event."""
+    from distributed import Event, Queue
+
+    queue, stop = Queue(queue_name), Event(f"{queue_name}-stop")
     seq = [0]
 
     def put(mult: int, rec: dict) -> None:
+        cancelled = False
+        with contextlib.suppress(Exception):
+            cancelled = stop.is_set()
+        if cancelled:
+            raise BranchCancelled("the branch was interrupted")
         with contextlib.suppress(Exception):
             queue.put([tag, seq[0], int(mult), pickle.dumps(rec)])
         seq[0] += 1
@@ -156,15 +168,12 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
     order, the tasks' interleaved), ``merge(side, stop, reason, bifurcations, doubled)`` once a side and its
     doubled branches are done, the sides in their order. Ctrl-C cancels the tasks and raises KeyboardInterrupt
     (what was accepted and merged stays)."""
-    from distributed import Queue, wait
-
-    from .scene_branch import _Family
+    from distributed import Event, Queue, wait
 
     queue_name = f"nsfem-branch-{uuid.uuid4().hex}"
-    queue = Queue(queue_name, client=client)
-    # a fresh family (no cached systems) sent once to every worker
-    [shared] = client.scatter([_Family(family.scene0, family.key, family.system0, family.load)], broadcast=True,
-                              hash=False)
+    queue, stop = Queue(queue_name, client=client), Event(f"{queue_name}-stop", client=client)
+    # the family without its cached systems, sent once to every worker
+    [shared] = client.scatter([family.fresh()], broadcast=True, hash=False)
     t0 = float(so.orbit.t0)
     tasks: dict = {}            # future -> (tag, side, kind, bifurcation or None)
     seen: dict[int, int] = {}   # tag -> records accepted
@@ -229,6 +238,7 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
                     waiting[k] -= 1
             merge_ready()
     except BaseException:
-        with contextlib.suppress(Exception):
+        with contextlib.suppress(Exception):   # the running tasks end at their next point, the others at once
+            stop.set()
             client.cancel(list(tasks))
         raise

@@ -74,6 +74,8 @@ class SceneBranch:
     warnings: list[str] = field(default_factory=list)
     wall_s: float = 0.0
     interrupted: bool = False
+    #: the Dask cluster's worker threads that followed it (0: this process)
+    workers: int = 0
 
     @property
     def stop(self) -> str:
@@ -96,7 +98,7 @@ class SceneBranch:
                                       "bifurcations": [public(b) for b in d["bifurcations"]]} for d in self.doubled],
                 "stop": self.stop, "reason": "; ".join(f"towards {s['towards']:g}: {s['reason']}" for s in self.sides)
                 or ("interrupted before the first step" if self.interrupted else ""),
-                "sides": list(self.sides), "sensors": [s.name for s in self.sensors],
+                "sides": list(self.sides), "sensors": [s.name for s in self.sensors], "workers": self.workers,
                 "warnings": list(self.warnings)}
 
 
@@ -248,6 +250,8 @@ def _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, tr
     # the branch's points in order: the LOW side reversed, then the HIGH side
     sb = SceneBranch(key, float(low), float(high), value, p0, int(multiple), [], [], [], [], so, tuple(scene0.sensors),
                      warnings)
+    if cluster is not None:
+        sb.workers = len(cluster[0].nthreads())
     found: list[list[dict]] = [[] for _ in sides]
     doubled_found: dict[int, list[dict]] = {}
     records: dict[tuple, dict] = {}   # (multiple, p, u's bytes) -> the point's record, for the doubled branches
@@ -386,6 +390,10 @@ class _Family:
         self.scene0, self.key, self.system0, self.load = scene0, key, system0, load
         self.n = system0.n
         self._cache: OrderedDict = OrderedDict()
+
+    def fresh(self) -> "_Family":
+        """The same family without its cached systems (to send to a cluster's workers)."""
+        return _Family(self.scene0, self.key, self.system0, self.load)
 
     def scene_at(self, p: float) -> "Scene":
         return self.scene0 if self.key == SPEED_KEY else self._entry(p)[0]
