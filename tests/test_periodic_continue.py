@@ -529,3 +529,44 @@ def test_doubled_branches_on_a_cluster_are_the_serial_ones(dask_client):
         for d, e in zip(dbl, doubled):
             assert d["multiple"] == e["multiple"] == 2 and (d["stop"], d["reason"]) == (e["stop"], e["reason"])
             _same_points(e["points"], d["points"], 0.1)
+
+
+@pytest.mark.slow   # two commands each starting a cluster of two processes (10-20 s on a loaded machine)
+def test_cli_workers_2_writes_the_serial_branch(tmp_path, capsys):
+    """nsfem periodic --continue ... --workers 2: branch.json is the serial command's (points to round-off, the
+    block's comment; every other key equal but the wall time, the outputs' folder and the workers)."""
+    argv = ["periodic", "critical_speed", *_sets(LINEAR), "--set", "output.plots=[]", "--continue",
+            "rotation.speed_hz=25.6:26.4", "--steps", "3", "--transient", "0"]
+    assert cli.main([*argv, "--out", str(tmp_path / "a")]) == 0
+    assert cli.main([*argv, "--out", str(tmp_path / "b"), "--workers", "2"]) == 0
+    capsys.readouterr()
+    a, b = (json.loads((tmp_path / x / "branch.json").read_text()) for x in "ab")
+    assert a["workers"] == 0 and b["workers"] == 2
+    for key in set(a) - {"wall_s", "outputs", "workers", "branch"}:
+        assert a[key] == b[key], key
+    with np.load(tmp_path / "a" / "branch.npz") as za, np.load(tmp_path / "b" / "branch.npz") as zb:
+        pts = [[{"value": v, "q0": q, "v0": w, "stable": p["stable"], "converged": p["converged"],
+                 "events_per_period": p["events_per_period"], "multiple": p["multiple"], "amplitudes": p["amplitudes"]}
+                for v, q, w, p in zip(z["value"], z["q0"], z["v0"], j["branch"])] for z, j in ((za, a), (zb, b))]
+    _same_points(pts[0], pts[1], 0.8)
+
+
+@pytest.mark.slow   # a cluster of two processes started, the branch under way, torn down: 10-20 s
+def test_cli_sigterm_on_a_cluster_leaves_the_points_so_far_and_no_process(tmp_path):
+    """SIGTERM to nsfem periodic --continue --workers 2 once points come: exit 130, branch.json valid with the
+    points so far (stop "interrupted", the start among them), none of its processes (scheduler, nannies, workers)
+    alive afterwards."""
+    import sys
+
+    from test_fuzz import _terminate_with_workers
+
+    out = tmp_path / "b"
+    argv = [sys.executable, "-m", "nsfem", "periodic", "critical_speed", *_sets(LINEAR), "--set", "output.plots=[]",
+            "--continue", "rotation.speed_hz=20:32", "--steps", "10000", "--step", "1e-3", "--transient", "0",
+            "--workers", "2", "--out", str(out)]
+    _terminate_with_workers(argv, tmp_path, "nsfem periodic: rotation.speed_hz = ")
+    payload = json.loads((out / "branch.json").read_text())
+    values = [p["value"] for p in payload["branch"]]
+    assert payload["stop"] == "interrupted" and 26.0 in values and values == sorted(values)
+    with np.load(out / "branch.npz") as z:
+        assert z["value"].size >= len(values)
