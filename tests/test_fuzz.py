@@ -4485,3 +4485,46 @@ def test_issue36_dask_workers_out_of_range_are_refused_by_name(no_orbit36, worke
         code, out, err = check_invocation([*CONTINUE36, *extra, "--workers", str(workers)], Path(d))
         assert code == 2 and "--workers" in err and out == "", (workers, err)
         assert not (Path(d) / "o").exists()
+
+
+@pytest.mark.parametrize("kwargs,words", [
+    ({"client": object()}, "client must be a distributed.Client"),
+    ({"workers": True}, "--workers must be a positive integer"),
+    ({"workers": 2.5}, "--workers must be a positive integer"),
+    ({"workers": 0}, "--workers must be a positive integer"),
+    ({"workers": 2, "scheduler": "tcp://127.0.0.1:1"}, "cannot be combined with --scheduler"),
+    ({"scheduler": 7}, "--scheduler must be an address"),
+], ids=["client-not-a-client", "workers-bool", "workers-float", "workers-zero", "workers-and-scheduler",
+        "scheduler-not-text"])
+def test_issue36_dask_branch_of_scene_refuses_bad_cluster_arguments(no_orbit36, kwargs, words):
+    """The Python API (branch_of_scene) refuses bad cluster arguments with one line, before any orbit."""
+    from nsfem import load_scene
+    from nsfem.errors import NsfemError
+    from nsfem.periodic.scene_branch import branch_of_scene
+
+    with pytest.raises(NsfemError, match=words) as exc:
+        branch_of_scene(load_scene("critical_speed"), "rotation.speed_hz", 25.0, 27.0, **kwargs)
+    assert "\n" not in str(exc.value)
+
+
+def test_issue36_dask_a_cluster_failure_is_one_line_a_task_error_is_the_serial_ones():
+    """A task's result: a cluster's failure (here a closed connection) becomes one line naming the side; the
+    task's own NsfemError stays itself; an error of ours (a bug) is not dressed up as the cluster's."""
+    from distributed.comm import CommClosedError
+
+    from nsfem.errors import NsfemError
+    from nsfem.periodic.branch_cluster import _result
+
+    class Failed:
+        def __init__(self, exc):
+            self.exc = exc
+
+        def result(self):
+            raise self.exc
+
+    with pytest.raises(NsfemError, match="the Dask cluster failed on the branch towards 27 .*CommClosedError"):
+        _result(Failed(CommClosedError("in <TCP (closed)>: Stream is closed\nmore")), 27.0)
+    with pytest.raises(NsfemError, match="^periodic: no orbit"):
+        _result(Failed(NsfemError("periodic: no orbit")), 27.0)
+    with pytest.raises(ZeroDivisionError):
+        _result(Failed(ZeroDivisionError("a bug")), 27.0)
