@@ -532,14 +532,17 @@ def test_doubled_branches_on_a_cluster_are_the_serial_ones(dask_client):
 
 
 @pytest.mark.slow   # two commands each starting a cluster of two processes (10-20 s on a loaded machine)
-def test_cli_workers_2_writes_the_serial_branch(tmp_path, capsys):
+def test_cli_workers_2_writes_the_serial_branch(tmp_path, capfd):
     """nsfem periodic --continue ... --workers 2: branch.json is the serial command's (points to round-off, the
-    block's comment; every other key equal but the wall time, the outputs' folder and the workers)."""
+    block's comment; every other key equal but the wall time, the outputs' folder and the workers); no log line
+    of the cluster (its scheduler and workers write to this process's stderr) on the way."""
     argv = ["periodic", "critical_speed", *_sets(LINEAR), "--set", "output.plots=[]", "--continue",
             "rotation.speed_hz=25.6:26.4", "--steps", "3", "--transient", "0"]
     assert cli.main([*argv, "--out", str(tmp_path / "a")]) == 0
+    capfd.readouterr()
     assert cli.main([*argv, "--out", str(tmp_path / "b"), "--workers", "2"]) == 0
-    capsys.readouterr()
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "ERROR" not in err and "distributed" not in err, err
     a, b = (json.loads((tmp_path / x / "branch.json").read_text()) for x in "ab")
     assert a["workers"] == 0 and b["workers"] == 2
     for key in set(a) - {"wall_s", "outputs", "workers", "branch"}:

@@ -30,9 +30,9 @@ import numpy as np
 
 from ..errors import NsfemError
 
-#: the longest wait [s] for the next point before looking at the tasks again (a blocking get on the scheduler's
-#: queue: polling at 0.1 s cost 10 % of the branch's CPU time, measured on the crack on a loaded machine)
-POLL_S = 1.0
+#: seconds between looks at the points' queue while the tasks run (a point is shown at most this late). Not a
+#: blocking get on the queue: its timeout is logged by the scheduler as an error with a traceback
+POLL_S = 0.5
 
 
 def check_cluster_options(client, workers, scheduler) -> bool:
@@ -97,7 +97,7 @@ def _stream(queue_name: str, tag: int) -> Callable[[int, dict], None]:
     """On a worker: put(multiple, record) puts (tag, sequence number, multiple, the record pickled) on the client's
     queue (best effort: a queue gone only loses progress lines, the task's result keeps every record), after
     raising :class:`BranchCancelled` if the client has set the branch's stop event."""
-    from distributed import Event, Queue
+    from distributed import Event, Queue, wait
 
     queue, stop = Queue(queue_name), Event(f"{queue_name}-stop")
     seq = [0]
@@ -187,7 +187,7 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
     order, the tasks' interleaved), ``merge(side, stop, reason, bifurcations, doubled)`` once a side and its
     doubled branches are done, the sides in their order. Ctrl-C cancels the tasks and raises KeyboardInterrupt
     (what was accepted and merged stays)."""
-    from distributed import Event, Queue
+    from distributed import Event, Queue, wait
 
     queue_name = f"nsfem-branch-{uuid.uuid4().hex}"
     queue, stop = Queue(queue_name, client=client), Event(f"{queue_name}-stop", client=client)
@@ -213,13 +213,11 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
             seen[tag] += 1
             accept(rec, mult, side_of[tag])
 
-    def drain(block: bool) -> None:
-        """The points on the queue (with ``block``, waiting up to POLL_S for the first)."""
+    def drain() -> None:
+        """The points on the queue now."""
         items = []
-        with contextlib.suppress(Exception):   # (TimeoutError: none came)
-            if block:
-                items.append(queue.get(timeout=POLL_S))
-            items += queue.get(batch=True)
+        with contextlib.suppress(Exception):   # (a queue gone: the tasks' results keep every point)
+            items = queue.get(batch=True)
         for tag, seq, mult, blob in items:
             take(tag, seq, mult, pickle.loads(blob))
 
@@ -243,7 +241,9 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
     stopped = False   # (by Ctrl-C or an error: tasks may still run)
     try:
         while tasks:
-            drain(block=not any(f.done() for f in tasks))
+            with contextlib.suppress(TimeoutError):   # (none finished within POLL_S)
+                wait(list(tasks), timeout=POLL_S, return_when="FIRST_COMPLETED")
+            drain()
             for fut in [f for f in tasks if f.done()]:
                 tag, k, kind, index = tasks.pop(fut)
                 value, recs = _result(fut, sides[k])
