@@ -105,6 +105,11 @@ def parser() -> argparse.ArgumentParser:
                    "steps in each direction (default 100, at most 10000)")
     p.add_argument("--step", type=float, metavar="DP", help="with --continue: the first step, in the key's unit "
                    "(default a fiftieth of the range; the steps then adapt)")
+    p.add_argument("--workers", type=int, metavar="N", help="with --continue: run the branch's independent pieces "
+                   "(the two sides of a start inside the range, the period-doubled branches) on a local Dask "
+                   "cluster of N worker processes (at most one per side, 4 per core; default and 1: in this process)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="with --continue: run them on a running Dask scheduler, "
+                   "e.g. tcp://127.0.0.1:8786")
     p.add_argument("--start", metavar="FILE", help="start the shooting from a saved state: a run's result.npz "
                    "(its last output) or an orbit.npz of nsfem periodic (default: the last state of a transient "
                    "from the scene's initial state)")
@@ -1098,6 +1103,9 @@ def cmd_periodic(args) -> int:
 
         key, low, high = continuation
         check_branch_options(args.steps, args.step, low, high)
+        from .periodic.branch_cluster import check_cluster_options
+
+        check_cluster_options(None, args.workers, args.scheduler)
         check_key(key)
         check_continuation(scene, key, low, high, lambda extra: load_scene(args.scene, [*args.overrides, *extra]))
         if key == SPEED_KEY:
@@ -1108,6 +1116,10 @@ def cmd_periodic(args) -> int:
         if args.steps != STEPS or args.step is not None:
             raise NsfemError(f"{'--steps' if args.steps != STEPS else '--step'} is an option of --continue "
                              "KEY=LOW:HIGH (the continuation's steps); a single orbit has none")
+        if args.workers is not None or args.scheduler is not None:
+            raise NsfemError(f"{'--workers' if args.workers is not None else '--scheduler'} is an option of "
+                             "--continue KEY=LOW:HIGH (its sides and doubled branches run as tasks); a single orbit "
+                             "is one computation")
     if args.start is not None:
         from .periodic.scene import _saved_state
 
@@ -1246,7 +1258,7 @@ def _periodic_branch(args, scene, continuation, out_dir) -> int:
     sb = branch_of_scene(scene, key, low, high, multiple=args.multiple, start=args.start,
                          transient_periods=args.transient, tol=args.tol, steps=args.steps, step=args.step,
                          load=lambda extra: load_scene(args.scene, [*args.overrides, *extra]), warn=warn,
-                         progress=progress, on_point=on_point)
+                         progress=progress, on_point=on_point, workers=args.workers, scheduler=args.scheduler)
     payload = payload_of(sb)
     outputs = [str(out_dir / "branch.json"), str(save_branch(out_dir / "branch.npz", sb, payload))]
     if scene.output.plots and sb.points:

@@ -4427,3 +4427,104 @@ def test_issue36_rub_whirl_study_refuses_every_bad_speed_range(low, high, capsys
     if math.isfinite(low) and math.isfinite(high) and 16.0 <= low < high <= 60.0:
         return
     assert "--speeds" in _refused_in_one_line(["--speeds", f"{low!r}:{high!r}"], capsys)
+
+
+# --- issue 36: continuation on Dask ---
+# nsfem periodic --continue --workers N | --scheduler ADDRESS refuses, in one line naming the option and before any
+# orbit is computed (and before a local cluster starts): --workers outside 1..4 per core, --workers with
+# --scheduler, either without --continue (a single orbit is one computation), an empty address, and an address
+# where no Dask scheduler answers (the orbit not started: checked by failing the test if it is).
+@pytest.fixture
+def no_orbit36(monkeypatch):
+    """Neither the branch's start orbit nor a local cluster may be reached: any call fails the test."""
+    from nsfem import sweep
+    from nsfem.periodic import scene
+
+    def never(*args, **kwargs):
+        raise AssertionError("computed (or started a cluster) before the refusal")
+
+    monkeypatch.setattr(scene, "orbit_of_scene", never)
+    monkeypatch.setattr(sweep, "LocalCluster", never, raising=False)
+    import distributed
+
+    monkeypatch.setattr(distributed, "LocalCluster", never)
+
+
+DASK36_REPRODUCTIONS = [
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "0"], "--workers", "positive integer, got 0"),
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "-3"], "--workers", "positive integer, got -3"),
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "100000"], "--workers 100000", "per core"),
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "x"], "--workers", "invalid int"),
+    (["--continue", "rotation.speed_hz=25:27", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--workers",
+     "cannot be combined with --scheduler"),
+    (["--workers", "2"], "--workers", "option of --continue"),
+    (["--workers", "1"], "--workers", "option of --continue"),
+    (["--scheduler", "tcp://127.0.0.1:1"], "--scheduler", "option of --continue"),
+    (["--continue", "rotation.speed_hz=25:27", "--scheduler", ""], "--scheduler", "an address"),
+    (["--continue", "rotation.speed_hz=25:27", "--scheduler", "nonsense"], "--scheduler nonsense",
+     "cannot connect to a Dask scheduler"),
+]
+
+
+@pytest.mark.parametrize("extra,names,reason", DASK36_REPRODUCTIONS)
+def test_issue36_dask_continue_reproductions(no_orbit36, extra, names, reason, tmp_path):
+    code, out, err = check_invocation([*CONTINUE36, *extra], tmp_path)
+    line = [x for x in err.splitlines() if x.startswith("nsfem: error:")]
+    assert code == 2 and names in line[0] and reason in line[0] and out == "", err
+    assert not (tmp_path / "o").exists()
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=list(HealthCheck))
+@given(workers=st.one_of(st.integers(-10**6, 0), st.integers(4 * (os.cpu_count() or 1) + 1, 10**9)),
+       continued=st.booleans())
+def test_issue36_dask_workers_out_of_range_are_refused_by_name(no_orbit36, workers, continued):
+    """Property: a --workers below 1 or above 4 per core, or any --workers without --continue, is refused naming
+    --workers, before anything is computed or started."""
+    extra = ["--continue", "rotation.speed_hz=25:27"] if continued else []
+    with tempfile.TemporaryDirectory() as d:
+        code, out, err = check_invocation([*CONTINUE36, *extra, "--workers", str(workers)], Path(d))
+        assert code == 2 and "--workers" in err and out == "", (workers, err)
+        assert not (Path(d) / "o").exists()
+
+
+@pytest.mark.parametrize("kwargs,words", [
+    ({"client": object()}, "client must be a distributed.Client"),
+    ({"workers": True}, "--workers must be a positive integer"),
+    ({"workers": 2.5}, "--workers must be a positive integer"),
+    ({"workers": 0}, "--workers must be a positive integer"),
+    ({"workers": 2, "scheduler": "tcp://127.0.0.1:1"}, "cannot be combined with --scheduler"),
+    ({"scheduler": 7}, "--scheduler must be an address"),
+], ids=["client-not-a-client", "workers-bool", "workers-float", "workers-zero", "workers-and-scheduler",
+        "scheduler-not-text"])
+def test_issue36_dask_branch_of_scene_refuses_bad_cluster_arguments(no_orbit36, kwargs, words):
+    """The Python API (branch_of_scene) refuses bad cluster arguments with one line, before any orbit."""
+    from nsfem import load_scene
+    from nsfem.errors import NsfemError
+    from nsfem.periodic.scene_branch import branch_of_scene
+
+    with pytest.raises(NsfemError, match=words) as exc:
+        branch_of_scene(load_scene("critical_speed"), "rotation.speed_hz", 25.0, 27.0, **kwargs)
+    assert "\n" not in str(exc.value)
+
+
+def test_issue36_dask_a_cluster_failure_is_one_line_a_task_error_is_the_serial_ones():
+    """A task's result: a cluster's failure (here a closed connection) becomes one line naming the side; the
+    task's own NsfemError stays itself; an error of ours (a bug) is not dressed up as the cluster's."""
+    from distributed.comm import CommClosedError
+
+    from nsfem.errors import NsfemError
+    from nsfem.periodic.branch_cluster import _result
+
+    class Failed:
+        def __init__(self, exc):
+            self.exc = exc
+
+        def result(self):
+            raise self.exc
+
+    with pytest.raises(NsfemError, match="the Dask cluster failed on the branch towards 27 .*CommClosedError"):
+        _result(Failed(CommClosedError("in <TCP (closed)>: Stream is closed\nmore")), 27.0)
+    with pytest.raises(NsfemError, match="^periodic: no orbit"):
+        _result(Failed(NsfemError("periodic: no orbit")), 27.0)
+    with pytest.raises(ZeroDivisionError):
+        _result(Failed(ZeroDivisionError("a bug")), 27.0)

@@ -377,3 +377,199 @@ def test_ctrl_c_inside_a_branch_flow_ends_the_branch(monkeypatch):
     sb = branch_of_scene(scene, "rotation.speed_hz", 25.0, 27.0, transient_periods=0, steps=20)
     assert sb.interrupted and sb.stop == "interrupted"
     assert len(calls) == 5   # stopped there, not after the branch's other flows
+
+
+# --- issue 36: continuation on Dask ---
+# The independent pieces of a branch (the two sides of a start inside the range, the period-doubled branches) run
+# as tasks on a Dask cluster (nsfem.periodic.branch_cluster). A task does the serial path's arithmetic on the
+# same machine; only the BLAS threads may differ (the workers run one each, this process maybe more), which
+# reorders sums: the points agree to round-off, amplified at most to the corrector's tolerance (1e-9 of the
+# orbit's size) times the condition of Phi - I (~1e1 here, |mu| <= 0.98): 1e-8 of the size, the same steps taken.
+@pytest.fixture(scope="module")
+def dask_client():
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                           silence_logs=logging.ERROR, env={"OPENBLAS_NUM_THREADS": "1"})
+    client = Client(cluster)
+    yield client
+    client.close()
+    cluster.close()
+
+
+def _same_points(a: list[dict], b: list[dict], span: float) -> None:
+    """Two lists of branch points equal to round-off (see the block's comment)."""
+    assert len(a) == len(b)
+    for p, q in zip(a, b):
+        assert abs(p["value"] - q["value"]) <= 1e-9 * span
+        size = max(np.abs(p["q0"]).max(), 1e-300)
+        assert np.abs(p["q0"] - q["q0"]).max() <= 1e-8 * size
+        assert np.abs(p["v0"] - q["v0"]).max() <= 1e-8 * max(np.abs(p["v0"]).max(), 1e-300)
+        assert p["stable"] == q["stable"] and p["converged"] == q["converged"]
+        assert p["events_per_period"] == q["events_per_period"] and p["multiple"] == q["multiple"]
+        for name, amp in p["amplitudes"].items():
+            assert q["amplitudes"][name] == pytest.approx(amp, rel=1e-8)
+
+
+def test_a_branch_on_a_two_worker_cluster_is_the_serial_branch(dask_client):
+    """The linear scene from its 26 Hz over 25.6:26.4: both sides as tasks give the serial path's points in its
+    order (LOW -> HIGH, the start once), its sides' stops and reasons, a progress line per point found (the start
+    once per side, as serially)."""
+    scene = load_scene("critical_speed", LINEAR)
+    kw = dict(transient_periods=0, steps=3)
+    serial_lines, lines = [], []
+    serial = branch_of_scene(scene, "rotation.speed_hz", 25.6, 26.4, progress=serial_lines.append, **kw)
+    sb = branch_of_scene(scene, "rotation.speed_hz", 25.6, 26.4, progress=lines.append, client=dask_client, **kw)
+    assert serial.workers == 0 and sb.workers == 2 and not sb.interrupted
+    assert [p["value"] for p in sb.points] == sorted(p["value"] for p in sb.points) and len(sb.points) >= 5
+    _same_points(serial.points, sb.points, 0.8)
+    assert sb.sides == serial.sides and sb.bifurcations == serial.bifurcations == [] and sb.doubled == []
+    assert len(lines) == len(serial_lines) == len(sb.points) + 1
+    assert dask_client.run(lambda: 1)   # the given client is left open
+
+
+def test_an_interrupted_branch_on_a_cluster_keeps_its_points(dask_client):
+    """Ctrl-C while the sides run on the cluster (raised here in the 3rd progress line, where the client waits):
+    the tasks are cancelled, the branch so far (the points received: the start and at least one step) returned
+    marked interrupted, in order along the branch; the given client is left usable."""
+    scene = load_scene("critical_speed", LINEAR)
+    calls = []
+
+    def progress(line: str) -> None:
+        calls.append(line)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+
+    sb = branch_of_scene(scene, "rotation.speed_hz", 25.0, 27.0, transient_periods=0, steps=30, progress=progress,
+                         client=dask_client)
+    assert sb.interrupted and sb.stop == "interrupted" and 2 <= len(sb.points) <= 3
+    values = [p["value"] for p in sb.points]
+    assert values == sorted(values) and 26.0 in values
+    assert dask_client.submit(sum, [1, 2], pure=False).result() == 3
+
+
+class _ImpactFamily:
+    """The impact oscillator (tests/impact_oscillator.py) over its forcing frequency w as a branch family of
+    nsfem.periodic.scene_branch (system_at, period_at, point, fresh): points reported by their section state."""
+
+    def system_at(self, w):
+        from test_periodic_impact import OSC, impact_system
+
+        return impact_system(OSC, w)
+
+    def period_at(self, w):
+        return 2 * math.pi / w
+
+    def point(self, p, u, multiple, t0):
+        n = u.size // 2
+        return {"period_s": multiple * self.period_at(p), "residual": 0.0, "events_per_period": 0, "amplitudes": {},
+                "multiple": int(multiple), "section_q_max": float(np.abs(u[:n]).max()), "q0": u[:n].copy(),
+                "v0": u[n:].copy()}
+
+    def fresh(self):
+        return self
+
+
+@pytest.mark.slow
+def test_doubled_branches_on_a_cluster_are_the_serial_ones(dask_client):
+    """The impact oscillator from w = 2.62 over 2.6:2.7: the side towards 2.7 period-doubles (closed form at
+    2.658884546685); on the cluster the doubled branch is a task of its own, switched onto from the side's located
+    bifurcation. Its points, the sides and the bifurcation are the serial orbit_branch's (the serial path of
+    branch_of_scene: switching inside the side), to round-off (the block's comment; the period-2 orbit's
+    multipliers stay below 0.7 in modulus past the flip)."""
+    import warnings
+    from types import SimpleNamespace
+
+    from impact_oscillator import period1_branch
+    from test_periodic_impact import OSC
+
+    from nsfem.periodic.branch import orbit_branch
+    from nsfem.periodic.branch_cluster import follow_sides
+    from nsfem.periodic.scene_branch import _doubled, point_record, record_key
+
+    family, p0, sides = _ImpactFamily(), 2.62, [2.6, 2.7]
+    start = period1_branch(OSC, p0, -1)
+    kw = dict(key="w", multiple=1, tol=1e-9, step=0.02, steps=6)
+    serial: list = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for end in sides:
+            records: dict = {}
+            found: list = []
+
+            def on_point(bp, m):
+                rec = point_record(family, bp, m, "w", 0.0)
+                records[record_key(m, bp.p, bp.u)] = rec
+                found.append(rec)
+
+            br = orbit_branch(family.system_at, family.period_at, [start.x0], [start.v0], p0, end, key="w",
+                              t0=0.0, tol=1e-9, step=0.02, max_steps=6, on_point=on_point)
+            serial.append((found, br, [_doubled(d, family, d.t0, records if d.t0 == 0.0 else {})
+                                       for d in br.doubled]))
+    assert [b["kind"] for b in serial[1][1].bifurcations] == ["period-doubling"] and len(serial[1][2]) == 1
+
+    got: dict = {0: [], 1: []}
+    merged: list = []
+    so = SimpleNamespace(orbit=SimpleNamespace(q0=np.array([start.x0]), v0=np.array([start.v0]), t0=0.0))
+    follow_sides(dask_client, family, so, sides, p0, accept=lambda rec, m, k: got[k].append(rec),
+                 merge=lambda k, stop, reason, bifs, doubled: merged.append((k, stop, reason, bifs, doubled)), **kw)
+    assert [m[0] for m in merged] == [0, 1]
+    for k, (found, br, doubled) in enumerate(serial):
+        _, stop, reason, bifs, dbl = merged[k]
+        assert (stop, reason) == (br.stop, br.reason)
+        assert [(b["kind"], "switch_failed" in b) for b in bifs] == [(b["kind"], "switch_failed" in b)
+                                                                     for b in br.bifurcations]
+        for b, c in zip(bifs, br.bifurcations):
+            assert abs(b["value"] - c["value"]) <= 1e-9 * 0.1
+        # each point as it came: the side's, then its doubled branch's (period 2)
+        _same_points([r for r in found], got[k], 0.1)
+        assert len(dbl) == len(doubled)
+        for d, e in zip(dbl, doubled):
+            assert d["multiple"] == e["multiple"] == 2 and (d["stop"], d["reason"]) == (e["stop"], e["reason"])
+            _same_points(e["points"], d["points"], 0.1)
+
+
+@pytest.mark.slow   # two commands each starting a cluster of two processes (10-20 s on a loaded machine)
+def test_cli_workers_2_writes_the_serial_branch(tmp_path, capfd):
+    """nsfem periodic --continue ... --workers 2: branch.json is the serial command's (points to round-off, the
+    block's comment; every other key equal but the wall time, the outputs' folder and the workers); no log line
+    of the cluster (its scheduler and workers write to this process's stderr) on the way."""
+    argv = ["periodic", "critical_speed", *_sets(LINEAR), "--set", "output.plots=[]", "--continue",
+            "rotation.speed_hz=25.6:26.4", "--steps", "3", "--transient", "0"]
+    assert cli.main([*argv, "--out", str(tmp_path / "a")]) == 0
+    capfd.readouterr()
+    assert cli.main([*argv, "--out", str(tmp_path / "b"), "--workers", "2"]) == 0
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "ERROR" not in err and "distributed" not in err, err
+    a, b = (json.loads((tmp_path / x / "branch.json").read_text()) for x in "ab")
+    assert a["workers"] == 0 and b["workers"] == 2
+    for key in set(a) - {"wall_s", "outputs", "workers", "branch"}:
+        assert a[key] == b[key], key
+    with np.load(tmp_path / "a" / "branch.npz") as za, np.load(tmp_path / "b" / "branch.npz") as zb:
+        pts = [[{"value": v, "q0": q, "v0": w, "stable": p["stable"], "converged": p["converged"],
+                 "events_per_period": p["events_per_period"], "multiple": p["multiple"], "amplitudes": p["amplitudes"]}
+                for v, q, w, p in zip(z["value"], z["q0"], z["v0"], j["branch"])] for z, j in ((za, a), (zb, b))]
+    _same_points(pts[0], pts[1], 0.8)
+
+
+@pytest.mark.slow   # a cluster of two processes started, the branch under way, torn down: 10-20 s
+def test_cli_sigterm_on_a_cluster_leaves_the_points_so_far_and_no_process(tmp_path):
+    """SIGTERM to nsfem periodic --continue --workers 2 once points come: exit 130, branch.json valid with the
+    points so far (stop "interrupted", the start among them), none of its processes (scheduler, nannies, workers)
+    alive afterwards."""
+    import sys
+
+    from test_fuzz import _terminate_with_workers
+
+    out = tmp_path / "b"
+    argv = [sys.executable, "-m", "nsfem", "periodic", "critical_speed", *_sets(LINEAR), "--set", "output.plots=[]",
+            "--continue", "rotation.speed_hz=20:32", "--steps", "10000", "--step", "1e-3", "--transient", "0",
+            "--workers", "2", "--out", str(out)]
+    _terminate_with_workers(argv, tmp_path, "nsfem periodic: rotation.speed_hz = ")
+    payload = json.loads((out / "branch.json").read_text())
+    values = [p["value"] for p in payload["branch"]]
+    assert payload["stop"] == "interrupted" and 26.0 in values and values == sorted(values)
+    with np.load(out / "branch.npz") as z:
+        assert z["value"].size >= len(values)

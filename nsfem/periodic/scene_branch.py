@@ -74,6 +74,8 @@ class SceneBranch:
     warnings: list[str] = field(default_factory=list)
     wall_s: float = 0.0
     interrupted: bool = False
+    #: the Dask cluster's worker threads that followed it (0: this process)
+    workers: int = 0
 
     @property
     def stop(self) -> str:
@@ -96,7 +98,7 @@ class SceneBranch:
                                       "bifurcations": [public(b) for b in d["bifurcations"]]} for d in self.doubled],
                 "stop": self.stop, "reason": "; ".join(f"towards {s['towards']:g}: {s['reason']}" for s in self.sides)
                 or ("interrupted before the first step" if self.interrupted else ""),
-                "sides": list(self.sides), "sensors": [s.name for s in self.sensors],
+                "sides": list(self.sides), "sensors": [s.name for s in self.sensors], "workers": self.workers,
                 "warnings": list(self.warnings)}
 
 
@@ -159,7 +161,8 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
                     transient_periods: int | None = None, tol: float = 1e-9, steps: int = STEPS,
                     step: float | None = None, load: Callable[[list[str]], "Scene"] | None = None,
                     warn: Callable[[str], None] | None = None, progress: Callable[[str], None] | None = None,
-                    on_point: Callable[["SceneBranch"], None] | None = None) -> SceneBranch:
+                    on_point: Callable[["SceneBranch"], None] | None = None, client=None,
+                    workers: int | None = None, scheduler: str | None = None) -> SceneBranch:
     """The branch of ``scene``'s periodic orbits (period ``multiple`` forcing periods) over ``key`` in [low, high]
     (see the module's docstring). ``start``, ``transient_periods``, ``tol``: as for :func:`.scene.orbit_of_scene`
     (the first orbit); ``steps``: continuation steps per direction; ``step``: the first step in the key's unit
@@ -167,8 +170,14 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
     :func:`reloader`); ``warn(text)`` the warnings, ``progress(text)`` a line per point; ``on_point(branch)`` is
     called with the branch so far after each point (to save it). Bad options and keys raise
     :class:`~nsfem.errors.NsfemError` before any computation. Ctrl-C returns the branch so far
-    (``interrupted``)."""
-    from .scene import check_continuation, check_options, check_scene, orbit_of_scene
+    (``interrupted``).
+
+    On a Dask cluster (``client``: a ``distributed.Client``; else ``scheduler``: an address; else ``workers`` >= 2
+    local worker processes, as ``nsfem sweep``), the independent pieces run as tasks: the two sides of a start
+    inside the range, then each side's period-doubled branches (:mod:`.branch_cluster`); the start's orbit is
+    computed here once. The points are those of the serial path (the same arithmetic), merged in its order.
+    Without any of them, or with ``workers=1``, everything runs in this process."""
+    from .scene import check_continuation, check_options, check_scene
 
     t_wall = time.perf_counter()
     check_options(multiple, transient_periods, tol, None)
@@ -180,6 +189,9 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
     check_branch_options(steps, step, low, high)
     check_key(key)
     check_scene(scene)
+    from .branch_cluster import check_cluster_options
+
+    on_cluster = check_cluster_options(client, workers, scheduler)
     a, b = sorted((float(low), float(high)))
     at_speed = key == SPEED_KEY and load is None   # (one model: the scene is not loaded again)
     if key == SPEED_KEY:
@@ -208,38 +220,72 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
             say(f"{edge[0]}: the range's end {edge[1]:g} Hz is the end of the bearing's table: the continuation "
                 "steps a little past its ends (predictor, difference quotients), where the table has no "
                 "coefficients, so that side stops just short of it; extend the table beyond the range")
+    sides = [e for e in ((low, high) if low < high else (high, low)) if e != p0]
+    cluster = None
+    if on_cluster:   # connected (or started) before the start's orbit: a bad address is refused first
+        from .branch_cluster import connect
+
+        cluster = connect(client, workers, scheduler, len(sides))
+    try:
+        return _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, transient_periods, tol,
+                       steps, step, load, say, warnings, progress, on_point, cluster, t_wall)
+    finally:
+        if cluster is not None:
+            from .branch_cluster import close
+
+            close(cluster)
+
+
+def _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, transient_periods, tol, steps, step,
+            load, say, warnings, progress, on_point, cluster, t_wall) -> SceneBranch:
+    """:func:`branch_of_scene` once checked (and its cluster, if any, connected)."""
+    from .scene import orbit_of_scene
+
     so = orbit_of_scene(scene0, multiple, start, transient_periods, tol, warn=say,
                         progress=bool(progress))
     if not so.orbit.converged:
         raise NsfemError(f"--continue {key}: no periodic orbit at {key} = {p0:g} to start the branch from (the "
                          f"shooting's residual {so.orbit.residual:.3g} > --tol {tol:g}); try a longer --transient")
     family = _Family(scene0, key, so.system, load)
-    sides = [e for e in ((low, high) if low < high else (high, low)) if e != p0]
     # the branch's points in order: the LOW side reversed, then the HIGH side
     sb = SceneBranch(key, float(low), float(high), value, p0, int(multiple), [], [], [], [], so, tuple(scene0.sensors),
                      warnings)
+    if cluster is not None:
+        sb.workers = len(cluster[0].nthreads())
     found: list[list[dict]] = [[] for _ in sides]
     doubled_found: dict[int, list[dict]] = {}
     records: dict[tuple, dict] = {}   # (multiple, p, u's bytes) -> the point's record, for the doubled branches
 
-    def point(bp, mult: int, side: int) -> None:
-        rec = family.point(bp.p, bp.u, mult, so.orbit.t0)
-        rec.update({"value": float(bp.p), key: float(bp.p), "converged": bool(bp.converged),
-                    "residual": float(bp.residual) if math.isfinite(bp.residual) else rec["residual"]})
-        _stability(rec, bp.multipliers)
-        records[(mult, float(bp.p), np.asarray(bp.u, dtype=float).tobytes())] = rec
+    def accept(rec: dict, mult: int, side: int) -> None:
+        """A point's record as it comes: kept, a progress line, the branch so far handed to ``on_point``."""
         if mult == multiple:
             found[side].append(rec)
         else:
             doubled_found.setdefault(mult, []).append(rec)
         if progress is not None:
             amp = ", ".join(f"{k} {1e6 * v:.4g} um" for k, v in list(rec["amplitudes"].items())[:2])
-            progress(f"{key} = {bp.p:.8g}: {'stable' if rec['stable'] else 'unstable'}"
+            progress(f"{key} = {rec['value']:.8g}: {'stable' if rec['stable'] else 'unstable'}"
                      + (f" ({rec['loss']})" if rec["loss"] else "") + (f", {amp}" if amp else "")
-                     + ("" if bp.converged else ", NOT converged") + f" [{time.perf_counter() - t_wall:.1f} s]")
+                     + ("" if rec["converged"] else ", NOT converged") + f" [{time.perf_counter() - t_wall:.1f} s]")
         _assemble(sb, found, sides, p0)
         if on_point is not None:
             on_point(sb)
+
+    def point(bp, mult: int, side: int) -> None:
+        rec = point_record(family, bp, mult, key, so.orbit.t0)
+        records[record_key(mult, bp.p, bp.u)] = rec
+        accept(rec, mult, side)
+
+    def merge(k: int, stop: str, reason: str, bifurcations: list[dict], doubled: list[dict]) -> None:
+        """Side k's end, bifurcations and doubled branches into the branch (sides in their order)."""
+        end = sides[k]
+        sb.sides.append({"towards": float(end), "stop": stop, "reason": reason})
+        for bif in bifurcations:
+            failed = {"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {}
+            sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end), **failed})
+        sb.doubled.extend(doubled)
+        if stop == "failed":
+            say(f"the branch towards {key} = {end:g} ended early: {reason}")
 
     from .branch import orbit_branch
     from .scene import interrupts_end_flows
@@ -248,19 +294,19 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
         # (Ctrl-C inside a flow too: the integrator ends it cleanly, which the corrector would take for a failed
         # step and go on)
         with interrupts_end_flows():
-            for k, end in enumerate(sides):
+            if cluster is not None:
+                from .branch_cluster import follow_sides
+
+                follow_sides(cluster[0], family, so, sides, p0, key=key, multiple=multiple, tol=tol, step=step,
+                             steps=steps, accept=accept, merge=merge)
+            for k, end in enumerate(sides if cluster is None else ()):
                 br = orbit_branch(family.system_at, family.period_at, so.orbit.q0, so.orbit.v0, p0, end, key=key,
                                   multiple=multiple, t0=float(so.orbit.t0), tol=tol, step=step, max_steps=steps,
                                   on_point=lambda bp, m, k=k: point(bp, m, k))
-                sb.sides.append({"towards": float(end), "stop": br.stop, "reason": br.reason})
-                for bif in br.bifurcations:
-                    failed = {"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {}
-                    sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end), **failed})
-                for d in br.doubled:   # (at its own section: the shooting moves one lying on an event; the records
-                    # of its points, made as they came at the first orbit's t0, hold only where that is the same)
-                    sb.doubled.append(_doubled(d, family, d.t0, records if d.t0 == so.orbit.t0 else {}))
-                if br.stop == "failed":
-                    say(f"the branch towards {key} = {end:g} ended early: {br.reason}")
+                # (doubled branches at their own sections: the shooting moves one lying on an event; the records
+                # of their points, made as they came at the first orbit's t0, hold only where that is the same)
+                merge(k, br.stop, br.reason, br.bifurcations,
+                      [_doubled(d, family, d.t0, records if d.t0 == so.orbit.t0 else {}) for d in br.doubled])
     except KeyboardInterrupt:
         sb.interrupted = True
     sb.bifurcations.sort(key=lambda b: b["value"])
@@ -270,6 +316,22 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
                       for m, pts in doubled_found.items()]
     sb.wall_s = time.perf_counter() - t_wall
     return sb
+
+
+def record_key(multiple: int, p: float, u) -> tuple:
+    """The key of a point's record: (multiple, p, u's bytes)."""
+    return (int(multiple), float(p), np.asarray(u, dtype=float).tobytes())
+
+
+def point_record(family: "_Family", bp, multiple: int, key: str, t0: float) -> dict:
+    """The JSON record of the continuation's point ``bp`` (a :class:`~.continuation.BranchPoint` of an orbit of
+    period ``multiple`` forcing periods): :meth:`_Family.point` at the section ``t0``, the key's value, the
+    corrector's residual, the multipliers and the verdict."""
+    rec = family.point(bp.p, bp.u, multiple, t0)
+    rec.update({"value": float(bp.p), key: float(bp.p), "converged": bool(bp.converged),
+                "residual": float(bp.residual) if math.isfinite(bp.residual) else rec["residual"]})
+    _stability(rec, bp.multipliers)
+    return rec
 
 
 def _with_speed(scene: "Scene", speed_hz: float) -> "Scene":
@@ -328,6 +390,10 @@ class _Family:
         self.scene0, self.key, self.system0, self.load = scene0, key, system0, load
         self.n = system0.n
         self._cache: OrderedDict = OrderedDict()
+
+    def fresh(self) -> "_Family":
+        """The same family without its cached systems (to send to a cluster's workers)."""
+        return _Family(self.scene0, self.key, self.system0, self.load)
 
     def scene_at(self, p: float) -> "Scene":
         return self.scene0 if self.key == SPEED_KEY else self._entry(p)[0]
