@@ -143,3 +143,46 @@ def rub_start(jeff: Jeffcott) -> float:
         return jeff.unbalance * w ** 2 - abs(complex(jeff.k - jeff.m * w ** 2, jeff.c_e * w)) * jeff.clearance
 
     return float(brentq(excess, 1.0, math.sqrt(jeff.k / jeff.m) / (2 * math.pi), xtol=1e-10))
+
+
+def inertial_section(rub_i: ElasticRub, ref: dict) -> tuple[float, np.ndarray, np.ndarray]:
+    """(t0, q, q'): the round ring's rotating-frame state turned into the inertial frame at the first t0 >= 0 with
+    the disk at a facet's middle (away from the corner laws' switches; as tests/test_periodic_rub.py)."""
+    st, w = ref["state"], ref["system"].omega
+    t0 = ((-math.atan2(st.n[1], st.n[0])) % (2.0 * math.pi / rub_i.facets)) / w
+    q = sla.expm(w * t0 * rub_i.J) @ st.q
+    return t0, q, w * rub_i.J @ q
+
+
+def exact_orbit(rub_r: ElasticRub, rub_i: ElasticRub, speed_hz: float, **kw):
+    """The inertial-frame periodic orbit on the polygon at the speed, shot from the round ring's state."""
+    from nsfem.periodic import periodic_orbit
+
+    ref = reduced_reference(rub_r, speed_hz)
+    t0, q, v = inertial_section(rub_i, ref)
+    return periodic_orbit(rub_i.system(speed_hz), 1.0 / speed_hz, q, v, t0=t0, **kw), ref
+
+
+def exact_onset(stiffness: float, mu: float, facets: int, lo: float, hi: float, say) -> dict:
+    """The speed in [lo, hi] Hz where the polygon orbit's largest multiplier reaches the unit circle (Brent's method
+    on ln|mu_max|, each value a shooting from the round ring's state), with the multiplier there."""
+    rub_r, rub_i = ElasticRub(stiffness, mu, facets), ElasticRub(stiffness, mu, facets, "inertial")
+    t = time.perf_counter()
+    seen = []
+
+    def g(f: float) -> float:
+        orbit, _ = exact_orbit(rub_r, rub_i, f)
+        if not orbit.converged:
+            raise RuntimeError(f"no orbit at {f} Hz ({facets} facets): residual {orbit.residual:.3g}")
+        k = int(np.argmax(np.abs(orbit.multipliers)))
+        seen.append((f, orbit.multipliers[k], orbit.events_per_period))
+        say(f"  {facets} facets, {f:.6f} Hz: largest multiplier {orbit.multipliers[k]:.6f}, "
+            f"{orbit.events_per_period} events [{time.perf_counter() - t:.0f} s]")
+        return float(np.log(abs(orbit.multipliers[k])))
+
+    f = float(brentq(g, lo, hi, xtol=1e-5))
+    _, m, events = min(seen, key=lambda x: abs(x[0] - f))
+    # the multiplier's argument is w T mod 2 pi: the whirl frequency in space up to multiples of the speed
+    return {"mu": mu, "facets": facets, "onset_hz": f, "multiplier": [m.real, m.imag],
+            "argument_rad": float(np.angle(m)), "events_per_period": int(events), "orbits": len(seen),
+            "wall_s": time.perf_counter() - t}
