@@ -52,6 +52,7 @@ from nsfem.fem.components import lateral_turn  # noqa: E402
 from nsfem.integrate import ContactSystem  # noqa: E402
 from nsfem.reduce import scene_reduction  # noqa: E402
 from nsfem.scene.load import load_scene  # noqa: E402
+from nsfem.sensors import hermite_row  # noqa: E402
 from rub_reference import (Jeffcott, elastic_ring_operators, elastic_rub, jeffcott_onset)  # noqa: E402
 
 OUT = ROOT / "studies" / "out" / "rub_backward_whirl"
@@ -70,6 +71,9 @@ class ElasticRub:
         self.red = scene_reduction(self.scene.reduction, self.model)
         T = np.asarray(self.red.T)
         self.J = np.linalg.lstsq(T, lateral_turn(self.model.spaces, T.shape[0]) @ T, rcond=None)[0]
+        seg = next(iter(self.model.spaces))
+        #: the disk centre (y, z) at x = 0.4 m (the sensors disk_y, disk_z)
+        self.disk = np.vstack([(hermite_row(self.model, seg, f, 0.4) @ T).ravel() for f in ("V", "W")])
 
     def system(self, speed_hz: float) -> ContactSystem:
         return ContactSystem.from_scene(self.scene, self.model, self.red, speed_hz=float(speed_hz))
@@ -145,6 +149,19 @@ def rub_start(jeff: Jeffcott) -> float:
     return float(brentq(excess, 1.0, math.sqrt(jeff.k / jeff.m) / (2 * math.pi), xtol=1e-10))
 
 
+def friction_at_rub_start(jeff: Jeffcott, start_hz: float) -> float:
+    """The friction above which the rub is unstable from its beginning (D3 = 0 as N -> 0, 1e-6 Hz into the rub)."""
+    from rub_reference import hurwitz
+
+    w = 2 * math.pi * (start_hz + 1e-6)
+
+    def d3(mu: float) -> float:
+        a = Jeffcott(**{**vars(jeff), "mu": mu}).characteristic(w)
+        return hurwitz(a)[1] / (a[0] * a[2] ** 2)
+
+    return float(brentq(d3, 0.0, 1.0, xtol=1e-12))
+
+
 def inertial_section(rub_i: ElasticRub, ref: dict) -> tuple[float, np.ndarray, np.ndarray]:
     """(t0, q, q'): the round ring's rotating-frame state turned into the inertial frame at the first t0 >= 0 with
     the disk at a facet's middle (away from the corner laws' switches; as tests/test_periodic_rub.py)."""
@@ -186,3 +203,226 @@ def exact_onset(stiffness: float, mu: float, facets: int, lo: float, hi: float, 
     return {"mu": mu, "facets": facets, "onset_hz": f, "multiplier": [m.real, m.imag],
             "argument_rad": float(np.angle(m)), "events_per_period": int(events), "orbits": len(seen),
             "wall_s": time.perf_counter() - t}
+
+
+def transient(stiffness: float, mu: float, facets: int, speed_hz: float, periods: int, say,
+              kick: float = 1e-4) -> dict:
+    """The exact flow (inertial frame) from the polygon orbit at ``speed_hz`` past the onset, its section state moved
+    by ``kick`` of its size along the unstable multiplier's eigenvector, over ``periods`` periods (or until the exact
+    method stops): the disk's deviation from the orbit z = dy + i dz (the sensors disk_y, disk_z; inertial frame),
+    its growth rate (a least-squares line through the log of its per-period maximum while below 1e-2 of the
+    clearance: the linear phase) and its spectrum over that phase (FFT, Hann window: negative frequency = backward
+    whirl), against the round ring's eigenvalue; then the disk's radius over the last 10 periods run."""
+    from nsfem.periodic.flow import flow
+
+    rub_r, rub_i = ElasticRub(stiffness, mu, facets), ElasticRub(stiffness, mu, facets, "inertial")
+    T = 1.0 / speed_hz
+    t = time.perf_counter()
+    orbit, ref = exact_orbit(rub_r, rub_i, speed_hz)
+    mods = np.abs(orbit.multipliers)
+    say(f"  orbit at {speed_hz:g} Hz: converged {orbit.converged}, largest |multiplier| {mods.max():.6f} "
+        f"({np.log(mods.max()) / T:+.4f} 1/s; round ring {ref['lam'].real:+.4f} 1/s)")
+    system = rub_i.system(speed_hz)
+    samples = 2 * facets                                   # per period: 5.6 kHz at 22 Hz (Nyquist 2.8 kHz)
+    base = flow(system, orbit.t0, orbit.q0, orbit.v0, T, jacobian=False, output_dt=T / samples).result
+    lam, V = np.linalg.eig(orbit.monodromy)
+    k = int(np.argmax(np.abs(lam)))
+    dx = orbit.directions @ np.real(V[:, k]) if orbit.directions.shape[1] == lam.size else np.real(V[:, k])
+    x0 = np.concatenate([orbit.q0, orbit.v0])
+    dx *= kick * np.abs(x0[:system.n]).max() / np.abs(dx[:system.n]).max()
+    n = system.n
+    stop = None
+    try:
+        run = flow(system, orbit.t0, orbit.q0 + dx[:n], orbit.v0 + dx[n:], periods * T, jacobian=False,
+                   output_dt=T / samples).result
+    except Exception as exc:   # the exact method's refusal (e.g. the shaft would roll on the ring): reported
+        stop, run = f"{type(exc).__name__}: {exc}".splitlines()[0], None
+    if run is None:
+        return {"speed_hz": speed_hz, "stop": stop, "wall_s": time.perf_counter() - t}
+    m = samples * (min(run.q.shape[1], samples * periods) // samples)
+    c = float(rub_i.system(speed_hz).rings[0].clearance)
+    dev = rub_i.disk @ (run.q[:, :m] - np.tile(base.q[:, :samples], m // samples))
+    z = dev[0] + 1j * dev[1]
+    env = np.abs(z).reshape(-1, samples).max(axis=1)
+    linear = np.flatnonzero(env < 1e-2 * c)
+    linear = linear[: np.argmax(np.diff(linear) > 1) + 1] if np.any(np.diff(linear) > 1) else linear
+    per = np.arange(env.size) * T
+    fit = linear[linear.size // 4:]
+    rate = float(np.polyfit(per[fit], np.log(env[fit]), 1)[0])
+    seg = z[: samples * (linear[-1] + 1)]
+    spec = np.abs(np.fft.fft(seg * np.hanning(seg.size)))
+    freq = np.fft.fftfreq(seg.size, T / samples)
+    j = int(np.argmax(spec))
+    radius = np.hypot(*(rub_i.disk @ run.q[:, max(0, m - 10 * samples):m]))
+    out = {"speed_hz": speed_hz, "mu": mu, "facets": facets, "periods_run": m // samples, "stop": stop,
+           "largest_modulus": float(mods.max()), "orbit_rate_per_s": float(np.log(mods.max()) / T),
+           "reference_rate_per_s": ref["lam"].real, "transient_rate_per_s": rate,
+           "linear_periods": int(linear.size), "whirl_hz": float(freq[j]),
+           "resolution_hz": float(speed_hz * samples / seg.size),
+           "reference_backward_hz": -ref["backward_hz"], "reference_forward_hz": ref["forward_hz"],
+           "reference_backward_share": ref["backward_share"],
+           "last10_radius_min_c": float(radius.min() / c), "last10_radius_max_c": float(radius.max() / c),
+           "events": int(len(run.events)) if hasattr(run, "events") else None,
+           "wall_s": time.perf_counter() - t}
+    say(f"  transient: {out['periods_run']} periods, linear phase {linear.size} periods, growth {rate:+.4f} 1/s, "
+        f"whirl {freq[j]:+.2f} Hz (+- {out['resolution_hz']:.2f}; round ring {-ref['backward_hz']:+.2f} Hz backward "
+        f"{ref['backward_share']:.2f}, {ref['forward_hz']:+.2f} forward); last 10 periods: disk radius "
+        f"{out['last10_radius_min_c']:.4f}..{out['last10_radius_max_c']:.4f} c [{out['wall_s']:.0f} s]")
+    return out
+
+
+def orbit_rates(stiffness: float, mu: float, facets: int, speeds, say) -> list[dict]:
+    """The polygon orbit's largest multiplier at each speed (single shootings): ln|mu| / T against the round ring's
+    largest real part."""
+    rub_r, rub_i = ElasticRub(stiffness, mu, facets), ElasticRub(stiffness, mu, facets, "inertial")
+    out = []
+    for f in speeds:
+        orbit, ref = exact_orbit(rub_r, rub_i, f)
+        k = int(np.argmax(np.abs(orbit.multipliers)))
+        out.append({"speed_hz": float(f), "facets": facets, "converged": bool(orbit.converged),
+                    "stable": bool(orbit.stable), "rate_per_s": float(np.log(abs(orbit.multipliers[k])) * f),
+                    "reference_rate_per_s": ref["lam"].real, "radius_c": ref["radius"] / 1e-4,
+                    "events_per_period": int(orbit.events_per_period)})
+        say(f"  {facets} facets, {f:g} Hz: ln|mu|/T {out[-1]['rate_per_s']:+.4f} 1/s (round ring "
+            f"{ref['lam'].real:+.4f}), stable {orbit.stable}")
+    return out
+
+
+def branch(stiffness: float, mu: float, facets: int, lo: float, hi: float, steps: int, say) -> dict:
+    """The exact flow's orbit branch over speed (:func:`nsfem.periodic.branch.orbit_branch`, inertial frame) from
+    the round ring's state at lo: its located bifurcations (one piece: it stops where the section meets a corner)."""
+    from nsfem.periodic.branch import orbit_branch
+
+    rub_r, rub_i = ElasticRub(stiffness, mu, facets), ElasticRub(stiffness, mu, facets, "inertial")
+    t = time.perf_counter()
+    t0, q, v = inertial_section(rub_i, reduced_reference(rub_r, lo))
+    br = orbit_branch(rub_i.system, lambda f: 1.0 / f, q, v, lo, hi, key="rotation.speed_hz", t0=t0,
+                      max_steps=steps, switch=False,
+                      on_point=lambda bp, m: say(f"  branch {bp.p:.6g} Hz: max |multiplier| "
+                                                 f"{np.abs(bp.multipliers).max():.6f}"))
+    pts = [{"speed_hz": p["rotation.speed_hz"], "stable": p["stable"],
+            "max_modulus": float(max(abs(complex(*m)) for m in p["multipliers"]))} for p in br.points]
+    return {"mu": mu, "facets": facets, "points": pts,
+            "bifurcations": [{"kind": b["kind"], "value": b["value"]} for b in br.bifurcations],
+            "stop": br.stop, "reason": br.reason, "wall_s": time.perf_counter() - t}
+
+
+def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list[dict], runs: list[dict],
+           mu: float, path: Path, mu_start: float | None = None) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.6))
+    cf = [c for c in curve if c["closed_hz"] is not None]
+    ax1.plot([c["closed_hz"] for c in cf], [c["mu"] for c in cf], "-", color="C0",
+             label="closed form (Jeffcott, Routh-Hurwitz D3 = 0)")
+    red = [o for o in onsets if o["reduced_hz"] is not None]
+    ax1.plot([o["reduced_hz"] for o in red], [o["mu"] for o in red], "s", mfc="none", color="C1",
+             label="reduced model, round ring")
+    for e in exact:
+        ax1.plot(e["onset_hz"], e["mu"], "kx" if e["facets"] == 64 else "k+", ms=9,
+                 label=f"exact flow, {e['facets']}-gon: {e['onset_hz']:.3f} Hz")
+    ax1.axvline(curve[0]["rub_start_hz"], color="grey", ls=":", lw=0.8)
+    if mu_start is not None:
+        ax1.axhline(mu_start, color="C0", ls="--", lw=0.8)
+        ax1.text(22.0, mu_start + 3e-4, f"unstable from the rub's start: mu > {mu_start:.4f}", fontsize=7, color="C0")
+    ax1.text(curve[0]["rub_start_hz"] + 0.2, 0.02, "rub begins", fontsize=7, color="grey", rotation=90,
+             transform=ax1.get_xaxis_transform())
+    ax1.set_ylim(0.015, 0.043)
+    ax1.set_xlabel("speed [Hz]")
+    ax1.set_ylabel("friction mu")
+    ax1.set_title("k_s = 2e6 N/m: the synchronous rub is unstable right of the line", fontsize=9)
+    ax1.legend(fontsize=7, loc="upper right")
+    r64 = [r for r in rates if r["facets"] == 64]
+    f = np.array([r["reference_rate_per_s"] for r in r64])
+    s = np.array([r["speed_hz"] for r in r64])
+    ax2.plot(s, f, "-", color="C1", label="round ring: max Re lambda (reduced model)")
+    ax2.plot(s, [r["rate_per_s"] for r in r64], "k.", ms=7, label="exact flow, 64-gon: ln|multiplier| / T")
+    for run in runs:
+        if run.get("transient_rate_per_s") is not None:
+            ax2.plot(run["speed_hz"], run["transient_rate_per_s"], "r^", ms=7,
+                     label=f"transient at {run['speed_hz']:g} Hz: whirl {run['whirl_hz']:+.1f} Hz (backward)")
+    ax2.axhline(0.0, color="grey", lw=0.5)
+    ax2.set_xlabel("speed [Hz]")
+    ax2.set_ylabel("growth rate [1/s]")
+    ax2.set_title(f"mu = {mu:g}: stable below 0, a backward whirl grows above", fontsize=9)
+    ax2.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="closed form and reduced model only")
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--stiffness", type=float, default=2e6, help="the ring's mount k_s [N/m]")
+    ap.add_argument("--mu", type=float, default=0.03, help="the friction of the exact-flow checks")
+    ap.add_argument("--facets", type=int, nargs="*", default=[64, 128])
+    ap.add_argument("--transient-hz", type=float, default=24.0)
+    ap.add_argument("--periods", type=int, default=300)
+    ap.add_argument("--steps", type=int, default=20, help="the branch's continuation steps")
+    ap.add_argument("--replot", action="store_true", help="redraw the figure from the saved JSON only")
+    a = ap.parse_args(argv)
+    if a.replot:
+        d = json.loads((OUT / "rub_backward_whirl.json").read_text())
+        figure(d["curve"], d["onsets"], d["rates"], d["exact_onsets"], d["transients"], d["mu"], FIGURE,
+               d.get("mu_at_rub_start"))
+        return 0
+    if not (math.isfinite(a.stiffness) and 1e5 <= a.stiffness <= 1e8):
+        ap.error(f"--stiffness must be a mount stiffness in [1e5, 1e8] N/m, got {a.stiffness!r}")
+    if not (math.isfinite(a.mu) and 0.0 < a.mu <= 1.0):
+        ap.error(f"--mu must be a friction coefficient in (0, 1], got {a.mu!r}")
+    if any(F < 8 for F in a.facets) or a.periods < 8 or a.steps < 1:
+        ap.error("--facets must be at least 8, --periods at least 8, --steps at least 1")
+    if not (math.isfinite(a.transient_hz) and 16.0 <= a.transient_hz <= 40.0):
+        ap.error(f"--transient-hz must be a speed in [16, 40] Hz, got {a.transient_hz!r}")
+    say = (lambda s: print(s, file=sys.stderr)) if a.json else print
+    t = time.perf_counter()
+    jeff = modal_jeffcott(ElasticRub(a.stiffness, a.mu))
+    start = rub_start(jeff)
+    say(f"modal Jeffcott: m {jeff.m:.4f} kg, k {jeff.k:.6g} N/m, c_e {jeff.c_e:g}, c_i {jeff.c_i:.4g} N s/m; "
+        f"rub from {start:.4f} Hz")
+    mu_start = friction_at_rub_start(jeff, start)
+    say(f"closed form: unstable from the rub's beginning for mu > {mu_start:.5f}")
+    curve = []
+    for mu in np.round(np.linspace(0.016, 0.04, 49), 6):
+        jeff.mu = float(mu)
+        on = jeffcott_onset(jeff, start + 1e-3, 40.0)
+        curve.append({"mu": float(mu), "rub_start_hz": start, "closed_hz": None if on is None else on["speed_hz"]})
+    onsets = []
+    for mu in (0.02, 0.025, 0.03, 0.035):
+        jeff.mu = mu
+        closed = jeffcott_onset(jeff, start + 1e-3, 40.0)
+        reduced = reduced_onset(ElasticRub(a.stiffness, mu), start + 1e-3, 40.0)
+        onsets.append({"mu": mu, "closed_hz": closed and closed["speed_hz"], "reduced_hz": reduced and reduced["speed_hz"],
+                       "closed": closed, "reduced": reduced})
+        say(f"mu {mu:g}: onset closed form {closed and round(closed['speed_hz'], 4)} Hz (backward "
+            f"{closed and round(closed['backward_hz'], 3)} Hz, share {closed and round(closed['backward_share'], 3)}), "
+            f"reduced model {reduced and round(reduced['speed_hz'], 4)} Hz (backward "
+            f"{reduced and round(reduced['backward_hz'], 3)} Hz, share {reduced and round(reduced['backward_share'], 3)})")
+    rates, exact, runs, branches = [], [], [], []
+    if not a.quick:
+        rates = orbit_rates(a.stiffness, a.mu, 64, [17.0, 18.0, 19.0, 20.0, 21.0, 22.0, 23.0, 24.0, 25.0, 26.0], say)
+        ref_on = next(o["reduced_hz"] for o in onsets if o["mu"] == a.mu) if a.mu in (0.02, 0.025, 0.03, 0.035) \
+            else reduced_onset(ElasticRub(a.stiffness, a.mu), start + 1e-3, 40.0)["speed_hz"]
+        for F in a.facets:
+            say(f"onset on the exact flow: {F} facets")
+            exact.append(exact_onset(a.stiffness, a.mu, F, ref_on - 1.0, ref_on + 1.0, say))
+            say(f"  {exact[-1]['onset_hz']:.5f} Hz ({exact[-1]['onset_hz'] - ref_on:+.5f} Hz from the round ring)")
+        say(f"branch: 64 facets, {ref_on - 0.5:.2f}..{ref_on + 0.5:.2f} Hz")
+        branches.append(branch(a.stiffness, a.mu, 64, round(ref_on - 0.5, 2), round(ref_on + 0.5, 2), a.steps, say))
+        say(f"  bifurcations {branches[-1]['bifurcations']}, stop {branches[-1]['stop']} ({branches[-1]['wall_s']:.0f} s)")
+        say(f"transient: 64 facets, {a.transient_hz:g} Hz, {a.periods} periods")
+        runs.append(transient(a.stiffness, a.mu, 64, a.transient_hz, a.periods, say, kick=1e-3))
+    payload = {"stiffness": a.stiffness, "mu": a.mu, "jeffcott": vars(jeff), "mu_at_rub_start": mu_start, "curve": curve, "onsets": onsets,
+               "rates": rates, "exact_onsets": exact, "branches": branches, "transients": runs,
+               "machine": machine(), "wall_s": time.perf_counter() - t}
+    name = "rub_backward_whirl_quick" if a.quick else "rub_backward_whirl"
+    write_outputs(OUT, name, curve, json.loads(json.dumps(payload, default=float)))
+    figure(curve, onsets, rates, exact, runs, a.mu, OUT / f"{name}.png" if a.quick else FIGURE, mu_start)
+    if a.json:
+        print(json.dumps(payload, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
