@@ -7,6 +7,25 @@ ring the synchronous full annular rub loses stability only by a Hopf point of th
 friction mu N along the ring, with N = k_s (r - c0), acts as a cross-coupled stiffness that feeds a BACKWARD whirl
 near the rotor-on-ring frequency sqrt((k + k_s) / m) against the damping.
 
+*The closed form* (Jeffcott rotor: modal mass m, shaft stiffness k, external damping c_e, internal c_i, unbalance
+m_u e; massless isotropic ring k_s at clearance c0, Coulomb mu). In the frame turning at Omega, w = y + i z:
+
+    m (w'' + 2 i Omega w' - Omega^2 w) + c_e (w' + i Omega w) + c_i w' + k w = m_u e Omega^2 - N (1 + i mu) w / |w|
+
+with N = k_s (|w| - c0) while |w| > c0 (the surface slips forward: friction mu N along -t). The synchronous rub
+is a rest point, r = |w| from |k - m Omega^2 + N / r + i (c_e Omega + mu N / r)| r = m_u e Omega^2. A perturbation
+e^{i phi} (xi + i eta) (radial, along the ring) changes the ring's force by -(1 + i mu)(k_s xi + i (N / r) eta): the
+radial spring and the force turning with the contact point. The 4 x 4 system m x'' + (c I + 2 m Omega J) x' + K x = 0,
+c = c_e + c_i, K = [[k - m Omega^2 + k_s, -(c_e Omega + mu N / r)], [c_e Omega + mu k_s, k - m Omega^2 + N / r]], has
+det(m l^2 + ...) = a4 l^4 + a3 l^3 + a2 l^2 + a1 l + a0 with a4 = m^2, a3 = 2 m c, a2 = m tr K + c^2 + 4 m^2 Omega^2,
+a1 = c tr K + 2 m Omega (2 c_e Omega + mu (k_s + N / r)), a0 = K_rr K_tt + (c_e Omega +
+mu N / r)(c_e Omega + mu k_s). Routh-Hurwitz: stable iff all a_i > 0, D2 = a3 a2 - a4 a1 > 0 and
+D3 = a1 D2 - a3^2 a0 > 0; the onset is D3 = 0 (a Hopf point: l = i w, w^2 = a1 / a3). The skew part of K,
+mu (k_s + N / r) / 2, is a cross-coupled stiffness that pushes against the spin: it damps forward whirl and drives
+backward whirl (mode at w in space: Re l = -(c w + q) / (2 m w)); friction enters a1 (helping) and a0 (against).
+At onset the eigenvector (xi, eta) e^{i w t} moves the disk as a e^{i (w + Omega) t} + b e^{-i (w - Omega) t} in
+space, a = (xi + i eta) / 2, b = conj(xi - i eta) / 2: backward at w - Omega where |b| > |a|.
+
 1. **Closed form** (``tests/rub_reference.py``: :class:`Jeffcott`, :func:`hurwitz`, :func:`jeffcott_onset`): the
    Jeffcott rotor (the model's first mode: modal mass and stiffness with the disk's displacement as coordinate,
    c_e the damper, c_i = beta k the shaft's internal damping) in the rotating frame: the synchronous rub's radius,
@@ -254,6 +273,16 @@ def transient(stiffness: float, mu: float, facets: int, speed_hz: float, periods
     freq = np.fft.fftfreq(seg.size, T / samples)
     j = int(np.argmax(spec))
     radius = np.hypot(*(rub_i.disk @ run.q[:, max(0, m - 10 * samples):m]))
+    # the state it goes to: the disk's whole motion over the last 100 periods (or half the run)
+    tail = min(100, m // samples // 2) * samples
+    u = rub_i.disk @ run.q[:, m - tail:m]
+    zt = u[0] + 1j * u[1]
+    rt = np.abs(zt)
+    spec_t = np.abs(np.fft.fft((zt - zt.mean()) * np.hanning(tail)))
+    freq_t = np.fft.fftfreq(tail, T / samples)
+    spec_t[np.abs(freq_t - speed_hz) < 2.0] = 0.0                 # the synchronous line (the unbalance)
+    jt = int(np.argmax(spec_t))
+    r_all = np.hypot(*(rub_i.disk @ run.q[:, :m])).reshape(-1, samples)
     out = {"speed_hz": speed_hz, "mu": mu, "facets": facets, "periods_run": m // samples, "stop": stop,
            "largest_modulus": float(mods.max()), "orbit_rate_per_s": float(np.log(mods.max()) / T),
            "reference_rate_per_s": ref["lam"].real, "transient_rate_per_s": rate,
@@ -263,11 +292,17 @@ def transient(stiffness: float, mu: float, facets: int, speed_hz: float, periods
            "reference_backward_share": ref["backward_share"],
            "last10_radius_min_c": float(radius.min() / c), "last10_radius_max_c": float(radius.max() / c),
            "events": int(len(run.events)) if hasattr(run, "events") else None,
+           "end_whirl_hz": float(freq_t[jt]), "end_contact_share": float(np.mean(rt > c)),
+           "end_ring_force_max_N": float(rub_i.stiffness * max(0.0, rt.max() - c)),
+           "end_periods": tail // samples,
+           "radius_per_period_c": {"min": (r_all.min(axis=1) / c).tolist(), "max": (r_all.max(axis=1) / c).tolist()},
            "wall_s": time.perf_counter() - t}
     say(f"  transient: {out['periods_run']} periods, linear phase {linear.size} periods, growth {rate:+.4f} 1/s, "
         f"whirl {freq[j]:+.2f} Hz (+- {out['resolution_hz']:.2f}; round ring {-ref['backward_hz']:+.2f} Hz backward "
         f"{ref['backward_share']:.2f}, {ref['forward_hz']:+.2f} forward); last 10 periods: disk radius "
-        f"{out['last10_radius_min_c']:.4f}..{out['last10_radius_max_c']:.4f} c [{out['wall_s']:.0f} s]")
+        f"{out['last10_radius_min_c']:.4f}..{out['last10_radius_max_c']:.4f} c; the last {tail // samples} periods: "
+        f"non-synchronous whirl {freq_t[jt]:+.2f} Hz, in contact {out['end_contact_share']:.0%} of the time, ring "
+        f"force up to {out['end_ring_force_max_N']:.1f} N [{out['wall_s']:.0f} s]")
     return out
 
 
@@ -311,7 +346,7 @@ def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list
            mu: float, path: Path, mu_start: float | None = None) -> None:
     import matplotlib.pyplot as plt
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.6))
+    fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(15, 4.6))
     cf = [c for c in curve if c["closed_hz"] is not None]
     ax1.plot([c["closed_hz"] for c in cf], [c["mu"] for c in cf], "-", color="C0",
              label="closed form (Jeffcott, Routh-Hurwitz D3 = 0)")
@@ -346,6 +381,19 @@ def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list
     ax2.set_ylabel("growth rate [1/s]")
     ax2.set_title(f"mu = {mu:g}: stable below 0, a backward whirl grows above", fontsize=9)
     ax2.legend(fontsize=7)
+    for run in runs:
+        env = run.get("radius_per_period_c")
+        if env:
+            t = np.arange(len(env["min"])) / run["speed_hz"]
+            ax3.fill_between(t, env["min"], env["max"], color="C3", alpha=0.5, lw=0,
+                             label=f"{run['speed_hz']:g} Hz, 64-gon: min..max per period")
+            ax3.axhline(1.0, color="grey", lw=0.5)
+            ax3.set_title(f"transient from the orbit (+1e-3 along the unstable vector): ends whirling "
+                          f"{run['end_whirl_hz']:+.1f} Hz", fontsize=9)
+    ax3.set_xlabel("time [s]")
+    ax3.set_ylabel("disk radius / clearance")
+    if runs:
+        ax3.legend(fontsize=7)
     fig.tight_layout()
     save_figure(fig, path)
 
