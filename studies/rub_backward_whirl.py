@@ -359,14 +359,15 @@ def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list
     ax1.axvline(curve[0]["rub_start_hz"], color="grey", ls=":", lw=0.8)
     if mu_start is not None:
         ax1.axhline(mu_start, color="C0", ls="--", lw=0.8)
-        ax1.text(22.0, mu_start + 3e-4, f"unstable from the rub's start: mu > {mu_start:.4f}", fontsize=7, color="C0")
+        ax1.text(26.0, mu_start - 1.3e-3, f"unstable from the rub's start: mu > {mu_start:.4f}", fontsize=7,
+                 color="C0")
     ax1.text(curve[0]["rub_start_hz"] + 0.2, 0.02, "rub begins", fontsize=7, color="grey", rotation=90,
              transform=ax1.get_xaxis_transform())
     ax1.set_ylim(0.015, 0.043)
     ax1.set_xlabel("speed [Hz]")
     ax1.set_ylabel("friction mu")
     ax1.set_title("k_s = 2e6 N/m: the synchronous rub is unstable right of the line", fontsize=9)
-    ax1.legend(fontsize=7, loc="upper right")
+    ax1.legend(fontsize=7, loc="center right")
     r64 = [r for r in rates if r["facets"] == 64]
     f = np.array([r["reference_rate_per_s"] for r in r64])
     s = np.array([r["speed_hz"] for r in r64])
@@ -388,7 +389,7 @@ def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list
             ax3.fill_between(t, env["min"], env["max"], color="C3", alpha=0.5, lw=0,
                              label=f"{run['speed_hz']:g} Hz, 64-gon: min..max per period")
             ax3.axhline(1.0, color="grey", lw=0.5)
-            ax3.set_title(f"transient from the orbit (+1e-3 along the unstable vector): ends whirling "
+            ax3.set_title(f"transient at {run['speed_hz']:g} Hz from the orbit: ends whirling "
                           f"{run['end_whirl_hz']:+.1f} Hz", fontsize=9)
     ax3.set_xlabel("time [s]")
     ax3.set_ylabel("disk radius / clearance")
