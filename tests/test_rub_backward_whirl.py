@@ -70,8 +70,8 @@ def test_onset_is_a_hopf_point_of_a_backward_whirl():
     """mu = 0.03: D3 changes sign at the onset; there the generic linearization has a pair on the imaginary axis at
     w = sqrt(a1 / a3) (Re within 1e-6 of |lambda|: Brent's speed to 1e-10 Hz times the slope, with the roots'
     round-off), stable 0.1 Hz below, unstable 0.1 Hz above; its disk motion is mostly backward in space, at
-    w - Omega, near the rotor-on-ring frequency. No onset without friction (mu = 0: the rub stays stable 16-40 Hz)
-    nor at mu = 0.015 below 40 Hz; the onset falls with mu (friction drives the whirl)."""
+    w - Omega, near the rotor-on-ring frequency. No onset without friction (mu = 0: the rub stays stable 15.7-40 Hz)
+    nor at mu = 0.015; the onset falls with mu (friction drives the whirl)."""
     rotor = Jeffcott(mu=0.03, **ROTOR)
     on = jeffcott_onset(rotor, 15.7, 40.0)
     assert on is not None and 17.0 < on["speed_hz"] < 30.0
@@ -86,8 +86,12 @@ def test_onset_is_a_hopf_point_of_a_backward_whirl():
     assert on["backward_share"] > 0.5
     rotor_on_ring = math.sqrt((ROTOR["k"] + ROTOR["k_s"]) / ROTOR["m"]) / (2 * math.pi)
     assert 0.7 * rotor_on_ring < on["backward_hz"] < rotor_on_ring
-    assert jeffcott_onset(Jeffcott(mu=0.0, **ROTOR), 15.7, 40.0) is None
-    assert jeffcott_onset(Jeffcott(mu=0.015, **ROTOR), 15.7, 40.0) is None
+    for mu in (0.0, 0.015):   # stable all through 15.7-40 Hz (every Hurwitz condition on a 0.05 Hz grid)
+        rotor_ = Jeffcott(mu=mu, **ROTOR)
+        for f in np.linspace(15.7, 40.0, 487):
+            a = rotor_.characteristic(2 * math.pi * f)
+            assert np.all(a > 0) and min(hurwitz(a)) > 0
+        assert jeffcott_onset(rotor_, 15.7, 40.0) is None
     assert jeffcott_onset(Jeffcott(mu=0.02, **ROTOR), 15.7, 40.0)["speed_hz"] > on["speed_hz"]
 
 
