@@ -207,7 +207,11 @@ class Jeffcott:
         m (w'' + 2 i Omega w' - Omega^2 w) + c_e (w' + i Omega w) + c_i w' + k w = m_u e Omega^2 + F.
 
     *Synchronous full annular rub* (w' = 0): |(k - m Omega^2 + N / r + i (c_e Omega + mu s N / r))| r = m_u e Omega^2,
-    one equation for r > c0 (its left side grows with r while k - m Omega^2 + k_s (1 - c0 / r) > 0).
+    one equation for r > c0. Its left side is |(k - m Omega^2 + k_s) r - k_s c0 + i ((c_e Omega + mu s k_s) r -
+    mu s k_s c0)|, the modulus of an affine function of r: convex, so it has exactly one root above c0 when it is
+    below the unbalance force at c0 (the free whirl wider than the clearance). Above the critical speed that root may
+    lie beyond the free whirl's radius (the ring's push moves the disk out), where :func:`elastic_rub`'s bracket
+    does not reach.
 
     *Linearization* with w = e^{i phi} (r + xi + i eta) (xi radial, eta along the ring): the ring's force changes by
     -(1 + i mu s) (k_s xi + i (N / r) eta) (the radial spring, and the force turning with the contact point), so

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
 
 from rub_reference import QUARTER, Jeffcott, eigenvalues, elastic_ring_operators, elastic_rub, hurwitz, jeffcott_onset
 
@@ -64,6 +66,41 @@ def test_closed_form_is_the_elastic_ring_linearization(mu, speed_hz):
     D2, D3 = hurwitz(a)
     assert abs(lam.real.max()) > 1e-3
     assert (lam.real.max() < 0) == (D2 > 0 and D3 > 0 and bool(np.all(a > 0)))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(m=st.floats(1.0, 20.0), k=st.floats(1e4, 1e6), c_e=st.floats(0.0, 200.0), c_i=st.floats(0.0, 20.0),
+       k_s=st.floats(1e4, 1e7), mu=st.floats(0.0, 0.5), excess=st.floats(1.05, 4.0))
+def test_closed_form_property_random_rotors(m, k, c_e, c_i, k_s, mu, excess):
+    """Any Jeffcott rotor on any elastic ring at 20 Hz, the free whirl ``excess`` times the clearance (the unbalance
+    chosen so), where the rub lies inside the free whirl: the closed form's radius balances the unbalance (Brent to 1e-15: 1e-12 relative),
+    its quartic's roots are the eigenvalues of its 4 x 4 matrices and of rub_reference's generic linearization
+    (1e-8 of |lambda|: a quartic's roots lose up to half the digits near a double root, measured 1e-12 here), and
+    Routh-Hurwitz says stable exactly when every eigenvalue has Re < 0 (checked where |max Re| > 1e-6 |lambda|)."""
+    omega = 2 * math.pi * 20.0
+    c0 = 1e-4
+    free = abs(complex(k - m * omega ** 2, c_e * omega))          # the free whirl m_u e Omega^2 / free
+    rotor = Jeffcott(m=m, k=k, c_e=c_e, c_i=c_i, unbalance=excess * c0 * free / omega ** 2, k_s=k_s,
+                     clearance=c0, mu=mu)
+    r = rotor.radius(omega)
+    # rub_reference's generic elastic_rub brackets the radius below the free whirl's (excess c0): above the critical
+    # speed the rub may lie beyond it (the ring's push moves the disk out), outside that reference's reach
+    assume(r < excess * c0 * (1.0 - 1e-9))
+    N = k_s * (r - c0)
+    balance = abs(complex(k - m * omega ** 2 + N / r, c_e * omega + mu * N / r)) * r
+    assert abs(balance / (rotor.unbalance * omega ** 2) - 1.0) < 1e-12
+    lam, r_generic = _generic_eigenvalues(rotor, omega)
+    assert abs(r_generic / r - 1.0) < 1e-12
+    scale = np.abs(lam).max()
+    roots = np.roots(rotor.characteristic(omega))
+    M, C, K, _, _ = rotor.matrices(omega)
+    for other in (roots, eigenvalues(M, C, K)):
+        # pair each eigenvalue with the nearest of the other set (sorting complex numbers can interleave close ones)
+        assert max(np.abs(other - x).min() for x in lam) <= 1e-8 * scale
+    a = rotor.characteristic(omega)
+    assume(abs(lam.real.max()) > 1e-6 * scale)
+    D2, D3 = hurwitz(a)
+    assert (lam.real.max() < 0) == (bool(np.all(a > 0)) and D2 > 0 and D3 > 0)
 
 
 def test_onset_is_a_hopf_point_of_a_backward_whirl():
