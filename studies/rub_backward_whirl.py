@@ -5,7 +5,7 @@ with its ring on a radial mount of stiffness k_s (``stator.0.stiffness``, undamp
 ring the synchronous full annular rub loses stability only by a Hopf point of the shaft's second bending mode
 (``studies/rub_whirl.py``); on a compliant ring the classical mechanism appears (Black 1968; Crandall 1990): the
 friction mu N along the ring, with N = k_s (r - c0), acts as a cross-coupled stiffness that feeds a BACKWARD whirl
-near the rotor-on-ring frequency sqrt((k + k_s) / m) against the damping.
+of the rotor on the ring (below sqrt((k + k_s) / m): the ring is stiff radially only) against the damping.
 
 *The closed form* (Jeffcott rotor: modal mass m, shaft stiffness k, external damping c_e, internal c_i, unbalance
 m_u e; massless isotropic ring k_s at clearance c0, Coulomb mu). In the frame turning at Omega, w = y + i z:
@@ -22,7 +22,7 @@ a1 = c tr K + 2 m Omega (2 c_e Omega + mu (k_s + N / r)), a0 = K_rr K_tt + (c_e 
 mu N / r)(c_e Omega + mu k_s). Routh-Hurwitz: stable iff all a_i > 0, D2 = a3 a2 - a4 a1 > 0 and
 D3 = a1 D2 - a3^2 a0 > 0; the onset is D3 = 0 (a Hopf point: l = i w, w^2 = a1 / a3). The skew part of K,
 mu (k_s + N / r) / 2, is a cross-coupled stiffness that pushes against the spin: it damps forward whirl and drives
-backward whirl (mode at w in space: Re l = -(c w + q) / (2 m w)); friction enters a1 (helping) and a0 (against).
+backward whirl (a mode at w in space, m l^2 + c l + k + i q = 0: Re l = -(c w + q) / (2 m w), negative w backward).
 At onset the eigenvector (xi, eta) e^{i w t} moves the disk as a e^{i (w + Omega) t} + b e^{-i (w - Omega) t} in
 space, a = (xi + i eta) / 2, b = conj(xi - i eta) / 2: backward at w - Omega where |b| > |a|.
 
@@ -37,11 +37,14 @@ space, a = (xi + i eta) / 2, b = conj(xi - i eta) / 2: backward at w - Omega whe
    its facets' and corners' laws average to the round ring's, the error second order in 1 / F; in the rotating
    frame the equilibrium rests on one facet (tangential stiffness 0) or in one corner (k_s), neither the round
    ring's N / r: that frame's equilibrium does not converge to the round ring's stability): the onset by Brent's
-   method on single orbits' largest multiplier, and a transient past the onset: its growth rate and whirl
-   frequency in space (FFT of the disk's deviation, y + i z: negative = backward).
+   method on single orbits' largest multiplier (at ``--mu`` on each of ``--facets``, and at the map's other
+   frictions on 64 facets), the branch over speed with its located Neimark-Sacker point
+   (:func:`nsfem.periodic.branch.orbit_branch`), and a transient past the onset: its growth rate, whirl frequency in
+   space (FFT of the disk's deviation, y + i z: negative = backward) and the state it goes to.
 
     python studies/rub_backward_whirl.py [--quick] [--json] [--stiffness 2e6] [--mu 0.03] [--facets 64 128]
-                                         [--transient-hz F] [--periods 400]
+                                         [--transient-hz 24] [--periods 300]
+                                         [--steps 20] [--replot]
 
 ``--quick``: the closed-form and reduced maps only. Writes studies/out/rub_backward_whirl/rub_backward_whirl.json/.csv
 and docs/figures/rub_backward_whirl.png.
@@ -113,7 +116,8 @@ def modal_jeffcott(rub: ElasticRub) -> Jeffcott:
     alpha, beta = rub.scene.damping.rayleigh
     k = float(phi @ K @ phi)
     return Jeffcott(m=float(phi @ M @ phi), k=k, c_e=float(phi @ T.T @ rub.model.C_bearing @ T @ phi),
-                    c_i=beta * k + alpha * float(phi @ M @ phi), unbalance=float(rub.model.stack.unbalances[0].magnitude),
+                    c_i=beta * k + alpha * float(phi @ M @ phi),
+                    unbalance=float(rub.model.stack.unbalances[0].magnitude),
                     k_s=rub.stiffness, clearance=float(R.rings[0].clearance), mu=rub.mu)
 
 
@@ -353,9 +357,11 @@ def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list
     red = [o for o in onsets if o["reduced_hz"] is not None]
     ax1.plot([o["reduced_hz"] for o in red], [o["mu"] for o in red], "s", mfc="none", color="C1",
              label="reduced model, round ring")
+    labelled = set()
     for e in exact:
         ax1.plot(e["onset_hz"], e["mu"], "kx" if e["facets"] == 64 else "k+", ms=9,
-                 label=f"exact flow, {e['facets']}-gon: {e['onset_hz']:.3f} Hz")
+                 label=None if e["facets"] in labelled else f"exact flow, {e['facets']}-gon (inertial frame)")
+        labelled.add(e["facets"])
     ax1.axvline(curve[0]["rub_start_hz"], color="grey", ls=":", lw=0.8)
     if mu_start is not None:
         ax1.axhline(mu_start, color="C0", ls="--", lw=0.8)
@@ -442,27 +448,47 @@ def main(argv=None) -> int:
         jeff.mu = mu
         closed = jeffcott_onset(jeff, start + 1e-3, 40.0)
         reduced = reduced_onset(ElasticRub(a.stiffness, mu), start + 1e-3, 40.0)
-        onsets.append({"mu": mu, "closed_hz": closed and closed["speed_hz"], "reduced_hz": reduced and reduced["speed_hz"],
+        onsets.append({"mu": mu, "closed_hz": closed and closed["speed_hz"],
+                       "reduced_hz": reduced and reduced["speed_hz"],
                        "closed": closed, "reduced": reduced})
         say(f"mu {mu:g}: onset closed form {closed and round(closed['speed_hz'], 4)} Hz (backward "
             f"{closed and round(closed['backward_hz'], 3)} Hz, share {closed and round(closed['backward_share'], 3)}), "
             f"reduced model {reduced and round(reduced['speed_hz'], 4)} Hz (backward "
-            f"{reduced and round(reduced['backward_hz'], 3)} Hz, share {reduced and round(reduced['backward_share'], 3)})")
+            f"{reduced and round(reduced['backward_hz'], 3)} Hz, "
+            f"share {reduced and round(reduced['backward_share'], 3)})")
     rates, exact, runs, branches = [], [], [], []
     if not a.quick:
-        rates = orbit_rates(a.stiffness, a.mu, 64, [17.0, 18.0, 19.0, 20.0, 21.0, 22.0, 23.0, 24.0, 25.0, 26.0], say)
-        ref_on = next(o["reduced_hz"] for o in onsets if o["mu"] == a.mu) if a.mu in (0.02, 0.025, 0.03, 0.035) \
-            else reduced_onset(ElasticRub(a.stiffness, a.mu), start + 1e-3, 40.0)["speed_hz"]
+        on = reduced_onset(ElasticRub(a.stiffness, a.mu), start + 1e-3, 40.0)
+        if on is None or on["speed_hz"] < start + 1.0 or on["speed_hz"] > 39.0:
+            ap.error(f"--mu {a.mu:g}: the reduced model's rub on this ring has no onset between {start + 1.0:.2f} and "
+                     f"39 Hz (the closed form: unstable from the rub's start above mu = {mu_start:.4f}); the exact "
+                     "flow's checks need one: pick a smaller mu, or use --quick")
+        ref_on = on["speed_hz"]
+        if a.transient_hz <= ref_on:
+            ap.error(f"--transient-hz {a.transient_hz:g} must lie past the onset, {ref_on:.3f} Hz at mu {a.mu:g}")
+        grid = np.arange(round(ref_on) - 4.0, round(ref_on) + 6.0)
+        rates = orbit_rates(a.stiffness, a.mu, 64, [float(f) for f in grid if start + 0.5 < f <= 40.0], say)
         for F in a.facets:
             say(f"onset on the exact flow: {F} facets")
             exact.append(exact_onset(a.stiffness, a.mu, F, ref_on - 1.0, ref_on + 1.0, say))
             say(f"  {exact[-1]['onset_hz']:.5f} Hz ({exact[-1]['onset_hz'] - ref_on:+.5f} Hz from the round ring)")
+        for mu in (0.02, 0.025, 0.035):   # the map's other frictions on the 64-gon
+            if mu == a.mu:
+                continue
+            on = next(o["reduced_hz"] for o in onsets if o["mu"] == mu)
+            if on is None or on < start + 1.0 or on > 39.0:
+                continue
+            say(f"onset on the exact flow: 64 facets, mu {mu:g}")
+            exact.append(exact_onset(a.stiffness, mu, 64, on - 1.0, on + 1.0, say))
+            say(f"  {exact[-1]['onset_hz']:.5f} Hz ({exact[-1]['onset_hz'] - on:+.5f} Hz from the round ring)")
         say(f"branch: 64 facets, {ref_on - 0.5:.2f}..{ref_on + 0.5:.2f} Hz")
         branches.append(branch(a.stiffness, a.mu, 64, round(ref_on - 0.5, 2), round(ref_on + 0.5, 2), a.steps, say))
-        say(f"  bifurcations {branches[-1]['bifurcations']}, stop {branches[-1]['stop']} ({branches[-1]['wall_s']:.0f} s)")
+        say(f"  bifurcations {branches[-1]['bifurcations']}, stop {branches[-1]['stop']} "
+            f"({branches[-1]['wall_s']:.0f} s)")
         say(f"transient: 64 facets, {a.transient_hz:g} Hz, {a.periods} periods")
         runs.append(transient(a.stiffness, a.mu, 64, a.transient_hz, a.periods, say, kick=1e-3))
-    payload = {"stiffness": a.stiffness, "mu": a.mu, "jeffcott": vars(jeff), "mu_at_rub_start": mu_start, "curve": curve, "onsets": onsets,
+    payload = {"stiffness": a.stiffness, "mu": a.mu, "jeffcott": vars(jeff), "mu_at_rub_start": mu_start,
+               "curve": curve, "onsets": onsets,
                "rates": rates, "exact_onsets": exact, "branches": branches, "transients": runs,
                "machine": machine(), "wall_s": time.perf_counter() - t}
     name = "rub_backward_whirl_quick" if a.quick else "rub_backward_whirl"

@@ -1,4 +1,6 @@
-"""The Jeffcott rub on an elastic ring through the onset of backward whirl (issue 36, goal 2b; studies/rub_backward_whirl.py).
+"""The Jeffcott rub on an elastic ring through the onset of backward whirl (issue 36, goal 2b).
+
+The study: studies/rub_backward_whirl.py.
 
 The closed form (:class:`rub_reference.Jeffcott`: the synchronous full annular rub of a Jeffcott rotor on a massless
 ring of radial stiffness k_s, its 4 x 4 rotating-frame linearization and Routh-Hurwitz condition) is checked
@@ -6,7 +8,8 @@ against rub_reference's elastic-ring linearization (``elastic_rub``, ``elastic_r
 system's matrices, not from the closed form) on the same 2-coordinate rotor, then against the shipped rub's reduced
 model (its first mode as the Jeffcott rotor), and the exact flow's orbits on the 64-gon against that reference.
 The shipped rub on a 2e6 N/m undamped mount at mu = 0.03 loses stability near 20.7 Hz by a whirl 72 % backward in
-space at 82 Hz (below the rotor-on-ring frequency sqrt((k + k_s) / m) / 2 pi = 95.7 Hz: the ring is stiff radially only).
+space at 82 Hz (below the rotor-on-ring frequency sqrt((k + k_s) / m) / 2 pi = 95.7 Hz: the ring is stiff radially
+only).
 """
 
 from __future__ import annotations
@@ -73,7 +76,8 @@ def test_closed_form_is_the_elastic_ring_linearization(mu, speed_hz):
        k_s=st.floats(1e4, 1e7), mu=st.floats(0.0, 0.5), excess=st.floats(1.05, 4.0))
 def test_closed_form_property_random_rotors(m, k, c_e, c_i, k_s, mu, excess):
     """Any Jeffcott rotor on any elastic ring at 20 Hz, the free whirl ``excess`` times the clearance (the unbalance
-    chosen so), where the rub lies inside the free whirl: the closed form's radius balances the unbalance (Brent to 1e-15: 1e-12 relative),
+    chosen so), where the rub lies inside the free whirl: the closed form's radius balances the unbalance (Brent
+    to 1e-15: 1e-12 relative),
     its quartic's roots are the eigenvalues of its 4 x 4 matrices and of rub_reference's generic linearization
     (1e-8 of |lambda|: a quartic's roots lose up to half the digits near a double root, measured 1e-12 here), and
     Routh-Hurwitz says stable exactly when every eigenvalue has Re < 0 (checked where |max Re| > 1e-6 |lambda|)."""
