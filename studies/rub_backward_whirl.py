@@ -438,6 +438,15 @@ def main(argv=None) -> int:
         f"rub from {start:.4f} Hz")
     mu_start = friction_at_rub_start(jeff, start)
     say(f"closed form: unstable from the rub's beginning for mu > {mu_start:.5f}")
+    if not a.quick:   # the exact flow's checks need an onset at --mu, and the transient a speed past it
+        on = reduced_onset(ElasticRub(a.stiffness, a.mu), start + 1e-3, 40.0)
+        if on is None or on["speed_hz"] < start + 1.0 or on["speed_hz"] > 39.0:
+            ap.error(f"--mu {a.mu:g}: the reduced model's rub on this ring has no onset between {start + 1.0:.2f} and "
+                     f"39 Hz (the closed form: unstable from the rub's start above mu = {mu_start:.4f}); the exact "
+                     "flow's checks need one: pick a smaller mu, or use --quick")
+        ref_on = on["speed_hz"]
+        if a.transient_hz <= ref_on:
+            ap.error(f"--transient-hz {a.transient_hz:g} must lie past the onset, {ref_on:.3f} Hz at mu {a.mu:g}")
     curve = []
     for mu in np.round(np.linspace(0.016, 0.04, 49), 6):
         jeff.mu = float(mu)
@@ -458,14 +467,6 @@ def main(argv=None) -> int:
             f"share {reduced and round(reduced['backward_share'], 3)})")
     rates, exact, runs, branches = [], [], [], []
     if not a.quick:
-        on = reduced_onset(ElasticRub(a.stiffness, a.mu), start + 1e-3, 40.0)
-        if on is None or on["speed_hz"] < start + 1.0 or on["speed_hz"] > 39.0:
-            ap.error(f"--mu {a.mu:g}: the reduced model's rub on this ring has no onset between {start + 1.0:.2f} and "
-                     f"39 Hz (the closed form: unstable from the rub's start above mu = {mu_start:.4f}); the exact "
-                     "flow's checks need one: pick a smaller mu, or use --quick")
-        ref_on = on["speed_hz"]
-        if a.transient_hz <= ref_on:
-            ap.error(f"--transient-hz {a.transient_hz:g} must lie past the onset, {ref_on:.3f} Hz at mu {a.mu:g}")
         grid = np.arange(round(ref_on) - 4.0, round(ref_on) + 6.0)
         rates = orbit_rates(a.stiffness, a.mu, 64, [float(f) for f in grid if start + 0.5 < f <= 40.0], say)
         for F in a.facets:
