@@ -52,6 +52,7 @@ multipliers are exp(lambda T).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,3 +191,127 @@ def multipliers(lam: np.ndarray, period: float) -> np.ndarray:
     """exp(lambda T), largest modulus first (ties by argument, so conjugate pairs stay together)."""
     mu = np.exp(np.asarray(lam) * period)
     return mu[np.lexsort((-mu.imag, -np.round(np.abs(mu), 12)))]
+
+
+# --- the Jeffcott rotor's synchronous rub on an elastic ring, in closed form (issue 36, backward whirl) -------------
+
+@dataclass
+class Jeffcott:
+    """A Jeffcott rotor (or one rotor mode): disk mass m [kg], shaft stiffness k [N/m], external damping c_e (on the
+    fixed-frame rates) and internal c_i (on the rotating-frame rates) [N s/m], unbalance m_u e [kg m], inside a
+    massless isotropic ring of radial stiffness k_s [N/m] at clearance c0 [m] with Coulomb friction mu.
+
+    Rotating frame (turning at Omega), disk at w = y + i z; the ring pushes while |w| = r > c0 with
+    N = k_s (r - c0), F = -N (1 + i mu s) w / |w|, s = sign(Omega) (the surface slips forward on the ring):
+
+        m (w'' + 2 i Omega w' - Omega^2 w) + c_e (w' + i Omega w) + c_i w' + k w = m_u e Omega^2 + F.
+
+    *Synchronous full annular rub* (w' = 0): |(k - m Omega^2 + N / r + i (c_e Omega + mu s N / r))| r = m_u e Omega^2,
+    one equation for r > c0. Its left side is |(k - m Omega^2 + k_s) r - k_s c0 + i ((c_e Omega + mu s k_s) r -
+    mu s k_s c0)|, the modulus of an affine function of r: convex, so it has exactly one root above c0 when it is
+    below the unbalance force at c0 (the free whirl wider than the clearance). Above the critical speed that root may
+    lie beyond the free whirl's radius (the ring's push moves the disk out), where :func:`elastic_rub`'s bracket
+    does not reach.
+
+    *Linearization* with w = e^{i phi} (r + xi + i eta) (xi radial, eta along the ring): the ring's force changes by
+    -(1 + i mu s) (k_s xi + i (N / r) eta) (the radial spring, and the force turning with the contact point), so
+
+        m x'' + (c I + 2 m Omega J) x' + K x = 0,   x = (xi, eta),   c = c_e + c_i,   J = [[0, -1], [1, 0]],
+        K = [[k - m Omega^2 + k_s,            -(c_e Omega + mu s N / r)],
+             [c_e Omega + mu s k_s,           k - m Omega^2 + N / r   ]].
+
+    Its characteristic polynomial a4 l^4 + a3 l^3 + a2 l^2 + a1 l + a0 (K_rr, K_tt the diagonal):
+
+        a4 = m^2,  a3 = 2 m c,  a2 = m (K_rr + K_tt) + c^2 + 4 m^2 Omega^2,
+        a1 = c (K_rr + K_tt) + 2 m Omega (2 c_e Omega + mu s (k_s + N / r)),
+        a0 = K_rr K_tt + (c_e Omega + mu s N / r) (c_e Omega + mu s k_s).
+
+    Routh-Hurwitz: stable iff every a_i > 0, D2 = a3 a2 - a4 a1 > 0 and D3 = a1 D2 - a3^2 a0 > 0. a0 = 0 is a fold
+    of the stationary rub (a real eigenvalue through 0); D3 = 0 with D2 > 0 a Hopf point, at l = +- i w with
+    w^2 = a1 / a3. The friction enters as the skew part mu s (k_s + N / r) / 2 of K: a follower force along the ring
+    against the spin, which feeds a backward whirl and damps a forward one (for a mode at w in the inertial frame,
+    m l^2 + c l + k + i q = 0 gives Re l = -(c w + q) / (2 m w): unstable backward (w < 0) for q > c |w|)."""
+
+    m: float
+    k: float
+    c_e: float
+    c_i: float
+    unbalance: float
+    k_s: float
+    clearance: float
+    mu: float
+
+    def radius(self, omega: float) -> float:
+        """r of the synchronous rub at Omega [rad/s] (ValueError: no rub, the free whirl inside the clearance)."""
+        s = math.copysign(1.0, omega)
+        force = self.unbalance * omega ** 2
+
+        def excess(r: float) -> float:
+            N = self.k_s * (r - self.clearance)
+            return abs(complex(self.k - self.m * omega ** 2 + N / r,
+                               self.c_e * omega + self.mu * s * N / r)) * r - force
+
+        if excess(self.clearance) >= 0.0:
+            raise ValueError(f"the free whirl stays inside the clearance {self.clearance:.3g} m at "
+                             f"{omega / (2 * math.pi):.4g} Hz: no rub")
+        hi = 2.0 * self.clearance
+        while excess(hi) < 0.0:
+            hi *= 2.0
+            if hi > 1e6 * self.clearance:
+                raise ValueError("no radius balances the unbalance")
+        return float(brentq(excess, self.clearance, hi, xtol=1e-15 * self.clearance, rtol=1e-15))
+
+    def matrices(self, omega: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+        """(M, C, K, r, N): the rotating-frame linearization at the rub (class docstring), on (xi, eta)."""
+        s = math.copysign(1.0, omega)
+        r = self.radius(omega)
+        N = self.k_s * (r - self.clearance)
+        soft = self.k - self.m * omega ** 2
+        K = np.array([[soft + self.k_s, -(self.c_e * omega + self.mu * s * N / r)],
+                      [self.c_e * omega + self.mu * s * self.k_s, soft + N / r]])
+        C = (self.c_e + self.c_i) * np.eye(2) + 2.0 * self.m * omega * QUARTER
+        return self.m * np.eye(2), C, K, r, N
+
+    def characteristic(self, omega: float) -> np.ndarray:
+        """(a4, a3, a2, a1, a0): det(M l^2 + C l + K) (class docstring)."""
+        s = math.copysign(1.0, omega)
+        r = self.radius(omega)
+        N = self.k_s * (r - self.clearance)
+        m, c = self.m, self.c_e + self.c_i
+        trace = 2.0 * (self.k - m * omega ** 2) + self.k_s + N / r
+        Krr, Ktt = self.k - m * omega ** 2 + self.k_s, self.k - m * omega ** 2 + N / r
+        a1 = c * trace + 2.0 * m * omega * (2.0 * self.c_e * omega + self.mu * s * (self.k_s + N / r))
+        a0 = Krr * Ktt + (self.c_e * omega + self.mu * s * N / r) * (self.c_e * omega + self.mu * s * self.k_s)
+        return np.array([m ** 2, 2.0 * m * c, m * trace + c ** 2 + 4.0 * m ** 2 * omega ** 2, a1, a0])
+
+
+def hurwitz(a: np.ndarray) -> tuple[float, float]:
+    """(D2, D3) of a quartic a4 l^4 + ... + a0 with positive coefficients: its roots lie left of the imaginary axis
+    iff both are positive (Routh-Hurwitz)."""
+    a4, a3, a2, a1, a0 = a
+    D2 = a3 * a2 - a4 * a1
+    return float(D2), float(a1 * D2 - a3 ** 2 * a0)
+
+
+def jeffcott_onset(rotor: Jeffcott, lo_hz: float, hi_hz: float) -> dict | None:
+    """The speed in [lo, hi] Hz where D3 changes sign (the Hopf point of the synchronous rub), its whirl frequency
+    w = sqrt(a1 / a3) in the rotating frame, and the disk's whirl at onset in the inertial frame: the eigenvector
+    x = (xi, eta) e^{i w t} makes the disk move as a e^{i (w + Omega) t} + b e^{-i (w - Omega) t} there, with
+    a = (xi + i eta) / 2, b = conj(xi - i eta) / 2; None if D3 keeps its sign."""
+    def d3(f: float) -> float:
+        a = rotor.characteristic(2 * math.pi * f)
+        return hurwitz(a)[1] / (a[0] * a[2] ** 2)   # scaled to order one
+
+    if d3(lo_hz) * d3(hi_hz) > 0.0:
+        return None
+    f = float(brentq(d3, lo_hz, hi_hz, xtol=1e-10, rtol=1e-14))
+    omega = 2 * math.pi * f
+    a = rotor.characteristic(omega)
+    w = math.sqrt(a[3] / a[1])
+    M, C, K, r, N = rotor.matrices(omega)
+    P = -w ** 2 * M + 1j * w * C + K
+    x = np.array([-P[0, 1], P[0, 0]])                 # the null vector of P's first row (P singular at onset)
+    fwd, bwd = abs(x[0] + 1j * x[1]) / 2.0, abs(x[0] - 1j * x[1]) / 2.0
+    return {"speed_hz": f, "radius": r, "N": N, "w_rotating": w, "forward_hz": (w + omega) / (2 * math.pi),
+            "backward_hz": (w - omega) / (2 * math.pi), "backward_share": float(bwd / (fwd + bwd)),
+            "D2": hurwitz(a)[0]}

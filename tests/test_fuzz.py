@@ -4528,3 +4528,42 @@ def test_issue36_dask_a_cluster_failure_is_one_line_a_task_error_is_the_serial_o
         _result(Failed(NsfemError("periodic: no orbit")), 27.0)
     with pytest.raises(ZeroDivisionError):
         _result(Failed(ZeroDivisionError("a bug")), 27.0)
+
+
+# --- issue 36: rub backward whirl study (studies/rub_backward_whirl.py's options) ---
+def _backward_whirl_refusal(argv, capsys) -> str:
+    """studies/rub_backward_whirl.py's main(argv) exits 2 with one 'error:' line, before the exact flow."""
+    studies = str(Path(__file__).resolve().parents[1] / "studies")
+    if studies not in sys.path:
+        sys.path.insert(0, studies)
+    import rub_backward_whirl
+
+    with pytest.raises(SystemExit) as exc:
+        rub_backward_whirl.main(argv)
+    assert exc.value.code == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
+    assert len(err) == 1
+    return err[0]
+
+
+@pytest.mark.parametrize("argv", [["--mu", "nan"], ["--mu", "0"], ["--mu", "-0.1"], ["--stiffness", "inf"],
+                                  ["--stiffness", "10"], ["--facets", "4"], ["--periods", "2"], ["--steps", "0"],
+                                  ["--transient-hz", "nan"], ["--transient-hz", "100"]])
+def test_issue36_backward_whirl_study_refuses_bad_options(argv, capsys):
+    assert argv[0].lstrip("-").split("-")[0] in _backward_whirl_refusal(argv, capsys)
+
+
+def test_issue36_backward_whirl_study_refuses_a_friction_without_onset(capsys):
+    """mu = 0.1 on the 2e6 N/m ring is unstable from the rub's start (closed form: above mu = 0.0400): no onset for the
+    exact flow to check; the transient's speed must lie past the onset (20.669 Hz at mu = 0.03)."""
+    assert "--mu 0.1" in _backward_whirl_refusal(["--mu", "0.1"], capsys)
+    assert "past the onset" in _backward_whirl_refusal(["--transient-hz", "19"], capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(k_s=st.floats(allow_nan=True, allow_infinity=True))
+def test_issue36_backward_whirl_study_refuses_every_bad_stiffness(k_s, capsys):
+    """Property: a --stiffness outside [1e5, 1e8] N/m (or not finite) is refused naming --stiffness."""
+    if math.isfinite(k_s) and 1e5 <= k_s <= 1e8:
+        return
+    assert "--stiffness" in _backward_whirl_refusal(["--stiffness", repr(k_s)], capsys)
