@@ -97,7 +97,7 @@ def _stream(queue_name: str, tag: int) -> Callable[[int, dict], None]:
     """On a worker: put(multiple, record) puts (tag, sequence number, multiple, the record pickled) on the client's
     queue (best effort: a queue gone only loses progress lines, the task's result keeps every record), after
     raising :class:`BranchCancelled` if the client has set the branch's stop event."""
-    from distributed import Event, Queue, wait
+    from distributed import Event, Queue
 
     queue, stop = Queue(queue_name), Event(f"{queue_name}-stop")
     seq = [0]
@@ -187,7 +187,7 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
     order, the tasks' interleaved), ``merge(side, stop, reason, bifurcations, doubled)`` once a side and its
     doubled branches are done, the sides in their order. Ctrl-C cancels the tasks and raises KeyboardInterrupt
     (what was accepted and merged stays)."""
-    from distributed import Event, Queue, wait
+    from distributed import Event, Queue
 
     queue_name = f"nsfem-branch-{uuid.uuid4().hex}"
     queue, stop = Queue(queue_name, client=client), Event(f"{queue_name}-stop", client=client)
