@@ -43,7 +43,12 @@ about tol / |J_u|, moving the test function accordingly):
   making false alarms). Multipliers of A and B are paired by the least sum of sqrt(distance) (where their
   counts differ the missing ones are zeros: a direction held at one point, as an orbit's contact held
   closed on its section, has multiplier 0 there); each pair on
-  different sides is one crossing, followed through the trial points by the same pairing. Kinds: a real
+  different sides is a claimed crossing. Two multipliers on different sides passing near each other within
+  the step may be paired crosswise (a spurious pair of crossings), so each claim is checked: its stretch
+  of the chord is halved (trial points with their multipliers, at least one) until the followed
+  multiplier moved less than a quarter of its distance to every other one; a claim that vanishes on the way
+  was an exchange. One that stays ambiguous counts only where the number outside the circle (by kind)
+  changed. A real crossing is then followed through the trial points by the same pairing. Kinds: a real
   multiplier through +1 "fold", through -1 "period-doubling", a complex pair "neimark-sacker"
   (Kuznetsov chapter 4). A saddle-node (a fold of the branch with its multiplier through +1)
   is recorded once, as the tangent's fold.
@@ -87,6 +92,12 @@ REAL_TOL = 1e-7
 #: lengths below this share of |p_end - p0| (steps, locate_tol) are refused: the scaled unknowns are
 #: O(1), and steps near their round-off (2.2e-16) make no progress
 ROUNDOFF = 1e-12
+#: at most this many trial points to follow the multipliers across one step where the pairing of its ends is
+#: ambiguous (halvings: 2^-5 of the step where the multipliers pass each other, more trial points near the passage)
+MAX_FOLLOW = 24
+#: a multiplier's pairing across a stretch of the branch is unambiguous when it moved less than this share of its
+#: distance to every other multiplier
+RESOLVED = 0.25
 #: at most this many trial points per special point (the bracket at least halves every three: 2^-33 of
 #: the chord at worst, 1e-10; a smooth test function takes 5 to 10)
 MAX_TRIALS = 100
@@ -318,6 +329,75 @@ def _crossings(ma: np.ndarray, mb: np.ndarray, unit_tol: float) -> list[tuple[in
     return kept
 
 
+def _outside_counts(mu: np.ndarray, unit_tol: float) -> dict:
+    """The number of multipliers outside the unit circle by kind (real > 0, real < 0, complex)."""
+    counts = {"fold": 0, "period-doubling": 0, "neimark-sacker": 0}
+    for m in mu[_outside(mu, unit_tol)]:
+        counts[_kind(complex(m))] += 1
+    return counts
+
+
+def _side_changes(samples: list, n: int, unit_tol: float) -> list[tuple]:
+    """The multipliers followed through ``samples`` [(theta, point, multipliers)] by pairing neighbours: each
+    change of side of the unit circle (k: between samples k and k + 1, index at k, index at k + 1); one of each
+    complex-conjugate pair (the one with Im >= 0 after)."""
+    found = []
+    for i in range(n):
+        idx = i
+        for k, ((_, _, m1), (_, _, m2)) in enumerate(zip(samples, samples[1:])):
+            j = int(_paired(m1, m2)[idx])
+            if _outside(m1[idx:idx + 1], unit_tol)[0] != _outside(m2[j:j + 1], unit_tol)[0]:
+                b = complex(m2[j])
+                conjugate = np.any((np.abs(b.conjugate() - m2) <= 1e-9 * max(1.0, abs(b))) & (m2.imag > 0))
+                if not (b.imag < 0 and conjugate):
+                    found.append((k, idx, j))
+            idx = j
+    return found
+
+
+def _resolved(m1: np.ndarray, i: int, m2: np.ndarray, j: int) -> bool:
+    """Whether the pairing of m1[i] with m2[j] is unambiguous: the move is under RESOLVED of its distance to every
+    other multiplier, at both ends (a crossing seen through it is then the multiplier's own, not an exchange)."""
+    move = abs(m1[i] - m2[j])
+    for m, k in ((m1, i), (m2, j)):
+        others = np.delete(m, k)
+        if others.size and move >= RESOLVED * np.abs(others - m[k]).min():
+            return False
+    return True
+
+
+def _followed_crossings(chord: "_Chord", ma: np.ndarray, mb: np.ndarray, n: int, unit_tol: float,
+                        min_length_z: float, budget: int = MAX_FOLLOW) -> list[tuple] | None:
+    """The crossings of the unit circle between A and B, each (theta_lo, theta_hi, point_lo, point_hi, index at
+    lo, index at hi). Pairing A's multipliers with B's claims a crossing wherever a multiplier changed side, which
+    is wrong where two on different sides passed near each other (a spurious pair of crossings). Each claimed
+    crossing is followed: its stretch of the chord halved (a trial point with its multipliers; at least once)
+    until the pairing across it is unambiguous (:func:`_resolved`); claims that vanish on the way were exchanges. None when a claim
+    stays ambiguous down to ``min_length_z`` or ``budget`` trial points, or a trial point fails."""
+    samples = [(0.0, chord.a, ma), (1.0, chord.b, mb)]
+    used = 0
+    while True:
+        changes = _side_changes(samples, n, unit_tol)
+        # (a claim over the whole step is always checked by one trial point at least: an exchange of two
+        # multipliers passing each other may look like a short move of each)
+        open_ = sorted({k for k, i, j in changes if len(samples) == 2
+                        or not _resolved(samples[k][2], i, samples[k + 1][2], j)}, reverse=True)
+        if not open_:
+            return [(samples[k][0], samples[k + 1][0], samples[k][1], samples[k + 1][1], i, j)
+                    for k, i, j in changes]
+        for k in open_:   # (from the end: the indices of the earlier stretches stay)
+            (t1, _, _), (t2, _, _) = samples[k], samples[k + 1]
+            if (t2 - t1) * chord.length <= min_length_z or used >= budget:
+                return None
+            theta = 0.5 * (t1 + t2)
+            try:
+                pt = chord.point(theta, True)
+            except _Failure:
+                return None
+            used += 1
+            samples.insert(k + 1, (theta, pt, _padded(pt.multipliers, n)))
+
+
 class _Chord:
     """Trial points between two branch points A and B (tangents ta, tb), re-corrected onto the branch in
     the hyperplane across the chord at theta. Newton starts from the cubic Hermite curve through A and B
@@ -347,7 +427,7 @@ class _Chord:
 
 
 def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b: float, span_tol: float,
-            with_multipliers: bool) -> tuple[_Point, float, float]:
+            with_multipliers: bool, bracket: tuple | None = None) -> tuple[_Point, float, float]:
     """The sign change of g along the chord (g(A) = g_a and g(B) = g_b of opposite signs), bracketed until
     the bracket's chord is at most span_tol: (the bracket's end with the smaller |g|, its theta, its
     distance in scaled z to the other end; the crossing lies on the branch between them).
@@ -360,10 +440,13 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
     in by a bracket of width span_tol rather than approached from one side."""
     lo, hi, glo, ghi = 0.0, 1.0, g_a, g_b
     pt_lo, pt_hi = chord.a, chord.b
+    if bracket is not None:     # a narrower start (lo, hi, its points), found by following the multipliers
+        lo, hi, pt_lo, pt_hi = bracket
     kept, widths = 0, [math.inf, math.inf]
     half_tol = 0.5 * span_tol / chord.length
-    if (g_a > 0) == (g_b > 0):     # no sign change to follow: the nearer end, to the chord's length
-        return (chord.a, 0.0, chord.length) if abs(g_a) <= abs(g_b) else (chord.b, 1.0, chord.length)
+    if (g_a > 0) == (g_b > 0):     # no sign change to follow: the nearer end, to the bracket's length
+        width = float(np.linalg.norm(pt_hi.z - pt_lo.z))
+        return (pt_lo, lo, width) if abs(g_a) <= abs(g_b) else (pt_hi, hi, width)
     for _ in range(MAX_TRIALS):
         width = hi - lo
         if width * chord.length <= span_tol:
@@ -417,10 +500,17 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
     if with_mu:
         n = max(a.multipliers.size, b.multipliers.size)
         ma, mb = _padded(a.multipliers, n), _padded(b.multipliers, n)
-        for i, j in _crossings(ma, mb, unit_tol):
+        # the multipliers followed from A to B with trial points added where pairing A's with B's could exchange
+        # multipliers on different sides of the circle passing near each other (a spurious pair of crossings, or
+        # two real ones hidden): none added where it cannot
+        crossings = _followed_crossings(chord, ma, mb, n, unit_tol, locate_tol_z)
+        if crossings is None:    # still ambiguous: a crossing is real only where the count outside changed
+            same = _outside_counts(ma, unit_tol) == _outside_counts(mb, unit_tol)
+            crossings = [] if same else [(0.0, 1.0, a, b, i, j) for i, j in _crossings(ma, mb, unit_tol)]
+        for lo, hi, pt_lo, pt_hi, i, j in crossings:
             # the crossing multiplier followed by pairing each trial's multipliers with those of the
             # nearest point known: theta -> (multipliers, the index of the followed one)
-            track = {0.0: (ma, i), 1.0: (mb, j)}
+            track = {lo: (_padded(pt_lo.multipliers, n), i), hi: (_padded(pt_hi.multipliers, n), j)}
 
             def followed(pt: _Point, theta: float) -> complex:
                 mu_ref, k = track[min(track, key=lambda key: abs(key - theta))]
@@ -429,16 +519,16 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
                 track[theta] = (mu, k)
                 return complex(mu[k])
 
-            mu_a, mu_b = complex(ma[i]), complex(mb[j])
+            mu_a, mu_b = complex(track[lo][0][i]), complex(track[hi][0][j])
             g_a, g_b = abs(mu_a) - 1.0, abs(mu_b) - 1.0
             if g_a * g_b > 0:     # the inside end lies within unit_tol outside the circle: the crossing is
                 # there, or just beyond it by the linear extrapolation of |mu| - 1 (its accuracy)
                 inside_a = not _outside(np.array([mu_a]), unit_tol)[0]
-                pt, theta, mu = (a, 0.0, mu_a) if inside_a else (b, 1.0, mu_b)
-                half = abs(g_a if inside_a else g_b) / abs(g_b - g_a) * chord.length
+                pt, theta, mu = (pt_lo, lo, mu_a) if inside_a else (pt_hi, hi, mu_b)
+                half = abs(g_a if inside_a else g_b) / abs(g_b - g_a) * float(np.linalg.norm(pt_hi.z - pt_lo.z))
             else:
                 pt, theta, half = _locate(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a, g_b,
-                                          locate_tol_z, True)
+                                          locate_tol_z, True, (lo, hi, pt_lo, pt_hi))
                 mu = followed(pt, theta)
             kind = _kind(mu)
             if kind == "fold" and fold_by_tangent:
