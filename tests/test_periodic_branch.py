@@ -167,3 +167,68 @@ def test_branch_started_with_its_section_on_the_impact_runs_at_the_section_the_s
         (xr, vr), = orbit_state(OSC, w, [(ref.tau, ref.u)], 2 * math.pi / w, np.array([br.t0]))
         size = abs(xr) + abs(vr) / w
         assert abs(pt["q0"][0] - xr) + abs(pt["v0"][0] - vr) / w <= 1e-8 * size
+
+
+# --- issue 36: the section moves when an event drifts onto it ---
+
+def _drifting_branch(w_end=2.1):
+    """The period-1 orbit from w = 1.95 with its section at t0 = 0.9 s: its impact (closed form: at 0.72 s at
+    w 1.95, 0.90 s at 2.038, 1.03 s at 2.1) drifts onto that section inside the range, where a branch with one
+    section used to stop ("the initial state penetrates ...", measured at 2.0381 from 1.8)."""
+    p = period1_branch(OSC, 1.95, -1)
+    s = orbit_state(OSC, 1.95, [(p.tau, p.u)], p.period, np.array([0.9]))[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return orbit_branch(_system, _period, [s[0]], [s[1]], 1.95, w_end, key="w", t0=0.9, step=0.01, switch=False)
+
+
+def _check_points_at_their_sections(br):
+    for pt in br.points:
+        w = pt["value"]
+        ref = period1_branch(OSC, w, -1)
+        # each point's state at its own section t0_s is the closed-form orbit's there (tolerance as in
+        # test_branch_is_the_closed_form_period1_orbit...: 1e-9 corrected, times J's condition <= 10)
+        x = orbit_state(OSC, w, [(ref.tau, ref.u)], ref.period, np.array([pt["t0_s"] % ref.period]))[0]
+        size = abs(x[0]) + abs(x[1]) / w
+        assert abs(pt["q0"][0] - x[0]) + abs(pt["v0"][0] - x[1]) / w <= 1e-8 * size
+        # the multipliers do not depend on the section (the period maps at two sections are conjugate)
+        mu = np.array([complex(*m) for m in pt["multipliers"]])
+        assert np.abs(np.sort_complex(mu) - np.sort_complex(ref.multipliers)).max() <= 1e-7
+
+
+def test_branch_moves_its_section_off_a_drifting_impact_and_goes_through():
+    br = _drifting_branch()
+    assert br.stop == "end" and br.points[-1]["value"] == pytest.approx(2.1, abs=1e-12)
+    assert br.reanchors and not any(r["forced"] for r in br.reanchors)
+    assert br.t0 == 0.9 and br.points[0]["t0_s"] == 0.9
+    assert len({pt["t0_s"] for pt in br.points}) == len(br.reanchors) + 1
+    _check_points_at_their_sections(br)
+    for r in br.reanchors:
+        # the moved point's multipliers at the old and the new section: the same spectrum (conjugate maps), to the
+        # eigenvalues' round-off times the monodromy's size (~10) and the correction's 1e-9
+        before, after = (np.sort_complex([complex(*m) for m in r[k]]) for k in ("multipliers_before",
+                                                                               "multipliers_after"))
+        assert np.abs(before - after).max() <= 1e-7
+        # the new section lies in the middle of the impact-free period: half a period from the impact
+        ref = period1_branch(OSC, r["value"], -1)
+        assert abs((r["t0_s"] - ref.tau) % ref.period - 0.5 * ref.period) <= 1e-6 * ref.period
+    assert br.summary()["reanchors"] == br.reanchors and "t0_s" in br.summary()["branch"][-1]
+
+
+def test_a_step_that_fails_at_the_section_moves_it(monkeypatch):
+    import nsfem.periodic.branch as branch_module
+
+    monkeypatch.setattr(branch_module, "RECENTER", 0.0)   # no move ahead of time: only when a step fails
+    br = _drifting_branch()
+    assert br.stop == "end"
+    assert [r["forced"] for r in br.reanchors] == [True]
+    # the impact reaches t0 = 0.9 s at w = 2.0381 (closed form): the step from the last point before it failed
+    assert 2.0 < br.reanchors[0]["value"] < period_crossing(0.9)
+    _check_points_at_their_sections(br)
+
+
+def period_crossing(t0):
+    """The w in (1.95, 2.1) where the impact time tau(w) (closed form) reaches t0."""
+    from scipy.optimize import brentq
+
+    return brentq(lambda w: period1_branch(OSC, w, -1).tau - t0, 1.95, 2.1, xtol=1e-12)

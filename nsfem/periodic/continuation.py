@@ -114,6 +114,7 @@ class BranchPoint:
     converged: bool                   # max |r(u, p)| <= tol
     residual: float = math.nan        # max |r(u, p)| at the point
     s: float = 0.0                    # arclength from the first point, in units of p (along the chords)
+    anchor: int = 0                   # the coordinates u is in: the number of re-anchorings before it
 
 
 @dataclass
@@ -128,6 +129,10 @@ class Branch:
     #  "detected_by": "tangent" | "multipliers"}
     stop: str = ""      # "end" | "left" | "closed" | "max_steps" | "failed"
     reason: str = ""    # one sentence: where and why the branch ended
+    # the changes of coordinates (``reanchor``): {"index": the point (its u in the old coordinates; the next
+    #  points in the new), "value": p, "anchor": the new coordinates' number, "forced": after a failed step,
+    #  "multipliers_before", "multipliers_after": the point's in the old and in the new coordinates}
+    reanchors: list[dict] = field(default_factory=list)
 
 
 class _Failure(Exception):
@@ -537,18 +542,60 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
     return [d for _, d in sorted(found, key=lambda x: x[0])]
 
 
-def _branch_point(problem: _Scaled, pt: _Point, s: float, tol: float, unit_tol: float) -> BranchPoint:
+def _branch_point(problem: _Scaled, pt: _Point, s: float, tol: float, unit_tol: float, anchor: int = 0
+                  ) -> BranchPoint:
     mu = pt.multipliers
     stable = None if mu is None else bool(np.all(np.abs(mu) < 1.0 + unit_tol))
     return BranchPoint(p=problem.p(pt.z), u=problem.u(pt.z), multipliers=mu, stable=stable,
-                       converged=pt.rmax <= tol, residual=pt.rmax, s=s)
+                       converged=pt.rmax <= tol, residual=pt.rmax, s=s, anchor=anchor)
+
+
+def _reanchored(problem: _Scaled, reanchor: Callable, pt: _Point, t: np.ndarray, forced: bool, tol: float,
+                max_iter: int) -> tuple[_Point, np.ndarray] | None:
+    """The point in the coordinates ``reanchor`` moves to (re-corrected there at its p) and its tangent, oriented
+    as the old one mapped by the change's Jacobian (by the sign of its p component without one); None when
+    ``reanchor`` keeps the coordinates. _Failure when the change or the re-correction fails."""
+    u, p = problem.u(pt.z), problem.p(pt.z)
+    try:
+        out = reanchor(u.copy(), p, forced)
+    except _Contract:
+        raise
+    except (NsfemError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        raise _Failure(f"moving the coordinates at p = {p:.10g} failed: {_line(exc)}") from exc
+    if out is None:
+        return None
+    try:
+        u_new, M = out
+        u_new = np.asarray(u_new, dtype=float)
+        M = None if M is None else np.asarray(M, dtype=float)
+    except (TypeError, ValueError):
+        raise _Contract("continue_branch: reanchor(u, p, forced) must return None or (u_new, M or None)") from None
+    m = problem.m
+    if u_new.shape != (m,) or (M is not None and M.shape != (m, m)):
+        raise _Contract(f"continue_branch: reanchor returned u of shape {u_new.shape} and M of shape "
+                        f"{None if M is None else M.shape}, expected ({m},) and ({m}, {m})")
+    if not (np.all(np.isfinite(u_new)) and (M is None or np.all(np.isfinite(M)))):
+        raise _Failure(f"moving the coordinates at p = {p:.10g} gave values that are not finite")
+    problem._last = None     # (the residual is another function of u now)
+    z = problem.z(u_new, p)
+    z[-1] = pt.z[-1]
+    e_p = np.zeros(m + 1)
+    e_p[-1] = 1.0
+    new = _correct(problem, z, e_p, float(z[-1]), tol, max_iter)
+    new.multipliers = problem.multipliers(new.z)
+    if M is None:
+        previous = e_p * (1.0 if t[-1] >= 0 else -1.0)
+    else:
+        previous = np.append(M @ (t[:-1] * problem.u_scale) / problem.u_scale, t[-1])
+    return new, _tangent(new.jac, previous / np.linalg.norm(previous))
 
 
 def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: float | None = None,
                     max_steps: int = 200, tol: float = 1e-9, stability: Stability | None = None,
                     u_scale=1.0, max_step: float | None = None, min_step: float | None = None,
                     margin: float | None = None, locate_tol: float | None = None, unit_tol: float = 1e-6,
-                    max_iter: int = 8, on_point: Callable[[BranchPoint], None] | None = None) -> Branch:
+                    max_iter: int = 8, on_point: Callable[[BranchPoint], None] | None = None,
+                    reanchor: Callable | None = None) -> Branch:
     """Follow the branch of r(u, p) = 0 through (u0, p0) towards p_end by pseudo-arclength (Keller 1977).
 
     - residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)), real; u0 is first corrected at p = p0;
@@ -566,7 +613,15 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
       along the branch, in units of p, to which special points are located;
     - ``unit_tol``: the margin of the unit circle (a point is stable when every |mu| < 1 + unit_tol);
     - ``on_point(point)``: called with each accepted :class:`BranchPoint` as it is added (the first one too), e.g.
-      to report progress or save the points so far.
+      to report progress or save the points so far;
+    - ``reanchor(u, p, forced) -> None | (u_new, M)``: a change of the unknowns' coordinates along the branch
+      (an orbit's section moved): called after each accepted point (``forced`` False) and once when a step from
+      a point fails down to ``min_step`` (True). None keeps them; (u_new, M) is the same solution in new
+      coordinates, in which ``residual`` and ``stability`` work from then on, with M = du_new/du (m, m) or None
+      (it orients the new tangent; without it the tangent keeps its p component's sign). The point is
+      re-corrected there at its p and the branch goes on from it; special points are located within one
+      coordinate system (between two points, before the change), :attr:`Branch.reanchors` lists the changes and
+      :attr:`BranchPoint.anchor` says which coordinates a point's u is in.
     """
     if not callable(residual):
         raise NsfemError(f"continue_branch: residual must be callable, got {type(residual).__name__}")
@@ -623,6 +678,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         raise NsfemError("continue_branch: u_scale must be finite and > 0")
     if on_point is not None and not callable(on_point):
         raise NsfemError(f"continue_branch: on_point must be callable or None, got {type(on_point).__name__}")
+    if reanchor is not None and not callable(reanchor):
+        raise NsfemError(f"continue_branch: reanchor must be callable or None, got {type(reanchor).__name__}")
     said = on_point if on_point is not None else (lambda point: None)
 
     problem = _Scaled(residual, stability, u0.size, scale, p0, p_end)
@@ -650,13 +707,29 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     points = [_branch_point(problem, a, 0.0, tol, unit_tol)]
     said(points[-1])
     bifurcations: list[dict] = []
+    reanchors: list[dict] = []
+    anchor = 0
     s = 0.0
+
+    def move(pt: _Point, t: np.ndarray, forced: bool):
+        """The point and tangent in the coordinates reanchor moves to, recorded; None when it keeps them."""
+        nonlocal anchor
+        out = _reanchored(problem, reanchor, pt, t, forced, tol, max_iter)
+        if out is not None:
+            anchor += 1
+            reanchors.append({"index": len(points) - 1, "value": points[-1].p, "anchor": anchor, "forced": forced,
+                              "multipliers_before": pt.multipliers, "multipliers_after": out[0].multipliers})
+        return out
+
+    def ended(stop: str, reason: str) -> Branch:
+        return Branch(points, bifurcations, stop, reason, reanchors)
+
     while True:
         if len(points) - 1 >= max_steps:
-            return Branch(points, bifurcations, "max_steps",
-                          f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
+            return ended("max_steps", f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
         # predictor-corrector, the step halved until a correction succeeds
         failure = ""
+        ds_first, moved_here = ds, False
         while True:
             z_pred = a.z + ds * t
             try:
@@ -677,30 +750,47 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
             except _Failure as exc:
                 failure = str(exc)
                 ds *= 0.5
+                if ds < ds_min and reanchor is not None and not moved_here:
+                    # (the branch would stop here: new coordinates, if the caller has any, and the step again)
+                    moved_here = True
+                    try:
+                        out = move(a, t, True)
+                    except _Failure as exc2:
+                        out, failure = None, f"{failure}; {exc2}"
+                    if out is not None:
+                        (a, t), ds = out, ds_first
+                        continue
                 if ds < ds_min:
-                    return Branch(points, bifurcations, "failed",
-                                  f"no correction from p = {points[-1].p:.10g} with steps down to min_step = "
-                                  f"{min_step:g}: {failure}")
+                    return ended("failed", f"no correction from p = {points[-1].p:.10g} with steps down to min_step = "
+                                           f"{min_step:g}: {failure}")
         chord = float(np.linalg.norm(b.z - a.z))
         s += chord * span
-        bifurcations += _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
-        points.append(_branch_point(problem, b, s, tol, unit_tol))
+        found = _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
+        for f in found:
+            f["anchor"] = anchor
+        bifurcations += found
+        points.append(_branch_point(problem, b, s, tol, unit_tol, anchor))
         said(points[-1])
         if b.z[-1] >= 1.0:
-            return Branch(points, bifurcations, "end", f"reached p_end = {p_end:g}")
+            return ended("end", f"reached p_end = {p_end:g}")
         if not lo_z <= b.z[-1] <= hi_z:
-            return Branch(points, bifurcations, "left",
-                          f"the branch folded back and left [{min(p0, p_end) - margin:g}, {max(p0, p_end) + margin:g}]"
-                          f" at p = {points[-1].p:.10g}")
-        if len(points) > 3 and s > 3 * chord * span:
+            return ended("left", f"the branch folded back and left [{min(p0, p_end) - margin:g}, "
+                                 f"{max(p0, p_end) + margin:g}] at p = {points[-1].p:.10g}")
+        if anchor == 0 and len(points) > 3 and s > 3 * chord * span:   # (first_z: in the first coordinates)
             w = b.z - a.z
             x = float(np.clip((first_z - a.z) @ w / (w @ w), 0.0, 1.0))
             if np.linalg.norm(a.z + x * w - first_z) < 0.25 * chord:
-                return Branch(points, bifurcations, "closed",
-                              f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
-                              "in units of p: a closed branch")
+                return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
+                                       "in units of p: a closed branch")
         if b.iterations <= GROW_ITERATIONS and tb @ t > EASY_TURN_COS:
             ds = min(ds * GROW, ds_max)
+        if reanchor is not None:
+            try:
+                out = move(b, tb, False)
+            except _Failure as exc:
+                return ended("failed", f"at p = {points[-1].p:.10g}: {exc}")
+            if out is not None:
+                b, tb = out
         a, t = b, tb
 
 

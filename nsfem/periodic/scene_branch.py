@@ -56,7 +56,8 @@ class SceneBranch:
     """A scene's branch of periodic orbits over ``key``: ``points`` (dicts, in order along the branch from the
     LOW side to the HIGH side), ``bifurcations`` ([{"kind", "value", ...}]), ``doubled`` (the period-doubled
     branches switched onto, each {"multiple", "points", "bifurcations", "stop", "reason"}), ``sides`` (per
-    direction followed: {"towards", "stop", "reason"}), ``start`` (the :class:`~.scene.SceneOrbit` it started
+    direction followed: {"towards", "stop", "reason", "reanchors": [{"value", "t0_s", "forced"}]: where the section
+    moved}), ``start`` (the :class:`~.scene.SceneOrbit` it started
     from) and the arrays of the points' section states (``q0``, ``v0``: (points, n))."""
 
     key: str
@@ -223,8 +224,9 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
     records: dict[tuple, dict] = {}   # (multiple, p, u's bytes) -> the point's record, for the doubled branches
 
     def point(bp, mult: int, side: int) -> None:
-        rec = family.point(bp.p, bp.u, mult, so.orbit.t0)
-        rec.update({"value": float(bp.p), key: float(bp.p), "converged": bool(bp.converged),
+        t0 = float(getattr(bp, "t0_s", so.orbit.t0))   # (each point's own section: it moves off drifting events)
+        rec = family.point(bp.p, bp.u, mult, t0)
+        rec.update({"value": float(bp.p), key: float(bp.p), "t0_s": t0, "converged": bool(bp.converged),
                     "residual": float(bp.residual) if math.isfinite(bp.residual) else rec["residual"]})
         _stability(rec, bp.multipliers)
         records[(mult, float(bp.p), np.asarray(bp.u, dtype=float).tobytes())] = rec
@@ -252,13 +254,17 @@ def branch_of_scene(scene: "Scene", key: str, low: float, high: float, *, multip
                 br = orbit_branch(family.system_at, family.period_at, so.orbit.q0, so.orbit.v0, p0, end, key=key,
                                   multiple=multiple, t0=float(so.orbit.t0), tol=tol, step=step, max_steps=steps,
                                   on_point=lambda bp, m, k=k: point(bp, m, k))
-                sb.sides.append({"towards": float(end), "stop": br.stop, "reason": br.reason})
+                moves = [{name: r[name] for name in ("value", "t0_s", "forced")} for r in br.reanchors]
+                sb.sides.append({"towards": float(end), "stop": br.stop, "reason": br.reason, "reanchors": moves})
+                if moves and progress is not None:
+                    at = ", ".join(format(r["value"], ".6g") for r in moves[:5]) + (", ..." if len(moves) > 5 else "")
+                    progress(f"towards {key} = {end:g} the section moved {len(moves)} time(s) off events of the "
+                             f"orbit that drifted onto it (at {at})")
                 for bif in br.bifurcations:
                     failed = {"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {}
                     sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end), **failed})
-                for d in br.doubled:   # (at its own section: the shooting moves one lying on an event; the records
-                    # of its points, made as they came at the first orbit's t0, hold only where that is the same)
-                    sb.doubled.append(_doubled(d, family, d.t0, records if d.t0 == so.orbit.t0 else {}))
+                for d in br.doubled:   # (each point at its own section, as its record made when it came)
+                    sb.doubled.append(_doubled(d, family, records))
                 if br.stop == "failed":
                     say(f"the branch towards {key} = {end:g} ended early: {br.reason}")
     except KeyboardInterrupt:
@@ -303,16 +309,16 @@ def _stability(rec: dict, multipliers) -> None:
                largest_multiplier=float(np.abs(mu).max(initial=0.0)))
 
 
-def _doubled(d, family: "_Family", t0: float, records: dict) -> dict:
+def _doubled(d, family: "_Family", records: dict) -> dict:
     """A doubled :class:`~.branch.OrbitBranch` as the JSON has it, its points with amplitudes (those reported as
-    they were found, from ``records``)."""
+    they were found, from ``records``; each point's at its own section ``t0_s``)."""
     pts = []
     for p in d.points:
         u = np.concatenate([p["q0"], p["v0"]])
         rec = records.get((d.multiple, float(p["value"]), u.tobytes()))
         if rec is None:
-            rec = family.point(p["value"], u, d.multiple, t0)
-            rec.update({k: p[k] for k in ("value", d.key, "converged", "residual") if k in p})
+            rec = family.point(p["value"], u, d.multiple, p["t0_s"])
+            rec.update({k: p[k] for k in ("value", d.key, "t0_s", "converged", "residual") if k in p})
             _stability(rec, [complex(*z) for z in p["multipliers"]])
         pts.append(rec)
     return {"multiple": d.multiple, "points": pts,
