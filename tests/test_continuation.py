@@ -19,6 +19,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from nsfem.errors import NsfemError
 from nsfem.periodic.continuation import Branch, continue_branch, critical_vector
@@ -460,3 +462,14 @@ def test_two_real_crossings_in_one_step_that_keep_the_count_are_both_found():
     assert [x["kind"] for x in b.bifurcations] == ["neimark-sacker", "neimark-sacker"]
     for x in b.bifurcations:
         assert abs(x["value"] - 0.5) <= x["accuracy"] + SLACK
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(r_out=st.floats(1.02, 1.5), r_in=st.floats(0.5, 0.98), a=st.lists(st.floats(0.05, 3.0), min_size=4,
+                                                                      max_size=4))
+def test_multipliers_that_keep_their_side_make_no_crossing_whatever_their_paths(r_out, r_in, a):
+    # property: a pair outside and a pair inside at constant moduli, their angles moving linearly over the one step
+    # (passing each other or not) cross nothing: no bifurcation, both points unstable
+    residual, stability = _passing((r_out, r_out), (a[0], a[1]), (r_in, r_in), (a[2], a[3]))
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=1.0, max_step=1.0, stability=stability, tol=TOL)
+    assert b.bifurcations == [] and [p.stable for p in b.points] == [False, False]
