@@ -178,7 +178,8 @@ def continuation(mu: float, facets: int, lo: float, hi: float, steps: int, say) 
     br = orbit_branch(rub_i.system, lambda f: 1.0 / f, q, v, lo, hi, key="rotation.speed_hz", t0=t0,
                       max_steps=steps, switch=False,
                       on_point=lambda bp, m: say(f"  {bp.p:.6g} Hz: max |multiplier| {np.abs(bp.multipliers).max():.6f}"
-                                                 f" (section t0 {1e3 * bp.t0_s:.4f} ms) [{time.perf_counter() - t:.0f} s]"))
+                                                 f" (section t0 {1e3 * bp.t0_s:.4f} ms) "
+                                                 f"[{time.perf_counter() - t:.0f} s]"))
     pts = []
     for q_ in br.points:
         mu_ = np.array([complex(*m) for m in q_["multipliers"]])

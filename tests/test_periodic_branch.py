@@ -232,3 +232,57 @@ def period_crossing(t0):
     from scipy.optimize import brentq
 
     return brentq(lambda w: period1_branch(OSC, w, -1).tau - t0, 1.95, 2.1, xtol=1e-12)
+
+
+@pytest.mark.slow
+def test_the_rub_branch_runs_through_the_corners_drifting_onto_its_section():
+    """The shipped rub at mu 0.55 on 64 facets, inertial frame, from the round ring's state at a facet's middle at
+    26 Hz: with one section the branch stopped at 26.9926 Hz (a corner passage reached it: "the initial state
+    penetrates stator.0.58"); now it runs to 27.1 Hz, moving its section ahead of the corners (measured: twice). The
+    Neimark-Sacker point lies between 26.5 Hz (stable) and 27.0 Hz (unstable; tests/test_rub_whirl.py), the
+    located point has |mu| = 1 to its bracket's accuracy (|d|mu|/df| ~ 5e-3 per Hz times 1e-6 of the range, plus
+    the multipliers' own ~1e-9), and the multipliers at a moved point are the same at both sections (conjugate
+    period maps: round-off of the eigenvalues, ~1e-12 measured, 1e-7 allowed as in the oscillator's test)."""
+    from rub_reference import ring_rows, round_rub
+    from nsfem import load_scene
+    from nsfem.fem.assemble import build_model
+    from nsfem.fem.components import lateral_turn
+    from nsfem.integrate import ContactSystem
+    from nsfem.periodic.flow import flow
+    from nsfem.reduce import scene_reduction
+    import scipy.linalg as sla
+
+    scene = load_scene("rub", ["stator.0.friction=0.55", "stator.0.facets=64", "rotation.frame=inertial"])
+    rotating = load_scene("rub", ["stator.0.friction=0.55", "stator.0.facets=64"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    T = np.asarray(red.T)
+    J = np.linalg.lstsq(T, lateral_turn(model.spaces, T.shape[0]) @ T, rcond=None)[0]
+    R = ContactSystem.from_scene(rotating, model, red, speed_hz=26.0)
+    D, c, _ = ring_rows(R.contacts.JN, R.contacts.jN)
+    rub = round_rub(R.Q, R.f0, D, c, 0.55, 1.0)
+    w = R.omega
+    t0 = ((-math.atan2(rub.n[1], rub.n[0])) % (2.0 * math.pi / 64)) / w
+    q = sla.expm(w * t0 * J) @ rub.q
+
+    def system_at(f):
+        return ContactSystem.from_scene(scene, model, red, speed_hz=f)
+
+    br = orbit_branch(system_at, lambda f: 1.0 / f, q, w * J @ q, 26.0, 27.1, key="f", t0=t0, switch=False)
+    assert br.stop == "end" and br.points[-1]["value"] == pytest.approx(27.1, abs=1e-12)
+    assert br.reanchors and not any(r["forced"] for r in br.reanchors)
+    for r in br.reanchors:
+        before, after = (np.sort_complex([complex(*m) for m in r[k]]) for k in ("multipliers_before",
+                                                                               "multipliers_after"))
+        assert np.abs(before - after).max() <= 1e-7
+    (ns,) = [b for b in br.bifurcations]
+    assert ns["kind"] == "neimark-sacker" and 26.5 < ns["value"] < 27.0
+    for pt in br.points:
+        assert pt["stable"] == (pt["value"] < ns["value"])
+    # the points next to the last move are orbits at their own sections: one period back to the state (the
+    # corrector's 1e-9 of the size times J's condition, ~1 / (1 - |mu|) <= 1e3 near the onset: 1e-6)
+    k = br.reanchors[-1]["index"]
+    for pt in br.points[k:k + 2]:
+        fl = flow(system_at(pt["value"]), pt["t0_s"], pt["q0"], pt["v0"], pt["period_s"], jacobian=False)
+        assert np.abs(fl.q - pt["q0"]).max() <= 1e-6 * np.abs(pt["q0"]).max()
+    assert br.points[k]["t0_s"] != br.points[k + 1]["t0_s"]

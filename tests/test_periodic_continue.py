@@ -91,6 +91,10 @@ def test_a_branch_with_an_impact_a_period_consists_of_orbits(stop_branch):
 
     scene, sb = stop_branch
     assert sb.start_value == 22.0 and sb.scene_value == 26.0 and [s["towards"] for s in sb.sides] == [20.0]
+    # the impact drifts towards the start's section along 20:22 (within a quarter period of it by 21.96 Hz): the
+    # section moves, listed, and the points after it carry the new one
+    (side,) = sb.sides
+    assert side["reanchors"] and len({p["t0_s"] for p in sb.points}) == len(side["reanchors"]) + 1
     assert sb.stop == "end" and sb.points[0]["value"] == 20.0 and sb.points[-1]["value"] == 22.0
     model, red = sb.start.system.info["model"], sb.start.system.info["reduction"]
     for p in sb.points:
@@ -189,6 +193,9 @@ def test_cli_continue_writes_branch_json_npz_png_and_a_table(tmp_path, capsys):
         assert list(z["sensors"]) == ["disk_y", "disk_z"]
         assert np.array_equal(z["amplitudes"][:, 0], [p["amplitudes"]["disk_y"] for p in payload["branch"]])
         assert json.loads(str(z["meta"]))["key"] == "rotation.speed_hz"
+        # each point's section time (it moves off the stop's impact as that drifts with the speed)
+        assert np.array_equal(z["t0_s"], [p["t0_s"] for p in payload["branch"]])
+        assert float(z["t0"]) == payload["branch"][-1]["t0_s"]   # (the start: 22 Hz, followed towards 21.5)
     assert payload["bifurcations"] == [] and payload["stop"] == "end"
     assert key_label("rotation.speed_hz") == "rotor speed [Hz]"
     # the text: a row per point and the bifurcations' line

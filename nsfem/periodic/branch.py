@@ -6,7 +6,11 @@ residual r(u, p) = phi_T(p)(u; p) - u with J_u = Phi_T - I (the monodromy matrix
 J_p by central differences in p (each a flow of the system at p +- h; h = 1e-6 of the range: the flow's event
 times are located to ~1e-13 s, so the difference's noise stays near 1e-7 relative, its truncation h^2 below);
 :func:`.continuation.continue_branch` follows the branch through folds and locates where a multiplier leaves the
-unit circle. At a period doubling the doubled orbit (period 2 T) branches off along the eigenvector of the
+unit circle. The orbit's phase drifts with p, so its events move over the section, where the section state jumps
+(an impact's velocity) and the map is not smooth: after each point, when an event has come within a quarter of the
+longest event-free stretch of the period from the section (or a step failed at the smallest step), the section
+moves to that stretch's middle (:meth:`_Problem.reanchor`, the continuation's ``reanchor``); each point keeps its
+section time ``t0_s``. At a period doubling the doubled orbit (period 2 T) branches off along the eigenvector of the
 multiplier -1: :func:`doubled_start` solves for it a little past the bifurcation, and the doubled branch is
 continued like the first.
 """
@@ -31,6 +35,9 @@ DP = 1e-6
 #: orbit has drifted to within this share of that stretch's half from it: from the middle the phase may drift by
 #: half of it before (the rub on 64 facets: a corner every 1/64 period, drifting by one per ~0.8 Hz)
 RECENTER = 0.5
+#: the section moves to the middle of a stretch at least this share of the longest (the one whose time is nearest
+#: t = 0): its events then lie 0.375 of the longest from it, beyond the trigger's 0.25
+WIDE = 0.75
 
 
 @dataclass
@@ -108,8 +115,8 @@ class _Problem:
     def reanchor(self, u: np.ndarray, p: float, forced: bool):
         """The continuation's change of coordinates (:func:`.continuation.continue_branch`'s ``reanchor``): when an
         event of the orbit through u at p lies within RECENTER of half the longest event-free stretch of its period
-        from the section (or a step failed: ``forced``), the section moves to that stretch's middle; returns
-        (the state there, the flow's transition matrix to it) or None."""
+        from the section (or a step failed: ``forced``), the section moves to the middle of a long stretch (WIDE);
+        returns (the state there, the flow's transition matrix to it) or None."""
         fl = self._flows.get((p, u.tobytes()))
         n = u.size // 2
         if fl is None:
@@ -119,19 +126,22 @@ class _Problem:
         if not times:
             return None
         gaps = [(b - a, a) for a, b in zip(times, times[1:] + [times[0] + T])]
-        length, after = max(gaps)
+        longest = max(length for length, _ in gaps)
         near = min(min(times), T - max(times))
-        shift = (after + 0.5 * length) % T
-        if forced:   # (unless the section is in that middle already: then the events are not what failed)
-            if min(shift, T - shift) <= SECTION_MARGIN * T:
-                return None
-        elif near >= RECENTER * 0.5 * length:
+        if not forced and near >= RECENTER * 0.5 * longest:
             return None
+        # the middle of a stretch of at least WIDE of the longest (its events then RECENTER-farther than the trigger)
+        # whose new section time lies nearest t = 0: the state a flow of ``shift`` later is the orbit's at
+        # t0 + shift - T too, and the section's forcing phase w t0 drifts with the speed by t0 dw (least near 0)
+        def new_t0(shift: float) -> float:
+            return self.t0 + shift - (T if shift > 0.5 * T else 0.0)
+
+        shifts = [(after + 0.5 * length) % T for length, after in gaps if length >= WIDE * longest]
+        shift = min(shifts, key=lambda x: abs(new_t0(x)))
+        if forced and min(shift, T - shift) <= SECTION_MARGIN * T:
+            return None   # (the section is in that middle already: the events are not what failed)
         moved = FlowMap(self.system_at(p), self.t0, shift)(u[:n], u[n:])
-        # the state a flow of ``shift`` later is the orbit's at t0 + shift - T too: the section moves by less than
-        # half a period either way (its forcing phase w t0 drifts with the speed by t0 dw: a section near t = 0
-        # drifts least)
-        self.t0 = self.t0 + shift - (T if shift > 0.5 * T else 0.0)
+        self.t0 = new_t0(shift)
         self.t0s.append(self.t0)
         self._maps.clear()
         self._flows.clear()
@@ -172,7 +182,9 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     """Continue the orbit through (q0, q0') at p0 (period ``multiple`` T(p0)) towards p_end.
 
     ``system_at(p)``: the ContactSystem at parameter p; ``period_at(p)``: the forcing period there [s]. The start is
-    first made an orbit at p0 (:func:`.shooting.periodic_orbit`). With ``switch``, at each located period doubling
+    first made an orbit at p0 (:func:`.shooting.periodic_orbit`); the section moves off events that drift onto it
+    (module docstring: each point's ``t0_s``, the moves in ``reanchors``; ``on_point`` gets
+    :class:`OrbitPoint` objects). With ``switch``, at each located period doubling
     the doubled branch is followed too (``depth`` levels). ``on_point(point, multiple)``: called with each
     accepted :class:`~.continuation.BranchPoint` of this branch and of the doubled ones (``multiple``: its orbit's
     period in forcing periods) as it is found."""

@@ -377,7 +377,8 @@ def _followed_crossings(chord: "_Chord", ma: np.ndarray, mb: np.ndarray, n: int,
     lo, index at hi). Pairing A's multipliers with B's claims a crossing wherever a multiplier changed side, which
     is wrong where two on different sides passed near each other (a spurious pair of crossings). Each claimed
     crossing is followed: its stretch of the chord halved (a trial point with its multipliers; at least once)
-    until the pairing across it is unambiguous (:func:`_resolved`); claims that vanish on the way were exchanges. None when a claim
+    until the pairing across it is unambiguous (:func:`_resolved`); claims that vanish on the way were exchanges.
+    None when a claim
     stays ambiguous down to ``min_length_z`` or ``budget`` trial points, or a trial point fails."""
     samples = [(0.0, chord.a, ma), (1.0, chord.b, mb)]
     used = 0

@@ -404,4 +404,5 @@ class _Family:
         return {"period_s": float(period), "residual": float(np.abs(F).max()) / size,
                 "events_per_period": len(res.events), "amplitudes": amplitudes, "multiple": int(multiple),
                 "section_q_max": float(np.abs(q0).max(initial=0.0)),
+                "orbit_q_max": float(np.abs(np.asarray(res.q)).max(initial=0.0)),
                 "q0": q0, "v0": v0}
