@@ -286,3 +286,30 @@ def test_the_rub_branch_runs_through_the_corners_drifting_onto_its_section():
         fl = flow(system_at(pt["value"]), pt["t0_s"], pt["q0"], pt["v0"], pt["period_s"], jacobian=False)
         assert np.abs(fl.q - pt["q0"]).max() <= 1e-6 * np.abs(pt["q0"]).max()
     assert br.points[k]["t0_s"] != br.points[k + 1]["t0_s"]
+
+
+def test_the_period_doubling_is_located_and_switched_on_after_the_section_moved():
+    # the section starts 0.2 T after the impact at w 2.55 (within a quarter period of it): it moves at the first
+    # point; the period doubling is then located in the moved coordinates as on the fixed section (1e-6, as in
+    # test_branch_is_the_closed_form_period1_orbit...) and the doubled branch starts at the bifurcation's own
+    # section (its points: period-2 orbits with the closed form's multipliers)
+    p = period1_branch(OSC, 2.55, -1)
+    t0 = p.tau + 0.2 * p.period
+    s = orbit_state(OSC, 2.55, [(p.tau, p.u)], p.period, np.array([t0]))[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        br = orbit_branch(_system, _period, [s[0]], [s[1]], 2.55, 2.75, key="w", t0=t0, step=0.02, depth=1)
+    assert br.stop == "end" and br.reanchors and br.reanchors[0]["index"] == 1
+    w_pd = period_doubling_frequency(OSC, 2.5, 2.75)
+    (pd,) = br.bifurcations
+    assert pd["kind"] == "period-doubling" and abs(pd["value"] - w_pd) <= 1e-6
+    assert pd["t0_s"] == br.reanchors[-1]["t0_s"] or pd["index"] < br.reanchors[-1]["index"]
+    (doubled,) = br.doubled
+    assert len(doubled.points) >= 3
+    for pt in doubled.points:
+        mu = np.array([complex(*m) for m in pt["multipliers"]])
+        ref = period2_orbit(OSC, pt["value"])
+        # the corrector's 1e-9 of the orbit's size, amplified by J's condition 1 / |1 - |mu|| (160 just past the
+        # doubling, where the period-2 orbit's multiplier is near 1), times 10 for the multipliers' sensitivity
+        bound = 10 * 1e-9 / np.abs(1.0 - np.abs(ref.multipliers)).min()
+        assert np.abs(np.sort(np.abs(mu)) - np.sort(np.abs(ref.multipliers))).max() <= bound
