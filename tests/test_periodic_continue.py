@@ -384,3 +384,26 @@ def test_ctrl_c_inside_a_branch_flow_ends_the_branch(monkeypatch):
     sb = branch_of_scene(scene, "rotation.speed_hz", 25.0, 27.0, transient_periods=0, steps=20)
     assert sb.interrupted and sb.stop == "interrupted"
     assert len(calls) == 5   # stopped there, not after the branch's other flows
+
+
+def test_a_points_amplitudes_do_not_depend_on_its_section(stop_branch):
+    """Amplitudes are reported from each point's own section (it moves along the branch): they are the orbit's,
+    the same from any section. The point where the section moved, reported again from a third of a period on:
+    amplitudes equal to the extremes' accuracy twice over: a smooth one refined to 1.5e-8 of the amplitude
+    (test_periodic_cli), the stop's side as in test_the_branch_amplitude_at_the_stop_is_the_stop (1e-11 m): 2e-11 m;
+    the largest |q| over the period (256 samples, the maximum's sampling error 1 - cos(pi / 256) = 7.5e-5 at a
+    smooth peak) to 1e-4."""
+    from nsfem.periodic.flow import flow
+    from nsfem.periodic.scene_branch import _Family
+
+    scene, sb = stop_branch
+    family = _Family(scene, "rotation.speed_hz", sb.start.system, None)
+    moved = sb.sides[0]["reanchors"][0]["value"]
+    (p,) = [p for p in sb.points if p["value"] == moved]
+    T = p["period_s"]
+    there = flow(family.system_at(p["value"]), p["t0_s"], p["q0"], p["v0"], T / 3, jacobian=False)
+    again = family.point(p["value"], np.concatenate([there.q, there.v]), 1, p["t0_s"] + T / 3)
+    for name, a in p["amplitudes"].items():
+        assert again["amplitudes"][name] == pytest.approx(a, rel=3e-8, abs=2e-11), name
+    assert again["orbit_q_max"] == pytest.approx(p["orbit_q_max"], rel=1e-4)
+    assert again["events_per_period"] == p["events_per_period"]
