@@ -166,53 +166,31 @@ def inertial_section(rub_i: Rub, ref: dict, facets: int) -> tuple[float, np.ndar
 
 
 def continuation(mu: float, facets: int, lo: float, hi: float, steps: int, say) -> dict:
-    """The exact flow's orbit branch over speed (polygon, inertial frame) from the reference at lo.
+    """The exact flow's orbit branch over speed (polygon, inertial frame) from the reference at lo, in one piece.
 
-    The branch keeps its section's time t0 while the orbit's phase drifts with the speed, so after some 0.5 Hz the
-    section reaches a corner of the polygon (a predictor state penetrates the next facet) and the branch stops;
-    it is then restarted from the reference at the last speed reached, with a section at a facet's middle again
-    (the points of the pieces are one branch: the orbits are the same, their sections differ)."""
+    The orbit's phase drifts with the speed, a corner passage of the polygon every ~0.8 Hz onto any fixed section;
+    the branch moves its section off them as they come (``reanchors``: where and to which t0)."""
     from nsfem.periodic.branch import orbit_branch
 
     rub_r, rub_i = Rub(mu, facets), Rub(mu, facets, "inertial")
     t = time.perf_counter()
-    pts, bifs, pieces, p = [], [], [], lo
-    while p < hi - 1e-6 and len(pieces) < 50:
-        ref = reference(rub_r, p)
-        t0, q, v = inertial_section(rub_i, ref, facets)
-        br = orbit_branch(rub_i.system, lambda f: 1.0 / f, q, v, p, hi, key="rotation.speed_hz", t0=t0,
-                          max_steps=steps, switch=False,
-                          on_point=lambda bp, m: say(f"  {bp.p:.6g} Hz: max |multiplier| "
-                                                     f"{np.abs(bp.multipliers).max():.6f} "
-                                                     f"[{time.perf_counter() - t:.0f} s]"))
-        for q_ in br.points[1 if pts else 0:]:
-            mu_ = np.array([complex(*m) for m in q_["multipliers"]])
-            pts.append({"speed_hz": q_["rotation.speed_hz"], "stable": q_["stable"], "loss": q_["loss"],
-                        "converged": q_["converged"], "max_modulus": float(np.abs(mu_).max()),
-                        "outside": int((np.abs(mu_) > 1.0 + 1e-6).sum()),
-                        "rate_per_s": float(np.log(np.abs(mu_).max()) * q_["rotation.speed_hz"])})
-        bifs += [{"kind": b["kind"], "value": b["value"]} for b in br.bifurcations]
-        pieces.append({"from_hz": p, "to_hz": br.points[-1]["rotation.speed_hz"], "stop": br.stop,
-                       "reason": br.reason})
-        if br.points[-1]["rotation.speed_hz"] <= p + 1e-6:
-            break
-        p = br.points[-1]["rotation.speed_hz"]
-    return {"mu": mu, "facets": facets, "points": pts, "bifurcations": bifs, "pieces": pieces,
-            "net_bifurcations": net_bifurcations(pts, bifs), "wall_s": time.perf_counter() - t}
-
-
-def net_bifurcations(points: list[dict], bifurcations: list[dict]) -> list[dict]:
-    """The bifurcations across which the count of multipliers outside the unit circle changes between the
-    neighbouring points: a crossing out and back in between two points (located twice, as a pair of the same
-    kind a few 1e-4 Hz apart, where the continuation paired the moving multipliers differently) drops out."""
-    f = np.array([p["speed_hz"] for p in points])
-    out = []
-    for b in bifurcations:
-        below, above = f < b["value"], f > b["value"]
-        if below.any() and above.any():
-            if points[int(np.flatnonzero(below)[-1])]["outside"] != points[int(np.flatnonzero(above)[0])]["outside"]:
-                out.append(b)
-    return out
+    t0, q, v = inertial_section(rub_i, reference(rub_r, lo), facets)
+    br = orbit_branch(rub_i.system, lambda f: 1.0 / f, q, v, lo, hi, key="rotation.speed_hz", t0=t0,
+                      max_steps=steps, switch=False,
+                      on_point=lambda bp, m: say(f"  {bp.p:.6g} Hz: max |multiplier| {np.abs(bp.multipliers).max():.6f}"
+                                                 f" (section t0 {1e3 * bp.t0_s:.4f} ms) "
+                                                 f"[{time.perf_counter() - t:.0f} s]"))
+    pts = []
+    for q_ in br.points:
+        mu_ = np.array([complex(*m) for m in q_["multipliers"]])
+        pts.append({"speed_hz": q_["rotation.speed_hz"], "t0_s": q_["t0_s"], "stable": q_["stable"], "loss": q_["loss"],
+                    "converged": q_["converged"], "max_modulus": float(np.abs(mu_).max()),
+                    "outside": int((np.abs(mu_) > 1.0 + 1e-6).sum()),
+                    "rate_per_s": float(np.log(np.abs(mu_).max()) * q_["rotation.speed_hz"])})
+    return {"mu": mu, "facets": facets, "points": pts,
+            "bifurcations": [{"kind": b["kind"], "value": b["value"]} for b in br.bifurcations],
+            "reanchors": [{k: r[k] for k in ("value", "t0_s", "forced")} for r in br.reanchors],
+            "stop": br.stop, "reason": br.reason, "wall_s": time.perf_counter() - t}
 
 
 def orbit_onset(mu: float, facets: int, lo: float, hi: float, say) -> dict:
@@ -323,7 +301,7 @@ def figure(rows: list[dict], onsets: list[dict], branches: list[dict], mu_curve:
         f = np.array([p["speed_hz"] for p in b["points"]])
         ax2.plot(f, [p["rate_per_s"] for p in b["points"]], "k.", ms=4,
                  label=f"exact flow, {b['facets']} facets, mu = {b['mu']:g}: ln|multiplier| / T")
-        for bif in b["net_bifurcations"]:
+        for bif in b["bifurcations"]:
             ax2.axvline(bif["value"], color="k", ls=":", lw=0.8)
             ax2.plot(bif["value"], 0.0, "k^", label=f"{bif['kind']} located on {b['facets']} facets: "
                                                     f"{bif['value']:.3f} Hz")
@@ -402,9 +380,8 @@ def main(argv=None) -> int:
         for F in a.facets:
             say(f"continuation: {F} facets, mu {a.mu:g}, {lo:g}..{hi:g} Hz")
             branches.append(continuation(a.mu, F, lo, hi, a.steps, say))
-            say(f"  bifurcations {branches[-1]['bifurcations']} (net: {branches[-1]['net_bifurcations']}), "
-                f"{len(branches[-1]['pieces'])} pieces "
-                f"({branches[-1]['wall_s']:.0f} s)")
+            say(f"  bifurcations {branches[-1]['bifurcations']}, {len(branches[-1]['reanchors'])} section moves, "
+                f"stop {branches[-1]['stop']} ({branches[-1]['wall_s']:.0f} s)")
     found = []
     lo, hi = (float(x) for x in a.onset_range.split(":"))
     for F in ([] if a.quick else [128]) if a.onset_facets is None else a.onset_facets:

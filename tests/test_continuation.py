@@ -19,6 +19,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from nsfem.errors import NsfemError
 from nsfem.periodic.continuation import Branch, continue_branch, critical_vector
@@ -407,3 +409,67 @@ def test_henon_cascade_switching_onto_the_doubled_branch_with_critical_vector():
         assert pt.stable == (a < HENON_PD2)
     assert kinds(cycle) == ["period-doubling"]
     assert_located(cycle.bifurcations[0], HENON_PD2)
+
+
+# --- issue 36: multipliers that pass each other across a step (no spurious crossing pairs) ---
+
+def _passing(r1, a1, r2, a2):
+    """A trivial branch u = 0 over p in [0, 1] whose multipliers are two complex pairs moving linearly in polar
+    form: mu_1 = r1(p) exp(+-i a1(p)), mu_2 = r2(p) exp(+-i a2(p)), and a fixed 0.3."""
+    def residual(u, p):
+        return np.array([u[0]]), np.eye(1), np.zeros(1)
+
+    def stability(u, p):
+        m1 = (r1[0] + (r1[1] - r1[0]) * p) * np.exp(1j * (a1[0] + (a1[1] - a1[0]) * p))
+        m2 = (r2[0] + (r2[1] - r2[0]) * p) * np.exp(1j * (a2[0] + (a2[1] - a2[0]) * p))
+        return np.array([m1, m1.conjugate(), m2, m2.conjugate(), 0.3])
+
+    return residual, stability
+
+
+def test_multipliers_passing_each_other_across_one_step_make_no_crossing():
+    # the pair outside (|mu| 1.05) turns from angle 0.5 to 1.0 while the pair inside (0.95) turns from 1.0 to 0.5:
+    # they pass 0.1 apart at p = 0.5 and never cross the circle. Paired across the one step, the ends match
+    # crosswise (distance 0.1 against 0.52 straight): the continuation used to report two Neimark-Sacker points
+    # (at 0.6667, both); followed through trial points, none
+    residual, stability = _passing((1.05, 1.05), (0.5, 1.0), (0.95, 0.95), (1.0, 0.5))
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=1.0, max_step=1.0, stability=stability, tol=TOL)
+    assert b.stop == "end" and len(b.points) == 2      # (one step: the pairing of its ends is all there is)
+    assert b.bifurcations == []
+    assert [p.stable for p in b.points] == [False, False]
+
+
+def test_a_crossing_next_to_a_passing_multiplier_is_still_located():
+    # the outside pair shrinks 1.05 -> 0.95 while turning 0.5 -> 1.0, past the pair at 0.9 turning 1.0 -> 0.5:
+    # |mu_1| = 1.05 - 0.1 p = 1 at p = 0.5 exactly, one Neimark-Sacker point (the count outside drops by two);
+    # |mu_1| is linear in p, so the bracket's regula falsi ends within LOCATE of it (plus the corrector's error:
+    # u = 0 exactly here)
+    residual, stability = _passing((1.05, 0.95), (0.5, 1.0), (0.9, 0.9), (1.0, 0.5))
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=1.0, max_step=1.0, stability=stability, tol=TOL,
+                        locate_tol=LOCATE)
+    assert [x["kind"] for x in b.bifurcations] == ["neimark-sacker"]
+    assert abs(b.bifurcations[0]["value"] - 0.5) <= b.bifurcations[0]["accuracy"] + SLACK
+    assert b.bifurcations[0]["accuracy"] <= LOCATE
+
+
+def test_two_real_crossings_in_one_step_that_keep_the_count_are_both_found():
+    # the count outside is the same at both ends (one complex pair), yet both pairs cross: mu_1 1.1 -> 0.9 while
+    # mu_2 0.9 -> 1.1, at angles 0.4 -> 0.6 and 2.0 -> 1.8 (far apart: the pairing is unambiguous); each crosses
+    # at p = 0.5 (|mu| linear in p)
+    residual, stability = _passing((1.1, 0.9), (0.4, 0.6), (0.9, 1.1), (2.0, 1.8))
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=1.0, max_step=1.0, stability=stability, tol=TOL,
+                        locate_tol=LOCATE)
+    assert [x["kind"] for x in b.bifurcations] == ["neimark-sacker", "neimark-sacker"]
+    for x in b.bifurcations:
+        assert abs(x["value"] - 0.5) <= x["accuracy"] + SLACK
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(r_out=st.floats(1.02, 1.5), r_in=st.floats(0.5, 0.98), a=st.lists(st.floats(0.05, 3.0), min_size=4,
+                                                                      max_size=4))
+def test_multipliers_that_keep_their_side_make_no_crossing_whatever_their_paths(r_out, r_in, a):
+    # property: a pair outside and a pair inside at constant moduli, their angles moving linearly over the one step
+    # (passing each other or not) cross nothing: no bifurcation, both points unstable
+    residual, stability = _passing((r_out, r_out), (a[0], a[1]), (r_in, r_in), (a[2], a[3]))
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=1.0, max_step=1.0, stability=stability, tol=TOL)
+    assert b.bifurcations == [] and [p.stable for p in b.points] == [False, False]

@@ -4567,3 +4567,49 @@ def test_issue36_backward_whirl_study_refuses_every_bad_stiffness(k_s, capsys):
     if math.isfinite(k_s) and 1e5 <= k_s <= 1e8:
         return
     assert "--stiffness" in _backward_whirl_refusal(["--stiffness", repr(k_s)], capsys)
+
+
+# --- issue 36: a branch's section moves (continue_branch's reanchor) ---
+# a reanchor that is not callable, or returns the wrong shapes, is refused in one line naming it; one that fails
+# ends the branch with a one-line reason, keeping its points (never another exception)
+
+@pytest.mark.parametrize("reanchor, words", [
+    (3, "reanchor must be callable"),
+    (lambda u, p, forced: (np.zeros(2), None), "reanchor returned u of shape (2,)"),
+    (lambda u, p, forced: (u, np.eye(2)), "M of shape (2, 2)"),
+    (lambda u, p, forced: "moved", "reanchor(u, p, forced) must return None or (u_new, M or None)"),
+])
+def test_issue36_reanchor_breaking_its_contract_is_refused_in_one_line(reanchor, words):
+    with pytest.raises(NsfemError) as info:
+        _continue36(reanchor=reanchor)
+    message = _one_line36(info.value)
+    assert words in message, message
+
+
+def test_issue36_a_failing_reanchor_ends_the_branch_keeping_its_points():
+    def fails(u, p, forced):
+        raise NsfemError("the section's flow failed\nover two lines")
+
+    branch = _continue36(reanchor=fails)
+    assert branch.stop == "failed" and "the section's flow failed over two lines" in branch.reason
+    assert "\n" not in branch.reason and len(branch.points) == 2 and all(pt.converged for pt in branch.points)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@given(values=st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-2.0, 2.0)),
+                       min_size=1, max_size=3),
+       forced_only=st.booleans())
+def test_issue36_any_reanchor_output_is_a_branch_or_one_line(values, forced_only):
+    """Property: whatever state a reanchor returns (non-finite, off the branch, a shape), the continuation gives a
+    Branch whose reason is one line, or one NsfemError of one line."""
+    def reanchor(u, p, forced):
+        if forced_only and not forced:
+            return None
+        return np.array(values), None
+
+    try:
+        branch = _continue36(reanchor=reanchor)
+    except NsfemError as exc:
+        _one_line36(exc)
+        return
+    assert "\n" not in branch.reason and branch.points and all(pt.converged for pt in branch.points)

@@ -167,3 +167,149 @@ def test_branch_started_with_its_section_on_the_impact_runs_at_the_section_the_s
         (xr, vr), = orbit_state(OSC, w, [(ref.tau, ref.u)], 2 * math.pi / w, np.array([br.t0]))
         size = abs(xr) + abs(vr) / w
         assert abs(pt["q0"][0] - xr) + abs(pt["v0"][0] - vr) / w <= 1e-8 * size
+
+
+# --- issue 36: the section moves when an event drifts onto it ---
+
+def _drifting_branch(w_end=2.1):
+    """The period-1 orbit from w = 1.95 with its section at t0 = 0.9 s: its impact (closed form: at 0.72 s at
+    w 1.95, 0.90 s at 2.038, 1.03 s at 2.1) drifts onto that section inside the range, where a branch with one
+    section used to stop ("the initial state penetrates ...", measured at 2.0381 from 1.8)."""
+    p = period1_branch(OSC, 1.95, -1)
+    s = orbit_state(OSC, 1.95, [(p.tau, p.u)], p.period, np.array([0.9]))[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return orbit_branch(_system, _period, [s[0]], [s[1]], 1.95, w_end, key="w", t0=0.9, step=0.01, switch=False)
+
+
+def _check_points_at_their_sections(br):
+    for pt in br.points:
+        w = pt["value"]
+        ref = period1_branch(OSC, w, -1)
+        # each point's state at its own section t0_s is the closed-form orbit's there (tolerance as in
+        # test_branch_is_the_closed_form_period1_orbit...: 1e-9 corrected, times J's condition <= 10)
+        x = orbit_state(OSC, w, [(ref.tau, ref.u)], ref.period, np.array([pt["t0_s"] % ref.period]))[0]
+        size = abs(x[0]) + abs(x[1]) / w
+        assert abs(pt["q0"][0] - x[0]) + abs(pt["v0"][0] - x[1]) / w <= 1e-8 * size
+        # the multipliers do not depend on the section (the period maps at two sections are conjugate)
+        mu = np.array([complex(*m) for m in pt["multipliers"]])
+        assert np.abs(np.sort_complex(mu) - np.sort_complex(ref.multipliers)).max() <= 1e-7
+
+
+def test_branch_moves_its_section_off_a_drifting_impact_and_goes_through():
+    br = _drifting_branch()
+    assert br.stop == "end" and br.points[-1]["value"] == pytest.approx(2.1, abs=1e-12)
+    assert br.reanchors and not any(r["forced"] for r in br.reanchors)
+    assert br.t0 == 0.9 and br.points[0]["t0_s"] == 0.9
+    assert len({pt["t0_s"] for pt in br.points}) == len(br.reanchors) + 1
+    _check_points_at_their_sections(br)
+    for r in br.reanchors:
+        # the moved point's multipliers at the old and the new section: the same spectrum (conjugate maps), to the
+        # eigenvalues' round-off times the monodromy's size (~10) and the correction's 1e-9
+        before, after = (np.sort_complex([complex(*m) for m in r[k]]) for k in ("multipliers_before",
+                                                                               "multipliers_after"))
+        assert np.abs(before - after).max() <= 1e-7
+        # the new section lies in the middle of the impact-free period: half a period from the impact
+        ref = period1_branch(OSC, r["value"], -1)
+        assert abs((r["t0_s"] - ref.tau) % ref.period - 0.5 * ref.period) <= 1e-6 * ref.period
+    assert br.summary()["reanchors"] == br.reanchors and "t0_s" in br.summary()["branch"][-1]
+
+
+def test_a_step_that_fails_at_the_section_moves_it(monkeypatch):
+    import nsfem.periodic.branch as branch_module
+
+    monkeypatch.setattr(branch_module, "RECENTER", 0.0)   # no move ahead of time: only when a step fails
+    br = _drifting_branch()
+    assert br.stop == "end"
+    assert [r["forced"] for r in br.reanchors] == [True]
+    # the impact reaches t0 = 0.9 s at w = 2.0381 (closed form): the step from the last point before it failed
+    assert 2.0 < br.reanchors[0]["value"] < period_crossing(0.9)
+    _check_points_at_their_sections(br)
+
+
+def period_crossing(t0):
+    """The w in (1.95, 2.1) where the impact time tau(w) (closed form) reaches t0."""
+    from scipy.optimize import brentq
+
+    return brentq(lambda w: period1_branch(OSC, w, -1).tau - t0, 1.95, 2.1, xtol=1e-12)
+
+
+@pytest.mark.slow
+def test_the_rub_branch_runs_through_the_corners_drifting_onto_its_section():
+    """The shipped rub at mu 0.55 on 64 facets, inertial frame, from the round ring's state at a facet's middle at
+    26 Hz: with one section the branch stopped at 26.9926 Hz (a corner passage reached it: "the initial state
+    penetrates stator.0.58"); now it runs to 27.1 Hz, moving its section ahead of the corners (measured: twice). The
+    Neimark-Sacker point lies between 26.5 Hz (stable) and 27.0 Hz (unstable; tests/test_rub_whirl.py), the
+    located point has |mu| = 1 to its bracket's accuracy (|d|mu|/df| ~ 5e-3 per Hz times 1e-6 of the range, plus
+    the multipliers' own ~1e-9), and the multipliers at a moved point are the same at both sections (conjugate
+    period maps: round-off of the eigenvalues, ~1e-12 measured, 1e-7 allowed as in the oscillator's test)."""
+    from rub_reference import ring_rows, round_rub
+    from nsfem import load_scene
+    from nsfem.fem.assemble import build_model
+    from nsfem.fem.components import lateral_turn
+    from nsfem.integrate import ContactSystem
+    from nsfem.periodic.flow import flow
+    from nsfem.reduce import scene_reduction
+    import scipy.linalg as sla
+
+    scene = load_scene("rub", ["stator.0.friction=0.55", "stator.0.facets=64", "rotation.frame=inertial"])
+    rotating = load_scene("rub", ["stator.0.friction=0.55", "stator.0.facets=64"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    T = np.asarray(red.T)
+    J = np.linalg.lstsq(T, lateral_turn(model.spaces, T.shape[0]) @ T, rcond=None)[0]
+    R = ContactSystem.from_scene(rotating, model, red, speed_hz=26.0)
+    D, c, _ = ring_rows(R.contacts.JN, R.contacts.jN)
+    rub = round_rub(R.Q, R.f0, D, c, 0.55, 1.0)
+    w = R.omega
+    t0 = ((-math.atan2(rub.n[1], rub.n[0])) % (2.0 * math.pi / 64)) / w
+    q = sla.expm(w * t0 * J) @ rub.q
+
+    def system_at(f):
+        return ContactSystem.from_scene(scene, model, red, speed_hz=f)
+
+    br = orbit_branch(system_at, lambda f: 1.0 / f, q, w * J @ q, 26.0, 27.1, key="f", t0=t0, switch=False)
+    assert br.stop == "end" and br.points[-1]["value"] == pytest.approx(27.1, abs=1e-12)
+    assert br.reanchors and not any(r["forced"] for r in br.reanchors)
+    for r in br.reanchors:
+        before, after = (np.sort_complex([complex(*m) for m in r[k]]) for k in ("multipliers_before",
+                                                                               "multipliers_after"))
+        assert np.abs(before - after).max() <= 1e-7
+    (ns,) = [b for b in br.bifurcations]
+    assert ns["kind"] == "neimark-sacker" and 26.5 < ns["value"] < 27.0
+    for pt in br.points:
+        assert pt["stable"] == (pt["value"] < ns["value"])
+    # the points next to the last move are orbits at their own sections: one period back to the state (the
+    # corrector's 1e-9 of the size times J's condition, ~1 / (1 - |mu|) <= 1e3 near the onset: 1e-6)
+    k = br.reanchors[-1]["index"]
+    for pt in br.points[k:k + 2]:
+        fl = flow(system_at(pt["value"]), pt["t0_s"], pt["q0"], pt["v0"], pt["period_s"], jacobian=False)
+        assert np.abs(fl.q - pt["q0"]).max() <= 1e-6 * np.abs(pt["q0"]).max()
+    assert br.points[k]["t0_s"] != br.points[k + 1]["t0_s"]
+
+
+def test_the_period_doubling_is_located_and_switched_on_after_the_section_moved():
+    # the section starts 0.2 T after the impact at w 2.55 (within a quarter period of it): it moves at the first
+    # point; the period doubling is then located in the moved coordinates as on the fixed section (1e-6, as in
+    # test_branch_is_the_closed_form_period1_orbit...) and the doubled branch starts at the bifurcation's own
+    # section (its points: period-2 orbits with the closed form's multipliers)
+    p = period1_branch(OSC, 2.55, -1)
+    t0 = p.tau + 0.2 * p.period
+    s = orbit_state(OSC, 2.55, [(p.tau, p.u)], p.period, np.array([t0]))[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        br = orbit_branch(_system, _period, [s[0]], [s[1]], 2.55, 2.75, key="w", t0=t0, step=0.02, depth=1)
+    assert br.stop == "end" and br.reanchors and br.reanchors[0]["index"] == 1
+    w_pd = period_doubling_frequency(OSC, 2.5, 2.75)
+    (pd,) = br.bifurcations
+    assert pd["kind"] == "period-doubling" and abs(pd["value"] - w_pd) <= 1e-6
+    assert pd["t0_s"] == br.reanchors[-1]["t0_s"] or pd["index"] < br.reanchors[-1]["index"]
+    (doubled,) = br.doubled
+    assert len(doubled.points) >= 3
+    for pt in doubled.points:
+        mu = np.array([complex(*m) for m in pt["multipliers"]])
+        ref = period2_orbit(OSC, pt["value"])
+        # the corrector's 1e-9 of the orbit's size, amplified by J's condition 1 / |1 - |mu|| (160 just past the
+        # doubling, where the period-2 orbit's multiplier is near 1), times 10 for the multipliers' sensitivity
+        bound = 10 * 1e-9 / np.abs(1.0 - np.abs(ref.multipliers)).min()
+        assert np.abs(np.sort(np.abs(mu)) - np.sort(np.abs(ref.multipliers))).max() <= bound

@@ -50,7 +50,7 @@ def test_a_linear_branch_over_speed_is_nsfem_response(linear_branch):
         assert p["converged"] and p["stable"] and p["events_per_period"] == 0
         assert p["period_s"] == pytest.approx(1.0 / p["value"], rel=1e-15)
         system = ContactSystem.from_scene(scene, model, red, speed_hz=p["value"])
-        q, v = harmonic_state(system, sb.start.orbit.t0)
+        q, v = harmonic_state(system, p["t0_s"])
         # the corrector's tolerance (1e-9 of the orbit's size) bounds the distance to the fixed point, times the
         # condition of (Phi - I) (~1e1 here: the multipliers' moduli are <= 0.984): within 1e-8 of its size
         assert np.abs(p["q0"] - q).max() <= 1e-8 * np.abs(q).max()
@@ -91,11 +91,16 @@ def test_a_branch_with_an_impact_a_period_consists_of_orbits(stop_branch):
 
     scene, sb = stop_branch
     assert sb.start_value == 22.0 and sb.scene_value == 26.0 and [s["towards"] for s in sb.sides] == [20.0]
+    # the impact drifts towards the start's section along 20:22 (within a quarter period of it by 21.96 Hz): the
+    # section moves, listed, and the points after it carry the new one
+    (side,) = sb.sides
+    assert side["reanchors"] and len({p["t0_s"] for p in sb.points}) == len(side["reanchors"]) + 1
     assert sb.stop == "end" and sb.points[0]["value"] == 20.0 and sb.points[-1]["value"] == 22.0
     model, red = sb.start.system.info["model"], sb.start.system.info["reduction"]
     for p in sb.points:
         assert p["converged"] and p["events_per_period"] >= 1
-        fl = flow(ContactSystem.from_scene(scene, model, red, speed_hz=p["value"]), sb.start.orbit.t0, p["q0"],
+        # (at the point's own section: it moves off the impact as that drifts with the speed)
+        fl = flow(ContactSystem.from_scene(scene, model, red, speed_hz=p["value"]), p["t0_s"], p["q0"],
                   p["v0"], p["period_s"], jacobian=False)
         assert np.abs(fl.q - p["q0"]).max() <= 1e-8 * np.abs(p["q0"]).max()
         assert sum(1 for e in fl.result.events if e.get("impact")) == 1
@@ -119,7 +124,7 @@ def test_the_branch_amplitude_at_the_stop_is_the_stop(stop_branch):
     rot = scene.rotation
     for p in sb.points:
         T = p["period_s"]
-        fl = flow(ContactSystem.from_scene(scene, model, red, speed_hz=p["value"]), sb.start.orbit.t0, p["q0"],
+        fl = flow(ContactSystem.from_scene(scene, model, red, speed_hz=p["value"]), p["t0_s"], p["q0"],
                   p["v0"], T, jacobian=False, output_dt=T / 256)
         y = read(scene.sensors, model, dense(red.T), fl.result.t, fl.result.q, rot.frame, p["value"],
                  rot.phase_deg)[:-1, 0]
@@ -188,6 +193,9 @@ def test_cli_continue_writes_branch_json_npz_png_and_a_table(tmp_path, capsys):
         assert list(z["sensors"]) == ["disk_y", "disk_z"]
         assert np.array_equal(z["amplitudes"][:, 0], [p["amplitudes"]["disk_y"] for p in payload["branch"]])
         assert json.loads(str(z["meta"]))["key"] == "rotation.speed_hz"
+        # each point's section time (it moves off the stop's impact as that drifts with the speed)
+        assert np.array_equal(z["t0_s"], [p["t0_s"] for p in payload["branch"]])
+        assert float(z["t0"]) == payload["branch"][-1]["t0_s"]   # (the start: 22 Hz, followed towards 21.5)
     assert payload["bifurcations"] == [] and payload["stop"] == "end"
     assert key_label("rotation.speed_hz") == "rotor speed [Hz]"
     # the text: a row per point and the bifurcations' line
@@ -299,7 +307,6 @@ def test_a_doubled_branch_is_reported_at_its_own_section(monkeypatch):
     orbit's (one orbit, sampled from another phase: the parabola's 1.5e-8 at most, 1e-7 taken); from the first
     orbit's t0 they were a transient's, 11 % off."""
     from nsfem.periodic import branch as branch_module
-    from nsfem.periodic.continuation import BranchPoint
     from nsfem.periodic.shooting import periodic_orbit
 
     real = branch_module.orbit_branch
@@ -314,10 +321,10 @@ def test_a_doubled_branch_is_reported_at_its_own_section(monkeypatch):
         there = flow(system_at(p0), br.t0, start["q0"], start["v0"], T / 4, jacobian=False)
         orb = periodic_orbit(system_at(p0), 2 * T, there.q, there.v, t_d)
         u = np.concatenate([orb.q0, orb.v0])
-        bp = BranchPoint(p0, u, orb.multipliers, orb.stable, True, orb.residual)
+        bp = branch_module.OrbitPoint(p0, u, orb.multipliers, orb.stable, True, orb.residual, t0_s=orb.t0)
         kw["on_point"](bp, 2)
         point = {"value": p0, kw["key"]: p0, "q0": orb.q0, "v0": orb.v0, "converged": True, "residual": orb.residual,
-                 "multipliers": [[float(z.real), float(z.imag)] for z in orb.multipliers]}
+                 "t0_s": orb.t0, "multipliers": [[float(z.real), float(z.imag)] for z in orb.multipliers]}
         br.doubled.append(branch_module.OrbitBranch(kw["key"], 2, [point], [], "end", "", t0=orb.t0))
         return br
 
@@ -573,3 +580,26 @@ def test_cli_sigterm_on_a_cluster_leaves_the_points_so_far_and_no_process(tmp_pa
     assert payload["stop"] == "interrupted" and 26.0 in values and values == sorted(values)
     with np.load(out / "branch.npz") as z:
         assert z["value"].size >= len(values)
+
+
+def test_a_points_amplitudes_do_not_depend_on_its_section(stop_branch):
+    """Amplitudes are reported from each point's own section (it moves along the branch): they are the orbit's,
+    the same from any section. The point where the section moved, reported again from a third of a period on:
+    amplitudes equal to the extremes' accuracy twice over: a smooth one refined to 1.5e-8 of the amplitude
+    (test_periodic_cli), the stop's side as in test_the_branch_amplitude_at_the_stop_is_the_stop (1e-11 m): 2e-11 m;
+    the largest |q| over the period (256 samples, the maximum's sampling error 1 - cos(pi / 256) = 7.5e-5 at a
+    smooth peak) to 1e-4."""
+    from nsfem.periodic.flow import flow
+    from nsfem.periodic.scene_branch import _Family
+
+    scene, sb = stop_branch
+    family = _Family(scene, "rotation.speed_hz", sb.start.system, None)
+    moved = sb.sides[0]["reanchors"][0]["value"]
+    (p,) = [p for p in sb.points if p["value"] == moved]
+    T = p["period_s"]
+    there = flow(family.system_at(p["value"]), p["t0_s"], p["q0"], p["v0"], T / 3, jacobian=False)
+    again = family.point(p["value"], np.concatenate([there.q, there.v]), 1, p["t0_s"] + T / 3)
+    for name, a in p["amplitudes"].items():
+        assert again["amplitudes"][name] == pytest.approx(a, rel=3e-8, abs=2e-11), name
+    assert again["orbit_q_max"] == pytest.approx(p["orbit_q_max"], rel=1e-4)
+    assert again["events_per_period"] == p["events_per_period"]

@@ -6,7 +6,11 @@ residual r(u, p) = phi_T(p)(u; p) - u with J_u = Phi_T - I (the monodromy matrix
 J_p by central differences in p (each a flow of the system at p +- h; h = 1e-6 of the range: the flow's event
 times are located to ~1e-13 s, so the difference's noise stays near 1e-7 relative, its truncation h^2 below);
 :func:`.continuation.continue_branch` follows the branch through folds and locates where a multiplier leaves the
-unit circle. At a period doubling the doubled orbit (period 2 T) branches off along the eigenvector of the
+unit circle. The orbit's phase drifts with p, so its events move over the section, where the section state jumps
+(an impact's velocity) and the map is not smooth: after each point, when an event has come within a quarter of the
+longest event-free stretch of the period from the section (or a step failed at the smallest step), the section
+moves to that stretch's middle (:meth:`_Problem.reanchor`, the continuation's ``reanchor``); each point keeps its
+section time ``t0_s``. At a period doubling the doubled orbit (period 2 T) branches off along the eigenvector of the
 multiplier -1: :func:`doubled_start` solves for it a little past the bifurcation, and the doubled branch is
 continued like the first.
 """
@@ -20,13 +24,27 @@ from typing import Callable
 import numpy as np
 
 from ..errors import NsfemError
-from .continuation import Branch, continue_branch, critical_vector
+from .continuation import Branch, BranchPoint, continue_branch, critical_vector
 from .flow import FlowMap
 from .arguments import real_number, whole_number
-from .shooting import admissible_directions, check_forcing_multiple, classify, periodic_orbit
+from .shooting import SECTION_MARGIN, admissible_directions, check_forcing_multiple, classify, periodic_orbit
 
 #: the parameter step of J_p's central differences, relative to the continuation's range
 DP = 1e-6
+#: the section moves (to the middle of the longest stretch of the period without events) when an event of the
+#: orbit has drifted to within this share of that stretch's half from it: from the middle the phase may drift by
+#: half of it before (the rub on 64 facets: a corner every 1/64 period, drifting by one per ~0.8 Hz)
+RECENTER = 0.5
+#: the section moves to the middle of a stretch at least this share of the longest (the one whose time is nearest
+#: t = 0): its events then lie 0.375 of the longest from it, beyond the trigger's 0.25
+WIDE = 0.75
+
+
+@dataclass
+class OrbitPoint(BranchPoint):
+    """A :class:`~.continuation.BranchPoint` of an orbit branch with its section's time [s]: u = (q, q') at t0_s."""
+
+    t0_s: float = 0.0
 
 
 @dataclass
@@ -41,14 +59,18 @@ class OrbitBranch:
     stop: str
     reason: str
     doubled: list = field(default_factory=list)
-    #: the section's time [s] (mod the period) of every point: the start's, moved by the shooting off an event
+    #: the first point's section time [s] (the start's, moved by the shooting off an event); each point has its own
+    #: (``t0_s``: the section moves when an event of the orbit drifts onto it)
     t0: float = 0.0
+    #: the section's moves: [{"index": the point (its state at the old section), "value", "t0_s": the new section,
+    #: "forced": after a failed step, "multipliers_before", "multipliers_after": the point's at both sections}]
+    reanchors: list = field(default_factory=list)
 
     def summary(self) -> dict:
         """The JSON of ``nsfem periodic --continue`` (design section 9): ``branch`` and ``bifurcations``."""
         return {"branch": [{k: v for k, v in p.items() if k not in ("q0", "v0")} for p in self.points],
                 "bifurcations": [{k: v for k, v in b.items() if k not in ("q0", "v0")} for b in self.bifurcations],
-                "stop": self.stop, "reason": self.reason, "t0_s": self.t0,
+                "stop": self.stop, "reason": self.reason, "t0_s": self.t0, "reanchors": self.reanchors,
                 "doubled_branches": [d.summary() for d in self.doubled]}
 
 
@@ -59,8 +81,12 @@ class _Problem:
         self.system_at, self.period_at, self.t0, self.dp, self.multiple = system_at, period_at, t0, dp, multiple
         self._maps: dict = {}
         self.last = None
+        #: the recent flows with their monodromy, by (p, u): the accepted point's, for moving the section
+        self._flows: dict = {}
         #: the residual's rows are divided by these (the orbit's size in q, in q'): a tolerance relative to it
         self.weights = None
+        #: the section time of each coordinate system (BranchPoint.anchor)
+        self.t0s = [t0]
 
     def flow_map(self, p: float) -> FlowMap:
         fm = self._maps.get(p)
@@ -80,8 +106,46 @@ class _Problem:
             ends.append(np.concatenate([f.q, f.v]))
         Jp = (ends[0] - ends[1]) / (2.0 * self.dp)
         self.last = (p, u.copy(), fl)
+        if len(self._flows) > 16:
+            self._flows.pop(next(iter(self._flows)))
+        self._flows[(p, u.tobytes())] = fl
         D = self.weights
         return D * r, D[:, None] * (fl.monodromy - np.eye(u.size)), D * Jp
+
+    def reanchor(self, u: np.ndarray, p: float, forced: bool):
+        """The continuation's change of coordinates (:func:`.continuation.continue_branch`'s ``reanchor``): when an
+        event of the orbit through u at p lies within RECENTER of half the longest event-free stretch of its period
+        from the section (or a step failed: ``forced``), the section moves to the middle of a long stretch (WIDE);
+        returns (the state there, the flow's transition matrix to it) or None."""
+        fl = self._flows.get((p, u.tobytes()))
+        n = u.size // 2
+        if fl is None:
+            fl = self.flow_map(p)(u[:n], u[n:])
+        T = self.multiple * self.period_at(p)
+        times = sorted(((e["t"] - self.t0) % T) for e in fl.result.events + fl.result.impacts)
+        if not times:
+            return None
+        gaps = [(b - a, a) for a, b in zip(times, times[1:] + [times[0] + T])]
+        longest = max(length for length, _ in gaps)
+        near = min(min(times), T - max(times))
+        if not forced and near >= RECENTER * 0.5 * longest:
+            return None
+        # the middle of a stretch of at least WIDE of the longest (its events then RECENTER-farther than the trigger)
+        # whose new section time lies nearest t = 0: the state a flow of ``shift`` later is the orbit's at
+        # t0 + shift - T too, and the section's forcing phase w t0 drifts with the speed by t0 dw (least near 0)
+        def new_t0(shift: float) -> float:
+            return self.t0 + shift - (T if shift > 0.5 * T else 0.0)
+
+        shifts = [(after + 0.5 * length) % T for length, after in gaps if length >= WIDE * longest]
+        shift = min(shifts, key=lambda x: abs(new_t0(x)))
+        if forced and min(shift, T - shift) <= SECTION_MARGIN * T:
+            return None   # (the section is in that middle already: the events are not what failed)
+        moved = FlowMap(self.system_at(p), self.t0, shift)(u[:n], u[n:])
+        self.t0 = new_t0(shift)
+        self.t0s.append(self.t0)
+        self._maps.clear()
+        self._flows.clear()
+        return np.concatenate([moved.q, moved.v]), moved.monodromy
 
     def multipliers(self, u: np.ndarray, p: float) -> np.ndarray:
         _, _, fl = self.last
@@ -100,8 +164,14 @@ def _points(problem: _Problem, branch: Branch, key: str) -> list[dict]:
                     "period_s": float(problem.multiple * problem.period_at(bp.p)), "converged": bool(bp.converged),
                     "residual": float(bp.residual),
                     "multipliers": [[float(m.real), float(m.imag)] for m in mu], "stable": stable, "loss": loss,
-                    "section_q_max": float(np.abs(bp.u[:n]).max()), "q0": bp.u[:n].copy(), "v0": bp.u[n:].copy()})
+                    "section_q_max": float(np.abs(bp.u[:n]).max()), "t0_s": float(problem.t0s[bp.anchor]),
+                    "q0": bp.u[:n].copy(), "v0": bp.u[n:].copy()})
     return out
+
+
+def _orbit_point(problem: _Problem, bp: BranchPoint) -> OrbitPoint:
+    """bp with its section's time."""
+    return OrbitPoint(**{f: getattr(bp, f) for f in bp.__dataclass_fields__}, t0_s=float(problem.t0s[bp.anchor]))
 
 
 def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[float], float], q0, v0, p0: float,
@@ -112,7 +182,9 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     """Continue the orbit through (q0, q0') at p0 (period ``multiple`` T(p0)) towards p_end.
 
     ``system_at(p)``: the ContactSystem at parameter p; ``period_at(p)``: the forcing period there [s]. The start is
-    first made an orbit at p0 (:func:`.shooting.periodic_orbit`). With ``switch``, at each located period doubling
+    first made an orbit at p0 (:func:`.shooting.periodic_orbit`); the section moves off events that drift onto it
+    (module docstring: each point's ``t0_s``, the moves in ``reanchors``; ``on_point`` gets
+    :class:`OrbitPoint` objects). With ``switch``, at each located period doubling
     the doubled branch is followed too (``depth`` levels). ``on_point(point, multiple)``: called with each
     accepted :class:`~.continuation.BranchPoint` of this branch and of the doubled ones (``multiple``: its orbit's
     period in forcing periods) as it is found."""
@@ -145,25 +217,30 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     problem.weights = 1.0 / u_scale
     br = continue_branch(problem.residual, u0, p0, p_end, step=step, max_steps=max_steps, tol=tol,
                          stability=problem.multipliers, u_scale=u_scale, max_iter=max_iter,
-                         on_point=None if on_point is None else (lambda bp: on_point(bp, int(multiple))))
+                         on_point=None if on_point is None else
+                         (lambda bp: on_point(_orbit_point(problem, bp), int(multiple))),
+                         reanchor=problem.reanchor)
     bif = []
     for b in br.bifurcations:
         u = np.asarray(b["u"])
         bif.append({"kind": b["kind"], "value": float(b["value"]), "index": int(b["index"]),
-                    "q0": u[:n].copy(), "v0": u[n:].copy()})
+                    "t0_s": float(problem.t0s[b.get("anchor", 0)]), "q0": u[:n].copy(), "v0": u[n:].copy()})
     reason = br.reason
     if br.stop == "failed" and "penetrates" in reason:
-        # the orbit's phase drifts with p: an event (a polygon's corner, an impact) reached the fixed section, where
-        # the predictor's state lies beyond a contact (measured on the rub at mu 0.55: every ~0.8 Hz)
-        reason += (" (an event of the orbit has drifted onto the section t0: continue from the last point, whose "
-                   "shooting moves the section off it)")
-    out = OrbitBranch(key, int(multiple), _points(problem, br, key), bif, br.stop, reason, t0=t0)
+        # the section moved off the events already (re-anchored) and still a state lies beyond a contact
+        reason += " (a state at the section t0 lies beyond a contact although the section was moved off the events)"
+    moves = [{"index": int(r["index"]), "value": float(r["value"]), "t0_s": float(problem.t0s[r["anchor"]]),
+              "forced": bool(r["forced"]),
+              **{k: [[float(m.real), float(m.imag)] for m in np.asarray(r[k], dtype=complex)]
+                 for k in ("multipliers_before", "multipliers_after")}} for r in br.reanchors]
+    out = OrbitBranch(key, int(multiple), _points(problem, br, key), bif, br.stop, reason, t0=t0, reanchors=moves)
     if switch and depth > 0:
         for b in bif:
             if b["kind"] != "period-doubling":
                 continue
             try:
-                q, v, p, t_d = doubled_start(system_at, period_at, b, p_end, multiple=multiple, t0=t0, tol=tol)
+                q, v, p, t_d = doubled_start(system_at, period_at, b, p_end, multiple=multiple, t0=b["t0_s"],
+                                             tol=tol)
                 out.doubled.append(orbit_branch(system_at, period_at, q, v, p, p_end, key=key,
                                                 multiple=2 * multiple, t0=t_d, tol=tol, step=step,
                                                 max_steps=max_steps, switch=switch, depth=depth - 1,

@@ -159,7 +159,7 @@ def doubled_task(family, bif: dict, p_end: float, key: str, multiple: int, t0_si
                          tol=tol, step=step, max_steps=steps, switch=True, depth=0, on_point=on_point)
     except NsfemError as exc:
         return str(exc), recs
-    return _doubled(d, family, d.t0, records if d.t0 == t0 else {}), recs
+    return _doubled(d, family, records), recs
 
 
 def _result(fut, end: float):
@@ -187,7 +187,7 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
     order, the tasks' interleaved), ``merge(side, stop, reason, bifurcations, doubled)`` once a side and its
     doubled branches are done, the sides in their order. Ctrl-C cancels the tasks and raises KeyboardInterrupt
     (what was accepted and merged stays)."""
-    from distributed import Event, Queue
+    from distributed import Event, Queue, wait
 
     queue_name = f"nsfem-branch-{uuid.uuid4().hex}"
     queue, stop = Queue(queue_name, client=client), Event(f"{queue_name}-stop", client=client)
@@ -233,7 +233,7 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
                         b["switch_failed"] = doubled[i]
                     else:
                         out.append(doubled[i])
-            merge(k, br.stop, br.reason, bifs, out)
+            merge(k, br.stop, br.reason, bifs, out, br.reanchors)
             merged[0] += 1
 
     for k, end in enumerate(sides):
@@ -254,7 +254,7 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
                     for i, b in enumerate(value.bifurcations):
                         if b["kind"] == "period-doubling":
                             waiting[k] = waiting.get(k, 0) + 1
-                            submit(doubled_task, k, "doubled", i, b, sides[k], key, multiple, value.t0, t0, tol,
+                            submit(doubled_task, k, "doubled", i, b, sides[k], key, multiple, b["t0_s"], t0, tol,
                                    step, steps)
                 else:
                     done_side[k][1][index] = value

@@ -43,7 +43,12 @@ about tol / |J_u|, moving the test function accordingly):
   making false alarms). Multipliers of A and B are paired by the least sum of sqrt(distance) (where their
   counts differ the missing ones are zeros: a direction held at one point, as an orbit's contact held
   closed on its section, has multiplier 0 there); each pair on
-  different sides is one crossing, followed through the trial points by the same pairing. Kinds: a real
+  different sides is a claimed crossing. Two multipliers on different sides passing near each other within
+  the step may be paired crosswise (a spurious pair of crossings), so each claim is checked: its stretch
+  of the chord is halved (trial points with their multipliers, at least one) until the followed
+  multiplier moved less than a quarter of its distance to every other one; a claim that vanishes on the way
+  was an exchange. One that stays ambiguous counts only where the number outside the circle (by kind)
+  changed. A real crossing is then followed through the trial points by the same pairing. Kinds: a real
   multiplier through +1 "fold", through -1 "period-doubling", a complex pair "neimark-sacker"
   (Kuznetsov chapter 4). A saddle-node (a fold of the branch with its multiplier through +1)
   is recorded once, as the tangent's fold.
@@ -87,6 +92,12 @@ REAL_TOL = 1e-7
 #: lengths below this share of |p_end - p0| (steps, locate_tol) are refused: the scaled unknowns are
 #: O(1), and steps near their round-off (2.2e-16) make no progress
 ROUNDOFF = 1e-12
+#: at most this many trial points to follow the multipliers across one step where the pairing of its ends is
+#: ambiguous (halvings: 2^-5 of the step where the multipliers pass each other, more trial points near the passage)
+MAX_FOLLOW = 24
+#: a multiplier's pairing across a stretch of the branch is unambiguous when it moved less than this share of its
+#: distance to every other multiplier
+RESOLVED = 0.25
 #: at most this many trial points per special point (the bracket at least halves every three: 2^-33 of
 #: the chord at worst, 1e-10; a smooth test function takes 5 to 10)
 MAX_TRIALS = 100
@@ -103,6 +114,7 @@ class BranchPoint:
     converged: bool                   # max |r(u, p)| <= tol
     residual: float = math.nan        # max |r(u, p)| at the point
     s: float = 0.0                    # arclength from the first point, in units of p (along the chords)
+    anchor: int = 0                   # the coordinates u is in: the number of re-anchorings before it
 
 
 @dataclass
@@ -117,6 +129,10 @@ class Branch:
     #  "detected_by": "tangent" | "multipliers"}
     stop: str = ""      # "end" | "left" | "closed" | "max_steps" | "failed"
     reason: str = ""    # one sentence: where and why the branch ended
+    # the changes of coordinates (``reanchor``): {"index": the point (its u in the old coordinates; the next
+    #  points in the new), "value": p, "anchor": the new coordinates' number, "forced": after a failed step,
+    #  "multipliers_before", "multipliers_after": the point's in the old and in the new coordinates}
+    reanchors: list[dict] = field(default_factory=list)
 
 
 class _Failure(Exception):
@@ -318,6 +334,76 @@ def _crossings(ma: np.ndarray, mb: np.ndarray, unit_tol: float) -> list[tuple[in
     return kept
 
 
+def _outside_counts(mu: np.ndarray, unit_tol: float) -> dict:
+    """The number of multipliers outside the unit circle by kind (real > 0, real < 0, complex)."""
+    counts = {"fold": 0, "period-doubling": 0, "neimark-sacker": 0}
+    for m in mu[_outside(mu, unit_tol)]:
+        counts[_kind(complex(m))] += 1
+    return counts
+
+
+def _side_changes(samples: list, n: int, unit_tol: float) -> list[tuple]:
+    """The multipliers followed through ``samples`` [(theta, point, multipliers)] by pairing neighbours: each
+    change of side of the unit circle (k: between samples k and k + 1, index at k, index at k + 1); one of each
+    complex-conjugate pair (the one with Im >= 0 after)."""
+    found = []
+    for i in range(n):
+        idx = i
+        for k, ((_, _, m1), (_, _, m2)) in enumerate(zip(samples, samples[1:])):
+            j = int(_paired(m1, m2)[idx])
+            if _outside(m1[idx:idx + 1], unit_tol)[0] != _outside(m2[j:j + 1], unit_tol)[0]:
+                b = complex(m2[j])
+                conjugate = np.any((np.abs(b.conjugate() - m2) <= 1e-9 * max(1.0, abs(b))) & (m2.imag > 0))
+                if not (b.imag < 0 and conjugate):
+                    found.append((k, idx, j))
+            idx = j
+    return found
+
+
+def _resolved(m1: np.ndarray, i: int, m2: np.ndarray, j: int) -> bool:
+    """Whether the pairing of m1[i] with m2[j] is unambiguous: the move is under RESOLVED of its distance to every
+    other multiplier, at both ends (a crossing seen through it is then the multiplier's own, not an exchange)."""
+    move = abs(m1[i] - m2[j])
+    for m, k in ((m1, i), (m2, j)):
+        others = np.delete(m, k)
+        if others.size and move >= RESOLVED * np.abs(others - m[k]).min():
+            return False
+    return True
+
+
+def _followed_crossings(chord: "_Chord", ma: np.ndarray, mb: np.ndarray, n: int, unit_tol: float,
+                        min_length_z: float, budget: int = MAX_FOLLOW) -> list[tuple] | None:
+    """The crossings of the unit circle between A and B, each (theta_lo, theta_hi, point_lo, point_hi, index at
+    lo, index at hi). Pairing A's multipliers with B's claims a crossing wherever a multiplier changed side, which
+    is wrong where two on different sides passed near each other (a spurious pair of crossings). Each claimed
+    crossing is followed: its stretch of the chord halved (a trial point with its multipliers; at least once)
+    until the pairing across it is unambiguous (:func:`_resolved`); claims that vanish on the way were exchanges.
+    None when a claim
+    stays ambiguous down to ``min_length_z`` or ``budget`` trial points, or a trial point fails."""
+    samples = [(0.0, chord.a, ma), (1.0, chord.b, mb)]
+    used = 0
+    while True:
+        changes = _side_changes(samples, n, unit_tol)
+        # (a claim over the whole step is always checked by one trial point at least: an exchange of two
+        # multipliers passing each other may look like a short move of each)
+        open_ = sorted({k for k, i, j in changes if len(samples) == 2
+                        or not _resolved(samples[k][2], i, samples[k + 1][2], j)}, reverse=True)
+        if not open_:
+            return [(samples[k][0], samples[k + 1][0], samples[k][1], samples[k + 1][1], i, j)
+                    for k, i, j in changes]
+        for k in open_:   # (from the end: the indices of the earlier stretches stay)
+            (t1, _, _), (t2, _, _) = samples[k], samples[k + 1]
+            if (t2 - t1) * chord.length <= min_length_z or used >= budget:
+                return None
+            theta = 0.5 * (t1 + t2)
+            try:
+                pt = chord.point(theta, True)
+            except _Failure:
+                return None
+            used += 1
+            samples.insert(k + 1, (theta, pt, _padded(pt.multipliers, n)))
+
+
 class _Chord:
     """Trial points between two branch points A and B (tangents ta, tb), re-corrected onto the branch in
     the hyperplane across the chord at theta. Newton starts from the cubic Hermite curve through A and B
@@ -347,7 +433,7 @@ class _Chord:
 
 
 def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b: float, span_tol: float,
-            with_multipliers: bool) -> tuple[_Point, float, float]:
+            with_multipliers: bool, bracket: tuple | None = None) -> tuple[_Point, float, float]:
     """The sign change of g along the chord (g(A) = g_a and g(B) = g_b of opposite signs), bracketed until
     the bracket's chord is at most span_tol: (the bracket's end with the smaller |g|, its theta, its
     distance in scaled z to the other end; the crossing lies on the branch between them).
@@ -360,10 +446,13 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
     in by a bracket of width span_tol rather than approached from one side."""
     lo, hi, glo, ghi = 0.0, 1.0, g_a, g_b
     pt_lo, pt_hi = chord.a, chord.b
+    if bracket is not None:     # a narrower start (lo, hi, its points), found by following the multipliers
+        lo, hi, pt_lo, pt_hi = bracket
     kept, widths = 0, [math.inf, math.inf]
     half_tol = 0.5 * span_tol / chord.length
-    if (g_a > 0) == (g_b > 0):     # no sign change to follow: the nearer end, to the chord's length
-        return (chord.a, 0.0, chord.length) if abs(g_a) <= abs(g_b) else (chord.b, 1.0, chord.length)
+    if (g_a > 0) == (g_b > 0):     # no sign change to follow: the nearer end, to the bracket's length
+        width = float(np.linalg.norm(pt_hi.z - pt_lo.z))
+        return (pt_lo, lo, width) if abs(g_a) <= abs(g_b) else (pt_hi, hi, width)
     for _ in range(MAX_TRIALS):
         width = hi - lo
         if width * chord.length <= span_tol:
@@ -417,10 +506,17 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
     if with_mu:
         n = max(a.multipliers.size, b.multipliers.size)
         ma, mb = _padded(a.multipliers, n), _padded(b.multipliers, n)
-        for i, j in _crossings(ma, mb, unit_tol):
+        # the multipliers followed from A to B with trial points added where pairing A's with B's could exchange
+        # multipliers on different sides of the circle passing near each other (a spurious pair of crossings, or
+        # two real ones hidden): none added where it cannot
+        crossings = _followed_crossings(chord, ma, mb, n, unit_tol, locate_tol_z)
+        if crossings is None:    # still ambiguous: a crossing is real only where the count outside changed
+            same = _outside_counts(ma, unit_tol) == _outside_counts(mb, unit_tol)
+            crossings = [] if same else [(0.0, 1.0, a, b, i, j) for i, j in _crossings(ma, mb, unit_tol)]
+        for lo, hi, pt_lo, pt_hi, i, j in crossings:
             # the crossing multiplier followed by pairing each trial's multipliers with those of the
             # nearest point known: theta -> (multipliers, the index of the followed one)
-            track = {0.0: (ma, i), 1.0: (mb, j)}
+            track = {lo: (_padded(pt_lo.multipliers, n), i), hi: (_padded(pt_hi.multipliers, n), j)}
 
             def followed(pt: _Point, theta: float) -> complex:
                 mu_ref, k = track[min(track, key=lambda key: abs(key - theta))]
@@ -429,16 +525,16 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
                 track[theta] = (mu, k)
                 return complex(mu[k])
 
-            mu_a, mu_b = complex(ma[i]), complex(mb[j])
+            mu_a, mu_b = complex(track[lo][0][i]), complex(track[hi][0][j])
             g_a, g_b = abs(mu_a) - 1.0, abs(mu_b) - 1.0
             if g_a * g_b > 0:     # the inside end lies within unit_tol outside the circle: the crossing is
                 # there, or just beyond it by the linear extrapolation of |mu| - 1 (its accuracy)
                 inside_a = not _outside(np.array([mu_a]), unit_tol)[0]
-                pt, theta, mu = (a, 0.0, mu_a) if inside_a else (b, 1.0, mu_b)
-                half = abs(g_a if inside_a else g_b) / abs(g_b - g_a) * chord.length
+                pt, theta, mu = (pt_lo, lo, mu_a) if inside_a else (pt_hi, hi, mu_b)
+                half = abs(g_a if inside_a else g_b) / abs(g_b - g_a) * float(np.linalg.norm(pt_hi.z - pt_lo.z))
             else:
                 pt, theta, half = _locate(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a, g_b,
-                                          locate_tol_z, True)
+                                          locate_tol_z, True, (lo, hi, pt_lo, pt_hi))
                 mu = followed(pt, theta)
             kind = _kind(mu)
             if kind == "fold" and fold_by_tangent:
@@ -447,18 +543,60 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
     return [d for _, d in sorted(found, key=lambda x: x[0])]
 
 
-def _branch_point(problem: _Scaled, pt: _Point, s: float, tol: float, unit_tol: float) -> BranchPoint:
+def _branch_point(problem: _Scaled, pt: _Point, s: float, tol: float, unit_tol: float, anchor: int = 0
+                  ) -> BranchPoint:
     mu = pt.multipliers
     stable = None if mu is None else bool(np.all(np.abs(mu) < 1.0 + unit_tol))
     return BranchPoint(p=problem.p(pt.z), u=problem.u(pt.z), multipliers=mu, stable=stable,
-                       converged=pt.rmax <= tol, residual=pt.rmax, s=s)
+                       converged=pt.rmax <= tol, residual=pt.rmax, s=s, anchor=anchor)
+
+
+def _reanchored(problem: _Scaled, reanchor: Callable, pt: _Point, t: np.ndarray, forced: bool, tol: float,
+                max_iter: int) -> tuple[_Point, np.ndarray] | None:
+    """The point in the coordinates ``reanchor`` moves to (re-corrected there at its p) and its tangent, oriented
+    as the old one mapped by the change's Jacobian (by the sign of its p component without one); None when
+    ``reanchor`` keeps the coordinates. _Failure when the change or the re-correction fails."""
+    u, p = problem.u(pt.z), problem.p(pt.z)
+    try:
+        out = reanchor(u.copy(), p, forced)
+    except _Contract:
+        raise
+    except (NsfemError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        raise _Failure(f"moving the coordinates at p = {p:.10g} failed: {_line(exc)}") from exc
+    if out is None:
+        return None
+    try:
+        u_new, M = out
+        u_new = np.asarray(u_new, dtype=float)
+        M = None if M is None else np.asarray(M, dtype=float)
+    except (TypeError, ValueError):
+        raise _Contract("continue_branch: reanchor(u, p, forced) must return None or (u_new, M or None)") from None
+    m = problem.m
+    if u_new.shape != (m,) or (M is not None and M.shape != (m, m)):
+        raise _Contract(f"continue_branch: reanchor returned u of shape {u_new.shape} and M of shape "
+                        f"{None if M is None else M.shape}, expected ({m},) and ({m}, {m})")
+    if not (np.all(np.isfinite(u_new)) and (M is None or np.all(np.isfinite(M)))):
+        raise _Failure(f"moving the coordinates at p = {p:.10g} gave values that are not finite")
+    problem._last = None     # (the residual is another function of u now)
+    z = problem.z(u_new, p)
+    z[-1] = pt.z[-1]
+    e_p = np.zeros(m + 1)
+    e_p[-1] = 1.0
+    new = _correct(problem, z, e_p, float(z[-1]), tol, max_iter)
+    new.multipliers = problem.multipliers(new.z)
+    if M is None:
+        previous = e_p * (1.0 if t[-1] >= 0 else -1.0)
+    else:
+        previous = np.append(M @ (t[:-1] * problem.u_scale) / problem.u_scale, t[-1])
+    return new, _tangent(new.jac, previous / np.linalg.norm(previous))
 
 
 def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: float | None = None,
                     max_steps: int = 200, tol: float = 1e-9, stability: Stability | None = None,
                     u_scale=1.0, max_step: float | None = None, min_step: float | None = None,
                     margin: float | None = None, locate_tol: float | None = None, unit_tol: float = 1e-6,
-                    max_iter: int = 8, on_point: Callable[[BranchPoint], None] | None = None) -> Branch:
+                    max_iter: int = 8, on_point: Callable[[BranchPoint], None] | None = None,
+                    reanchor: Callable | None = None) -> Branch:
     """Follow the branch of r(u, p) = 0 through (u0, p0) towards p_end by pseudo-arclength (Keller 1977).
 
     - residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)), real; u0 is first corrected at p = p0;
@@ -476,7 +614,15 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
       along the branch, in units of p, to which special points are located;
     - ``unit_tol``: the margin of the unit circle (a point is stable when every |mu| < 1 + unit_tol);
     - ``on_point(point)``: called with each accepted :class:`BranchPoint` as it is added (the first one too), e.g.
-      to report progress or save the points so far.
+      to report progress or save the points so far;
+    - ``reanchor(u, p, forced) -> None | (u_new, M)``: a change of the unknowns' coordinates along the branch
+      (an orbit's section moved): called after each accepted point (``forced`` False) and once when a step from
+      a point fails down to ``min_step`` (True). None keeps them; (u_new, M) is the same solution in new
+      coordinates, in which ``residual`` and ``stability`` work from then on, with M = du_new/du (m, m) or None
+      (it orients the new tangent; without it the tangent keeps its p component's sign). The point is
+      re-corrected there at its p and the branch goes on from it; special points are located within one
+      coordinate system (between two points, before the change), :attr:`Branch.reanchors` lists the changes and
+      :attr:`BranchPoint.anchor` says which coordinates a point's u is in.
     """
     if not callable(residual):
         raise NsfemError(f"continue_branch: residual must be callable, got {type(residual).__name__}")
@@ -533,6 +679,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         raise NsfemError("continue_branch: u_scale must be finite and > 0")
     if on_point is not None and not callable(on_point):
         raise NsfemError(f"continue_branch: on_point must be callable or None, got {type(on_point).__name__}")
+    if reanchor is not None and not callable(reanchor):
+        raise NsfemError(f"continue_branch: reanchor must be callable or None, got {type(reanchor).__name__}")
     said = on_point if on_point is not None else (lambda point: None)
 
     problem = _Scaled(residual, stability, u0.size, scale, p0, p_end)
@@ -560,13 +708,29 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     points = [_branch_point(problem, a, 0.0, tol, unit_tol)]
     said(points[-1])
     bifurcations: list[dict] = []
+    reanchors: list[dict] = []
+    anchor = 0
     s = 0.0
+
+    def move(pt: _Point, t: np.ndarray, forced: bool):
+        """The point and tangent in the coordinates reanchor moves to, recorded; None when it keeps them."""
+        nonlocal anchor
+        out = _reanchored(problem, reanchor, pt, t, forced, tol, max_iter)
+        if out is not None:
+            anchor += 1
+            reanchors.append({"index": len(points) - 1, "value": points[-1].p, "anchor": anchor, "forced": forced,
+                              "multipliers_before": pt.multipliers, "multipliers_after": out[0].multipliers})
+        return out
+
+    def ended(stop: str, reason: str) -> Branch:
+        return Branch(points, bifurcations, stop, reason, reanchors)
+
     while True:
         if len(points) - 1 >= max_steps:
-            return Branch(points, bifurcations, "max_steps",
-                          f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
+            return ended("max_steps", f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
         # predictor-corrector, the step halved until a correction succeeds
         failure = ""
+        ds_first, moved_here = ds, False
         while True:
             z_pred = a.z + ds * t
             try:
@@ -587,30 +751,47 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
             except _Failure as exc:
                 failure = str(exc)
                 ds *= 0.5
+                if ds < ds_min and reanchor is not None and not moved_here:
+                    # (the branch would stop here: new coordinates, if the caller has any, and the step again)
+                    moved_here = True
+                    try:
+                        out = move(a, t, True)
+                    except _Failure as exc2:
+                        out, failure = None, f"{failure}; {exc2}"
+                    if out is not None:
+                        (a, t), ds = out, ds_first
+                        continue
                 if ds < ds_min:
-                    return Branch(points, bifurcations, "failed",
-                                  f"no correction from p = {points[-1].p:.10g} with steps down to min_step = "
-                                  f"{min_step:g}: {failure}")
+                    return ended("failed", f"no correction from p = {points[-1].p:.10g} with steps down to min_step = "
+                                           f"{min_step:g}: {failure}")
         chord = float(np.linalg.norm(b.z - a.z))
         s += chord * span
-        bifurcations += _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
-        points.append(_branch_point(problem, b, s, tol, unit_tol))
+        found = _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
+        for f in found:
+            f["anchor"] = anchor
+        bifurcations += found
+        points.append(_branch_point(problem, b, s, tol, unit_tol, anchor))
         said(points[-1])
         if b.z[-1] >= 1.0:
-            return Branch(points, bifurcations, "end", f"reached p_end = {p_end:g}")
+            return ended("end", f"reached p_end = {p_end:g}")
         if not lo_z <= b.z[-1] <= hi_z:
-            return Branch(points, bifurcations, "left",
-                          f"the branch folded back and left [{min(p0, p_end) - margin:g}, {max(p0, p_end) + margin:g}]"
-                          f" at p = {points[-1].p:.10g}")
-        if len(points) > 3 and s > 3 * chord * span:
+            return ended("left", f"the branch folded back and left [{min(p0, p_end) - margin:g}, "
+                                 f"{max(p0, p_end) + margin:g}] at p = {points[-1].p:.10g}")
+        if anchor == 0 and len(points) > 3 and s > 3 * chord * span:   # (first_z: in the first coordinates)
             w = b.z - a.z
             x = float(np.clip((first_z - a.z) @ w / (w @ w), 0.0, 1.0))
             if np.linalg.norm(a.z + x * w - first_z) < 0.25 * chord:
-                return Branch(points, bifurcations, "closed",
-                              f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
-                              "in units of p: a closed branch")
+                return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
+                                       "in units of p: a closed branch")
         if b.iterations <= GROW_ITERATIONS and tb @ t > EASY_TURN_COS:
             ds = min(ds * GROW, ds_max)
+        if reanchor is not None:
+            try:
+                out = move(b, tb, False)
+            except _Failure as exc:
+                return ended("failed", f"at p = {points[-1].p:.10g}: {exc}")
+            if out is not None:
+                b, tb = out
         a, t = b, tb
 
 

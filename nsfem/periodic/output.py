@@ -67,7 +67,8 @@ def save_branch(path: str | Path, sb, meta: dict) -> Path:
     """branch.npz of a :class:`~nsfem.periodic.scene_branch.SceneBranch`: per point (the branch's, then each
     doubled branch's) ``value``, ``q0``/``v0`` (points, n) the section states, ``period_s``, ``multiple``,
     ``stable``, ``largest_multiplier``, ``amplitudes`` (points, sensors) [m], ``branch`` (0: the branch, k: the
-    k-th doubled one); ``sensors`` their names; ``meta`` the branch.json keys."""
+    k-th doubled one), ``t0_s`` each point's section time [s] (q0, v0 are the state there; it moves off events
+    that drift onto it) and ``t0`` the first point's; ``sensors`` their names; ``meta`` the branch.json keys."""
     rows = [(0, p) for p in sb.points] + [(k + 1, p) for k, d in enumerate(sb.doubled) for p in d["points"]]
     names = [s.name for s in sb.sensors]
     n = int(sb.start.system.n)
@@ -84,7 +85,8 @@ def save_branch(path: str | Path, sb, meta: dict) -> Path:
                   amplitudes=np.array([[p["amplitudes"].get(s, np.nan) for s in names] for _, p in rows],
                                       dtype=float).reshape(len(rows), len(names)),
                   branch=np.array([k for k, _ in rows], dtype=int), sensors=np.array(names, dtype=str),
-                  t0=np.array(float(sb.start.orbit.t0)), meta=np.array(dumps(meta)))
+                  t0=np.array(float(sb.start.orbit.t0)),
+                  t0_s=column(lambda p: p.get("t0_s", sb.start.orbit.t0)), meta=np.array(dumps(meta)))
 
     def write(tmp):
         with open(tmp, "wb") as fh:

@@ -56,7 +56,8 @@ class SceneBranch:
     """A scene's branch of periodic orbits over ``key``: ``points`` (dicts, in order along the branch from the
     LOW side to the HIGH side), ``bifurcations`` ([{"kind", "value", ...}]), ``doubled`` (the period-doubled
     branches switched onto, each {"multiple", "points", "bifurcations", "stop", "reason"}), ``sides`` (per
-    direction followed: {"towards", "stop", "reason"}), ``start`` (the :class:`~.scene.SceneOrbit` it started
+    direction followed: {"towards", "stop", "reason", "reanchors": [{"value", "t0_s", "forced"}]: where the section
+    moved}), ``start`` (the :class:`~.scene.SceneOrbit` it started
     from) and the arrays of the points' section states (``q0``, ``v0``: (points, n))."""
 
     key: str
@@ -276,10 +277,17 @@ def _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, tr
         records[record_key(mult, bp.p, bp.u)] = rec
         accept(rec, mult, side)
 
-    def merge(k: int, stop: str, reason: str, bifurcations: list[dict], doubled: list[dict]) -> None:
-        """Side k's end, bifurcations and doubled branches into the branch (sides in their order)."""
+    def merge(k: int, stop: str, reason: str, bifurcations: list[dict], doubled: list[dict],
+              reanchors: list[dict] = ()) -> None:
+        """Side k's end, bifurcations, doubled branches and section moves into the branch (sides in their
+        order)."""
         end = sides[k]
-        sb.sides.append({"towards": float(end), "stop": stop, "reason": reason})
+        moves = [{name: r[name] for name in ("value", "t0_s", "forced")} for r in reanchors]
+        sb.sides.append({"towards": float(end), "stop": stop, "reason": reason, "reanchors": moves})
+        if moves and progress is not None:
+            at = ", ".join(format(r["value"], ".6g") for r in moves[:5]) + (", ..." if len(moves) > 5 else "")
+            progress(f"towards {key} = {end:g} the section moved {len(moves)} time(s) off events of the "
+                     f"orbit that drifted onto it (at {at})")
         for bif in bifurcations:
             failed = {"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {}
             sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end), **failed})
@@ -303,10 +311,9 @@ def _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, tr
                 br = orbit_branch(family.system_at, family.period_at, so.orbit.q0, so.orbit.v0, p0, end, key=key,
                                   multiple=multiple, t0=float(so.orbit.t0), tol=tol, step=step, max_steps=steps,
                                   on_point=lambda bp, m, k=k: point(bp, m, k))
-                # (doubled branches at their own sections: the shooting moves one lying on an event; the records
-                # of their points, made as they came at the first orbit's t0, hold only where that is the same)
-                merge(k, br.stop, br.reason, br.bifurcations,
-                      [_doubled(d, family, d.t0, records if d.t0 == so.orbit.t0 else {}) for d in br.doubled])
+                # (each point of a doubled branch at its own section, as its record made when it came)
+                merge(k, br.stop, br.reason, br.bifurcations, [_doubled(d, family, records) for d in br.doubled],
+                      br.reanchors)
     except KeyboardInterrupt:
         sb.interrupted = True
     sb.bifurcations.sort(key=lambda b: b["value"])
@@ -325,10 +332,12 @@ def record_key(multiple: int, p: float, u) -> tuple:
 
 def point_record(family: "_Family", bp, multiple: int, key: str, t0: float) -> dict:
     """The JSON record of the continuation's point ``bp`` (a :class:`~.continuation.BranchPoint` of an orbit of
-    period ``multiple`` forcing periods): :meth:`_Family.point` at the section ``t0``, the key's value, the
-    corrector's residual, the multipliers and the verdict."""
+    period ``multiple`` forcing periods): :meth:`_Family.point` at the point's own section (``bp.t0_s``: it moves
+    off drifting events; ``t0`` for a point without one), the key's value, the corrector's residual, the
+    multipliers and the verdict."""
+    t0 = float(getattr(bp, "t0_s", t0))
     rec = family.point(bp.p, bp.u, multiple, t0)
-    rec.update({"value": float(bp.p), key: float(bp.p), "converged": bool(bp.converged),
+    rec.update({"value": float(bp.p), key: float(bp.p), "t0_s": t0, "converged": bool(bp.converged),
                 "residual": float(bp.residual) if math.isfinite(bp.residual) else rec["residual"]})
     _stability(rec, bp.multipliers)
     return rec
@@ -365,16 +374,16 @@ def _stability(rec: dict, multipliers) -> None:
                largest_multiplier=float(np.abs(mu).max(initial=0.0)))
 
 
-def _doubled(d, family: "_Family", t0: float, records: dict) -> dict:
+def _doubled(d, family: "_Family", records: dict) -> dict:
     """A doubled :class:`~.branch.OrbitBranch` as the JSON has it, its points with amplitudes (those reported as
-    they were found, from ``records``)."""
+    they were found, from ``records``; each point's at its own section ``t0_s``)."""
     pts = []
     for p in d.points:
         u = np.concatenate([p["q0"], p["v0"]])
         rec = records.get((d.multiple, float(p["value"]), u.tobytes()))
         if rec is None:
-            rec = family.point(p["value"], u, d.multiple, t0)
-            rec.update({k: p[k] for k in ("value", d.key, "converged", "residual") if k in p})
+            rec = family.point(p["value"], u, d.multiple, p["t0_s"])
+            rec.update({k: p[k] for k in ("value", d.key, "t0_s", "converged", "residual") if k in p})
             _stability(rec, [complex(*z) for z in p["multipliers"]])
         pts.append(rec)
     return {"multiple": d.multiple, "points": pts,
@@ -464,4 +473,5 @@ class _Family:
         return {"period_s": float(period), "residual": float(np.abs(F).max()) / size,
                 "events_per_period": len(res.events), "amplitudes": amplitudes, "multiple": int(multiple),
                 "section_q_max": float(np.abs(q0).max(initial=0.0)),
+                "orbit_q_max": float(np.abs(np.asarray(res.q)).max(initial=0.0)),
                 "q0": q0, "v0": v0}

@@ -161,8 +161,9 @@ def branch_plot(path: str | Path, key: str, points: Sequence[dict], sensors: Seq
     peak-to-peak over the period, in µm) against the key's value; stable parts solid, unstable dashed; the
     period-doubled branches in another colour; each bifurcation marked on the branch and labelled by its kind.
     ``points`` (and each doubled branch's "points") are dicts with "value", "stable", "amplitudes" {sensor: m}.
-    Without sensors the largest section coordinate is drawn instead (it has no unit of length: said in the
-    label). Returns the path."""
+    Without sensors the largest |coordinate| over the period ("orbit_q_max"; else "section_q_max", the section
+    state's, which jumps where the section moves) is drawn instead (it has no unit of length: said in the label).
+    Returns the path."""
     names = list(sensors) or [None]
     fig, axes = figure(nrows=len(names), ncols=1, figsize=(8.4, 1.0 + 3.0 * len(names)), layout="constrained",
                        squeeze=False, sharex=True)
@@ -170,7 +171,8 @@ def branch_plot(path: str | Path, key: str, points: Sequence[dict], sensors: Seq
 
     def curve(pts, name):
         x = np.array([p["value"] for p in pts], dtype=float)
-        y = np.array([1e6 * p["amplitudes"][name] if name else p.get("section_q_max", 0.0) for p in pts], float)
+        y = np.array([1e6 * p["amplitudes"][name] if name else p.get("orbit_q_max", p.get("section_q_max", 0.0))
+                      for p in pts], float)
         return x, y, np.array([bool(p["stable"]) for p in pts])
 
     for ax, name in zip(axes[:, 0], names):
@@ -191,7 +193,7 @@ def branch_plot(path: str | Path, key: str, points: Sequence[dict], sensors: Seq
             ax.plot([b["value"]], [yb], marks.get(b["kind"], "o"), ms=7, color="tab:red", zorder=4)
             ax.annotate(f"{b['kind']} {b['value']:.6g}", (b["value"], yb), textcoords="offset points", xytext=(6, 6),
                         fontsize=7, color="tab:red")
-        ax.set_ylabel(f"{name}: amplitude [µm]" if name else "largest section coordinate [model unit]")
+        ax.set_ylabel(f"{name}: amplitude [µm]" if name else "largest coordinate over the period [model unit]")
         ax.grid(True, alpha=0.3)
         handles, labels = ax.get_legend_handles_labels()
         seen = dict(zip(labels, handles))
