@@ -62,9 +62,11 @@ SENSOR = ["sensor.0.name=midspan_z", "sensor.0.x=0.5", "sensor.0.layer=lower", "
           "sensor.0.frame=rotating"]
 
 
-def build(alpha: float, speed_hz: float):
-    """The default scene at mass-proportional damping alpha [1/s] and speed [Hz]: (system, period, q0, v0)."""
-    scene = load_scene("default", [f"damping.rayleigh=[{alpha!r},0.0]", f"rotation.speed_hz={speed_hz!r}", *SENSOR])
+def build(alpha: float, speed_hz: float, beta: float = 0.0):
+    """The default scene at Rayleigh damping C = alpha M + beta K (alpha [1/s], beta [s]) and speed [Hz]:
+    (system, period, q0, v0)."""
+    scene = load_scene("default", [f"damping.rayleigh=[{alpha!r},{beta!r}]", f"rotation.speed_hz={speed_hz!r}",
+                                   *SENSOR])
     model = build_model(scene)
     red = scene_reduction(scene.reduction, model)
     system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
@@ -179,6 +181,60 @@ def transient(alpha: float, speed: float, start, periods: int, system=None) -> l
                     "midspan_m": midspan(system, speed, np.asarray(r.t), r.q)})
         q, v = f.q, f.v
     return out
+
+
+def touching_orbit(system, speed: float, start, max_iter: int) -> tuple[dict, object]:
+    """The synchronous orbit at ``speed`` shot from ``start`` (q, v) with its row: the gap, events, force,
+    midspan amplitude, multipliers (the same keys as :func:`orbit_row`, plus ``residual`` and ``closings``)."""
+    t = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        o = periodic_orbit(system, 1.0 / speed, *start, tol=1e-9, max_iter=max_iter, attempts=1)
+    r, mu = o.result, np.abs(o.multipliers)
+    ev = r.events
+    row = {"speed_hz": speed, "converged": bool(o.converged), "residual": float(o.residual),
+           "stable": bool(o.stable), "loss": o.loss, "events_per_period": len(ev),
+           "closings": sum(1 for e in ev if "close" in e["kinds"]), "impacts": sum(1 for e in ev if e["impact"]),
+           "largest_multiplier": float(mu[0]) if mu.size else 0.0,
+           "gap_min_m": float(r.gap.min()), "gap_max_m": float(r.gap.max()),
+           "normal_force_max_N": float(r.normal_force.max()),
+           "midspan_m": midspan(system, speed, np.asarray(r.t), r.q),
+           "grazing": len(o.grazing or []), "iterations": int(o.iterations), "wall_s": time.perf_counter() - t,
+           "warnings": [str(w.message).splitlines()[0] for w in caught]}
+    return row, o
+
+
+def touching_branch(beta: float, start_speed: float, step: float, limits: tuple[float, float], start,
+                    max_iter: int) -> list[dict]:
+    """The orbits where the layers touch, stiffness damping ``beta`` (alpha 0), by natural continuation in the
+    speed from the touching state ``start`` at ``start_speed``: each speed shot from the previous orbit, upwards
+    then downwards by ``step`` within ``limits``, a direction ending at the first speed whose shooting does not
+    converge or whose orbit has no event (the open branch)."""
+    system = build(0.0, start_speed, beta)[0]
+    first, o = touching_orbit(system, start_speed, start, max_iter)
+    rows = [first]
+    _say(beta, first)
+    if not first["converged"]:
+        return rows
+    for sign in (1.0, -1.0):
+        prev, s = (o.q0, o.v0), start_speed
+        while True:
+            s = round(s + sign * step, 9)
+            if not limits[0] <= s <= limits[1]:
+                break
+            row, nxt = touching_orbit(build(0.0, s, beta)[0], s, prev, max_iter)
+            rows.append(row)
+            _say(beta, row)
+            if not row["converged"] or row["events_per_period"] == 0:
+                break
+            prev = (nxt.q0, nxt.v0)
+    return sorted(rows, key=lambda r: r["speed_hz"])
+
+
+def _say(beta: float, row: dict) -> None:
+    print(f"beta {beta:g} speed {row['speed_hz']:.4f}: converged {row['converged']} (res {row['residual']:.1e}, "
+          f"{row['iterations']} it) events {row['events_per_period']} force {row['normal_force_max_N']:.3g} N "
+          f"midspan {row['midspan_m'] * 1e3:.3f} mm |mu| {row['largest_multiplier']:.5f}", file=sys.stderr, flush=True)
 
 
 def threshold(speed: float, alphas: list[float], lead: int, max_iter: int, budget_s: float) -> list[dict]:
