@@ -27,6 +27,18 @@ layers touch.
 
 ``--quick``: alphas 2 and 0.5, 15 speeds, 100-revolution transients. Writes delamination_resonance.json/.csv into
 studies/out/delamination_resonance and the figure docs/figures/delamination_resonance.png.
+
+``--touching`` (instead): where the layers touch. (1) At alpha 0.5 and ``--touch-speed`` (22.78 Hz), from the open
+orbit of ``--lead-speed`` (22.74 Hz), ``--revolutions`` of transient, then :func:`smoothness` of the period map
+there: its events (closings that re-open at once), the monodromy against central differences of the flow at two
+steps with the perturbed flows' event counts, the number of multipliers near the unit circle. (2) With
+stiffness-proportional damping ``--beta`` (alpha 0; the contact modes decay within revolutions): the open orbits over
+``--open-speeds``, the transient into contact at the touch speed, the touching orbits by natural continuation in the
+speed (:func:`touching_branch`, step ``--step``) and a stability check of the first (:func:`contraction`: a
+perturbation along its leading Floquet direction under the exact transient). Writes delamination_touching.json/.csv
+and docs/figures/delamination_touching.png.
+
+    python studies/delamination_resonance.py --touching [--beta 1e-5] [--step 0.0025]
 """
 
 from __future__ import annotations
@@ -213,10 +225,10 @@ def touching_orbit(system, speed: float, start, max_iter: int) -> tuple[dict, ob
 
 def touching_branch(beta: float, start_speed: float, step: float, limits: tuple[float, float], start,
                     max_iter: int) -> tuple[list[dict], object]:
-    """(rows, the orbit at ``start_speed``): the orbits where the layers touch, stiffness damping ``beta`` (alpha 0), by natural continuation in the
-    speed from the touching state ``start`` at ``start_speed``: each speed shot from the previous orbit, upwards
-    then downwards by ``step`` within ``limits``, a direction ending at the first speed whose shooting does not
-    converge or whose orbit has no event (the open branch)."""
+    """(rows, the orbit at ``start_speed``): the orbits where the layers touch, stiffness damping ``beta``
+    (alpha 0), by natural continuation in the speed from the touching state ``start`` at ``start_speed``: each
+    speed shot from the previous orbit, upwards then downwards by ``step`` within ``limits``, a direction ending
+    at the first speed whose shooting does not converge or whose orbit has no event (the open branch)."""
     system = build(0.0, start_speed, beta)[0]
     first, o = touching_orbit(system, start_speed, start, max_iter)
     rows = [first]
