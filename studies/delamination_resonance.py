@@ -396,6 +396,9 @@ def touching(args) -> dict:
                "open_branch": open_rows, "transient": trans_b, "touching_branch": rows, "contraction": contr,
                "machine": machine()}
     write_outputs(Path(args.out), "delamination_touching", rows, payload)
+    if orbit.converged:   # the orbit's section state (tests/data/delamination_touching_orbit.npz is one such)
+        np.savez(Path(args.out) / "delamination_touching_orbit.npz", q0=orbit.q0, v0=orbit.v0, t0=orbit.t0,
+                 speed_hz=hi, beta=b)
     touching_figure(payload, Path(args.figure).with_name("delamination_touching.png"))
     return payload
 
@@ -468,6 +471,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--contraction-periods", type=int, default=12, help="the stability check's transient")
     args = ap.parse_args(argv)
     if args.touching:
+        if not (args.beta > 0 and args.step > 0 and args.revolutions >= 1 and args.contraction_periods >= 1):
+            ap.error(f"--touching needs --beta > 0 (got {args.beta}), --step > 0 (got {args.step}), --revolutions and "
+                     f"--contraction-periods >= 1 (got {args.revolutions}, {args.contraction_periods})")
         return touching(args)
     if args.quick:
         args.alphas, args.speeds, args.revolutions = [2.0, 0.5], "22.5:23.06:15", 100

@@ -55,8 +55,9 @@ def test_open_orbit_below_resonance_obeys_liouville():
 # With C = beta K, beta = 1e-5 s (modal damping ratio beta omega / 2: 7.2e-4 at the 22.78 Hz resonance, 1.6e-2 at the
 # 500 Hz contact modes the plastic impacts excite), the layers touch over the orbit at 22.78 Hz and the shooting
 # converges (studies/delamination_resonance.py --touching; docs/validation.md). The orbit's section state is stored
-# (tests/data/delamination_touching_orbit.npz, written by that study: 5 Newton steps from a 200-revolution transient
-# to residual 2.3e-15), so the tests below need no transient.
+# (tests/data/delamination_touching_orbit.npz: shot with tol 1e-12 in 5 Newton steps to residual 2.3e-15 from the
+# state after 200 revolutions at 22.78 Hz from the open orbit of 22.74 Hz, as the study does; the study saves its
+# own as delamination_touching_orbit.npz), so the tests below need no transient.
 
 DATA = __import__("pathlib").Path(__file__).parent / "data" / "delamination_touching_orbit.npz"
 
