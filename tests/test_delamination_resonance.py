@@ -130,15 +130,17 @@ def test_touching_orbit_residual_and_floquet_contraction():
     j = int(np.argmax(np.abs(w)))
     assert abs(w[j].imag) < 1e-12 and abs(abs(w[j]) - abs(mu[1])) > 1e-3
     dx = o.directions @ np.real(V[:, j])
-    dx *= 1e-8 * max(np.abs(q0).max(), 1e-300) / np.abs(dx[:n]).max()
+    dx *= 1e-7 * max(np.abs(q0).max(), 1e-300) / np.abs(dx[:n]).max()
     phi = FlowMap(system, o.t0, T)
     q, v = o.q0 + dx[:n], o.v0 + dx[n:]
-    N = 12
+    N = 6
     for _ in range(N):
         f = phi(q, v, jacobian=False)
         q, v = f.q, f.v
     d = np.concatenate([q - o.q0, v - o.v0])
     rate = (np.linalg.norm(d) / np.linalg.norm(dx)) ** (1.0 / N)
-    # along the eigenvector d_N = mu^N dx + O(|dx|^2): the second order is 1e-8 relative; the orbit's own error
-    # (residual 1e-11 per period, 12 periods) is 1e-3 of |dx| = 1e-8: per period ^(1/12) ~1e-4; 1e-3 covers both
+    # along the eigenvector d_N = mu^N dx + O(|dx|^2): the second order is 1e-7 relative (the perturbation stays
+    # below the 1e-6 at which the event sequence changes); the orbit's own error (residual < 1e-11 a period, 6
+    # periods) is < 6e-4 of |dx| = 1e-7, < 1e-4 a period after the 6th root; 1e-3 covers both and still tells
+    # |mu_1| (0.98986) from |mu_2| (0.98334)
     assert rate == pytest.approx(abs(w[j]), abs=1e-3)
