@@ -27,6 +27,18 @@ layers touch.
 
 ``--quick``: alphas 2 and 0.5, 15 speeds, 100-revolution transients. Writes delamination_resonance.json/.csv into
 studies/out/delamination_resonance and the figure docs/figures/delamination_resonance.png.
+
+``--touching`` (instead): where the layers touch. (1) At alpha 0.5 and ``--touch-speed`` (22.78 Hz), from the open
+orbit of ``--lead-speed`` (22.74 Hz), ``--revolutions`` of transient, then :func:`smoothness` of the period map
+there: its events (closings that re-open at once), the monodromy against central differences of the flow at two
+steps with the perturbed flows' event counts, the number of multipliers near the unit circle. (2) With
+stiffness-proportional damping ``--beta`` (alpha 0; the contact modes decay within revolutions): the open orbits over
+``--open-speeds``, the transient into contact at the touch speed, the touching orbits by natural continuation in the
+speed (:func:`touching_branch`, step ``--step``) and a stability check of the first (:func:`contraction`: a
+perturbation along its leading Floquet direction under the exact transient). Writes delamination_touching.json/.csv
+and docs/figures/delamination_touching.png.
+
+    python studies/delamination_resonance.py --touching [--beta 1e-5] [--step 0.0025]
 """
 
 from __future__ import annotations
@@ -52,6 +64,7 @@ from nsfem.sensors import read  # noqa: E402
 from nsfem.integrate.problem import ContactSystem  # noqa: E402
 from nsfem.periodic import periodic_orbit  # noqa: E402
 from nsfem.periodic.flow import FlowMap  # noqa: E402
+from nsfem.periodic.shooting import admissible_directions  # noqa: E402
 from nsfem.reduce import scene_reduction  # noqa: E402
 from nsfem.scene.load import load_scene  # noqa: E402
 from nsfem.simulate import initial_state  # noqa: E402
@@ -62,9 +75,11 @@ SENSOR = ["sensor.0.name=midspan_z", "sensor.0.x=0.5", "sensor.0.layer=lower", "
           "sensor.0.frame=rotating"]
 
 
-def build(alpha: float, speed_hz: float):
-    """The default scene at mass-proportional damping alpha [1/s] and speed [Hz]: (system, period, q0, v0)."""
-    scene = load_scene("default", [f"damping.rayleigh=[{alpha!r},0.0]", f"rotation.speed_hz={speed_hz!r}", *SENSOR])
+def build(alpha: float, speed_hz: float, beta: float = 0.0):
+    """The default scene at Rayleigh damping C = alpha M + beta K (alpha [1/s], beta [s]) and speed [Hz]:
+    (system, period, q0, v0)."""
+    scene = load_scene("default", [f"damping.rayleigh=[{alpha!r},{beta!r}]", f"rotation.speed_hz={speed_hz!r}",
+                                   *SENSOR])
     model = build_model(scene)
     red = scene_reduction(scene.reduction, model)
     system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
@@ -113,11 +128,11 @@ def touching_row(alpha: float, speed: float, system, T: float, start, revolution
 
 
 def orbit_row(alpha: float, speed: float, start, lead: int, max_iter: int, budget_s: float,
-              revolutions: int) -> tuple[dict, tuple | None]:
+              revolutions: int, beta: float = 0.0) -> tuple[dict, tuple | None]:
     """One speed's synchronous orbit from ``start`` (q, v) (None: ``lead`` revolutions from the scene's start).
     Shot when one revolution from the start is open and the shooting ends within ``budget_s`` with an open orbit;
     else the layers touch and the row summarizes a transient (:func:`touching_row`)."""
-    system, T, q0, v0 = build(alpha, speed)
+    system, T, q0, v0 = build(alpha, speed, beta)
     q, v = start if start is not None else settle(system, T, q0, v0, lead)
     if FlowMap(system, 0.0, T)(q, v, jacobian=False).result.events:
         return touching_row(alpha, speed, system, T, (q, v), revolutions), None
@@ -150,11 +165,11 @@ def orbit_row(alpha: float, speed: float, start, lead: int, max_iter: int, budge
 
 
 def branch(alpha: float, speeds: np.ndarray, lead: int, max_iter: int, budget_s: float,
-           revolutions: int) -> list[dict]:
+           revolutions: int, beta: float = 0.0) -> list[dict]:
     """The synchronous orbits over ``speeds`` at one damping, each from the previous open orbit."""
     rows, start = [], None
     for s in speeds:
-        row, nxt = orbit_row(alpha, float(s), start, lead, max_iter, budget_s, revolutions)
+        row, nxt = orbit_row(alpha, float(s), start, lead, max_iter, budget_s, revolutions, beta)
         start = nxt if nxt is not None else start
         rows.append(row)
         print(f"alpha {alpha:g} speed {s:.4f}: converged {row['converged']} events {row['events_per_period']} "
@@ -162,10 +177,12 @@ def branch(alpha: float, speeds: np.ndarray, lead: int, max_iter: int, budget_s:
     return rows
 
 
-def transient(alpha: float, speed: float, start, periods: int, system=None) -> list[dict]:
-    """Revolution by revolution from ``start``: the smallest gap, largest contact force and events of each."""
+def transient(alpha: float, speed: float, start, periods: int, system=None, beta: float = 0.0,
+              end: list | None = None) -> list[dict]:
+    """Revolution by revolution from ``start``: the smallest gap, largest contact force and events of each (and
+    the change of the state over it, relative); ``end`` (a list) receives the state (q, v) after the last."""
     if system is None:
-        system = build(alpha, speed)[0]
+        system = build(alpha, speed, beta)[0]
     T = 1.0 / speed
     phi = FlowMap(system, 0.0, T)
     q, v = start
@@ -176,9 +193,123 @@ def transient(alpha: float, speed: float, start, periods: int, system=None) -> l
         out.append({"revolution": k + 1, "gap_min_m": float(r.gap.min()), "gap_max_m": float(r.gap.max()),
                     "normal_force_max_N": float(r.normal_force.max()), "events": len(r.events),
                     "q_half_p2p": float(0.5 * (r.q.max(axis=1) - r.q.min(axis=1)).max()) if r.q.size else 0.0,
-                    "midspan_m": midspan(system, speed, np.asarray(r.t), r.q)})
+                    "midspan_m": midspan(system, speed, np.asarray(r.t), r.q),
+                    "change": float(max(np.abs(f.q - q).max(), np.abs(f.v - v).max() * T / (2 * np.pi))
+                                    / max(np.abs(q).max(), 1e-300))})
         q, v = f.q, f.v
+    if end is not None:
+        end.extend([q, v])
     return out
+
+
+def touching_orbit(system, speed: float, start, max_iter: int) -> tuple[dict, object]:
+    """The synchronous orbit at ``speed`` shot from ``start`` (q, v) with its row: the gap, events, force,
+    midspan amplitude, multipliers (the same keys as :func:`orbit_row`, plus ``residual`` and ``closings``)."""
+    t = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        o = periodic_orbit(system, 1.0 / speed, *start, tol=1e-9, max_iter=max_iter, attempts=1)
+    r, mu = o.result, np.abs(o.multipliers)
+    ev = r.events
+    row = {"speed_hz": speed, "converged": bool(o.converged), "residual": float(o.residual),
+           "stable": bool(o.stable), "loss": o.loss, "events_per_period": len(ev),
+           "closings": sum(1 for e in ev if "close" in e["kinds"]), "impacts": sum(1 for e in ev if e["impact"]),
+           "largest_multiplier": float(mu[0]) if mu.size else 0.0,
+           "gap_min_m": float(r.gap.min()), "gap_max_m": float(r.gap.max()),
+           "normal_force_max_N": float(r.normal_force.max()),
+           "midspan_m": midspan(system, speed, np.asarray(r.t), r.q),
+           "grazing": len(o.grazing or []), "iterations": int(o.iterations), "wall_s": time.perf_counter() - t,
+           "warnings": [str(w.message).splitlines()[0] for w in caught]}
+    return row, o
+
+
+def touching_branch(beta: float, start_speed: float, step: float, limits: tuple[float, float], start,
+                    max_iter: int) -> tuple[list[dict], object]:
+    """(rows, the orbit at ``start_speed``): the orbits where the layers touch, stiffness damping ``beta``
+    (alpha 0), by natural continuation in the speed from the touching state ``start`` at ``start_speed``: each
+    speed shot from the previous orbit, upwards then downwards by ``step`` within ``limits``, a direction ending
+    at the first speed whose shooting does not converge or whose orbit has no event (the open branch)."""
+    system = build(0.0, start_speed, beta)[0]
+    first, o = touching_orbit(system, start_speed, start, max_iter)
+    rows = [first]
+    _say(beta, first)
+    if not first["converged"]:
+        return rows, o
+    for sign in (1.0, -1.0):
+        prev, s = (o.q0, o.v0), start_speed
+        while True:
+            s = round(s + sign * step, 9)
+            if not limits[0] <= s <= limits[1]:
+                break
+            row, nxt = touching_orbit(build(0.0, s, beta)[0], s, prev, max_iter)
+            rows.append(row)
+            _say(beta, row)
+            if not row["converged"] or row["events_per_period"] == 0:
+                break
+            prev = (nxt.q0, nxt.v0)
+    return sorted(rows, key=lambda r: r["speed_hz"]), o
+
+
+def _say(beta: float, row: dict) -> None:
+    print(f"beta {beta:g} speed {row['speed_hz']:.4f}: converged {row['converged']} (res {row['residual']:.1e}, "
+          f"{row['iterations']} it) events {row['events_per_period']} force {row['normal_force_max_N']:.3g} N "
+          f"midspan {row['midspan_m'] * 1e3:.3f} mm |mu| {row['largest_multiplier']:.5f}", file=sys.stderr, flush=True)
+
+
+def smoothness(system, T: float, q, v, hs=(1e-6, 1e-8), count: int = 6, seed: int = 0) -> dict:
+    """Is the period map smooth at (q, v)? One exact period with its monodromy, its events (closings that leave
+    their point open: plastic impacts at one point that throw it or its neighbours off again), and per step h
+    (relative to the state's size) the central differences of the flow along ``count`` random coordinates against
+    the monodromy (relative error) and the event counts of the perturbed flows: a count that changes means the map
+    is non-smooth at that scale, so Newton with the exact Jacobian cannot converge below it."""
+    phi = FlowMap(system, 0.0, T)
+    f = phi(q, v, jacobian=True)
+    ev = f.result.events
+    n, w = system.n, 2.0 * np.pi / T
+    closings = [e for e in ev if "close" in e["kinds"]]
+    reopened = sum(1 for e in closings if not set(e["contacts"]) <= set(e["after"]["closed"]))
+    out = {"events": len(ev), "closings": len(closings), "closings_left_open": reopened,
+           "releases": sum(1 for e in ev if "release" in e["kinds"]),
+           "contacts_closing": sorted({c for e in closings for c in e["contacts"]}), "steps": []}
+    # the spectrum of the period map on the section's admissible directions: how many directions barely contract
+    Z = admissible_directions(system, f.start_mode)
+    mu = np.abs(np.linalg.eigvals(Z.T @ f.monodromy @ Z))
+    out["multipliers_above"] = {str(m): int(np.sum(mu > m)) for m in (0.5, 0.9, 0.98)}
+    out["dimension"] = int(mu.size)
+    rng = np.random.default_rng(seed)
+    size = max(float(np.abs(q).max()), 1e-300)
+    for h in hs:
+        errs, counts = [], []
+        for j in rng.choice(2 * n, count, replace=False):
+            dx = np.zeros(2 * n)
+            dx[j] = h * size * (1.0 if j < n else w)
+            fp = phi(q + dx[:n], v + dx[n:], jacobian=False)
+            fm = phi(q - dx[:n], v - dx[n:], jacobian=False)
+            cd = 0.5 * (np.concatenate([fp.q, fp.v]) - np.concatenate([fm.q, fm.v]))
+            pred = f.monodromy @ dx
+            errs.append(float(np.linalg.norm(cd - pred) / np.linalg.norm(pred)))
+            counts.append([len(fp.result.events), len(fm.result.events)])
+        out["steps"].append({"h": h, "relative_error": errs, "event_counts": counts})
+    return out
+
+
+def contraction(system, T: float, orbit, periods: int, size: float = 1e-8) -> dict:
+    """A perturbation of relative ``size`` along the orbit's leading Floquet direction, followed by the exact
+    transient for ``periods`` periods: its decay per period against the leading multiplier's modulus."""
+    n = system.n
+    w, V = np.linalg.eig(orbit.monodromy)
+    j = int(np.argmax(np.abs(w)))
+    dx = orbit.directions @ np.real(V[:, j])
+    dx *= size * max(float(np.abs(orbit.q0).max()), 1e-300) / np.abs(dx[:n]).max()
+    phi = FlowMap(system, orbit.t0, T)
+    q, v, d = orbit.q0 + dx[:n], orbit.v0 + dx[n:], []
+    for _ in range(periods):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+        d.append(float(np.linalg.norm(np.concatenate([q - orbit.q0, v - orbit.v0]))))
+    rate = (d[-1] / float(np.linalg.norm(dx))) ** (1.0 / periods)
+    return {"periods": periods, "multiplier": complex(w[j]).real, "imag": complex(w[j]).imag, "rate": rate,
+            "distances": d, "initial": float(np.linalg.norm(dx))}
 
 
 def threshold(speed: float, alphas: list[float], lead: int, max_iter: int, budget_s: float) -> list[dict]:
@@ -234,6 +365,85 @@ def figure(rows: list[dict], trans: list[dict], trans_label: str, path: Path) ->
     save_figure(fig, path)
 
 
+def touching(args) -> dict:
+    """The touching part (``--touching``): why the shooting fails at alpha 0.5, and the branch that converges with
+    stiffness-proportional damping ``--beta`` (alpha 0) instead."""
+    # 1. the diagnosis at alpha 0.5, 22.78 Hz: the transient from the open orbit at 22.74 Hz, then the period map's
+    #    smoothness at its end
+    a, lo, hi = 0.5, args.lead_speed, args.touch_speed
+    row, start = orbit_row(a, lo, None, args.lead, args.max_iter, args.budget, 40)
+    system, T = build(a, hi)[:2]
+    end: list = []
+    trans_a = transient(a, hi, start, args.revolutions, system=system, end=end)
+    diag = smoothness(system, T, *end)
+    print("diagnosis:", json.dumps({k: v for k, v in diag.items() if k != "steps"}),
+          [(st["h"], np.round(st["relative_error"], 3).tolist(), st["event_counts"]) for st in diag["steps"]],
+          file=sys.stderr, flush=True)
+    # 2. stiffness damping: the open branch, the transient into contact at touch_speed, the touching branch
+    b = args.beta
+    speeds = parse_speeds(args.open_speeds)
+    open_rows = branch(0.0, speeds, args.lead, args.max_iter, args.budget, 40, b)
+    row, start = orbit_row(0.0, lo, None, args.lead, args.max_iter, args.budget, 40, b)
+    system, T = build(0.0, hi, b)[:2]
+    end = []
+    trans_b = transient(0.0, hi, start, args.revolutions, system=system, beta=b, end=end)
+    rows, orbit = touching_branch(b, hi, args.step, (float(speeds[0]), float(speeds[-1])), tuple(end), args.max_iter)
+    contr = contraction(system, T, orbit, args.contraction_periods) if orbit.converged else None
+    if contr:
+        print("contraction:", contr["rate"], "multiplier", contr["multiplier"], file=sys.stderr)
+    payload = {"study": "delamination_touching", "scene": "default", "beta_s": b, "touch_speed_hz": hi,
+               "diagnosis_alpha_0_5": {"transient": trans_a, "smoothness": diag},
+               "open_branch": open_rows, "transient": trans_b, "touching_branch": rows, "contraction": contr,
+               "machine": machine()}
+    write_outputs(Path(args.out), "delamination_touching", rows, payload)
+    if orbit.converged:   # the orbit's section state (tests/data/delamination_touching_orbit.npz is one such)
+        np.savez(Path(args.out) / "delamination_touching_orbit.npz", q0=orbit.q0, v0=orbit.v0, t0=orbit.t0,
+                 speed_hz=hi, beta=b)
+    touching_figure(payload, Path(args.figure).with_name("delamination_touching.png"))
+    return payload
+
+
+def touching_figure(payload: dict, path: Path) -> None:
+    import matplotlib
+    import matplotlib.ticker
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(15, 4.2))
+    ob = payload["open_branch"]   # (the line broken where no open orbit exists: the layers touch there)
+    ax[0].plot([r["speed_hz"] for r in ob], [r["midspan_m"] * 1e3 if r["converged"] and r["events_per_period"] == 0
+                                            else np.nan for r in ob], "-o", ms=3, color="C0",
+               label="open orbits (no contact)")
+    tb = payload["touching_branch"]
+    for ok, mk, lab in ((True, "s", "touching orbits (converged, stable)"),
+                        (False, "x", "touching, shooting not converged")):
+        rs = [r for r in tb if r["converged"] == ok and (r["events_per_period"] > 0)]
+        if rs:
+            ax[0].plot([r["speed_hz"] for r in rs], [r["midspan_m"] * 1e3 for r in rs], mk, color="C3", ms=7,
+                       label=lab)
+            ax[1].plot([r["speed_hz"] for r in rs], [r["events_per_period"] for r in rs], mk, color="C3", ms=7)
+            ax[1].plot([r["speed_hz"] for r in rs], [r["normal_force_max_N"] for r in rs], mk, color="C2", ms=7)
+    ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
+              title=f"beta = {payload['beta_s']:g} s: resonance through contact")
+    ax[1].ticklabel_format(useOffset=False)
+    ax[1].xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(5))
+    ax[1].set(xlabel="speed [Hz]", ylabel="events a period (red), largest contact force [N] (green)",
+              title="touching orbits")
+    c = payload["contraction"]
+    if c:
+        k = np.arange(1, c["periods"] + 1)
+        ax[2].semilogy(k, np.array(c["distances"]) / c["initial"], "o", ms=4, label="transient from the orbit")
+        ax[2].semilogy(k, abs(c["multiplier"]) ** k, "-", label=f"|mu_1|^k, |mu_1| = {abs(c['multiplier']):.5f}")
+        ax[2].set(xlabel="period k", ylabel="distance / initial", title="stability check (leading direction)")
+    for x in ax:
+        x.grid(alpha=0.3)
+    ax[0].legend(fontsize=8, loc="lower center")
+    if c:
+        ax[2].legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
 def parse_speeds(text: str) -> np.ndarray:
     lo, hi, n = text.split(":")
     return np.linspace(float(lo), float(hi), int(n))
@@ -251,7 +461,20 @@ def main(argv=None) -> dict:
     ap.add_argument("--revolutions", type=int, default=200, help="the transients' length (revolutions)")
     ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "delamination_resonance"))
     ap.add_argument("--figure", default=str(ROOT / "docs" / "figures" / "delamination_resonance.png"))
+    ap.add_argument("--touching", action="store_true",
+                    help="instead: the diagnosis at alpha 0.5 and the touching branch with stiffness damping --beta")
+    ap.add_argument("--beta", type=float, default=1e-5, help="stiffness-proportional damping [s] (--touching)")
+    ap.add_argument("--lead-speed", type=float, default=22.74, help="the open orbit the transients start from [Hz]")
+    ap.add_argument("--touch-speed", type=float, default=22.78, help="the touching branch's start [Hz]")
+    ap.add_argument("--step", type=float, default=0.0025, help="the touching branch's speed step [Hz]")
+    ap.add_argument("--open-speeds", default="22.70:22.86:17", help="LOW:HIGH:N the open branch (--touching) [Hz]")
+    ap.add_argument("--contraction-periods", type=int, default=12, help="the stability check's transient")
     args = ap.parse_args(argv)
+    if args.touching:
+        if not (args.beta > 0 and args.step > 0 and args.revolutions >= 1 and args.contraction_periods >= 1):
+            ap.error(f"--touching needs --beta > 0 (got {args.beta}), --step > 0 (got {args.step}), --revolutions and "
+                     f"--contraction-periods >= 1 (got {args.revolutions}, {args.contraction_periods})")
+        return touching(args)
     if args.quick:
         args.alphas, args.speeds, args.revolutions = [2.0, 0.5], "22.5:23.06:15", 100
     speeds = parse_speeds(args.speeds)

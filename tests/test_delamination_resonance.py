@@ -49,3 +49,98 @@ def test_open_orbit_below_resonance_obeys_liouville():
     # entry), the sum of 50 logs then carries ~1e-12 absolute (1e-13 measured); 1e-10 relative of alpha n T (= 2.3) covers it
     assert log_det == pytest.approx(-alpha * n * T, rel=1e-10)
     assert o.stable and np.abs(o.multipliers).max() < 1.0
+
+
+# --- the touching orbit (stiffness-proportional damping) -------------------------------------------------------------
+# With C = beta K, beta = 1e-5 s (modal damping ratio beta omega / 2: 7.2e-4 at the 22.78 Hz resonance, 1.6e-2 at the
+# 500 Hz contact modes the plastic impacts excite), the layers touch over the orbit at 22.78 Hz and the shooting
+# converges (studies/delamination_resonance.py --touching; docs/validation.md). The orbit's section state is stored
+# (tests/data/delamination_touching_orbit.npz: shot with tol 1e-12 in 5 Newton steps to residual 2.3e-15 from the
+# state after 200 revolutions at 22.78 Hz from the open orbit of 22.74 Hz, as the study does; the study saves its
+# own as delamination_touching_orbit.npz), so the tests below need no transient.
+
+DATA = __import__("pathlib").Path(__file__).parent / "data" / "delamination_touching_orbit.npz"
+
+
+def _touching_system():
+    d = np.load(DATA)
+    speed, beta = float(d["speed_hz"]), float(d["beta"])
+    scene = load_scene("default", [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed!r}"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
+    return system, 1.0 / speed, float(d["t0"]), d["q0"], d["v0"]
+
+
+def _signature(events, t0, T, k):
+    """The events of period k (from t0 + k T) as (contacts, kinds, impact) and their phases in the period."""
+    sel = [e for e in events if t0 + k * T <= e["t"] < t0 + (k + 1) * T]
+    return [(tuple(e["contacts"]), tuple(e["kinds"]), e["impact"]) for e in sel], \
+        np.array([(e["t"] - t0) / T - k for e in sel])
+
+
+def test_touching_orbit_returns_under_an_independent_flow():
+    """The stored touching orbit is a periodic orbit of the exact flow: a fresh integrator (no kept configurations,
+    no trace) from its section state returns to it after 1, 2 and 3 periods with the same events each period."""
+    from nsfem.integrate.event_driven import Exact
+    from nsfem.periodic.flow import shifted
+
+    system, T, t0, q0, v0 = _touching_system()
+    res = Exact(shifted(system, t0), progress=False).run(3 * T, T / 64, q0, v0)
+    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
+    for k in (1, 2, 3):
+        i = int(np.argmin(np.abs(res.t - k * T)))
+        assert abs(res.t[i] - k * T) < 1e-12 * T
+        err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+        # the orbit was shot to 2.3e-15; each period of the exact flow adds round-off of the event times (located to
+        # ~1e-13 s by the root search) times the state's rate, ~1e-11 relative over 73 events; the motion is stable
+        # (|mu| 0.99) so errors do not grow: 1e-9 is a margin of 100 over that and 1e5 below the smallest
+        # perturbation that changes the orbit's event sequence (1e-6 relative, measured by the study)
+        assert err < 1e-9, k
+    events = [dict(e, t=e["t"] + t0) for e in res.events]
+    sig0, ph0 = _signature(events, t0, T, 0)
+    # the layers really touch: many closings at several of the 9 contact points, each period
+    assert len(sig0) > 20 and len({c for s in sig0 if "close" in s[1] for c in s[0]}) >= 5
+    for k in (1, 2):
+        sig, ph = _signature(events, t0, T, k)
+        assert sig == sig0
+        # event times repeat to the state's error over a period (1e-9 relative) divided by the gap rates (>= 1e-3
+        # of their range at a transversal closing): 1e-6 of the period
+        assert np.abs(ph - ph0).max() < 1e-6
+
+
+def test_touching_orbit_residual_and_floquet_contraction():
+    """Shooting from the stored state converges at once, with a contact force and a stable verdict; a
+    perturbation along the leading Floquet direction decays at the leading multiplier's rate under the exact
+    transient (the multipliers describe the non-smooth orbit: the map is smooth within its event sequence)."""
+    import warnings
+    from nsfem.periodic.flow import FlowMap
+
+    system, T, t0, q0, v0 = _touching_system()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # (the orbit passes 1.7e-8 m from contact 6 without closing: reported)
+        o = periodic_orbit(system, T, q0, v0, t0, tol=1e-11, max_iter=3, attempts=1)
+    assert o.converged and o.residual < 1e-11
+    assert o.events_per_period > 20 and o.result.normal_force.max() > 1.0
+    mu = o.multipliers
+    assert o.stable and 0.9 < abs(mu[0]) < 1.0
+    n = system.n
+    # the leading multiplier is real and simple: its eigenvector on the admissible directions is real
+    w, V = np.linalg.eig(o.monodromy)
+    j = int(np.argmax(np.abs(w)))
+    assert abs(w[j].imag) < 1e-12 and abs(abs(w[j]) - abs(mu[1])) > 1e-3
+    dx = o.directions @ np.real(V[:, j])
+    dx *= 1e-7 * max(np.abs(q0).max(), 1e-300) / np.abs(dx[:n]).max()
+    phi = FlowMap(system, o.t0, T)
+    q, v = o.q0 + dx[:n], o.v0 + dx[n:]
+    N = 6
+    for _ in range(N):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+    d = np.concatenate([q - o.q0, v - o.v0])
+    rate = (np.linalg.norm(d) / np.linalg.norm(dx)) ** (1.0 / N)
+    # along the eigenvector d_N = mu^N dx + O(|dx|^2): the second order is 1e-7 relative (the perturbation stays
+    # below the 1e-6 at which the event sequence changes); the orbit's own error (residual < 1e-11 a period, 6
+    # periods) is < 6e-4 of |dx| = 1e-7, < 1e-4 a period after the 6th root; 1e-3 covers both and still tells
+    # |mu_1| (0.98986) from |mu_2| (0.98334)
+    assert rate == pytest.approx(abs(w[j]), abs=1e-3)
