@@ -374,3 +374,32 @@ def test_elastic_ring_orbit_converges_at_second_order():
     previous (a quarter, with slack)."""
     e = [_check_elastic(F) for F in (64, 128, 256)]
     assert e[1] <= 0.3 * e[0] and e[2] <= 0.3 * e[1]
+
+
+# --- a rub resting on a polygon's corner is reported -------------------------------------------------------------
+def test_an_orbit_resting_on_a_polygon_corner_is_warned_about():
+    """In the rotating frame the shipped rub's equilibrium on the 64-gon slides to a corner above ~22.2 Hz (two
+    facets closed all period): its multipliers are the corner's (it pins the disk along the ring too), not the round
+    ring's, and `nsfem periodic` says so; below, on one facet, and in the inertial frame (the corners pass as
+    events), it does not."""
+    from nsfem import load_scene
+    from nsfem.periodic.scene import orbit_of_scene, polygon_corners
+
+    def warnings_at(*overrides):
+        said = []
+        so = orbit_of_scene(load_scene("rub", list(overrides)), warn=said.append)
+        return so, [w for w in said if "corner of its polygon" in w]
+
+    so, corner = warnings_at("rotation.speed_hz=24")
+    assert so.orbit.events_per_period == 0 and len(corner) == 1 and corner[0].startswith("stator.0:")
+    force = np.asarray(so.orbit.result.normal_force)
+    assert ((force > 0).all(axis=1)).sum() == 2
+    _, corner = warnings_at("rotation.speed_hz=18")
+    assert corner == []
+    _, corner = warnings_at("rotation.frame=inertial")
+    assert corner == []
+    # the rule itself: two facets of one ring loaded at every sample, no event
+    labels = ["stator.0.0", "stator.0.1", "stator.1.0", "stator.1.1"]
+    f = np.array([[1.0, 1.0], [2.0, 2.0], [1.0, 0.0], [0.0, 0.0]])
+    assert polygon_corners(labels, f, 0) == [("stator.0", ["0", "1"])]
+    assert polygon_corners(labels, f, 3) == []

@@ -392,6 +392,12 @@ def describe(scene: "Scene", system: "ContactSystem", orbit, multiple: int, forc
              f"({1e3 * g['t_s']:.4g} ms after the section): the orbit is at a grazing bifurcation, where its "
              "multipliers jump: they hold on this side of it only" + (f" ({len(grazing)} grazings per period)"
                                                                      if len(grazing) > 1 else ""))
+    for ring, facets in polygon_corners(labels, res.normal_force, orbit.events_per_period):
+        warn(f"{ring}: the orbit rests on a corner of its polygon (facets {', '.join(facets)} closed all period, "
+             "no event): a corner holds the rotor in every direction of the plane, so the multipliers are the "
+             "corner's, not those of the round ring the polygon stands for (more facets move the corner; they do "
+             "not remove it); in the inertial frame the corners pass by as events (docs/validation.md, the rub on "
+             "an elastic ring)")
     notes = []
     if not system.harmonic:
         notes.append(f"no time-dependent load in the {rot.frame} frame (the unbalance and gravity are constant "
@@ -399,6 +405,23 @@ def describe(scene: "Scene", system: "ContactSystem", orbit, multiple: int, forc
                      "equilibrium (nsfem stationary), a whirl of another period is not found")
     return SceneOrbit(orbit, system, multiple, forcing, transient_periods, start, t, signals, sensors, amplitudes,
                       sequence, grazing, approximations, notes=notes)
+
+
+def polygon_corners(labels: list[str], normal_force, events_per_period: int) -> list[tuple[str, list[str]]]:
+    """The stator rings (``stator.K``) whose orbit rests on a corner of their polygon: two or more of the ring's
+    facets (contacts ``stator.K.I``) carry a normal force at every sample of an orbit without events. A round
+    ring's rub touches at one point; the polygon's corner also pins the rotor along the ring."""
+    if events_per_period or normal_force is None:
+        return []
+    force = np.asarray(normal_force, dtype=float)
+    if force.ndim != 2 or force.shape[0] != len(labels) or force.shape[1] == 0:
+        return []
+    rings: dict[str, list[str]] = {}
+    for k in np.flatnonzero((force > 0).all(axis=1)):
+        parts = labels[k].split(".")
+        if len(parts) == 3 and parts[0] == "stator" and parts[2].isdigit():
+            rings.setdefault(".".join(parts[:2]), []).append(parts[2])
+    return [(ring, facets) for ring, facets in rings.items() if len(facets) >= 2]
 
 
 def _named_grazing(g: dict, labels: list[str], t0: float) -> dict:
