@@ -346,11 +346,49 @@ def branch(stiffness: float, mu: float, facets: int, lo: float, hi: float, steps
             "stop": br.stop, "reason": br.reason, "wall_s": time.perf_counter() - t}
 
 
+def resonance_panel(ax, rates: list[dict], exact: list[dict], runs: list[dict], mu: float) -> None:
+    """The resonance curve through the onset: the synchronous rub's disk radius on the exact flow (64-gon) against
+    speed, solid where its orbit is stable, dashed where unstable, the located Neimark-Sacker point, and the range
+    of radii the transient past the onset ends in (the backward whirl, partly off the ring)."""
+    pts = sorted((r for r in rates if r.get("radius_c") is not None and r.get("converged", True)),
+                 key=lambda r: r["speed_hz"])
+    s = np.array([r["speed_hz"] for r in pts])
+    rad = np.array([r["radius_c"] for r in pts])
+    ok = np.array([r["rate_per_s"] < 0 for r in pts])
+    onset = next((e for e in exact if e["facets"] == 64 and e["mu"] == mu), None)
+    for keep, style, label in ((ok, "-", "synchronous rub, stable"), (~ok, "--", "synchronous rub, unstable")):
+        idx = np.flatnonzero(keep)
+        if idx.size:   # each part drawn up to the onset, where it meets the other
+            lo, hi = idx[0], idx[-1]
+            xs, ys = list(s[lo:hi + 1]), list(rad[lo:hi + 1])
+            if onset is not None:
+                r_on = float(np.interp(onset["onset_hz"], s, rad))
+                xs, ys = (xs + [onset["onset_hz"]], ys + [r_on]) if keep is ok else ([onset["onset_hz"]] + xs,
+                                                                                   [r_on] + ys)
+            ax.plot(xs, ys, style, color="C0", label=label)
+            ax.plot(s[idx], rad[idx], ".", color="C0", ms=5)
+    if onset is not None:
+        ax.plot(onset["onset_hz"], float(np.interp(onset["onset_hz"], s, rad)), "D", color="C3", ms=7,
+                label=f"Neimark-Sacker {onset['onset_hz']:.4f} Hz (exact flow)")
+    for run in runs:
+        if run.get("last10_radius_min_c") is not None:
+            ax.vlines(run["speed_hz"], run["last10_radius_min_c"], run["last10_radius_max_c"], color="C3", lw=3,
+                      alpha=0.6, label=f"transient's end at {run['speed_hz']:g} Hz: backward whirl "
+                                       f"{run['end_whirl_hz']:+.1f} Hz (radius range)")
+    ax.axhline(1.0, color="grey", lw=0.5)
+    top = max([1.2, *rad, *(r.get("last10_radius_max_c") or 0.0 for r in runs)])
+    ax.set_ylim(top=1.0 + 1.8 * (top - 1.0))   # room above the data for the legend
+    ax.set_xlabel("speed [Hz]")
+    ax.set_ylabel("disk radius / clearance")
+    ax.set_title(f"mu = {mu:g}, 64-gon: resonance curve through the onset", fontsize=9)
+    ax.legend(fontsize=7, loc="upper left")
+
+
 def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list[dict], runs: list[dict],
            mu: float, path: Path, mu_start: float | None = None) -> None:
     import matplotlib.pyplot as plt
 
-    fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(15, 4.6))
+    fig, (ax1, ax2, ax4, ax3) = plt.subplots(1, 4, figsize=(20, 4.6))
     cf = [c for c in curve if c["closed_hz"] is not None]
     ax1.plot([c["closed_hz"] for c in cf], [c["mu"] for c in cf], "-", color="C0",
              label="closed form (Jeffcott, Routh-Hurwitz D3 = 0)")
@@ -388,6 +426,7 @@ def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list
     ax2.set_ylabel("growth rate [1/s]")
     ax2.set_title(f"mu = {mu:g}: stable below 0, a backward whirl grows above", fontsize=9)
     ax2.legend(fontsize=7)
+    resonance_panel(ax4, r64, exact, runs, mu)
     for run in runs:
         env = run.get("radius_per_period_c")
         if env:
