@@ -187,7 +187,7 @@ def follow_sides(client, family, so, sides: list[float], p0: float, *, key: str,
     order, the tasks' interleaved), ``merge(side, stop, reason, bifurcations, doubled)`` once a side and its
     doubled branches are done, the sides in their order. Ctrl-C cancels the tasks and raises KeyboardInterrupt
     (what was accepted and merged stays)."""
-    from distributed import Event, Queue
+    from distributed import Event, Queue, wait
 
     queue_name = f"nsfem-branch-{uuid.uuid4().hex}"
     queue, stop = Queue(queue_name, client=client), Event(f"{queue_name}-stop", client=client)
