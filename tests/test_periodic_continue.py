@@ -573,3 +573,29 @@ def test_cli_sigterm_on_a_cluster_leaves_the_points_so_far_and_no_process(tmp_pa
     assert payload["stop"] == "interrupted" and 26.0 in values and values == sorted(values)
     with np.load(out / "branch.npz") as z:
         assert z["value"].size >= len(values)
+
+
+# --- issue 36: review A (continuation on Dask) ---
+def _interrupt_at(n: int):
+    """A progress callback raising KeyboardInterrupt (Ctrl-C) at its n-th line."""
+    calls = []
+
+    def progress(line: str) -> None:
+        calls.append(line)
+        if len(calls) == n:
+            raise KeyboardInterrupt
+
+    return progress
+
+
+@pytest.mark.parametrize("on_cluster", [False, True])
+def test_an_interrupted_branch_with_steps_does_not_say_before_the_first_step(on_cluster, request):
+    """Ctrl-C at the 3rd progress line (the start and at least one step kept, no side finished): branch.json's
+    reason says interrupted, never "interrupted before the first step", which only an interrupt with the start alone
+    may say. On a cluster both sides run at once, so no side is finished when Ctrl-C comes: every interrupt."""
+    client = request.getfixturevalue("dask_client") if on_cluster else None
+    sb = branch_of_scene(load_scene("critical_speed", LINEAR), "rotation.speed_hz", 25.0, 27.0, transient_periods=0,
+                         steps=30, progress=_interrupt_at(3), client=client)
+    out = sb.to_json()
+    assert sb.interrupted and len(sb.points) >= 2 and out["stop"] == "interrupted"
+    assert "interrupted" in out["reason"] and "before the first step" not in out["reason"]

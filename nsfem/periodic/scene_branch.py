@@ -97,7 +97,8 @@ class SceneBranch:
                 "doubled_branches": [{**d, "points": [public(p) for p in d["points"]],
                                       "bifurcations": [public(b) for b in d["bifurcations"]]} for d in self.doubled],
                 "stop": self.stop, "reason": "; ".join(f"towards {s['towards']:g}: {s['reason']}" for s in self.sides)
-                or ("interrupted before the first step" if self.interrupted else ""),
+                or (("interrupted before the first step" if len(self.points) <= 1 else
+                     f"interrupted after {len(self.points)} points") if self.interrupted else ""),
                 "sides": list(self.sides), "sensors": [s.name for s in self.sensors], "workers": self.workers,
                 "warnings": list(self.warnings)}
 
