@@ -599,3 +599,22 @@ def test_an_interrupted_branch_with_steps_does_not_say_before_the_first_step(on_
     out = sb.to_json()
     assert sb.interrupted and len(sb.points) >= 2 and out["stop"] == "interrupted"
     assert "interrupted" in out["reason"] and "before the first step" not in out["reason"]
+
+
+def test_a_branch_on_a_threaded_worker_counts_its_threads_and_is_the_serial_branch():
+    """A cluster of one worker with two threads (a given client; --scheduler clusters are often so): both sides
+    run at once in one process, sharing the scattered family; the points are the serial ones (the block's
+    tolerance) and branch.json's ``workers`` counts the worker threads that followed it (2), as documented."""
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    scene = load_scene("critical_speed", LINEAR)
+    kw = dict(transient_periods=0, steps=3)
+    serial = branch_of_scene(scene, "rotation.speed_hz", 25.6, 26.4, **kw)
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=":0",
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        sb = branch_of_scene(scene, "rotation.speed_hz", 25.6, 26.4, client=client, **kw)
+    assert sb.workers == 2 and sb.to_json()["workers"] == 2
+    _same_points(serial.points, sb.points, 0.8)
+    assert sb.sides == serial.sides

@@ -252,7 +252,7 @@ def _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, tr
     sb = SceneBranch(key, float(low), float(high), value, p0, int(multiple), [], [], [], [], so, tuple(scene0.sensors),
                      warnings)
     if cluster is not None:
-        sb.workers = len(cluster[0].nthreads())
+        sb.workers = int(sum(cluster[0].nthreads().values()))   # (threads: a worker may run several tasks)
     found: list[list[dict]] = [[] for _ in sides]
     doubled_found: dict[int, list[dict]] = {}
     records: dict[tuple, dict] = {}   # (multiple, p, u's bytes) -> the point's record, for the doubled branches
