@@ -420,7 +420,8 @@ def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list
     for run in runs:
         if run.get("transient_rate_per_s") is not None:
             ax2.plot(run["speed_hz"], run["transient_rate_per_s"], "r^", ms=7,
-                     label=f"transient at {run['speed_hz']:g} Hz: whirl {run['whirl_hz']:+.1f} Hz (backward)")
+                     label=f"transient at {run['speed_hz']:g} Hz: whirl {run['whirl_hz']:+.1f} Hz "
+                           f"({'backward' if run['whirl_hz'] < 0 else 'forward'})")
     ax2.axhline(0.0, color="grey", lw=0.5)
     ax2.set_xlabel("speed [Hz]")
     ax2.set_ylabel("growth rate [1/s]")

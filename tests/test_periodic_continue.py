@@ -603,3 +603,48 @@ def test_a_points_amplitudes_do_not_depend_on_its_section(stop_branch):
         assert again["amplitudes"][name] == pytest.approx(a, rel=3e-8, abs=2e-11), name
     assert again["orbit_q_max"] == pytest.approx(p["orbit_q_max"], rel=1e-4)
     assert again["events_per_period"] == p["events_per_period"]
+
+
+# --- issue 36: review A (continuation on Dask) ---
+def _interrupt_at(n: int):
+    """A progress callback raising KeyboardInterrupt (Ctrl-C) at its n-th line."""
+    calls = []
+
+    def progress(line: str) -> None:
+        calls.append(line)
+        if len(calls) == n:
+            raise KeyboardInterrupt
+
+    return progress
+
+
+@pytest.mark.parametrize("on_cluster", [False, True])
+def test_an_interrupted_branch_with_steps_does_not_say_before_the_first_step(on_cluster, request):
+    """Ctrl-C at the 3rd progress line (the start and at least one step kept, no side finished): branch.json's
+    reason says interrupted, never "interrupted before the first step", which only an interrupt with the start alone
+    may say. On a cluster both sides run at once, so no side is finished when Ctrl-C comes: every interrupt."""
+    client = request.getfixturevalue("dask_client") if on_cluster else None
+    sb = branch_of_scene(load_scene("critical_speed", LINEAR), "rotation.speed_hz", 25.0, 27.0, transient_periods=0,
+                         steps=30, progress=_interrupt_at(3), client=client)
+    out = sb.to_json()
+    assert sb.interrupted and len(sb.points) >= 2 and out["stop"] == "interrupted"
+    assert "interrupted" in out["reason"] and "before the first step" not in out["reason"]
+
+
+def test_a_branch_on_a_threaded_worker_counts_its_threads_and_is_the_serial_branch():
+    """A cluster of one worker with two threads (a given client; --scheduler clusters are often so): both sides
+    run at once in one process, sharing the scattered family; the points are the serial ones (the block's
+    tolerance) and branch.json's ``workers`` counts the worker threads that followed it (2), as documented."""
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    scene = load_scene("critical_speed", LINEAR)
+    kw = dict(transient_periods=0, steps=3)
+    serial = branch_of_scene(scene, "rotation.speed_hz", 25.6, 26.4, **kw)
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=":0",
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        sb = branch_of_scene(scene, "rotation.speed_hz", 25.6, 26.4, client=client, **kw)
+    assert sb.workers == 2 and sb.to_json()["workers"] == 2
+    _same_points(serial.points, sb.points, 0.8)
+    assert sb.sides == serial.sides

@@ -245,3 +245,21 @@ def test_transient_past_the_onset_whirls_backward_at_the_linear_rate():
     assert abs(out["transient_rate_per_s"] / out["orbit_rate_per_s"] - 1.0) < 0.01
     assert out["whirl_hz"] < 0.0
     assert abs(out["whirl_hz"] - out["reference_backward_hz"]) <= out["resolution_hz"]
+
+
+# --- issue 36: review A (whirl direction in the study's figure) ---
+@pytest.mark.parametrize("whirl_hz,word", [(-81.0, "backward"), (+81.0, "forward")])
+def test_figure_names_the_transients_whirl_by_its_sign(whirl_hz, word, monkeypatch, tmp_path):
+    """The figure's legend calls a transient's whirl backward or forward by the sign of its spectrum's peak
+    (negative: against the spin), not backward whatever it is."""
+    import rub_backward_whirl
+
+    figs = []
+    monkeypatch.setattr(rub_backward_whirl, "save_figure", lambda fig, path: figs.append(fig))
+    curve = [{"mu": 0.03, "rub_start_hz": 15.67, "closed_hz": 20.78}]
+    rates = [{"facets": 64, "speed_hz": 20.0, "reference_rate_per_s": -0.1, "rate_per_s": -0.1}]
+    run = {"speed_hz": 24.0, "transient_rate_per_s": 0.54, "whirl_hz": whirl_hz}
+    rub_backward_whirl.figure(curve, [], rates, [], [run], 0.03, tmp_path / "f.png")
+    texts = [t.get_text() for ax in figs[0].axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+    label = next(t for t in texts if t.startswith("transient"))
+    assert f"({word})" in label and f"({'forward' if word == 'backward' else 'backward'})" not in label

@@ -98,7 +98,8 @@ class SceneBranch:
                 "doubled_branches": [{**d, "points": [public(p) for p in d["points"]],
                                       "bifurcations": [public(b) for b in d["bifurcations"]]} for d in self.doubled],
                 "stop": self.stop, "reason": "; ".join(f"towards {s['towards']:g}: {s['reason']}" for s in self.sides)
-                or ("interrupted before the first step" if self.interrupted else ""),
+                or (("interrupted before the first step" if len(self.points) <= 1 else
+                     f"interrupted after {len(self.points)} points") if self.interrupted else ""),
                 "sides": list(self.sides), "sensors": [s.name for s in self.sensors], "workers": self.workers,
                 "warnings": list(self.warnings)}
 
@@ -252,7 +253,7 @@ def _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, tr
     sb = SceneBranch(key, float(low), float(high), value, p0, int(multiple), [], [], [], [], so, tuple(scene0.sensors),
                      warnings)
     if cluster is not None:
-        sb.workers = len(cluster[0].nthreads())
+        sb.workers = int(sum(cluster[0].nthreads().values()))   # (threads: a worker may run several tasks)
     found: list[list[dict]] = [[] for _ in sides]
     doubled_found: dict[int, list[dict]] = {}
     records: dict[tuple, dict] = {}   # (multiple, p, u's bytes) -> the point's record, for the doubled branches
