@@ -103,8 +103,8 @@ class ElasticRub:
 
 def modal_jeffcott(rub: ElasticRub) -> Jeffcott:
     """The Jeffcott rotor of the model's first bending mode, the disk's displacement its coordinate: m = phi^T M phi,
-    k = phi^T K phi with D phi = (1, 0) (D the ring's rows), c_e = phi^T C_b phi (the damper), c_i = beta k (Rayleigh's
-    beta on the shaft alone), the unbalance m_u e at the disk (its modal force, phi = 1 there)."""
+    k = phi^T K phi with D phi = (1, 0) (D the ring's rows), c_e = phi^T C_b phi (the damper), c_i = alpha m + beta k (the
+    scene's Rayleigh damping, which turns with the shaft; alpha = 0 on the rub), the unbalance m_u e at the disk (its modal force, phi = 1 there)."""
     T = np.asarray(rub.red.T)
     M, K = T.T @ rub.model.M_full @ T, T.T @ rub.model.K_full @ T
     lam, V = sla.eigh(K, M)
