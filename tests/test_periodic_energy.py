@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from nsfem import load_scene
-from nsfem.errors import IntegrationError
+from nsfem.errors import IntegrationError, NsfemError
 from nsfem.fem.assemble import build_model
 from nsfem.integrate import ContactSystem
 from nsfem.integrate.base import single_threaded_blas
@@ -144,3 +144,18 @@ def test_share_refuses_another_forcing_phase():
     assert system.harmonic
     assert not FlowMap(system, 0.25 * T, T).share(lead)
     assert FlowMap(system, 0.0, T).share(lead)
+
+
+def test_a_store_of_another_system_is_refused():
+    """Configurations kept for one system are wrong for another (their matrices): a store that names another system
+    (or is no dict) is refused in one line; an empty one is taken and filled."""
+    a = ContactSystem.from_arrays(M=[[1.0]], Q=[[1.0]])
+    b = ContactSystem.from_arrays(M=[[1.0]], Q=[[4.0]])
+    store = {}
+    _ = Exact(a, progress=False, configurations=store).run(1.0, 0.5, [1.0], None)
+    assert store["system"] is a and store["modes"]
+    for bad in (store, [1]):
+        with pytest.raises(NsfemError, match="configurations: a store") as info:
+            Exact(b, configurations=bad)
+        assert "\n" not in str(info.value)
+    assert Exact(a, configurations=store).kept()["modes"] is store["modes"]

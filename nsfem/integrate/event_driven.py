@@ -103,6 +103,9 @@ class EventDriven(Integrator):
         #: balance's own (its integrals overflowing while the state is finite) goes with it
         self.energy_balance = bool(energy_balance)
         if configurations is not None:   # kept in (and shared through) the caller's store: :meth:`kept`
+            if not isinstance(configurations, dict) or configurations.get("system", system) is not system:
+                raise NsfemError("configurations: a store must be a dict, empty or kept by an integrator of the same "
+                                 "system (another system's configurations are not this one's)")
             self.keep_configurations = True
             self._cache, self._systems, self._gaps = (configurations.setdefault(k, {}) for k in
                                                       ("modes", "systems", "gaps"))
