@@ -304,15 +304,17 @@ def run_scene(scene: Scene, method: str | None = None, progress: bool | None = F
 
 def integrate_prepared(scene: Scene, system: ContactSystem, info: dict, method: str, q0, v0,
                        t_end: float | None = None, output_dt: float | None = None, progress: bool | None = False,
-                       warn=None) -> tuple[Result, ContactSystem]:
+                       warn=None, options: dict | None = None) -> tuple[Result, ContactSystem]:
     """Integrate a :func:`prepared <prepare_scene>` scene from (q0, v0) to ``t_end`` (default the scene's
-    simulation.t_end), outputs every ``output_dt`` (default the scene's); ``info`` goes into the Result's."""
+    simulation.t_end), outputs every ``output_dt`` (default the scene's); ``info`` goes into the Result's.
+    ``options``: further keyword arguments of the integrator (the periodic orbit's transient: its configurations'
+    store, no energy balance)."""
     sim = scene.simulation
     t_end = sim.t_end if t_end is None else t_end
     output_dt = sim.output_dt if output_dt is None else output_dt
     try:
         result = integrate(system, t_end, method, output_dt, q0, v0, progress=progress,
-                           **integrator_options(sim, method))
+                           **integrator_options(sim, method), **(options or {}))
     except IntegrationError as exc:
         exc.result.info.update(info)
         exc.system = system

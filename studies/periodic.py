@@ -8,7 +8,8 @@ scene's initial state at t = 0:
   no Jacobian) until the state at the section is within ``--accuracy`` of the orbit (in (q, q' / w), relative to the
   orbit's size); the orbit itself from a tight shooting (tol 1e-12) beforehand;
 - **shooting**: as ``nsfem periodic`` starts it (the stationary state, LCP 28, for a scene without periodic forcing
-  in its frame: the rub in the rotating frame; else ``--lead`` periods of transient), then
+  in its frame: the rub in the rotating frame; else one exact run of ``--lead`` periods of transient, its
+  configurations handed to the shooting), then
   :func:`nsfem.periodic.periodic_orbit` to tol = accuracy / 10; its distance to the reference orbit is checked to be
   within the accuracy.
 
@@ -42,6 +43,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from nsfem.fem.assemble import build_model  # noqa: E402
+from nsfem.integrate.blas import single_threaded_blas  # noqa: E402
+from nsfem.integrate.event_driven import Exact  # noqa: E402
 from nsfem.integrate.problem import ContactSystem  # noqa: E402
 from nsfem.periodic import periodic_orbit  # noqa: E402
 from nsfem.periodic.flow import FlowMap  # noqa: E402
@@ -79,15 +82,18 @@ def distance(q, v, orbit, w: float) -> float:
 
 
 def transient(system, T, q0, v0, orbit, accuracy, max_periods):
+    """(CPU or wall time, periods, reached): the flow period by period in one one-BLAS-thread block, as one run
+    (``nsfem run``) would be (a block per period would time threadpoolctl's library scan, ~1 ms, every period)."""
     phi = FlowMap(system, 0.0, T)
     w = 2 * math.pi / T
     q, v = q0, v0
     t = CLOCK()
-    for k in range(1, max_periods + 1):
-        f = phi(q, v, jacobian=False)
-        q, v = f.q, f.v
-        if distance(q, v, orbit, w) <= accuracy:
-            return CLOCK() - t, k, True
+    with single_threaded_blas():
+        for k in range(1, max_periods + 1):
+            f = phi(q, v, jacobian=False)
+            q, v = f.q, f.v
+            if distance(q, v, orbit, w) <= accuracy:
+                return CLOCK() - t, k, True
     return CLOCK() - t, max_periods, False
 
 
@@ -95,16 +101,17 @@ def shooting(system, T, q0, v0, accuracy, lead, scene=None):
     """The command's way: a scene without periodic forcing starts from its stationary state (LCP 28), any other
     from ``lead`` periods of transient."""
     t = CLOCK()
-    phi = FlowMap(system, 0.0, T)
     q, v = q0, v0
     start = _stationary_start(scene, system) if scene is not None and not system.harmonic else None
+    kept = None
     if start is not None:
         q, v = start, np.zeros(system.n)
-    else:
-        for _ in range(lead):
-            f = phi(q, v, jacobian=False)
-            q, v = f.q, f.v
-    orbit = periodic_orbit(system, T, q, v, tol=accuracy / 10)
+    elif lead:   # one exact run keeping its configurations for the shooting (orbit_of_scene's transient)
+        kept = {}
+        with single_threaded_blas(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            res = Exact(system, progress=False, energy_balance=False, configurations=kept).run(lead * T, T, q, v)
+        q, v = res.q[:, -1].copy(), res.v[:, -1].copy()
+    orbit = periodic_orbit(system, T, q, v, tol=accuracy / 10, lead=kept)
     return CLOCK() - t, orbit
 
 

@@ -75,7 +75,7 @@ class EventDriven(Integrator):
     max_configurations = 512
 
     def __init__(self, system, zeno: float = 1e-8, max_events: int = 10_000_000, progress: bool | None = None,
-                 **options):
+                 energy_balance: bool = True, configurations: dict | None = None, **options):
         super().__init__(system, **options)
         if not (0 < zeno < 1):
             raise NsfemError(f"zeno must lie in (0, 1), got {zeno}")
@@ -96,6 +96,28 @@ class EventDriven(Integrator):
         #: keep the configurations (their decompositions) from one run to the next of the same system (the runs of
         #: a shooting method); never with round rings (their turns make the configurations)
         self.keep_configurations = False
+        #: book the energy balance (the work integrals of every phase, ``Result.energy``); off, the result's energy
+        #: record is empty and the states and events are the same, bit for bit (the shooting method's flows: no
+        #: periodic code reads it, and its integrals cost about a tenth of a crack period). The state's overflow
+        #: guards stay (non-finite outputs, a non-finite state at a phase's end: :func:`.guard.overflow`); only the
+        #: balance's own (its integrals overflowing while the state is finite) goes with it
+        self.energy_balance = bool(energy_balance)
+        if configurations is not None:   # kept in (and shared through) the caller's store: :meth:`kept`
+            if not isinstance(configurations, dict) or configurations.get("system", system) is not system:
+                raise NsfemError("configurations: a store must be a dict, empty or kept by an integrator of the same "
+                                 "system (another system's configurations are not this one's)")
+            self.keep_configurations = True
+            self._cache, self._systems, self._gaps = (configurations.setdefault(k, {}) for k in
+                                                      ("modes", "systems", "gaps"))
+            configurations.setdefault("system", system)
+
+    def kept(self) -> dict:
+        """The configurations this integrator keeps between runs, as a store another integrator of the same system
+        takes (``configurations``; :meth:`nsfem.periodic.flow.FlowMap.share`): {"system", "modes", "systems",
+        "gaps"}; empty unless ``keep_configurations``."""
+        if not self.keep_configurations or self._rings:
+            return {}
+        return {"system": self._polygon, "modes": self._cache, "systems": self._systems, "gaps": self._gaps}
 
     def configuration(self, mode: Mode) -> Configuration:
         mode = mode.dynamics
@@ -187,6 +209,7 @@ class EventDriven(Integrator):
                   "dissipated_damping_J": 0.0, "work_circulatory_J": 0.0, "dissipated_friction_J": 0.0,
                   "work_spin_J": 0.0, "lost_in_impacts_J": 0.0}
         e_max = abs(energy["initial_J"])
+        book = self.energy_balance
         progress = Progress(t_end, self.progress)
         self._report = lambda t_now: progress(t_now, len(events))  # noqa: E731 - long phases report too
         completed, failure = True, None
@@ -205,7 +228,8 @@ class EventDriven(Integrator):
                 conform(self._rings, mode.closed, q)
             if imp:
                 impacts.append(imp)
-                _impact_energy(energy, imp)
+                if book:
+                    _impact_energy(energy, imp)
             trace = self.trace
             if trace is not None:
                 trace.append({"start": True, "q": q, "v": v_start, "v_plus": v, "impact": imp, "after": mode,
@@ -240,13 +264,14 @@ class EventDriven(Integrator):
                 else:
                     xi_end = xi_fun(t_next)
                     q_end, v_end = phase.q_map() @ xi_end, phase.v_map() @ xi_end
-                with np.errstate(over="ignore", invalid="ignore"):  # overflow: judged just below
-                    e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy,
-                                                    ends=(q, v, q_end, v_end)))
-                # (a finite sum has no non-finite term; an overflowing one is judged term by term)
-                if not (math.isfinite(e_max) and (math.isfinite(sum(energy.values()))
-                                                  or all(math.isfinite(x) for x in energy.values()))):
-                    raise overflow(t_next, mode, sysm, "energy")
+                if book:
+                    with np.errstate(over="ignore", invalid="ignore"):  # overflow: judged just below
+                        e_max = max(e_max, self._energy(phase, mode, xi_fun, t, t_next, K, P, D, energy,
+                                                        ends=(q, v, q_end, v_end)))
+                    # (a finite sum has no non-finite term; an overflowing one is judged term by term)
+                    if not (math.isfinite(e_max) and (math.isfinite(sum(energy.values()))
+                                                      or all(math.isfinite(x) for x in energy.values()))):
+                        raise overflow(t_next, mode, sysm, "energy")
                 phase_integrated = True
                 if mode.closed or mode.ring:
                     closed_time += t_next - t
@@ -321,7 +346,8 @@ class EventDriven(Integrator):
                     conform(self._rings, mode.closed, q)
                 if imp:
                     impacts.append(imp)
-                    _impact_energy(energy, imp)
+                    if book:
+                        _impact_energy(energy, imp)
                 if trace is not None:
                     trace[-1].update(v_plus=v, after=mode, impact=imp, system=sysm, before=before)
                 events.append({"t": t_next, "kinds": sorted({rows.kinds[i] for i in ev.rows}),
@@ -349,14 +375,18 @@ class EventDriven(Integrator):
                     filled = int(sel[-1]) + 1
                     q, v = phase.q_map() @ xi_out[:, -1], phase.v_map() @ xi_out[:, -1]
                     # the work integrals follow the state to the last output
-                    e_max = max(e_max, self._energy(phase, mode, phase.xi, phase.t0, float(t_out[sel[-1]]), K, P,
-                                                    D, energy))
+                    if book:
+                        e_max = max(e_max, self._energy(phase, mode, phase.xi, phase.t0, float(t_out[sel[-1]]), K,
+                                                        P, D, energy))
                     covered = float(t_out[sel[-1]])
                     if mode.closed or mode.ring:
                         closed_time += covered - phase.t0
         finally:
             progress.close()
-        close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q) + potential(rings, q), e_max)
+        if book:
+            close_energy(energy, 0.5 * float(v @ sysm.M @ v + q @ K @ q) + potential(rings, q), e_max)
+        else:
+            energy = {}
         k = filled if not completed else K_out
         if self._rings:
             self.system = self._polygon

@@ -53,7 +53,8 @@ def shifted(system, t0: float):
 
 class FlowMap:
     """x0 -> the exact flow over ``period`` from t0 (a :class:`Flow`), for many starts of one system: the shooting
-    method's map. The configurations met (their eigen-decompositions) are kept from one start to the next."""
+    method's map. The configurations met (their eigen-decompositions) are kept from one start to the next, and may
+    be shared with another run's (:meth:`share`). No energy balance is booked (``Result.energy`` is empty)."""
 
     def __init__(self, system, t0: float, period: float, *, output_dt: float | None = None, zeno: float = 1e-8):
         period, t0 = real_number("the period", period, positive=True), real_number("t0", t0)
@@ -73,8 +74,23 @@ class FlowMap:
                              "within 7.5e-5 of the clearance)")
         self.system, self.t0, self.period = system, float(t0), float(period)
         self.output_dt = period / 256 if output_dt is None else float(output_dt)
-        self._integrator = Exact(shifted(system, self.t0), zeno=zeno, progress=False)
+        self._integrator = Exact(shifted(system, self.t0), zeno=zeno, progress=False, energy_balance=False)
         self._integrator.keep_configurations = True
+
+    def share(self, other) -> bool:
+        """Use and add to the configurations ``other`` keeps (a :class:`FlowMap`, an
+        :class:`~nsfem.integrate.event_driven.EventDriven` run with ``keep_configurations`` or the store of one,
+        :meth:`~nsfem.integrate.event_driven.EventDriven.kept`: a lead transient's) where they are this map's: of the
+        same system at the same forcing phase (the same system object after :func:`shifted`; another t0 makes new
+        ones). The flows are the same, bit for bit: a configuration depends on the system and its mode alone.
+        Returns whether they are shared."""
+        store = other._integrator.kept() if isinstance(other, FlowMap) else \
+            other if isinstance(other, dict) else other.kept()
+        mine = self._integrator
+        if not store or store.get("system") is not mine.system or store.get("modes") is mine._cache:
+            return False
+        mine._cache, mine._systems, mine._gaps = store["modes"], store["systems"], store["gaps"]
+        return True
 
     def __call__(self, q0, v0, jacobian: bool = True) -> Flow:
         n = self.system.n

@@ -195,7 +195,7 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
         from .flow import FlowMap
 
         FlowMap(system, 0.0, period)
-    t0 = 0.0
+    t0, lead = 0.0, None   # (lead: the transient's configurations)
     if saved is not None:
         q0, v0, t_saved, what = saved
         if q0.shape != (system.n,):
@@ -210,25 +210,30 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
         transient_periods = 0
         origin = "the stationary state (LCP 28) of the scene"
     elif transient_periods:
+        # (its configurations kept for the shooting, FlowMap.share; no energy balance: the same states, unread)
+        lead = {}
         res, _ = integrate_prepared(sized, system, info, "exact", q0, v0, t_end=transient_periods * period,
-                                    output_dt=period, progress=progress)
+                                    output_dt=period, progress=progress,
+                                    options={"configurations": lead, "energy_balance": False})
         if not res.completed:   # interrupted (Ctrl-C, SIGTERM): its last state is not at the section's phase
             raise KeyboardInterrupt
         q0, v0 = res.q[:, -1].copy(), res.v[:, -1].copy()
         origin = f"a transient of {transient_periods} periods from the scene's initial state"
     else:
         origin = "the scene's initial state"
+    options = {}
     if shoot is None:
         try:
             from .shooting import periodic_orbit as shoot
         except ImportError:
             raise NsfemError("nsfem periodic: not yet: the shooting on the exact flow (nsfem.periodic.shooting) "
                              "is not in this version") from None
+        options["lead"] = lead   # the transient's configurations: the shooting does not build them again
     import warnings as python_warnings
 
     with python_warnings.catch_warnings(), interrupts_end_flows():   # (non-convergence: said once, by describe())
         python_warnings.simplefilter("ignore")
-        orbit = shoot(system, period, q0, v0, t0, tol=tol, output_dt=dt)
+        orbit = shoot(system, period, q0, v0, t0, tol=tol, output_dt=dt, **options)
     if not getattr(orbit.result, "completed", True):   # a flow cut short by an interrupt is no period
         raise KeyboardInterrupt
     orbit.result.info.update(info)

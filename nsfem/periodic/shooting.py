@@ -122,7 +122,7 @@ def admissible_directions(system, mode) -> np.ndarray:
 
 def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *, tol: float = 1e-9,
                    max_iter: int = 25, output_dt: float | None = None, attempts: int = 3,
-                   settle_periods: int = 20) -> PeriodicOrbit:
+                   settle_periods: int = 20, lead=None) -> PeriodicOrbit:
     """The periodic orbit of ``system`` with period ``period_s`` near (q0, q0') at t0 (module docstring).
 
     The section t0 moves (the orbit's ``t0`` says where to) when the flow from (q0, q0') has an event within
@@ -130,7 +130,9 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
     Where Newton fails from (q0, q0') (a start too far for a non-smooth map), the transient goes on from there for
     ``settle_periods`` periods and Newton starts again, ``attempts`` times in all. ``converged`` says whether the
     residual |phi_T(x0) - x0| / |x0| (in (q, q' / w)) fell below ``tol``; the multipliers and the verdict are those
-    of the best iterate either way."""
+    of the best iterate either way. ``lead``: a :class:`.flow.FlowMap`, an exact integrator run with
+    ``keep_configurations`` or its store (``configurations``; the lead transient's) whose configurations the flows
+    reuse where they are theirs (:meth:`.flow.FlowMap.share`): the same orbit, without building them again."""
     n = system.n
     period_s = real_number("the period", period_s, positive=True)
     t0 = real_number("t0", t0)
@@ -144,14 +146,16 @@ def periodic_orbit(system, period_s: float, q0=None, v0=None, t0: float = 0.0, *
         raise NsfemError(f"periodic: the starting state must be two finite vectors of length {n}")
     check_forcing_multiple(system, period_s)
     with single_threaded_blas():   # (small products: a second thread waits for a core; see nsfem.integrate.blas)
-        return _shoot(system, period_s, q, v, t0, tol, max_iter, output_dt, attempts, settle_periods)
+        return _shoot(system, period_s, q, v, t0, tol, max_iter, output_dt, attempts, settle_periods, lead)
 
 
 def _shoot(system, period_s: float, q: np.ndarray, v: np.ndarray, t0: float, tol: float, max_iter: int,
-           output_dt: float | None, attempts: int, settle_periods: int) -> PeriodicOrbit:
+           output_dt: float | None, attempts: int, settle_periods: int, lead=None) -> PeriodicOrbit:
     """:func:`periodic_orbit` on validated arguments (its warnings name periodic_orbit's caller)."""
     n = system.n
     phi = FlowMap(system, t0, period_s, output_dt=output_dt)   # (output_dt checked there)
+    if lead is not None:
+        phi.share(lead)
     w = 2.0 * math.pi / period_s
     scale = np.concatenate([np.ones(n), np.full(n, 1.0 / w)])
 
@@ -166,7 +170,9 @@ def _shoot(system, period_s: float, q: np.ndarray, v: np.ndarray, t0: float, tol
         gaps = [(b - a, a) for a, b in zip(times, times[1:] + [times[0] + period_s])]
         length, after = max(gaps)
         shift = (after + 0.5 * length) % period_s
-        moved = FlowMap(system, t0, shift)(q, v, jacobian=False)   # (its end state alone)
+        to_section = FlowMap(system, t0, shift)
+        to_section.share(phi)   # (the same forcing phase: phi's configurations)
+        moved = to_section(q, v, jacobian=False)   # (its end state alone)
         q, v, t0 = moved.q, moved.v, t0 + shift
         phi = FlowMap(system, t0, period_s, output_dt=output_dt)
         probe = None
