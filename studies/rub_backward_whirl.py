@@ -352,22 +352,22 @@ def resonance_panel(ax, rates: list[dict], exact: list[dict], runs: list[dict], 
     of radii the transient past the onset ends in (the backward whirl, partly off the ring)."""
     pts = sorted((r for r in rates if r.get("radius_c") is not None and r.get("converged", True)),
                  key=lambda r: r["speed_hz"])
-    s = np.array([r["speed_hz"] for r in pts])
-    rad = np.array([r["radius_c"] for r in pts])
-    ok = np.array([r["rate_per_s"] < 0 for r in pts])
+    s = np.array([r["speed_hz"] for r in pts], dtype=float)
+    rad = np.array([r["radius_c"] for r in pts], dtype=float)
+    ok = np.array([r["rate_per_s"] < 0 for r in pts], dtype=bool)
     onset = next((e for e in exact if e["facets"] == 64 and e["mu"] == mu), None)
     for keep, style, label in ((ok, "-", "synchronous rub, stable"), (~ok, "--", "synchronous rub, unstable")):
         idx = np.flatnonzero(keep)
         if idx.size:   # each part drawn up to the onset, where it meets the other
             lo, hi = idx[0], idx[-1]
             xs, ys = list(s[lo:hi + 1]), list(rad[lo:hi + 1])
-            if onset is not None:
+            if onset is not None:   # (s has points here)
                 r_on = float(np.interp(onset["onset_hz"], s, rad))
                 xs, ys = (xs + [onset["onset_hz"]], ys + [r_on]) if keep is ok else ([onset["onset_hz"]] + xs,
                                                                                    [r_on] + ys)
             ax.plot(xs, ys, style, color="C0", label=label)
             ax.plot(s[idx], rad[idx], ".", color="C0", ms=5)
-    if onset is not None:
+    if onset is not None and s.size:
         ax.plot(onset["onset_hz"], float(np.interp(onset["onset_hz"], s, rad)), "D", color="C3", ms=7,
                 label=f"Neimark-Sacker {onset['onset_hz']:.4f} Hz (exact flow)")
     for run in runs:
