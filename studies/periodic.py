@@ -136,7 +136,7 @@ def main(argv=None) -> dict:
     rows = []
     for name in args.scenes:
         scene, system, T, q0, v0 = build(*SCENES[name])
-        _, start = shooting(system, T, q0, v0, 1e-11, args.lead)   # the reference orbit
+        _, start = shooting(system, T, q0, v0, 1e-11, args.lead, scene)   # the reference orbit (as the command starts)
         ref = periodic_orbit(system, T, start.q0, start.v0, tol=1e-12)
         w = 2 * math.pi / T
         for accuracy in args.accuracy:
