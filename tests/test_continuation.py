@@ -473,3 +473,40 @@ def test_multipliers_that_keep_their_side_make_no_crossing_whatever_their_paths(
     residual, stability = _passing((r_out, r_out), (a[0], a[1]), (r_in, r_in), (a[2], a[3]))
     b = continue_branch(residual, [0.0], 0.0, 1.0, step=1.0, max_step=1.0, stability=stability, tol=TOL)
     assert b.bifurcations == [] and [p.stable for p in b.points] == [False, False]
+
+
+# --- issue 36: review (a move of the coordinates whose new state depends on p) ---
+def _sheared(k: float, with_dudp: bool):
+    """The line u = p followed from p = 0 to 1, its coordinates moved once (at the first accepted point) to
+    u' = u + k p: in them the branch is u' = (1 + k) p, so du'/ds = du/ds + k dp/ds, not M du/ds alone (M = 1).
+    Returns (branch, the p of every point)."""
+    state = {"k": 0.0}
+
+    def residual(u, p):   # r = u - k_now p - p in the current coordinates
+        return np.array([u[0] - (1.0 + state["k"]) * p]), np.eye(1), np.array([-(1.0 + state["k"])])
+
+    def reanchor(u, p, forced):
+        if state["k"] != 0.0:
+            return None
+        state["k"] = k
+        out = (u + k * p, np.eye(1))
+        return (*out, np.array([k])) if with_dudp else out
+
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=0.1, max_step=0.1, tol=TOL, reanchor=reanchor,
+                        max_steps=40)
+    return b, [pt.p for pt in b.points]
+
+
+def test_a_move_whose_state_depends_on_p_keeps_the_branchs_direction():
+    # k = -3: the old tangent (1, 1)/sqrt 2 mapped by M alone is (1, 1)/sqrt 2, the new one (-2, 1)/sqrt 5:
+    # their dot product is negative, so M alone turned the branch back towards p = 0 (it left the range below it).
+    # With du'/dp the mapped tangent is the new one exactly: the branch goes on to p_end with p increasing (the line
+    # is exact: every step's p grows by a positive amount, no tolerance involved)
+    b, ps = _sheared(-3.0, True)
+    assert b.stop == "end", b.reason
+    assert len(b.reanchors) == 1 and all(q > p for p, q in zip(ps, ps[1:]))
+    # without du'/dp the p component's sign orients it: p is the same parameter in both coordinates, so the sign of
+    # dp/ds along the branch does not change with them (exact here too)
+    b, ps = _sheared(-3.0, False)
+    assert b.stop == "end", b.reason
+    assert all(q > p for p, q in zip(ps, ps[1:]))

@@ -4613,3 +4613,24 @@ def test_issue36_any_reanchor_output_is_a_branch_or_one_line(values, forced_only
         _one_line36(exc)
         return
     assert "\n" not in branch.reason and branch.points and all(pt.converged for pt in branch.points)
+
+
+# --- issue 36: review (reanchor's du_new/dp) ---
+# a reanchor may return the new state's derivative in p as a third element (it orients the new tangent); one of the
+# wrong shape, or not numbers, is refused in one line naming it; a non-finite one ends the branch in one line
+
+@pytest.mark.parametrize("dudp, words", [
+    (np.zeros(2), "du_new/dp of shape (2,)"),
+    ("steep", "must return None or (u_new, M or None) or (u_new, M or None, du_new/dp or None)"),
+])
+def test_issue36_review_a_reanchor_derivative_of_the_wrong_shape_is_refused(dudp, words):
+    with pytest.raises(NsfemError) as info:
+        _continue36(reanchor=lambda u, p, forced: (u, None, dudp))
+    message = _one_line36(info.value)
+    assert words in message, message
+
+
+def test_issue36_review_a_non_finite_reanchor_derivative_ends_the_branch_in_one_line():
+    branch = _continue36(reanchor=lambda u, p, forced: (u, None, np.array([np.nan])))
+    assert branch.stop == "failed" and "not finite" in branch.reason and "\n" not in branch.reason
+    assert len(branch.points) == 2 and all(pt.converged for pt in branch.points)

@@ -98,6 +98,9 @@ MAX_FOLLOW = 24
 #: a multiplier's pairing across a stretch of the branch is unambiguous when it moved less than this share of its
 #: distance to every other multiplier
 RESOLVED = 0.25
+#: a tangent whose p component is below this (in scaled units) is at a fold of the branch: moved to new coordinates
+#: without du_new/dp, it is oriented by the change's M (its p component's sign is round-off there)
+FOLD_TP = 1e-3
 #: at most this many trial points per special point (the bracket at least halves every three: 2^-33 of
 #: the chord at worst, 1e-10; a smooth test function takes 5 to 10)
 MAX_TRIALS = 100
@@ -566,16 +569,24 @@ def _reanchored(problem: _Scaled, reanchor: Callable, pt: _Point, t: np.ndarray,
     if out is None:
         return None
     try:
-        u_new, M = out
+        out = tuple(out)
+        if len(out) not in (2, 3):
+            raise ValueError
+        u_new, M, dudp = out if len(out) == 3 else (*out, None)
         u_new = np.asarray(u_new, dtype=float)
         M = None if M is None else np.asarray(M, dtype=float)
+        dudp = None if dudp is None else np.asarray(dudp, dtype=float)
     except (TypeError, ValueError):
-        raise _Contract("continue_branch: reanchor(u, p, forced) must return None or (u_new, M or None)") from None
+        raise _Contract("continue_branch: reanchor(u, p, forced) must return None or (u_new, M or None) or (u_new, "
+                        "M or None, du_new/dp or None)") from None
     m = problem.m
-    if u_new.shape != (m,) or (M is not None and M.shape != (m, m)):
+    if u_new.shape != (m,) or (M is not None and M.shape != (m, m)) or (dudp is not None and dudp.shape != (m,)):
         raise _Contract(f"continue_branch: reanchor returned u of shape {u_new.shape} and M of shape "
-                        f"{None if M is None else M.shape}, expected ({m},) and ({m}, {m})")
-    if not (np.all(np.isfinite(u_new)) and (M is None or np.all(np.isfinite(M)))):
+                        f"{None if M is None else M.shape}"
+                        + ("" if dudp is None else f" and du_new/dp of shape {dudp.shape}")
+                        + f", expected ({m},) and ({m}, {m})" + ("" if dudp is None else f" and ({m},)"))
+    if not (np.all(np.isfinite(u_new)) and (M is None or np.all(np.isfinite(M)))
+            and (dudp is None or np.all(np.isfinite(dudp)))):
         raise _Failure(f"moving the coordinates at p = {p:.10g} gave values that are not finite")
     problem._last = None     # (the residual is another function of u now)
     z = problem.z(u_new, p)
@@ -584,10 +595,17 @@ def _reanchored(problem: _Scaled, reanchor: Callable, pt: _Point, t: np.ndarray,
     e_p[-1] = 1.0
     new = _correct(problem, z, e_p, float(z[-1]), tol, max_iter)
     new.multipliers = problem.multipliers(new.z)
-    if M is None:
-        previous = e_p * (1.0 if t[-1] >= 0 else -1.0)
-    else:
+    # the old tangent in the new coordinates: du_new/ds = M du/ds + du_new/dp dp/ds (the new state depends on p
+    # at a fixed old one too: an orbit's flow over the section's shift does). Without du_new/dp, M du/ds alone can
+    # point against the branch (it turned back: test_a_move_whose_state_depends_on_p_keeps_the_branchs_direction);
+    # the sign of dp/ds is the same in any coordinates, so it orients the tangent, except near a fold of the branch
+    # (|t_p| below FOLD_TP), where the term left out is as small as t_p and M du/ds orients it
+    if M is not None and dudp is not None:
+        previous = np.append((M @ (t[:-1] * problem.u_scale) + dudp * t[-1] * problem.span) / problem.u_scale, t[-1])
+    elif M is not None and abs(t[-1]) < FOLD_TP:
         previous = np.append(M @ (t[:-1] * problem.u_scale) / problem.u_scale, t[-1])
+    else:
+        previous = e_p * (1.0 if t[-1] >= 0 else -1.0)
     return new, _tangent(new.jac, previous / np.linalg.norm(previous))
 
 
@@ -615,11 +633,13 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     - ``unit_tol``: the margin of the unit circle (a point is stable when every |mu| < 1 + unit_tol);
     - ``on_point(point)``: called with each accepted :class:`BranchPoint` as it is added (the first one too), e.g.
       to report progress or save the points so far;
-    - ``reanchor(u, p, forced) -> None | (u_new, M)``: a change of the unknowns' coordinates along the branch
-      (an orbit's section moved): called after each accepted point (``forced`` False) and once when a step from
-      a point fails down to ``min_step`` (True). None keeps them; (u_new, M) is the same solution in new
-      coordinates, in which ``residual`` and ``stability`` work from then on, with M = du_new/du (m, m) or None
-      (it orients the new tangent; without it the tangent keeps its p component's sign). The point is
+    - ``reanchor(u, p, forced) -> None | (u_new, M) | (u_new, M, du_new/dp)``: a change of the unknowns'
+      coordinates along the branch (an orbit's section moved): called after each accepted point (``forced``
+      False) and once when a step from a point fails down to ``min_step`` (True). None keeps them; (u_new, M) is
+      the same solution in new coordinates, in which ``residual`` and ``stability`` work from then on, with
+      M = du_new/du (m, m) or None and du_new/dp (m,) (the new state's change with p at a fixed old one) or None:
+      the old tangent mapped by both orients the new one; without du_new/dp the tangent keeps its p component's
+      sign, and near a fold (|t_p| < FOLD_TP) follows M du/ds. The point is
       re-corrected there at its p and the branch goes on from it; special points are located within one
       coordinate system (between two points, before the change), :attr:`Branch.reanchors` lists the changes and
       :attr:`BranchPoint.anchor` says which coordinates a point's u is in.
