@@ -510,3 +510,17 @@ def test_a_move_whose_state_depends_on_p_keeps_the_branchs_direction():
     b, ps = _sheared(-3.0, False)
     assert b.stop == "end", b.reason
     assert all(q > p for p, q in zip(ps, ps[1:]))
+
+
+def test_two_real_multipliers_that_swap_sides_within_a_step_are_both_found():
+    # mu_1 = -(0.45 + p) goes out through -1 at p = 0.55, mu_2 = -(1.45 - p) comes in at p = 0.45 (decoupled, they
+    # pass each other at p = 0.5). Across the step 0.3 -> 0.6 the ends' pairing (least distance: -0.75 -> -0.85,
+    # -1.15 -> -1.05) keeps each on its side and claims nothing, yet both crossed: the pairing is ambiguous (each moved
+    # 0.1, a quarter of their distance 0.4) with a neighbour across the circle, so a trial point is taken, which
+    # shows both crossings. |mu| is linear in p: each located within its bracket's accuracy of the exact value
+    residual, _ = _passing((1.0, 1.0), (0.0, 0.0), (1.0, 1.0), (0.0, 0.0))
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=0.3, max_step=0.3, tol=TOL, locate_tol=LOCATE,
+                        stability=lambda u, p: np.array([-(0.45 + p), -(1.45 - p)]))
+    assert [x["kind"] for x in b.bifurcations] == ["period-doubling", "period-doubling"]
+    for x, exact in zip(b.bifurcations, (0.45, 0.55)):
+        assert abs(x["value"] - exact) <= x["accuracy"] + SLACK

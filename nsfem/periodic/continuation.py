@@ -47,7 +47,9 @@ about tol / |J_u|, moving the test function accordingly):
   the step may be paired crosswise (a spurious pair of crossings), so each claim is checked: its stretch
   of the chord is halved (trial points with their multipliers, at least one) until the followed
   multiplier moved less than a quarter of its distance to every other one; a claim that vanishes on the way
-  was an exchange. One that stays ambiguous counts only where the number outside the circle (by kind)
+  was an exchange. Where nothing is claimed but a multiplier's pairing is ambiguous with one on the other side of
+  the circle (:func:`_straddles`), the two may have swapped sides (one out, one in: no claim at the ends), so one
+  trial point is taken there too. One that stays ambiguous counts only where the number outside the circle (by kind)
   changed. A real crossing is then followed through the trial points by the same pairing. Kinds: a real
   multiplier through +1 "fold", through -1 "period-doubling", a complex pair "neimark-sacker"
   (Kuznetsov chapter 4). A saddle-node (a fold of the branch with its multiplier through +1)
@@ -374,6 +376,21 @@ def _resolved(m1: np.ndarray, i: int, m2: np.ndarray, j: int) -> bool:
     return True
 
 
+def _straddles(m1: np.ndarray, m2: np.ndarray, unit_tol: float) -> bool:
+    """Whether a multiplier's pairing across the stretch (m1 -> m2) is ambiguous with one on the other side of the
+    unit circle: within four times its move of it (:data:`RESOLVED`) at either end. Two such multipliers may have
+    exchanged places, one going out and one coming in, which the ends' pairing sees as no crossing at all."""
+    partner = _paired(m1, m2)
+    out1, out2 = _outside(m1, unit_tol), _outside(m2, unit_tol)
+    for i in range(m1.size):
+        j = int(partner[i])
+        reach = abs(m1[i] - m2[j]) / RESOLVED
+        if reach > 0 and (np.any((np.abs(m1 - m1[i]) <= reach) & (out1 != out1[i]))
+                          or np.any((np.abs(m2 - m2[j]) <= reach) & (out2 != out2[j]))):
+            return True
+    return False
+
+
 def _followed_crossings(chord: "_Chord", ma: np.ndarray, mb: np.ndarray, n: int, unit_tol: float,
                         min_length_z: float, budget: int = MAX_FOLLOW) -> list[tuple] | None:
     """The crossings of the unit circle between A and B, each (theta_lo, theta_hi, point_lo, point_hi, index at
@@ -391,6 +408,8 @@ def _followed_crossings(chord: "_Chord", ma: np.ndarray, mb: np.ndarray, n: int,
         # multipliers passing each other may look like a short move of each)
         open_ = sorted({k for k, i, j in changes if len(samples) == 2
                         or not _resolved(samples[k][2], i, samples[k + 1][2], j)}, reverse=True)
+        if not open_ and len(samples) == 2 and _straddles(ma, mb, unit_tol):
+            open_ = [0]   # (no claim, yet two multipliers on either side may have swapped: one trial point)
         if not open_:
             return [(samples[k][0], samples[k + 1][0], samples[k][1], samples[k + 1][1], i, j)
                     for k, i, j in changes]
