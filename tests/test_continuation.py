@@ -524,3 +524,31 @@ def test_two_real_multipliers_that_swap_sides_within_a_step_are_both_found():
     assert [x["kind"] for x in b.bifurcations] == ["period-doubling", "period-doubling"]
     for x, exact in zip(b.bifurcations, (0.45, 0.55)):
         assert abs(x["value"] - exact) <= x["accuracy"] + SLACK
+
+
+def test_a_crossing_that_falls_on_a_move_of_the_coordinates_is_recorded_there():
+    # mu = 0.9 + 0.2 p on the line u = p - p*, p* = 0.5 + 5e-6 where |mu| = 1 + unit_tol. The coordinates move at the
+    # point
+    # p* itself (the first step, in p: u_scale large, lands there), where the same spectrum is evaluated
+    # once more: round-off (here 1e-12, imposed) puts it inside before the move and outside after. The chords on
+    # either side (each within one coordinate system) see no change of side; the crossing is the moved point's
+    UNIT = 1e-6
+    p_star = 0.5 + UNIT / 0.2
+    state = {"moved": False}
+
+    def stability(u, p):
+        nudge = 1e-12 if state["moved"] else -1e-12
+        return np.array([0.9 + 0.2 * p + (nudge if abs(p - p_star) < 1e-9 else 0.0)])
+
+    def reanchor(u, p, forced):
+        if state["moved"] or abs(p - p_star) >= 1e-9:
+            return None
+        state["moved"] = True
+        return u.copy(), np.eye(1), np.zeros(1)
+
+    residual = lambda u, p: (np.array([u[0] - (p - p_star)]), np.eye(1), np.array([-1.0]))  # noqa: E731
+    b = continue_branch(residual, [-p_star], 0.0, 2 * p_star, step=p_star, max_step=p_star, tol=TOL,
+                        stability=stability, reanchor=reanchor, unit_tol=UNIT, u_scale=1e6)   # (steps in p)
+    assert len(b.reanchors) == 1 and b.reanchors[0]["value"] == pytest.approx(p_star, abs=1e-12)
+    assert [(x["kind"], x["accuracy"]) for x in b.bifurcations] == [("fold", 0.0)]
+    assert b.bifurcations[0]["value"] == pytest.approx(p_star, abs=1e-12)

@@ -759,6 +759,17 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
             anchor += 1
             reanchors.append({"index": len(points) - 1, "value": points[-1].p, "anchor": anchor, "forced": forced,
                               "multipliers_before": pt.multipliers, "multipliers_after": out[0].multipliers})
+            mb, ma = pt.multipliers, out[0].multipliers
+            if mb is not None and ma is not None:
+                # the same spectrum in both coordinates, up to round-off: a multiplier that round-off puts on the
+                # other side of 1 + unit_tol is a crossing at this very point, which no chord (each within one
+                # coordinate system) would see
+                n = max(mb.size, ma.size)
+                for i, j in _crossings(_padded(mb, n), _padded(ma, n), unit_tol):
+                    bifurcations.append({"kind": _kind(complex(_padded(ma, n)[j])), "value": problem.p(out[0].z),
+                                         "index": len(points) - 1, "u": problem.u(out[0].z),
+                                         "multipliers": ma, "accuracy": 0.0, "detected_by": "multipliers",
+                                         "anchor": anchor})
         return out
 
     def ended(stop: str, reason: str) -> Branch:
