@@ -24,7 +24,9 @@ u by u_scale as much as the whole range of p. With J = [J_u u_scale | J_p (p_end
   within sqrt(2) ds of the previous one);
 - the branch stops at p_end (the last point corrected at p = p_end exactly), when it leaves
   [min(p0, p_end) - margin, max(p0, p_end) + margin] after folding back, when it returns to its first
-  point (a closed branch), after ``max_steps`` steps, or when a correction fails at ``min_step``;
+  point (a closed branch; seen only while the coordinates are the first ones: after a ``reanchor`` the first
+  point's u is in other coordinates, and a closed branch runs on to ``max_steps``), after ``max_steps`` steps, or
+  when a correction fails at ``min_step``;
   :attr:`Branch.stop` and :attr:`Branch.reason` say which and where.
 
 Special points between two consecutive points A and B, located along the chord AB by bracketing the sign
