@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import signal
 import sys
 import time
@@ -445,8 +446,36 @@ def touching_figure(payload: dict, path: Path) -> None:
 
 
 def parse_speeds(text: str) -> np.ndarray:
-    lo, hi, n = text.split(":")
-    return np.linspace(float(lo), float(hi), int(n))
+    """LOW:HIGH:N -> N speeds from LOW to HIGH [Hz]; ValueError unless 0 < LOW <= HIGH finite and N >= 1 whole."""
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise ValueError(f"{text!r} is not LOW:HIGH:N")
+    lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo <= hi and n >= 1):
+        raise ValueError(f"{text!r} needs finite speeds 0 < LOW <= HIGH and N >= 1")
+    return np.linspace(lo, hi, n)
+
+
+def check_options(ap: argparse.ArgumentParser, args) -> None:
+    """Refuse a bad option in one line (``ap.error``: exit 2) before any flow."""
+    positive = {"--budget": args.budget, **({"--beta": args.beta, "--step": args.step, "--lead-speed": args.lead_speed,
+                                             "--touch-speed": args.touch_speed} if args.touching else {})}
+    for name, value in positive.items():
+        if not (math.isfinite(value) and value > 0):
+            ap.error(f"{name} must be a finite number > 0, got {value!r}")
+    for name, value, least in (("--lead", args.lead, 0), ("--max-iter", args.max_iter, 1),
+                               ("--revolutions", args.revolutions, 1),
+                               ("--contraction-periods", args.contraction_periods, 1)):
+        if value < least:
+            ap.error(f"{name} must be >= {least}, got {value}")
+    bad = [a for a in args.alphas if not (math.isfinite(a) and a > 0)]
+    if bad and not args.touching:
+        ap.error(f"--alphas must be finite numbers > 0 (mass-proportional damping, 1/s), got {bad[0]!r}")
+    name, text = ("--open-speeds", args.open_speeds) if args.touching else ("--speeds", args.speeds)
+    try:
+        parse_speeds(text)
+    except ValueError as exc:
+        ap.error(f"{name}: {' '.join(str(exc).split())}")
 
 
 def main(argv=None) -> dict:
@@ -470,10 +499,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--open-speeds", default="22.70:22.86:17", help="LOW:HIGH:N the open branch (--touching) [Hz]")
     ap.add_argument("--contraction-periods", type=int, default=12, help="the stability check's transient")
     args = ap.parse_args(argv)
+    check_options(ap, args)
     if args.touching:
-        if not (args.beta > 0 and args.step > 0 and args.revolutions >= 1 and args.contraction_periods >= 1):
-            ap.error(f"--touching needs --beta > 0 (got {args.beta}), --step > 0 (got {args.step}), --revolutions and "
-                     f"--contraction-periods >= 1 (got {args.revolutions}, {args.contraction_periods})")
         return touching(args)
     if args.quick:
         args.alphas, args.speeds, args.revolutions = [2.0, 0.5], "22.5:23.06:15", 100

@@ -473,3 +473,82 @@ def test_multipliers_that_keep_their_side_make_no_crossing_whatever_their_paths(
     residual, stability = _passing((r_out, r_out), (a[0], a[1]), (r_in, r_in), (a[2], a[3]))
     b = continue_branch(residual, [0.0], 0.0, 1.0, step=1.0, max_step=1.0, stability=stability, tol=TOL)
     assert b.bifurcations == [] and [p.stable for p in b.points] == [False, False]
+
+
+# --- issue 36: review (a move of the coordinates whose new state depends on p) ---
+def _sheared(k: float, with_dudp: bool):
+    """The line u = p followed from p = 0 to 1, its coordinates moved once (at the first accepted point) to
+    u' = u + k p: in them the branch is u' = (1 + k) p, so du'/ds = du/ds + k dp/ds, not M du/ds alone (M = 1).
+    Returns (branch, the p of every point)."""
+    state = {"k": 0.0}
+
+    def residual(u, p):   # r = u - k_now p - p in the current coordinates
+        return np.array([u[0] - (1.0 + state["k"]) * p]), np.eye(1), np.array([-(1.0 + state["k"])])
+
+    def reanchor(u, p, forced):
+        if state["k"] != 0.0:
+            return None
+        state["k"] = k
+        out = (u + k * p, np.eye(1))
+        return (*out, np.array([k])) if with_dudp else out
+
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=0.1, max_step=0.1, tol=TOL, reanchor=reanchor,
+                        max_steps=40)
+    return b, [pt.p for pt in b.points]
+
+
+def test_a_move_whose_state_depends_on_p_keeps_the_branchs_direction():
+    # k = -3: the old tangent (1, 1)/sqrt 2 mapped by M alone is (1, 1)/sqrt 2, the new one (-2, 1)/sqrt 5:
+    # their dot product is negative, so M alone turned the branch back towards p = 0 (it left the range below it).
+    # With du'/dp the mapped tangent is the new one exactly: the branch goes on to p_end with p increasing (the line
+    # is exact: every step's p grows by a positive amount, no tolerance involved)
+    b, ps = _sheared(-3.0, True)
+    assert b.stop == "end", b.reason
+    assert len(b.reanchors) == 1 and all(q > p for p, q in zip(ps, ps[1:]))
+    # without du'/dp the p component's sign orients it: p is the same parameter in both coordinates, so the sign of
+    # dp/ds along the branch does not change with them (exact here too)
+    b, ps = _sheared(-3.0, False)
+    assert b.stop == "end", b.reason
+    assert all(q > p for p, q in zip(ps, ps[1:]))
+
+
+def test_two_real_multipliers_that_swap_sides_within_a_step_are_both_found():
+    # mu_1 = -(0.45 + p) goes out through -1 at p = 0.55, mu_2 = -(1.45 - p) comes in at p = 0.45 (decoupled, they
+    # pass each other at p = 0.5). Across the step 0.3 -> 0.6 the ends' pairing (least distance: -0.75 -> -0.85,
+    # -1.15 -> -1.05) keeps each on its side and claims nothing, yet both crossed: the pairing is ambiguous (each moved
+    # 0.1, a quarter of their distance 0.4) with a neighbour across the circle, so a trial point is taken, which
+    # shows both crossings. |mu| is linear in p: each located within its bracket's accuracy of the exact value
+    residual, _ = _passing((1.0, 1.0), (0.0, 0.0), (1.0, 1.0), (0.0, 0.0))
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=0.3, max_step=0.3, tol=TOL, locate_tol=LOCATE,
+                        stability=lambda u, p: np.array([-(0.45 + p), -(1.45 - p)]))
+    assert [x["kind"] for x in b.bifurcations] == ["period-doubling", "period-doubling"]
+    for x, exact in zip(b.bifurcations, (0.45, 0.55)):
+        assert abs(x["value"] - exact) <= x["accuracy"] + SLACK
+
+
+def test_a_crossing_that_falls_on_a_move_of_the_coordinates_is_recorded_there():
+    # mu = 0.9 + 0.2 p on the line u = p - p*, p* = 0.5 + 5e-6 where |mu| = 1 + unit_tol. The coordinates move at the
+    # point
+    # p* itself (the first step, in p: u_scale large, lands there), where the same spectrum is evaluated
+    # once more: round-off (here 1e-12, imposed) puts it inside before the move and outside after. The chords on
+    # either side (each within one coordinate system) see no change of side; the crossing is the moved point's
+    UNIT = 1e-6
+    p_star = 0.5 + UNIT / 0.2
+    state = {"moved": False}
+
+    def stability(u, p):
+        nudge = 1e-12 if state["moved"] else -1e-12
+        return np.array([0.9 + 0.2 * p + (nudge if abs(p - p_star) < 1e-9 else 0.0)])
+
+    def reanchor(u, p, forced):
+        if state["moved"] or abs(p - p_star) >= 1e-9:
+            return None
+        state["moved"] = True
+        return u.copy(), np.eye(1), np.zeros(1)
+
+    residual = lambda u, p: (np.array([u[0] - (p - p_star)]), np.eye(1), np.array([-1.0]))  # noqa: E731
+    b = continue_branch(residual, [-p_star], 0.0, 2 * p_star, step=p_star, max_step=p_star, tol=TOL,
+                        stability=stability, reanchor=reanchor, unit_tol=UNIT, u_scale=1e6)   # (steps in p)
+    assert len(b.reanchors) == 1 and b.reanchors[0]["value"] == pytest.approx(p_star, abs=1e-12)
+    assert [(x["kind"], x["accuracy"]) for x in b.bifurcations] == [("fold", 0.0)]
+    assert b.bifurcations[0]["value"] == pytest.approx(p_star, abs=1e-12)

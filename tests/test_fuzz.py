@@ -4613,3 +4613,63 @@ def test_issue36_any_reanchor_output_is_a_branch_or_one_line(values, forced_only
         _one_line36(exc)
         return
     assert "\n" not in branch.reason and branch.points and all(pt.converged for pt in branch.points)
+
+
+# --- issue 36: review (reanchor's du_new/dp) ---
+# a reanchor may return the new state's derivative in p as a third element (it orients the new tangent); one of the
+# wrong shape, or not numbers, is refused in one line naming it; a non-finite one ends the branch in one line
+
+@pytest.mark.parametrize("dudp, words", [
+    (np.zeros(2), "du_new/dp of shape (2,)"),
+    ("steep", "must return None or (u_new, M or None) or (u_new, M or None, du_new/dp or None)"),
+])
+def test_issue36_review_a_reanchor_derivative_of_the_wrong_shape_is_refused(dudp, words):
+    with pytest.raises(NsfemError) as info:
+        _continue36(reanchor=lambda u, p, forced: (u, None, dudp))
+    message = _one_line36(info.value)
+    assert words in message, message
+
+
+def test_issue36_review_a_non_finite_reanchor_derivative_ends_the_branch_in_one_line():
+    branch = _continue36(reanchor=lambda u, p, forced: (u, None, np.array([np.nan])))
+    assert branch.stop == "failed" and "not finite" in branch.reason and "\n" not in branch.reason
+    assert len(branch.points) == 2 and all(pt.converged for pt in branch.points)
+
+
+# --- issue 36: review (studies/delamination_resonance.py's options) ---
+def _delamination_refusal(argv, capsys) -> str:
+    """studies/delamination_resonance.py's main(argv) exits 2 with one 'error:' line, before any flow."""
+    studies = str(Path(__file__).resolve().parents[1] / "studies")
+    if studies not in sys.path:
+        sys.path.insert(0, studies)
+    import delamination_resonance
+
+    with pytest.raises(SystemExit) as exc:
+        delamination_resonance.main(argv)
+    assert exc.value.code == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
+    assert len(err) == 1
+    return err[0]
+
+
+@pytest.mark.parametrize("argv", [
+    ["--touching", "--beta", "inf"], ["--touching", "--beta", "nan"], ["--touching", "--step", "inf"],
+    ["--touching", "--touch-speed", "nan"], ["--touching", "--lead-speed", "-5"],
+    ["--touching", "--open-speeds", "22.9:22.7:3"], ["--touching", "--open-speeds", "22.7:22.9"],
+    ["--touching", "--contraction-periods", "0"], ["--alphas", "nan"], ["--alphas", "2", "0"],
+    ["--speeds", "a:b:3"], ["--speeds", "22.5:23:0"], ["--budget", "-1"], ["--max-iter", "0"],
+])
+def test_issue36_review_delamination_study_refuses_bad_options(argv, capsys):
+    # (before the fix: tracebacks from the scene (inf/nan/negative), or the study running on: --step inf, reversed
+    # --open-speeds)
+    words = [a for a in argv if a.startswith("--") and a != "--touching"][0]
+    assert words in _delamination_refusal(argv, capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(beta=st.floats(allow_nan=True, allow_infinity=True))
+def test_issue36_review_delamination_study_refuses_every_bad_beta(beta, capsys):
+    """Property: a --beta that is not a finite number > 0 is refused naming --beta."""
+    if math.isfinite(beta) and beta > 0:
+        return
+    assert "--beta" in _delamination_refusal(["--touching", "--beta", repr(beta)], capsys)

@@ -313,3 +313,40 @@ def test_the_period_doubling_is_located_and_switched_on_after_the_section_moved(
         # doubling, where the period-2 orbit's multiplier is near 1), times 10 for the multipliers' sensitivity
         bound = 10 * 1e-9 / np.abs(1.0 - np.abs(ref.multipliers)).min()
         assert np.abs(np.sort(np.abs(mu)) - np.sort(np.abs(ref.multipliers))).max() <= bound
+
+
+# --- issue 36: review (the tangent carried into a moved section) ---
+
+@pytest.mark.parametrize("t0", [0.9, 0.87])    # the impact (0.887 s at w 2.03) 0.013 s before / 0.017 s after
+def test_a_moved_sections_state_changes_with_w_as_the_closed_form_orbit_there(t0):
+    """The section's move maps the branch's tangent into the new coordinates: du'/dw = M du/dw + du'/dw|_u (the
+    state at the new section depends on w at a fixed old state too: the flow over the shift is w's). Both against
+    the closed form: the orbit's state at the new section t0_s, differenced in w. M du/dw alone misses the second
+    term (here by 7 % of the tangent), which could orient the new tangent against the branch. With the section just
+    before the impact the new one lies more than half a period on and is taken a period earlier (t0_s = t0 + shift -
+    T): at w' the state there is the flow's over shift - T + T(w'), T's change with w included."""
+    from nsfem.periodic.branch import DP, _Problem
+
+    w, span = 2.03, 0.15    # the impact within 0.017 s of the section: the move is due
+    p = period1_branch(OSC, w, -1)
+    u = orbit_state(OSC, w, [(p.tau, p.u)], p.period, np.array([t0]))[0]
+    problem = _Problem(_system, _period, t0, DP * span, 1)
+    problem.weights = np.ones(2)
+    _, ju, jp = problem.residual(u, w)
+    dudw = -np.linalg.solve(ju, jp)               # along the branch at the old section: J_u du + J_p dw = 0
+    u_new, M, dudp = problem.reanchor(u, w, False)
+    t1 = problem.t0
+    h = 1e-5
+
+    def at_t1(wi):
+        ref = period1_branch(OSC, wi, -1)
+        return orbit_state(OSC, wi, [(ref.tau, ref.u)], ref.period, np.array([t1]))[0]
+
+    exact = (at_t1(w + h) - at_t1(w - h)) / (2 * h)
+    scale = np.array([1.0, 1.0 / w])              # (x, x'/w): one size for both
+    size = np.abs(scale * exact).max()
+    # central differences: the closed form's truncation h^2 |u'''| ~ 1e-10 relative; the flow's dp = 1.5e-7 with
+    # event times located to ~1e-13 s gives ~1e-6 relative; J_u's solve ~1e-9 (cond <= 10, Newton-level tol): 1e-4
+    assert np.abs(scale * (M @ dudw + dudp - exact)).max() <= 1e-4 * size
+    assert np.abs(scale * (M @ dudw - exact)).max() > 0.03 * size
+    assert (t1 < t0) == (t0 == 0.87)

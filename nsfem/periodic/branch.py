@@ -116,7 +116,7 @@ class _Problem:
         """The continuation's change of coordinates (:func:`.continuation.continue_branch`'s ``reanchor``): when an
         event of the orbit through u at p lies within RECENTER of half the longest event-free stretch of its period
         from the section (or a step failed: ``forced``), the section moves to the middle of a long stretch (WIDE);
-        returns (the state there, the flow's transition matrix to it) or None."""
+        returns (the state there, the flow's transition matrix to it, the state's derivative in p) or None."""
         fl = self._flows.get((p, u.tobytes()))
         n = u.size // 2
         if fl is None:
@@ -141,11 +141,24 @@ class _Problem:
         if forced and min(shift, T - shift) <= SECTION_MARGIN * T:
             return None   # (the section is in that middle already: the events are not what failed)
         moved = FlowMap(self.system_at(p), self.t0, shift)(u[:n], u[n:])
-        self.t0 = new_t0(shift)
+        # the new state's change with p at the old one (central differences as J_p's): with the flow's Jacobian it
+        # maps the branch's tangent into the new coordinates (M alone may turn it back). The new section is the time
+        # new_t0, which is t0 + shift - T with T the period at p: at p' the state there is the flow's over
+        # shift - T + T(p') (the orbit repeats after T(p'))
+        t1 = new_t0(shift)
+
+        def duration(pp: float) -> float:
+            return shift if t1 == self.t0 + shift else shift - T + self.multiple * self.period_at(pp)
+
+        ends = [FlowMap(self.system_at(p + s * self.dp), self.t0, duration(p + s * self.dp))(u[:n], u[n:],
+                                                                                              jacobian=False)
+                for s in (1.0, -1.0)]
+        dudp = (np.concatenate([ends[0].q, ends[0].v]) - np.concatenate([ends[1].q, ends[1].v])) / (2.0 * self.dp)
+        self.t0 = t1
         self.t0s.append(self.t0)
         self._maps.clear()
         self._flows.clear()
-        return np.concatenate([moved.q, moved.v]), moved.monodromy
+        return np.concatenate([moved.q, moved.v]), moved.monodromy, dudp
 
     def multipliers(self, u: np.ndarray, p: float) -> np.ndarray:
         _, _, fl = self.last

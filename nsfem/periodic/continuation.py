@@ -24,7 +24,9 @@ u by u_scale as much as the whole range of p. With J = [J_u u_scale | J_p (p_end
   within sqrt(2) ds of the previous one);
 - the branch stops at p_end (the last point corrected at p = p_end exactly), when it leaves
   [min(p0, p_end) - margin, max(p0, p_end) + margin] after folding back, when it returns to its first
-  point (a closed branch), after ``max_steps`` steps, or when a correction fails at ``min_step``;
+  point (a closed branch; seen only while the coordinates are the first ones: after a ``reanchor`` the first
+  point's u is in other coordinates, and a closed branch runs on to ``max_steps``), after ``max_steps`` steps, or
+  when a correction fails at ``min_step``;
   :attr:`Branch.stop` and :attr:`Branch.reason` say which and where.
 
 Special points between two consecutive points A and B, located along the chord AB by bracketing the sign
@@ -47,7 +49,9 @@ about tol / |J_u|, moving the test function accordingly):
   the step may be paired crosswise (a spurious pair of crossings), so each claim is checked: its stretch
   of the chord is halved (trial points with their multipliers, at least one) until the followed
   multiplier moved less than a quarter of its distance to every other one; a claim that vanishes on the way
-  was an exchange. One that stays ambiguous counts only where the number outside the circle (by kind)
+  was an exchange. Where nothing is claimed but a multiplier's pairing is ambiguous with one on the other side of
+  the circle (:func:`_straddles`), the two may have swapped sides (one out, one in: no claim at the ends), so one
+  trial point is taken there too. One that stays ambiguous counts only where the number outside the circle (by kind)
   changed. A real crossing is then followed through the trial points by the same pairing. Kinds: a real
   multiplier through +1 "fold", through -1 "period-doubling", a complex pair "neimark-sacker"
   (Kuznetsov chapter 4). A saddle-node (a fold of the branch with its multiplier through +1)
@@ -98,6 +102,9 @@ MAX_FOLLOW = 24
 #: a multiplier's pairing across a stretch of the branch is unambiguous when it moved less than this share of its
 #: distance to every other multiplier
 RESOLVED = 0.25
+#: a tangent whose p component is below this (in scaled units) is at a fold of the branch: moved to new coordinates
+#: without du_new/dp, it is oriented by the change's M (its p component's sign is round-off there)
+FOLD_TP = 1e-3
 #: at most this many trial points per special point (the bracket at least halves every three: 2^-33 of
 #: the chord at worst, 1e-10; a smooth test function takes 5 to 10)
 MAX_TRIALS = 100
@@ -371,6 +378,21 @@ def _resolved(m1: np.ndarray, i: int, m2: np.ndarray, j: int) -> bool:
     return True
 
 
+def _straddles(m1: np.ndarray, m2: np.ndarray, unit_tol: float) -> bool:
+    """Whether a multiplier's pairing across the stretch (m1 -> m2) is ambiguous with one on the other side of the
+    unit circle: within four times its move of it (:data:`RESOLVED`) at either end. Two such multipliers may have
+    exchanged places, one going out and one coming in, which the ends' pairing sees as no crossing at all."""
+    partner = _paired(m1, m2)
+    out1, out2 = _outside(m1, unit_tol), _outside(m2, unit_tol)
+    for i in range(m1.size):
+        j = int(partner[i])
+        reach = abs(m1[i] - m2[j]) / RESOLVED
+        if reach > 0 and (np.any((np.abs(m1 - m1[i]) <= reach) & (out1 != out1[i]))
+                          or np.any((np.abs(m2 - m2[j]) <= reach) & (out2 != out2[j]))):
+            return True
+    return False
+
+
 def _followed_crossings(chord: "_Chord", ma: np.ndarray, mb: np.ndarray, n: int, unit_tol: float,
                         min_length_z: float, budget: int = MAX_FOLLOW) -> list[tuple] | None:
     """The crossings of the unit circle between A and B, each (theta_lo, theta_hi, point_lo, point_hi, index at
@@ -388,6 +410,8 @@ def _followed_crossings(chord: "_Chord", ma: np.ndarray, mb: np.ndarray, n: int,
         # multipliers passing each other may look like a short move of each)
         open_ = sorted({k for k, i, j in changes if len(samples) == 2
                         or not _resolved(samples[k][2], i, samples[k + 1][2], j)}, reverse=True)
+        if not open_ and len(samples) == 2 and _straddles(ma, mb, unit_tol):
+            open_ = [0]   # (no claim, yet two multipliers on either side may have swapped: one trial point)
         if not open_:
             return [(samples[k][0], samples[k + 1][0], samples[k][1], samples[k + 1][1], i, j)
                     for k, i, j in changes]
@@ -566,16 +590,24 @@ def _reanchored(problem: _Scaled, reanchor: Callable, pt: _Point, t: np.ndarray,
     if out is None:
         return None
     try:
-        u_new, M = out
+        out = tuple(out)
+        if len(out) not in (2, 3):
+            raise ValueError
+        u_new, M, dudp = out if len(out) == 3 else (*out, None)
         u_new = np.asarray(u_new, dtype=float)
         M = None if M is None else np.asarray(M, dtype=float)
+        dudp = None if dudp is None else np.asarray(dudp, dtype=float)
     except (TypeError, ValueError):
-        raise _Contract("continue_branch: reanchor(u, p, forced) must return None or (u_new, M or None)") from None
+        raise _Contract("continue_branch: reanchor(u, p, forced) must return None or (u_new, M or None) or (u_new, "
+                        "M or None, du_new/dp or None)") from None
     m = problem.m
-    if u_new.shape != (m,) or (M is not None and M.shape != (m, m)):
+    if u_new.shape != (m,) or (M is not None and M.shape != (m, m)) or (dudp is not None and dudp.shape != (m,)):
         raise _Contract(f"continue_branch: reanchor returned u of shape {u_new.shape} and M of shape "
-                        f"{None if M is None else M.shape}, expected ({m},) and ({m}, {m})")
-    if not (np.all(np.isfinite(u_new)) and (M is None or np.all(np.isfinite(M)))):
+                        f"{None if M is None else M.shape}"
+                        + ("" if dudp is None else f" and du_new/dp of shape {dudp.shape}")
+                        + f", expected ({m},) and ({m}, {m})" + ("" if dudp is None else f" and ({m},)"))
+    if not (np.all(np.isfinite(u_new)) and (M is None or np.all(np.isfinite(M)))
+            and (dudp is None or np.all(np.isfinite(dudp)))):
         raise _Failure(f"moving the coordinates at p = {p:.10g} gave values that are not finite")
     problem._last = None     # (the residual is another function of u now)
     z = problem.z(u_new, p)
@@ -584,10 +616,17 @@ def _reanchored(problem: _Scaled, reanchor: Callable, pt: _Point, t: np.ndarray,
     e_p[-1] = 1.0
     new = _correct(problem, z, e_p, float(z[-1]), tol, max_iter)
     new.multipliers = problem.multipliers(new.z)
-    if M is None:
-        previous = e_p * (1.0 if t[-1] >= 0 else -1.0)
-    else:
+    # the old tangent in the new coordinates: du_new/ds = M du/ds + du_new/dp dp/ds (the new state depends on p
+    # at a fixed old one too: an orbit's flow over the section's shift does). Without du_new/dp, M du/ds alone can
+    # point against the branch (it turned back: test_a_move_whose_state_depends_on_p_keeps_the_branchs_direction);
+    # the sign of dp/ds is the same in any coordinates, so it orients the tangent, except near a fold of the branch
+    # (|t_p| below FOLD_TP), where the term left out is as small as t_p and M du/ds orients it
+    if M is not None and dudp is not None:
+        previous = np.append((M @ (t[:-1] * problem.u_scale) + dudp * t[-1] * problem.span) / problem.u_scale, t[-1])
+    elif M is not None and abs(t[-1]) < FOLD_TP:
         previous = np.append(M @ (t[:-1] * problem.u_scale) / problem.u_scale, t[-1])
+    else:
+        previous = e_p * (1.0 if t[-1] >= 0 else -1.0)
     return new, _tangent(new.jac, previous / np.linalg.norm(previous))
 
 
@@ -615,11 +654,13 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     - ``unit_tol``: the margin of the unit circle (a point is stable when every |mu| < 1 + unit_tol);
     - ``on_point(point)``: called with each accepted :class:`BranchPoint` as it is added (the first one too), e.g.
       to report progress or save the points so far;
-    - ``reanchor(u, p, forced) -> None | (u_new, M)``: a change of the unknowns' coordinates along the branch
-      (an orbit's section moved): called after each accepted point (``forced`` False) and once when a step from
-      a point fails down to ``min_step`` (True). None keeps them; (u_new, M) is the same solution in new
-      coordinates, in which ``residual`` and ``stability`` work from then on, with M = du_new/du (m, m) or None
-      (it orients the new tangent; without it the tangent keeps its p component's sign). The point is
+    - ``reanchor(u, p, forced) -> None | (u_new, M) | (u_new, M, du_new/dp)``: a change of the unknowns'
+      coordinates along the branch (an orbit's section moved): called after each accepted point (``forced``
+      False) and once when a step from a point fails down to ``min_step`` (True). None keeps them; (u_new, M) is
+      the same solution in new coordinates, in which ``residual`` and ``stability`` work from then on, with
+      M = du_new/du (m, m) or None and du_new/dp (m,) (the new state's change with p at a fixed old one) or None:
+      the old tangent mapped by both orients the new one; without du_new/dp the tangent keeps its p component's
+      sign, and near a fold (|t_p| < FOLD_TP) follows M du/ds. The point is
       re-corrected there at its p and the branch goes on from it; special points are located within one
       coordinate system (between two points, before the change), :attr:`Branch.reanchors` lists the changes and
       :attr:`BranchPoint.anchor` says which coordinates a point's u is in.
@@ -720,6 +761,17 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
             anchor += 1
             reanchors.append({"index": len(points) - 1, "value": points[-1].p, "anchor": anchor, "forced": forced,
                               "multipliers_before": pt.multipliers, "multipliers_after": out[0].multipliers})
+            mb, ma = pt.multipliers, out[0].multipliers
+            if mb is not None and ma is not None:
+                # the same spectrum in both coordinates, up to round-off: a multiplier that round-off puts on the
+                # other side of 1 + unit_tol is a crossing at this very point, which no chord (each within one
+                # coordinate system) would see
+                n = max(mb.size, ma.size)
+                for i, j in _crossings(_padded(mb, n), _padded(ma, n), unit_tol):
+                    bifurcations.append({"kind": _kind(complex(_padded(ma, n)[j])), "value": problem.p(out[0].z),
+                                         "index": len(points) - 1, "u": problem.u(out[0].z),
+                                         "multipliers": ma, "accuracy": 0.0, "detected_by": "multipliers",
+                                         "anchor": anchor})
         return out
 
     def ended(stop: str, reason: str) -> Branch:
