@@ -69,36 +69,25 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from nsfem.fem.assemble import build_model  # noqa: E402
-from nsfem.fem.components import lateral_turn  # noqa: E402
-from nsfem.integrate import ContactSystem  # noqa: E402
-from nsfem.reduce import scene_reduction  # noqa: E402
-from nsfem.scene.load import load_scene  # noqa: E402
 from nsfem.sensors import hermite_row  # noqa: E402
 from rub_reference import (Jeffcott, elastic_ring_operators, elastic_rub, jeffcott_onset)  # noqa: E402
+from rub_whirl import Rub, inertial_section as turned_section  # noqa: E402
 
 OUT = ROOT / "studies" / "out" / "rub_backward_whirl"
 FIGURE = ROOT / "docs" / "figures" / "rub_backward_whirl.png"
 
 
-class ElasticRub:
-    """The shipped rub on an undamped elastic ring (k_s, mu, facets, frame): one model and reduction."""
+class ElasticRub(Rub):
+    """The shipped rub on an undamped elastic ring (k_s, mu, facets, frame): one model and reduction
+    (:class:`rub_whirl.Rub` with the ring's mount), and the disk centre's rows."""
 
     def __init__(self, stiffness: float, mu: float, facets: int = 64, frame: str = "rotating"):
-        self.stiffness, self.mu, self.facets = float(stiffness), float(mu), int(facets)
-        self.scene = load_scene("rub", [f"stator.0.stiffness={stiffness}", "stator.0.damping=0",
-                                        f"stator.0.friction={mu}", f"stator.0.facets={facets}",
-                                        f"rotation.frame={frame}"])
-        self.model = build_model(self.scene)
-        self.red = scene_reduction(self.scene.reduction, self.model)
+        super().__init__(mu, facets, frame, extra=(f"stator.0.stiffness={stiffness}", "stator.0.damping=0"))
+        self.stiffness = float(stiffness)
         T = np.asarray(self.red.T)
-        self.J = np.linalg.lstsq(T, lateral_turn(self.model.spaces, T.shape[0]) @ T, rcond=None)[0]
         seg = next(iter(self.model.spaces))
         #: the disk centre (y, z) at x = 0.4 m (the sensors disk_y, disk_z)
         self.disk = np.vstack([(hermite_row(self.model, seg, f, 0.4) @ T).ravel() for f in ("V", "W")])
-
-    def system(self, speed_hz: float) -> ContactSystem:
-        return ContactSystem.from_scene(self.scene, self.model, self.red, speed_hz=float(speed_hz))
 
 
 def modal_jeffcott(rub: ElasticRub) -> Jeffcott:
@@ -187,11 +176,8 @@ def friction_at_rub_start(jeff: Jeffcott, start_hz: float) -> float:
 
 def inertial_section(rub_i: ElasticRub, ref: dict) -> tuple[float, np.ndarray, np.ndarray]:
     """(t0, q, q'): the round ring's rotating-frame state turned into the inertial frame at the first t0 >= 0 with
-    the disk at a facet's middle (away from the corner laws' switches; as tests/test_periodic_rub.py)."""
-    st, w = ref["state"], ref["system"].omega
-    t0 = ((-math.atan2(st.n[1], st.n[0])) % (2.0 * math.pi / rub_i.facets)) / w
-    q = sla.expm(w * t0 * rub_i.J) @ st.q
-    return t0, q, w * rub_i.J @ q
+    the disk at a facet's middle (:func:`rub_whirl.inertial_section`)."""
+    return turned_section(rub_i, ref, rub_i.facets)
 
 
 def exact_orbit(rub_r: ElasticRub, rub_i: ElasticRub, speed_hz: float, **kw):
@@ -381,7 +367,10 @@ def resonance_panel(ax, rates: list[dict], exact: list[dict], runs: list[dict], 
     ax.set_xlabel("speed [Hz]")
     ax.set_ylabel("disk radius / clearance")
     ax.set_title(f"mu = {mu:g}, 64-gon: resonance curve through the onset", fontsize=9)
-    ax.legend(fontsize=7, loc="upper left")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7, loc="upper left")
+    else:
+        ax.text(0.5, 0.5, "no exact-flow orbits (--quick)", transform=ax.transAxes, ha="center", fontsize=8)
 
 
 def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list[dict], runs: list[dict],

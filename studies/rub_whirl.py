@@ -58,10 +58,10 @@ FIGURE = ROOT / "docs" / "figures" / "rub_whirl.png"
 class Rub:
     """The shipped rub at friction mu (one model and reduction; the system at any speed from them)."""
 
-    def __init__(self, mu: float, facets: int = 64, frame: str = "rotating"):
-        self.mu = float(mu)
+    def __init__(self, mu: float, facets: int = 64, frame: str = "rotating", extra: tuple[str, ...] = ()):
+        self.mu, self.facets = float(mu), int(facets)
         self.scene = load_scene("rub", [f"stator.0.friction={mu}", f"stator.0.facets={facets}",
-                                        f"rotation.frame={frame}"])
+                                        f"rotation.frame={frame}", *extra])
         self.model = build_model(self.scene)
         self.red = scene_reduction(self.scene.reduction, self.model)
         T = np.asarray(self.red.T)

@@ -4531,19 +4531,23 @@ def test_issue36_dask_a_cluster_failure_is_one_line_a_task_error_is_the_serial_o
 
 
 # --- issue 36: rub backward whirl study (studies/rub_backward_whirl.py's options) ---
-def _backward_whirl_refusal(argv, capsys) -> str:
-    """studies/rub_backward_whirl.py's main(argv) exits 2 with one 'error:' line, before the exact flow."""
+def _study_refusal(study: str, argv, capsys) -> str:
+    """studies/<study>.py's main(argv) exits 2 with one 'error:' line, before any long computation."""
+    import importlib
+
     studies = str(Path(__file__).resolve().parents[1] / "studies")
     if studies not in sys.path:
         sys.path.insert(0, studies)
-    import rub_backward_whirl
-
     with pytest.raises(SystemExit) as exc:
-        rub_backward_whirl.main(argv)
+        importlib.import_module(study).main(argv)
     assert exc.value.code == 2
     err = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
     assert len(err) == 1
     return err[0]
+
+
+def _backward_whirl_refusal(argv, capsys) -> str:
+    return _study_refusal("rub_backward_whirl", argv, capsys)
 
 
 @pytest.mark.parametrize("argv", [["--mu", "nan"], ["--mu", "0"], ["--mu", "-0.1"], ["--stiffness", "inf"],
@@ -4638,18 +4642,7 @@ def test_issue36_review_a_non_finite_reanchor_derivative_ends_the_branch_in_one_
 
 # --- issue 36: review (studies/delamination_resonance.py's options) ---
 def _delamination_refusal(argv, capsys) -> str:
-    """studies/delamination_resonance.py's main(argv) exits 2 with one 'error:' line, before any flow."""
-    studies = str(Path(__file__).resolve().parents[1] / "studies")
-    if studies not in sys.path:
-        sys.path.insert(0, studies)
-    import delamination_resonance
-
-    with pytest.raises(SystemExit) as exc:
-        delamination_resonance.main(argv)
-    assert exc.value.code == 2
-    err = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
-    assert len(err) == 1
-    return err[0]
+    return _study_refusal("delamination_resonance", argv, capsys)
 
 
 @pytest.mark.parametrize("argv", [
