@@ -428,7 +428,7 @@ def figure(curve: list[dict], onsets: list[dict], rates: list[dict], exact: list
                           f"{run['end_whirl_hz']:+.1f} Hz", fontsize=9)
     ax3.set_xlabel("time [s]")
     ax3.set_ylabel("disk radius / clearance")
-    if runs:
+    if ax3.get_legend_handles_labels()[0]:
         ax3.legend(fontsize=7)
     fig.tight_layout()
     save_figure(fig, path)
