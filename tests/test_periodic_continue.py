@@ -325,7 +325,8 @@ def test_a_doubled_branch_is_reported_at_its_own_section(monkeypatch):
         kw["on_point"](bp, 2)
         point = {"value": p0, kw["key"]: p0, "q0": orb.q0, "v0": orb.v0, "converged": True, "residual": orb.residual,
                  "t0_s": orb.t0, "multipliers": [[float(z.real), float(z.imag)] for z in orb.multipliers]}
-        br.doubled.append(branch_module.OrbitBranch(kw["key"], 2, [point], [], "end", "", t0=orb.t0))
+        moved = [{"index": 0, "value": p0, "t0_s": orb.t0, "forced": False}]   # (a section move, as one reports it)
+        br.doubled.append(branch_module.OrbitBranch(kw["key"], 2, [point], [], "end", "", t0=orb.t0, reanchors=moved))
         return br
 
     monkeypatch.setattr(branch_module, "orbit_branch", with_a_doubled_branch)
@@ -335,6 +336,8 @@ def test_a_doubled_branch_is_reported_at_its_own_section(monkeypatch):
     (p,) = d["points"]
     for name, a in sb.start.amplitudes.items():
         assert p["amplitudes"][name] == pytest.approx(a, rel=1e-7), name
+    # the doubled branch's section moves are reported as a side's
+    assert d["reanchors"] == [{"value": 26.0, "t0_s": p["t0_s"], "forced": False}]
 
 
 def test_a_periodic_sweep_rows_phase_is_the_lag_behind_the_unbalance(tmp_path):

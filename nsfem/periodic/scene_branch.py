@@ -320,7 +320,8 @@ def _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, tr
     sb.bifurcations.sort(key=lambda b: b["value"])
     _assemble(sb, found, sides, p0)
     if sb.interrupted and not sb.doubled and doubled_found:
-        sb.doubled = [{"multiple": m, "points": pts, "bifurcations": [], "stop": "interrupted", "reason": ""}
+        sb.doubled = [{"multiple": m, "points": pts, "bifurcations": [], "stop": "interrupted", "reason": "",
+                       "reanchors": []}
                       for m, pts in doubled_found.items()]
     sb.wall_s = time.perf_counter() - t_wall
     return sb
@@ -389,7 +390,8 @@ def _doubled(d, family: "_Family", records: dict) -> dict:
         pts.append(rec)
     return {"multiple": d.multiple, "points": pts,
             "bifurcations": [{"kind": b["kind"], "value": b["value"]} for b in d.bifurcations],
-            "stop": d.stop, "reason": d.reason}
+            "stop": d.stop, "reason": d.reason,
+            "reanchors": [{name: r[name] for name in ("value", "t0_s", "forced")} for r in d.reanchors]}
 
 
 class _Family:
