@@ -552,3 +552,30 @@ def test_a_crossing_that_falls_on_a_move_of_the_coordinates_is_recorded_there():
     assert len(b.reanchors) == 1 and b.reanchors[0]["value"] == pytest.approx(p_star, abs=1e-12)
     assert [(x["kind"], x["accuracy"]) for x in b.bifurcations] == [("fold", 0.0)]
     assert b.bifurcations[0]["value"] == pytest.approx(p_star, abs=1e-12)
+
+
+def test_a_move_of_the_coordinates_at_the_start_comes_before_the_first_step_and_the_branch_still_closes():
+    """A ``reanchor`` asked at the start (before the first step: an orbit whose section lies near an event) moves
+    the coordinates there, recorded at point 0; the closed branch is then recognised in the moved coordinates
+    (it was only in the first ones). The circle x^2 + p^2 = 1 in coordinates y = x + 0.5 after the move."""
+    shift = [0.0]
+
+    def shifted_circle(u, p):
+        return circle(np.asarray(u) - shift[0], p)
+
+    calls = []
+
+    def reanchor(u, p, forced):
+        calls.append(forced)
+        if shift[0]:
+            return None
+        shift[0] = 0.5
+        return np.asarray(u) + 0.5, np.eye(1), np.zeros(1)
+
+    branch = continue_branch(shifted_circle, [-math.sqrt(1 - 0.81)], -0.9, 1.5, tol=TOL, locate_tol=LOCATE,
+                             reanchor=reanchor)
+    assert [r["index"] for r in branch.reanchors] == [0] and calls[0] is False
+    assert branch.stop == "closed", branch.reason
+    # every point after the move is on the circle in the moved coordinates (the corrector's tolerance)
+    assert max(abs((pt.u[0] - 0.5) ** 2 + pt.p ** 2 - 1) for pt in branch.points[1:]) <= TOL
+    assert kinds(branch) == ["fold", "fold"]

@@ -289,8 +289,8 @@ def test_the_rub_branch_runs_through_the_corners_drifting_onto_its_section():
 
 
 def test_the_period_doubling_is_located_and_switched_on_after_the_section_moved():
-    # the section starts 0.2 T after the impact at w 2.55 (within a quarter period of it): it moves at the first
-    # point; the period doubling is then located in the moved coordinates as on the fixed section (1e-6, as in
+    # the section starts 0.2 T after the impact at w 2.55 (within a quarter period of it): it moves at the start,
+    # before the first step; the period doubling is then located in the moved coordinates as on the fixed section (1e-6, as in
     # test_branch_is_the_closed_form_period1_orbit...) and the doubled branch starts at the bifurcation's own
     # section (its points: period-2 orbits with the closed form's multipliers)
     p = period1_branch(OSC, 2.55, -1)
@@ -299,7 +299,7 @@ def test_the_period_doubling_is_located_and_switched_on_after_the_section_moved(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         br = orbit_branch(_system, _period, [s[0]], [s[1]], 2.55, 2.75, key="w", t0=t0, step=0.02, depth=1)
-    assert br.stop == "end" and br.reanchors and br.reanchors[0]["index"] == 1
+    assert br.stop == "end" and br.reanchors and br.reanchors[0]["index"] == 0 and not br.reanchors[0]["forced"]
     w_pd = period_doubling_frequency(OSC, 2.5, 2.75)
     (pd,) = br.bifurcations
     assert pd["kind"] == "period-doubling" and abs(pd["value"] - w_pd) <= 1e-6

@@ -24,8 +24,8 @@ u by u_scale as much as the whole range of p. With J = [J_u u_scale | J_p (p_end
   within sqrt(2) ds of the previous one);
 - the branch stops at p_end (the last point corrected at p = p_end exactly), when it leaves
   [min(p0, p_end) - margin, max(p0, p_end) + margin] after folding back, when it returns to its first
-  point (a closed branch; seen only while the coordinates are the first ones: after a ``reanchor`` the first
-  point's u is in other coordinates, and a closed branch runs on to ``max_steps``), after ``max_steps`` steps, or
+  point (a closed branch; seen only while the coordinates are those of the first step: after a later ``reanchor``
+  the first point's u is in other coordinates, and a closed branch runs on to ``max_steps``), after ``max_steps`` steps, or
   when a correction fails at ``min_step``;
   :attr:`Branch.stop` and :attr:`Branch.reason` say which and where.
 
@@ -655,8 +655,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     - ``on_point(point)``: called with each accepted :class:`BranchPoint` as it is added (the first one too), e.g.
       to report progress or save the points so far;
     - ``reanchor(u, p, forced) -> None | (u_new, M) | (u_new, M, du_new/dp)``: a change of the unknowns'
-      coordinates along the branch (an orbit's section moved): called after each accepted point (``forced``
-      False) and once when a step from a point fails down to ``min_step`` (True). None keeps them; (u_new, M) is
+      coordinates along the branch (an orbit's section moved): called at the start and after each accepted point
+      (``forced`` False) and once when a step from a point fails down to ``min_step`` (True). None keeps them; (u_new, M) is
       the same solution in new coordinates, in which ``residual`` and ``stability`` work from then on, with
       M = du_new/du (m, m) or None and du_new/dp (m,) (the new state's change with p at a fixed old one) or None:
       the old tangent mapped by both orients the new one; without du_new/dp the tangent keeps its p component's
@@ -777,6 +777,16 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     def ended(stop: str, reason: str) -> Branch:
         return Branch(points, bifurcations, stop, reason, reanchors)
 
+    if reanchor is not None:   # the start's coordinates, before the first step: an event near its section moves it
+        try:
+            out = move(a, t, False)
+        except _Failure as exc:
+            return ended("failed", f"at the start p = {points[-1].p:.10g}: {exc}")
+        if out is not None:
+            a, t = out
+            first_z = a.z
+    first_anchor = anchor   # (a closed branch is seen in these coordinates)
+
     while True:
         if len(points) - 1 >= max_steps:
             return ended("max_steps", f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
@@ -829,7 +839,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         if not lo_z <= b.z[-1] <= hi_z:
             return ended("left", f"the branch folded back and left [{min(p0, p_end) - margin:g}, "
                                  f"{max(p0, p_end) + margin:g}] at p = {points[-1].p:.10g}")
-        if anchor == 0 and len(points) > 3 and s > 3 * chord * span:   # (first_z: in the first coordinates)
+        if anchor == first_anchor and len(points) > 3 and s > 3 * chord * span:   # (first_z in these coordinates)
             w = b.z - a.z
             x = float(np.clip((first_z - a.z) @ w / (w @ w), 0.0, 1.0))
             if np.linalg.norm(a.z + x * w - first_z) < 0.25 * chord:
