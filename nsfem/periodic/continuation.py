@@ -745,7 +745,6 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     except _Failure as exc:
         return Branch([_branch_point(problem, a, 0.0, tol, unit_tol)], [], "failed", f"at the start: {exc}")
     t = _tangent(a.jac, e_p)
-    first_z = a.z
     points = [_branch_point(problem, a, 0.0, tol, unit_tol)]
     said(points[-1])
     bifurcations: list[dict] = []
@@ -777,17 +776,17 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     def ended(stop: str, reason: str) -> Branch:
         return Branch(points, bifurcations, stop, reason, reanchors)
 
-    if reanchor is not None:   # the start's coordinates, before the first step: an event near its section moves it
-        try:
-            out = move(a, t, False)
-        except _Failure as exc:
-            return ended("failed", f"at the start p = {points[-1].p:.10g}: {exc}")
-        if out is not None:
-            a, t = out
-            first_z = a.z
-    first_anchor = anchor   # (a closed branch is seen in these coordinates)
-
+    first_anchor = None
     while True:
+        if reanchor is not None:   # the coordinates at the point the step starts from (the start's too)
+            try:
+                out = move(a, t, False)
+            except _Failure as exc:
+                return ended("failed", f"at {'the start ' if len(points) == 1 else ''}p = {points[-1].p:.10g}: {exc}")
+            if out is not None:
+                a, t = out
+        if first_anchor is None:   # (a closed branch is seen in the coordinates of the first step)
+            first_anchor, first_z = anchor, a.z
         if len(points) - 1 >= max_steps:
             return ended("max_steps", f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
         # predictor-corrector, the step halved until a correction succeeds
@@ -847,13 +846,6 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                                        "in units of p: a closed branch")
         if b.iterations <= GROW_ITERATIONS and tb @ t > EASY_TURN_COS:
             ds = min(ds * GROW, ds_max)
-        if reanchor is not None:
-            try:
-                out = move(b, tb, False)
-            except _Failure as exc:
-                return ended("failed", f"at p = {points[-1].p:.10g}: {exc}")
-            if out is not None:
-                b, tb = out
         a, t = b, tb
 
 
