@@ -421,12 +421,15 @@ def polygon_corners(labels: list[str], normal_force, events_per_period: int) -> 
     force = np.asarray(normal_force, dtype=float)
     if force.ndim != 2 or force.shape[0] != len(labels) or force.shape[1] == 0:
         return []
-    rings: dict[str, list[str]] = {}
-    for k in np.flatnonzero((force > 0).all(axis=1)):
-        parts = labels[k].split(".")
-        if len(parts) == 3 and parts[0] == "stator" and parts[2].isdigit():
-            rings.setdefault(".".join(parts[:2]), []).append(parts[2])
-    return [(ring, facets) for ring, facets in rings.items() if len(facets) >= 2]
+    from ..contact.tally import parts_of_labels
+
+    loaded = (force > 0).all(axis=1)
+    corners = []
+    for part in parts_of_labels(labels):
+        facets = [labels[k].rpartition(".")[2] for k in part.rows if loaded[k]]
+        if part.kind == "ring" and len(facets) >= 2:
+            corners.append((part.name, facets))
+    return corners
 
 
 def _named_grazing(g: dict, labels: list[str], t0: float) -> dict:
