@@ -3,8 +3,13 @@ stability along it, its bifurcations, and the switch onto the period-doubled bra
 
 The unknowns are the section state u = (q, q') and the parameter p (a rotor speed, a clearance...). The
 residual r(u, p) = phi_T(p)(u; p) - u with J_u = Phi_T - I (the monodromy matrix of :mod:`.flow`: exact) and
-J_p by central differences in p (each a flow of the system at p +- h; h = 1e-6 of the range: the flow's event
-times are located to ~1e-13 s, so the difference's noise stays near 1e-7 relative, its truncation h^2 below);
+J_p by a forward difference in p: (phi_T(u; p + h) - phi_T(u; p)) / h, h = 1e-6 of the range, from the flow at p
+the residual has anyway (one plain flow and one system more). Its error is the truncation h |phi_pp| / 2 plus the
+flow's noise delta / h (event times and the phases' closed forms: delta ~ 3.5e-10 of the orbit's size on the
+crack, from differences at h down to 1e-8 of the range); at this h both are ~1e-4 of |J_p| on the crack (12.4 Hz),
+as were the central differences at the same h it replaced (noise-dominated, 2e-4), which cost two plain flows and
+two systems: J_p was ~60 % of a branch's time. J_p only steers the corrector (Newton with a J_p off by 1e-4 still
+gains four digits a step) and the predictor's tangent: the points are zeros of the exact residual either way;
 :func:`.continuation.continue_branch` follows the branch through folds and locates where a multiplier leaves the
 unit circle. The orbit's phase drifts with p, so its events move over the section, where the section state jumps
 (an impact's velocity) and the map is not smooth: after each point, when an event has come within a quarter of the
@@ -29,7 +34,7 @@ from .flow import FlowMap
 from .arguments import real_number, whole_number
 from .shooting import SECTION_MARGIN, admissible_directions, check_forcing_multiple, classify, periodic_orbit
 
-#: the parameter step of J_p's central differences, relative to the continuation's range
+#: the parameter step of J_p's forward difference (and of the section move's du/dp), relative to the range
 DP = 1e-6
 #: the section moves (to the middle of the longest stretch of the period without events) when an event of the
 #: orbit has drifted to within this share of that stretch's half from it: from the middle the phase may drift by
@@ -97,20 +102,26 @@ class _Problem:
         return fm
 
     def residual(self, u: np.ndarray, p: float):
+        """(r, J_u, J_p) of the shooting problem at (u, p), rows divided by ``weights``: r = phi_T(u; p) - u,
+        J_u = Phi_T - I (exact), J_p by :meth:`parameter_derivative`."""
         n = u.size // 2
         fl = self.flow_map(p)(u[:n], u[n:])
-        r = np.concatenate([fl.q, fl.v]) - u
-        ends = []
-        for s in (1.0, -1.0):
-            f = self.flow_map(p + s * self.dp)(u[:n], u[n:], jacobian=False)
-            ends.append(np.concatenate([f.q, f.v]))
-        Jp = (ends[0] - ends[1]) / (2.0 * self.dp)
+        end = np.concatenate([fl.q, fl.v])
+        r = end - u
+        Jp = self.parameter_derivative(u, p, end)
         self.last = (p, u.copy(), fl)
         if len(self._flows) > 16:
             self._flows.pop(next(iter(self._flows)))
         self._flows[(p, u.tobytes())] = fl
         D = self.weights
         return D * r, D[:, None] * (fl.monodromy - np.eye(u.size)), D * Jp
+
+    def parameter_derivative(self, u: np.ndarray, p: float, end: np.ndarray) -> np.ndarray:
+        """d phi_T(u; p) / dp (2n,) by a forward difference from ``end`` = phi_T(u; p): one plain flow at p + dp
+        (module docstring: as accurate as the central difference it replaced, at half its cost)."""
+        n = u.size // 2
+        f = self.flow_map(p + self.dp)(u[:n], u[n:], jacobian=False)
+        return (np.concatenate([f.q, f.v]) - end) / self.dp
 
     def reanchor(self, u: np.ndarray, p: float, forced: bool):
         """The continuation's change of coordinates (:func:`.continuation.continue_branch`'s ``reanchor``): when an
