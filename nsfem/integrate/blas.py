@@ -24,11 +24,20 @@ from threadpoolctl import threadpool_limits
 #: per thread, how deep it is in single_threaded_blas blocks (an inner block changes nothing: threadpoolctl's scan
 #: of the loaded libraries costs ~0.4 ms a block, a tenth of a rub's equilibrium period)
 _depth = threading.local()
+#: the BLAS thread count is the process's, not a thread's: the threads' outermost blocks are counted under a lock,
+#: the first to enter sets one thread and the last to leave restores the counts (each thread restoring its own
+#: entry's count would let a block that ends first raise the count under a running one, and the last to end restore
+#: the 1 it found: the process left at one thread)
+_lock = threading.Lock()
+_active = 0
+_limiter = None
 
 
 @contextlib.contextmanager
 def single_threaded_blas() -> Iterator[None]:
-    """Run the body with one BLAS thread (see the module docstring); inside another such block, as it is."""
+    """Run the body with one BLAS thread (see the module docstring); inside another such block, as it is. Safe
+    from several threads at once (a Dask worker's): one BLAS thread while any of them is inside a block (the other
+    threads' products too: a count of the process), the counts restored when the last block ends."""
     import scipy.linalg  # noqa: F401  (load scipy's BLAS too, so that both are limited)
 
     depth = getattr(_depth, "n", 0)
@@ -39,9 +48,27 @@ def single_threaded_blas() -> Iterator[None]:
         finally:
             _depth.n = depth
         return
-    with threadpool_limits(limits=1, user_api="blas"):
-        _depth.n = 1
-        try:
-            yield
-        finally:
-            _depth.n = 0
+    _enter()
+    _depth.n = 1
+    try:
+        yield
+    finally:
+        _depth.n = 0
+        _leave()
+
+
+def _enter() -> None:
+    global _active, _limiter
+    with _lock:
+        if not _active:
+            _limiter = threadpool_limits(limits=1, user_api="blas")
+        _active += 1
+
+
+def _leave() -> None:
+    global _active, _limiter
+    with _lock:
+        _active -= 1
+        if not _active:
+            _limiter.restore_original_limits()
+            _limiter = None

@@ -26,6 +26,7 @@ peak-to-peak of each sensor over one period, from a flow over the period at that
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -402,6 +403,23 @@ class _Family:
         self.scene0, self.key, self.system0, self.load = scene0, key, system0, load
         self.n = system0.n
         self._cache: OrderedDict = OrderedDict()
+        # one family serves the tasks of a multi-threaded Dask worker at once (both sides of a start): the cache is
+        # read and changed under a lock, and a value being loaded by one thread is waited for by the others (one
+        # load per value); the loads themselves run outside the lock (two values load in parallel)
+        self._lock = threading.Lock()
+        self._loading: dict[float, threading.Event] = {}
+
+    def __getstate__(self) -> dict:
+        """Pickled (sent to a cluster's workers) without its lock and loads under way."""
+        state = self.__dict__.copy()
+        del state["_lock"], state["_loading"]
+        with self._lock:
+            state["_cache"] = OrderedDict(self._cache)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock, self._loading = threading.Lock(), {}
 
     def fresh(self) -> "_Family":
         """The same family without its cached systems (to send to a cluster's workers)."""
@@ -425,23 +443,44 @@ class _Family:
         return float(p) if self.key == SPEED_KEY else self.scene_at(p).rotation.speed_hz
 
     def _entry(self, p: float):
+        """(scene, system) at p: from the cache, else loaded (once, whichever threads ask: see __init__)."""
+        p = float(p)
+        while True:
+            with self._lock:
+                hit = self._cache.get(p)
+                if hit is not None:
+                    self._cache.move_to_end(p)
+                    return hit
+                pending = self._loading.get(p)
+                mine = pending is None
+                if mine:
+                    pending = self._loading[p] = threading.Event()
+            if mine:
+                break
+            pending.wait()   # (then from the cache; or loaded here if its load failed or it was evicted since)
+        try:
+            entry = self._load(p)
+            with self._lock:
+                self._cache[p] = entry
+                if len(self._cache) > CACHED_SYSTEMS:
+                    self._cache.popitem(last=False)
+            return entry
+        finally:
+            with self._lock:
+                del self._loading[p]
+            pending.set()
+
+    def _load(self, p: float):
+        """(scene, system) with the key at p, checked."""
         from ..integrate import ContactSystem
         from .scene import check_scene
 
-        p = float(p)
-        hit = self._cache.get(p)
-        if hit is not None:
-            self._cache.move_to_end(p)
-            return hit
         scene = self.load([f"{self.key}={p!r}"])
         check_scene(scene)
         system = ContactSystem.from_scene(scene)
         if system.n != self.n:
             raise NsfemError(f"--continue {self.key}: at {p:g} the system has {system.n} coordinates, at the start "
                              f"{self.n}: the key changes the model's coordinates")
-        self._cache[p] = (scene, system)
-        if len(self._cache) > CACHED_SYSTEMS:
-            self._cache.popitem(last=False)
         return scene, system
 
     def point(self, p: float, u: np.ndarray, multiple: int, t0: float) -> dict:
