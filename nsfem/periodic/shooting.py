@@ -23,6 +23,7 @@ from ..integrate.base import single_threaded_blas
 from ..result import Result
 from .arguments import real_number, vector, whole_number
 from .flow import Flow, FlowMap, near_grazing
+from .neutral import NEUTRAL, neutral_multipliers, newton_step, stick_continuum, stick_positions
 
 
 #: Newton steps that may grow the residual before steps must make it fall
@@ -55,6 +56,9 @@ class PeriodicOrbit:
     directions: np.ndarray | None = None
     #: the residual after each Newton step (the first: of the start)
     history: list = field(default_factory=list)
+    #: the multipliers +1 of a continuum of orbits (a contact sticking all period: :mod:`.neutral`), left out of
+    #: ``stable`` and ``loss``: [{"index": into ``multipliers``, "multiplier": [re, im], "note": NEUTRAL}]
+    neutral: list = field(default_factory=list)
 
 
 def classify(multipliers: np.ndarray, tol: float = 1e-6) -> tuple[bool, str | None]:
@@ -196,7 +200,9 @@ def _shoot(system, period_s: float, q: np.ndarray, v: np.ndarray, t0: float, tol
             it += 1
             Z = _directions(system, fl)
             J = (fl.monodromy - np.eye(2 * n)) @ Z
-            dz = np.linalg.lstsq(scale[:, None] * J, -scale * F, rcond=None)[0]
+            # (least squares; off the continuum of stick positions, if any: :mod:`.neutral`)
+            W = stick_continuum(fl.monodromy, Z, _sticking(fl), scale)
+            dz = newton_step(scale[:, None] * J, -scale * F, Z, W, stick_positions(system, fl.start_mode))
             dx = Z @ dz
             step, trial = 1.0, None
             for _ in range(12):
@@ -242,7 +248,11 @@ def _shoot(system, period_s: float, q: np.ndarray, v: np.ndarray, t0: float, tol
     Mr = Z.T @ fl.monodromy @ Z
     mu = np.linalg.eigvals(Mr) if Mr.size else np.zeros(0, dtype=complex)
     mu = mu[np.argsort(-np.abs(mu), kind="stable")]
-    stable, loss = classify(mu)
+    W = stick_continuum(fl.monodromy, Z, _sticking(fl), scale)
+    idx = neutral_multipliers(mu, W.shape[1])
+    neutral = [{"index": int(i), "multiplier": [float(mu[i].real), float(mu[i].imag)], "note": NEUTRAL}
+               for i in sorted(idx)]
+    stable, loss = classify(np.delete(mu, idx))
     converged = res <= tol
     if not converged:
         warnings.warn(f"periodic: shooting did not converge in {it} Newton steps (residual {res:.3g} > tol {tol:g}); "
@@ -260,7 +270,13 @@ def _shoot(system, period_s: float, q: np.ndarray, v: np.ndarray, t0: float, tol
                       f"{worst['gap_min']:.3g} m at t = {worst['t']:.6g} s without closing): near a grazing bifurcation "
                       "the Floquet multipliers do not describe nearby motions that touch", stacklevel=3)
     return PeriodicOrbit(float(period_s), float(t0), q, v, converged, res, it, Mr, mu, stable, loss,
-                         len(fl.result.events), fl.result, grazing, fl.approximations, Z, history)
+                         len(fl.result.events), fl.result, grazing, fl.approximations, Z, history, neutral)
+
+
+def _sticking(fl: Flow) -> bool:
+    """Whether a contact sticks (or holds its force on a cone's facet) at the flow's section."""
+    mode = fl.start_mode
+    return bool(mode is not None and (mode.stick or mode.edge))
 
 
 def _directions(system, fl: Flow) -> np.ndarray:
