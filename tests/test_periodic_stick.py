@@ -119,3 +119,29 @@ def test_the_neutral_direction_is_the_static_shift_and_deflation_makes_j_regular
     r = J @ np.array([0.1, 0.0, -0.3, 0.02, 0.0, 0.05])    # a residual in J's range
     dx = np.linalg.solve(Jd, -r)
     assert abs(L @ dx).max() <= 1e-12 and np.linalg.norm(J @ dx + r) <= 1e-12 * np.linalg.norm(r)
+
+
+def test_a_branch_of_sticking_orbits_keeps_its_stick_position():
+    """The continuation over w of the block stuck at x1 = 0.3 (its tangential force within the cone over 1.2-1.4
+    rad/s: |K0 x1| + k |(A, B)| <= 0.15 + 1.2 < 5): without deflation J_u is singular along the continuum and the
+    bordered corrector fails; with it every point is the closed-form orbit at the same stick position, its
+    multiplier +1 at 1 and the others the mass's (tolerances as in the shooting's test above: 1e-8 of the orbit,
+    the multipliers to 1e-10)."""
+    from nsfem.periodic import orbit_branch
+
+    x1 = 0.3
+    A, B = harmonic(1.2)
+    br = orbit_branch(block_system, lambda w: 2 * math.pi / w, [x1, 0.0, x1 + A], [0.0, 0.0, B * 1.2], 1.2, 1.4,
+                      key="w", step=0.05, max_steps=20)
+    assert br.stop == "end" and len(br.points) >= 4
+    for pt in br.points:
+        w = pt["value"]
+        A, B = harmonic(w)
+        size = abs(x1) + abs(A)
+        np.testing.assert_allclose(pt["q0"], [x1, 0.0, x1 + A], rtol=0, atol=1e-8 * size)
+        np.testing.assert_allclose(pt["v0"], [0.0, 0.0, B * w], rtol=0, atol=1e-8 * size * w)
+        mu = np.array([complex(*m) for m in pt["multipliers"]])
+        i = int(np.argmin(np.abs(mu - 1.0)))
+        assert abs(mu[i] - 1.0) <= 1e-10
+        assert np.abs(np.sort_complex(np.delete(mu, i)) - np.sort_complex(mass_multipliers(w))).max() <= 1e-10
+        assert pt["stable"]

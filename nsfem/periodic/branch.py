@@ -32,6 +32,7 @@ from ..errors import NsfemError
 from .continuation import Branch, BranchPoint, continue_branch, critical_vector
 from .flow import FlowMap
 from .arguments import real_number, whole_number
+from .neutral import deflated, stick_continuum, stick_positions
 from .shooting import SECTION_MARGIN, admissible_directions, check_forcing_multiple, classify, periodic_orbit
 
 #: the parameter step of J_p's forward difference (and of the section move's du/dp), relative to the range
@@ -114,7 +115,20 @@ class _Problem:
             self._flows.pop(next(iter(self._flows)))
         self._flows[(p, u.tobytes())] = fl
         D = self.weights
-        return D * r, D[:, None] * (fl.monodromy - np.eye(u.size)), D * Jp
+        return D * r, self.state_jacobian(fl), D * Jp
+
+    def state_jacobian(self, fl) -> np.ndarray:
+        """J_u = D (Phi_T - I), D = diag(weights); where a contact sticks all period (a continuum of orbits along
+        static shifts: :mod:`.neutral`) deflated along them, so that the corrector's steps keep the stick positions
+        (without it the bordered system is singular)."""
+        D = self.weights
+        J = D[:, None] * (fl.monodromy - np.eye(fl.monodromy.shape[0]))
+        mode = fl.start_mode
+        if mode is None or not (mode.stick or mode.edge):
+            return J
+        system = fl.trace[0]["system"]
+        W = stick_continuum(fl.monodromy, admissible_directions(system, mode), True, D)
+        return deflated(J, W, stick_positions(system, mode), D) if W.shape[1] else J
 
     def parameter_derivative(self, u: np.ndarray, p: float, end: np.ndarray) -> np.ndarray:
         """d phi_T(u; p) / dp (2n,) by a forward difference from ``end`` = phi_T(u; p): one plain flow at p + dp
