@@ -145,3 +145,19 @@ def test_a_branch_of_sticking_orbits_keeps_its_stick_position():
         assert abs(mu[i] - 1.0) <= 1e-10
         assert np.abs(np.sort_complex(np.delete(mu, i)) - np.sort_complex(mass_multipliers(w))).max() <= 1e-10
         assert pt["stable"]
+
+
+def test_the_verdict_and_json_name_the_neutral_multiplier():
+    """nsfem periodic's verdict says the orbit is stable with one multiplier +1 neutral (not 'marginally' stable:
+    that names undamped modes), and its JSON lists it under "neutral"."""
+    from types import SimpleNamespace
+
+    from nsfem.periodic.scene import SceneOrbit
+
+    w = 1.3
+    o = periodic_orbit(block_system(w), 2 * math.pi / w, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+    so = SimpleNamespace(orbit=o)
+    so.on_unit_circle = lambda: SceneOrbit.on_unit_circle(so)
+    text = SceneOrbit.verdict(so)
+    assert text.startswith("stable; 1 multiplier(s) +1 neutral (a continuum of stick positions")
+    assert "marginally" not in text

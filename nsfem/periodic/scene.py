@@ -86,13 +86,17 @@ class SceneOrbit:
         """'stable' or 'unstable (<kind of loss>)' in words."""
         if not self.orbit.converged:
             return "none: the shooting did not converge (the multipliers are the last iterate's)"
+        neutral = len(getattr(self.orbit, "neutral", None) or ())
+        also = (f"; {neutral} multiplier(s) +1 neutral (a continuum of stick positions: a contact sticks all period)"
+                if neutral else "")
         if self.orbit.stable:
-            k = self.on_unit_circle()
+            k = self.on_unit_circle() - neutral
             return (f"stable, marginally: {k} multiplier(s) on the unit circle (|mu| within {UNIT_CIRCLE_TOL:g} of 1: "
-                    "motions that neither grow nor decay, e.g. undamped modes)") if k else "stable"
+                    "motions that neither grow nor decay, e.g. undamped modes)" + also) if k else "stable" + also
         kind = {"fold": "fold (a multiplier through +1)", "period-doubling": "period doubling (a multiplier "
                 "through -1)", "neimark-sacker": "Neimark-Sacker (a complex pair outside the unit circle)"}
-        return f"unstable: {kind.get(self.orbit.loss, self.orbit.loss or 'a multiplier outside the unit circle')}"
+        return (f"unstable: {kind.get(self.orbit.loss, self.orbit.loss or 'a multiplier outside the unit circle')}"
+                + also)
 
     def on_unit_circle(self) -> int:
         """How many multipliers lie on the unit circle (| |mu| - 1 | <= :data:`UNIT_CIRCLE_TOL`)."""
@@ -114,6 +118,7 @@ class SceneOrbit:
                 "forcing_period_s": self.forcing_period_s, "transient_periods": self.transient_periods,
                 "start": self.start, "grazing": self.grazing, "contact_sequence": self.contact_sequence,
                 "approximations": self.approximations, "ndof": int(self.system.n),
+                "neutral": list(getattr(o, "neutral", None) or []),
                 "warnings": list(self.warnings), "notes": list(self.notes)}
 
 
