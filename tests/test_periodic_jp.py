@@ -118,6 +118,16 @@ def test_jp_on_the_crack_satisfies_the_branchs_tangent_relation(crack_problem):
     assert np.abs(expected).max() >= 20 * (2 * bound).max()
 
 
+def test_the_speed_familys_systems_are_built_once_per_speed(crack_problem):
+    """A branch point's report asks for its corrector's last system again: the family keeps it (the same object),
+    and each kept system is the one at its own speed (forcing 2 pi p)."""
+    family, _ = crack_problem
+    a, b = family.system_at(12.41), family.system_at(12.42)
+    assert family.system_at(12.41) is a and a is not b
+    assert a.omega == pytest.approx(2 * math.pi * 12.41, rel=1e-15)
+    assert b.omega == pytest.approx(2 * math.pi * 12.42, rel=1e-15)
+
+
 # --- two threads on one family (a multi-threaded Dask worker following both sides of a branch) ---
 
 class _Fake:

@@ -48,7 +48,7 @@ STEPS_MAX = 10_000
 #: tables whose keys cannot be continued: the mesh and the reduction change the coordinates (a section state of
 #: one value is no state at another); the others do not shape the orbit
 FIXED_TABLES = ("mesh", "reduction", "simulation", "output", "initial")
-#: systems of other keys kept (each a model and a reduction): the corrector's last values and their p +- dp
+#: systems kept (of other keys each with its own model and reduction): the corrector's last values and their p + dp
 CACHED_SYSTEMS = 12
 
 
@@ -429,11 +429,7 @@ class _Family:
         return self.scene0 if self.key == SPEED_KEY else self._entry(p)[0]
 
     def system_at(self, p: float):
-        from ..integrate import ContactSystem
-
-        if self.key == SPEED_KEY:
-            info = self.system0.info
-            return ContactSystem.from_scene(self.scene0, info["model"], info["reduction"], speed_hz=float(p))
+        """The system at p (cached: a branch point's report asks for its corrector's last system again)."""
         return self._entry(p)[1]
 
     def period_at(self, p: float) -> float:
@@ -471,10 +467,13 @@ class _Family:
             pending.set()
 
     def _load(self, p: float):
-        """(scene, system) with the key at p, checked."""
+        """(scene, system) with the key at p, checked (at speed p: the start's model and reduction)."""
         from ..integrate import ContactSystem
         from .scene import check_scene
 
+        if self.key == SPEED_KEY:
+            info = self.system0.info
+            return self.scene0, ContactSystem.from_scene(self.scene0, info["model"], info["reduction"], speed_hz=p)
         scene = self.load([f"{self.key}={p!r}"])
         check_scene(scene)
         system = ContactSystem.from_scene(scene)
