@@ -15,11 +15,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from nsfem.contact import ContactSet
 from nsfem.integrate import ContactSystem, integrate
 from nsfem.periodic import periodic_orbit
-from nsfem.periodic.neutral import NEUTRAL, deflated, stick_continuum, stick_positions
+from nsfem.periodic.neutral import NEUTRAL, deflated, newton_step, stick_continuum, stick_positions
 
 M1, M2, K, C, K0, KY, CY, P, MU, F = 1.0, 1.0, 1.0, 0.1, 0.5, 100.0, 1.0, 10.0, 0.5, 0.5
 
@@ -161,3 +163,30 @@ def test_the_verdict_and_json_name_the_neutral_multiplier():
     text = SceneOrbit.verdict(so)
     assert text.startswith("stable; 1 multiplier(s) +1 neutral (a continuum of stick positions")
     assert "marginally" not in text
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1), k=st.integers(1, 2))
+def test_the_step_off_a_continuum_solves_the_consistent_system_and_keeps_the_stick_positions(seed, k):
+    """For any J (2n x d on admissible directions Z) singular exactly along k static shifts W and a right-hand side
+    in its range: newton_step's dz solves J dz = rhs (to round-off of J's condition on the complement, ~1e-12) with
+    the stick positions L Z dz = 0; deflated(J_full) is regular and gives the same step (the system J dx = rhs,
+    L dx = 0 has one solution: J's null space is W and L W is invertible)."""
+    rng = np.random.default_rng(seed)
+    n = 4
+    Z = np.linalg.qr(rng.standard_normal((2 * n, 2 * n)))[0]          # all directions admissible
+    W = np.zeros((2 * n, k))
+    W[:n] = rng.standard_normal((n, k))                                 # static shifts
+    L = np.hstack([rng.standard_normal((k, n)), np.zeros((k, n))])     # stick positions they move
+    Pw = np.eye(2 * n) - W @ np.linalg.pinv(W)
+    Jfull = rng.standard_normal((2 * n, 2 * n)) @ Pw                    # J W = 0
+    rhs = Jfull @ rng.standard_normal(2 * n)
+    dz = newton_step(Jfull @ Z, rhs, Z, W, L)
+    dx = Z @ dz
+    scale = np.linalg.norm(rhs) * np.linalg.cond(Jfull @ Pw + W @ W.T)
+    assert np.linalg.norm(Jfull @ dx - rhs) <= 1e-10 * scale
+    assert np.abs(L @ dx).max() <= 1e-10 * np.linalg.norm(dx) + 1e-300
+    Jd = deflated(Jfull, W, L, np.ones(2 * n))
+    dx2 = np.linalg.solve(Jd, rhs)
+    # both are the one solution of J dx = rhs, L dx = 0 (L W invertible): equal to round-off times the conditions
+    assert np.linalg.norm(dx2 - dx) <= 1e-13 * (np.linalg.cond(Jd) + scale / np.linalg.norm(rhs)) * np.linalg.norm(dx)
