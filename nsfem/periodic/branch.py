@@ -37,7 +37,7 @@ from .arguments import real_number, whole_number
 from .neutral import deflated, stick_continuum, stick_positions
 from .shooting import SECTION_MARGIN, admissible_directions, check_forcing_multiple, classify, periodic_orbit
 
-#: the parameter step of J_p's forward difference (and of the section move's du/dp), relative to the range
+#: the parameter step of J_p's forward difference (and of the section move's central du/dp), relative to the range
 DP = 1e-6
 #: J_p is reused at a point within this distance of where it was formed (in the continuation's scaled unknowns:
 #: |dp| / range and |du| / u_scale): a corrector's later iterates (on the crack 2e-5 .. 3e-3 from its predictor),
@@ -182,7 +182,7 @@ class _Problem:
         if forced and min(shift, T - shift) <= SECTION_MARGIN * T:
             return None   # (the section is in that middle already: the events are not what failed)
         moved = FlowMap(self.system_at(p), self.t0, shift)(u[:n], u[n:])
-        # the new state's change with p at the old one (central differences as J_p's): with the flow's Jacobian it
+        # the new state's change with p at the old one (central differences at J_p's step: once per move): with the flow's Jacobian it
         # maps the branch's tangent into the new coordinates (M alone may turn it back). The new section is the time
         # new_t0, which is t0 + shift - T with T the period at p: at p' the state there is the flow's over
         # shift - T + T(p') (the orbit repeats after T(p'))
