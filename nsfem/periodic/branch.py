@@ -182,8 +182,9 @@ class _Problem:
         if forced and min(shift, T - shift) <= SECTION_MARGIN * T:
             return None   # (the section is in that middle already: the events are not what failed)
         moved = FlowMap(self.system_at(p), self.t0, shift)(u[:n], u[n:])
-        # the new state's change with p at the old one (central differences at J_p's step: once per move): with the flow's Jacobian it
-        # maps the branch's tangent into the new coordinates (M alone may turn it back). The new section is the time
+        # the new state's change with p at the old one (central differences at J_p's step: once per move): with the
+        # flow's Jacobian it maps the branch's tangent into the new coordinates (M alone may turn it back). The new
+        # section is the time
         # new_t0, which is t0 + shift - T with T the period at p: at p' the state there is the flow's over
         # shift - T + T(p') (the orbit repeats after T(p'))
         t1 = new_t0(shift)
