@@ -758,6 +758,25 @@ def _nearer(problem: _Scaled, g: _Point, b: _Point, e_p: np.ndarray, structure, 
     return b
 
 
+def _returned(a: _Point, b: _Point, first_z: np.ndarray | None, first: _Point) -> bool:
+    """Whether the chord from a to b passes the branch's first point (within a quarter of its length): in the
+    unknowns when they are in the first point's coordinates (``first_z``), else in the coordinate-free measures
+    (``invariant``, relative to the first point's, and z_p), when the caller gives them."""
+    if first_z is not None:
+        za, zb, z1 = a.z, b.z, first_z
+    elif first.invariant is not None and a.invariant is not None and b.invariant is not None:
+        size = max(float(np.linalg.norm(first.invariant)), 1e-300)
+        za, zb, z1 = (np.append(pt.invariant / size, pt.z[-1]) for pt in (a, b, first))
+    else:
+        return False
+    w = zb - za
+    length = float(np.linalg.norm(w))
+    if length == 0.0:
+        return False
+    x = float(np.clip((z1 - za) @ w / (w @ w), 0.0, 1.0))
+    return bool(np.linalg.norm(za + x * w - z1) < 0.25 * length)
+
+
 def _grazing_ahead(a: _Point, before: _Point | None, t: np.ndarray, ds: float) -> bool:
     """Whether the grazing of a's side may lie within a step of ``ds`` from a: its margin is small (below
     NEAR_MARGIN), or falling so fast along the branch that it reaches 0 within GRAZE_REACH such steps."""
@@ -1027,8 +1046,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
             if out is not None:
                 a, t = out
                 before = None
-        if first_anchor is None:   # (a closed branch is seen in the coordinates of the first step)
-            first_anchor, first_z = anchor, a.z
+        if first_anchor is None:   # (a closed branch is seen in the coordinates of the first step, or by its invariant)
+            first_anchor, first_z, first_point = anchor, a.z, a
         if len(points) - 1 >= max_steps:
             return ended("max_steps", f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
         # predictor-corrector, the step halved until a correction succeeds
@@ -1112,12 +1131,10 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         if not lo_z <= b.z[-1] <= hi_z:
             return ended("left", f"the branch folded back and left [{min(p0, p_end) - margin:g}, "
                                  f"{max(p0, p_end) + margin:g}] at p = {points[-1].p:.10g}")
-        if anchor == first_anchor and len(points) > 3 and s > 3 * chord * span:   # (first_z in these coordinates)
-            w = b.z - a.z
-            x = float(np.clip((first_z - a.z) @ w / (w @ w), 0.0, 1.0))
-            if np.linalg.norm(a.z + x * w - first_z) < 0.25 * chord:
-                return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
-                                       "in units of p: a closed branch")
+        if len(points) > 3 and s > 3 * chord * span and _returned(a, b, first_z if anchor == first_anchor else None,
+                                                                     first_point):
+            return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
+                                   "in units of p: a closed branch")
         if crossing is None and b.iterations <= GROW_ITERATIONS and tb @ t > EASY_TURN_COS:
             ds = min(ds * GROW, ds_max)
         before, (a, t) = a, (b, tb)
