@@ -416,10 +416,11 @@ def _check_grazing_branch(br, events):
 def test_branch_crosses_grazing_from_the_impacting_side():
     br = _grazing_branch(2.3, 2.6)
     graze = _check_grazing_branch(br, [1, 0])
-    # the steps grow back after the crossing (GROW 1.5 per easy step): the chords of the points past it
-    after = [p["value"] for p in br.points[graze["index"] + 2:]]
-    steps = np.diff(after)
-    assert steps.max() > 3 * steps[0]
+    # the steps are back to the size they had before the grazing (they restart at the last full step, halving only
+    # where the corrector fails): no creep on either side
+    values = [p["value"] for p in br.points]
+    i = graze["index"] + 1
+    assert np.diff(values[i + 1:]).max() >= 0.9 * np.diff(values[:i]).max()
 
 
 def test_branch_crosses_grazing_from_the_free_side():

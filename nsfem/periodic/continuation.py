@@ -1117,7 +1117,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                     return ended("failed", f"after the grazing at p = {problem.p(g.z):.10g}: {exc}")
             a, t = g, _tangent(b.jac, (b.z - g.z) / max(float(np.linalg.norm(b.z - g.z)), 1e-300))
             tb = t
-            ds = min(max(float(np.linalg.norm(b.z - g.z)), ds_min), ds_max)
+            # (the step the side before the grazing took: the side after is as smooth away from it)
+            ds = min(max(float(np.linalg.norm(b.z - g.z)), ds_first, ds_min), ds_max)
         chord = float(np.linalg.norm(b.z - a.z))
         s += chord * span
         found = [] if crossing is not None else _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
