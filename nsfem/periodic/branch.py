@@ -299,7 +299,7 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
         bif.append({"kind": b["kind"], "value": float(b["value"]), "index": int(b["index"]),
                     "t0_s": float(problem.t0s[b.get("anchor", 0)]), "q0": u[:n].copy(), "v0": u[n:].copy()})
         if b["kind"] == "grazing":   # the events per period on the side the branch came from and on the other
-            bif[-1].update({"accuracy": float(b["accuracy"]),
+            bif[-1].update({"accuracy": float(b["accuracy"]), "located": bool(b["located"]),
                             "events_per_period": [len(b["structure_before"]), len(b["structure_after"])]})
     reason = br.reason
     if br.stop == "failed" and "penetrates" in reason:

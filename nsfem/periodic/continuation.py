@@ -714,12 +714,14 @@ def _beyond(problem: _Scaled, g: _Point, t: np.ndarray, structure, steps: list[f
             max_iter: int) -> _Point | None:
     """A point of the branch past the grazing point g with another structure than ``structure`` (the side the
     branch came from): corrected at a fixed parameter p(g) + h (natural parameter), h from ``steps`` (scaled p),
-    in the direction the branch went (the sign of t's p component) and then against it (a branch may turn back at
-    a grazing); started from g and from g extrapolated along t. None when no such point is found."""
+    in the direction the branch went (the sign of t's p component; against it too where t is at a fold in p);
+    started from g, from g extrapolated along t and by the caller's ``solve``. None when no such point is found."""
     e_p = np.zeros(g.z.size)
     e_p[-1] = 1.0
     sign = 1.0 if t[-1] >= 0 else -1.0
-    for direction in (sign, -sign):
+    # (against the branch's direction only where it is at a fold in p: elsewhere a point there of another structure
+    # is no continuation of this branch; it may be another branch through the same grazing, or the way back)
+    for direction in ((sign, -sign) if abs(t[-1]) < FOLD_TP else (sign,)):
         for h in steps:
             level = g.z[-1] + direction * h
             along = t * (direction * h / t[-1]) if abs(t[-1]) > FOLD_TP else np.zeros_like(t)
@@ -1061,14 +1063,21 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                 if np.linalg.norm(b.z - z_pred) > ds:
                     raise _Failure(f"the corrector moved farther than the step from the predictor at p = "
                                    f"{problem.p(b.z):.10g}")
-                if tb @ t < MAX_TURN_COS:
+                if problem.events is not None:
+                    problem.complete(b)
+                # (across a change of structure the tangent is discontinuous: its turn is the kink's, not a jump
+                # to another branch)
+                kinked = problem.events is not None and b.structure != a.structure
+                if tb @ t < MAX_TURN_COS and not kinked:
                     raise _Failure(f"the tangent turned by {math.degrees(math.acos(max(-1.0, tb @ t))):.0f} "
                                    f"degrees in one step at p = {problem.p(b.z):.10g}")
                 if b.z[-1] >= 1.0 > a.z[-1]:     # passed p_end: the last point exactly at p_end
                     theta = (1.0 - a.z[-1]) / (b.z[-1] - a.z[-1])
                     b = _correct(problem, a.z + theta * (b.z - a.z), e_p, 1.0, tol, max_iter)
                     tb = _tangent(b.jac, t)
-                problem.complete(b)
+                    problem.complete(b)
+                elif problem.events is None:
+                    problem.complete(b)
                 break
             except _Failure as exc:
                 failure = str(exc)
@@ -1091,8 +1100,18 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                 if ds < ds_min:
                     return ended("failed", f"no correction from p = {points[-1].p:.10g} with steps down to min_step = "
                                            f"{min_step:g}: {failure}")
+        passed = None
         if crossing is None and problem.events is not None and b.structure != a.structure:
-            crossing = cross(a, t, b, ds)     # (the step went over a grazing: the events per period changed)
+            # the step went over a grazing (the events changed) without failing: bracketed by the step, not located
+            # (a branch near grazing all along, as the crack's micro-separations, passes dozens; a step that fails
+            # at one locates it)
+            ma, mb = a.margin, b.margin
+            theta = ma / (ma + mb) if math.isfinite(ma) and math.isfinite(mb) and ma + mb > 0 else 0.5
+            zg = a.z + theta * (b.z - a.z)
+            passed = {"kind": "grazing", "value": problem.p(zg), "index": len(points) - 1, "u": problem.u(zg),
+                      "multipliers": None, "accuracy": float(np.linalg.norm(b.z - a.z)) * span,
+                      "detected_by": "events", "anchor": anchor, "structure_before": a.structure,
+                      "structure_after": b.structure, "margin": math.nan, "located": False}
         if crossing is not None:
             g, b, _, graze = crossing
             # the grazing point, then the first point beyond it (its own side: its tangent from the secant)
@@ -1109,7 +1128,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
             bifurcations.append({"kind": "grazing", "value": problem.p(g.z), "index": len(points) - (2 if chord else 1),
                                  "u": problem.u(g.z), "multipliers": g.multipliers, "accuracy": graze["accuracy"] * span,
                                  "detected_by": "events", "anchor": anchor, "structure_before": a.structure,
-                                 "structure_after": b.structure, "margin": g.margin})
+                                 "structure_after": b.structure, "margin": g.margin, "located": True})
             if b.z[-1] >= 1.0 > g.z[-1]:     # passed p_end: the last point exactly at p_end
                 try:
                     b = problem.complete(_correct(problem, b.z, e_p, 1.0, tol, max_iter))
@@ -1125,6 +1144,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         for f in found:
             f["anchor"] = anchor
         bifurcations += found
+        if passed is not None:
+            bifurcations.append(passed)
         points.append(_branch_point(problem, b, s, tol, unit_tol, anchor))
         said(points[-1])
         if b.z[-1] >= 1.0:
@@ -1136,7 +1157,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                                                                      first_point):
             return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
                                    "in units of p: a closed branch")
-        if crossing is None and b.iterations <= GROW_ITERATIONS and tb @ t > EASY_TURN_COS:
+        if crossing is None and b.iterations <= GROW_ITERATIONS and (tb @ t > EASY_TURN_COS or b.structure != a.structure):
             ds = min(ds * GROW, ds_max)
         before, (a, t) = a, (b, tb)
 
