@@ -39,6 +39,9 @@ RECENTER = 0.5
 #: open gaps whose smallest value over the period is within this share of their range count in the margin to a
 #: grazing (:meth:`_Problem.events`)
 GRAZE_WATCH = 0.1
+#: a closing whose approach speed (relative, as the margin's) is below this closes at rest (the crack's closings:
+#: 1e-19 to 1e-16 measured, round-off of zero), which is the orbit's own structure, not a grazing approached
+AT_REST = 1e-12
 #: the shooting's tolerance for the first orbit past a grazing (:meth:`_Problem.solve`); the continuation corrects
 #: it to its own tol after
 GRAZE_SOLVE_TOL = 1e-10
@@ -182,7 +185,8 @@ class _Problem:
         and whether it is an impact: a sorted tuple, independent of the section) and its margin to a grazing, the
         least of (a) an open gap's smallest value over the period (:func:`.flow.near_grazing`, within GRAZE_WATCH of
         its range) over that range and (b) an impact's or closing's approach speed over the gap's range times the
-        frequency 2 pi / T; 0 at a grazing orbit, smooth on each side of it, at most 1."""
+        frequency 2 pi / T, unless below AT_REST (a contact closing at rest: the breathing crack's, all along its
+        branch); 0 at a grazing orbit, smooth on each side of it, at most 1."""
         fl = self._flow(u, p)
         res = fl.result
         structure = tuple(sorted((tuple(e["contacts"]), tuple(e["kinds"]), bool(e["impact"])) for e in res.events))
@@ -197,7 +201,9 @@ class _Problem:
         for imp in res.impacts:
             for k, speed in zip(imp["contacts"], imp["approach_m_s"]):
                 if k < reach.size and reach[k] > 0:
-                    margin = min(margin, max(float(speed), 0.0) * T / (2 * math.pi * reach[k]))
+                    rel = max(float(speed), 0.0) * T / (2 * math.pi * reach[k])
+                    if rel > AT_REST:   # (a closing at rest is the orbit's own, all along the branch: no grazing)
+                        margin = min(margin, rel)
         return structure, margin
 
     def invariant(self, u: np.ndarray, p: float) -> np.ndarray:
@@ -295,6 +301,8 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
                          invariant=problem.invariant, solve=problem.solve if grazing else None)
     bif = []
     for b in br.bifurcations:
+        if b["kind"] == "grazing" and not b["located"]:
+            continue   # (passed by a step: the points' events per period show it; the crack passes one per 1e-3 Hz)
         u = np.asarray(b["u"])
         bif.append({"kind": b["kind"], "value": float(b["value"]), "index": int(b["index"]),
                     "t0_s": float(problem.t0s[b.get("anchor", 0)]), "q0": u[:n].copy(), "v0": u[n:].copy()})

@@ -111,11 +111,11 @@ NEAR_MARGIN = 1e-2
 #: steps: a step that fails from there looks for the grazing first
 GRAZE_REACH = 4.0
 #: at most this many trial points to locate a grazing from one side, and at most this many failed in a row
-MAX_GRAZE_TRIALS = 40
+MAX_GRAZE_TRIALS = 20
 #: a grazing is located to this share of locate_tol: its margin is smooth on the side it is approached from, where
 #: the secant converges superlinearly (a few trial points more for three more digits)
 GRAZE_LOCATE = 1e-3
-GRAZE_FAILS = 8
+GRAZE_FAILS = 5
 #: each trial aims at this share of the secant's distance to the grazing (from the side it is approached from;
 #: a trial past it may fail to correct: Nordmark's square-root map has no linear neighbourhood there)
 GRAZE_AIM = 0.9
