@@ -655,8 +655,8 @@ def _sqrt_map(c: float):
 
 
 def test_a_square_root_kink_is_crossed_and_located_with_events():
-    """With ``events`` the square-root kink is located and the branch ends at p_end on the high piece, each point on its exact root; without, the same branch records
-    nothing there."""
+    """With ``events`` the square-root kink is located and the branch ends at p_end on the high piece, each point on
+    its exact root; without, the same branch records nothing there."""
     c = 0.3
     residual, events, exact = _sqrt_map(c)
     plain = continue_branch(residual, [0.0], 0.0, 1.0, step=0.05, tol=TOL)

@@ -24,10 +24,24 @@ u by u_scale as much as the whole range of p. With J = [J_u u_scale | J_p (p_end
   within sqrt(2) ds of the previous one);
 - the branch stops at p_end (the last point corrected at p = p_end exactly), when it leaves
   [min(p0, p_end) - margin, max(p0, p_end) + margin] after folding back, when it returns to its first
-  point (a closed branch; seen only while the coordinates are those of the first step: after a later ``reanchor``
-  the first point's u is in other coordinates, and a closed branch runs on to ``max_steps``), after ``max_steps`` steps, or
-  when a correction fails at ``min_step``;
+  point (a closed branch: seen in the unknowns while they are in the first step's coordinates, after a later
+  ``reanchor`` in the caller's coordinate-free ``invariant`` and p; without one such a branch runs on to
+  ``max_steps``), after ``max_steps`` steps, or when a correction fails at ``min_step``;
   :attr:`Branch.stop` and :attr:`Branch.reason` say which and where.
+
+Grazing (``events``: each corrected point's structure, a hashable such as an orbit's events, and its margin >= 0 to
+a change of it, 0 at a grazing and linear in the distance on either side). Across a change of structure the branch
+has a kink, and next to it the corrector may have no basin (Nordmark's square-root map: an impacting orbit's J_u
+grows like 1/u with its impact speed u), so that steps halve down to ``min_step``. A step that lands on another
+structure is accepted whatever its tangent's turn (the kink's) and the grazing is recorded bracketed by it
+(``located`` False). A step that fails from a point whose margin is below NEAR_MARGIN, or falls to 0 within
+GRAZE_REACH steps, looks for the grazing (:func:`_graze_point`: secants on the margin from the side the branch is
+on, to GRAZE_LOCATE of ``locate_tol``), then for the first point past it (:func:`_beyond`: at a fixed p a step
+further, from the grazing point, its extrapolation or the caller's ``solve``; brought back towards it by
+:func:`_nearer`), locates the grazing from that side too and keeps the better; the grazing point becomes a point
+of the branch, recorded as kind "grazing" (``located`` True, its ``accuracy``, ``structure_before``/``after``),
+and the branch goes on from the point past it with that side's tangent, at the step it had before. No multiplier
+crossing is looked for across a grazing (the multipliers jump there: each side's verdict is its own).
 
 Special points between two consecutive points A and B, located along the chord AB by bracketing the sign
 change of a test function (regula falsi, Illinois variant, with bisection steps whenever the bracket
@@ -149,7 +163,9 @@ class Branch:
     # {"kind": "fold" | "period-doubling" | "neimark-sacker", "value": p, "index": i (between points i
     #  and i + 1), "u": u there, "multipliers": at the point or None, "accuracy": its distance (units
     #  of p) to the other end of the final bracket (the crossing lies on the branch between them),
-    #  "detected_by": "tangent" | "multipliers"}
+    #  "detected_by": "tangent" | "multipliers"}; a "grazing" (``events``: the structure changed) has "detected_by"
+    #  "events", "located" (False: bracketed by a step, "index" between its points; True: point index + 1 is the
+    #  grazing orbit), "structure_before", "structure_after" and "margin" (the located point's)
     stop: str = ""      # "end" | "left" | "closed" | "max_steps" | "failed"
     reason: str = ""    # one sentence: where and why the branch ended
     # the changes of coordinates (``reanchor``): {"index": the point (its u in the old coordinates; the next
@@ -891,7 +907,14 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
       sign, and near a fold (|t_p| < FOLD_TP) follows M du/ds. The point is
       re-corrected there at its p and the branch goes on from it; special points are located within one
       coordinate system (between two points, before the change), :attr:`Branch.reanchors` lists the changes and
-      :attr:`BranchPoint.anchor` says which coordinates a point's u is in.
+      :attr:`BranchPoint.anchor` says which coordinates a point's u is in;
+    - ``events(u, p) -> (structure, margin)``: the solution's non-smooth structure (hashable: equal where the same)
+      and its margin >= 0 to a change of it (0 at a grazing, linear in the distance on either side); with it the
+      branch crosses grazings (module docstring). Called, as ``stability``, only at corrected points;
+    - ``invariant(u, p) -> array``: measures of the solution that do not depend on the coordinates (``reanchor``):
+      a closed branch is recognised by them (and p) after the coordinates moved;
+    - ``solve(u, p) -> u' or None``: the caller's own solver at p from u (an orbit's shooting), tried for the first
+      point past a grazing when the corrector fails there.
     """
     if not callable(residual):
         raise NsfemError(f"continue_branch: residual must be callable, got {type(residual).__name__}")
@@ -1013,7 +1036,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         past = None if b is None else float(t @ (b.z - a.z))
         if past is not None and past <= 0.0:
             return None
-        side = _graze_point(problem, a, t, past, tol, max_iter, GRAZE_LOCATE * locate_z, before=before, first=0.5 * ds_tried)
+        side = _graze_point(problem, a, t, past, tol, max_iter, GRAZE_LOCATE * locate_z, before=before,
+                            first=0.5 * ds_tried)
         if side is None:
             return None
         g_a, acc_a = side
@@ -1028,7 +1052,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         length = float(np.linalg.norm(back))
         g, acc = g_a, acc_a
         if length > 0 and acc_a > GRAZE_LOCATE * locate_z:
-            other = _graze_point(problem, b, back / length, length, tol, max_iter, GRAZE_LOCATE * locate_z, first=0.5 * length)
+            other = _graze_point(problem, b, back / length, length, tol, max_iter, GRAZE_LOCATE * locate_z,
+                                 first=0.5 * length)
             if other is not None and other[1] < acc_a:
                 g, acc = other
         if acc > max(locate_z, 1e-3 * length) and acc > 0.25 * float(np.linalg.norm(b.z - a.z)):
@@ -1126,7 +1151,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                 points.append(_branch_point(problem, g, s, tol, unit_tol, anchor))
                 said(points[-1])
             bifurcations.append({"kind": "grazing", "value": problem.p(g.z), "index": len(points) - (2 if chord else 1),
-                                 "u": problem.u(g.z), "multipliers": g.multipliers, "accuracy": graze["accuracy"] * span,
+                                 "u": problem.u(g.z), "multipliers": g.multipliers,
+                                 "accuracy": graze["accuracy"] * span,
                                  "detected_by": "events", "anchor": anchor, "structure_before": a.structure,
                                  "structure_after": b.structure, "margin": g.margin, "located": True})
             if b.z[-1] >= 1.0 > g.z[-1]:     # passed p_end: the last point exactly at p_end
@@ -1140,7 +1166,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
             ds = min(max(float(np.linalg.norm(b.z - g.z)), ds_first, ds_min), ds_max)
         chord = float(np.linalg.norm(b.z - a.z))
         s += chord * span
-        found = [] if crossing is not None else _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
+        found = [] if crossing is not None else _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter,
+                                                                locate_z, unit_tol)
         for f in found:
             f["anchor"] = anchor
         bifurcations += found
@@ -1157,7 +1184,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                                                                      first_point):
             return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
                                    "in units of p: a closed branch")
-        if crossing is None and b.iterations <= GROW_ITERATIONS and (tb @ t > EASY_TURN_COS or b.structure != a.structure):
+        if crossing is None and b.iterations <= GROW_ITERATIONS and (tb @ t > EASY_TURN_COS
+                                                                     or b.structure != a.structure):
             ds = min(ds * GROW, ds_max)
         before, (a, t) = a, (b, tb)
 
