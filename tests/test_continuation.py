@@ -629,12 +629,11 @@ def test_without_events_the_kink_is_stepped_over_unrecorded():
     assert b.stop == "end" and not b.bifurcations
 
 
-def _sqrt_map(c: float):
+def _sqrt_map(c: float, k: float = 0.5):
     """A fixed point of a map with Nordmark's square-root term past u = c: r = u - p + k sqrt(max(u - c, 0)), the
-    branch u = p up to c and u = c + y^2 beyond, y = (sqrt(k^2 + 4 (p - c)) - k) / 2 (k = 0.5): continuous at the
+    branch u = p up to c and u = c + y^2 beyond, y = (sqrt(k^2 + 4 (p - c)) - k) / 2: continuous at the
     kink with y ~ (p - c) / k, and J_u = 1 + k / (2 y) unbounded there, as an impacting orbit's 1/u next to grazing.
     ``events``: the piece and the margin c - u on the low side, y = sqrt(u - c) on the high one (both linear)."""
-    k = 0.5
 
     def residual(u, p):
         x = u[0] - c
@@ -673,6 +672,25 @@ def test_a_square_root_kink_is_crossed_and_located_with_events():
     for pt in b.points[graze["index"] + 2:]:
         assert abs(pt.u[0] - exact(pt.p)) <= TOL     # corrected to TOL, J_u >= 1 on the high piece
     assert len(b.points) <= 40
+
+
+@settings(max_examples=15, deadline=None)
+@given(c=st.floats(0.15, 0.8), k=st.floats(0.1, 2.0), step=st.floats(0.01, 0.1))
+def test_every_square_root_kink_is_crossed_with_its_grazing_recorded(c, k, step):
+    """Property: whatever the kink's place, its square root's weight and the first step, the branch reaches p_end
+    through it, with one grazing recorded within its accuracy of the kink (located: <= 1e-9 of the range; passed by
+    a step: within the step) plus the corrector's 2 TOL, and every point past it on the high piece's root."""
+    residual, events, exact = _sqrt_map(c, k)
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=step, tol=TOL, events=events)
+    assert b.stop == "end", b.reason
+    (graze,) = [x for x in b.bifurcations if x["kind"] == "grazing"]
+    assert abs(graze["value"] - c) <= graze["accuracy"] + 2 * TOL
+    if graze["located"]:
+        assert graze["accuracy"] <= 1e-9
+    for pt in b.points:
+        if pt.u[0] > c:
+            # corrected to TOL with J_u = 1 + k / (2 y) >= 1 on the high piece
+            assert abs(pt.u[0] - exact(pt.p)) <= TOL
 
 
 def test_a_closed_branch_is_recognised_by_its_invariant_after_a_move_of_the_coordinates():
