@@ -1041,6 +1041,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         if side is None:
             return None
         g_a, acc_a = side
+        if b is None and not acc_a <= GRAZE_REACH * ds_tried:
+            return None    # (the margin does not fall to 0 within reach: the step failed for another reason)
         if b is None:
             h = abs(ds_tried * t[-1]) if abs(t[-1]) > FOLD_TP else ds_tried
             b = _beyond(problem, g_a, t, a.structure, [h, 4 * h, h / 4, 16 * h, h / 16], tol, max_iter)
