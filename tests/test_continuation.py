@@ -579,3 +579,154 @@ def test_a_move_of_the_coordinates_at_the_start_comes_before_the_first_step_and_
     # every point after the move is on the circle in the moved coordinates (the corrector's tolerance)
     assert max(abs((pt.u[0] - 0.5) ** 2 + pt.p ** 2 - 1) for pt in branch.points[1:]) <= TOL
     assert kinds(branch) == ["fold", "fold"]
+
+
+# --- issue 36: continuation across grazing points (events, invariant) ---
+
+def _kinked(c: float, slope: float):
+    """A branch u = p up to u = c and u = c + slope (p - c) beyond: two smooth pieces meeting with a kink at p = c,
+    as an orbit's branch at a grazing (its events change there). ``events``: the piece (u < c or not) and the margin
+    |u - c| (0 at the kink, linear on each side)."""
+    def residual(u, p):
+        low = u[0] < c
+        return (np.array([u[0] - (p if low else c + slope * (p - c))]), np.eye(1),
+                np.array([-1.0 if low else -slope]))
+
+    def events(u, p):
+        return ("low" if u[0] < c else "high"), abs(u[0] - c)
+
+    return residual, events
+
+
+@pytest.mark.parametrize("c, slope", [(0.3, 4.0), (0.41, 0.5), (0.3, 1e-3)])
+def test_a_change_of_structure_stepped_over_is_recorded_as_a_grazing_within_the_step(c, slope):
+    """A step that passes the kink without failing (the corrector converges on the other piece; its tangent's turn
+    there is the kink's and is not refused as a jump to another branch) records a grazing bracketed by the step: not
+    located (``located`` False; a branch near grazing all along passes dozens), its value the chord's point where
+    the margins' linear interpolation vanishes, within ``accuracy`` (the chord's length) of the kink. The branch
+    goes on past it on the other piece (its points on that piece's line) and ends at p_end."""
+    residual, events = _kinked(c, slope)
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=0.07, tol=TOL, events=events)
+    assert b.stop == "end", b.reason
+    graze = [x for x in b.bifurcations if x["kind"] == "grazing"]
+    assert len(graze) == 1 and not graze[0]["located"]
+    assert abs(graze[0]["value"] - c) <= graze[0]["accuracy"]
+    assert graze[0]["structure_before"] == "low" and graze[0]["structure_after"] == "high"
+    i = graze[0]["index"]
+    assert b.points[i].p < c < b.points[i + 1].p
+    for pt in b.points:
+        on = pt.p if pt.u[0] < c else c + slope * (pt.p - c)
+        assert abs(pt.u[0] - on) <= TOL
+    # the steps: at most max_step (default 0.1 of the range) each along the branch's length sqrt(1 + slope^2) per
+    # unit p on the high piece, plus the start's, the crossing's and the end's few
+    assert len(b.points) <= math.ceil((c * math.sqrt(2) + (1 - c) * math.hypot(1, slope)) / 0.1) + 12
+
+
+def test_without_events_the_kink_is_stepped_over_unrecorded():
+    """The same branch without ``events``: nothing is recorded (the hook is what names the change of structure)."""
+    residual, _ = _kinked(0.3, 4.0)
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=0.07, tol=TOL)
+    assert b.stop == "end" and not b.bifurcations
+
+
+def _sqrt_map(c: float, k: float = 0.5):
+    """A fixed point of a map with Nordmark's square-root term past u = c: r = u - p + k sqrt(max(u - c, 0)), the
+    branch u = p up to c and u = c + y^2 beyond, y = (sqrt(k^2 + 4 (p - c)) - k) / 2: continuous at the
+    kink with y ~ (p - c) / k, and J_u = 1 + k / (2 y) unbounded there, as an impacting orbit's 1/u next to grazing.
+    ``events``: the piece and the margin c - u on the low side, y = sqrt(u - c) on the high one (both linear)."""
+
+    def residual(u, p):
+        x = u[0] - c
+        if x <= 0:
+            return np.array([u[0] - p]), np.eye(1), np.array([-1.0])
+        root = math.sqrt(x)
+        return np.array([u[0] - p + k * root]), np.array([[1.0 + k / (2 * root)]]), np.array([-1.0])
+
+    def events(u, p):
+        x = u[0] - c
+        return ("low", -x) if x <= 0 else ("high", math.sqrt(x))
+
+    def exact(p):
+        y = 0.5 * (math.sqrt(k * k + 4 * (p - c)) - k)
+        return c + y * y
+
+    return residual, events, exact
+
+
+def test_a_square_root_kink_is_crossed_and_located_with_events():
+    """With ``events`` the square-root kink is located and the branch ends at p_end on the high piece, each point on
+    its exact root; without, the same branch records nothing there."""
+    c = 0.3
+    residual, events, exact = _sqrt_map(c)
+    plain = continue_branch(residual, [0.0], 0.0, 1.0, step=0.05, tol=TOL)
+    assert not plain.bifurcations
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=0.05, tol=TOL, events=events)
+    assert b.stop == "end", b.reason
+    (graze,) = [x for x in b.bifurcations if x["kind"] == "grazing"]
+    # the step onto the kink fails (the predictor lands where the high piece's J_u ~ 1 / sqrt(u - c) sends Newton
+    # away), so the grazing is located: approached from the low side by secants aimed 0.9 of the way (GRAZE_AIM),
+    # the kept point lies short of it by at most its accuracy (<= GRAZE_LOCATE locate_tol = 1e-9 of the range, the
+    # default) plus the corrector's error (TOL in u, and u = p there: TOL in p)
+    assert graze["located"] and graze["accuracy"] <= 1e-9
+    assert abs(graze["value"] - c) <= graze["accuracy"] + 2 * TOL
+    for pt in b.points[graze["index"] + 2:]:
+        assert abs(pt.u[0] - exact(pt.p)) <= TOL     # corrected to TOL, J_u >= 1 on the high piece
+    assert len(b.points) <= 40
+
+
+@settings(max_examples=15, deadline=None)
+@given(c=st.floats(0.15, 0.8), k=st.floats(0.1, 2.0), step=st.floats(0.01, 0.1))
+def test_every_square_root_kink_is_crossed_with_its_grazing_recorded(c, k, step):
+    """Property: whatever the kink's place, its square root's weight and the first step, the branch reaches p_end
+    through it, with one grazing recorded within its accuracy of the kink (located: <= 1e-9 of the range; passed by
+    a step: within the step) plus the corrector's 2 TOL, and every point past it on the high piece's root."""
+    residual, events, exact = _sqrt_map(c, k)
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=step, tol=TOL, events=events)
+    assert b.stop == "end", b.reason
+    (graze,) = [x for x in b.bifurcations if x["kind"] == "grazing"]
+    assert abs(graze["value"] - c) <= graze["accuracy"] + 2 * TOL
+    if graze["located"]:
+        assert graze["accuracy"] <= 1e-9
+    for pt in b.points:
+        if pt.u[0] > c:
+            # corrected to TOL with J_u = 1 + k / (2 y) >= 1 on the high piece
+            assert abs(pt.u[0] - exact(pt.p)) <= TOL
+
+
+def test_a_closed_branch_is_recognised_by_its_invariant_after_a_move_of_the_coordinates():
+    """The circle x^2 + p^2 = 1 whose coordinates move (y = x + 0.5) at the third point, after which the first
+    point's u is in other coordinates: with the coordinate-free ``invariant`` (x itself, and p) the branch is still
+    seen to close; without it it runs on to max_steps (the old limit)."""
+    def run(with_invariant):
+        shift = [0.0]
+        seen = [0]
+
+        def shifted(u, p):
+            return circle(np.asarray(u) - shift[0], p)
+
+        def reanchor(u, p, forced):
+            seen[0] += 1
+            if shift[0] or seen[0] < 3:
+                return None
+            shift[0] = 0.5
+            return np.asarray(u) + 0.5, np.eye(1), np.zeros(1)
+
+        invariant = (lambda u, p: np.array([u[0] - shift[0]])) if with_invariant else None
+        return continue_branch(shifted, [-math.sqrt(1 - 0.81)], -0.9, 1.5, tol=TOL, locate_tol=LOCATE,
+                               reanchor=reanchor, invariant=invariant, max_steps=150)
+
+    with_inv, without = run(True), run(False)
+    assert with_inv.reanchors and with_inv.reanchors[0]["index"] == 2
+    assert with_inv.stop == "closed", with_inv.reason
+    assert without.stop == "max_steps"
+    assert kinds(with_inv) == ["fold", "fold"]
+
+
+def test_the_events_hook_breaking_its_contract_is_a_programming_error():
+    residual, _ = _kinked(0.3, 4.0)
+    with pytest.raises(NsfemError, match="events must be callable"):
+        continue_branch(residual, [0.0], 0.0, 1.0, events=3)
+    with pytest.raises(NsfemError, match=r"events\(u, p\) must return"):
+        continue_branch(residual, [0.0], 0.0, 1.0, events=lambda u, p: 3.0)
+    with pytest.raises(NsfemError, match="solve must be callable"):
+        continue_branch(residual, [0.0], 0.0, 1.0, solve="x")

@@ -4668,3 +4668,65 @@ def test_issue36_review_delamination_study_refuses_every_bad_beta(beta, capsys):
     if math.isfinite(beta) and beta > 0:
         return
     assert "--beta" in _delamination_refusal(["--touching", "--beta", repr(beta)], capsys)
+
+
+# --- issue 36: continuation across grazing points (the events / invariant / solve hooks) ---
+# A hook that is no function is refused by name; one that breaks its contract (wrong types, shapes) raises one
+# NsfemError of one line naming it; one that fails or gives non-finite or negative values ends the branch with a
+# one-line reason (or is skipped: solve); never another exception.
+def _kink36(u, p):
+    low = u[0] < 0.3
+    return np.array([u[0] - (p if low else 0.3 + 4 * (p - 0.3))]), np.eye(1), np.array([-1.0 if low else -4.0])
+
+
+def _graze_hooks36():
+    def fails(u, p):
+        raise NsfemError("the hook failed\non two lines")
+
+    return {
+        "events": [lambda u, p: 3.0, lambda u, p: ([1], 0.5), lambda u, p: ("a", "x"), lambda u, p: ("a", math.nan),
+                   lambda u, p: ("a", -1.0), lambda u, p: ("a", math.inf), fails, lambda u, p: None,
+                   lambda u, p: (u[0] < 0.3, abs(u[0] - 0.3))],
+        "invariant": [lambda u, p: "x", lambda u, p: np.array([math.nan]), lambda u, p: np.ones((2, 2)), fails,
+                      lambda u, p: np.array([u[0]])],
+        "solve": [lambda u, p: None, lambda u, p: np.ones(3), lambda u, p: np.array([math.nan]), fails,
+                  lambda u, p: "x"],
+    }
+
+
+@pytest.mark.parametrize("name", ["events", "invariant", "solve"])
+@pytest.mark.parametrize("value", [3, "f", [1.0]])
+def test_issue36_grazing_hooks_that_are_not_functions_are_refused_by_name(name, value):
+    with pytest.raises(NsfemError, match=f"{name} must be callable") as info:
+        continue_branch(_kink36, [0.0], 0.0, 1.0, **{name: value})
+    assert "\n" not in str(info.value)
+
+
+@settings(max_examples=40, deadline=None)
+@given(events=st.integers(0, 8), invariant=st.integers(0, 4), solve=st.integers(0, 4),
+       step=st.floats(1e-3, 0.3))
+def test_issue36_hostile_grazing_hooks_end_the_branch_with_one_line(events, invariant, solve, step):
+    """Property: any mix of hostile hooks gives a Branch whose reason is one line, or one NsfemError of one line."""
+    hooks = _graze_hooks36()
+    try:
+        branch = continue_branch(_kink36, [0.0], 0.0, 1.0, step=step, max_steps=40, events=hooks["events"][events],
+                                 invariant=hooks["invariant"][invariant], solve=hooks["solve"][solve])
+    except NsfemError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith("continue_branch:")
+        return
+    assert isinstance(branch, Branch) and "\n" not in branch.reason
+    assert branch.stop in ("end", "left", "closed", "max_steps", "failed")
+
+
+def test_issue36_hostile_events_reproductions():
+    hooks = _graze_hooks36()
+    # a non-tuple, an unhashable structure, a margin that is no number: the hook's contract, one line
+    for k in (0, 1, 2, 7):
+        with pytest.raises(NsfemError, match=r"events\(u, p\) must return"):
+            continue_branch(_kink36, [0.0], 0.0, 1.0, events=hooks["events"][k])
+    # a NaN or negative margin, a failing hook: the branch ends at the start, saying why on one line
+    for k in (3, 4, 6):
+        branch = continue_branch(_kink36, [0.0], 0.0, 1.0, events=hooks["events"][k])
+        assert branch.stop == "failed" and "\n" not in branch.reason and len(branch.points) == 1
+    # a margin of inf (nothing grazes) is allowed: the branch runs to its end
+    assert continue_branch(_kink36, [0.0], 0.0, 1.0, events=hooks["events"][5]).stop == "end"

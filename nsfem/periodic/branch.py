@@ -25,6 +25,7 @@ continued like the first.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -32,7 +33,7 @@ import numpy as np
 
 from ..errors import NsfemError
 from .continuation import Branch, BranchPoint, continue_branch, critical_vector
-from .flow import FlowMap
+from .flow import FlowMap, near_grazing
 from .arguments import real_number, whole_number
 from .neutral import deflated, stick_continuum, stick_positions
 from .shooting import SECTION_MARGIN, admissible_directions, check_forcing_multiple, classify, periodic_orbit
@@ -47,6 +48,15 @@ REUSE = 5e-3
 #: orbit has drifted to within this share of that stretch's half from it: from the middle the phase may drift by
 #: half of it before (the rub on 64 facets: a corner every 1/64 period, drifting by one per ~0.8 Hz)
 RECENTER = 0.5
+#: open gaps whose smallest value over the period is within this share of their range count in the margin to a
+#: grazing (:meth:`_Problem.events`)
+GRAZE_WATCH = 0.1
+#: a closing whose approach speed (relative, as the margin's) is below this closes at rest (the crack's closings:
+#: 1e-19 to 1e-16 measured, round-off of zero), which is the orbit's own structure, not a grazing approached
+AT_REST = 1e-12
+#: the shooting's tolerance for the first orbit past a grazing (:meth:`_Problem.solve`); the continuation corrects
+#: it to its own tol after
+GRAZE_SOLVE_TOL = 1e-10
 #: the section moves to the middle of a stretch at least this share of the longest (the one whose time is nearest
 #: t = 0): its events then lie 0.375 of the longest from it, beyond the trigger's 0.25
 WIDE = 0.75
@@ -203,6 +213,61 @@ class _Problem:
         self._jp = None
         return np.concatenate([moved.q, moved.v]), moved.monodromy, dudp
 
+    def _flow(self, u: np.ndarray, p: float):
+        """The flow over the period from u at p: the last residual's when it was there."""
+        if self.last is not None and self.last[0] == p and np.array_equal(self.last[1], u):
+            return self.last[2]
+        fl = self._flows.get((p, u.tobytes()))
+        if fl is None:
+            n = u.size // 2
+            fl = self.flow_map(p)(u[:n], u[n:])
+        return fl
+
+    def events(self, u: np.ndarray, p: float) -> tuple[tuple, float]:
+        """The continuation's ``events``: the orbit's structure (its events per period, each by its contacts, kinds
+        and whether it is an impact: a sorted tuple, independent of the section) and its margin to a grazing, the
+        least of (a) an open gap's smallest value over the period (:func:`.flow.near_grazing`, within GRAZE_WATCH of
+        its range) over that range and (b) an impact's or closing's approach speed over the gap's range times the
+        frequency 2 pi / T, unless below AT_REST (a contact closing at rest: the breathing crack's, all along its
+        branch); 0 at a grazing orbit, smooth on each side of it, at most 1."""
+        fl = self._flow(u, p)
+        res = fl.result
+        structure = tuple(sorted((tuple(e["contacts"]), tuple(e["kinds"]), bool(e["impact"])) for e in res.events))
+        T = self.multiple * self.period_at(p)
+        gap = np.asarray(res.gap)
+        reach = np.ptp(gap, axis=1) if gap.size else np.zeros(0)
+        margin = 1.0
+        for g in near_grazing(fl, GRAZE_WATCH):
+            k = g["contact"]
+            if reach[k] > 0:
+                margin = min(margin, g["gap_min"] / reach[k])
+        for imp in res.impacts:
+            for k, speed in zip(imp["contacts"], imp["approach_m_s"]):
+                if k < reach.size and reach[k] > 0:
+                    rel = max(float(speed), 0.0) * T / (2 * math.pi * reach[k])
+                    if rel > AT_REST:   # (a closing at rest is the orbit's own, all along the branch: no grazing)
+                        margin = min(margin, rel)
+        return structure, margin
+
+    def invariant(self, u: np.ndarray, p: float) -> np.ndarray:
+        """The continuation's ``invariant``: measures of the orbit that do not depend on its section, per
+        coordinate its mean and root mean square over the period (the samples at output_dt over one period, each
+        once: the periodic trapezoidal rule, the same sum from any section up to the sampling's error)."""
+        q = np.asarray(self._flow(u, p).result.q)[:, :-1]
+        return np.concatenate([q.mean(axis=1), np.sqrt((q * q).mean(axis=1))])
+
+    def solve(self, u: np.ndarray, p: float) -> np.ndarray | None:
+        """The continuation's ``solve``: the orbit at p by the shooting (:func:`.shooting.periodic_orbit`, its damped
+        Newton) from u at the current section; None when it does not converge or moves the section."""
+        n = u.size // 2
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            orb = periodic_orbit(self.system_at(p), self.multiple * self.period_at(p), u[:n], u[n:], self.t0,
+                                 tol=GRAZE_SOLVE_TOL, attempts=1)
+        if not orb.converged or orb.t0 != self.t0:
+            return None
+        return np.concatenate([orb.q0, orb.v0])
+
     def multipliers(self, u: np.ndarray, p: float) -> np.ndarray:
         _, _, fl = self.last
         Z = admissible_directions(fl.trace[0]["system"], fl.start_mode)
@@ -233,8 +298,8 @@ def _orbit_point(problem: _Problem, bp: BranchPoint) -> OrbitPoint:
 def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[float], float], q0, v0, p0: float,
                  p_end: float, *, key: str = "p", multiple: int = 1, t0: float = 0.0, tol: float = 1e-9,
                  step: float | None = None, max_steps: int = 100, switch: bool = True, depth: int = 1,
-                 max_iter: int = 20, on_point: Callable[[object, int], None] | None = None
-                 ) -> OrbitBranch:
+                 max_iter: int = 20, on_point: Callable[[object, int], None] | None = None,
+                 grazing: bool = True) -> OrbitBranch:
     """Continue the orbit through (q0, q0') at p0 (period ``multiple`` T(p0)) towards p_end.
 
     ``system_at(p)``: the ContactSystem at parameter p; ``period_at(p)``: the forcing period there [s]. The start is
@@ -275,12 +340,18 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
                          stability=problem.multipliers, u_scale=u_scale, max_iter=max_iter,
                          on_point=None if on_point is None else
                          (lambda bp: on_point(_orbit_point(problem, bp), int(multiple))),
-                         reanchor=problem.reanchor)
+                         reanchor=problem.reanchor, events=problem.events if grazing else None,
+                         invariant=problem.invariant, solve=problem.solve if grazing else None)
     bif = []
     for b in br.bifurcations:
+        if b["kind"] == "grazing" and not b["located"]:
+            continue   # (passed by a step: the points' events per period show it; the crack passes one per 1e-3 Hz)
         u = np.asarray(b["u"])
         bif.append({"kind": b["kind"], "value": float(b["value"]), "index": int(b["index"]),
                     "t0_s": float(problem.t0s[b.get("anchor", 0)]), "q0": u[:n].copy(), "v0": u[n:].copy()})
+        if b["kind"] == "grazing":   # the events per period on the side the branch came from and on the other
+            bif[-1].update({"accuracy": float(b["accuracy"]), "located": bool(b["located"]),
+                            "events_per_period": [len(b["structure_before"]), len(b["structure_after"])]})
     reason = br.reason
     if br.stop == "failed" and "penetrates" in reason:
         # the section moved off the events already (re-anchored) and still a state lies beyond a contact

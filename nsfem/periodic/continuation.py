@@ -24,10 +24,24 @@ u by u_scale as much as the whole range of p. With J = [J_u u_scale | J_p (p_end
   within sqrt(2) ds of the previous one);
 - the branch stops at p_end (the last point corrected at p = p_end exactly), when it leaves
   [min(p0, p_end) - margin, max(p0, p_end) + margin] after folding back, when it returns to its first
-  point (a closed branch; seen only while the coordinates are those of the first step: after a later ``reanchor``
-  the first point's u is in other coordinates, and a closed branch runs on to ``max_steps``), after ``max_steps`` steps, or
-  when a correction fails at ``min_step``;
+  point (a closed branch: seen in the unknowns while they are in the first step's coordinates, after a later
+  ``reanchor`` in the caller's coordinate-free ``invariant`` and p; without one such a branch runs on to
+  ``max_steps``), after ``max_steps`` steps, or when a correction fails at ``min_step``;
   :attr:`Branch.stop` and :attr:`Branch.reason` say which and where.
+
+Grazing (``events``: each corrected point's structure, a hashable such as an orbit's events, and its margin >= 0 to
+a change of it, 0 at a grazing and linear in the distance on either side). Across a change of structure the branch
+has a kink, and next to it the corrector may have no basin (Nordmark's square-root map: an impacting orbit's J_u
+grows like 1/u with its impact speed u), so that steps halve down to ``min_step``. A step that lands on another
+structure is accepted whatever its tangent's turn (the kink's) and the grazing is recorded bracketed by it
+(``located`` False). A step that fails from a point whose margin is below NEAR_MARGIN, or falls to 0 within
+GRAZE_REACH steps, looks for the grazing (:func:`_graze_point`: secants on the margin from the side the branch is
+on, to GRAZE_LOCATE of ``locate_tol``), then for the first point past it (:func:`_beyond`: at a fixed p a step
+further, from the grazing point, its extrapolation or the caller's ``solve``; brought back towards it by
+:func:`_nearer`), locates the grazing from that side too and keeps the better; the grazing point becomes a point
+of the branch, recorded as kind "grazing" (``located`` True, its ``accuracy``, ``structure_before``/``after``),
+and the branch goes on from the point past it with that side's tangent, at the step it had before. No multiplier
+crossing is looked for across a grazing (the multipliers jump there: each side's verdict is its own).
 
 Special points between two consecutive points A and B, located along the chord AB by bracketing the sign
 change of a test function (regula falsi, Illinois variant, with bisection steps whenever the bracket
@@ -105,6 +119,22 @@ RESOLVED = 0.25
 #: a tangent whose p component is below this (in scaled units) is at a fold of the branch: moved to new coordinates
 #: without du_new/dp, it is oriented by the change's M (its p component's sign is round-off there)
 FOLD_TP = 1e-3
+#: a point whose margin to a change of its structure (``events``) is below this may have a grazing within any step
+NEAR_MARGIN = 1e-2
+#: ... or one whose margin, falling along the branch as it did from the point before, reaches 0 within this many
+#: steps: a step that fails from there looks for the grazing first
+GRAZE_REACH = 4.0
+#: at most this many trial points to locate a grazing from one side, and at most this many failed in a row
+MAX_GRAZE_TRIALS = 20
+#: a grazing is located to this share of locate_tol: its margin is smooth on the side it is approached from, where
+#: the secant converges superlinearly (a few trial points more for three more digits)
+GRAZE_LOCATE = 1e-3
+GRAZE_FAILS = 5
+#: each trial aims at this share of the secant's distance to the grazing (from the side it is approached from;
+#: a trial past it may fail to correct: Nordmark's square-root map has no linear neighbourhood there)
+GRAZE_AIM = 0.9
+#: the first point past a grazing is brought back towards it by at most this many halvings of its distance
+NEARER = 6
 #: at most this many trial points per special point (the bracket at least halves every three: 2^-33 of
 #: the chord at worst, 1e-10; a smooth test function takes 5 to 10)
 MAX_TRIALS = 100
@@ -133,7 +163,9 @@ class Branch:
     # {"kind": "fold" | "period-doubling" | "neimark-sacker", "value": p, "index": i (between points i
     #  and i + 1), "u": u there, "multipliers": at the point or None, "accuracy": its distance (units
     #  of p) to the other end of the final bracket (the crossing lies on the branch between them),
-    #  "detected_by": "tangent" | "multipliers"}
+    #  "detected_by": "tangent" | "multipliers"}; a "grazing" (``events``: the structure changed) has "detected_by"
+    #  "events", "located" (False: bracketed by a step, "index" between its points; True: point index + 1 is the
+    #  grazing orbit), "structure_before", "structure_after" and "margin" (the located point's)
     stop: str = ""      # "end" | "left" | "closed" | "max_steps" | "failed"
     reason: str = ""    # one sentence: where and why the branch ended
     # the changes of coordinates (``reanchor``): {"index": the point (its u in the old coordinates; the next
@@ -157,6 +189,9 @@ class _Point:
     rmax: float
     iterations: int
     multipliers: np.ndarray | None = None
+    structure: object = None     # the solution's non-smooth structure (``events``): None without it
+    margin: float = math.inf     # its distance to the nearest change of structure (0 at a grazing)
+    invariant: np.ndarray | None = None   # coordinate-free measures of the solution (``invariant``)
 
 
 def _line(exc: Exception) -> str:
@@ -180,8 +215,10 @@ class _Scaled:
     """The residual and the stability in scaled unknowns z = (u / u_scale, (p - p0) / (p_end - p0))."""
 
     def __init__(self, residual: Residual, stability: Stability | None, m: int, u_scale: np.ndarray,
-                 p0: float, p_end: float):
+                 p0: float, p_end: float, events: Callable | None = None, invariant: Callable | None = None,
+                 solve: Callable | None = None):
         self.residual, self.stability, self.m = residual, stability, m
+        self.events, self.invariant, self.solve = events, invariant, solve
         self.u_scale, self.p0, self.p_end, self.span = u_scale, p0, p_end, p_end - p0
         self._last: tuple[bytes, tuple[np.ndarray, np.ndarray]] | None = None
 
@@ -251,6 +288,62 @@ class _Scaled:
         if not np.all(np.isfinite(mu)):
             raise _Failure(f"the multipliers are not finite at p = {p:.10g}")
         return mu[np.argsort(-np.abs(mu), kind="stable")]
+
+    def solved(self, z: np.ndarray, level: float) -> np.ndarray | None:
+        """The caller's ``solve`` from u(z) at the parameter of z_p = level, in scaled unknowns; None without it or
+        when it finds nothing."""
+        if self.solve is None:
+            return None
+        p = self.p_end if level == 1.0 else float(self.p0 + level * self.span)
+        try:
+            u = self.solve(self.u(z).copy(), p)
+        except _Contract:
+            raise
+        except (NsfemError, ArithmeticError, np.linalg.LinAlgError):
+            return None
+        if u is None:
+            return None
+        u = np.asarray(u, dtype=float)
+        if u.shape != (self.m,):
+            raise _Contract(f"continue_branch: solve(u, p) must return None or an array of shape ({self.m},), got "
+                            f"{u.shape}")
+        return self.z(u, p) if np.all(np.isfinite(u)) else None
+
+    def complete(self, pt: _Point) -> _Point:
+        """pt with its multipliers, its structure and margin (``events``) and its invariant, all at pt.z (where the
+        residual was just evaluated)."""
+        pt.multipliers = self.multipliers(pt.z)
+        p, u = self.p(pt.z), self.u(pt.z)
+        if self.events is not None:
+            try:
+                out = self.events(u.copy(), p)
+            except _Contract:
+                raise
+            except (NsfemError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                raise _Failure(f"the events failed at p = {p:.10g}: {_line(exc)}") from exc
+            try:
+                structure, margin = out
+                hash(structure)
+                margin = float(margin)
+            except (TypeError, ValueError):
+                raise _Contract("continue_branch: events(u, p) must return (a hashable structure, a margin >= 0)") \
+                    from None
+            if not margin >= 0.0:
+                raise _Failure(f"the margin to a change of structure is {margin!r} at p = {p:.10g} (must be >= 0)")
+            pt.structure, pt.margin = structure, margin
+        if self.invariant is not None:
+            try:
+                inv = np.atleast_1d(np.asarray(self.invariant(u.copy(), p), dtype=float))
+            except _Contract:
+                raise
+            except (NsfemError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                raise _Failure(f"the invariant failed at p = {p:.10g}: {_line(exc)}") from exc
+            except (TypeError, ValueError):
+                raise _Contract("continue_branch: invariant(u, p) must return an array of numbers") from None
+            if inv.ndim != 1 or not np.all(np.isfinite(inv)):
+                raise _Failure(f"the invariant is not a finite 1-D array at p = {p:.10g}")
+            pt.invariant = inv
+        return pt
 
 
 def _tangent(jac: np.ndarray, previous: np.ndarray) -> np.ndarray:
@@ -567,6 +660,156 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
     return [d for _, d in sorted(found, key=lambda x: x[0])]
 
 
+def _graze_point(problem: _Scaled, start: _Point, direction: np.ndarray, past: float | None, tol: float,
+                 max_iter: int, locate_z: float, before: _Point | None = None, first: float | None = None
+                 ) -> tuple[_Point, float] | None:
+    """The point of ``start``'s side of the branch where its margin (``events``) reaches 0: a grazing point.
+
+    Trial points lie on the branch in the hyperplanes direction.(z - start.z) = sigma (``direction`` a unit vector
+    along the branch, towards the grazing), each corrected there and kept when it has start's structure; one
+    corrected with another structure lies past the grazing and bounds it (as ``past`` does: a sigma known to lie
+    past it); one whose correction fails bounds only the next trial (next to a grazing an impacting orbit's Newton
+    basin shrinks with its approach speed: Nordmark's square-root map). The margin is smooth on one side of a
+    grazing (an open gap's minimum, an impact's approach speed: linear in the distance), so the secant through the
+    last two kept points converges superlinearly from that side; a secant that leaves the bracket is replaced by
+    bisection. The first trial is at ``first``, or, with ``before`` (a point of the same side behind start), the
+    secant's. Returns (the kept point of least margin, the accuracy in z: the distance from it to the zero the
+    secant predicts, or to ``past``, whichever is less) once that accuracy is below ``locate_z``, else as far as
+    MAX_GRAZE_TRIALS trial points (or GRAZE_FAILS failed ones in a row) allow; None when none was kept."""
+    level0 = float(direction @ start.z)
+    goods = [(0.0, start)]
+    if before is not None and before.structure == start.structure and math.isfinite(before.margin):
+        sb = float(direction @ before.z) - level0
+        if sb < 0.0:
+            goods.insert(0, (sb, before))
+    limit, fails = past, 0
+
+    def accuracy() -> float:
+        """The kept points' distance to the grazing: the secant's through the last two (where the margin fell
+        between them), or to ``past``."""
+        (s1, p1), (s2, p2) = goods[-2] if len(goods) > 1 else (None, None), goods[-1]
+        out = math.inf if past is None else past - s2
+        if s1 is not None and p1.margin > p2.margin:
+            out = min(out, p2.margin * (s2 - s1) / (p1.margin - p2.margin))
+        return out
+
+    for _ in range(MAX_GRAZE_TRIALS):
+        (s2, p2) = goods[-1]
+        if p2.margin == 0.0:
+            return p2, 0.0
+        if accuracy() <= locate_z:
+            break
+        if len(goods) > 1 and goods[-2][1].margin <= p2.margin:
+            break     # (the margin no longer falls: its noise, the corrector's tolerance, is reached)
+        # a little short of the secant's zero (GRAZE_AIM of the way): the next kept point is again on this side
+        sigma = s2 + GRAZE_AIM * accuracy() if len(goods) > 1 else first
+        if limit is not None and (sigma is None or not s2 < sigma < limit):
+            sigma = 0.5 * (s2 + limit)
+        if sigma is None or fails >= GRAZE_FAILS:
+            break
+        if len(goods) > 1:
+            s1, p1 = goods[-2]
+            z_pred = p2.z + (sigma - s2) * (p2.z - p1.z) / (s2 - s1)
+        else:
+            z_pred = p2.z + (sigma - s2) * direction
+        try:
+            pt = problem.complete(_correct(problem, z_pred, direction, level0 + sigma, tol, max_iter))
+        except _Failure:
+            pt = None
+        if pt is not None and pt.structure == start.structure:
+            goods.append((sigma, pt))
+        else:
+            if pt is not None:    # corrected with another structure: past the grazing
+                past = sigma if past is None else min(past, sigma)
+            fails += 1
+            limit = sigma if limit is None else min(limit, sigma)
+    return (goods[-1][1], accuracy()) if len(goods) > 1 or past is not None else None
+
+
+def _beyond(problem: _Scaled, g: _Point, t: np.ndarray, structure, steps: list[float], tol: float,
+            max_iter: int) -> _Point | None:
+    """A point of the branch past the grazing point g with another structure than ``structure`` (the side the
+    branch came from): corrected at a fixed parameter p(g) + h (natural parameter), h from ``steps`` (scaled p),
+    in the direction the branch went (the sign of t's p component; against it too where t is at a fold in p);
+    started from g, from g extrapolated along t and by the caller's ``solve``. None when no such point is found."""
+    e_p = np.zeros(g.z.size)
+    e_p[-1] = 1.0
+    sign = 1.0 if t[-1] >= 0 else -1.0
+    # (against the branch's direction only where it is at a fold in p: elsewhere a point there of another structure
+    # is no continuation of this branch; it may be another branch through the same grazing, or the way back)
+    for direction in ((sign, -sign) if abs(t[-1]) < FOLD_TP else (sign,)):
+        for h in steps:
+            level = g.z[-1] + direction * h
+            along = t * (direction * h / t[-1]) if abs(t[-1]) > FOLD_TP else np.zeros_like(t)
+            for k, z_pred in enumerate((np.append(g.z[:-1], level), g.z + along, None)):
+                try:
+                    if z_pred is None:   # the caller's own solver from g (an orbit's shooting: damped, patient)
+                        z_pred = problem.solved(g.z, level)
+                        if z_pred is None:
+                            continue
+                    z_pred = z_pred.copy()
+                    z_pred[-1] = level
+                    pt = problem.complete(_correct(problem, z_pred, e_p, level, tol, max_iter))
+                except _Failure:
+                    continue
+                if pt.structure != structure:
+                    return _nearer(problem, g, pt, e_p, structure, tol, max_iter)
+    return None
+
+
+def _nearer(problem: _Scaled, g: _Point, b: _Point, e_p: np.ndarray, structure, tol: float, max_iter: int) -> _Point:
+    """The point of b's side nearest the grazing point g among p(g) + (p(b) - p(g)) / 2^k, k = 1..NEARER, each
+    corrected at its p from the last one along its side's tangent (the way back along b's side, to where its
+    corrector fails): the branch then has no long chord past the grazing."""
+    for _ in range(NEARER):
+        level = 0.5 * (g.z[-1] + b.z[-1])
+        tb = _tangent(b.jac, (g.z - b.z) / max(float(np.linalg.norm(g.z - b.z)), 1e-300))
+        z_pred = b.z + tb * ((level - b.z[-1]) / tb[-1]) if abs(tb[-1]) > FOLD_TP else b.z + 0.5 * (g.z - b.z)
+        z_pred[-1] = level
+        try:
+            pt = problem.complete(_correct(problem, z_pred, e_p, level, tol, max_iter))
+        except _Failure:
+            break
+        if pt.structure == structure:
+            break
+        b = pt
+    return b
+
+
+def _returned(a: _Point, b: _Point, first_z: np.ndarray | None, first: _Point) -> bool:
+    """Whether the chord from a to b passes the branch's first point (within a quarter of its length): in the
+    unknowns when they are in the first point's coordinates (``first_z``), else in the coordinate-free measures
+    (``invariant``, relative to the first point's, and z_p), when the caller gives them."""
+    if first_z is not None:
+        za, zb, z1 = a.z, b.z, first_z
+    elif first.invariant is not None and a.invariant is not None and b.invariant is not None:
+        size = max(float(np.linalg.norm(first.invariant)), 1e-300)
+        za, zb, z1 = (np.append(pt.invariant / size, pt.z[-1]) for pt in (a, b, first))
+    else:
+        return False
+    w = zb - za
+    length = float(np.linalg.norm(w))
+    if length == 0.0:
+        return False
+    x = float(np.clip((z1 - za) @ w / (w @ w), 0.0, 1.0))
+    return bool(np.linalg.norm(za + x * w - z1) < 0.25 * length)
+
+
+def _grazing_ahead(a: _Point, before: _Point | None, t: np.ndarray, ds: float) -> bool:
+    """Whether the grazing of a's side may lie within a step of ``ds`` from a: its margin is small (below
+    NEAR_MARGIN), or falling so fast along the branch that it reaches 0 within GRAZE_REACH such steps."""
+    if a.structure is None or not math.isfinite(a.margin):
+        return False
+    if a.margin <= NEAR_MARGIN:
+        return True
+    if before is None or before.structure != a.structure or not math.isfinite(before.margin):
+        return False
+    run = float(t @ (a.z - before.z))
+    if run <= 0.0 or before.margin <= a.margin:
+        return False
+    return a.margin / ((before.margin - a.margin) / run) <= GRAZE_REACH * ds
+
+
 def _branch_point(problem: _Scaled, pt: _Point, s: float, tol: float, unit_tol: float, anchor: int = 0
                   ) -> BranchPoint:
     mu = pt.multipliers
@@ -615,7 +858,7 @@ def _reanchored(problem: _Scaled, reanchor: Callable, pt: _Point, t: np.ndarray,
     e_p = np.zeros(m + 1)
     e_p[-1] = 1.0
     new = _correct(problem, z, e_p, float(z[-1]), tol, max_iter)
-    new.multipliers = problem.multipliers(new.z)
+    problem.complete(new)
     # the old tangent in the new coordinates: du_new/ds = M du/ds + du_new/dp dp/ds (the new state depends on p
     # at a fixed old one too: an orbit's flow over the section's shift does). Without du_new/dp, M du/ds alone can
     # point against the branch (it turned back: test_a_move_whose_state_depends_on_p_keeps_the_branchs_direction);
@@ -635,7 +878,8 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                     u_scale=1.0, max_step: float | None = None, min_step: float | None = None,
                     margin: float | None = None, locate_tol: float | None = None, unit_tol: float = 1e-6,
                     max_iter: int = 8, on_point: Callable[[BranchPoint], None] | None = None,
-                    reanchor: Callable | None = None) -> Branch:
+                    reanchor: Callable | None = None, events: Callable | None = None,
+                    invariant: Callable | None = None, solve: Callable | None = None) -> Branch:
     """Follow the branch of r(u, p) = 0 through (u0, p0) towards p_end by pseudo-arclength (Keller 1977).
 
     - residual(u, p) -> (r (m,), J_u (m, m), J_p (m,)), real; u0 is first corrected at p = p0;
@@ -663,7 +907,14 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
       sign, and near a fold (|t_p| < FOLD_TP) follows M du/ds. The point is
       re-corrected there at its p and the branch goes on from it; special points are located within one
       coordinate system (between two points, before the change), :attr:`Branch.reanchors` lists the changes and
-      :attr:`BranchPoint.anchor` says which coordinates a point's u is in.
+      :attr:`BranchPoint.anchor` says which coordinates a point's u is in;
+    - ``events(u, p) -> (structure, margin)``: the solution's non-smooth structure (hashable: equal where the same)
+      and its margin >= 0 to a change of it (0 at a grazing, linear in the distance on either side); with it the
+      branch crosses grazings (module docstring). Called, as ``stability``, only at corrected points;
+    - ``invariant(u, p) -> array``: measures of the solution that do not depend on the coordinates (``reanchor``):
+      a closed branch is recognised by them (and p) after the coordinates moved;
+    - ``solve(u, p) -> u' or None``: the caller's own solver at p from u (an orbit's shooting), tried for the first
+      point past a grazing when the corrector fails there.
     """
     if not callable(residual):
         raise NsfemError(f"continue_branch: residual must be callable, got {type(residual).__name__}")
@@ -722,9 +973,12 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         raise NsfemError(f"continue_branch: on_point must be callable or None, got {type(on_point).__name__}")
     if reanchor is not None and not callable(reanchor):
         raise NsfemError(f"continue_branch: reanchor must be callable or None, got {type(reanchor).__name__}")
+    for name, value in (("events", events), ("invariant", invariant), ("solve", solve)):
+        if value is not None and not callable(value):
+            raise NsfemError(f"continue_branch: {name} must be callable or None, got {type(value).__name__}")
     said = on_point if on_point is not None else (lambda point: None)
 
-    problem = _Scaled(residual, stability, u0.size, scale, p0, p_end)
+    problem = _Scaled(residual, stability, u0.size, scale, p0, p_end, events, invariant, solve)
     ds, ds_max, ds_min, locate_z = step / span, max_step / span, min_step / span, locate_tol / span
     lo_z, hi_z = -margin / span, 1.0 + margin / span     # z_p of min(p0, p_end) - margin, max + margin
 
@@ -741,7 +995,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         start = BranchPoint(p0, u0, None, None, False, float(np.max(np.abs(r0))), 0.0)
         return Branch([start], [], "failed", f"the start at p = {p0:g} did not converge: {exc}")
     try:
-        a.multipliers = problem.multipliers(a.z)
+        problem.complete(a)
     except _Failure as exc:
         return Branch([_branch_point(problem, a, 0.0, tol, unit_tol)], [], "failed", f"at the start: {exc}")
     t = _tangent(a.jac, e_p)
@@ -776,7 +1030,42 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
     def ended(stop: str, reason: str) -> Branch:
         return Branch(points, bifurcations, stop, reason, reanchors)
 
+    def cross(a: _Point, t: np.ndarray, b: _Point | None, ds_tried: float):
+        """Over the grazing ahead of a (b: a point past it, if a step reached one): (the grazing point, the first
+        point past it, its tangent, what was found) or None when it is not found."""
+        past = None if b is None else float(t @ (b.z - a.z))
+        if past is not None and past <= 0.0:
+            return None
+        side = _graze_point(problem, a, t, past, tol, max_iter, GRAZE_LOCATE * locate_z, before=before,
+                            first=0.5 * ds_tried)
+        if side is None:
+            return None
+        g_a, acc_a = side
+        if b is None and not acc_a <= GRAZE_REACH * ds_tried:
+            return None    # (the margin does not fall to 0 within reach: the step failed for another reason)
+        if b is None:
+            h = abs(ds_tried * t[-1]) if abs(t[-1]) > FOLD_TP else ds_tried
+            b = _beyond(problem, g_a, t, a.structure, [h, 4 * h, h / 4, 16 * h, h / 16], tol, max_iter)
+            if b is None:
+                return None
+        # and from b's side back towards it: the better located of the two (one side's corrector may not get near
+        # the grazing: next to it an impacting orbit's Newton basin shrinks with its approach speed)
+        back = g_a.z - b.z
+        length = float(np.linalg.norm(back))
+        g, acc = g_a, acc_a
+        if length > 0 and acc_a > GRAZE_LOCATE * locate_z:
+            other = _graze_point(problem, b, back / length, length, tol, max_iter, GRAZE_LOCATE * locate_z,
+                                 first=0.5 * length)
+            if other is not None and other[1] < acc_a:
+                g, acc = other
+        if acc > max(locate_z, 1e-3 * length) and acc > 0.25 * float(np.linalg.norm(b.z - a.z)):
+            return None    # (neither side's margin came near 0: no grazing located there)
+        if not lo_z < g.z[-1] < 1.0:
+            return None    # (past p_end or out of the range: the ordinary step ends the branch)
+        return g, b, None, {"accuracy": acc, "side_point": g_a, "side_tangent": _tangent(g_a.jac, t)}
+
     first_anchor = None
+    before = None     # the point before a, in a's coordinates (None after a move)
     while True:
         if reanchor is not None:   # the coordinates at the point the step starts from (the start's too)
             try:
@@ -785,13 +1074,14 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                 return ended("failed", f"at {'the start ' if len(points) == 1 else ''}p = {points[-1].p:.10g}: {exc}")
             if out is not None:
                 a, t = out
-        if first_anchor is None:   # (a closed branch is seen in the coordinates of the first step)
-            first_anchor, first_z = anchor, a.z
+                before = None
+        if first_anchor is None:   # (a closed branch is seen in the coordinates of the first step, or by its invariant)
+            first_anchor, first_z, first_point = anchor, a.z, a
         if len(points) - 1 >= max_steps:
             return ended("max_steps", f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
         # predictor-corrector, the step halved until a correction succeeds
         failure = ""
-        ds_first, moved_here = ds, False
+        ds_first, moved_here, graze_tried, crossing = ds, False, False, None
         while True:
             z_pred = a.z + ds * t
             try:
@@ -800,17 +1090,29 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                 if np.linalg.norm(b.z - z_pred) > ds:
                     raise _Failure(f"the corrector moved farther than the step from the predictor at p = "
                                    f"{problem.p(b.z):.10g}")
-                if tb @ t < MAX_TURN_COS:
+                if problem.events is not None:
+                    problem.complete(b)
+                # (across a change of structure the tangent is discontinuous: its turn is the kink's, not a jump
+                # to another branch)
+                kinked = problem.events is not None and b.structure != a.structure
+                if tb @ t < MAX_TURN_COS and not kinked:
                     raise _Failure(f"the tangent turned by {math.degrees(math.acos(max(-1.0, tb @ t))):.0f} "
                                    f"degrees in one step at p = {problem.p(b.z):.10g}")
                 if b.z[-1] >= 1.0 > a.z[-1]:     # passed p_end: the last point exactly at p_end
                     theta = (1.0 - a.z[-1]) / (b.z[-1] - a.z[-1])
                     b = _correct(problem, a.z + theta * (b.z - a.z), e_p, 1.0, tol, max_iter)
                     tb = _tangent(b.jac, t)
-                b.multipliers = problem.multipliers(b.z)
+                    problem.complete(b)
+                elif problem.events is None:
+                    problem.complete(b)
                 break
             except _Failure as exc:
                 failure = str(exc)
+                if problem.events is not None and not graze_tried and _grazing_ahead(a, before, t, ds):
+                    graze_tried = True     # (a grazing ahead changes the orbit's events: the step cannot pass it)
+                    crossing = cross(a, t, None, ds)
+                    if crossing is not None:
+                        break
                 ds *= 0.5
                 if ds < ds_min and reanchor is not None and not moved_here:
                     # (the branch would stop here: new coordinates, if the caller has any, and the step again)
@@ -820,17 +1122,59 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                     except _Failure as exc2:
                         out, failure = None, f"{failure}; {exc2}"
                     if out is not None:
-                        (a, t), ds = out, ds_first
+                        (a, t), ds, before = out, ds_first, None
                         continue
                 if ds < ds_min:
                     return ended("failed", f"no correction from p = {points[-1].p:.10g} with steps down to min_step = "
                                            f"{min_step:g}: {failure}")
+        passed = None
+        if crossing is None and problem.events is not None and b.structure != a.structure:
+            # the step went over a grazing (the events changed) without failing: bracketed by the step, not located
+            # (a branch near grazing all along, as the crack's micro-separations, passes dozens; a step that fails
+            # at one locates it)
+            ma, mb = a.margin, b.margin
+            theta = ma / (ma + mb) if math.isfinite(ma) and math.isfinite(mb) and ma + mb > 0 else 0.5
+            zg = a.z + theta * (b.z - a.z)
+            passed = {"kind": "grazing", "value": problem.p(zg), "index": len(points) - 1, "u": problem.u(zg),
+                      "multipliers": None, "accuracy": float(np.linalg.norm(b.z - a.z)) * span,
+                      "detected_by": "events", "anchor": anchor, "structure_before": a.structure,
+                      "structure_after": b.structure, "margin": math.nan, "located": False}
+        if crossing is not None:
+            g, b, _, graze = crossing
+            # the grazing point, then the first point beyond it (its own side: its tangent from the secant)
+            chord = float(np.linalg.norm(g.z - a.z))
+            s += chord * span
+            if chord > 0:
+                found = _special_points(problem, a, t, graze["side_point"], graze["side_tangent"], len(points) - 1,
+                                        tol, max_iter, locate_z, unit_tol)
+                for f in found:
+                    f["anchor"] = anchor
+                bifurcations += found
+                points.append(_branch_point(problem, g, s, tol, unit_tol, anchor))
+                said(points[-1])
+            bifurcations.append({"kind": "grazing", "value": problem.p(g.z), "index": len(points) - (2 if chord else 1),
+                                 "u": problem.u(g.z), "multipliers": g.multipliers,
+                                 "accuracy": graze["accuracy"] * span,
+                                 "detected_by": "events", "anchor": anchor, "structure_before": a.structure,
+                                 "structure_after": b.structure, "margin": g.margin, "located": True})
+            if b.z[-1] >= 1.0 > g.z[-1]:     # passed p_end: the last point exactly at p_end
+                try:
+                    b = problem.complete(_correct(problem, b.z, e_p, 1.0, tol, max_iter))
+                except _Failure as exc:
+                    return ended("failed", f"after the grazing at p = {problem.p(g.z):.10g}: {exc}")
+            a, t = g, _tangent(b.jac, (b.z - g.z) / max(float(np.linalg.norm(b.z - g.z)), 1e-300))
+            tb = t
+            # (the step the side before the grazing took: the side after is as smooth away from it)
+            ds = min(max(float(np.linalg.norm(b.z - g.z)), ds_first, ds_min), ds_max)
         chord = float(np.linalg.norm(b.z - a.z))
         s += chord * span
-        found = _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter, locate_z, unit_tol)
+        found = [] if crossing is not None else _special_points(problem, a, t, b, tb, len(points) - 1, tol, max_iter,
+                                                                locate_z, unit_tol)
         for f in found:
             f["anchor"] = anchor
         bifurcations += found
+        if passed is not None:
+            bifurcations.append(passed)
         points.append(_branch_point(problem, b, s, tol, unit_tol, anchor))
         said(points[-1])
         if b.z[-1] >= 1.0:
@@ -838,15 +1182,14 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         if not lo_z <= b.z[-1] <= hi_z:
             return ended("left", f"the branch folded back and left [{min(p0, p_end) - margin:g}, "
                                  f"{max(p0, p_end) + margin:g}] at p = {points[-1].p:.10g}")
-        if anchor == first_anchor and len(points) > 3 and s > 3 * chord * span:   # (first_z in these coordinates)
-            w = b.z - a.z
-            x = float(np.clip((first_z - a.z) @ w / (w @ w), 0.0, 1.0))
-            if np.linalg.norm(a.z + x * w - first_z) < 0.25 * chord:
-                return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
-                                       "in units of p: a closed branch")
-        if b.iterations <= GROW_ITERATIONS and tb @ t > EASY_TURN_COS:
+        if len(points) > 3 and s > 3 * chord * span and _returned(a, b, first_z if anchor == first_anchor else None,
+                                                                     first_point):
+            return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
+                                   "in units of p: a closed branch")
+        if crossing is None and b.iterations <= GROW_ITERATIONS and (tb @ t > EASY_TURN_COS
+                                                                     or b.structure != a.structure):
             ds = min(ds * GROW, ds_max)
-        a, t = b, tb
+        before, (a, t) = a, (b, tb)
 
 
 def critical_vector(monodromy, target: complex = -1.0) -> tuple[complex, np.ndarray]:

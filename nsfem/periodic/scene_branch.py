@@ -292,7 +292,8 @@ def _branch(scene, key, low, high, value, p0, scene0, sides, multiple, start, tr
                      f"orbit that drifted onto it (at {at})")
         for bif in bifurcations:
             failed = {"switch_failed": bif["switch_failed"]} if "switch_failed" in bif else {}
-            sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end), **failed})
+            sb.bifurcations.append({"kind": bif["kind"], "value": bif["value"], "side": float(end), **failed,
+                                    **{k: bif[k] for k in ("accuracy", "located", "events_per_period") if k in bif}})
         sb.doubled.extend(doubled)
         if stop == "failed":
             say(f"the branch towards {key} = {end:g} ended early: {reason}")
