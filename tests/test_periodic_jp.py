@@ -56,27 +56,6 @@ def test_jp_on_the_impact_oscillator_is_minus_j_u_times_the_closed_form_orbits_d
     assert bound <= 1e-3 * np.abs(expected).max()   # (the check is tighter than the quantity checked)
 
 
-def test_jp_is_formed_once_per_corrector_and_anew_a_step_away():
-    """J_p is reused by a corrector's later iterates (within REUSE of where it was formed, in the scaled unknowns)
-    and formed anew at the next step's predictor (2e-2 of the range away) and after the section moved (other
-    coordinates)."""
-    from nsfem.periodic.branch import REUSE
-
-    span, w = 0.2, 2.6
-    problem = _Problem(_system, _period, 0.0, DP * span, 1)
-    ref = period1_branch(OSC, w, -1)
-    u = np.array([ref.x0, ref.v0])
-    problem.weights = 1.0 / np.abs(u)
-    jp0 = problem.residual(u, w)[2]
-    near = problem.residual(u * (1 + 0.5 * REUSE), w + 0.5 * REUSE * span)[2]
-    assert np.array_equal(near, jp0)
-    far = problem.residual(u, w + 2e-2 * span)[2]
-    assert not np.array_equal(far, jp0)
-    problem._jp = (w, u.copy(), jp0)
-    problem.reanchor(u, w, True)
-    assert problem._jp is None
-
-
 @pytest.fixture(scope="module")
 def crack_problem():
     from nsfem import load_scene
