@@ -236,7 +236,8 @@ def near_grazing(fl: Flow, rel: float = NEAR_GRAZING) -> list[dict]:
         nsamp = int(min(_GRAZE_SAMPLES, max(16, np.ceil((t1 - t0) / phase.max_step(t1 - t0)))))
         ts = np.linspace(t0, t1, nsamp + 1)
         Pq = phase.q_map()
-        G = cs.JN[:, open_].T @ (Pq @ phase.xi(ts)) + cs.jN[open_][:, None]
+        # the open gaps' rows of xi (their products with the mode shapes formed once: row_map), not all of xi
+        G = phase.row_map(cs.JN[:, open_].T @ Pq)(ts) + cs.jN[open_][:, None]
         # the samples that are local minima within rel of each gap's scale (whole arrays: 64 facets x 512 samples)
         scales = np.maximum(span[open_], np.abs(G).max(axis=1))
         inner = G[:, 1:-1]
