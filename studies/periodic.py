@@ -126,7 +126,7 @@ def shooting(system, T, q0, v0, accuracy, lead, scene=None, section="quiet"):
             q, v = res.q[:, -1].copy(), res.v[:, -1].copy()
             if section == "quiet":
                 t0 = quiet_phase([e["t"] for e in res.events + res.impacts if e["t"] >= (lead - 1) * T], T)
-                if t0:
+                if t0:   # (the lead's configurations: every section's, FlowMap.share)
                     to_section = FlowMap(system, 0.0, t0)
                     to_section.share(kept)
                     f = to_section(q, v, jacobian=False)

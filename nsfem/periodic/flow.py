@@ -74,16 +74,17 @@ class FlowMap:
                              "within 7.5e-5 of the clearance)")
         self.system, self.t0, self.period = system, float(t0), float(period)
         self.output_dt = period / 256 if output_dt is None else float(output_dt)
-        self._integrator = Exact(shifted(system, self.t0), zeno=zeno, progress=False, energy_balance=False)
+        # the system itself, run from t0 (Exact.run's t_start): its configurations are those of every section
+        self._integrator = Exact(system, zeno=zeno, progress=False, energy_balance=False)
         self._integrator.keep_configurations = True
 
     def share(self, other) -> bool:
         """Use and add to the configurations ``other`` keeps (a :class:`FlowMap`, an
         :class:`~nsfem.integrate.event_driven.EventDriven` run with ``keep_configurations`` or the store of one,
         :meth:`~nsfem.integrate.event_driven.EventDriven.kept`: a lead transient's) where they are this map's: of the
-        same system at the same forcing phase (the same system object after :func:`shifted`; another t0 makes new
-        ones). The flows are the same, bit for bit: a configuration depends on the system and its mode alone.
-        Returns whether they are shared."""
+        same system (the same object; any section t0: the flows start at t0 on the forcing's clock). The flows are
+        the same, bit for bit: a configuration depends on the system and its mode alone. Returns whether they are
+        shared."""
         store = other._integrator.kept() if isinstance(other, FlowMap) else \
             other if isinstance(other, dict) else other.kept()
         mine = self._integrator
@@ -98,20 +99,14 @@ class FlowMap:
         integ = self._integrator
         integ.trace = [] if jacobian else None
         with single_threaded_blas():
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                res = integ.run(self.period, self.output_dt, q0, v0)
-            res.t = res.t + self.t0
-            t0 = self.t0
-            for e in res.events + res.impacts:   # every time of the flow on the forcing's clock
-                e["t"] += t0
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):   # (every time on the forcing's clock)
+                res = integ.run(self.t0 + self.period, self.output_dt, q0, v0, t_start=self.t0)
             if not jacobian:
-                return Flow(t0, self.period, res.q[:, -1].copy(), res.v[:, -1].copy(), None, res)
+                return Flow(self.t0, self.period, res.q[:, -1].copy(), res.v[:, -1].copy(), None, res)
             trace, integ.trace = integ.trace, None
             Phi, approx, graze = monodromy(trace)
-        for e in approx + graze:
-            e["t"] += t0
         last = trace[-1]
-        return Flow(t0, self.period, last["q"].copy(), last["v"].copy(), Phi, res, approx, graze, trace[0]["after"],
+        return Flow(self.t0, self.period, last["q"].copy(), last["v"].copy(), Phi, res, approx, graze, trace[0]["after"],
                     trace)
 
 
@@ -135,12 +130,12 @@ def monodromy(trace: list) -> tuple[np.ndarray, list, list]:
     approx, graze = [], []
     Phi, exact = impact_jacobian(start["system"], start["q"], start["v"], start["v_plus"], start["impact"])
     if not exact:
-        approx.append({"t": 0.0, "why": "the start's impact outcome is not reproduced by its linear map"})
+        approx.append({"t": start["t"], "why": "the start's impact outcome is not reproduced by its linear map"})
     elif start["impact"] is not None and np.abs(start["v_plus"] - start["v"]).max() > \
             START_SETTLING * np.abs(start["v"]).max():
         # an impact at the start itself: a perturbation off the stop meets it later (a time shift the start has no
         # event row for) and one into it penetrates: the map is one-sided there, its matrix the impact's alone
-        approx.append({"t": 0.0, "why": "an impact at the start (the map is one-sided there)"})
+        approx.append({"t": start["t"], "why": "an impact at the start (the map is one-sided there)"})
     steps = trace[1:]
     for j, step in enumerate(steps):
         phase = step["phase"]
@@ -211,8 +206,8 @@ _GRAZE_SAMPLES = 512
 def near_grazing(fl: Flow, rel: float = NEAR_GRAZING) -> list[dict]:
     """Gaps that come within ``rel`` of their range over the period to zero without closing: per contact and open
     phase, the local minima of g(t) on a grid of the phase's sampling step (:meth:`Phase.max_step`), each refined
-    on the exact motion (bounded Brent to 1e-12 of the phase's length); [{"contact", "t", "gap_min"}], t from the
-    flow's t0. A gap that closes at an event is not grazing; a tangential touch the event search fired on is in
+    on the exact motion (bounded Brent to 1e-12 of the phase's length); [{"contact", "t", "gap_min"}], t on the
+    forcing's clock (as the flow's). A gap that closes at an event is not grazing; a tangential touch the event search fired on is in
     ``fl.grazing``."""
     from scipy.optimize import minimize_scalar
 
@@ -248,5 +243,5 @@ def near_grazing(fl: Flow, rel: float = NEAR_GRAZING) -> list[dict]:
             r = minimize_scalar(gap, bounds=(ts[i - 1], ts[i + 1]), method="bounded",
                                 options={"xatol": 1e-12 * (t1 - t0)})
             if r.fun > 0.0:
-                out.append({"contact": int(k), "t": float(r.x) + fl.t0, "gap_min": float(r.fun)})
+                out.append({"contact": int(k), "t": float(r.x), "gap_min": float(r.fun)})
     return out
