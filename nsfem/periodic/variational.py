@@ -81,7 +81,8 @@ def _has_modal_exponentials(config) -> bool:
 def modal_transition(config):
     """(lam, L, R, P_H) with Phi(s) = Re(L diag(e^{lam s}, phi(lam, s)) R) + [[P_H, 0], [0, 0]] (phi(lam, s) =
     (e^{lam s} - 1) / lam): L = [diag(N, N) V, diag(N, N) V] (2n x 4r), R = [V^-1 diag(N^T, N^T);
-    -V^-1 B Q P_H, 0] (4r x 2n), formed once per configuration from its eigen-decomposition A = V diag(lam) V^-1;
+    -V^-1 B Q P_H, 0] (4r x 2n), formed once per configuration from its eigen-decomposition A = V diag(lam) V^-1
+    (of a conjugate pair one member, its rows of R doubled: :func:`_one_of_each_pair`);
     None where :func:`exponentials` takes Van Loan's expm (rigid coordinates, a decomposition not kept) or the
     configuration has no motion (r = 0)."""
     cache = config.__dict__
@@ -97,9 +98,44 @@ def modal_transition(config):
         R[: 2 * r, :n], R[: 2 * r, n:] = Vi[:, :r] @ N.T, Vi[:, r:] @ N.T
         if config.G.shape[1]:
             R[2 * r:, :n] = -(Vi @ (config.B @ (config.Q @ PH)))
-        parts = (lam, np.hstack([NV, NV]), R, PH)
+        # a conjugate pair's two terms are conjugates: Re of one of them, twice (where the decomposition holds the
+        # pairs exactly: the closed form's classical modes do), half the product
+        keep, twice, partner = _one_of_each_pair(lam, V, Vi)
+        for j, p in partner.items():   # (a pair's rows: the mean of one and the other's conjugate)
+            for off in (0, 2 * r):
+                R[off + j] = 0.5 * (R[off + j] + np.conj(R[off + p]))
+        cols = np.concatenate([keep, keep + 2 * r])
+        weight = np.concatenate([twice, twice])[:, None]
+        parts = (lam[keep], np.hstack([NV[:, keep], NV[:, keep]]), R[cols] * weight, PH)
     cache["_periodic_modal"] = parts
     return parts
+
+
+#: a pair's left vectors count as conjugates when they differ by at most this fraction of their size (V^-1 from an
+#: inverse holds them to cond(V) eps: 3e-13 on the crack)
+PAIR_TOL = 1e-9
+
+
+def _one_of_each_pair(lam: np.ndarray, V: np.ndarray, Vi: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(indices, weights, partners): each real eigenvalue (weight 1) and the upper member of each conjugate pair
+    (weight 2) whose partner's eigenvalue and right vector are its exact conjugates and whose left vector is its
+    conjugate to PAIR_TOL (partners: upper -> lower index); every index, weight 1, otherwise."""
+    every = (np.arange(lam.size), np.ones(lam.size), {})
+    partner = {}
+    for j in np.flatnonzero(lam.imag > 0):
+        hit = np.flatnonzero(lam == np.conj(lam[j]))
+        if hit.size != 1:
+            return every
+        p = int(hit[0])
+        if not np.array_equal(V[:, p], np.conj(V[:, j])) or \
+                np.abs(Vi[p] - np.conj(Vi[j])).max() > PAIR_TOL * np.abs(Vi[j]).max():
+            return every
+        partner[int(j)] = p
+    real = np.flatnonzero(lam.imag == 0)
+    if len(set(partner.values())) != len(partner) or 2 * len(partner) + real.size != lam.size:
+        return every
+    keep = np.array(sorted(set(real.tolist()) | set(partner)), dtype=int)
+    return keep, np.where(lam[keep].imag > 0, 2.0, 1.0), partner
 
 
 def _modal_exponentials(lam: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
