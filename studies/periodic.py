@@ -158,6 +158,16 @@ def main(argv=None) -> dict:
     ap.add_argument("--scenes", nargs="*", default=list(SCENES), choices=list(SCENES), help="scenes to run")
     ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "periodic"), help="output folder")
     args = ap.parse_args(argv)
+    # every option checked before any flow (one line naming it, exit 2)
+    for accuracy in args.accuracy:
+        if not (math.isfinite(accuracy) and 0.0 < accuracy < 0.1):
+            ap.error(f"--accuracy must lie in (0, 0.1) (the shooting's tolerance is a tenth of it), got {accuracy}")
+    if args.lead < 0:
+        ap.error(f"--lead must be >= 0 (transient periods before the shooting), got {args.lead}")
+    if args.repeat < 1:
+        ap.error(f"--repeat must be >= 1, got {args.repeat}")
+    if args.max_periods < 1:
+        ap.error(f"--max-periods must be >= 1, got {args.max_periods}")
     if args.quick:
         args.accuracy, args.repeat, args.max_periods = [1e-4, 1e-6], 1, 400
     global CLOCK

@@ -4668,3 +4668,22 @@ def test_issue36_review_delamination_study_refuses_every_bad_beta(beta, capsys):
     if math.isfinite(beta) and beta > 0:
         return
     assert "--beta" in _delamination_refusal(["--touching", "--beta", repr(beta)], capsys)
+
+
+# --- issue 36: crack's orbit faster (studies/periodic.py's options) ---
+@pytest.mark.parametrize("argv", [["--accuracy", "nan"], ["--accuracy", "0"], ["--accuracy", "1e-4", "0.5"],
+                                  ["--accuracy", "inf"], ["--lead", "-1"], ["--repeat", "0"], ["--max-periods", "0"],
+                                  ["--section", "middle"], ["--scenes", "nope"]])
+def test_issue36_periodic_study_refuses_bad_options(argv, capsys):
+    # (before: nan/0/0.5 ran the study into periodic_orbit's tol refusal or a traceback after the reference orbit,
+    # --repeat 0 ended in min() of nothing, --lead -1 ran no lead silently)
+    assert argv[0] in _study_refusal("periodic", argv, capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(accuracy=st.floats(allow_nan=True, allow_infinity=True))
+def test_issue36_periodic_study_refuses_every_bad_accuracy(accuracy, capsys):
+    """Property: an --accuracy that is not a finite number in (0, 0.1) is refused naming --accuracy."""
+    if math.isfinite(accuracy) and 0.0 < accuracy < 0.1:
+        return
+    assert "--accuracy" in _study_refusal("periodic", ["--accuracy", repr(accuracy)], capsys)

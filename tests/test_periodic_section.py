@@ -187,3 +187,26 @@ def test_crack_orbit_at_the_quiet_section_is_the_orbit_at_t0():
     assert max(np.abs(back.q - at0.q0).max(), np.abs(back.v - at0.v0).max() / w) <= 1e-7 * size
     assert np.abs(np.sort_complex(quiet.multipliers[:6]) - np.sort_complex(at0.multipliers[:6])).max() <= 1e-7
     assert START_SETTLING < 1e-9   # (a real impact's velocity change is far above it)
+
+
+def test_study_compares_the_shooting_with_the_reference_at_its_section():
+    """studies/periodic.py's shooting (3-period lead, quiet section) against its reference orbit at t = 0: the
+    distance is taken at one phase (the reference carried to the shooting's section by ``at_phase``), within the
+    accuracy asked; taken across phases (the section's state against t = 0's) it would be O(1), which the
+    study's earlier comparison did whenever a section moved."""
+    import sys
+    from pathlib import Path
+
+    studies = str(Path(__file__).resolve().parents[1] / "studies")
+    if studies not in sys.path:
+        sys.path.insert(0, studies)
+    import periodic as study
+
+    system, T, q0, v0 = _crack()
+    _, orbit = study.shooting(system, T, q0, v0, 1e-4, 3, None, "quiet")
+    assert orbit.converged and orbit.t0 > 0.0
+    ref = periodic_orbit(system, T, orbit.q0, orbit.v0, orbit.t0, tol=1e-12)
+    w = 2 * math.pi / T
+    assert study.distance(orbit.q0, orbit.v0, study.at_phase(system, T, ref, orbit.t0), w) <= 1e-4
+    at0 = study.at_phase(system, T, ref, 0.0)
+    assert study.distance(orbit.q0, orbit.v0, at0, w) > 0.1   # (another phase: not the same state)
