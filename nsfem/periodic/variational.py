@@ -101,9 +101,10 @@ def modal_transition(config):
         # a conjugate pair's two terms are conjugates: Re of one of them, twice (where the decomposition holds the
         # pairs exactly: the closed form's classical modes do), half the product
         keep, twice, partner = _one_of_each_pair(lam, V, Vi)
-        for j, p in partner.items():   # (a pair's rows: the mean of one and the other's conjugate)
+        if partner:   # (a pair's rows: the mean of one and the other's conjugate)
+            up, low = np.array(list(partner)), np.array(list(partner.values()))
             for off in (0, 2 * r):
-                R[off + j] = 0.5 * (R[off + j] + np.conj(R[off + p]))
+                R[off + up] = 0.5 * (R[off + up] + np.conj(R[off + low]))
         cols = np.concatenate([keep, keep + 2 * r])
         weight = np.concatenate([twice, twice])[:, None]
         parts = (lam[keep], np.hstack([NV[:, keep], NV[:, keep]]), R[cols] * weight, PH)
@@ -121,21 +122,19 @@ def _one_of_each_pair(lam: np.ndarray, V: np.ndarray, Vi: np.ndarray) -> tuple[n
     (weight 2) whose partner's eigenvalue and right vector are its exact conjugates and whose left vector is its
     conjugate to PAIR_TOL (partners: upper -> lower index); every index, weight 1, otherwise."""
     every = (np.arange(lam.size), np.ones(lam.size), {})
-    partner = {}
-    for j in np.flatnonzero(lam.imag > 0):
-        hit = np.flatnonzero(lam == np.conj(lam[j]))
-        if hit.size != 1:
-            return every
-        p = int(hit[0])
-        if not np.array_equal(V[:, p], np.conj(V[:, j])) or \
-                np.abs(Vi[p] - np.conj(Vi[j])).max() > PAIR_TOL * np.abs(Vi[j]).max():
-            return every
-        partner[int(j)] = p
-    real = np.flatnonzero(lam.imag == 0)
-    if len(set(partner.values())) != len(partner) or 2 * len(partner) + real.size != lam.size:
+    upper, real = np.flatnonzero(lam.imag > 0), np.flatnonzero(lam.imag == 0)
+    match = lam[upper][:, None] == np.conj(lam)[None, :]   # (upper x all) exact conjugates
+    if np.any(match.sum(axis=1) != 1):
         return every
-    keep = np.array(sorted(set(real.tolist()) | set(partner)), dtype=int)
-    return keep, np.where(lam[keep].imag > 0, 2.0, 1.0), partner
+    lower = np.argmax(match, axis=1)
+    if len(set(lower.tolist())) != lower.size or 2 * upper.size + real.size != lam.size:
+        return every
+    if not np.array_equal(V[:, lower], np.conj(V[:, upper])) or np.any(
+            np.abs(Vi[lower] - np.conj(Vi[upper])).max(axis=1, initial=0.0)
+            > PAIR_TOL * np.abs(Vi[upper]).max(axis=1, initial=0.0)):
+        return every
+    keep = np.sort(np.concatenate([real, upper]))
+    return keep, np.where(lam[keep].imag > 0, 2.0, 1.0), dict(zip(upper.tolist(), lower.tolist()))
 
 
 def _modal_exponentials(lam: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
