@@ -210,3 +210,32 @@ def test_study_compares_the_shooting_with_the_reference_at_its_section():
     assert study.distance(orbit.q0, orbit.v0, study.at_phase(system, T, ref, orbit.t0), w) <= 1e-4
     at0 = study.at_phase(system, T, ref, 0.0)
     assert study.distance(orbit.q0, orbit.v0, at0, w) > 0.1   # (another phase: not the same state)
+
+
+def test_transition_without_pairs_is_the_matrix_exponential(monkeypatch):
+    """Where a decomposition's conjugate pairs are not exact (a repeated eigenvalue: two partners; left vectors off
+    by more than PAIR_TOL) every term is kept: the same transition (against expm as above); the pair finder falls
+    back on such input."""
+    from nsfem.periodic import variational
+
+    lam = np.array([-1 + 2j, -1 - 2j, -1 + 2j, -1 - 2j, -3.0 + 0j])
+    V = np.eye(5, dtype=complex)
+    keep, weights, partner = variational._one_of_each_pair(lam, V, V)
+    assert keep.tolist() == [0, 1, 2, 3, 4] and np.all(weights == 1.0) and not partner
+    lam2 = np.array([-1 + 2j, -1 - 2j, -3.0 + 0j])
+    V2 = np.array([[1, 1, 0], [1j, -1j, 0], [0, 0, 1]], dtype=complex)
+    Vi2 = np.linalg.inv(V2)
+    keep, weights, partner = variational._one_of_each_pair(lam2, V2, Vi2)
+    assert keep.tolist() == [0, 2] and weights.tolist() == [2.0, 1.0] and partner == {0: 1}
+    Vi2[1, 0] += 1e-6   # a left vector off its partner's conjugate: no pairs
+    assert not variational._one_of_each_pair(lam2, V2, Vi2)[2]
+    system, T, _, _ = _crack()
+    every = lambda lam, V, Vi: (np.arange(lam.size), np.ones(lam.size), {})  # noqa: E731
+    monkeypatch.setattr(variational, "_one_of_each_pair", every)
+    config = Configuration(system, Mode(closed=(1,)))
+    assert modal_transition(config)[0].size == config.eig[0].size
+    cond = np.linalg.cond(config.eig[1])
+    for s in (0.1 * T, T):
+        ref = _van_loan(config, s)
+        tol = 50 * (cond + np.abs(config.A).max() * s) * EPS * max(1.0, np.abs(ref).max())
+        assert np.abs(phase_transition(config, s) - ref).max() <= tol
