@@ -106,8 +106,8 @@ class FlowMap:
             trace, integ.trace = integ.trace, None
             Phi, approx, graze = monodromy(trace)
         last = trace[-1]
-        return Flow(self.t0, self.period, last["q"].copy(), last["v"].copy(), Phi, res, approx, graze, trace[0]["after"],
-                    trace)
+        return Flow(self.t0, self.period, last["q"].copy(), last["v"].copy(), Phi, res, approx, graze,
+                    trace[0]["after"], trace)
 
 
 def flow(system, t0: float, q0, v0, period: float, *, jacobian: bool = True, output_dt: float | None = None,
@@ -207,8 +207,8 @@ def near_grazing(fl: Flow, rel: float = NEAR_GRAZING) -> list[dict]:
     """Gaps that come within ``rel`` of their range over the period to zero without closing: per contact and open
     phase, the local minima of g(t) on a grid of the phase's sampling step (:meth:`Phase.max_step`), each refined
     on the exact motion (bounded Brent to 1e-12 of the phase's length); [{"contact", "t", "gap_min"}], t on the
-    forcing's clock (as the flow's). A gap that closes at an event is not grazing; a tangential touch the event search fired on is in
-    ``fl.grazing``."""
+    forcing's clock (as the flow's). A gap that closes at an event is not grazing; a tangential touch the event
+    search fired on is in ``fl.grazing``."""
     from scipy.optimize import minimize_scalar
 
     if fl.trace is None:
