@@ -4730,3 +4730,22 @@ def test_issue36_hostile_events_reproductions():
         assert branch.stop == "failed" and "\n" not in branch.reason and len(branch.points) == 1
     # a margin of inf (nothing grazes) is allowed: the branch runs to its end
     assert continue_branch(_kink36, [0.0], 0.0, 1.0, events=hooks["events"][5]).stop == "end"
+
+
+# --- issue 36: crack's orbit faster (studies/periodic.py's options) ---
+@pytest.mark.parametrize("argv", [["--accuracy", "nan"], ["--accuracy", "0"], ["--accuracy", "1e-4", "0.5"],
+                                  ["--accuracy", "inf"], ["--lead", "-1"], ["--repeat", "0"], ["--max-periods", "0"],
+                                  ["--section", "middle"], ["--scenes", "nope"]])
+def test_issue36_periodic_study_refuses_bad_options(argv, capsys):
+    # (before: nan/0/0.5 ran the study into periodic_orbit's tol refusal or a traceback after the reference orbit,
+    # --repeat 0 ended in min() of nothing, --lead -1 ran no lead silently)
+    assert argv[0] in _study_refusal("periodic", argv, capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(accuracy=st.floats(allow_nan=True, allow_infinity=True))
+def test_issue36_periodic_study_refuses_every_bad_accuracy(accuracy, capsys):
+    """Property: an --accuracy that is not a finite number in (0, 0.1) is refused naming --accuracy."""
+    if math.isfinite(accuracy) and 0.0 < accuracy < 0.1:
+        return
+    assert "--accuracy" in _study_refusal("periodic", ["--accuracy", repr(accuracy)], capsys)

@@ -134,16 +134,26 @@ def test_shared_configurations_give_the_same_orbit(route):
     assert math.isfinite(shared.residual)
 
 
-def test_share_refuses_another_forcing_phase():
-    """A FlowMap at another t0 of a harmonically forced system has other configurations (the load's phase is in
-    them): it does not take a lead's at t0 = 0."""
+def test_share_serves_every_section():
+    """A FlowMap runs its system from its section t0 on the forcing's clock (``Exact.run(t_start=t0)``), so a lead's
+    configurations at t0 = 0 are those of every section (they depend on the system and mode alone): a map at
+    t0 = T/4 takes them and its flow is, bit for bit, that of a map that built its own (states, monodromy, events),
+    building none of the lead's again; a map of another system is refused."""
     scene, system = _system("crack")
     T = 1.0 / scene.rotation.speed_hz
     lead = FlowMap(system, 0.0, T)
-    lead(None, None, jacobian=False)
-    assert system.harmonic
-    assert not FlowMap(system, 0.25 * T, T).share(lead)
-    assert FlowMap(system, 0.0, T).share(lead)
+    first = lead(None, None, jacobian=False)
+    assert system.harmonic and first.result.events
+    kept = dict(lead._integrator.kept()["modes"])
+    shared, alone = FlowMap(system, 0.25 * T, T), FlowMap(system, 0.25 * T, T)
+    assert shared.share(lead)
+    a, b = shared(first.q, first.v), alone(first.q, first.v)
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.v, b.v) and np.array_equal(a.monodromy, b.monodromy)
+    assert [e["t"] for e in a.result.events] == [e["t"] for e in b.result.events]
+    assert a.result.t[0] == 0.25 * T and a.result.t[-1] == 0.25 * T + T   # (times on the forcing's clock)
+    assert all(lead._integrator.kept()["modes"][k] is c for k, c in kept.items())
+    other = ContactSystem.from_arrays(M=[[1.0]], Q=[[1.0]])
+    assert not FlowMap(other, 0.0, 1.0).share(lead)
 
 
 def test_a_store_of_another_system_is_refused():

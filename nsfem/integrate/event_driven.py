@@ -179,7 +179,14 @@ class EventDriven(Integrator):
         """(Event or None, xi(t) callable valid on [t0, t_event or t1])."""
         raise NotImplementedError
 
-    def run(self, t_end: float, output_dt: float, q0=None, v0=None) -> Result:
+    def run(self, t_end: float, output_dt: float, q0=None, v0=None, *, t_start: float = 0.0) -> Result:
+        """The motion from (q0, q0') at ``t_start`` [s] (the state's time on the forcing's clock; default 0) to
+        ``t_end``, sampled every ``output_dt`` from ``t_start``: every time of the run (outputs, events) on that
+        clock. A start other than 0 runs the same system (its configurations kept where ``keep_configurations``)
+        at another forcing phase: a shooting's section (:class:`nsfem.periodic.flow.FlowMap`)."""
+        if not (isinstance(t_start, (int, float)) and math.isfinite(t_start) and t_start < t_end):
+            raise NsfemError(f"t_start must be a finite time before t_end = {t_end!r}, got {t_start!r}")
+        t_start = float(t_start)
         self.system = self._polygon
         self._rings = round_rings(self.system.contacts, self.system.info.get("round_rings", ())) \
             if self.round_rings else ()
@@ -188,7 +195,11 @@ class EventDriven(Integrator):
         sysm = self.system
         cs = sysm.contacts
         n, m = sysm.n, cs.m
-        t_out = output_times(t_end, output_dt)
+        if t_start:   # the grid of a run from 0 over t_end - t_start, moved to start at t_start
+            t_out = t_start + output_times(t_end - t_start, output_dt)
+            t_out[-1] = t_end
+        else:
+            t_out = output_times(t_end, output_dt)
         t_list = t_out.tolist()
         close_rows: dict = {}   # the gap rows of each list of row kinds met (_close_rows)
         q, v = initial_state(sysm, q0, v0)
@@ -213,17 +224,17 @@ class EventDriven(Integrator):
         progress = Progress(t_end, self.progress)
         self._report = lambda t_now: progress(t_now, len(events))  # noqa: E731 - long phases report too
         completed, failure = True, None
-        t = 0.0
+        t = t_start
         closed_time, covered = 0.0, 0.0   # time with at least one contact closed, of the time integrated
         guard = EventGuard(cs, t_end, self.max_events, self.zeno, [r.label for r in rings])
         ring_load = (lambda v_, q_: generalized_force(rings, q_, v_)) if rings else None
         phase, phase_integrated = None, False
         try:
             v_start = v
-            mode, v, imp = resolve(sysm, Mf, 0.0, q, v, Mode(), memory,
+            mode, v, imp = resolve(sysm, Mf, t, q, v, Mode(), memory,
                                    extra_load=None if ring_load is None else lambda v_, q_=q: ring_load(v_, q_))
             mode = with_rings(mode, *initial_rings(rings, q, v))
-            mode = hold_degenerate(mode, lambda md, q_=q, v_=v: self._phase(md, 0.0, q_, v_), memory, cs, v)
+            mode = hold_degenerate(mode, lambda md, q_=q, v_=v: self._phase(md, t_start, q_, v_), memory, cs, v)
             if self._rings:
                 conform(self._rings, mode.closed, q)
             if imp:
@@ -232,7 +243,7 @@ class EventDriven(Integrator):
                     _impact_energy(energy, imp)
             trace = self.trace
             if trace is not None:
-                trace.append({"start": True, "q": q, "v": v_start, "v_plus": v, "impact": imp, "after": mode,
+                trace.append({"start": True, "t": t, "q": q, "v": v_start, "v_plus": v, "impact": imp, "after": mode,
                               "system": sysm})
             while True:
                 phase = self._phase(mode, t, q, v)
@@ -275,7 +286,7 @@ class EventDriven(Integrator):
                 phase_integrated = True
                 if mode.closed or mode.ring:
                     closed_time += t_next - t
-                covered = t_next
+                covered = t_next - t_start
                 q, v = q_end, v_end
                 if trace is not None:
                     trace.append({"phase": phase, "rows": rows, "mode": mode, "t0": t, "t1": t_next, "q": q, "v": v,
@@ -378,9 +389,9 @@ class EventDriven(Integrator):
                     if book:
                         e_max = max(e_max, self._energy(phase, mode, phase.xi, phase.t0, float(t_out[sel[-1]]), K,
                                                         P, D, energy))
-                    covered = float(t_out[sel[-1]])
+                    covered = float(t_out[sel[-1]]) - t_start
                     if mode.closed or mode.ring:
-                        closed_time += covered - phase.t0
+                        closed_time += covered + t_start - phase.t0
         finally:
             progress.close()
         if book:
@@ -915,10 +926,10 @@ class RungeKutta(EventDriven):
         #: (config, t, H, tol, tol_d, thr, armed); the next phase, if it is that restart, continues them
         self._carry = None
 
-    def run(self, t_end, output_dt, q0=None, v0=None):
+    def run(self, t_end, output_dt, q0=None, v0=None, *, t_start: float = 0.0):
         self._carry = None
         self.__dict__.pop("_schedule_rate", None)
-        return super().run(t_end, output_dt, q0, v0)
+        return super().run(t_end, output_dt, q0, v0, t_start=t_start)
 
     def _advance(self, phase, rows, t0, t1):
         from scipy.integrate import solve_ivp  # here: scipy.integrate costs 0.1 s of every command's start

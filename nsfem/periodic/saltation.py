@@ -61,10 +61,20 @@ def row_coefficients(config, mode) -> np.ndarray:
 
 def row_gradient(config, mode, i: int) -> np.ndarray | None:
     """grad h of event row i with respect to (q, q') at fixed time (2n,); None for rows that are not the
-    configuration's own (a round ring's wedge)."""
+    configuration's own (a round ring's wedge). Formed once per configuration, mode and row (read-only)."""
     R = row_coefficients(config, mode)
     if i >= R.shape[0]:
         return None
+    cache = config.__dict__.setdefault("_periodic_gradients", {})
+    grad = cache.get((mode, i))
+    if grad is None:
+        grad = cache[(mode, i)] = _row_gradient(config, R, i)
+        grad.flags.writeable = False
+    return grad
+
+
+def _row_gradient(config, R: np.ndarray, i: int) -> np.ndarray:
+    """:func:`row_gradient` of row i of the coefficients R."""
     n, nf, r = config.system.n, config.W.shape[1], config.r
     Rq, Rv, Rf = R[i, :n], R[i, n:2 * n], R[i, 2 * n:2 * n + nf]
     gq, gv = Rq.copy(), Rv.copy()
@@ -155,12 +165,12 @@ def impact_jacobian(system, q: np.ndarray, v_minus: np.ndarray, v_plus: np.ndarr
         Gv, Gq, Rm = np.array(rows_v), np.array(rows_q), np.array(rhs_v)
         Y = np.linalg.solve(system.M, W)
         A = Gv @ Y
-        try:
-            lam_v = np.linalg.solve(A, Rm - Gv)
-            lam_q = np.linalg.solve(A, -Gq)
-            lam0 = np.linalg.solve(A, Rm @ v_minus - Gv @ v_minus - Gq @ q - np.array(const))
+        try:   # (one factorization for the three right-hand sides)
+            lam = np.linalg.solve(A, np.hstack([Rm - Gv, -Gq, (Rm @ v_minus - Gv @ v_minus - Gq @ q
+                                                                - np.array(const))[:, None]]))
         except np.linalg.LinAlgError:
             return D, False
+        lam_v, lam_q, lam0 = lam[:, :n], lam[:, n:2 * n], lam[:, 2 * n]
         D[n:, :n] = Y @ lam_q
         D[n:, n:] += Y @ lam_v
         predicted += Y @ lam0

@@ -179,6 +179,7 @@ def _shoot(system, period_s: float, q: np.ndarray, v: np.ndarray, t0: float, tol
         moved = to_section(q, v, jacobian=False)   # (its end state alone)
         q, v, t0 = moved.q, moved.v, t0 + shift
         phi = FlowMap(system, t0, period_s, output_dt=output_dt)
+        phi.share(to_section)   # (a map runs its system from its section: the configurations are every section's)
         probe = None
 
     def run(q_, v_, fl: Flow | None = None) -> tuple[Flow, float, np.ndarray]:
