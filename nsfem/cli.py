@@ -115,6 +115,9 @@ def parser() -> argparse.ArgumentParser:
                    "from the scene's initial state)")
     p.add_argument("--transient", type=int, metavar="N", help="orbit periods integrated with the exact method "
                    "before the shooting (default 10; 0: shoot from the scene's initial state; not with --start)")
+    p.add_argument("--section", choices=("quiet", "start"), help="where the shooting's Poincare section lies after "
+                   "the transient: quiet (default) the phase of its last period farthest from events (the map is "
+                   "smooth and better conditioned there), start its end (t0 = 0); not with --start or --transient 0")
     p.add_argument("--tol", type=float, default=1e-9, help="the shooting's tolerance on |phi_T(x0) - x0| / |x0| "
                    "(default 1e-9, from 1e-14 to 0.001)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: <output.dir>/periodic): periodic.json, "
@@ -1094,6 +1097,11 @@ def cmd_periodic(args) -> int:
     if args.start is not None and args.transient:
         raise NsfemError("--transient with --start: the saved state is the shooting's starting guess already; "
                          "give one of them")
+    if args.section is not None and (args.start is not None or args.transient == 0 or args.continuation is not None):
+        why = ("the saved state's time is the section" if args.start is not None else
+               "there is no transient to choose it from" if args.transient == 0 else
+               "a branch chooses and moves its sections itself")
+        raise NsfemError(f"--section with {'--start' if args.start is not None else '--transient 0' if args.transient == 0 else '--continue'}: {why}")
     continuation = parse_continuation(args.continuation) if args.continuation is not None else None
     scene = _scene(args, "periodic")
     check_scene(scene)
@@ -1179,7 +1187,8 @@ def _periodic(args, scene, out_dir) -> int:
         warnings.append(text)
         print(printable(f"nsfem periodic: warning: {text}"), file=sys.stderr)
 
-    so = orbit_of_scene(scene, args.multiple, args.start, args.transient, args.tol, warn=warn, progress=True)
+    so = orbit_of_scene(scene, args.multiple, args.start, args.transient, args.tol, warn=warn, progress=True,
+                        section=args.section or "quiet")
     for note in so.notes:
         print(printable(f"nsfem periodic: note: {note}"), file=sys.stderr)
     o = so.orbit

@@ -113,7 +113,7 @@ def test_the_crack_orbit_returns_to_itself_after_one_period():
     from nsfem.integrate import integrate
 
     scene = load_scene("crack")
-    so = orbit_of_scene(scene)
+    so = orbit_of_scene(scene, section="start")
     o = so.orbit
     assert o.converged and o.residual <= 1e-9, o.residual
     assert o.t0 == 0.0   # from a transient of whole periods
@@ -130,6 +130,50 @@ def test_the_crack_orbit_returns_to_itself_after_one_period():
     assert all(0.0 <= e["t_s"] <= o.period_s for e in so.contact_sequence)
     for k, s in enumerate(scene.sensors):
         assert so.amplitudes[s.name] == pytest.approx(half_peak_to_peak(so.signals[:, k]), rel=1e-15)
+
+
+def test_the_crack_orbit_at_its_quiet_section_is_the_orbit_at_the_transients_end():
+    """By default the shooting's section lies at the transient's last period's quiet phase (0 < t0 < T, no event
+    within a quarter of the period's longest event-free stretch of it); it is the same orbit as at t0 = 0: the
+    orbit shot at t0 = 0 flowed to t0 by an independent exact run is the quiet section's state, the amplitudes
+    (section independent) and multipliers (invariant under moving the section) agree."""
+    from nsfem.integrate import integrate
+
+    scene = load_scene("crack")
+    quiet, start = orbit_of_scene(scene), orbit_of_scene(scene, section="start")
+    oq, os_ = quiet.orbit, start.orbit
+    assert oq.converged and os_.converged
+    assert 0.0 < oq.t0 < oq.period_s
+    res = integrate(start.system, oq.t0, "exact", oq.t0, os_.q0, os_.v0)
+    w = 2 * math.pi / oq.period_s
+    x1 = np.concatenate([res.q[:, -1], res.v[:, -1] / w])
+    xq = np.concatenate([oq.q0, oq.v0 / w])
+    # both orbits converged to 1e-9 of their size; the independent run repeats event times to ~1e-12 s
+    assert np.abs(x1 - xq).max() <= 1e-8 * np.abs(xq).max()
+    # the amplitudes are half the peak-to-peak of N samples a period, at other phases at each section: a peak
+    # between samples is missed by up to (2 pi / N)^2 / 8 of it (the 2x harmonic's: 4x that) -- the sampling's
+    # error, far above the orbits' 1e-9
+    n = len(start.t) - 1
+    for name, a in start.amplitudes.items():
+        assert quiet.amplitudes[name] == pytest.approx(a, rel=4 * (2 * math.pi / n) ** 2 / 8)
+    mq = np.sort(np.abs(oq.multipliers))[::-1]
+    ms = np.sort(np.abs(os_.multipliers))[::-1]
+    # conjugate matrices: the same spectrum to the orbits' 1e-9 and the monodromy's round-off
+    assert np.abs(mq[:6] - ms[:6]).max() <= 1e-6
+    times = [e["t_s"] for e in quiet.contact_sequence]
+    assert all(min(t, oq.period_s - t) > 0.0 for t in times)
+
+
+@pytest.mark.parametrize("extra, word", [(["--start", "x.npz"], "--start"), (["--transient", "0"], "--transient 0"),
+                                         (["--continue", "rotation.speed_hz=12:13"], "--continue")])
+def test_section_is_refused_where_there_is_no_transient_to_choose_it_from(tmp_path, extra, word):
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "nsfem", "periodic", "crack", "--section", "quiet", *extra, "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2 and f"--section with {word}" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
 
 
 def test_the_crack_transient_ends_on_the_orbit():
@@ -355,7 +399,7 @@ def test_event_times_are_counted_from_the_section(tmp_path):
     np.savez(tmp_path / "orbit.npz", q0=res.q[:, k], v0=res.v[:, k], t0=np.array(so.t[k]))
     moved = orbit_of_scene(scene, start=tmp_path / "orbit.npz")
     assert moved.orbit.converged and moved.orbit.t0 == pytest.approx(so.t[k], abs=1e-15)
-    expected = sorted((e["t_s"] - so.t[k]) % T for e in so.contact_sequence)
+    expected = sorted((so.orbit.t0 + e["t_s"] - so.t[k]) % T for e in so.contact_sequence)   # so.t: the clock's
     got = sorted(e["t_s"] for e in moved.contact_sequence)
     assert all(0.0 <= t <= T for t in got)
     assert np.abs(np.array(got) - np.array(expected)).max() <= 1e-9

@@ -65,7 +65,7 @@ def crack_problem():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scene = load_scene("crack")
-        so = orbit_of_scene(scene, 1, None, None, 1e-9)
+        so = orbit_of_scene(scene, 1, None, None, 1e-9, section="start")   # (t0 = 0: the shootings at p +- d keep it)
     family = _Family(scene, "rotation.speed_hz", so.system, lambda extra: scene)
     return family, so
 
