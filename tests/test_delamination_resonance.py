@@ -230,3 +230,59 @@ def test_unstable_orbit_is_left_at_its_multiplier():
     # both (the measured agreement is 1e-5) and tells 1.224 from the next modulus (0.990) by far
     assert rate == pytest.approx(abs(mu1), abs=1e-3)
     assert signs == [(-1.0) ** (k + 1) * np.sign(np.dot(dx, dx)) for k in range(N)]
+
+
+# --- the estimate of the bend (studies/delamination_variants.py) -----------------------------------------------------
+
+def _variants():
+    import importlib
+    import sys
+    from pathlib import Path
+
+    studies = str(Path(__file__).resolve().parents[1] / "studies")
+    if studies not in sys.path:
+        sys.path.insert(0, studies)
+    return importlib.import_module("delamination_variants")
+
+
+def test_bend_share_is_the_first_harmonic_of_a_one_sided_spring():
+    """bend_share(a) is the first Fourier coefficient of a unit one-sided spring max(x - 1, 0) under x = a cos(phi),
+    divided by a: checked against the integral by the trapezoid rule (an independent computation), and its limits
+    (0 below the threshold, 1/2 for a -> infinity: the spring then acts half of each period)."""
+    V = _variants()
+    a = np.array([0.3, 1.0, 1.01, 1.43, 2.0, 6.5, 50.0])
+    phi = np.linspace(-np.pi, np.pi, 200001)
+    x = a[:, None] * np.cos(phi)
+    f = np.maximum(x - 1.0, 0.0) * np.cos(phi)
+    quad = np.trapezoid(f, phi, axis=1) / np.pi / a
+    # the integrand is continuous with a kink where x = 1: the trapezoid rule's error there is O(h^2) = 1e-9 of the
+    # coefficient (h = 3e-5); 1e-8 covers it
+    assert np.allclose(V.bend_share(a), quad, rtol=0, atol=1e-8)
+    assert V.bend_share(1.0) == 0.0 and V.bend_share(0.5) == 0.0
+    assert V.bend_share(1e12) == pytest.approx(0.5, abs=1e-11)   # 1/2 - (2/pi)/a + ...: 6e-13 left at a = 1e12
+
+
+def test_half_width_recovers_a_single_mode_resonance():
+    """half_width inverts A(f) = P w / sqrt(f^2 + w^2) (f from the peak) from two of its points: exactly, up to
+    round-off (the formula is algebraic; the subtraction f2^2 - r f1^2 loses ~10 digits' worth at most)."""
+    V = _variants()
+    P, w = 11.9e-3, 0.0149
+    A = lambda f: P * w / np.sqrt(f**2 + w**2)   # noqa: E731
+    for f1, f2 in ((0.023, 0.053), (0.005, 0.2), (0.1, 0.11)):
+        ww, pp = V.half_width(f1, A(f1), f2, A(f2))
+        assert ww == pytest.approx(w, rel=1e-9) and pp == pytest.approx(P, rel=1e-9)
+
+
+def test_bonded_resonance_is_the_bonded_shafts_model():
+    """The closed form the study uses for the stuck layers (half the Euler-Bernoulli pinned-pinned frequency of the
+    full section) agrees with the model: the delaminated shaft's y bending (the delamination splits z only) at rest,
+    from nsfem's modes, is that frequency; the Hermite elements (40) make its error ~1e-9 relative, the
+    Craig-Bampton reduction (16 modes) keeps the first mode to ~1e-9 as well: 1e-6 is a wide margin that still
+    catches a factor in the closed form."""
+    from nsfem.analysis.modes import natural_frequencies
+
+    V = _variants()
+    scene = load_scene("default", [])
+    model = build_model(scene)
+    f = natural_frequencies(model, "open", 2, scene_reduction(scene.reduction, model)).frequencies_hz
+    assert 2.0 * V.bonded_speed() == pytest.approx(f[1], rel=1e-6)

@@ -4668,3 +4668,21 @@ def test_issue36_review_delamination_study_refuses_every_bad_beta(beta, capsys):
     if math.isfinite(beta) and beta > 0:
         return
     assert "--beta" in _delamination_refusal(["--touching", "--beta", repr(beta)], capsys)
+
+
+# --- issue 36: delamination variants study (studies/delamination_variants.py's options) ---
+@pytest.mark.parametrize("argv", [["--mu", "nan"], ["--mu", "-0.1"], ["--beta", "0"], ["--beta", "inf"],
+                                  ["--step", "-1"], ["--fine", "nan"], ["--fine", "0.01"], ["--touch-speed", "0"],
+                                  ["--speeds", "22.9:22.7:5"], ["--speeds", "a:b:c"], ["--max-iter", "0"],
+                                  ["--periods", "0"], ["--settle", "-1"], ["--start", "/nonexistent/orbit.npz"]])
+def test_issue36_delamination_variants_study_refuses_bad_options(argv, capsys):
+    assert argv[0].lstrip("-").split("-")[0] in _study_refusal("delamination_variants", argv, capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(mu=st.floats(allow_nan=True, allow_infinity=True))
+def test_issue36_delamination_variants_study_refuses_every_bad_friction(mu, capsys):
+    """Property: a --mu that is not a finite number >= 0 is refused naming --mu (before any model is built)."""
+    if math.isfinite(mu) and mu >= 0:
+        return
+    assert "--mu" in _study_refusal("delamination_variants", ["--mu", repr(mu)], capsys)
