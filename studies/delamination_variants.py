@@ -6,26 +6,28 @@ contact points held closed (frictionless: the layers may slide along each other)
 (friction sticking at every point: the section acts bonded, the z bending equals the y bending, 47.99 Hz at rest
 = pi/(2 L^2) sqrt(EI/(rho A)) for the full 20 x 20 mm section) 23.99 Hz, its half. The layers touch only where
 gravity's oscillation of the interface gap exceeds the mean opening the centrifugal forces hold (docs/validation.md,
-the section before): above a threshold amplitude A0 of the resonance (about 8.4 mm at midspan here). A hardening,
+the section before): above a threshold amplitude A0 of the resonance (8.45 mm at midspan here). A hardening,
 one-sided stiffness bends the resonance by about the closed shift times the describing function
 (theta - sin theta cos theta) / pi, theta = arccos(A0 / A) (the share of the stiffness jump a harmonic motion of
-amplitude A > A0 feels), and a fold pair with an unstable middle branch appears when that bend exceeds the
-resonance's half-width (zeta f: 0.015 Hz at beta = 1e-5 s, fitted to the open orbits). The linear peak at
-beta 1e-5 s is A ~ 12 mm (A / A0 ~ 1.4, theta = 0.80 rad, share 0.094): frictionless 0.094 x 0.07 = 0.007 Hz,
-below the half-width (no fold); stuck 0.094 x 1.2 = 0.11 Hz, above it (a fold, if the layers stuck). What the
-estimate leaves out decides: every closing is a plastic impact (restitution 0) that removes the layers' relative
-normal velocity, so contact is a strong energy sink; the touching orbits' amplitude saturates near A0 instead of
-growing along a bent backbone, and friction adds dissipation by slip more than it adds stiffness by stick.
+amplitude A > A0 feels: :func:`bend_share`), and a fold pair with an unstable middle branch appears when that bend
+exceeds the resonance's half-width. Fitted to the open orbits (:func:`half_width`) at beta = 1e-5 s: half-width
+0.013 Hz, linear peak A = 13.4 mm (A / A0 = 1.59, share 0.127): frictionless 0.127 x 0.069 Hz = 0.009 Hz, below the
+half-width (no fold); stuck 0.127 x 1.218 Hz = 0.155 Hz, above it (a fold, if the layers stuck). What the estimate
+leaves out decides: every closing is a plastic impact (restitution 0) that removes the layers' relative normal
+velocity, so contact is a strong energy sink; the touching orbits' amplitude is capped near A0 (10.2 mm where the
+linear peak is 13.4 mm) instead of growing along a bent backbone.
 
 **The variants tried** (each from the paper's model: 9 Dirac contact points, CB 16, 40 elements): stiffness
 damping beta 1e-5 s (the damping under which the touching orbits converge; the section before); with it friction
 mu 0.3 (``delamination.0.friction``); friction 0.3 with beta 8e-6 and 6e-6 s; restitution 0.8; a deeper
 delamination (``upper_height`` 0.014 m: open/closed 40.39/45.30 Hz at rest, a 12 % closed shift). The one this
-study follows is **friction mu = 0.3 at beta = 1e-5 s**: closest to the paper (its contact law with a steel-steel
-friction coefficient; the paper's own example is frictional), its orbits converge through the whole touching band,
-and its curve has unstable orbits: where the open orbit grazes (22.759 Hz) the touching orbit born there has a real
-multiplier of -1.22 (a period-doubling loss at a grazing bifurcation, not a fold); the stable touching orbits
-follow from 22.7615 Hz up to 22.79 Hz, where they graze back to the open branch.
+study follows is **friction mu = 0.3 at beta = 1e-5 s**: closest to the paper (its contact law is Coulomb's between the
+layers; its section 5 finds the interfacial friction's influence negligible, and here too mu 0.3 changes the
+touching orbit at 22.78 Hz little: 10.16 against 10.20 mm), its orbits converge through the whole touching band,
+and its curve has unstable orbits: where the open orbit grazes (22.759-22.7595 Hz) the touching orbit born there has a
+real multiplier of -1.22 (a period-doubling loss at a grazing bifurcation, not a fold; frictionless, the shooting
+stalls there); the stable touching orbits follow from 22.7615 Hz up to 22.7925 Hz and graze back to the open
+branch below 22.795 Hz. No fold was found in any variant (docs/validation.md has what each gave).
 
 The study, at ``--mu`` and ``--beta``:
 
