@@ -52,6 +52,7 @@ Writes delamination_variants.json/.csv into studies/out/delamination_variants an
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
@@ -79,15 +80,16 @@ from nsfem.simulate import initial_state  # noqa: E402
 START = ROOT / "tests" / "data" / "delamination_touching_orbit.npz"
 
 
-def overrides(speed_hz: float, beta: float, mu: float) -> list[str]:
-    """The ``--set`` list of the variant: stiffness damping ``beta`` [s], friction ``mu``, the midspan sensor."""
+def overrides(speed_hz: float, beta: float, mu: float, gravity: float = 9.81) -> list[str]:
+    """The ``--set`` list of the variant: stiffness damping ``beta`` [s], friction ``mu``, ``gravity`` [m/s^2], the
+    midspan sensor."""
     return [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed_hz!r}",
-            f"delamination.0.friction={mu!r}", *dr.SENSOR]
+            f"delamination.0.friction={mu!r}", f"rotation.gravity={gravity!r}", *dr.SENSOR]
 
 
-def build(speed_hz: float, beta: float, mu: float):
+def build(speed_hz: float, beta: float, mu: float, gravity: float = 9.81):
     """(system, period, q0, v0) of the variant at ``speed_hz``."""
-    scene = load_scene("default", overrides(speed_hz, beta, mu))
+    scene = load_scene("default", overrides(speed_hz, beta, mu, gravity))
     model = build_model(scene)
     red = scene_reduction(scene.reduction, model)
     system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
@@ -308,6 +310,132 @@ def study(args) -> dict:
     return payload
 
 
+def fold_start(args, out: Path) -> Path:
+    """The touching orbit at ``--fold-start-speed`` with gravity ``--gravity`` (frictionless, ``--beta``): from the
+    stored orbit (1 g, 22.78 Hz), ``--settle`` revolutions at the gravity, shot at 22.78 Hz and followed by natural
+    continuation in steps of ``--step``; saved as an orbit file (q0, v0, t0) for ``nsfem periodic --start``."""
+    g, beta = args.gravity, args.beta
+    d = np.load(args.start)
+    q, v, t0 = d["q0"], d["v0"], float(d["t0"])
+    s = float(d["speed_hz"])
+    system, T = build(s, beta, 0.0, g)[:2]
+    phi = FlowMap(system, t0, T)
+    for _ in range(args.settle):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+    speeds = np.arange(s, args.fold_start_speed + 0.5 * args.step, args.step)
+    for sp in speeds:
+        system, T = build(float(sp), beta, 0.0, g)[:2]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            o = periodic_orbit(system, T, q, v, t0, tol=1e-10, max_iter=args.max_iter, attempts=1)
+        print(f"fold start {sp:.4f} Hz: converged {o.converged} ({o.residual:.1e}) events {o.events_per_period}",
+              file=sys.stderr, flush=True)
+        if not o.converged:
+            raise SystemExit(f"delamination_variants: error: no touching orbit at {sp:.4f} Hz with gravity {g:g}")
+        q, v, t0 = o.q0, o.v0, o.t0
+    path = out / "fold_start.npz"
+    np.savez(path, q0=q, v0=v, t0=t0, speed_hz=float(speeds[-1]), beta=beta, mu=0.0, gravity=g)
+    return path
+
+
+def fold(args) -> dict:
+    """``--fold``: the touching branch with gravity ``--gravity`` by pseudo-arclength (``nsfem periodic --continue``
+    over ``--fold-range`` from the orbit of :func:`fold_start`), each point's midspan amplitude from one period of
+    the exact flow, the open orbits over ``--speeds`` at that gravity, and the figure delamination_fold.png."""
+    import subprocess
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = fold_start(args, out)
+    g, beta = args.gravity, args.beta
+    lo, hi = (float(x) for x in args.fold_range.split(":"))
+    cmd = [sys.executable, "-m", "nsfem", "periodic", "default", "--set", f"damping.rayleigh=[0.0,{beta!r}]",
+           "--set", f"rotation.gravity={g!r}", "--set", f"rotation.speed_hz={args.fold_start_speed!r}",
+           "--set", "output.vtu_every=0", "--start", str(start), "--continue", f"rotation.speed_hz={lo!r}:{hi!r}",
+           "--steps", str(args.fold_steps), "--step", "0.001", "--out", str(out / "fold_branch")]
+    t = time.perf_counter()
+    done = subprocess.run(cmd, cwd=str(ROOT), capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if done.returncode != 0:
+        raise SystemExit(f"delamination_variants: error: nsfem periodic --continue failed: "
+                         f"{done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}")
+    meta = json.loads((out / "fold_branch" / "branch.json").read_text())
+    b = np.load(out / "fold_branch" / "branch.npz")
+    points = []
+    for i, p in enumerate(meta["branch"]):
+        system, T = build(float(p["value"]), beta, 0.0, g)[:2]
+        f = FlowMap(system, float(b["t0_s"][i]), T)(b["q0"][i], b["v0"][i], jacobian=False)
+        mu = np.array([complex(*m) for m in p["multipliers"]])
+        points.append({"speed_hz": float(p["value"]), "stable": bool(p["stable"]), "converged": bool(p["converged"]),
+                       "events_per_period": int(p["events_per_period"]), "residual": float(p["residual"]),
+                       "largest_multiplier": float(np.abs(mu).max()),
+                       "leading_real": bool(abs(mu[0].imag) <= 1e-9), "leading_re": float(mu[0].real),
+                       "midspan_m": dr.midspan(system, float(p["value"]), np.asarray(f.result.t), f.result.q)})
+    # the open orbits at this gravity (linear where they do not touch), from the scene's state at each end
+    speeds = dr.parse_speeds(args.speeds)
+    opened = []
+    for seq in (speeds, speeds[::-1]):
+        system, T, q0, v0 = build(float(seq[0]), beta, 0.0, g)
+        q, v = dr.settle(system, T, q0, v0, args.lead)
+        for sp in seq:
+            system, T = build(float(sp), beta, 0.0, g)[:2]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                o = periodic_orbit(system, T, q, v, 0.0, tol=1e-9, max_iter=args.max_iter, attempts=1)
+            if not o.converged or o.events_per_period:
+                break
+            opened.append({"speed_hz": float(sp), "midspan_m": dr.midspan(system, float(sp), np.asarray(o.result.t),
+                                                                          o.result.q),
+                           "gap_min_m": float(o.result.gap.min()), "largest_multiplier": float(np.abs(o.multipliers[0]))})
+            q, v = o.q0, o.v0
+    payload = {"study": "delamination_fold", "gravity": g, "beta_s": beta, "branch": points,
+               "stop": meta["stop"], "reason": meta["reason"], "sides": meta["sides"], "open": opened,
+               "continuation_wall_s": wall, "machine": machine()}
+    write_outputs(out, "delamination_fold", points, payload)
+    fold_figure(payload, Path(args.figure).with_name("delamination_fold.png"))
+    return payload
+
+
+def fold_figure(payload: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts = sorted(payload["branch"], key=lambda r: r["speed_hz"])
+    op = sorted(payload["open"], key=lambda r: r["speed_hz"])
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.4))
+    s = np.array([r["speed_hz"] for r in op])
+    cut = np.flatnonzero(np.diff(s) > 0.006) + 1
+    for k, (ps, pa) in enumerate(zip(np.split(s, cut), np.split(np.array([r["midspan_m"] for r in op]) * 1e3, cut))):
+        ax[0].plot(ps, pa, "-o", ms=2.5, color="C0", label="open orbits (stable)" if k == 0 else None)
+    st = [r for r in pts if r["stable"]]
+    ax[0].plot([r["speed_hz"] for r in st], [r["midspan_m"] * 1e3 for r in st], "-s", ms=3, color="C3",
+               label="touching orbits, pseudo-arclength (stable)")
+    un = [r for r in pts if not r["stable"]]
+    if un:
+        ax[0].plot([r["speed_hz"] for r in un], [r["midspan_m"] * 1e3 for r in un], "--D", mfc="none", color="k",
+                   label="touching orbits (unstable)")
+    end = max(pts, key=lambda r: r["speed_hz"])
+    ax[0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k",
+               label=f"the branch's end: fold ({end['speed_hz']:.6f} Hz)")
+    ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
+              title=f"gravity {payload['gravity']:g} m/s^2, beta {payload['beta_s']:g} s, frictionless")
+    ax[1].plot([r["speed_hz"] for r in pts], [r["largest_multiplier"] for r in pts], "s", ms=3, color="C3",
+               label="largest |multiplier|")
+    re = [r for r in pts if r["leading_real"]]
+    ax[1].plot([r["speed_hz"] for r in re], [r["leading_re"] for r in re], "k*", ms=8,
+               label="leading multiplier real (> 0)")
+    ax[1].axhline(1.0, color="k", lw=0.8)
+    ax[1].set(xlabel="speed [Hz]", ylabel="|mu_1|", title="stability along the branch")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.ticklabel_format(axis="x", useOffset=False)
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
 def figure(payload: dict, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
@@ -386,6 +514,18 @@ def check_options(ap: argparse.ArgumentParser, args) -> None:
         dr.parse_speeds(args.speeds)
     except ValueError as exc:
         ap.error(f"--speeds: {' '.join(str(exc).split())}")
+    if not (math.isfinite(args.gravity) and 0 < args.gravity <= 100):
+        ap.error(f"--gravity must be a finite number in (0, 100] m/s^2, got {args.gravity!r}")
+    if not (math.isfinite(args.fold_start_speed) and args.fold_start_speed > 0):
+        ap.error(f"--fold-start-speed must be a finite number > 0, got {args.fold_start_speed!r}")
+    try:
+        lo, hi = (float(x) for x in args.fold_range.split(":"))
+    except ValueError:
+        ap.error(f"--fold-range: {args.fold_range!r} is not LOW:HIGH")
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        ap.error(f"--fold-range: {args.fold_range!r} needs finite speeds 0 < LOW < HIGH")
+    if not args.fold_steps >= 1:
+        ap.error(f"--fold-steps must be >= 1, got {args.fold_steps}")
     if not Path(args.start).is_file():
         ap.error(f"--start: no such file {args.start!r} (a touching orbit's section state, .npz)")
 
@@ -406,9 +546,15 @@ def main(argv=None) -> dict:
     ap.add_argument("--revolutions", type=int, default=150, help="the motion after the unstable orbit")
     ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "delamination_variants"))
     ap.add_argument("--figure", default=str(ROOT / "docs" / "figures" / "delamination_variants.png"))
+    ap.add_argument("--fold", action="store_true",
+                    help="instead: the frictionless touching branch at --gravity by pseudo-arclength up to its fold")
+    ap.add_argument("--gravity", type=float, default=20.0, help="gravity [m/s^2] of --fold (the paper: 9.81)")
+    ap.add_argument("--fold-start-speed", type=float, default=22.80, help="--fold's starting orbit [Hz]")
+    ap.add_argument("--fold-range", default="22.78:22.84", help="--fold's LOW:HIGH speeds [Hz]")
+    ap.add_argument("--fold-steps", type=int, default=40, help="--fold's continuation steps each way")
     args = ap.parse_args(argv)
     check_options(ap, args)
-    return study(args)
+    return fold(args) if args.fold else study(args)
 
 
 if __name__ == "__main__":

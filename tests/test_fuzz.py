@@ -4674,7 +4674,10 @@ def test_issue36_review_delamination_study_refuses_every_bad_beta(beta, capsys):
 @pytest.mark.parametrize("argv", [["--mu", "nan"], ["--mu", "-0.1"], ["--beta", "0"], ["--beta", "inf"],
                                   ["--step", "-1"], ["--fine", "nan"], ["--fine", "0.01"], ["--touch-speed", "0"],
                                   ["--speeds", "22.9:22.7:5"], ["--speeds", "a:b:c"], ["--max-iter", "0"],
-                                  ["--periods", "0"], ["--settle", "-1"], ["--start", "/nonexistent/orbit.npz"]])
+                                  ["--periods", "0"], ["--settle", "-1"], ["--start", "/nonexistent/orbit.npz"],
+                                  ["--gravity", "0"], ["--gravity", "nan"], ["--gravity", "1e9"],
+                                  ["--fold-range", "22.84:22.78"], ["--fold-range", "x"], ["--fold-steps", "0"],
+                                  ["--fold-start-speed", "-1"]])
 def test_issue36_delamination_variants_study_refuses_bad_options(argv, capsys):
     assert argv[0].lstrip("-").split("-")[0] in _study_refusal("delamination_variants", argv, capsys)
 
