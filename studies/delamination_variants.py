@@ -27,7 +27,16 @@ touching orbit at 22.78 Hz little: 10.16 against 10.20 mm), its orbits converge 
 and its curve has unstable orbits: where the open orbit grazes (22.759-22.7595 Hz) the touching orbit born there has a
 real multiplier of -1.22 (a period-doubling loss at a grazing bifurcation, not a fold; frictionless, the shooting
 stalls there); the stable touching orbits follow from 22.7615 Hz up to 22.7925 Hz and graze back to the open
-branch below 22.795 Hz. No fold was found in any variant (docs/validation.md has what each gave).
+branch below 22.795 Hz. No fold at the paper's gravity in any variant (docs/validation.md has what each gave).
+
+``--fold``: the frictionless shaft at twice the gravity (``rotation.gravity=20``, beta 1e-5 s), where the estimate
+predicts a fold (A / A0 = 3.2, bend 0.021 Hz above the 0.013 Hz half-width): its touching branch by pseudo-arclength
+(``nsfem periodic --continue``) bends to higher speeds and ends at a fold near 22.813 Hz, where the speed turns and a
+real multiplier approaches 1; the continuation does not pass it (the orbits beyond change their event sequence).
+Writes delamination_fold.json/.csv (and the branch's files in fold_branch/) into ``--out`` and
+docs/figures/delamination_fold.png.
+
+    python studies/delamination_variants.py --fold [--gravity 20] [--fold-range 22.72:22.84]
 
 The study, at ``--mu`` and ``--beta``:
 
@@ -550,8 +559,8 @@ def main(argv=None) -> dict:
                     help="instead: the frictionless touching branch at --gravity by pseudo-arclength up to its fold")
     ap.add_argument("--gravity", type=float, default=20.0, help="gravity [m/s^2] of --fold (the paper: 9.81)")
     ap.add_argument("--fold-start-speed", type=float, default=22.80, help="--fold's starting orbit [Hz]")
-    ap.add_argument("--fold-range", default="22.78:22.84", help="--fold's LOW:HIGH speeds [Hz]")
-    ap.add_argument("--fold-steps", type=int, default=40, help="--fold's continuation steps each way")
+    ap.add_argument("--fold-range", default="22.72:22.84", help="--fold's LOW:HIGH speeds [Hz]")
+    ap.add_argument("--fold-steps", type=int, default=80, help="--fold's continuation steps each way")
     args = ap.parse_args(argv)
     check_options(ap, args)
     return fold(args) if args.fold else study(args)
