@@ -286,3 +286,54 @@ def test_bonded_resonance_is_the_bonded_shafts_model():
     model = build_model(scene)
     f = natural_frequencies(model, "open", 2, scene_reduction(scene.reduction, model)).frequencies_hz
     assert 2.0 * V.bonded_speed() == pytest.approx(f[1], rel=1e-6)
+
+
+# --- the fold at twice the gravity (studies/delamination_variants.py --fold) -----------------------------------------
+# Frictionless, beta 1e-5 s, rotation.gravity = 20 m/s^2: the touching branch, followed by pseudo-arclength, bends to
+# higher speeds and ends where the speed turns (steps 1.9e-3 -> 1.2e-7 Hz) and a real multiplier rises towards +1: a
+# fold. Its last point (22.813003629 Hz, shot to 5e-11 by the continuation's corrector) is stored in
+# tests/data/delamination_fold_orbit.npz.
+
+FOLD = DATA.with_name("delamination_fold_orbit.npz")
+
+
+def _fold_system():
+    d = np.load(FOLD)
+    speed, beta, g = float(d["speed_hz"]), float(d["beta"]), float(d["gravity"])
+    scene = load_scene("default", [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed!r}",
+                                   f"rotation.gravity={g!r}"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
+    return system, 1.0 / speed, float(d["t0"]), d["q0"], d["v0"]
+
+
+def test_orbit_at_the_fold_has_a_real_multiplier_near_one():
+    """The orbit where the 2 g branch turns is a periodic orbit of the exact flow (a fresh integrator returns to it
+    after one period, with contact), stable, and its leading multiplier is real and close to +1 (a saddle-node:
+    the branch's tangent has no speed component where a real multiplier reaches 1), with a clear gap to the rest."""
+    import warnings
+    from nsfem.integrate.event_driven import Exact
+    from nsfem.periodic.flow import shifted
+
+    system, T, t0, q0, v0 = _fold_system()
+    res = Exact(shifted(system, t0), progress=False).run(T, T / 64, q0, v0)
+    i = int(np.argmin(np.abs(res.t - T)))
+    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
+    err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+    # stored at the corrector's 5e-11 (relative, in the same norm) plus a period's round-off (~1e-12): 1e-9 is a
+    # margin of 20 and far below the 1e-6 at which an event sequence changes
+    assert err < 1e-9
+    assert len(res.events) > 20 and res.normal_force.max() > 1.0   # the layers touch, many times a period
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # (near-grazing passages are reported)
+        o = periodic_orbit(system, T, q0, v0, t0, tol=1e-10, max_iter=4, attempts=1)
+    assert o.converged and o.stable
+    mu = o.multipliers
+    # the leading multiplier: real (its imaginary part at the eigen-solver's round-off, 1e-12 on a 40-dimensional
+    # monodromy) and 0.9972 (measured): nearer +1 than at any regular point of the branch (at most 0.9947, at
+    # 22.80 Hz), and still rising over the last steps (0.9948 one step before): 0.9965 separates the two with
+    # margins far above round-off; below 1: the stable side of the fold
+    assert abs(mu[0].imag) < 1e-10 and 0.9965 < mu[0].real < 1.0
+    # the next modulus is 0.9855: the fold's multiplier stands apart
+    assert abs(mu[0]) - abs(mu[1]) > 0.005
