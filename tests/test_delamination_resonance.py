@@ -144,3 +144,197 @@ def test_touching_orbit_residual_and_floquet_contraction():
     # periods) is < 6e-4 of |dx| = 1e-7, < 1e-4 a period after the 6th root; 1e-3 covers both and still tells
     # |mu_1| (0.98986) from |mu_2| (0.98334)
     assert rate == pytest.approx(abs(w[j]), abs=1e-3)
+
+
+# --- an unstable touching orbit (friction 0.3, stiffness damping) ----------------------------------------------------
+# With Coulomb friction mu = 0.3 between the layers (delamination.0.friction; beta = 1e-5 s, 22.76 Hz) the touching
+# branch of studies/delamination_variants.py ends at its low-speed side in a period-doubling: the orbit at 22.76 Hz
+# (9 events a period: the layers touch briefly once a revolution) has a real multiplier -1.2241, while the touching
+# orbits from 22.7625 Hz up are stable and the open orbit at 22.7575 Hz is too (docs/validation.md). Its section state
+# is stored (tests/data/delamination_unstable_orbit.npz: shot to residual 6e-15 by natural continuation from the
+# touching orbit at 22.78 Hz), so the tests below need no transient.
+
+UNSTABLE = DATA.with_name("delamination_unstable_orbit.npz")
+
+
+def _friction_system(path):
+    d = np.load(path)
+    speed, beta, mu = float(d["speed_hz"]), float(d["beta"]), float(d["mu"])
+    scene = load_scene("default", [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed!r}",
+                                   f"delamination.0.friction={mu!r}"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
+    return system, 1.0 / speed, float(d["t0"]), d["q0"], d["v0"]
+
+
+def test_unstable_orbit_returns_under_an_independent_flow():
+    """The stored unstable orbit is a periodic orbit of the exact flow: a fresh integrator from its section state
+    returns to it after 1 and 2 periods, with the same events each period and contact forces at 22.76 Hz."""
+    from nsfem.integrate.event_driven import Exact
+    from nsfem.periodic.flow import shifted
+
+    system, T, t0, q0, v0 = _friction_system(UNSTABLE)
+    res = Exact(shifted(system, t0), progress=False).run(2 * T, T / 64, q0, v0)
+    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
+    for k in (1, 2):
+        i = int(np.argmin(np.abs(res.t - k * T)))
+        assert abs(res.t[i] - k * T) < 1e-12 * T
+        err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+        # shot to 6e-15; a period adds the event times' round-off (~1e-13 s located) times the state's rate, ~1e-12
+        # relative over 9 events, and the unstable direction multiplies what is there by 1.22 a period: 1e-9 is a
+        # margin of 100 over two periods and far below the 1e-6 at which an event sequence changes
+        assert err < 1e-9, k
+    events = [dict(e, t=e["t"] + t0) for e in res.events]
+    sig0, ph0 = _signature(events, t0, T, 0)
+    sig1, ph1 = _signature(events, t0, T, 1)
+    assert len(sig0) >= 4 and sig1 == sig0
+    assert any("close" in s[1] for s in sig0)                     # the layers touch
+    assert np.abs(ph1 - ph0).max() < 1e-6                         # (as in the touching orbit's test above)
+
+
+def test_unstable_orbit_is_left_at_its_multiplier():
+    """The orbit's largest multiplier is real, below -1 (a period-doubling loss); a perturbation along its Floquet
+    direction grows at |mu_1| a period under the exact transient and changes sign every period."""
+    import warnings
+
+    system, T, t0, q0, v0 = _friction_system(UNSTABLE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # (open points pass within 0.4-1 um of contact without closing: reported)
+        o = periodic_orbit(system, T, q0, v0, t0, tol=1e-13, max_iter=3, attempts=1)
+    # (the flow's round-off: ~1e-15 relative a period; 1e-13 is reached at once from the stored state)
+    assert o.converged and o.residual < 1e-13 and o.result.normal_force.max() > 0.0
+    assert not o.stable and o.loss == "period-doubling"
+    w, V = np.linalg.eig(o.monodromy)
+    j = int(np.argmax(np.abs(w)))
+    mu1 = w[j]
+    # the leading multiplier is real (to round-off of the eigen-solver on a 70-dimensional matrix) and simple
+    assert abs(mu1.imag) < 1e-10 and mu1.real < -1.0
+    assert abs(mu1) - np.sort(np.abs(w))[-2] > 0.1
+    n = system.n
+    dx = o.directions @ np.real(V[:, j])
+    dx *= 1e-9 * np.abs(o.q0).max() / np.abs(dx[:n]).max()
+    phi = FlowMap(system, o.t0, T)
+    q, v = o.q0 + dx[:n], o.v0 + dx[n:]
+    N = 10
+    signs = []
+    for _ in range(N):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+        signs.append(np.sign(np.dot(np.concatenate([q - o.q0, v - o.v0]), dx)))
+    d = np.concatenate([q - o.q0, v - o.v0])
+    rate = (np.linalg.norm(d) / np.linalg.norm(dx)) ** (1.0 / N)
+    # along the eigenvector d_N = mu^N dx + O(|d|^2): after 10 periods |d| ~ 7.5 |dx| = 7.5e-9 of the state, so the
+    # second order is ~1e-8 of |d|; the orbit's own error (residual < 1e-13 a period: it was stored at 6e-15) is
+    # < 1e-4 of |dx| = 1e-9 of the state per period, and enters the 10th root as < 1e-4 of the rate; 1e-3 covers
+    # both (the measured agreement is 1e-5) and tells 1.224 from the next modulus (0.990) by far
+    assert rate == pytest.approx(abs(mu1), abs=1e-3)
+    assert signs == [(-1.0) ** (k + 1) * np.sign(np.dot(dx, dx)) for k in range(N)]
+
+
+# --- the estimate of the bend (studies/delamination_variants.py) -----------------------------------------------------
+
+def _variants():
+    import importlib
+    import sys
+    from pathlib import Path
+
+    studies = str(Path(__file__).resolve().parents[1] / "studies")
+    if studies not in sys.path:
+        sys.path.insert(0, studies)
+    return importlib.import_module("delamination_variants")
+
+
+def test_bend_share_is_the_first_harmonic_of_a_one_sided_spring():
+    """bend_share(a) is the first Fourier coefficient of a unit one-sided spring max(x - 1, 0) under x = a cos(phi),
+    divided by a: checked against the integral by the trapezoid rule (an independent computation), and its limits
+    (0 below the threshold, 1/2 for a -> infinity: the spring then acts half of each period)."""
+    V = _variants()
+    a = np.array([0.3, 1.0, 1.01, 1.43, 2.0, 6.5, 50.0])
+    phi = np.linspace(-np.pi, np.pi, 200001)
+    x = a[:, None] * np.cos(phi)
+    f = np.maximum(x - 1.0, 0.0) * np.cos(phi)
+    quad = np.trapezoid(f, phi, axis=1) / np.pi / a
+    # the integrand is continuous with a kink where x = 1: the trapezoid rule's error there is O(h^2) = 1e-9 of the
+    # coefficient (h = 3e-5); 1e-8 covers it
+    assert np.allclose(V.bend_share(a), quad, rtol=0, atol=1e-8)
+    assert V.bend_share(1.0) == 0.0 and V.bend_share(0.5) == 0.0
+    assert V.bend_share(1e12) == pytest.approx(0.5, abs=1e-11)   # 1/2 - (2/pi)/a + ...: 6e-13 left at a = 1e12
+
+
+def test_half_width_recovers_a_single_mode_resonance():
+    """half_width inverts A(f) = P w / sqrt(f^2 + w^2) (f from the peak) from two of its points: exactly, up to
+    round-off (the formula is algebraic; the subtraction f2^2 - r f1^2 loses ~10 digits' worth at most)."""
+    V = _variants()
+    P, w = 11.9e-3, 0.0149
+    A = lambda f: P * w / np.sqrt(f**2 + w**2)   # noqa: E731
+    for f1, f2 in ((0.023, 0.053), (0.005, 0.2), (0.1, 0.11)):
+        ww, pp = V.half_width(f1, A(f1), f2, A(f2))
+        assert ww == pytest.approx(w, rel=1e-9) and pp == pytest.approx(P, rel=1e-9)
+
+
+def test_bonded_resonance_is_the_bonded_shafts_model():
+    """The closed form the study uses for the stuck layers (half the Euler-Bernoulli pinned-pinned frequency of the
+    full section) agrees with the model: the delaminated shaft's y bending (the delamination splits z only) at rest,
+    from nsfem's modes, is that frequency; the Hermite elements (40) make its error ~1e-9 relative, the
+    Craig-Bampton reduction (16 modes) keeps the first mode to ~1e-9 as well: 1e-6 is a wide margin that still
+    catches a factor in the closed form."""
+    from nsfem.analysis.modes import natural_frequencies
+
+    V = _variants()
+    scene = load_scene("default", [])
+    model = build_model(scene)
+    f = natural_frequencies(model, "open", 2, scene_reduction(scene.reduction, model)).frequencies_hz
+    assert 2.0 * V.bonded_speed() == pytest.approx(f[1], rel=1e-6)
+
+
+# --- the fold at twice the gravity (studies/delamination_variants.py --fold) -----------------------------------------
+# Frictionless, beta 1e-5 s, rotation.gravity = 20 m/s^2: the touching branch, followed by pseudo-arclength, bends to
+# higher speeds and ends where the speed turns (steps 1.9e-3 -> 1.2e-7 Hz) and a real multiplier rises towards +1: a
+# fold. Its last point (22.813003629 Hz, shot to 5e-11 by the continuation's corrector) is stored in
+# tests/data/delamination_fold_orbit.npz.
+
+FOLD = DATA.with_name("delamination_fold_orbit.npz")
+
+
+def _fold_system():
+    d = np.load(FOLD)
+    speed, beta, g = float(d["speed_hz"]), float(d["beta"]), float(d["gravity"])
+    scene = load_scene("default", [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed!r}",
+                                   f"rotation.gravity={g!r}"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
+    return system, 1.0 / speed, float(d["t0"]), d["q0"], d["v0"]
+
+
+def test_orbit_at_the_fold_has_a_real_multiplier_near_one():
+    """The orbit where the 2 g branch turns is a periodic orbit of the exact flow (a fresh integrator returns to it
+    after one period, with contact), stable, and its leading multiplier is real and close to +1 (a saddle-node:
+    the branch's tangent has no speed component where a real multiplier reaches 1), with a clear gap to the rest.
+    (A grazing approaches at the same point: contact 4 passes 4.4e-10 m from contact; docs/validation.md.)"""
+    import warnings
+    from nsfem.integrate.event_driven import Exact
+    from nsfem.periodic.flow import shifted
+
+    system, T, t0, q0, v0 = _fold_system()
+    res = Exact(shifted(system, t0), progress=False).run(T, T / 64, q0, v0)
+    i = int(np.argmin(np.abs(res.t - T)))
+    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
+    err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+    # stored at the corrector's 5e-11 (relative, in the same norm) plus a period's round-off (~1e-12): 1e-9 is a
+    # margin of 20 and far below the 1e-6 at which an event sequence changes
+    assert err < 1e-9
+    assert len(res.events) > 20 and res.normal_force.max() > 1.0   # the layers touch, many times a period
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # (near-grazing passages are reported)
+        o = periodic_orbit(system, T, q0, v0, t0, tol=1e-10, max_iter=4, attempts=1)
+    assert o.converged and o.stable
+    mu = o.multipliers
+    # the leading multiplier: real (its imaginary part at the eigen-solver's round-off, 1e-12 on a 40-dimensional
+    # monodromy) and 0.9972 (measured): nearer +1 than at any regular point of the branch (at most 0.9947, at
+    # 22.80 Hz), and still rising over the last steps (0.9948 one step before): 0.9965 separates the two with
+    # margins far above round-off; below 1: the stable side of the fold
+    assert abs(mu[0].imag) < 1e-10 and 0.9965 < mu[0].real < 1.0
+    # the next modulus is 0.9855: the fold's multiplier stands apart
+    assert abs(mu[0]) - abs(mu[1]) > 0.005

@@ -4749,3 +4749,24 @@ def test_issue36_periodic_study_refuses_every_bad_accuracy(accuracy, capsys):
     if math.isfinite(accuracy) and 0.0 < accuracy < 0.1:
         return
     assert "--accuracy" in _study_refusal("periodic", ["--accuracy", repr(accuracy)], capsys)
+
+
+# --- issue 36: delamination variants study (studies/delamination_variants.py's options) ---
+@pytest.mark.parametrize("argv", [["--mu", "nan"], ["--mu", "-0.1"], ["--beta", "0"], ["--beta", "inf"],
+                                  ["--step", "-1"], ["--fine", "nan"], ["--fine", "0.01"], ["--touch-speed", "0"],
+                                  ["--speeds", "22.9:22.7:5"], ["--speeds", "a:b:c"], ["--max-iter", "0"],
+                                  ["--periods", "0"], ["--settle", "-1"], ["--start", "/nonexistent/orbit.npz"],
+                                  ["--gravity", "0"], ["--gravity", "nan"], ["--gravity", "1e9"],
+                                  ["--fold-range", "22.84:22.78"], ["--fold-range", "x"], ["--fold-steps", "0"],
+                                  ["--fold-start-speed", "-1"]])
+def test_issue36_delamination_variants_study_refuses_bad_options(argv, capsys):
+    assert argv[0].lstrip("-").split("-")[0] in _study_refusal("delamination_variants", argv, capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(mu=st.floats(allow_nan=True, allow_infinity=True))
+def test_issue36_delamination_variants_study_refuses_every_bad_friction(mu, capsys):
+    """Property: a --mu that is not a finite number >= 0 is refused naming --mu (before any model is built)."""
+    if math.isfinite(mu) and mu >= 0:
+        return
+    assert "--mu" in _study_refusal("delamination_variants", ["--mu", repr(mu)], capsys)

@@ -1,0 +1,570 @@
+"""The delaminated shaft's resonance curve with stable and unstable orbits: which variant of the paper's model bends it?
+
+**The physics (estimate first).** The gravity resonance of the ``default`` shaft (paper section 5) is where its
+lowest frequency in its own (rotating) frame equals the speed. With the layers open that is 22.777 Hz; with the
+contact points held closed (frictionless: the layers may slide along each other) 22.85 Hz; with the layers stuck
+(friction sticking at every point: the section acts bonded, the z bending equals the y bending, 47.99 Hz at rest
+= pi/(2 L^2) sqrt(EI/(rho A)) for the full 20 x 20 mm section) 23.99 Hz, its half. The layers touch only where
+gravity's oscillation of the interface gap exceeds the mean opening the centrifugal forces hold (docs/validation.md,
+the section before): above a threshold amplitude A0 of the resonance (8.45 mm at midspan here). A hardening,
+one-sided stiffness bends the resonance by about the closed shift times the describing function
+(theta - sin theta cos theta) / pi, theta = arccos(A0 / A) (the share of the stiffness jump a harmonic motion of
+amplitude A > A0 feels: :func:`bend_share`), and a fold pair with an unstable middle branch appears when that bend
+exceeds the resonance's half-width. Fitted to the open orbits (:func:`half_width`) at beta = 1e-5 s: half-width
+0.013 Hz, linear peak A = 13.4 mm (A / A0 = 1.59, share 0.127): frictionless 0.127 x 0.069 Hz = 0.009 Hz, below the
+half-width (no fold); stuck 0.127 x 1.218 Hz = 0.155 Hz, above it (a fold, if the layers stuck). What the estimate
+leaves out decides: every closing is a plastic impact (restitution 0) that removes the layers' relative normal
+velocity, so contact is a strong energy sink; the touching orbits' amplitude is capped near A0 (10.2 mm where the
+linear peak is 13.4 mm) instead of growing along a bent backbone.
+
+**The variants tried** (each from the paper's model: 9 Dirac contact points, CB 16, 40 elements): stiffness
+damping beta 1e-5 s (the damping under which the touching orbits converge; the section before); with it friction
+mu 0.3 (``delamination.0.friction``); friction 0.3 with beta 8e-6 and 6e-6 s; restitution 0.8; a deeper
+delamination (``upper_height`` 0.014 m: open/closed 40.39/45.30 Hz at rest, a 12 % closed shift). The one this
+study follows is **friction mu = 0.3 at beta = 1e-5 s**: closest to the paper (its contact law is Coulomb's between the
+layers; its section 5 finds the interfacial friction's influence negligible, and here too mu 0.3 changes the
+touching orbit at 22.78 Hz little: 10.16 against 10.20 mm), its orbits converge through the whole touching band,
+and its curve has unstable orbits: where the open orbit grazes (22.759-22.7595 Hz) the touching orbit born there has a
+real multiplier of -1.22 (a period-doubling loss at a grazing bifurcation, not a fold; frictionless, the shooting
+stalls there); the stable touching orbits follow from 22.7615 Hz up to 22.7925 Hz and graze back to the open
+branch below 22.795 Hz. No fold at the paper's gravity in any variant (docs/validation.md has what each gave).
+
+``--fold``: the frictionless shaft at twice the gravity (``rotation.gravity=20``, beta 1e-5 s), where the estimate
+predicts a fold (A / A0 = 3.2, bend 0.021 Hz above the 0.013 Hz half-width): its touching branch by pseudo-arclength
+(``nsfem periodic --continue``) bends to higher speeds and ends at a fold near 22.813 Hz, where the speed turns and a
+real multiplier approaches 1; the continuation does not pass it (the orbits beyond change their event sequence).
+Writes delamination_fold.json/.csv (and the branch's files in fold_branch/) into ``--out`` and
+docs/figures/delamination_fold.png.
+
+    python studies/delamination_variants.py --fold [--gravity 20] [--fold-range 22.72:22.84]
+
+The study, at ``--mu`` and ``--beta``:
+
+1. the resonance speeds of the open, closed and bonded shaft (:func:`resonance_speed`, damped modes in the rotating
+   frame; bonded: Euler-Bernoulli in closed form) and the describing-function estimate of the bend
+   (:func:`bend_share`);
+2. the open orbits over ``--speeds`` (natural continuation from the scene's state: each speed from the previous
+   open orbit; a speed whose orbit touches ends a direction);
+3. the touching orbits by natural continuation from ``--start`` (a touching orbit's section state, default
+   tests/data/delamination_touching_orbit.npz: the frictionless orbit at 22.78 Hz, mapped into this model's
+   coordinates through the full ones and followed for ``--settle`` revolutions before its first shooting), down and
+   up in steps of ``--step`` until a shooting fails or its orbit is open, each end refined by ``--fine`` steps;
+4. the checks: a transient from the unstable orbit perturbed along its leading Floquet direction (its growth per
+   period against |mu_1|), one from a stable touching orbit (its decay), and the motion at the unstable orbit's
+   speed after ``--revolutions`` (what the orbit's loss leads to).
+
+Writes delamination_variants.json/.csv into studies/out/delamination_variants and docs/figures/delamination_variants.png.
+
+    python studies/delamination_variants.py [--mu 0.3] [--beta 1e-5] [--speeds 22.70:22.86:33]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from study_io import machine, save_figure, write_outputs
+import delamination_resonance as dr
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from nsfem.analysis.damped import scene_damped_modes  # noqa: E402
+from nsfem.fem.assemble import build_model  # noqa: E402
+from nsfem.fem.constraints import dense  # noqa: E402
+from nsfem.integrate.problem import ContactSystem  # noqa: E402
+from nsfem.periodic import periodic_orbit  # noqa: E402
+from nsfem.periodic.flow import FlowMap  # noqa: E402
+from nsfem.reduce import scene_reduction  # noqa: E402
+from nsfem.scene.load import load_scene  # noqa: E402
+from nsfem.simulate import initial_state  # noqa: E402
+
+START = ROOT / "tests" / "data" / "delamination_touching_orbit.npz"
+
+
+def overrides(speed_hz: float, beta: float, mu: float, gravity: float = 9.81) -> list[str]:
+    """The ``--set`` list of the variant: stiffness damping ``beta`` [s], friction ``mu``, ``gravity`` [m/s^2], the
+    midspan sensor."""
+    return [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed_hz!r}",
+            f"delamination.0.friction={mu!r}", f"rotation.gravity={gravity!r}", *dr.SENSOR]
+
+
+def build(speed_hz: float, beta: float, mu: float, gravity: float = 9.81):
+    """(system, period, q0, v0) of the variant at ``speed_hz``."""
+    scene = load_scene("default", overrides(speed_hz, beta, mu, gravity))
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
+    q0, v0 = initial_state(scene, model, red, system)
+    system.info["study_sensors"] = tuple(scene.sensors)
+    return system, 1.0 / speed_hz, q0, v0
+
+
+def rotating_frequency(speed_hz: float, contact: str) -> float:
+    """The lowest forward frequency [Hz] of the undamped default shaft in its own frame at ``speed_hz``."""
+    scene = load_scene("default", [f"rotation.speed_hz={speed_hz!r}"])
+    model = build_model(scene)
+    modes = scene_damped_modes(scene, model, speed_hz, 2, scene_reduction(scene.reduction, model), contact)
+    f = [float(x) for x, w in zip(modes.frequencies_hz, modes.whirl) if w == "forward"]
+    return f[0]
+
+
+def resonance_speed(contact: str, guess: float = 22.8, tol: float = 1e-6) -> float:
+    """The speed [Hz] at which the rotating-frame frequency equals the speed (gravity turns once a revolution in
+    that frame), by the secant method on f(speed) - speed."""
+    a, b = guess, guess + 0.1
+    fa, fb = rotating_frequency(a, contact) - a, rotating_frequency(b, contact) - b
+    for _ in range(20):
+        c = b - fb * (b - a) / (fb - fa)
+        a, fa, b = b, fb, c
+        fb = rotating_frequency(b, contact) - b
+        if abs(b - a) < tol:
+            break
+    return b
+
+
+def bonded_speed() -> float:
+    """The bonded (stuck) shaft's gravity resonance [Hz]: half its pinned-pinned first bending frequency
+    pi / (2 L^2) sqrt(EI / (rho A)) (a square section bends alike in y and z; its rotating-frame frequency is that
+    minus the speed)."""
+    scene = load_scene("default", [])
+    s = scene["shaft"]
+    EI, rhoA = s["E"] * s["width"] * s["height"] ** 3 / 12.0, s["rho"] * s["width"] * s["height"]
+    return 0.5 * math.pi / (2.0 * s["length"] ** 2) * math.sqrt(EI / rhoA)
+
+
+def bend_share(a: np.ndarray) -> np.ndarray:
+    """The share of a one-sided stiffness jump that a harmonic motion of amplitude ``a`` (in units of the
+    threshold A0 at which the stiffness engages) feels in its first harmonic (describing function):
+    (theta - sin theta cos theta) / pi with theta = arccos(1 / a); 0 for a <= 1, tending to 1/2."""
+    a = np.asarray(a, dtype=float)
+    theta = np.arccos(np.clip(1.0 / np.maximum(a, 1.0), -1.0, 1.0))
+    return (theta - np.sin(theta) * np.cos(theta)) / math.pi
+
+
+def half_width(f1: float, a1: float, f2: float, a2: float) -> tuple[float, float]:
+    """(half-width w [Hz], peak f_r [Hz] given) from two amplitudes of a single-mode resonance
+    A(f)^-2 ~ (f - f_r)^2 + w^2 on one flank: here f1, f2 are distances from the peak."""
+    r = (a1 / a2) ** 2
+    w2 = (f2**2 - r * f1**2) / (r - 1.0)
+    return math.sqrt(w2), a1 * math.sqrt((f1**2 + w2) / w2)
+
+
+def row_of(o, system, speed: float, mu: float, beta: float, wall: float, branch: str) -> dict:
+    r = o.result
+    mus = np.abs(o.multipliers)
+    return {"branch": branch, "speed_hz": speed, "mu": mu, "beta_s": beta, "converged": bool(o.converged),
+            "residual": float(o.residual), "iterations": int(o.iterations), "stable": bool(o.stable), "loss": o.loss,
+            "events_per_period": int(o.events_per_period),
+            "largest_multiplier": float(mus[0]) if mus.size else 0.0,
+            "leading_multiplier_re": float(o.multipliers[0].real) if mus.size else 0.0,
+            "leading_multiplier_im": float(o.multipliers[0].imag) if mus.size else 0.0,
+            "gap_min_m": float(r.gap.min()), "normal_force_max_N": float(r.normal_force.max()),
+            "midspan_m": dr.midspan(system, speed, np.asarray(r.t), r.q), "grazing": len(o.grazing or []),
+            "wall_s": wall}
+
+
+def shoot(speed: float, mu: float, beta: float, start, branch: str, max_iter: int):
+    """(row, orbit) at ``speed`` shot from ``start`` (q, v, t0)."""
+    system, T = build(speed, beta, mu)[:2]
+    t = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # (near-grazing passages are counted in the row)
+        o = periodic_orbit(system, T, start[0], start[1], start[2], tol=1e-9, max_iter=max_iter, attempts=1)
+    row = row_of(o, system, speed, mu, beta, time.perf_counter() - t, branch)
+    say(row)
+    return row, o
+
+
+def say(row: dict) -> None:
+    print(f"{row['branch']:9s} {row['speed_hz']:.5f} Hz: converged {row['converged']} ({row['residual']:.1e}, "
+          f"{row['iterations']} it) events {row['events_per_period']} midspan {row['midspan_m'] * 1e3:.3f} mm "
+          f"force {row['normal_force_max_N']:.3g} N |mu_1| {row['largest_multiplier']:.5f} {row['loss'] or ''}",
+          file=sys.stderr, flush=True)
+
+
+def walk(speeds, mu: float, beta: float, start, branch: str, max_iter: int, touching: bool) -> list[tuple]:
+    """Natural continuation over ``speeds`` from ``start`` (q, v, t0): each speed from the previous orbit; stops at
+    the first shooting that fails or whose orbit leaves the branch (an open branch's orbit with events, a touching
+    branch's without). Returns [(row, orbit)], the failing one last."""
+    out = []
+    for s in speeds:
+        row, o = shoot(float(s), mu, beta, start, branch, max_iter)
+        out.append((row, o))
+        if not o.converged or (o.events_per_period > 0) != touching:
+            break
+        start = (o.q0, o.v0, o.t0)
+    return out
+
+
+def mapped_start(path: Path, speed: float, mu: float, beta: float, revolutions: int):
+    """A touching start for the variant: the stored orbit's section state (another variant's coordinates) mapped
+    through the full coordinates (least squares), then ``revolutions`` of the variant's exact flow."""
+    d = np.load(path)
+    s0, b0 = float(d["speed_hz"]), float(d["beta"])
+    mu0 = float(d["mu"]) if "mu" in d else 0.0
+    src = build(s0, b0, mu0)[0]
+    system, T = build(speed, beta, mu)[:2]
+    T0, T1 = dense(src.info["reduction"].T), dense(system.info["reduction"].T)
+    q = np.linalg.lstsq(T1, T0 @ d["q0"], rcond=None)[0]
+    v = np.linalg.lstsq(T1, T0 @ d["v0"], rcond=None)[0]
+    phi = FlowMap(system, float(d["t0"]), T)
+    for _ in range(revolutions):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+    return q, v, float(d["t0"])
+
+
+def departure(system, T: float, o, periods: int, size: float) -> dict:
+    """A perturbation of relative ``size`` along the orbit's leading Floquet direction under the exact transient:
+    its distance each period (relative to the start) against |mu_1|^k, and the sign of its projection."""
+    n = system.n
+    w, V = np.linalg.eig(o.monodromy)
+    j = int(np.argmax(np.abs(w)))
+    dx = o.directions @ np.real(V[:, j])
+    dx *= size * max(float(np.abs(o.q0).max()), 1e-300) / np.abs(dx[:n]).max()
+    phi = FlowMap(system, o.t0, T)
+    q, v = o.q0 + dx[:n], o.v0 + dx[n:]
+    dist, sign = [], []
+    for _ in range(periods):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+        d = np.concatenate([q - o.q0, v - o.v0])
+        dist.append(float(np.linalg.norm(d) / np.linalg.norm(dx)))
+        sign.append(int(np.sign(d @ dx)))
+    return {"multiplier_re": float(w[j].real), "multiplier_im": float(w[j].imag), "periods": periods, "size": size,
+            "relative_distance": dist, "sign": sign, "rate": dist[-1] ** (1.0 / periods)}
+
+
+def aftermath(system, T: float, o, revolutions: int, size: float = 1e-4) -> list[dict]:
+    """The motion from the orbit's state scaled by 1 + ``size``, revolution by revolution (events, midspan)."""
+    phi = FlowMap(system, o.t0, T)
+    q, v, out = o.q0 * (1.0 + size), o.v0.copy(), []
+    for k in range(revolutions):
+        f = phi(q, v, jacobian=False)
+        r = f.result
+        out.append({"revolution": k + 1, "events": len(r.events), "gap_min_m": float(r.gap.min()),
+                    "midspan_m": dr.midspan(system, 1.0 / T, np.asarray(r.t), r.q)})
+        q, v = f.q, f.v
+    return out
+
+
+def study(args) -> dict:
+    mu, beta = args.mu, args.beta
+    # 1. the estimate
+    f_open, f_closed, f_bonded = resonance_speed("open"), resonance_speed("closed"), bonded_speed()
+    print(f"resonance speeds: open {f_open:.4f}, closed {f_closed:.4f}, bonded {f_bonded:.4f} Hz", file=sys.stderr)
+    # 2. the open orbits, from the scene's own state below and above the resonance
+    speeds = dr.parse_speeds(args.speeds)
+    system, T, q0, v0 = build(float(speeds[0]), beta, mu)
+    q, v = dr.settle(system, T, q0, v0, args.lead)
+    open_lo = walk(speeds, mu, beta, (q, v, 0.0), "open", args.max_iter, touching=False)
+    system, T, q0, v0 = build(float(speeds[-1]), beta, mu)
+    q, v = dr.settle(system, T, q0, v0, args.lead)
+    open_hi = walk(speeds[::-1], mu, beta, (q, v, 0.0), "open", args.max_iter, touching=False)
+    # 3. the touching orbits from the mapped start, down and up, each end refined
+    start = mapped_start(Path(args.start), args.touch_speed, mu, beta, args.settle)
+    first, o = shoot(args.touch_speed, mu, beta, start, "touching", args.max_iter)
+    touch = [(first, o)]
+    if o.converged:
+        for sign in (-1.0, 1.0):
+            coarse = [round(args.touch_speed + sign * k * args.step, 9) for k in range(1, 40)]
+            seq = walk(coarse, mu, beta, (o.q0, o.v0, o.t0), "touching", args.max_iter, touching=True)
+            touch += seq
+            good = [x for x in seq if x[0]["converged"] and x[0]["events_per_period"] > 0]
+            base = good[-1] if good else (first, o)
+            fine = [round(base[0]["speed_hz"] + sign * k * args.fine, 9)
+                    for k in range(1, int(round(args.step / args.fine)))]
+            touch += walk(fine, mu, beta, (base[1].q0, base[1].v0, base[1].t0), "touching", args.max_iter, True)
+    # the unstable touching orbits: every converged one outside the circle, and their neighbours by fine steps
+    unstable = [x for x in touch if x[0]["converged"] and x[0]["events_per_period"] > 0 and not x[0]["stable"]]
+    extra = []
+    for row, orb in unstable[:1]:
+        for sign in (-1.0, 1.0):
+            fine = [round(row["speed_hz"] + sign * k * args.fine, 9) for k in range(1, 8)]
+            extra += walk(fine, mu, beta, (orb.q0, orb.v0, orb.t0), "unstable", args.max_iter, True)
+    rows = [r for r, _ in open_lo + open_hi + touch + extra]
+    # 4. the checks
+    checks = {}
+    if unstable:
+        row, orb = unstable[0]
+        system, T = build(row["speed_hz"], beta, mu)[:2]
+        checks["unstable_departure"] = dict(departure(system, T, orb, args.periods, 1e-9), speed_hz=row["speed_hz"])
+        checks["unstable_aftermath"] = {"speed_hz": row["speed_hz"],
+                                        "revolutions": aftermath(system, T, orb, args.revolutions)}
+    stable = [x for x in touch if x[0]["converged"] and x[0]["events_per_period"] > 0 and x[0]["stable"]]
+    if stable:
+        row, orb = min(stable, key=lambda x: abs(x[0]["speed_hz"] - args.touch_speed))
+        system, T = build(row["speed_hz"], beta, mu)[:2]
+        checks["stable_contraction"] = dict(departure(system, T, orb, args.periods, 1e-8), speed_hz=row["speed_hz"])
+    # the half-width and linear peak from the open orbits above the resonance (single-mode fit, two flanks points)
+    hi = sorted([r for r in rows if r["branch"] == "open" and r["converged"] and r["events_per_period"] == 0
+                 and r["speed_hz"] > f_open + 0.02], key=lambda r: r["speed_hz"])
+    estimate = {"open_hz": f_open, "closed_hz": f_closed, "bonded_hz": f_bonded}
+    if len(hi) >= 2:
+        (f1, a1), (f2, a2) = [(r["speed_hz"] - f_open, r["midspan_m"]) for r in (hi[0], hi[-1])]
+        w, peak = half_width(f1, a1, f2, a2)
+        estimate.update({"half_width_hz": w, "linear_peak_m": peak})
+    payload = {"study": "delamination_variants", "scene": "default", "mu": mu, "beta_s": beta,
+               "estimate": estimate, "rows": rows, "checks": checks, "machine": machine()}
+    write_outputs(Path(args.out), "delamination_variants", rows, payload)
+    figure(payload, Path(args.figure))
+    return payload
+
+
+def fold_start(args, out: Path) -> Path:
+    """The touching orbit at ``--fold-start-speed`` with gravity ``--gravity`` (frictionless, ``--beta``): from the
+    stored orbit (1 g, 22.78 Hz), ``--settle`` revolutions at the gravity, shot at 22.78 Hz and followed by natural
+    continuation in steps of ``--step``; saved as an orbit file (q0, v0, t0) for ``nsfem periodic --start``."""
+    g, beta = args.gravity, args.beta
+    d = np.load(args.start)
+    q, v, t0 = d["q0"], d["v0"], float(d["t0"])
+    s = float(d["speed_hz"])
+    system, T = build(s, beta, 0.0, g)[:2]
+    phi = FlowMap(system, t0, T)
+    for _ in range(args.settle):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+    speeds = np.arange(s, args.fold_start_speed + 0.5 * args.step, args.step)
+    for sp in speeds:
+        system, T = build(float(sp), beta, 0.0, g)[:2]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            o = periodic_orbit(system, T, q, v, t0, tol=1e-10, max_iter=args.max_iter, attempts=1)
+        print(f"fold start {sp:.4f} Hz: converged {o.converged} ({o.residual:.1e}) events {o.events_per_period}",
+              file=sys.stderr, flush=True)
+        if not o.converged:
+            raise SystemExit(f"delamination_variants: error: no touching orbit at {sp:.4f} Hz with gravity {g:g}")
+        q, v, t0 = o.q0, o.v0, o.t0
+    path = out / "fold_start.npz"
+    np.savez(path, q0=q, v0=v, t0=t0, speed_hz=float(speeds[-1]), beta=beta, mu=0.0, gravity=g)
+    return path
+
+
+def fold(args) -> dict:
+    """``--fold``: the touching branch with gravity ``--gravity`` by pseudo-arclength (``nsfem periodic --continue``
+    over ``--fold-range`` from the orbit of :func:`fold_start`), each point's midspan amplitude from one period of
+    the exact flow, the open orbits over ``--speeds`` at that gravity, and the figure delamination_fold.png."""
+    import subprocess
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = fold_start(args, out)
+    g, beta = args.gravity, args.beta
+    lo, hi = (float(x) for x in args.fold_range.split(":"))
+    cmd = [sys.executable, "-m", "nsfem", "periodic", "default", "--set", f"damping.rayleigh=[0.0,{beta!r}]",
+           "--set", f"rotation.gravity={g!r}", "--set", f"rotation.speed_hz={args.fold_start_speed!r}",
+           "--set", "output.vtu_every=0", "--start", str(start), "--continue", f"rotation.speed_hz={lo!r}:{hi!r}",
+           "--steps", str(args.fold_steps), "--step", "0.001", "--out", str(out / "fold_branch")]
+    t = time.perf_counter()
+    done = subprocess.run(cmd, cwd=str(ROOT), capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if done.returncode != 0:
+        raise SystemExit(f"delamination_variants: error: nsfem periodic --continue failed: "
+                         f"{done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}")
+    meta = json.loads((out / "fold_branch" / "branch.json").read_text())
+    b = np.load(out / "fold_branch" / "branch.npz")
+    points = []
+    for i, p in enumerate(meta["branch"]):
+        system, T = build(float(p["value"]), beta, 0.0, g)[:2]
+        f = FlowMap(system, float(b["t0_s"][i]), T)(b["q0"][i], b["v0"][i], jacobian=False)
+        mu = np.array([complex(*m) for m in p["multipliers"]])
+        points.append({"speed_hz": float(p["value"]), "stable": bool(p["stable"]), "converged": bool(p["converged"]),
+                       "events_per_period": int(p["events_per_period"]), "residual": float(p["residual"]),
+                       "largest_multiplier": float(np.abs(mu).max()),
+                       "leading_real": bool(abs(mu[0].imag) <= 1e-9), "leading_re": float(mu[0].real),
+                       "midspan_m": dr.midspan(system, float(p["value"]), np.asarray(f.result.t), f.result.q)})
+    # the open orbits at this gravity (linear where they do not touch), from the scene's state at each end
+    speeds = dr.parse_speeds(args.speeds)
+    opened = []
+    for seq in (speeds, speeds[::-1]):
+        system, T, q0, v0 = build(float(seq[0]), beta, 0.0, g)
+        q, v = dr.settle(system, T, q0, v0, args.lead)
+        for sp in seq:
+            system, T = build(float(sp), beta, 0.0, g)[:2]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                o = periodic_orbit(system, T, q, v, 0.0, tol=1e-9, max_iter=args.max_iter, attempts=1)
+            if not o.converged or o.events_per_period:
+                break
+            opened.append({"speed_hz": float(sp), "midspan_m": dr.midspan(system, float(sp), np.asarray(o.result.t),
+                                                                          o.result.q),
+                           "gap_min_m": float(o.result.gap.min()), "largest_multiplier": float(np.abs(o.multipliers[0]))})
+            q, v = o.q0, o.v0
+    payload = {"study": "delamination_fold", "gravity": g, "beta_s": beta, "branch": points,
+               "stop": meta["stop"], "reason": meta["reason"], "sides": meta["sides"], "open": opened,
+               "continuation_wall_s": wall, "machine": machine()}
+    write_outputs(out, "delamination_fold", points, payload)
+    fold_figure(payload, Path(args.figure).with_name("delamination_fold.png"))
+    return payload
+
+
+def fold_figure(payload: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts = sorted(payload["branch"], key=lambda r: r["speed_hz"])
+    op = sorted(payload["open"], key=lambda r: r["speed_hz"])
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.4))
+    s = np.array([r["speed_hz"] for r in op])
+    cut = np.flatnonzero(np.diff(s) > 0.006) + 1
+    for k, (ps, pa) in enumerate(zip(np.split(s, cut), np.split(np.array([r["midspan_m"] for r in op]) * 1e3, cut))):
+        ax[0].plot(ps, pa, "-o", ms=2.5, color="C0", label="open orbits (stable)" if k == 0 else None)
+    st = [r for r in pts if r["stable"]]
+    ax[0].plot([r["speed_hz"] for r in st], [r["midspan_m"] * 1e3 for r in st], "-s", ms=3, color="C3",
+               label="touching orbits, pseudo-arclength (stable)")
+    un = [r for r in pts if not r["stable"]]
+    if un:
+        ax[0].plot([r["speed_hz"] for r in un], [r["midspan_m"] * 1e3 for r in un], "--D", mfc="none", color="k",
+                   label="touching orbits (unstable)")
+    end = max(pts, key=lambda r: r["speed_hz"])
+    ax[0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k",
+               label=f"the branch's end: fold ({end['speed_hz']:.6f} Hz)")
+    ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
+              title=f"gravity {payload['gravity']:g} m/s^2, beta {payload['beta_s']:g} s, frictionless")
+    ax[1].plot([r["speed_hz"] for r in pts], [r["largest_multiplier"] for r in pts], "s", ms=3, color="C3",
+               label="largest |multiplier|")
+    re = [r for r in pts if r["leading_real"]]
+    ax[1].plot([r["speed_hz"] for r in re], [r["leading_re"] for r in re], "k*", ms=8,
+               label="leading multiplier real (> 0)")
+    ax[1].axhline(1.0, color="k", lw=0.8)
+    ax[1].set(xlabel="speed [Hz]", ylabel="|mu_1|", title="stability along the branch")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.ticklabel_format(axis="x", useOffset=False)
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def figure(payload: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [r for r in payload["rows"] if r["converged"]]
+    fig, ax = plt.subplots(1, 3, figsize=(16, 4.4))
+    kinds = (("open, stable", lambda r: r["events_per_period"] == 0 and r["stable"], "o", "C0"),
+             ("touching, stable", lambda r: r["events_per_period"] > 0 and r["stable"], "s", "C3"),
+             ("touching, unstable", lambda r: r["events_per_period"] > 0 and not r["stable"], "D", "k"))
+    for label, sel, mk, c in kinds:
+        rs = sorted((r for r in rows if sel(r)), key=lambda r: r["speed_hz"])
+        if not rs:
+            continue
+        s = [r["speed_hz"] for r in rs]
+        style = "--" if "unstable" in label else "-"
+        face = "none" if "unstable" in label else c
+        for a, y in ((ax[0], [r["midspan_m"] * 1e3 for r in rs]), (ax[1], [r["largest_multiplier"] for r in rs])):
+            if "open" in label:   # two open pieces (below and above the touching band): no line across it
+                y = np.array(y, dtype=float)
+                cut = np.flatnonzero(np.diff(s) > 0.006) + 1
+                for part_s, part_y in zip(np.split(np.array(s), cut), np.split(y, cut)):
+                    a.plot(part_s, part_y, style, color=c, lw=1.2)
+                a.plot(s, y, mk, color=c, ms=3, label=label)
+            else:
+                a.plot(s, y, style + mk, color=c, mfc=face, ms=5, lw=1.2, label=label)
+    bad = [r for r in payload["rows"] if not r["converged"]]
+    if bad:
+        ax[0].plot([r["speed_hz"] for r in bad], [r["midspan_m"] * 1e3 for r in bad], "x", color="0.5", ms=7,
+                   label="shooting not converged (last iterate)")
+    ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
+              title=f"friction {payload['mu']:g}, beta {payload['beta_s']:g} s: resonance curve")
+    ax[1].axhline(1.0, color="k", lw=0.8)
+    ax[1].set(xlabel="speed [Hz]", ylabel="largest |Floquet multiplier|", title="stability (outside 1: unstable)")
+    ax2 = ax[1].twinx()
+    rs = sorted(rows, key=lambda r: r["speed_hz"])
+    ax2.plot([r["speed_hz"] for r in rs], [r["events_per_period"] for r in rs], ".", color="C2", ms=4)
+    ax2.set_ylabel("events a period (green)", color="C2")
+    c = payload["checks"]
+    for key, lab, col in (("unstable_departure", "from the unstable orbit", "k"),
+                          ("stable_contraction", "from a stable touching orbit", "C3")):
+        if key in c:
+            d = c[key]
+            k = np.arange(1, d["periods"] + 1)
+            m = math.hypot(d["multiplier_re"], d["multiplier_im"])
+            ax[2].semilogy(k, d["relative_distance"], "o", color=col, ms=4,
+                           label=f"{lab} ({d['speed_hz']:.4f} Hz)")
+            ax[2].semilogy(k, m ** k, "-", color=col, lw=0.8, label=f"|mu_1|^k, |mu_1| = {m:.4f}")
+    ax[2].set(xlabel="period k", ylabel="distance / initial", title="transients along the leading direction")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.ticklabel_format(axis="x", useOffset=False)
+    ax[0].legend(fontsize=7)
+    ax[1].legend(fontsize=7, loc="lower left")
+    if c:
+        ax[2].legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def check_options(ap: argparse.ArgumentParser, args) -> None:
+    """Refuse a bad option in one line (``ap.error``: exit 2) before any flow."""
+    for name, value in (("--beta", args.beta), ("--step", args.step), ("--fine", args.fine),
+                        ("--touch-speed", args.touch_speed)):
+        if not (math.isfinite(value) and value > 0):
+            ap.error(f"{name} must be a finite number > 0, got {value!r}")
+    if not (math.isfinite(args.mu) and args.mu >= 0):
+        ap.error(f"--mu must be a finite friction coefficient >= 0, got {args.mu!r}")
+    if args.fine > args.step:
+        ap.error(f"--fine ({args.fine!r}) must not exceed --step ({args.step!r})")
+    for name, value, least in (("--lead", args.lead, 0), ("--settle", args.settle, 0), ("--max-iter", args.max_iter, 1),
+                               ("--periods", args.periods, 1), ("--revolutions", args.revolutions, 1)):
+        if value < least:
+            ap.error(f"{name} must be >= {least}, got {value}")
+    try:
+        dr.parse_speeds(args.speeds)
+    except ValueError as exc:
+        ap.error(f"--speeds: {' '.join(str(exc).split())}")
+    if not (math.isfinite(args.gravity) and 0 < args.gravity <= 100):
+        ap.error(f"--gravity must be a finite number in (0, 100] m/s^2, got {args.gravity!r}")
+    if not (math.isfinite(args.fold_start_speed) and args.fold_start_speed > 0):
+        ap.error(f"--fold-start-speed must be a finite number > 0, got {args.fold_start_speed!r}")
+    try:
+        lo, hi = (float(x) for x in args.fold_range.split(":"))
+    except ValueError:
+        ap.error(f"--fold-range: {args.fold_range!r} is not LOW:HIGH")
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        ap.error(f"--fold-range: {args.fold_range!r} needs finite speeds 0 < LOW < HIGH")
+    if not args.fold_steps >= 1:
+        ap.error(f"--fold-steps must be >= 1, got {args.fold_steps}")
+    if not Path(args.start).is_file():
+        ap.error(f"--start: no such file {args.start!r} (a touching orbit's section state, .npz)")
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mu", type=float, default=0.3, help="friction coefficient between the layers")
+    ap.add_argument("--beta", type=float, default=1e-5, help="stiffness-proportional damping [s]")
+    ap.add_argument("--speeds", default="22.70:22.86:33", help="LOW:HIGH:N the open orbits' speeds [Hz]")
+    ap.add_argument("--touch-speed", type=float, default=22.78, help="the touching branch's start [Hz]")
+    ap.add_argument("--step", type=float, default=0.0025, help="the touching branch's speed step [Hz]")
+    ap.add_argument("--fine", type=float, default=0.0005, help="the refining step at the branch's ends [Hz]")
+    ap.add_argument("--start", default=str(START), help="a touching orbit's section state (.npz: q0 v0 t0 speed_hz beta)")
+    ap.add_argument("--settle", type=int, default=40, help="revolutions from the mapped start before shooting")
+    ap.add_argument("--lead", type=int, default=20, help="revolutions before the first open orbit")
+    ap.add_argument("--max-iter", type=int, default=15, help="Newton steps per orbit")
+    ap.add_argument("--periods", type=int, default=20, help="the departure checks' periods")
+    ap.add_argument("--revolutions", type=int, default=150, help="the motion after the unstable orbit")
+    ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "delamination_variants"))
+    ap.add_argument("--figure", default=str(ROOT / "docs" / "figures" / "delamination_variants.png"))
+    ap.add_argument("--fold", action="store_true",
+                    help="instead: the frictionless touching branch at --gravity by pseudo-arclength up to its fold")
+    ap.add_argument("--gravity", type=float, default=20.0, help="gravity [m/s^2] of --fold (the paper: 9.81)")
+    ap.add_argument("--fold-start-speed", type=float, default=22.80, help="--fold's starting orbit [Hz]")
+    ap.add_argument("--fold-range", default="22.72:22.84", help="--fold's LOW:HIGH speeds [Hz]")
+    ap.add_argument("--fold-steps", type=int, default=80, help="--fold's continuation steps each way")
+    args = ap.parse_args(argv)
+    check_options(ap, args)
+    return fold(args) if args.fold else study(args)
+
+
+if __name__ == "__main__":
+    main()
