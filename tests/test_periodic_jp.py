@@ -1,9 +1,9 @@
 """The continuation's J_p and its thread safety (issue 36): nsfem.periodic.branch._Problem.parameter_derivative,
 scene_branch._Family's cache and nsfem.integrate.blas on several threads.
 
-J_p = d phi_T(u; p) / dp by a forward difference from the flow at p (h = DP of the range). At an orbit u(p) of the
-branch r(u(p), p) = 0, so J_u u'(p) + J_p = 0: J_p = -(Phi_T - I) u'(p), with u'(p) from the closed-form orbit (the
-impact oscillator) or from orbits shot at p +- d (the crack).
+J_p = d phi_T(u; p) / dp by a forward difference from the flow at p (h = DP of the range, at least DP_FLOOR |p|). At
+an orbit u(p) of the branch r(u(p), p) = 0, so J_u u'(p) + J_p = 0: J_p = -(Phi_T - I) u'(p), with u'(p) from the
+closed-form orbit (the impact oscillator) or from orbits shot at p +- d (the crack).
 """
 
 from __future__ import annotations
@@ -70,19 +70,22 @@ def crack_problem():
     return family, so
 
 
-def test_jp_on_the_crack_satisfies_the_branchs_tangent_relation(crack_problem):
+@pytest.mark.parametrize("span", [0.2, 2e-5])
+def test_jp_on_the_crack_satisfies_the_branchs_tangent_relation(crack_problem, span):
     """On the breathing crack (12.4 Hz) J_u u'(p) + J_p = 0 with u'(p) from orbits shot at p +- d (d = 1e-5 Hz,
     tol 1e-12; the orbit curves fast near its grazing: at 1e-4 Hz the truncation is 0.7 % of u', at 1e-5 Hz
     7e-5): u''s error is its truncation, bounded by Richardson (|D(d) - D(2 d)| / 3 from a pair at 2 d), plus the
     shooting's 1e-12 |u| / d; J_p's error (forward difference at h = 2e-7 Hz): truncation h / 2 |phi_pp| plus the
     flow's noise 2 delta / h. The noise is read from the flow itself (the second difference at h, whose truncation
     h^2 |phi_pp| is below it, is noise: 4 delta at most), |phi_pp| from the second difference at d. Each bound is
-    applied through |J_u| for u'."""
+    applied through |J_u| for u'. On a wide range (0.2 Hz) h = DP of it, 2e-7 Hz; on a narrow one (2e-5 Hz) DP of it
+    would be 2e-11 Hz (1.6e-12 of p), where the flow's noise over h is O(1) of J_p (2.3x measured): h is held at
+    DP_FLOOR |p| (1.2e-7 Hz) there, and J_p must resolve as on the wide range."""
     from nsfem.periodic.shooting import periodic_orbit
 
     family, so = crack_problem
     o = so.orbit
-    p, span = 12.4, 0.2
+    p = 12.4
     u = np.concatenate([o.q0, o.v0])
     n = u.size // 2
     problem = _Problem(family.system_at, family.period_at, o.t0, DP * span, 1)
@@ -107,7 +110,7 @@ def test_jp_on_the_crack_satisfies_the_branchs_tangent_relation(crack_problem):
         f = problem.flow_map(pp)(u[:n], u[n:], jacobian=False)
         return np.concatenate([f.q, f.v])
 
-    h = problem.dp
+    h = problem.jp_step(p)
     e0 = end(p)
     noise = np.abs(end(p + h) - 2 * e0 + end(p - h)) / 4
     phi_pp = np.abs(end(p + d) - 2 * e0 + end(p - d)) / d ** 2
