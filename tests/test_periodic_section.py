@@ -239,3 +239,26 @@ def test_transition_without_pairs_is_the_matrix_exponential(monkeypatch):
         ref = _van_loan(config, s)
         tol = 50 * (cond + np.abs(config.A).max() * s) * EPS * max(1.0, np.abs(ref).max())
         assert np.abs(phase_transition(config, s) - ref).max() <= tol
+
+
+@pytest.mark.parametrize("theta", [0.0, 0.7, 1.5707963267948966, 2.5, 3.141592653589793])
+def test_modal_exponentials_phi_is_accurate_across_its_series_threshold(theta):
+    """phi(lam, s) = (e^{lam s} - 1) / lam, by its series where |lam s| < 1e-3 and by the quotient above, against
+    s sum_k z^k / (k + 1)! (z = lam s, 25 terms: exact to a few eps for |z| <= 0.1), for |z| from 1e-9 to 0.1 on a
+    ray of the complex plane (decaying, oscillating, growing) and z = 0. The series' truncation is |z|^4 / 120 <=
+    8.4e-15 below 1e-3, the quotient's cancellation ~2 eps / |z| <= 4.5e-13 above: 1e-12 bounds both; a series cut
+    one term short is off by |z|^3 / 24 (4e-11 at 1e-3), two terms short by |z|^2 / 6."""
+    from nsfem.periodic.variational import _modal_exponentials
+
+    s = 0.37
+    z = np.concatenate([[0.0], np.logspace(-9, -1, 81)]) * np.exp(1j * theta)
+    lam = z / s
+    e, phi = _modal_exponentials(lam, s)
+    ref = np.zeros_like(z)
+    term = np.ones_like(z)
+    for k in range(25):
+        ref += term
+        term = term * z / (k + 2)
+    ref *= s
+    assert np.abs(e - np.exp(z)).max() <= 4 * EPS
+    assert np.all(np.abs(phi - ref) <= 1e-12 * np.abs(ref))
