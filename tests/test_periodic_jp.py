@@ -245,3 +245,78 @@ def test_blas_blocks_on_two_threads_keep_one_thread_until_the_last_ends(monkeypa
     ta.join(), tb.join()
     assert seen["after A left"] == 1
     assert state["threads"] == 4
+
+
+def test_a_failed_load_leaves_no_waiting_entry_and_the_waiting_thread_loads_it(monkeypatch):
+    """Thread A's load of a value fails (after 50 ms) while thread B waits for that value: A gets its error, B is
+    woken and loads the value itself (a second load, which succeeds), nothing is left in the family's loads under
+    way and its lock is free. Joined with a timeout: a waiting entry left behind would hang B, reported as such."""
+    from nsfem.errors import NsfemError
+    from nsfem.integrate import ContactSystem
+    from nsfem.periodic import scene as scene_mod
+    from nsfem.periodic import scene_branch
+
+    calls, a_loading = [], threading.Event()
+
+    class Scene:
+        def __init__(self, p):
+            self.p = p
+
+    def load(extra):
+        calls.append(extra)
+        if len(calls) == 1:
+            a_loading.set()
+            time.sleep(0.05)
+            raise NsfemError("--continue stator.0.friction: a load that fails")
+        return Scene(float(extra[0].split("=", 1)[1]))
+
+    monkeypatch.setattr(ContactSystem, "from_scene", classmethod(lambda cls, scene, *a, **k: _Fake(scene.p)))
+    monkeypatch.setattr(scene_mod, "check_scene", lambda scene: None)
+    family = scene_branch._Family(Scene(0.0), "stator.0.friction", _Fake(0.0), load)
+    got = {}
+
+    def a():
+        try:
+            family.system_at(0.3)
+        except NsfemError as exc:
+            got["a"] = exc
+
+    def b():
+        a_loading.wait(5)
+        got["b"] = family.system_at(0.3)
+
+    ta, tb = threading.Thread(target=a, daemon=True), threading.Thread(target=b, daemon=True)
+    ta.start(), tb.start()
+    ta.join(10), tb.join(10)
+    assert not ta.is_alive() and not tb.is_alive(), "a thread still waits for a load that failed"
+    assert isinstance(got["a"], NsfemError) and got["b"].p == 0.3
+    assert len(calls) == 2 and not family._loading
+    assert family._lock.acquire(blocking=False)
+    family._lock.release()
+
+
+def test_a_blas_block_left_by_an_exception_restores_the_count(monkeypatch):
+    """An exception inside a single_threaded_blas block (nested or not) leaves the process's BLAS count as it was
+    and the next block sets one thread again (the counting is not left at a block that never ended)."""
+    from nsfem.integrate import blas
+
+    state = {"threads": 4, "limiters": 0}
+
+    class Limiter:
+        def __init__(self, limits, user_api):
+            self.saved, state["threads"] = state["threads"], limits
+            state["limiters"] += 1
+
+        def restore_original_limits(self):
+            state["threads"] = self.saved
+
+    monkeypatch.setattr(blas, "threadpool_limits", Limiter)
+    with pytest.raises(ZeroDivisionError):
+        with blas.single_threaded_blas():
+            with blas.single_threaded_blas():
+                assert state["threads"] == 1
+                1 / 0
+    assert state["threads"] == 4 and blas._active == 0 and getattr(blas._depth, "n", 0) == 0
+    with blas.single_threaded_blas():
+        assert state["threads"] == 1 and state["limiters"] == 2
+    assert state["threads"] == 4
