@@ -262,3 +262,33 @@ def test_modal_exponentials_phi_is_accurate_across_its_series_threshold(theta):
     ref *= s
     assert np.abs(e - np.exp(z)).max() <= 4 * EPS
     assert np.all(np.abs(phi - ref) <= 1e-12 * np.abs(ref))
+
+
+@pytest.mark.parametrize("closed, stick", [((0,), (0,)), ((0,), ()), ((), ())])
+def test_transition_by_van_loan_is_the_modal_one(monkeypatch, closed, stick):
+    """phase_transition's fallback (expm of the Van Loan matrix: rigid coordinates, no usable decomposition) against
+    its modal form, on the block of tests/test_periodic_stick.py stuck (P_H = the held stick position: the forcing
+    column -int e^{A s} B Q P_H matters), pressed without friction held and free, over a short phase, a period and
+    three. Both are exact up to round-off: cond(V) eps of the modal form and |A s| eps of expm's scaling and squaring
+    (as in the test above); a wrong sign or a missing term is an O(1) error (the stuck block's forcing column is
+    O(k / m2))."""
+    from test_periodic_stick import block_system
+
+    from nsfem.periodic import variational
+
+    w = 1.3
+    T = 2 * math.pi / w
+    system = block_system(w)
+    mode = Mode(closed=closed, stick=stick)
+    modal = Configuration(system, mode)
+    assert modal_transition(modal) is not None
+    expm_ = Configuration(system, mode)
+    monkeypatch.setattr(variational, "_has_modal_exponentials", lambda config: False)
+    assert modal_transition(expm_) is None
+    cond = np.linalg.cond(modal.eig[1])
+    for s in (1e-3 * T, T, 3 * T):
+        a, b = phase_transition(modal, s), phase_transition(expm_, s)
+        tol = 50 * (cond + np.abs(modal.A).max() * s) * EPS * max(1.0, np.abs(a).max())
+        assert np.abs(a - b).max() <= tol, (closed, stick, s)
+    if stick:
+        assert np.abs(constraint_projector(modal)).max() == 1.0   # (the held stick position: the column is there)
