@@ -111,12 +111,22 @@ def test_a_run_from_a_start_time_is_the_run_of_the_shifted_system():
     assert a.info["closed_fraction"] == pytest.approx(b.info["closed_fraction"], abs=1e-9)
 
 
-@pytest.mark.parametrize("t_start", [float("nan"), float("inf"), 2.0, "0.1"])
+@pytest.mark.parametrize("t_start", [float("nan"), float("inf"), 2.0, "0.1", True, np.float64(2.5), None])
 def test_a_run_refuses_a_bad_start_time(t_start):
     system = ContactSystem.from_arrays(M=[[1.0]], Q=[[1.0]])
     with pytest.raises(NsfemError, match="t_start") as info:
-        Exact(system, progress=False).run(1.0, 0.5, [1.0], None, t_start=t_start)
+        Exact(system, progress=False).run(2.0, 0.5, [1.0], None, t_start=t_start)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("t_start", [np.int64(-1), np.float32(-0.5), -1])
+def test_a_run_takes_a_numpy_start_time_as_its_value(t_start):
+    """A start time given as a numpy scalar (an event time read from a result) is that time: the run's grid starts
+    there, the same run as from the Python float (bit for bit: one clock)."""
+    system = ContactSystem.from_arrays(M=[[1.0]], Q=[[1.0]], fc=[1.0], omega=2.0)
+    a = Exact(system, progress=False).run(1.0, 0.25, [1.0], None, t_start=t_start)
+    b = Exact(system, progress=False).run(1.0, 0.25, [1.0], None, t_start=float(t_start))
+    assert a.t[0] == float(t_start) and np.array_equal(a.t, b.t) and np.array_equal(a.q, b.q)
 
 
 def _van_loan(config, s):
