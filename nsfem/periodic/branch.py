@@ -1,26 +1,25 @@
 """Branches of periodic orbits over a parameter: pseudo-arclength continuation of the shooting problem, the
 stability along it, its bifurcations, and the switch onto the period-doubled branch.
 
-The unknowns are the section state u = (q, q') and the parameter p (a rotor speed, a clearance...). The
-residual r(u, p) = phi_T(p)(u; p) - u with J_u = Phi_T - I (the monodromy matrix of :mod:`.flow`: exact) and
-J_p by a forward difference in p: (phi_T(u; p + h) - phi_T(u; p)) / h, h = 1e-6 of the range (at least 1e-8 |p|:
-DP_FLOOR), from the flow at p the residual has anyway (one plain flow and one system more). Its error is the
-truncation h |phi_pp| / 2 plus the flow's noise 2 delta / h (event times and the phases' closed forms: delta ~
-3.5e-10 of the orbit's size on the crack, from differences at h down to 1e-8 of the range); at this h both are ~1e-4
-of |J_p| on the crack (12.4 Hz), as were the central differences at the same h it replaced (noise-dominated, 2e-4),
-which cost two plain flows and two systems: J_p was ~60 % of a branch's time. It is formed at every residual:
-reused over a corrector's iterates it made Newton linear, steps grew less often (they grow after at most two
-iterations) and near a grazing, where |J_pp| grows like (p - p_g)^-3/2, the impact oscillator's branch took 44
-points on its impacting side instead of 15; the crack gained 8 % per hertz covered. J_p only steers the corrector and the predictor's tangent: the points
-are zeros of the exact residual;
-:func:`.continuation.continue_branch` follows the branch through folds and locates where a multiplier leaves the
-unit circle. The orbit's phase drifts with p, so its events move over the section, where the section state jumps
-(an impact's velocity) and the map is not smooth: after each point, when an event has come within a quarter of the
-longest event-free stretch of the period from the section (or a step failed at the smallest step), the section
-moves to that stretch's middle (:meth:`_Problem.reanchor`, the continuation's ``reanchor``); each point keeps its
-section time ``t0_s``. At a period doubling the doubled orbit (period 2 T) branches off along the eigenvector of the
-multiplier -1: :func:`doubled_start` solves for it a little past the bifurcation, and the doubled branch is
-continued like the first.
+The unknowns are the section state u = (q, q') and the parameter p (a rotor speed, a clearance...). The residual
+r(u, p) = phi_T(p)(u; p) - u with J_u = Phi_T - I (the monodromy matrix of :mod:`.flow`: exact) and J_p by a forward
+difference in p: (phi_T(u; p + h) - phi_T(u; p)) / h, h = 1e-6 of the range (at least 1e-8 |p|: DP_FLOOR), from the
+flow at p the residual has anyway (one plain flow and one system more). Its error is the truncation h |phi_pp| / 2
+plus the flow's noise 2 delta / h (event times and the phases' closed forms: delta ~ 3.5e-10 of the orbit's size on
+the crack, from differences at h down to 1e-8 of the range); at this h both are ~1e-4 of |J_p| on the crack (12.4
+Hz), as were the central differences at the same h it replaced (noise-dominated, 2e-4), which cost two plain flows
+and two systems: J_p was ~60 % of a branch's time. It is formed at every residual: reused over a corrector's
+iterates it made Newton linear, steps grew less often (they grow after at most two iterations) and near a grazing,
+where |J_pp| grows like (p - p_g)^-3/2, the impact oscillator's branch took 44 points on its impacting side instead
+of 15; the crack gained 8 % per hertz covered. J_p only steers the corrector and the predictor's tangent: the points
+are zeros of the exact residual; :func:`.continuation.continue_branch` follows the branch through folds and locates
+where a multiplier leaves the unit circle. The orbit's phase drifts with p, so its events move over the section,
+where the section state jumps (an impact's velocity) and the map is not smooth: after each point, when an event has
+come within a quarter of the longest event-free stretch of the period from the section (or a step failed at the
+smallest step), the section moves to that stretch's middle (:meth:`_Problem.reanchor`, the continuation's
+``reanchor``); each point keeps its section time ``t0_s``. At a period doubling the doubled orbit (period 2 T)
+branches off along the eigenvector of the multiplier -1: :func:`doubled_start` solves for it a little past the
+bifurcation, and the doubled branch is continued like the first.
 """
 
 from __future__ import annotations
