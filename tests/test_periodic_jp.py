@@ -1,9 +1,9 @@
 """The continuation's J_p and its thread safety (issue 36): nsfem.periodic.branch._Problem.parameter_derivative,
 scene_branch._Family's cache and nsfem.integrate.blas on several threads.
 
-J_p = d phi_T(u; p) / dp by a forward difference from the flow at p (h = DP of the range). At an orbit u(p) of the
-branch r(u(p), p) = 0, so J_u u'(p) + J_p = 0: J_p = -(Phi_T - I) u'(p), with u'(p) from the closed-form orbit (the
-impact oscillator) or from orbits shot at p +- d (the crack).
+J_p = d phi_T(u; p) / dp by a forward difference from the flow at p (h = DP of the range, at least DP_FLOOR |p|). At
+an orbit u(p) of the branch r(u(p), p) = 0, so J_u u'(p) + J_p = 0: J_p = -(Phi_T - I) u'(p), with u'(p) from the
+closed-form orbit (the impact oscillator) or from orbits shot at p +- d (the crack).
 """
 
 from __future__ import annotations
@@ -70,19 +70,22 @@ def crack_problem():
     return family, so
 
 
-def test_jp_on_the_crack_satisfies_the_branchs_tangent_relation(crack_problem):
+@pytest.mark.parametrize("span", [0.2, 2e-5])
+def test_jp_on_the_crack_satisfies_the_branchs_tangent_relation(crack_problem, span):
     """On the breathing crack (12.4 Hz) J_u u'(p) + J_p = 0 with u'(p) from orbits shot at p +- d (d = 1e-5 Hz,
     tol 1e-12; the orbit curves fast near its grazing: at 1e-4 Hz the truncation is 0.7 % of u', at 1e-5 Hz
     7e-5): u''s error is its truncation, bounded by Richardson (|D(d) - D(2 d)| / 3 from a pair at 2 d), plus the
     shooting's 1e-12 |u| / d; J_p's error (forward difference at h = 2e-7 Hz): truncation h / 2 |phi_pp| plus the
     flow's noise 2 delta / h. The noise is read from the flow itself (the second difference at h, whose truncation
     h^2 |phi_pp| is below it, is noise: 4 delta at most), |phi_pp| from the second difference at d. Each bound is
-    applied through |J_u| for u'."""
+    applied through |J_u| for u'. On a wide range (0.2 Hz) h = DP of it, 2e-7 Hz; on a narrow one (2e-5 Hz) DP of it
+    would be 2e-11 Hz (1.6e-12 of p), where the flow's noise over h is O(1) of J_p (2.3x measured): h is held at
+    DP_FLOOR |p| (1.2e-7 Hz) there, and J_p must resolve as on the wide range."""
     from nsfem.periodic.shooting import periodic_orbit
 
     family, so = crack_problem
     o = so.orbit
-    p, span = 12.4, 0.2
+    p = 12.4
     u = np.concatenate([o.q0, o.v0])
     n = u.size // 2
     problem = _Problem(family.system_at, family.period_at, o.t0, DP * span, 1)
@@ -107,7 +110,7 @@ def test_jp_on_the_crack_satisfies_the_branchs_tangent_relation(crack_problem):
         f = problem.flow_map(pp)(u[:n], u[n:], jacobian=False)
         return np.concatenate([f.q, f.v])
 
-    h = problem.dp
+    h = problem.jp_step(p)
     e0 = end(p)
     noise = np.abs(end(p + h) - 2 * e0 + end(p - h)) / 4
     phi_pp = np.abs(end(p + d) - 2 * e0 + end(p - d)) / d ** 2
@@ -241,4 +244,79 @@ def test_blas_blocks_on_two_threads_keep_one_thread_until_the_last_ends(monkeypa
     ta.start(), tb.start()
     ta.join(), tb.join()
     assert seen["after A left"] == 1
+    assert state["threads"] == 4
+
+
+def test_a_failed_load_leaves_no_waiting_entry_and_the_waiting_thread_loads_it(monkeypatch):
+    """Thread A's load of a value fails (after 50 ms) while thread B waits for that value: A gets its error, B is
+    woken and loads the value itself (a second load, which succeeds), nothing is left in the family's loads under
+    way and its lock is free. Joined with a timeout: a waiting entry left behind would hang B, reported as such."""
+    from nsfem.errors import NsfemError
+    from nsfem.integrate import ContactSystem
+    from nsfem.periodic import scene as scene_mod
+    from nsfem.periodic import scene_branch
+
+    calls, a_loading = [], threading.Event()
+
+    class Scene:
+        def __init__(self, p):
+            self.p = p
+
+    def load(extra):
+        calls.append(extra)
+        if len(calls) == 1:
+            a_loading.set()
+            time.sleep(0.05)
+            raise NsfemError("--continue stator.0.friction: a load that fails")
+        return Scene(float(extra[0].split("=", 1)[1]))
+
+    monkeypatch.setattr(ContactSystem, "from_scene", classmethod(lambda cls, scene, *a, **k: _Fake(scene.p)))
+    monkeypatch.setattr(scene_mod, "check_scene", lambda scene: None)
+    family = scene_branch._Family(Scene(0.0), "stator.0.friction", _Fake(0.0), load)
+    got = {}
+
+    def a():
+        try:
+            family.system_at(0.3)
+        except NsfemError as exc:
+            got["a"] = exc
+
+    def b():
+        a_loading.wait(5)
+        got["b"] = family.system_at(0.3)
+
+    ta, tb = threading.Thread(target=a, daemon=True), threading.Thread(target=b, daemon=True)
+    ta.start(), tb.start()
+    ta.join(10), tb.join(10)
+    assert not ta.is_alive() and not tb.is_alive(), "a thread still waits for a load that failed"
+    assert isinstance(got["a"], NsfemError) and got["b"].p == 0.3
+    assert len(calls) == 2 and not family._loading
+    assert family._lock.acquire(blocking=False)
+    family._lock.release()
+
+
+def test_a_blas_block_left_by_an_exception_restores_the_count(monkeypatch):
+    """An exception inside a single_threaded_blas block (nested or not) leaves the process's BLAS count as it was
+    and the next block sets one thread again (the counting is not left at a block that never ended)."""
+    from nsfem.integrate import blas
+
+    state = {"threads": 4, "limiters": 0}
+
+    class Limiter:
+        def __init__(self, limits, user_api):
+            self.saved, state["threads"] = state["threads"], limits
+            state["limiters"] += 1
+
+        def restore_original_limits(self):
+            state["threads"] = self.saved
+
+    monkeypatch.setattr(blas, "threadpool_limits", Limiter)
+    with pytest.raises(ZeroDivisionError):
+        with blas.single_threaded_blas():
+            with blas.single_threaded_blas():
+                assert state["threads"] == 1
+                1 / 0
+    assert state["threads"] == 4 and blas._active == 0 and getattr(blas._depth, "n", 0) == 0
+    with blas.single_threaded_blas():
+        assert state["threads"] == 1 and state["limiters"] == 2
     assert state["threads"] == 4

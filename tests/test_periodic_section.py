@@ -111,12 +111,22 @@ def test_a_run_from_a_start_time_is_the_run_of_the_shifted_system():
     assert a.info["closed_fraction"] == pytest.approx(b.info["closed_fraction"], abs=1e-9)
 
 
-@pytest.mark.parametrize("t_start", [float("nan"), float("inf"), 2.0, "0.1"])
+@pytest.mark.parametrize("t_start", [float("nan"), float("inf"), 2.0, "0.1", True, np.float64(2.5), None])
 def test_a_run_refuses_a_bad_start_time(t_start):
     system = ContactSystem.from_arrays(M=[[1.0]], Q=[[1.0]])
     with pytest.raises(NsfemError, match="t_start") as info:
-        Exact(system, progress=False).run(1.0, 0.5, [1.0], None, t_start=t_start)
+        Exact(system, progress=False).run(2.0, 0.5, [1.0], None, t_start=t_start)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("t_start", [np.int64(-1), np.float32(-0.5), -1])
+def test_a_run_takes_a_numpy_start_time_as_its_value(t_start):
+    """A start time given as a numpy scalar (an event time read from a result) is that time: the run's grid starts
+    there, the same run as from the Python float (bit for bit: one clock)."""
+    system = ContactSystem.from_arrays(M=[[1.0]], Q=[[1.0]], fc=[1.0], omega=2.0)
+    a = Exact(system, progress=False).run(1.0, 0.25, [1.0], None, t_start=t_start)
+    b = Exact(system, progress=False).run(1.0, 0.25, [1.0], None, t_start=float(t_start))
+    assert a.t[0] == float(t_start) and np.array_equal(a.t, b.t) and np.array_equal(a.q, b.q)
 
 
 def _van_loan(config, s):
@@ -239,3 +249,56 @@ def test_transition_without_pairs_is_the_matrix_exponential(monkeypatch):
         ref = _van_loan(config, s)
         tol = 50 * (cond + np.abs(config.A).max() * s) * EPS * max(1.0, np.abs(ref).max())
         assert np.abs(phase_transition(config, s) - ref).max() <= tol
+
+
+@pytest.mark.parametrize("theta", [0.0, 0.7, 1.5707963267948966, 2.5, 3.141592653589793])
+def test_modal_exponentials_phi_is_accurate_across_its_series_threshold(theta):
+    """phi(lam, s) = (e^{lam s} - 1) / lam, by its series where |lam s| < 1e-3 and by the quotient above, against
+    s sum_k z^k / (k + 1)! (z = lam s, 25 terms: exact to a few eps for |z| <= 0.1), for |z| from 1e-9 to 0.1 on a
+    ray of the complex plane (decaying, oscillating, growing) and z = 0. The series' truncation is |z|^4 / 120 <=
+    8.4e-15 below 1e-3, the quotient's cancellation ~2 eps / |z| <= 4.5e-13 above: 1e-12 bounds both; a series cut
+    one term short is off by |z|^3 / 24 (4e-11 at 1e-3), two terms short by |z|^2 / 6."""
+    from nsfem.periodic.variational import _modal_exponentials
+
+    s = 0.37
+    z = np.concatenate([[0.0], np.logspace(-9, -1, 81)]) * np.exp(1j * theta)
+    lam = z / s
+    e, phi = _modal_exponentials(lam, s)
+    ref = np.zeros_like(z)
+    term = np.ones_like(z)
+    for k in range(25):
+        ref += term
+        term = term * z / (k + 2)
+    ref *= s
+    assert np.abs(e - np.exp(z)).max() <= 4 * EPS
+    assert np.all(np.abs(phi - ref) <= 1e-12 * np.abs(ref))
+
+
+@pytest.mark.parametrize("closed, stick", [((0,), (0,)), ((0,), ()), ((), ())])
+def test_transition_by_van_loan_is_the_modal_one(monkeypatch, closed, stick):
+    """phase_transition's fallback (expm of the Van Loan matrix: rigid coordinates, no usable decomposition) against
+    its modal form, on the block of tests/test_periodic_stick.py stuck (P_H = the held stick position: the forcing
+    column -int e^{A s} B Q P_H matters), pressed without friction held and free, over a short phase, a period and
+    three. Both are exact up to round-off: cond(V) eps of the modal form and |A s| eps of expm's scaling and squaring
+    (as in the test above); a wrong sign or a missing term is an O(1) error (the stuck block's forcing column is
+    O(k / m2))."""
+    from test_periodic_stick import block_system
+
+    from nsfem.periodic import variational
+
+    w = 1.3
+    T = 2 * math.pi / w
+    system = block_system(w)
+    mode = Mode(closed=closed, stick=stick)
+    modal = Configuration(system, mode)
+    assert modal_transition(modal) is not None
+    expm_ = Configuration(system, mode)
+    monkeypatch.setattr(variational, "_has_modal_exponentials", lambda config: False)
+    assert modal_transition(expm_) is None
+    cond = np.linalg.cond(modal.eig[1])
+    for s in (1e-3 * T, T, 3 * T):
+        a, b = phase_transition(modal, s), phase_transition(expm_, s)
+        tol = 50 * (cond + np.abs(modal.A).max() * s) * EPS * max(1.0, np.abs(a).max())
+        assert np.abs(a - b).max() <= tol, (closed, stick, s)
+    if stick:
+        assert np.abs(constraint_projector(modal)).max() == 1.0   # (the held stick position: the column is there)

@@ -184,8 +184,9 @@ class EventDriven(Integrator):
         ``t_end``, sampled every ``output_dt`` from ``t_start``: every time of the run (outputs, events) on that
         clock. A start other than 0 runs the same system (its configurations kept where ``keep_configurations``)
         at another forcing phase: a shooting's section (:class:`nsfem.periodic.flow.FlowMap`)."""
-        if not (isinstance(t_start, (int, float)) and math.isfinite(t_start) and t_start < t_end):
-            raise NsfemError(f"t_start must be a finite time before t_end = {t_end!r}, got {t_start!r}")
+        if not (isinstance(t_start, (int, float, np.integer, np.floating)) and not isinstance(t_start, (bool, np.bool_))
+                and math.isfinite(t_start) and t_start < t_end):
+            raise NsfemError(f"t_start must be a finite number of seconds before t_end = {t_end!r}, got {t_start!r}")
         t_start = float(t_start)
         self.system = self._polygon
         self._rings = round_rings(self.system.contacts, self.system.info.get("round_rings", ())) \

@@ -1,26 +1,25 @@
 """Branches of periodic orbits over a parameter: pseudo-arclength continuation of the shooting problem, the
 stability along it, its bifurcations, and the switch onto the period-doubled branch.
 
-The unknowns are the section state u = (q, q') and the parameter p (a rotor speed, a clearance...). The
-residual r(u, p) = phi_T(p)(u; p) - u with J_u = Phi_T - I (the monodromy matrix of :mod:`.flow`: exact) and
-J_p by a forward difference in p: (phi_T(u; p + h) - phi_T(u; p)) / h, h = 1e-6 of the range, from the flow at p
-the residual has anyway (one plain flow and one system more). Its error is the truncation h |phi_pp| / 2 plus the
-flow's noise delta / h (event times and the phases' closed forms: delta ~ 3.5e-10 of the orbit's size on the
-crack, from differences at h down to 1e-8 of the range); at this h both are ~1e-4 of |J_p| on the crack (12.4 Hz),
-as were the central differences at the same h it replaced (noise-dominated, 2e-4), which cost two plain flows and
-two systems: J_p was ~60 % of a branch's time. It is formed at every residual: reused over a corrector's iterates
-it made Newton linear, steps grew less often (they grow after at most two iterations) and near a grazing, where
-|J_pp| grows like (p - p_g)^-3/2, the impact oscillator's branch took 44 points on its impacting side instead of
-15; the crack gained 8 % per hertz covered. J_p only steers the corrector and the predictor's tangent: the points
-are zeros of the exact residual;
-:func:`.continuation.continue_branch` follows the branch through folds and locates where a multiplier leaves the
-unit circle. The orbit's phase drifts with p, so its events move over the section, where the section state jumps
-(an impact's velocity) and the map is not smooth: after each point, when an event has come within a quarter of the
-longest event-free stretch of the period from the section (or a step failed at the smallest step), the section
-moves to that stretch's middle (:meth:`_Problem.reanchor`, the continuation's ``reanchor``); each point keeps its
-section time ``t0_s``. At a period doubling the doubled orbit (period 2 T) branches off along the eigenvector of the
-multiplier -1: :func:`doubled_start` solves for it a little past the bifurcation, and the doubled branch is
-continued like the first.
+The unknowns are the section state u = (q, q') and the parameter p (a rotor speed, a clearance...). The residual
+r(u, p) = phi_T(p)(u; p) - u with J_u = Phi_T - I (the monodromy matrix of :mod:`.flow`: exact) and J_p by a forward
+difference in p: (phi_T(u; p + h) - phi_T(u; p)) / h, h = 1e-6 of the range (at least 1e-8 |p|: DP_FLOOR), from the
+flow at p the residual has anyway (one plain flow and one system more). Its error is the truncation h |phi_pp| / 2
+plus the flow's noise 2 delta / h (event times and the phases' closed forms: delta ~ 3.5e-10 of the orbit's size on
+the crack, from differences at h down to 1e-8 of the range); at this h both are ~1e-4 of |J_p| on the crack (12.4
+Hz), as were the central differences at the same h it replaced (noise-dominated, 2e-4), which cost two plain flows
+and two systems: J_p was ~60 % of a branch's time. It is formed at every residual: reused over a corrector's
+iterates it made Newton linear, steps grew less often (they grow after at most two iterations) and near a grazing,
+where |J_pp| grows like (p - p_g)^-3/2, the impact oscillator's branch took 44 points on its impacting side instead
+of 15; the crack gained 8 % per hertz covered. J_p only steers the corrector and the predictor's tangent: the points
+are zeros of the exact residual; :func:`.continuation.continue_branch` follows the branch through folds and locates
+where a multiplier leaves the unit circle. The orbit's phase drifts with p, so its events move over the section,
+where the section state jumps (an impact's velocity) and the map is not smooth: after each point, when an event has
+come within a quarter of the longest event-free stretch of the period from the section (or a step failed at the
+smallest step), the section moves to that stretch's middle (:meth:`_Problem.reanchor`, the continuation's
+``reanchor``); each point keeps its section time ``t0_s``. At a period doubling the doubled orbit (period 2 T)
+branches off along the eigenvector of the multiplier -1: :func:`doubled_start` solves for it a little past the
+bifurcation, and the doubled branch is continued like the first.
 """
 
 from __future__ import annotations
@@ -41,6 +40,12 @@ from .shooting import SECTION_MARGIN, admissible_directions, check_forcing_multi
 
 #: the parameter step of J_p's forward difference (and of the section move's central du/dp), relative to the range
 DP = 1e-6
+#: ... and at least this fraction of |p| (:meth:`_Problem.jp_step`): the flow's noise (~3.5e-10 of the orbit on the
+#: crack) over a step h is ~2 delta / h of J_p, so DP of a narrow range alone drowns J_p in it (crack at 12.4 Hz,
+#: against h = 2e-7 Hz: 1e-3 off at h = 2e-9 Hz, 0.3 at 2e-10, 2.3 at 2e-11, 14 at 2e-12 Hz = 1.6e-13 p); at
+#: 1e-8 |p| the step is that of a range of 1e-2 |p|, where J_p is as accurate as on the shipped ranges, which it
+#: leaves alone (crack 12.3:12.5 Hz: 2e-7 > 1.24e-7 Hz; rub 20:22.4 Hz; the impact oscillator's 0.2 rad/s)
+DP_FLOOR = 1e-8
 #: the section moves (to the middle of the longest stretch of the period without events) when an event of the
 #: orbit has drifted to within this share of that stretch's half from it: from the middle the phase may drift by
 #: half of it before (the rub on 64 facets: a corner every 1/64 period, drifting by one per ~0.8 Hz)
@@ -147,9 +152,15 @@ class _Problem:
         """d phi_T(u; p) / dp (2n,) by a forward difference from ``end`` = phi_T(u; p): one plain flow at p + dp
         (module docstring: as accurate as the central difference it replaced, at half its cost)."""
         n = u.size // 2
-        f = self.flow_map(p + self.dp)(u[:n], u[n:], jacobian=False)
-        jp = (np.concatenate([f.q, f.v]) - end) / self.dp
-        return jp
+        h = self.jp_step(p)
+        f = self.flow_map(p + h)(u[:n], u[n:], jacobian=False)
+        return (np.concatenate([f.q, f.v]) - end) / h
+
+    def jp_step(self, p: float) -> float:
+        """J_p's step at p: DP of the range, at least DP_FLOOR |p|, as represented ((p + h) - p: the flow at p + h is
+        the flow at that value)."""
+        h = max(self.dp, DP_FLOOR * abs(p))
+        return (p + h) - p
 
     def reanchor(self, u: np.ndarray, p: float, forced: bool):
         """The continuation's change of coordinates (:func:`.continuation.continue_branch`'s ``reanchor``): when an
@@ -190,10 +201,10 @@ class _Problem:
         def duration(pp: float) -> float:
             return shift if t1 == self.t0 + shift else shift - T + self.multiple * self.period_at(pp)
 
-        ends = [FlowMap(self.system_at(p + s * self.dp), self.t0, duration(p + s * self.dp))(u[:n], u[n:],
-                                                                                              jacobian=False)
+        h = self.jp_step(p)
+        ends = [FlowMap(self.system_at(p + s * h), self.t0, duration(p + s * h))(u[:n], u[n:], jacobian=False)
                 for s in (1.0, -1.0)]
-        dudp = (np.concatenate([ends[0].q, ends[0].v]) - np.concatenate([ends[1].q, ends[1].v])) / (2.0 * self.dp)
+        dudp = (np.concatenate([ends[0].q, ends[0].v]) - np.concatenate([ends[1].q, ends[1].v])) / ((p + h) - (p - h))
         self.t0 = t1
         self.t0s.append(self.t0)
         self._maps.clear()

@@ -13,8 +13,12 @@ dq_p = P_H dq0 with P_H = pinv(G^T) E G^T, E = diag(0 on the gap rows, 1 on the 
 (Keeping a closed gap's perturbation instead would make the gap's row of Phi_T - I zero at a section
 where the contact stays closed: a singular Jacobian for a Newton on all of (q, q').)
 
-Both exponentials come from one matrix exponential, expm([[A, I], [0, 0]] s) (Van Loan), exact to
-round-off for any A (rigid-body coordinates and repeated eigenvalues included). Perturbations
+Both exponentials come from the configuration's eigen-decomposition A = V diag(lam) V^-1 where the flow
+itself uses one (:func:`modal_transition`; no rigid coordinates, no critically damped pair, cond(V) < 1e8: the
+error ~cond(V) eps of the largest term, the flow's own accuracy), else from one matrix exponential,
+expm([[A, I], [0, 0]] s) (Van Loan), exact to round-off for any A (rigid-body coordinates and repeated or
+defective eigenvalues included). The quotient (e^{lam s} - 1) / lam is its series where |lam s| < 1e-3 (there the
+series' truncation |lam s|^4 / 120 and the quotient's cancellation 2 eps / |lam s| are both below 5e-13). Perturbations
 off the configuration's constraints (G^T dv0 != 0) are not motions of the phase: their velocity
 part is dropped (the phase starts on its constraints; an event's saltation matrix puts it there).
 """
