@@ -730,3 +730,48 @@ def test_the_events_hook_breaking_its_contract_is_a_programming_error():
         continue_branch(residual, [0.0], 0.0, 1.0, events=lambda u, p: 3.0)
     with pytest.raises(NsfemError, match="solve must be callable"):
         continue_branch(residual, [0.0], 0.0, 1.0, solve="x")
+
+
+# --- issue 36 review (session 3): a fold next to a grazing is not stepped over ---
+
+def _folding_sqrt_map(c: float, k: float):
+    """r = u - p - k sqrt(max(u - c, 0)): Nordmark's square root with the sign that turns the branch back. The branch
+    is u = p up to the grazing at u = p = c, then u = c + y^2, p = c + y^2 - k y (y = sqrt(u - c)): p falls past the
+    grazing (a fold of the branch there) down to a smooth fold at y = k / 2, p = c - k^2 / 4, and rises after it.
+    From the low piece a step past p = c can only land on the far arm y > k / 2 (the low piece ends at c and the
+    turning segment lies at p < c): accepting it skips both folds and the unstable segment between them.
+    ``events``: the piece and the margin, c - u on the low piece, y on the high one."""
+
+    def residual(u, p):
+        x = u[0] - c
+        if x <= 0:
+            return np.array([u[0] - p]), np.eye(1), np.array([-1.0])
+        root = math.sqrt(x)
+        return np.array([u[0] - p - k * root]), np.array([[1.0 - k / (2 * root)]]), np.array([-1.0])
+
+    def events(u, p):
+        x = u[0] - c
+        return ("low", -x) if x <= 0 else ("high", math.sqrt(x))
+
+    return residual, events
+
+
+@settings(max_examples=12, deadline=None)
+@given(c=st.floats(0.15, 0.7), k=st.floats(0.3, 1.0), share=st.floats(0.05, 1.0))
+def test_a_step_onto_the_far_arm_past_a_fold_next_to_a_grazing_is_refused(c, k, share):
+    """Property: with a first step up to the fold's reach k^2 / 4 in p, no accepted step goes from the low piece to
+    the far arm (y > k / 2) of the high one: such a step lands on another structure whose tangent line does not meet
+    the low piece's between the two points (it did before: the grazing was recorded, 'end' reached, the folds and the
+    unstable segment between them silently missing). The branch either reaches p_end through the turning segment
+    (points with 0 < y < k / 2) or stops 'failed' at the grazing (its last point on the low piece, p <= c up to the
+    corrector's TOL)."""
+    residual, events = _folding_sqrt_map(c, k)
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=share * k * k / 4, tol=TOL, events=events)
+    ys = [math.sqrt(pt.u[0] - c) if pt.u[0] > c else None for pt in b.points]
+    for y1, y2 in zip(ys, ys[1:]):
+        assert not (y1 is None and y2 is not None and y2 > k / 2), (c, k, share)
+    if b.stop == "end":
+        assert any(y is not None and 0 < y < k / 2 for y in ys)
+    else:
+        assert b.stop == "failed" and "no correction" in b.reason, b.reason
+        assert b.points[-1].p <= c + TOL
