@@ -775,3 +775,37 @@ def test_a_step_onto_the_far_arm_past_a_fold_next_to_a_grazing_is_refused(c, k, 
     else:
         assert b.stop == "failed" and "no correction" in b.reason, b.reason
         assert b.points[-1].p <= c + TOL
+
+
+# --- issue 36 review (session 3): a closed branch by its invariant ---
+
+def test_a_branch_through_its_start_parameter_on_another_orbit_is_not_closed_by_a_large_invariant():
+    """The S-curve p = x^3 - x from x = 0.9 towards p = -1.5: it folds at x = 1/sqrt(3) and -1/sqrt(3) and passes its
+    start's parameter p0 = -0.171 twice more on other solutions (x = 0.175 on the middle segment, x = -1.07 after the
+    second fold). The coordinates move at the third point (y = x + 0.5), so closing is judged by the invariant,
+    here 1000 + x: a large constant part (as an orbit's mean under gravity sag) over a small change. Relative to its
+    size the middle segment's invariant differs from the start's by 7e-4, far below the step's length (~0.02 in the
+    scaled p), so it was taken for the start and the branch stopped "closed" there; measured against the
+    invariant's own excursion along the branch it is 0.725 / 1.08 away: the branch passes both folds to p_end."""
+    shift = [0.0]
+    seen = [0]
+
+    def residual(u, p):
+        x = u[0] - shift[0]
+        return np.array([x ** 3 - x - p]), np.array([[3 * x * x - 1.0]]), np.array([-1.0])
+
+    def reanchor(u, p, forced):
+        seen[0] += 1
+        if shift[0] or seen[0] < 3:
+            return None
+        shift[0] = 0.5
+        return np.asarray(u) + 0.5, np.eye(1), np.zeros(1)
+
+    x0 = 0.9
+    b = continue_branch(residual, [x0], x0 ** 3 - x0, -1.5, tol=TOL, locate_tol=LOCATE, reanchor=reanchor, margin=1.0,
+                        invariant=lambda u, p: np.array([1000.0 + u[0] - shift[0]]), max_steps=300)
+    assert b.reanchors and b.stop == "end", b.reason
+    assert kinds(b) == ["fold", "fold"]
+    # the end on the last segment: the real root of x^3 - x + 1.5, to the corrector's TOL over |3 x^2 - 1| >= 1
+    x_end = min(np.roots([1.0, 0.0, -1.0, 1.5]), key=lambda r: abs(r.imag)).real
+    assert abs(b.points[-1].u[0] - 0.5 - x_end) <= TOL

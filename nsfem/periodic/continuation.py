@@ -838,14 +838,16 @@ def _nearer(problem: _Scaled, g: _Point, b: _Point, e_p: np.ndarray, structure, 
     return b
 
 
-def _returned(a: _Point, b: _Point, first_z: np.ndarray | None, first: _Point) -> bool:
+def _returned(a: _Point, b: _Point, first_z: np.ndarray | None, first: _Point, excursion: float = 0.0) -> bool:
     """Whether the chord from a to b passes the branch's first point (within a quarter of its length): in the
     unknowns when they are in the first point's coordinates (``first_z``), else in the coordinate-free measures
-    (``invariant``, relative to the first point's, and z_p), when the caller gives them."""
+    (``invariant``, over ``excursion``: their largest distance from the first point's along the branch so far; and
+    z_p), when the caller gives them. (Over the invariant's own size instead, a large constant part, as an orbit's mean
+    under a static load, made other solutions at the first point's parameter, a fold's other segments, look like it.)"""
     if first_z is not None:
         za, zb, z1 = a.z, b.z, first_z
     elif first.invariant is not None and a.invariant is not None and b.invariant is not None:
-        size = max(float(np.linalg.norm(first.invariant)), 1e-300)
+        size = max(excursion, 1e-300)
         za, zb, z1 = (np.append(pt.invariant / size, pt.z[-1]) for pt in (a, b, first))
     else:
         return False
@@ -1127,6 +1129,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         return g, b, None, {"accuracy": acc, "side_point": g_a, "side_tangent": _tangent(g_a.jac, t)}
 
     first_anchor = None
+    excursion = 0.0   # (the invariant's largest distance from the first point's so far: its scale for a closing)
     before = None     # the point before a, in a's coordinates (None after a move)
     while True:
         if reanchor is not None:   # the coordinates at the point the step starts from (the start's too)
@@ -1259,8 +1262,10 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         if not lo_z <= b.z[-1] <= hi_z:
             return ended("left", f"the branch folded back and left [{min(p0, p_end) - margin:g}, "
                                  f"{max(p0, p_end) + margin:g}] at p = {points[-1].p:.10g}")
+        if b.invariant is not None and first_point.invariant is not None:
+            excursion = max(excursion, float(np.linalg.norm(b.invariant - first_point.invariant)))
         if len(points) > 3 and s > 3 * chord * span and _returned(a, b, first_z if anchor == first_anchor else None,
-                                                                     first_point):
+                                                                     first_point, excursion):
             return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
                                    "in units of p: a closed branch")
         if crossing is None and b.iterations <= GROW_ITERATIONS and (tb @ t > EASY_TURN_COS
