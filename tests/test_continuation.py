@@ -809,3 +809,30 @@ def test_a_branch_through_its_start_parameter_on_another_orbit_is_not_closed_by_
     # the end on the last segment: the real root of x^3 - x + 1.5, to the corrector's TOL over |3 x^2 - 1| >= 1
     x_end = min(np.roots([1.0, 0.0, -1.0, 1.5]), key=lambda r: abs(r.imag)).real
     assert abs(b.points[-1].u[0] - 0.5 - x_end) <= TOL
+
+
+# --- issue 36 review (session 3): multipliers across a grazing passed by a step ---
+
+@pytest.mark.parametrize("step", [0.07, 0.3])
+def test_a_multiplier_jumping_at_a_grazing_passed_by_a_step_is_no_period_doubling(step):
+    """The kinked branch (u = p, then slope 4 past c = 0.3) with one multiplier: 0.5 on the low piece, and on the high
+    one -1.5 + 3 (p - c), which jumps out of the circle at the kink and comes back through -1 smoothly at
+    p = c + 1/6. A step over the kink (not failing: the grazing passed, ``located`` False) searched its chord for
+    crossings as if the branch were smooth there, bisected the jump 0.5 -> -1.5 down to the kink and recorded a
+    'period-doubling' at p = c (an orbit branch then switches onto a doubled branch that is not there). The jump is
+    the grazing's (the located grazing's step is not searched either); the smooth crossing is found, also when it
+    lies in the same step as the kink (step 0.3), within its accuracy of c + 1/6 (plus the corrector's TOL: u = p
+    on the low piece)."""
+    c = 0.3
+    residual, events = _kinked(c, 4.0)
+
+    def stability(u, p):
+        return np.array([0.5 if u[0] < c else -1.5 + 3.0 * (p - c)])
+
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=step, max_step=0.3, tol=TOL, events=events,
+                        stability=stability)
+    assert b.stop == "end", b.reason
+    assert [x["kind"] for x in b.bifurcations if x["kind"] != "grazing"] == ["period-doubling"]
+    (pd,) = [x for x in b.bifurcations if x["kind"] == "period-doubling"]
+    assert abs(pd["value"] - (c + 1 / 6)) <= pd["accuracy"] + TOL
+    assert [x["located"] for x in b.bifurcations if x["kind"] == "grazing"] == [False]

@@ -48,7 +48,8 @@ further, from the grazing point, its extrapolation or the caller's ``solve``; br
 :func:`_nearer`), locates the grazing from that side too and keeps the better; the grazing point becomes a point
 of the branch, recorded as kind "grazing" (``located`` True, its ``accuracy``, ``structure_before``/``after``),
 and the branch goes on from the point past it with that side's tangent, at the step it had before. No multiplier
-crossing is looked for across a grazing (the multipliers jump there: each side's verdict is its own).
+crossing is looked for across a located grazing (the multipliers jump there: each side's verdict is its own); over
+a step that passed one, a crossing whose final bracket straddles the change of structure is that jump, not counted.
 
 Special points between two consecutive points A and B, located along the chord AB by bracketing the sign
 change of a test function (regula falsi, Illinois variant, with bisection steps whenever the bracket
@@ -319,6 +320,18 @@ class _Scaled:
                             f"{u.shape}")
         return self.z(u, p) if np.all(np.isfinite(u)) else None
 
+    def structure(self, pt: _Point):
+        """The structure (``events``) of the corrected point pt: pt's own when known, else asked; None without
+        ``events`` or when they fail."""
+        if self.events is None:
+            return None
+        if pt.structure is not None:
+            return pt.structure
+        try:
+            return self.events(self.u(pt.z).copy(), self.p(pt.z))[0]
+        except (NsfemError, ArithmeticError, np.linalg.LinAlgError, TypeError, ValueError):
+            return None
+
     def complete(self, pt: _Point) -> _Point:
         """pt with its multipliers, its structure and margin (``events``) and its invariant, all at pt.z (where the
         residual was just evaluated)."""
@@ -540,6 +553,7 @@ class _Chord:
     def __init__(self, problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: np.ndarray, tol: float,
                  max_iter: int):
         self.problem, self.a, self.b, self.tol, self.max_iter = problem, a, b, tol, max_iter
+        self.bracket = (a, b)    # (the last located sign change's final bracket: :func:`_locate`)
         chord = b.z - a.z
         self.length = float(np.linalg.norm(chord))
         self.d = chord / self.length if self.length > 0 else chord
@@ -570,13 +584,15 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
     before is followed by a bisection, so the bracket at least halves every three steps (a test
     function with a jump, as a multiplier appearing, is located by bisection then). A trial point within
     span_tol / 2 of an end is moved to span_tol / 2 from it, so that a crossing next to an end is closed
-    in by a bracket of width span_tol rather than approached from one side."""
+    in by a bracket of width span_tol rather than approached from one side. The final bracket's ends are left in
+    ``chord.bracket``."""
     lo, hi, glo, ghi = 0.0, 1.0, g_a, g_b
     pt_lo, pt_hi = chord.a, chord.b
     if bracket is not None:     # a narrower start (lo, hi, its points), found by following the multipliers
         lo, hi, pt_lo, pt_hi = bracket
     kept, widths = 0, [math.inf, math.inf]
     half_tol = 0.5 * span_tol / chord.length
+    chord.bracket = (pt_lo, pt_hi)
     if (g_a > 0) == (g_b > 0):     # no sign change to follow: the nearer end, to the bracket's length
         width = float(np.linalg.norm(pt_hi.z - pt_lo.z))
         return (pt_lo, lo, width) if abs(g_a) <= abs(g_b) else (pt_hi, hi, width)
@@ -596,6 +612,7 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
         except _Failure:
             break
         if val == 0.0:
+            chord.bracket = (pt, pt)
             return pt, theta, 0.0
         if (val > 0) == (glo > 0):
             lo, glo, pt_lo = theta, val, pt
@@ -603,6 +620,7 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
         else:
             hi, ghi, pt_hi = theta, val, pt
             glo, kept = (0.5 * glo, kept) if kept == -1 else (glo, -1)
+    chord.bracket = (pt_lo, pt_hi)
     if abs(glo) <= abs(ghi):
         return pt_lo, lo, float(np.linalg.norm(pt_hi.z - pt_lo.z))
     return pt_hi, hi, float(np.linalg.norm(pt_hi.z - pt_lo.z))
@@ -622,6 +640,9 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
                               "multipliers": pt.multipliers, "accuracy": half * scale, "detected_by": how}))
 
     with_mu = a.multipliers is not None
+    # a step over a change of structure (``events``): a multiplier that jumps across the unit circle at the grazing
+    # is no smooth crossing (its located bracket straddles the change; the located grazing is not searched either)
+    kinked = a.structure is not None and b.structure is not None and a.structure != b.structure
     fold_by_tangent = ta[-1] * tb[-1] < 0
     if fold_by_tangent:
         # tangents re-oriented by the chord, so that the sign of t_p means the same at every trial point
@@ -662,6 +683,8 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
             else:
                 pt, theta, half = _locate(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a, g_b,
                                           locate_tol_z, True, (lo, hi, pt_lo, pt_hi))
+                if kinked and problem.structure(chord.bracket[0]) != problem.structure(chord.bracket[1]):
+                    continue   # (the multiplier jumps at the grazing within the step: the grazing's, recorded as it)
                 mu = followed(pt, theta)
             kind = _kind(mu)
             if kind == "fold" and fold_by_tangent:
