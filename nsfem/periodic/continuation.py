@@ -683,8 +683,10 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
             else:
                 pt, theta, half = _locate(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a, g_b,
                                           locate_tol_z, True, (lo, hi, pt_lo, pt_hi))
-                if kinked and problem.structure(chord.bracket[0]) != problem.structure(chord.bracket[1]):
-                    continue   # (the multiplier jumps at the grazing within the step: the grazing's, recorded as it)
+                if kinked:
+                    ends = [problem.structure(end) for end in chord.bracket]
+                    if None not in ends and ends[0] != ends[1]:
+                        continue   # (the multiplier jumps at the grazing within the step: the grazing's)
                 mu = followed(pt, theta)
             kind = _kind(mu)
             if kind == "fold" and fold_by_tangent:
