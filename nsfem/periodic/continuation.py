@@ -1185,7 +1185,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                 # (across a change of structure the tangent is discontinuous: its turn is the kink's, not a jump
                 # to another branch)
                 kinked = problem.events is not None and b.structure != a.structure
-                if tb @ t < MAX_TURN_COS or (kinked and not _kink_joins(a, t, b, tb, before)):
+                if (kinked and not _kink_joins(a, t, b, tb, before)) or (tb @ t < MAX_TURN_COS and not kinked):
                     # over a change of structure the tangent's turn is the kink's, whatever it is, when the two sides'
                     # tangent lines meet between a and b (:func:`_kink_joins`); else the corrector landed on the other
                     # structure's far arm past a fold next to the grazing (the branch turning back there, as
