@@ -841,3 +841,20 @@ def test_a_multiplier_jumping_at_a_grazing_passed_by_a_step_is_no_period_doublin
     (pd,) = [x for x in b.bifurcations if x["kind"] == "period-doubling"]
     assert abs(pd["value"] - (c + 1 / 6)) <= pd["accuracy"] + TOL
     assert [x["located"] for x in b.bifurcations if x["kind"] == "grazing"] == [False]
+
+
+@pytest.mark.parametrize("c, k, step", [(0.262901968652292, 0.16330929166650054, 0.03319540313269782),
+                                        (0.40252356952481816, 0.1632831077845357, 0.05202335591947188)])
+def test_the_point_past_a_located_grazing_is_not_taken_from_the_far_arm_at_a_longer_reach(c, k, step):
+    """Reproductions (the folding square root, its fold k^2 / 4 = 0.0067 below the step): the step onto the far arm
+    is refused and the grazing located; the point past it is then sought at a fixed parameter h, 4h, h/4, 16h, h/16
+    beyond. The far arm found at h and not joined to the grazing (its tangent leads elsewhere) means that a longer
+    reach finds that arm again: at 16h it lies so far from the fold that its tangent does lead back near the grazing,
+    and it was taken (the folds skipped after all). Now no reach beyond a refused one is tried: the branch stops
+    'failed' at the grazing."""
+    residual, events = _folding_sqrt_map(c, k)
+    b = continue_branch(residual, [0.0], 0.0, 1.0, step=step, tol=TOL, events=events)
+    ys = [math.sqrt(pt.u[0] - c) if pt.u[0] > c else None for pt in b.points]
+    for y1, y2 in zip(ys, ys[1:]):
+        assert not (y1 is None and y2 is not None and y2 > k / 2)
+    assert b.stop == "failed" and b.points[-1].p <= c + TOL
