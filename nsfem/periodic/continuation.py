@@ -33,15 +33,23 @@ Grazing (``events``: each corrected point's structure, a hashable such as an orb
 a change of it, 0 at a grazing and linear in the distance on either side). Across a change of structure the branch
 has a kink, and next to it the corrector may have no basin (Nordmark's square-root map: an impacting orbit's J_u
 grows like 1/u with its impact speed u), so that steps halve down to ``min_step``. A step that lands on another
-structure is accepted whatever its tangent's turn (the kink's) and the grazing is recorded bracketed by it
-(``located`` False). A step that fails from a point whose margin is below NEAR_MARGIN, or falls to 0 within
+structure is accepted whatever its tangent's turn (the kink's) when the two sides' tangent lines meet between its
+ends, and for a turn over 10 degrees not far short of where the margin falls to 0 (:func:`_kink_joins`), and the
+grazing is recorded bracketed by it (``located`` False); else it landed on the other structure's far arm past a fold
+next to the grazing (the branch turning back there: Nordmark's square root with the other sign), and the step is a
+failed one that looks for the grazing, a point past it only counting when its own tangent leads back to the grazing
+(:func:`_joins`): the branch does not continue back through the turn (no start on that side is known), so it stops
+"failed" at the grazing rather than skip the folds and the segment between them. A fold of the far side smaller than
+the step passes unseen, as a smooth branch's would. A step that fails from a point whose margin is below
+NEAR_MARGIN, or falls to 0 within
 GRAZE_REACH steps, looks for the grazing (:func:`_graze_point`: secants on the margin from the side the branch is
 on, to GRAZE_LOCATE of ``locate_tol``), then for the first point past it (:func:`_beyond`: at a fixed p a step
 further, from the grazing point, its extrapolation or the caller's ``solve``; brought back towards it by
 :func:`_nearer`), locates the grazing from that side too and keeps the better; the grazing point becomes a point
 of the branch, recorded as kind "grazing" (``located`` True, its ``accuracy``, ``structure_before``/``after``),
 and the branch goes on from the point past it with that side's tangent, at the step it had before. No multiplier
-crossing is looked for across a grazing (the multipliers jump there: each side's verdict is its own).
+crossing is looked for across a located grazing (the multipliers jump there: each side's verdict is its own); over
+a step that passed one, a crossing whose final bracket straddles the change of structure is that jump, not counted.
 
 Special points between two consecutive points A and B, located along the chord AB by bracketing the sign
 change of a test function (regula falsi, Illinois variant, with bisection steps whenever the bracket
@@ -124,6 +132,9 @@ NEAR_MARGIN = 1e-2
 #: ... or one whose margin, falling along the branch as it did from the point before, reaches 0 within this many
 #: steps: a step that fails from there looks for the grazing first
 GRAZE_REACH = 4.0
+#: a step over a change of structure whose two sides' tangent lines meet short of this share of the way to where the
+#: side's margin, falling as it did, reaches 0 is no kink of one branch (:func:`_kink_joins`)
+SHORT_OF_ZERO = 0.5
 #: at most this many trial points to locate a grazing from one side, and at most this many failed in a row
 MAX_GRAZE_TRIALS = 20
 #: a grazing is located to this share of locate_tol: its margin is smooth on the side it is approached from, where
@@ -308,6 +319,18 @@ class _Scaled:
             raise _Contract(f"continue_branch: solve(u, p) must return None or an array of shape ({self.m},), got "
                             f"{u.shape}")
         return self.z(u, p) if np.all(np.isfinite(u)) else None
+
+    def structure(self, pt: _Point):
+        """The structure (``events``) of the corrected point pt: pt's own when known, else asked; None without
+        ``events`` or when they fail."""
+        if self.events is None:
+            return None
+        if pt.structure is not None:
+            return pt.structure
+        try:
+            return self.events(self.u(pt.z).copy(), self.p(pt.z))[0]
+        except (NsfemError, ArithmeticError, np.linalg.LinAlgError, TypeError, ValueError):
+            return None
 
     def complete(self, pt: _Point) -> _Point:
         """pt with its multipliers, its structure and margin (``events``) and its invariant, all at pt.z (where the
@@ -530,6 +553,7 @@ class _Chord:
     def __init__(self, problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: np.ndarray, tol: float,
                  max_iter: int):
         self.problem, self.a, self.b, self.tol, self.max_iter = problem, a, b, tol, max_iter
+        self.bracket = (a, b)    # (the last located sign change's final bracket: :func:`_locate`)
         chord = b.z - a.z
         self.length = float(np.linalg.norm(chord))
         self.d = chord / self.length if self.length > 0 else chord
@@ -560,13 +584,15 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
     before is followed by a bisection, so the bracket at least halves every three steps (a test
     function with a jump, as a multiplier appearing, is located by bisection then). A trial point within
     span_tol / 2 of an end is moved to span_tol / 2 from it, so that a crossing next to an end is closed
-    in by a bracket of width span_tol rather than approached from one side."""
+    in by a bracket of width span_tol rather than approached from one side. The final bracket's ends are left in
+    ``chord.bracket``."""
     lo, hi, glo, ghi = 0.0, 1.0, g_a, g_b
     pt_lo, pt_hi = chord.a, chord.b
     if bracket is not None:     # a narrower start (lo, hi, its points), found by following the multipliers
         lo, hi, pt_lo, pt_hi = bracket
     kept, widths = 0, [math.inf, math.inf]
     half_tol = 0.5 * span_tol / chord.length
+    chord.bracket = (pt_lo, pt_hi)
     if (g_a > 0) == (g_b > 0):     # no sign change to follow: the nearer end, to the bracket's length
         width = float(np.linalg.norm(pt_hi.z - pt_lo.z))
         return (pt_lo, lo, width) if abs(g_a) <= abs(g_b) else (pt_hi, hi, width)
@@ -586,6 +612,7 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
         except _Failure:
             break
         if val == 0.0:
+            chord.bracket = (pt, pt)
             return pt, theta, 0.0
         if (val > 0) == (glo > 0):
             lo, glo, pt_lo = theta, val, pt
@@ -593,6 +620,7 @@ def _locate(chord: _Chord, g: Callable[[_Point, float], float], g_a: float, g_b:
         else:
             hi, ghi, pt_hi = theta, val, pt
             glo, kept = (0.5 * glo, kept) if kept == -1 else (glo, -1)
+    chord.bracket = (pt_lo, pt_hi)
     if abs(glo) <= abs(ghi):
         return pt_lo, lo, float(np.linalg.norm(pt_hi.z - pt_lo.z))
     return pt_hi, hi, float(np.linalg.norm(pt_hi.z - pt_lo.z))
@@ -612,6 +640,9 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
                               "multipliers": pt.multipliers, "accuracy": half * scale, "detected_by": how}))
 
     with_mu = a.multipliers is not None
+    # a step over a change of structure (``events``): a multiplier that jumps across the unit circle at the grazing
+    # is no smooth crossing (its located bracket straddles the change; the located grazing is not searched either)
+    kinked = a.structure is not None and b.structure is not None and a.structure != b.structure
     fold_by_tangent = ta[-1] * tb[-1] < 0
     if fold_by_tangent:
         # tangents re-oriented by the chord, so that the sign of t_p means the same at every trial point
@@ -652,6 +683,10 @@ def _special_points(problem: _Scaled, a: _Point, ta: np.ndarray, b: _Point, tb: 
             else:
                 pt, theta, half = _locate(chord, lambda pt, theta: abs(followed(pt, theta)) - 1.0, g_a, g_b,
                                           locate_tol_z, True, (lo, hi, pt_lo, pt_hi))
+                if kinked:
+                    ends = [problem.structure(end) for end in chord.bracket]
+                    if None not in ends and ends[0] != ends[1]:
+                        continue   # (the multiplier jumps at the grazing within the step: the grazing's)
                 mu = followed(pt, theta)
             kind = _kind(mu)
             if kind == "fold" and fold_by_tangent:
@@ -738,7 +773,11 @@ def _beyond(problem: _Scaled, g: _Point, t: np.ndarray, structure, steps: list[f
     # (against the branch's direction only where it is at a fold in p: elsewhere a point there of another structure
     # is no continuation of this branch; it may be another branch through the same grazing, or the way back)
     for direction in ((sign, -sign) if abs(t[-1]) < FOLD_TP else (sign,)):
+        far = math.inf   # (a point of the other structure found at h and not joined to g: an arm of it past a fold
+        # next to the grazing reaches to h already, so a larger h finds that arm again, never the continuation)
         for h in steps:
+            if h >= far:
+                continue
             level = g.z[-1] + direction * h
             along = t * (direction * h / t[-1]) if abs(t[-1]) > FOLD_TP else np.zeros_like(t)
             for k, z_pred in enumerate((np.append(g.z[:-1], level), g.z + along, None)):
@@ -753,8 +792,56 @@ def _beyond(problem: _Scaled, g: _Point, t: np.ndarray, structure, steps: list[f
                 except _Failure:
                     continue
                 if pt.structure != structure:
-                    return _nearer(problem, g, pt, e_p, structure, tol, max_iter)
+                    pt = _nearer(problem, g, pt, e_p, structure, tol, max_iter)
+                    if _joins(g, pt):
+                        return pt
+                    far = min(far, h)
+                    break
     return None
+
+
+def _kink_joins(a: _Point, ta: np.ndarray, b: _Point, tb: np.ndarray, before: _Point | None = None) -> bool:
+    """Whether a step from a to b over a change of structure passes a kink of one branch: a's tangent line ahead of a
+    and b's behind b meet (their nearest points a + s ta, b - r tb with s, r >= 0, apart by at most half the shorter
+    way, min(s, r); a kink between two straight pieces: exactly, up to the corrector's error, hence the chord's 1e-6;
+    curved sides: to second order in the way). b on another arm of its structure, past a fold of that side next to
+    the grazing (the fold skipped), has its line cross a's behind a or ahead of b, or pass it at that arm's distance,
+    or (a square-root arm: its line meets a's at c - y^2 where the grazing is at c) far short of where a's margin,
+    falling from ``before``'s as it did, reaches 0."""
+    chord = b.z - a.z
+    length = float(np.linalg.norm(chord))
+    if length == 0.0:
+        return True
+    (s, r), *_ = np.linalg.lstsq(np.column_stack([ta, tb]), chord, rcond=1e-12)
+    miss = float(np.linalg.norm(chord - s * ta - r * tb))
+    slack = 0.5 * min(s, r) + 1e-6 * length
+    if not (s >= 0.0 and r >= 0.0 and miss <= slack):
+        return False
+    # and, turned by more than 10 degrees (a far arm near its fold is steep), not far short of where a's margin,
+    # falling as it did from ``before``, reaches 0 (an orbit's margin is a least over its contacts and events, linear
+    # only piecewise, capped: within a factor SHORT_OF_ZERO; the crack's small turns over changes of its events pass)
+    if ta @ tb > EASY_TURN_COS or before is None or before.structure != a.structure or not math.isfinite(before.margin):
+        return True
+    run = float(ta @ (a.z - before.z))
+    if run <= 0.0 or before.margin <= a.margin:
+        return True
+    return bool(s >= SHORT_OF_ZERO * a.margin * run / (before.margin - a.margin))
+
+
+def _joins(g: _Point, b: _Point) -> bool:
+    """Whether b's side of the branch, followed back along b's own tangent to the parameter of the grazing point g,
+    ends within half of b's distance from g: b continues the branch through g (on a square-root side the miss is
+    O(distance^2)), rather than lying on a far arm of the other structure past a fold next to the grazing (which
+    misses g by that arm's distance from it, whatever the parameter's). A tangent at a fold in p cannot tell: no."""
+    d = g.z - b.z
+    dist = float(np.linalg.norm(d))
+    if dist == 0.0:
+        return True
+    tb = _tangent(b.jac, d / dist)
+    if abs(tb[-1]) <= FOLD_TP:
+        return False
+    back = b.z + tb * (d[-1] / tb[-1])
+    return bool(np.linalg.norm(back - g.z) <= 0.5 * dist)
 
 
 def _nearer(problem: _Scaled, g: _Point, b: _Point, e_p: np.ndarray, structure, tol: float, max_iter: int) -> _Point:
@@ -776,14 +863,16 @@ def _nearer(problem: _Scaled, g: _Point, b: _Point, e_p: np.ndarray, structure, 
     return b
 
 
-def _returned(a: _Point, b: _Point, first_z: np.ndarray | None, first: _Point) -> bool:
+def _returned(a: _Point, b: _Point, first_z: np.ndarray | None, first: _Point, excursion: float = 0.0) -> bool:
     """Whether the chord from a to b passes the branch's first point (within a quarter of its length): in the
     unknowns when they are in the first point's coordinates (``first_z``), else in the coordinate-free measures
-    (``invariant``, relative to the first point's, and z_p), when the caller gives them."""
+    (``invariant``, over ``excursion``: their largest distance from the first point's along the branch so far; and
+    z_p), when the caller gives them. (Over the invariant's own size instead, a large constant part, as an orbit's mean
+    under a static load, made other solutions at the first point's parameter, a fold's other segments, look like it.)"""
     if first_z is not None:
         za, zb, z1 = a.z, b.z, first_z
     elif first.invariant is not None and a.invariant is not None and b.invariant is not None:
-        size = max(float(np.linalg.norm(first.invariant)), 1e-300)
+        size = max(excursion, 1e-300)
         za, zb, z1 = (np.append(pt.invariant / size, pt.z[-1]) for pt in (a, b, first))
     else:
         return False
@@ -1065,6 +1154,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         return g, b, None, {"accuracy": acc, "side_point": g_a, "side_tangent": _tangent(g_a.jac, t)}
 
     first_anchor = None
+    excursion = 0.0   # (the invariant's largest distance from the first point's so far: its scale for a closing)
     before = None     # the point before a, in a's coordinates (None after a move)
     while True:
         if reanchor is not None:   # the coordinates at the point the step starts from (the start's too)
@@ -1081,7 +1171,7 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
             return ended("max_steps", f"stopped after max_steps = {max_steps} steps at p = {points[-1].p:.10g}")
         # predictor-corrector, the step halved until a correction succeeds
         failure = ""
-        ds_first, moved_here, graze_tried, crossing = ds, False, False, None
+        ds_first, moved_here, graze_tried, crossing, unjoined = ds, False, False, None, False
         while True:
             z_pred = a.z + ds * t
             try:
@@ -1095,9 +1185,22 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                 # (across a change of structure the tangent is discontinuous: its turn is the kink's, not a jump
                 # to another branch)
                 kinked = problem.events is not None and b.structure != a.structure
-                if tb @ t < MAX_TURN_COS and not kinked:
+                if (kinked and not _kink_joins(a, t, b, tb, before)) or (tb @ t < MAX_TURN_COS and not kinked):
+                    # over a change of structure the tangent's turn is the kink's, whatever it is, when the two sides'
+                    # tangent lines meet between a and b (:func:`_kink_joins`); else the corrector landed on the other
+                    # structure's far arm past a fold next to the grazing (the branch turning back there, as
+                    # Nordmark's square root may: the fold skipped), so the grazing, within the step, is located and
+                    # the point past it found joined to it (:func:`_joins`), or the step fails
+                    if kinked and not graze_tried:
+                        graze_tried = True
+                        crossing = cross(a, t, None, ds)
+                        if crossing is not None:
+                            break
+                    unjoined = unjoined or kinked
                     raise _Failure(f"the tangent turned by {math.degrees(math.acos(max(-1.0, tb @ t))):.0f} "
-                                   f"degrees in one step at p = {problem.p(b.z):.10g}")
+                                   f"degrees in one step at p = {problem.p(b.z):.10g}"
+                                   + (" onto another structure whose tangent line does not meet this side's"
+                                      if kinked else ""))
                 if b.z[-1] >= 1.0 > a.z[-1]:     # passed p_end: the last point exactly at p_end
                     theta = (1.0 - a.z[-1]) / (b.z[-1] - a.z[-1])
                     b = _correct(problem, a.z + theta * (b.z - a.z), e_p, 1.0, tol, max_iter)
@@ -1126,7 +1229,9 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
                         continue
                 if ds < ds_min:
                     return ended("failed", f"no correction from p = {points[-1].p:.10g} with steps down to min_step = "
-                                           f"{min_step:g}: {failure}")
+                                           f"{min_step:g}: {failure}" + (
+                                               "; a step landed on another structure not joined to this side through "
+                                               "a grazing (that side folds back next to it?)" if unjoined else ""))
         passed = None
         if crossing is None and problem.events is not None and b.structure != a.structure:
             # the step went over a grazing (the events changed) without failing: bracketed by the step, not located
@@ -1182,8 +1287,10 @@ def continue_branch(residual: Residual, u0, p0: float, p_end: float, *, step: fl
         if not lo_z <= b.z[-1] <= hi_z:
             return ended("left", f"the branch folded back and left [{min(p0, p_end) - margin:g}, "
                                  f"{max(p0, p_end) + margin:g}] at p = {points[-1].p:.10g}")
+        if b.invariant is not None and first_point.invariant is not None:
+            excursion = max(excursion, float(np.linalg.norm(b.invariant - first_point.invariant)))
         if len(points) > 3 and s > 3 * chord * span and _returned(a, b, first_z if anchor == first_anchor else None,
-                                                                     first_point):
+                                                                     first_point, excursion):
             return ended("closed", f"the branch returned to its first point (p = {p0:g}) after a length {s:.6g} "
                                    "in units of p: a closed branch")
         if crossing is None and b.iterations <= GROW_ITERATIONS and (tb @ t > EASY_TURN_COS
