@@ -443,3 +443,13 @@ def test_the_crack_branch_passes_its_changes_of_events_without_locating_them():
     assert all(p["converged"] and p["residual"] <= 1e-9 for p in sb.points)
     assert len({p["events_per_period"] for p in sb.points}) >= 2
     assert not [b for b in sb.bifurcations if b["kind"] == "grazing"]
+
+
+@pytest.mark.parametrize("name, value", [("switch", "no"), ("grazing", 1), ("grazing", None), ("switch", 0.0)])
+def test_orbit_branch_refuses_a_switch_that_is_not_a_boolean(name, value):
+    """review (session 3): any truthy value turned the grazing crossing or the switch onto doubled branches on."""
+    from nsfem.errors import NsfemError
+    from nsfem.periodic.branch import orbit_branch
+
+    with pytest.raises(NsfemError, match=f"{name} must be True or False"):
+        orbit_branch(lambda p: None, lambda p: 1.0, [0.0], [0.0], 1.0, 2.0, **{name: value})

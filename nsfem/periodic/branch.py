@@ -317,6 +317,9 @@ def orbit_branch(system_at: Callable[[float], object], period_at: Callable[[floa
     if not (isinstance(multiple, (int, np.integer)) and not isinstance(multiple, bool) and multiple >= 1):
         raise NsfemError(f"periodic: multiple must be an integer >= 1, got {multiple!r}")
     t0, depth = real_number("t0", t0), whole_number("depth", depth, 0)
+    for name, flag in (("switch", switch), ("grazing", grazing)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise NsfemError(f"periodic: {name} must be True or False, got {str(flag)[:40]!r}")
     if not callable(system_at) or not callable(period_at):
         raise NsfemError("periodic: system_at and period_at must be functions of the parameter")
     for p in (p0, p_end):   # the period a multiple of the forcing's along the range (its ends checked)
