@@ -537,6 +537,18 @@ def check_options(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--fold-steps must be >= 1, got {args.fold_steps}")
     if not Path(args.start).is_file():
         ap.error(f"--start: no such file {args.start!r} (a touching orbit's section state, .npz)")
+    if args.fold:
+        # the walk to the fold's start goes up from the start orbit's speed, and the continuation starts there
+        try:
+            s0 = float(np.load(args.start)["speed_hz"])
+        except Exception as exc:   # (any unreadable file: one line)
+            ap.error(f"--start: cannot read speed_hz from {args.start!r}: {' '.join(str(exc).split())}")
+        if not s0 <= args.fold_start_speed:
+            ap.error(f"--fold-start-speed ({args.fold_start_speed!r} Hz) must not lie below the --start orbit's "
+                     f"speed ({s0!r} Hz): the walk to it goes up")
+        if not lo < args.fold_start_speed < hi:
+            ap.error(f"--fold-start-speed ({args.fold_start_speed!r} Hz) must lie inside --fold-range "
+                     f"{args.fold_range!r}")
 
 
 def main(argv=None) -> dict:
