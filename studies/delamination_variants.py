@@ -24,15 +24,16 @@ delamination (``upper_height`` 0.014 m: open/closed 40.39/45.30 Hz at rest, a 12
 study follows is **friction mu = 0.3 at beta = 1e-5 s**: closest to the paper (its contact law is Coulomb's between the
 layers; its section 5 finds the interfacial friction's influence negligible, and here too mu 0.3 changes the
 touching orbit at 22.78 Hz little: 10.16 against 10.20 mm), its orbits converge through the whole touching band,
-and its curve has unstable orbits: where the open orbit grazes (22.759-22.7595 Hz) the touching orbit born there has a
-real multiplier of -1.22 (a period-doubling loss at a grazing bifurcation, not a fold; frictionless, the shooting
-stalls there); the stable touching orbits follow from 22.7615 Hz up to 22.7925 Hz and graze back to the open
+and its curve has unstable orbits: next to where the open orbit grazes (22.7593-22.7594 Hz) touching orbits have a
+real multiplier of -1.22 to -1.35 (period-doubling; their impacts are not grazing ones: 0.05 m/s, 5.5 N;
+frictionless, the shooting stalls there); the stable touching orbits follow from 22.7615 Hz up to 22.7925 Hz and graze back to the open
 branch below 22.795 Hz. No fold at the paper's gravity in any variant (docs/validation.md has what each gave).
 
 ``--fold``: the frictionless shaft at twice the gravity (``rotation.gravity=20``, beta 1e-5 s), where the estimate
 predicts a fold (A / A0 = 3.2, bend 0.021 Hz above the 0.013 Hz half-width): its touching branch by pseudo-arclength
-(``nsfem periodic --continue``) bends to higher speeds and ends at a fold near 22.813 Hz, where the speed turns and a
-real multiplier approaches 1; the continuation does not pass it (the orbits beyond change their event sequence).
+(``nsfem periodic --continue``) bends to higher speeds and ends near 22.813 Hz where contact 4 grazes (leading
+multiplier 0.9972), just before the smooth piece's saddle-node; the continuation does not pass it (the orbits beyond
+change their event sequence).
 Writes delamination_fold.json/.csv (and the branch's files in fold_branch/) into ``--out`` and
 docs/figures/delamination_fold.png.
 
@@ -426,8 +427,10 @@ def fold_figure(payload: dict, path: Path) -> None:
         ax[0].plot([r["speed_hz"] for r in un], [r["midspan_m"] * 1e3 for r in un], "--D", mfc="none", color="k",
                    label="touching orbits (unstable)")
     end = max(pts, key=lambda r: r["speed_hz"])
+    # (what ends the branch is read from the orbits, not assumed: at 2 g a grazing of contact 4 comes before the
+    # smooth piece's saddle-node; docs/validation.md)
     ax[0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k",
-               label=f"the branch's end: fold ({end['speed_hz']:.6f} Hz)")
+               label=f"the branch's end ({end['speed_hz']:.6f} Hz, leading multiplier {end['leading_re']:.4f})")
     ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
               title=f"gravity {payload['gravity']:g} m/s^2, beta {payload['beta_s']:g} s, frictionless")
     ax[1].plot([r["speed_hz"] for r in pts], [r["largest_multiplier"] for r in pts], "s", ms=3, color="C3",
@@ -568,7 +571,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "delamination_variants"))
     ap.add_argument("--figure", default=str(ROOT / "docs" / "figures" / "delamination_variants.png"))
     ap.add_argument("--fold", action="store_true",
-                    help="instead: the frictionless touching branch at --gravity by pseudo-arclength up to its fold")
+                    help="instead: the frictionless touching branch at --gravity by pseudo-arclength to its end")
     ap.add_argument("--gravity", type=float, default=20.0, help="gravity [m/s^2] of --fold (the paper: 9.81)")
     ap.add_argument("--fold-start-speed", type=float, default=22.80, help="--fold's starting orbit [Hz]")
     ap.add_argument("--fold-range", default="22.72:22.84", help="--fold's LOW:HIGH speeds [Hz]")
