@@ -31,9 +31,9 @@ branch below 22.795 Hz. No fold at the paper's gravity in any variant (docs/vali
 
 ``--fold``: the frictionless shaft at twice the gravity (``rotation.gravity=20``, beta 1e-5 s), where the estimate
 predicts a fold (A / A0 = 2.8, bend 0.019 Hz above the 0.0163 Hz half-width): its touching branch by pseudo-arclength
-(``nsfem periodic --continue``) bends to higher speeds and ends near 22.813 Hz where contact 4 grazes (leading
-multiplier 0.9972), just before the smooth piece's saddle-node; the continuation does not pass it (the orbits beyond
-change their event sequence).
+(``nsfem periodic --continue``) bends to higher speeds; stable throughout, its leading multipliers a complex pair
+(a first run stopped at 22.813 Hz, where contact 4 grazes, with a real multiplier 0.9972: not a fold; the current
+continuation passes it and stops at 22.8141 Hz): no fold found (docs/validation.md).
 Writes delamination_fold.json/.csv (and the branch's files in fold_branch/) into ``--out`` and
 docs/figures/delamination_fold.png.
 
@@ -438,8 +438,13 @@ def fold_figure(payload: dict, path: Path) -> None:
     for k, (ps, pa) in enumerate(zip(np.split(s, cut), np.split(np.array([r["midspan_m"] for r in op]) * 1e3, cut))):
         ax[0].plot(ps, pa, "-o", ms=2.5, color="C0", label="open orbits (stable)" if k == 0 else None)
     st = [r for r in pts if r["stable"]]
-    ax[0].plot([r["speed_hz"] for r in st], [r["midspan_m"] * 1e3 for r in st], "-s", ms=3, color="C3",
-               label="touching orbits, pseudo-arclength (stable)")
+    ax[0].plot([r["speed_hz"] for r in st], [r["midspan_m"] * 1e3 for r in st], "-", color="C3", lw=1.2)
+    for touching, mk, lab in ((True, "s", "touching orbits, pseudo-arclength (stable)"),
+                              (False, "o", "open orbits the branch reaches (stable)")):
+        sel = [r for r in st if (r["events_per_period"] > 0) == touching]
+        if sel:
+            ax[0].plot([r["speed_hz"] for r in sel], [r["midspan_m"] * 1e3 for r in sel], mk, ms=3,
+                       color="C3" if touching else "C0", mec="C3", label=lab)
     un = [r for r in pts if not r["stable"]]
     if un:
         ax[0].plot([r["speed_hz"] for r in un], [r["midspan_m"] * 1e3 for r in un], "--D", mfc="none", color="k",
@@ -448,7 +453,7 @@ def fold_figure(payload: dict, path: Path) -> None:
     # (what ends the branch is read from the orbits, not assumed: at 2 g a grazing of contact 4 comes before the
     # smooth piece's saddle-node; docs/validation.md)
     ax[0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k",
-               label=f"the branch's end ({end['speed_hz']:.6f} Hz, leading multiplier {end['leading_re']:.4f})")
+               label=f"the branch's end ({end['speed_hz']:.6f} Hz, |mu_1| {end['largest_multiplier']:.4f})")
     ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
               title=f"gravity {payload['gravity']:g} m/s^2, beta {payload['beta_s']:g} s, frictionless")
     ax[1].plot([r["speed_hz"] for r in pts], [r["largest_multiplier"] for r in pts], "s", ms=3, color="C3",

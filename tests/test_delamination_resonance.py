@@ -424,8 +424,9 @@ def _check_multiplier_by_central_differences(system, T, o, h):
 
 
 def test_fold_branch_ends_at_a_grazing_before_its_saddle_node():
-    """Where the 2 g branch stops (22.813003629 Hz, stored) it is not a fold (a real multiplier through +1): contact
-    4's closest passage falls to zero first. From the stored orbit and the one 1e-7 Hz below (same 43 events):
+    """Where the first 2 g continuation stopped (22.813003629 Hz, stored) there is no fold (a real multiplier through
+    +1): contact 4's closest passage falls to zero first, and the 43-event piece ends there (the continuation with
+    the section at the quiet phase passes it on other event sequences, stable: docs/validation.md). From the stored orbit and the one 1e-7 Hz below (same 43 events):
     - the grazing: the closest passage g(p) falls with a growing slope (0.124, then 0.185 m/Hz over the last two
       1e-7 Hz steps: concave), so the secant through the two orbits reaches zero no earlier than the gap does;
     - the saddle-node of the smooth piece: at a fold 1 - mu_1 ~ sqrt(p_fold - p), so (1 - mu_1)^2 is linear in p
