@@ -10,12 +10,12 @@ the section before): above a threshold amplitude A0 of the resonance (8.45 mm at
 one-sided stiffness bends the resonance by about the closed shift times the describing function
 (theta - sin theta cos theta) / pi, theta = arccos(A0 / A) (the share of the stiffness jump a harmonic motion of
 amplitude A > A0 feels: :func:`bend_share`), and a fold pair with an unstable middle branch appears when that bend
-exceeds the resonance's half-width. Fitted to the open orbits (:func:`half_width`) at beta = 1e-5 s: half-width
-0.013 Hz, linear peak A = 13.4 mm (A / A0 = 1.59, share 0.127): frictionless 0.127 x 0.069 Hz = 0.009 Hz, below the
-half-width (no fold); stuck 0.127 x 1.218 Hz = 0.155 Hz, above it (a fold, if the layers stuck). What the estimate
-leaves out decides: every closing is a plastic impact (restitution 0) that removes the layers' relative normal
-velocity, so contact is a strong energy sink; the touching orbits' amplitude is capped near A0 (10.2 mm where the
-linear peak is 13.4 mm) instead of growing along a bent backbone.
+exceeds the resonance's half-width. The open shaft's linear resonance (:func:`open_resonance`, one harmonic of the
+linear open system) at beta = 1e-5 s: half-width 0.0163 Hz, linear peak A = 11.6 mm (A / A0 = 1.37, share 0.081):
+frictionless 0.081 x 0.069 Hz = 0.006 Hz, below the half-width (no fold); stuck 0.081 x 1.218 Hz = 0.099 Hz, above
+it (a fold, if the layers stuck). What the estimate leaves out decides: every closing is a plastic impact
+(restitution 0) that removes the layers' relative normal velocity, so contact is an energy sink; the touching
+orbits reach 10.2 mm where the linear peak is 11.6 mm, instead of climbing a bent backbone.
 
 **The variants tried** (each from the paper's model: 9 Dirac contact points, CB 16, 40 elements): stiffness
 damping beta 1e-5 s (the damping under which the touching orbits converge; the section before); with it friction
@@ -24,15 +24,16 @@ delamination (``upper_height`` 0.014 m: open/closed 40.39/45.30 Hz at rest, a 12
 study follows is **friction mu = 0.3 at beta = 1e-5 s**: closest to the paper (its contact law is Coulomb's between the
 layers; its section 5 finds the interfacial friction's influence negligible, and here too mu 0.3 changes the
 touching orbit at 22.78 Hz little: 10.16 against 10.20 mm), its orbits converge through the whole touching band,
-and its curve has unstable orbits: where the open orbit grazes (22.759-22.7595 Hz) the touching orbit born there has a
-real multiplier of -1.22 (a period-doubling loss at a grazing bifurcation, not a fold; frictionless, the shooting
-stalls there); the stable touching orbits follow from 22.7615 Hz up to 22.7925 Hz and graze back to the open
+and its curve has unstable orbits: next to where the open orbit grazes (22.7593-22.7594 Hz) touching orbits have a
+real multiplier of -1.22 to -1.35 (period-doubling; their impacts are not grazing ones: 0.05 m/s, 5.5 N;
+frictionless, the shooting stalls there); the stable touching orbits follow from 22.7615 Hz up to 22.7925 Hz and graze back to the open
 branch below 22.795 Hz. No fold at the paper's gravity in any variant (docs/validation.md has what each gave).
 
 ``--fold``: the frictionless shaft at twice the gravity (``rotation.gravity=20``, beta 1e-5 s), where the estimate
-predicts a fold (A / A0 = 3.2, bend 0.021 Hz above the 0.013 Hz half-width): its touching branch by pseudo-arclength
-(``nsfem periodic --continue``) bends to higher speeds and ends at a fold near 22.813 Hz, where the speed turns and a
-real multiplier approaches 1; the continuation does not pass it (the orbits beyond change their event sequence).
+predicts a fold (A / A0 = 2.8, bend 0.019 Hz above the 0.0163 Hz half-width): its touching branch by pseudo-arclength
+(``nsfem periodic --continue``) bends to higher speeds; stable throughout, its leading multipliers a complex pair
+(a first run stopped at 22.813 Hz, where contact 4 grazes, with a real multiplier 0.9972: not a fold; the current
+continuation passes it and stops at 22.8141 Hz): no fold found (docs/validation.md).
 Writes delamination_fold.json/.csv (and the branch's files in fold_branch/) into ``--out`` and
 docs/figures/delamination_fold.png.
 
@@ -149,12 +150,32 @@ def bend_share(a: np.ndarray) -> np.ndarray:
     return (theta - np.sin(theta) * np.cos(theta)) / math.pi
 
 
-def half_width(f1: float, a1: float, f2: float, a2: float) -> tuple[float, float]:
-    """(half-width w [Hz], peak f_r [Hz] given) from two amplitudes of a single-mode resonance
-    A(f)^-2 ~ (f - f_r)^2 + w^2 on one flank: here f1, f2 are distances from the peak."""
-    r = (a1 / a2) ** 2
-    w2 = (f2**2 - r * f1**2) / (r - 1.0)
-    return math.sqrt(w2), a1 * math.sqrt((f1**2 + w2) / w2)
+def open_amplitude(speed_hz: float, beta: float, mu: float = 0.0, gravity: float = 9.81) -> float:
+    """The midspan amplitude [m] (half p-p, rotating frame) of the open (linear, contact ignored) orbit at
+    ``speed_hz``: M q'' + C q' + Q q = f0 + fc cos(w t) + fs sin(w t) solved by its one harmonic,
+    (Q - w^2 M + i w C) X = fc - i fs, plus the static Q q_s = f0. Where the layers stay open this is the exact
+    flow's orbit; where they would touch, the linear resonance the estimate needs."""
+    speed_hz = float(speed_hz)
+    system, T = build(speed_hz, beta, mu, gravity)[:2]
+    w = 2.0 * math.pi * speed_hz
+    X = np.linalg.solve(system.Q - w**2 * system.M + 1j * w * system.C, system.fc - 1j * system.fs)
+    qs = np.linalg.solve(system.Q, system.f0)
+    t = np.linspace(0.0, T, 513)
+    q = qs[:, None] + np.real(X[:, None] * np.exp(1j * w * t)[None, :])
+    return dr.midspan(system, speed_hz, t, q)
+
+
+def open_resonance(beta: float, mu: float = 0.0, gravity: float = 9.81, guess: float = 22.7765) -> dict:
+    """The open shaft's linear resonance from :func:`open_amplitude`: its peak speed and amplitude and its half-width
+    (the -3 dB distances below and above the peak, averaged) [Hz, m]."""
+    from scipy.optimize import brentq, minimize_scalar
+
+    r = minimize_scalar(lambda sp: -open_amplitude(sp, beta, mu, gravity), bracket=(guess - 0.01, guess, guess + 0.01),
+                        tol=1e-9)
+    f_r, peak = float(r.x), -float(r.fun)
+    level = lambda sp: open_amplitude(sp, beta, mu, gravity) - peak / math.sqrt(2.0)   # noqa: E731
+    lo, hi = brentq(level, f_r - 0.1, f_r), brentq(level, f_r, f_r + 0.1)
+    return {"peak_hz": f_r, "peak_m": peak, "half_width_hz": 0.5 * (hi - lo)}
 
 
 def row_of(o, system, speed: float, mu: float, beta: float, wall: float, branch: str) -> dict:
@@ -304,14 +325,12 @@ def study(args) -> dict:
         row, orb = min(stable, key=lambda x: abs(x[0]["speed_hz"] - args.touch_speed))
         system, T = build(row["speed_hz"], beta, mu)[:2]
         checks["stable_contraction"] = dict(departure(system, T, orb, args.periods, 1e-8), speed_hz=row["speed_hz"])
-    # the half-width and linear peak from the open orbits above the resonance (single-mode fit, two flanks points)
-    hi = sorted([r for r in rows if r["branch"] == "open" and r["converged"] and r["events_per_period"] == 0
-                 and r["speed_hz"] > f_open + 0.02], key=lambda r: r["speed_hz"])
-    estimate = {"open_hz": f_open, "closed_hz": f_closed, "bonded_hz": f_bonded}
-    if len(hi) >= 2:
-        (f1, a1), (f2, a2) = [(r["speed_hz"] - f_open, r["midspan_m"]) for r in (hi[0], hi[-1])]
-        w, peak = half_width(f1, a1, f2, a2)
-        estimate.update({"half_width_hz": w, "linear_peak_m": peak})
+    # the half-width and linear peak of the open shaft's resonance, by harmonic balance (exact for the linear open
+    # system; a single-mode fit through two flank points, used before, took 0.013 Hz and 13.4 mm for 0.0163 Hz and
+    # 11.6 mm: the flank carries the other modes' background)
+    lin = open_resonance(beta, mu)
+    estimate = {"open_hz": f_open, "closed_hz": f_closed, "bonded_hz": f_bonded,
+                "half_width_hz": lin["half_width_hz"], "linear_peak_m": lin["peak_m"], "linear_peak_hz": lin["peak_hz"]}
     payload = {"study": "delamination_variants", "scene": "default", "mu": mu, "beta_s": beta,
                "estimate": estimate, "rows": rows, "checks": checks, "machine": machine()}
     write_outputs(Path(args.out), "delamination_variants", rows, payload)
@@ -419,15 +438,22 @@ def fold_figure(payload: dict, path: Path) -> None:
     for k, (ps, pa) in enumerate(zip(np.split(s, cut), np.split(np.array([r["midspan_m"] for r in op]) * 1e3, cut))):
         ax[0].plot(ps, pa, "-o", ms=2.5, color="C0", label="open orbits (stable)" if k == 0 else None)
     st = [r for r in pts if r["stable"]]
-    ax[0].plot([r["speed_hz"] for r in st], [r["midspan_m"] * 1e3 for r in st], "-s", ms=3, color="C3",
-               label="touching orbits, pseudo-arclength (stable)")
+    ax[0].plot([r["speed_hz"] for r in st], [r["midspan_m"] * 1e3 for r in st], "-", color="C3", lw=1.2)
+    for touching, mk, lab in ((True, "s", "touching orbits, pseudo-arclength (stable)"),
+                              (False, "o", "open orbits the branch reaches (stable)")):
+        sel = [r for r in st if (r["events_per_period"] > 0) == touching]
+        if sel:
+            ax[0].plot([r["speed_hz"] for r in sel], [r["midspan_m"] * 1e3 for r in sel], mk, ms=3,
+                       color="C3" if touching else "C0", mec="C3", label=lab)
     un = [r for r in pts if not r["stable"]]
     if un:
         ax[0].plot([r["speed_hz"] for r in un], [r["midspan_m"] * 1e3 for r in un], "--D", mfc="none", color="k",
                    label="touching orbits (unstable)")
     end = max(pts, key=lambda r: r["speed_hz"])
+    # (what ends the branch is read from the orbits, not assumed: at 2 g a grazing of contact 4 comes before the
+    # smooth piece's saddle-node; docs/validation.md)
     ax[0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k",
-               label=f"the branch's end: fold ({end['speed_hz']:.6f} Hz)")
+               label=f"the branch's end ({end['speed_hz']:.6f} Hz, |mu_1| {end['largest_multiplier']:.4f})")
     ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
               title=f"gravity {payload['gravity']:g} m/s^2, beta {payload['beta_s']:g} s, frictionless")
     ax[1].plot([r["speed_hz"] for r in pts], [r["largest_multiplier"] for r in pts], "s", ms=3, color="C3",
@@ -537,6 +563,18 @@ def check_options(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--fold-steps must be >= 1, got {args.fold_steps}")
     if not Path(args.start).is_file():
         ap.error(f"--start: no such file {args.start!r} (a touching orbit's section state, .npz)")
+    if args.fold:
+        # the walk to the fold's start goes up from the start orbit's speed, and the continuation starts there
+        try:
+            s0 = float(np.load(args.start)["speed_hz"])
+        except Exception as exc:   # (any unreadable file: one line)
+            ap.error(f"--start: cannot read speed_hz from {args.start!r}: {' '.join(str(exc).split())}")
+        if not s0 <= args.fold_start_speed:
+            ap.error(f"--fold-start-speed ({args.fold_start_speed!r} Hz) must not lie below the --start orbit's "
+                     f"speed ({s0!r} Hz): the walk to it goes up")
+        if not lo < args.fold_start_speed < hi:
+            ap.error(f"--fold-start-speed ({args.fold_start_speed!r} Hz) must lie inside --fold-range "
+                     f"{args.fold_range!r}")
 
 
 def main(argv=None) -> dict:
@@ -556,7 +594,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", default=str(ROOT / "studies" / "out" / "delamination_variants"))
     ap.add_argument("--figure", default=str(ROOT / "docs" / "figures" / "delamination_variants.png"))
     ap.add_argument("--fold", action="store_true",
-                    help="instead: the frictionless touching branch at --gravity by pseudo-arclength up to its fold")
+                    help="instead: the frictionless touching branch at --gravity by pseudo-arclength to its end")
     ap.add_argument("--gravity", type=float, default=20.0, help="gravity [m/s^2] of --fold (the paper: 9.81)")
     ap.add_argument("--fold-start-speed", type=float, default=22.80, help="--fold's starting orbit [Hz]")
     ap.add_argument("--fold-range", default="22.72:22.84", help="--fold's LOW:HIGH speeds [Hz]")

@@ -4770,3 +4770,25 @@ def test_issue36_delamination_variants_study_refuses_every_bad_friction(mu, caps
     if math.isfinite(mu) and mu >= 0:
         return
     assert "--mu" in _study_refusal("delamination_variants", ["--mu", repr(mu)], capsys)
+
+
+# --- issue 36: review of the delaminated shaft's fold study (studies/delamination_variants.py --fold) ---
+@pytest.mark.parametrize("argv", [["--fold", "--fold-start-speed", "22.7"],
+                                  ["--fold", "--fold-start-speed", "22.9"],
+                                  ["--fold", "--fold-range", "22.81:22.84"]])
+def test_issue36_fold_study_refuses_a_start_speed_it_cannot_reach(argv, capsys):
+    # (before: a --fold-start-speed below the start orbit's 22.78 Hz ran 40 revolutions and the shooting, then ended
+    # in an IndexError traceback (no speed to walk to); one outside --fold-range ran the walk, then the continuation
+    # started from the range's end instead of the orbit walked to)
+    assert "--fold-start-speed" in _study_refusal("delamination_variants", argv, capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(speed=st.floats(min_value=0.1, max_value=100.0))
+def test_issue36_fold_study_refuses_every_start_speed_off_its_walk(speed, capsys):
+    """Property: with --fold, a --fold-start-speed below the stored start orbit's speed (22.78 Hz) or outside
+    --fold-range (22.72:22.84) is refused naming it, before any model is built."""
+    if 22.78 <= speed and 22.72 < speed < 22.84:
+        return
+    assert "--fold-start-speed" in _study_refusal("delamination_variants", ["--fold", "--fold-start-speed",
+                                                                            repr(speed)], capsys)
