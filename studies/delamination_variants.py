@@ -348,29 +348,24 @@ def fold_start(args, out: Path) -> Path:
     return path
 
 
-def fold(args) -> dict:
-    """``--fold``: the touching branch with gravity ``--gravity`` by pseudo-arclength (``nsfem periodic --continue``
-    over ``--fold-range`` from the orbit of :func:`fold_start`), each point's midspan amplitude from one period of
-    the exact flow, the open orbits over ``--speeds`` at that gravity, and the figure delamination_fold.png."""
+def continued(beta: float, g: float, speed: float, lo: float, hi: float, steps: int, out: Path,
+              start: Path | None = None, step: float = 0.001) -> tuple[dict, list[dict]]:
+    """The frictionless branch at gravity ``g`` by ``nsfem periodic --continue rotation.speed_hz=lo:hi`` from the
+    orbit at ``speed`` (shot from ``start``, an orbit file, or after the command's transient) into ``out``:
+    (branch.json's content, a row per point with its midspan amplitude from one period of the exact flow)."""
     import subprocess
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    start = fold_start(args, out)
-    g, beta = args.gravity, args.beta
-    lo, hi = (float(x) for x in args.fold_range.split(":"))
     cmd = [sys.executable, "-m", "nsfem", "periodic", "default", "--set", f"damping.rayleigh=[0.0,{beta!r}]",
-           "--set", f"rotation.gravity={g!r}", "--set", f"rotation.speed_hz={args.fold_start_speed!r}",
-           "--set", "output.vtu_every=0", "--start", str(start), "--continue", f"rotation.speed_hz={lo!r}:{hi!r}",
-           "--steps", str(args.fold_steps), "--step", "0.001", "--out", str(out / "fold_branch")]
-    t = time.perf_counter()
+           "--set", f"rotation.gravity={g!r}", "--set", f"rotation.speed_hz={speed!r}",
+           "--set", "output.vtu_every=0", *(["--start", str(start)] if start is not None else []),
+           "--continue", f"rotation.speed_hz={lo!r}:{hi!r}", "--steps", str(steps), "--step", repr(step),
+           "--out", str(out)]
     done = subprocess.run(cmd, cwd=str(ROOT), capture_output=True, text=True)
-    wall = time.perf_counter() - t
     if done.returncode != 0:
         raise SystemExit(f"delamination_variants: error: nsfem periodic --continue failed: "
                          f"{done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}")
-    meta = json.loads((out / "fold_branch" / "branch.json").read_text())
-    b = np.load(out / "fold_branch" / "branch.npz")
+    meta = json.loads((out / "branch.json").read_text())
+    b = np.load(out / "branch.npz")
     points = []
     for i, p in enumerate(meta["branch"]):
         system, T = build(float(p["value"]), beta, 0.0, g)[:2]
@@ -381,6 +376,22 @@ def fold(args) -> dict:
                        "largest_multiplier": float(np.abs(mu).max()),
                        "leading_real": bool(abs(mu[0].imag) <= 1e-9), "leading_re": float(mu[0].real),
                        "midspan_m": dr.midspan(system, float(p["value"]), np.asarray(f.result.t), f.result.q)})
+    return meta, points
+
+
+def fold(args) -> dict:
+    """``--fold``: the touching branch with gravity ``--gravity`` by pseudo-arclength (``nsfem periodic --continue``
+    over ``--fold-range`` from the orbit of :func:`fold_start`), each point's midspan amplitude from one period of
+    the exact flow, the open orbits over ``--speeds`` at that gravity, and the figure delamination_fold.png (with
+    the branch of ``--unstable`` when its delamination_unstable.json is in ``--out``)."""
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = fold_start(args, out)
+    g, beta = args.gravity, args.beta
+    lo, hi = (float(x) for x in args.fold_range.split(":"))
+    t = time.perf_counter()
+    meta, points = continued(beta, g, args.fold_start_speed, lo, hi, args.fold_steps, out / "fold_branch", start)
+    wall = time.perf_counter() - t
     # the open orbits at this gravity (linear where they do not touch), from the scene's state at each end
     speeds = dr.parse_speeds(args.speeds)
     opened = []
@@ -402,18 +413,91 @@ def fold(args) -> dict:
                "stop": meta["stop"], "reason": meta["reason"], "sides": meta["sides"], "open": opened,
                "continuation_wall_s": wall, "machine": machine()}
     write_outputs(out, "delamination_fold", points, payload)
-    fold_figure(payload, Path(args.figure).with_name("delamination_fold.png"))
+    side = out / "delamination_unstable.json"
+    fold_figure(payload, Path(args.figure).with_name("delamination_fold.png"),
+                json.loads(side.read_text()) if side.is_file() else None)
     return payload
 
 
-def fold_figure(payload: dict, path: Path) -> None:
+def leave(system, T: float, o, revolutions: int, size: float) -> list[dict]:
+    """The motion from the orbit pushed along its leading Floquet direction by ``size`` (relative to its largest
+    coordinate; the sign picks the side), revolution by revolution: events, smallest gap, midspan amplitude."""
+    n = system.n
+    w, V = np.linalg.eig(o.monodromy)
+    dx = o.directions @ np.real(V[:, int(np.argmax(np.abs(w)))])
+    dx *= size * float(np.abs(o.q0).max()) / np.abs(dx[:n]).max()
+    phi = FlowMap(system, o.t0, T)
+    q, v, out = o.q0 + dx[:n], o.v0 + dx[n:], []
+    for k in range(revolutions):
+        f = phi(q, v, jacobian=False)
+        r = f.result
+        out.append({"revolution": k + 1, "events": len(r.events), "gap_min_m": float(r.gap.min()),
+                    "midspan_m": dr.midspan(system, 1.0 / T, np.asarray(r.t), r.q)})
+        q, v = f.q, f.v
+    return out
+
+
+def unstable(args) -> dict:
+    """``--unstable``: the branch at ``--gravity`` continued from the open orbit at the top of ``--unstable-range``
+    downwards (``nsfem periodic --continue``, which crosses grazings): the open orbits, their grazing, the touching
+    orbits past it and where they lose stability; at the middle unstable point the checks (a perturbation along the
+    leading Floquet direction against |mu_1|^k; where pushes of +-1e-6 along it lead after ``--revolutions``).
+    Writes delamination_unstable.json/.csv (and the branch's files in unstable_branch/) into ``--out`` and
+    delamination_fold.png (with the branch of ``--fold`` when its delamination_fold.json is in ``--out``)."""
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    g, beta = args.gravity, args.beta
+    lo, hi = (float(x) for x in args.unstable_range.split(":"))
+    t = time.perf_counter()
+    meta, points = continued(beta, g, hi, lo, hi, args.fold_steps, out / "unstable_branch")
+    wall = time.perf_counter() - t
+    grazings = [{"value": float(b["value"]), "events_per_period": b.get("events_per_period")}
+                for b in meta["bifurcations"] if b["kind"] == "grazing"]
+    un = sorted((i for i, p in enumerate(points) if not p["stable"] and p["events_per_period"] > 0),
+                key=lambda i: points[i]["speed_hz"])
+    checks = {}
+    if un:
+        i = un[len(un) // 2]
+        b = np.load(out / "unstable_branch" / "branch.npz")
+        sp = points[i]["speed_hz"]
+        system, T = build(sp, beta, 0.0, g)[:2]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # (near-grazing passages: the branch's json has them)
+            o = periodic_orbit(system, T, b["q0"][i], b["v0"][i], float(b["t0_s"][i]), tol=1e-12, max_iter=4,
+                               attempts=1)
+        checks["unstable_departure"] = dict(departure(system, T, o, args.periods, 1e-9), speed_hz=sp,
+                                            residual=float(o.residual), events_per_period=int(o.events_per_period))
+        checks["unstable_aftermath"] = {"speed_hz": sp, "size": 1e-6,
+                                        "plus": leave(system, T, o, args.revolutions, 1e-6),
+                                        "minus": leave(system, T, o, args.revolutions, -1e-6)}
+        for side in ("plus", "minus"):
+            last = checks["unstable_aftermath"][side][-1]
+            print(f"from the unstable orbit at {sp:.6f} Hz pushed {side}: after {last['revolution']} revolutions "
+                  f"{last['events']} events, midspan {last['midspan_m'] * 1e3:.3f} mm", file=sys.stderr, flush=True)
+    payload = {"study": "delamination_unstable", "gravity": g, "beta_s": beta, "branch": points,
+               "grazings": grazings, "stop": meta["stop"], "reason": meta["reason"], "sides": meta["sides"],
+               "checks": checks, "continuation_wall_s": wall, "machine": machine()}
+    write_outputs(out, "delamination_unstable", points, payload)
+    fold_json = out / "delamination_fold.json"
+    if fold_json.is_file():
+        fold_figure(json.loads(fold_json.read_text()), Path(args.figure).with_name("delamination_fold.png"), payload)
+    else:
+        print(f"delamination_variants: no {fold_json} (run --fold first): the figure is not drawn", file=sys.stderr)
+    return payload
+
+
+def fold_figure(payload: dict, path: Path, side: dict | None = None) -> None:
+    """delamination_fold.png: the 2 g resonance curve (open orbits, the touching branch up to its fold) and its
+    multipliers; with ``side`` (the payload of ``--unstable``) also the branch from the open side through its
+    grazing (unstable dashed) in a zoom on the fold, and the departure from one of its unstable orbits."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     pts = sorted(payload["branch"], key=lambda r: r["speed_hz"])
     op = sorted(payload["open"], key=lambda r: r["speed_hz"])
-    fig, ax = plt.subplots(1, 2, figsize=(12, 4.4))
+    fig, axes = plt.subplots(2 if side else 1, 2, figsize=(12, 8.8 if side else 4.4), squeeze=False)
+    ax = axes[0]
     s = np.array([r["speed_hz"] for r in op])
     cut = np.flatnonzero(np.diff(s) > 0.006) + 1
     for k, (ps, pa) in enumerate(zip(np.split(s, cut), np.split(np.array([r["midspan_m"] for r in op]) * 1e3, cut))):
@@ -437,6 +521,42 @@ def fold_figure(payload: dict, path: Path) -> None:
                label="leading multiplier real (> 0)")
     ax[1].axhline(1.0, color="k", lw=0.8)
     ax[1].set(xlabel="speed [Hz]", ylabel="|mu_1|", title="stability along the branch")
+    if side:
+        sb = sorted(side["branch"], key=lambda r: r["speed_hz"])
+        zoom = axes[1][0]
+        near = [r for r in pts if r["speed_hz"] > sb[0]["speed_hz"] - 0.006]
+        zoom.plot([r["speed_hz"] for r in near], [r["midspan_m"] * 1e3 for r in near], "-s", ms=3, color="C3",
+                  label="touching branch from below (stable)")
+        zoom.plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k", label="its fold")
+        for label, sel, style, c in (
+                ("open orbits, continued down", lambda r: r["events_per_period"] == 0, "-o", "C0"),
+                ("past the open grazing: touching, stable", lambda r: r["events_per_period"] > 0 and r["stable"],
+                 "-^", "C2"),
+                ("touching, unstable (real multiplier > 1)", lambda r: r["events_per_period"] > 0 and not r["stable"],
+                 "--D", "k")):
+            rs = [r for r in sb if sel(r)]
+            if rs:
+                for a, y in ((zoom, [r["midspan_m"] * 1e3 for r in rs]), (ax[1], [r["largest_multiplier"] for r in rs])):
+                    a.plot([r["speed_hz"] for r in rs], y, style, ms=3.5, color=c, mfc="none" if "un" in label else c,
+                           label=label if a is zoom else None)
+        for gz in side["grazings"]:
+            zoom.axvline(gz["value"], color="0.6", lw=0.6, ls=":")
+        zoom.set(xlabel="speed [Hz]", ylabel="midspan z, half p-p [mm]",
+                 title="near the fold; dotted: grazings located by the continuation")
+        c = side["checks"].get("unstable_departure")
+        dep = axes[1][1]
+        if c:
+            k = np.arange(1, c["periods"] + 1)
+            m = math.hypot(c["multiplier_re"], c["multiplier_im"])
+            dep.semilogy(k, c["relative_distance"], "o", color="k", ms=4,
+                         label=f"from the unstable orbit at {c['speed_hz']:.6f} Hz")
+            dep.semilogy(k, m ** k, "-", color="k", lw=0.8, label=f"mu_1^k, mu_1 = {c['multiplier_re']:.4f}")
+        dep.set(xlabel="period k", ylabel="distance / initial",
+                title="a perturbation along the leading Floquet direction")
+        for a in axes[1]:
+            a.grid(alpha=0.3)
+            a.ticklabel_format(axis="x", useOffset=False)
+            a.legend(fontsize=7)
     for a in ax:
         a.grid(alpha=0.3)
         a.ticklabel_format(axis="x", useOffset=False)
@@ -533,6 +653,12 @@ def check_options(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--fold-range: {args.fold_range!r} is not LOW:HIGH")
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
         ap.error(f"--fold-range: {args.fold_range!r} needs finite speeds 0 < LOW < HIGH")
+    try:
+        ulo, uhi = (float(x) for x in args.unstable_range.split(":"))
+    except ValueError:
+        ap.error(f"--unstable-range: {args.unstable_range!r} is not LOW:HIGH")
+    if not (math.isfinite(ulo) and math.isfinite(uhi) and 0 < ulo < uhi):
+        ap.error(f"--unstable-range: {args.unstable_range!r} needs finite speeds 0 < LOW < HIGH")
     if not args.fold_steps >= 1:
         ap.error(f"--fold-steps must be >= 1, got {args.fold_steps}")
     if not Path(args.start).is_file():
@@ -560,10 +686,16 @@ def main(argv=None) -> dict:
     ap.add_argument("--gravity", type=float, default=20.0, help="gravity [m/s^2] of --fold (the paper: 9.81)")
     ap.add_argument("--fold-start-speed", type=float, default=22.80, help="--fold's starting orbit [Hz]")
     ap.add_argument("--fold-range", default="22.72:22.84", help="--fold's LOW:HIGH speeds [Hz]")
-    ap.add_argument("--fold-steps", type=int, default=80, help="--fold's continuation steps each way")
+    ap.add_argument("--fold-steps", type=int, default=80, help="--fold's (and --unstable's) continuation steps each way")
+    ap.add_argument("--unstable", action="store_true",
+                    help="instead: the frictionless branch at --gravity continued down from its open orbit at the top "
+                         "of --unstable-range through its grazing (the fold's unstable side)")
+    ap.add_argument("--unstable-range", default="22.805:22.83", help="--unstable's LOW:HIGH speeds [Hz]")
     args = ap.parse_args(argv)
     check_options(ap, args)
-    return fold(args) if args.fold else study(args)
+    if args.fold and args.unstable:
+        ap.error("--fold and --unstable are two runs: give one (the second draws both into delamination_fold.png)")
+    return fold(args) if args.fold else unstable(args) if args.unstable else study(args)
 
 
 if __name__ == "__main__":
