@@ -38,6 +38,15 @@ docs/figures/delamination_fold.png.
 
     python studies/delamination_variants.py --fold [--gravity 20] [--fold-range 22.72:22.84]
 
+``--unstable``: the same shaft continued down from its open orbit at 22.83 Hz (``--unstable-range``) through the
+open branch's grazing (22.819182 Hz) onto touching orbits, stable down to a second grazing (22.817900 Hz) where a
+real multiplier jumps above 1 (1.47-1.63 below it); the departure from one of these unstable orbits, and where
+pushes along its direction lead (a stable orbit with one brief contact less, next to it). Writes
+delamination_unstable.json/.csv (the branch's files in unstable_branch/) and, after ``--fold`` into the same
+``--out``, the figure with both.
+
+    python studies/delamination_variants.py --unstable [--unstable-range 22.805:22.83] [--revolutions 150]
+
 The study, at ``--mu`` and ``--beta``:
 
 1. the resonance speeds of the open, closed and bonded shaft (:func:`resonance_speed`, damped modes in the rotating
@@ -419,9 +428,10 @@ def fold(args) -> dict:
     return payload
 
 
-def leave(system, T: float, o, revolutions: int, size: float) -> list[dict]:
+def leave(system, T: float, o, revolutions: int, size: float) -> dict:
     """The motion from the orbit pushed along its leading Floquet direction by ``size`` (relative to its largest
-    coordinate; the sign picks the side), revolution by revolution: events, smallest gap, midspan amplitude."""
+    coordinate; the sign picks the side), revolution by revolution (events, smallest gap, midspan amplitude), and
+    the period-1 orbit the shooting finds from where it ends (``ends_on``)."""
     n = system.n
     w, V = np.linalg.eig(o.monodromy)
     dx = o.directions @ np.real(V[:, int(np.argmax(np.abs(w)))])
@@ -434,14 +444,22 @@ def leave(system, T: float, o, revolutions: int, size: float) -> list[dict]:
         out.append({"revolution": k + 1, "events": len(r.events), "gap_min_m": float(r.gap.min()),
                     "midspan_m": dr.midspan(system, 1.0 / T, np.asarray(r.t), r.q)})
         q, v = f.q, f.v
-    return out
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        e = periodic_orbit(system, T, q, v, o.t0, tol=1e-10, max_iter=15, attempts=1)
+    ends_on = {"converged": bool(e.converged), "residual": float(e.residual), "stable": bool(e.stable),
+               "events_per_period": int(e.events_per_period), "largest_multiplier": float(np.abs(e.multipliers[0])),
+               "midspan_m": dr.midspan(system, 1.0 / T, np.asarray(e.result.t), e.result.q),
+               "distance": float(np.abs(e.q0 - o.q0).max() / np.abs(o.q0).max())}
+    return {"revolutions": out, "ends_on": ends_on}
 
 
 def unstable(args) -> dict:
     """``--unstable``: the branch at ``--gravity`` continued from the open orbit at the top of ``--unstable-range``
     downwards (``nsfem periodic --continue``, which crosses grazings): the open orbits, their grazing, the touching
     orbits past it and where they lose stability; at the middle unstable point the checks (a perturbation along the
-    leading Floquet direction against |mu_1|^k; where pushes of +-1e-6 along it lead after ``--revolutions``).
+    leading Floquet direction against |mu_1|^k; where pushes of +-1e-6 along it lead after ``--revolutions``, and the
+    orbit the shooting finds from there).
     Writes delamination_unstable.json/.csv (and the branch's files in unstable_branch/) into ``--out`` and
     delamination_fold.png (with the branch of ``--fold`` when its delamination_fold.json is in ``--out``)."""
     out = Path(args.out)
@@ -471,9 +489,12 @@ def unstable(args) -> dict:
                                         "plus": leave(system, T, o, args.revolutions, 1e-6),
                                         "minus": leave(system, T, o, args.revolutions, -1e-6)}
         for side in ("plus", "minus"):
-            last = checks["unstable_aftermath"][side][-1]
+            last, e = checks["unstable_aftermath"][side]["revolutions"][-1], checks["unstable_aftermath"][side]["ends_on"]
             print(f"from the unstable orbit at {sp:.6f} Hz pushed {side}: after {last['revolution']} revolutions "
-                  f"{last['events']} events, midspan {last['midspan_m'] * 1e3:.3f} mm", file=sys.stderr, flush=True)
+                  f"{last['events']} events, midspan {last['midspan_m'] * 1e3:.5f} mm; shot from there: converged "
+                  f"{e['converged']}, stable {e['stable']}, {e['events_per_period']} events, midspan "
+                  f"{e['midspan_m'] * 1e3:.5f} mm, |mu_1| {e['largest_multiplier']:.4f}, {e['distance']:.1e} from the "
+                  f"unstable orbit", file=sys.stderr, flush=True)
     payload = {"study": "delamination_unstable", "gravity": g, "beta_s": beta, "branch": points,
                "grazings": grazings, "stop": meta["stop"], "reason": meta["reason"], "sides": meta["sides"],
                "checks": checks, "continuation_wall_s": wall, "machine": machine()}

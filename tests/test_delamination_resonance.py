@@ -344,7 +344,8 @@ def test_orbit_at_the_fold_has_a_real_multiplier_near_one():
 # Continued downwards from the open orbit at 22.83 Hz (nsfem periodic --continue, which crosses grazings), the open
 # branch grazes at 22.819182 Hz and goes on as touching orbits (15-19 events a period) that are stable down to a
 # grazing at 22.817900 Hz, where the leading multiplier jumps from 0.989 (complex pair) to a real 1.466: the touching
-# orbits below it are unstable with one real multiplier > 1, the middle branch of the fold (docs/validation.md). One
+# orbits below it are unstable with one real multiplier > 1 (saddles; each next to a stable orbit with one brief
+# contact less, born at the same grazing: not the middle branch of the fold at 22.813 Hz; docs/validation.md). One
 # of them (22.817846160 Hz, 16 events, re-shot from the continuation's point to residual 8e-15) is stored in
 # tests/data/delamination_fold_unstable_orbit.npz.
 
