@@ -417,3 +417,40 @@ def test_unstable_orbit_at_twice_the_gravity_is_left_at_its_real_multiplier():
     # the real multiplier (> 1) from the next modulus (< 1) by far
     assert rate == pytest.approx(abs(mu1), abs=3e-3)
     assert signs == [np.sign(np.dot(dx, dx))] * N   # a positive real multiplier: the same side every period
+
+
+PAIR = DATA.with_name("delamination_fold_grazing_pair.npz")
+
+
+def test_grazing_pair_at_twice_the_gravity_is_a_stable_and_an_unstable_orbit_at_one_speed():
+    """At 22.817818 Hz, below the grazing at 22.817900 Hz, two touching period-1 orbits coexist on one section: a
+    saddle (one real multiplier > 1) and a stable orbit with another event sequence, where pushes of 1e-6 along the
+    saddle's direction end (studies/delamination_variants.py --unstable). Each is a fixed point of the exact flow."""
+    import warnings
+
+    d = np.load(PAIR)
+    speed, beta, g = float(d["speed_hz"]), float(d["beta"]), float(d["gravity"])
+    scene = load_scene("default", [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed!r}",
+                                   f"rotation.gravity={g!r}"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
+    T = 1.0 / speed
+    orbits = {}
+    for kind in ("stable", "unstable"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # (near-grazing passages are reported)
+            o = periodic_orbit(system, T, d[f"{kind}_q0"], d[f"{kind}_v0"], float(d[f"{kind}_t0"]), tol=1e-12,
+                               max_iter=3, attempts=1)
+        # both stored at <= 6e-15 (relative); a period's round-off ~1e-15 times the largest multiplier (1.6)
+        assert o.converged and o.residual < 1e-12 and o.events_per_period > 0, kind
+        orbits[kind] = o
+    s, u = orbits["stable"], orbits["unstable"]
+    assert s.stable and np.abs(s.multipliers).max() < 1.0
+    assert not u.stable and u.loss == "fold"
+    assert abs(u.multipliers[0].imag) < 1e-10 and u.multipliers[0].real > 1.0
+    assert s.events_per_period != u.events_per_period          # a different contact sequence
+    # two distinct orbits, not one found twice: their section states differ by far more than either's residual
+    # (1e-12) carried by the saddle's multiplier
+    assert s.t0 == u.t0
+    assert np.abs(s.q0 - u.q0).max() / np.abs(u.q0).max() > 1e-8
