@@ -460,8 +460,9 @@ def unstable(args) -> dict:
     orbits past it and where they lose stability; at the middle unstable point the checks (a perturbation along the
     leading Floquet direction against |mu_1|^k; where pushes of +-1e-6 along it lead after ``--revolutions``, and the
     orbit the shooting finds from there).
-    Writes delamination_unstable.json/.csv (and the branch's files in unstable_branch/) into ``--out`` and
-    delamination_fold.png (with the branch of ``--fold`` when its delamination_fold.json is in ``--out``)."""
+    Writes delamination_unstable.json/.csv (and the branch's files in unstable_branch/) into ``--out``, the figure
+    delamination_unstable.png and delamination_fold.png (with the branch of ``--fold`` when its
+    delamination_fold.json is in ``--out``)."""
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     g, beta = args.gravity, args.beta
@@ -499,11 +500,13 @@ def unstable(args) -> dict:
                "grazings": grazings, "stop": meta["stop"], "reason": meta["reason"], "sides": meta["sides"],
                "checks": checks, "continuation_wall_s": wall, "machine": machine()}
     write_outputs(out, "delamination_unstable", points, payload)
+    side_figure(payload, Path(args.figure).with_name("delamination_unstable.png"))
     fold_json = out / "delamination_fold.json"
     if fold_json.is_file():
         fold_figure(json.loads(fold_json.read_text()), Path(args.figure).with_name("delamination_fold.png"), payload)
     else:
-        print(f"delamination_variants: no {fold_json} (run --fold first): the figure is not drawn", file=sys.stderr)
+        print(f"delamination_variants: no {fold_json} (run --fold first): delamination_fold.png is not redrawn",
+              file=sys.stderr)
     return payload
 
 
@@ -543,45 +546,69 @@ def fold_figure(payload: dict, path: Path, side: dict | None = None) -> None:
     ax[1].axhline(1.0, color="k", lw=0.8)
     ax[1].set(xlabel="speed [Hz]", ylabel="|mu_1|", title="stability along the branch")
     if side:
-        sb = sorted(side["branch"], key=lambda r: r["speed_hz"])
-        zoom = axes[1][0]
-        near = [r for r in pts if r["speed_hz"] > sb[0]["speed_hz"] - 0.006]
-        zoom.plot([r["speed_hz"] for r in near], [r["midspan_m"] * 1e3 for r in near], "-s", ms=3, color="C3",
-                  label="touching branch from below (stable)")
-        zoom.plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k", label="its fold")
-        for label, sel, style, c in (
-                ("open orbits, continued down", lambda r: r["events_per_period"] == 0, "-o", "C0"),
-                ("past the open grazing: touching, stable", lambda r: r["events_per_period"] > 0 and r["stable"],
-                 "-^", "C2"),
-                ("touching, unstable (real multiplier > 1)", lambda r: r["events_per_period"] > 0 and not r["stable"],
-                 "--D", "k")):
-            rs = [r for r in sb if sel(r)]
-            if rs:
-                for a, y in ((zoom, [r["midspan_m"] * 1e3 for r in rs]), (ax[1], [r["largest_multiplier"] for r in rs])):
-                    a.plot([r["speed_hz"] for r in rs], y, style, ms=3.5, color=c, mfc="none" if "un" in label else c,
-                           label=label if a is zoom else None)
-        for gz in side["grazings"]:
-            zoom.axvline(gz["value"], color="0.6", lw=0.6, ls=":")
-        zoom.set(xlabel="speed [Hz]", ylabel="midspan z, half p-p [mm]",
-                 title="near the fold; dotted: grazings located by the continuation")
-        c = side["checks"].get("unstable_departure")
-        dep = axes[1][1]
-        if c:
-            k = np.arange(1, c["periods"] + 1)
-            m = math.hypot(c["multiplier_re"], c["multiplier_im"])
-            dep.semilogy(k, c["relative_distance"], "o", color="k", ms=4,
-                         label=f"from the unstable orbit at {c['speed_hz']:.6f} Hz")
-            dep.semilogy(k, m ** k, "-", color="k", lw=0.8, label=f"mu_1^k, mu_1 = {c['multiplier_re']:.4f}")
-        dep.set(xlabel="period k", ylabel="distance / initial",
-                title="a perturbation along the leading Floquet direction")
-        for a in axes[1]:
-            a.grid(alpha=0.3)
-            a.ticklabel_format(axis="x", useOffset=False)
-            a.legend(fontsize=7)
+        near = [r for r in pts if r["speed_hz"] > min(r["speed_hz"] for r in side["branch"]) - 0.006]
+        axes[1][0].plot([r["speed_hz"] for r in near], [r["midspan_m"] * 1e3 for r in near], "-s", ms=3, color="C3",
+                        label="touching branch from below (stable)")
+        axes[1][0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k", label="its fold")
+        draw_side(side, axes[1][0], ax[1], axes[1][1])
     for a in ax:
         a.grid(alpha=0.3)
         a.ticklabel_format(axis="x", useOffset=False)
         a.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def draw_side(side: dict, zoom, mult, dep) -> None:
+    """The branch of ``--unstable`` (open, touching stable, touching unstable dashed; its grazings dotted; where the
+    pushes from its unstable orbit end) on ``zoom`` (midspan) and ``mult`` (largest |multiplier|), and the departure
+    from its unstable orbit against mu_1^k on ``dep``."""
+    sb = sorted(side["branch"], key=lambda r: r["speed_hz"])
+    for label, sel, style, c in (
+            ("open orbits, continued down", lambda r: r["events_per_period"] == 0, "-o", "C0"),
+            ("past the open grazing: touching, stable", lambda r: r["events_per_period"] > 0 and r["stable"],
+             "-^", "C2"),
+            ("touching, unstable (real multiplier > 1)", lambda r: r["events_per_period"] > 0 and not r["stable"],
+             "--D", "k")):
+        rs = [r for r in sb if sel(r)]
+        if rs:
+            for a, y in ((zoom, [r["midspan_m"] * 1e3 for r in rs]), (mult, [r["largest_multiplier"] for r in rs])):
+                a.plot([r["speed_hz"] for r in rs], y, style, ms=3.5, color=c, mfc="none" if "un" in label else c,
+                       label=label)
+    for gz in side["grazings"]:
+        zoom.axvline(gz["value"], color="0.6", lw=0.6, ls=":")
+    after = side["checks"].get("unstable_aftermath")
+    if after:
+        ends = [after[k]["ends_on"] for k in ("plus", "minus") if after[k]["ends_on"]["converged"]]
+        if ends:
+            zoom.plot([after["speed_hz"]] * len(ends), [e["midspan_m"] * 1e3 for e in ends], "v", ms=8, mfc="none",
+                      color="C2", label="where pushes from the unstable orbit end (stable)")
+    zoom.set(xlabel="speed [Hz]", ylabel="midspan z, half p-p [mm]",
+             title="from the open side; dotted: grazings located by the continuation")
+    mult.axhline(1.0, color="k", lw=0.8)
+    c = side["checks"].get("unstable_departure")
+    if c:
+        k = np.arange(1, c["periods"] + 1)
+        dep.semilogy(k, c["relative_distance"], "o", color="k", ms=4,
+                     label=f"from the unstable orbit at {c['speed_hz']:.6f} Hz")
+        dep.semilogy(k, c["multiplier_re"] ** k, "-", color="k", lw=0.8, label=f"mu_1^k, mu_1 = {c['multiplier_re']:.4f}")
+    dep.set(xlabel="period k", ylabel="distance / initial", title="a perturbation along the leading Floquet direction")
+    for a in (zoom, mult, dep):
+        a.grid(alpha=0.3)
+        a.ticklabel_format(axis="x", useOffset=False)
+        a.legend(fontsize=7)
+
+
+def side_figure(side: dict, path: Path) -> None:
+    """delamination_unstable.png: the branch of ``--unstable`` alone (midspan, multipliers, departure)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(16, 4.4))
+    draw_side(side, ax[0], ax[1], ax[2])
+    ax[1].set(xlabel="speed [Hz]", ylabel="largest |multiplier|", title="stability (outside 1: unstable)")
+    fig.suptitle(f"gravity {side['gravity']:g} m/s^2, beta {side['beta_s']:g} s, frictionless", fontsize=9)
     fig.tight_layout()
     save_figure(fig, path)
 
