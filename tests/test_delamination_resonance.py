@@ -454,3 +454,33 @@ def test_grazing_pair_at_twice_the_gravity_is_a_stable_and_an_unstable_orbit_at_
     # (1e-12) carried by the saddle's multiplier
     assert s.t0 == u.t0
     assert np.abs(s.q0 - u.q0).max() / np.abs(u.q0).max() > 1e-8
+
+
+BETWEEN = DATA.with_name("delamination_fold_unstable_between.npz")
+
+
+def test_unstable_orbit_between_the_fold_and_the_grazing_pair_has_two_real_multipliers_above_one():
+    """At 22.8135 Hz, between the 2 g branch's turn (22.813004 Hz) and the grazing pair (22.8179 Hz), Newton from the
+    turn's orbit converges to a touching orbit that is a fixed point of the exact flow with two real multipliers
+    above 1 (two unstable directions: not a fold's middle branch, which has one)."""
+    import warnings
+    from nsfem.integrate.event_driven import Exact
+    from nsfem.periodic.flow import shifted
+
+    system, T, t0, q0, v0 = _fold_system(BETWEEN)
+    res = Exact(shifted(system, t0), progress=False).run(T, T / 64, q0, v0)
+    i = int(np.argmin(np.abs(res.t - T)))
+    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
+    err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+    # shot to 3e-13; a period's round-off over ~40 events (~1e-12) times the largest multiplier (2.4): 1e-9 is a
+    # margin of 100s and far below the 1e-6 at which an event sequence changes
+    assert err < 1e-9
+    assert len(res.events) > 20                                    # the layers touch, many times a period
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # (near-grazing passages are reported)
+        o = periodic_orbit(system, T, q0, v0, t0, tol=1e-11, max_iter=3, attempts=1)
+    assert o.converged and not o.stable and o.loss == "fold"
+    # real to the eigen-solver's round-off on a ~40-dimensional matrix (1e-12), and two of them outside the circle
+    above = [m for m in o.multipliers if abs(m.imag) < 1e-10 and m.real > 1.0]
+    assert len(above) == 2
+    assert np.sum(np.abs(o.multipliers) > 1.0) == 2
