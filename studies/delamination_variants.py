@@ -535,7 +535,7 @@ def fold_figure(payload: dict, path: Path, side: dict | None = None) -> None:
                    label="touching orbits (unstable)")
     end = max(pts, key=lambda r: r["speed_hz"])
     ax[0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k",
-               label=f"the branch's end: fold ({end['speed_hz']:.6f} Hz)")
+               label=f"the branch's end ({end['speed_hz']:.6f} Hz; continuation: {payload['stop']})")
     ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
               title=f"gravity {payload['gravity']:g} m/s^2, beta {payload['beta_s']:g} s, frictionless")
     ax[1].plot([r["speed_hz"] for r in pts], [r["largest_multiplier"] for r in pts], "s", ms=3, color="C3",
@@ -549,7 +549,7 @@ def fold_figure(payload: dict, path: Path, side: dict | None = None) -> None:
         near = [r for r in pts if r["speed_hz"] > min(r["speed_hz"] for r in side["branch"]) - 0.006]
         axes[1][0].plot([r["speed_hz"] for r in near], [r["midspan_m"] * 1e3 for r in near], "-s", ms=3, color="C3",
                         label="touching branch from below (stable)")
-        axes[1][0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k", label="its fold")
+        axes[1][0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k", label="its end")
         draw_side(side, axes[1][0], ax[1], axes[1][1])
     for a in ax:
         a.grid(alpha=0.3)
