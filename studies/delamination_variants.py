@@ -31,8 +31,9 @@ branch below 22.795 Hz. No fold at the paper's gravity in any variant (docs/vali
 
 ``--fold``: the frictionless shaft at twice the gravity (``rotation.gravity=20``, beta 1e-5 s), where the estimate
 predicts a fold (A / A0 = 3.2, bend 0.021 Hz above the 0.013 Hz half-width): its touching branch by pseudo-arclength
-(``nsfem periodic --continue``) bends to higher speeds and ends at a fold near 22.813 Hz, where the speed turns and a
-real multiplier approaches 1; the continuation does not pass it (the orbits beyond change their event sequence).
+(``nsfem periodic --continue``) bends to higher speeds; with the continuation that crosses grazings it passes
+22.813004 Hz (a grazing, where the earlier corrector stopped and a real multiplier neared 1) and ends where the
+corrector fails at 22.81415 Hz (docs/validation.md).
 Writes delamination_fold.json/.csv (and the branch's files in fold_branch/) into ``--out`` and
 docs/figures/delamination_fold.png.
 
