@@ -738,7 +738,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--fold-steps", type=int, default=80, help="--fold's (and --unstable's) continuation steps each way")
     ap.add_argument("--unstable", action="store_true",
                     help="instead: the frictionless branch at --gravity continued down from its open orbit at the top "
-                         "of --unstable-range through its grazing (the fold's unstable side)")
+                         "of --unstable-range through its grazings onto touching orbits, stable and unstable")
     ap.add_argument("--unstable-range", default="22.805:22.83", help="--unstable's LOW:HIGH speeds [Hz]")
     args = ap.parse_args(argv)
     check_options(ap, args)
