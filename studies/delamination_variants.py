@@ -491,7 +491,8 @@ def unstable(args) -> dict:
                                         "plus": leave(system, T, o, args.revolutions, 1e-6),
                                         "minus": leave(system, T, o, args.revolutions, -1e-6)}
         for side in ("plus", "minus"):
-            last, e = checks["unstable_aftermath"][side]["revolutions"][-1], checks["unstable_aftermath"][side]["ends_on"]
+            pushed = checks["unstable_aftermath"][side]
+            last, e = pushed["revolutions"][-1], pushed["ends_on"]
             print(f"from the unstable orbit at {sp:.6f} Hz pushed {side}: after {last['revolution']} revolutions "
                   f"{last['events']} events, midspan {last['midspan_m'] * 1e3:.5f} mm; shot from there: converged "
                   f"{e['converged']}, stable {e['stable']}, {e['events_per_period']} events, midspan "
@@ -592,7 +593,8 @@ def draw_side(side: dict, zoom, mult, dep) -> None:
         k = np.arange(1, c["periods"] + 1)
         dep.semilogy(k, c["relative_distance"], "o", color="k", ms=4,
                      label=f"from the unstable orbit at {c['speed_hz']:.6f} Hz")
-        dep.semilogy(k, c["multiplier_re"] ** k, "-", color="k", lw=0.8, label=f"mu_1^k, mu_1 = {c['multiplier_re']:.4f}")
+        dep.semilogy(k, c["multiplier_re"] ** k, "-", color="k", lw=0.8,
+                     label=f"mu_1^k, mu_1 = {c['multiplier_re']:.4f}")
     dep.set(xlabel="period k", ylabel="distance / initial", title="a perturbation along the leading Floquet direction")
     for a in (zoom, mult, dep):
         a.grid(alpha=0.3)
@@ -735,7 +737,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--gravity", type=float, default=20.0, help="gravity [m/s^2] of --fold (the paper: 9.81)")
     ap.add_argument("--fold-start-speed", type=float, default=22.80, help="--fold's starting orbit [Hz]")
     ap.add_argument("--fold-range", default="22.72:22.84", help="--fold's LOW:HIGH speeds [Hz]")
-    ap.add_argument("--fold-steps", type=int, default=80, help="--fold's (and --unstable's) continuation steps each way")
+    ap.add_argument("--fold-steps", type=int, default=80,
+                    help="--fold's (and --unstable's) continuation steps each way")
     ap.add_argument("--unstable", action="store_true",
                     help="instead: the frictionless branch at --gravity continued down from its open orbit at the top "
                          "of --unstable-range through its grazings onto touching orbits, stable and unstable")
