@@ -32,12 +32,22 @@ branch below 22.795 Hz. No fold at the paper's gravity in any variant (docs/vali
 ``--fold``: the frictionless shaft at twice the gravity (``rotation.gravity=20``, beta 1e-5 s), where the estimate
 predicts a fold (A / A0 = 2.8, bend 0.019 Hz above the 0.0163 Hz half-width): its touching branch by pseudo-arclength
 (``nsfem periodic --continue``) bends to higher speeds; stable throughout, its leading multipliers a complex pair
-(a first run stopped at 22.813 Hz, where contact 4 grazes, with a real multiplier 0.9972: not a fold; the current
-continuation passes it and stops at 22.8141 Hz): no fold found (docs/validation.md).
+(a first run stopped at 22.813 Hz, where contact 4 grazes, with a real multiplier 0.9972: not a fold; the
+continuation that crosses grazings passes it and ends where the corrector fails at 22.81415 Hz): no fold found
+(docs/validation.md).
 Writes delamination_fold.json/.csv (and the branch's files in fold_branch/) into ``--out`` and
 docs/figures/delamination_fold.png.
 
     python studies/delamination_variants.py --fold [--gravity 20] [--fold-range 22.72:22.84]
+
+``--unstable``: the same shaft continued down from its open orbit at 22.83 Hz (``--unstable-range``) through the
+open branch's grazing (22.819182 Hz) onto touching orbits, stable down to a second grazing (22.817900 Hz) where a
+real multiplier jumps above 1 (1.47-1.63 below it); the departure from one of these unstable orbits, and where
+pushes along its direction lead (a stable orbit with one brief contact less, next to it). Writes
+delamination_unstable.json/.csv (the branch's files in unstable_branch/) and, after ``--fold`` into the same
+``--out``, the figure with both.
+
+    python studies/delamination_variants.py --unstable [--unstable-range 22.805:22.83] [--revolutions 150]
 
 The study, at ``--mu`` and ``--beta``:
 
@@ -367,29 +377,24 @@ def fold_start(args, out: Path) -> Path:
     return path
 
 
-def fold(args) -> dict:
-    """``--fold``: the touching branch with gravity ``--gravity`` by pseudo-arclength (``nsfem periodic --continue``
-    over ``--fold-range`` from the orbit of :func:`fold_start`), each point's midspan amplitude from one period of
-    the exact flow, the open orbits over ``--speeds`` at that gravity, and the figure delamination_fold.png."""
+def continued(beta: float, g: float, speed: float, lo: float, hi: float, steps: int, out: Path,
+              start: Path | None = None, step: float = 0.001) -> tuple[dict, list[dict]]:
+    """The frictionless branch at gravity ``g`` by ``nsfem periodic --continue rotation.speed_hz=lo:hi`` from the
+    orbit at ``speed`` (shot from ``start``, an orbit file, or after the command's transient) into ``out``:
+    (branch.json's content, a row per point with its midspan amplitude from one period of the exact flow)."""
     import subprocess
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    start = fold_start(args, out)
-    g, beta = args.gravity, args.beta
-    lo, hi = (float(x) for x in args.fold_range.split(":"))
     cmd = [sys.executable, "-m", "nsfem", "periodic", "default", "--set", f"damping.rayleigh=[0.0,{beta!r}]",
-           "--set", f"rotation.gravity={g!r}", "--set", f"rotation.speed_hz={args.fold_start_speed!r}",
-           "--set", "output.vtu_every=0", "--start", str(start), "--continue", f"rotation.speed_hz={lo!r}:{hi!r}",
-           "--steps", str(args.fold_steps), "--step", "0.001", "--out", str(out / "fold_branch")]
-    t = time.perf_counter()
+           "--set", f"rotation.gravity={g!r}", "--set", f"rotation.speed_hz={speed!r}",
+           "--set", "output.vtu_every=0", *(["--start", str(start)] if start is not None else []),
+           "--continue", f"rotation.speed_hz={lo!r}:{hi!r}", "--steps", str(steps), "--step", repr(step),
+           "--out", str(out)]
     done = subprocess.run(cmd, cwd=str(ROOT), capture_output=True, text=True)
-    wall = time.perf_counter() - t
     if done.returncode != 0:
         raise SystemExit(f"delamination_variants: error: nsfem periodic --continue failed: "
                          f"{done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}")
-    meta = json.loads((out / "fold_branch" / "branch.json").read_text())
-    b = np.load(out / "fold_branch" / "branch.npz")
+    meta = json.loads((out / "branch.json").read_text())
+    b = np.load(out / "branch.npz")
     points = []
     for i, p in enumerate(meta["branch"]):
         system, T = build(float(p["value"]), beta, 0.0, g)[:2]
@@ -400,6 +405,22 @@ def fold(args) -> dict:
                        "largest_multiplier": float(np.abs(mu).max()),
                        "leading_real": bool(abs(mu[0].imag) <= 1e-9), "leading_re": float(mu[0].real),
                        "midspan_m": dr.midspan(system, float(p["value"]), np.asarray(f.result.t), f.result.q)})
+    return meta, points
+
+
+def fold(args) -> dict:
+    """``--fold``: the touching branch with gravity ``--gravity`` by pseudo-arclength (``nsfem periodic --continue``
+    over ``--fold-range`` from the orbit of :func:`fold_start`), each point's midspan amplitude from one period of
+    the exact flow, the open orbits over ``--speeds`` at that gravity, and the figure delamination_fold.png (with
+    the branch of ``--unstable`` when its delamination_unstable.json is in ``--out``)."""
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = fold_start(args, out)
+    g, beta = args.gravity, args.beta
+    lo, hi = (float(x) for x in args.fold_range.split(":"))
+    t = time.perf_counter()
+    meta, points = continued(beta, g, args.fold_start_speed, lo, hi, args.fold_steps, out / "fold_branch", start)
+    wall = time.perf_counter() - t
     # the open orbits at this gravity (linear where they do not touch), from the scene's state at each end
     speeds = dr.parse_speeds(args.speeds)
     opened = []
@@ -421,18 +442,107 @@ def fold(args) -> dict:
                "stop": meta["stop"], "reason": meta["reason"], "sides": meta["sides"], "open": opened,
                "continuation_wall_s": wall, "machine": machine()}
     write_outputs(out, "delamination_fold", points, payload)
-    fold_figure(payload, Path(args.figure).with_name("delamination_fold.png"))
+    side = out / "delamination_unstable.json"
+    fold_figure(payload, Path(args.figure).with_name("delamination_fold.png"),
+                json.loads(side.read_text()) if side.is_file() else None)
     return payload
 
 
-def fold_figure(payload: dict, path: Path) -> None:
+def leave(system, T: float, o, revolutions: int, size: float) -> dict:
+    """The motion from the orbit pushed along its leading Floquet direction by ``size`` (relative to its largest
+    coordinate; the sign picks the side), revolution by revolution (events, smallest gap, midspan amplitude), and
+    the period-1 orbit the shooting finds from where it ends (``ends_on``)."""
+    n = system.n
+    w, V = np.linalg.eig(o.monodromy)
+    dx = o.directions @ np.real(V[:, int(np.argmax(np.abs(w)))])
+    dx *= size * float(np.abs(o.q0).max()) / np.abs(dx[:n]).max()
+    phi = FlowMap(system, o.t0, T)
+    q, v, out = o.q0 + dx[:n], o.v0 + dx[n:], []
+    for k in range(revolutions):
+        f = phi(q, v, jacobian=False)
+        r = f.result
+        out.append({"revolution": k + 1, "events": len(r.events), "gap_min_m": float(r.gap.min()),
+                    "midspan_m": dr.midspan(system, 1.0 / T, np.asarray(r.t), r.q)})
+        q, v = f.q, f.v
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        e = periodic_orbit(system, T, q, v, o.t0, tol=1e-10, max_iter=15, attempts=1)
+    ends_on = {"converged": bool(e.converged), "residual": float(e.residual), "stable": bool(e.stable),
+               "events_per_period": int(e.events_per_period), "largest_multiplier": float(np.abs(e.multipliers[0])),
+               "midspan_m": dr.midspan(system, 1.0 / T, np.asarray(e.result.t), e.result.q),
+               "distance": float(np.abs(e.q0 - o.q0).max() / np.abs(o.q0).max())}
+    return {"revolutions": out, "ends_on": ends_on}
+
+
+def unstable(args) -> dict:
+    """``--unstable``: the branch at ``--gravity`` continued from the open orbit at the top of ``--unstable-range``
+    downwards (``nsfem periodic --continue``, which crosses grazings): the open orbits, their grazing, the touching
+    orbits past it and where they lose stability; at the middle unstable point the checks (a perturbation along the
+    leading Floquet direction against |mu_1|^k; where pushes of +-1e-6 along it lead after ``--revolutions``, and the
+    orbit the shooting finds from there).
+    Writes delamination_unstable.json/.csv (and the branch's files in unstable_branch/) into ``--out``, the figure
+    delamination_unstable.png and delamination_fold.png (with the branch of ``--fold`` when its
+    delamination_fold.json is in ``--out``)."""
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    g, beta = args.gravity, args.beta
+    lo, hi = (float(x) for x in args.unstable_range.split(":"))
+    t = time.perf_counter()
+    meta, points = continued(beta, g, hi, lo, hi, args.fold_steps, out / "unstable_branch")
+    wall = time.perf_counter() - t
+    grazings = [{"value": float(b["value"]), "events_per_period": b.get("events_per_period")}
+                for b in meta["bifurcations"] if b["kind"] == "grazing"]
+    un = sorted((i for i, p in enumerate(points) if not p["stable"] and p["events_per_period"] > 0),
+                key=lambda i: points[i]["speed_hz"])
+    checks = {}
+    if un:
+        i = un[len(un) // 2]
+        b = np.load(out / "unstable_branch" / "branch.npz")
+        sp = points[i]["speed_hz"]
+        system, T = build(sp, beta, 0.0, g)[:2]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # (near-grazing passages: the branch's json has them)
+            o = periodic_orbit(system, T, b["q0"][i], b["v0"][i], float(b["t0_s"][i]), tol=1e-12, max_iter=4,
+                               attempts=1)
+        checks["unstable_departure"] = dict(departure(system, T, o, args.periods, 1e-9), speed_hz=sp,
+                                            residual=float(o.residual), events_per_period=int(o.events_per_period))
+        checks["unstable_aftermath"] = {"speed_hz": sp, "size": 1e-6,
+                                        "plus": leave(system, T, o, args.revolutions, 1e-6),
+                                        "minus": leave(system, T, o, args.revolutions, -1e-6)}
+        for side in ("plus", "minus"):
+            pushed = checks["unstable_aftermath"][side]
+            last, e = pushed["revolutions"][-1], pushed["ends_on"]
+            print(f"from the unstable orbit at {sp:.6f} Hz pushed {side}: after {last['revolution']} revolutions "
+                  f"{last['events']} events, midspan {last['midspan_m'] * 1e3:.5f} mm; shot from there: converged "
+                  f"{e['converged']}, stable {e['stable']}, {e['events_per_period']} events, midspan "
+                  f"{e['midspan_m'] * 1e3:.5f} mm, |mu_1| {e['largest_multiplier']:.4f}, {e['distance']:.1e} from the "
+                  f"unstable orbit", file=sys.stderr, flush=True)
+    payload = {"study": "delamination_unstable", "gravity": g, "beta_s": beta, "branch": points,
+               "grazings": grazings, "stop": meta["stop"], "reason": meta["reason"], "sides": meta["sides"],
+               "checks": checks, "continuation_wall_s": wall, "machine": machine()}
+    write_outputs(out, "delamination_unstable", points, payload)
+    side_figure(payload, Path(args.figure).with_name("delamination_unstable.png"))
+    fold_json = out / "delamination_fold.json"
+    if fold_json.is_file():
+        fold_figure(json.loads(fold_json.read_text()), Path(args.figure).with_name("delamination_fold.png"), payload)
+    else:
+        print(f"delamination_variants: no {fold_json} (run --fold first): delamination_fold.png is not redrawn",
+              file=sys.stderr)
+    return payload
+
+
+def fold_figure(payload: dict, path: Path, side: dict | None = None) -> None:
+    """delamination_fold.png: the 2 g resonance curve (open orbits, the touching branch up to its fold) and its
+    multipliers; with ``side`` (the payload of ``--unstable``) also the branch from the open side through its
+    grazing (unstable dashed) in a zoom on the fold, and the departure from one of its unstable orbits."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     pts = sorted(payload["branch"], key=lambda r: r["speed_hz"])
     op = sorted(payload["open"], key=lambda r: r["speed_hz"])
-    fig, ax = plt.subplots(1, 2, figsize=(12, 4.4))
+    fig, axes = plt.subplots(2 if side else 1, 2, figsize=(12, 8.8 if side else 4.4), squeeze=False)
+    ax = axes[0]
     s = np.array([r["speed_hz"] for r in op])
     cut = np.flatnonzero(np.diff(s) > 0.006) + 1
     for k, (ps, pa) in enumerate(zip(np.split(s, cut), np.split(np.array([r["midspan_m"] for r in op]) * 1e3, cut))):
@@ -453,7 +563,8 @@ def fold_figure(payload: dict, path: Path) -> None:
     # (what ends the branch is read from the orbits, not assumed: at 2 g a grazing of contact 4 comes before the
     # smooth piece's saddle-node; docs/validation.md)
     ax[0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k",
-               label=f"the branch's end ({end['speed_hz']:.6f} Hz, |mu_1| {end['largest_multiplier']:.4f})")
+               label=f"the branch's end ({end['speed_hz']:.6f} Hz, |mu_1| {end['largest_multiplier']:.4f}; "
+                     f"continuation: {payload['stop']})")
     ax[0].set(xlabel="speed [Hz]", ylabel="midspan z (rotating frame), half p-p [mm]",
               title=f"gravity {payload['gravity']:g} m/s^2, beta {payload['beta_s']:g} s, frictionless")
     ax[1].plot([r["speed_hz"] for r in pts], [r["largest_multiplier"] for r in pts], "s", ms=3, color="C3",
@@ -463,10 +574,71 @@ def fold_figure(payload: dict, path: Path) -> None:
                label="leading multiplier real (> 0)")
     ax[1].axhline(1.0, color="k", lw=0.8)
     ax[1].set(xlabel="speed [Hz]", ylabel="|mu_1|", title="stability along the branch")
+    if side:
+        near = [r for r in pts if r["speed_hz"] > min(r["speed_hz"] for r in side["branch"]) - 0.006]
+        axes[1][0].plot([r["speed_hz"] for r in near], [r["midspan_m"] * 1e3 for r in near], "-s", ms=3, color="C3",
+                        label="touching branch from below (stable)")
+        axes[1][0].plot([end["speed_hz"]], [end["midspan_m"] * 1e3], "*", ms=14, color="k", label="its end")
+        draw_side(side, axes[1][0], ax[1], axes[1][1])
     for a in ax:
         a.grid(alpha=0.3)
         a.ticklabel_format(axis="x", useOffset=False)
         a.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def draw_side(side: dict, zoom, mult, dep) -> None:
+    """The branch of ``--unstable`` (open, touching stable, touching unstable dashed; its grazings dotted; where the
+    pushes from its unstable orbit end) on ``zoom`` (midspan) and ``mult`` (largest |multiplier|), and the departure
+    from its unstable orbit against mu_1^k on ``dep``."""
+    sb = sorted(side["branch"], key=lambda r: r["speed_hz"])
+    for label, sel, style, c in (
+            ("open orbits, continued down", lambda r: r["events_per_period"] == 0, "-o", "C0"),
+            ("past the open grazing: touching, stable", lambda r: r["events_per_period"] > 0 and r["stable"],
+             "-^", "C2"),
+            ("touching, unstable (real multiplier > 1)", lambda r: r["events_per_period"] > 0 and not r["stable"],
+             "--D", "k")):
+        rs = [r for r in sb if sel(r)]
+        if rs:
+            for a, y in ((zoom, [r["midspan_m"] * 1e3 for r in rs]), (mult, [r["largest_multiplier"] for r in rs])):
+                a.plot([r["speed_hz"] for r in rs], y, style, ms=3.5, color=c, mfc="none" if "un" in label else c,
+                       label=label)
+    for gz in side["grazings"]:
+        zoom.axvline(gz["value"], color="0.6", lw=0.6, ls=":")
+    after = side["checks"].get("unstable_aftermath")
+    if after:
+        ends = [after[k]["ends_on"] for k in ("plus", "minus") if after[k]["ends_on"]["converged"]]
+        if ends:
+            zoom.plot([after["speed_hz"]] * len(ends), [e["midspan_m"] * 1e3 for e in ends], "v", ms=8, mfc="none",
+                      color="C2", label="where pushes from the unstable orbit end (stable)")
+    zoom.set(xlabel="speed [Hz]", ylabel="midspan z, half p-p [mm]",
+             title="from the open side; dotted: grazings located by the continuation")
+    mult.axhline(1.0, color="k", lw=0.8)
+    c = side["checks"].get("unstable_departure")
+    if c:
+        k = np.arange(1, c["periods"] + 1)
+        dep.semilogy(k, c["relative_distance"], "o", color="k", ms=4,
+                     label=f"from the unstable orbit at {c['speed_hz']:.6f} Hz")
+        dep.semilogy(k, c["multiplier_re"] ** k, "-", color="k", lw=0.8,
+                     label=f"mu_1^k, mu_1 = {c['multiplier_re']:.4f}")
+    dep.set(xlabel="period k", ylabel="distance / initial", title="a perturbation along the leading Floquet direction")
+    for a in (zoom, mult, dep):
+        a.grid(alpha=0.3)
+        a.ticklabel_format(axis="x", useOffset=False)
+        a.legend(fontsize=7)
+
+
+def side_figure(side: dict, path: Path) -> None:
+    """delamination_unstable.png: the branch of ``--unstable`` alone (midspan, multipliers, departure)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(16, 4.4))
+    draw_side(side, ax[0], ax[1], ax[2])
+    ax[1].set(xlabel="speed [Hz]", ylabel="largest |multiplier|", title="stability (outside 1: unstable)")
+    fig.suptitle(f"gravity {side['gravity']:g} m/s^2, beta {side['beta_s']:g} s, frictionless", fontsize=9)
     fig.tight_layout()
     save_figure(fig, path)
 
@@ -559,6 +731,12 @@ def check_options(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--fold-range: {args.fold_range!r} is not LOW:HIGH")
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
         ap.error(f"--fold-range: {args.fold_range!r} needs finite speeds 0 < LOW < HIGH")
+    try:
+        ulo, uhi = (float(x) for x in args.unstable_range.split(":"))
+    except ValueError:
+        ap.error(f"--unstable-range: {args.unstable_range!r} is not LOW:HIGH")
+    if not (math.isfinite(ulo) and math.isfinite(uhi) and 0 < ulo < uhi):
+        ap.error(f"--unstable-range: {args.unstable_range!r} needs finite speeds 0 < LOW < HIGH")
     if not args.fold_steps >= 1:
         ap.error(f"--fold-steps must be >= 1, got {args.fold_steps}")
     if not Path(args.start).is_file():
@@ -598,10 +776,17 @@ def main(argv=None) -> dict:
     ap.add_argument("--gravity", type=float, default=20.0, help="gravity [m/s^2] of --fold (the paper: 9.81)")
     ap.add_argument("--fold-start-speed", type=float, default=22.80, help="--fold's starting orbit [Hz]")
     ap.add_argument("--fold-range", default="22.72:22.84", help="--fold's LOW:HIGH speeds [Hz]")
-    ap.add_argument("--fold-steps", type=int, default=80, help="--fold's continuation steps each way")
+    ap.add_argument("--fold-steps", type=int, default=80,
+                    help="--fold's (and --unstable's) continuation steps each way")
+    ap.add_argument("--unstable", action="store_true",
+                    help="instead: the frictionless branch at --gravity continued down from its open orbit at the top "
+                         "of --unstable-range through its grazings onto touching orbits, stable and unstable")
+    ap.add_argument("--unstable-range", default="22.805:22.83", help="--unstable's LOW:HIGH speeds [Hz]")
     args = ap.parse_args(argv)
     check_options(ap, args)
-    return fold(args) if args.fold else study(args)
+    if args.fold and args.unstable:
+        ap.error("--fold and --unstable are two runs: give one (the second draws both into delamination_fold.png)")
+    return fold(args) if args.fold else unstable(args) if args.unstable else study(args)
 
 
 if __name__ == "__main__":

@@ -352,13 +352,16 @@ def test_bonded_resonance_is_the_bonded_shafts_model():
 # higher speeds and ends where the speed turns (steps 1.9e-3 -> 1.2e-7 Hz) and a real multiplier rises towards +1: a
 # fold. Its last point (22.813003629 Hz, shot to 5e-11 by the continuation's corrector) is stored in
 # tests/data/delamination_fold_orbit.npz.
+# (The continuation that crosses grazings passes this point: it is a grazing, contact 4 at 4.4e-10 m, not a turn;
+# the branch goes on, stable, to 22.81415 Hz. What is asserted below holds of the stored orbit either way.)
 
 FOLD = DATA.with_name("delamination_fold_orbit.npz")
 
 
-def _fold_system(offset_hz: float = 0.0):
-    """(system, period, t0, q0, v0) of the stored fold orbit; ``offset_hz`` moves the speed from the stored one."""
-    d = np.load(FOLD)
+def _fold_system(offset_hz: float = 0.0, path=FOLD):
+    """(system, period, t0, q0, v0) of a stored orbit at 2 g (default the branch's first end, "fold");
+    ``offset_hz`` moves the speed from the stored one."""
+    d = np.load(path)
     speed, beta, g = float(d["speed_hz"]) + offset_hz, float(d["beta"]), float(d["gravity"])
     scene = load_scene("default", [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed!r}",
                                    f"rotation.gravity={g!r}"])
@@ -462,3 +465,151 @@ def test_fold_branch_ends_at_a_grazing_before_its_saddle_node():
     assert grazing < 1e-8 < 3e-8 < fold
     # the leading multiplier at the grazing (linear in p over 2.4e-9 Hz from mu0, rising 2e-2 per 1e-6 Hz): not +1
     assert mu0.real + grazing * (mu0.real - mu1.real) / delta < 0.998
+
+
+
+
+# --- the unstable branch at twice the gravity (studies/delamination_variants.py --unstable) ---------------------------
+# Continued downwards from the open orbit at 22.83 Hz (nsfem periodic --continue, which crosses grazings), the open
+# branch grazes at 22.819182 Hz and goes on as touching orbits (15-19 events a period) that are stable down to a
+# grazing at 22.817900 Hz, where the leading multiplier jumps from 0.989 (complex pair) to a real 1.466: the touching
+# orbits below it are unstable with one real multiplier > 1 (saddles; each next to a stable orbit with one brief
+# contact less, born at the same grazing: not the middle branch of the fold at 22.813 Hz; docs/validation.md). One
+# of them (22.817846160 Hz, 16 events, re-shot from the continuation's point to residual 8e-15) is stored in
+# tests/data/delamination_fold_unstable_orbit.npz.
+
+FOLD_UNSTABLE = DATA.with_name("delamination_fold_unstable_orbit.npz")
+
+
+def test_unstable_orbit_at_twice_the_gravity_returns_under_an_independent_flow():
+    """The stored orbit is a periodic orbit of the exact flow: a fresh integrator from its section state returns to
+    it after 1 and 2 periods, with the same events (the layers touching) in both periods."""
+    from nsfem.integrate.event_driven import Exact
+    from nsfem.periodic.flow import shifted
+
+    system, T, t0, q0, v0 = _fold_system(path=FOLD_UNSTABLE)
+    res = Exact(shifted(system, t0), progress=False).run(2 * T, T / 64, q0, v0)
+    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
+    for k in (1, 2):
+        i = int(np.argmin(np.abs(res.t - k * T)))
+        assert abs(res.t[i] - k * T) < 1e-12 * T
+        err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+        # stored at 8e-15; a period adds the event times' round-off (~1e-13 s located) times the state's rate, ~1e-12
+        # relative over 16 events, and the unstable direction multiplies what is there by ~1.6 a period: 1e-9 is a
+        # margin of 100 over two periods and far below the 5e-8 m (5e-6 relative) at which contact 1 would touch
+        assert err < 1e-9, k
+    events = [dict(e, t=e["t"] + t0) for e in res.events]
+    sig0, ph0 = _signature(events, t0, T, 0)
+    sig1, ph1 = _signature(events, t0, T, 1)
+    assert len(sig0) >= 4 and sig1 == sig0
+    # the layers touch: closings every period (briefly: 0.2 % of the time closed, between the output samples)
+    assert any("close" in s[1] for s in sig0) and res.info["closed_fraction"] > 0.0
+    assert np.abs(ph1 - ph0).max() < 1e-6
+
+
+def test_unstable_orbit_at_twice_the_gravity_is_left_at_its_real_multiplier():
+    """The orbit is unstable through one real multiplier > 1 (the loss of a fold's middle branch, not a
+    period-doubling or a Neimark-Sacker), set apart from the rest; a perturbation along its Floquet direction grows
+    at that multiplier a period under the exact transient, without changing sign."""
+    import warnings
+
+    system, T, t0, q0, v0 = _fold_system(path=FOLD_UNSTABLE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # (contact 1 passes 5e-8 m from contact without closing: reported)
+        o = periodic_orbit(system, T, q0, v0, t0, tol=1e-12, max_iter=3, attempts=1)
+    # (stored at 8e-15; a period's round-off is ~1e-15 relative, times the multiplier 1.6)
+    assert o.converged and o.residual < 1e-12 and o.events_per_period > 0
+    assert not o.stable and o.loss == "fold"
+    w, V = np.linalg.eig(o.monodromy)
+    j = int(np.argmax(np.abs(w)))
+    mu1 = w[j]
+    # real to the eigen-solver's round-off on a ~40-dimensional matrix (1e-12), outside the unit circle, and simple:
+    # every other modulus is below 1 (the orbit has one unstable direction: a saddle)
+    assert abs(mu1.imag) < 1e-10 and mu1.real > 1.0
+    assert np.sort(np.abs(w))[-2] < 1.0
+    n = system.n
+    dx = o.directions @ np.real(V[:, j])
+    dx *= 1e-9 * np.abs(o.q0).max() / np.abs(dx[:n]).max()
+    phi = FlowMap(system, o.t0, T)
+    q, v = o.q0 + dx[:n], o.v0 + dx[n:]
+    N = 8
+    signs = []
+    for _ in range(N):
+        f = phi(q, v, jacobian=False)
+        q, v = f.q, f.v
+        signs.append(np.sign(np.dot(np.concatenate([q - o.q0, v - o.v0]), dx)))
+    d = np.concatenate([q - o.q0, v - o.v0])
+    rate = (np.linalg.norm(d) / np.linalg.norm(dx)) ** (1.0 / N)
+    # along the eigenvector d_N = mu^N dx + O(|d|^2): after 8 periods |d| ~ 40 |dx| = 4e-8 of the state (4e-10 m,
+    # far from contact 1's 5e-8 m margin), so the second order is ~4e-8 of |d|; the orbit's own error (< 1e-12 a
+    # period) is < 1e-3 of |dx| per period and enters the 8th root as < 1e-3 of the rate; 3e-3 covers both and tells
+    # the real multiplier (> 1) from the next modulus (< 1) by far
+    assert rate == pytest.approx(abs(mu1), abs=3e-3)
+    assert signs == [np.sign(np.dot(dx, dx))] * N   # a positive real multiplier: the same side every period
+
+
+PAIR = DATA.with_name("delamination_fold_grazing_pair.npz")
+
+
+def test_grazing_pair_at_twice_the_gravity_is_a_stable_and_an_unstable_orbit_at_one_speed():
+    """At 22.817818 Hz, below the grazing at 22.817900 Hz, two touching period-1 orbits coexist on one section: a
+    saddle (one real multiplier > 1) and a stable orbit with another event sequence, where pushes of 1e-6 along the
+    saddle's direction end (studies/delamination_variants.py --unstable). Each is a fixed point of the exact flow."""
+    import warnings
+
+    d = np.load(PAIR)
+    speed, beta, g = float(d["speed_hz"]), float(d["beta"]), float(d["gravity"])
+    scene = load_scene("default", [f"damping.rayleigh=[0.0,{beta!r}]", f"rotation.speed_hz={speed!r}",
+                                   f"rotation.gravity={g!r}"])
+    model = build_model(scene)
+    red = scene_reduction(scene.reduction, model)
+    system = ContactSystem.from_model(model, red, scene.rotation, scene.damping)
+    T = 1.0 / speed
+    orbits = {}
+    for kind in ("stable", "unstable"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # (near-grazing passages are reported)
+            o = periodic_orbit(system, T, d[f"{kind}_q0"], d[f"{kind}_v0"], float(d[f"{kind}_t0"]), tol=1e-12,
+                               max_iter=3, attempts=1)
+        # both stored at <= 6e-15 (relative); a period's round-off ~1e-15 times the largest multiplier (1.6)
+        assert o.converged and o.residual < 1e-12 and o.events_per_period > 0, kind
+        orbits[kind] = o
+    s, u = orbits["stable"], orbits["unstable"]
+    assert s.stable and np.abs(s.multipliers).max() < 1.0
+    assert not u.stable and u.loss == "fold"
+    assert abs(u.multipliers[0].imag) < 1e-10 and u.multipliers[0].real > 1.0
+    assert s.events_per_period != u.events_per_period          # a different contact sequence
+    # two distinct orbits, not one found twice: their section states differ by far more than either's residual
+    # (1e-12) carried by the saddle's multiplier
+    assert s.t0 == u.t0
+    assert np.abs(s.q0 - u.q0).max() / np.abs(u.q0).max() > 1e-8
+
+
+BETWEEN = DATA.with_name("delamination_fold_unstable_between.npz")
+
+
+def test_unstable_orbit_between_the_fold_and_the_grazing_pair_has_two_real_multipliers_above_one():
+    """At 22.8135 Hz, between the 2 g branch's turn (22.813004 Hz) and the grazing pair (22.8179 Hz), Newton from the
+    turn's orbit converges to a touching orbit that is a fixed point of the exact flow with two real multipliers
+    above 1 (two unstable directions: not a fold's middle branch, which has one)."""
+    import warnings
+    from nsfem.integrate.event_driven import Exact
+    from nsfem.periodic.flow import shifted
+
+    system, T, t0, q0, v0 = _fold_system(path=BETWEEN)
+    res = Exact(shifted(system, t0), progress=False).run(T, T / 64, q0, v0)
+    i = int(np.argmin(np.abs(res.t - T)))
+    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
+    err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+    # shot to 3e-13; a period's round-off over ~40 events (~1e-12) times the largest multiplier (2.4): 1e-9 is a
+    # margin of 100s and far below the 1e-6 at which an event sequence changes
+    assert err < 1e-9
+    assert len(res.events) > 20                                    # the layers touch, many times a period
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # (near-grazing passages are reported)
+        o = periodic_orbit(system, T, q0, v0, t0, tol=1e-11, max_iter=3, attempts=1)
+    assert o.converged and not o.stable and o.loss == "fold"
+    # real to the eigen-solver's round-off on a ~40-dimensional matrix (1e-12), and two of them outside the circle
+    above = [m for m in o.multipliers if abs(m.imag) < 1e-10 and m.real > 1.0]
+    assert len(above) == 2
+    assert np.sum(np.abs(o.multipliers) > 1.0) == 2

@@ -4792,3 +4792,23 @@ def test_issue36_fold_study_refuses_every_start_speed_off_its_walk(speed, capsys
         return
     assert "--fold-start-speed" in _study_refusal("delamination_variants", ["--fold", "--fold-start-speed",
                                                                             repr(speed)], capsys)
+
+
+# --- issue 36: delamination variants study, the unstable branch at 2 g (--unstable) ---
+@pytest.mark.parametrize("argv, named", [(["--unstable-range", "22.83:22.805"], "--unstable-range"),
+                                         (["--unstable-range", "x"], "--unstable-range"),
+                                         (["--unstable-range", "nan:22.83"], "--unstable-range"),
+                                         (["--unstable", "--fold"], "--fold and --unstable")])
+def test_issue36_delamination_unstable_study_refuses_bad_options(argv, named, capsys):
+    assert named in _study_refusal("delamination_variants", argv, capsys)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(lo=st.floats(allow_nan=True, allow_infinity=True), hi=st.floats(allow_nan=True, allow_infinity=True))
+def test_issue36_delamination_unstable_study_refuses_every_bad_range(lo, hi, capsys):
+    """Property: an --unstable-range that is not finite speeds 0 < LOW < HIGH is refused naming it (before any
+    flow)."""
+    if math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi:
+        return
+    assert "--unstable-range" in _study_refusal("delamination_variants", ["--unstable-range", f"{lo!r}:{hi!r}"],
+                                                capsys)
