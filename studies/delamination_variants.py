@@ -703,6 +703,17 @@ def figure(payload: dict, path: Path) -> None:
     save_figure(fig, path)
 
 
+def _speed_range(ap: argparse.ArgumentParser, flag: str, text: str) -> tuple[float, float]:
+    """LOW:HIGH of ``flag`` as two finite speeds 0 < LOW < HIGH [Hz], or argparse's one-line error."""
+    try:
+        lo, hi = (float(x) for x in text.split(":"))
+    except ValueError:
+        ap.error(f"{flag}: {text!r} is not LOW:HIGH")
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        ap.error(f"{flag}: {text!r} needs finite speeds 0 < LOW < HIGH")
+    return lo, hi
+
+
 def check_options(ap: argparse.ArgumentParser, args) -> None:
     """Refuse a bad option in one line (``ap.error``: exit 2) before any flow."""
     for name, value in (("--beta", args.beta), ("--step", args.step), ("--fine", args.fine),
@@ -725,18 +736,8 @@ def check_options(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--gravity must be a finite number in (0, 100] m/s^2, got {args.gravity!r}")
     if not (math.isfinite(args.fold_start_speed) and args.fold_start_speed > 0):
         ap.error(f"--fold-start-speed must be a finite number > 0, got {args.fold_start_speed!r}")
-    try:
-        lo, hi = (float(x) for x in args.fold_range.split(":"))
-    except ValueError:
-        ap.error(f"--fold-range: {args.fold_range!r} is not LOW:HIGH")
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
-        ap.error(f"--fold-range: {args.fold_range!r} needs finite speeds 0 < LOW < HIGH")
-    try:
-        ulo, uhi = (float(x) for x in args.unstable_range.split(":"))
-    except ValueError:
-        ap.error(f"--unstable-range: {args.unstable_range!r} is not LOW:HIGH")
-    if not (math.isfinite(ulo) and math.isfinite(uhi) and 0 < ulo < uhi):
-        ap.error(f"--unstable-range: {args.unstable_range!r} needs finite speeds 0 < LOW < HIGH")
+    lo, hi = _speed_range(ap, "--fold-range", args.fold_range)
+    ulo, uhi = _speed_range(ap, "--unstable-range", args.unstable_range)
     if not args.fold_steps >= 1:
         ap.error(f"--fold-steps must be >= 1, got {args.fold_steps}")
     if not Path(args.start).is_file():
