@@ -79,19 +79,30 @@ def _signature(events, t0, T, k):
         np.array([(e["t"] - t0) / T - k for e in sel])
 
 
-def test_touching_orbit_returns_under_an_independent_flow():
-    """The stored touching orbit is a periodic orbit of the exact flow: a fresh integrator (no kept configurations,
-    no trace) from its section state returns to it after 1, 2 and 3 periods with the same events each period."""
+def _returns(system, T, t0, q0, v0, periods: int, samples: int = 64):
+    """A fresh exact integrator (no trace) from the section state (q0, q0') at t0 over ``periods`` periods, sampled
+    ``samples`` times a period: (the run, its relative distance from the start after each whole period, in
+    (q, q' / w) over the state's size)."""
     from nsfem.integrate.event_driven import Exact
     from nsfem.periodic.flow import shifted
 
-    system, T, t0, q0, v0 = _touching_system()
-    res = Exact(shifted(system, t0), progress=False).run(3 * T, T / 64, q0, v0)
+    res = Exact(shifted(system, t0), progress=False).run(periods * T, T / samples, q0, v0)
     size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
-    for k in (1, 2, 3):
+    errs = []
+    for k in range(1, periods + 1):
         i = int(np.argmin(np.abs(res.t - k * T)))
         assert abs(res.t[i] - k * T) < 1e-12 * T
-        err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+        errs.append(max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size)
+    return res, errs
+
+
+def test_touching_orbit_returns_under_an_independent_flow():
+    """The stored touching orbit is a periodic orbit of the exact flow: a fresh integrator (no kept configurations,
+    no trace) from its section state returns to it after 1, 2 and 3 periods with the same events each period."""
+
+    system, T, t0, q0, v0 = _touching_system()
+    res, errs = _returns(system, T, t0, q0, v0, 3)
+    for k, err in enumerate(errs, 1):
         # the orbit was shot to 2.3e-15; each period of the exact flow adds round-off of the event times (located to
         # ~1e-13 s by the root search) times the state's rate, ~1e-11 relative over 73 events; the motion is stable
         # (|mu| 0.99) so errors do not grow: 1e-9 is a margin of 100 over that and 1e5 below the smallest
@@ -161,16 +172,10 @@ def _friction_system(path):
 def test_unstable_orbit_returns_under_an_independent_flow():
     """The stored unstable orbit is a periodic orbit of the exact flow: a fresh integrator from its section state
     returns to it after 1 and 2 periods, with the same events each period and contact forces at 22.76 Hz."""
-    from nsfem.integrate.event_driven import Exact
-    from nsfem.periodic.flow import shifted
 
     system, T, t0, q0, v0 = _friction_system(UNSTABLE)
-    res = Exact(shifted(system, t0), progress=False).run(2 * T, T / 64, q0, v0)
-    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
-    for k in (1, 2):
-        i = int(np.argmin(np.abs(res.t - k * T)))
-        assert abs(res.t[i] - k * T) < 1e-12 * T
-        err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+    res, errs = _returns(system, T, t0, q0, v0, 2)
+    for k, err in enumerate(errs, 1):
         # shot to 6e-15; a period adds the event times' round-off (~1e-13 s located) times the state's rate, ~1e-12
         # relative over 9 events, and the unstable direction multiplies what is there by 1.22 a period: 1e-9 is a
         # margin of 100 over two periods and far below the 1e-6 at which an event sequence changes
@@ -356,14 +361,9 @@ def test_orbit_at_the_fold_has_a_real_multiplier_near_one():
     rest; the multiplier is checked against central differences of the flow along its eigenvector (independent of
     the saltation matrices). What ends the branch is a grazing, not the saddle-node: the next test."""
     import warnings
-    from nsfem.integrate.event_driven import Exact
-    from nsfem.periodic.flow import shifted
 
     system, T, t0, q0, v0 = _fold_system()
-    res = Exact(shifted(system, t0), progress=False).run(T, T / 64, q0, v0)
-    i = int(np.argmin(np.abs(res.t - T)))
-    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
-    err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+    res, (err,) = _returns(system, T, t0, q0, v0, 1)
     # stored at the corrector's 5e-11 (relative, in the same norm) plus a period's round-off (~1e-12): 1e-9 is a
     # margin of 20 and far below the 1e-6 at which an event sequence changes
     assert err < 1e-9
@@ -481,16 +481,10 @@ FOLD_UNSTABLE = DATA.with_name("delamination_fold_unstable_orbit.npz")
 def test_unstable_orbit_at_twice_the_gravity_returns_under_an_independent_flow():
     """The stored orbit is a periodic orbit of the exact flow: a fresh integrator from its section state returns to
     it after 1 and 2 periods, with the same events (the layers touching) in both periods."""
-    from nsfem.integrate.event_driven import Exact
-    from nsfem.periodic.flow import shifted
 
     system, T, t0, q0, v0 = _fold_system(path=FOLD_UNSTABLE)
-    res = Exact(shifted(system, t0), progress=False).run(2 * T, T / 64, q0, v0)
-    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
-    for k in (1, 2):
-        i = int(np.argmin(np.abs(res.t - k * T)))
-        assert abs(res.t[i] - k * T) < 1e-12 * T
-        err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+    res, errs = _returns(system, T, t0, q0, v0, 2)
+    for k, err in enumerate(errs, 1):
         # stored at 8e-15; a period adds the event times' round-off (~1e-13 s located) times the state's rate, ~1e-12
         # relative over 16 events, and the unstable direction multiplies what is there by ~1.6 a period: 1e-9 is a
         # margin of 100 over two periods and far below the 5e-8 m (5e-6 relative) at which contact 1 would touch
@@ -579,14 +573,9 @@ def test_unstable_orbit_between_the_fold_and_the_grazing_pair_has_two_real_multi
     turn's orbit converges to a touching orbit that is a fixed point of the exact flow with two real multipliers
     above 1 (two unstable directions: not a fold's middle branch, which has one)."""
     import warnings
-    from nsfem.integrate.event_driven import Exact
-    from nsfem.periodic.flow import shifted
 
     system, T, t0, q0, v0 = _fold_system(path=BETWEEN)
-    res = Exact(shifted(system, t0), progress=False).run(T, T / 64, q0, v0)
-    i = int(np.argmin(np.abs(res.t - T)))
-    size = max(np.abs(q0).max(), np.abs(v0).max() * T / (2 * np.pi))
-    err = max(np.abs(res.q[:, i] - q0).max(), np.abs(res.v[:, i] - v0).max() * T / (2 * np.pi)) / size
+    res, (err,) = _returns(system, T, t0, q0, v0, 1)
     # shot to 3e-13; a period's round-off over ~40 events (~1e-12) times the largest multiplier (2.4): 1e-9 is a
     # margin of 100s and far below the 1e-6 at which an event sequence changes
     assert err < 1e-9
