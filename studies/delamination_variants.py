@@ -274,17 +274,23 @@ def departure(system, T: float, o, periods: int, size: float) -> dict:
             "relative_distance": dist, "sign": sign, "rate": dist[-1] ** (1.0 / periods)}
 
 
-def aftermath(system, T: float, o, revolutions: int, size: float = 1e-4) -> list[dict]:
-    """The motion from the orbit's state scaled by 1 + ``size``, revolution by revolution (events, midspan)."""
-    phi = FlowMap(system, o.t0, T)
-    q, v, out = o.q0 * (1.0 + size), o.v0.copy(), []
+def _revolutions(system, T: float, t0: float, q, v, revolutions: int):
+    """The exact motion from (q, q') at the section t0, revolution by revolution: ([{"revolution", "events",
+    "gap_min_m", "midspan_m"}], the end state q, q')."""
+    phi = FlowMap(system, t0, T)
+    out = []
     for k in range(revolutions):
         f = phi(q, v, jacobian=False)
         r = f.result
         out.append({"revolution": k + 1, "events": len(r.events), "gap_min_m": float(r.gap.min()),
                     "midspan_m": dr.midspan(system, 1.0 / T, np.asarray(r.t), r.q)})
         q, v = f.q, f.v
-    return out
+    return out, q, v
+
+
+def aftermath(system, T: float, o, revolutions: int, size: float = 1e-4) -> list[dict]:
+    """The motion from the orbit's state scaled by 1 + ``size``, revolution by revolution (events, midspan)."""
+    return _revolutions(system, T, o.t0, o.q0 * (1.0 + size), o.v0.copy(), revolutions)[0]
 
 
 def study(args) -> dict:
@@ -456,14 +462,7 @@ def leave(system, T: float, o, revolutions: int, size: float) -> dict:
     w, V = np.linalg.eig(o.monodromy)
     dx = o.directions @ np.real(V[:, int(np.argmax(np.abs(w)))])
     dx *= size * float(np.abs(o.q0).max()) / np.abs(dx[:n]).max()
-    phi = FlowMap(system, o.t0, T)
-    q, v, out = o.q0 + dx[:n], o.v0 + dx[n:], []
-    for k in range(revolutions):
-        f = phi(q, v, jacobian=False)
-        r = f.result
-        out.append({"revolution": k + 1, "events": len(r.events), "gap_min_m": float(r.gap.min()),
-                    "midspan_m": dr.midspan(system, 1.0 / T, np.asarray(r.t), r.q)})
-        q, v = f.q, f.v
+    out, q, v = _revolutions(system, T, o.t0, o.q0 + dx[:n], o.v0 + dx[n:], revolutions)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         e = periodic_orbit(system, T, q, v, o.t0, tol=1e-10, max_iter=15, attempts=1)
