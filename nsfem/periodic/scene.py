@@ -231,7 +231,7 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
             raise KeyboardInterrupt
         q0, v0 = res.q[:, -1].copy(), res.v[:, -1].copy()
         origin = f"a transient of {transient_periods} periods from the scene's initial state"
-        if section == "quiet" and (t0 := _quiet_section(system, res, transient_periods, period, lead)):
+        if section == "quiet" and (t0 := _quiet_section(res, transient_periods, period)):
             q0, v0 = _flowed(system, q0, v0, t0, lead)
             origin += f" and on to its quiet phase t0 = {t0:.6g} s"
     else:
@@ -257,7 +257,7 @@ def orbit_of_scene(scene: "Scene", multiple: int = 1, start: str | Path | None =
     return so
 
 
-def _quiet_section(system, res, periods: int, period: float, lead: dict) -> float:
+def _quiet_section(res, periods: int, period: float) -> float:
     """The phase of the transient's last period farthest from its events (:func:`.flow.quiet_phase`), 0.0 without
     events."""
     from .flow import quiet_phase
